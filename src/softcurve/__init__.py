@@ -1,0 +1,28 @@
+"""softcurve: dynamics of hyper-elastic soft robots as spatial curves of piecewise constant curvature.
+
+The layers follow the paper: parameters (:mod:`softcurve.robot`, :mod:`softcurve.materials`,
+:mod:`softcurve.presets`), the symbolic model (:mod:`softcurve.kinematics`,
+:mod:`softcurve.dynamics`), the compiled model (:class:`softcurve.Model`) and the analyses
+built on it.
+"""
+
+from . import presets
+from ._validate import ParameterError
+from .materials import Creep, LinearStiffness, TanhStiffness
+from .model import CompilerWarning, Model, Pose
+from .robot import Robot, Segment
+
+__version__ = "0.1.0"
+
+__all__ = [
+    "CompilerWarning",
+    "Creep",
+    "LinearStiffness",
+    "Model",
+    "ParameterError",
+    "Pose",
+    "Robot",
+    "Segment",
+    "TanhStiffness",
+    "presets",
+]

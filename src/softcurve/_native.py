@@ -1,0 +1,110 @@
+"""Calling CasADi-generated C functions from Python through ctypes.
+
+CasADi's own ``Function.__call__`` converts every argument to a ``DM``, which costs
+tens of microseconds, far more than the compiled dynamics themselves. Here a
+generated function is called with pointers to NumPy buffers: the sparsity of every
+input and output, and the work-array sizes, are read from the library's own
+``<name>_sparsity_in/out`` and ``<name>_work`` symbols. Work arrays are allocated
+per call, so one function may be called from several threads (ctypes releases the
+GIL during the call).
+"""
+
+from __future__ import annotations
+
+import ctypes
+
+import numpy as np
+
+_int = ctypes.c_longlong  # casadi_int in generated code
+_int_p = ctypes.POINTER(_int)
+
+
+def _sparsity(pointer) -> tuple[int, int, np.ndarray | None]:
+    """Decode CasADi's compressed-column sparsity: (rows, cols, flat dense indices or None)."""
+    rows, cols = pointer[0], pointer[1]
+    if pointer[2] == 1:  # compact form of a dense pattern (a column index starts with 0)
+        return rows, cols, None
+    colind = [pointer[2 + j] for j in range(cols + 1)]
+    nnz = colind[-1]
+    if nnz == rows * cols:
+        return rows, cols, None
+    row = [pointer[2 + cols + 1 + k] for k in range(nnz)]
+    flat = np.empty(nnz, dtype=np.intp)
+    for j in range(cols):
+        for k in range(colind[j], colind[j + 1]):
+            flat[k] = row[k] * cols + j  # row-major position in the dense result
+    return rows, cols, flat
+
+
+class NativeFunction:
+    """A generated function ``name`` of the shared library ``library``.
+
+    Call it with one array per input (dense, the input's number of elements);
+    it returns a list of dense float64 arrays of each output's shape
+    (vectors flattened).
+    """
+
+    def __init__(self, library: ctypes.CDLL, name: str):
+        self.name = name
+        self._function = getattr(library, name)
+        self._function.restype = ctypes.c_int
+        self._function.argtypes = [ctypes.c_void_p] * 4 + [ctypes.c_int]
+        sizes = [_int() for _ in range(4)]
+        work = getattr(library, f"{name}_work")
+        work.argtypes = [_int_p] * 4
+        if work(*(ctypes.byref(s) for s in sizes)) != 0:
+            raise RuntimeError(f"{name}_work failed")
+        self._sz_arg, self._sz_res, self._sz_iw, self._sz_w = (s.value for s in sizes)
+        self.n_in = self._count(library, "n_in")
+        self.n_out = self._count(library, "n_out")
+        self._in = [self._read_sparsity(library, "in", i) for i in range(self.n_in)]
+        self._out = [self._read_sparsity(library, "out", i) for i in range(self.n_out)]
+        self._in_sizes = [r * c for r, c, _ in self._in]
+        for i, (_, _, flat) in enumerate(self._in):
+            if flat is not None:
+                raise RuntimeError(f"{name}: input {i} is sparse; only dense inputs are supported")
+
+    def _count(self, library, what: str) -> int:
+        f = getattr(library, f"{self.name}_{what}")
+        f.restype = _int
+        return int(f())
+
+    def _read_sparsity(self, library, what: str, i: int):
+        f = getattr(library, f"{self.name}_sparsity_{what}")
+        f.restype = _int_p
+        f.argtypes = [_int]
+        return _sparsity(f(i))
+
+    def __call__(self, *inputs) -> list[np.ndarray]:
+        if len(inputs) != self.n_in:
+            raise TypeError(f"{self.name} takes {self.n_in} inputs, got {len(inputs)}")
+        arg = (ctypes.c_void_p * max(self._sz_arg, 1))()
+        keep = []
+        for i, (value, size) in enumerate(zip(inputs, self._in_sizes)):
+            a = np.ascontiguousarray(value, dtype=np.float64).reshape(-1)
+            if a.size != size:
+                raise ValueError(f"{self.name}: input {i} needs {size} numbers, got {a.size}")
+            keep.append(a)
+            arg[i] = a.ctypes.data
+        res = (ctypes.c_void_p * max(self._sz_res, 1))()
+        outputs = []
+        for k, (rows, cols, flat) in enumerate(self._out):
+            nnz = rows * cols if flat is None else flat.size
+            buffer = np.zeros(nnz)
+            outputs.append(buffer)
+            res[k] = buffer.ctypes.data
+        iw = np.empty(max(self._sz_iw, 1), dtype=np.int64)
+        w = np.empty(max(self._sz_w, 1))
+        status = self._function(arg, res, iw.ctypes.data, w.ctypes.data, 0)
+        if status != 0:
+            raise RuntimeError(f"{self.name} returned status {status}")
+        result = []
+        for (rows, cols, flat), buffer in zip(self._out, outputs):
+            if flat is None:
+                dense = buffer.reshape(cols, rows).T  # CasADi stores column-major
+            else:
+                dense = np.zeros(rows * cols)
+                dense[flat] = buffer
+                dense = dense.reshape(rows, cols)
+            result.append(dense.ravel() if cols == 1 else np.ascontiguousarray(dense))
+        return result

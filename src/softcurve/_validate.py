@@ -1,0 +1,57 @@
+"""Validation of user input, shared by the parameter objects and the file readers."""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+class ParameterError(ValueError):
+    """A parameter is missing, malformed or outside its allowed range.
+
+    The message names the field, the value received and the allowed range.
+    """
+
+
+def real_scalar(name: str, value, *, positive: bool = False, nonzero: bool = False) -> float:
+    """Return ``value`` as a finite float, or raise :class:`ParameterError`."""
+    if isinstance(value, bool) or not np.isscalar(value) or not np.isrealobj(value):
+        raise ParameterError(f"{name} must be a real number, got {value!r}")
+    x = float(value)
+    if not np.isfinite(x):
+        raise ParameterError(f"{name} must be finite, got {x!r}")
+    if positive and not x > 0:
+        raise ParameterError(f"{name} must be > 0, got {x!r}")
+    if nonzero and x == 0:
+        raise ParameterError(f"{name} must be nonzero, got {x!r}")
+    return x
+
+
+def real_array(name: str, value, shape: tuple[int, ...]) -> np.ndarray:
+    """Return ``value`` as a read-only finite float64 array of ``shape``."""
+    try:
+        a = np.array(value, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise ParameterError(f"{name} must be a real array of shape {shape}: {exc}") from None
+    if a.shape != shape:
+        raise ParameterError(f"{name} must have shape {shape}, got {a.shape}")
+    if not np.all(np.isfinite(a)):
+        raise ParameterError(f"{name} must be finite, got {a.tolist()}")
+    a.setflags(write=False)
+    return a
+
+
+def positive_definite(name: str, value, size: int) -> np.ndarray:
+    """A symmetric positive-definite ``size x size`` matrix; a vector means a diagonal."""
+    a = np.asarray(value, dtype=np.float64) if not np.isscalar(value) else None
+    if a is not None and a.shape == (size,):
+        value = np.diag(a)
+    m = real_array(name, value, (size, size))
+    if not np.allclose(m, m.T, rtol=1e-12, atol=0.0):
+        raise ParameterError(f"{name} must be symmetric, got {m.tolist()}")
+    eigenvalues = np.linalg.eigvalsh(m)
+    if not eigenvalues.min() > 0:
+        raise ParameterError(
+            f"{name} must be positive definite (all eigenvalues > 0), "
+            f"got eigenvalues {eigenvalues.tolist()}"
+        )
+    return m
