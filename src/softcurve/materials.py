@@ -37,6 +37,7 @@ class LinearStiffness:
     k0: float
     kind: ClassVar[str] = "linear"
     n_parameters: ClassVar[int] = 1
+    parameter_labels: ClassVar[tuple[str, ...]] = ("k0",)
 
     def __post_init__(self):
         object.__setattr__(self, "k0", real_scalar("k0", self.k0, positive=True))
@@ -88,6 +89,7 @@ class TanhStiffness:
     a3: float
     kind: ClassVar[str] = "tanh"
     n_parameters: ClassVar[int] = 3
+    parameter_labels: ClassVar[tuple[str, ...]] = ("a1", "a2", "a3")
 
     def __post_init__(self):
         a1 = real_scalar("a1", self.a1, positive=True)

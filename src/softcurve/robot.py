@@ -152,17 +152,40 @@ class Robot:
         )
 
     def parameter_vector(self) -> np.ndarray:
-        """All numbers of the robot, in the order the compiled model reads them."""
-        values: list[float] = []
-        for s in self.segments:
-            values += [s.rest_length, s.mass, s.radius]
-            values += s.elongation_stiffness.parameters()
-            values += s.bending_stiffness.parameters()
-            values += s.damping.ravel().tolist()
+        """All numbers of the robot, in the order the compiled model reads them.
+
+        ``parameter_names()`` names each entry.
+        """
+        return np.array([value for _, value in self._parameters()], dtype=np.float64)
+
+    def parameter_names(self) -> list[str]:
+        """Names of the entries of ``parameter_vector()``, e.g.
+        ``"segments[0].bending_stiffness.a1"`` or ``"gravity[2]"``."""
+        return [name for name, _ in self._parameters()]
+
+    def _parameters(self) -> list[tuple[str, float]]:
+        entries: list[tuple[str, float]] = []
+
+        def add(prefix: str, values, labels):
+            entries.extend(
+                (f"{prefix}{label}", float(v)) for label, v in zip(labels, values, strict=True)
+            )
+
+        matrix = [f"[{i},{j}]" for i in range(3) for j in range(3)]
+        for k, s in enumerate(self.segments):
+            head = f"segments[{k}]."
+            add(head, [s.rest_length, s.mass, s.radius], ["rest_length", "mass", "radius"])
+            for mode in ("elongation_stiffness", "bending_stiffness"):
+                law = getattr(s, mode)
+                add(f"{head}{mode}.", law.parameters(), law.parameter_labels)
+            add(f"{head}damping", s.damping.ravel(), matrix)
             if s.creep is not None:
-                values += s.creep.parameters()
-        values += self.gravity.tolist() + self.base_rotation.ravel().tolist()
-        return np.array(values, dtype=np.float64)
+                add(f"{head}creep.rate", s.creep.rate, ["[0]", "[1]", "[2]"])
+                add(f"{head}creep.gain", s.creep.gain, ["[0]", "[1]", "[2]"])
+                add(f"{head}creep.compliance", s.creep.compliance.ravel(), matrix)
+        add("gravity", self.gravity, ["[0]", "[1]", "[2]"])
+        add("base_rotation", self.base_rotation.ravel(), matrix)
+        return entries
 
     def replace(self, **changes) -> Robot:
         """A copy with some fields changed (validated again)."""

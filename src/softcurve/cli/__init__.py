@@ -1,0 +1,49 @@
+"""The ``softcurve`` command line.
+
+Each subcommand lives in its own module of this package, which defines
+``register(subparsers)``: it adds its parser and sets ``handler`` to a function
+``handler(args) -> int`` (the exit code). Add a module's name to ``COMMANDS`` to
+expose it. Errors the user can fix (bad files, bad values) are printed on stderr
+without a traceback and give exit code 2; a solver that fails gives exit code 1.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+
+from .. import __version__
+from .._validate import ParameterError
+
+COMMANDS = ("info",)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="softcurve",
+        description="Dynamics of hyper-elastic soft robots as spatial curves "
+        "(piecewise constant curvature): simulation, equilibria, control, identification.",
+    )
+    parser.add_argument("--version", action="version", version=f"softcurve {__version__}")
+    subparsers = parser.add_subparsers(dest="command", metavar="COMMAND")
+    for name in COMMANDS:
+        importlib.import_module(f"{__name__}.{name}").register(subparsers)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    if getattr(args, "handler", None) is None:
+        parser.print_help()
+        return 2
+    try:
+        return int(args.handler(args))
+    except (ParameterError, FileNotFoundError, IsADirectoryError) as exc:
+        print(f"softcurve {args.command}: error: {exc}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())
