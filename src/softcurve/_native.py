@@ -80,7 +80,7 @@ class NativeFunction:
             raise TypeError(f"{self.name} takes {self.n_in} inputs, got {len(inputs)}")
         arg = (ctypes.c_void_p * max(self._sz_arg, 1))()
         keep = []
-        for i, (value, size) in enumerate(zip(inputs, self._in_sizes)):
+        for i, (value, size) in enumerate(zip(inputs, self._in_sizes, strict=True)):
             a = np.ascontiguousarray(value, dtype=np.float64).reshape(-1)
             if a.size != size:
                 raise ValueError(f"{self.name}: input {i} needs {size} numbers, got {a.size}")
@@ -99,7 +99,7 @@ class NativeFunction:
         if status != 0:
             raise RuntimeError(f"{self.name} returned status {status}")
         result = []
-        for (rows, cols, flat), buffer in zip(self._out, outputs):
+        for (rows, cols, flat), buffer in zip(self._out, outputs, strict=True):
             if flat is None:
                 dense = buffer.reshape(cols, rows).T  # CasADi stores column-major
             else:

@@ -14,7 +14,7 @@ class ParameterError(ValueError):
 
 def real_scalar(name: str, value, *, positive: bool = False, nonzero: bool = False) -> float:
     """Return ``value`` as a finite float, or raise :class:`ParameterError`."""
-    if isinstance(value, bool) or not np.isscalar(value) or not np.isrealobj(value):
+    if isinstance(value, bool | str | bytes) or not np.isscalar(value) or not np.isrealobj(value):
         raise ParameterError(f"{name} must be a real number, got {value!r}")
     x = float(value)
     if not np.isfinite(x):

@@ -19,7 +19,7 @@ from dataclasses import dataclass
 import casadi as ca
 import numpy as np
 
-from .kinematics import segment_frames
+from .kinematics import segment_angular_jacobian, segment_pose
 from .materials import STIFFNESS_LAWS, Creep
 
 DEFAULT_QUADRATURE_NODES = 12
@@ -111,6 +111,13 @@ def build_dynamics(
 ) -> DynamicsExpressions:
     """Assemble the equation of motion for a robot structure.
 
+    The inertial and gravitational forces come from a recursive Newton-Euler pass over
+    the segments (:func:`_newton_euler`), which costs O(N K) for N segments of K
+    quadrature nodes: ``D`` column by column with ``qd = 0``, ``C qd`` with ``qdd = 0``
+    and gravity with ``qd = qdd = 0``. The Christoffel matrix is
+    ``C = d(C qd)/d(qd) / 2``, since the Christoffel symbols are symmetric in the two
+    velocity indices.
+
     Parameters
     ----------
     structure : tuple
@@ -125,54 +132,28 @@ def build_dynamics(
     lam = ca.SX.sym("lam", n_creep)
     p = ca.SX.sym("p", parameter_count(structure))
     segments, gravity, base_rotation = unpack_parameters(p, structure)
+    chain = _SegmentChain(q, segments, quadrature_nodes)
+    base_gravity = base_rotation.T @ gravity
+    zero = ca.SX.zeros(n)
 
-    nodes, weights = np.polynomial.legendre.leggauss(quadrature_nodes)
-    nodes, weights = 0.5 * (nodes + 1.0), 0.5 * weights
-    points = [(i, float(s)) for i in range(n_segments) for s in nodes]
-    frames = segment_frames(q, n_segments, base_rotation, points)
-
-    # Kane's form: generalized inertia forces of each slice, J^T (m a) and the body-frame
-    # J_w^T (I w' + w x I w), with the accelerations' velocity-dependent parts taken by
-    # forward-mode differentiation along qd. Equal to the Christoffel form of C qd.
-    mass_matrix = ca.SX.zeros(n, n)
-    coriolis_force = ca.SX.zeros(n)
-    gravity_force = ca.SX.zeros(n)
-    gravity_energy = 0
-    for k, ((i, _), frame) in enumerate(zip(points, frames)):
-        seg, w = segments[i], weights[k % quadrature_nodes]
-        linear = ca.jacobian(frame.position, q)
-        angular = frame.angular_jacobian
-        r2 = seg.radius**2
-        inertia = ca.vertcat(r2 / 4, r2 / 4, r2 / 2)
-        velocity, omega = linear @ qd, angular @ qd
-        linear_bias = ca.jtimes(velocity, q, qd)
-        angular_bias = ca.jtimes(omega, q, qd)
-        mass_matrix += w * seg.mass * (linear.T @ linear + angular.T @ (inertia * angular))
-        coriolis_force += (
-            w
-            * seg.mass
-            * (
-                linear.T @ linear_bias
-                + angular.T @ (inertia * angular_bias + ca.cross(omega, inertia * omega))
-            )
-        )
-        gravity_force -= w * seg.mass * (linear.T @ gravity)
-        gravity_energy -= w * seg.mass * ca.dot(gravity, frame.position)
+    mass_matrix = ca.horzcat(
+        *(chain.newton_euler(zero, ca.SX(ca.DM.eye(n)[:, j]), ca.SX.zeros(3)) for j in range(n))
+    )
+    mass_matrix = 0.5 * (mass_matrix + mass_matrix.T)  # exact already; removes round-off
+    coriolis_force = chain.newton_euler(qd, zero, ca.SX.zeros(3))
+    gravity_force = chain.newton_euler(zero, zero, base_gravity)
+    bias_force = chain.newton_euler(qd, zero, base_gravity)  # C qd + G in one pass
+    gravity_energy = chain.gravity_energy(base_gravity)
 
     elastic_force, elastic_energy = _elastic(q, segments, structure)
     kinetic_energy = 0.5 * ca.dot(qd, mass_matrix @ qd)
     damping_force = ca.diagcat(*(seg.damping for seg in segments)) @ qd
     creep_force, creep_rate = _creep(qd, lam, segments, n)
 
-    generalized = tau + creep_force - coriolis_force - gravity_force - elastic_force - damping_force
+    generalized = tau + creep_force - bias_force - elastic_force - damping_force
     forward = ca.solve(mass_matrix, generalized)
     inverse = (
-        mass_matrix @ qdd
-        + coriolis_force
-        + gravity_force
-        + elastic_force
-        + damping_force
-        - creep_force
+        chain.newton_euler(qd, qdd, base_gravity) + elastic_force + damping_force - creep_force
     )
     return DynamicsExpressions(
         q=q,
@@ -184,7 +165,7 @@ def build_dynamics(
         n_segments=n_segments,
         base_rotation=base_rotation,
         mass_matrix=mass_matrix,
-        coriolis_matrix=_christoffel(mass_matrix, q, qd),
+        coriolis_matrix=0.5 * ca.jacobian(coriolis_force, qd),
         coriolis_force=coriolis_force,
         gravity_force=gravity_force,
         elastic_force=elastic_force,
@@ -199,6 +180,130 @@ def build_dynamics(
     )
 
 
+@dataclass(frozen=True)
+class _Point:
+    """A material point of a segment, in the segment's base frame: rotation, position,
+    their Jacobians w.r.t. the segment's coordinates (linear ``dp/dq_i``; angular in the
+    point's own frame) and the quadrature weight times the segment mass."""
+
+    rotation: ca.SX
+    position: ca.SX
+    linear: ca.SX
+    angular: ca.SX
+    mass: ca.SX
+
+
+class _SegmentChain:
+    """The robot's segments with their quadrature points, for Newton-Euler passes."""
+
+    def __init__(self, q, segments, quadrature_nodes: int):
+        nodes, weights = np.polynomial.legendre.leggauss(quadrature_nodes)
+        self.q, self.segments = q, segments
+        self.points, self.tips = [], []
+        for i, seg in enumerate(segments):
+            q_i = q[3 * i : 3 * i + 3]
+            self.points.append(
+                [
+                    self._point(q_i, 0.5 * (x + 1.0), 0.5 * w * seg.mass)
+                    for x, w in zip(nodes, weights, strict=True)
+                ]
+            )
+            self.tips.append(self._point(q_i, 1.0, 0.0))
+
+    @staticmethod
+    def _point(q_i, s, mass) -> _Point:
+        rotation, position = segment_pose(q_i, s)
+        return _Point(
+            rotation, position, ca.jacobian(position, q_i), segment_angular_jacobian(q_i, s), mass
+        )
+
+    def _coordinates(self, i):
+        return self.q[3 * i : 3 * i + 3]
+
+    def newton_euler(self, qd, qdd, base_gravity):
+        """Generalized inertial plus gravitational forces ``D qdd + C qd + G``, shape (n,).
+
+        Gravity enters as an upward acceleration ``-g`` of the base. Frame quantities are
+        in the frame's own coordinates: angular velocity ``omega``, angular acceleration
+        ``alpha`` and origin acceleration ``accel``.
+        """
+        n_segments = len(self.segments)
+        omega, alpha, accel = ca.SX.zeros(3), ca.SX.zeros(3), -base_gravity
+        frames = []
+        for i in range(n_segments):
+            frames.append((omega, alpha, accel))
+            q_i, qd_i, qdd_i = self._coordinates(i), qd[3 * i : 3 * i + 3], qdd[3 * i : 3 * i + 3]
+            # the tip slice's frame is the next segment's frame
+            tip_accel, omega, alpha = _point_motion(
+                self.tips[i], q_i, qd_i, qdd_i, omega, alpha, accel
+            )
+            accel = self.tips[i].rotation.T @ tip_accel
+        forces = [None] * n_segments
+        wrench_force, wrench_moment = ca.SX.zeros(3), ca.SX.zeros(3)  # from downstream
+        for i in reversed(range(n_segments)):
+            q_i, qd_i, qdd_i = self._coordinates(i), qd[3 * i : 3 * i + 3], qdd[3 * i : 3 * i + 3]
+            omega, alpha, accel = frames[i]
+            tip = self.tips[i]
+            force_at_tip = tip.rotation @ wrench_force
+            generalized = tip.linear.T @ force_at_tip + tip.angular.T @ wrench_moment
+            total_force = force_at_tip
+            total_moment = tip.rotation @ wrench_moment + ca.cross(tip.position, force_at_tip)
+            for point in self.points[i]:
+                linear_accel, body_omega, body_alpha = _point_motion(
+                    point, q_i, qd_i, qdd_i, omega, alpha, accel
+                )
+                inertia = self.segments[i].radius ** 2 * ca.DM([0.25, 0.25, 0.5])
+                force = point.mass * linear_accel
+                moment = point.mass * (
+                    inertia * body_alpha + ca.cross(body_omega, inertia * body_omega)
+                )
+                generalized += point.linear.T @ force + point.angular.T @ moment
+                total_force += force
+                total_moment += ca.cross(point.position, force) + point.rotation @ moment
+            forces[i] = generalized
+            wrench_force, wrench_moment = total_force, total_moment
+        return ca.vertcat(*forces)
+
+    def gravity_energy(self, base_gravity):
+        """``-sum m g . x`` over the quadrature points, in base-frame coordinates."""
+        rotation, origin, energy = ca.SX.eye(3), ca.SX.zeros(3), 0
+        for points, tip in zip(self.points, self.tips, strict=True):
+            for point in points:
+                energy -= point.mass * ca.dot(base_gravity, origin + rotation @ point.position)
+            origin = origin + rotation @ tip.position
+            rotation = rotation @ tip.rotation
+        return energy
+
+
+def _point_motion(point, q_i, qd_i, qdd_i, omega, alpha, accel):
+    """Acceleration of a material point (segment-frame coordinates), and the angular
+    velocity and acceleration of its slice (slice coordinates), given the segment frame's
+    angular velocity ``omega``, angular acceleration ``alpha`` and origin acceleration
+    ``accel`` (segment-frame coordinates)."""
+    rate = point.linear @ qd_i  # velocity relative to the segment frame
+    linear_bias = ca.jtimes(rate, q_i, qd_i)  # (d/dt dp/dq) qd
+    relative_omega = point.angular @ qd_i
+    angular_bias = ca.jtimes(relative_omega, q_i, qd_i)
+    r = point.position
+    linear_accel = (
+        accel
+        + ca.cross(alpha, r)
+        + ca.cross(omega, ca.cross(omega, r))
+        + 2 * ca.cross(omega, rate)
+        + point.linear @ qdd_i
+        + linear_bias
+    )
+    frame_omega = point.rotation.T @ omega
+    body_omega = frame_omega + relative_omega
+    body_alpha = (
+        point.rotation.T @ alpha
+        - ca.cross(relative_omega, frame_omega)
+        + point.angular @ qdd_i
+        + angular_bias
+    )
+    return linear_accel, body_omega, body_alpha
+
+
 def _elastic(q, segments, structure):
     """Elastic forces ``k(x) x dx/dq`` and energy, from the squared strains.
 
@@ -206,7 +311,9 @@ def _elastic(q, segments, structure):
     smooth at zero curvature where ``beta`` itself is not.
     """
     forces, energy = [], 0
-    for i, (seg, (elongation_kind, bending_kind, _)) in enumerate(zip(segments, structure)):
+    for i, (seg, (elongation_kind, bending_kind, _)) in enumerate(
+        zip(segments, structure, strict=True)
+    ):
         length, kx, ky = q[3 * i], q[3 * i + 1], q[3 * i + 2]
         eps = length - seg.rest_length
         kappa2 = kx**2 + ky**2
@@ -238,13 +345,3 @@ def _creep(qd, lam, segments, n):
         k += 3
     rate = ca.vertcat(*rates) if rates else ca.SX(0, 1)
     return force, rate
-
-
-def _christoffel(mass_matrix, q, qd):
-    """``C_ij = sum_k 1/2 (dD_ij/dq_k + dD_ik/dq_j - dD_jk/dq_i) qd_k``.
-
-    The three sums are ``Ddot``, ``A = d(D qd)/dq`` and ``A^T``: ``C = (Ddot + A - A^T) / 2``.
-    """
-    a = ca.jacobian(mass_matrix @ qd, q)
-    d_dot = ca.jtimes(mass_matrix, q, qd)
-    return 0.5 * (d_dot + a - a.T)

@@ -74,6 +74,34 @@ class Pose:
         return iter((self.rotation, self.position))
 
 
+@dataclass(frozen=True)
+class DynamicsTerms:
+    """The terms of ``D qdd + C qd + G + K + R qd = tau + K_c^T lam`` at one state.
+
+    Attributes: ``mass_matrix`` (n, n), ``coriolis_force``, ``gravity_force``,
+    ``elastic_force``, ``damping_force`` (``R qd``) and ``creep_force`` (``K_c^T lam``),
+    each (n,).
+    """
+
+    mass_matrix: np.ndarray
+    coriolis_force: np.ndarray
+    gravity_force: np.ndarray
+    elastic_force: np.ndarray
+    damping_force: np.ndarray
+    creep_force: np.ndarray
+
+    def inverse_dynamics(self, qdd) -> np.ndarray:
+        """``tau`` that produces the accelerations ``qdd`` at this state."""
+        return (
+            self.mass_matrix @ qdd
+            + self.coriolis_force
+            + self.gravity_force
+            + self.elastic_force
+            + self.damping_force
+            - self.creep_force
+        )
+
+
 class Model:
     """The dynamics of a robot, compiled.
 
@@ -122,7 +150,7 @@ class Model:
             library = _compiled_library(self._structure, quadrature_nodes, lambda: self.symbolic)
             if library is not None:
                 handle = ctypes.CDLL(str(library))
-                self._native = {name: NativeFunction(handle, name) for name in FUNCTION_NAMES}
+                self._native = {name: NativeFunction(handle, name) for name in COMPILED_FUNCTIONS}
                 self.compiled_library = library
 
     @property
@@ -151,7 +179,7 @@ class Model:
         return a
 
     def _call(self, name: str, *args) -> list[np.ndarray]:
-        if self._native is not None:
+        if self._native is not None and name in self._native:
             return self._native[name](*args, self.parameters)
         out = self.symbolic[name](*args, self.parameters)
         if not isinstance(out, tuple | list):
@@ -166,29 +194,39 @@ class Model:
         return x[:n], x[n : 2 * n], x[2 * n :]
 
     # -- dynamics ------------------------------------------------------------------
+    def dynamics_terms(self, q, qd, lam=None) -> DynamicsTerms:
+        """Every term of eq. (16) at one state, from one compiled evaluation."""
+        values = self._call(
+            "dynamics_terms",
+            self._vector("q", q, self.n),
+            self._vector("qd", qd, self.n),
+            self._vector("lam", lam, self.n_creep),
+        )
+        return DynamicsTerms(*values)
+
     def mass_matrix(self, q) -> np.ndarray:
         """Inertia matrix ``D(q)``, shape (n, n), symmetric positive definite."""
-        return self._call("mass_matrix", self._vector("q", q, self.n))[0]
+        return self.dynamics_terms(q, np.zeros(self.n)).mass_matrix
 
     def coriolis_matrix(self, q, qd) -> np.ndarray:
-        """``C(q, qd)`` from the Christoffel symbols of ``D``, shape (n, n)."""
-        return self._call(
-            "coriolis_matrix", self._vector("q", q, self.n), self._vector("qd", qd, self.n)
-        )[0]
+        """``C(q, qd)`` with Christoffel symbols of ``D``, shape (n, n); ``Ddot - 2C`` is
+        skew-symmetric. Evaluated in CasADi's virtual machine (analysis, not a hot path)."""
+        out = self.symbolic["coriolis_matrix"](
+            self._vector("q", q, self.n), self._vector("qd", qd, self.n), self.parameters
+        )
+        return np.array(out, dtype=np.float64)
 
     def coriolis_force(self, q, qd) -> np.ndarray:
         """``C(q, qd) qd``, shape (n,)."""
-        return self._call(
-            "coriolis_force", self._vector("q", q, self.n), self._vector("qd", qd, self.n)
-        )[0]
+        return self.dynamics_terms(q, qd).coriolis_force
 
     def gravity_force(self, q) -> np.ndarray:
         """``dV_g/dq``, shape (n,) [N or N m]."""
-        return self._call("gravity_force", self._vector("q", q, self.n))[0]
+        return self.dynamics_terms(q, np.zeros(self.n)).gravity_force
 
     def elastic_force(self, q) -> np.ndarray:
         """``dV_e/dq``, shape (n,)."""
-        return self._call("elastic_force", self._vector("q", q, self.n))[0]
+        return self.dynamics_terms(q, np.zeros(self.n)).elastic_force
 
     def potential_force(self, q) -> np.ndarray:
         """``N(q) = dV/dq``, gravity plus elastic, shape (n,)."""
@@ -201,11 +239,8 @@ class Model:
 
     def kinetic_energy(self, q, qd) -> float:
         """``T(q, qd) = qd' D(q) qd / 2`` [J]."""
-        return float(
-            self._call(
-                "kinetic_energy", self._vector("q", q, self.n), self._vector("qd", qd, self.n)
-            )[0][0]
-        )
+        qd = self._vector("qd", qd, self.n)
+        return float(0.5 * qd @ self.mass_matrix(q) @ qd)
 
     def energy(self, q, qd) -> float:
         """Total mechanical energy ``T + V`` [J]."""
@@ -213,24 +248,18 @@ class Model:
 
     def forward_dynamics(self, q, qd, tau=None, lam=None) -> np.ndarray:
         """Accelerations ``qdd`` solving eq. (16) for the given forces, shape (n,)."""
-        tau = np.zeros(self.n) if tau is None else tau
-        return self._call(
-            "forward_dynamics",
-            self._vector("q", q, self.n),
-            self._vector("qd", qd, self.n),
-            self._vector("tau", tau, self.n),
-            self._vector("lam", lam, self.n_creep),
-        )[0]
+        x = np.concatenate(
+            [
+                self._vector("q", q, self.n),
+                self._vector("qd", qd, self.n),
+                self._vector("lam", lam, self.n_creep),
+            ]
+        )
+        return self.state_derivative(x, tau)[self.n : 2 * self.n]
 
     def inverse_dynamics(self, q, qd, qdd, lam=None) -> np.ndarray:
         """Generalized forces ``tau`` that produce ``qdd``, shape (n,)."""
-        return self._call(
-            "inverse_dynamics",
-            self._vector("q", q, self.n),
-            self._vector("qd", qd, self.n),
-            self._vector("qdd", qdd, self.n),
-            self._vector("lam", lam, self.n_creep),
-        )[0]
+        return self.dynamics_terms(q, qd, lam).inverse_dynamics(self._vector("qdd", qdd, self.n))
 
     def creep_rate(self, qd, lam) -> np.ndarray:
         """``lambda'`` of eq. (19), shape (n_creep,)."""
@@ -312,6 +341,19 @@ def _symbolic_functions(e) -> dict[str, ca.Function]:
     frame = frame_at(q, e.n_segments, e.base_rotation, s)
     jacobian = ca.vertcat(ca.jacobian(frame.position, q), frame.rotation @ frame.angular_jacobian)
     spec = {
+        "dynamics_terms": (
+            [q, qd, lam],
+            ["q", "qd", "lam"],
+            [
+                e.mass_matrix,
+                e.coriolis_force,
+                e.gravity_force,
+                e.elastic_force,
+                e.damping_force,
+                e.creep_force,
+            ],
+            ["D", "Cqd", "G", "K", "Rqd", "KcT_lam"],
+        ),
         "mass_matrix": ([q], ["q"], [e.mass_matrix], ["D"]),
         "coriolis_matrix": ([q, qd], ["q", "qd"], [e.coriolis_matrix], ["C"]),
         "coriolis_force": ([q, qd], ["q", "qd"], [e.coriolis_force], ["Cqd"]),
@@ -344,22 +386,19 @@ def _symbolic_functions(e) -> dict[str, ca.Function]:
     return functions
 
 
-FUNCTION_NAMES = (
-    "mass_matrix",
-    "coriolis_matrix",
-    "coriolis_force",
-    "gravity_force",
-    "elastic_force",
+COMPILED_FUNCTIONS = (
+    "dynamics_terms",
     "potential_energy",
-    "kinetic_energy",
-    "forward_dynamics",
-    "inverse_dynamics",
     "creep_rate",
     "rhs",
     "pose",
     "jacobian",
 )
-_LIGHTLY_OPTIMISED = {"coriolis_matrix"}  # large and off the hot path: -O1 compiles 3x faster
+"""Compiled to C: every term of the equation of motion comes from ``dynamics_terms`` and
+the accelerations from ``rhs``, so the large expressions are compiled twice, not once per
+method; ``coriolis_matrix`` (for analysis, several times larger than ``C qd``) runs in
+CasADi's virtual machine. The other entries of ``symbolic`` are for users who build on
+CasADi (optimal control, code generation)."""
 _SYMBOLIC_SOURCES = ("_smooth.py", "materials.py", "kinematics.py", "dynamics.py", "model.py")
 
 
@@ -408,16 +447,16 @@ def _compile(functions: dict[str, ca.Function], compiler: list[str], library: Pa
     library.parent.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory() as tmp:
         jobs = []
-        for name, f in functions.items():
+        for name in COMPILED_FUNCTIONS:
+            f = functions[name]
             generator = ca.CodeGenerator(f"{name}.c", {"with_header": False})
             generator.add(f)
             generator.generate(tmp + os.sep)
-            level = "-O1" if name in _LIGHTLY_OPTIMISED else "-O2"
-            jobs.append([*compiler, level, "-fPIC", "-c", f"{name}.c", "-o", f"{name}.o"])
+            jobs.append([*compiler, *_COMPILE_FLAGS, "-c", f"{name}.c", "-o", f"{name}.o"])
         with ThreadPoolExecutor(max_workers=os.cpu_count() or 1) as pool:
             list(pool.map(lambda job: _run(job, tmp), jobs))
         partial = Path(tmp, "model.so")
-        objects = [f"{name}.o" for name in functions]
+        objects = [f"{name}.o" for name in COMPILED_FUNCTIONS]
         _run([*compiler, "-shared", "-o", str(partial), *objects, "-lm"], tmp)
         staged = library.parent / f".{library.name}.{os.getpid()}"
         shutil.copyfile(partial, staged)

@@ -1,0 +1,91 @@
+"""The compiled model: cache, fallback without a compiler, the native call path."""
+
+from __future__ import annotations
+
+import os
+
+import numpy as np
+import pytest
+
+import softcurve as sc
+from softcurve import model as model_module
+
+from .conftest import assert_close
+
+
+def test_second_model_reuses_the_cached_library(paper_model):
+    library = paper_model.compiled_library
+    assert library is not None and library.exists()
+    stamp = os.stat(library).st_mtime_ns
+    again = sc.Model(sc.presets.ifac2020(creep=True).replace(gravity=[0.0, 0.0, 9.81]))
+    assert again.compiled_library == library  # parameters differ, structure does not
+    assert os.stat(library).st_mtime_ns == stamp
+
+
+def test_parameters_are_bound_at_run_time(paper_model):
+    hanging = sc.Model(sc.presets.ifac2020().replace(gravity=[0.0, 0.0, 9.81]))
+    q = np.array([0.064, 0.0, 0.0])
+    assert_close(hanging.gravity_force(q), -paper_model.gravity_force(q), rtol=1e-15)
+
+
+def test_without_a_compiler_the_model_warns_once_and_still_works(monkeypatch, tmp_path):
+    monkeypatch.setenv("SOFTCURVE_CACHE_DIR", str(tmp_path))
+    monkeypatch.setattr(model_module, "_compiler", lambda: None)
+    with pytest.warns(sc.CompilerWarning, match="no C compiler found"):
+        model = sc.Model(sc.presets.ifac2020())
+    assert model.compiled_library is None
+    q, qd = np.array([0.064, 25.0, 0.0]), np.array([0.0, 0.0, 1500.0])
+    assert np.all(np.isfinite(model.forward_dynamics(q, qd)))
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_a_failing_compiler_falls_back_with_its_message(monkeypatch, tmp_path):
+    monkeypatch.setenv("SOFTCURVE_CACHE_DIR", str(tmp_path))
+    monkeypatch.setenv("CC", "false")  # exists and fails
+    with pytest.warns(sc.CompilerWarning, match="compiling the model with false failed"):
+        model = sc.Model(sc.presets.ifac2020())
+    assert model.compiled_library is None
+    assert not any(path.suffix == ".so" for path in tmp_path.iterdir())
+
+
+def test_native_and_virtual_machine_agree_on_every_compiled_function(paper_model, rng):
+    vm = paper_model.symbolic
+    q = np.array([0.066, 17.0, -9.0])
+    args = {
+        "dynamics_terms": (q, rng.normal(size=3), rng.normal(size=3)),
+        "potential_energy": (q,),
+        "creep_rate": (rng.normal(size=3), rng.normal(size=3)),
+        "rhs": (rng.normal(size=9) * 0.01 + np.r_[q, np.zeros(6)], rng.normal(size=3) * 1e-3),
+        "pose": (q, 0.7),
+        "jacobian": (q, 0.7),
+    }
+    assert set(args) == set(model_module.COMPILED_FUNCTIONS)
+    for name, inputs in args.items():
+        native = paper_model._native[name](*inputs, paper_model.parameters)
+        reference = vm[name](*inputs, paper_model.parameters)
+        reference = reference if isinstance(reference, tuple) else (reference,)
+        for a, b in zip(native, reference, strict=True):
+            b = np.array(b)
+            b = b.ravel() if b.shape[1] == 1 else b
+            assert_close(a, b, rtol=1e-13, scale=np.abs(b).max() + 1e-300, what=name)
+
+
+def test_native_call_checks_sizes(paper_model):
+    with pytest.raises(ValueError, match="input 0 needs 3 numbers, got 2"):
+        paper_model._native["pose"]([0.064, 0.0], 0.5, paper_model.parameters)
+
+
+def test_scipy_rhs_and_state_derivative(paper_model):
+    x = np.array([0.064, 25.0, 0.0, 0.0, 0.0, 1500.0, 0.0, 0.0, 0.0])
+    f = paper_model.rhs()
+    xdot = f(0.0, x)
+    assert xdot.shape == (9,) and xdot.dtype == np.float64
+    assert_close(xdot[:3], x[3:6], rtol=0, atol=0)
+    assert_close(xdot[3:6], paper_model.forward_dynamics(x[:3], x[3:6]), rtol=1e-15)
+    casadi_rhs = paper_model.casadi_rhs()
+    assert_close(
+        np.array(casadi_rhs(x, np.zeros(3), paper_model.parameters)).ravel(),
+        xdot,
+        rtol=1e-13,
+        scale=np.abs(xdot).max(),
+    )
