@@ -2,16 +2,17 @@
 
 CasADi's own ``Function.__call__`` converts every argument to a ``DM``, which costs
 tens of microseconds, far more than the compiled dynamics themselves. Here a
-generated function is called with pointers to NumPy buffers: the sparsity of every
+generated function is called with pointers to preallocated NumPy buffers: the sparsity of every
 input and output, and the work-array sizes, are read from the library's own
-``<name>_sparsity_in/out`` and ``<name>_work`` symbols. Work arrays are allocated
-per call, so one function may be called from several threads (ctypes releases the
-GIL during the call).
+``<name>_sparsity_in/out`` and ``<name>_work`` symbols. Buffers are kept per thread,
+so one function may be called from several threads (ctypes releases the GIL during
+the call). Buffers are allocated once per thread and function.
 """
 
 from __future__ import annotations
 
 import ctypes
+import threading
 
 import numpy as np
 
@@ -60,6 +61,7 @@ class NativeFunction:
         self._in = [self._read_sparsity(library, "in", i) for i in range(self.n_in)]
         self._out = [self._read_sparsity(library, "out", i) for i in range(self.n_out)]
         self._in_sizes = [r * c for r, c, _ in self._in]
+        self._local = threading.local()
         for i, (_, _, flat) in enumerate(self._in):
             if flat is not None:
                 raise RuntimeError(f"{name}: input {i} is sparse; only dense inputs are supported")
@@ -75,36 +77,53 @@ class NativeFunction:
         f.argtypes = [_int]
         return _sparsity(f(i))
 
+    def _buffers(self) -> _Buffers:
+        buffers = getattr(self._local, "buffers", None)
+        if buffers is None:
+            buffers = self._local.buffers = _Buffers(self)
+        return buffers
+
     def __call__(self, *inputs) -> list[np.ndarray]:
         if len(inputs) != self.n_in:
             raise TypeError(f"{self.name} takes {self.n_in} inputs, got {len(inputs)}")
-        arg = (ctypes.c_void_p * max(self._sz_arg, 1))()
-        keep = []
-        for i, (value, size) in enumerate(zip(inputs, self._in_sizes, strict=True)):
-            a = np.ascontiguousarray(value, dtype=np.float64).reshape(-1)
-            if a.size != size:
-                raise ValueError(f"{self.name}: input {i} needs {size} numbers, got {a.size}")
-            keep.append(a)
-            arg[i] = a.ctypes.data
-        res = (ctypes.c_void_p * max(self._sz_res, 1))()
-        outputs = []
-        for k, (rows, cols, flat) in enumerate(self._out):
-            nnz = rows * cols if flat is None else flat.size
-            buffer = np.zeros(nnz)
-            outputs.append(buffer)
-            res[k] = buffer.ctypes.data
-        iw = np.empty(max(self._sz_iw, 1), dtype=np.int64)
-        w = np.empty(max(self._sz_w, 1))
-        status = self._function(arg, res, iw.ctypes.data, w.ctypes.data, 0)
+        buffers = self._buffers()
+        for i, (value, target) in enumerate(zip(inputs, buffers.inputs, strict=True)):
+            a = np.asarray(value, dtype=np.float64)
+            if a.size != target.size:
+                raise ValueError(
+                    f"{self.name}: input {i} needs {target.size} numbers, got {a.size}"
+                )
+            target[:] = a.reshape(-1)
+        status = self._function(buffers.arg, buffers.res, buffers.iw_pointer, buffers.w_pointer, 0)
         if status != 0:
             raise RuntimeError(f"{self.name} returned status {status}")
         result = []
-        for (rows, cols, flat), buffer in zip(self._out, outputs, strict=True):
+        for (rows, cols, flat), buffer in zip(self._out, buffers.outputs, strict=True):
             if flat is None:
                 dense = buffer.reshape(cols, rows).T  # CasADi stores column-major
             else:
                 dense = np.zeros(rows * cols)
                 dense[flat] = buffer
                 dense = dense.reshape(rows, cols)
-            result.append(dense.ravel() if cols == 1 else np.ascontiguousarray(dense))
+            result.append(dense.ravel() if cols == 1 else np.array(dense))
         return result
+
+
+class _Buffers:
+    """Input, output and work arrays of one function for one thread, with the pointer
+    arrays the generated code reads, built once."""
+
+    def __init__(self, function: NativeFunction):
+        self.inputs = [np.zeros(size) for size in function._in_sizes]
+        self.outputs = [
+            np.zeros(r * c if flat is None else flat.size) for r, c, flat in function._out
+        ]
+        self.iw = np.zeros(max(function._sz_iw, 1), dtype=np.int64)
+        self.w = np.zeros(max(function._sz_w, 1))
+        self.arg = (ctypes.c_void_p * max(function._sz_arg, 1))()
+        self.res = (ctypes.c_void_p * max(function._sz_res, 1))()
+        for i, a in enumerate(self.inputs):
+            self.arg[i] = a.ctypes.data
+        for i, a in enumerate(self.outputs):
+            self.res[i] = a.ctypes.data
+        self.iw_pointer, self.w_pointer = self.iw.ctypes.data, self.w.ctypes.data

@@ -40,7 +40,7 @@ class CompilerWarning(UserWarning):
     """No C compiler was found or it failed: the model runs in CasADi's virtual machine."""
 
 
-_COMPILE_FLAGS = ("-O2", "-fPIC")
+_COMPILE_FLAGS = ("-O2", "-fPIC", "-fvisibility=hidden", "-DGCC_HASCLASSVISIBILITY")
 
 
 def cache_directory() -> Path:
