@@ -89,3 +89,19 @@ def test_scipy_rhs_and_state_derivative(paper_model):
         rtol=1e-13,
         scale=np.abs(xdot).max(),
     )
+
+
+def test_results_are_independent_of_later_calls(paper_model):
+    """Native buffers are reused between calls; results handed out must not be."""
+    q = np.array([0.066, 12.0, -9.0])
+    first = paper_model.elastic_force(q)
+    kept = first.copy()
+    d_first = paper_model.mass_matrix(q)
+    paper_model.elastic_force(q + [1e-3, 5.0, 0.0])
+    paper_model.mass_matrix(q + [1e-3, 5.0, 0.0])
+    np.testing.assert_array_equal(first, kept)
+    np.testing.assert_array_equal(d_first, paper_model.mass_matrix(q))
+    x = np.r_[q, np.zeros(6)]
+    a = paper_model.state_derivative(x)
+    b = paper_model.state_derivative(x + 0.01)
+    assert not np.array_equal(a, b)

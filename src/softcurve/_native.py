@@ -97,15 +97,15 @@ class NativeFunction:
         status = self._function(buffers.arg, buffers.res, buffers.iw_pointer, buffers.w_pointer, 0)
         if status != 0:
             raise RuntimeError(f"{self.name} returned status {status}")
-        result = []
+        result = []  # fresh arrays: the buffers are overwritten by the next call
         for (rows, cols, flat), buffer in zip(self._out, buffers.outputs, strict=True):
             if flat is None:
-                dense = buffer.reshape(cols, rows).T  # CasADi stores column-major
+                dense = buffer.reshape(cols, rows).T.copy()  # CasADi stores column-major
             else:
                 dense = np.zeros(rows * cols)
                 dense[flat] = buffer
                 dense = dense.reshape(rows, cols)
-            result.append(dense.ravel() if cols == 1 else np.array(dense))
+            result.append(dense.ravel() if cols == 1 else dense)
         return result
 
 
