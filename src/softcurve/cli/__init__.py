@@ -16,7 +16,7 @@ import sys
 from .. import __version__
 from .._validate import ParameterError
 
-COMMANDS = ("info",)
+COMMANDS = ("info", "simulate", "equilibria", "codegen", "sweep", "fit")
 
 
 def build_parser() -> argparse.ArgumentParser:

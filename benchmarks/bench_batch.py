@@ -1,0 +1,157 @@
+"""Throughput of simulate_batch against a Python loop of simulate() calls.
+
+Run:  python benchmarks/bench_batch.py [--size 200] [--loop 20] [--dt 0.01] [--repeat 3]
+      [--nodes 12,6]
+
+The batch is the paper's case (preset ifac2020, one segment, 10 s, rtol 1e-6) with the
+initial curvature kx spread over [20, 30] 1/m and the initial rate dky/dt over
+[1000, 2000] 1/(m s), so that no two members are alike. Rows: a loop of simulate() over
+``--loop`` members (scaled to the batch size); simulate_batch on 1 thread and on all
+usable cores; simulate_batch split over one worker process per core (what
+``softcurve sweep`` does); for the default model (12 quadrature nodes per segment) and
+for ``Model(robot, quadrature_nodes=6)``.
+
+Columns: best wall time of ``--repeat`` runs; CPU time of this process; simulated seconds
+per wall-clock second (the target of issue 6); simulated seconds per CPU second of this
+process (independent of other load on the machine; "-" when the work ran in other
+processes); speed-up over the loop; ``diff single``: max difference from the loop's
+simulate() results; ``error``: against a tight-tolerance run (12 nodes, rtol 1e-10). Both
+are the max over the loop's members, times and states of |x - x_ref| / (max_t |x_ref| +
+the state's natural scale). Other processes on the machine slow every row; the load
+average is printed.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import platform
+import time
+from concurrent.futures import ProcessPoolExecutor
+from multiprocessing import get_context
+
+import numpy as np
+
+import softcurve as sc
+from softcurve.batch import default_threads, simulate_batch
+from softcurve.simulate import nominal_scale
+
+T_FINAL = 10.0
+
+
+def members(size: int) -> tuple[np.ndarray, np.ndarray]:
+    rng = np.random.default_rng(2020)
+    q0s = np.column_stack([np.full(size, 0.064), rng.uniform(20, 30, size), np.zeros(size)])
+    qd0s = np.column_stack([np.zeros(size), np.zeros(size), rng.uniform(1000, 2000, size)])
+    return q0s, qd0s
+
+
+def _chunk(args):
+    q0s, qd0s, dt, nodes = args
+    model = sc.Model(sc.presets.ifac2020(), quadrature_nodes=nodes)
+    return simulate_batch(model, T_FINAL, q0s, qd0s, dt=dt, threads=1).x
+
+
+def best_of(repeat, run):
+    best, result = (np.inf, np.inf), None
+    for _ in range(repeat):
+        wall, cpu = time.perf_counter(), time.process_time()
+        result = run()
+        best = min(best, (time.perf_counter() - wall, time.process_time() - cpu))
+    return best, result
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--size", type=int, default=200, help="members in the batch")
+    parser.add_argument("--loop", type=int, default=20, help="members simulated one by one")
+    parser.add_argument("--dt", type=float, default=0.01, help="output interval [s]")
+    parser.add_argument("--repeat", type=int, default=3)
+    parser.add_argument(
+        "--nodes", default="12,6", help="quadrature nodes of the models to time (default 12 and 6)"
+    )
+    args = parser.parse_args()
+
+    model = sc.Model(sc.presets.ifac2020())
+    q0s, qd0s = members(args.size)
+    simulate_batch(model, T_FINAL, q0s[:2], qd0s[:2], dt=args.dt)  # warm-up: build integrators
+    reference = simulate_batch(model, T_FINAL, q0s, qd0s, dt=args.dt, rtol=1e-10).x
+    scale = np.abs(reference).max(axis=1, keepdims=True) + nominal_scale(
+        model, np.zeros(model.n_state)
+    )
+    threads = default_threads()
+    print(
+        f"softcurve batch benchmark: paper case, {args.size} members x {T_FINAL:g} s, "
+        f"rtol 1e-6, output every {args.dt:g} s"
+    )
+    print(
+        f"  {platform.processor() or platform.machine()}, {os.cpu_count()} cores ({threads} "
+        f"usable), load average {os.getloadavg()[0]:.1f}, Python {platform.python_version()}"
+    )
+    header = (
+        f"{'how':<36}{'wall [s]':>9}{'cpu [s]':>9}{'sim s / s':>11}{'per cpu s':>10}"
+        f"{'speed-up':>10}{'diff single':>13}{'error':>10}"
+    )
+    print(header)
+    print("-" * len(header))
+
+    count = min(args.loop, args.size)
+    (wall, cpu), singles = best_of(
+        1,
+        lambda: [sc.simulate(model, T_FINAL, q0s[i], qd0s[i], dt=args.dt).x for i in range(count)],
+    )
+    singles = np.array(singles)
+
+    def row(label, wall, cpu, x):
+        rate = args.size * T_FINAL / wall
+        per_cpu = f"{args.size * T_FINAL / cpu:>10.0f}" if cpu > 0.1 * wall else f"{'-':>10}"
+        diff = np.max(np.abs(x[:count] - singles) / scale[:count])
+        error = np.max(np.abs(x[:count] - reference[:count]) / scale[:count])
+        print(
+            f"{label:<36}{wall:>9.2f}{cpu:>9.2f}{rate:>11.0f}{per_cpu}"
+            f"{rate / loop_rate:>10.1f}{diff:>13.1e}{error:>10.1e}"
+        )
+
+    x_loop = np.concatenate([singles, reference[count:]])  # only the first `count` are run
+    loop_rate = count * T_FINAL / wall
+    row(
+        f"loop of simulate(), 12 nodes ({count})",
+        wall * args.size / count,
+        cpu * args.size / count,
+        x_loop,
+    )
+    for nodes in [int(n) for n in args.nodes.split(",")]:
+        timed = (
+            model
+            if nodes == model.quadrature_nodes
+            else sc.Model(sc.presets.ifac2020(), quadrature_nodes=nodes)
+        )
+        simulate_batch(timed, T_FINAL, q0s[:2], qd0s[:2], dt=args.dt)  # warm-up
+        for n_threads in sorted({1, threads}):
+            (wall, cpu), x = best_of(
+                args.repeat,
+                lambda t=n_threads, m=timed: (
+                    simulate_batch(m, T_FINAL, q0s, qd0s, dt=args.dt, threads=t).x
+                ),
+            )
+            row(f"batch, {nodes} nodes, {n_threads} thread(s)", wall, cpu, x)
+        if threads > 1:
+            pieces = [
+                (a, b, args.dt, nodes)
+                for a, b in zip(
+                    np.array_split(q0s, threads), np.array_split(qd0s, threads), strict=True
+                )
+            ]
+            with ProcessPoolExecutor(threads, mp_context=get_context("spawn")) as pool:
+                list(pool.map(_chunk, pieces))  # warm-up: start the workers, load the model
+                (wall, cpu), x = best_of(
+                    args.repeat, lambda p=pool, c=pieces: np.concatenate(list(p.map(_chunk, c)))
+                )
+            row(f"batch, {nodes} nodes, {threads} processes", wall, cpu, x)
+    print("cpu: this process only (the worker processes of the last rows are not counted);")
+    print("error: against the 12-node model at rtol 1e-10, so it includes the model error of")
+    print("fewer quadrature nodes; diff single: against simulate() with the 12-node model.")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,131 @@
+"""Wall time of the paper's 10 s case: softcurve.simulate against SciPy's RK45.
+
+Run:  python benchmarks/bench_simulate.py [--repeat N] [--quick]
+
+Prints, for each integrator and tolerance, the best wall time of ``--repeat`` runs
+(after a warm-up run, so the model is compiled and CasADi's integrator is set up), the
+real-time factor (10 s simulated / wall time), the work (steps, right-hand sides,
+Jacobians) and the error against a tight-tolerance run (adams, rtol 1e-11): the max over
+time and states of |x - x_ref| / (max_t |x_ref| + the state's natural scale).
+
+Pin to one core for the single-core figure:  taskset -c 0 python benchmarks/bench_simulate.py
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import platform
+import time
+
+import numpy as np
+from scipy.integrate import solve_ivp
+
+import softcurve as sc
+from softcurve.simulate import nominal_scale
+
+Q0, QD0, T_FINAL = np.array([0.064, 25.0, 0.0]), np.array([0.0, 0.0, 1500.0]), 10.0
+
+
+def error(x, reference, scale) -> float:
+    return float(np.max(np.abs(x - reference) / scale))
+
+
+def best_of(repeat, run):
+    times, result = [], None
+    for _ in range(repeat):
+        start = time.perf_counter()
+        result = run()
+        times.append(time.perf_counter() - start)
+    return min(times), result
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--repeat", type=int, default=10)
+    parser.add_argument("--quick", action="store_true", help="fewer cases, fewer repeats")
+    args = parser.parse_args()
+    repeat = 3 if args.quick else args.repeat
+
+    model = sc.Model(sc.presets.ifac2020())
+    sc.simulate(model, T_FINAL, Q0, QD0)  # warm-up: CasADi builds its derivative functions
+    reference = sc.simulate(model, T_FINAL, Q0, QD0, method="adams", rtol=1e-11)
+    scale = np.abs(reference.x).max(axis=0) + nominal_scale(model, np.zeros(model.n_state))
+    affinity = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else "?"
+    print(f"softcurve simulate benchmark: paper case, {T_FINAL:g} s, output every 1 ms")
+    print(
+        f"  {platform.processor() or platform.machine()}, {os.cpu_count()} cores "
+        f"({affinity} usable by this process), Python {platform.python_version()}"
+    )
+    print(f"  reference: cvodes-adams rtol 1e-11, {reference.stats['steps']} steps")
+    print()
+    header = (
+        f"{'integrator':<28}{'rtol':>7}{'wall [ms]':>11}{'x real time':>13}{'steps':>8}"
+        f"{'rhs':>8}{'jac':>6}{'error':>10}"
+    )
+    print(header)
+    print("-" * len(header))
+
+    def row(label, rtol, wall, trajectory=None, x=None, work=("", "", "")):
+        if trajectory is not None:
+            x = trajectory.x
+            s = trajectory.stats
+            work = (s["steps"], s["rhs_evaluations"], s["jacobian_evaluations"])
+        print(
+            f"{label:<28}{rtol:>7.0e}{1e3 * wall:>11.2f}{T_FINAL / wall:>13.0f}"
+            f"{work[0]!s:>8}{work[1]!s:>8}{work[2]!s:>6}{error(x, reference.x, scale):>10.1e}"
+        )
+
+    tolerances = (1e-6,) if args.quick else (1e-4, 1e-6, 1e-8)
+    for method in ("cvodes", "adams", "bdf"):
+        for rtol in tolerances:
+            wall, trajectory = best_of(
+                repeat,
+                lambda m=method, r=rtol: sc.simulate(model, T_FINAL, Q0, QD0, method=m, rtol=r),
+            )
+            label = "simulate " + (
+                "(default) " + trajectory.stats["method"]
+                if method == "cvodes"
+                else trajectory.stats["method"]
+            )
+            row(label, rtol, wall, trajectory)
+    inner = min(sc.simulate(model, T_FINAL, Q0, QD0).stats["wall_time"] for _ in range(repeat))
+    label = "  of which integration only"
+    print(f"{label:<28}{1e-6:>7.0e}{1e3 * inner:>11.2f}{T_FINAL / inner:>13.0f}")
+
+    x0 = np.concatenate([Q0, QD0, np.zeros(model.n_creep)])
+    grid = np.linspace(0.0, T_FINAL, 10001)
+    compiled = model.rhs()
+
+    def rhs(t, x):  # a fresh array per call: RK45 keeps earlier derivatives
+        return np.array(compiled(t, x))
+
+    for rtol in (1e-6,) if args.quick else (1e-4, 1e-6):
+        atol = rtol * nominal_scale(model, x0)
+        wall, solution = best_of(
+            min(repeat, 3),
+            lambda r=rtol, a=atol: solve_ivp(
+                rhs, (0.0, T_FINAL), x0, "RK45", t_eval=grid, rtol=r, atol=a
+            ),
+        )
+        row("scipy solve_ivp RK45", rtol, wall, x=solution.y.T, work=("", solution.nfev, 0))
+        wall, trajectory = best_of(
+            min(repeat, 3),
+            lambda r=rtol: sc.simulate(model, T_FINAL, Q0, QD0, method="rk45", rtol=r),
+        )
+        row("simulate rk45", rtol, wall, trajectory)
+
+    virtual = sc.Model(sc.presets.ifac2020(), compile=False)
+    sc.simulate(virtual, 0.1, Q0, QD0)
+    wall, trajectory = best_of(
+        1 if args.quick else 2, lambda: sc.simulate(virtual, T_FINAL, Q0, QD0)
+    )
+    row("cvodes on CasADi VM (no C)", 1e-6, wall, trajectory)
+    print()
+    print("The default integrator is CVODES inside CasADi on the model's compiled C (loaded as a")
+    print("CasADi external, Newton matrix by forward differences); the VM row is the same")
+    print("integration with the right-hand side interpreted by CasADi's virtual machine.")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,337 @@
+"""Integration engines behind :func:`softcurve.simulate`: compiled CVODES and SciPy's RK45,
+the state scales and tolerances, and the stiffness estimate that chooses Adams or BDF.
+
+Both engines answer one question: starting from state ``x`` at time ``t0``, integrate over
+``[t0, t0 + h]`` with a piecewise-constant input ``tau`` (one value per output interval)
+and return the state at the output times ``t0 + h * tout`` (``0 < tout <= 1``).
+
+CVODES runs inside CasADi's compiled integrator. The right-hand side is the model's
+compiled ``rhs`` loaded as a CasADi ``external`` function, so an integration of
+thousands of steps never returns to Python. Its Newton matrix comes from forward
+differences of that compiled function (one Jacobian costs ``n_state + 1`` right-hand
+sides); an exact symbolic Jacobian would be ~6x the size of the right-hand side and
+add ~30 s of compilation per robot structure for a ~20 % gain at run time. The state is
+integrated scaled, ``x = nominal * xs``, so that every scaled state is of order one:
+finite-difference steps are then well sized and one absolute tolerance serves all.
+"""
+
+from __future__ import annotations
+
+import threading
+import weakref
+
+import casadi as ca
+import numpy as np
+from scipy.integrate import RK45
+
+from . import model as model_module
+
+_DAE_CACHE: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+"""Per model: ``{scale: (dae, {(grid, options): integrator})}``, dropped with the model."""
+_CACHED_SCALES = 8
+
+
+STIFFNESS_RATIO = 10.0
+"""``"cvodes"`` uses BDF when max decay rate > STIFFNESS_RATIO * max oscillation frequency."""
+
+
+def nominal_scale(model, x0: np.ndarray) -> np.ndarray:
+    """A positive scale per state: ``max(|x0|, floor)``, floors from the geometry.
+
+    Lengths scale with the rest length ``l0``, curvatures with ``1/l0`` (a 1 rad bend),
+    rates with those per second, creep states with their steady response ``gain/rate``
+    to such a rate (1 where the gain is zero). The default absolute tolerance is
+    ``rtol`` times this scale, so every state is accurate to ``rtol`` relative to the
+    larger of its value and its natural size.
+    """
+    q_floor = np.concatenate(
+        [[s.rest_length, 1 / s.rest_length, 1 / s.rest_length] for s in model.robot.segments]
+    )
+    lam_floor = []
+    for k, s in enumerate(model.robot.segments):
+        if s.creep is not None:
+            response = np.abs(s.creep.gain) / s.creep.rate * q_floor[3 * k : 3 * k + 3]
+            lam_floor.extend(np.where(response > 0, response, 1.0))
+    floor = np.concatenate([q_floor, q_floor, lam_floor])
+    return np.maximum(np.abs(x0), floor)
+
+
+def _linearisation(model, x0, tau0, nominal) -> np.ndarray:
+    """Eigenvalues of ``d xdot / dx`` at ``x0`` by central differences."""
+    jac = np.empty((x0.size, x0.size))
+    for i in range(x0.size):
+        step = 1e-6 * nominal[i]
+        e = np.zeros(x0.size)
+        e[i] = step
+        forward = np.array(model.state_derivative(x0 + e, tau0))
+        backward = np.array(model.state_derivative(x0 - e, tau0))
+        jac[:, i] = (forward - backward) / (2 * step)
+    return np.linalg.eigvals(jac)
+
+
+def stiffness_ratio(model, x0, tau0=None, nominal=None) -> float:
+    """Fastest decay rate over fastest oscillation frequency of the linearisation at ``x0``
+    (at least ``1 rad/s``): large for stiff problems."""
+    tau0 = np.zeros(model.n) if tau0 is None else tau0
+    nominal = nominal_scale(model, x0) if nominal is None else nominal
+    eigenvalues = _linearisation(model, np.asarray(x0, float), tau0, nominal)
+    decay = float(np.max(-eigenvalues.real, initial=0.0))
+    oscillation = max(1.0, float(np.max(np.abs(eigenvalues.imag), initial=0.0)))
+    return decay / oscillation
+
+
+class IntegrationFailure(RuntimeError):
+    """The integrator stopped; ``states`` holds the outputs reached before it did."""
+
+    def __init__(self, reason: str, states: np.ndarray):
+        super().__init__(reason)
+        self.reason = reason
+        self.states = states
+
+
+def _scaled_dae(model, nominal: np.ndarray) -> tuple[ca.Function, dict]:
+    """``dxs/dtau = h f(nominal * xs, u, p) / nominal`` over normalised time ``tau``.
+
+    The parameter input is ``(robot parameters, h)``; ``u`` is the input force ``tau``.
+    Cached per model and scale with the integrators built on it, so CasADi's derivative
+    functions are built once; returns ``(dae, integrators)``.
+    """
+    per_model = _DAE_CACHE.setdefault(model, {})
+    key = nominal.tobytes()
+    if key in per_model:
+        return per_model[key]
+    if len(per_model) >= _CACHED_SCALES:
+        per_model.clear()
+    if model.compiled_library is not None:
+        rhs = ca.external(
+            "rhs", str(model.compiled_library), {"enable_fd": True, "fd_method": "forward"}
+        )
+    else:
+        rhs = model.symbolic["rhs"]
+    n_par = model.parameters.size
+    t = ca.MX.sym("t")
+    xs = ca.MX.sym("x", model.n_state)
+    z = ca.MX.sym("z", 0)
+    p = ca.MX.sym("p", n_par + 1)
+    u = ca.MX.sym("u", model.n)
+    scale = ca.DM(nominal)
+    ode = p[n_par] * rhs(scale * xs, u, p[:n_par]) / scale
+    empty = ca.MX(0, 1)
+    dae = ca.Function(
+        "softcurve_dae", [t, xs, z, p, u], [ode, empty, empty, empty], ca.dyn_in(), ca.dyn_out()
+    )
+    per_model[key] = (dae, {})
+    return per_model[key]
+
+
+class _Engine:
+    """Shared by the engines: split the input into runs where it is constant, because an
+    error-controlled integrator must not step across a jump of the input."""
+
+    def advance(self, x, h, tout, taus) -> np.ndarray:
+        """States (len(tout), n_state) at ``t0 + h * tout`` from ``x`` at ``t0``, with
+        ``taus[k]`` applied on ``(tout[k-1], tout[k]]``."""
+        taus = np.asarray(taus)
+        out = np.empty((tout.size, x.size))
+        changes = np.flatnonzero(np.any(taus[1:] != taus[:-1], axis=1)) + 1
+        start = 0.0
+        for k, stop in zip(np.r_[0, changes], np.r_[changes, tout.size], strict=True):
+            j = stop - 1
+            length = tout[j] - start
+            try:
+                out[k:stop] = self._constant(
+                    x, h * length, (tout[k:stop] - start) / length, taus[k]
+                )
+            except IntegrationFailure as failure:
+                done = failure.states.shape[0]
+                out[k : k + done] = failure.states
+                raise IntegrationFailure(failure.reason, out[: k + done].copy()) from None
+            x, start = out[j], tout[j]
+        return out
+
+
+class CvodesEngine(_Engine):
+    """SUNDIALS CVODES (variable order, variable step) with ``multistep`` = "adams" or "bdf".
+
+    Parameters
+    ----------
+    model : Model
+    multistep : {"adams", "bdf"}
+    rtol : float
+        Relative tolerance.
+    atol : ndarray, shape (n_state,)
+        Absolute tolerance per state; CVODES takes one number for the scaled state, so the
+        tightest ``atol / nominal`` is used and every state meets its own tolerance.
+    nominal : ndarray, shape (n_state,)
+        Scale of each state (> 0).
+    max_steps : int
+        Internal steps allowed between two output times.
+    """
+
+    name = "cvodes"
+
+    def __init__(self, model, multistep, rtol, atol, nominal, max_steps):
+        self.model = model
+        self.nominal = nominal
+        self.dae, self._integrators = _scaled_dae(model, nominal)
+        self.options = {
+            "linear_multistep_method": multistep,
+            "reltol": rtol,
+            "abstol": float(np.min(atol / nominal)),
+            "max_num_steps": int(max_steps),
+            "disable_internal_warnings": True,
+        }
+        self.method = f"cvodes-{multistep}"
+        self.counts = {
+            "steps": 0,
+            "rhs_evaluations": 0,
+            "jacobian_evaluations": 0,
+            "error_test_failures": 0,
+            "newton_failures": 0,
+        }
+
+    def _integrator(self, tout: np.ndarray):
+        """``(lock, buffer, evaluate)``, cached with the model's DAE; the buffer interface
+        passes NumPy memory to CasADi without conversions, the lock keeps one caller at a
+        time on it."""
+        cache = self._integrators
+        key = (tout.tobytes(), tuple(sorted(self.options.items())))
+        if key not in cache:
+            if len(cache) > 64:
+                cache.clear()
+            integrator = ca.integrator("cvodes", "cvodes", self.dae, 0.0, tout, self.options)
+            cache[key] = (threading.Lock(), *integrator.buffer())
+        return cache[key]
+
+    def _count(self, stats: dict) -> None:
+        c = self.counts
+        c["steps"] += int(stats.get("nsteps", 0))
+        c["rhs_evaluations"] += int(stats.get("nfevals", 0))
+        # one Jacobian per linear-solver setup (CasADi's call counters accumulate over calls)
+        c["jacobian_evaluations"] += int(stats.get("nlinsetups", 0))
+        c["error_test_failures"] += int(stats.get("netfails", 0))
+        c["newton_failures"] += int(stats.get("nncfails", 0))
+
+    def _constant(self, x, h, tout, tau) -> np.ndarray:
+        lock, buffer, evaluate = self._integrator(tout)
+        x0 = np.ascontiguousarray(x / self.nominal)
+        p = np.append(self.model.parameters, h)
+        u = np.tile(np.asarray(tau, dtype=np.float64), tout.size)  # column-major (n, k)
+        out = np.zeros(x.size * tout.size)  # column-major (n_state, k)
+        with lock:
+            for i, a in ((0, x0), (2, p), (3, u)):
+                buffer.set_arg(i, memoryview(a))
+            buffer.set_res(0, memoryview(out))
+            try:
+                evaluate()
+                failure = None if buffer.ret() == 0 else f"status {buffer.ret()}"
+            except RuntimeError as exc:
+                failure = str(exc)
+            stats = buffer.stats()
+        self._count(stats)
+        if failure is not None:
+            raise IntegrationFailure(_cvodes_reason(failure), np.empty((0, x.size)))
+        return out.reshape(tout.size, x.size) * self.nominal
+
+
+def _cvodes_reason(text: str) -> str:
+    for flag, meaning in (
+        ("CV_TOO_MUCH_WORK", "too many internal steps between two output times (max_steps)"),
+        ("CV_TOO_CLOSE", "the output interval is too short for the step size"),
+        ("CV_ERR_FAILURE", "the error test failed repeatedly (step size became too small)"),
+        ("CV_CONV_FAILURE", "the Newton iteration failed repeatedly"),
+        ("CV_RHSFUNC_FAIL", "the right-hand side failed (non-finite values)"),
+        ("CV_REPTD_RHSFUNC_ERR", "the right-hand side failed (non-finite values)"),
+        ("CV_LSETUP_FAIL", "the linear solver setup failed (singular Newton matrix)"),
+        ("CV_LSOLVE_FAIL", "the linear solve failed"),
+    ):
+        if flag in text:
+            return f"CVODES {flag}: {meaning}"
+    return "CVODES failed: " + text.strip().splitlines()[-1][:300]
+
+
+class ScipyEngine(_Engine):
+    """SciPy's explicit Runge-Kutta 4(5) (Dormand-Prince, like MATLAB's ode45), stepped
+    from Python over the model's compiled right-hand side."""
+
+    name = "rk45"
+    method = "rk45"
+
+    def __init__(self, model, rtol, atol, max_steps):
+        self.model = model
+        self.rtol = rtol
+        self.atol = atol
+        self.max_steps = int(max_steps)
+        self.counts = {"steps": 0, "rhs_evaluations": 0, "jacobian_evaluations": 0}
+
+    def _constant(self, x, h, tout, tau) -> np.ndarray:
+        out = np.empty((tout.size, x.size))
+        rhs = self.model.rhs(tau)
+        # RK45 keeps references to earlier derivatives: give it arrays of its own
+        self._run(lambda t, y: np.array(rhs(t, y)), x, 0.0, h * tout, out)
+        return out
+
+    def _run(self, f, x, t0, times, out) -> np.ndarray:
+        solver = RK45(f, t0, x, times[-1], rtol=self.rtol, atol=self.atol)
+        i, steps = 0, 0
+        while i < times.size:
+            if solver.status != "running":
+                break
+            message = solver.step()
+            self.counts["steps"] += 1
+            steps += 1
+            if solver.status == "failed" or not np.all(np.isfinite(solver.y)):
+                self.counts["rhs_evaluations"] += solver.nfev
+                reason = f"RK45: {message or 'non-finite state'} at t = {solver.t:.6g} s"
+                raise IntegrationFailure(reason, out[:i].copy())
+            if steps > self.max_steps * times.size:
+                self.counts["rhs_evaluations"] += solver.nfev
+                raise IntegrationFailure(
+                    "RK45: too many steps (max_steps per output interval)", out[:i].copy()
+                )
+            if i < times.size and solver.t >= times[i]:
+                dense = solver.dense_output()
+                while i < times.size and solver.t >= times[i]:
+                    out[i] = solver.y if times[i] == solver.t else dense(times[i])
+                    i += 1
+        self.counts["rhs_evaluations"] += solver.nfev
+        return out[-1].copy()
+
+
+_MAP_CACHE: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+def _mapped(model, name: str, count: int):
+    """``(function, function mapped over count points)``, cached per model."""
+    per_model = _MAP_CACHE.setdefault(model, {})
+    if (name, count) not in per_model:
+        if len(per_model) > 16:
+            per_model.clear()
+        compiled = getattr(model_module, "COMPILED_FUNCTIONS", ())
+        if model.compiled_library is not None and name in compiled:
+            function = ca.external(name, str(model.compiled_library))
+        else:
+            function = model.symbolic[name]
+        per_model[(name, count)] = (function, function.map(count))
+    return per_model[(name, count)]
+
+
+def evaluate_along(model, name: str, *columns) -> list[np.ndarray]:
+    """Evaluate the model function ``name`` at many points in one compiled call.
+
+    Each of ``columns`` is an array (T, k) of per-point inputs or a scalar shared by all
+    points; returns one array (T, ...) per output of the function, flattened per point.
+    """
+    count = next(np.shape(c)[0] for c in columns if np.ndim(c) == 2)
+    function, mapped = _mapped(model, name, count)
+    inputs = [np.asarray(c, dtype=np.float64).T if np.ndim(c) == 2 else c for c in columns]
+    outputs = mapped(*inputs, model.parameters)
+    if not isinstance(outputs, tuple | list):
+        outputs = (outputs,)
+    result = []
+    for i, o in enumerate(outputs):
+        rows = function.size1_out(i) * function.size2_out(i)
+        dense = np.asarray(o, dtype=np.float64)  # (rows_i, cols_i * count), column blocks
+        per_point = dense.reshape(function.size1_out(i), count, function.size2_out(i))
+        result.append(per_point.transpose(1, 0, 2).reshape(count, rows))
+    return result

@@ -1,0 +1,653 @@
+"""Many simulations in one call: :func:`simulate_batch` and its :class:`BatchTrajectory`.
+
+A batch is ``B`` robots of one structure (one compiled model) that differ in their
+initial states, constant inputs and parameter values. The robot's parameter vector is a
+run-time input of the compiled functions, so the whole batch shares one CVODES integrator
+built on the compiled right-hand side (as :func:`softcurve.simulate` does) and CasADi's
+``map`` runs it over the batch in compiled code, split over threads: the integration
+never returns to Python between members.
+
+Each member is integrated exactly as :func:`softcurve.simulate` would integrate it: the
+same scaled state (``nominal_scale`` of the member's own robot and initial state), the
+same tolerances and, for ``method="cvodes"``, the same choice between Adams and BDF per
+member. Results therefore agree with single simulations to round-off (see
+``tests/test_batch.py``).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import io
+import math
+import os
+import time
+import weakref
+from dataclasses import dataclass, field
+
+import casadi as ca
+import numpy as np
+
+from ._engines import _cvodes_reason
+from ._validate import ParameterError
+from .materials import Creep
+from .model import COMPILED_FUNCTIONS, Model
+from .robot import Robot, Segment
+from .simulate import (
+    METHODS,
+    STIFFNESS_RATIO,
+    Trajectory,
+    _grid,
+    _positive,
+    nominal_scale,
+)
+
+_CACHE: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+# -- parameters ------------------------------------------------------------------------------
+def robot_with_parameters(robot: Robot, vector) -> Robot:
+    """The robot of the same structure with the numbers of ``vector`` (validated again).
+
+    Parameters
+    ----------
+    robot : Robot
+        Gives the structure (segments, stiffness laws, creep).
+    vector : array_like, shape (n_p,)
+        Values in the order of ``robot.parameter_names()``.
+
+    Raises
+    ------
+    ParameterError
+        If a value is outside its allowed range (the message names the field).
+    """
+    names = robot.parameter_names()
+    vector = np.asarray(vector, dtype=np.float64)
+    if vector.shape != (len(names),):
+        raise ParameterError(
+            f"a parameter vector must have shape ({len(names)},), got {vector.shape}"
+        )
+    value = dict(zip(names, vector.tolist(), strict=True))
+
+    def matrix(prefix):
+        return [[value[f"{prefix}[{i},{j}]"] for j in range(3)] for i in range(3)]
+
+    segments = []
+    for k, s in enumerate(robot.segments):
+        head = f"segments[{k}]."
+        laws = {
+            mode: type(getattr(s, mode))(
+                *(value[f"{head}{mode}.{label}"] for label in getattr(s, mode).parameter_labels)
+            )
+            for mode in ("elongation_stiffness", "bending_stiffness")
+        }
+        creep = None
+        if s.creep is not None:
+            creep = Creep(
+                rate=[value[f"{head}creep.rate[{i}]"] for i in range(3)],
+                gain=[value[f"{head}creep.gain[{i}]"] for i in range(3)],
+                compliance=matrix(f"{head}creep.compliance"),
+            )
+        segments.append(
+            Segment(
+                rest_length=value[f"{head}rest_length"],
+                mass=value[f"{head}mass"],
+                radius=value[f"{head}radius"],
+                damping=matrix(f"{head}damping"),
+                creep=creep,
+                **laws,
+            )
+        )
+    return Robot(
+        segments=tuple(segments),
+        gravity=[value[f"gravity[{i}]"] for i in range(3)],
+        base_rotation=matrix("base_rotation"),
+    )
+
+
+class _RobotView:
+    """What :func:`softcurve.simulate.nominal_scale` reads of a model: its robot."""
+
+    def __init__(self, robot: Robot):
+        self.robot = robot
+
+
+# -- the result ------------------------------------------------------------------------------
+@dataclass(eq=False)
+class BatchTrajectory:
+    """``B`` trajectories on one output grid.
+
+    Attributes
+    ----------
+    t : ndarray (T,)
+        Output times [s], shared by all members.
+    q, qd : ndarray (B, T, n)
+        Coordinates and rates per member.
+    lam : ndarray (B, T, n_creep)
+        Creep states.
+    tip : ndarray (B, T, 3)
+        Tip positions in the world frame [m].
+    tau : ndarray (B, n)
+        The constant input of each member.
+    parameters : ndarray (B, n_p)
+        The parameter vector of each member (``model.robot.parameter_names()``).
+    status : ndarray (B,) of str
+        "success" or "failed" per member.
+    message : list of str
+        What happened to each member.
+    reached : ndarray (B,) of int
+        Number of valid output times per member; after a failure the remaining entries
+        of ``q``, ``qd``, ``lam`` and ``tip`` are NaN (never otherwise).
+    stats : dict
+        ``methods`` (per member), ``wall_time`` [s] of the integration, ``threads``,
+        ``size``, ``simulated_time`` [s] (summed over members) and the tolerances.
+    """
+
+    t: np.ndarray
+    q: np.ndarray
+    qd: np.ndarray
+    lam: np.ndarray
+    tip: np.ndarray
+    tau: np.ndarray
+    parameters: np.ndarray
+    status: np.ndarray
+    message: list
+    reached: np.ndarray
+    stats: dict = field(default_factory=dict)
+    model: Model | None = field(default=None, repr=False)
+
+    @property
+    def size(self) -> int:
+        """Number of members ``B``."""
+        return self.q.shape[0]
+
+    def __len__(self) -> int:
+        return self.size
+
+    @property
+    def success(self) -> np.ndarray:
+        """(B,) bool: which members reached ``t_final``."""
+        return self.status == "success"
+
+    @property
+    def x(self) -> np.ndarray:
+        """States ``(q, qd, lam)``, shape (B, T, n_state)."""
+        return np.concatenate([self.q, self.qd, self.lam], axis=2)
+
+    def member_model(self, i: int) -> Model:
+        """The compiled model with member ``i``'s parameters (shares the compiled library)."""
+        if np.array_equal(self.parameters[i], self.model.parameters):
+            return self.model
+        return Model(
+            robot_with_parameters(self.model.robot, self.parameters[i]),
+            quadrature_nodes=self.model.quadrature_nodes,
+        )
+
+    def member(self, i: int) -> Trajectory:
+        """Member ``i`` as the :class:`~softcurve.Trajectory` of a single simulation."""
+        i = int(i)
+        if not -self.size <= i < self.size:
+            raise IndexError(f"member index {i} out of range for a batch of {self.size}")
+        i %= self.size
+        k = int(self.reached[i])
+        stats = {key: value for key, value in self.stats.items() if key != "methods"}
+        stats["method"] = self.stats["methods"][i]
+        return Trajectory(
+            t=self.t[:k].copy(),
+            q=self.q[i, :k].copy(),
+            qd=self.qd[i, :k].copy(),
+            lam=self.lam[i, :k].copy(),
+            tip_positions=self.tip[i, :k].copy(),
+            tau=np.repeat(self.tau[i][None, :], k, axis=0),
+            stats=stats,
+            status=str(self.status[i]),
+            message=self.message[i],
+            model=self.member_model(i),
+        )
+
+    def plot(self, path=None, members: int = 50):
+        """The tip position of the first ``members`` members against time, one panel per
+        axis; written to ``path`` (format from the suffix) if given. Returns the figure."""
+        from .plot import _pyplot, _save
+
+        plt = _pyplot()
+        figure, axes = plt.subplots(3, 1, sharex=True, figsize=(7.0, 6.0), layout="constrained")
+        for row, axis in enumerate("xyz"):
+            axes[row].plot(self.t, 1e3 * self.tip[:members, :, row].T, lw=0.6, alpha=0.7)
+            axes[row].set_ylabel(f"tip {axis} [mm]")
+        axes[-1].set_xlabel("time [s]")
+        axes[0].set_title(f"{min(members, self.size)} of {self.size} members")
+        return _save(figure, path, 110)
+
+    def energy(self) -> np.ndarray:
+        """Mechanical energy ``T + V`` [J] of every member at every output time, (B, T);
+        NaN after a member's failure."""
+        return _energy_along(self.model, self.q, self.qd, self.parameters, self.stats["threads"])
+
+
+# -- compiled pieces -------------------------------------------------------------------------
+def _function(model: Model, name: str, options=None) -> ca.Function:
+    """The model's function ``name(..., p)``: the compiled one when there is a library."""
+    if model.compiled_library is not None and name in COMPILED_FUNCTIONS:
+        return ca.external(name, str(model.compiled_library), options or {})
+    return model.symbolic[name]
+
+
+def _cached(model: Model, key, build):
+    per_model = _CACHE.setdefault(model, {})
+    if key not in per_model:
+        if len(per_model) > 32:
+            per_model.clear()
+        per_model[key] = build()
+    return per_model[key]
+
+
+def _batch_dae(model: Model) -> ca.Function:
+    """``dxs/ds = h f(nominal * xs, u, p) / nominal`` on normalised time ``s`` in [0, 1].
+
+    The same scaled problem as the single-simulation engine, with the scale as part of the
+    integrator parameter ``(robot parameters, h, nominal)`` so that it may differ between
+    members of one batch.
+    """
+    rhs = _function(model, "rhs", {"enable_fd": True, "fd_method": "forward"})
+    n_par, n_state = model.parameters.size, model.n_state
+    xs = ca.MX.sym("x", n_state)
+    p = ca.MX.sym("p", n_par + 1 + n_state)
+    u = ca.MX.sym("u", model.n)
+    scale = p[n_par + 1 :]
+    ode = p[n_par] * rhs(scale * xs, u, p[:n_par]) / scale
+    empty = ca.MX(0, 1)
+    return ca.Function(
+        "softcurve_batch_dae",
+        [ca.MX.sym("t"), xs, ca.MX.sym("z", 0), p, u],
+        [ode, empty, empty, empty],
+        ca.dyn_in(),
+        ca.dyn_out(),
+    )
+
+
+def _integrator(model, multistep, rtol, abstol, max_steps, tout) -> ca.Function:
+    key = ("integrator", multistep, rtol, abstol, max_steps, tout.tobytes())
+
+    def build():
+        dae = _cached(model, "dae", lambda: _batch_dae(model))
+        options = {
+            "linear_multistep_method": multistep,
+            "reltol": rtol,
+            "abstol": abstol,
+            "max_num_steps": int(max_steps),
+            "disable_internal_warnings": True,
+        }
+        return ca.integrator("softcurve_batch", "cvodes", dae, 0.0, tout, options)
+
+    return _cached(model, key, build)
+
+
+def _mapped(function: ca.Function, size: int, threads: int) -> ca.Function:
+    if size == 1:
+        return function
+    return function.map(size, "thread", threads) if threads > 1 else function.map(size)
+
+
+BLOCK_DOUBLES = 1 << 22
+"""Members per compiled call are limited so that one call's arrays hold about this many
+doubles (32 MB): the transient copies CasADi and NumPy make stay small next to the result."""
+
+
+def _blocks(size: int, count: int, width: int) -> list[slice]:
+    """Consecutive member ranges of at most ``BLOCK_DOUBLES / (count * width)`` members."""
+    step = max(1, min(size, BLOCK_DOUBLES // max(1, count * width)))
+    return [slice(a, min(size, a + step)) for a in range(0, size, step)]
+
+
+def _along(model, name, build, columns, parameters, threads) -> list[np.ndarray]:
+    """Evaluate ``build() -> Function(*per_point_inputs, p)`` at every (member, time):
+    ``columns`` are (B, T, k) arrays, ``parameters`` (B, n_p); returns (B, T, m) arrays."""
+    size, count = columns[0].shape[:2]
+    point = _cached(model, name, build)
+    shared = [point.n_in() - 1]  # p: one per member, shared by its time points
+    over_time = _cached(
+        model, (name, count), lambda: point.map(f"{name}_along", "serial", count, shared, [])
+    )
+    width = sum(c.shape[2] for c in columns) + point.nnz_out()
+    pieces = []
+    for block in _blocks(size, count, width):
+        members = block.stop - block.start
+        mapped = _mapped(over_time, members, threads)
+        inputs = [np.ascontiguousarray(c[block].reshape(members * count, -1).T) for c in columns]
+        outputs = mapped(*inputs, parameters[block].T)
+        outputs = outputs if isinstance(outputs, tuple | list) else (outputs,)
+        pieces.append([np.asarray(o).T.reshape(members, count, -1) for o in outputs])
+    return [np.concatenate(parts) for parts in zip(*pieces, strict=True)]
+
+
+def _tip_along(model, q, parameters, threads) -> np.ndarray:
+    def build():
+        pose = _function(model, "pose")
+        qs, p = ca.MX.sym("q", model.n), ca.MX.sym("p", model.parameters.size)
+        return ca.Function("tip", [qs, p], [pose(qs, 1.0, p)[1]])
+
+    return _along(model, "tip", build, [q], parameters, threads)[0]
+
+
+def _energy_along(model, q, qd, parameters, threads) -> np.ndarray:
+    def build():
+        terms, potential = _function(model, "dynamics_terms"), _function(model, "potential_energy")
+        qs, qds = ca.MX.sym("q", model.n), ca.MX.sym("qd", model.n)
+        p = ca.MX.sym("p", model.parameters.size)
+        mass = terms(qs, qds, ca.MX.zeros(model.n_creep), p)[0]
+        gravity, elastic = potential(qs, p)
+        return ca.Function(
+            "energy", [qs, qds, p], [0.5 * ca.dot(qds, mass @ qds) + gravity + elastic]
+        )
+
+    return _along(model, "energy", build, [q, qd], parameters, threads)[0][..., 0]
+
+
+def _stiffness_ratios(model, x0, tau, parameters, nominal, threads) -> np.ndarray:
+    """:func:`softcurve.simulate.stiffness_ratio` for every member at once: eigenvalues of
+    the central-difference linearisation of the right-hand side at the initial state."""
+    size, n_state = x0.shape
+    steps = 1e-6 * nominal  # (B, n_state), as in the single simulation
+    offsets = np.einsum("bi,ij->bij", steps, np.eye(n_state))
+    points = np.concatenate([x0[:, None, :] + offsets, x0[:, None, :] - offsets], axis=1)
+    taus = np.broadcast_to(tau[:, None, :], (size, 2 * n_state, model.n))
+
+    def build():
+        rhs = _function(model, "rhs")
+        xs, u = ca.MX.sym("x", n_state), ca.MX.sym("u", model.n)
+        p = ca.MX.sym("p", model.parameters.size)
+        return ca.Function("rhs_point", [xs, u, p], [rhs(xs, u, p)])
+
+    values = _along(model, "rhs_point", build, [points, np.array(taus)], parameters, threads)[0]
+    columns = (values[:, :n_state] - values[:, n_state:]) / (2 * steps[:, :, None])
+    eigenvalues = np.linalg.eigvals(columns.transpose(0, 2, 1))  # [b, i, j] = d xdot_i / d x_j
+    decay = np.maximum(np.max(-eigenvalues.real, axis=1), 0.0)
+    oscillation = np.maximum(1.0, np.max(np.abs(eigenvalues.imag), axis=1))
+    return decay / oscillation
+
+
+# -- input checks ----------------------------------------------------------------------------
+def _rows(name: str, value, width: int, default=None) -> np.ndarray | None:
+    """``value`` as (B, width) or (1, width) float64, finite; None stays None."""
+    if value is None:
+        return None if default is None else np.asarray(default, dtype=np.float64)[None, :]
+    try:
+        a = np.array(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise ParameterError(f"{name} must be a real array of shape (B, {width})") from None
+    if a.ndim == 1:
+        a = a[None, :]
+    if a.ndim != 2 or a.shape[1] != width or a.shape[0] < 1:
+        raise ParameterError(
+            f"{name} must have shape (B, {width}) or ({width},), got {np.shape(value)}"
+        )
+    bad = ~np.all(np.isfinite(a), axis=1)
+    if np.any(bad):
+        raise ParameterError(
+            f"{name}[{int(np.argmax(bad))}] must be finite, got {a[np.argmax(bad)].tolist()}"
+        )
+    return a
+
+
+def default_threads() -> int:
+    """Cores usable by this process."""
+    if hasattr(os, "sched_getaffinity"):
+        return max(1, len(os.sched_getaffinity(0)))
+    return os.cpu_count() or 1
+
+
+# -- the batch simulation --------------------------------------------------------------------
+def simulate_batch(
+    model: Model,
+    t_final: float,
+    q0s,
+    qd0s,
+    lam0s=None,
+    tau=None,
+    parameters=None,
+    dt: float = 1e-3,
+    *,
+    method: str = "cvodes",
+    rtol: float = 1e-6,
+    atol=None,
+    max_steps: int = 50_000,
+    threads: int | None = None,
+) -> BatchTrajectory:
+    """Integrate ``B`` robots of the structure of ``model`` from their initial states.
+
+    Every array argument is per member, shape (B, k), or shared, shape (k,); ``B`` is
+    the common first dimension of the per-member ones.
+
+    Parameters
+    ----------
+    model : Model
+        The compiled model; its robot gives the structure and the default parameters.
+    t_final : float
+        End time [s], > 0.
+    q0s, qd0s : array_like (B, n) or (n,)
+        Initial coordinates and rates.
+    lam0s : array_like (B, n_creep) or (n_creep,), optional
+        Initial creep states (default zero).
+    tau : array_like (B, n) or (n,), optional
+        Constant input forces (default zero).
+    parameters : array_like (B, n_p) or (n_p,), optional
+        Parameter vectors in the order of ``model.robot.parameter_names()`` (default the
+        model's); each is validated as a robot (:func:`robot_with_parameters`).
+    dt : float
+        Output interval [s] (default 1 ms). Memory is ``B * T * (2 n + n_creep + 3)``
+        doubles: use a coarser ``dt`` for large batches; the integration steps are chosen
+        by error control, so a coarser grid keeps the accuracy.
+    method : {"cvodes", "adams", "bdf"}
+        As in :func:`softcurve.simulate`; "cvodes" chooses per member.
+    rtol : float
+        Relative tolerance (default 1e-6).
+    atol : float or array_like (n_state,), optional
+        Absolute tolerance per state; default ``rtol * nominal_scale`` per member, as in
+        :func:`softcurve.simulate`. One integrator serves the batch, so a given ``atol``
+        is applied as the tightest ``atol / nominal`` over the members.
+    max_steps : int
+        Internal steps allowed between two output times.
+    threads : int, optional
+        Threads of the compiled map (default: the cores usable by this process).
+
+    Returns
+    -------
+    BatchTrajectory
+        Members that fail carry status "failed", their message and the outputs reached.
+    """
+    if not isinstance(model, Model):
+        raise ParameterError(f"model must be a softcurve.Model, got {type(model).__name__}")
+    t_final, dt = _positive("t_final", t_final), _positive("dt", dt)
+    if dt > t_final:
+        raise ParameterError(f"dt must be <= t_final, got dt={dt!r} > t_final={t_final!r}")
+    rtol = _positive("rtol", rtol)
+    if not rtol < 1:
+        raise ParameterError(f"rtol must be < 1, got {rtol!r}")
+    if method not in METHODS or method == "rk45":
+        allowed = ", ".join(m for m in METHODS if m != "rk45")
+        raise ParameterError(f"method must be one of {allowed} for a batch, got {method!r}")
+    if isinstance(max_steps, bool) or not isinstance(max_steps, int | np.integer) or max_steps < 1:
+        raise ParameterError(f"max_steps must be an integer >= 1, got {max_steps!r}")
+    threads = default_threads() if threads is None else threads
+    if isinstance(threads, bool) or not isinstance(threads, int | np.integer) or threads < 1:
+        raise ParameterError(f"threads must be an integer >= 1, got {threads!r}")
+    n, n_creep = model.n, model.n_creep
+    arrays = {
+        "q0s": _rows("q0s", q0s, n),
+        "qd0s": _rows("qd0s", qd0s, n),
+        "lam0s": _rows("lam0s", lam0s, n_creep, np.zeros(n_creep)),
+        "tau": _rows("tau", tau, n, np.zeros(n)),
+        "parameters": _rows("parameters", parameters, model.parameters.size, model.parameters),
+    }
+    sizes = {name: a.shape[0] for name, a in arrays.items() if a.shape[0] != 1}
+    size = max(sizes.values(), default=1)
+    for name, rows in sizes.items():
+        if rows != size:
+            raise ParameterError(
+                f"{name} has {rows} rows, other inputs have {size}: one row per member"
+            )
+    arrays = {name: np.array(np.broadcast_to(a, (size, a.shape[1]))) for name, a in arrays.items()}
+    x0 = np.hstack([arrays["q0s"], arrays["qd0s"], arrays["lam0s"]])
+    tau, params = arrays["tau"], arrays["parameters"]
+    nominal = _nominal(model, params, x0)
+    if atol is None:
+        abstol = rtol
+    else:
+        atol = np.asarray(atol, dtype=np.float64)
+        if atol.shape not in ((), (model.n_state,)) or not np.all(np.isfinite(atol) & (atol > 0)):
+            raise ParameterError(
+                f"atol must be a number or shape ({model.n_state},), finite and > 0, got {atol!r}"
+            )
+        abstol = float(np.min(atol / nominal))
+
+    grid = _grid(t_final, dt)
+    if method == "cvodes":
+        ratios = _stiffness_ratios(model, x0, tau, params, nominal, threads)
+        methods = np.where(ratios > STIFFNESS_RATIO, "bdf", "adams")
+    else:
+        methods = np.full(size, method)
+    states = np.full((size, grid.size, model.n_state), np.nan)
+    states[:, 0] = x0
+    reached = np.full(size, grid.size)
+    messages = [f"integrated to t = {t_final:.6g} s with cvodes-{m}" for m in methods]
+    start = time.perf_counter()
+    run = _Run(model, grid, rtol, abstol, max_steps, threads, x0, tau, params, nominal)
+    for multistep in ("adams", "bdf"):
+        members = np.flatnonzero(methods == multistep)
+        for block in _blocks(members.size, grid.size, model.n_state + model.n):
+            run.integrate(multistep, members[block], states, reached, messages)
+    wall = time.perf_counter() - start
+    status = np.where(reached == grid.size, "success", "failed")
+    q, qd, lam = states[..., :n], states[..., n : 2 * n], states[..., 2 * n :]
+    tip = _tip_along(model, np.nan_to_num(q), params, threads)
+    tip[np.isnan(q[..., 0])] = np.nan
+    stats = {
+        "methods": [f"cvodes-{m}" for m in methods],
+        "rtol": rtol,
+        "abstol_scaled": abstol,
+        "dt": dt,
+        "size": size,
+        "threads": threads,
+        "wall_time": wall,
+        "simulated_time": float(np.sum(grid[reached - 1])),
+    }
+    return BatchTrajectory(
+        t=grid,
+        q=q,
+        qd=qd,
+        lam=lam,
+        tip=tip,
+        tau=tau,
+        parameters=params,
+        status=status,
+        message=messages,
+        reached=reached,
+        stats=stats,
+        model=model,
+    )
+
+
+def _nominal(model: Model, params: np.ndarray, x0: np.ndarray) -> np.ndarray:
+    """``nominal_scale`` of each member's own robot; validates every parameter vector."""
+    robots: dict[bytes, _RobotView] = {model.parameters.tobytes(): _RobotView(model.robot)}
+    nominal = np.empty_like(x0)
+    for b in range(x0.shape[0]):
+        key = params[b].tobytes()
+        if key not in robots:
+            try:
+                robots[key] = _RobotView(robot_with_parameters(model.robot, params[b]))
+            except ParameterError as exc:
+                raise ParameterError(f"parameters[{b}]: {exc}") from None
+        nominal[b] = nominal_scale(robots[key], x0[b])
+    return nominal
+
+
+@dataclass
+class _Run:
+    """One batch integration: the compiled map over members, with failures isolated."""
+
+    model: Model
+    grid: np.ndarray
+    rtol: float
+    abstol: float
+    max_steps: int
+    threads: int
+    x0: np.ndarray
+    tau: np.ndarray
+    params: np.ndarray
+    nominal: np.ndarray
+
+    def _p(self, members, h) -> np.ndarray:
+        count = len(members)
+        return np.hstack([self.params[members], np.full((count, 1), h), self.nominal[members]]).T
+
+    def integrate(self, multistep, members, states, reached, messages) -> None:
+        """Fill ``states[members, 1:]``; a failing map is split in halves until the failing
+        members are found, which are then integrated output by output."""
+        grid = self.grid
+        h = grid[-1] - grid[0]
+        tout = (grid[1:] - grid[0]) / h
+        count, outputs = len(members), tout.size
+        integrator = _integrator(
+            self.model, multistep, self.rtol, self.abstol, self.max_steps, tout
+        )
+        u = np.repeat(self.tau[members].T, outputs, axis=1)
+        mapped = _mapped(integrator, count, min(self.threads, count))
+        try:
+            # on a failure, CasADi's map prints every input of the batch to sys.stderr; the
+            # reason is kept from the exception of the member integrated alone (below)
+            with contextlib.redirect_stderr(io.StringIO()):
+                out = mapped(x0=(self.x0[members] / self.nominal[members]).T,
+                             p=self._p(members, h), u=u)  # fmt: skip
+        except RuntimeError:
+            if count > 1:
+                half = count // 2
+                self.integrate(multistep, members[:half], states, reached, messages)
+                self.integrate(multistep, members[half:], states, reached, messages)
+            else:
+                self._one_by_one(multistep, int(members[0]), states, reached, messages)
+            return
+        xf = np.asarray(out["xf"]).reshape(self.model.n_state, count, outputs).transpose(1, 2, 0)
+        states[members, 1:] = xf * self.nominal[members, None, :]
+        for b in members:
+            bad = ~np.all(np.isfinite(states[b]), axis=1)
+            if np.any(bad):
+                self._fail(
+                    b, int(np.argmax(bad)), "the state became non-finite", states, reached, messages
+                )
+
+    def _one_by_one(self, multistep, b, states, reached, messages) -> None:
+        """Output interval by output interval, to keep every output reached before a failure."""
+        integrator = _integrator(
+            self.model, multistep, self.rtol, self.abstol, self.max_steps, np.ones(1)
+        )
+        nominal = self.nominal[b]
+        for k in range(1, self.grid.size):
+            h = self.grid[k] - self.grid[k - 1]
+            try:
+                out = integrator(
+                    x0=states[b, k - 1] / nominal, p=self._p([b], h), u=self.tau[b][:, None]
+                )
+            except RuntimeError as exc:
+                self._fail(b, k, _cvodes_reason(str(exc)), states, reached, messages)
+                return
+            states[b, k] = np.asarray(out["xf"]).ravel() * nominal
+            if not np.all(np.isfinite(states[b, k])):
+                self._fail(b, k, "the state became non-finite", states, reached, messages)
+                return
+
+    def _fail(self, b, k, reason, states, reached, messages) -> None:
+        """Member ``b`` failed reaching output ``k``: keep outputs ``0 .. k-1``."""
+        states[b, k:] = np.nan
+        reached[b] = k
+        messages[b] = (
+            f"{reason}; the trajectory stops at t = {self.grid[k - 1]:.6g} s "
+            f"(output {k - 1} of {self.grid.size - 1}). What to try: loosen rtol, "
+            "raise max_steps, method='bdf', check the initial state and inputs"
+        )
+
+
+def simulated_seconds_per_second(batch: BatchTrajectory) -> float:
+    """Throughput of a batch: simulated time summed over members per wall-clock second."""
+    wall = batch.stats["wall_time"]
+    return batch.stats["simulated_time"] / wall if wall > 0 else math.inf

@@ -1,0 +1,79 @@
+"""``softcurve equilibria``: every equilibrium in a region, classified, as a table."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from . import _robots
+
+
+def register(subparsers) -> None:
+    parser = subparsers.add_parser(
+        "equilibria",
+        help="find and classify the equilibria of a robot (stable, unstable, saddle, rings)",
+        description="Solve N(q) = tau + H(q) p + J^T w from many starting points, deduplicate, "
+        "classify each equilibrium by the Hessian of the potential (rings of equilibria under "
+        "rotational symmetry are reported once) and print the table. Exit code 1 when none "
+        "is found.",
+    )
+    _robots.add_arguments(parser)
+    gravity = parser.add_mutually_exclusive_group()
+    gravity.add_argument("--hanging", action="store_true", help="gravity (0, 0, +9.81) m/s^2")
+    gravity.add_argument(
+        "--gravity", nargs=3, type=float, metavar=("GX", "GY", "GZ"), help="gravity [m/s^2]"
+    )
+    parser.add_argument(
+        "--pressures", nargs="+", type=float, metavar="P", help="bellow pressures [Pa]"
+    )
+    parser.add_argument(
+        "--tip-force", nargs=3, type=float, metavar=("FX", "FY", "FZ"), help="world tip force [N]"
+    )
+    parser.add_argument("--starts", type=int, default=48, help="starting points (default 48)")
+    parser.add_argument("--seed", type=int, default=0, help="seed of the starting points")
+    parser.add_argument(
+        "--modes", action="store_true", help="also print natural frequencies and mode shapes"
+    )
+    parser.add_argument("--plot", metavar="PATH", help="save the backbones of the equilibria")
+    parser.set_defaults(handler=run)
+
+
+def run(args) -> int:
+    from .. import Model
+    from ..statics import equilibria, linearize
+
+    robot, actuator = _robots.robot_and_actuator(args)
+    model = Model(robot, compile=False)  # the analysis is symbolic: no need to compile
+    loads = {}
+    if args.hanging:
+        loads["gravity"] = -robot.gravity
+    elif args.gravity is not None:
+        loads["gravity"] = args.gravity
+    if args.pressures is not None:
+        loads.update(actuator=actuator, pressures=args.pressures)
+    if args.tip_force is not None:
+        loads["tip_force"] = args.tip_force
+    table = equilibria(model, starts=args.starts, seed=args.seed, **loads)
+    gravity = np.asarray(loads.get("gravity", robot.gravity), dtype=float) + 0.0  # no -0.0
+    print(
+        f"softcurve equilibria: {robot.n_segments} segment(s), "
+        f"gravity {np.array2string(gravity)} m/s^2"
+    )
+    if args.pressures is not None:
+        print(f"  pressures {args.pressures} Pa")
+    print(f"  {table.message}; {table.evaluations} residual evaluations")
+    print(table.table())
+    if args.modes:
+        for k, e in enumerate(table):
+            lin = linearize(model, e.q, **loads)
+            print(f"#{k}: natural frequencies [Hz] {np.array2string(lin.frequencies, precision=4)}")
+            print(f"    omega^2 [rad^2/s^2] {np.array2string(lin.omega_squared, precision=5)}")
+            print("    mode shapes (columns):")
+            print("    " + np.array2string(lin.modes, precision=4).replace("\n", "\n    "))
+    if args.plot:
+        import matplotlib
+
+        matplotlib.use("Agg")
+        ax = table.plot()
+        ax.figure.savefig(args.plot, dpi=120)
+        print(f"  figure: {args.plot}")
+    return 0 if table.status == "ok" else 1

@@ -1,0 +1,60 @@
+"""``softcurve fit``: fit a stiffness law to quasi-static data in a CSV file.
+
+The regression of the paper's Fig. 3: generalized force against strain (elongation
+[m] or bending angle [rad]) with the hyper-elastic tanh law or a linear law; prints the
+estimates with confidence intervals and correlations, optionally writes the figure.
+Trajectory fits need a robot and output maps and are a Python API
+(:mod:`softcurve.identify_dynamic`); ``examples/validate_caasenbrood2021.py`` shows them.
+"""
+
+from __future__ import annotations
+
+
+def register(subparsers) -> None:
+    parser = subparsers.add_parser(
+        "fit",
+        help="fit a stiffness law (tanh or linear) to force-strain data in a CSV file",
+        description="Fit k(x) x = force to quasi-static data (the paper's Fig. 3) and print "
+        "a report: estimates, confidence intervals, correlations, residuals. Exit code 1 if "
+        "the fit fails.",
+    )
+    parser.add_argument("csv", help="CSV file with a header row")
+    parser.add_argument("--strain", required=True, help="column of the strain (m or rad)")
+    parser.add_argument("--force", required=True, help="column of the force (N or N m)")
+    parser.add_argument("--law", choices=("tanh", "linear"), default="tanh")
+    parser.add_argument("--weights", help="optional column of residual weights")
+    parser.add_argument("--confidence", type=float, default=0.95, help="interval level")
+    parser.add_argument("--figure", help="write the fit figure to this PNG file")
+    parser.set_defaults(handler=run)
+
+
+def run(args) -> int:
+    from ..experiments import load_csv
+    from ..identify import fit_stiffness
+
+    signals = [args.strain, args.force] + ([args.weights] if args.weights else [])
+    # rows are data points, in any order: number them instead of reading a time column
+    data = load_csv(args.csv, signals=signals, time=None, sample_rate=1.0)
+    report = fit_stiffness(
+        data.signals[args.strain],
+        data.signals[args.force],
+        args.law,
+        weights=data.signals[args.weights] if args.weights else None,
+        confidence=args.confidence,
+        label=args.strain,
+    )
+    print(report.table())
+    law = report.extra["law"]
+    if law is not None:
+        arguments = ", ".join(
+            f"{n}={v:.6g}" for n, v in zip(report.names, report.values, strict=True)
+        )
+        print(f"law: {type(law).__name__}({arguments})")
+    if args.figure:
+        import matplotlib
+
+        matplotlib.use("Agg")
+        figure = report.plot(title=f"{args.law} law fitted to {args.csv}")
+        figure.savefig(args.figure, dpi=110)
+        print(f"figure: {args.figure}")
+    return 0 if report.success else 1

@@ -1,0 +1,164 @@
+"""``softcurve simulate``: simulate a robot (by default the paper's case) and write the results.
+
+Writes into the output folder: ``trajectory.csv`` (and ``trajectory.npz`` with
+``--npz``), ``states.png`` (paper Fig. 4), ``tip.png`` (Fig. 5) and, with
+``--animate``, ``animation.gif`` (``.mp4`` too where ffmpeg exists); prints a summary.
+Exit code 0 on success, 1 when the integrator fails (the partial trajectory and its
+figures are still written), 2 for usage or configuration errors.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import shutil
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+
+def register(subparsers) -> None:
+    parser = subparsers.add_parser(
+        "simulate",
+        help="simulate a robot (default: the paper's section 4.2 case) and write data and figures",
+        description="Simulate a soft robot from a TOML scenario (schema: docs/configuration.md, "
+        "examples in examples/) or, without one, the paper's case: preset ifac2020, "
+        "q0 = (0.064, 25, 0), qd0 = (0, 0, 1500), 10 s, output every 1 ms. Writes "
+        "trajectory.csv, states.png and tip.png into the output folder. Exit code 0: "
+        "success; 1: the integrator failed (partial results written); 2: bad arguments "
+        "or configuration.",
+    )
+    parser.add_argument("config", nargs="?", help="scenario TOML file (default: the paper's case)")
+    parser.add_argument(
+        "-o",
+        "--output",
+        default="softcurve-output",
+        metavar="DIR",
+        help="output folder (default: softcurve-output)",
+    )
+    parser.add_argument("--t-final", type=float, metavar="S", help="end time [s]")
+    parser.add_argument("--dt", type=float, metavar="S", help="output interval [s]")
+    parser.add_argument(
+        "--method",
+        choices=("cvodes", "adams", "bdf", "rk45"),
+        help="integrator (default cvodes: Adams or BDF chosen per problem)",
+    )
+    parser.add_argument("--rtol", type=float, help="relative tolerance (default 1e-6)")
+    parser.add_argument("--atol", type=float, help="absolute tolerance for every state")
+    parser.add_argument("--max-steps", type=int, help="internal steps allowed per output interval")
+    parser.add_argument("--npz", action="store_true", help="also write trajectory.npz")
+    parser.add_argument("--no-figures", action="store_true", help="skip states.png and tip.png")
+    parser.add_argument(
+        "--animate",
+        action="store_true",
+        help="also write animation.gif (and animation.mp4 if ffmpeg exists)",
+    )
+    parser.add_argument("--fps", type=int, default=25, help="animation frames per second")
+    progress = parser.add_mutually_exclusive_group()
+    progress.add_argument(
+        "--progress",
+        dest="progress",
+        action="store_true",
+        default=None,
+        help="progress bar on stderr (default: when stderr is a terminal)",
+    )
+    progress.add_argument("--no-progress", dest="progress", action="store_false")
+    parser.add_argument("-q", "--quiet", action="store_true", help="print nothing on success")
+    parser.set_defaults(handler=run)
+
+
+def _scenario(args):
+    from .._validate import ParameterError
+    from ..io import load_config, paper_scenario
+
+    scenario = load_config(args.config) if args.config else paper_scenario()
+    overrides = {
+        "t_final": args.t_final,
+        "dt": args.dt,
+        "method": args.method,
+        "rtol": args.rtol,
+        "atol": args.atol,
+        "max_steps": args.max_steps,
+    }
+    overrides = {k: v for k, v in overrides.items() if v is not None}
+    if args.fps < 1:
+        raise ParameterError(f"--fps must be >= 1, got {args.fps}")
+    return dataclasses.replace(scenario, **overrides)
+
+
+def run(args) -> int:
+    from .. import Model
+    from ..simulate import simulate
+
+    scenario = _scenario(args)
+    say = (lambda *a: None) if args.quiet else print
+    output = Path(args.output)
+    if output.exists() and not output.is_dir():
+        from .._validate import ParameterError
+
+        raise ParameterError(f"--output {output}: exists and is not a folder")
+    start = time.perf_counter()
+    model = Model(scenario.robot)
+    built = time.perf_counter() - start
+    q0, qd0, lam0 = scenario.initial_state()
+    show_progress = args.progress if args.progress is not None else sys.stderr.isatty()
+    trajectory = simulate(
+        model,
+        scenario.t_final,
+        q0,
+        qd0,
+        lam0,
+        scenario.tau,
+        scenario.dt,
+        method=scenario.method,
+        rtol=scenario.rtol,
+        atol=scenario.atol,
+        max_steps=scenario.max_steps,
+        progress=show_progress,
+    )
+    output.mkdir(parents=True, exist_ok=True)
+    written = [trajectory.save(output / "trajectory.csv")]
+    if args.npz:
+        written.append(trajectory.save(output / "trajectory.npz"))
+    if not args.no_figures and trajectory.t.size:
+        import matplotlib.pyplot as plt
+
+        for name, draw in (("states.png", trajectory.plot), ("tip.png", trajectory.plot_tip)):
+            plt.close(draw(output / name))
+            written.append(output / name)
+    if args.animate and trajectory.t.size > 1:
+        written.append(trajectory.animate(output / "animation.gif", fps=args.fps))
+        if shutil.which("ffmpeg"):
+            written.append(trajectory.animate(output / "animation.mp4", fps=args.fps))
+    total = time.perf_counter() - start
+    if trajectory.success:
+        say(_summary(scenario, model, trajectory, built, total, written))
+        return 0
+    print(_summary(scenario, model, trajectory, built, total, written), file=sys.stderr)
+    print(f"softcurve simulate: integration failed: {trajectory.message}", file=sys.stderr)
+    return 1
+
+
+def _summary(scenario, model, trajectory, built, total, written) -> str:
+    stats = trajectory.stats
+    energy = trajectory.energy(model) if trajectory.t.size else np.array([np.nan])
+    wall = stats["wall_time"]
+    simulated = trajectory.t[-1] if trajectory.t.size else 0.0
+    fmt = lambda a: "(" + ", ".join(f"{v:.6g}" for v in a) + ")"  # noqa: E731
+    lines = [
+        f"softcurve simulate: {scenario.source}, {model.robot.n_segments} segment(s), "
+        f"t = 0 .. {simulated:.6g} s, output every {scenario.dt:g} s ({trajectory.t.size} points)",
+        f"  status      {trajectory.status}: {trajectory.message}",
+        f"  final q     {fmt(trajectory.q[-1])}" if trajectory.t.size else "  final q     -",
+        f"  final qd    {fmt(trajectory.qd[-1])}" if trajectory.t.size else "  final qd    -",
+        f"  final tip   {fmt(trajectory.tip[-1] * 1e3)} mm" if trajectory.t.size else "",
+        f"  energy      {energy[0]:.6g} J -> {energy[-1]:.6g} J",
+        f"  integrator  {stats['method']}, rtol {stats['rtol']:g}: {stats['steps']} steps, "
+        f"{stats['rhs_evaluations']} rhs and {stats['jacobian_evaluations']} Jacobian evaluations",
+        f"  wall time   {1e3 * wall:.1f} ms integrating"
+        + (f" ({simulated / wall:.0f}x real time)" if wall > 0 and simulated > 0 else "")
+        + f", {built:.2f} s model setup, {total:.2f} s in total",
+        "  wrote       " + ", ".join(str(p) for p in written),
+    ]
+    return "\n".join(line for line in lines if line)

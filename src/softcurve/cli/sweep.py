@@ -1,0 +1,104 @@
+"""``softcurve sweep``: run a parameter sweep from a TOML file into one Parquet table.
+
+Exit code 0 when every simulation succeeded, 1 when some failed (their rows carry
+status "failed" and a message), 2 for a bad configuration (reported before any work).
+"""
+
+from __future__ import annotations
+
+import sys
+
+
+def register(subparsers) -> None:
+    parser = subparsers.add_parser(
+        "sweep",
+        help="run a grid, random or Sobol design of simulations into one Parquet table",
+        description="Run the design of a sweep file (schema: docs/sweeps.md, examples: "
+        "examples/sweep_*.toml) and write OUTPUT/results.parquet: one row per simulation "
+        "with the swept values and the chosen outputs. Chunks are written as they finish; "
+        "run the same command again to resume a killed sweep. Needs pyarrow "
+        "(pip install 'softcurve[sweep]'; with --scheduler, 'softcurve[cluster]').",
+    )
+    parser.add_argument("config", help="sweep TOML file")
+    parser.add_argument(
+        "-o",
+        "--output",
+        default="softcurve-sweep",
+        metavar="DIR",
+        help="output folder (default: softcurve-sweep)",
+    )
+    where = parser.add_mutually_exclusive_group()
+    where.add_argument(
+        "--workers",
+        type=int,
+        metavar="N",
+        help="local worker processes (default: the usable cores; 0: this process)",
+    )
+    where.add_argument(
+        "--scheduler", metavar="ADDRESS", help="Dask scheduler to run on, e.g. tcp://10.0.0.5:8786"
+    )
+    parser.add_argument(
+        "--restart",
+        action="store_true",
+        help="discard results already in the output folder instead of resuming",
+    )
+    progress = parser.add_mutually_exclusive_group()
+    progress.add_argument(
+        "--progress",
+        dest="progress",
+        action="store_true",
+        default=None,
+        help="progress bar on stderr (default: when stderr is a terminal)",
+    )
+    progress.add_argument("--no-progress", dest="progress", action="store_false")
+    parser.add_argument("-q", "--quiet", action="store_true", help="print nothing on success")
+    parser.set_defaults(handler=run)
+
+
+def run(args) -> int:
+    from .._validate import ParameterError
+    from ..sweep import load_sweep, run_sweep
+
+    try:
+        import pyarrow  # noqa: F401
+    except ImportError:
+        raise ParameterError(
+            "softcurve sweep writes Parquet with pyarrow: pip install 'softcurve[sweep]'"
+        ) from None
+    if args.workers is not None and args.workers < 0:
+        raise ParameterError(f"--workers must be >= 0, got {args.workers}")
+    config = load_sweep(args.config)
+    show = args.progress if args.progress is not None else sys.stderr.isatty()
+    result = run_sweep(
+        config,
+        args.output,
+        workers=args.workers,
+        scheduler=args.scheduler,
+        restart=args.restart,
+        progress=show,
+    )
+    simulated = config.size * config.scenario.t_final
+    summary = (
+        f"softcurve sweep: {config.source}: {config.design} design of {config.size} "
+        f"simulations over {', '.join(v.name for v in config.variables)}\n"
+        f"  chunks      {result.chunks_run} run, {result.chunks_skipped} already done\n"
+        f"  failed      {result.failed} of {config.size}\n"
+        f"  wall time   {result.wall_time:.2f} s"
+        + (
+            f" ({simulated / result.wall_time:.0f} simulated s per s)"
+            if result.chunks_skipped == 0 and result.wall_time > 0
+            else ""
+        )
+        + f"\n  wrote       {result.path}"
+    )
+    if result.failed:
+        print(summary, file=sys.stderr)
+        print(
+            f"softcurve sweep: {result.failed} simulation(s) failed: see the status and "
+            "message columns",
+            file=sys.stderr,
+        )
+        return 1
+    if not args.quiet:
+        print(summary)
+    return 0

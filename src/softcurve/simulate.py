@@ -1,0 +1,522 @@
+"""Simulation of eq. (16) with creep (eq. 19): :func:`simulate` and its :class:`Trajectory`.
+
+The state is ``x = (q, qd, lam)``. Output is on a fixed grid ``t_k = k dt``; between
+output times the integrator chooses its own steps under error control.
+
+Integrators (``method``)
+------------------------
+``"cvodes"`` (default)
+    SUNDIALS CVODES in compiled code (through CasADi), on the model's compiled
+    right-hand side: a 10 s run of the paper's case never returns to Python. CVODES
+    offers Adams-Moulton (orders 1-12, efficient on smooth non-stiff problems) and BDF
+    (orders 1-5, stable on stiff ones); ``"cvodes"`` picks per problem from the
+    linearisation at the initial state: if the fastest decay rate exceeds the fastest
+    oscillation frequency ``STIFFNESS_RATIO`` times (a decaying mode far faster than
+    anything that must be resolved), BDF, otherwise Adams. The paper's case has its
+    fastest decay (creep, 284 1/s) next to its fastest oscillation (247 rad/s): Adams.
+``"adams"``, ``"bdf"``
+    CVODES with that family, no choice made.
+``"rk45"``
+    SciPy's explicit Runge-Kutta 4(5) of Dormand and Prince (the paper's ``ode45``)
+    on the same compiled right-hand side, stepped from Python: 5-10x slower, for
+    comparison and for robots where an explicit method is wanted.
+
+How CVODES gets compiled code, measured on the paper's case
+(``benchmarks/bench_simulate.py``): the library that :class:`~softcurve.Model` has
+already compiled is loaded as a CasADi ``external`` (about 29 ms for 10 s at rtol 1e-6
+on a loaded 2-core machine); the same integration with the right-hand side in CasADi's
+virtual machine takes about 6x longer; CasADi's ``jit`` would compile the right-hand
+side and its exact Jacobian again for every new integrator (about 50 s with gcc -O2).
+Multistep histories cannot cross a jump of the input, so the integrator restarts
+wherever the input changes.
+
+Inputs
+------
+``tau`` is None (zero), a constant (n,), an array (T, n) on the output grid (held
+constant over ``[t_k, t_k+1)``), or a callable ``tau(t, state)`` with ``state`` a
+:class:`State` (``q``, ``qd``, ``lam``, ``x``), evaluated at every output time and held
+(zero-order hold). A ``controller`` (an object with ``sample_time`` [s] and
+``__call__(t, q, qd, lam) -> tau``, optionally ``reset()``) is sampled every
+``sample_time`` and its output held between samples; give either ``tau`` or a
+``controller``. Inputs that need Python at run time integrate piece by piece and are
+slower.
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from ._engines import (
+    STIFFNESS_RATIO,
+    CvodesEngine,
+    IntegrationFailure,
+    ScipyEngine,
+    evaluate_along,
+    nominal_scale,
+    stiffness_ratio,
+)
+from ._validate import ParameterError, real_array, real_scalar
+from .model import Model
+
+METHODS = ("cvodes", "adams", "bdf", "rk45")
+
+
+@dataclass(frozen=True)
+class State:
+    """The state passed to a ``tau(t, state)`` callable: ``q``, ``qd``, ``lam`` and ``x``."""
+
+    q: np.ndarray
+    qd: np.ndarray
+    lam: np.ndarray
+    x: np.ndarray
+
+
+@dataclass(eq=False)
+class Trajectory:
+    """A simulated (or loaded) trajectory on the output grid.
+
+    Attributes
+    ----------
+    t : ndarray (T,)
+        Output times [s].
+    q, qd : ndarray (T, n)
+        Coordinates ``(l, kx, ky)`` per segment [m, 1/m] and their rates.
+    lam : ndarray (T, n_creep)
+        Creep states.
+    tip : ndarray (T, 3)
+        Tip position in the world frame [m]; computed from the model on first access
+        (about 2 us per output time), stored in saved files.
+    tau : ndarray (T, n) or None
+        Input forces applied from each output time on (zero-order hold).
+    stats : dict
+        ``method``, ``steps``, ``rhs_evaluations``, ``jacobian_evaluations``,
+        ``wall_time`` [s] and the tolerances used.
+    status : {"success", "failed"}
+    message : str
+        What happened; on failure, where and what to try.
+    """
+
+    t: np.ndarray
+    q: np.ndarray
+    qd: np.ndarray
+    lam: np.ndarray
+    tip_positions: np.ndarray | None = field(default=None, repr=False)
+    tau: np.ndarray | None = None
+    stats: dict = field(default_factory=dict)
+    status: str = "success"
+    message: str = ""
+    model: Model | None = field(default=None, repr=False)
+
+    @property
+    def tip(self) -> np.ndarray:
+        """Tip positions (T, 3) [m] in the world frame."""
+        if self.tip_positions is None:
+            if self.t.size == 0:
+                self.tip_positions = np.empty((0, 3))
+            else:
+                self.tip_positions = evaluate_along(self._model(None), "pose", self.q, 1.0)[1]
+        return self.tip_positions
+
+    @property
+    def success(self) -> bool:
+        return self.status == "success"
+
+    @property
+    def n(self) -> int:
+        return self.q.shape[1]
+
+    @property
+    def x(self) -> np.ndarray:
+        """States ``(q, qd, lam)`` as rows, shape (T, n_state)."""
+        return np.hstack([self.q, self.qd, self.lam])
+
+    def _model(self, model) -> Model:
+        model = model if model is not None else self.model
+        if model is None:
+            raise ValueError("this trajectory has no model attached: pass model=Model(robot)")
+        return model
+
+    def energy(self, model: Model | None = None) -> np.ndarray:
+        """Mechanical energy ``T + V`` [J] at every output time, shape (T,)."""
+        model = self._model(model)
+        terms = evaluate_along(model, "dynamics_terms", self.q, self.qd, self.lam)
+        mass = terms[0].reshape(-1, self.n, self.n)
+        kinetic = 0.5 * np.einsum("ti,tij,tj->t", self.qd, mass, self.qd)
+        gravity, elastic = evaluate_along(model, "potential_energy", self.q)
+        return kinetic + gravity[:, 0] + elastic[:, 0]
+
+    def save(self, path) -> Path:
+        """Write to ``path`` (.csv or .npz), atomically; returns the path."""
+        from .io import save_trajectory
+
+        return save_trajectory(self, path)
+
+    @classmethod
+    def load(cls, path) -> Trajectory:
+        """Read a trajectory written by :meth:`save`."""
+        from .io import load_trajectory
+
+        return load_trajectory(path)
+
+    def plot(self, path=None):
+        """The states figure (paper Fig. 4): ``l``, ``kx``, ``ky`` against time."""
+        from .plot import plot_states
+
+        return plot_states(self, path)
+
+    def plot_tip(self, path=None):
+        """The 3-D tip trajectory (paper Fig. 5)."""
+        from .plot import plot_tip
+
+        return plot_tip(self, path)
+
+    def animate(self, path, model: Model | None = None, **options) -> Path:
+        """An animation of the backbone, written to ``path`` (.gif, or .mp4 with ffmpeg)."""
+        from .plot import animate
+
+        return animate(self, path, self._model(model), **options)
+
+
+# -- argument checks -----------------------------------------------------------------------
+def _finite_vector(name: str, value, size: int) -> np.ndarray:
+    return np.array(real_array(name, value, (size,)))  # a writable copy
+
+
+def _positive(name: str, value) -> float:
+    return real_scalar(name, value, positive=True)
+
+
+def _grid(t_final: float, dt: float) -> np.ndarray:
+    """Times ``0, dt, 2 dt, ...``; the last one is ``t_final`` if it is not a multiple."""
+    count = t_final / dt
+    steps = round(count)
+    if abs(count - steps) > 1e-9 * max(count, 1.0):  # not a multiple: a shorter last step
+        steps = math.ceil(count)
+    grid = np.arange(steps + 1) * dt
+    grid[-1] = t_final
+    return grid
+
+
+def _input_grid(model: Model, tau, grid: np.ndarray):
+    """Constant / on-grid inputs as a (T, n) array; callables come back unchanged."""
+    n = model.n
+    if tau is None:
+        return np.zeros((grid.size, n))
+    if callable(tau):
+        return tau
+    a = np.asarray(tau, dtype=np.float64) if not isinstance(tau, str) else None
+    if a is not None and a.shape == (n,):
+        a = np.broadcast_to(a, (grid.size, n))
+    if a is None or a.shape != (grid.size, n):
+        raise ParameterError(
+            f"tau must be None, shape ({n},), shape ({grid.size}, {n}) (one row per output "
+            f"time) or a callable tau(t, state), got {getattr(a, 'shape', tau)!r}"
+        )
+    if not np.all(np.isfinite(a)):
+        raise ParameterError("tau must be finite")
+    return np.array(a)
+
+
+def _controller(controller):
+    if controller is None:
+        return None
+    if not callable(controller):
+        raise ParameterError("controller must be callable as controller(t, q, qd, lam) -> tau")
+    return _positive("controller.sample_time", getattr(controller, "sample_time", None))
+
+
+# -- the simulation ------------------------------------------------------------------------
+def simulate(
+    model: Model,
+    t_final: float,
+    q0,
+    qd0,
+    lam0=None,
+    tau=None,
+    dt: float = 1e-3,
+    *,
+    method: str = "cvodes",
+    rtol: float = 1e-6,
+    atol=None,
+    controller=None,
+    max_steps: int = 50_000,
+    progress: bool = False,
+) -> Trajectory:
+    """Integrate the equation of motion from ``(q0, qd0, lam0)`` to ``t_final``.
+
+    Parameters
+    ----------
+    model : Model
+    t_final : float
+        End time [s], > 0.
+    q0, qd0 : array_like (n,)
+        Initial coordinates and rates.
+    lam0 : array_like (n_creep,), optional
+        Initial creep states (default zero).
+    tau : None, array_like (n,) or (T, n), or callable
+        Input forces, see the module notes (default zero).
+    dt : float
+        Output interval [s], default 1 ms; ``dt <= t_final``. Integration steps are
+        chosen by error control, independently of ``dt``.
+    method : {"cvodes", "adams", "bdf", "rk45"}
+        See the module notes.
+    rtol : float
+        Relative tolerance (default 1e-6).
+    atol : float or array_like (n_state,), optional
+        Absolute tolerance per state; default ``rtol * nominal_scale(model, x0)``, i.e.
+        errors are relative to ``max(|x|, the state's natural scale)``.
+    controller : object, optional
+        ``sample_time`` [s] and ``__call__(t, q, qd, lam) -> tau`` (zero-order hold);
+        ``reset()`` is called first if present. Replaces ``tau``.
+    max_steps : int
+        Internal steps allowed between two output times.
+    progress : bool
+        Show a progress bar on stderr when the run takes longer than a second.
+
+    Returns
+    -------
+    Trajectory
+        With ``status`` "failed" and the trajectory up to the failure if the integrator stops.
+    """
+    if not isinstance(model, Model):
+        raise ParameterError(f"model must be a softcurve.Model, got {type(model).__name__}")
+    t_final = _positive("t_final", t_final)
+    dt = _positive("dt", dt)
+    if dt > t_final:
+        raise ParameterError(f"dt must be <= t_final, got dt={dt!r} > t_final={t_final!r}")
+    rtol = _positive("rtol", rtol)
+    if not rtol < 1:
+        raise ParameterError(f"rtol must be < 1, got {rtol!r}")
+    if method not in METHODS:
+        raise ParameterError(f"method must be one of {', '.join(METHODS)}, got {method!r}")
+    if isinstance(max_steps, bool) or not isinstance(max_steps, int | np.integer) or max_steps < 1:
+        raise ParameterError(f"max_steps must be an integer >= 1, got {max_steps!r}")
+    x0 = np.concatenate(
+        [
+            _finite_vector("q0", q0, model.n),
+            _finite_vector("qd0", qd0, model.n),
+            np.zeros(model.n_creep)
+            if lam0 is None
+            else _finite_vector("lam0", lam0, model.n_creep),
+        ]
+    )
+    grid = _grid(t_final, dt)
+    sample_time = _controller(controller)
+    if controller is not None and tau is not None:
+        raise ParameterError("give either tau or a controller, not both")
+    inputs = _input_grid(model, tau, grid) if controller is None else None
+    nominal = nominal_scale(model, x0)
+    if atol is None:
+        atol_vector = rtol * nominal
+    elif np.ndim(atol) == 0:
+        atol_vector = np.full(model.n_state, _positive("atol", atol))
+    else:
+        atol_vector = _finite_vector("atol", atol, model.n_state)
+        if not np.all(atol_vector > 0):
+            raise ParameterError("atol must be > 0 in every entry")
+
+    stats = {"method": method, "rtol": rtol, "atol": atol_vector.tolist(), "dt": dt}
+    if method == "rk45":
+        engine = ScipyEngine(model, rtol, atol_vector, max_steps)
+    else:
+        multistep = method
+        if method == "cvodes":
+            tau0 = inputs[0] if isinstance(inputs, np.ndarray) else np.zeros(model.n)
+            ratio = stiffness_ratio(model, x0, tau0, nominal)
+            stats["stiffness_ratio"] = ratio
+            multistep = "bdf" if ratio > STIFFNESS_RATIO else "adams"
+        engine = CvodesEngine(model, multistep, rtol, atol_vector, nominal, max_steps)
+    stats["method"] = engine.method
+
+    states = np.empty((grid.size, model.n_state))
+    states[0] = x0
+    applied = np.zeros((grid.size, model.n))
+    bar = _Progress(t_final) if progress else None
+    start = time.perf_counter()
+    try:
+        if controller is None and not callable(inputs):
+            applied[:] = inputs
+            reached = _run_on_grid(engine, grid, states, inputs, bar)
+        else:
+            reached = _run_sampled(
+                engine, model, grid, states, applied, inputs, controller, sample_time, bar
+            )
+        failure = None
+    except _Stopped as stop:
+        reached, failure = stop.reached, stop.reason
+    wall = time.perf_counter() - start
+    if bar is not None:
+        bar.close()
+    stats.update(engine.counts, wall_time=wall)
+    return _result(model, grid, states, applied, reached, failure, stats, method)
+
+
+class _Stopped(Exception):
+    def __init__(self, reached: int, reason: str):
+        self.reached, self.reason = reached, reason
+
+
+def _run_on_grid(engine, grid, states, inputs, bar) -> int:
+    """All outputs in as few calls as possible; chunks only to report progress."""
+    intervals = grid.size - 1
+    chunk = intervals if bar is None else max(1, math.ceil(intervals / 50))
+    k = 0
+    while k < intervals:
+        m = min(chunk, intervals - k)
+        _advance(engine, grid, states, inputs, k, m)
+        k += m
+        if bar is not None:
+            bar.update(grid[k])
+    return grid.size
+
+
+def _advance(engine, grid, states, inputs, k, m) -> None:
+    """Fill states[k+1 : k+m+1] from states[k]; on failure retry point by point to keep
+    every output reached, then raise _Stopped."""
+    h = grid[k + m] - grid[k]
+    tout = (grid[k + 1 : k + m + 1] - grid[k]) / h
+    try:
+        states[k + 1 : k + m + 1] = engine.advance(states[k], h, tout, inputs[k : k + m])
+        _check_finite(states, k + 1, k + m + 1)
+        return
+    except IntegrationFailure as failure:
+        reason, partial = failure.reason, failure.states
+    done = k + partial.shape[0]
+    states[k + 1 : done + 1] = partial
+    if m > 1 and partial.shape[0] == 0 and engine.name == "cvodes":
+        for j in range(k, k + m):
+            _advance(engine, grid, states, inputs, j, 1)
+        return
+    raise _Stopped(done + 1, reason)
+
+
+def _check_finite(states, a, b) -> None:
+    bad = ~np.all(np.isfinite(states[a:b]), axis=1)
+    if np.any(bad):
+        first = a + int(np.argmax(bad))
+        raise _Stopped(first, "the state became non-finite")
+
+
+def _run_sampled(engine, model, grid, states, applied, inputs, controller, sample_time, bar):
+    """Piece by piece between output times and controller samples, input held."""
+    n = model.n
+    if controller is not None:
+        if callable(getattr(controller, "reset", None)):
+            controller.reset()
+        samples = np.arange(0.0, grid[-1], sample_time)
+    else:
+        samples = grid[:-1]
+    tolerance = 1e-9 * min(grid[1] - grid[0], sample_time or np.inf)
+    times = np.unique(np.concatenate([grid, samples]))
+    times = times[np.concatenate([[True], np.diff(times) > tolerance])]
+    sample_index = np.searchsorted(times, samples - tolerance)
+    is_sample = np.zeros(times.size, bool)
+    is_sample[sample_index] = True
+    grid_index = np.searchsorted(times, grid - tolerance)
+    current = np.zeros(n)
+    x = states[0].copy()
+    output = 0
+    for i in range(times.size - 1):
+        if is_sample[i]:
+            q, qd, lam = x[:n], x[n : 2 * n], x[2 * n :]
+            if controller is not None:
+                value = controller(times[i], q.copy(), qd.copy(), lam.copy())
+            else:
+                value = inputs(times[i], State(q.copy(), qd.copy(), lam.copy(), x.copy()))
+            current = _finite_vector("tau returned by the controller", value, n)
+        while output < grid.size and grid_index[output] <= i:
+            applied[output] = current
+            output += 1
+        h = times[i + 1] - times[i]
+        try:
+            x_next = engine.advance(x, h, np.ones(1), current[None, :])[0]
+        except IntegrationFailure as failure:
+            raise _Stopped(output, f"{failure.reason} (near t = {times[i]:.6g} s)") from None
+        if not np.all(np.isfinite(x_next)):
+            raise _Stopped(output, f"the state became non-finite near t = {times[i]:.6g} s")
+        x = x_next
+        if grid_index[output] == i + 1:
+            states[output] = x
+            if bar is not None:
+                bar.update(times[i + 1])
+    applied[output:] = current
+    return grid.size
+
+
+def _result(model, grid, states, applied, reached, failure, stats, method) -> Trajectory:
+    n = model.n
+    x = states[:reached]
+    q, qd, lam = x[:, :n], x[:, n : 2 * n], x[:, 2 * n :]
+    if failure is None:
+        status = "success"
+        message = (
+            f"integrated to t = {grid[-1]:.6g} s with {stats['method']} in {stats['steps']} steps"
+        )
+    else:
+        status = "failed"
+        t_stop = grid[reached - 1]
+        advice = ["loosen rtol/atol", "raise max_steps"]
+        if stats["method"] != "cvodes-bdf":
+            advice.insert(0, "method='bdf' if the problem is stiff")
+        advice.append("check that the initial state and inputs are physical")
+        message = (
+            f"{failure}; the trajectory stops at t = {t_stop:.6g} s "
+            f"(output {reached - 1} of {grid.size - 1}). What to try: " + "; ".join(advice)
+        )
+    return Trajectory(
+        t=grid[:reached].copy(),
+        q=q.copy(),
+        qd=qd.copy(),
+        lam=lam.copy(),
+        tau=applied[:reached].copy(),
+        stats=stats,
+        status=status,
+        message=message,
+        model=model,
+    )
+
+
+class _Progress:
+    """A one-line progress bar on stderr that appears once a run has taken a second."""
+
+    def __init__(self, total: float, delay: float = 1.0, stream=None):
+        self.total, self.delay = total, delay
+        self.stream = stream or sys.stderr
+        self.start = time.perf_counter()
+        self.shown = False
+
+    def update(self, t: float) -> None:
+        elapsed = time.perf_counter() - self.start
+        if elapsed < self.delay:
+            return
+        fraction = min(1.0, t / self.total)
+        filled = int(30 * fraction)
+        eta = elapsed * (1 - fraction) / max(fraction, 1e-12)
+        self.stream.write(
+            f"\r[{'#' * filled}{'.' * (30 - filled)}] {100 * fraction:5.1f}% "
+            f"t = {t:.3g} s, {elapsed:.1f} s elapsed, ~{eta:.0f} s left "
+        )
+        self.stream.flush()
+        self.shown = True
+
+    def close(self) -> None:
+        if self.shown:
+            self.stream.write("\n")
+            self.stream.flush()
+
+
+TauCallable = Callable[[float, State], np.ndarray]
+
+
+def load_trajectory(path) -> Trajectory:
+    """Read a trajectory written by :meth:`Trajectory.save` (.csv or .npz)."""
+    from .io import load_trajectory as load
+
+    return load(path)

@@ -1,0 +1,158 @@
+"""``softcurve simulate`` end to end: files, data, exit codes and error messages."""
+
+from __future__ import annotations
+
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import softcurve as sc
+from softcurve.cli import main
+
+EXAMPLES = Path(__file__).resolve().parent.parent / "examples"
+
+
+@pytest.fixture(autouse=True)
+def _compiled_once(paper_model):
+    """Every run here uses the paper's structure, compiled once by the session fixture."""
+
+
+def test_default_run_writes_data_figures_and_summary(tmp_path, capsys):
+    out = tmp_path / "out"
+    code = main(["simulate", "-o", str(out), "--t-final", "1.0", "--no-progress", "--npz"])
+    assert code == 0
+    printed = capsys.readouterr().out
+    for word in (
+        "built-in paper case",
+        "status      success",
+        "final q",
+        "energy",
+        "cvodes-adams",
+        "real time",
+    ):
+        assert word in printed, word
+    assert sorted(p.name for p in out.iterdir()) == [
+        "states.png",
+        "tip.png",
+        "trajectory.csv",
+        "trajectory.npz",
+    ]
+    for figure in ("states.png", "tip.png"):
+        assert (out / figure).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    trajectory = sc.load_trajectory(out / "trajectory.csv")
+    assert trajectory.t.size == 1001 and trajectory.t[-1] == 1.0
+    np.testing.assert_array_equal(trajectory.q[0], [0.064, 25.0, 0.0])
+    np.testing.assert_array_equal(trajectory.qd[0], [0.0, 0.0, 1500.0])
+    assert np.all(np.isfinite(trajectory.x)) and abs(trajectory.q[-1, 1]) < 0.1  # decayed
+    assert np.all(np.abs(np.linalg.norm(trajectory.tip, axis=1) - 0.064) < 0.01)
+
+
+def test_config_file_with_animation(tmp_path, capsys):
+    out = tmp_path / "hanging"
+    code = main(
+        [
+            "simulate",
+            str(EXAMPLES / "hanging.toml"),
+            "-o",
+            str(out),
+            "--t-final",
+            "0.2",
+            "--animate",
+            "--fps",
+            "10",
+            "--quiet",
+        ]
+    )
+    assert code == 0 and capsys.readouterr().out == ""
+    assert (out / "animation.gif").read_bytes()[:6] == b"GIF89a"
+    trajectory = sc.load_trajectory(out / "trajectory.csv")
+    assert trajectory.tip[-1, 2] > 0.0 and trajectory.q[0, 1] == 15.5  # hangs along +z
+
+
+def test_solver_failure_exits_1_and_keeps_the_partial_trajectory(tmp_path, capsys):
+    out = tmp_path / "failed"
+    code = main(
+        [
+            "simulate",
+            "-o",
+            str(out),
+            "--t-final",
+            "0.5",
+            "--max-steps",
+            "3",
+            "--no-figures",
+            "--no-progress",
+        ]
+    )
+    assert code == 1
+    error = capsys.readouterr().err
+    assert "integration failed" in error and "What to try" in error
+    partial = sc.load_trajectory(out / "trajectory.csv")
+    assert partial.status == "failed" and 0 < partial.t.size < 501
+
+
+@pytest.mark.parametrize(
+    ("text", "expected"),
+    [
+        ("[robot]\npreset = 'ifac2020'\nfoo = 1\n", "robot.foo: unknown key"),
+        (
+            "[robot]\npreset = 'ifac2020'\n[simulation]\nrtol = 'tight'\n",
+            "simulation.rtol: must be a finite number",
+        ),
+        (
+            "[robot]\npreset = 'ifac2020'\n[simulation]\nq0 = [0.064, 25.0]\n",
+            "simulation.q0: must have 3 entries",
+        ),
+    ],
+)
+def test_bad_configuration_exits_2_with_file_and_key(tmp_path, capsys, text, expected):
+    config = tmp_path / "bad.toml"
+    config.write_text(text)
+    code = main(["simulate", str(config), "-o", str(tmp_path / "out")])
+    assert code == 2
+    error = capsys.readouterr().err
+    assert f"{config}: {expected}" in error and "Traceback" not in error
+    assert not (tmp_path / "out").exists()  # nothing written
+
+
+def test_bad_options_exit_2(tmp_path, capsys):
+    assert main(["simulate", "-o", str(tmp_path), "--dt", "-1"]) == 2
+    assert "dt" in capsys.readouterr().err
+    assert main(["simulate", str(tmp_path / "missing.toml")]) == 2
+    assert "no such file" in capsys.readouterr().err
+    with pytest.raises(SystemExit) as exit_info:
+        main(["simulate", "--method", "euler"])
+    assert exit_info.value.code == 2
+
+
+def test_subprocess_entry_point(tmp_path):
+    """The installed ``softcurve`` script (or the same entry point through Python)."""
+    env = {**os.environ, "MPLBACKEND": "Agg"}
+    script = shutil.which("softcurve")
+    launcher = (
+        [script]
+        if script
+        else [sys.executable, "-c", "import sys; from softcurve.cli import main; sys.exit(main())"]
+    )
+    command = [*launcher, "simulate", "-o", str(tmp_path), "--t-final", "0.1", "--no-figures", "-q"]
+    done = subprocess.run(command, capture_output=True, text=True, env=env, timeout=120)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout == "" and (tmp_path / "trajectory.csv").exists()
+    helped = subprocess.run(
+        [*launcher, "simulate", "--help"], capture_output=True, text=True, env=env, timeout=60
+    )
+    assert helped.returncode == 0 and "--output" in helped.stdout
+    bad = subprocess.run(
+        [*launcher, "simulate", "--rtol", "2"],
+        capture_output=True,
+        text=True,
+        env=env,
+        timeout=60,
+        cwd=tmp_path,
+    )
+    assert bad.returncode == 2 and "rtol" in bad.stderr and "Traceback" not in bad.stderr

@@ -1,0 +1,185 @@
+"""softcurve.io: scenario files (valid and invalid) and trajectory files (round trips)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import softcurve as sc
+from softcurve.io import ConfigError, atomic_write, load_config, paper_scenario
+
+EXAMPLES = Path(__file__).resolve().parent.parent / "examples"
+
+
+@pytest.fixture(scope="module")
+def short_run(paper_model):
+    tau = np.tile([0.01, 1e-3, -2e-3], (51, 1))
+    return sc.simulate(paper_model, 0.05, [0.064, 25.0, 0.0], [0.0, 0.0, 1500.0], tau=tau)
+
+
+@pytest.mark.parametrize("suffix", [".csv", ".npz"])
+def test_trajectory_round_trip_is_exact(short_run, tmp_path, suffix):
+    path = short_run.save(tmp_path / f"run{suffix}")
+    loaded = sc.load_trajectory(path)
+    for name in ("t", "q", "qd", "lam", "tip", "tau"):
+        np.testing.assert_array_equal(getattr(loaded, name), getattr(short_run, name), err_msg=name)
+    assert loaded.status == "success" and loaded.message == short_run.message
+    assert loaded.stats["steps"] == short_run.stats["steps"]
+    assert loaded.model is None and sc.Trajectory.load(path).t.size == 51
+
+
+def test_csv_has_named_columns_and_metadata(short_run, tmp_path):
+    path = short_run.save(tmp_path / "run.csv")
+    lines = path.read_text().splitlines()
+    assert lines[0].startswith("# {") and '"status": "success"' in lines[0]
+    assert lines[1].split(",")[:4] == ["t", "l1", "kx1", "ky1"]
+    assert "tip_z" in lines[1] and lines[1].endswith("tau3")
+    assert len(lines) == 2 + 51
+
+
+def test_failed_trajectory_round_trips_with_its_status(paper_model, tmp_path):
+    failed = sc.simulate(paper_model, 0.5, [0.064, 25.0, 0.0], [0.0, 0.0, 1500.0], max_steps=3)
+    loaded = sc.load_trajectory(failed.save(tmp_path / "failed.csv"))
+    assert loaded.status == "failed" and not loaded.success and loaded.t.size == failed.t.size
+
+
+def test_unknown_suffix_is_refused(short_run, tmp_path):
+    with pytest.raises(ValueError, match=r"\.csv or \.npz"):
+        short_run.save(tmp_path / "run.txt")
+
+
+def test_atomic_write_keeps_the_old_file_on_failure(tmp_path):
+    target = atomic_write(tmp_path / "data.bin", b"old")
+    from softcurve.io import atomic_path
+
+    with pytest.raises(RuntimeError), atomic_path(target) as tmp:
+        tmp.write_bytes(b"half")
+        raise RuntimeError("interrupted")
+    assert target.read_bytes() == b"old"
+    assert [p.name for p in tmp_path.iterdir()] == ["data.bin"]  # no temporary left
+
+
+def test_examples_load_and_the_paper_example_is_the_preset():
+    names = ("ifac2020", "hanging", "two-segment")  # the scenario examples (others are sweeps)
+    scenarios = {name: load_config(EXAMPLES / f"{name}.toml") for name in names}
+    paper = scenarios["ifac2020"]
+    np.testing.assert_array_equal(
+        paper.robot.parameter_vector(), sc.presets.ifac2020().parameter_vector()
+    )
+    builtin = paper_scenario()
+    for name in ("t_final", "dt", "q0", "qd0", "method", "rtol"):
+        assert getattr(paper, name) == getattr(builtin, name), name
+    assert scenarios["hanging"].robot.gravity[2] == 9.81
+    two = scenarios["two-segment"].robot
+    assert two.n_segments == 2 and two.n_creep == 3
+    assert isinstance(two.segments[1].bending_stiffness, sc.LinearStiffness)
+
+
+SEGMENT = """
+[[robot.segments]]
+rest_length = 0.06
+mass = 0.05
+radius = 0.02
+elongation_stiffness = { law = "linear", k0 = 500.0 }
+bending_stiffness = { law = "linear", k0 = 0.05 }
+"""
+
+
+def test_a_minimal_file_gets_the_defaults(tmp_path):
+    path = tmp_path / "minimal.toml"
+    path.write_text("[robot]\n" + SEGMENT)
+    scenario = load_config(path)
+    q0, qd0, lam0 = scenario.initial_state()
+    np.testing.assert_array_equal(q0, [0.06, 0.0, 0.0])
+    assert scenario.t_final == 10.0 and scenario.method == "cvodes" and lam0.size == 0
+
+
+BAD = [
+    ("[robot]\npreset = 'ifac2020'\ncolour = 'red'\n", "robot.colour: unknown key"),
+    ("[robot]\npreset = 'ifac2020'\n[simulaton]\nt_final = 1.0\n", "simulaton: unknown key"),
+    ("[robot]\npreset = 'ifac2021'\n", "robot.preset: unknown preset"),
+    (
+        "[robot]\npreset = 'ifac2020'\n[simulation]\nt_final = 'long'\n",
+        "simulation.t_final: must be a finite number",
+    ),
+    (
+        "[robot]\npreset = 'ifac2020'\n[simulation]\nt_final = -1.0\n",
+        "simulation.t_final: must be > 0",
+    ),
+    (
+        "[robot]\npreset = 'ifac2020'\n[simulation]\nq0 = [0.064, 25.0]\n",
+        "simulation.q0: must have 3 entries",
+    ),
+    (
+        "[robot]\npreset = 'ifac2020'\n[simulation]\nq0 = [-0.064, 25.0, 0.0]\n",
+        "simulation.q0: lengths",
+    ),
+    (
+        "[robot]\npreset = 'ifac2020'\n[simulation]\nmethod = 'euler'\n",
+        "simulation.method: must be one of",
+    ),
+    (
+        "[robot]\npreset = 'ifac2020'\n[simulation]\nt_final = 1.0\ndt = 2.0\n",
+        "simulation.dt: must be <= t_final",
+    ),
+    (
+        "[robot]\npreset = 'ifac2020'\n[simulation]\nmax_steps = 1.5\n",
+        "simulation.max_steps: must be an integer",
+    ),
+    ("[robot]\npreset = 'ifac2020'\ngravity = [0, 0]\n", "robot.gravity: must have 3 entries"),
+    ("[robot]\npreset = 'ifac2020'\ncreep = 1\n", "robot.creep: must be true or false"),
+    ("[simulation]\nt_final = 1.0\n", "robot: is required"),
+    (
+        "[robot]\n" + SEGMENT.replace("mass = 0.05", "mass = -0.05"),
+        "robot.segments[0].mass: must be > 0",
+    ),
+    ("[robot]\n" + SEGMENT.replace("radius = 0.02\n", ""), "robot.segments[0].radius: is required"),
+    (
+        "[robot]\n" + SEGMENT.replace("k0 = 500.0", "k0 = 500.0, k1 = 2.0"),
+        "robot.segments[0].elongation_stiffness.k1: unknown key",
+    ),
+    (
+        "[robot]\n" + SEGMENT.replace('law = "linear", k0 = 0.05', 'law = "cubic", k0 = 0.05'),
+        "robot.segments[0].bending_stiffness.law: must be 'tanh' or 'linear'",
+    ),
+    (
+        "[robot]\n"
+        + SEGMENT.replace(
+            'law = "linear", k0 = 500.0', 'law = "tanh", a1 = 1.0, a2 = 2.0, a3 = 1.0'
+        ),
+        "robot.segments[0].elongation_stiffness: a2 must be < a1",
+    ),
+    (
+        "[robot]\n" + SEGMENT + "damping = [1.0, -1.0, 1.0]\n",
+        "robot.segments[0]: damping must be positive definite",
+    ),
+    (
+        "[robot]\n" + SEGMENT + "creep = { gamma = [1.0, 2.0], compliance = [1.0, 1.0, 1.0] }\n",
+        "robot.segments[0].creep.gamma: must have 6 entries",
+    ),
+    (
+        "[robot]\n"
+        + SEGMENT
+        + "creep = { rate = [1.0, 1.0, 1.0], compliance = [1.0, 1.0, 1.0] }\n",
+        "robot.segments[0].creep: needs gamma",
+    ),
+    ("[robot\npreset = 1\n", "not valid TOML"),
+]
+
+
+@pytest.mark.parametrize(("text", "expected"), BAD, ids=[b[1][:40] for b in BAD])
+def test_bad_files_name_file_key_and_reason(tmp_path, text, expected):
+    path = tmp_path / "bad.toml"
+    path.write_text(text)
+    with pytest.raises(ConfigError) as info:
+        load_config(path)
+    message = str(info.value)
+    assert message.startswith(f"{path}: "), message
+    assert expected in message, message
+
+
+def test_missing_file_is_a_config_error(tmp_path):
+    with pytest.raises(ConfigError, match="no such file"):
+        load_config(tmp_path / "nothing.toml")

@@ -1,0 +1,225 @@
+"""simulate(): convergence, agreement of integrators, the energy balance, inputs, failures."""
+
+from __future__ import annotations
+
+import io
+
+import numpy as np
+import pytest
+from scipy.integrate import cumulative_simpson
+
+import softcurve as sc
+from softcurve._engines import evaluate_along
+from softcurve.simulate import STIFFNESS_RATIO, _Progress, nominal_scale, stiffness_ratio
+
+Q0, QD0 = np.array([0.064, 25.0, 0.0]), np.array([0.0, 0.0, 1500.0])
+
+
+def normalised_error(trajectory, reference) -> float:
+    """Max over time and states of |x - x_ref| / (max_t |x_ref| + natural scale)."""
+    model = reference.model
+    scale = np.abs(reference.x).max(axis=0) + nominal_scale(model, np.zeros(model.n_state))
+    return float(np.max(np.abs(trajectory.x - reference.x) / scale))
+
+
+@pytest.fixture(scope="module")
+def reference(paper_model):
+    """The paper's case over 1 s at a tight tolerance (the transient is in the first second)."""
+    return sc.simulate(paper_model, 1.0, Q0, QD0, method="adams", rtol=1e-11)
+
+
+@pytest.mark.parametrize("method", ["adams", "bdf"])
+def test_cvodes_error_falls_with_tolerance(paper_model, reference, method):
+    errors = []
+    for rtol in (1e-4, 1e-6, 1e-8):
+        trajectory = sc.simulate(paper_model, 1.0, Q0, QD0, method=method, rtol=rtol)
+        assert trajectory.success, trajectory.message
+        errors.append(normalised_error(trajectory, reference))
+    assert errors[0] > 10 * errors[1] > 100 * errors[2], errors
+    assert errors[1] < 1e-4 and errors[2] < 1e-6, errors  # a small multiple of rtol
+
+
+def test_rk45_converges_and_agrees_with_cvodes(paper_model, reference):
+    loose = sc.simulate(paper_model, 1.0, Q0, QD0, method="rk45", rtol=1e-5)
+    tight = sc.simulate(paper_model, 1.0, Q0, QD0, method="rk45", rtol=1e-8)
+    assert loose.success and tight.success
+    assert normalised_error(tight, reference) < 1e-5
+    assert normalised_error(loose, reference) > 10 * normalised_error(tight, reference)
+    assert tight.stats["method"] == "rk45" and tight.stats["rhs_evaluations"] > 0
+
+
+def test_default_picks_adams_for_the_paper_case_and_bdf_when_stiff(paper_model):
+    x0 = np.concatenate([Q0, QD0, np.zeros(3)])
+    ratio = stiffness_ratio(paper_model, x0)
+    assert 0.5 < ratio < STIFFNESS_RATIO  # creep decay ~ elongation frequency
+    trajectory = sc.simulate(paper_model, 0.05, Q0, QD0)
+    assert trajectory.stats["method"] == "cvodes-adams"
+    # the same structure with a creep 1000x faster relaxing: a stiff problem
+    segment = paper_model.robot.segments[0]
+    creep = sc.Creep(segment.creep.rate * 1e3, segment.creep.gain * 1e3, segment.creep.compliance)
+    stiff = sc.Model(paper_model.robot.replace(segments=(segment.replace(creep=creep),)))
+    trajectory = sc.simulate(stiff, 0.05, Q0, QD0)
+    assert trajectory.stats["stiffness_ratio"] > STIFFNESS_RATIO
+    assert trajectory.stats["method"] == "cvodes-bdf" and trajectory.success
+
+
+def test_paper_case_budget_of_evaluations(paper_model):
+    """10 s of the paper's case at rtol 1e-6: a budget on work, not on wall time."""
+    trajectory = sc.simulate(paper_model, 10.0, Q0, QD0)
+    assert trajectory.success
+    assert trajectory.t.shape == (10001,) and trajectory.t[-1] == 10.0
+    assert trajectory.stats["rhs_evaluations"] < 4000
+    assert trajectory.stats["jacobian_evaluations"] < 300
+    # converged to the straight, gravity-compressed equilibrium
+    assert abs(trajectory.q[-1, 0] - 0.0639646) < 1e-6
+    assert np.all(np.abs(trajectory.q[-1, 1:]) < 1e-6)
+    tip = np.array([paper_model.tip_pose(q).position.copy() for q in trajectory.q[::997]])
+    np.testing.assert_allclose(trajectory.tip[::997], tip, rtol=0, atol=1e-15)
+
+
+def test_energy_balance_damped_forced_with_creep(paper_model):
+    """E(t) - E(0) = int_0^t qd' (tau + K^T lam - R qd) dt along the trajectory."""
+    tau = np.array([0.3, 2e-3, -1e-3])
+    lam0 = np.array([1e-4, 5e-3, -2e-3])
+    trajectory = sc.simulate(paper_model, 0.5, Q0, QD0 / 3, lam0, tau, dt=1e-4, rtol=1e-10)
+    assert trajectory.success
+    terms = evaluate_along(
+        paper_model, "dynamics_terms", trajectory.q, trajectory.qd, trajectory.lam
+    )
+    damping, creep = terms[4], terms[5]
+    power = np.einsum("ti,ti->t", trajectory.qd, trajectory.tau + creep - damping)
+    work = cumulative_simpson(power, x=trajectory.t, initial=0.0)
+    energy = trajectory.energy()
+    scale = np.trapezoid(np.abs(power), trajectory.t)
+    error = np.max(np.abs(energy - energy[0] - work))
+    assert error < 1e-6 * scale, (error, scale)
+    assert abs(energy[-1] - energy[0]) > 0.1 * scale  # the balance is not trivially zero
+
+
+def test_straight_start_at_zero_curvature_is_exact(paper_model):
+    trajectory = sc.simulate(paper_model, 0.2, [0.0644, 0.0, 0.0], np.zeros(3))
+    assert trajectory.success and np.all(np.isfinite(trajectory.x))
+    # no bending appears from nothing (round-off of the finite-difference Newton matrix only)
+    assert np.all(np.abs(trajectory.q[:, 1:]) < 1e-20)
+    assert trajectory.q[-1, 0] < 0.0644  # gravity compresses the upright robot
+
+
+class HoldLast:
+    """A controller that records its calls and pushes the tip toward +x."""
+
+    def __init__(self, sample_time):
+        self.sample_time = sample_time
+        self.calls = []
+        self.was_reset = False
+
+    def reset(self):
+        self.was_reset = True
+        self.calls.clear()
+
+    def __call__(self, t, q, qd, lam):
+        self.calls.append(t)
+        return np.array([0.0, 1e-3 - 1e-5 * qd[1], 0.0])
+
+
+def test_controller_is_sampled_and_held(paper_model):
+    controller = HoldLast(sample_time=5e-3)
+    trajectory = sc.simulate(paper_model, 0.1, Q0, QD0, controller=controller, rtol=1e-9)
+    assert trajectory.success and controller.was_reset
+    np.testing.assert_allclose(controller.calls, np.arange(20) * 5e-3, atol=1e-12)
+    held = trajectory.tau[:, 1].reshape(-1)[:100].reshape(20, 5)
+    assert np.all(held == held[:, :1])  # constant between samples
+    # the same inputs given as an array on the grid give the same trajectory
+    replay = sc.simulate(paper_model, 0.1, Q0, QD0, tau=trajectory.tau, rtol=1e-9)
+    assert normalised_error(replay, trajectory) < 1e-7
+
+
+def test_tau_callable_receives_the_state(paper_model):
+    seen = []
+
+    def tau(t, state):
+        seen.append((t, state.q.copy(), state.x.size))
+        return np.zeros(3)
+
+    trajectory = sc.simulate(paper_model, 0.01, Q0, QD0, tau=tau)
+    free = sc.simulate(paper_model, 0.01, Q0, QD0)
+    assert len(seen) == 10 and seen[0][2] == 9
+    np.testing.assert_array_equal(seen[0][1], Q0)
+    np.testing.assert_allclose(seen[3][1], trajectory.q[3], rtol=1e-14)
+    assert normalised_error(trajectory, free) < 1e-5
+
+
+def test_failure_keeps_the_partial_trajectory(paper_model):
+    trajectory = sc.simulate(paper_model, 1.0, Q0, QD0, max_steps=3)
+    assert not trajectory.success and trajectory.status == "failed"
+    assert 0 < trajectory.t.size < 1001 and trajectory.t[-1] < 1.0
+    assert "max_steps" in trajectory.message and "What to try" in trajectory.message
+    full = sc.simulate(paper_model, 1.0, Q0, QD0)
+    k = trajectory.t.size
+    np.testing.assert_allclose(trajectory.q, full.q[:k], rtol=1e-4, atol=1e-6)
+
+
+def test_last_output_is_t_final_when_not_a_multiple_of_dt(paper_model):
+    trajectory = sc.simulate(paper_model, 0.0105, Q0, QD0, dt=1e-3)
+    assert trajectory.t.size == 12 and trajectory.t[-1] == 0.0105
+    assert np.allclose(np.diff(trajectory.t[:-1]), 1e-3)
+
+
+def test_virtual_machine_model_runs(two_segment_model):
+    q0 = np.array([0.0644, 5.0, 0.0, 0.0644, 0.0, 5.0])
+    trajectory = sc.simulate(two_segment_model, 0.02, q0, np.zeros(6), dt=2e-3)
+    assert trajectory.success and trajectory.tip.shape == (11, 3)
+    assert np.all(np.isfinite(trajectory.x))
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "named"),
+    [
+        ({"t_final": 0.0}, "t_final"),
+        ({"t_final": float("nan")}, "t_final"),
+        ({"dt": -1e-3}, "dt"),
+        ({"dt": 2.0}, "dt must be <= t_final"),
+        ({"q0": [0.064, 25.0]}, "q0"),
+        ({"qd0": [0.0, np.inf, 0.0]}, "qd0"),
+        ({"lam0": np.zeros(2)}, "lam0"),
+        ({"tau": np.zeros((5, 3))}, "tau"),
+        ({"method": "euler"}, "method"),
+        ({"rtol": 0.0}, "rtol"),
+        ({"atol": -1.0}, "atol"),
+        ({"atol": np.ones(4)}, "atol"),
+        ({"max_steps": 0}, "max_steps"),
+        ({"controller": object()}, "controller"),
+        ({"controller": HoldLast(0.0)}, "sample_time"),
+        ({"controller": HoldLast(1e-3), "tau": np.zeros(3)}, "either tau or a controller"),
+    ],
+)
+def test_bad_arguments_are_named(paper_model, kwargs, named):
+    arguments = {"t_final": 1.0, "q0": Q0, "qd0": QD0, **kwargs}
+    with pytest.raises(sc.ParameterError, match=named):
+        sc.simulate(paper_model, **arguments)
+
+
+def test_progress_bar_appears_only_after_its_delay():
+    stream = io.StringIO()
+    bar = _Progress(10.0, delay=0.0, stream=stream)
+    bar.update(2.5)
+    bar.close()
+    text = stream.getvalue()
+    assert "25.0%" in text and "t = 2.5 s" in text and text.endswith("\n")
+    quiet = io.StringIO()
+    bar = _Progress(10.0, delay=3600.0, stream=quiet)
+    bar.update(5.0)
+    bar.close()
+    assert quiet.getvalue() == ""
+
+
+def test_figures_of_a_two_segment_trajectory(two_segment_model, tmp_path):
+    q0 = np.array([0.0644, 5.0, 0.0, 0.0644, 0.0, 5.0])
+    trajectory = sc.simulate(two_segment_model, 0.01, q0, np.zeros(6), dt=2e-3)
+    figure = trajectory.plot(tmp_path / "states.png")
+    assert len(figure.axes[0].lines) == 2 and (tmp_path / "states.png").stat().st_size > 0
+    trajectory.plot_tip(tmp_path / "tip.png")
+    path = trajectory.animate(tmp_path / "backbone.gif", fps=500)
+    assert path.read_bytes()[:6] == b"GIF89a"
+    import matplotlib.pyplot as plt
+
+    plt.close("all")

@@ -1,0 +1,268 @@
+"""Equilibria, their classification, rings of equilibria, and linearisation."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import scipy.optimize
+
+import softcurve as sc
+from softcurve import ParameterError, PneumaticActuator
+from softcurve.simulate import simulate
+from softcurve.statics import equilibria, equilibrium, linearize, rotate_about_axis
+
+from .conftest import assert_close
+
+BUCKLING_GRAVITY = np.array([0.0, 0.0, -150.0])  # about 15 g: the upright robot buckles
+
+
+def actuator():
+    return PneumaticActuator.three_bellows(distance=0.012, area=2e-4, p_max=6e4)
+
+
+def potential_force(model, q, gravity_sign=1.0):
+    """Compiled ``N(q)`` with the model's gravity scaled by ``gravity_sign`` (it is linear)."""
+    return model.elastic_force(q) + gravity_sign * model.gravity_force(q)
+
+
+def hessian_by_differences(model, q, extra=None, gravity_sign=1.0):
+    """Central differences of the compiled N(q) (- extra generalized force), symmetrised."""
+    extra = extra or (lambda q: 0.0)
+    scale = np.array([q[0], 1 / q[0], 1 / q[0]])
+    columns = []
+    for i in range(3):
+        h = np.zeros(3)
+        h[i] = 1e-6 * scale[i]
+        f = lambda x: potential_force(model, x, gravity_sign) - extra(x)  # noqa: E731
+        columns.append((f(q + h) - f(q - h)) / (2 * h[i]))
+    k = np.array(columns).T
+    return 0.5 * (k + k.T), scale
+
+
+def signs_of_hessian(model, q, gravity_sign=1.0):
+    k, scale = hessian_by_differences(model, q, gravity_sign=gravity_sign)
+    return np.sign(np.linalg.eigvalsh(scale[:, None] * k * scale[None, :]))
+
+
+@pytest.fixture(scope="module")
+def buckled_model():
+    return sc.Model(sc.presets.ifac2020().replace(gravity=BUCKLING_GRAVITY))
+
+
+def test_straight_robot_is_the_only_equilibrium_upright_and_hanging(paper_model):
+    segment = paper_model.robot.segments[0]
+    weight = segment.mass * 9.81
+    for sign in (-1.0, 1.0):  # upright, hanging
+        table = equilibria(paper_model, gravity=[0, 0, sign * 9.81], starts=24)
+        assert table.status == "ok" and len(table) == 1, table.table()
+        e = table[0]
+        assert e.stability == "stable" and e.continuum is None
+        assert np.all(e.q[1:] == 0.0)
+        # closed form of the straight equilibrium: k_e(eps) eps = -/+ m g / 2
+        eps = e.q[0] - segment.rest_length
+        assert_close(segment.elongation_stiffness.force(eps), sign * weight / 2, rtol=1e-10)
+        n = potential_force(paper_model, e.q, -sign)
+        assert_close(n, np.zeros(3), atol=1e-12 * weight)
+        assert np.all(signs_of_hessian(paper_model, e.q, -sign) > 0)
+
+
+def test_buckled_upright_robot_has_a_stable_ring_and_a_saddle(buckled_model):
+    table = equilibria(buckled_model, starts=24)
+    assert [(e.stability, e.continuum) for e in table] == [("stable", "ring"), ("saddle", None)]
+    ring, straight = table
+    assert ring.q[2] == 0.0 and ring.q[1] > 0  # representative bends toward +x
+    assert 2 <= table.converged_starts <= table.starts
+    for angle in (0.0, 1.0, 2.5, 4.0):  # every rotated member is an equilibrium
+        member = rotate_about_axis(ring.q, angle)
+        assert_close(buckled_model.potential_force(member), np.zeros(3), atol=1e-10 * 0.05 * 150)
+    # classification agrees with the signs of the finite-difference Hessian
+    signs = signs_of_hessian(buckled_model, ring.q)
+    assert signs[0] > 0 and signs[-1] > 0  # the middle one is the ring direction (zero)
+    k, scale = hessian_by_differences(buckled_model, ring.q)
+    eig = np.linalg.eigvalsh(scale[:, None] * k * scale[None, :])
+    assert np.min(np.abs(eig)) < 1e-6 * np.max(np.abs(eig))
+    assert sorted(signs_of_hessian(buckled_model, straight.q)) == [-1, -1, 1]
+    assert straight.unstable_directions == 2
+
+
+def test_perturbed_simulations_confirm_the_classification(paper_model, buckled_model):
+    def final_curvature(model, q0, t_final):
+        run = simulate(model, t_final, q0, np.zeros(3), dt=1e-2)
+        assert run.success, run.message
+        return np.hypot(run.q[:, 1], run.q[:, 2])
+
+    ring, straight = equilibria(buckled_model, starts=8)
+    kappa = final_curvature(buckled_model, straight.q + [0, 0.05, 0.0], 1.0)
+    assert kappa.max() > 0.5 * ring.curvature[0]  # the saddle is left
+    kappa = final_curvature(buckled_model, ring.q + [0, 0.3, 0.3], 1.0)
+    assert np.max(np.abs(kappa - ring.curvature[0])) < 1.5  # stays near the stable ring
+    stable = equilibria(paper_model, starts=1)[0]
+    kappa = final_curvature(paper_model, stable.q + [0, 0.5, 0.0], 1.0)
+    assert kappa.max() < 0.6
+
+
+def test_equilibrium_under_pressures_and_tip_force_balances_the_loads(paper_model):
+    act, p, f = actuator(), np.array([2e4, 0.0, 5e3]), np.array([0.1, 0.2, -0.3])
+    e = equilibrium(paper_model, [0.064, 0, 0], actuator=act, pressures=p, tip_force=f)
+    assert e.converged and e.stability == "stable"
+    j = paper_model.jacobian(e.q, 1.0)
+    loads = act.matrix(e.q) @ p + j[:3].T @ f
+
+    def j_of(q):
+        return paper_model.jacobian(q, 1.0)[:3].T
+
+    assert_close(paper_model.potential_force(e.q), loads, rtol=1e-10, scale=np.abs(loads).max())
+    assert_close(e.tip_position, paper_model.tip_pose(e.q).position, rtol=1e-13)
+    # a constant force and constant pressures are conservative: K is the FD Hessian
+    k, _ = hessian_by_differences(paper_model, e.q, lambda q: act.matrix(q) @ p + j_of(q) @ f)
+    lin = linearize(paper_model, e.q, actuator=act, pressures=p, tip_force=f)
+    assert_close(lin.stiffness, k, rtol=1e-6, scale=np.abs(k).max())
+
+
+def test_tip_moment_is_balanced_and_flagged_non_conservative(paper_model):
+    m = np.array([0.0, 2e-3, 0.0])
+    e = equilibrium(paper_model, [0.064, 0, 0], tip_moment=m)
+    assert e.converged and "not conservative" in e.message
+    j = paper_model.jacobian(e.q, 1.0)
+    assert_close(paper_model.potential_force(e.q), j[3:].T @ m, rtol=1e-10, scale=1e-3)
+    assert e.q[1] > 0  # a moment about +y bends the tip toward +x
+
+
+def test_linearisation_matches_finite_differences_of_the_rhs(paper_model, rng):
+    act, p = actuator(), np.array([2e4, 0.0, 5e3])
+    f, m = np.array([0.1, 0.2, -0.3]), np.array([1e-3, 0.0, 2e-3])
+    x = np.concatenate([[0.066, 12.0, -9.0], rng.normal(size=3) * [0.01, 10, 10], [1e-3] * 3])
+    lin = linearize(
+        paper_model, x[:3], x[3:6], x[6:], actuator=act, pressures=p, tip_force=f,
+        tip_moment=m, inputs="pressures",
+    )  # fmt: skip
+
+    def rhs(x, dp=None):
+        q = x[:3]
+        tau = (
+            act.matrix(q) @ (p if dp is None else p + dp)
+            + paper_model.jacobian(q, 1.0).T @ np.r_[f, m]
+        )
+        return np.array(paper_model.state_derivative(x, tau))  # a copy, never a buffer view
+
+    steps = 1e-6 * (np.abs(x) + 1e-3)
+    a = np.column_stack(
+        [(rhs(x + h * e) - rhs(x - h * e)) / (2 * h) for h, e in zip(steps, np.eye(9), strict=True)]
+    )
+    assert_close(lin.A, a, rtol=1e-6, atol=1e-7 * np.abs(a).max())
+    b = np.column_stack([(rhs(x, 10.0 * e) - rhs(x, -10.0 * e)) / 20.0 for e in np.eye(3)])
+    assert_close(lin.B, b, rtol=1e-6, atol=1e-8 * np.abs(b).max())
+
+
+def test_undamped_eigenvalues_are_the_natural_frequencies(conservative_model):
+    e = equilibria(conservative_model, starts=1)[0]
+    lin = linearize(conservative_model, e.q)
+    # the creep states of this model exert no force: their eigenvalues are real, apart
+    oscillatory = lin.eigenvalues[lin.eigenvalues.imag != 0]
+    assert oscillatory.size == 6
+    omega = np.sort(np.abs(oscillatory.imag))[::2]
+    assert_close(omega, 2 * np.pi * np.sort(lin.frequencies), rtol=1e-8)
+    assert_close(np.abs(oscillatory.real), np.zeros(6), atol=1e-8 * omega.max())
+    assert_close(lin.modes.T @ lin.mass_matrix @ lin.modes, np.eye(3), atol=1e-12)
+    assert not lin.asymptotically_stable
+    damped = linearize(sc.Model(sc.presets.ifac2020()), e.q)
+    assert damped.asymptotically_stable and np.all(damped.damping_ratios > 0)
+
+
+def test_equilibria_are_distinct_and_reproducible(buckled_model):
+    a = equilibria(buckled_model, starts=16, seed=3)
+    b = equilibria(buckled_model, starts=16, seed=3)
+    assert [e.q.tolist() for e in a] == [e.q.tolist() for e in b]
+    assert a.evaluations <= 16 * 200, "root-finder budget per start exceeded"
+    assert [e.potential for e in a] == sorted(e.potential for e in a)
+
+
+def test_bad_inputs(paper_model):
+    with pytest.raises(ParameterError, match="pressures and actuator must be given together"):
+        equilibria(paper_model, pressures=[0, 0, 0])
+    with pytest.raises(ParameterError, match=r"bounds must have shape \(3, 2\)"):
+        equilibria(paper_model, bounds=[[0, 1]])
+    with pytest.raises(ParameterError, match="starts must be an integer >= 1"):
+        equilibria(paper_model, starts=0)
+    with pytest.raises(ParameterError, match="outside its bounds"):
+        equilibrium(paper_model, [0.064, 0, 0], actuator=actuator(), pressures=[-1.0, 0, 0])
+    with pytest.raises(ParameterError, match="inputs must be"):
+        linearize(paper_model, [0.064, 0, 0], inputs="volts")
+
+
+def test_no_equilibrium_in_region_reports_status(paper_model):
+    # a box of strongly bent shapes holds no equilibrium of the upright robot
+    bounds = [[0.06, 0.07], [40.0, 45.0], [-1.0, 1.0]]
+    table = equilibria(paper_model, bounds=bounds, starts=4)
+    assert table.status == "none_found" and len(table) == 0
+    assert "0 distinct equilibria" in table.message
+    assert scipy.optimize  # the root finder is SciPy's
+
+
+def test_bifurcation_point_is_degenerate(paper_model):
+    """The upright robot buckles where the bending eigenvalue crosses zero."""
+
+    def bending_eigenvalue(g):
+        return equilibrium(paper_model, [0.0644, 0, 0], gravity=[0, 0, -g]).eigenvalues[0]
+
+    critical = scipy.optimize.brentq(bending_eigenvalue, 20.0, 140.0, xtol=1e-12)
+    assert 90.0 < critical < 96.0  # 93.13 m/s^2 (docs/statics.md)
+    at = equilibrium(paper_model, [0.0644, 0, 0], gravity=[0, 0, -critical])
+    assert at.stability == "degenerate"
+    below = equilibrium(paper_model, [0.0644, 0, 0], gravity=[0, 0, -0.99 * critical])
+    above = equilibrium(paper_model, [0.0644, 0, 0], gravity=[0, 0, -1.01 * critical])
+    assert (below.stability, above.stability) == ("stable", "saddle")
+
+
+def test_pressure_sweep_follows_a_balanced_branch(paper_model):
+    from softcurve.quasistatic import pressure_sweep
+
+    act = actuator()
+    path = np.zeros((9, 3))
+    path[:, 0] = np.linspace(0.0, 6e4, 9)
+    sweep = pressure_sweep(paper_model, act, path)
+    assert sweep.status == "ok" and all(s == "stable" for s in sweep.stability)
+    for q, p in zip(sweep.q, sweep.pressures, strict=True):
+        loads = act.matrix(q) @ p
+        assert_close(
+            paper_model.potential_force(q), loads, rtol=1e-9, scale=1e-3 + np.abs(loads).max()
+        )
+    # bellow 1 at azimuth 0 bends the robot toward -x, more with more pressure
+    assert np.all(np.diff(sweep.q[:, 1]) < 0) and np.all(sweep.q[:, 2] == 0)
+
+
+def test_inverse_statics_reaches_reachable_targets_and_saturates_otherwise(paper_model):
+    from softcurve.quasistatic import inverse_statics
+
+    act = actuator()
+    reachable = inverse_statics(paper_model, act, [0.02, 0.01, 0.065])
+    assert reachable.status == "ok" and reachable.distance < 1e-9
+    assert reachable.stability == "stable" and not reachable.saturated.any()
+    assert_close(paper_model.tip_pose(reachable.q).position, [0.02, 0.01, 0.065], atol=1e-9)
+    far = inverse_statics(paper_model, act, [0.1, 0.0, 0.0])
+    assert far.distance > 0.03 and far.saturated.any()
+    assert np.all(far.pressures >= act.lower) and np.all(far.pressures <= act.upper)
+    with pytest.raises(ParameterError, match="chooses the pressures"):
+        inverse_statics(paper_model, act, [0, 0, 0.07], pressures=[0, 0, 0])
+
+
+def test_constant_pressure_map_equilibrium_and_figures(paper_model, tmp_path):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from softcurve import ConstantPressureMap
+    from softcurve.quasistatic import pressure_sweep
+
+    fit = ConstantPressureMap.authors_fit(p_max=1e5)
+    p = np.array([4e4, 0.0, 1e4])
+    e = equilibrium(paper_model, [0.0644, 0, 0], actuator=fit, pressures=p)
+    assert e.converged and e.stability == "stable"
+    assert_close(paper_model.potential_force(e.q), fit.constant @ p, rtol=1e-9, scale=1e-2)
+    sweep = pressure_sweep(paper_model, fit, np.outer(np.linspace(0, 1e5, 5), [1.0, 0.0, 0.0]))
+    sweep.plot().savefig(tmp_path / "sweep.png")
+    table = equilibria(paper_model, starts=2, actuator=fit, pressures=p)
+    table.plot().figure.savefig(tmp_path / "equilibria.png")
+    plt.close("all")
+    assert (tmp_path / "sweep.png").stat().st_size > 0 and len(table) == 1
