@@ -8,7 +8,9 @@ real-time factor (10 s simulated / wall time), the work (steps, right-hand sides
 Jacobians) and the error against a tight-tolerance run (adams, rtol 1e-11): the max over
 time and states of |x - x_ref| / (max_t |x_ref| + the state's natural scale).
 
-Pin to one core for the single-core figure:  taskset -c 0 python benchmarks/bench_simulate.py
+Pin to one core for the single-core figure, with one BLAS thread (OpenBLAS's idle threads
+otherwise spin on the same core after NumPy's eigenvalue call and cost ~20 %):
+    OPENBLAS_NUM_THREADS=1 taskset -c 0 python benchmarks/bench_simulate.py
 """
 
 from __future__ import annotations

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import os
 
+import casadi as ca
 import numpy as np
 import pytest
 
@@ -105,3 +106,31 @@ def test_results_are_independent_of_later_calls(paper_model):
     a = paper_model.state_derivative(x)
     b = paper_model.state_derivative(x + 0.01)
     assert not np.array_equal(a, b)
+
+
+def _small_function():
+    x = ca.SX.sym("x", 3)
+    return ca.Function("softcurve_test_small", [x], [ca.vertcat(ca.sin(x[0]) * x[1], x[2] ** 3)])
+
+
+def test_compile_function_agrees_with_the_function_and_is_cached(monkeypatch, tmp_path):
+    monkeypatch.setenv("SOFTCURVE_CACHE_DIR", str(tmp_path))
+    function = _small_function()
+    compiled = model_module.compile_function(function)
+    assert compiled.class_name() == "External"
+    libraries = list(tmp_path.glob("function_*.so"))
+    assert len(libraries) == 1
+    x = np.array([0.3, -2.0, 1.5])
+    np.testing.assert_allclose(np.array(compiled(x)), np.array(function(x)), rtol=1e-15)
+    stamp = libraries[0].stat().st_mtime_ns
+    model_module.compile_function(function)
+    assert libraries[0].stat().st_mtime_ns == stamp  # loaded, not compiled again
+
+
+def test_compile_function_without_a_working_compiler_returns_the_function(monkeypatch, tmp_path):
+    monkeypatch.setenv("SOFTCURVE_CACHE_DIR", str(tmp_path))
+    monkeypatch.setenv("CC", "false")
+    function = _small_function()
+    assert model_module.compile_function(function) is function
+    monkeypatch.setattr(model_module, "_compiler", lambda: None)
+    assert model_module.compile_function(function) is function

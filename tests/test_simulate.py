@@ -223,3 +223,33 @@ def test_figures_of_a_two_segment_trajectory(two_segment_model, tmp_path):
     import matplotlib.pyplot as plt
 
     plt.close("all")
+
+
+@pytest.mark.parametrize(
+    ("t_final", "dt", "interval", "expected"),
+    [
+        (3.0, 1.0, 1.0, [(0, 1), (1, 2), (2, 3)]),
+        (2.5, 0.5, 1.0, [(0, 2), (2, 4), (4, 5)]),
+        (1.0, 0.4, 1.0, [(0, 3)]),  # exactly one interval
+        (1.0, 0.4, 0.9, [(0, 2), (2, 3)]),  # last output interval 0.2 s
+        (4.0, 2.0, 1.0, [(0, 1), (1, 2)]),  # output interval longer than the restart one
+        (0.5, 0.1, 1.0, [(0, 5)]),
+    ],
+)
+def test_restart_segments_cover_the_grid(t_final, dt, interval, expected):
+    from softcurve._engines import restart_segments
+    from softcurve.simulate import _grid
+
+    assert restart_segments(_grid(t_final, dt), interval) == expected
+
+
+def test_restarts_keep_the_trajectory_within_tolerance(paper_model):
+    from softcurve import _engines
+
+    q0, qd0 = [0.064, 25.0, 0.0], [0.0, 0.0, 1500.0]
+    reference = sc.simulate(paper_model, 3.0, q0, qd0, dt=0.01, rtol=1e-11)
+    restarted = sc.simulate(paper_model, 3.0, q0, qd0, dt=0.01, rtol=1e-7)
+    scale = np.max(np.abs(reference.x), axis=0) + _engines.nominal_scale(
+        paper_model, reference.x[0]
+    )
+    assert np.max(np.abs(restarted.x - reference.x) / scale) < 100 * 1e-7

@@ -3,28 +3,20 @@
 The equation of motion ``x' = f(x, tau(q, u, v), p)`` is augmented with the
 variational equations ``S' = f_x S + f_d`` for the columns of ``d = (p, v, x0)``
 that depend on the free parameters (``S(0)`` selects the free entries of ``x0``).
-The augmented right-hand side is generated as C by CasADi, compiled once with the
-same compiler and cache as :class:`~softcurve.Model` (keyed by the serialised
-function), loaded as an ``external`` and integrated by CVODES, so an evaluation of
-the residuals and their exact Jacobian never returns to Python. The chain rule from
-``d`` to the free parameters ``theta`` (ties, re-parametrisations, initial states)
-and from the state to the outputs is applied afterwards, sample by sample.
+The augmented right-hand side is generated as C by CasADi, compiled once by
+:func:`softcurve.model.compile_function` (same compiler and cache as the model),
+loaded as an ``external`` and integrated by CVODES, so an evaluation of the residuals
+and their exact Jacobian never returns to Python. The chain rule from ``d`` to the free
+parameters ``theta`` (ties, re-parametrisations, initial states) and from the state to
+the outputs is applied afterwards, sample by sample.
 """
 
 from __future__ import annotations
 
-import hashlib
-import os
-import shutil
-import subprocess
-import sys
-import tempfile
-from pathlib import Path
-
 import casadi as ca
 import numpy as np
 
-from . import model as _model
+from .model import compile_function
 
 _CVODES = {
     "abstol": 1e-10,
@@ -34,31 +26,6 @@ _CVODES = {
     "nonlinear_solver_iteration": "functional",
     "disable_internal_warnings": True,
 }
-
-
-def _load(function: ca.Function) -> ca.Function:
-    """``function`` compiled to C and loaded, or itself if no compiler works."""
-    compiler = _model._compiler()
-    if compiler is None:
-        return function
-    digest = hashlib.sha256(function.serialize().encode())
-    digest.update(f"{ca.__version__} {sys.platform} {compiler}".encode())
-    library = _model.cache_directory() / f"sensitivity_{digest.hexdigest()[:24]}.so"
-    if not library.exists():
-        library.parent.mkdir(parents=True, exist_ok=True)
-        with tempfile.TemporaryDirectory() as tmp:
-            generator = ca.CodeGenerator("sensitivity.c", {"with_header": False})
-            generator.add(function)
-            generator.generate(tmp + os.sep)
-            command = [*compiler, "-O1", "-fPIC", "-shared", "sensitivity.c", "-o", "s.so", "-lm"]
-            try:
-                subprocess.run(command, cwd=tmp, check=True, capture_output=True)
-            except (OSError, subprocess.CalledProcessError):
-                return function
-            staged = library.parent / f".{library.name}.{os.getpid()}"
-            shutil.copyfile(Path(tmp, "s.so"), staged)
-            os.replace(staged, library)  # atomic for concurrent processes
-    return ca.external(function.name(), str(library), {"enable_fd": True})
 
 
 def trajectory_sensitivities(model, parameters, output, input_map, x0, experiment, options):
@@ -109,7 +76,7 @@ def trajectory_sensitivities(model, parameters, output, input_map, x0, experimen
         [ca.vertcat(xs, ca.vec(sens)), us, ds],
         [ca.cse(ca.vertcat(f, ca.vec(s_dot)))],
     )
-    rhs = _load(augmented)
+    rhs = compile_function(augmented)
     xa, ua, da = (
         ca.MX.sym("x", n_x * (1 + m)),
         ca.MX.sym("u", len(u_names)),

@@ -27,7 +27,7 @@ from dataclasses import dataclass, field
 import casadi as ca
 import numpy as np
 
-from ._engines import _cvodes_reason
+from ._engines import _cvodes_reason, restart_segments
 from ._validate import ParameterError
 from .materials import Creep
 from .model import COMPILED_FUNCTIONS, Model
@@ -511,11 +511,12 @@ def simulate_batch(
     reached = np.full(size, grid.size)
     messages = [f"integrated to t = {t_final:.6g} s with cvodes-{m}" for m in methods]
     start = time.perf_counter()
-    run = _Run(model, grid, rtol, abstol, max_steps, threads, x0, tau, params, nominal)
-    for multistep in ("adams", "bdf"):
-        members = np.flatnonzero(methods == multistep)
-        for block in _blocks(members.size, grid.size, model.n_state + model.n):
-            run.integrate(multistep, members[block], states, reached, messages)
+    run = _Run(model, grid, rtol, abstol, max_steps, threads, tau, params, nominal)
+    for k0, k1 in restart_segments(grid):
+        for multistep in ("adams", "bdf"):
+            members = np.flatnonzero((methods == multistep) & (reached == grid.size))
+            for block in _blocks(members.size, k1 - k0 + 1, model.n_state + model.n):
+                run.integrate(multistep, members[block], k0, k1, states, reached, messages)
     wall = time.perf_counter() - start
     status = np.where(reached == grid.size, "success", "failed")
     q, qd, lam = states[..., :n], states[..., n : 2 * n], states[..., 2 * n :]
@@ -572,7 +573,6 @@ class _Run:
     abstol: float
     max_steps: int
     threads: int
-    x0: np.ndarray
     tau: np.ndarray
     params: np.ndarray
     nominal: np.ndarray
@@ -581,10 +581,11 @@ class _Run:
         count = len(members)
         return np.hstack([self.params[members], np.full((count, 1), h), self.nominal[members]]).T
 
-    def integrate(self, multistep, members, states, reached, messages) -> None:
-        """Fill ``states[members, 1:]``; a failing map is split in halves until the failing
-        members are found, which are then integrated output by output."""
-        grid = self.grid
+    def integrate(self, multistep, members, k0, k1, states, reached, messages) -> None:
+        """Fill ``states[members, k0+1 : k1+1]`` from ``states[members, k0]``; a failing map
+        is split in halves until the failing members are found, which are then integrated
+        output by output."""
+        grid = self.grid[k0 : k1 + 1]
         h = grid[-1] - grid[0]
         tout = (grid[1:] - grid[0]) / h
         count, outputs = len(members), tout.size
@@ -597,32 +598,31 @@ class _Run:
             # on a failure, CasADi's map prints every input of the batch to sys.stderr; the
             # reason is kept from the exception of the member integrated alone (below)
             with contextlib.redirect_stderr(io.StringIO()):
-                out = mapped(x0=(self.x0[members] / self.nominal[members]).T,
+                out = mapped(x0=(states[members, k0] / self.nominal[members]).T,
                              p=self._p(members, h), u=u)  # fmt: skip
         except RuntimeError:
             if count > 1:
                 half = count // 2
-                self.integrate(multistep, members[:half], states, reached, messages)
-                self.integrate(multistep, members[half:], states, reached, messages)
+                for part in (members[:half], members[half:]):
+                    self.integrate(multistep, part, k0, k1, states, reached, messages)
             else:
-                self._one_by_one(multistep, int(members[0]), states, reached, messages)
+                self._one_by_one(multistep, int(members[0]), k0, k1, states, reached, messages)
             return
         xf = np.asarray(out["xf"]).reshape(self.model.n_state, count, outputs).transpose(1, 2, 0)
-        states[members, 1:] = xf * self.nominal[members, None, :]
+        states[members, k0 + 1 : k1 + 1] = xf * self.nominal[members, None, :]
         for b in members:
-            bad = ~np.all(np.isfinite(states[b]), axis=1)
+            bad = ~np.all(np.isfinite(states[b, k0 + 1 : k1 + 1]), axis=1)
             if np.any(bad):
-                self._fail(
-                    b, int(np.argmax(bad)), "the state became non-finite", states, reached, messages
-                )
+                k = k0 + 1 + int(np.argmax(bad))
+                self._fail(b, k, "the state became non-finite", states, reached, messages)
 
-    def _one_by_one(self, multistep, b, states, reached, messages) -> None:
+    def _one_by_one(self, multistep, b, k0, k1, states, reached, messages) -> None:
         """Output interval by output interval, to keep every output reached before a failure."""
         integrator = _integrator(
             self.model, multistep, self.rtol, self.abstol, self.max_steps, np.ones(1)
         )
         nominal = self.nominal[b]
-        for k in range(1, self.grid.size):
+        for k in range(k0 + 1, k1 + 1):
             h = self.grid[k] - self.grid[k - 1]
             try:
                 out = integrator(

@@ -429,7 +429,8 @@ def _compiled_library(structure, quadrature_nodes, symbolic) -> Path | None:
     if library.exists():
         return library
     try:
-        _compile(symbolic(), compiler, library)
+        functions = symbolic()
+        _compile({name: functions[name] for name in COMPILED_FUNCTIONS}, compiler, library)
     except (OSError, subprocess.CalledProcessError) as exc:
         detail = getattr(exc, "stderr", None) or str(exc)
         warnings.warn(
@@ -442,25 +443,65 @@ def _compiled_library(structure, quadrature_nodes, symbolic) -> Path | None:
     return library
 
 
-def _compile(functions: dict[str, ca.Function], compiler: list[str], library: Path) -> None:
+def _compile(
+    functions: dict[str, ca.Function],
+    compiler: list[str],
+    library: Path,
+    flags: tuple[str, ...] = _COMPILE_FLAGS,
+) -> None:
     """One C file per function, compiled in parallel, linked into ``library`` atomically."""
     library.parent.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory() as tmp:
         jobs = []
-        for name in COMPILED_FUNCTIONS:
-            f = functions[name]
+        for name, f in functions.items():
             generator = ca.CodeGenerator(f"{name}.c", {"with_header": False})
             generator.add(f)
             generator.generate(tmp + os.sep)
-            jobs.append([*compiler, *_COMPILE_FLAGS, "-c", f"{name}.c", "-o", f"{name}.o"])
+            jobs.append([*compiler, *flags, "-c", f"{name}.c", "-o", f"{name}.o"])
         with ThreadPoolExecutor(max_workers=os.cpu_count() or 1) as pool:
             list(pool.map(lambda job: _run(job, tmp), jobs))
         partial = Path(tmp, "model.so")
-        objects = [f"{name}.o" for name in COMPILED_FUNCTIONS]
+        objects = [f"{name}.o" for name in functions]
         _run([*compiler, "-shared", "-o", str(partial), *objects, "-lm"], tmp)
         staged = library.parent / f".{library.name}.{os.getpid()}"
         shutil.copyfile(partial, staged)
         os.replace(staged, library)  # atomic: other processes see all or nothing
+
+
+def compile_function(function: ca.Function, optimisation: str = "-O1") -> ca.Function:
+    """``function`` generated as C, compiled, cached on disk by its content and loaded.
+
+    For CasADi functions built on a model's expressions (the identification's
+    sensitivity equations, say) that are evaluated often: the same compiler and cache as
+    :class:`Model`, keyed by the serialised function, so a second process loads it.
+
+    Parameters
+    ----------
+    function : casadi.Function
+        An SX or MX function without Python callbacks.
+    optimisation : str
+        The compiler's optimisation flag; ``-O1`` compiles large generated files several
+        times faster than ``-O2`` at a small cost in speed.
+
+    Returns
+    -------
+    casadi.Function
+        The compiled function as a CasADi ``external`` (derivatives by finite
+        differences), or ``function`` itself when no C compiler works (then it runs in
+        CasADi's virtual machine).
+    """
+    compiler = _compiler()
+    if compiler is None:
+        return function
+    digest = hashlib.sha256(function.serialize().encode())
+    digest.update(f"{ca.__version__} {sys.platform} {compiler} {optimisation}".encode())
+    library = cache_directory() / f"function_{digest.hexdigest()[:24]}.so"
+    if not library.exists():
+        try:
+            _compile({function.name(): function}, compiler, library, (optimisation, "-fPIC"))
+        except (OSError, subprocess.CalledProcessError):
+            return function
+    return ca.external(function.name(), str(library), {"enable_fd": True})
 
 
 def _run(command: list[str], directory: str) -> None:

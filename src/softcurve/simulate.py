@@ -23,12 +23,15 @@ Integrators (``method``)
 
 How CVODES gets compiled code, measured on the paper's case
 (``benchmarks/bench_simulate.py``): the library that :class:`~softcurve.Model` has
-already compiled is loaded as a CasADi ``external`` (about 29 ms for 10 s at rtol 1e-6
-on a loaded 2-core machine); the same integration with the right-hand side in CasADi's
+already compiled is loaded as a CasADi ``external`` (numbers in
+``docs/paper-reproduction.md``); the same integration with the right-hand side in CasADi's
 virtual machine takes about 6x longer; CasADi's ``jit`` would compile the right-hand
 side and its exact Jacobian again for every new integrator (about 50 s with gcc -O2).
 Multistep histories cannot cross a jump of the input, so the integrator restarts
-wherever the input changes.
+wherever the input changes, and also every ``RESTART_INTERVAL`` (1 s) of simulated time:
+after a transient, a method left at high order is stability-bound on the fast damped
+modes of a robot at rest; a restart halves the steps of the paper's case (see
+``softcurve._engines.RESTART_INTERVAL``).
 
 Inputs
 ------
@@ -54,12 +57,14 @@ from pathlib import Path
 import numpy as np
 
 from ._engines import (
+    RESTART_INTERVAL,
     STIFFNESS_RATIO,
     CvodesEngine,
     IntegrationFailure,
     ScipyEngine,
     evaluate_along,
     nominal_scale,
+    restart_segments,
     stiffness_ratio,
 )
 from ._validate import ParameterError, real_array, real_scalar
@@ -364,16 +369,17 @@ class _Stopped(Exception):
 
 
 def _run_on_grid(engine, grid, states, inputs, bar) -> int:
-    """All outputs in as few calls as possible; chunks only to report progress."""
-    intervals = grid.size - 1
-    chunk = intervals if bar is None else max(1, math.ceil(intervals / 50))
-    k = 0
-    while k < intervals:
-        m = min(chunk, intervals - k)
-        _advance(engine, grid, states, inputs, k, m)
-        k += m
-        if bar is not None:
-            bar.update(grid[k])
+    """All outputs in one call per restart segment (see ``RESTART_INTERVAL``), split
+    further only to report progress."""
+    chunk = grid.size if bar is None else max(1, math.ceil((grid.size - 1) / 50))
+    for k0, k1 in restart_segments(grid, RESTART_INTERVAL):
+        k = k0
+        while k < k1:
+            m = min(chunk, k1 - k)
+            _advance(engine, grid, states, inputs, k, m)
+            k += m
+            if bar is not None:
+                bar.update(grid[k])
     return grid.size
 
 

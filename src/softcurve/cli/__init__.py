@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import os
 import sys
 
 from .. import __version__
@@ -43,6 +44,9 @@ def main(argv: list[str] | None = None) -> int:
     except (ParameterError, FileNotFoundError, IsADirectoryError) as exc:
         print(f"softcurve {args.command}: error: {exc}", file=sys.stderr)
         return 2
+    except BrokenPipeError:  # the reader went away (softcurve info | head): not an error
+        sys.stdout = open(os.devnull, "w")
+        return 0
 
 
 if __name__ == "__main__":  # pragma: no cover
