@@ -26,9 +26,20 @@ from scipy.integrate import RK45
 
 from . import model as model_module
 
-_DAE_CACHE: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
-"""Per model: ``{scale: (dae, {(grid, options): integrator})}``, dropped with the model."""
-_CACHED_SCALES = 8
+_CACHE: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+"""Per model: CasADi objects built on it (DAE, integrators, maps), dropped with the model."""
+_CACHED_PER_MODEL = 64
+
+
+def model_cached(model, key, build):
+    """``build()`` once per ``(model, key)``; CasADi builds derivative functions and
+    integrator memory on first use, so rebuilding per call would cost milliseconds."""
+    per_model = _CACHE.setdefault(model, {})
+    if key not in per_model:
+        if len(per_model) >= _CACHED_PER_MODEL:
+            per_model.clear()
+        per_model[key] = build()
+    return per_model[key]
 
 
 STIFFNESS_RATIO = 10.0
@@ -115,39 +126,48 @@ class IntegrationFailure(RuntimeError):
         self.states = states
 
 
-def _scaled_dae(model, nominal: np.ndarray) -> tuple[ca.Function, dict]:
-    """``dxs/dtau = h f(nominal * xs, u, p) / nominal`` over normalised time ``tau``.
+def scaled_dae(model) -> ca.Function:
+    """``dxs/ds = h f(nominal * xs, u, p) / nominal`` on normalised time ``s`` in [0, 1].
 
-    The parameter input is ``(robot parameters, h)``; ``u`` is the input force ``tau``.
-    Cached per model and scale with the integrators built on it, so CasADi's derivative
-    functions are built once; returns ``(dae, integrators)``.
+    Integrator parameter ``(robot parameters (n_p,), h, nominal (n_state,))``, input
+    ``u`` = the input force ``tau``. The scale is a parameter so that one integrator
+    serves every initial state and every member of a batch. The right-hand side is the
+    model's compiled ``rhs`` (an ``external``, Jacobian by forward differences) or, without
+    a compiled library, its symbolic form.
     """
-    per_model = _DAE_CACHE.setdefault(model, {})
-    key = nominal.tobytes()
-    if key in per_model:
-        return per_model[key]
-    if len(per_model) >= _CACHED_SCALES:
-        per_model.clear()
-    if model.compiled_library is not None:
-        rhs = ca.external(
-            "rhs", str(model.compiled_library), {"enable_fd": True, "fd_method": "forward"}
+
+    def build():
+        if model.compiled_library is not None:
+            options = {"enable_fd": True, "fd_method": "forward"}
+            rhs = ca.external("rhs", str(model.compiled_library), options)
+        else:
+            rhs = model.symbolic["rhs"]
+        n_par, n_state = model.parameters.size, model.n_state
+        xs = ca.MX.sym("x", n_state)
+        p = ca.MX.sym("p", n_par + 1 + n_state)
+        u = ca.MX.sym("u", model.n)
+        scale = p[n_par + 1 :]
+        ode = p[n_par] * rhs(scale * xs, u, p[:n_par]) / scale
+        empty = ca.MX(0, 1)
+        return ca.Function(
+            "softcurve_dae",
+            [ca.MX.sym("t"), xs, ca.MX.sym("z", 0), p, u],
+            [ode, empty, empty, empty],
+            ca.dyn_in(),
+            ca.dyn_out(),
         )
-    else:
-        rhs = model.symbolic["rhs"]
-    n_par = model.parameters.size
-    t = ca.MX.sym("t")
-    xs = ca.MX.sym("x", model.n_state)
-    z = ca.MX.sym("z", 0)
-    p = ca.MX.sym("p", n_par + 1)
-    u = ca.MX.sym("u", model.n)
-    scale = ca.DM(nominal)
-    ode = p[n_par] * rhs(scale * xs, u, p[:n_par]) / scale
-    empty = ca.MX(0, 1)
-    dae = ca.Function(
-        "softcurve_dae", [t, xs, z, p, u], [ode, empty, empty, empty], ca.dyn_in(), ca.dyn_out()
+
+    return model_cached(model, "dae", build)
+
+
+def cvodes_integrator(model, tout: np.ndarray, options: dict) -> ca.Function:
+    """CVODES on :func:`scaled_dae` with outputs at normalised times ``tout``, cached."""
+    key = ("cvodes", tout.tobytes(), tuple(sorted(options.items())))
+    return model_cached(
+        model,
+        key,
+        lambda: ca.integrator("softcurve_cvodes", "cvodes", scaled_dae(model), 0.0, tout, options),
     )
-    per_model[key] = (dae, {})
-    return per_model[key]
 
 
 class _Engine:
@@ -199,7 +219,6 @@ class CvodesEngine(_Engine):
     def __init__(self, model, multistep, rtol, atol, nominal, max_steps):
         self.model = model
         self.nominal = nominal
-        self.dae, self._integrators = _scaled_dae(model, nominal)
         self.options = {
             "linear_multistep_method": multistep,
             "reltol": rtol,
@@ -217,17 +236,15 @@ class CvodesEngine(_Engine):
         }
 
     def _integrator(self, tout: np.ndarray):
-        """``(lock, buffer, evaluate)``, cached with the model's DAE; the buffer interface
-        passes NumPy memory to CasADi without conversions, the lock keeps one caller at a
-        time on it."""
-        cache = self._integrators
-        key = (tout.tobytes(), tuple(sorted(self.options.items())))
-        if key not in cache:
-            if len(cache) > 64:
-                cache.clear()
-            integrator = ca.integrator("cvodes", "cvodes", self.dae, 0.0, tout, self.options)
-            cache[key] = (threading.Lock(), *integrator.buffer())
-        return cache[key]
+        """``(lock, buffer, evaluate)``, cached with the model; the buffer interface passes
+        NumPy memory to CasADi without conversions, the lock keeps one caller at a time."""
+        key = ("buffer", tout.tobytes(), tuple(sorted(self.options.items())))
+
+        def build():
+            integrator = cvodes_integrator(self.model, tout, self.options)
+            return (threading.Lock(), *integrator.buffer())
+
+        return model_cached(self.model, key, build)
 
     def _count(self, stats: dict) -> None:
         c = self.counts
@@ -241,7 +258,7 @@ class CvodesEngine(_Engine):
     def _constant(self, x, h, tout, tau) -> np.ndarray:
         lock, buffer, evaluate = self._integrator(tout)
         x0 = np.ascontiguousarray(x / self.nominal)
-        p = np.append(self.model.parameters, h)
+        p = np.concatenate([self.model.parameters, [h], self.nominal])
         u = np.tile(np.asarray(tau, dtype=np.float64), tout.size)  # column-major (n, k)
         out = np.zeros(x.size * tout.size)  # column-major (n_state, k)
         with lock:
@@ -324,22 +341,18 @@ class ScipyEngine(_Engine):
         return out[-1].copy()
 
 
-_MAP_CACHE: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
-
-
 def _mapped(model, name: str, count: int):
     """``(function, function mapped over count points)``, cached per model."""
-    per_model = _MAP_CACHE.setdefault(model, {})
-    if (name, count) not in per_model:
-        if len(per_model) > 16:
-            per_model.clear()
+
+    def build():
         compiled = getattr(model_module, "COMPILED_FUNCTIONS", ())
         if model.compiled_library is not None and name in compiled:
             function = ca.external(name, str(model.compiled_library))
         else:
             function = model.symbolic[name]
-        per_model[(name, count)] = (function, function.map(count))
-    return per_model[(name, count)]
+        return function, function.map(count)
+
+    return model_cached(model, ("map", name, count), build)
 
 
 def evaluate_along(model, name: str, *columns) -> list[np.ndarray]:

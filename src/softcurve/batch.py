@@ -21,13 +21,12 @@ import io
 import math
 import os
 import time
-import weakref
 from dataclasses import dataclass, field
 
 import casadi as ca
 import numpy as np
 
-from ._engines import _cvodes_reason, restart_segments
+from ._engines import _cvodes_reason, cvodes_integrator, model_cached, restart_segments
 from ._validate import ParameterError
 from .materials import Creep
 from .model import COMPILED_FUNCTIONS, Model
@@ -40,8 +39,6 @@ from .simulate import (
     _positive,
     nominal_scale,
 )
-
-_CACHE: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
 
 # -- parameters ------------------------------------------------------------------------------
@@ -232,54 +229,15 @@ def _function(model: Model, name: str, options=None) -> ca.Function:
     return model.symbolic[name]
 
 
-def _cached(model: Model, key, build):
-    per_model = _CACHE.setdefault(model, {})
-    if key not in per_model:
-        if len(per_model) > 32:
-            per_model.clear()
-        per_model[key] = build()
-    return per_model[key]
-
-
-def _batch_dae(model: Model) -> ca.Function:
-    """``dxs/ds = h f(nominal * xs, u, p) / nominal`` on normalised time ``s`` in [0, 1].
-
-    The same scaled problem as the single-simulation engine, with the scale as part of the
-    integrator parameter ``(robot parameters, h, nominal)`` so that it may differ between
-    members of one batch.
-    """
-    rhs = _function(model, "rhs", {"enable_fd": True, "fd_method": "forward"})
-    n_par, n_state = model.parameters.size, model.n_state
-    xs = ca.MX.sym("x", n_state)
-    p = ca.MX.sym("p", n_par + 1 + n_state)
-    u = ca.MX.sym("u", model.n)
-    scale = p[n_par + 1 :]
-    ode = p[n_par] * rhs(scale * xs, u, p[:n_par]) / scale
-    empty = ca.MX(0, 1)
-    return ca.Function(
-        "softcurve_batch_dae",
-        [ca.MX.sym("t"), xs, ca.MX.sym("z", 0), p, u],
-        [ode, empty, empty, empty],
-        ca.dyn_in(),
-        ca.dyn_out(),
-    )
-
-
 def _integrator(model, multistep, rtol, abstol, max_steps, tout) -> ca.Function:
-    key = ("integrator", multistep, rtol, abstol, max_steps, tout.tobytes())
-
-    def build():
-        dae = _cached(model, "dae", lambda: _batch_dae(model))
-        options = {
-            "linear_multistep_method": multistep,
-            "reltol": rtol,
-            "abstol": abstol,
-            "max_num_steps": int(max_steps),
-            "disable_internal_warnings": True,
-        }
-        return ca.integrator("softcurve_batch", "cvodes", dae, 0.0, tout, options)
-
-    return _cached(model, key, build)
+    options = {
+        "linear_multistep_method": multistep,
+        "reltol": rtol,
+        "abstol": abstol,
+        "max_num_steps": int(max_steps),
+        "disable_internal_warnings": True,
+    }
+    return cvodes_integrator(model, tout, options)
 
 
 def _mapped(function: ca.Function, size: int, threads: int) -> ca.Function:
@@ -303,9 +261,9 @@ def _along(model, name, build, columns, parameters, threads) -> list[np.ndarray]
     """Evaluate ``build() -> Function(*per_point_inputs, p)`` at every (member, time):
     ``columns`` are (B, T, k) arrays, ``parameters`` (B, n_p); returns (B, T, m) arrays."""
     size, count = columns[0].shape[:2]
-    point = _cached(model, name, build)
+    point = model_cached(model, name, build)
     shared = [point.n_in() - 1]  # p: one per member, shared by its time points
-    over_time = _cached(
+    over_time = model_cached(
         model, (name, count), lambda: point.map(f"{name}_along", "serial", count, shared, [])
     )
     width = sum(c.shape[2] for c in columns) + point.nnz_out()

@@ -17,6 +17,8 @@ from pathlib import Path
 
 import numpy as np
 
+from . import add_progress_options
+
 
 def register(subparsers) -> None:
     parser = subparsers.add_parser(
@@ -55,16 +57,7 @@ def register(subparsers) -> None:
         help="also write animation.gif (and animation.mp4 if ffmpeg exists)",
     )
     parser.add_argument("--fps", type=int, default=25, help="animation frames per second")
-    progress = parser.add_mutually_exclusive_group()
-    progress.add_argument(
-        "--progress",
-        dest="progress",
-        action="store_true",
-        default=None,
-        help="progress bar on stderr (default: when stderr is a terminal)",
-    )
-    progress.add_argument("--no-progress", dest="progress", action="store_false")
-    parser.add_argument("-q", "--quiet", action="store_true", help="print nothing on success")
+    add_progress_options(parser)
     parser.set_defaults(handler=run)
 
 

@@ -8,6 +8,8 @@ from __future__ import annotations
 
 import sys
 
+from . import add_progress_options
+
 
 def register(subparsers) -> None:
     parser = subparsers.add_parser(
@@ -42,16 +44,7 @@ def register(subparsers) -> None:
         action="store_true",
         help="discard results already in the output folder instead of resuming",
     )
-    progress = parser.add_mutually_exclusive_group()
-    progress.add_argument(
-        "--progress",
-        dest="progress",
-        action="store_true",
-        default=None,
-        help="progress bar on stderr (default: when stderr is a terminal)",
-    )
-    progress.add_argument("--no-progress", dest="progress", action="store_false")
-    parser.add_argument("-q", "--quiet", action="store_true", help="print nothing on success")
+    add_progress_options(parser)
     parser.set_defaults(handler=run)
 
 
