@@ -87,6 +87,22 @@ bending_stiffness = { law = "linear", k0 = 0.05 }
 """
 
 
+PNEUMATIC = """[robot]
+preset = "ifac2020"
+[actuation]
+distance = 0.012
+area = 2e-4
+p_max = 6e4
+"""
+
+
+def test_the_pneumatic_example_drives_the_robot_by_pressures():
+    scenario = load_config(EXAMPLES / "pneumatic_step.toml")
+    assert scenario.pressures == (2.0e4, 0.0, 0.0)
+    actuator = scenario.actuator()
+    assert actuator.n_inputs == 3 and actuator.time_constant is None
+
+
 def test_a_minimal_file_gets_the_defaults(tmp_path):
     path = tmp_path / "minimal.toml"
     path.write_text("[robot]\n" + SEGMENT)
@@ -166,6 +182,26 @@ BAD = [
         "robot.segments[0].creep: needs gamma",
     ),
     ("[robot\npreset = 1\n", "not valid TOML"),
+    (
+        '[robot]\npreset = "ifac2020"\n[simulation]\npressures = [1.0, 0.0, 0.0]\n',
+        "simulation.pressures: needs an [actuation] table",
+    ),
+    (
+        PNEUMATIC + "[simulation]\npressures = [7e4, 0.0, 0.0]\n",
+        "simulation.pressures: pressures[0] = 70000.0 Pa is outside its bounds",
+    ),
+    (
+        PNEUMATIC + "[simulation]\npressures = [1e4, 0.0]\n",
+        "pressures must have shape (3,)",
+    ),
+    (
+        PNEUMATIC + "time_constant = 0.02\n[simulation]\npressures = [1e4, 0.0, 0.0]\n",
+        "simulation.pressures: are the chamber pressures: remove actuation.time_constant",
+    ),
+    (
+        PNEUMATIC + "[simulation]\npressures = [1e4, 0.0, 0.0]\ntau = [0.0, 0.0, 0.0]\n",
+        "simulation.pressures: give tau or pressures, not both",
+    ),
 ]
 
 

@@ -12,6 +12,8 @@ import softcurve as sc
 from softcurve._engines import evaluate_along
 from softcurve.simulate import STIFFNESS_RATIO, _Progress, nominal_scale, stiffness_ratio
 
+from .conftest import assert_close
+
 Q0, QD0 = np.array([0.064, 25.0, 0.0]), np.array([0.0, 0.0, 1500.0])
 
 
@@ -253,3 +255,61 @@ def test_restarts_keep_the_trajectory_within_tolerance(paper_model):
         paper_model, reference.x[0]
     )
     assert np.max(np.abs(restarted.x - reference.x) / scale) < 100 * 1e-7
+
+
+def _bellows(**extra):
+    return sc.PneumaticActuator.three_bellows(distance=0.012, area=2e-4, p_max=6e4, **extra)
+
+
+@pytest.mark.parametrize("method", ["cvodes", "rk45"])
+def test_constant_pressures_settle_at_the_equilibrium_with_those_pressures(paper_model, method):
+    actuator = _bellows()
+    pressures = np.array([2e4, 0.0, 5e3])
+    q0 = np.array([0.064, 0.0, 0.0])
+    run = sc.simulate(
+        paper_model, 6.0, q0, np.zeros(3), pressures=pressures, actuator=actuator, dt=0.01,
+        method=method,
+    )  # fmt: skip
+    assert run.success, run.message
+    q_end = run.q[-1]
+    static = paper_model.gravity_force(q_end) + paper_model.elastic_force(q_end)
+    assert_close(static, actuator.generalized_force(q_end, pressures), atol=1e-6, rtol=1e-5)
+    np.testing.assert_array_equal(run.pressures, np.tile(pressures, (run.t.size, 1)))
+    assert_close(run.tau[-1], actuator.matrix(q_end) @ pressures, atol=0, rtol=1e-12)
+
+
+def test_pressures_along_the_trajectory_equal_tau_given_as_h_of_q_times_p(paper_model):
+    """H(q) p is evaluated inside the integrator: a callable tau(t, state) = H(q) p held
+    per output interval converges to it as the output interval shrinks."""
+    actuator = _bellows()
+    pressures = np.array([3e4, 1e4, 0.0])
+    q0, qd0 = np.array([0.064, 5.0, -3.0]), np.zeros(3)
+    exact = sc.simulate(paper_model, 0.5, q0, qd0, pressures=pressures, actuator=actuator,
+                        dt=0.05, rtol=1e-10)  # fmt: skip
+    errors = []
+    for dt in (1e-3, 1e-4):
+        held = sc.simulate(
+            paper_model, 0.5, q0, qd0, dt=dt, rtol=1e-10,
+            tau=lambda t, s: actuator.generalized_force(s.q, pressures),
+        )  # fmt: skip
+        errors.append(np.max(np.abs(held.q[:: round(0.05 / dt)] - exact.q)))
+    assert errors[1] < errors[0] / 5  # first-order convergence of the hold to the exact input
+
+
+def test_pressure_inputs_are_validated(paper_model):
+    q0, qd0 = [0.064, 0.0, 0.0], [0.0, 0.0, 0.0]
+    with pytest.raises(sc.ParameterError, match=r"pressures\[0\] = 70000.0 Pa is outside"):
+        sc.simulate(paper_model, 1.0, q0, qd0, pressures=[7e4, 0, 0], actuator=_bellows())
+    with pytest.raises(sc.ParameterError, match="actuator"):
+        sc.simulate(paper_model, 1.0, q0, qd0, pressures=[1e4, 0, 0])
+    with pytest.raises(sc.ParameterError, match="one of tau, pressures"):
+        sc.simulate(paper_model, 1.0, q0, qd0, tau=[0, 0, 0], pressures=[0, 0, 0],
+                    actuator=_bellows())  # fmt: skip
+    with pytest.raises(sc.ParameterError, match="time_constant"):
+        sc.simulate(paper_model, 1.0, q0, qd0, pressures=[0, 0, 0],
+                    actuator=_bellows(time_constant=0.02))  # fmt: skip
+    with pytest.raises(sc.ParameterError, match="shape"):
+        sc.simulate(paper_model, 1.0, q0, qd0, pressures=[0, 0], actuator=_bellows())
+    with pytest.raises(sc.ParameterError, match="pressures returned"):
+        sc.simulate(paper_model, 0.01, q0, qd0, pressures=lambda t, s: [-1.0, 0, 0],
+                    actuator=_bellows())  # fmt: skip

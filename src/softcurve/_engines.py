@@ -126,14 +126,15 @@ class IntegrationFailure(RuntimeError):
         self.states = states
 
 
-def scaled_dae(model) -> ca.Function:
-    """``dxs/ds = h f(nominal * xs, u, p) / nominal`` on normalised time ``s`` in [0, 1].
+def scaled_dae(model, input_map: ca.Function | None = None) -> ca.Function:
+    """``dxs/ds = h f(nominal * xs, tau, p) / nominal`` on normalised time ``s`` in [0, 1].
 
-    Integrator parameter ``(robot parameters (n_p,), h, nominal (n_state,))``, input
-    ``u`` = the input force ``tau``. The scale is a parameter so that one integrator
-    serves every initial state and every member of a batch. The right-hand side is the
-    model's compiled ``rhs`` (an ``external``, Jacobian by forward differences) or, without
-    a compiled library, its symbolic form.
+    Integrator parameter ``(robot parameters (n_p,), h, nominal (n_state,))``; input ``u``
+    is the input force ``tau`` or, with ``input_map`` (a function ``(q, u) -> tau``, e.g.
+    ``H(q) p`` for pressures ``u = p``), what it maps. The scale is a parameter so that one
+    integrator serves every initial state and every member of a batch. The right-hand side
+    is the model's compiled ``rhs`` (an ``external``, Jacobian by forward differences) or,
+    without a compiled library, its symbolic form.
     """
 
     def build():
@@ -145,9 +146,11 @@ def scaled_dae(model) -> ca.Function:
         n_par, n_state = model.parameters.size, model.n_state
         xs = ca.MX.sym("x", n_state)
         p = ca.MX.sym("p", n_par + 1 + n_state)
-        u = ca.MX.sym("u", model.n)
+        u = ca.MX.sym("u", model.n if input_map is None else input_map.size1_in(1))
         scale = p[n_par + 1 :]
-        ode = p[n_par] * rhs(scale * xs, u, p[:n_par]) / scale
+        x = scale * xs
+        tau = u if input_map is None else input_map(x[: model.n], u)
+        ode = p[n_par] * rhs(x, tau, p[:n_par]) / scale
         empty = ca.MX(0, 1)
         return ca.Function(
             "softcurve_dae",
@@ -157,17 +160,24 @@ def scaled_dae(model) -> ca.Function:
             ca.dyn_out(),
         )
 
-    return model_cached(model, "dae", build)
+    return model_cached(model, ("dae", _key(input_map)), build)
 
 
-def cvodes_integrator(model, tout: np.ndarray, options: dict) -> ca.Function:
+def _key(function: ca.Function | None) -> str | None:
+    return None if function is None else function.serialize()
+
+
+def cvodes_integrator(
+    model, tout: np.ndarray, options: dict, input_map: ca.Function | None = None
+) -> ca.Function:
     """CVODES on :func:`scaled_dae` with outputs at normalised times ``tout``, cached."""
-    key = ("cvodes", tout.tobytes(), tuple(sorted(options.items())))
-    return model_cached(
-        model,
-        key,
-        lambda: ca.integrator("softcurve_cvodes", "cvodes", scaled_dae(model), 0.0, tout, options),
-    )
+    key = ("cvodes", tout.tobytes(), tuple(sorted(options.items())), _key(input_map))
+
+    def build():
+        dae = scaled_dae(model, input_map)
+        return ca.integrator("softcurve_cvodes", "cvodes", dae, 0.0, tout, options)
+
+    return model_cached(model, key, build)
 
 
 class _Engine:
@@ -212,13 +222,16 @@ class CvodesEngine(_Engine):
         Scale of each state (> 0).
     max_steps : int
         Internal steps allowed between two output times.
+    input_map : casadi.Function, optional
+        ``(q, u) -> tau`` when the inputs are not forces (see :func:`scaled_dae`).
     """
 
     name = "cvodes"
 
-    def __init__(self, model, multistep, rtol, atol, nominal, max_steps):
+    def __init__(self, model, multistep, rtol, atol, nominal, max_steps, input_map=None):
         self.model = model
         self.nominal = nominal
+        self.input_map = input_map
         self.options = {
             "linear_multistep_method": multistep,
             "reltol": rtol,
@@ -238,10 +251,10 @@ class CvodesEngine(_Engine):
     def _integrator(self, tout: np.ndarray):
         """``(lock, buffer, evaluate)``, cached with the model; the buffer interface passes
         NumPy memory to CasADi without conversions, the lock keeps one caller at a time."""
-        key = ("buffer", tout.tobytes(), tuple(sorted(self.options.items())))
+        key = ("buffer", tout.tobytes(), tuple(sorted(self.options.items())), _key(self.input_map))
 
         def build():
-            integrator = cvodes_integrator(self.model, tout, self.options)
+            integrator = cvodes_integrator(self.model, tout, self.options, self.input_map)
             return (threading.Lock(), *integrator.buffer())
 
         return model_cached(self.model, key, build)
@@ -300,8 +313,9 @@ class ScipyEngine(_Engine):
     name = "rk45"
     method = "rk45"
 
-    def __init__(self, model, rtol, atol, max_steps):
+    def __init__(self, model, rtol, atol, max_steps, input_map=None):
         self.model = model
+        self.input_map = input_map
         self.rtol = rtol
         self.atol = atol
         self.max_steps = int(max_steps)
@@ -309,7 +323,11 @@ class ScipyEngine(_Engine):
 
     def _constant(self, x, h, tout, tau) -> np.ndarray:
         out = np.empty((tout.size, x.size))
-        rhs = self.model.rhs(tau)
+        if self.input_map is None:
+            rhs = self.model.rhs(tau)
+        else:
+            n, f = self.model.n, self.model.state_derivative
+            rhs = lambda t, y: f(y, np.array(self.input_map(y[:n], tau)).ravel())  # noqa: E731
         # RK45 keeps references to earlier derivatives: give it arrays of its own
         self._run(lambda t, y: np.array(rhs(t, y)), x, 0.0, h * tout, out)
         return out

@@ -52,6 +52,7 @@ class Scenario:
     qd0: tuple | None = None
     lam0: tuple | None = None
     tau: tuple | None = None
+    pressures: tuple | None = None  # [Pa], with the pressure map of [actuation]
     method: str = "cvodes"
     rtol: float = 1e-6
     atol: float | tuple | None = None
@@ -67,6 +68,15 @@ class Scenario:
         qd0 = np.zeros(n) if self.qd0 is None else np.array(self.qd0, dtype=float)
         lam0 = np.zeros(n_creep) if self.lam0 is None else np.array(self.lam0, dtype=float)
         return q0, qd0, lam0
+
+    def actuator(self):
+        """The pressure map of the ``[actuation]`` table, or None without one."""
+        if self.actuation is None:
+            return None
+        from .actuation import from_mapping
+
+        where = f"{self.source}: actuation"
+        return from_mapping(self.actuation, n_segments=self.robot.n_segments, where=where)
 
 
 def paper_scenario() -> Scenario:
@@ -236,6 +246,7 @@ def scenario_from_dict(data: dict, file: str = "<config>") -> Scenario:
         "qd0": sim.vector("qd0", robot.n),
         "lam0": sim.vector("lam0", robot.n_creep) if robot.n_creep else sim.vector("lam0", 0),
         "tau": sim.vector("tau", robot.n),
+        "pressures": sim.vector("pressures"),
         "method": sim.get("method", "string", "cvodes"),
         "rtol": sim.positive("rtol", 1e-6),
         "max_steps": sim.get("max_steps", "integer", 50_000),
@@ -263,7 +274,28 @@ def scenario_from_dict(data: dict, file: str = "<config>") -> Scenario:
     q0 = values["q0"]
     if q0 is not None and any(q0[3 * i] <= 0 for i in range(robot.n_segments)):
         sim.fail("q0", "lengths l (entries 0, 3, ...) must be > 0")
-    return Scenario(robot=robot, source=file, actuation=actuation, **values)
+    scenario = Scenario(robot=robot, source=file, actuation=actuation, **values)
+    if scenario.pressures is not None:
+        _check_pressures(sim, scenario)
+    return scenario
+
+
+def _check_pressures(sim: _Reader, scenario: Scenario) -> None:
+    if scenario.actuation is None:
+        sim.fail("pressures", "needs an [actuation] table (the map from pressures to forces)")
+    if scenario.tau is not None:
+        sim.fail("pressures", "give tau or pressures, not both")
+    actuator = scenario.actuator()
+    if actuator.time_constant is not None:
+        sim.fail(
+            "pressures",
+            "are the chamber pressures: remove actuation.time_constant (the lag from "
+            "command to pressure is applied by the controllers of softcurve.control)",
+        )
+    try:
+        actuator.check_pressures(scenario.pressures)
+    except ParameterError as exc:
+        sim.fail("pressures", str(exc))
 
 
 def _robot(r: _Reader) -> Robot:

@@ -47,6 +47,7 @@ slower.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import sys
 import time
@@ -54,6 +55,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import casadi as ca
 import numpy as np
 
 from ._engines import (
@@ -99,7 +101,11 @@ class Trajectory:
         Tip position in the world frame [m]; computed from the model on first access
         (about 2 us per output time), stored in saved files.
     tau : ndarray (T, n) or None
-        Input forces applied from each output time on (zero-order hold).
+        Input forces applied from each output time on (zero-order hold); with
+        ``pressures``, the force ``H(q) p`` at each output time.
+    pressures : ndarray (T, m) or None
+        The chamber pressures [Pa] when the robot was driven by pressures (not saved by
+        :meth:`save`, which keeps ``tau``).
     stats : dict
         ``method``, ``steps``, ``rhs_evaluations``, ``jacobian_evaluations``,
         ``wall_time`` [s] and the tolerances used.
@@ -114,6 +120,7 @@ class Trajectory:
     lam: np.ndarray
     tip_positions: np.ndarray | None = field(default=None, repr=False)
     tau: np.ndarray | None = None
+    pressures: np.ndarray | None = None
     stats: dict = field(default_factory=dict)
     status: str = "success"
     message: str = ""
@@ -209,24 +216,51 @@ def _grid(t_final: float, dt: float) -> np.ndarray:
     return grid
 
 
-def _input_grid(model: Model, tau, grid: np.ndarray):
+def _input_grid(name: str, value, n: int, grid: np.ndarray):
     """Constant / on-grid inputs as a (T, n) array; callables come back unchanged."""
-    n = model.n
-    if tau is None:
+    if value is None:
         return np.zeros((grid.size, n))
-    if callable(tau):
-        return tau
-    a = np.asarray(tau, dtype=np.float64) if not isinstance(tau, str) else None
+    if callable(value):
+        return value
+    a = np.asarray(value, dtype=np.float64) if not isinstance(value, str) else None
     if a is not None and a.shape == (n,):
         a = np.broadcast_to(a, (grid.size, n))
     if a is None or a.shape != (grid.size, n):
         raise ParameterError(
-            f"tau must be None, shape ({n},), shape ({grid.size}, {n}) (one row per output "
-            f"time) or a callable tau(t, state), got {getattr(a, 'shape', tau)!r}"
+            f"{name} must be None, shape ({n},), shape ({grid.size}, {n}) (one row per output "
+            f"time) or a callable {name}(t, state), got {getattr(a, 'shape', value)!r}"
         )
     if not np.all(np.isfinite(a)):
-        raise ParameterError("tau must be finite")
+        raise ParameterError(f"{name} must be finite")
     return np.array(a)
+
+
+def _pressure_input(model: Model, actuator, pressures, grid, tau, controller):
+    """``(inputs, input_map, check)`` for ``simulate(pressures=..., actuator=...)``."""
+    from .actuation import PressureMap
+
+    if not isinstance(actuator, PressureMap):
+        raise ParameterError(
+            "pressures need actuator= a softcurve.PressureMap (e.g. PneumaticActuator), "
+            f"got {type(actuator).__name__}"
+        )
+    if tau is not None or controller is not None:
+        raise ParameterError("give one of tau, pressures or a controller")
+    actuator.check_robot(model.robot)
+    if actuator.time_constant is not None:
+        raise ParameterError(
+            "simulate(pressures=...) takes the chamber pressures themselves; this actuator "
+            f"has a time_constant ({actuator.time_constant} s), a lag from command to "
+            "pressure, which the pressure controllers of softcurve.control apply exactly "
+            "between samples: drop the time_constant or drive the robot with a controller"
+        )
+    inputs = _input_grid("pressures", pressures, actuator.n_inputs, grid)
+    if not callable(inputs):
+        for row in np.unique(inputs, axis=0):
+            actuator.check_pressures(row)
+    q, p = ca.SX.sym("q", model.n), ca.SX.sym("p", actuator.n_inputs)
+    force = ca.Function("pressure_force", [q, p], [ca.mtimes(actuator.matrix_symbolic(q), p)])
+    return inputs, force, lambda value: actuator.check_pressures(value, "pressures returned")
 
 
 def _controller(controller):
@@ -251,6 +285,8 @@ def simulate(
     rtol: float = 1e-6,
     atol=None,
     controller=None,
+    pressures=None,
+    actuator=None,
     max_steps: int = 50_000,
     progress: bool = False,
 ) -> Trajectory:
@@ -280,6 +316,14 @@ def simulate(
     controller : object, optional
         ``sample_time`` [s] and ``__call__(t, q, qd, lam) -> tau`` (zero-order hold);
         ``reset()`` is called first if present. Replaces ``tau``.
+    pressures : array_like (m,) or (T, m), or callable, optional
+        Chamber pressures [Pa, gauge] instead of ``tau``, in the forms ``tau`` takes; the
+        input force is ``H(q) p`` with ``H`` of ``actuator``, evaluated along the
+        trajectory inside the integrator (not held). Bounds are checked.
+    actuator : PressureMap, optional
+        The pressure map for ``pressures`` (required with them). Its ``time_constant``
+        must be None: a lag from command to pressure is applied by the pressure
+        controllers of :mod:`softcurve.control`.
     max_steps : int
         Internal steps allowed between two output times.
     progress : bool
@@ -316,7 +360,15 @@ def simulate(
     sample_time = _controller(controller)
     if controller is not None and tau is not None:
         raise ParameterError("give either tau or a controller, not both")
-    inputs = _input_grid(model, tau, grid) if controller is None else None
+    input_map = check = None
+    if pressures is not None or actuator is not None:
+        if pressures is None:
+            raise ParameterError("actuator is given without pressures: give pressures= too")
+        inputs, input_map, check = _pressure_input(
+            model, actuator, pressures, grid, tau, controller
+        )
+    else:
+        inputs = _input_grid("tau", tau, model.n, grid) if controller is None else None
     nominal = nominal_scale(model, x0)
     if atol is None:
         atol_vector = rtol * nominal
@@ -329,20 +381,24 @@ def simulate(
 
     stats = {"method": method, "rtol": rtol, "atol": atol_vector.tolist(), "dt": dt}
     if method == "rk45":
-        engine = ScipyEngine(model, rtol, atol_vector, max_steps)
+        engine = ScipyEngine(model, rtol, atol_vector, max_steps, input_map)
     else:
         multistep = method
         if method == "cvodes":
-            tau0 = inputs[0] if isinstance(inputs, np.ndarray) else np.zeros(model.n)
+            tau0 = inputs[0] if isinstance(inputs, np.ndarray) else None
+            if tau0 is None or input_map is not None:
+                u0 = np.zeros(model.n if input_map is None else actuator.n_inputs)
+                u0 = u0 if tau0 is None else tau0
+                tau0 = u0 if input_map is None else np.array(input_map(x0[: model.n], u0)).ravel()
             ratio = stiffness_ratio(model, x0, tau0, nominal)
             stats["stiffness_ratio"] = ratio
             multistep = "bdf" if ratio > STIFFNESS_RATIO else "adams"
-        engine = CvodesEngine(model, multistep, rtol, atol_vector, nominal, max_steps)
+        engine = CvodesEngine(model, multistep, rtol, atol_vector, nominal, max_steps, input_map)
     stats["method"] = engine.method
 
     states = np.empty((grid.size, model.n_state))
     states[0] = x0
-    applied = np.zeros((grid.size, model.n))
+    applied = np.zeros((grid.size, model.n if input_map is None else actuator.n_inputs))
     bar = _Progress(t_final) if progress else None
     start = time.perf_counter()
     try:
@@ -351,7 +407,7 @@ def simulate(
             reached = _run_on_grid(engine, grid, states, inputs, bar)
         else:
             reached = _run_sampled(
-                engine, model, grid, states, applied, inputs, controller, sample_time, bar
+                engine, model, grid, states, applied, inputs, controller, sample_time, bar, check
             )
         failure = None
     except _Stopped as stop:
@@ -360,7 +416,12 @@ def simulate(
     if bar is not None:
         bar.close()
     stats.update(engine.counts, wall_time=wall)
-    return _result(model, grid, states, applied, reached, failure, stats, method)
+    if input_map is None:
+        return _result(model, grid, states, applied, reached, failure, stats, method)
+    q = states[:reached, : model.n]
+    forces = np.array(input_map.map(reached)(q.T, applied[:reached].T)).T
+    trajectory = _result(model, grid, states, forces, reached, failure, stats, method)
+    return dataclasses.replace(trajectory, pressures=applied[:reached].copy())
 
 
 class _Stopped(Exception):
@@ -410,9 +471,12 @@ def _check_finite(states, a, b) -> None:
         raise _Stopped(first, "the state became non-finite")
 
 
-def _run_sampled(engine, model, grid, states, applied, inputs, controller, sample_time, bar):
-    """Piece by piece between output times and controller samples, input held."""
-    n = model.n
+def _run_sampled(
+    engine, model, grid, states, applied, inputs, controller, sample_time, bar, check=None
+):
+    """Piece by piece between output times and controller samples, input held; ``check``
+    validates a value of a callable input (pressures within their bounds)."""
+    n, width = model.n, applied.shape[1]
     if controller is not None:
         if callable(getattr(controller, "reset", None)):
             controller.reset()
@@ -426,7 +490,7 @@ def _run_sampled(engine, model, grid, states, applied, inputs, controller, sampl
     is_sample = np.zeros(times.size, bool)
     is_sample[sample_index] = True
     grid_index = np.searchsorted(times, grid - tolerance)
-    current = np.zeros(n)
+    current = np.zeros(width)
     x = states[0].copy()
     output = 0
     for i in range(times.size - 1):
@@ -436,7 +500,9 @@ def _run_sampled(engine, model, grid, states, applied, inputs, controller, sampl
                 value = controller(times[i], q.copy(), qd.copy(), lam.copy())
             else:
                 value = inputs(times[i], State(q.copy(), qd.copy(), lam.copy(), x.copy()))
-            current = _finite_vector("tau returned by the controller", value, n)
+            current = _finite_vector("the input returned by the callable", value, width)
+            if check is not None:
+                current = check(current)
         while output < grid.size and grid_index[output] <= i:
             applied[output] = current
             output += 1

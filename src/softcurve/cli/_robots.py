@@ -34,17 +34,10 @@ def robot_and_actuator(args):
 
     robot, actuator = presets.ifac2020(), None
     if args.config is not None:
-        from ..actuation import from_mapping
         from ..io import load_config
 
         scenario = load_config(args.config)
-        robot = scenario.robot
-        if scenario.actuation is not None:
-            actuator = from_mapping(
-                scenario.actuation,
-                n_segments=robot.n_segments,
-                where=f"{args.config}: actuation",
-            )
+        robot, actuator = scenario.robot, scenario.actuator()
     if actuator is None or args.bellows is not None:
         rho, area, p_max = args.bellows or ILLUSTRATIVE_BELLOWS
         actuator = PneumaticActuator.three_bellows(

@@ -109,6 +109,8 @@ def run(args) -> int:
         atol=scenario.atol,
         max_steps=scenario.max_steps,
         progress=show_progress,
+        pressures=scenario.pressures,
+        actuator=scenario.actuator() if scenario.pressures is not None else None,
     )
     output.mkdir(parents=True, exist_ok=True)
     written = [trajectory.save(output / "trajectory.csv")]
