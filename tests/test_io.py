@@ -100,7 +100,7 @@ def test_the_pneumatic_example_drives_the_robot_by_pressures():
     scenario = load_config(EXAMPLES / "pneumatic_step.toml")
     assert scenario.pressures == (2.0e4, 0.0, 0.0)
     actuator = scenario.actuator()
-    assert actuator.n_inputs == 3 and actuator.time_constant is None
+    assert actuator.n_inputs == 3 and actuator.time_constant == 0.02
 
 
 def test_a_minimal_file_gets_the_defaults(tmp_path):
@@ -193,10 +193,6 @@ BAD = [
     (
         PNEUMATIC + "[simulation]\npressures = [1e4, 0.0]\n",
         "pressures must have shape (3,)",
-    ),
-    (
-        PNEUMATIC + "time_constant = 0.02\n[simulation]\npressures = [1e4, 0.0, 0.0]\n",
-        "simulation.pressures: are the chamber pressures: remove actuation.time_constant",
     ),
     (
         PNEUMATIC + "[simulation]\npressures = [1e4, 0.0, 0.0]\ntau = [0.0, 0.0, 0.0]\n",

@@ -305,11 +305,34 @@ def test_pressure_inputs_are_validated(paper_model):
     with pytest.raises(sc.ParameterError, match="one of tau, pressures"):
         sc.simulate(paper_model, 1.0, q0, qd0, tau=[0, 0, 0], pressures=[0, 0, 0],
                     actuator=_bellows())  # fmt: skip
-    with pytest.raises(sc.ParameterError, match="time_constant"):
-        sc.simulate(paper_model, 1.0, q0, qd0, pressures=[0, 0, 0],
-                    actuator=_bellows(time_constant=0.02))  # fmt: skip
     with pytest.raises(sc.ParameterError, match="shape"):
         sc.simulate(paper_model, 1.0, q0, qd0, pressures=[0, 0], actuator=_bellows())
     with pytest.raises(sc.ParameterError, match="pressures returned"):
         sc.simulate(paper_model, 0.01, q0, qd0, pressures=lambda t, s: [-1.0, 0, 0],
                     actuator=_bellows())  # fmt: skip
+
+
+@pytest.mark.parametrize("method", ["cvodes", "rk45"])
+def test_lagging_chamber_pressures_follow_the_exact_first_order_response(paper_model, method):
+    """With a time constant the pressures are states: p(t) = c (1 - exp(-t / T)) from zero
+    for a constant command c, whatever the robot does."""
+    actuator = _bellows(time_constant=0.05)
+    command = np.array([3e4, 0.0, 1e4])
+    run = sc.simulate(paper_model, 0.5, [0.064, 0.0, 0.0], np.zeros(3), dt=0.01,
+                      pressures=command, actuator=actuator, method=method, rtol=1e-9)  # fmt: skip
+    assert run.success, run.message
+    exact = command * (1 - np.exp(-run.t / 0.05))[:, None]
+    assert_close(run.pressures, exact, atol=1e-9 * 3e4, rtol=1e-6)
+    assert_close(run.tau[-1], actuator.matrix(run.q[-1]) @ run.pressures[-1], rtol=1e-12)
+    assert run.x.shape == (run.t.size, paper_model.n_state)
+
+
+def test_pressure_controller_callable_with_lag_matches_a_constant_command(paper_model):
+    actuator = _bellows(time_constant=0.05)
+    command = np.array([2e4, 5e3, 0.0])
+    kwargs = dict(actuator=actuator, dt=0.01, rtol=1e-9)
+    constant = sc.simulate(paper_model, 0.3, [0.064, 0.0, 0.0], np.zeros(3), pressures=command,
+                           **kwargs)  # fmt: skip
+    held = sc.simulate(paper_model, 0.3, [0.064, 0.0, 0.0], np.zeros(3),
+                       pressures=lambda t, s: command, **kwargs)  # fmt: skip
+    assert_close(held.x, constant.x, atol=1e-7, rtol=1e-6, scale=np.max(np.abs(constant.x), 0))

@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import threading
 import weakref
+from dataclasses import dataclass
 
 import casadi as ca
 import numpy as np
@@ -126,15 +127,58 @@ class IntegrationFailure(RuntimeError):
         self.states = states
 
 
-def scaled_dae(model, input_map: ca.Function | None = None) -> ca.Function:
+@dataclass(frozen=True)
+class PressureInput:
+    """Pressures as the integrator's input: the force is ``H(q) p``.
+
+    Without a ``time_constant`` the input ``u`` is the chamber pressures themselves. With
+    one, ``u`` is the command and the chamber pressures are ``m`` extra states after
+    ``(q, qd, lam)``: ``p' = (clip(u, lower, upper) - p) / time_constant``.
+    """
+
+    force: ca.Function  # (q (n,), p (m,)) -> H(q) p (n,)
+    lower: np.ndarray
+    upper: np.ndarray
+    time_constant: float | None = None
+
+    @property
+    def n_inputs(self) -> int:
+        return self.lower.size
+
+    @property
+    def n_states(self) -> int:
+        """Extra states: the chamber pressures when they lag their command."""
+        return 0 if self.time_constant is None else self.n_inputs
+
+    def key(self) -> tuple:
+        return (self.force.serialize(), self.lower.tobytes(), self.upper.tobytes(),
+                self.time_constant)  # fmt: skip
+
+    def state_derivative(self, model, y: np.ndarray, u: np.ndarray) -> np.ndarray:
+        """The derivative of ``(x, p)`` (or of ``x`` without lag) in NumPy, for SciPy."""
+        x = y[: model.n_state]
+        pressures = u if self.time_constant is None else y[model.n_state :]
+        force = np.array(self.force(x[: model.n], pressures)).ravel()
+        xdot = model.state_derivative(x, force)
+        if self.time_constant is None:
+            return xdot
+        rate = (np.clip(u, self.lower, self.upper) - pressures) / self.time_constant
+        return np.concatenate([xdot, rate])
+
+
+def _key(inputs: PressureInput | None):
+    return None if inputs is None else inputs.key()
+
+
+def scaled_dae(model, inputs: PressureInput | None = None) -> ca.Function:
     """``dxs/ds = h f(nominal * xs, tau, p) / nominal`` on normalised time ``s`` in [0, 1].
 
-    Integrator parameter ``(robot parameters (n_p,), h, nominal (n_state,))``; input ``u``
-    is the input force ``tau`` or, with ``input_map`` (a function ``(q, u) -> tau``, e.g.
-    ``H(q) p`` for pressures ``u = p``), what it maps. The scale is a parameter so that one
-    integrator serves every initial state and every member of a batch. The right-hand side
-    is the model's compiled ``rhs`` (an ``external``, Jacobian by forward differences) or,
-    without a compiled library, its symbolic form.
+    Integrator parameter ``(robot parameters (n_p,), h, nominal (n_state [+ m],))``; input
+    ``u`` is the input force ``tau`` or, with ``inputs``, the pressures (or their commands,
+    see :class:`PressureInput`). The scale is a parameter so that one integrator serves
+    every initial state and every member of a batch. The right-hand side is the model's
+    compiled ``rhs`` (an ``external``, Jacobian by forward differences) or, without a
+    compiled library, its symbolic form.
     """
 
     def build():
@@ -144,13 +188,25 @@ def scaled_dae(model, input_map: ca.Function | None = None) -> ca.Function:
         else:
             rhs = model.symbolic["rhs"]
         n_par, n_state = model.parameters.size, model.n_state
-        xs = ca.MX.sym("x", n_state)
-        p = ca.MX.sym("p", n_par + 1 + n_state)
-        u = ca.MX.sym("u", model.n if input_map is None else input_map.size1_in(1))
+        extra = 0 if inputs is None else inputs.n_states
+        xs = ca.MX.sym("x", n_state + extra)
+        p = ca.MX.sym("p", n_par + 1 + n_state + extra)
+        u = ca.MX.sym("u", model.n if inputs is None else inputs.n_inputs)
         scale = p[n_par + 1 :]
         x = scale * xs
-        tau = u if input_map is None else input_map(x[: model.n], u)
-        ode = p[n_par] * rhs(x, tau, p[:n_par]) / scale
+        q = x[: model.n]
+        rates = []
+        if inputs is None:
+            tau = u
+        elif inputs.time_constant is None:
+            tau = inputs.force(q, u)
+        else:
+            pressures = x[n_state:]
+            tau = inputs.force(q, pressures)
+            command = ca.fmin(ca.fmax(u, ca.DM(inputs.lower)), ca.DM(inputs.upper))
+            rates = [(command - pressures) / inputs.time_constant]
+        xdot = ca.vertcat(rhs(x[:n_state], tau, p[:n_par]), *rates)
+        ode = p[n_par] * xdot / scale
         empty = ca.MX(0, 1)
         return ca.Function(
             "softcurve_dae",
@@ -160,21 +216,17 @@ def scaled_dae(model, input_map: ca.Function | None = None) -> ca.Function:
             ca.dyn_out(),
         )
 
-    return model_cached(model, ("dae", _key(input_map)), build)
-
-
-def _key(function: ca.Function | None) -> str | None:
-    return None if function is None else function.serialize()
+    return model_cached(model, ("dae", _key(inputs)), build)
 
 
 def cvodes_integrator(
-    model, tout: np.ndarray, options: dict, input_map: ca.Function | None = None
+    model, tout: np.ndarray, options: dict, inputs: PressureInput | None = None
 ) -> ca.Function:
     """CVODES on :func:`scaled_dae` with outputs at normalised times ``tout``, cached."""
-    key = ("cvodes", tout.tobytes(), tuple(sorted(options.items())), _key(input_map))
+    key = ("cvodes", tout.tobytes(), tuple(sorted(options.items())), _key(inputs))
 
     def build():
-        dae = scaled_dae(model, input_map)
+        dae = scaled_dae(model, inputs)
         return ca.integrator("softcurve_cvodes", "cvodes", dae, 0.0, tout, options)
 
     return model_cached(model, key, build)
@@ -222,16 +274,16 @@ class CvodesEngine(_Engine):
         Scale of each state (> 0).
     max_steps : int
         Internal steps allowed between two output times.
-    input_map : casadi.Function, optional
-        ``(q, u) -> tau`` when the inputs are not forces (see :func:`scaled_dae`).
+    inputs : PressureInput, optional
+        When the inputs are pressures rather than forces.
     """
 
     name = "cvodes"
 
-    def __init__(self, model, multistep, rtol, atol, nominal, max_steps, input_map=None):
+    def __init__(self, model, multistep, rtol, atol, nominal, max_steps, inputs=None):
         self.model = model
         self.nominal = nominal
-        self.input_map = input_map
+        self.inputs = inputs
         self.options = {
             "linear_multistep_method": multistep,
             "reltol": rtol,
@@ -251,10 +303,10 @@ class CvodesEngine(_Engine):
     def _integrator(self, tout: np.ndarray):
         """``(lock, buffer, evaluate)``, cached with the model; the buffer interface passes
         NumPy memory to CasADi without conversions, the lock keeps one caller at a time."""
-        key = ("buffer", tout.tobytes(), tuple(sorted(self.options.items())), _key(self.input_map))
+        key = ("buffer", tout.tobytes(), tuple(sorted(self.options.items())), _key(self.inputs))
 
         def build():
-            integrator = cvodes_integrator(self.model, tout, self.options, self.input_map)
+            integrator = cvodes_integrator(self.model, tout, self.options, self.inputs)
             return (threading.Lock(), *integrator.buffer())
 
         return model_cached(self.model, key, build)
@@ -313,9 +365,9 @@ class ScipyEngine(_Engine):
     name = "rk45"
     method = "rk45"
 
-    def __init__(self, model, rtol, atol, max_steps, input_map=None):
+    def __init__(self, model, rtol, atol, max_steps, inputs=None):
         self.model = model
-        self.input_map = input_map
+        self.inputs = inputs
         self.rtol = rtol
         self.atol = atol
         self.max_steps = int(max_steps)
@@ -323,11 +375,10 @@ class ScipyEngine(_Engine):
 
     def _constant(self, x, h, tout, tau) -> np.ndarray:
         out = np.empty((tout.size, x.size))
-        if self.input_map is None:
+        if self.inputs is None:
             rhs = self.model.rhs(tau)
         else:
-            n, f = self.model.n, self.model.state_derivative
-            rhs = lambda t, y: f(y, np.array(self.input_map(y[:n], tau)).ravel())  # noqa: E731
+            rhs = lambda t, y: self.inputs.state_derivative(self.model, y, tau)  # noqa: E731
         # RK45 keeps references to earlier derivatives: give it arrays of its own
         self._run(lambda t, y: np.array(rhs(t, y)), x, 0.0, h * tout, out)
         return out

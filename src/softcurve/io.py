@@ -286,12 +286,6 @@ def _check_pressures(sim: _Reader, scenario: Scenario) -> None:
     if scenario.tau is not None:
         sim.fail("pressures", "give tau or pressures, not both")
     actuator = scenario.actuator()
-    if actuator.time_constant is not None:
-        sim.fail(
-            "pressures",
-            "are the chamber pressures: remove actuation.time_constant (the lag from "
-            "command to pressure is applied by the controllers of softcurve.control)",
-        )
     try:
         actuator.check_pressures(scenario.pressures)
     except ParameterError as exc:

@@ -63,6 +63,7 @@ from ._engines import (
     STIFFNESS_RATIO,
     CvodesEngine,
     IntegrationFailure,
+    PressureInput,
     ScipyEngine,
     evaluate_along,
     nominal_scale,
@@ -104,8 +105,8 @@ class Trajectory:
         Input forces applied from each output time on (zero-order hold); with
         ``pressures``, the force ``H(q) p`` at each output time.
     pressures : ndarray (T, m) or None
-        The chamber pressures [Pa] when the robot was driven by pressures (not saved by
-        :meth:`save`, which keeps ``tau``).
+        The chamber pressures [Pa] when the robot was driven by pressures (the lagging
+        states with a ``time_constant``); not saved by :meth:`save`, which keeps ``tau``.
     stats : dict
         ``method``, ``steps``, ``rhs_evaluations``, ``jacobian_evaluations``,
         ``wall_time`` [s] and the tolerances used.
@@ -236,7 +237,7 @@ def _input_grid(name: str, value, n: int, grid: np.ndarray):
 
 
 def _pressure_input(model: Model, actuator, pressures, grid, tau, controller):
-    """``(inputs, input_map, check)`` for ``simulate(pressures=..., actuator=...)``."""
+    """``(inputs, PressureInput, check)`` for ``simulate(pressures=..., actuator=...)``."""
     from .actuation import PressureMap
 
     if not isinstance(actuator, PressureMap):
@@ -247,20 +248,16 @@ def _pressure_input(model: Model, actuator, pressures, grid, tau, controller):
     if tau is not None or controller is not None:
         raise ParameterError("give one of tau, pressures or a controller")
     actuator.check_robot(model.robot)
-    if actuator.time_constant is not None:
-        raise ParameterError(
-            "simulate(pressures=...) takes the chamber pressures themselves; this actuator "
-            f"has a time_constant ({actuator.time_constant} s), a lag from command to "
-            "pressure, which the pressure controllers of softcurve.control apply exactly "
-            "between samples: drop the time_constant or drive the robot with a controller"
-        )
     inputs = _input_grid("pressures", pressures, actuator.n_inputs, grid)
     if not callable(inputs):
         for row in np.unique(inputs, axis=0):
             actuator.check_pressures(row)
     q, p = ca.SX.sym("q", model.n), ca.SX.sym("p", actuator.n_inputs)
     force = ca.Function("pressure_force", [q, p], [ca.mtimes(actuator.matrix_symbolic(q), p)])
-    return inputs, force, lambda value: actuator.check_pressures(value, "pressures returned")
+    description = PressureInput(
+        force, actuator.lower.copy(), actuator.upper.copy(), actuator.time_constant
+    )
+    return inputs, description, lambda value: actuator.check_pressures(value, "pressures returned")
 
 
 def _controller(controller):
@@ -317,13 +314,14 @@ def simulate(
         ``sample_time`` [s] and ``__call__(t, q, qd, lam) -> tau`` (zero-order hold);
         ``reset()`` is called first if present. Replaces ``tau``.
     pressures : array_like (m,) or (T, m), or callable, optional
-        Chamber pressures [Pa, gauge] instead of ``tau``, in the forms ``tau`` takes; the
-        input force is ``H(q) p`` with ``H`` of ``actuator``, evaluated along the
-        trajectory inside the integrator (not held). Bounds are checked.
+        Pressures [Pa, gauge] instead of ``tau``, in the forms ``tau`` takes, within the
+        actuator's bounds. The input force is ``H(q) p`` with ``H`` of ``actuator``,
+        evaluated along the trajectory inside the integrator (not held). Without a
+        ``time_constant`` they are the chamber pressures; with one they are commands and
+        the chamber pressures are integrated states, ``p' = (command - p) /
+        time_constant``, starting at zero gauge pressure.
     actuator : PressureMap, optional
-        The pressure map for ``pressures`` (required with them). Its ``time_constant``
-        must be None: a lag from command to pressure is applied by the pressure
-        controllers of :mod:`softcurve.control`.
+        The pressure map for ``pressures`` (required with them).
     max_steps : int
         Internal steps allowed between two output times.
     progress : bool
@@ -360,13 +358,11 @@ def simulate(
     sample_time = _controller(controller)
     if controller is not None and tau is not None:
         raise ParameterError("give either tau or a controller, not both")
-    input_map = check = None
+    pressure = check = None
     if pressures is not None or actuator is not None:
         if pressures is None:
             raise ParameterError("actuator is given without pressures: give pressures= too")
-        inputs, input_map, check = _pressure_input(
-            model, actuator, pressures, grid, tau, controller
-        )
+        inputs, pressure, check = _pressure_input(model, actuator, pressures, grid, tau, controller)
     else:
         inputs = _input_grid("tau", tau, model.n, grid) if controller is None else None
     nominal = nominal_scale(model, x0)
@@ -378,27 +374,37 @@ def simulate(
         atol_vector = _finite_vector("atol", atol, model.n_state)
         if not np.all(atol_vector > 0):
             raise ParameterError("atol must be > 0 in every entry")
+    model_x0 = x0
+    if pressure is not None and pressure.n_states:
+        # lagging chamber pressures start at zero gauge (clipped into the bounds)
+        p_start = np.clip(0.0, pressure.lower, pressure.upper)
+        p_scale = np.maximum(np.abs(pressure.lower), np.abs(pressure.upper))
+        x0 = np.concatenate([x0, p_start])
+        nominal = np.concatenate([nominal, p_scale])
+        atol_vector = np.concatenate([atol_vector, rtol * p_scale])
 
     stats = {"method": method, "rtol": rtol, "atol": atol_vector.tolist(), "dt": dt}
     if method == "rk45":
-        engine = ScipyEngine(model, rtol, atol_vector, max_steps, input_map)
+        engine = ScipyEngine(model, rtol, atol_vector, max_steps, pressure)
     else:
         multistep = method
         if method == "cvodes":
-            tau0 = inputs[0] if isinstance(inputs, np.ndarray) else None
-            if tau0 is None or input_map is not None:
-                u0 = np.zeros(model.n if input_map is None else actuator.n_inputs)
-                u0 = u0 if tau0 is None else tau0
-                tau0 = u0 if input_map is None else np.array(input_map(x0[: model.n], u0)).ravel()
-            ratio = stiffness_ratio(model, x0, tau0, nominal)
+            u0 = inputs[0] if isinstance(inputs, np.ndarray) else None
+            if pressure is None:
+                tau0 = np.zeros(model.n) if u0 is None else u0
+            else:
+                p0 = x0[model.n_state :] if pressure.n_states else u0
+                p0 = np.zeros(pressure.n_inputs) if p0 is None else p0
+                tau0 = np.array(pressure.force(model_x0[: model.n], p0)).ravel()
+            ratio = stiffness_ratio(model, model_x0, tau0, nominal[: model.n_state])
             stats["stiffness_ratio"] = ratio
             multistep = "bdf" if ratio > STIFFNESS_RATIO else "adams"
-        engine = CvodesEngine(model, multistep, rtol, atol_vector, nominal, max_steps, input_map)
+        engine = CvodesEngine(model, multistep, rtol, atol_vector, nominal, max_steps, pressure)
     stats["method"] = engine.method
 
-    states = np.empty((grid.size, model.n_state))
+    states = np.empty((grid.size, x0.size))
     states[0] = x0
-    applied = np.zeros((grid.size, model.n if input_map is None else actuator.n_inputs))
+    applied = np.zeros((grid.size, model.n if pressure is None else pressure.n_inputs))
     bar = _Progress(t_final) if progress else None
     start = time.perf_counter()
     try:
@@ -416,12 +422,14 @@ def simulate(
     if bar is not None:
         bar.close()
     stats.update(engine.counts, wall_time=wall)
-    if input_map is None:
+    if pressure is None:
         return _result(model, grid, states, applied, reached, failure, stats, method)
     q = states[:reached, : model.n]
-    forces = np.array(input_map.map(reached)(q.T, applied[:reached].T)).T
-    trajectory = _result(model, grid, states, forces, reached, failure, stats, method)
-    return dataclasses.replace(trajectory, pressures=applied[:reached].copy())
+    chamber = states[:reached, model.n_state :] if pressure.n_states else applied[:reached]
+    forces = np.array(pressure.force.map(reached)(q.T, chamber.T)).T
+    model_states = states[:, : model.n_state]
+    trajectory = _result(model, grid, model_states, forces, reached, failure, stats, method)
+    return dataclasses.replace(trajectory, pressures=chamber.copy())
 
 
 class _Stopped(Exception):
@@ -476,7 +484,7 @@ def _run_sampled(
 ):
     """Piece by piece between output times and controller samples, input held; ``check``
     validates a value of a callable input (pressures within their bounds)."""
-    n, width = model.n, applied.shape[1]
+    n, n_state, width = model.n, model.n_state, applied.shape[1]
     if controller is not None:
         if callable(getattr(controller, "reset", None)):
             controller.reset()
@@ -495,11 +503,11 @@ def _run_sampled(
     output = 0
     for i in range(times.size - 1):
         if is_sample[i]:
-            q, qd, lam = x[:n], x[n : 2 * n], x[2 * n :]
+            q, qd, lam = x[:n], x[n : 2 * n], x[2 * n : n_state]
             if controller is not None:
                 value = controller(times[i], q.copy(), qd.copy(), lam.copy())
             else:
-                value = inputs(times[i], State(q.copy(), qd.copy(), lam.copy(), x.copy()))
+                value = inputs(times[i], State(q.copy(), qd.copy(), lam.copy(), x[:n_state].copy()))
             current = _finite_vector("the input returned by the callable", value, width)
             if check is not None:
                 current = check(current)
