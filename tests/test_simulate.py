@@ -70,8 +70,11 @@ def test_paper_case_budget_of_evaluations(paper_model):
     trajectory = sc.simulate(paper_model, 10.0, Q0, QD0)
     assert trajectory.success
     assert trajectory.t.shape == (10001,) and trajectory.t[-1] == 10.0
-    assert trajectory.stats["rhs_evaluations"] < 4000
-    assert trajectory.stats["jacobian_evaluations"] < 300
+    # measured 1131 steps, 1341 rhs, 149 Jacobians; without the restarts of the multistep
+    # method (RESTART_INTERVAL) 1886 steps, 2112 rhs, 139 Jacobians
+    assert trajectory.stats["steps"] < 1400
+    assert trajectory.stats["rhs_evaluations"] < 1700
+    assert trajectory.stats["jacobian_evaluations"] < 200
     # converged to the straight, gravity-compressed equilibrium
     assert abs(trajectory.q[-1, 0] - 0.0639646) < 1e-6
     assert np.all(np.abs(trajectory.q[-1, 1:]) < 1e-6)
