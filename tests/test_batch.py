@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 import softcurve as sc
-from softcurve.batch import robot_with_parameters, simulate_batch
+from softcurve.batch import simulate_batch
 from tests.conftest import assert_close, random_state
 
 T_FINAL, DT = 0.4, 0.01
@@ -56,7 +56,7 @@ def test_parameters_per_member(paper_model, states):
     batch = simulate_batch(paper_model, T_FINAL, q0s[:3], qd0s[:3], parameters=parameters, dt=DT)
     finals = []
     for i in range(3):
-        model = sc.Model(robot_with_parameters(paper_model.robot, parameters[i]))
+        model = sc.Model(paper_model.robot.with_parameter_vector(parameters[i]))
         single = sc.simulate(model, T_FINAL, q0s[i], qd0s[i], dt=DT)
         scale = state_scale(model, single)
         assert_close(batch.member(i).x, single.x, rtol=1e-10, scale=scale, what=f"member {i}")
@@ -76,7 +76,7 @@ def test_method_is_chosen_per_member_as_in_simulate(paper_model):
     batch = simulate_batch(paper_model, 0.2, q0, qd0, parameters=parameters, dt=DT)
     assert batch.stats["methods"] == ["cvodes-adams", "cvodes-bdf"]
     for i in range(2):
-        model = sc.Model(robot_with_parameters(paper_model.robot, parameters[i]))
+        model = sc.Model(paper_model.robot.with_parameter_vector(parameters[i]))
         single = sc.simulate(model, 0.2, q0, qd0, dt=DT)
         assert single.stats["method"] == batch.stats["methods"][i]
         assert_close(batch.member(i).x, single.x, rtol=1e-10, scale=state_scale(model, single))
@@ -106,19 +106,19 @@ def test_a_failing_member_keeps_its_partial_result_and_spares_the_others(paper_m
     assert_close(batch.member(0).x, single.x, rtol=1e-10, scale=state_scale(paper_model, single))
 
 
-def test_robot_with_parameters_round_trip_and_validation():
+def test_with_parameter_vector_round_trip_and_validation():
     robot = sc.presets.ifac2020()
     vector = robot.parameter_vector()
-    np.testing.assert_array_equal(robot_with_parameters(robot, vector).parameter_vector(), vector)
+    np.testing.assert_array_equal(robot.with_parameter_vector(vector).parameter_vector(), vector)
     two = robot.with_segments(2)
     changed = two.parameter_vector() * np.linspace(1.0, 1.1, two.parameter_vector().size)
     names = two.parameter_names()
     changed[[i for i, n in enumerate(names) if n.startswith("base_rotation")]] = np.eye(3).ravel()
-    np.testing.assert_array_equal(robot_with_parameters(two, changed).parameter_vector(), changed)
+    np.testing.assert_array_equal(two.with_parameter_vector(changed).parameter_vector(), changed)
     bad = vector.copy()
     bad[robot.parameter_names().index("segments[0].bending_stiffness.a1")] = 0.3  # < a2
     with pytest.raises(sc.ParameterError, match="a1"):
-        robot_with_parameters(robot, bad)
+        robot.with_parameter_vector(bad)
 
 
 def test_bad_input_is_refused(paper_model):

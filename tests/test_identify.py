@@ -21,7 +21,6 @@ from softcurve.identify_dynamic import (
     fit_equilibria,
     fit_trajectory,
     predict_trajectory,
-    robot_from_parameters,
     tanh_parameters,
 )
 
@@ -170,7 +169,7 @@ def test_tanh_reparametrisation_and_robot_round_trip():
     values, bind = tanh_parameters(robot, SEG + "bending_stiffness")
     assert values[SEG + "bending_stiffness.k_zero"] == pytest.approx(0.008)
     assert bind[SEG + "bending_stiffness.a2"](values) == pytest.approx(0.012)
-    again = robot_from_parameters(robot, robot.parameter_vector())
+    again = robot.with_parameter_vector(robot.parameter_vector())
     np.testing.assert_array_equal(again.parameter_vector(), robot.parameter_vector())
     with pytest.raises(sc.ParameterError, match="not a tanh"):
         tanh_parameters(_robot(), SEG + "bending_stiffness")

@@ -24,8 +24,9 @@ from .identify_dynamic import Free, fit_equilibria, fit_trajectory
 from .materials import Creep, LinearStiffness, TanhStiffness
 from .model import CompilerWarning, DynamicsTerms, Model, Pose
 from .robot import Robot, Segment
-from .simulate import State, Trajectory, load_trajectory, simulate
+from .simulate import simulate
 from .statics import equilibria, equilibrium, linearize
+from .trajectory import State, Trajectory, load_trajectory
 
 __version__ = "0.1.0"
 

@@ -28,77 +28,16 @@ import numpy as np
 
 from ._engines import _cvodes_reason, cvodes_integrator, model_cached, restart_segments
 from ._validate import ParameterError
-from .materials import Creep
 from .model import COMPILED_FUNCTIONS, Model
-from .robot import Robot, Segment
+from .robot import Robot
 from .simulate import (
     METHODS,
     STIFFNESS_RATIO,
-    Trajectory,
     _grid,
     _positive,
     nominal_scale,
 )
-
-
-# -- parameters ------------------------------------------------------------------------------
-def robot_with_parameters(robot: Robot, vector) -> Robot:
-    """The robot of the same structure with the numbers of ``vector`` (validated again).
-
-    Parameters
-    ----------
-    robot : Robot
-        Gives the structure (segments, stiffness laws, creep).
-    vector : array_like, shape (n_p,)
-        Values in the order of ``robot.parameter_names()``.
-
-    Raises
-    ------
-    ParameterError
-        If a value is outside its allowed range (the message names the field).
-    """
-    names = robot.parameter_names()
-    vector = np.asarray(vector, dtype=np.float64)
-    if vector.shape != (len(names),):
-        raise ParameterError(
-            f"a parameter vector must have shape ({len(names)},), got {vector.shape}"
-        )
-    value = dict(zip(names, vector.tolist(), strict=True))
-
-    def matrix(prefix):
-        return [[value[f"{prefix}[{i},{j}]"] for j in range(3)] for i in range(3)]
-
-    segments = []
-    for k, s in enumerate(robot.segments):
-        head = f"segments[{k}]."
-        laws = {
-            mode: type(getattr(s, mode))(
-                *(value[f"{head}{mode}.{label}"] for label in getattr(s, mode).parameter_labels)
-            )
-            for mode in ("elongation_stiffness", "bending_stiffness")
-        }
-        creep = None
-        if s.creep is not None:
-            creep = Creep(
-                rate=[value[f"{head}creep.rate[{i}]"] for i in range(3)],
-                gain=[value[f"{head}creep.gain[{i}]"] for i in range(3)],
-                compliance=matrix(f"{head}creep.compliance"),
-            )
-        segments.append(
-            Segment(
-                rest_length=value[f"{head}rest_length"],
-                mass=value[f"{head}mass"],
-                radius=value[f"{head}radius"],
-                damping=matrix(f"{head}damping"),
-                creep=creep,
-                **laws,
-            )
-        )
-    return Robot(
-        segments=tuple(segments),
-        gravity=[value[f"gravity[{i}]"] for i in range(3)],
-        base_rotation=matrix("base_rotation"),
-    )
+from .trajectory import Trajectory
 
 
 class _RobotView:
@@ -175,7 +114,7 @@ class BatchTrajectory:
         if np.array_equal(self.parameters[i], self.model.parameters):
             return self.model
         return Model(
-            robot_with_parameters(self.model.robot, self.parameters[i]),
+            self.model.robot.with_parameter_vector(self.parameters[i]),
             quadrature_nodes=self.model.quadrature_nodes,
         )
 
@@ -390,7 +329,7 @@ def simulate_batch(
         Constant input forces (default zero).
     parameters : array_like (B, n_p) or (n_p,), optional
         Parameter vectors in the order of ``model.robot.parameter_names()`` (default the
-        model's); each is validated as a robot (:func:`robot_with_parameters`).
+        model's); each is validated as a robot (:meth:`Robot.with_parameter_vector`).
     dt : float
         Output interval [s] (default 1 ms). Memory is ``B * T * (2 n + n_creep + 3)``
         doubles: use a coarser ``dt`` for large batches; the integration steps are chosen
@@ -514,7 +453,7 @@ def _nominal(model: Model, params: np.ndarray, x0: np.ndarray) -> np.ndarray:
         key = params[b].tobytes()
         if key not in robots:
             try:
-                robots[key] = _RobotView(robot_with_parameters(model.robot, params[b]))
+                robots[key] = _RobotView(model.robot.with_parameter_vector(params[b]))
             except ParameterError as exc:
                 raise ParameterError(f"parameters[{b}]: {exc}") from None
         nominal[b] = nominal_scale(robots[key], x0[b])

@@ -39,7 +39,6 @@ from .identify_maps import (  # noqa: F401  (re-exported: one place to import fi
     curvatures,
     tip_position,
 )
-from .materials import STIFFNESS_LAWS, Creep
 from .model import Model
 from .robot import Robot
 
@@ -107,46 +106,6 @@ def tanh_parameters(robot: Robot, law: str):
         f"{law}.a3": lambda v: v[rate],
     }
     return values, bind
-
-
-def robot_from_parameters(robot: Robot, p) -> Robot:
-    """The robot of ``robot``'s structure whose ``parameter_vector()`` is ``p``."""
-    values = dict(zip(robot.parameter_names(), np.asarray(p, dtype=np.float64), strict=True))
-    matrix = [f"[{i},{j}]" for i in range(3) for j in range(3)]
-
-    def take(prefix, labels):
-        return np.array([values[f"{prefix}{label}"] for label in labels])
-
-    segments = []
-    for k, s in enumerate(robot.segments):
-        head = f"segments[{k}]."
-        laws = {}
-        for mode in ("elongation_stiffness", "bending_stiffness"):
-            cls = STIFFNESS_LAWS[getattr(s, mode).kind]
-            laws[mode] = cls(*take(f"{head}{mode}.", cls.parameter_labels))
-        creep = None
-        if s.creep is not None:
-            idx = ["[0]", "[1]", "[2]"]
-            creep = Creep(
-                rate=take(f"{head}creep.rate", idx),
-                gain=take(f"{head}creep.gain", idx),
-                compliance=take(f"{head}creep.compliance", matrix).reshape(3, 3),
-            )
-        segments.append(
-            s.replace(
-                rest_length=values[f"{head}rest_length"],
-                mass=values[f"{head}mass"],
-                radius=values[f"{head}radius"],
-                damping=take(f"{head}damping", matrix).reshape(3, 3),
-                creep=creep,
-                **laws,
-            )
-        )
-    return robot.replace(
-        segments=tuple(segments),
-        gravity=take("gravity", ["[0]", "[1]", "[2]"]),
-        base_rotation=take("base_rotation", matrix).reshape(3, 3),
-    )
 
 
 class _Parameters:
@@ -298,7 +257,7 @@ class _Problem:
             message += f"; at a bound (interval not meaningful there): {at_bound}"
         p_value, extra_values = P.evaluate(theta_value)
         try:
-            robot = robot_from_parameters(self.model.robot, p_value)
+            robot = self.model.robot.with_parameter_vector(p_value)
         except ParameterError as exc:
             robot, status = None, "failed"
             message += f"; the estimate is not an admissible robot: {exc}"

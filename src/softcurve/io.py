@@ -460,7 +460,7 @@ def save_trajectory(trajectory, path) -> Path:
 
 def load_trajectory(path):
     """Read a trajectory written by :func:`save_trajectory` (no model attached)."""
-    from .simulate import Trajectory
+    from .trajectory import Trajectory
 
     path = Path(path)
     if path.suffix == ".npz":

@@ -191,6 +191,66 @@ class Robot:
         """A copy with some fields changed (validated again)."""
         return dataclasses.replace(self, **changes)
 
+    def with_parameter_vector(self, vector) -> Robot:
+        """The robot of this structure whose :meth:`parameter_vector` is ``vector``.
+
+        The inverse of :meth:`parameter_vector`: segments, stiffness-law types and creep
+        stay; every number is taken from ``vector`` and validated again.
+
+        Parameters
+        ----------
+        vector : array_like, shape (n_p,)
+            Values in the order of :meth:`parameter_names`.
+
+        Raises
+        ------
+        ParameterError
+            If ``vector`` has the wrong shape or a value is outside its allowed range
+            (the message names the field).
+        """
+        names = self.parameter_names()
+        vector = np.asarray(vector, dtype=np.float64)
+        if vector.shape != (len(names),):
+            raise ParameterError(
+                f"a parameter vector must have shape ({len(names)},), got {vector.shape}"
+            )
+        value = dict(zip(names, vector.tolist(), strict=True))
+
+        def take(prefix: str, labels) -> np.ndarray:
+            return np.array([value[f"{prefix}{label}"] for label in labels])
+
+        index = ["[0]", "[1]", "[2]"]
+        matrix = [f"[{i},{j}]" for i in range(3) for j in range(3)]
+        segments = []
+        for k, s in enumerate(self.segments):
+            head = f"segments[{k}]."
+            laws = {}
+            for mode in ("elongation_stiffness", "bending_stiffness"):
+                law = getattr(s, mode)
+                laws[mode] = type(law)(*take(f"{head}{mode}.", law.parameter_labels))
+            creep = None
+            if s.creep is not None:
+                creep = Creep(
+                    rate=take(f"{head}creep.rate", index),
+                    gain=take(f"{head}creep.gain", index),
+                    compliance=take(f"{head}creep.compliance", matrix).reshape(3, 3),
+                )
+            segments.append(
+                s.replace(
+                    rest_length=value[f"{head}rest_length"],
+                    mass=value[f"{head}mass"],
+                    radius=value[f"{head}radius"],
+                    damping=take(f"{head}damping", matrix).reshape(3, 3),
+                    creep=creep,
+                    **laws,
+                )
+            )
+        return self.replace(
+            segments=tuple(segments),
+            gravity=take("gravity", index),
+            base_rotation=take("base_rotation", matrix).reshape(3, 3),
+        )
+
     def with_segments(self, count: int) -> Robot:
         """The same robot with its segment list repeated to ``count`` segments."""
         if count < 1:

@@ -52,8 +52,6 @@ import math
 import sys
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field
-from pathlib import Path
 
 import casadi as ca
 import numpy as np
@@ -65,136 +63,15 @@ from ._engines import (
     IntegrationFailure,
     PressureInput,
     ScipyEngine,
-    evaluate_along,
     nominal_scale,
     restart_segments,
     stiffness_ratio,
 )
 from ._validate import ParameterError, real_array, real_scalar
 from .model import Model
+from .trajectory import State, Trajectory
 
 METHODS = ("cvodes", "adams", "bdf", "rk45")
-
-
-@dataclass(frozen=True)
-class State:
-    """The state passed to a ``tau(t, state)`` callable: ``q``, ``qd``, ``lam`` and ``x``."""
-
-    q: np.ndarray
-    qd: np.ndarray
-    lam: np.ndarray
-    x: np.ndarray
-
-
-@dataclass(eq=False)
-class Trajectory:
-    """A simulated (or loaded) trajectory on the output grid.
-
-    Attributes
-    ----------
-    t : ndarray (T,)
-        Output times [s].
-    q, qd : ndarray (T, n)
-        Coordinates ``(l, kx, ky)`` per segment [m, 1/m] and their rates.
-    lam : ndarray (T, n_creep)
-        Creep states.
-    tip : ndarray (T, 3)
-        Tip position in the world frame [m]; computed from the model on first access
-        (about 2 us per output time), stored in saved files.
-    tau : ndarray (T, n) or None
-        Input forces applied from each output time on (zero-order hold); with
-        ``pressures``, the force ``H(q) p`` at each output time.
-    pressures : ndarray (T, m) or None
-        The chamber pressures [Pa] when the robot was driven by pressures (the lagging
-        states with a ``time_constant``); not saved by :meth:`save`, which keeps ``tau``.
-    stats : dict
-        ``method``, ``steps``, ``rhs_evaluations``, ``jacobian_evaluations``,
-        ``wall_time`` [s] and the tolerances used.
-    status : {"success", "failed"}
-    message : str
-        What happened; on failure, where and what to try.
-    """
-
-    t: np.ndarray
-    q: np.ndarray
-    qd: np.ndarray
-    lam: np.ndarray
-    tip_positions: np.ndarray | None = field(default=None, repr=False)
-    tau: np.ndarray | None = None
-    pressures: np.ndarray | None = None
-    stats: dict = field(default_factory=dict)
-    status: str = "success"
-    message: str = ""
-    model: Model | None = field(default=None, repr=False)
-
-    @property
-    def tip(self) -> np.ndarray:
-        """Tip positions (T, 3) [m] in the world frame."""
-        if self.tip_positions is None:
-            if self.t.size == 0:
-                self.tip_positions = np.empty((0, 3))
-            else:
-                self.tip_positions = evaluate_along(self._model(None), "pose", self.q, 1.0)[1]
-        return self.tip_positions
-
-    @property
-    def success(self) -> bool:
-        return self.status == "success"
-
-    @property
-    def n(self) -> int:
-        return self.q.shape[1]
-
-    @property
-    def x(self) -> np.ndarray:
-        """States ``(q, qd, lam)`` as rows, shape (T, n_state)."""
-        return np.hstack([self.q, self.qd, self.lam])
-
-    def _model(self, model) -> Model:
-        model = model if model is not None else self.model
-        if model is None:
-            raise ValueError("this trajectory has no model attached: pass model=Model(robot)")
-        return model
-
-    def energy(self, model: Model | None = None) -> np.ndarray:
-        """Mechanical energy ``T + V`` [J] at every output time, shape (T,)."""
-        model = self._model(model)
-        terms = evaluate_along(model, "dynamics_terms", self.q, self.qd, self.lam)
-        mass = terms[0].reshape(-1, self.n, self.n)
-        kinetic = 0.5 * np.einsum("ti,tij,tj->t", self.qd, mass, self.qd)
-        gravity, elastic = evaluate_along(model, "potential_energy", self.q)
-        return kinetic + gravity[:, 0] + elastic[:, 0]
-
-    def save(self, path) -> Path:
-        """Write to ``path`` (.csv or .npz), atomically; returns the path."""
-        from .io import save_trajectory
-
-        return save_trajectory(self, path)
-
-    @classmethod
-    def load(cls, path) -> Trajectory:
-        """Read a trajectory written by :meth:`save`."""
-        from .io import load_trajectory
-
-        return load_trajectory(path)
-
-    def plot(self, path=None):
-        """The states figure (paper Fig. 4): ``l``, ``kx``, ``ky`` against time."""
-        from .plot import plot_states
-
-        return plot_states(self, path)
-
-    def plot_tip(self, path=None):
-        """The 3-D tip trajectory (paper Fig. 5)."""
-        from .plot import plot_tip
-
-        return plot_tip(self, path)
-
-    def animate(self, path, model: Model | None = None, **options) -> Path:
-        """An animation of the backbone, written to ``path`` (.gif, or .mp4 with ffmpeg)."""
-        from .plot import animate
-
-        return animate(self, path, self._model(model), **options)
 
 
 # -- argument checks -----------------------------------------------------------------------
@@ -593,10 +470,3 @@ class _Progress:
 
 
 TauCallable = Callable[[float, State], np.ndarray]
-
-
-def load_trajectory(path) -> Trajectory:
-    """Read a trajectory written by :meth:`Trajectory.save` (.csv or .npz)."""
-    from .io import load_trajectory as load
-
-    return load(path)

@@ -32,7 +32,7 @@ from pathlib import Path
 import numpy as np
 
 from . import __version__
-from .batch import default_threads, robot_with_parameters, simulate_batch
+from .batch import default_threads, simulate_batch
 from .dynamics import DEFAULT_QUADRATURE_NODES
 from .io import ConfigError, _Reader, atomic_path, column_names, scenario_from_dict, tomllib
 from .model import Model
@@ -244,7 +244,7 @@ def _check_design_box(config: SweepConfig, r: _Reader) -> None:
         for v, value in zip(swept, corner, strict=True):
             vector[names.index(v.name)] = value
         try:
-            robot_with_parameters(robot, vector)
+            robot.with_parameter_vector(vector)
         except ValueError as exc:
             where = ", ".join(f"{v.name} = {c:g}" for v, c in zip(swept, corner, strict=True))
             r.fail("variables", f"the robot at the corner {where} of the design is invalid: {exc}")
