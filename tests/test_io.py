@@ -30,6 +30,21 @@ def test_trajectory_round_trip_is_exact(short_run, tmp_path, suffix):
     assert loaded.model is None and sc.Trajectory.load(path).t.size == 51
 
 
+@pytest.mark.parametrize("suffix", [".csv", ".npz"])
+def test_pressures_round_trip(paper_model, tmp_path, suffix):
+    actuator = sc.PneumaticActuator.three_bellows(
+        distance=0.012, area=2e-4, p_max=6e4, time_constant=0.02
+    )
+    run = sc.simulate(paper_model, 0.05, [0.064, 0.0, 0.0], [0.0, 0.0, 0.0],
+                      pressures=[2e4, 0.0, 1e4], actuator=actuator)  # fmt: skip
+    loaded = sc.load_trajectory(run.save(tmp_path / f"run{suffix}"))
+    for name in ("q", "tau", "pressures"):
+        np.testing.assert_array_equal(getattr(loaded, name), getattr(run, name), err_msg=name)
+    if suffix == ".csv":
+        header = (tmp_path / "run.csv").read_text().splitlines()[1].split(",")
+        assert header[-6:] == ["tau1", "tau2", "tau3", "p1", "p2", "p3"]
+
+
 def test_csv_has_named_columns_and_metadata(short_run, tmp_path):
     path = short_run.save(tmp_path / "run.csv")
     lines = path.read_text().splitlines()

@@ -401,12 +401,14 @@ def atomic_write(path, data: bytes) -> Path:
 
 
 # -- trajectories --------------------------------------------------------------------------
-def column_names(n: int, n_creep: int, with_tau: bool) -> list[str]:
-    """CSV columns: t, l1 kx1 ky1 ..., l1_dot ..., lam1 ..., tip_x tip_y tip_z, tau1 ..."""
+def column_names(n: int, n_creep: int, with_tau: bool, n_pressures: int = 0) -> list[str]:
+    """CSV columns: t, l1 kx1 ky1 ..., l1_dot ..., lam1 ..., tip_x tip_y tip_z, tau1 ...,
+    p1 ... (chamber pressures [Pa], when the robot was driven by pressures)."""
     q = [f"{c}{i + 1}" for i in range(n // 3) for c in ("l", "kx", "ky")]
     names = ["t", *q, *(f"{c}_dot" for c in q), *(f"lam{i + 1}" for i in range(n_creep))]
     names += ["tip_x", "tip_y", "tip_z"]
-    return names + ([f"tau{i + 1}" for i in range(n)] if with_tau else [])
+    names += [f"tau{i + 1}" for i in range(n)] if with_tau else []
+    return names + [f"p{i + 1}" for i in range(n_pressures)]
 
 
 def _meta(trajectory) -> dict:
@@ -415,6 +417,7 @@ def _meta(trajectory) -> dict:
         "version": FORMAT_VERSION,
         "n": trajectory.n,
         "n_creep": trajectory.lam.shape[1],
+        "n_pressures": 0 if trajectory.pressures is None else trajectory.pressures.shape[1],
         "status": trajectory.status,
         "message": trajectory.message,
         "stats": trajectory.stats,
@@ -425,7 +428,9 @@ def save_trajectory(trajectory, path) -> Path:
     """Write a trajectory to ``path``: ``.csv`` (one JSON comment line of metadata, a
     header, one row per output time, 17 significant digits) or ``.npz``."""
     path = Path(path)
-    tau = trajectory.tau
+    tau, pressures = trajectory.tau, trajectory.pressures
+    if pressures is not None and tau is None:
+        raise ValueError("a trajectory with pressures must carry tau (the force H(q) p)")
     meta = _meta(trajectory)
     if path.suffix == ".csv":
         blocks = [
@@ -434,11 +439,12 @@ def save_trajectory(trajectory, path) -> Path:
             trajectory.qd,
             trajectory.lam,
             trajectory.tip,
-        ] + ([tau] if tau is not None else [])
+        ] + [a for a in (tau, pressures) if a is not None]
         table = np.hstack(blocks)
         buffer = io.StringIO()
         buffer.write("# " + json.dumps(meta) + "\n")
-        buffer.write(",".join(column_names(trajectory.n, meta["n_creep"], tau is not None)) + "\n")
+        names = column_names(trajectory.n, meta["n_creep"], tau is not None, meta["n_pressures"])
+        buffer.write(",".join(names) + "\n")
         np.savetxt(buffer, table, delimiter=",", fmt="%.17g")
         return atomic_write(path, buffer.getvalue().encode())
     if path.suffix == ".npz":
@@ -452,6 +458,8 @@ def save_trajectory(trajectory, path) -> Path:
         }
         if tau is not None:
             arrays["tau"] = tau
+        if pressures is not None:
+            arrays["pressures"] = pressures
         buffer = io.BytesIO()
         np.savez_compressed(buffer, **arrays)
         return atomic_write(path, buffer.getvalue())
@@ -469,6 +477,7 @@ def load_trajectory(path):
             arrays = {k: data[k] for k in ("t", "q", "qd", "lam")}
             arrays["tip_positions"] = data["tip"]
             tau = data["tau"] if "tau" in data else None
+            pressures = data["pressures"] if "pressures" in data else None
     elif path.suffix == ".csv":
         with open(path, encoding="utf-8") as f:
             first = f.readline()
@@ -489,7 +498,9 @@ def load_trajectory(path):
             "lam": table[:, cuts[2] : cuts[3]],
             "tip_positions": table[:, cuts[3] : cuts[4]],
         }
-        tau = table[:, cuts[4] :] if table.shape[1] > cuts[4] else None
+        tau = table[:, cuts[4] : cuts[4] + n] if table.shape[1] > cuts[4] else None
+        m = meta.get("n_pressures", 0)
+        pressures = table[:, cuts[4] + n : cuts[4] + n + m] if m else None
     else:
         raise ValueError(f"path must end in .csv or .npz, got {path.name!r}")
     if meta.get("format") != "softcurve-trajectory":
@@ -497,6 +508,7 @@ def load_trajectory(path):
     return Trajectory(
         **{k: np.array(v) for k, v in arrays.items()},
         tau=tau,
+        pressures=pressures,
         stats=meta["stats"],
         status=meta["status"],
         message=meta["message"],

@@ -42,7 +42,7 @@ class Trajectory:
         ``pressures``, the force ``H(q) p`` at each output time.
     pressures : ndarray (T, m) or None
         The chamber pressures [Pa] when the robot was driven by pressures (the lagging
-        states with a ``time_constant``); not saved by :meth:`save`, which keeps ``tau``.
+        states with a ``time_constant``); saved as columns ``p1 ...``.
     stats : dict
         ``method``, ``steps``, ``rhs_evaluations``, ``jacobian_evaluations``,
         ``wall_time`` [s] and the tolerances used.
