@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+
 import casadi as ca
 import numpy as np
 import pytest
@@ -75,3 +77,22 @@ def test_large_arguments_do_not_overflow():
     assert np.all(np.isfinite(values))
     assert_close(values[0], 1e3 - np.log(2.0), rtol=1e-15)
     assert np.all(np.isfinite(evaluate("tanh_squared", 1e8)))
+
+
+@pytest.mark.parametrize(("name", "offset"), [("sinc", 1), ("cosc", 2), ("sinc3", 3)])
+def test_truncated_series_are_exact_with_two_derivatives(name, offset):
+    """Against 20-term series summed in Python: the value and its first two derivatives
+    in z agree to a few ulps below the series threshold."""
+    k = np.arange(20)
+    coefficients = np.array([(-1.0) ** i / math.factorial(2 * i + offset) for i in k])
+    z = np.linspace(0.0, _smooth.SERIES_THRESHOLD, 101)[:-1]
+    powers = z[:, None] ** k
+    reference = np.stack(
+        [
+            powers @ coefficients,
+            (z[:, None] ** np.maximum(k - 1, 0)) @ (k * coefficients),
+            (z[:, None] ** np.maximum(k - 2, 0)) @ (k * (k - 1) * coefficients),
+        ],
+        axis=1,
+    )
+    assert_close(evaluate(name, z), reference, rtol=8 * np.finfo(float).eps)
