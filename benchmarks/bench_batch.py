@@ -1,21 +1,21 @@
 """Throughput of simulate_batch against a Python loop of simulate() calls.
 
 Run:  python benchmarks/bench_batch.py [--size 200] [--loop 20] [--dt 0.01] [--repeat 3]
-      [--nodes 12,6]
+      [--nodes 11,6]
 
 The batch is the paper's case (preset ifac2020, one segment, 10 s, rtol 1e-6) with the
 initial curvature kx spread over [20, 30] 1/m and the initial rate dky/dt over
 [1000, 2000] 1/(m s), so that no two members are alike. Rows: a loop of simulate() over
 ``--loop`` members (scaled to the batch size); simulate_batch on 1 thread and on all
 usable cores; simulate_batch split over one worker process per core (what
-``softcurve sweep`` does); for the default model (12 quadrature nodes per segment) and
+``softcurve sweep`` does); for the default model (11 quadrature nodes per segment) and
 for ``Model(robot, quadrature_nodes=6)``.
 
 Columns: best wall time of ``--repeat`` runs; CPU time of this process; simulated seconds
 per wall-clock second (the target of issue 6); simulated seconds per CPU second of this
 process (independent of other load on the machine; "-" when the work ran in other
 processes); speed-up over the loop; ``diff single``: max difference from the loop's
-simulate() results; ``error``: against a tight-tolerance run (12 nodes, rtol 1e-10). Both
+simulate() results; ``error``: against a tight-tolerance run (default model, rtol 1e-10). Both
 are the max over the loop's members, times and states of |x - x_ref| / (max_t |x_ref| +
 the state's natural scale). Other processes on the machine slow every row; the load
 average is printed.
@@ -34,6 +34,7 @@ import numpy as np
 
 import softcurve as sc
 from softcurve.batch import default_threads, simulate_batch
+from softcurve.dynamics import DEFAULT_QUADRATURE_NODES
 from softcurve.simulate import nominal_scale
 
 T_FINAL = 10.0
@@ -68,7 +69,9 @@ def main() -> None:
     parser.add_argument("--dt", type=float, default=0.01, help="output interval [s]")
     parser.add_argument("--repeat", type=int, default=3)
     parser.add_argument(
-        "--nodes", default="12,6", help="quadrature nodes of the models to time (default 12 and 6)"
+        "--nodes",
+        default=f"{DEFAULT_QUADRATURE_NODES},6",
+        help=f"quadrature nodes of the models to time (default {DEFAULT_QUADRATURE_NODES} and 6)",
     )
     args = parser.parse_args()
 
@@ -115,7 +118,7 @@ def main() -> None:
     x_loop = np.concatenate([singles, reference[count:]])  # only the first `count` are run
     loop_rate = count * T_FINAL / wall
     row(
-        f"loop of simulate(), 12 nodes ({count})",
+        f"loop of simulate(), {model.quadrature_nodes} nodes ({count})",
         wall * args.size / count,
         cpu * args.size / count,
         x_loop,
@@ -149,8 +152,9 @@ def main() -> None:
                 )
             row(f"batch, {nodes} nodes, {threads} processes", wall, cpu, x)
     print("cpu: this process only (the worker processes of the last rows are not counted);")
-    print("error: against the 12-node model at rtol 1e-10, so it includes the model error of")
-    print("fewer quadrature nodes; diff single: against simulate() with the 12-node model.")
+    nodes = model.quadrature_nodes
+    print(f"error: against the {nodes}-node model at rtol 1e-10, so it includes the model error")
+    print(f"of fewer quadrature nodes; diff single: against simulate(), {nodes} nodes.")
 
 
 if __name__ == "__main__":

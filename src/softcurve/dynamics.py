@@ -8,8 +8,9 @@ expressions serve every robot of one structure.
 Backbone integrals use Gauss-Legendre quadrature in the material coordinate. The
 integrands are entire functions of ``s`` whose highest frequency is twice the
 segment's bending angle ``beta``; ``DEFAULT_QUADRATURE_NODES`` nodes integrate them
-to machine precision for ``|beta| <= pi`` per segment (half a turn; the paper's
-robot stays below 2 rad), see ``tests/test_dynamics.py::test_quadrature_converged``.
+to round-off for ``|beta| <= pi`` per segment (half a turn; the paper's robot stays
+below 2 rad; measurements in docs/model.md), see
+``tests/test_dynamics.py::test_quadrature_converged``.
 """
 
 from __future__ import annotations
@@ -22,7 +23,7 @@ import numpy as np
 from .kinematics import segment_angular_jacobian, segment_pose
 from .materials import STIFFNESS_LAWS, Creep
 
-DEFAULT_QUADRATURE_NODES = 12
+DEFAULT_QUADRATURE_NODES = 11
 
 
 @dataclass(frozen=True)

@@ -110,8 +110,9 @@ class Model:
     robot : Robot
         The robot description; its numbers are bound to every method below.
     quadrature_nodes : int, optional
-        Gauss-Legendre nodes per segment for the backbone integrals (default 12,
-        machine precision for bending angles up to pi per segment).
+        Gauss-Legendre nodes per segment for the backbone integrals (default 11,
+        round-off accuracy for bending angles up to pi per segment; see
+        docs/model.md).
     compile : bool, optional
         Compile to C (default). With False, or when no C compiler works, the
         functions run in CasADi's virtual machine.

@@ -273,7 +273,10 @@ def _is_ring(problem: _Problem, q, tol: float, distinct: float) -> bool:
 def _canonical(q) -> np.ndarray:
     """The member of ``q``'s ring whose first bent segment bends toward +x."""
     bent = np.flatnonzero(np.hypot(q[1::3], q[2::3]) > 0)
-    return rotate_about_axis(q, -np.arctan2(q[3 * bent[0] + 2], q[3 * bent[0] + 1]))
+    i = 3 * bent[0]
+    turned = rotate_about_axis(q, -np.arctan2(q[i + 2], q[i + 1]))
+    turned[i + 1 : i + 3] = np.hypot(q[i + 1], q[i + 2]), 0.0  # exactly, not up to round-off
+    return turned
 
 
 def _scaled_system(problem: _Problem, z):
