@@ -153,7 +153,7 @@ def _summary(scenario, model, trajectory, built, total, written) -> str:
         f"{stats['rhs_evaluations']} rhs and {stats['jacobian_evaluations']} Jacobian evaluations",
         f"  wall time   {1e3 * wall:.1f} ms integrating"
         + (f" ({simulated / wall:.0f}x real time)" if wall > 0 and simulated > 0 else "")
-        + f", {built:.2f} s model setup, {total:.2f} s in total",
+        + f" with the integrator's set-up, {built:.2f} s model setup, {total:.2f} s in total",
         "  wrote       " + ", ".join(str(p) for p in written),
     ]
     return "\n".join(line for line in lines if line)
