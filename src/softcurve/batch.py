@@ -34,7 +34,7 @@ from .simulate import (
     METHODS,
     STIFFNESS_RATIO,
     _grid,
-    _positive,
+    check_settings,
     nominal_scale,
 )
 from .trajectory import Trajectory
@@ -354,17 +354,8 @@ def simulate_batch(
     """
     if not isinstance(model, Model):
         raise ParameterError(f"model must be a softcurve.Model, got {type(model).__name__}")
-    t_final, dt = _positive("t_final", t_final), _positive("dt", dt)
-    if dt > t_final:
-        raise ParameterError(f"dt must be <= t_final, got dt={dt!r} > t_final={t_final!r}")
-    rtol = _positive("rtol", rtol)
-    if not rtol < 1:
-        raise ParameterError(f"rtol must be < 1, got {rtol!r}")
-    if method not in METHODS or method == "rk45":
-        allowed = ", ".join(m for m in METHODS if m != "rk45")
-        raise ParameterError(f"method must be one of {allowed} for a batch, got {method!r}")
-    if isinstance(max_steps, bool) or not isinstance(max_steps, int | np.integer) or max_steps < 1:
-        raise ParameterError(f"max_steps must be an integer >= 1, got {max_steps!r}")
+    batch_methods = tuple(m for m in METHODS if m != "rk45")
+    t_final, dt, rtol = check_settings(t_final, dt, rtol, method, max_steps, batch_methods)
     threads = default_threads() if threads is None else threads
     if isinstance(threads, bool) or not isinstance(threads, int | np.integer) or threads < 1:
         raise ParameterError(f"threads must be an integer >= 1, got {threads!r}")

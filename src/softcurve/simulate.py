@@ -137,6 +137,22 @@ def _pressure_input(model: Model, actuator, pressures, grid, tau, controller):
     return inputs, description, lambda value: actuator.check_pressures(value, "pressures returned")
 
 
+def check_settings(t_final, dt, rtol, method, max_steps, methods=METHODS):
+    """``(t_final, dt, rtol)`` as floats after the checks shared by :func:`simulate` and
+    :func:`softcurve.batch.simulate_batch`; :class:`ParameterError` names a bad one."""
+    t_final, dt = _positive("t_final", t_final), _positive("dt", dt)
+    if dt > t_final:
+        raise ParameterError(f"dt must be <= t_final, got dt={dt!r} > t_final={t_final!r}")
+    rtol = _positive("rtol", rtol)
+    if not rtol < 1:
+        raise ParameterError(f"rtol must be < 1, got {rtol!r}")
+    if method not in methods:
+        raise ParameterError(f"method must be one of {', '.join(methods)}, got {method!r}")
+    if isinstance(max_steps, bool) or not isinstance(max_steps, int | np.integer) or max_steps < 1:
+        raise ParameterError(f"max_steps must be an integer >= 1, got {max_steps!r}")
+    return t_final, dt, rtol
+
+
 def _controller(controller):
     if controller is None:
         return None
@@ -211,17 +227,7 @@ def simulate(
     """
     if not isinstance(model, Model):
         raise ParameterError(f"model must be a softcurve.Model, got {type(model).__name__}")
-    t_final = _positive("t_final", t_final)
-    dt = _positive("dt", dt)
-    if dt > t_final:
-        raise ParameterError(f"dt must be <= t_final, got dt={dt!r} > t_final={t_final!r}")
-    rtol = _positive("rtol", rtol)
-    if not rtol < 1:
-        raise ParameterError(f"rtol must be < 1, got {rtol!r}")
-    if method not in METHODS:
-        raise ParameterError(f"method must be one of {', '.join(METHODS)}, got {method!r}")
-    if isinstance(max_steps, bool) or not isinstance(max_steps, int | np.integer) or max_steps < 1:
-        raise ParameterError(f"max_steps must be an integer >= 1, got {max_steps!r}")
+    t_final, dt, rtol = check_settings(t_final, dt, rtol, method, max_steps)
     x0 = np.concatenate(
         [
             _finite_vector("q0", q0, model.n),
