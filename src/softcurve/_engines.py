@@ -20,6 +20,7 @@ from __future__ import annotations
 import threading
 import weakref
 from dataclasses import dataclass
+from functools import cached_property
 
 import casadi as ca
 import numpy as np
@@ -150,7 +151,9 @@ class PressureInput:
         """Extra states: the chamber pressures when they lag their command."""
         return 0 if self.time_constant is None else self.n_inputs
 
+    @cached_property
     def key(self) -> tuple:
+        """What the compiled integrators built on it depend on (computed once)."""
         return (self.force.serialize(), self.lower.tobytes(), self.upper.tobytes(),
                 self.time_constant)  # fmt: skip
 
@@ -167,7 +170,7 @@ class PressureInput:
 
 
 def _key(inputs: PressureInput | None):
-    return None if inputs is None else inputs.key()
+    return None if inputs is None else inputs.key
 
 
 def scaled_dae(model, inputs: PressureInput | None = None) -> ca.Function:
