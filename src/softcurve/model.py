@@ -421,7 +421,7 @@ def _compiled_library(structure, quadrature_nodes, symbolic) -> Path | None:
     if compiler is None:
         warnings.warn(
             "no C compiler found (set CC, or install gcc or clang): softcurve runs in "
-            "CasADi's virtual machine, about 25x slower",
+            "CasADi's virtual machine, about 10x slower to simulate",
             CompilerWarning,
             stacklevel=3,
         )
