@@ -1,0 +1,117 @@
+"""The measurements behind the integrator's settings and the batch's limits (issue 6).
+
+Run:  python benchmarks/bench_cvodes_options.py [--size 60]
+
+Prints, for a batch of paper-case robots (10 s, rtol 1e-6, one thread):
+1. simulated seconds per CPU second against the restart interval of the multistep method
+   (``softcurve._engines.RESTART_INTERVAL`` is 1 s);
+2. the same for CasADi CVODES options left at their defaults: ``max_order`` and the linear
+   solver;
+3. the size of the compiled right-hand side against its exact state Jacobian (the
+   integrator uses finite differences: 10 right-hand sides per Jacobian);
+4. the CPU time of one worker process integrating 100 members alone and while a second
+   worker does the same on the other core (a pure-Python loop for comparison).
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+from concurrent.futures import ProcessPoolExecutor
+from multiprocessing import get_context
+
+import casadi as ca
+import numpy as np
+
+import softcurve as sc
+from softcurve import _engines, batch
+
+T_FINAL = 10.0
+
+
+def members(size: int, seed: int = 0):
+    rng = np.random.default_rng(seed)
+    q0 = np.column_stack([np.full(size, 0.064), rng.uniform(20, 30, size), np.zeros(size)])
+    qd0 = np.column_stack([np.zeros(size), np.zeros(size), rng.uniform(1000, 2000, size)])
+    return q0, qd0
+
+
+def rate(model, q0, qd0, repeat: int = 3) -> float:
+    """Simulated seconds per CPU second of this process, best of ``repeat``."""
+    best = np.inf
+    for _ in range(repeat):
+        start = time.process_time()
+        batch.simulate_batch(model, T_FINAL, q0, qd0, dt=0.01, threads=1)
+        best = min(best, time.process_time() - start)
+    return q0.shape[0] * T_FINAL / best
+
+
+def with_options(extra: dict):
+    """Route the batch's integrators through extra CVODES options."""
+    original = _engines.cvodes_integrator
+
+    def patched(model, tout, options, inputs=None):
+        return original(model, tout, {**options, **extra}, inputs)
+
+    batch.cvodes_integrator = patched if extra else original
+
+
+def _worker(args) -> tuple[float, float]:
+    kind, seed, size = args
+    start = time.process_time()
+    if kind == "python":
+        total = 0.0
+        for i in range(10_000_000):
+            total += i * 0.5
+    else:
+        model = sc.Model(sc.presets.ifac2020())
+        q0, qd0 = members(size, seed)
+        batch.simulate_batch(model, T_FINAL, q0[:2], qd0[:2], dt=0.01, threads=1)  # warm-up
+        start = time.process_time()
+        batch.simulate_batch(model, T_FINAL, q0, qd0, dt=0.01, threads=1)
+    return time.process_time() - start
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--size", type=int, default=60, help="members per batch")
+    args = parser.parse_args()
+    model = sc.Model(sc.presets.ifac2020())
+    q0, qd0 = members(args.size)
+    rate(model, q0[:2], qd0[:2], repeat=1)  # warm-up
+
+    print(f"1. restart interval ({args.size} members, simulated s per CPU s)")
+    defaults = batch.restart_segments.__defaults__
+    for interval in (0.5, 1.0, 2.0, 1e9):
+        batch.restart_segments.__defaults__ = (interval,)
+        label = "never" if interval > T_FINAL else f"{interval:g} s"
+        print(f"   {label:>8}: {rate(model, q0, qd0):7.0f}")
+    batch.restart_segments.__defaults__ = defaults
+
+    print("2. CVODES options (restarts every 1 s)")
+    variants = ({}, {"max_order": 5}, {"linear_solver": "csparse"}, {"linear_solver": "lapacklu"})
+    for extra in variants:
+        with_options(extra)
+        print(f"   {str(extra or 'defaults'):>30}: {rate(model, q0, qd0):7.0f}")
+    with_options({})
+
+    print("3. instructions of the compiled right-hand side and of its exact state Jacobian")
+    rhs = model.symbolic["rhs"]
+    x, u = ca.SX.sym("x", model.n_state), ca.SX.sym("u", model.n)
+    p = ca.SX.sym("p", model.parameters.size)
+    jacobian = ca.Function("J", [x, u, p], [ca.cse(ca.jacobian(rhs(x, u, p), x))])
+    ratio = jacobian.n_instructions() / rhs.n_instructions()
+    print(f"   rhs {rhs.n_instructions()}, Jacobian {jacobian.n_instructions()} ({ratio:.1f} rhs;")
+    print(f"   finite differences cost {model.n_state + 1} rhs)")
+
+    print("4. CPU seconds of a worker, alone and with a second worker on the other core")
+    with ProcessPoolExecutor(2, mp_context=get_context("spawn")) as pool:
+        for kind in ("python", "softcurve"):
+            jobs = [(kind, seed, 100) for seed in (0, 1)]
+            alone = min(pool.submit(_worker, jobs[0]).result() for _ in range(3))
+            paired = min(max(pool.map(_worker, jobs)) for _ in range(3))
+            print(f"   {kind:>10}: alone {alone:.2f} s, paired {paired:.2f} s")
+
+
+if __name__ == "__main__":
+    main()
