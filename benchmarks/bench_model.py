@@ -59,8 +59,8 @@ int main(int argc, char** argv) {
 """
 
 
-def inside_c(model: sc.Model, repeat: int) -> float:
-    """Seconds per forward-dynamics evaluation in a C loop."""
+def inside_c(model: sc.Model, repeat: int, extra_flags: tuple[str, ...] = ()) -> float:
+    """Seconds per forward-dynamics evaluation in a C loop (model flags + ``extra_flags``)."""
     compiler = _compiler()
     if compiler is None:
         return float("nan")
@@ -70,7 +70,7 @@ def inside_c(model: sc.Model, repeat: int) -> float:
         generator.generate(tmp + os.sep)
         Path(tmp, "main.c").write_text("#include <stdlib.h>\n" + HARNESS)
         subprocess.run(
-            [*compiler, *_COMPILE_FLAGS, "-o", "bench", "fd.c", "main.c", "-lm"],
+            [*compiler, *_COMPILE_FLAGS, *extra_flags, "-o", "bench", "fd.c", "main.c", "-lm"],
             cwd=tmp,
             check=True,
             capture_output=True,
@@ -107,6 +107,12 @@ def main() -> None:
         default=200_000,
         help="evaluations in the C loop for N = 1 (scaled down for larger N)",
     )
+    parser.add_argument(
+        "--extra-flags",
+        default="-march=native",
+        help="compiler flags to compare in the C loop for N = 1 (default -march=native, "
+        "which softcurve does not use: it ties the cached library to the CPU); '' to skip",
+    )
     args = parser.parse_args()
     header = (
         f"{'N':>2} {'n':>3} {'instr.':>8} {'compile [s]':>11} {'cached [s]':>10} "
@@ -136,6 +142,15 @@ def main() -> None:
         "\nTarget (issue 2): <= 5 us per forward-dynamics evaluation inside compiled code "
         "for N = 1 with creep."
     )
+    if args.extra_flags:
+        model = sc.Model(sc.presets.ifac2020())
+        flags = tuple(args.extra_flags.split())
+        plain = min(inside_c(model, args.repeat) for _ in range(3))
+        extra = min(inside_c(model, args.repeat, flags) for _ in range(3))
+        print(
+            f"N = 1 in C with {' '.join(flags)} added: {extra * 1e6:.2f} us against "
+            f"{plain * 1e6:.2f} us ({100 * (1 - extra / plain):.0f} % faster)"
+        )
 
 
 if __name__ == "__main__":
