@@ -169,6 +169,25 @@ class PressureInput:
         return np.concatenate([xdot, rate])
 
 
+def model_function(model, name: str, options: dict | None = None) -> ca.Function:
+    """The model's function ``name(..., p)``: the compiled one, loaded as a CasADi
+    ``external`` (with ``options``), when the model has a library, else the symbolic one."""
+    if model.compiled_library is not None and name in model_module.COMPILED_FUNCTIONS:
+        return ca.external(name, str(model.compiled_library), options or {})
+    return model.symbolic[name]
+
+
+def cvodes_options(multistep: str, rtol: float, abstol: float, max_steps: int) -> dict:
+    """CasADi's CVODES options for a scaled problem (one absolute tolerance)."""
+    return {
+        "linear_multistep_method": multistep,
+        "reltol": rtol,
+        "abstol": abstol,
+        "max_num_steps": int(max_steps),
+        "disable_internal_warnings": True,
+    }
+
+
 def _key(inputs: PressureInput | None):
     return None if inputs is None else inputs.key
 
@@ -185,11 +204,7 @@ def scaled_dae(model, inputs: PressureInput | None = None) -> ca.Function:
     """
 
     def build():
-        if model.compiled_library is not None:
-            options = {"enable_fd": True, "fd_method": "forward"}
-            rhs = ca.external("rhs", str(model.compiled_library), options)
-        else:
-            rhs = model.symbolic["rhs"]
+        rhs = model_function(model, "rhs", {"enable_fd": True, "fd_method": "forward"})
         n_par, n_state = model.parameters.size, model.n_state
         extra = 0 if inputs is None else inputs.n_states
         xs = ca.MX.sym("x", n_state + extra)
@@ -287,13 +302,7 @@ class CvodesEngine(_Engine):
         self.model = model
         self.nominal = nominal
         self.inputs = inputs
-        self.options = {
-            "linear_multistep_method": multistep,
-            "reltol": rtol,
-            "abstol": float(np.min(atol / nominal)),
-            "max_num_steps": int(max_steps),
-            "disable_internal_warnings": True,
-        }
+        self.options = cvodes_options(multistep, rtol, float(np.min(atol / nominal)), max_steps)
         self.method = f"cvodes-{multistep}"
         self.counts = {
             "steps": 0,
@@ -417,11 +426,7 @@ def _mapped(model, name: str, count: int):
     """``(function, function mapped over count points)``, cached per model."""
 
     def build():
-        compiled = getattr(model_module, "COMPILED_FUNCTIONS", ())
-        if model.compiled_library is not None and name in compiled:
-            function = ca.external(name, str(model.compiled_library))
-        else:
-            function = model.symbolic[name]
+        function = model_function(model, name)
         return function, function.map(count)
 
     return model_cached(model, ("map", name, count), build)

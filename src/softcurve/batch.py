@@ -26,9 +26,16 @@ from dataclasses import dataclass, field
 import casadi as ca
 import numpy as np
 
-from ._engines import _cvodes_reason, cvodes_integrator, model_cached, restart_segments
+from ._engines import (
+    _cvodes_reason,
+    cvodes_integrator,
+    cvodes_options,
+    model_cached,
+    model_function,
+    restart_segments,
+)
 from ._validate import ParameterError
-from .model import COMPILED_FUNCTIONS, Model
+from .model import Model
 from .robot import Robot
 from .simulate import (
     METHODS,
@@ -161,22 +168,8 @@ class BatchTrajectory:
 
 
 # -- compiled pieces -------------------------------------------------------------------------
-def _function(model: Model, name: str, options=None) -> ca.Function:
-    """The model's function ``name(..., p)``: the compiled one when there is a library."""
-    if model.compiled_library is not None and name in COMPILED_FUNCTIONS:
-        return ca.external(name, str(model.compiled_library), options or {})
-    return model.symbolic[name]
-
-
 def _integrator(model, multistep, rtol, abstol, max_steps, tout) -> ca.Function:
-    options = {
-        "linear_multistep_method": multistep,
-        "reltol": rtol,
-        "abstol": abstol,
-        "max_num_steps": int(max_steps),
-        "disable_internal_warnings": True,
-    }
-    return cvodes_integrator(model, tout, options)
+    return cvodes_integrator(model, tout, cvodes_options(multistep, rtol, abstol, max_steps))
 
 
 def _mapped(function: ca.Function, size: int, threads: int) -> ca.Function:
@@ -219,7 +212,7 @@ def _along(model, name, build, columns, parameters, threads) -> list[np.ndarray]
 
 def _tip_along(model, q, parameters, threads) -> np.ndarray:
     def build():
-        pose = _function(model, "pose")
+        pose = model_function(model, "pose")
         qs, p = ca.MX.sym("q", model.n), ca.MX.sym("p", model.parameters.size)
         return ca.Function("tip", [qs, p], [pose(qs, 1.0, p)[1]])
 
@@ -228,7 +221,10 @@ def _tip_along(model, q, parameters, threads) -> np.ndarray:
 
 def _energy_along(model, q, qd, parameters, threads) -> np.ndarray:
     def build():
-        terms, potential = _function(model, "dynamics_terms"), _function(model, "potential_energy")
+        terms, potential = (
+            model_function(model, "dynamics_terms"),
+            model_function(model, "potential_energy"),
+        )
         qs, qds = ca.MX.sym("q", model.n), ca.MX.sym("qd", model.n)
         p = ca.MX.sym("p", model.parameters.size)
         mass = terms(qs, qds, ca.MX.zeros(model.n_creep), p)[0]
@@ -250,7 +246,7 @@ def _stiffness_ratios(model, x0, tau, parameters, nominal, threads) -> np.ndarra
     taus = np.broadcast_to(tau[:, None, :], (size, 2 * n_state, model.n))
 
     def build():
-        rhs = _function(model, "rhs")
+        rhs = model_function(model, "rhs")
         xs, u = ca.MX.sym("x", n_state), ca.MX.sym("u", model.n)
         p = ca.MX.sym("p", model.parameters.size)
         return ca.Function("rhs_point", [xs, u, p], [rhs(xs, u, p)])
