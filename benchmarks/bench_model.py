@@ -3,11 +3,12 @@
 For robots of N = 1, 3, 6 paper segments with creep (n = 3N coordinates) it prints:
 - the time to build and compile the model in an empty cache, and to load it from the cache;
 - one forward-dynamics evaluation inside compiled C (a C loop calling the generated
-  function, compiled with the same flags as the model);
+  function, compiled with the same flags as the model), and for N = 1 the same built
+  portable (``SOFTCURVE_PORTABLE=1``, without ``-march=native``);
 - the same from Python, through the model's ctypes path and through CasADi's own
   Function call (the virtual machine), for comparison.
 
-Run: ``python benchmarks/bench_model.py [--segments 1 3 6] [--repeat 200000]``
+Run: ``python benchmarks/bench_model.py [--segments 1 3 6] [--repeat 200000] [--no-portable]``
 """
 
 from __future__ import annotations
@@ -24,7 +25,7 @@ import casadi as ca
 import numpy as np
 
 import softcurve as sc
-from softcurve.model import _COMPILE_FLAGS, _compiler
+from softcurve.model import _COMPILE_FLAGS, _compile_flags, _compiler
 
 HARNESS = r"""
 #include <stdio.h>
@@ -59,8 +60,9 @@ int main(int argc, char** argv) {
 """
 
 
-def inside_c(model: sc.Model, repeat: int, extra_flags: tuple[str, ...] = ()) -> float:
-    """Seconds per forward-dynamics evaluation in a C loop (model flags + ``extra_flags``)."""
+def inside_c(model: sc.Model, repeat: int, flags: tuple[str, ...] | None = None) -> float:
+    """Seconds per forward-dynamics evaluation in a C loop (default: the model's flags)."""
+    flags = _compile_flags() if flags is None else flags
     compiler = _compiler()
     if compiler is None:
         return float("nan")
@@ -70,7 +72,7 @@ def inside_c(model: sc.Model, repeat: int, extra_flags: tuple[str, ...] = ()) ->
         generator.generate(tmp + os.sep)
         Path(tmp, "main.c").write_text("#include <stdlib.h>\n" + HARNESS)
         subprocess.run(
-            [*compiler, *_COMPILE_FLAGS, *extra_flags, "-o", "bench", "fd.c", "main.c", "-lm"],
+            [*compiler, *flags, "-o", "bench", "fd.c", "main.c", "-lm"],
             cwd=tmp,
             check=True,
             capture_output=True,
@@ -108,10 +110,9 @@ def main() -> None:
         help="evaluations in the C loop for N = 1 (scaled down for larger N)",
     )
     parser.add_argument(
-        "--extra-flags",
-        default="-march=native",
-        help="compiler flags to compare in the C loop for N = 1 (default -march=native, "
-        "which softcurve does not use: it ties the cached library to the CPU); '' to skip",
+        "--no-portable",
+        action="store_true",
+        help="skip the comparison with the portable build (SOFTCURVE_PORTABLE=1) for N = 1",
     )
     args = parser.parse_args()
     header = (
@@ -142,14 +143,14 @@ def main() -> None:
         "\nTarget (issue 2): <= 5 us per forward-dynamics evaluation inside compiled code "
         "for N = 1 with creep."
     )
-    if args.extra_flags:
+    if not args.no_portable and _compile_flags() != _COMPILE_FLAGS:
         model = sc.Model(sc.presets.ifac2020())
-        flags = tuple(args.extra_flags.split())
-        plain = min(inside_c(model, args.repeat) for _ in range(3))
-        extra = min(inside_c(model, args.repeat, flags) for _ in range(3))
+        default = min(inside_c(model, args.repeat) for _ in range(3))
+        portable = min(inside_c(model, args.repeat, _COMPILE_FLAGS) for _ in range(3))
         print(
-            f"N = 1 in C with {' '.join(flags)} added: {extra * 1e6:.2f} us against "
-            f"{plain * 1e6:.2f} us ({100 * (1 - extra / plain):.0f} % faster)"
+            f"N = 1 in C, built for this CPU ({' '.join(_compile_flags())}): "
+            f"{default * 1e6:.2f} us; portable (SOFTCURVE_PORTABLE=1): {portable * 1e6:.2f} us "
+            f"({100 * (1 - default / portable):.0f} % faster for this CPU)"
         )
 
 

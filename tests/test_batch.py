@@ -106,6 +106,24 @@ def test_a_failing_member_keeps_its_partial_result_and_spares_the_others(paper_m
     assert_close(batch.member(0).x, single.x, rtol=1e-10, scale=state_scale(paper_model, single))
 
 
+def test_worker_processes_give_the_same_results(paper_model):
+    """processes=2 splits the members over two spawned workers: every output, status and
+    message equals the run in this process, a failing member included."""
+    q0s = np.array([[0.0644, 0.0, 0.0], [0.064, 25.0, 0.0], [0.0644, 2.0, 1.0]])
+    qd0s = np.array([[0.0, 0.0, 0.0], [0.0, 0.0, 1500.0], [0.0, 0.0, 0.0]])
+    parameters = np.repeat(paper_model.parameters[None, :], 3, axis=0)
+    parameters[2, paper_model.robot.parameter_names().index("segments[0].mass")] *= 1.2
+    settings = dict(dt=0.05, max_steps=100, parameters=parameters)
+    here = simulate_batch(paper_model, 0.3, q0s, qd0s, threads=1, **settings)
+    split = simulate_batch(paper_model, 0.3, q0s, qd0s, processes=2, **settings)
+    assert list(split.status) == ["success", "failed", "success"]
+    assert split.message == here.message and split.stats["processes"] == 2
+    np.testing.assert_array_equal(split.reached, here.reached)
+    np.testing.assert_array_equal(split.x, here.x)
+    np.testing.assert_array_equal(split.tip, here.tip)
+    assert split.stats["methods"] == here.stats["methods"]
+
+
 def test_with_parameter_vector_round_trip_and_validation():
     robot = sc.presets.ifac2020()
     vector = robot.parameter_vector()
@@ -129,6 +147,7 @@ def test_bad_input_is_refused(paper_model):
         (dict(q0s=[[0.064, np.nan, 0.0]], qd0s=qd0), r"q0s\[0\] must be finite"),
         (dict(q0s=q0, qd0s=qd0, method="rk45"), "method"),
         (dict(q0s=q0, qd0s=qd0, threads=0), "threads"),
+        (dict(q0s=q0, qd0s=qd0, processes=0), "processes"),
         (dict(q0s=q0, qd0s=qd0, parameters=np.zeros(3)), "parameters"),
     ]
     for kwargs, message in cases:

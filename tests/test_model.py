@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import os
+import shutil
+import warnings
 
 import casadi as ca
 import numpy as np
@@ -47,6 +49,38 @@ def test_a_failing_compiler_falls_back_with_its_message(monkeypatch, tmp_path):
         model = sc.Model(sc.presets.ifac2020())
     assert model.compiled_library is None
     assert not any(path.suffix == ".so" for path in tmp_path.iterdir())
+
+
+def test_code_is_built_for_this_cpu_unless_portable_is_asked(monkeypatch):
+    monkeypatch.delenv("SOFTCURVE_PORTABLE", raising=False)
+    structure = sc.presets.ifac2020().structure()
+    native = model_module._cache_key(structure, 11, ["cc"])
+    assert "-march=native" in model_module._compile_flags()
+    monkeypatch.setenv("SOFTCURVE_PORTABLE", "1")
+    assert model_module._compile_flags() == model_module._COMPILE_FLAGS
+    assert model_module._cache_key(structure, 11, ["cc"]) != native  # one library each
+
+
+def test_a_compiler_without_march_native_builds_portable_code(monkeypatch, tmp_path):
+    real = shutil.which("cc") or shutil.which("gcc")
+    if real is None:
+        pytest.skip("no C compiler")
+    wrapper = tmp_path / "cc-without-native"
+    wrapper.write_text(
+        f'#!/bin/sh\nfor a in "$@"; do [ "$a" = -march=native ] && exit 1; done\nexec {real} "$@"\n'
+    )
+    wrapper.chmod(0o755)
+    monkeypatch.delenv("SOFTCURVE_PORTABLE", raising=False)
+    monkeypatch.setenv("CC", str(wrapper))
+    monkeypatch.setenv("SOFTCURVE_CACHE_DIR", str(tmp_path / "cache"))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", sc.CompilerWarning)
+        model = sc.Model(sc.presets.ifac2020())
+    assert model.compiled_library is not None
+    x = np.array([0.064, 20.0, -5.0, 0.1, 3.0, 2.0, 1e-3, 2e-3, -1e-3])
+    virtual = np.array(model.symbolic["rhs"](x, np.zeros(3), model.parameters)).ravel()
+    compiled = model.state_derivative(x, np.zeros(3))
+    assert_close(compiled, virtual, rtol=1e-12, scale=np.linalg.norm(virtual))
 
 
 def test_native_and_virtual_machine_agree_on_every_compiled_function(paper_model, rng):

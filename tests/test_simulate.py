@@ -145,12 +145,14 @@ def test_tau_callable_receives_the_state(paper_model):
         seen.append((t, state.q.copy(), state.x.size))
         return np.zeros(3)
 
-    trajectory = sc.simulate(paper_model, 0.01, Q0, QD0, tau=tau)
-    free = sc.simulate(paper_model, 0.01, Q0, QD0)
+    # tight tolerance: the held input restarts the integrator at every output, the free
+    # run does not, so at rtol 1e-6 the two differ by several rtol
+    trajectory = sc.simulate(paper_model, 0.01, Q0, QD0, tau=tau, rtol=1e-9)
+    free = sc.simulate(paper_model, 0.01, Q0, QD0, rtol=1e-9)
     assert len(seen) == 10 and seen[0][2] == 9
     np.testing.assert_array_equal(seen[0][1], Q0)
     np.testing.assert_allclose(seen[3][1], trajectory.q[3], rtol=1e-14)
-    assert normalised_error(trajectory, free) < 1e-5
+    assert normalised_error(trajectory, free) < 1e-7
 
 
 def test_failure_keeps_the_partial_trajectory(paper_model):

@@ -20,8 +20,12 @@ import contextlib
 import io
 import math
 import os
+import threading
 import time
+from concurrent.futures import ProcessPoolExecutor
+from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass, field
+from multiprocessing import get_context
 
 import casadi as ca
 import numpy as np
@@ -68,7 +72,8 @@ class BatchTrajectory:
     lam : ndarray (B, T, n_creep)
         Creep states.
     tip : ndarray (B, T, 3)
-        Tip positions in the world frame [m].
+        Tip positions in the world frame [m], computed on first access (as for
+        :class:`~softcurve.Trajectory`).
     tau : ndarray (B, n)
         The constant input of each member.
     parameters : ndarray (B, n_p)
@@ -89,7 +94,6 @@ class BatchTrajectory:
     q: np.ndarray
     qd: np.ndarray
     lam: np.ndarray
-    tip: np.ndarray
     tau: np.ndarray
     parameters: np.ndarray
     status: np.ndarray
@@ -97,6 +101,17 @@ class BatchTrajectory:
     reached: np.ndarray
     stats: dict = field(default_factory=dict)
     model: Model | None = field(default=None, repr=False)
+    tip_positions: np.ndarray | None = field(default=None, repr=False)
+
+    @property
+    def tip(self) -> np.ndarray:
+        """Tip positions (B, T, 3) [m]; NaN where the state is."""
+        if self.tip_positions is None:
+            q = self.q
+            tip = _tip_along(self.model, np.nan_to_num(q), self.parameters, self.stats["threads"])
+            tip[np.isnan(q[..., 0])] = np.nan
+            self.tip_positions = tip
+        return self.tip_positions
 
     @property
     def size(self) -> int:
@@ -305,6 +320,7 @@ def simulate_batch(
     atol=None,
     max_steps: int = 50_000,
     threads: int | None = None,
+    processes: int = 1,
 ) -> BatchTrajectory:
     """Integrate ``B`` robots of the structure of ``model`` from their initial states.
 
@@ -342,6 +358,15 @@ def simulate_batch(
         Internal steps allowed between two output times.
     threads : int, optional
         Threads of the compiled map (default: the cores usable by this process).
+    processes : int
+        Worker processes (default 1: the batch runs in this process on ``threads``
+        threads). With more, the members are split into that many contiguous chunks, each
+        integrated by a worker process on one thread; the workers are spawned at the first
+        such call (about a second) and kept for later ones. Faster than threads on large
+        batches: CasADi's integrator reads the process's CPU clock around every evaluation
+        of the model, and the threads of one process contend for that clock
+        (``benchmarks/bench_batch.py``). Results are identical either way. Workers are
+        spawned, so a script must call this under ``if __name__ == "__main__":``.
 
     Returns
     -------
@@ -355,6 +380,8 @@ def simulate_batch(
     threads = default_threads() if threads is None else threads
     if isinstance(threads, bool) or not isinstance(threads, int | np.integer) or threads < 1:
         raise ParameterError(f"threads must be an integer >= 1, got {threads!r}")
+    if isinstance(processes, bool) or not isinstance(processes, int | np.integer) or processes < 1:
+        raise ParameterError(f"processes must be an integer >= 1, got {processes!r}")
     n, n_creep = model.n, model.n_creep
     arrays = {
         "q0s": _rows("q0s", q0s, n),
@@ -383,6 +410,10 @@ def simulate_batch(
                 f"atol must be a number or shape ({model.n_state},), finite and > 0, got {atol!r}"
             )
         abstol = float(np.min(atol / nominal))
+    if processes > 1 and size > 1:
+        settings = {"dt": dt, "method": method, "rtol": rtol, "atol": atol,
+                    "max_steps": max_steps}  # fmt: skip
+        return _in_processes(model, min(processes, size), threads, t_final, arrays, settings)
 
     grid = _grid(t_final, dt)
     if method == "cvodes":
@@ -404,8 +435,6 @@ def simulate_batch(
     wall = time.perf_counter() - start
     status = np.where(reached == grid.size, "success", "failed")
     q, qd, lam = states[..., :n], states[..., n : 2 * n], states[..., 2 * n :]
-    tip = _tip_along(model, np.nan_to_num(q), params, threads)
-    tip[np.isnan(q[..., 0])] = np.nan
     stats = {
         "methods": [f"cvodes-{m}" for m in methods],
         "rtol": rtol,
@@ -421,12 +450,92 @@ def simulate_batch(
         q=q,
         qd=qd,
         lam=lam,
-        tip=tip,
         tau=tau,
         parameters=params,
         status=status,
         message=messages,
         reached=reached,
+        stats=stats,
+        model=model,
+    )
+
+
+# -- worker processes ------------------------------------------------------------------------
+_POOL: list = []  # [(size, ProcessPoolExecutor)], at most one
+_WORKER_MODELS: dict = {}
+
+
+def worker_model(robot: Robot, quadrature_nodes: int) -> Model:
+    """The model of ``robot`` in a worker process, kept between the tasks it runs (loading
+    the cached library takes milliseconds, building integrators on it more)."""
+    key = (robot.structure(), robot.parameter_vector().tobytes(), quadrature_nodes)
+    if key not in _WORKER_MODELS:
+        _WORKER_MODELS.clear()
+        _WORKER_MODELS[key] = Model(robot, quadrature_nodes=quadrature_nodes)
+    return _WORKER_MODELS[key]
+
+
+def _pool(size: int) -> ProcessPoolExecutor:
+    if _POOL and _POOL[0][0] != size:
+        _POOL.pop()[1].shutdown()
+    if not _POOL:
+        _POOL.append((size, ProcessPoolExecutor(size, mp_context=get_context("spawn"))))
+    return _POOL[0][1]
+
+
+def _chunk(robot, quadrature_nodes, t_final, arrays, settings) -> BatchTrajectory:
+    model = worker_model(robot, quadrature_nodes)
+    chunk = simulate_batch(
+        model, t_final, arrays["q0s"], arrays["qd0s"], arrays["lam0s"], arrays["tau"],
+        arrays["parameters"], **settings, threads=1,
+    )  # fmt: skip
+    chunk.model = None  # the parent has it; a Model holds a loaded library
+    return chunk
+
+
+def _in_processes(model, processes, threads, t_final, arrays, settings) -> BatchTrajectory:
+    """:func:`simulate_batch` split over ``processes`` worker processes; ``threads`` is
+    kept for what is later evaluated along the result in this process (tip, energy)."""
+    start = time.perf_counter()
+    bounds = np.linspace(0, arrays["q0s"].shape[0], processes + 1).astype(int)
+    pool = _pool(processes)
+    try:
+        futures = [
+            pool.submit(
+                _chunk,
+                model.robot,
+                model.quadrature_nodes,
+                t_final,
+                {k: a[lo:hi] for k, a in arrays.items()},
+                settings,
+            )  # fmt: skip
+            for lo, hi in zip(bounds[:-1], bounds[1:], strict=True)
+        ]
+        chunks = [f.result() for f in futures]
+    except BrokenProcessPool as exc:
+        _POOL.clear()
+        raise RuntimeError(
+            f"a worker process of simulate_batch died ({exc}). Workers are spawned and "
+            "import the main module: in a script, call simulate_batch(processes=...) under "
+            "`if __name__ == '__main__':`"
+        ) from None
+    first = chunks[0]
+    stats = {
+        **first.stats,
+        "methods": [m for c in chunks for m in c.stats["methods"]],
+        "size": int(bounds[-1]),
+        "threads": threads,
+        "processes": processes,
+        "wall_time": time.perf_counter() - start,
+        "simulated_time": float(sum(c.stats["simulated_time"] for c in chunks)),
+    }
+    return BatchTrajectory(
+        t=first.t,
+        **{
+            name: np.concatenate([getattr(c, name) for c in chunks])
+            for name in ("q", "qd", "lam", "tau", "parameters", "status", "reached")
+        },
+        message=[m for c in chunks for m in c.message],
         stats=stats,
         model=model,
     )
@@ -465,6 +574,20 @@ class _Run:
         count = len(members)
         return np.hstack([self.params[members], np.full((count, 1), h), self.nominal[members]]).T
 
+    def _mapped(self, multistep, tout, count):
+        """``(lock, buffer, evaluate)`` of the integrator mapped over ``count`` members, cached
+        with the model; the buffer passes NumPy memory to CasADi without conversions and
+        the lock keeps one caller at a time on it."""
+        threads = min(self.threads, count)
+        options = cvodes_options(multistep, self.rtol, self.abstol, self.max_steps)
+        key = ("batch", tuple(sorted(options.items())), tout.tobytes(), count, threads)
+
+        def build():
+            integrator = cvodes_integrator(self.model, tout, options)
+            return (threading.Lock(), *_mapped(integrator, count, threads).buffer())
+
+        return model_cached(self.model, key, build)
+
     def integrate(self, multistep, members, k0, k1, states, reached, messages) -> None:
         """Fill ``states[members, k0+1 : k1+1]`` from ``states[members, k0]``; a failing map
         is split in halves until the failing members are found, which are then integrated
@@ -473,18 +596,25 @@ class _Run:
         h = grid[-1] - grid[0]
         tout = (grid[1:] - grid[0]) / h
         count, outputs = len(members), tout.size
-        integrator = _integrator(
-            self.model, multistep, self.rtol, self.abstol, self.max_steps, tout
-        )
-        u = np.repeat(self.tau[members].T, outputs, axis=1)
-        mapped = _mapped(integrator, count, min(self.threads, count))
-        try:
-            # on a failure, CasADi's map prints every input of the batch to sys.stderr; the
-            # reason is kept from the exception of the member integrated alone (below)
-            with contextlib.redirect_stderr(io.StringIO()):
-                out = mapped(x0=(states[members, k0] / self.nominal[members]).T,
-                             p=self._p(members, h), u=u)  # fmt: skip
-        except RuntimeError:
+        lock, buffer, evaluate = self._mapped(multistep, tout, count)
+        # column-major CasADi matrices: one member's (or one output's) column after another
+        x0 = np.ascontiguousarray(states[members, k0] / self.nominal[members])
+        p = np.ascontiguousarray(self._p(members, h).T)
+        u = np.repeat(self.tau[members], outputs, axis=0)
+        xf = np.zeros((count, outputs, self.model.n_state))
+        with lock:
+            for i, a in ((0, x0), (2, p), (3, u)):
+                buffer.set_arg(i, memoryview(a))
+            buffer.set_res(0, memoryview(xf))
+            try:
+                # on a failure, CasADi's map prints every input of the batch to sys.stderr;
+                # the reason is kept from the member integrated alone (below)
+                with contextlib.redirect_stderr(io.StringIO()):
+                    evaluate()
+                failed = buffer.ret() != 0
+            except RuntimeError:
+                failed = True
+        if failed:
             if count > 1:
                 half = count // 2
                 for part in (members[:half], members[half:]):
@@ -492,7 +622,6 @@ class _Run:
             else:
                 self._one_by_one(multistep, int(members[0]), k0, k1, states, reached, messages)
             return
-        xf = np.asarray(out["xf"]).reshape(self.model.n_state, count, outputs).transpose(1, 2, 0)
         states[members, k0 + 1 : k1 + 1] = xf * self.nominal[members, None, :]
         for b in members:
             bad = ~np.all(np.isfinite(states[b, k0 + 1 : k1 + 1]), axis=1)

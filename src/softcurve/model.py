@@ -16,6 +16,7 @@ from __future__ import annotations
 import ctypes
 import hashlib
 import os
+import platform
 import shlex
 import shutil
 import subprocess
@@ -41,6 +42,13 @@ class CompilerWarning(UserWarning):
 
 
 _COMPILE_FLAGS = ("-O2", "-fPIC", "-fvisibility=hidden", "-DGCC_HASCLASSVISIBILITY")
+_NATIVE_FLAGS = ("-march=native",)
+"""Added when the compiler accepts them and ``SOFTCURVE_PORTABLE`` is not set: the code
+then uses this CPU's vector and fused multiply-add instructions, 10-12 % faster
+(``benchmarks/bench_model.py``). The cache key holds the CPU's identity, so a cache
+shared by different machines keeps one library per CPU type. Results then differ
+between CPU types at round-off (as NumPy's, whose BLAS also picks kernels per CPU);
+``SOFTCURVE_PORTABLE=1`` builds portable, bitwise reproducible code instead."""
 
 
 def cache_directory() -> Path:
@@ -61,6 +69,29 @@ def _compiler() -> list[str] | None:
         if path:
             return [path]
     return None
+
+
+def _cpu_identity() -> str:
+    """The CPU model and instruction-set flags (Linux), else what the platform reports."""
+    try:
+        with open("/proc/cpuinfo", encoding="utf-8", errors="replace") as cpuinfo:
+            first = cpuinfo.read().split("\n\n")[0]
+    except OSError:
+        return f"{platform.machine()} {platform.processor()}"
+    fields = {}
+    for line in first.splitlines():
+        key, _, value = line.partition(":")
+        fields[key.strip()] = value.strip()
+    keys = ("vendor_id", "model name", "flags", "Features", "CPU part")
+    return f"{platform.machine()} " + " ".join(fields.get(k, "") for k in keys)
+
+
+def _compile_flags() -> tuple[str, ...]:
+    """The model's compiler flags: :data:`_COMPILE_FLAGS`, plus :data:`_NATIVE_FLAGS`
+    unless ``SOFTCURVE_PORTABLE`` is set (to anything but "0")."""
+    if os.environ.get("SOFTCURVE_PORTABLE", "0") not in ("", "0"):
+        return _COMPILE_FLAGS
+    return _COMPILE_FLAGS + _NATIVE_FLAGS
 
 
 @dataclass(frozen=True)
@@ -405,9 +436,13 @@ _SYMBOLIC_SOURCES = ("_smooth.py", "materials.py", "kinematics.py", "dynamics.py
 
 def _cache_key(structure: tuple, quadrature_nodes: int, command: list[str]) -> str:
     """Everything the generated code depends on: structure, node count, the source of the
-    symbolic layer, CasADi's version and the compiler command."""
+    symbolic layer, CasADi's version, the compiler command and flags, and the CPU when the
+    code is built for it."""
     digest = hashlib.sha256()
-    digest.update(repr((structure, quadrature_nodes, command, _COMPILE_FLAGS)).encode())
+    flags = _compile_flags()
+    digest.update(repr((structure, quadrature_nodes, command, flags)).encode())
+    if _NATIVE_FLAGS[0] in flags:
+        digest.update(_cpu_identity().encode())
     digest.update(f"{ca.__version__} {sys.platform} {sys.implementation.cache_tag}".encode())
     here = Path(__file__).parent
     for name in _SYMBOLIC_SOURCES:
@@ -431,7 +466,13 @@ def _compiled_library(structure, quadrature_nodes, symbolic) -> Path | None:
         return library
     try:
         functions = symbolic()
-        _compile({name: functions[name] for name in COMPILED_FUNCTIONS}, compiler, library)
+        selected = {name: functions[name] for name in COMPILED_FUNCTIONS}
+        try:
+            _compile(selected, compiler, library, _compile_flags())
+        except subprocess.CalledProcessError:
+            if _compile_flags() == _COMPILE_FLAGS:
+                raise
+            _compile(selected, compiler, library)  # a compiler without -march=native
     except (OSError, subprocess.CalledProcessError) as exc:
         detail = getattr(exc, "stderr", None) or str(exc)
         warnings.warn(

@@ -32,10 +32,9 @@ from pathlib import Path
 import numpy as np
 
 from . import __version__
-from .batch import default_threads, simulate_batch
+from .batch import default_threads, simulate_batch, worker_model
 from .dynamics import DEFAULT_QUADRATURE_NODES
 from .io import ConfigError, _Reader, atomic_path, column_names, scenario_from_dict, tomllib
-from .model import Model
 
 DESIGNS = ("grid", "random", "sobol")
 OUTPUTS = ("final_state", "tip_range", "settling_time", "peak_energy")
@@ -260,24 +259,12 @@ def _fingerprint(data: dict) -> str:
 
 
 # -- one chunk -------------------------------------------------------------------------------
-_MODELS: dict = {}
-
-
-def _model(robot, quadrature_nodes: int) -> Model:
-    """The model of ``robot``, kept between chunks run by one worker process."""
-    key = (robot.structure(), robot.parameter_vector().tobytes(), quadrature_nodes)
-    if key not in _MODELS:
-        _MODELS.clear()
-        _MODELS[key] = Model(robot, quadrature_nodes=quadrature_nodes)
-    return _MODELS[key]
-
-
 def run_chunk(config: SweepConfig, start: int, design: np.ndarray, threads: int = 1) -> dict:
     """Simulate the design rows ``design`` (numbered from ``start``) and summarise them:
     a dict of column arrays."""
     scenario = config.scenario
     robot = scenario.robot
-    model = _model(robot, config.quadrature_nodes)
+    model = worker_model(robot, config.quadrature_nodes)
     size = design.shape[0]
     q0, qd0, lam0 = scenario.initial_state()
     tau = np.zeros(robot.n) if scenario.tau is None else np.array(scenario.tau, dtype=float)
