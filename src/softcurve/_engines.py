@@ -9,8 +9,10 @@ CVODES runs inside CasADi's compiled integrator. The right-hand side is the mode
 compiled ``rhs`` loaded as a CasADi ``external`` function, so an integration of
 thousands of steps never returns to Python. Its Newton matrix comes from forward
 differences of that compiled function (one Jacobian costs ``n_state + 1`` right-hand
-sides); an exact symbolic Jacobian would be ~6x the size of the right-hand side and
-add ~30 s of compilation per robot structure for a ~20 % gain at run time. The state is
+sides). An exact Jacobian is no cheaper: for the paper's robot its generated code has
+84,500 instructions against 10,900 for the right-hand side (7.7 right-hand sides against
+10), and given to CVODES as the library's ``jac_`` function it took the same 23 us per
+Jacobian as the finite differences while adding ~20 s of compilation. The state is
 integrated scaled, ``x = nominal * xs``, so that every scaled state is of order one:
 finite-difference steps are then well sized and one absolute tolerance serves all.
 """

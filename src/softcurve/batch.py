@@ -493,11 +493,19 @@ def _chunk(robot, quadrature_nodes, t_final, arrays, settings) -> BatchTrajector
     return chunk
 
 
+CHUNKS_PER_PROCESS = 4
+"""Chunks of members per worker process: members differ in their cost (a violent
+transient takes more steps), so smaller chunks handed out as workers finish balance the
+load; each chunk costs one call across processes."""
+
+
 def _in_processes(model, processes, threads, t_final, arrays, settings) -> BatchTrajectory:
-    """:func:`simulate_batch` split over ``processes`` worker processes; ``threads`` is
+    """:func:`simulate_batch` in chunks over ``processes`` worker processes; ``threads`` is
     kept for what is later evaluated along the result in this process (tip, energy)."""
     start = time.perf_counter()
-    bounds = np.linspace(0, arrays["q0s"].shape[0], processes + 1).astype(int)
+    size = arrays["q0s"].shape[0]
+    count = min(size, CHUNKS_PER_PROCESS * processes)
+    bounds = np.linspace(0, size, count + 1).astype(int)
     pool = _pool(processes)
     try:
         futures = [
@@ -523,7 +531,7 @@ def _in_processes(model, processes, threads, t_final, arrays, settings) -> Batch
     stats = {
         **first.stats,
         "methods": [m for c in chunks for m in c.stats["methods"]],
-        "size": int(bounds[-1]),
+        "size": size,
         "threads": threads,
         "processes": processes,
         "wall_time": time.perf_counter() - start,
