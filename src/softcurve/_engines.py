@@ -264,6 +264,33 @@ def cvodes_integrator(
     return model_cached(model, key, build)
 
 
+class BufferedCall:
+    """A CasADi function evaluated on NumPy memory through its buffer interface (no
+    conversions); a lock keeps one caller at a time on the buffer.
+
+    Inputs and the first output are C-contiguous float64 arrays laid out as CasADi's
+    column-major matrices (one column after another).
+    """
+
+    def __init__(self, function: ca.Function):
+        self.lock = threading.Lock()
+        self.buffer, self.evaluate = function.buffer()
+
+    def __call__(self, inputs: dict[int, np.ndarray], output: np.ndarray) -> tuple:
+        """``(failure, stats)``: None or CasADi's message, and the function's statistics."""
+        with self.lock:
+            for i, a in inputs.items():
+                self.buffer.set_arg(i, memoryview(a))
+            self.buffer.set_res(0, memoryview(output))
+            try:
+                self.evaluate()
+                status = self.buffer.ret()
+                failure = None if status == 0 else f"status {status}"
+            except RuntimeError as exc:
+                failure = str(exc)
+            return failure, self.buffer.stats()
+
+
 class _Engine:
     """Shared by the engines: split the input into runs where it is constant, because an
     error-controlled integrator must not step across a jump of the input."""
@@ -326,14 +353,12 @@ class CvodesEngine(_Engine):
             "newton_failures": 0,
         }
 
-    def _integrator(self, tout: np.ndarray):
-        """``(lock, buffer, evaluate)``, cached with the model; the buffer interface passes
-        NumPy memory to CasADi without conversions, the lock keeps one caller at a time."""
+    def _integrator(self, tout: np.ndarray) -> BufferedCall:
+        """The integrator with outputs at ``tout``, cached with the model."""
         key = ("buffer", tout.tobytes(), tuple(sorted(self.options.items())), _key(self.inputs))
 
         def build():
-            integrator = cvodes_integrator(self.model, tout, self.options, self.inputs)
-            return (threading.Lock(), *integrator.buffer())
+            return BufferedCall(cvodes_integrator(self.model, tout, self.options, self.inputs))
 
         return model_cached(self.model, key, build)
 
@@ -347,21 +372,11 @@ class CvodesEngine(_Engine):
         c["newton_failures"] += int(stats.get("nncfails", 0))
 
     def _constant(self, x, h, tout, tau) -> np.ndarray:
-        lock, buffer, evaluate = self._integrator(tout)
         x0 = np.ascontiguousarray(x / self.nominal)
         p = np.concatenate([self.model.parameters, [h], self.nominal])
         u = np.tile(np.asarray(tau, dtype=np.float64), tout.size)  # column-major (n, k)
         out = np.zeros(x.size * tout.size)  # column-major (n_state, k)
-        with lock:
-            for i, a in ((0, x0), (2, p), (3, u)):
-                buffer.set_arg(i, memoryview(a))
-            buffer.set_res(0, memoryview(out))
-            try:
-                evaluate()
-                failure = None if buffer.ret() == 0 else f"status {buffer.ret()}"
-            except RuntimeError as exc:
-                failure = str(exc)
-            stats = buffer.stats()
+        failure, stats = self._integrator(tout)({0: x0, 2: p, 3: u}, out)
         self._count(stats)
         if failure is not None:
             raise IntegrationFailure(_cvodes_reason(failure), np.empty((0, x.size)))

@@ -20,17 +20,14 @@ import contextlib
 import io
 import math
 import os
-import threading
 import time
-from concurrent.futures import ProcessPoolExecutor
-from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass, field
-from multiprocessing import get_context
 
 import casadi as ca
 import numpy as np
 
 from ._engines import (
+    BufferedCall,
     _cvodes_reason,
     cvodes_integrator,
     cvodes_options,
@@ -39,6 +36,7 @@ from ._engines import (
     restart_segments,
 )
 from ._validate import ParameterError
+from ._workers import in_processes
 from .model import Model
 from .robot import Robot
 from .simulate import (
@@ -360,9 +358,10 @@ def simulate_batch(
         Threads of the compiled map (default: the cores usable by this process).
     processes : int
         Worker processes (default 1: the batch runs in this process on ``threads``
-        threads). With more, the members are split into that many contiguous chunks, each
-        integrated by a worker process on one thread; the workers are spawned at the first
-        such call (about a second) and kept for later ones. Faster than threads on large
+        threads). With more, the members are split into chunks of consecutive members
+        (``softcurve._workers.CHUNKS_PER_PROCESS`` per worker), each integrated by a worker
+        process on one thread; the workers are spawned at the first such call (about a
+        second) and kept for later ones. Faster than threads on large
         batches: CasADi's integrator reads the process's CPU clock around every evaluation
         of the model, and the threads of one process contend for that clock
         (``benchmarks/bench_batch.py``). Results are identical either way. Workers are
@@ -413,7 +412,7 @@ def simulate_batch(
     if processes > 1 and size > 1:
         settings = {"dt": dt, "method": method, "rtol": rtol, "atol": atol,
                     "max_steps": max_steps}  # fmt: skip
-        return _in_processes(model, min(processes, size), threads, t_final, arrays, settings)
+        return in_processes(model, min(processes, size), threads, t_final, arrays, settings)
 
     grid = _grid(t_final, dt)
     if method == "cvodes":
@@ -460,95 +459,6 @@ def simulate_batch(
     )
 
 
-# -- worker processes ------------------------------------------------------------------------
-_POOL: list = []  # [(size, ProcessPoolExecutor)], at most one
-_WORKER_MODELS: dict = {}
-
-
-def worker_model(robot: Robot, quadrature_nodes: int) -> Model:
-    """The model of ``robot`` in a worker process, kept between the tasks it runs (loading
-    the cached library takes milliseconds, building integrators on it more)."""
-    key = (robot.structure(), robot.parameter_vector().tobytes(), quadrature_nodes)
-    if key not in _WORKER_MODELS:
-        _WORKER_MODELS.clear()
-        _WORKER_MODELS[key] = Model(robot, quadrature_nodes=quadrature_nodes)
-    return _WORKER_MODELS[key]
-
-
-def _pool(size: int) -> ProcessPoolExecutor:
-    if _POOL and _POOL[0][0] != size:
-        _POOL.pop()[1].shutdown()
-    if not _POOL:
-        _POOL.append((size, ProcessPoolExecutor(size, mp_context=get_context("spawn"))))
-    return _POOL[0][1]
-
-
-def _chunk(robot, quadrature_nodes, t_final, arrays, settings) -> BatchTrajectory:
-    model = worker_model(robot, quadrature_nodes)
-    chunk = simulate_batch(
-        model, t_final, arrays["q0s"], arrays["qd0s"], arrays["lam0s"], arrays["tau"],
-        arrays["parameters"], **settings, threads=1,
-    )  # fmt: skip
-    chunk.model = None  # the parent has it; a Model holds a loaded library
-    return chunk
-
-
-CHUNKS_PER_PROCESS = 4
-"""Chunks of members per worker process: members differ in their cost (a violent
-transient takes more steps), so smaller chunks handed out as workers finish balance the
-load; each chunk costs one call across processes."""
-
-
-def _in_processes(model, processes, threads, t_final, arrays, settings) -> BatchTrajectory:
-    """:func:`simulate_batch` in chunks over ``processes`` worker processes; ``threads`` is
-    kept for what is later evaluated along the result in this process (tip, energy)."""
-    start = time.perf_counter()
-    size = arrays["q0s"].shape[0]
-    count = min(size, CHUNKS_PER_PROCESS * processes)
-    bounds = np.linspace(0, size, count + 1).astype(int)
-    pool = _pool(processes)
-    try:
-        futures = [
-            pool.submit(
-                _chunk,
-                model.robot,
-                model.quadrature_nodes,
-                t_final,
-                {k: a[lo:hi] for k, a in arrays.items()},
-                settings,
-            )  # fmt: skip
-            for lo, hi in zip(bounds[:-1], bounds[1:], strict=True)
-        ]
-        chunks = [f.result() for f in futures]
-    except BrokenProcessPool as exc:
-        _POOL.clear()
-        raise RuntimeError(
-            f"a worker process of simulate_batch died ({exc}). Workers are spawned and "
-            "import the main module: in a script, call simulate_batch(processes=...) under "
-            "`if __name__ == '__main__':`"
-        ) from None
-    first = chunks[0]
-    stats = {
-        **first.stats,
-        "methods": [m for c in chunks for m in c.stats["methods"]],
-        "size": size,
-        "threads": threads,
-        "processes": processes,
-        "wall_time": time.perf_counter() - start,
-        "simulated_time": float(sum(c.stats["simulated_time"] for c in chunks)),
-    }
-    return BatchTrajectory(
-        t=first.t,
-        **{
-            name: np.concatenate([getattr(c, name) for c in chunks])
-            for name in ("q", "qd", "lam", "tau", "parameters", "status", "reached")
-        },
-        message=[m for c in chunks for m in c.message],
-        stats=stats,
-        model=model,
-    )
-
-
 def _nominal(model: Model, params: np.ndarray, x0: np.ndarray) -> np.ndarray:
     """``nominal_scale`` of each member's own robot; validates every parameter vector."""
     robots: dict[bytes, _RobotView] = {model.parameters.tobytes(): _RobotView(model.robot)}
@@ -582,17 +492,15 @@ class _Run:
         count = len(members)
         return np.hstack([self.params[members], np.full((count, 1), h), self.nominal[members]]).T
 
-    def _mapped(self, multistep, tout, count):
-        """``(lock, buffer, evaluate)`` of the integrator mapped over ``count`` members, cached
-        with the model; the buffer passes NumPy memory to CasADi without conversions and
-        the lock keeps one caller at a time on it."""
+    def _mapped_integrator(self, multistep, tout, count):
+        """The integrator mapped over ``count`` members, cached with the model."""
         threads = min(self.threads, count)
         options = cvodes_options(multistep, self.rtol, self.abstol, self.max_steps)
         key = ("batch", tuple(sorted(options.items())), tout.tobytes(), count, threads)
 
         def build():
             integrator = cvodes_integrator(self.model, tout, options)
-            return (threading.Lock(), *_mapped(integrator, count, threads).buffer())
+            return BufferedCall(_mapped(integrator, count, threads))
 
         return model_cached(self.model, key, build)
 
@@ -604,25 +512,16 @@ class _Run:
         h = grid[-1] - grid[0]
         tout = (grid[1:] - grid[0]) / h
         count, outputs = len(members), tout.size
-        lock, buffer, evaluate = self._mapped(multistep, tout, count)
         # column-major CasADi matrices: one member's (or one output's) column after another
         x0 = np.ascontiguousarray(states[members, k0] / self.nominal[members])
         p = np.ascontiguousarray(self._p(members, h).T)
         u = np.repeat(self.tau[members], outputs, axis=0)
         xf = np.zeros((count, outputs, self.model.n_state))
-        with lock:
-            for i, a in ((0, x0), (2, p), (3, u)):
-                buffer.set_arg(i, memoryview(a))
-            buffer.set_res(0, memoryview(xf))
-            try:
-                # on a failure, CasADi's map prints every input of the batch to sys.stderr;
-                # the reason is kept from the member integrated alone (below)
-                with contextlib.redirect_stderr(io.StringIO()):
-                    evaluate()
-                failed = buffer.ret() != 0
-            except RuntimeError:
-                failed = True
-        if failed:
+        # on a failure, CasADi's map prints every input of the batch to sys.stderr; the
+        # reason is kept from the member integrated alone (below)
+        with contextlib.redirect_stderr(io.StringIO()):
+            failure, _ = self._mapped_integrator(multistep, tout, count)({0: x0, 2: p, 3: u}, xf)
+        if failure is not None:
             if count > 1:
                 half = count // 2
                 for part in (members[:half], members[half:]):

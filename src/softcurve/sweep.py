@@ -32,7 +32,8 @@ from pathlib import Path
 import numpy as np
 
 from . import __version__
-from .batch import default_threads, simulate_batch, worker_model
+from ._workers import worker_model
+from .batch import default_threads, simulate_batch
 from .dynamics import DEFAULT_QUADRATURE_NODES
 from .io import ConfigError, _Reader, atomic_path, column_names, scenario_from_dict, tomllib
 
