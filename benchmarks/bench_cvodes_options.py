@@ -6,15 +6,15 @@ Prints, for a batch of paper-case robots (10 s, rtol 1e-6, one thread):
 1. simulated seconds per CPU second against the restart interval of the multistep method
    (``softcurve._engines.RESTART_INTERVAL`` is 1 s);
 2. the same for other CVODES options: ``max_order`` (softcurve's default is 5, CasADi's
-   12; ``softcurve._engines.MAX_ORDER``) and the linear solver;
+   12; ``softcurve._engines.MAX_ORDER``) and the linear solver, and without the switch to
+   BDF once a member has settled (``softcurve._engines.SETTLED_RATIO``);
 3. the size of the compiled right-hand side against its exact state Jacobian (the
    integrator uses finite differences: 10 right-hand sides per Jacobian);
 4. the CPU time of one worker process integrating 100 members alone and while a second
    worker does the same on the other core (a pure-Python loop for comparison);
 5. Adams against BDF once the transient is over: 5 members integrated with Adams up to
    ``split`` seconds, then for the rest of the 10 s with each method (steps, Jacobians,
-   wall time summed over the members). A per-segment switch is not implemented; this
-   measures what it could gain.
+   wall time summed over the members): what the switch to BDF once settled is for.
 """
 
 from __future__ import annotations
@@ -105,6 +105,10 @@ def main() -> None:
         with_options(extra)
         print(f"   {str(extra or 'defaults'):>30}: {rate(model, q0, qd0):7.0f}")
     with_options({})
+    default = _engines.SETTLED_RATIO
+    _engines.SETTLED_RATIO = np.inf
+    print(f"   {'Adams throughout (no BDF once settled)':>30}: {rate(model, q0, qd0):7.0f}")
+    _engines.SETTLED_RATIO = default
 
     print("3. instructions of the compiled right-hand side and of its exact state Jacobian")
     rhs = model.symbolic["rhs"]

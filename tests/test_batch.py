@@ -82,6 +82,22 @@ def test_method_is_chosen_per_member_as_in_simulate(paper_model):
         assert_close(batch.member(i).x, single.x, rtol=1e-10, scale=state_scale(model, single))
 
 
+def test_members_switch_to_bdf_as_in_simulate(paper_model):
+    """Over several restart intervals the per-member switch to BDF once settled is the
+    one simulate() makes: same family, same result."""
+    q0s = np.array([[0.064, 5.0, 0.0], [0.064, 25.0, 0.0]])
+    qd0s = np.array([[0.0, 0.0, 0.0], [0.0, 0.0, 1500.0]])
+    batch = simulate_batch(paper_model, 3.0, q0s, qd0s, dt=0.01)
+    for i in range(2):
+        single = sc.simulate(paper_model, 3.0, q0s[i], qd0s[i], dt=0.01)
+        assert batch.stats["methods"][i] == single.stats["method"]
+        assert batch.message[i] == single.message.split(" in ")[0]
+        assert_close(
+            batch.member(i).x, single.x, rtol=1e-10, scale=state_scale(paper_model, single)
+        )
+    assert batch.stats["methods"][0] == "cvodes-adams+bdf"
+
+
 def test_threads_do_not_change_results(paper_model, states):
     q0s, qd0s, lam0s, tau = states
     one = simulate_batch(paper_model, 0.2, q0s, qd0s, lam0s, tau, dt=DT, threads=1)

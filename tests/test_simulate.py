@@ -9,6 +9,7 @@ import pytest
 from scipy.integrate import cumulative_simpson
 
 import softcurve as sc
+from softcurve import _engines
 from softcurve._engines import evaluate_along
 from softcurve.simulate import STIFFNESS_RATIO, _Progress, nominal_scale, stiffness_ratio
 
@@ -63,6 +64,30 @@ def test_default_picks_adams_for_the_paper_case_and_bdf_when_stiff(paper_model):
     trajectory = sc.simulate(stiff, 0.05, Q0, QD0)
     assert trajectory.stats["stiffness_ratio"] > STIFFNESS_RATIO
     assert trajectory.stats["method"] == "cvodes-bdf" and trajectory.success
+
+
+def test_a_settled_robot_continues_with_bdf_at_the_same_accuracy(paper_model):
+    """After the first restart interval, "cvodes" switches a settled robot to BDF
+    (SETTLED_RATIO); the result stays within tolerance of a tight reference, and with
+    the switch disabled the same run stays with Adams."""
+    q0, qd0 = np.array([0.064, 5.0, 0.0]), np.zeros(3)
+    reference = sc.simulate(paper_model, 4.0, q0, qd0, dt=0.01, method="adams", rtol=1e-10)
+    switched = sc.simulate(paper_model, 4.0, q0, qd0, dt=0.01)
+    assert switched.stats["method"] == "cvodes-adams+bdf"
+    assert "cvodes-adams+bdf" in switched.message
+    assert normalised_error(switched, reference) < 5e-5
+    state = switched.x[100]  # t = 1 s: still moving, so the second second is Adams
+    fastest = _engines.linearisation_rates(paper_model, switched.x[0])[1]
+    scale = nominal_scale(paper_model, switched.x[0])
+    assert not _engines.settled(paper_model.state_derivative(state), scale, fastest)
+    assert _engines.settled(paper_model.state_derivative(switched.x[200]), scale, fastest)
+
+
+def test_without_the_switch_adams_throughout(paper_model, monkeypatch):
+    monkeypatch.setattr(_engines, "SETTLED_RATIO", np.inf)  # never settled
+    q0, qd0 = np.array([0.064, 5.0, 0.0]), np.zeros(3)
+    trajectory = sc.simulate(paper_model, 4.0, q0, qd0, dt=0.01)
+    assert trajectory.stats["method"] == "cvodes-adams"
 
 
 def test_paper_case_budget_of_evaluations(paper_model):

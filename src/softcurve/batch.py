@@ -31,9 +31,11 @@ from ._engines import (
     _cvodes_reason,
     cvodes_integrator,
     cvodes_options,
+    linear_rates,
     model_cached,
     model_function,
     restart_segments,
+    settled,
 )
 from ._validate import ParameterError
 from ._workers import in_processes
@@ -249,27 +251,29 @@ def _energy_along(model, q, qd, parameters, threads) -> np.ndarray:
     return _along(model, "energy", build, [q, qd], parameters, threads)[0][..., 0]
 
 
-def _stiffness_ratios(model, x0, tau, parameters, nominal, threads) -> np.ndarray:
-    """:func:`softcurve.simulate.stiffness_ratio` for every member at once: eigenvalues of
-    the central-difference linearisation of the right-hand side at the initial state."""
+def _rhs_along(model, x, tau, parameters, threads) -> np.ndarray:
+    """The state derivative at states ``x`` (B, K, n_state) with inputs ``tau`` (B, K, n)."""
+
+    def build():
+        rhs = model_function(model, "rhs")
+        xs, u = ca.MX.sym("x", model.n_state), ca.MX.sym("u", model.n)
+        p = ca.MX.sym("p", model.parameters.size)
+        return ca.Function("rhs_point", [xs, u, p], [rhs(xs, u, p)])
+
+    return _along(model, "rhs_point", build, [x, np.array(tau)], parameters, threads)[0]
+
+
+def _linear_rates(model, x0, tau, parameters, nominal, threads) -> tuple:
+    """:func:`softcurve._engines.linear_rates` for every member at once: eigenvalues of the
+    central-difference linearisation of the right-hand side at the initial state."""
     size, n_state = x0.shape
     steps = 1e-6 * nominal  # (B, n_state), as in the single simulation
     offsets = np.einsum("bi,ij->bij", steps, np.eye(n_state))
     points = np.concatenate([x0[:, None, :] + offsets, x0[:, None, :] - offsets], axis=1)
     taus = np.broadcast_to(tau[:, None, :], (size, 2 * n_state, model.n))
-
-    def build():
-        rhs = model_function(model, "rhs")
-        xs, u = ca.MX.sym("x", n_state), ca.MX.sym("u", model.n)
-        p = ca.MX.sym("p", model.parameters.size)
-        return ca.Function("rhs_point", [xs, u, p], [rhs(xs, u, p)])
-
-    values = _along(model, "rhs_point", build, [points, np.array(taus)], parameters, threads)[0]
+    values = _rhs_along(model, points, taus, parameters, threads)
     columns = (values[:, :n_state] - values[:, n_state:]) / (2 * steps[:, :, None])
-    eigenvalues = np.linalg.eigvals(columns.transpose(0, 2, 1))  # [b, i, j] = d xdot_i / d x_j
-    decay = np.maximum(np.max(-eigenvalues.real, axis=1), 0.0)
-    oscillation = np.maximum(1.0, np.max(np.abs(eigenvalues.imag), axis=1))
-    return decay / oscillation
+    return linear_rates(np.linalg.eigvals(columns.transpose(0, 2, 1)))  # [b, i, j] = dxdot_i/dx_j
 
 
 # -- input checks ----------------------------------------------------------------------------
@@ -416,26 +420,38 @@ def simulate_batch(
 
     grid = _grid(t_final, dt)
     if method == "cvodes":
-        ratios = _stiffness_ratios(model, x0, tau, params, nominal, threads)
-        methods = np.where(ratios > STIFFNESS_RATIO, "bdf", "adams")
+        ratios, fastest = _linear_rates(model, x0, tau, params, nominal, threads)
+        initial = np.where(ratios > STIFFNESS_RATIO, "bdf", "adams")
     else:
-        methods = np.full(size, method)
+        initial = np.full(size, method)
+    methods, used_bdf = initial, initial == "bdf"
     states = np.full((size, grid.size, model.n_state), np.nan)
     states[:, 0] = x0
     reached = np.full(size, grid.size)
-    messages = [f"integrated to t = {t_final:.6g} s with cvodes-{m}" for m in methods]
+    messages = [""] * size
     start = time.perf_counter()
     run = _Run(model, grid, rtol, abstol, max_steps, threads, tau, params, nominal)
     for k0, k1 in restart_segments(grid):
+        if method == "cvodes" and k0 > 0:  # as simulate(): BDF for settled members
+            xdot = _rhs_along(model, np.nan_to_num(states[:, k0 : k0 + 1]), tau[:, None, :],
+                              params, threads)[:, 0]  # fmt: skip
+            methods = np.where(settled(xdot, nominal, fastest), "bdf", initial)
+            used_bdf |= methods == "bdf"
         for multistep in ("adams", "bdf"):
             members = np.flatnonzero((methods == multistep) & (reached == grid.size))
             for block in _blocks(members.size, k1 - k0 + 1, model.n_state + model.n):
                 run.integrate(multistep, members[block], k0, k1, states, reached, messages)
     wall = time.perf_counter() - start
     status = np.where(reached == grid.size, "success", "failed")
+    switched = used_bdf & (initial == "adams")
+    families = [f"cvodes-{m}" for m in initial]
+    for b in np.flatnonzero(switched):
+        families[b] = "cvodes-adams+bdf"
+    for b in np.flatnonzero(status == "success"):
+        messages[b] = f"integrated to t = {t_final:.6g} s with {families[b]}"
     q, qd, lam = states[..., :n], states[..., n : 2 * n], states[..., 2 * n :]
     stats = {
-        "methods": [f"cvodes-{m}" for m in methods],
+        "methods": families,
         "rtol": rtol,
         "abstol_scaled": abstol,
         "dt": dt,

@@ -14,6 +14,11 @@ Integrators (``method``)
     oscillation frequency ``STIFFNESS_RATIO`` times (a decaying mode far faster than
     anything that must be resolved), BDF, otherwise Adams. The paper's case has its
     fastest decay (creep, 284 1/s) next to its fastest oscillation (247 rad/s): Adams.
+    Where Adams was chosen, each restart segment after the first is integrated with BDF
+    once the robot has settled (it moves a thousand times slower than its fastest mode,
+    ``softcurve._engines.SETTLED_RATIO``), and with Adams again if it moves; the method
+    is then reported as ``"cvodes-adams+bdf"``. Forces as inputs only: with pressure
+    inputs the family chosen at the start is kept.
 ``"adams"``, ``"bdf"``
     CVODES with that family, no choice made.
 ``"rk45"``
@@ -63,9 +68,11 @@ from ._engines import (
     IntegrationFailure,
     PressureInput,
     ScipyEngine,
+    linearisation_rates,
     nominal_scale,
     restart_segments,
-    stiffness_ratio,
+    settled,
+    stiffness_ratio,  # noqa: F401 (part of this module's namespace, used by the tests)
 )
 from ._validate import ParameterError, real_array, real_scalar
 from .model import Model
@@ -267,6 +274,7 @@ def simulate(
         atol_vector = np.concatenate([atol_vector, rtol * p_scale])
 
     stats = {"method": method, "rtol": rtol, "atol": atol_vector.tolist(), "dt": dt}
+    settle = None  # at a restart: True once the robot has settled (then BDF)
     if method == "rk45":
         engine = ScipyEngine(model, rtol, atol_vector, max_steps, pressure)
     else:
@@ -279,11 +287,15 @@ def simulate(
                 p0 = x0[model.n_state :] if pressure.n_states else u0
                 p0 = np.zeros(pressure.n_inputs) if p0 is None else p0
                 tau0 = np.array(pressure.force(model_x0[: model.n], p0)).ravel()
-            ratio = stiffness_ratio(model, model_x0, tau0, nominal[: model.n_state])
+            ratio, fastest = linearisation_rates(model, model_x0, tau0, nominal[: model.n_state])
             stats["stiffness_ratio"] = ratio
             multistep = "bdf" if ratio > STIFFNESS_RATIO else "adams"
+            if multistep == "adams" and pressure is None:
+
+                def settle(x, tau):
+                    return settled(model.state_derivative(x, tau), nominal, fastest)
+
         engine = CvodesEngine(model, multistep, rtol, atol_vector, nominal, max_steps, pressure)
-    stats["method"] = engine.method
 
     states = np.empty((grid.size, x0.size))
     states[0] = x0
@@ -293,7 +305,7 @@ def simulate(
     try:
         if controller is None and not callable(inputs):
             applied[:] = inputs
-            reached = _run_on_grid(engine, grid, states, inputs, bar)
+            reached = _run_on_grid(engine, grid, states, inputs, bar, settle)
         else:
             reached = _run_sampled(
                 engine, model, grid, states, applied, inputs, controller, sample_time, bar, check
@@ -304,7 +316,7 @@ def simulate(
     wall = time.perf_counter() - start
     if bar is not None:
         bar.close()
-    stats.update(engine.counts, wall_time=wall)
+    stats.update(engine.counts, method=engine.method, wall_time=wall)
     if pressure is None:
         return _result(model, grid, states, applied, reached, failure, stats, method)
     q = states[:reached, : model.n]
@@ -320,11 +332,15 @@ class _Stopped(Exception):
         self.reached, self.reason = reached, reason
 
 
-def _run_on_grid(engine, grid, states, inputs, bar) -> int:
+def _run_on_grid(engine, grid, states, inputs, bar, settle=None) -> int:
     """All outputs in one call per restart segment (see ``RESTART_INTERVAL``), split
-    further only to report progress."""
+    further only to report progress; with ``settle``, each segment after the first is
+    integrated with BDF when ``settle(x, tau)`` at its start, else Adams
+    (``SETTLED_RATIO``)."""
     chunk = grid.size if bar is None else max(1, math.ceil((grid.size - 1) / 50))
     for k0, k1 in restart_segments(grid, RESTART_INTERVAL):
+        if settle is not None and k0 > 0:
+            engine.use("bdf" if settle(states[k0], inputs[k0]) else "adams")
         k = k0
         while k < k1:
             m = min(chunk, k1 - k)
