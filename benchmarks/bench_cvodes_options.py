@@ -54,8 +54,11 @@ def with_options(extra: dict):
     """Route the batch's integrators through extra CVODES options."""
     original = _engines.cvodes_options
 
-    def patched(*args, **kwargs):
-        return {**original(*args, **kwargs), **extra}
+    def patched(multistep, *args, **kwargs):
+        options = {**original(multistep, *args, **kwargs), **extra}
+        if multistep == "bdf":  # BDF has orders 1-5 only
+            options["max_order"] = min(options["max_order"], 5)
+        return options
 
     batch.cvodes_options = patched if extra else original
 

@@ -8,17 +8,18 @@ Integrators (``method``)
 ``"cvodes"`` (default)
     SUNDIALS CVODES in compiled code (through CasADi), on the model's compiled
     right-hand side: a 10 s run of the paper's case never returns to Python. CVODES
-    offers Adams-Moulton (orders 1-12, efficient on smooth non-stiff problems) and BDF
-    (orders 1-5, stable on stiff ones); ``"cvodes"`` picks per problem from the
-    linearisation at the initial state: if the fastest decay rate exceeds the fastest
-    oscillation frequency ``STIFFNESS_RATIO`` times (a decaying mode far faster than
-    anything that must be resolved), BDF, otherwise Adams. The paper's case has its
+    offers Adams-Moulton (orders 1-12, efficient on smooth non-stiff problems; capped at
+    5 here, ``softcurve._engines.MAX_ORDER``) and BDF (orders 1-5, stable on stiff
+    ones); ``"cvodes"`` picks per problem from the linearisation at the initial state:
+    if the fastest decay rate exceeds the fastest oscillation frequency
+    ``STIFFNESS_RATIO`` times (a decaying mode far faster than anything that must be
+    resolved), BDF, otherwise Adams. The paper's case has its
     fastest decay (creep, 284 1/s) next to its fastest oscillation (247 rad/s): Adams.
     Where Adams was chosen, each restart segment after the first is integrated with BDF
     once the robot has settled (it moves a thousand times slower than its fastest mode,
     ``softcurve._engines.SETTLED_RATIO``), and with Adams again if it moves; the method
-    is then reported as ``"cvodes-adams+bdf"``. Forces as inputs only: with pressure
-    inputs the family chosen at the start is kept.
+    is then reported as ``"cvodes-adams+bdf"``. With pressure inputs, a controller or a
+    callable input the family chosen at the start is kept.
 ``"adams"``, ``"bdf"``
     CVODES with that family, no choice made.
 ``"rk45"``
