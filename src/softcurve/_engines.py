@@ -216,10 +216,10 @@ MAX_ORDER = 5
 Why: the stability region of Adams-Moulton shrinks as the order rises; on the paper's
 robot the lightly damped elongation and creep modes then bound the step of orders above
 five, and the error test fails more often. Measured on 60 paper-case members, 10 s,
-rtol 1e-6 (``benchmarks/bench_cvodes_options.py``): 13 % more simulated seconds per CPU
-second than order 12, the same error against rtol 1e-10 (1.1e-5 against 1.2e-5); order 4
-is no faster and twice as inaccurate, orders 6-8 lie in between. (Measured before the
-switch to BDF once settled, ``SETTLED_RATIO``; with it, order 12 costs 8 % more.)"""
+rtol 1e-6 (``benchmarks/bench_cvodes_options.py``, section 2, 2026-11-29): 1300 against
+1069 simulated seconds per CPU second for order 12, the same error against rtol 1e-10
+(1.1e-5 against 1.2e-5); orders 4 and 8 in between. That was before the switch to BDF
+once settled (``SETTLED_RATIO``); with it, 1321 against 1217."""
 
 
 def cvodes_options(multistep: str, rtol: float, abstol: float, max_steps: int) -> dict:

@@ -183,10 +183,6 @@ class BatchTrajectory:
 
 
 # -- compiled pieces -------------------------------------------------------------------------
-def _integrator(model, multistep, rtol, abstol, max_steps, tout) -> ca.Function:
-    return cvodes_integrator(model, tout, cvodes_options(multistep, rtol, abstol, max_steps))
-
-
 def _mapped(function: ca.Function, size: int, threads: int) -> ca.Function:
     if size == 1:
         return function
@@ -424,7 +420,7 @@ def simulate_batch(
         initial = np.where(ratios > STIFFNESS_RATIO, "bdf", "adams")
     else:
         initial = np.full(size, method)
-    methods, used_bdf = initial, initial == "bdf"
+    methods, used_bdf = initial, np.zeros(size, bool)
     states = np.full((size, grid.size, model.n_state), np.nan)
     states[:, 0] = x0
     reached = np.full(size, grid.size)
@@ -443,9 +439,8 @@ def simulate_batch(
                 run.integrate(multistep, members[block], k0, k1, states, reached, messages)
     wall = time.perf_counter() - start
     status = np.where(reached == grid.size, "success", "failed")
-    switched = used_bdf & (initial == "adams")
     families = [f"cvodes-{m}" for m in initial]
-    for b in np.flatnonzero(switched):
+    for b in np.flatnonzero(used_bdf & (initial == "adams")):
         families[b] = "cvodes-adams+bdf"
     for b in np.flatnonzero(status == "success"):
         messages[b] = f"integrated to t = {t_final:.6g} s with {families[b]}"
@@ -554,20 +549,19 @@ class _Run:
 
     def _one_by_one(self, multistep, b, k0, k1, states, reached, messages) -> None:
         """Output interval by output interval, to keep every output reached before a failure."""
-        integrator = _integrator(
-            self.model, multistep, self.rtol, self.abstol, self.max_steps, np.ones(1)
-        )
+        integrator = self._mapped_integrator(multistep, np.ones(1), 1)
         nominal = self.nominal[b]
         for k in range(k0 + 1, k1 + 1):
             h = self.grid[k] - self.grid[k - 1]
-            try:
-                out = integrator(
-                    x0=states[b, k - 1] / nominal, p=self._p([b], h), u=self.tau[b][:, None]
-                )
-            except RuntimeError as exc:
-                self._fail(b, k, _cvodes_reason(str(exc)), states, reached, messages)
+            x0 = np.ascontiguousarray(states[b, k - 1] / nominal)
+            p = np.ascontiguousarray(self._p([b], h).T)
+            xf = np.zeros(self.model.n_state)
+            u = np.ascontiguousarray(self.tau[b])
+            failure, _ = integrator({0: x0, 2: p, 3: u}, xf)
+            if failure is not None:
+                self._fail(b, k, _cvodes_reason(failure), states, reached, messages)
                 return
-            states[b, k] = np.asarray(out["xf"]).ravel() * nominal
+            states[b, k] = xf * nominal
             if not np.all(np.isfinite(states[b, k])):
                 self._fail(b, k, "the state became non-finite", states, reached, messages)
                 return

@@ -44,7 +44,7 @@ class CompilerWarning(UserWarning):
 _COMPILE_FLAGS = ("-O2", "-fPIC", "-fvisibility=hidden", "-DGCC_HASCLASSVISIBILITY")
 _NATIVE_FLAGS = ("-march=native",)
 """Added when the compiler accepts them and ``SOFTCURVE_PORTABLE`` is not set: the code
-then uses this CPU's vector and fused multiply-add instructions, 10-12 % faster
+then uses this CPU's vector and fused multiply-add instructions, 9-16 % faster
 (``benchmarks/bench_model.py``). The cache key holds the CPU's identity, so a cache
 shared by different machines keeps one library per CPU type. Results then differ
 between CPU types at round-off (as NumPy's, whose BLAS also picks kernels per CPU);

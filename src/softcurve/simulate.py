@@ -73,7 +73,7 @@ from ._engines import (
     nominal_scale,
     restart_segments,
     settled,
-    stiffness_ratio,  # noqa: F401 (part of this module's namespace, used by the tests)
+    stiffness_ratio,  # noqa: F401 (softcurve.simulate.stiffness_ratio, as in the examples)
 )
 from ._validate import ParameterError, real_array, real_scalar
 from .model import Model
