@@ -33,9 +33,9 @@ import time
 import numpy as np
 
 import softcurve as sc
-from softcurve.batch import default_threads, simulate_batch
-from softcurve.dynamics import DEFAULT_QUADRATURE_NODES
-from softcurve.simulate import nominal_scale
+from softcurve.simulation.batch import default_threads, simulate_batch
+from softcurve.simulation.simulate import nominal_scale
+from softcurve.symbolic.dynamics import DEFAULT_QUADRATURE_NODES
 
 T_FINAL = 10.0
 

@@ -4,10 +4,10 @@ Run:  python benchmarks/bench_cvodes_options.py [--size 60]
 
 Prints, for a batch of paper-case robots (10 s, rtol 1e-6, one thread):
 1. simulated seconds per CPU second against the restart interval of the multistep method
-   (``softcurve._engines.RESTART_INTERVAL`` is 1 s);
+   (``softcurve.simulation.engine.RESTART_INTERVAL`` is 1 s);
 2. the same for other CVODES options: ``max_order`` (softcurve's default is 5, CasADi's
-   12; ``softcurve._engines.MAX_ORDER``) and the linear solver, and without the switch to
-   BDF once a member has settled (``softcurve._engines.SETTLED_RATIO``);
+   12; ``softcurve.simulation.engine.MAX_ORDER``) and the linear solver, and without the switch to
+   BDF once a member has settled (``softcurve.simulation.engine.SETTLED_RATIO``);
 3. the size of the compiled right-hand side against its exact state Jacobian (the
    integrator uses finite differences: 10 right-hand sides per Jacobian);
 4. the CPU time of one worker process integrating 100 members alone and while a second
@@ -28,7 +28,8 @@ import casadi as ca
 import numpy as np
 
 import softcurve as sc
-from softcurve import _engines, batch
+from softcurve.simulation import batch
+from softcurve.simulation import engine as _engines
 
 T_FINAL = 10.0
 

@@ -1,4 +1,4 @@
-"""Wall time of the paper's 10 s case: softcurve.simulate against SciPy's RK45.
+"""Wall time of the paper's 10 s case: softcurve.simulation.simulate against SciPy's RK45.
 
 Run:  python benchmarks/bench_simulate.py [--repeat N] [--quick]
 
@@ -24,7 +24,7 @@ import numpy as np
 from scipy.integrate import solve_ivp
 
 import softcurve as sc
-from softcurve.simulate import nominal_scale
+from softcurve.simulation.simulate import nominal_scale
 
 Q0, QD0, T_FINAL = np.array([0.064, 25.0, 0.0]), np.array([0.0, 0.0, 1500.0]), 10.0
 

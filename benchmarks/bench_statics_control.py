@@ -21,11 +21,11 @@ import casadi as ca
 import numpy as np
 
 import softcurve as sc
-from softcurve.codegen import build_and_run_test, export_c
-from softcurve.control import ComputedTorque, tip_circle
-from softcurve.mpc import PressureMPC
-from softcurve.quasistatic import inverse_statics
-from softcurve.statics import equilibria
+from softcurve.analysis.quasistatic import inverse_statics
+from softcurve.analysis.statics import equilibria
+from softcurve.compiled.codegen import build_and_run_test, export_c
+from softcurve.control.controllers import ComputedTorque, tip_circle
+from softcurve.control.mpc import PressureMPC
 
 
 def main() -> None:

@@ -23,7 +23,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 import softcurve as sc
-from softcurve.quasistatic import inverse_statics, pressure_sweep
+from softcurve.analysis.quasistatic import inverse_statics, pressure_sweep
 
 
 def main() -> None:

@@ -19,8 +19,8 @@ import numpy as np
 from scipy.signal import butter, find_peaks, sosfiltfilt
 
 import softcurve as sc
-from softcurve._engines import _linearisation as linearisation
-from softcurve.simulate import nominal_scale, stiffness_ratio
+from softcurve.simulation.engine import _linearisation as linearisation
+from softcurve.simulation.simulate import nominal_scale, stiffness_ratio
 
 Q0, QD0 = [0.064, 25.0, 0.0], [0.0, 0.0, 1500.0]
 

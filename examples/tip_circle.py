@@ -10,7 +10,7 @@ follow their commands with a 10 ms first-order lag, inverted over one sample by 
 pressure commands. The robot starts on the circle at rest with zero pressure, hence
 the initial transient. A second run uses a controller model with 10 % softer
 stiffness laws. A third run uses the re-linearised model-predictive controller
-(softcurve.mpc: 10 samples of 10 ms, pressures bounded, no lag modelled or simulated).
+(softcurve.control.mpc: 10 samples of 10 ms, pressures bounded, no lag modelled or simulated).
 
     python examples/tip_circle.py [--output tip_circle.png]
 """
@@ -26,9 +26,9 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 import softcurve as sc
-from softcurve.control import ComputedTorque, PressureDriven, tip_circle
-from softcurve.mpc import PressureMPC
-from softcurve.simulate import simulate
+from softcurve.control.controllers import ComputedTorque, PressureDriven, tip_circle
+from softcurve.control.mpc import PressureMPC
+from softcurve.simulation.simulate import simulate
 
 CIRCLE = dict(center=(0.02, 0.0, 0.065), radius=0.01, period=2.0)
 OMEGA = 2 * np.pi * 20.0  # error dynamics: 20 Hz, damping ratio 0.9

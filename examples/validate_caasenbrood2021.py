@@ -29,9 +29,7 @@ import matplotlib
 import numpy as np
 
 import softcurve as sc
-from softcurve.experiments import load_mat
-from softcurve.identify import fit_stiffness
-from softcurve.identify_dynamic import (
+from softcurve.identification.dynamic import (
     Free,
     bellows_input_map,
     bending_angle,
@@ -43,6 +41,8 @@ from softcurve.identify_dynamic import (
     predict_trajectory,
     tanh_parameters,
 )
+from softcurve.identification.experiments import load_mat
+from softcurve.identification.stiffness import fit_stiffness
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
@@ -332,7 +332,7 @@ def static_figure(results, data, path: Path):
     The moment ``k_b(beta) beta`` on each sample of 0-20 s follows from the identified
     geometric pressure map and gravity at the measured curvature (offsets removed,
     rotated into the bellows' frame); both laws are then fitted to it by
-    :func:`softcurve.identify.fit_stiffness`.
+    :func:`softcurve.identification.stiffness.fit_stiffness`.
     """
     entry = results[("tanh", "geometric")]
     fit, model = entry["fit"], entry["model"]

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from softcurve import Bellows, ConstantPressureMap, ParameterError, PneumaticActuator
-from softcurve.actuation import ATMOSPHERIC_PRESSURE, from_mapping
+from softcurve.description.actuators import ATMOSPHERIC_PRESSURE, from_mapping
 
 from .conftest import assert_close
 
@@ -140,7 +140,7 @@ def test_bad_segments_and_matrices():
     with pytest.raises(ParameterError, match="3 N rows"):
         ConstantPressureMap(np.ones((2, 3)), p_max=1e5)
     with pytest.raises(ParameterError, match="acts on n = 3 coordinates but the robot has n = 6"):
-        from softcurve import presets
+        from softcurve.description import presets
 
         actuator().check_robot(presets.ifac2020().with_segments(2))
 

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 import softcurve as sc
-from softcurve.batch import simulate_batch
+from softcurve.simulation.batch import simulate_batch
 from tests.conftest import assert_close, random_state
 
 T_FINAL, DT = 0.4, 0.01
@@ -186,7 +186,7 @@ def test_plot_writes_a_figure(paper_model, tmp_path):
 
 def test_blocks_of_members_give_the_same_results(paper_model, states, monkeypatch):
     """Large batches run in blocks of members (bounded memory); the blocks are invisible."""
-    import softcurve.batch as batch_module
+    import softcurve.simulation.batch as batch_module
 
     q0s, qd0s, lam0s, tau = states
     whole = simulate_batch(paper_model, 0.2, q0s, qd0s, lam0s, tau, dt=DT)

@@ -8,7 +8,7 @@ from scipy.integrate import solve_ivp
 
 import softcurve as sc
 from softcurve import ParameterError, PneumaticActuator, TanhStiffness
-from softcurve.control import (
+from softcurve.control.controllers import (
     ComputedTorque,
     PDGravityElastic,
     PressureAllocator,
@@ -18,7 +18,7 @@ from softcurve.control import (
     tip_circle,
     tip_to_coordinates,
 )
-from softcurve.simulate import simulate
+from softcurve.simulation.simulate import simulate
 
 from .conftest import assert_close
 
@@ -179,8 +179,8 @@ def test_bad_controller_arguments(paper_model):
 
 
 def test_constant_pressures_in_simulate_settle_at_the_static_equilibrium(paper_model):
-    from softcurve.control import pressure_input
-    from softcurve.statics import equilibrium
+    from softcurve.analysis.statics import equilibrium
+    from softcurve.control.controllers import pressure_input
 
     act, p = actuator(), np.array([2.5e4, 0.0, 1e4])
     run = simulate(
@@ -200,7 +200,7 @@ def test_constant_pressures_in_simulate_settle_at_the_static_equilibrium(paper_m
 
 
 def test_mpc_tracks_the_tip_circle_within_pressure_bounds(paper_model):
-    from softcurve.mpc import PressureMPC
+    from softcurve.control.mpc import PressureMPC
 
     ref = tip_circle(**CIRCLE)
     start = ref(0.0)

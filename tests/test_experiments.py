@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 import scipy.io
 
-from softcurve.experiments import Experiment, ExperimentError, load_csv, load_mat
+from softcurve.identification.experiments import Experiment, ExperimentError, load_csv, load_mat
 
 
 def _write_csv(path, text):

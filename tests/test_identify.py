@@ -10,9 +10,7 @@ import numpy as np
 import pytest
 
 import softcurve as sc
-from softcurve.experiments import Experiment
-from softcurve.identify import covariance, fit_stiffness
-from softcurve.identify_dynamic import (
+from softcurve.identification.dynamic import (
     Free,
     _Parameters,
     bellows_input_map,
@@ -23,6 +21,8 @@ from softcurve.identify_dynamic import (
     predict_trajectory,
     tanh_parameters,
 )
+from softcurve.identification.experiments import Experiment
+from softcurve.identification.stiffness import covariance, fit_stiffness
 
 matplotlib.use("Agg")
 
@@ -114,7 +114,7 @@ def oscillation():
 
 
 def test_trajectory_jacobian_is_exact(oscillation):
-    from softcurve._sensitivity import trajectory_sensitivities
+    from softcurve.simulation.sensitivity import trajectory_sensitivities
 
     model, _, data = oscillation
     free = [Free(SEG + "bending_stiffness.k0"), Free(SEG + "damping[1,1]"), Free("lam0")]

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 import softcurve as sc
-from softcurve import model as model_module
+from softcurve.compiled import build as model_module
 
 from .conftest import assert_close
 

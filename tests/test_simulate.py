@@ -9,9 +9,8 @@ import pytest
 from scipy.integrate import cumulative_simpson
 
 import softcurve as sc
-from softcurve import _engines
-from softcurve._engines import evaluate_along
-from softcurve.simulate import STIFFNESS_RATIO, _Progress, nominal_scale, stiffness_ratio
+from softcurve.simulation import engine as _engines
+from softcurve.simulation.simulate import STIFFNESS_RATIO, _Progress, nominal_scale, stiffness_ratio
 
 from .conftest import assert_close
 
@@ -113,8 +112,8 @@ def test_energy_balance_damped_forced_with_creep(paper_model):
     lam0 = np.array([1e-4, 5e-3, -2e-3])
     trajectory = sc.simulate(paper_model, 0.5, Q0, QD0 / 3, lam0, tau, dt=1e-4, rtol=1e-10)
     assert trajectory.success
-    terms = evaluate_along(
-        paper_model, "dynamics_terms", trajectory.q, trajectory.qd, trajectory.lam
+    terms = paper_model.evaluate_along(
+        "dynamics_terms", trajectory.q, trajectory.qd, trajectory.lam
     )
     damping, creep = terms[4], terms[5]
     power = np.einsum("ti,ti->t", trajectory.qd, trajectory.tau + creep - damping)
@@ -269,14 +268,14 @@ def test_figures_of_a_two_segment_trajectory(two_segment_model, tmp_path):
     ],
 )
 def test_restart_segments_cover_the_grid(t_final, dt, interval, expected):
-    from softcurve._engines import restart_segments
-    from softcurve.simulate import _grid
+    from softcurve.simulation.engine import restart_segments
+    from softcurve.simulation.simulate import _grid
 
     assert restart_segments(_grid(t_final, dt), interval) == expected
 
 
 def test_restarts_keep_the_trajectory_within_tolerance(paper_model):
-    from softcurve import _engines
+    from softcurve.simulation import engine as _engines
 
     q0, qd0 = [0.064, 25.0, 0.0], [0.0, 0.0, 1500.0]
     reference = sc.simulate(paper_model, 3.0, q0, qd0, dt=0.01, rtol=1e-11)

@@ -8,7 +8,7 @@ import casadi as ca
 import numpy as np
 import pytest
 
-from softcurve import _smooth
+from softcurve.base import smooth as _smooth
 
 from .conftest import assert_close
 

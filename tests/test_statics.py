@@ -8,8 +8,8 @@ import scipy.optimize
 
 import softcurve as sc
 from softcurve import ParameterError, PneumaticActuator
-from softcurve.simulate import simulate
-from softcurve.statics import equilibria, equilibrium, linearize, rotate_about_axis
+from softcurve.analysis.statics import equilibria, equilibrium, linearize, rotate_about_axis
+from softcurve.simulation.simulate import simulate
 
 from .conftest import assert_close
 
@@ -215,7 +215,7 @@ def test_bifurcation_point_is_degenerate(paper_model):
 
 
 def test_pressure_sweep_follows_a_balanced_branch(paper_model):
-    from softcurve.quasistatic import pressure_sweep
+    from softcurve.analysis.quasistatic import pressure_sweep
 
     act = actuator()
     path = np.zeros((9, 3))
@@ -232,7 +232,7 @@ def test_pressure_sweep_follows_a_balanced_branch(paper_model):
 
 
 def test_inverse_statics_reaches_reachable_targets_and_saturates_otherwise(paper_model):
-    from softcurve.quasistatic import inverse_statics
+    from softcurve.analysis.quasistatic import inverse_statics
 
     act = actuator()
     reachable = inverse_statics(paper_model, act, [0.02, 0.01, 0.065])
@@ -253,7 +253,7 @@ def test_constant_pressure_map_equilibrium_and_figures(paper_model, tmp_path):
     import matplotlib.pyplot as plt
 
     from softcurve import ConstantPressureMap
-    from softcurve.quasistatic import pressure_sweep
+    from softcurve.analysis.quasistatic import pressure_sweep
 
     fit = ConstantPressureMap.authors_fit(p_max=1e5)
     p = np.array([4e4, 0.0, 1e4])

@@ -11,16 +11,16 @@ import pytest
 pa = pytest.importorskip("pyarrow")
 pq = pytest.importorskip("pyarrow.parquet")
 
-from softcurve.batch import simulate_batch  # noqa: E402
 from softcurve.cli import main  # noqa: E402
-from softcurve.io import ConfigError  # noqa: E402
-from softcurve.sweep import (  # noqa: E402
+from softcurve.scenarios.config import ConfigError  # noqa: E402
+from softcurve.scenarios.sweep import (  # noqa: E402
     load_sweep,
     run_sweep,
     settling_time,
     summarise,
     sweep_from_dict,
 )
+from softcurve.simulation.batch import simulate_batch  # noqa: E402
 
 BASE = {
     "robot": {"preset": "ifac2020"},

@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from softcurve.experiments import load_mat
+from softcurve.identification.experiments import load_mat
 
 REPO = Path(__file__).resolve().parents[1]
 SCRIPT = REPO / "examples" / "validate_caasenbrood2021.py"

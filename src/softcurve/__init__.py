@@ -6,11 +6,12 @@ The layers follow the paper: parameters (:mod:`softcurve.robot`, :mod:`softcurve
 built on it.
 """
 
-from . import presets
-from ._validate import ParameterError
-from .actuation import Bellows, ConstantPressureMap, PneumaticActuator, PressureMap
-from .batch import BatchTrajectory, simulate_batch
-from .control import (
+from softcurve._version import __version__ as __version__
+from softcurve.analysis.statics import equilibria, equilibrium, linearize
+from softcurve.base.validation import ParameterError
+from softcurve.compiled.build import CompilerWarning
+from softcurve.compiled.model import DynamicsTerms, Model, Pose
+from softcurve.control.controllers import (
     ComputedTorque,
     PDGravityElastic,
     PressureAllocator,
@@ -18,17 +19,21 @@ from .control import (
     Reference,
     tip_circle,
 )
-from .experiments import Experiment, ExperimentError, load_csv, load_mat
-from .identify import FitReport, fit_stiffness
-from .identify_dynamic import Free, fit_equilibria, fit_trajectory
-from .materials import Creep, LinearStiffness, TanhStiffness
-from .model import CompilerWarning, DynamicsTerms, Model, Pose
-from .robot import Robot, Segment
-from .simulate import simulate
-from .statics import equilibria, equilibrium, linearize
-from .trajectory import State, Trajectory, load_trajectory
-
-__version__ = "0.1.0"
+from softcurve.description import presets
+from softcurve.description.actuators import (
+    Bellows,
+    ConstantPressureMap,
+    PneumaticActuator,
+    PressureMap,
+)
+from softcurve.description.materials import Creep, LinearStiffness, TanhStiffness
+from softcurve.description.robot import Robot, Segment
+from softcurve.identification.dynamic import Free, fit_equilibria, fit_trajectory
+from softcurve.identification.experiments import Experiment, ExperimentError, load_csv, load_mat
+from softcurve.identification.stiffness import FitReport, fit_stiffness
+from softcurve.simulation.batch import BatchTrajectory, simulate_batch
+from softcurve.simulation.simulate import simulate
+from softcurve.simulation.trajectory import State, Trajectory, load_trajectory
 
 __all__ = [
     "BatchTrajectory",

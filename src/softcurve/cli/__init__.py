@@ -14,8 +14,8 @@ import importlib
 import os
 import sys
 
-from .. import __version__
-from .._validate import ParameterError
+from softcurve._version import __version__
+from softcurve.base.validation import ParameterError
 
 COMMANDS = ("info", "simulate", "equilibria", "codegen", "sweep", "fit")
 

@@ -30,11 +30,12 @@ def add_arguments(parser) -> None:
 
 def robot_and_actuator(args):
     """``(robot, actuator)`` from the parsed arguments."""
-    from .. import PneumaticActuator, presets
+    from softcurve.description import presets
+    from softcurve.description.actuators import PneumaticActuator
 
     robot, actuator = presets.ifac2020(), None
     if args.config is not None:
-        from ..io import load_config
+        from softcurve.scenarios.config import load_config
 
         scenario = load_config(args.config)
         robot, actuator = scenario.robot, scenario.actuator()

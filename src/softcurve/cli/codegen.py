@@ -31,8 +31,8 @@ def register(subparsers) -> None:
 
 
 def run(args) -> int:
-    from .. import Model
-    from ..codegen import build_and_run_test, export_c
+    from softcurve.compiled.codegen import build_and_run_test, export_c
+    from softcurve.compiled.model import Model
 
     robot, actuator = _robots.robot_and_actuator(args)
     exported = export_c(

@@ -38,8 +38,8 @@ def register(subparsers) -> None:
 
 
 def run(args) -> int:
-    from .. import Model
-    from ..statics import equilibria, linearize
+    from softcurve.analysis.statics import equilibria, linearize
+    from softcurve.compiled.model import Model
 
     robot, actuator = _robots.robot_and_actuator(args)
     model = Model(robot, compile=False)  # the analysis is symbolic: no need to compile

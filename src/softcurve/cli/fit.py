@@ -29,8 +29,8 @@ def register(subparsers) -> None:
 
 
 def run(args) -> int:
-    from ..experiments import load_csv
-    from ..identify import fit_stiffness
+    from softcurve.identification.experiments import load_csv
+    from softcurve.identification.stiffness import fit_stiffness
 
     signals = [args.strain, args.force] + ([args.weights] if args.weights else [])
     # rows are data points, in any order: number them instead of reading a time column

@@ -18,7 +18,8 @@ def register(subparsers) -> None:
 
 
 def run(args) -> int:
-    from .. import Model, presets
+    from softcurve.compiled.model import Model
+    from softcurve.description import presets
 
     robot = presets.ifac2020()
     start = time.perf_counter()

@@ -62,8 +62,8 @@ def register(subparsers) -> None:
 
 
 def _scenario(args):
-    from .._validate import ParameterError
-    from ..io import load_config, paper_scenario
+    from softcurve.base.validation import ParameterError
+    from softcurve.scenarios.config import load_config, paper_scenario
 
     scenario = load_config(args.config) if args.config else paper_scenario()
     overrides = {
@@ -81,14 +81,14 @@ def _scenario(args):
 
 
 def run(args) -> int:
-    from .. import Model
-    from ..simulate import simulate
+    from softcurve.compiled.model import Model
+    from softcurve.simulation.simulate import simulate
 
     scenario = _scenario(args)
     say = (lambda *a: None) if args.quiet else print
     output = Path(args.output)
     if output.exists() and not output.is_dir():
-        from .._validate import ParameterError
+        from softcurve.base.validation import ParameterError
 
         raise ParameterError(f"--output {output}: exists and is not a folder")
     start = time.perf_counter()

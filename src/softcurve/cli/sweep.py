@@ -49,8 +49,8 @@ def register(subparsers) -> None:
 
 
 def run(args) -> int:
-    from .._validate import ParameterError
-    from ..sweep import load_sweep, run_sweep
+    from softcurve.base.validation import ParameterError
+    from softcurve.scenarios.sweep import load_sweep, run_sweep
 
     try:
         import pyarrow  # noqa: F401

@@ -1,0 +1,191 @@
+"""Constant loads on a robot and their symbolic forms, shared by the static and
+linear analyses (:mod:`softcurve.statics`, :mod:`softcurve.linear`).
+
+The loads are constant generalized forces ``tau``, constant pressures through a
+:class:`~softcurve.actuation.PressureMap`, and a constant world-frame tip wrench; the
+gravity vector may be overridden without recompiling (it is a run-time parameter).
+The CasADi Functions built from them are cached per model and actuator.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import casadi as ca
+import numpy as np
+
+from softcurve.base.validation import ParameterError, real_array
+from softcurve.description.actuators import PressureMap
+from softcurve.symbolic.kinematics import segment_frames
+
+
+# -- loads ------------------------------------------------------------------------------
+@dataclass(frozen=True, eq=False)
+class StaticLoad:
+    """Constant loads on the robot, validated against a model.
+
+    Parameters
+    ----------
+    model : Model
+        The model the loads act on.
+    tau : array_like, shape (n,), optional
+        Constant generalized forces.
+    actuator : PressureMap, optional
+        Pressure map; needed with ``pressures``.
+    pressures : array_like, shape (m,), optional
+        Gauge pressures [Pa], within the actuator's bounds.
+    tip_force : array_like, shape (3,), optional
+        Constant world-frame force on the tip [N].
+    tip_moment : array_like, shape (3,), optional
+        Constant world-frame moment on the tip [N m] (not conservative, see module doc).
+    gravity : array_like, shape (3,), optional
+        Gravity [m/s^2] in the world frame; default the robot's own.
+    """
+
+    model: object
+    tau: np.ndarray | None = None
+    actuator: PressureMap | None = None
+    pressures: np.ndarray | None = None
+    tip_force: np.ndarray | None = None
+    tip_moment: np.ndarray | None = None
+    gravity: np.ndarray | None = None
+    parameters: np.ndarray = field(init=False, repr=False)
+
+    def __post_init__(self):
+        n = self.model.n
+        set_ = object.__setattr__  # frozen dataclass: normalise fields once here
+        set_(self, "tau", real_array("tau", np.zeros(n) if self.tau is None else self.tau, (n,)))
+        if (self.actuator is None) != (self.pressures is None):
+            raise ParameterError("pressures and actuator must be given together")
+        if self.actuator is not None:
+            if not isinstance(self.actuator, PressureMap):
+                raise ParameterError(
+                    f"actuator must be a PressureMap, got {type(self.actuator).__name__}"
+                )
+            self.actuator.check_robot(self.model.robot)
+            set_(self, "pressures", self.actuator.check_pressures(self.pressures))
+        for name in ("tip_force", "tip_moment"):
+            value = getattr(self, name)
+            set_(self, name, real_array(name, np.zeros(3) if value is None else value, (3,)))
+        gravity = self.model.robot.gravity if self.gravity is None else self.gravity
+        set_(self, "gravity", real_array("gravity", gravity, (3,)))
+        parameters = self.model.parameters.copy()
+        parameters[self.model.robot.layout.slice("gravity")] = self.gravity
+        set_(self, "parameters", parameters)
+
+    @property
+    def conservative(self) -> bool:
+        """False when a tip moment is applied."""
+        return not np.any(self.tip_moment)
+
+    def arguments(self) -> list:
+        """The load inputs of the cached CasADi Functions, after ``q`` or ``x``."""
+        pressures = np.zeros(0) if self.pressures is None else self.pressures
+        return [self.parameters, self.tau, pressures, self.tip_force, self.tip_moment]
+
+
+def cached(model, actuator, name, build):
+    """One CasADi Function per (model, actuator, name), in the model's cache."""
+    return model.cached(("loads", name, actuator), build)
+
+
+def _load_symbols(model, actuator):
+    """Symbols of the loads and the expressions built from them (see StaticLoad)."""
+    e = model.expressions
+    q, n = e.q, model.n
+    m_inputs = 0 if actuator is None else actuator.n_inputs
+    tau, pressures = ca.SX.sym("tau", n), ca.SX.sym("pressures", m_inputs)
+    force, moment = ca.SX.sym("f", 3), ca.SX.sym("m", 3)
+    (tip,) = segment_frames(q, e.n_segments, e.base_rotation, [(e.n_segments - 1, 1.0)])
+    linear = ca.jacobian(tip.position, q)
+    angular = tip.rotation @ tip.angular_jacobian
+    load = tau + linear.T @ force + angular.T @ moment
+    potential = e.gravity_energy + e.elastic_energy - ca.dot(tau, q) - ca.dot(force, tip.position)
+    if actuator is not None:
+        load += actuator.matrix_symbolic(q) @ pressures
+        potential -= actuator.pressure_work_symbolic(q, pressures)
+    return {
+        "inputs": [e.p, tau, pressures, force, moment],
+        "names": ["p", "tau", "pressures", "f", "m"],
+        "load": load,
+        "potential": potential,
+        "tip": tip.position,
+    }
+
+
+def static_function(model, actuator: PressureMap | None) -> ca.Function:
+    """``F(q, p, tau, pressures, f, m) -> (r, K, W, tip)``: the residual ``r = N - loads``,
+    ``K = dr/dq``, the conservative potential ``W`` [J] and the tip position [m]."""
+
+    def build():
+        e, sym = model.expressions, _load_symbols(model, actuator)
+        residual = e.gravity_force + e.elastic_force - sym["load"]
+        return ca.Function(
+            "static",
+            [e.q, *sym["inputs"]],
+            [residual, ca.jacobian(residual, e.q), sym["potential"], sym["tip"]],
+            ["q", *sym["names"]],
+            ["r", "K", "W", "tip"],
+        )
+
+    return cached(model, actuator, "static", build)
+
+
+def linear_function(model, actuator: PressureMap | None) -> ca.Function:
+    """``F(x, p, tau, pressures, f, m) -> (A, B, D, K)`` of the closed-form loaded dynamics
+    ``xdot = f(x, tau + H(q) p + J^T w)``; ``B = df/dtau``."""
+
+    def build():
+        e, sym = model.expressions, _load_symbols(model, actuator)
+        x = ca.vertcat(e.q, e.qd, e.lam)
+        qdd = ca.substitute(e.forward_dynamics, e.tau, sym["load"])
+        xdot = ca.vertcat(e.qd, qdd, e.creep_rate)
+        residual = e.gravity_force + e.elastic_force - sym["load"]
+        tau = sym["inputs"][1]
+        return ca.Function(
+            "linear",
+            [x, *sym["inputs"]],
+            [
+                ca.jacobian(xdot, x),
+                ca.jacobian(xdot, tau),
+                e.mass_matrix,
+                ca.jacobian(residual, e.q),
+            ],
+            ["x", *sym["names"]],
+            ["A", "B", "D", "K"],
+        )
+
+    return cached(model, actuator, "linear", build)
+
+
+def elastic_stiffness_function(model) -> ca.Function:
+    """``K_e(q, p) = d(elastic force)/dq``, the elastic part of the tangent stiffness."""
+    e = model.expressions
+    return cached(
+        model,
+        None,
+        "elastic_stiffness",
+        lambda: ca.Function("k", [e.q, e.p], [ca.jacobian(e.elastic_force, e.q)]),
+    )
+
+
+def coordinate_scale(robot) -> np.ndarray:
+    """``S = (l0, 1/l0, 1/l0)`` per segment: ``q / S`` is dimensionless (a bending of one
+    radian is 1) and ``S * force`` is an energy [J]."""
+    return np.array(
+        [v for s in robot.segments for v in (s.rest_length, 1 / s.rest_length, 1 / s.rest_length)]
+    )
+
+
+def rest_configuration(robot) -> np.ndarray:
+    """The straight, unstretched configuration ``(l0, 0, 0)`` per segment."""
+    return np.array([v for s in robot.segments for v in (s.rest_length, 0.0, 0.0)])
+
+
+def residual_reference(model) -> np.ndarray:
+    """``diag(S K_e S)`` at rest [J]: the elastic stiffness of each scaled coordinate,
+    positive for every admissible stiffness law; the unit of the scaled residuals."""
+    stiffness = np.array(
+        elastic_stiffness_function(model)(rest_configuration(model.robot), model.parameters)
+    )
+    return np.abs(np.diag(stiffness)) * coordinate_scale(model.robot) ** 2

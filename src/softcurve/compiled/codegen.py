@@ -1,0 +1,244 @@
+"""Standalone C for embedded controllers: forward and inverse dynamics, ``N(q)``, ``H(q)``.
+
+:func:`export_c` writes ``<prefix>.c`` and ``<prefix>.h`` (CasADi's code generator:
+plain C99, no dependency but ``libm``) and a test program ``test_<prefix>.c`` that calls
+every function on one sample state, prints the results and compares them with the
+values the Python model gave at export time (exit code 0 when all agree to
+``1e-12`` relative). With ``embed_parameters=True`` (default) the robot's numbers are
+compiled in; otherwise every function takes the parameter vector ``p``
+(``Robot.parameter_vector()``) as its last input.
+
+Every function uses CasADi's calling convention::
+
+    int NAME(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem);
+    int NAME_work(casadi_int* sz_arg, casadi_int* sz_res, casadi_int* sz_iw, casadi_int* sz_w);
+
+with dense column-major inputs and outputs (vectors are plain arrays; ``H`` is ``n x m``
+column-major). ``test_<prefix>.c`` shows a complete call.
+"""
+
+from __future__ import annotations
+
+import shutil
+import subprocess
+from dataclasses import dataclass
+from pathlib import Path
+
+import casadi as ca
+import numpy as np
+
+from softcurve.base.validation import ParameterError
+from softcurve.description.actuators import PressureMap
+
+_TOLERANCE = 1e-12
+
+
+@dataclass(frozen=True)
+class ExportedC:
+    """What :func:`export_c` wrote.
+
+    source, header, test : Path
+        ``<prefix>.c``, ``<prefix>.h`` and ``test_<prefix>.c``.
+    functions : tuple of str
+        C names of the exported functions.
+    sample_inputs : dict
+        The inputs the test program uses, by function name (lists of arrays).
+    compile_command : list of str
+        A command (run in the output directory) that builds the test program.
+    """
+
+    source: Path
+    header: Path
+    test: Path
+    functions: tuple[str, ...]
+    sample_inputs: dict
+    compile_command: list[str]
+
+
+def _functions(model, actuator: PressureMap | None, prefix: str, embed: bool):
+    e = model.expressions
+    specs = {
+        "forward_dynamics": (
+            [e.q, e.qd, e.tau, e.lam],
+            ["q", "qd", "tau", "lam"],
+            e.forward_dynamics,
+        ),
+        "inverse_dynamics": (
+            [e.q, e.qd, e.qdd, e.lam],
+            ["q", "qd", "qdd", "lam"],
+            e.inverse_dynamics,
+        ),
+        "potential_force": ([e.q], ["q"], e.gravity_force + e.elastic_force),
+    }
+    if actuator is not None:
+        actuator.check_robot(model.robot)
+        specs["pressure_matrix"] = ([e.q], ["q"], actuator.matrix_symbolic(e.q))
+    functions = {}
+    for name, (inputs, names, output) in specs.items():
+        output = ca.densify(ca.SX(output))
+        if embed:
+            output = ca.substitute(output, e.p, ca.DM(model.parameters))
+        else:
+            inputs, names = [*inputs, e.p], [*names, "p"]
+        functions[name] = ca.Function(f"{prefix}_{name}", inputs, [ca.cse(output)], names, ["out"])
+    return functions
+
+
+def _sample_inputs(model, functions, embed: bool, seed: int) -> dict:
+    """A bent, moving state (seeded) for the test program."""
+    rng = np.random.default_rng(seed)
+    q = np.array(
+        [v for s in model.robot.segments for v in (s.rest_length * 1.03, *rng.uniform(-15, 15, 2))]
+    )
+    sizes = {"qd": model.n, "tau": model.n, "qdd": model.n, "lam": model.n_creep}
+    samples = {}
+    for name, f in functions.items():
+        values = []
+        for i in range(f.n_in()):
+            label = f.name_in(i)
+            if label == "q":
+                values.append(q)
+            elif label == "p":
+                values.append(model.parameters)
+            else:
+                values.append(rng.normal(scale=0.1, size=sizes[label]))
+        samples[name] = values
+    return samples
+
+
+def _c_array(name: str, values) -> str:
+    values = np.asarray(values, dtype=np.float64).ravel(order="F")
+    body = ", ".join(f"{v:.17g}" for v in values) if values.size else "0"
+    return f"static const casadi_real {name}[{max(values.size, 1)}] = {{{body}}};"
+
+
+_HARNESS = """
+static int run(const char *name,
+               int (*work)(casadi_int *, casadi_int *, casadi_int *, casadi_int *),
+               int (*eval)(const casadi_real **, casadi_real **, casadi_int *, casadi_real *, int),
+               const casadi_real **inputs, int n_in, const casadi_real *expected, int n_out) {
+  casadi_int sz_arg, sz_res, sz_iw, sz_w, i;
+  int status, failed = 0;
+  double scale = 0.0;
+  if (work(&sz_arg, &sz_res, &sz_iw, &sz_w)) return 1;
+  const casadi_real **arg = calloc(sz_arg > 0 ? sz_arg : 1, sizeof *arg);
+  casadi_real **res = calloc(sz_res > 0 ? sz_res : 1, sizeof *res);
+  casadi_int *iw = malloc((sz_iw > 0 ? sz_iw : 1) * sizeof *iw);
+  casadi_real *w = malloc((sz_w > 0 ? sz_w : 1) * sizeof *w);
+  casadi_real *out = malloc(n_out * sizeof *out);
+  for (i = 0; i < n_in; ++i) arg[i] = inputs[i];
+  res[0] = out;
+  status = eval(arg, res, iw, w, 0);
+  for (i = 0; i < n_out; ++i) scale = fmax(scale, fabs(expected[i]));
+  for (i = 0; i < n_out; ++i) {
+    printf("%s %ld %.17g\\n", name, (long)i, out[i]);
+    if (!(fabs(out[i] - expected[i]) <= TOLERANCE * scale)) failed = 1;
+  }
+  if (status || failed) fprintf(stderr, "%s: status %d, mismatch %d\\n", name, status, failed);
+  free(arg); free(res); free(iw); free(w); free(out);
+  return status || failed;
+}
+"""
+
+
+def _test_program(prefix: str, functions, samples, expected) -> str:
+    lines = [
+        f"/* Test of {prefix}.c: generated by softcurve.codegen.export_c. */",
+        "#include <math.h>",
+        "#include <stdio.h>",
+        "#include <stdlib.h>",
+        f'#include "{prefix}.h"',
+        f"#define TOLERANCE {_TOLERANCE!r}",
+        _HARNESS,
+    ]
+    main = ["int main(void) {", "  int failed = 0;"]
+    for name, f in functions.items():
+        c_name = f.name()
+        for i, value in enumerate(samples[name]):
+            lines.append(_c_array(f"{name}_in{i}", value))
+        lines.append(_c_array(f"{name}_expected", expected[name]))
+        inputs = ", ".join(f"{name}_in{i}" for i in range(f.n_in()))
+        main.append(f"  {{ const casadi_real *in[] = {{{inputs}}};")
+        main.append(
+            f'    failed |= run("{name}", {c_name}_work, {c_name}, in, {f.n_in()}, '
+            f"{name}_expected, {f.numel_out(0)}); }}"
+        )
+    main += ['  puts(failed ? "FAILED" : "OK");', "  return failed;", "}"]
+    return "\n".join([*lines, "", *main, ""])
+
+
+def export_c(
+    model,
+    directory,
+    *,
+    actuator: PressureMap | None = None,
+    prefix: str = "softcurve_model",
+    embed_parameters: bool = True,
+    seed: int = 0,
+) -> ExportedC:
+    """Write standalone C for the model (and ``H(q)`` of ``actuator``) into ``directory``.
+
+    Parameters
+    ----------
+    model : Model
+    directory : path
+        Created if missing; existing files of the same names are overwritten.
+    actuator : PressureMap, optional
+        Adds ``<prefix>_pressure_matrix(q) -> H`` (n x m, column-major).
+    prefix : str
+        A C identifier: file names and function names start with it.
+    embed_parameters : bool
+        Compile the robot's numbers in (default) or take ``p`` as the last input.
+    seed : int
+        Seed of the test program's sample state.
+    """
+    if not (prefix.isidentifier() and prefix.isascii()):
+        raise ParameterError(f"prefix must be a C identifier, got {prefix!r}")
+    directory = Path(directory)
+    directory.mkdir(parents=True, exist_ok=True)
+    functions = _functions(model, actuator, prefix, embed_parameters)
+    generator = ca.CodeGenerator(f"{prefix}.c", {"with_header": True})
+    for f in functions.values():
+        generator.add(f)
+    generator.generate(str(directory) + "/")
+    samples = _sample_inputs(model, functions, embed_parameters, seed)
+    expected = {
+        name: np.array(f(*samples[name]), dtype=np.float64).ravel(order="F")
+        for name, f in functions.items()
+    }
+    test = directory / f"test_{prefix}.c"
+    test.write_text(_test_program(prefix, functions, samples, expected))
+    command = [
+        "cc", "-std=c99", "-O2", f"test_{prefix}.c", f"{prefix}.c", "-o", f"test_{prefix}", "-lm"
+    ]  # fmt: skip
+    return ExportedC(
+        source=directory / f"{prefix}.c",
+        header=directory / f"{prefix}.h",
+        test=test,
+        functions=tuple(f.name() for f in functions.values()),
+        sample_inputs=samples,
+        compile_command=command,
+    )
+
+
+def build_and_run_test(
+    exported: ExportedC, compiler: str | None = None, optimization: str = "-O2"
+) -> str:
+    """Compile and run the exported test program; return its output.
+
+    ``optimization`` replaces ``-O2`` (e.g. ``"-O0"`` compiles several times faster).
+
+    Raises ``FileNotFoundError`` when no C compiler is found and
+    ``subprocess.CalledProcessError`` when compiling fails or the test reports a mismatch.
+    """
+    compiler = compiler or shutil.which("cc") or shutil.which("gcc") or shutil.which("clang")
+    if compiler is None:
+        raise FileNotFoundError("no C compiler (cc, gcc or clang) found")
+    directory = exported.source.parent
+    command = [compiler, *(optimization if a == "-O2" else a for a in exported.compile_command[1:])]
+    subprocess.run(command, cwd=directory, check=True, capture_output=True, text=True)
+    program = directory / exported.compile_command[exported.compile_command.index("-o") + 1]
+    result = subprocess.run(
+        [str(program)], cwd=directory, check=True, capture_output=True, text=True
+    )
+    return result.stdout

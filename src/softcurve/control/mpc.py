@@ -1,0 +1,132 @@
+"""Model-predictive control with bounded pressures, re-linearised at every sample.
+
+At each sample the loaded dynamics are linearised about the measured state and the
+pressures currently applied (:func:`softcurve.linear.linearize`, exact CasADi
+derivatives), and discretised exactly for a zero-order hold of the pressure changes,
+affine term included::
+
+    x_(k+1) - x_0 = Ad (x_k - x_0) + Bd (p_k - p_0) + c,   [Ad Bd c] from expm
+
+Over ``horizon`` samples the controller minimises
+
+    sum_k |W (q_k - q_r(t + k Ts))|^2 + rate_weight sum_k |(p_k - p_(k-1)) / span|^2
+
+with ``W = diag(1/l0, l0, l0)`` (one metre of length weighs like one radian of bending),
+subject to ``lower <= p_k <= upper``. The predictions are linear in the pressures, so
+this is a bounded linear least-squares problem, solved exactly by SciPy's BVLS; the
+first pressures are applied. The nonlinear model enters through the re-linearisation
+at every sample (a linear time-varying MPC); pressure lag is not modelled.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.linalg
+import scipy.optimize
+
+from softcurve.analysis.linear import linearize
+from softcurve.analysis.loads import coordinate_scale
+from softcurve.base.validation import ParameterError, real_scalar
+from softcurve.control.controllers import Reference, _Sampled
+from softcurve.description.actuators import PressureMap
+
+
+class PressureMPC(_Sampled):
+    """Bounded-pressure MPC of a reference ``q_r(t)``, re-linearised at every sample.
+
+    Parameters
+    ----------
+    model : Model
+        The controller's model.
+    actuator : PressureMap
+    reference : Reference
+    horizon : int
+        Samples predicted (>= 1).
+    sample_time : float
+        [s]; also the prediction step.
+    rate_weight : float
+        Weight (>= 0) of the pressure increments, normalised by the pressure range.
+    """
+
+    def __init__(
+        self,
+        model,
+        actuator: PressureMap,
+        reference: Reference,
+        *,
+        horizon: int = 20,
+        sample_time: float = 0.01,
+        rate_weight: float = 1e-4,
+    ):
+        super().__init__(sample_time)
+        actuator.check_robot(model.robot)
+        if not (isinstance(horizon, int) and horizon >= 1):
+            raise ParameterError(f"horizon must be an integer >= 1, got {horizon!r}")
+        self.rate_weight = real_scalar("rate_weight", rate_weight)
+        if self.rate_weight < 0:
+            raise ParameterError(f"rate_weight must be >= 0, got {rate_weight!r}")
+        self.model, self.actuator, self.reference, self.horizon = (
+            model,
+            actuator,
+            reference,
+            horizon,
+        )
+        self.weights = 1.0 / coordinate_scale(model.robot)
+        self.reset()
+
+    def reset(self) -> None:
+        super().reset()
+        self._applied = self.actuator.clip(np.zeros(self.actuator.n_inputs))
+
+    def _discretise(self, q, qd, lam):
+        """``Ad, Bd, c`` of one sample about the state and the applied pressures."""
+        p0 = self._applied
+        lin = linearize(
+            self.model, q, qd, lam, actuator=self.actuator, pressures=p0, inputs="pressures"
+        )
+        x = lin.x
+        drift = self.model.state_derivative(x, self.actuator.matrix(q) @ p0)
+        n_x, m = lin.B.shape
+        augmented = np.zeros((n_x + m + 1, n_x + m + 1))
+        augmented[:n_x, :n_x], augmented[:n_x, n_x : n_x + m] = lin.A, lin.B
+        augmented[:n_x, -1] = drift
+        transition = scipy.linalg.expm(augmented * self.sample_time)
+        return transition[:n_x, :n_x], transition[:n_x, n_x : n_x + m], transition[:n_x, -1]
+
+    def __call__(self, t, q, qd, lam=None) -> np.ndarray:
+        lam = np.zeros(self.model.n_creep) if lam is None else np.asarray(lam, dtype=float)
+        ad, bd, c = self._discretise(q, qd, lam)
+        n, m, horizon = self.model.n, self.actuator.n_inputs, self.horizon
+        p0 = self._applied
+        # q_k - q = G_k (P - p0 repeated) + h_k: predictions linear in the pressures
+        rows, offsets = [], []
+        state_gain = np.zeros((ad.shape[0], horizon * m))
+        state_offset = np.zeros(ad.shape[0])
+        for k in range(horizon):
+            state_gain = ad @ state_gain
+            state_gain[:, k * m : (k + 1) * m] += bd
+            state_offset = ad @ state_offset + c
+            target = self.reference(t + (k + 1) * self.sample_time).q
+            rows.append(self.weights[:, None] * state_gain[:n])
+            offsets.append(self.weights * (target - q - state_offset[:n]))
+        span = self.actuator.upper - self.actuator.lower
+        difference = np.eye(horizon * m) - np.eye(horizon * m, k=-m)
+        rate = np.sqrt(self.rate_weight) * difference / np.tile(span, horizon)[:, None]
+        matrix = np.vstack([*rows, rate])
+        repeated = np.tile(p0, horizon)
+        # unknown: P - p0 repeated; the first increment is measured from the applied p0
+        rhs = np.concatenate([*offsets, np.zeros(horizon * m)])
+        lower = np.tile(self.actuator.lower, horizon) - repeated
+        upper = np.tile(self.actuator.upper, horizon) - repeated
+        scale = np.tile(span, horizon)
+        solution = scipy.optimize.lsq_linear(
+            matrix * scale, rhs, bounds=(lower / scale, upper / scale), method="bvls"
+        )
+        pressures = self.actuator.clip(p0 + scale[:m] * solution.x[:m])
+        self._applied = pressures
+        tau = self.actuator.matrix(q) @ pressures
+        self.log.append(
+            {"t": t, "tau": tau, "pressures": pressures, "status": solution.status,
+             "cost": float(2 * solution.cost)}
+        )  # fmt: skip
+        return tau

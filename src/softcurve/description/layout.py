@@ -1,0 +1,229 @@
+"""The one owner of the parameter vector's layout: which number of a robot sits where.
+
+The compiled model reads every number of a robot (geometry, masses, stiffness laws,
+damping, creep, gravity, base rotation) from one run-time vector ``p``, so that one
+compiled library serves every robot of the same :meth:`Robot.structure`. Everything
+that reads or writes ``p`` (the robot, the symbolic model, static loads, sweeps,
+identification) asks a :class:`ParameterLayout` where a field lies instead of counting.
+
+Matrices (damping, creep compliance, base rotation) are stored row by row.
+"""
+
+from __future__ import annotations
+
+import functools
+from dataclasses import dataclass
+
+import casadi as ca
+import numpy as np
+
+from softcurve.base.validation import ParameterError
+from softcurve.description.materials import STIFFNESS_LAWS, Creep
+
+_VECTOR3 = ("[0]", "[1]", "[2]")
+_MATRIX3 = tuple(f"[{i},{j}]" for i in range(3) for j in range(3))
+
+
+@dataclass(frozen=True)
+class ParameterField:
+    """One named block of the parameter vector.
+
+    Attributes
+    ----------
+    name : str
+        Field path, e.g. ``"segments[0].damping"`` or ``"gravity"``.
+    start : int
+        Index of its first entry in the vector.
+    shape : tuple of int
+        ``()`` for a scalar, ``(k,)`` for a vector, ``(3, 3)`` for a matrix (row major).
+    labels : tuple of str
+        Suffix of each entry's name: ``""`` for a scalar, ``".k0"`` for a stiffness-law
+        parameter, ``"[0]"`` or ``"[0,1]"`` for vector and matrix entries.
+    """
+
+    name: str
+    start: int
+    shape: tuple[int, ...]
+    labels: tuple[str, ...]
+
+    @property
+    def size(self) -> int:
+        """Number of entries."""
+        return len(self.labels)
+
+    @property
+    def slice(self) -> slice:
+        """Where the field lies in the vector."""
+        return slice(self.start, self.start + self.size)
+
+    @property
+    def entry_names(self) -> tuple[str, ...]:
+        """The names of its entries, e.g. ``("gravity[0]", "gravity[1]", "gravity[2]")``."""
+        return tuple(self.name + label for label in self.labels)
+
+
+class ParameterLayout:
+    """Names and slices of the parameter vector of one robot structure.
+
+    Parameters
+    ----------
+    structure : tuple
+        :meth:`Robot.structure`: per segment ``(elongation law kind, bending law kind,
+        has creep)``.
+
+    Examples
+    --------
+    >>> import softcurve as sc
+    >>> layout = sc.presets.ifac2020().layout
+    >>> layout.slice("gravity")
+    slice(38, 41, None)
+    >>> layout.names[3]
+    'segments[0].elongation_stiffness.a1'
+    """
+
+    def __init__(self, structure: tuple):
+        fields: list[ParameterField] = []
+
+        def add(name, shape, labels):
+            start = fields[-1].start + fields[-1].size if fields else 0
+            fields.append(ParameterField(name, start, shape, tuple(labels)))
+
+        for k, (elongation, bending, has_creep) in enumerate(structure):
+            head = f"segments[{k}]."
+            for name in ("rest_length", "mass", "radius"):
+                add(head + name, (), ("",))
+            for mode, kind in (
+                ("elongation_stiffness", elongation),
+                ("bending_stiffness", bending),
+            ):
+                labels = STIFFNESS_LAWS[kind].parameter_labels
+                add(head + mode, (len(labels),), ("." + label for label in labels))
+            add(head + "damping", (3, 3), _MATRIX3)
+            if has_creep:
+                add(head + "creep.rate", (3,), _VECTOR3)
+                add(head + "creep.gain", (3,), _VECTOR3)
+                add(head + "creep.compliance", (3, 3), _MATRIX3)
+        add("gravity", (3,), _VECTOR3)
+        add("base_rotation", (3, 3), _MATRIX3)
+        self.structure = structure
+        self.fields: tuple[ParameterField, ...] = tuple(fields)
+        self.size: int = fields[-1].start + fields[-1].size
+        self.names: tuple[str, ...] = tuple(n for f in fields for n in f.entry_names)
+        self._fields = {f.name: f for f in fields}
+        self._entries = {name: i for i, name in enumerate(self.names)}
+
+    @classmethod
+    @functools.lru_cache(maxsize=64)
+    def of_structure(cls, structure: tuple) -> ParameterLayout:
+        """The layout of ``structure``, built once per structure."""
+        return cls(structure)
+
+    def __repr__(self) -> str:
+        return f"ParameterLayout({len(self.fields)} fields, {self.size} entries)"
+
+    # -- look-ups ------------------------------------------------------------------------
+    def field(self, name: str) -> ParameterField:
+        """The field called ``name`` (e.g. ``"segments[1].mass"``); ParameterError if none."""
+        try:
+            return self._fields[name]
+        except KeyError:
+            raise ParameterError(self._unknown("field", name, list(self._fields))) from None
+
+    def index(self, name: str) -> int:
+        """Position of the entry ``name`` (e.g. ``"gravity[2]"``); ParameterError if none."""
+        try:
+            return self._entries[name]
+        except KeyError:
+            raise ParameterError(self._unknown("parameter", name, list(self.names))) from None
+
+    def slice(self, name: str) -> slice:
+        """Where a field (``"gravity"``) or a single entry (``"gravity[2]"``) lies."""
+        if name in self._fields:
+            return self._fields[name].slice
+        i = self.index(name)
+        return slice(i, i + 1)
+
+    def __contains__(self, name: str) -> bool:
+        return name in self._entries or name in self._fields
+
+    @staticmethod
+    def _unknown(kind: str, name: str, known: list[str]) -> str:
+        close = [k for k in known if name.split("[")[0].split(".")[-1] in k][:3]
+        hint = f"; did you mean {', '.join(map(repr, close))}?" if close else ""
+        return (
+            f"{name!r} is not a {kind} of this robot (the robot's parameter_names() lists "
+            f"the {len(known)} entries){hint}"
+        )
+
+    # -- vectors -------------------------------------------------------------------------
+    def split(self, p) -> dict:
+        """Each field's part of ``p`` (a NumPy vector or a CasADi column), matrices as
+        3 x 3, scalars as one-entry parts: ``{field name: part}``."""
+        parts = {}
+        for f in self.fields:
+            part = p[f.slice]
+            if f.shape == (3, 3):
+                part = (
+                    part.reshape(3, 3) if isinstance(part, np.ndarray) else ca.reshape(part, 3, 3).T
+                )
+            parts[f.name] = part
+        return parts
+
+    def pack(self, robot) -> np.ndarray:
+        """The parameter vector of ``robot`` (whose structure must be this layout's)."""
+        self._check_structure(robot)
+        vector = np.empty(self.size)
+        for f in self.fields:
+            vector[f.slice] = np.ravel(_read(robot, f.name))
+        return vector
+
+    def unpack(self, vector, robot):
+        """The robot of ``robot``'s structure whose parameter vector is ``vector``.
+
+        Segments, stiffness-law types and creep stay; every number is taken from
+        ``vector`` and validated again by the robot's constructors.
+        """
+        self._check_structure(robot)
+        vector = np.asarray(vector, dtype=np.float64)
+        if vector.shape != (self.size,):
+            raise ParameterError(
+                f"a parameter vector must have shape ({self.size},), got {vector.shape}"
+            )
+        value = {f.name: vector[f.slice].reshape(f.shape) for f in self.fields}
+        segments = []
+        for k, s in enumerate(robot.segments):
+            head = f"segments[{k}]."
+            creep = None
+            if s.creep is not None:
+                creep = Creep(*(value[f"{head}creep.{n}"] for n in ("rate", "gain", "compliance")))
+            laws = {
+                mode: type(getattr(s, mode))(*value[head + mode])
+                for mode in ("elongation_stiffness", "bending_stiffness")
+            }
+            scalars = {n: float(value[head + n]) for n in ("rest_length", "mass", "radius")}
+            segments.append(
+                s.replace(**scalars, damping=value[head + "damping"], creep=creep, **laws)
+            )
+        return robot.replace(
+            segments=tuple(segments),
+            gravity=value["gravity"],
+            base_rotation=value["base_rotation"],
+        )
+
+    def _check_structure(self, robot) -> None:
+        if robot.structure() != self.structure:
+            raise ParameterError(
+                f"the robot's structure {robot.structure()} is not this layout's {self.structure}"
+            )
+
+
+def _read(robot, name: str):
+    """The value of the field ``name`` of ``robot`` (e.g. ``"segments[0].creep.rate"``)."""
+    if name.startswith("segments["):
+        index, path = name[len("segments[") :].split("].", 1)
+        owner = robot.segments[int(index)]
+    else:
+        owner, path = robot, name
+    for attribute in path.split("."):
+        owner = getattr(owner, attribute)
+    return owner.parameters() if hasattr(owner, "parameters") else owner

@@ -1,0 +1,175 @@
+"""Material models of section 3 of the paper: hyper-elastic stiffness laws and creep.
+
+A stiffness law ``k(x)`` maps a generalized strain ``x`` (elongation ``eps = l - l0``
+in m, or bending angle ``beta = kappa * l`` in rad) to a stiffness (N/m or N m/rad);
+the generalized elastic force is ``k(x) x`` and the stored energy
+``int_0^x k(t) t dt``. Laws are even in ``x``, so the symbolic forms here take the
+squared strain ``z = x**2``: that keeps the bending force smooth at zero curvature,
+where ``beta = l * sqrt(kx**2 + ky**2)`` is not. Nothing here knows about geometry.
+
+Each law is an immutable value validated at construction. Its numbers enter the
+compiled model as run-time parameters (``parameters()``), so that one compiled
+library serves every robot of the same structure and gradients with respect to the
+material are available for identification.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import ClassVar
+
+import numpy as np
+
+from softcurve.base import smooth as _smooth
+from softcurve.base.validation import ParameterError, real_array, real_scalar
+
+
+@dataclass(frozen=True)
+class LinearStiffness:
+    """Hookean law ``k(x) = k0``.
+
+    Parameters
+    ----------
+    k0 : float
+        Stiffness, > 0 (N/m for elongation, N m/rad for bending).
+    """
+
+    k0: float
+    kind: ClassVar[str] = "linear"
+    n_parameters: ClassVar[int] = 1
+    parameter_labels: ClassVar[tuple[str, ...]] = ("k0",)
+
+    def __post_init__(self):
+        object.__setattr__(self, "k0", real_scalar("k0", self.k0, positive=True))
+
+    def parameters(self) -> tuple[float, ...]:
+        return (self.k0,)
+
+    def stiffness(self, x):
+        """``k(x)`` for a float or array ``x``."""
+        return np.full_like(np.asarray(x, dtype=np.float64), self.k0)
+
+    def force(self, x):
+        """Generalized elastic force ``k(x) x``."""
+        return self.stiffness(x) * np.asarray(x, dtype=np.float64)
+
+    @staticmethod
+    def coefficient(z, p):
+        """Symbolic ``k(sqrt(z))`` for parameters ``p = (k0,)``."""
+        return p[0] + 0 * z
+
+    @staticmethod
+    def energy(z, p):
+        """Symbolic ``int_0^sqrt(z) k(t) t dt``."""
+        return 0.5 * p[0] * z
+
+
+@dataclass(frozen=True)
+class TanhStiffness:
+    """The paper's hyper-elastic ansatz, eqs. (17)-(18): ``k(x) = a1 + a2 (tanh(a3 x)**2 - 1)``.
+
+    ``k`` runs from ``a1 - a2`` at ``x = 0`` to ``a1`` as ``|x| -> inf``; with ``a2 > 0`` it
+    stiffens with strain (strain hardening). It is positive for every ``x`` if and only
+    if ``a1 > 0`` and ``a1 > a2`` (the paper's ``alpha_1 > alpha_2``). The sign of ``a3``
+    does not matter; ``a3 = 0`` is the linear law ``a1 - a2`` and must be written as
+    :class:`LinearStiffness`.
+
+    Parameters
+    ----------
+    a1 : float
+        Stiffness at large strain, > 0.
+    a2 : float
+        Softening at zero strain, < a1.
+    a3 : float
+        Inverse strain scale of the transition (1/m or 1/rad), nonzero.
+    """
+
+    a1: float
+    a2: float
+    a3: float
+    kind: ClassVar[str] = "tanh"
+    n_parameters: ClassVar[int] = 3
+    parameter_labels: ClassVar[tuple[str, ...]] = ("a1", "a2", "a3")
+
+    def __post_init__(self):
+        a1 = real_scalar("a1", self.a1, positive=True)
+        a2 = real_scalar("a2", self.a2)
+        a3 = real_scalar("a3", self.a3, nonzero=True)
+        if not a1 > a2:
+            raise ParameterError(
+                f"a2 must be < a1 so that k(x) = a1 + a2 (tanh(a3 x)^2 - 1) > 0 for every x, "
+                f"got a1={a1!r}, a2={a2!r}"
+            )
+        for name, value in (("a1", a1), ("a2", a2), ("a3", a3)):
+            object.__setattr__(self, name, value)
+
+    def parameters(self) -> tuple[float, ...]:
+        return (self.a1, self.a2, self.a3)
+
+    def stiffness(self, x):
+        x = np.asarray(x, dtype=np.float64)
+        return self.a1 + self.a2 * (np.tanh(self.a3 * x) ** 2 - 1.0)
+
+    def force(self, x):
+        return self.stiffness(x) * np.asarray(x, dtype=np.float64)
+
+    @staticmethod
+    def coefficient(z, p):
+        a1, a2, a3 = p[0], p[1], p[2]
+        return a1 - a2 + a2 * _smooth.tanh_squared(a3**2 * z)
+
+    @staticmethod
+    def energy(z, p):
+        # int_0^y t tanh(c t)^2 dt = y^2/2 + (log cosh(c y) - c y tanh(c y)) / c^2
+        a1, a2, a3 = p[0], p[1], p[2]
+        w = a3**2 * z
+        return 0.5 * a1 * z + a2 * (_smooth.log_cosh(w) - _smooth.y_tanh(w)) / a3**2
+
+
+STIFFNESS_LAWS = {law.kind: law for law in (LinearStiffness, TanhStiffness)}
+"""Stiffness laws by their ``kind`` name, as used in configuration files."""
+
+
+@dataclass(frozen=True, eq=False)
+class Creep:
+    """Kelvin-Voigt creep of one segment, eq. (19) of the paper.
+
+    ``lambda_i' = -rate_i lambda_i - gain_i qd_i`` and the creep force on the
+    segment's coordinates is ``K^T lambda``.
+
+    Parameters
+    ----------
+    rate : array_like, shape (3,)
+        Decay rates ``(gamma_1, gamma_3, gamma_5)`` [1/s], each > 0.
+    gain : array_like, shape (3,)
+        Couplings to the coordinate rates ``(gamma_2, gamma_4, gamma_6)``
+        [creep-state unit per coordinate unit].
+    compliance : array_like, shape (3, 3) or (3,)
+        ``K``, mapping creep states to generalized forces; a vector is a diagonal.
+    """
+
+    rate: np.ndarray
+    gain: np.ndarray
+    compliance: np.ndarray
+
+    def __post_init__(self):
+        rate = real_array("creep.rate", self.rate, (3,))
+        if not np.all(rate > 0):
+            raise ParameterError(f"creep.rate must be > 0 in every entry, got {rate.tolist()}")
+        compliance = np.asarray(self.compliance, dtype=np.float64)
+        if compliance.shape == (3,):
+            compliance = np.diag(compliance)
+        object.__setattr__(self, "rate", rate)
+        object.__setattr__(self, "gain", real_array("creep.gain", self.gain, (3,)))
+        object.__setattr__(self, "compliance", real_array("creep.compliance", compliance, (3, 3)))
+
+    @classmethod
+    def from_gamma(cls, gamma, compliance) -> Creep:
+        """Build from the paper's ``gamma = (gamma_1, ..., gamma_6)`` and ``K``."""
+        gamma = real_array("creep.gamma", gamma, (6,))
+        return cls(rate=gamma[0::2], gain=gamma[1::2], compliance=compliance)
+
+    def parameters(self) -> tuple[float, ...]:
+        return (*self.rate, *self.gain, *self.compliance.ravel())
+
+    n_parameters: ClassVar[int] = 15

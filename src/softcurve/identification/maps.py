@@ -1,0 +1,142 @@
+"""Output and input maps for identification: what a sensor measures, what the inputs do.
+
+An :class:`OutputMap` turns the state into measured signals (a tip IMU's bending
+angle, curvatures, a tip position), possibly with sensor offsets; an
+:class:`InputMap` turns measured inputs into generalized forces (bellow pressures
+through a geometric or a constant pressure map, with an unknown mounting angle).
+Both may read named *extra* parameters, which the fits of
+:mod:`softcurve.identify_dynamic` can estimate. The functions build CasADi
+expressions and work with SX or MX arguments.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import casadi as ca
+import numpy as np
+
+from softcurve.base.validation import ParameterError
+from softcurve.compiled.model import Model
+
+
+@dataclass(frozen=True)
+class OutputMap:
+    """Measured signals as a function of the state: ``y = function(q, qd, values, p)``.
+
+    ``values`` is a dict of the named extra parameters (CasADi expressions), ``p`` the
+    robot's parameter vector. ``names`` and ``units`` label the outputs, in order.
+    """
+
+    function: Callable
+    names: tuple[str, ...]
+    units: tuple[str, ...]
+    parameters: dict
+
+
+@dataclass(frozen=True)
+class InputMap:
+    """Generalized forces from measured inputs: ``tau = function(q, u, values)``.
+
+    ``parameters`` holds the named extra parameters it reads, with nominal values.
+    """
+
+    function: Callable
+    parameters: dict
+
+
+def bending_angle(segment: int = 0, *, degrees: bool = True, offset: str | None = None):
+    """Signed bending angle ``beta = kx * l`` of one segment, for motion in the x-z plane.
+
+    That is what an IMU at the tip of a single segment measures. ``offset`` names an
+    extra parameter (sensor zero) added to the output.
+    """
+    factor = 180.0 / np.pi if degrees else 1.0
+
+    def function(q, qd, values, p):
+        y = factor * q[3 * segment] * q[3 * segment + 1]
+        return y + (values[offset] if offset else 0)
+
+    return OutputMap(
+        function, ("beta",), ("deg" if degrees else "rad",), {offset: 0.0} if offset else {}
+    )
+
+
+def curvatures(segment: int = 0, *, offsets: tuple[str, str] | None = None):
+    """``(kx, ky)`` of one segment [1/m], plus optional sensor offsets (extra parameters)."""
+
+    def function(q, qd, values, p):
+        y = ca.vertcat(q[3 * segment + 1], q[3 * segment + 2])
+        return y + ca.vertcat(*(values[o] for o in offsets)) if offsets else y
+
+    return OutputMap(
+        function, ("kx", "ky"), ("1/m", "1/m"), {o: 0.0 for o in offsets} if offsets else {}
+    )
+
+
+def tip_position(model: Model):
+    """Tip position in the world frame [m]."""
+    pose = model.symbolic["pose"]
+
+    def function(q, qd, values, p):
+        return pose(q, 1.0, p)[1]
+
+    return OutputMap(function, ("x", "y", "z"), ("m", "m", "m"), {})
+
+
+def _azimuths(values, prefix: str, numbering: int):
+    if numbering not in (1, -1):
+        raise ParameterError(f"numbering must be +1 (counter-clockwise) or -1, got {numbering!r}")
+    return [values[f"{prefix}.angle"] + numbering * 2.0 * np.pi * i / 3.0 for i in range(3)]
+
+
+def bellows_input_map(
+    *, area: float, distance: float, numbering: int = 1, prefix: str = "bellows"
+) -> InputMap:
+    """Three bellows with ``H(q)`` from geometry (:class:`softcurve.actuation.PneumaticActuator`).
+
+    Extra parameters: ``prefix.area`` [m^2], ``prefix.distance`` [m] and
+    ``prefix.angle`` [rad], the azimuth of bellow 0 in the sensor's frame (mounting
+    angle); bellow ``i`` sits at ``angle + numbering * 2 pi i / 3``. ``numbering = -1``
+    is for bellows numbered clockwise. The inputs are the gauge pressures [Pa].
+    """
+    from softcurve.description.actuators import PneumaticActuator
+
+    actuator = PneumaticActuator.three_bellows(distance=distance, area=area, p_max=1e9)
+
+    def function(q, u, values):
+        geometry = []
+        for phi in _azimuths(values, prefix, numbering):
+            geometry += [phi, values[f"{prefix}.distance"], values[f"{prefix}.area"]]
+        return actuator.matrix_symbolic(q, ca.vertcat(*geometry)) @ u
+
+    nominal = {f"{prefix}.area": area, f"{prefix}.distance": distance, f"{prefix}.angle": 0.0}
+    return InputMap(function, nominal)
+
+
+def constant_input_map(
+    *, elongation_gain: float, bending_gain: float, numbering: int = 1, prefix: str = "map"
+) -> InputMap:
+    """The authors' constant map: ``tau_l = a_e sum p_i``,
+    ``(tau_kx, tau_ky) = -a_k sum p_i (cos phi_i, sin phi_i)`` (away from each bellow).
+
+    Extra parameters ``prefix.a_e`` [N/Pa], ``prefix.a_k`` [N m^2/Pa] and
+    ``prefix.angle`` [rad] (azimuth of bellow 0, as in :func:`bellows_input_map`).
+    """
+
+    def function(q, u, values):
+        phi = _azimuths(values, prefix, numbering)
+        rows = [
+            ca.horzcat(*[values[f"{prefix}.a_e"]] * 3),
+            ca.horzcat(*[-values[f"{prefix}.a_k"] * ca.cos(a) for a in phi]),
+            ca.horzcat(*[-values[f"{prefix}.a_k"] * ca.sin(a) for a in phi]),
+        ]
+        return ca.vertcat(*rows) @ u
+
+    nominal = {
+        f"{prefix}.a_e": elongation_gain,
+        f"{prefix}.a_k": bending_gain,
+        f"{prefix}.angle": 0.0,
+    }
+    return InputMap(function, nominal)

@@ -1,0 +1,128 @@
+"""The trajectory file format: CSV (a JSON metadata line, a header, one row per output
+time, 17 significant digits) or NPZ; documented in ``docs/configuration.md``."""
+
+from __future__ import annotations
+
+import io
+import json
+from pathlib import Path
+
+import numpy as np
+
+from softcurve.base.files import atomic_write
+
+FORMAT_VERSION = 1
+"""Version of the trajectory format written (in the metadata line)."""
+
+
+def column_names(n: int, n_creep: int, with_tau: bool, n_pressures: int = 0) -> list[str]:
+    """CSV columns: t, l1 kx1 ky1 ..., l1_dot ..., lam1 ..., tip_x tip_y tip_z, tau1 ...,
+    p1 ... (chamber pressures [Pa], when the robot was driven by pressures)."""
+    q = [f"{c}{i + 1}" for i in range(n // 3) for c in ("l", "kx", "ky")]
+    names = ["t", *q, *(f"{c}_dot" for c in q), *(f"lam{i + 1}" for i in range(n_creep))]
+    names += ["tip_x", "tip_y", "tip_z"]
+    names += [f"tau{i + 1}" for i in range(n)] if with_tau else []
+    return names + [f"p{i + 1}" for i in range(n_pressures)]
+
+
+def _meta(trajectory) -> dict:
+    return {
+        "format": "softcurve-trajectory",
+        "version": FORMAT_VERSION,
+        "n": trajectory.n,
+        "n_creep": trajectory.lam.shape[1],
+        "n_pressures": 0 if trajectory.pressures is None else trajectory.pressures.shape[1],
+        "status": trajectory.status,
+        "message": trajectory.message,
+        "stats": trajectory.stats,
+    }
+
+
+def save_trajectory(trajectory, path) -> Path:
+    """Write a trajectory to ``path``: ``.csv`` (one JSON comment line of metadata, a
+    header, one row per output time, 17 significant digits) or ``.npz``."""
+    path = Path(path)
+    tau, pressures = trajectory.tau, trajectory.pressures
+    if pressures is not None and tau is None:
+        raise ValueError("a trajectory with pressures must carry tau (the force H(q) p)")
+    meta = _meta(trajectory)
+    if path.suffix == ".csv":
+        blocks = [
+            trajectory.t[:, None],
+            trajectory.q,
+            trajectory.qd,
+            trajectory.lam,
+            trajectory.tip,
+        ] + [a for a in (tau, pressures) if a is not None]
+        table = np.hstack(blocks)
+        buffer = io.StringIO()
+        buffer.write("# " + json.dumps(meta) + "\n")
+        names = column_names(trajectory.n, meta["n_creep"], tau is not None, meta["n_pressures"])
+        buffer.write(",".join(names) + "\n")
+        np.savetxt(buffer, table, delimiter=",", fmt="%.17g")
+        return atomic_write(path, buffer.getvalue().encode())
+    if path.suffix == ".npz":
+        arrays = {
+            "t": trajectory.t,
+            "q": trajectory.q,
+            "qd": trajectory.qd,
+            "lam": trajectory.lam,
+            "tip": trajectory.tip,
+            "meta": np.array(json.dumps(meta)),
+        }
+        if tau is not None:
+            arrays["tau"] = tau
+        if pressures is not None:
+            arrays["pressures"] = pressures
+        buffer = io.BytesIO()
+        np.savez_compressed(buffer, **arrays)
+        return atomic_write(path, buffer.getvalue())
+    raise ValueError(f"path must end in .csv or .npz, got {path.name!r}")
+
+
+def read_trajectory(path) -> dict:
+    """The fields of a trajectory written by :func:`save_trajectory`, as keyword
+    arguments of :class:`~softcurve.simulation.trajectory.Trajectory`."""
+    path = Path(path)
+    if path.suffix == ".npz":
+        with np.load(path, allow_pickle=False) as data:
+            meta = json.loads(str(data["meta"]))
+            arrays = {k: data[k] for k in ("t", "q", "qd", "lam")}
+            arrays["tip_positions"] = data["tip"]
+            tau = data["tau"] if "tau" in data else None
+            pressures = data["pressures"] if "pressures" in data else None
+    elif path.suffix == ".csv":
+        with open(path, encoding="utf-8") as f:
+            first = f.readline()
+            header = f.readline().strip().split(",")
+            if not first.startswith("# "):
+                raise ValueError(f"{path}: not a softcurve trajectory (no metadata line)")
+            meta = json.loads(first[2:])
+            rows = [line for line in f if line.strip()]
+        table = np.loadtxt(rows, delimiter=",", ndmin=2) if rows else np.empty((0, len(header)))
+        n, n_creep = meta["n"], meta["n_creep"]
+        if table.shape[1] != len(header):
+            raise ValueError(f"{path}: {table.shape[1]} columns, header names {len(header)}")
+        cuts = np.cumsum([1, n, n, n_creep, 3])
+        arrays = {
+            "t": table[:, 0],
+            "q": table[:, cuts[0] : cuts[1]],
+            "qd": table[:, cuts[1] : cuts[2]],
+            "lam": table[:, cuts[2] : cuts[3]],
+            "tip_positions": table[:, cuts[3] : cuts[4]],
+        }
+        tau = table[:, cuts[4] : cuts[4] + n] if table.shape[1] > cuts[4] else None
+        m = meta.get("n_pressures", 0)
+        pressures = table[:, cuts[4] + n : cuts[4] + n + m] if m else None
+    else:
+        raise ValueError(f"path must end in .csv or .npz, got {path.name!r}")
+    if meta.get("format") != "softcurve-trajectory":
+        raise ValueError(f"{path}: not a softcurve trajectory")
+    return {
+        **{k: np.array(v) for k, v in arrays.items()},
+        "tau": tau,
+        "pressures": pressures,
+        "stats": meta["stats"],
+        "status": meta["status"],
+        "message": meta["message"],
+    }

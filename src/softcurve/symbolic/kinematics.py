@@ -1,0 +1,138 @@
+"""Piecewise-constant-curvature kinematics (section 2.1 of the paper), symbolic.
+
+Segment coordinates ``q_i = (l, kx, ky)``. At material coordinate ``s`` in [0, 1] of
+a segment the frame is the rotation ``exp([w]x)`` with rotation vector
+``w = s l (-ky, kx, 0)`` (eq. 3), and the position is ``s l Jl(w) e_z`` (eq. 4) with
+``Jl`` the left Jacobian of SO(3), since ``int_0^1 exp(t [w]x) dt = Jl(w)``. The body
+angular velocity is ``Jr(w) dw/dt``, ``Jr`` the right Jacobian: that is the exact
+time derivative of the pose at fixed material point (MODEL.md), not the paper's
+eq. (10). All trigonometric factors are smooth functions of ``|w|^2`` from
+:mod:`softcurve._smooth`, exact at zero curvature.
+
+Functions here take and return CasADi expressions; masses and forces live in
+:mod:`softcurve.dynamics`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import casadi as ca
+
+from softcurve.base import smooth as _smooth
+
+E_Z = ca.DM([0.0, 0.0, 1.0])
+
+
+def rotation_vector(q_i, s):
+    """``w = s l (-ky, kx, 0)``: the rotation from the segment base to material point ``s``."""
+    length, kx, ky = q_i[0], q_i[1], q_i[2]
+    return s * length * ca.vertcat(-ky, kx, 0)
+
+
+def _so3_terms(w):
+    z = ca.dot(w, w)
+    return ca.skew(w), z
+
+
+def segment_pose(q_i, s):
+    """Rotation (3x3) and position (3,) of material point ``s`` in the segment's base frame."""
+    w = rotation_vector(q_i, s)
+    wx, z = _so3_terms(w)
+    wx2 = wx @ wx
+    rotation = ca.SX.eye(3) + _smooth.sinc(z) * wx + _smooth.cosc(z) * wx2
+    left_jacobian = ca.SX.eye(3) + _smooth.cosc(z) * wx + _smooth.sinc3(z) * wx2
+    position = s * q_i[0] * (left_jacobian @ E_Z)
+    return rotation, position
+
+
+def segment_angular_jacobian(q_i, s):
+    """Body-frame angular velocity Jacobian (3x3) of point ``s`` w.r.t. ``q_i``.
+
+    ``omega_body = Jr(w) dw/dq qd`` with ``Jr(w) = I - cosc [w]x + sinc3 [w]x^2``.
+    """
+    w = rotation_vector(q_i, s)
+    wx, z = _so3_terms(w)
+    right_jacobian = ca.SX.eye(3) - _smooth.cosc(z) * wx + _smooth.sinc3(z) * (wx @ wx)
+    return right_jacobian @ ca.jacobian(w, q_i)
+
+
+@dataclass(frozen=True)
+class Frame:
+    """Pose of a material point and its body angular-velocity Jacobian (symbolic).
+
+    rotation : (3, 3) world-frame orientation; position : (3,) world-frame position [m];
+    angular_jacobian : (3, n) body-frame angular velocity per unit ``qd``.
+    """
+
+    rotation: ca.SX
+    position: ca.SX
+    angular_jacobian: ca.SX
+
+
+def segment_frames(q, n_segments: int, base_rotation, points):
+    """Frames of a serial chain at the given material points.
+
+    Parameters
+    ----------
+    q : SX, shape (3N,)
+        Generalized coordinates.
+    n_segments : int
+        Number of segments N.
+    base_rotation : SX or DM, shape (3, 3)
+        World orientation of the base frame.
+    points : sequence of (segment index, local s)
+        Points at which frames are wanted; ``s`` may be a number or an expression.
+
+    Returns
+    -------
+    list of Frame
+        One per point, in the order given.
+    """
+    n = 3 * n_segments
+    wanted: dict[int, list[tuple[int, object]]] = {}
+    for k, (i, s) in enumerate(points):
+        wanted.setdefault(i, []).append((k, s))
+    frames: list[Frame | None] = [None] * len(points)
+
+    rotation, position, angular = base_rotation, ca.SX.zeros(3), ca.SX.zeros(3, n)
+    for i in range(n_segments):
+        q_i = q[3 * i : 3 * i + 3]
+        for k, s in wanted.get(i, []):
+            frames[k] = _chain_step(q_i, i, s, n, rotation, position, angular)
+        tip = _chain_step(q_i, i, 1.0, n, rotation, position, angular)
+        rotation, position, angular = tip.rotation, tip.position, tip.angular_jacobian
+    return frames
+
+
+def _chain_step(q_i, i, s, n, rotation, position, angular) -> Frame:
+    local_rotation, local_position = segment_pose(q_i, s)
+    local_angular = ca.SX.zeros(3, n)
+    local_angular[:, 3 * i : 3 * i + 3] = segment_angular_jacobian(q_i, s)
+    return Frame(
+        rotation=rotation @ local_rotation,
+        position=position + rotation @ local_position,
+        angular_jacobian=local_rotation.T @ angular + local_angular,
+    )
+
+
+def frame_at(q, n_segments: int, base_rotation, s):
+    """Frame at material coordinate ``s`` in [0, 1] of the whole robot (symbolic ``s``).
+
+    Segment ``i`` covers ``[i/N, (i+1)/N]``; ``s = 1`` is the tip.
+    """
+    points = []
+    for i in range(n_segments):
+        local = ca.fmin(ca.fmax(s * n_segments - i, 0.0), 1.0)
+        points.append((i, local))
+    candidates = segment_frames(q, n_segments, base_rotation, points)
+    chosen = candidates[-1]
+    for i in reversed(range(n_segments - 1)):
+        inside = s * n_segments < i + 1
+        c = candidates[i]
+        chosen = Frame(
+            rotation=ca.if_else(inside, c.rotation, chosen.rotation),
+            position=ca.if_else(inside, c.position, chosen.position),
+            angular_jacobian=ca.if_else(inside, c.angular_jacobian, chosen.angular_jacobian),
+        )
+    return chosen
