@@ -43,15 +43,15 @@ def test_pressure_matrix_is_the_derivative_of_the_chamber_volumes(rng, trial):
     # are exact up to rounding; each row is compared relative to its own magnitude.
     expected = finite_difference_of_volumes(act, q)
     row_scale = np.abs(expected).max(axis=1, keepdims=True)
-    assert_close(act.matrix(q), expected, rtol=1e-12, scale=row_scale)
+    assert_close(act.input_matrix(q), expected, rtol=1e-12, scale=row_scale)
 
 
 def test_pressure_work_gradient_is_h_times_p(rng):
     for act in (actuator(), ConstantPressureMap.authors_fit(p_max=1e5)):
         q, p = ca.SX.sym("q", 3), ca.SX.sym("p", 3)
-        gradient = ca.Function("g", [q, p], [ca.gradient(act.pressure_work_symbolic(q, p), q)])
+        gradient = ca.Function("g", [q, p], [ca.gradient(act.input_work_symbolic(q, p), q)])
         qv, pv = np.array([0.07, 12.0, -4.0]), rng.uniform(0, 5e4, 3)
-        assert_close(np.array(gradient(qv, pv)).ravel(), act.matrix(qv) @ pv, rtol=1e-13)
+        assert_close(np.array(gradient(qv, pv)).ravel(), act.input_matrix(qv) @ pv, rtol=1e-13)
 
 
 def test_a_pressurised_bellow_lengthens_and_bends_away_from_itself():
@@ -68,15 +68,15 @@ def test_a_pressurised_bellow_lengthens_and_bends_away_from_itself():
 
 def test_closed_form_at_zero_curvature():
     act = PneumaticActuator((Bellows(0.0, 0.01, 1e-4, 1e5),))
-    h = act.matrix([0.05, 0.0, 0.0])
+    h = act.input_matrix([0.05, 0.0, 0.0])
     assert_close(h[:, 0], [1e-4, -1e-4 * 0.05 * 0.01, 0.0], rtol=1e-15)
 
 
 def test_authors_fit_matches_bellows_rotated_by_a_quarter_turn():
     fit = ConstantPressureMap.authors_fit(p_max=1e5)
-    assert_close(fit.matrix(np.zeros(3))[0], [2.34e-7] * 3, rtol=1e-15)
+    assert_close(fit.input_matrix(np.zeros(3))[0], [2.34e-7] * 3, rtol=1e-15)
     kinematic = actuator(azimuths=np.array([0, 2 * np.pi / 3, 4 * np.pi / 3]) + np.pi / 2)
-    h = kinematic.matrix([0.0644, 0.0, 0.0])
+    h = kinematic.input_matrix([0.0644, 0.0, 0.0])
     direction = h[1:] / np.linalg.norm(h[1:], axis=0)
     fitted = fit.constant[1:] / np.linalg.norm(fit.constant[1:], axis=0)
     assert_close(direction, fitted, rtol=0, atol=1e-15)
@@ -84,7 +84,7 @@ def test_authors_fit_matches_bellows_rotated_by_a_quarter_turn():
 
 def test_multi_segment_actuator_acts_on_its_own_segment():
     act = PneumaticActuator.three_bellows(distance=0.01, area=1e-4, p_max=5e4, n_segments=2)
-    h = act.matrix(np.array([0.06, 5.0, 1.0, 0.07, -3.0, 2.0]))
+    h = act.input_matrix(np.array([0.06, 5.0, 1.0, 0.07, -3.0, 2.0]))
     assert act.n_inputs == 6
     assert np.all(h[3:, :3] == 0) and np.all(h[:3, 3:] == 0)
 
@@ -95,7 +95,7 @@ def test_pressure_bounds_are_enforced():
     with pytest.raises(ParameterError, match=r"pressures\[2\] = 70000.0 Pa is outside"):
         act.generalized_force([0.06, 0, 0], [2e3, 3e4, 7e4])
     with pytest.raises(ParameterError, match=r"pressures\[0\] .* outside"):
-        act.check_pressures([0.0, 2e3, 2e3])
+        act.check_inputs([0.0, 2e3, 2e3])
     vacuum = actuator(p_min=-0.8 * ATMOSPHERIC_PRESSURE)
     assert vacuum.lower[0] < 0
 
@@ -104,16 +104,14 @@ def test_first_order_pressure_lag_is_exact():
     act = actuator(time_constant=0.05)
     p0, command = np.array([0.0, 1e4, 5e4]), np.array([3e4, 9e4, 0.0])  # 9e4 saturates
     target = act.clip(command)
-    p = act.pressure_step(p0, command, 0.02)
+    p = act.input_step(p0, command, 0.02)
     assert_close(p, target + (p0 - target) * math.exp(-0.4), rtol=1e-15)
     # two half steps equal one step, and the rate is the derivative at dt = 0
-    half = act.pressure_step(act.pressure_step(p0, command, 0.01), command, 0.01)
+    half = act.input_step(act.input_step(p0, command, 0.01), command, 0.01)
     assert_close(half, p, rtol=1e-14)
     h = 1e-7
-    assert_close(
-        (act.pressure_step(p0, command, h) - p0) / h, act.pressure_rate(p0, command), rtol=1e-5
-    )
-    assert_close(actuator().pressure_step(p0, command, 0.02), target)
+    assert_close((act.input_step(p0, command, h) - p0) / h, act.input_rate(p0, command), rtol=1e-5)
+    assert_close(actuator().input_step(p0, command, 0.02), target)
 
 
 @pytest.mark.parametrize(
@@ -153,7 +151,7 @@ def test_from_mapping_builds_and_validates():
     )
     assert explicit.n_inputs == 1
     constant = from_mapping({"kind": "constant", "matrix": np.eye(3).tolist(), "p_max": 1.0})
-    assert_close(constant.matrix(np.zeros(3)), np.eye(3))
+    assert_close(constant.input_matrix(np.zeros(3)), np.eye(3))
     fit = from_mapping({"kind": "authors_fit", "p_max": 1e5, "time_constant": 0.1})
     assert fit.time_constant == 0.1
     cases = [

@@ -131,7 +131,7 @@ def test_allocation_is_exact_when_feasible_and_saturates_otherwise(paper_model, 
     allocator = PressureAllocator(act, paper_model.robot)
     q = np.array([0.066, 8.0, -3.0])
     p = rng.uniform(1e4, 5e4, 3)
-    result = allocator.allocate(q, act.matrix(q) @ p)
+    result = allocator.allocate(q, act.input_matrix(q) @ p)
     assert_close(result.pressures, p, rtol=1e-9)
     assert not result.saturated.any()
     # pulling the robot shorter needs negative pressures: all saturate at zero
@@ -140,7 +140,7 @@ def test_allocation_is_exact_when_feasible_and_saturates_otherwise(paper_model, 
     assert result.saturated.all() and result.residual > 0
     # optimality: no feasible direction decreases the weighted residual
     w = allocator.weights
-    h = act.matrix(q)
+    h = act.input_matrix(q)
     for _ in range(20):
         trial = act.clip(result.pressures + rng.normal(scale=1e3, size=3))
         assert np.linalg.norm(w * (h @ trial - result.tau_requested)) >= result.residual - 1e-15
@@ -165,7 +165,9 @@ def test_pressure_driven_tip_circle_respects_the_bounds(paper_model):
     assert_close(pressures[1:], expected, rtol=1e-12, scale=3.5e4)
     # and the robot received H(q) p
     tau = driven.history("tau")
-    assert_close(tau[-1], act.matrix(run.q[-1]) @ pressures[-1], rtol=0.05, scale=np.abs(tau[-1]))
+    assert_close(
+        tau[-1], act.input_matrix(run.q[-1]) @ pressures[-1], rtol=0.05, scale=np.abs(tau[-1])
+    )
 
 
 def test_bad_controller_arguments(paper_model):

@@ -304,7 +304,7 @@ def test_constant_pressures_settle_at_the_equilibrium_with_those_pressures(paper
     static = paper_model.gravity_force(q_end) + paper_model.elastic_force(q_end)
     assert_close(static, actuator.generalized_force(q_end, pressures), atol=1e-6, rtol=1e-5)
     np.testing.assert_array_equal(run.pressures, np.tile(pressures, (run.t.size, 1)))
-    assert_close(run.tau[-1], actuator.matrix(q_end) @ pressures, atol=0, rtol=1e-12)
+    assert_close(run.tau[-1], actuator.input_matrix(q_end) @ pressures, atol=0, rtol=1e-12)
 
 
 def test_pressures_along_the_trajectory_equal_tau_given_as_h_of_q_times_p(paper_model):
@@ -352,7 +352,7 @@ def test_lagging_chamber_pressures_follow_the_exact_first_order_response(paper_m
     assert run.success, run.message
     exact = command * (1 - np.exp(-run.t / 0.05))[:, None]
     assert_close(run.pressures, exact, atol=1e-9 * 3e4, rtol=1e-6)
-    assert_close(run.tau[-1], actuator.matrix(run.q[-1]) @ run.pressures[-1], rtol=1e-12)
+    assert_close(run.tau[-1], actuator.input_matrix(run.q[-1]) @ run.pressures[-1], rtol=1e-12)
     assert run.x.shape == (run.t.size, paper_model.n_state)
 
 

@@ -106,7 +106,7 @@ def test_equilibrium_under_pressures_and_tip_force_balances_the_loads(paper_mode
     e = equilibrium(paper_model, [0.064, 0, 0], actuator=act, pressures=p, tip_force=f)
     assert e.converged and e.stability == "stable"
     j = paper_model.jacobian(e.q, 1.0)
-    loads = act.matrix(e.q) @ p + j[:3].T @ f
+    loads = act.input_matrix(e.q) @ p + j[:3].T @ f
 
     def j_of(q):
         return paper_model.jacobian(q, 1.0)[:3].T
@@ -114,7 +114,7 @@ def test_equilibrium_under_pressures_and_tip_force_balances_the_loads(paper_mode
     assert_close(paper_model.potential_force(e.q), loads, rtol=1e-10, scale=np.abs(loads).max())
     assert_close(e.tip_position, paper_model.tip_pose(e.q).position, rtol=1e-13)
     # a constant force and constant pressures are conservative: K is the FD Hessian
-    k, _ = hessian_by_differences(paper_model, e.q, lambda q: act.matrix(q) @ p + j_of(q) @ f)
+    k, _ = hessian_by_differences(paper_model, e.q, lambda q: act.input_matrix(q) @ p + j_of(q) @ f)
     lin = linearize(paper_model, e.q, actuator=act, pressures=p, tip_force=f)
     assert_close(lin.stiffness, k, rtol=1e-6, scale=np.abs(k).max())
 
@@ -140,7 +140,7 @@ def test_linearisation_matches_finite_differences_of_the_rhs(paper_model, rng):
     def rhs(x, dp=None):
         q = x[:3]
         tau = (
-            act.matrix(q) @ (p if dp is None else p + dp)
+            act.input_matrix(q) @ (p if dp is None else p + dp)
             + paper_model.jacobian(q, 1.0).T @ np.r_[f, m]
         )
         return np.array(paper_model.state_derivative(x, tau))  # a copy, never a buffer view
@@ -223,7 +223,7 @@ def test_pressure_sweep_follows_a_balanced_branch(paper_model):
     sweep = pressure_sweep(paper_model, act, path)
     assert sweep.status == "ok" and all(s == "stable" for s in sweep.stability)
     for q, p in zip(sweep.q, sweep.pressures, strict=True):
-        loads = act.matrix(q) @ p
+        loads = act.input_matrix(q) @ p
         assert_close(
             paper_model.potential_force(q), loads, rtol=1e-9, scale=1e-3 + np.abs(loads).max()
         )

@@ -21,10 +21,10 @@ from softcurve.control.controllers import (
 )
 from softcurve.description import presets
 from softcurve.description.actuators import (
+    Actuator,
     Bellows,
     ConstantPressureMap,
     PneumaticActuator,
-    PressureMap,
 )
 from softcurve.description.materials import Creep, LinearStiffness, TanhStiffness
 from softcurve.description.robot import Robot, Segment
@@ -40,7 +40,7 @@ __all__ = [
     "Bellows",
     "ConstantPressureMap",
     "PneumaticActuator",
-    "PressureMap",
+    "Actuator",
     "ComputedTorque",
     "PDGravityElastic",
     "PressureAllocator",

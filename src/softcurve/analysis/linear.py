@@ -103,7 +103,7 @@ def linearize(model, q, qd=None, lam=None, *, inputs: str = "tau", **loads) -> L
         for v in linear_function(model, load.actuator)(x, *load.arguments())
     )
     if inputs == "pressures":
-        b = b @ actuator.matrix(q)
+        b = b @ actuator.input_matrix(q)
     if load.conservative:  # K is a Hessian, symmetric up to rounding
         omega2, modes = scipy.linalg.eigh(0.5 * (k + k.T), d)
     else:

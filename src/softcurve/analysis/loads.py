@@ -2,7 +2,7 @@
 linear analyses (:mod:`softcurve.statics`, :mod:`softcurve.linear`).
 
 The loads are constant generalized forces ``tau``, constant pressures through a
-:class:`~softcurve.actuation.PressureMap`, and a constant world-frame tip wrench; the
+:class:`~softcurve.actuation.Actuator`, and a constant world-frame tip wrench; the
 gravity vector may be overridden without recompiling (it is a run-time parameter).
 The CasADi Functions built from them are cached per model and actuator.
 """
@@ -15,7 +15,7 @@ import casadi as ca
 import numpy as np
 
 from softcurve.base.validation import ParameterError, real_array
-from softcurve.description.actuators import PressureMap
+from softcurve.description.actuators import Actuator
 from softcurve.symbolic.kinematics import segment_frames
 
 
@@ -30,7 +30,7 @@ class StaticLoad:
         The model the loads act on.
     tau : array_like, shape (n,), optional
         Constant generalized forces.
-    actuator : PressureMap, optional
+    actuator : Actuator, optional
         Pressure map; needed with ``pressures``.
     pressures : array_like, shape (m,), optional
         Gauge pressures [Pa], within the actuator's bounds.
@@ -44,7 +44,7 @@ class StaticLoad:
 
     model: object
     tau: np.ndarray | None = None
-    actuator: PressureMap | None = None
+    actuator: Actuator | None = None
     pressures: np.ndarray | None = None
     tip_force: np.ndarray | None = None
     tip_moment: np.ndarray | None = None
@@ -58,12 +58,12 @@ class StaticLoad:
         if (self.actuator is None) != (self.pressures is None):
             raise ParameterError("pressures and actuator must be given together")
         if self.actuator is not None:
-            if not isinstance(self.actuator, PressureMap):
+            if not isinstance(self.actuator, Actuator):
                 raise ParameterError(
-                    f"actuator must be a PressureMap, got {type(self.actuator).__name__}"
+                    f"actuator must be a Actuator, got {type(self.actuator).__name__}"
                 )
             self.actuator.check_robot(self.model.robot)
-            set_(self, "pressures", self.actuator.check_pressures(self.pressures))
+            set_(self, "pressures", self.actuator.check_inputs(self.pressures))
         for name in ("tip_force", "tip_moment"):
             value = getattr(self, name)
             set_(self, name, real_array(name, np.zeros(3) if value is None else value, (3,)))
@@ -102,8 +102,8 @@ def _load_symbols(model, actuator):
     load = tau + linear.T @ force + angular.T @ moment
     potential = e.gravity_energy + e.elastic_energy - ca.dot(tau, q) - ca.dot(force, tip.position)
     if actuator is not None:
-        load += actuator.matrix_symbolic(q) @ pressures
-        potential -= actuator.pressure_work_symbolic(q, pressures)
+        load += actuator.input_matrix_symbolic(q) @ pressures
+        potential -= actuator.input_work_symbolic(q, pressures)
     return {
         "inputs": [e.p, tau, pressures, force, moment],
         "names": ["p", "tau", "pressures", "f", "m"],
@@ -113,7 +113,7 @@ def _load_symbols(model, actuator):
     }
 
 
-def static_function(model, actuator: PressureMap | None) -> ca.Function:
+def static_function(model, actuator: Actuator | None) -> ca.Function:
     """``F(q, p, tau, pressures, f, m) -> (r, K, W, tip)``: the residual ``r = N - loads``,
     ``K = dr/dq``, the conservative potential ``W`` [J] and the tip position [m]."""
 
@@ -131,7 +131,7 @@ def static_function(model, actuator: PressureMap | None) -> ca.Function:
     return cached(model, actuator, "static", build)
 
 
-def linear_function(model, actuator: PressureMap | None) -> ca.Function:
+def linear_function(model, actuator: Actuator | None) -> ca.Function:
     """``F(x, p, tau, pressures, f, m) -> (A, B, D, K)`` of the closed-form loaded dynamics
     ``xdot = f(x, tau + H(q) p + J^T w)``; ``B = df/dtau``."""
 

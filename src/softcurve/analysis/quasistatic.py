@@ -26,7 +26,7 @@ from softcurve.analysis.loads import (
 )
 from softcurve.analysis.statics import default_bounds, equilibrium
 from softcurve.base.validation import ParameterError, real_array
-from softcurve.description.actuators import PressureMap
+from softcurve.description.actuators import Actuator
 
 
 @dataclass(frozen=True, eq=False)
@@ -86,13 +86,13 @@ class PressureSweep:
         return fig
 
 
-def pressure_sweep(model, actuator: PressureMap, pressures, *, q_start=None, **loads):
+def pressure_sweep(model, actuator: Actuator, pressures, *, q_start=None, **loads):
     """Follow the equilibrium along ``pressures`` (k, m) by continuation.
 
     Parameters
     ----------
     model : Model
-    actuator : PressureMap
+    actuator : Actuator
     pressures : array_like, shape (k, m)
         Path of pressures [Pa], within the bounds.
     q_start : array_like, shape (n,), optional
@@ -185,7 +185,7 @@ def _guesses(model, target, starts: int):
 
 
 def inverse_statics(
-    model, actuator: PressureMap, target, *, starts: int = 3, max_iterations: int = 200, **loads
+    model, actuator: Actuator, target, *, starts: int = 3, max_iterations: int = 200, **loads
 ) -> InverseStatics:
     """The bounded pressures that put the tip closest to ``target`` at equilibrium.
 
@@ -198,7 +198,7 @@ def inverse_statics(
     Parameters
     ----------
     model : Model
-    actuator : PressureMap
+    actuator : Actuator
     target : array_like, shape (3,)
         World point [m].
     starts : int

@@ -1,7 +1,7 @@
 """Equilibria, their stability, and linearisation (section 4.2 of the paper).
 
 An equilibrium solves ``N(q) = tau + H(q) p + J_tip(q)^T w`` for constant generalized
-forces ``tau``, constant pressures ``p`` through a :class:`~softcurve.actuation.PressureMap`
+forces ``tau``, constant pressures ``p`` through a :class:`~softcurve.actuation.Actuator`
 and a constant tip wrench ``w = (f, m)`` given in the world frame. The gravity
 direction may be changed for the analysis (``gravity=``) without recompiling: it is a
 run-time parameter of the model.

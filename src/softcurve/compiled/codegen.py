@@ -28,7 +28,7 @@ import casadi as ca
 import numpy as np
 
 from softcurve.base.validation import ParameterError
-from softcurve.description.actuators import PressureMap
+from softcurve.description.actuators import Actuator
 
 _TOLERANCE = 1e-12
 
@@ -55,7 +55,7 @@ class ExportedC:
     compile_command: list[str]
 
 
-def _functions(model, actuator: PressureMap | None, prefix: str, embed: bool):
+def _functions(model, actuator: Actuator | None, prefix: str, embed: bool):
     e = model.expressions
     specs = {
         "forward_dynamics": (
@@ -72,7 +72,7 @@ def _functions(model, actuator: PressureMap | None, prefix: str, embed: bool):
     }
     if actuator is not None:
         actuator.check_robot(model.robot)
-        specs["pressure_matrix"] = ([e.q], ["q"], actuator.matrix_symbolic(e.q))
+        specs["pressure_matrix"] = ([e.q], ["q"], actuator.input_matrix_symbolic(e.q))
     functions = {}
     for name, (inputs, names, output) in specs.items():
         output = ca.densify(ca.SX(output))
@@ -171,7 +171,7 @@ def export_c(
     model,
     directory,
     *,
-    actuator: PressureMap | None = None,
+    actuator: Actuator | None = None,
     prefix: str = "softcurve_model",
     embed_parameters: bool = True,
     seed: int = 0,
@@ -183,7 +183,7 @@ def export_c(
     model : Model
     directory : path
         Created if missing; existing files of the same names are overwritten.
-    actuator : PressureMap, optional
+    actuator : Actuator, optional
         Adds ``<prefix>_pressure_matrix(q) -> H`` (n x m, column-major).
     prefix : str
         A C identifier: file names and function names start with it.

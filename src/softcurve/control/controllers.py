@@ -31,7 +31,7 @@ import scipy.optimize
 
 from softcurve.analysis.loads import coordinate_scale
 from softcurve.base.validation import ParameterError, real_array, real_scalar
-from softcurve.description.actuators import PressureMap
+from softcurve.description.actuators import Actuator
 
 
 # -- references -------------------------------------------------------------------------
@@ -217,7 +217,7 @@ def closed_loop_rhs(model, controller) -> Callable:
 
 
 # -- pressures --------------------------------------------------------------------------
-def pressure_input(actuator: PressureMap, pressures) -> Callable:
+def pressure_input(actuator: Actuator, pressures) -> Callable:
     """A ``tau(t, state)`` input for :func:`softcurve.simulate` from bellow pressures.
 
     ``pressures`` is a constant array (m,) [Pa] or a callable ``pressures(t) -> (m,)``;
@@ -228,14 +228,14 @@ def pressure_input(actuator: PressureMap, pressures) -> Callable:
     if callable(pressures):
         schedule = pressures
     else:
-        constant = actuator.check_pressures(pressures)
+        constant = actuator.check_inputs(pressures)
 
         def schedule(t):
             return constant
 
     def tau(t, state):
-        p = actuator.check_pressures(schedule(t), name=f"pressures at t = {t:g} s")
-        return actuator.matrix(state.q) @ p
+        p = actuator.check_inputs(schedule(t), name=f"pressures at t = {t:g} s")
+        return actuator.input_matrix(state.q) @ p
 
     return tau
 
@@ -260,19 +260,19 @@ class PressureAllocator:
 
     Parameters
     ----------
-    actuator : PressureMap
+    actuator : Actuator
     robot : Robot
         Supplies the weights ``W = diag(l0, 1/l0, 1/l0)`` per segment.
     """
 
-    def __init__(self, actuator: PressureMap, robot):
+    def __init__(self, actuator: Actuator, robot):
         actuator.check_robot(robot)
         self.actuator = actuator
         self.weights = coordinate_scale(robot)
 
     def allocate(self, q, tau) -> Allocation:
         """The pressures within bounds whose ``H(q) p`` is closest to ``tau``."""
-        h = self.actuator.matrix(q)
+        h = self.actuator.input_matrix(q)
         tau = real_array("tau", tau, (self.actuator.n,))
         w = self.weights
         lower, upper = self.actuator.lower, self.actuator.upper
@@ -308,13 +308,13 @@ class PressureDriven(_Sampled):
     ----------
     controller
         Any controller of the protocol (its ``sample_time`` is used).
-    actuator : PressureMap
+    actuator : Actuator
     robot : Robot
     compensate_lag : bool
         Invert the pressure lag over one sample (default True; no effect without a lag).
     """
 
-    def __init__(self, controller, actuator: PressureMap, robot, *, compensate_lag: bool = True):
+    def __init__(self, controller, actuator: Actuator, robot, *, compensate_lag: bool = True):
         super().__init__(controller.sample_time)
         self.controller = controller
         self.compensate_lag = bool(compensate_lag)
@@ -332,7 +332,7 @@ class PressureDriven(_Sampled):
 
     def __call__(self, t, q, qd, lam=None) -> np.ndarray:
         if self._time is not None:
-            self._pressures = self.actuator.pressure_step(
+            self._pressures = self.actuator.input_step(
                 self._pressures, self._command, t - self._time
             )
         tau_wanted = np.array(self.controller(t, q, qd, lam), dtype=np.float64)
@@ -345,7 +345,7 @@ class PressureDriven(_Sampled):
             a = math.exp(-self.sample_time / lag)
             command = self.actuator.clip((command - a * self._pressures) / (1.0 - a))
         self._command, self._time = command, t
-        tau = self.actuator.matrix(q) @ self._pressures
+        tau = self.actuator.input_matrix(q) @ self._pressures
         self.log.append(
             {
                 "t": t,

@@ -28,7 +28,7 @@ from softcurve.analysis.linear import linearize
 from softcurve.analysis.loads import coordinate_scale
 from softcurve.base.validation import ParameterError, real_scalar
 from softcurve.control.controllers import Reference, _Sampled
-from softcurve.description.actuators import PressureMap
+from softcurve.description.actuators import Actuator
 
 
 class PressureMPC(_Sampled):
@@ -38,7 +38,7 @@ class PressureMPC(_Sampled):
     ----------
     model : Model
         The controller's model.
-    actuator : PressureMap
+    actuator : Actuator
     reference : Reference
     horizon : int
         Samples predicted (>= 1).
@@ -51,7 +51,7 @@ class PressureMPC(_Sampled):
     def __init__(
         self,
         model,
-        actuator: PressureMap,
+        actuator: Actuator,
         reference: Reference,
         *,
         horizon: int = 20,
@@ -85,7 +85,7 @@ class PressureMPC(_Sampled):
             self.model, q, qd, lam, actuator=self.actuator, pressures=p0, inputs="pressures"
         )
         x = lin.x
-        drift = self.model.state_derivative(x, self.actuator.matrix(q) @ p0)
+        drift = self.model.state_derivative(x, self.actuator.input_matrix(q) @ p0)
         n_x, m = lin.B.shape
         augmented = np.zeros((n_x + m + 1, n_x + m + 1))
         augmented[:n_x, :n_x], augmented[:n_x, n_x : n_x + m] = lin.A, lin.B
@@ -124,7 +124,7 @@ class PressureMPC(_Sampled):
         )
         pressures = self.actuator.clip(p0 + scale[:m] * solution.x[:m])
         self._applied = pressures
-        tau = self.actuator.matrix(q) @ pressures
+        tau = self.actuator.input_matrix(q) @ pressures
         self.log.append(
             {"t": t, "tau": tau, "pressures": pressures, "status": solution.status,
              "cost": float(2 * solution.cost)}

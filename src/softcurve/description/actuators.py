@@ -1,6 +1,6 @@
 """Pneumatic actuation: from chamber pressures to generalized forces, ``tau = H(q) p``.
 
-Two maps share one interface (:class:`PressureMap`):
+Two maps share one interface (:class:`Actuator`):
 
 - :class:`PneumaticActuator`, a set of :class:`Bellows`, derives ``H(q)`` from the
   virtual work of the chamber pressures (MODEL.md, "Pneumatic actuation"). A bellow
@@ -30,7 +30,7 @@ chain because the PCC frames do not twist.
 Pressures are gauge pressures [Pa], bounded to ``[p_min, p_max]``; ``p_min`` is 0 for
 the usual positive-pressure robot and may go down to ``-ATMOSPHERIC_PRESSURE`` for a
 vacuum-driven one. An optional first-order lag ``p' = (p_cmd - p) / time_constant``
-models the valves and tubing; :meth:`PressureMap.pressure_step` gives its exact response
+models the valves and tubing; :meth:`Actuator.input_step` gives its exact response
 to a command held over an interval.
 """
 
@@ -125,8 +125,13 @@ class Bellows:
         object.__setattr__(self, "segments", tuple(int(j) for j in segments))
 
 
-class PressureMap:
-    """The interface shared by :class:`PneumaticActuator` and :class:`ConstantPressureMap`.
+class Actuator:
+    """An actuator: bounded inputs ``u`` (m,) acting on the robot as ``tau = H(q) u``.
+
+    The one interface through which inputs drive a robot, in simulation, statics,
+    linearization, control and code export: pressures [Pa] for
+    :class:`PneumaticActuator` and :class:`ConstantPressureMap`; any other actuator
+    (tendons) implements the same methods.
 
     Attributes
     ----------
@@ -147,12 +152,12 @@ class PressureMap:
     time_constant: float | None
 
     # -- the map ---------------------------------------------------------------------
-    def matrix_symbolic(self, q, theta=None):
+    def input_matrix_symbolic(self, q, theta=None):
         """``H(q)`` (n, m) as a CasADi expression of ``q``; ``theta`` may replace
         :meth:`parameter_vector` by symbols (e.g. to identify areas)."""
         raise NotImplementedError
 
-    def pressure_work_symbolic(self, q, pressures):
+    def input_work_symbolic(self, q, pressures):
         """``W(q)`` with ``dW/dq = H(q) p`` at constant pressures ``p`` (CasADi scalar) [J].
 
         Constant pressures are conservative: ``-W`` is their potential, and its Hessian
@@ -167,22 +172,22 @@ class PressureMap:
     def parameter_names(self) -> list[str]:
         raise NotImplementedError
 
-    def matrix(self, q) -> np.ndarray:
+    def input_matrix(self, q) -> np.ndarray:
         """``H(q)``, shape (n, m), mapping pressures [Pa] to generalized forces."""
         q = self._coordinates(q)
         function = self.__dict__.get("_matrix_function")
         if function is None:
             symbol = ca.SX.sym("q", self.n)
-            function = ca.Function("H", [symbol], [ca.densify(self.matrix_symbolic(symbol))])
+            function = ca.Function("H", [symbol], [ca.densify(self.input_matrix_symbolic(symbol))])
             object.__setattr__(self, "_matrix_function", function)  # a cache, not state
         return np.array(function(q), dtype=np.float64)
 
     def generalized_force(self, q, pressures) -> np.ndarray:
         """``tau = H(q) p``, shape (n,); the pressures must lie within the bounds."""
-        return self.matrix(q) @ self.check_pressures(pressures)
+        return self.input_matrix(q) @ self.check_inputs(pressures)
 
     # -- pressures -------------------------------------------------------------------
-    def check_pressures(self, pressures, name: str = "pressures") -> np.ndarray:
+    def check_inputs(self, pressures, name: str = "pressures") -> np.ndarray:
         """``pressures`` as a float64 array (m,), or :class:`ParameterError` if any is
         outside ``[lower, upper]`` or not finite."""
         p = real_array(name, pressures, (self.n_inputs,))
@@ -202,13 +207,13 @@ class PressureMap:
             raise ValueError(f"pressures must have shape ({self.n_inputs},), got {p.shape}")
         return np.clip(p, self.lower, self.upper)
 
-    def pressure_rate(self, pressures, command) -> np.ndarray:
+    def input_rate(self, pressures, command) -> np.ndarray:
         """``p' = (p_cmd - p) / time_constant`` with the command saturated first [Pa/s]."""
         if self.time_constant is None:
-            raise ParameterError("pressure_rate needs a time_constant (this map has none)")
+            raise ParameterError("input_rate needs a time_constant (this map has none)")
         return (self.clip(command) - np.asarray(pressures, dtype=np.float64)) / self.time_constant
 
-    def pressure_step(self, pressures, command, dt: float) -> np.ndarray:
+    def input_step(self, pressures, command, dt: float) -> np.ndarray:
         """Exact pressures after holding ``command`` (saturated) for ``dt`` seconds.
 
         ``p(dt) = c + (p(0) - c) exp(-dt / time_constant)``; without a time constant the
@@ -240,7 +245,7 @@ class PressureMap:
 
 
 @dataclass(frozen=True, eq=False)
-class PneumaticActuator(PressureMap):
+class PneumaticActuator(Actuator):
     """Bellows whose ``H(q)`` follows from the virtual work of their pressures.
 
     Parameters
@@ -331,7 +336,7 @@ class PneumaticActuator(PressureMap):
             lengths.append(total)
         return ca.vertcat(*lengths)
 
-    def pressure_work_symbolic(self, q, pressures):
+    def input_work_symbolic(self, q, pressures):
         areas = ca.DM([b.area for b in self.bellows])
         return ca.dot(pressures * areas, self.fibre_lengths_symbolic(q))
 
@@ -341,7 +346,7 @@ class PneumaticActuator(PressureMap):
         lengths = np.array(ca.DM(self.fibre_lengths_symbolic(ca.DM(q)))).ravel()
         return np.array([b.area for b in self.bellows]) * lengths
 
-    def matrix_symbolic(self, q, theta=None):
+    def input_matrix_symbolic(self, q, theta=None):
         # Closed form of A dL/dq (module docstring); tests check it against dV/dq.
         columns = []
         for i, b in enumerate(self.bellows):
@@ -364,7 +369,7 @@ class PneumaticActuator(PressureMap):
 
 
 @dataclass(frozen=True, eq=False)
-class ConstantPressureMap(PressureMap):
+class ConstantPressureMap(Actuator):
     """A constant ``H`` (n x m) [N/Pa and N m^2/Pa], e.g. identified from experiments.
 
     Parameters
@@ -431,14 +436,14 @@ class ConstantPressureMap(PressureMap):
     def parameter_names(self) -> list[str]:
         return [f"matrix[{i},{j}]" for i in range(self.n) for j in range(self.n_inputs)]
 
-    def matrix(self, q) -> np.ndarray:
+    def input_matrix(self, q) -> np.ndarray:
         self._coordinates(q)
         return self.constant.copy()
 
-    def pressure_work_symbolic(self, q, pressures):
+    def input_work_symbolic(self, q, pressures):
         return ca.dot(q, ca.DM(self.constant) @ pressures)
 
-    def matrix_symbolic(self, q, theta=None):
+    def input_matrix_symbolic(self, q, theta=None):
         if theta is None:
             return ca.DM(self.constant)
         return ca.reshape(theta, self.n_inputs, self.n).T
@@ -461,7 +466,7 @@ _KEYS = {
 }
 
 
-def from_mapping(mapping: Mapping, *, n_segments: int = 1, where: str = "actuation") -> PressureMap:
+def from_mapping(mapping: Mapping, *, n_segments: int = 1, where: str = "actuation") -> Actuator:
     """A pressure map from a configuration table (e.g. TOML ``[actuation]``).
 
     ``kind = "bellows"`` (default): either ``distance``, ``area``, ``p_max`` (and optional

@@ -109,7 +109,7 @@ def bellows_input_map(
         geometry = []
         for phi in _azimuths(values, prefix, numbering):
             geometry += [phi, values[f"{prefix}.distance"], values[f"{prefix}.area"]]
-        return actuator.matrix_symbolic(q, ca.vertcat(*geometry)) @ u
+        return actuator.input_matrix_symbolic(q, ca.vertcat(*geometry)) @ u
 
     nominal = {f"{prefix}.area": area, f"{prefix}.distance": distance, f"{prefix}.angle": 0.0}
     return InputMap(function, nominal)

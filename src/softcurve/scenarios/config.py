@@ -278,7 +278,7 @@ def _check_pressures(sim: _Reader, scenario: Scenario) -> None:
         sim.fail("pressures", "give tau or pressures, not both")
     actuator = scenario.actuator()
     try:
-        actuator.check_pressures(scenario.pressures)
+        actuator.check_inputs(scenario.pressures)
     except ParameterError as exc:
         sim.fail("pressures", str(exc))
 

@@ -123,11 +123,11 @@ def _input_grid(name: str, value, n: int, grid: np.ndarray):
 
 def _pressure_input(model: Model, actuator, pressures, grid, tau, controller):
     """``(inputs, PressureInput, check)`` for ``simulate(pressures=..., actuator=...)``."""
-    from softcurve.description.actuators import PressureMap
+    from softcurve.description.actuators import Actuator
 
-    if not isinstance(actuator, PressureMap):
+    if not isinstance(actuator, Actuator):
         raise ParameterError(
-            "pressures need actuator= a softcurve.PressureMap (e.g. PneumaticActuator), "
+            "pressures need actuator= a softcurve.Actuator (e.g. PneumaticActuator), "
             f"got {type(actuator).__name__}"
         )
     if tau is not None or controller is not None:
@@ -136,13 +136,13 @@ def _pressure_input(model: Model, actuator, pressures, grid, tau, controller):
     inputs = _input_grid("pressures", pressures, actuator.n_inputs, grid)
     if not callable(inputs):
         for row in np.unique(inputs, axis=0):
-            actuator.check_pressures(row)
+            actuator.check_inputs(row)
     q, p = ca.SX.sym("q", model.n), ca.SX.sym("p", actuator.n_inputs)
-    force = ca.Function("pressure_force", [q, p], [ca.mtimes(actuator.matrix_symbolic(q), p)])
+    force = ca.Function("pressure_force", [q, p], [ca.mtimes(actuator.input_matrix_symbolic(q), p)])
     description = PressureInput(
         force, actuator.lower.copy(), actuator.upper.copy(), actuator.time_constant
     )
-    return inputs, description, lambda value: actuator.check_pressures(value, "pressures returned")
+    return inputs, description, lambda value: actuator.check_inputs(value, "pressures returned")
 
 
 def check_settings(t_final, dt, rtol, method, max_steps, methods=METHODS):
@@ -221,7 +221,7 @@ def simulate(
         ``time_constant`` they are the chamber pressures; with one they are commands and
         the chamber pressures are integrated states, ``p' = (command - p) /
         time_constant``, starting at zero gauge pressure.
-    actuator : PressureMap, optional
+    actuator : Actuator, optional
         The pressure map for ``pressures`` (required with them).
     max_steps : int
         Internal steps allowed between two output times.
