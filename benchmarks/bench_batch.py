@@ -34,7 +34,7 @@ import numpy as np
 
 import softcurve as sc
 from softcurve.simulation.batch import default_threads, simulate_batch
-from softcurve.simulation.simulate import nominal_scale
+from softcurve.simulation.engine import nominal_scale
 from softcurve.symbolic.dynamics import DEFAULT_QUADRATURE_NODES
 
 T_FINAL = 10.0
@@ -73,8 +73,10 @@ def main() -> None:
 
     model = sc.Model(sc.presets.ifac2020())
     q0s, qd0s = members(args.size)
-    simulate_batch(model, T_FINAL, q0s[:2], qd0s[:2], dt=args.dt)  # warm-up: build integrators
-    reference = simulate_batch(model, T_FINAL, q0s, qd0s, dt=args.dt, rtol=1e-10).x
+    simulate_batch(
+        model, q0s[:2], qd0s[:2], t_final=T_FINAL, dt=args.dt
+    )  # warm-up: build integrators
+    reference = simulate_batch(model, q0s, qd0s, t_final=T_FINAL, dt=args.dt, rtol=1e-10).x
     scale = np.abs(reference).max(axis=1, keepdims=True) + nominal_scale(
         model, np.zeros(model.n_state)
     )
@@ -97,7 +99,9 @@ def main() -> None:
     count = min(args.loop, args.size)
     ((wall, cpu), _), singles = best_of(
         1,
-        lambda: [sc.simulate(model, T_FINAL, q0s[i], qd0s[i], dt=args.dt).x for i in range(count)],
+        lambda: [
+            sc.simulate(model, q0s[i], qd0s[i], t_final=T_FINAL, dt=args.dt).x for i in range(count)
+        ],
     )
     singles = np.array(singles)
 
@@ -126,16 +130,18 @@ def main() -> None:
             if nodes == model.quadrature_nodes
             else sc.Model(sc.presets.ifac2020(), quadrature_nodes=nodes)
         )
-        simulate_batch(timed, T_FINAL, q0s[:2], qd0s[:2], dt=args.dt)  # warm-up
+        simulate_batch(timed, q0s[:2], qd0s[:2], t_final=T_FINAL, dt=args.dt)  # warm-up
         runs = [(f"{t} thread(s)", {"threads": t}) for t in sorted({1, threads})]
         if threads > 1:
             # warm-up: spawn the workers, load the model, build the integrators
-            simulate_batch(timed, T_FINAL, q0s[:4], qd0s[:4], dt=args.dt, processes=threads)
+            simulate_batch(timed, q0s[:4], qd0s[:4], t_final=T_FINAL, dt=args.dt, processes=threads)
             runs.append((f"{threads} processes", {"processes": threads}))
         for label, how in runs:
             ((wall, cpu), best), x = best_of(
                 args.repeat,
-                lambda h=how, m=timed: simulate_batch(m, T_FINAL, q0s, qd0s, dt=args.dt, **h).x,
+                lambda h=how, m=timed: (
+                    simulate_batch(m, q0s, qd0s, t_final=T_FINAL, dt=args.dt, **h).x
+                ),
             )
             row(f"batch, {nodes} nodes, {label}", wall, cpu, x, best)
     print("cpu: this process only (the worker processes of the last rows are not counted);")

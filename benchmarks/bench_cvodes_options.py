@@ -28,7 +28,7 @@ import casadi as ca
 import numpy as np
 
 import softcurve as sc
-from softcurve.simulation import batch
+from softcurve.simulation import batch, batch_run
 from softcurve.simulation import engine as _engines
 
 T_FINAL = 10.0
@@ -46,7 +46,7 @@ def rate(model, q0, qd0, repeat: int = 3) -> float:
     best = np.inf
     for _ in range(repeat):
         start = time.process_time()
-        batch.simulate_batch(model, T_FINAL, q0, qd0, dt=0.01, threads=1)
+        batch.simulate_batch(model, q0, qd0, t_final=T_FINAL, dt=0.01, threads=1)
         best = min(best, time.process_time() - start)
     return q0.shape[0] * T_FINAL / best
 
@@ -61,7 +61,7 @@ def with_options(extra: dict):
             options["max_order"] = min(options["max_order"], 5)
         return options
 
-    batch.cvodes_options = patched if extra else original
+    batch_run.cvodes_options = patched if extra else original
 
 
 def _worker(args) -> tuple[float, float]:
@@ -74,9 +74,9 @@ def _worker(args) -> tuple[float, float]:
     else:
         model = sc.Model(sc.presets.ifac2020())
         q0, qd0 = members(size, seed)
-        batch.simulate_batch(model, T_FINAL, q0[:2], qd0[:2], dt=0.01, threads=1)  # warm-up
+        batch.simulate_batch(model, q0[:2], qd0[:2], t_final=T_FINAL, dt=0.01, threads=1)  # warm-up
         start = time.process_time()
-        batch.simulate_batch(model, T_FINAL, q0, qd0, dt=0.01, threads=1)
+        batch.simulate_batch(model, q0, qd0, t_final=T_FINAL, dt=0.01, threads=1)
     return time.process_time() - start
 
 
@@ -142,12 +142,13 @@ def after_the_transient(model) -> None:
     for split in (1.0, 2.0, 3.0):
         totals = {}
         for q0, qd0 in starts:
-            x = sc.simulate(model, split, q0, qd0, dt=0.01, method="adams").x[-1]
+            x = sc.simulate(model, q0, qd0, t_final=split, dt=0.01, method="adams").x[-1]
             for method in ("adams", "bdf"):
-                rest = (model, T_FINAL - split, x[:3], x[3:6], x[6:])
-                sc.simulate(*rest, dt=0.01, method=method)  # warm-up
+                rest = (model, x[:3], x[3:6], x[6:])
+                settings = dict(t_final=T_FINAL - split, dt=0.01, method=method)
+                sc.simulate(*rest, **settings)  # warm-up
                 start = time.perf_counter()
-                run = sc.simulate(*rest, dt=0.01, method=method)
+                run = sc.simulate(*rest, **settings)
                 wall = time.perf_counter() - start
                 steps, jacobians, time_sum = totals.get(method, (0, 0, 0.0))
                 totals[method] = (

@@ -24,7 +24,7 @@ import numpy as np
 from scipy.integrate import solve_ivp
 
 import softcurve as sc
-from softcurve.simulation.simulate import nominal_scale
+from softcurve.simulation.engine import nominal_scale
 
 Q0, QD0, T_FINAL = np.array([0.064, 25.0, 0.0]), np.array([0.0, 0.0, 1500.0]), 10.0
 
@@ -50,8 +50,8 @@ def main() -> None:
     repeat = 3 if args.quick else args.repeat
 
     model = sc.Model(sc.presets.ifac2020())
-    sc.simulate(model, T_FINAL, Q0, QD0)  # warm-up: CasADi builds its derivative functions
-    reference = sc.simulate(model, T_FINAL, Q0, QD0, method="adams", rtol=1e-11)
+    sc.simulate(model, Q0, QD0, t_final=T_FINAL)  # warm-up: CasADi builds its derivative functions
+    reference = sc.simulate(model, Q0, QD0, t_final=T_FINAL, method="adams", rtol=1e-11)
     scale = np.abs(reference.x).max(axis=0) + nominal_scale(model, np.zeros(model.n_state))
     affinity = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else "?"
     print(f"softcurve simulate benchmark: paper case, {T_FINAL:g} s, output every 1 ms")
@@ -83,7 +83,9 @@ def main() -> None:
         for rtol in tolerances:
             wall, trajectory = best_of(
                 repeat,
-                lambda m=method, r=rtol: sc.simulate(model, T_FINAL, Q0, QD0, method=m, rtol=r),
+                lambda m=method, r=rtol: sc.simulate(
+                    model, Q0, QD0, t_final=T_FINAL, method=m, rtol=r
+                ),
             )
             label = "simulate " + (
                 "(default) " + trajectory.stats["method"]
@@ -91,7 +93,9 @@ def main() -> None:
                 else trajectory.stats["method"]
             )
             row(label, rtol, wall, trajectory)
-    inner = min(sc.simulate(model, T_FINAL, Q0, QD0).stats["wall_time"] for _ in range(repeat))
+    inner = min(
+        sc.simulate(model, Q0, QD0, t_final=T_FINAL).stats["wall_time"] for _ in range(repeat)
+    )
     label = "  of which integration only"
     print(f"{label:<28}{1e-6:>7.0e}{1e3 * inner:>11.2f}{T_FINAL / inner:>13.0f}")
 
@@ -113,14 +117,14 @@ def main() -> None:
         row("scipy solve_ivp RK45", rtol, wall, x=solution.y.T, work=("", solution.nfev, 0))
         wall, trajectory = best_of(
             min(repeat, 3),
-            lambda r=rtol: sc.simulate(model, T_FINAL, Q0, QD0, method="rk45", rtol=r),
+            lambda r=rtol: sc.simulate(model, Q0, QD0, t_final=T_FINAL, method="rk45", rtol=r),
         )
         row("simulate rk45", rtol, wall, trajectory)
 
     virtual = sc.Model(sc.presets.ifac2020(), compile=False)
-    sc.simulate(virtual, 0.1, Q0, QD0)
+    sc.simulate(virtual, Q0, QD0, t_final=0.1)
     wall, trajectory = best_of(
-        1 if args.quick else 2, lambda: sc.simulate(virtual, T_FINAL, Q0, QD0)
+        1 if args.quick else 2, lambda: sc.simulate(virtual, Q0, QD0, t_final=T_FINAL)
     )
     row("cvodes on CasADi VM (no C)", 1e-6, wall, trajectory)
     print()

@@ -4,7 +4,7 @@ Prints:
 - ``equilibria()`` with 48 starts, upright and hanging: wall time, residual evaluations;
 - ``inverse_statics()`` for five reachable targets: wall time per target, with the NLP
   expanded to SX (the default) against CasADi's MX graph (the comparison);
-- one sample of ``PressureMPC`` (horizon 10) against one of ``ComputedTorque``;
+- one sample of ``ActuatorMPC`` (horizon 10) against one of ``ComputedTorque``;
 - ``export_c()`` and compiling its test program at -O0 and -O2.
 
 Run: ``python benchmarks/bench_statics_control.py [--skip-compile]``
@@ -24,8 +24,9 @@ import softcurve as sc
 from softcurve.analysis.quasistatic import inverse_statics
 from softcurve.analysis.statics import equilibria
 from softcurve.compiled.codegen import build_and_run_test, export_c
-from softcurve.control.controllers import ComputedTorque, tip_circle
-from softcurve.control.mpc import PressureMPC
+from softcurve.control.controllers import ComputedTorque
+from softcurve.control.mpc import ActuatorMPC
+from softcurve.control.references import tip_circle
 
 
 def main() -> None:
@@ -65,7 +66,7 @@ def main() -> None:
     lam = np.zeros(model.n_creep)
     controllers = {
         "ComputedTorque": ComputedTorque(model, reference, kp=1e4, kd=200, sample_time=1e-3),
-        "PressureMPC(10)": PressureMPC(model, actuator, reference, horizon=10, sample_time=0.01),
+        "ActuatorMPC(10)": ActuatorMPC(model, actuator, reference, horizon=10, sample_time=0.01),
     }
     for label, controller in controllers.items():
         controller(0.0, state.q, state.qd, lam)  # first call builds cached functions

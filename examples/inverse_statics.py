@@ -23,7 +23,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 import softcurve as sc
-from softcurve.analysis.quasistatic import inverse_statics, pressure_sweep
+from softcurve.analysis.quasistatic import input_sweep, inverse_statics
 
 
 def main() -> None:
@@ -36,7 +36,7 @@ def main() -> None:
 
     path = np.zeros((41, 3))
     path[:, 0] = np.linspace(0.0, 6e4, 41)
-    sweep = pressure_sweep(model, actuator, path)
+    sweep = input_sweep(model, actuator, path)
     print(f"sweep: {sweep.message}; at 60 kPa tip {np.round(1e3 * sweep.tip[-1], 2)} mm, "
           f"curvature {sweep.curvature[-1, 0]:.2f} 1/m, {set(sweep.stability)}")  # fmt: skip
 
@@ -45,11 +45,11 @@ def main() -> None:
     targets += [np.array([x, 0.0, 0.05]) for x in (0.01, 0.03, 0.05, 0.07)]
     results = [inverse_statics(model, actuator, target) for target in targets]
     for r in results:
-        print(f"target {np.round(1e3 * r.target, 1)} mm -> p = {np.round(r.pressures / 1e3, 2)} "
-              f"kPa, miss {1e3 * r.distance:.2e} mm, {r.stability}, {r.status}")  # fmt: skip
+        print(f"target {np.round(1e3 * r.target, 1)} mm -> p = {np.round(r.inputs / 1e3, 2)} "
+              f"kPa, miss {1e3 * r.distance:.2e} mm, {r.stability}, {r.status.value}")  # fmt: skip
 
     fig, (ax_tip, ax_k, ax_xz) = plt.subplots(1, 3, figsize=(14, 4), constrained_layout=True)
-    p1 = sweep.pressures[:, 0] / 1e3
+    p1 = sweep.inputs[:, 0] / 1e3
     for i, name in enumerate("xyz"):
         ax_tip.plot(p1, 1e3 * sweep.tip[:, i], label=f"tip {name}")
     ax_tip.set(xlabel="p1 [kPa] (p2 = p3 = 0)", ylabel="tip position [mm]", title="pressure map")
@@ -59,7 +59,7 @@ def main() -> None:
     ax_k.set(xlabel="p1 [kPa]", title="curvature and elongation")
     ax_k.legend(fontsize="small")
     for r in results:
-        reached = r.distance < 1e-6
+        reached = r.success
         ax_xz.plot(1e3 * r.target[0], 1e3 * r.target[2], "k+" if reached else "rx")
         ax_xz.plot(1e3 * r.tip[0], 1e3 * r.tip[2], "o", mfc="none", color="C0" if reached else "C3")
         backbone = np.array([np.array(model.pose(r.q, s).position) for s in np.linspace(0, 1, 30)])

@@ -19,8 +19,8 @@ import numpy as np
 from scipy.signal import butter, find_peaks, sosfiltfilt
 
 import softcurve as sc
-from softcurve.simulation.engine import _linearisation as linearisation
-from softcurve.simulation.simulate import nominal_scale, stiffness_ratio
+from softcurve.figures import save_figure
+from softcurve.simulation.engine import linearization_eigenvalues, stiffness_ratio
 
 Q0, QD0 = [0.064, 25.0, 0.0], [0.0, 0.0, 1500.0]
 
@@ -31,7 +31,7 @@ def zero_crossings(y, t):
 
 
 def modes(model, x):
-    eigenvalues = linearisation(model, x, np.zeros(model.n), nominal_scale(model, x))
+    eigenvalues = linearization_eigenvalues(model, x)
     oscillating = sorted(
         {
             (round(float(-e.real), 2), round(float(abs(e.imag)) / (2 * np.pi), 2))
@@ -47,8 +47,8 @@ def main() -> None:
     parser.add_argument("--figures", type=Path, help="folder for the close-up figure")
     args = parser.parse_args()
     model = sc.Model(sc.presets.ifac2020())
-    run = sc.simulate(model, 10.0, Q0, QD0)
-    fine = sc.simulate(model, 1.0, Q0, QD0, dt=1e-4)
+    run = sc.simulate(model, Q0, QD0, t_final=10.0)
+    fine = sc.simulate(model, Q0, QD0, t_final=1.0, dt=1e-4)
     t, q = fine.t, fine.q
     print(f"run: {run.message}; {1e3 * run.stats['wall_time']:.1f} ms integrating")
     print(f"stiffness ratio at x0: {stiffness_ratio(model, run.x[0]):.2f} -> {run.stats['method']}")
@@ -88,7 +88,7 @@ def main() -> None:
     print(f"final state q = {run.q[-1].tolist()}, |qd| = {np.abs(run.qd[-1]).max():.2e}")
     print(f"compression by gravity l0 - l = {1e3 * (0.0644 - run.q[-1, 0]):.4f} mm")
 
-    coarse = sc.simulate(model, 1.0, Q0, QD0)
+    coarse = sc.simulate(model, Q0, QD0, t_final=1.0)
     difference = np.abs(fine.x[::10] - coarse.x).max(axis=0)
     print(
         "\n1 ms against 0.1 ms output, same times: max |difference| in "
@@ -98,11 +98,11 @@ def main() -> None:
 
     segment = model.robot.segments[0].replace(rest_length=0.064)
     authors = sc.Model(model.robot.replace(segments=(segment,)))
-    straight = sc.simulate(authors, 10.0, Q0, QD0).q[-1]
+    straight = sc.simulate(authors, Q0, QD0, t_final=10.0).q[-1]
     bending = segment.bending_stiffness
     k_b0 = bending.a1 - bending.a2
     offset = np.array([0.0, k_b0 * 0.01 * 0.064, 0.0])  # rest bend 0.01 rad, linearised
-    bent = sc.simulate(authors, 10.0, Q0, QD0, tau=offset).q[-1]
+    bent = sc.simulate(authors, Q0, QD0, tau=offset, t_final=10.0).q[-1]
     print(
         "\nwith the authors' l0 = 0.064 m: equilibrium "
         f"l = {straight[0]:.5f} m, kappa = {np.hypot(*straight[1:]):.2e} 1/m"
@@ -121,7 +121,7 @@ def main() -> None:
         figure.axes[0].set_title("State trajectories, first second (output every 0.1 ms)")
         path = args.figures / "paper-states-first-second.png"
         args.figures.mkdir(parents=True, exist_ok=True)
-        figure.savefig(path, dpi=110)
+        save_figure(figure, path)
         plt.close(figure)
         print(f"\nwrote {path}")
 

@@ -26,8 +26,9 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 import softcurve as sc
-from softcurve.control.controllers import ComputedTorque, PressureDriven, tip_circle
-from softcurve.control.mpc import PressureMPC
+from softcurve.control.controllers import ActuatorDriven, ComputedTorque
+from softcurve.control.mpc import ActuatorMPC
+from softcurve.control.references import tip_circle
 from softcurve.simulation.simulate import simulate
 
 CIRCLE = dict(center=(0.02, 0.0, 0.065), radius=0.01, period=2.0)
@@ -51,9 +52,11 @@ def run(plant, controller_model, actuator, reference, t_final):
     controller = ComputedTorque(
         controller_model, reference, kp=OMEGA**2, kd=2 * 0.9 * OMEGA, sample_time=2e-3
     )
-    driven = PressureDriven(controller, actuator, plant.robot)
+    driven = ActuatorDriven(controller, actuator, plant.robot)
     start = reference(0.0)
-    trajectory = simulate(plant, t_final, start.q, start.qd, controller=driven, dt=5e-3)
+    trajectory = simulate(
+        plant, start.q, start.qd, actuator=actuator, controller=driven, t_final=t_final, dt=5e-3
+    )
     if not trajectory.success:
         raise SystemExit(trajectory.message)
     target = np.array([np.array(plant.tip_pose(reference(t).q).position) for t in trajectory.t])
@@ -76,15 +79,17 @@ def main() -> None:
         plant, sc.Model(softer(plant.robot)), actuator, reference, args.t_final
     )
     lag_free = sc.PneumaticActuator.three_bellows(distance=0.012, area=2e-4, p_max=6e4)
-    mpc = PressureMPC(plant, lag_free, reference, horizon=10, sample_time=0.01)
+    mpc = ActuatorMPC(plant, lag_free, reference, horizon=10, sample_time=0.01)
     start = reference(0.0)
-    predictive = simulate(plant, args.t_final, start.q, start.qd, controller=mpc, dt=5e-3)
+    predictive = simulate(
+        plant, start.q, start.qd, actuator=lag_free, controller=mpc, t_final=args.t_final, dt=5e-3
+    )
     error_mpc = np.linalg.norm(predictive.tip - target, axis=1)
     settled = exact.t >= 1.0
     print(f"tip error after 1 s: max {1e3 * error[settled].max():.3f} mm (exact model), "
           f"{1e3 * error_10[settled].max():.3f} mm (10 % stiffness error), "
           f"{1e3 * error_mpc[settled].max():.4f} mm (MPC)")  # fmt: skip
-    print(f"pressures: max {driven.history('pressures').max() / 1e3:.1f} kPa; "
+    print(f"pressures: max {driven.history('inputs').max() / 1e3:.1f} kPa; "
           f"{driven.history('saturated').any(axis=1).mean():.0%} of samples saturated")  # fmt: skip
 
     fig, (ax_xy, ax_p, ax_e) = plt.subplots(1, 3, figsize=(13, 4), constrained_layout=True)
@@ -96,7 +101,7 @@ def main() -> None:
     ax_xy.set(xlabel="tip x [mm]", ylabel="tip y [mm]", aspect="equal", title="tip path")
     ax_xy.legend(fontsize="small")
     t = driven.history("t")
-    for i, line in enumerate(ax_p.plot(t, driven.history("pressures") / 1e3)):
+    for i, line in enumerate(ax_p.plot(t, driven.history("inputs") / 1e3)):
         line.set_label(f"bellow {i + 1}")
     ax_p.axhline(actuator.upper[0] / 1e3, color="gray", lw=0.8)
     ax_p.set(xlabel="t [s]", ylabel="pressure [kPa]", title="bellow pressures (computed torque)")

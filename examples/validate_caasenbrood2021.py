@@ -29,19 +29,21 @@ import matplotlib
 import numpy as np
 
 import softcurve as sc
+from softcurve.base.status import Status
 from softcurve.identification.dynamic import (
-    Free,
-    bellows_input_map,
-    bending_angle,
-    constant_input_map,
-    curvatures,
     fit_equilibria,
     fit_trajectory,
     predict_equilibria,
     predict_trajectory,
-    tanh_parameters,
 )
 from softcurve.identification.experiments import load_mat
+from softcurve.identification.maps import (
+    bellows_input_map,
+    bending_angle,
+    constant_input_map,
+    curvatures,
+)
+from softcurve.identification.parameters import Free, tanh_parameters
 from softcurve.identification.stiffness import fit_stiffness
 
 matplotlib.use("Agg")
@@ -214,7 +216,7 @@ def openloop_study(experiment, k_zero: dict):
     for numbering in (1, -1):
         for angle in (-2.0, 0.0, 2.0):
             fit, *_ = openloop_fit(model, robot, train, "linear", "constant", numbering, angle, 1)
-            if fit.status != "failed":
+            if fit.status not in (Status.NOT_CONVERGED, Status.INFEASIBLE):
                 search.append((float(np.sum(fit.rms**2)), numbering, fit.value("map.angle"), fit))
     search.sort(key=lambda item: item[0])
     _, numbering, angle, _ = search[0]

@@ -2,6 +2,10 @@
 
 from __future__ import annotations
 
+import os
+
+os.environ.setdefault("MPLBACKEND", "Agg")  # the tests only: the package never picks a backend
+
 import numpy as np
 import pytest
 

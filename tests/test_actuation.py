@@ -9,7 +9,8 @@ import numpy as np
 import pytest
 
 from softcurve import Bellows, ConstantPressureMap, ParameterError, PneumaticActuator
-from softcurve.description.actuators import ATMOSPHERIC_PRESSURE, from_mapping
+from softcurve.description.pneumatic import ATMOSPHERIC_PRESSURE
+from softcurve.scenarios.actuation import from_mapping
 
 from .conftest import assert_close
 
@@ -54,7 +55,7 @@ def test_pressure_work_gradient_is_h_times_p(rng):
         assert_close(np.array(gradient(qv, pv)).ravel(), act.input_matrix(qv) @ pv, rtol=1e-13)
 
 
-def test_a_pressurised_bellow_lengthens_and_bends_away_from_itself():
+def test_a_pressurized_bellow_lengthens_and_bends_away_from_itself():
     act = actuator()
     straight = np.array([0.0644, 0.0, 0.0])
     for i, phi in enumerate(act.parameter_vector()[0::3]):

@@ -93,7 +93,7 @@ def test_solver_failure_exits_1_and_keeps_the_partial_trajectory(tmp_path, capsy
     error = capsys.readouterr().err
     assert "integration failed" in error and "What to try" in error
     partial = sc.load_trajectory(out / "trajectory.csv")
-    assert partial.status == "failed" and 0 < partial.t.size < 501
+    assert partial.status == "integration_failed" and 0 < partial.t.size < 501
 
 
 @pytest.mark.parametrize(

@@ -1,4 +1,4 @@
-"""Computed torque, PD with compensation, pressure allocation, references."""
+"""Computed torque, PD with compensation, input allocation, MPC, references."""
 
 from __future__ import annotations
 
@@ -8,16 +8,16 @@ from scipy.integrate import solve_ivp
 
 import softcurve as sc
 from softcurve import ParameterError, PneumaticActuator, TanhStiffness
+from softcurve.base.status import Status
 from softcurve.control.controllers import (
+    ActuatorDriven,
     ComputedTorque,
+    InputAllocator,
     PDGravityElastic,
-    PressureAllocator,
-    PressureDriven,
-    Reference,
     closed_loop_rhs,
-    tip_circle,
-    tip_to_coordinates,
 )
+from softcurve.control.mpc import ActuatorMPC
+from softcurve.control.references import Reference, tip_circle, tip_to_coordinates
 from softcurve.simulation.simulate import simulate
 
 from .conftest import assert_close
@@ -88,7 +88,7 @@ def test_computed_torque_with_ten_percent_stiffness_error_stays_bounded(paper_mo
     model_error = sc.Model(softer(paper_model.robot))
     controller = ComputedTorque(model_error, ref, sample_time=1e-3, **GAINS)
     start = ref(0.0)
-    run = simulate(paper_model, 3.0, start.q, start.qd, controller=controller, dt=1e-2)
+    run = simulate(paper_model, start.q, start.qd, controller=controller, t_final=3.0, dt=1e-2)
     assert run.success, run.message
     error = tracking_error(paper_model, ref, run.t, run.q)
     tip_error = np.linalg.norm(run.tip - reference_tips(paper_model, ref, run.t), axis=1)
@@ -106,7 +106,7 @@ def test_sampled_computed_torque_tracks_the_tip_circle(paper_model):
     ref = tip_circle(**CIRCLE)
     controller = ComputedTorque(paper_model, ref, sample_time=1e-3, **GAINS)
     start = ref(0.0)
-    run = simulate(paper_model, 1.0, start.q, start.qd, controller=controller, dt=1e-2)
+    run = simulate(paper_model, start.q, start.qd, controller=controller, t_final=1.0, dt=1e-2)
     target = reference_tips(paper_model, ref, run.t)
     assert np.linalg.norm(run.tip - target, axis=1).max() < 1e-4  # measured 0.057 mm
     assert len(controller.log) == 1000
@@ -119,7 +119,7 @@ def test_pd_with_compensation_regulates_to_the_set_point(paper_model):
         sample_time=1e-3,
     )  # fmt: skip
     run = simulate(
-        paper_model, 2.0, [0.0644, 0.0, 0.0], np.zeros(3), controller=controller, dt=1e-2
+        paper_model, [0.0644, 0.0, 0.0], np.zeros(3), controller=controller, t_final=2.0, dt=1e-2
     )
     assert run.success
     # steady state N(q) + kp (goal - q) = N(q) + K^T lam, creep decays: q -> goal
@@ -128,34 +128,37 @@ def test_pd_with_compensation_regulates_to_the_set_point(paper_model):
 
 def test_allocation_is_exact_when_feasible_and_saturates_otherwise(paper_model, rng):
     act = actuator()
-    allocator = PressureAllocator(act, paper_model.robot)
+    allocator = InputAllocator(act, paper_model.robot)
     q = np.array([0.066, 8.0, -3.0])
     p = rng.uniform(1e4, 5e4, 3)
     result = allocator.allocate(q, act.input_matrix(q) @ p)
-    assert_close(result.pressures, p, rtol=1e-9)
-    assert not result.saturated.any()
+    assert_close(result.inputs, p, rtol=1e-9)
+    assert not result.saturated.any() and result.success
     # pulling the robot shorter needs negative pressures: all saturate at zero
     result = allocator.allocate(q, [-5.0, 0.0, 0.0])
-    assert np.all(result.pressures >= act.lower) and np.all(result.pressures <= act.upper)
+    assert np.all(result.inputs >= act.lower) and np.all(result.inputs <= act.upper)
     assert result.saturated.all() and result.residual > 0
+    assert result.status is Status.INFEASIBLE
     # optimality: no feasible direction decreases the weighted residual
     w = allocator.weights
     h = act.input_matrix(q)
     for _ in range(20):
-        trial = act.clip(result.pressures + rng.normal(scale=1e3, size=3))
+        trial = act.clip(result.inputs + rng.normal(scale=1e3, size=3))
         assert np.linalg.norm(w * (h @ trial - result.tau_requested)) >= result.residual - 1e-15
 
 
-def test_pressure_driven_tip_circle_respects_the_bounds(paper_model):
+def test_actuator_driven_tip_circle_respects_the_bounds(paper_model):
     act = actuator(p_max=3.5e4, time_constant=0.01)  # tight bound: some samples saturate
     ref = tip_circle(**CIRCLE)
-    driven = PressureDriven(
+    driven = ActuatorDriven(
         ComputedTorque(paper_model, ref, sample_time=2e-3, **GAINS), act, paper_model.robot
     )
     start = ref(0.0)
-    run = simulate(paper_model, 1.0, start.q, start.qd, controller=driven, dt=1e-2)
+    run = simulate(
+        paper_model, start.q, start.qd, actuator=act, controller=driven, t_final=1.0, dt=1e-2
+    )
     assert run.success, run.message
-    command, pressures = driven.history("command"), driven.history("pressures")
+    command, pressures = driven.history("command"), driven.history("inputs")
     assert np.all(command >= 0.0) and np.all(command <= 3.5e4)
     assert np.all(pressures >= 0.0) and np.all(pressures <= 3.5e4)
     assert driven.history("saturated").any()
@@ -163,11 +166,17 @@ def test_pressure_driven_tip_circle_respects_the_bounds(paper_model):
     dt = np.diff(driven.history("t"))
     expected = command[:-1] + (pressures[:-1] - command[:-1]) * np.exp(-dt / 0.01)[:, None]
     assert_close(pressures[1:], expected, rtol=1e-12, scale=3.5e4)
-    # and the robot received H(q) p
-    tau = driven.history("tau")
-    assert_close(
-        tau[-1], act.input_matrix(run.q[-1]) @ pressures[-1], rtol=0.05, scale=np.abs(tau[-1])
-    )
+    # the wrapper returns the commands, as actuator inputs (m,)
+    assert driven(1.0, run.q[-1], run.qd[-1], run.lam[-1]).shape == (3,)
+    # and the robot received H(q) u of those inputs: the integrated lag equals the
+    # wrapper's exact response at every output time that is a sample time
+    times = driven.history("t")
+    for k in (1, 25, 50, run.t.size - 2):
+        i = int(np.argmin(np.abs(times - run.t[k])))
+        assert abs(times[i] - run.t[k]) < 1e-12
+        assert_close(run.inputs[k], pressures[i], rtol=1e-5, scale=3.5e4)  # rtol of simulate
+    tau = act.input_matrix(run.q[-1]) @ run.inputs[-1]
+    assert_close(run.tau[-1], tau, rtol=1e-9, scale=np.abs(tau).max())
 
 
 def test_bad_controller_arguments(paper_model):
@@ -180,44 +189,28 @@ def test_bad_controller_arguments(paper_model):
         ComputedTorque(paper_model, Reference.constant(np.zeros(6)), kp=1, kd=1, sample_time=1)
 
 
-def test_constant_pressures_in_simulate_settle_at_the_static_equilibrium(paper_model):
-    from softcurve.analysis.statics import equilibrium
-    from softcurve.control.controllers import pressure_input
-
-    act, p = actuator(), np.array([2.5e4, 0.0, 1e4])
-    run = simulate(
-        paper_model, 3.0, [0.0644, 0, 0], np.zeros(3), tau=pressure_input(act, p), dt=1e-3
-    )
-    assert run.success, run.message
-    static = equilibrium(paper_model, [0.0644, 0, 0], actuator=act, pressures=p)
-    assert_close(run.q[-1], static.q, rtol=1e-5, scale=np.abs(static.q))
-    with pytest.raises(ParameterError, match=r"pressures at t = 0 s\[1\]"):
-        simulate(
-            paper_model,
-            0.01,
-            [0.0644, 0, 0],
-            np.zeros(3),
-            tau=pressure_input(act, lambda t: [0, -1.0, 0]),
-        )
-
-
 def test_mpc_tracks_the_tip_circle_within_pressure_bounds(paper_model):
-    from softcurve.control.mpc import PressureMPC
-
     ref = tip_circle(**CIRCLE)
     start = ref(0.0)
-    mpc = PressureMPC(paper_model, actuator(), ref, horizon=10, sample_time=0.01)
-    run = simulate(paper_model, 1.0, start.q, start.qd, controller=mpc, dt=1e-2)
+    act = actuator()
+    mpc = ActuatorMPC(paper_model, act, ref, horizon=10, sample_time=0.01)
+    run = simulate(
+        paper_model, start.q, start.qd, actuator=act, controller=mpc, t_final=1.0, dt=1e-2
+    )
     assert run.success, run.message
     error = np.linalg.norm(run.tip - reference_tips(paper_model, ref, run.t), axis=1)
     assert error[run.t > 0.5].max() < 1e-5  # measured 1.7e-6 m
-    pressures = mpc.history("pressures")
+    pressures = mpc.history("inputs")
     assert np.all(pressures >= 0.0) and np.all(pressures <= 6e4)
     # a tight bound saturates: the pressures stay inside and the error grows
-    tight = PressureMPC(paper_model, actuator(p_max=2.5e4), ref, horizon=10, sample_time=0.01)
-    run = simulate(paper_model, 0.5, start.q, start.qd, controller=tight, dt=1e-2)
-    pressures = tight.history("pressures")
+    tight_actuator = actuator(p_max=2.5e4)
+    tight = ActuatorMPC(paper_model, tight_actuator, ref, horizon=10, sample_time=0.01)
+    run = simulate(
+        paper_model, start.q, start.qd, actuator=tight_actuator, controller=tight, t_final=0.5,
+        dt=1e-2,
+    )  # fmt: skip
+    pressures = tight.history("inputs")
     assert np.all(pressures >= 0.0) and np.all(pressures <= 2.5e4)
     assert np.any(pressures == 2.5e4)
     with pytest.raises(ParameterError, match="horizon must be an integer >= 1"):
-        PressureMPC(paper_model, actuator(), ref, horizon=0)
+        ActuatorMPC(paper_model, actuator(), ref, horizon=0)

@@ -10,21 +10,13 @@ import numpy as np
 import pytest
 
 import softcurve as sc
-from softcurve.identification.dynamic import (
-    Free,
-    _Parameters,
-    bellows_input_map,
-    bending_angle,
-    curvatures,
-    fit_equilibria,
-    fit_trajectory,
-    predict_trajectory,
-    tanh_parameters,
-)
+from softcurve.base.status import Status
+from softcurve.identification.dynamic import fit_equilibria, fit_trajectory, predict_trajectory
 from softcurve.identification.experiments import Experiment
-from softcurve.identification.stiffness import covariance, fit_stiffness
-
-matplotlib.use("Agg")
+from softcurve.identification.maps import bellows_input_map, bending_angle, curvatures
+from softcurve.identification.parameters import Free, FreeParameters, tanh_parameters
+from softcurve.identification.report import covariance, summarize
+from softcurve.identification.stiffness import fit_stiffness
 
 SEG = "segments[0]."
 
@@ -95,6 +87,9 @@ def test_covariance_flags_parameters_that_only_enter_as_a_product():
     cov, identifiable = covariance(jac, np.full(20, 0.01))
     assert identifiable.tolist() == [False, False, True]
     assert np.isinf(cov[0, 0]) and np.isfinite(cov[2, 2])
+    # a converged fit with a singular covariance is reported as not identifiable
+    *_, status, message = summarize(("a", "b", "c"), jac, np.full(20, 0.01), Status.SUCCESS, "")
+    assert status is Status.NOT_IDENTIFIABLE and "['a', 'b']" in message
 
 
 # -- trajectory least squares --------------------------------------------------------
@@ -118,7 +113,7 @@ def test_trajectory_jacobian_is_exact(oscillation):
 
     model, _, data = oscillation
     free = [Free(SEG + "bending_stiffness.k0"), Free(SEG + "damping[1,1]"), Free("lam0")]
-    params = _Parameters(model, free, {"lam0": 0.3}, {}, None)
+    params = FreeParameters(model, free, {"lam0": 0.3}, {}, None)
 
     def x0(v):  # the initial bend is a free parameter too
         return ca.vertcat(0.064, v["lam0"] / 0.064, 0, 0, 0, 0)
@@ -164,7 +159,7 @@ def test_trajectory_fit_recovers_stiffness_and_damping(oscillation, noise_deg):
     matplotlib.pyplot.close(fig)
 
 
-def test_tanh_reparametrisation_and_robot_round_trip():
+def test_tanh_reparametrization_and_robot_round_trip():
     robot = _robot(bending=sc.TanhStiffness(0.02, 0.012, 3.0))
     values, bind = tanh_parameters(robot, SEG + "bending_stiffness")
     assert values[SEG + "bending_stiffness.k_zero"] == pytest.approx(0.008)

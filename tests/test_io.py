@@ -9,7 +9,9 @@ import pytest
 
 import softcurve as sc
 from softcurve.base.files import atomic_write
+from softcurve.base.status import Status
 from softcurve.scenarios.config import ConfigError, load_config, paper_scenario
+from softcurve.simulation.settings import SimulationSettings
 
 EXAMPLES = Path(__file__).resolve().parent.parent / "examples"
 
@@ -17,7 +19,7 @@ EXAMPLES = Path(__file__).resolve().parent.parent / "examples"
 @pytest.fixture(scope="module")
 def short_run(paper_model):
     tau = np.tile([0.01, 1e-3, -2e-3], (51, 1))
-    return sc.simulate(paper_model, 0.05, [0.064, 25.0, 0.0], [0.0, 0.0, 1500.0], tau=tau)
+    return sc.simulate(paper_model, [0.064, 25.0, 0.0], [0.0, 0.0, 1500.0], t_final=0.05, tau=tau)
 
 
 @pytest.mark.parametrize("suffix", [".csv", ".npz"])
@@ -36,14 +38,20 @@ def test_pressures_round_trip(paper_model, tmp_path, suffix):
     actuator = sc.PneumaticActuator.three_bellows(
         distance=0.012, area=2e-4, p_max=6e4, time_constant=0.02
     )
-    run = sc.simulate(paper_model, 0.05, [0.064, 0.0, 0.0], [0.0, 0.0, 0.0],
-                      pressures=[2e4, 0.0, 1e4], actuator=actuator)  # fmt: skip
+    run = sc.simulate(
+        paper_model,
+        [0.064, 0.0, 0.0],
+        [0.0, 0.0, 0.0],
+        t_final=0.05,
+        inputs=[2e4, 0.0, 1e4],
+        actuator=actuator,
+    )  # fmt: skip
     loaded = sc.load_trajectory(run.save(tmp_path / f"run{suffix}"))
-    for name in ("q", "tau", "pressures"):
+    for name in ("q", "tau", "inputs"):
         np.testing.assert_array_equal(getattr(loaded, name), getattr(run, name), err_msg=name)
     if suffix == ".csv":
         header = (tmp_path / "run.csv").read_text().splitlines()[1].split(",")
-        assert header[-6:] == ["tau1", "tau2", "tau3", "p1", "p2", "p3"]
+        assert header[-6:] == ["tau1", "tau2", "tau3", "u1", "u2", "u3"]
 
 
 def test_csv_has_named_columns_and_metadata(short_run, tmp_path):
@@ -56,9 +64,12 @@ def test_csv_has_named_columns_and_metadata(short_run, tmp_path):
 
 
 def test_failed_trajectory_round_trips_with_its_status(paper_model, tmp_path):
-    failed = sc.simulate(paper_model, 0.5, [0.064, 25.0, 0.0], [0.0, 0.0, 1500.0], max_steps=3)
+    failed = sc.simulate(
+        paper_model, [0.064, 25.0, 0.0], [0.0, 0.0, 1500.0], t_final=0.5, max_steps=3
+    )
     loaded = sc.load_trajectory(failed.save(tmp_path / "failed.csv"))
-    assert loaded.status == "failed" and not loaded.success and loaded.t.size == failed.t.size
+    assert loaded.status is Status.INTEGRATION_FAILED and not loaded.success
+    assert loaded.t.size == failed.t.size
 
 
 def test_unknown_suffix_is_refused(short_run, tmp_path):
@@ -85,7 +96,8 @@ def test_examples_load_and_the_paper_example_is_the_preset():
         paper.robot.parameter_vector(), sc.presets.ifac2020().parameter_vector()
     )
     builtin = paper_scenario()
-    for name in ("t_final", "dt", "q0", "qd0", "method", "rtol"):
+    assert paper.settings == builtin.settings
+    for name in ("q0", "qd0"):
         assert getattr(paper, name) == getattr(builtin, name), name
     assert scenarios["hanging"].robot.gravity[2] == 9.81
     two = scenarios["two-segment"].robot
@@ -114,7 +126,7 @@ p_max = 6e4
 
 def test_the_pneumatic_example_drives_the_robot_by_pressures():
     scenario = load_config(EXAMPLES / "pneumatic_step.toml")
-    assert scenario.pressures == (2.0e4, 0.0, 0.0)
+    assert scenario.inputs == (2.0e4, 0.0, 0.0)
     actuator = scenario.actuator()
     assert actuator.n_inputs == 3 and actuator.time_constant == 0.02
 
@@ -125,7 +137,7 @@ def test_a_minimal_file_gets_the_defaults(tmp_path):
     scenario = load_config(path)
     q0, qd0, lam0 = scenario.initial_state()
     np.testing.assert_array_equal(q0, [0.06, 0.0, 0.0])
-    assert scenario.t_final == 10.0 and scenario.method == "cvodes" and lam0.size == 0
+    assert scenario.settings == SimulationSettings() and lam0.size == 0
 
 
 BAD = [
@@ -199,20 +211,20 @@ BAD = [
     ),
     ("[robot\npreset = 1\n", "not valid TOML"),
     (
-        '[robot]\npreset = "ifac2020"\n[simulation]\npressures = [1.0, 0.0, 0.0]\n',
-        "simulation.pressures: needs an [actuation] table",
+        '[robot]\npreset = "ifac2020"\n[simulation]\ninputs = [1.0, 0.0, 0.0]\n',
+        "simulation.inputs: needs an [actuation] table",
     ),
     (
-        PNEUMATIC + "[simulation]\npressures = [7e4, 0.0, 0.0]\n",
-        "simulation.pressures: pressures[0] = 70000.0 Pa is outside its bounds",
+        PNEUMATIC + "[simulation]\ninputs = [7e4, 0.0, 0.0]\n",
+        "simulation.inputs: inputs[0] = 70000.0 Pa is outside its bounds",
     ),
     (
-        PNEUMATIC + "[simulation]\npressures = [1e4, 0.0]\n",
-        "pressures must have shape (3,)",
+        PNEUMATIC + "[simulation]\ninputs = [1e4, 0.0]\n",
+        "inputs must have shape (3,)",
     ),
     (
-        PNEUMATIC + "[simulation]\npressures = [1e4, 0.0, 0.0]\ntau = [0.0, 0.0, 0.0]\n",
-        "simulation.pressures: give tau or pressures, not both",
+        PNEUMATIC + "[simulation]\ninputs = [1e4, 0.0, 0.0]\ntau = [0.0, 0.0, 0.0]\n",
+        "simulation.inputs: give tau or inputs, not both",
     ),
 ]
 
@@ -231,3 +243,48 @@ def test_bad_files_name_file_key_and_reason(tmp_path, text, expected):
 def test_missing_file_is_a_config_error(tmp_path):
     with pytest.raises(ConfigError, match="no such file"):
         load_config(tmp_path / "nothing.toml")
+
+
+def test_a_scenario_checks_itself_also_when_replaced():
+    """dataclasses.replace re-runs the checks: no route around them."""
+    import dataclasses
+
+    scenario = paper_scenario()
+    with pytest.raises(sc.ParameterError, match="dt must be <= t_final"):
+        dataclasses.replace(scenario, settings=scenario.settings.replace(t_final=1e-4))
+    with pytest.raises(sc.ParameterError, match="q0 must have 3 entries"):
+        dataclasses.replace(scenario, q0=(0.064, 25.0))
+    with pytest.raises(sc.ParameterError, match="q0 lengths"):
+        dataclasses.replace(scenario, q0=(-0.064, 25.0, 0.0))
+    with pytest.raises(sc.ParameterError, match="inputs needs an"):
+        dataclasses.replace(scenario, inputs=(1.0, 0.0, 0.0))
+
+
+@pytest.mark.parametrize("suffix", [".csv", ".npz"])
+def test_version_1_files_with_pressures_are_read(paper_model, tmp_path, suffix):
+    """Files of format version 1 named the actuator's inputs pressures (columns p1 ...)
+    and a failure "failed"; they load into inputs and INTEGRATION_FAILED."""
+    import json
+
+    actuator = sc.PneumaticActuator.three_bellows(distance=0.012, area=2e-4, p_max=6e4)
+    run = sc.simulate(paper_model, [0.064, 0.0, 0.0], np.zeros(3), t_final=0.02,
+                      inputs=[2e4, 0.0, 1e4], actuator=actuator)  # fmt: skip
+    path = run.save(tmp_path / f"new{suffix}")
+    old = tmp_path / f"old{suffix}"
+    if suffix == ".csv":
+        meta, header, *rows = path.read_text().splitlines()
+        fields = json.loads(meta[2:])
+        fields.update(version=1, status="failed", n_pressures=fields.pop("n_inputs"))
+        header = header.replace("u1,u2,u3", "p1,p2,p3")
+        old.write_text("\n".join(["# " + json.dumps(fields), header, *rows]) + "\n")
+    else:
+        with np.load(path) as data:
+            arrays = {k: data[k] for k in data.files}
+        fields = json.loads(str(arrays["meta"]))
+        fields.update(version=1, status="failed", n_pressures=fields.pop("n_inputs"))
+        arrays["meta"] = np.array(json.dumps(fields))
+        arrays["pressures"] = arrays.pop("inputs")
+        np.savez(old, **arrays)
+    loaded = sc.load_trajectory(old)
+    np.testing.assert_array_equal(loaded.inputs, run.inputs)
+    assert loaded.status is Status.INTEGRATION_FAILED

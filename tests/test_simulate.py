@@ -9,15 +9,19 @@ import pytest
 from scipy.integrate import cumulative_simpson
 
 import softcurve as sc
+from softcurve.analysis.statics import equilibrium
+from softcurve.base.status import Status
 from softcurve.simulation import engine as _engines
-from softcurve.simulation.simulate import STIFFNESS_RATIO, _Progress, nominal_scale, stiffness_ratio
+from softcurve.simulation.engine import STIFFNESS_RATIO, nominal_scale, stiffness_ratio
+from softcurve.simulation.settings import SimulationSettings
+from softcurve.simulation.stepping import Progress
 
 from .conftest import assert_close
 
 Q0, QD0 = np.array([0.064, 25.0, 0.0]), np.array([0.0, 0.0, 1500.0])
 
 
-def normalised_error(trajectory, reference) -> float:
+def normalized_error(trajectory, reference) -> float:
     """Max over time and states of |x - x_ref| / (max_t |x_ref| + natural scale)."""
     model = reference.model
     scale = np.abs(reference.x).max(axis=0) + nominal_scale(model, np.zeros(model.n_state))
@@ -27,26 +31,26 @@ def normalised_error(trajectory, reference) -> float:
 @pytest.fixture(scope="module")
 def reference(paper_model):
     """The paper's case over 1 s at a tight tolerance (the transient is in the first second)."""
-    return sc.simulate(paper_model, 1.0, Q0, QD0, method="adams", rtol=1e-11)
+    return sc.simulate(paper_model, Q0, QD0, t_final=1.0, method="adams", rtol=1e-11)
 
 
 @pytest.mark.parametrize("method", ["adams", "bdf"])
 def test_cvodes_error_falls_with_tolerance(paper_model, reference, method):
     errors = []
     for rtol in (1e-4, 1e-6, 1e-8):
-        trajectory = sc.simulate(paper_model, 1.0, Q0, QD0, method=method, rtol=rtol)
+        trajectory = sc.simulate(paper_model, Q0, QD0, t_final=1.0, method=method, rtol=rtol)
         assert trajectory.success, trajectory.message
-        errors.append(normalised_error(trajectory, reference))
+        errors.append(normalized_error(trajectory, reference))
     assert errors[0] > 10 * errors[1] > 100 * errors[2], errors
     assert errors[1] < 1e-4 and errors[2] < 1e-6, errors  # a small multiple of rtol
 
 
 def test_rk45_converges_and_agrees_with_cvodes(paper_model, reference):
-    loose = sc.simulate(paper_model, 1.0, Q0, QD0, method="rk45", rtol=1e-5)
-    tight = sc.simulate(paper_model, 1.0, Q0, QD0, method="rk45", rtol=1e-8)
+    loose = sc.simulate(paper_model, Q0, QD0, t_final=1.0, method="rk45", rtol=1e-5)
+    tight = sc.simulate(paper_model, Q0, QD0, t_final=1.0, method="rk45", rtol=1e-8)
     assert loose.success and tight.success
-    assert normalised_error(tight, reference) < 1e-5
-    assert normalised_error(loose, reference) > 10 * normalised_error(tight, reference)
+    assert normalized_error(tight, reference) < 1e-5
+    assert normalized_error(loose, reference) > 10 * normalized_error(tight, reference)
     assert tight.stats["method"] == "rk45" and tight.stats["rhs_evaluations"] > 0
 
 
@@ -54,13 +58,13 @@ def test_default_picks_adams_for_the_paper_case_and_bdf_when_stiff(paper_model):
     x0 = np.concatenate([Q0, QD0, np.zeros(3)])
     ratio = stiffness_ratio(paper_model, x0)
     assert 0.5 < ratio < STIFFNESS_RATIO  # creep decay ~ elongation frequency
-    trajectory = sc.simulate(paper_model, 0.05, Q0, QD0)
+    trajectory = sc.simulate(paper_model, Q0, QD0, t_final=0.05)
     assert trajectory.stats["method"] == "cvodes-adams"
     # the same structure with a creep 1000x faster relaxing: a stiff problem
     segment = paper_model.robot.segments[0]
     creep = sc.Creep(segment.creep.rate * 1e3, segment.creep.gain * 1e3, segment.creep.compliance)
     stiff = sc.Model(paper_model.robot.replace(segments=(segment.replace(creep=creep),)))
-    trajectory = sc.simulate(stiff, 0.05, Q0, QD0)
+    trajectory = sc.simulate(stiff, Q0, QD0, t_final=0.05)
     assert trajectory.stats["stiffness_ratio"] > STIFFNESS_RATIO
     assert trajectory.stats["method"] == "cvodes-bdf" and trajectory.success
 
@@ -70,13 +74,13 @@ def test_a_settled_robot_continues_with_bdf_at_the_same_accuracy(paper_model):
     (SETTLED_RATIO); the result stays within tolerance of a tight reference, and with
     the switch disabled the same run stays with Adams."""
     q0, qd0 = np.array([0.064, 5.0, 0.0]), np.zeros(3)
-    reference = sc.simulate(paper_model, 4.0, q0, qd0, dt=0.01, method="adams", rtol=1e-10)
-    switched = sc.simulate(paper_model, 4.0, q0, qd0, dt=0.01)
+    reference = sc.simulate(paper_model, q0, qd0, t_final=4.0, dt=0.01, method="adams", rtol=1e-10)
+    switched = sc.simulate(paper_model, q0, qd0, t_final=4.0, dt=0.01)
     assert switched.stats["method"] == "cvodes-adams+bdf"
     assert "cvodes-adams+bdf" in switched.message
-    assert normalised_error(switched, reference) < 5e-5
+    assert normalized_error(switched, reference) < 5e-5
     state = switched.x[100]  # t = 1 s: still moving, so the second second is Adams
-    fastest = _engines.linearisation_rates(paper_model, switched.x[0])[1]
+    fastest = _engines.linearization_rates(paper_model, switched.x[0])[1]
     scale = nominal_scale(paper_model, switched.x[0])
     assert not _engines.settled(paper_model.state_derivative(state), scale, fastest)
     assert _engines.settled(paper_model.state_derivative(switched.x[200]), scale, fastest)
@@ -85,13 +89,13 @@ def test_a_settled_robot_continues_with_bdf_at_the_same_accuracy(paper_model):
 def test_without_the_switch_adams_throughout(paper_model, monkeypatch):
     monkeypatch.setattr(_engines, "SETTLED_RATIO", np.inf)  # never settled
     q0, qd0 = np.array([0.064, 5.0, 0.0]), np.zeros(3)
-    trajectory = sc.simulate(paper_model, 4.0, q0, qd0, dt=0.01)
+    trajectory = sc.simulate(paper_model, q0, qd0, t_final=4.0, dt=0.01)
     assert trajectory.stats["method"] == "cvodes-adams"
 
 
 def test_paper_case_budget_of_evaluations(paper_model):
     """10 s of the paper's case at rtol 1e-6: a budget on work, not on wall time."""
-    trajectory = sc.simulate(paper_model, 10.0, Q0, QD0)
+    trajectory = sc.simulate(paper_model, Q0, QD0, t_final=10.0)
     assert trajectory.success
     assert trajectory.t.shape == (10001,) and trajectory.t[-1] == 10.0
     # measured 987 steps, 1194 rhs, 143 Jacobians; without the restarts of the multistep
@@ -100,7 +104,9 @@ def test_paper_case_budget_of_evaluations(paper_model):
     assert trajectory.stats["rhs_evaluations"] < 1700
     assert trajectory.stats["jacobian_evaluations"] < 200
     # converged to the straight, gravity-compressed equilibrium
-    assert abs(trajectory.q[-1, 0] - 0.0639646) < 1e-6
+    rest = equilibrium(paper_model, [0.064, 0.0, 0.0])
+    assert rest.success and rest.q[0] < paper_model.robot.segments[0].rest_length
+    assert abs(trajectory.q[-1, 0] - rest.q[0]) < 1e-6
     assert np.all(np.abs(trajectory.q[-1, 1:]) < 1e-6)
     tip = np.array([paper_model.tip_pose(q).position.copy() for q in trajectory.q[::997]])
     np.testing.assert_allclose(trajectory.tip[::997], tip, rtol=0, atol=1e-15)
@@ -110,7 +116,9 @@ def test_energy_balance_damped_forced_with_creep(paper_model):
     """E(t) - E(0) = int_0^t qd' (tau + K^T lam - R qd) dt along the trajectory."""
     tau = np.array([0.3, 2e-3, -1e-3])
     lam0 = np.array([1e-4, 5e-3, -2e-3])
-    trajectory = sc.simulate(paper_model, 0.5, Q0, QD0 / 3, lam0, tau, dt=1e-4, rtol=1e-10)
+    trajectory = sc.simulate(
+        paper_model, Q0, QD0 / 3, lam0, tau=tau, t_final=0.5, dt=1e-4, rtol=1e-10
+    )
     assert trajectory.success
     terms = paper_model.evaluate_along(
         "dynamics_terms", trajectory.q, trajectory.qd, trajectory.lam
@@ -126,7 +134,7 @@ def test_energy_balance_damped_forced_with_creep(paper_model):
 
 
 def test_straight_start_at_zero_curvature_is_exact(paper_model):
-    trajectory = sc.simulate(paper_model, 0.2, [0.0644, 0.0, 0.0], np.zeros(3))
+    trajectory = sc.simulate(paper_model, [0.0644, 0.0, 0.0], np.zeros(3), t_final=0.2)
     assert trajectory.success and np.all(np.isfinite(trajectory.x))
     # no bending appears from nothing (round-off of the finite-difference Newton matrix only)
     assert np.all(np.abs(trajectory.q[:, 1:]) < 1e-20)
@@ -152,14 +160,14 @@ class HoldLast:
 
 def test_controller_is_sampled_and_held(paper_model):
     controller = HoldLast(sample_time=5e-3)
-    trajectory = sc.simulate(paper_model, 0.1, Q0, QD0, controller=controller, rtol=1e-9)
+    trajectory = sc.simulate(paper_model, Q0, QD0, t_final=0.1, controller=controller, rtol=1e-9)
     assert trajectory.success and controller.was_reset
     np.testing.assert_allclose(controller.calls, np.arange(20) * 5e-3, atol=1e-12)
     held = trajectory.tau[:, 1].reshape(-1)[:100].reshape(20, 5)
     assert np.all(held == held[:, :1])  # constant between samples
     # the same inputs given as an array on the grid give the same trajectory
-    replay = sc.simulate(paper_model, 0.1, Q0, QD0, tau=trajectory.tau, rtol=1e-9)
-    assert normalised_error(replay, trajectory) < 1e-7
+    replay = sc.simulate(paper_model, Q0, QD0, t_final=0.1, tau=trajectory.tau, rtol=1e-9)
+    assert normalized_error(replay, trajectory) < 1e-7
 
 
 def test_tau_callable_receives_the_state(paper_model):
@@ -171,33 +179,33 @@ def test_tau_callable_receives_the_state(paper_model):
 
     # tight tolerance: the held input restarts the integrator at every output, the free
     # run does not, so at rtol 1e-6 the two differ by several rtol
-    trajectory = sc.simulate(paper_model, 0.01, Q0, QD0, tau=tau, rtol=1e-9)
-    free = sc.simulate(paper_model, 0.01, Q0, QD0, rtol=1e-9)
+    trajectory = sc.simulate(paper_model, Q0, QD0, t_final=0.01, tau=tau, rtol=1e-9)
+    free = sc.simulate(paper_model, Q0, QD0, t_final=0.01, rtol=1e-9)
     assert len(seen) == 10 and seen[0][2] == 9
     np.testing.assert_array_equal(seen[0][1], Q0)
     np.testing.assert_allclose(seen[3][1], trajectory.q[3], rtol=1e-14)
-    assert normalised_error(trajectory, free) < 1e-7
+    assert normalized_error(trajectory, free) < 1e-7
 
 
 def test_failure_keeps_the_partial_trajectory(paper_model):
-    trajectory = sc.simulate(paper_model, 1.0, Q0, QD0, max_steps=3)
-    assert not trajectory.success and trajectory.status == "failed"
+    trajectory = sc.simulate(paper_model, Q0, QD0, t_final=1.0, max_steps=3)
+    assert not trajectory.success and trajectory.status is Status.INTEGRATION_FAILED
     assert 0 < trajectory.t.size < 1001 and trajectory.t[-1] < 1.0
     assert "max_steps" in trajectory.message and "What to try" in trajectory.message
-    full = sc.simulate(paper_model, 1.0, Q0, QD0)
+    full = sc.simulate(paper_model, Q0, QD0, t_final=1.0)
     k = trajectory.t.size
     np.testing.assert_allclose(trajectory.q, full.q[:k], rtol=1e-4, atol=1e-6)
 
 
 def test_last_output_is_t_final_when_not_a_multiple_of_dt(paper_model):
-    trajectory = sc.simulate(paper_model, 0.0105, Q0, QD0, dt=1e-3)
+    trajectory = sc.simulate(paper_model, Q0, QD0, t_final=0.0105, dt=1e-3)
     assert trajectory.t.size == 12 and trajectory.t[-1] == 0.0105
     assert np.allclose(np.diff(trajectory.t[:-1]), 1e-3)
 
 
 def test_virtual_machine_model_runs(two_segment_model):
     q0 = np.array([0.0644, 5.0, 0.0, 0.0644, 0.0, 5.0])
-    trajectory = sc.simulate(two_segment_model, 0.02, q0, np.zeros(6), dt=2e-3)
+    trajectory = sc.simulate(two_segment_model, q0, np.zeros(6), t_final=0.02, dt=2e-3)
     assert trajectory.success and trajectory.tip.shape == (11, 3)
     assert np.all(np.isfinite(trajectory.x))
 
@@ -220,7 +228,8 @@ def test_virtual_machine_model_runs(two_segment_model):
         ({"max_steps": 0}, "max_steps"),
         ({"controller": object()}, "controller"),
         ({"controller": HoldLast(0.0)}, "sample_time"),
-        ({"controller": HoldLast(1e-3), "tau": np.zeros(3)}, "either tau or a controller"),
+        ({"controller": HoldLast(1e-3), "tau": np.zeros(3)}, "one of tau, inputs or a controller"),
+        ({"settings": {"t_final": 1.0}}, "SimulationSettings"),
     ],
 )
 def test_bad_arguments_are_named(paper_model, kwargs, named):
@@ -231,29 +240,16 @@ def test_bad_arguments_are_named(paper_model, kwargs, named):
 
 def test_progress_bar_appears_only_after_its_delay():
     stream = io.StringIO()
-    bar = _Progress(10.0, delay=0.0, stream=stream)
+    bar = Progress(10.0, delay=0.0, stream=stream)
     bar.update(2.5)
     bar.close()
     text = stream.getvalue()
     assert "25.0%" in text and "t = 2.5 s" in text and text.endswith("\n")
     quiet = io.StringIO()
-    bar = _Progress(10.0, delay=3600.0, stream=quiet)
+    bar = Progress(10.0, delay=3600.0, stream=quiet)
     bar.update(5.0)
     bar.close()
     assert quiet.getvalue() == ""
-
-
-def test_figures_of_a_two_segment_trajectory(two_segment_model, tmp_path):
-    q0 = np.array([0.0644, 5.0, 0.0, 0.0644, 0.0, 5.0])
-    trajectory = sc.simulate(two_segment_model, 0.01, q0, np.zeros(6), dt=2e-3)
-    figure = trajectory.plot(tmp_path / "states.png")
-    assert len(figure.axes[0].lines) == 2 and (tmp_path / "states.png").stat().st_size > 0
-    trajectory.plot_tip(tmp_path / "tip.png")
-    path = trajectory.animate(tmp_path / "backbone.gif", fps=500)
-    assert path.read_bytes()[:6] == b"GIF89a"
-    import matplotlib.pyplot as plt
-
-    plt.close("all")
 
 
 @pytest.mark.parametrize(
@@ -268,18 +264,14 @@ def test_figures_of_a_two_segment_trajectory(two_segment_model, tmp_path):
     ],
 )
 def test_restart_segments_cover_the_grid(t_final, dt, interval, expected):
-    from softcurve.simulation.engine import restart_segments
-    from softcurve.simulation.simulate import _grid
-
-    assert restart_segments(_grid(t_final, dt), interval) == expected
+    grid = SimulationSettings(t_final=t_final, dt=dt).output_times()
+    assert _engines.restart_segments(grid, interval) == expected
 
 
 def test_restarts_keep_the_trajectory_within_tolerance(paper_model):
-    from softcurve.simulation import engine as _engines
-
     q0, qd0 = [0.064, 25.0, 0.0], [0.0, 0.0, 1500.0]
-    reference = sc.simulate(paper_model, 3.0, q0, qd0, dt=0.01, rtol=1e-11)
-    restarted = sc.simulate(paper_model, 3.0, q0, qd0, dt=0.01, rtol=1e-7)
+    reference = sc.simulate(paper_model, q0, qd0, t_final=3.0, dt=0.01, rtol=1e-11)
+    restarted = sc.simulate(paper_model, q0, qd0, t_final=3.0, dt=0.01, rtol=1e-7)
     scale = np.max(np.abs(reference.x), axis=0) + _engines.nominal_scale(
         paper_model, reference.x[0]
     )
@@ -296,14 +288,20 @@ def test_constant_pressures_settle_at_the_equilibrium_with_those_pressures(paper
     pressures = np.array([2e4, 0.0, 5e3])
     q0 = np.array([0.064, 0.0, 0.0])
     run = sc.simulate(
-        paper_model, 6.0, q0, np.zeros(3), pressures=pressures, actuator=actuator, dt=0.01,
+        paper_model,
+        q0,
+        np.zeros(3),
+        t_final=6.0,
+        inputs=pressures,
+        actuator=actuator,
+        dt=0.01,
         method=method,
     )  # fmt: skip
     assert run.success, run.message
     q_end = run.q[-1]
     static = paper_model.gravity_force(q_end) + paper_model.elastic_force(q_end)
     assert_close(static, actuator.generalized_force(q_end, pressures), atol=1e-6, rtol=1e-5)
-    np.testing.assert_array_equal(run.pressures, np.tile(pressures, (run.t.size, 1)))
+    np.testing.assert_array_equal(run.inputs, np.tile(pressures, (run.t.size, 1)))
     assert_close(run.tau[-1], actuator.input_matrix(q_end) @ pressures, atol=0, rtol=1e-12)
 
 
@@ -313,32 +311,50 @@ def test_pressures_along_the_trajectory_equal_tau_given_as_h_of_q_times_p(paper_
     actuator = _bellows()
     pressures = np.array([3e4, 1e4, 0.0])
     q0, qd0 = np.array([0.064, 5.0, -3.0]), np.zeros(3)
-    exact = sc.simulate(paper_model, 0.5, q0, qd0, pressures=pressures, actuator=actuator,
-                        dt=0.05, rtol=1e-10)  # fmt: skip
+    exact = sc.simulate(
+        paper_model,
+        q0,
+        qd0,
+        t_final=0.5,
+        inputs=pressures,
+        actuator=actuator,
+        dt=0.05,
+        rtol=1e-10,
+    )  # fmt: skip
     errors = []
     for dt in (1e-3, 1e-4):
         held = sc.simulate(
-            paper_model, 0.5, q0, qd0, dt=dt, rtol=1e-10,
+            paper_model,
+            q0,
+            qd0,
+            t_final=0.5,
+            dt=dt,
+            rtol=1e-10,
             tau=lambda t, s: actuator.generalized_force(s.q, pressures),
-        )  # fmt: skip
+        )
         errors.append(np.max(np.abs(held.q[:: round(0.05 / dt)] - exact.q)))
     assert errors[1] < errors[0] / 5  # first-order convergence of the hold to the exact input
 
 
 def test_pressure_inputs_are_validated(paper_model):
     q0, qd0 = [0.064, 0.0, 0.0], [0.0, 0.0, 0.0]
-    with pytest.raises(sc.ParameterError, match=r"pressures\[0\] = 70000.0 Pa is outside"):
-        sc.simulate(paper_model, 1.0, q0, qd0, pressures=[7e4, 0, 0], actuator=_bellows())
+    with pytest.raises(sc.ParameterError, match=r"inputs\[0\] = 70000.0 Pa is outside"):
+        sc.simulate(paper_model, q0, qd0, t_final=1.0, inputs=[7e4, 0, 0], actuator=_bellows())
     with pytest.raises(sc.ParameterError, match="actuator"):
-        sc.simulate(paper_model, 1.0, q0, qd0, pressures=[1e4, 0, 0])
-    with pytest.raises(sc.ParameterError, match="one of tau, pressures"):
-        sc.simulate(paper_model, 1.0, q0, qd0, tau=[0, 0, 0], pressures=[0, 0, 0],
+        sc.simulate(paper_model, q0, qd0, t_final=1.0, inputs=[1e4, 0, 0])
+    with pytest.raises(sc.ParameterError, match="one of tau, inputs"):
+        sc.simulate(paper_model, q0, qd0, t_final=1.0, tau=[0, 0, 0], inputs=[0, 0, 0],
                     actuator=_bellows())  # fmt: skip
+    with pytest.raises(sc.ParameterError, match="give inputs="):
+        sc.simulate(paper_model, q0, qd0, t_final=1.0, actuator=_bellows())
     with pytest.raises(sc.ParameterError, match="shape"):
-        sc.simulate(paper_model, 1.0, q0, qd0, pressures=[0, 0], actuator=_bellows())
-    with pytest.raises(sc.ParameterError, match="pressures returned"):
-        sc.simulate(paper_model, 0.01, q0, qd0, pressures=lambda t, s: [-1.0, 0, 0],
+        sc.simulate(paper_model, q0, qd0, t_final=1.0, inputs=[0, 0], actuator=_bellows())
+    with pytest.raises(sc.ParameterError, match=r"the callable's inputs\[0\] = -1.0 Pa"):
+        sc.simulate(paper_model, q0, qd0, t_final=0.01, inputs=lambda t, s: [-1.0, 0, 0],
                     actuator=_bellows())  # fmt: skip
+    with pytest.raises(sc.ParameterError, match=r"the controller's inputs\[0\] = -1.0 Pa"):
+        sc.simulate(paper_model, q0, qd0, t_final=0.01, actuator=_bellows(),
+                    controller=Constant([-1.0, 0.0, 0.0], 5e-3))  # fmt: skip
 
 
 @pytest.mark.parametrize("method", ["cvodes", "rk45"])
@@ -347,12 +363,21 @@ def test_lagging_chamber_pressures_follow_the_exact_first_order_response(paper_m
     for a constant command c, whatever the robot does."""
     actuator = _bellows(time_constant=0.05)
     command = np.array([3e4, 0.0, 1e4])
-    run = sc.simulate(paper_model, 0.5, [0.064, 0.0, 0.0], np.zeros(3), dt=0.01,
-                      pressures=command, actuator=actuator, method=method, rtol=1e-9)  # fmt: skip
+    run = sc.simulate(
+        paper_model,
+        [0.064, 0.0, 0.0],
+        np.zeros(3),
+        t_final=0.5,
+        dt=0.01,
+        inputs=command,
+        actuator=actuator,
+        method=method,
+        rtol=1e-9,
+    )  # fmt: skip
     assert run.success, run.message
     exact = command * (1 - np.exp(-run.t / 0.05))[:, None]
-    assert_close(run.pressures, exact, atol=1e-9 * 3e4, rtol=1e-6)
-    assert_close(run.tau[-1], actuator.input_matrix(run.q[-1]) @ run.pressures[-1], rtol=1e-12)
+    assert_close(run.inputs, exact, atol=1e-9 * 3e4, rtol=1e-6)
+    assert_close(run.tau[-1], actuator.input_matrix(run.q[-1]) @ run.inputs[-1], rtol=1e-12)
     assert run.x.shape == (run.t.size, paper_model.n_state)
 
 
@@ -360,8 +385,66 @@ def test_pressure_controller_callable_with_lag_matches_a_constant_command(paper_
     actuator = _bellows(time_constant=0.05)
     command = np.array([2e4, 5e3, 0.0])
     kwargs = dict(actuator=actuator, dt=0.01, rtol=1e-9)
-    constant = sc.simulate(paper_model, 0.3, [0.064, 0.0, 0.0], np.zeros(3), pressures=command,
-                           **kwargs)  # fmt: skip
-    held = sc.simulate(paper_model, 0.3, [0.064, 0.0, 0.0], np.zeros(3),
-                       pressures=lambda t, s: command, **kwargs)  # fmt: skip
+    constant = sc.simulate(
+        paper_model,
+        [0.064, 0.0, 0.0],
+        np.zeros(3),
+        t_final=0.3,
+        inputs=command,
+        **kwargs,
+    )  # fmt: skip
+    held = sc.simulate(
+        paper_model,
+        [0.064, 0.0, 0.0],
+        np.zeros(3),
+        t_final=0.3,
+        inputs=lambda t, s: command,
+        **kwargs,
+    )
     assert_close(held.x, constant.x, atol=1e-7, rtol=1e-6, scale=np.max(np.abs(constant.x), 0))
+
+
+class Constant:
+    """A controller returning the same actuator inputs at every sample."""
+
+    def __init__(self, inputs, sample_time):
+        self.inputs, self.sample_time = np.asarray(inputs, dtype=float), sample_time
+
+    def __call__(self, t, q, qd, lam):
+        return self.inputs
+
+
+def test_a_controller_returns_actuator_inputs_under_an_actuator(paper_model):
+    """With actuator=, a controller's output is the actuator's inputs: a constant one gives
+    the run of the same constant inputs, lag included, and the trajectory keeps them."""
+    actuator = _bellows(time_constant=0.05)
+    command = np.array([2e4, 5e3, 0.0])
+    kwargs = dict(actuator=actuator, t_final=0.3, dt=0.01, rtol=1e-9)
+    constant = sc.simulate(paper_model, [0.064, 0.0, 0.0], np.zeros(3), inputs=command, **kwargs)
+    controlled = sc.simulate(paper_model, [0.064, 0.0, 0.0], np.zeros(3),
+                             controller=Constant(command, 0.02), **kwargs)  # fmt: skip
+    assert controlled.success and controlled.inputs.shape == (31, 3)
+    assert_close(controlled.x, constant.x, atol=1e-7, rtol=1e-6,
+                 scale=np.max(np.abs(constant.x), 0))  # fmt: skip
+    assert_close(controlled.inputs, constant.inputs, atol=1e-9 * 2e4, rtol=1e-6)
+
+
+def test_settings_are_validated_once_and_options_override_them(paper_model):
+    settings = SimulationSettings(t_final=0.05, dt=0.01)
+    run = sc.simulate(paper_model, Q0, QD0, settings=settings, dt=0.005)
+    assert run.t.size == 11 and run.stats["dt"] == 0.005
+    with pytest.raises(sc.ParameterError, match=r"dt must be <= t_final = 0.05 \[s\], got 1.0"):
+        settings.replace(dt=1.0)
+    with pytest.raises(sc.ParameterError, match="unknown simulation setting 'tfinal'"):
+        settings.replace(tfinal=1.0)
+    with pytest.raises(TypeError, match="unexpected keyword argument 'pressures'"):
+        sc.simulate(paper_model, Q0, QD0, pressures=[0, 0, 0])
+    bad = [
+        ("rtol", 1.0, "rtol must be in"),
+        ("atol", [1.0, -1.0], "atol"),
+        ("max_steps", True, "max_steps"),
+        ("t_final", "1", "t_final"),
+    ]
+    for field, value, named in bad:
+        with pytest.raises(sc.ParameterError, match=named):
+            SimulationSettings(**{field: value})

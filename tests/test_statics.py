@@ -1,4 +1,4 @@
-"""Equilibria, their classification, rings of equilibria, and linearisation."""
+"""Equilibria, their classification, rings of equilibria, linearization, quasi-static maps."""
 
 from __future__ import annotations
 
@@ -8,7 +8,10 @@ import scipy.optimize
 
 import softcurve as sc
 from softcurve import ParameterError, PneumaticActuator
+from softcurve.analysis.quasistatic import input_sweep, inverse_statics
 from softcurve.analysis.statics import equilibria, equilibrium, linearize, rotate_about_axis
+from softcurve.base.status import Status
+from softcurve.cli import main
 from softcurve.simulation.simulate import simulate
 
 from .conftest import assert_close
@@ -54,7 +57,7 @@ def test_straight_robot_is_the_only_equilibrium_upright_and_hanging(paper_model)
     weight = segment.mass * 9.81
     for sign in (-1.0, 1.0):  # upright, hanging
         table = equilibria(paper_model, gravity=[0, 0, sign * 9.81], starts=24)
-        assert table.status == "ok" and len(table) == 1, table.table()
+        assert table.success and len(table) == 1, table.table()
         e = table[0]
         assert e.stability == "stable" and e.continuum is None
         assert np.all(e.q[1:] == 0.0)
@@ -87,7 +90,7 @@ def test_buckled_upright_robot_has_a_stable_ring_and_a_saddle(buckled_model):
 
 def test_perturbed_simulations_confirm_the_classification(paper_model, buckled_model):
     def final_curvature(model, q0, t_final):
-        run = simulate(model, t_final, q0, np.zeros(3), dt=1e-2)
+        run = simulate(model, q0, np.zeros(3), t_final=t_final, dt=1e-2)
         assert run.success, run.message
         return np.hypot(run.q[:, 1], run.q[:, 2])
 
@@ -103,8 +106,8 @@ def test_perturbed_simulations_confirm_the_classification(paper_model, buckled_m
 
 def test_equilibrium_under_pressures_and_tip_force_balances_the_loads(paper_model):
     act, p, f = actuator(), np.array([2e4, 0.0, 5e3]), np.array([0.1, 0.2, -0.3])
-    e = equilibrium(paper_model, [0.064, 0, 0], actuator=act, pressures=p, tip_force=f)
-    assert e.converged and e.stability == "stable"
+    e = equilibrium(paper_model, [0.064, 0, 0], actuator=act, inputs=p, tip_force=f)
+    assert e.success and e.stability == "stable"
     j = paper_model.jacobian(e.q, 1.0)
     loads = act.input_matrix(e.q) @ p + j[:3].T @ f
 
@@ -115,26 +118,26 @@ def test_equilibrium_under_pressures_and_tip_force_balances_the_loads(paper_mode
     assert_close(e.tip_position, paper_model.tip_pose(e.q).position, rtol=1e-13)
     # a constant force and constant pressures are conservative: K is the FD Hessian
     k, _ = hessian_by_differences(paper_model, e.q, lambda q: act.input_matrix(q) @ p + j_of(q) @ f)
-    lin = linearize(paper_model, e.q, actuator=act, pressures=p, tip_force=f)
+    lin = linearize(paper_model, e.q, actuator=act, inputs=p, tip_force=f)
     assert_close(lin.stiffness, k, rtol=1e-6, scale=np.abs(k).max())
 
 
 def test_tip_moment_is_balanced_and_flagged_non_conservative(paper_model):
     m = np.array([0.0, 2e-3, 0.0])
     e = equilibrium(paper_model, [0.064, 0, 0], tip_moment=m)
-    assert e.converged and "not conservative" in e.message
+    assert e.success and "not conservative" in e.message
     j = paper_model.jacobian(e.q, 1.0)
     assert_close(paper_model.potential_force(e.q), j[3:].T @ m, rtol=1e-10, scale=1e-3)
     assert e.q[1] > 0  # a moment about +y bends the tip toward +x
 
 
-def test_linearisation_matches_finite_differences_of_the_rhs(paper_model, rng):
+def test_linearization_matches_finite_differences_of_the_rhs(paper_model, rng):
     act, p = actuator(), np.array([2e4, 0.0, 5e3])
     f, m = np.array([0.1, 0.2, -0.3]), np.array([1e-3, 0.0, 2e-3])
     x = np.concatenate([[0.066, 12.0, -9.0], rng.normal(size=3) * [0.01, 10, 10], [1e-3] * 3])
     lin = linearize(
-        paper_model, x[:3], x[3:6], x[6:], actuator=act, pressures=p, tip_force=f,
-        tip_moment=m, inputs="pressures",
+        paper_model, x[:3], x[3:6], x[6:], actuator=act, inputs=p, tip_force=f,
+        tip_moment=m, wrt="actuator",
     )  # fmt: skip
 
     def rhs(x, dp=None):
@@ -178,25 +181,31 @@ def test_equilibria_are_distinct_and_reproducible(buckled_model):
 
 
 def test_bad_inputs(paper_model):
-    with pytest.raises(ParameterError, match="pressures and actuator must be given together"):
-        equilibria(paper_model, pressures=[0, 0, 0])
+    with pytest.raises(ParameterError, match="inputs and actuator must be given together"):
+        equilibria(paper_model, inputs=[0, 0, 0])
     with pytest.raises(ParameterError, match=r"bounds must have shape \(3, 2\)"):
         equilibria(paper_model, bounds=[[0, 1]])
     with pytest.raises(ParameterError, match="starts must be an integer >= 1"):
         equilibria(paper_model, starts=0)
     with pytest.raises(ParameterError, match="outside its bounds"):
-        equilibrium(paper_model, [0.064, 0, 0], actuator=actuator(), pressures=[-1.0, 0, 0])
-    with pytest.raises(ParameterError, match="inputs must be"):
-        linearize(paper_model, [0.064, 0, 0], inputs="volts")
+        equilibrium(paper_model, [0.064, 0, 0], actuator=actuator(), inputs=[-1.0, 0, 0])
+    with pytest.raises(ParameterError, match="wrt must be one of"):
+        linearize(paper_model, [0.064, 0, 0], wrt="volts")
+    with pytest.raises(ParameterError, match="needs an actuator"):
+        linearize(paper_model, [0.064, 0, 0], wrt="actuator")
 
 
 def test_no_equilibrium_in_region_reports_status(paper_model):
     # a box of strongly bent shapes holds no equilibrium of the upright robot
     bounds = [[0.06, 0.07], [40.0, 45.0], [-1.0, 1.0]]
     table = equilibria(paper_model, bounds=bounds, starts=4)
-    assert table.status == "none_found" and len(table) == 0
+    assert table.status is Status.NOT_CONVERGED and not table.success and len(table) == 0
     assert "0 distinct equilibria" in table.message
-    assert scipy.optimize  # the root finder is SciPy's
+    assert table.evaluations >= table.starts  # every start ran the solver
+    # the only equilibrium (the straight robot) lies outside the box
+    upright = equilibria(paper_model, starts=1)[0]
+    inside = (upright.q >= np.array(bounds)[:, 0]) & (upright.q <= np.array(bounds)[:, 1])
+    assert upright.success and not inside.all()
 
 
 def test_bifurcation_point_is_degenerate(paper_model):
@@ -214,15 +223,14 @@ def test_bifurcation_point_is_degenerate(paper_model):
     assert (below.stability, above.stability) == ("stable", "saddle")
 
 
-def test_pressure_sweep_follows_a_balanced_branch(paper_model):
-    from softcurve.analysis.quasistatic import pressure_sweep
-
+def test_input_sweep_follows_a_balanced_branch(paper_model):
     act = actuator()
     path = np.zeros((9, 3))
     path[:, 0] = np.linspace(0.0, 6e4, 9)
-    sweep = pressure_sweep(paper_model, act, path)
-    assert sweep.status == "ok" and all(s == "stable" for s in sweep.stability)
-    for q, p in zip(sweep.q, sweep.pressures, strict=True):
+    sweep = input_sweep(paper_model, act, path)
+    assert sweep.success and all(s == "stable" for s in sweep.stability)
+    assert sweep.converged.all()
+    for q, p in zip(sweep.q, sweep.inputs, strict=True):
         loads = act.input_matrix(q) @ p
         assert_close(
             paper_model.potential_force(q), loads, rtol=1e-9, scale=1e-3 + np.abs(loads).max()
@@ -232,37 +240,58 @@ def test_pressure_sweep_follows_a_balanced_branch(paper_model):
 
 
 def test_inverse_statics_reaches_reachable_targets_and_saturates_otherwise(paper_model):
-    from softcurve.analysis.quasistatic import inverse_statics
-
     act = actuator()
     reachable = inverse_statics(paper_model, act, [0.02, 0.01, 0.065])
-    assert reachable.status == "ok" and reachable.distance < 1e-9
+    assert reachable.success and reachable.distance < 1e-9
     assert reachable.stability == "stable" and not reachable.saturated.any()
     assert_close(paper_model.tip_pose(reachable.q).position, [0.02, 0.01, 0.065], atol=1e-9)
     far = inverse_statics(paper_model, act, [0.1, 0.0, 0.0])
     assert far.distance > 0.03 and far.saturated.any()
-    assert np.all(far.pressures >= act.lower) and np.all(far.pressures <= act.upper)
-    with pytest.raises(ParameterError, match="chooses the pressures"):
-        inverse_statics(paper_model, act, [0, 0, 0.07], pressures=[0, 0, 0])
+    assert far.status is Status.INFEASIBLE and "out of reach" in far.message
+    assert np.all(far.inputs >= act.lower) and np.all(far.inputs <= act.upper)
+    with pytest.raises(ParameterError, match="chooses the actuator inputs"):
+        inverse_statics(paper_model, act, [0, 0, 0.07], inputs=[0, 0, 0])
 
 
-def test_constant_pressure_map_equilibrium_and_figures(paper_model, tmp_path):
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
+def test_constant_pressure_map_equilibrium(paper_model):
     from softcurve import ConstantPressureMap
-    from softcurve.analysis.quasistatic import pressure_sweep
 
     fit = ConstantPressureMap.authors_fit(p_max=1e5)
     p = np.array([4e4, 0.0, 1e4])
-    e = equilibrium(paper_model, [0.0644, 0, 0], actuator=fit, pressures=p)
-    assert e.converged and e.stability == "stable"
+    e = equilibrium(paper_model, [0.0644, 0, 0], actuator=fit, inputs=p)
+    assert e.success and e.stability == "stable"
     assert_close(paper_model.potential_force(e.q), fit.constant @ p, rtol=1e-9, scale=1e-2)
-    sweep = pressure_sweep(paper_model, fit, np.outer(np.linspace(0, 1e5, 5), [1.0, 0.0, 0.0]))
-    sweep.plot().savefig(tmp_path / "sweep.png")
-    table = equilibria(paper_model, starts=2, actuator=fit, pressures=p)
-    table.plot().figure.savefig(tmp_path / "equilibria.png")
-    plt.close("all")
-    assert (tmp_path / "sweep.png").stat().st_size > 0 and len(table) == 1
+    sweep = input_sweep(paper_model, fit, np.outer(np.linspace(0, 1e5, 5), [1.0, 0.0, 0.0]))
+    assert sweep.success
+    table = equilibria(paper_model, starts=2, actuator=fit, inputs=p)
+    assert len(table) == 1
+
+
+def test_constant_inputs_in_simulate_settle_at_the_static_equilibrium(paper_model):
+    act, p = actuator(), np.array([2.5e4, 0.0, 1e4])
+    run = simulate(
+        paper_model, [0.0644, 0, 0], np.zeros(3), actuator=act, inputs=p, t_final=3.0, dt=1e-3
+    )
+    assert run.success, run.message
+    static = equilibrium(paper_model, [0.0644, 0, 0], actuator=act, inputs=p)
+    assert_close(run.q[-1], static.q, rtol=1e-5, scale=np.abs(static.q))
+    with pytest.raises(ParameterError, match=r"inputs\[1\] = -1.0 Pa is outside .*\(at t = 0 s\)"):
+        simulate(
+            paper_model,
+            [0.0644, 0, 0],
+            np.zeros(3),
+            actuator=act,
+            inputs=lambda t, state: [0, -1.0, 0],
+            t_final=0.01,
+        )
+
+
+def test_cli_equilibria_prints_the_table(capsys):
+    assert main(["equilibria", "--hanging", "--starts", "4", "--modes"]) == 0
+    out = capsys.readouterr().out
+    assert "stable" in out and "natural frequencies" in out
+    assert main(["equilibria", "--gravity", "0", "0", "-150", "--starts", "8"]) == 0
+    out = capsys.readouterr().out
+    assert "ring" in out and "saddle" in out
+    assert main(["equilibria", "--pressures", "1e9", "0", "0"]) == 2  # beyond p_max
+    assert "outside its bounds" in capsys.readouterr().err

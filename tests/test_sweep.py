@@ -11,15 +11,11 @@ import pytest
 pa = pytest.importorskip("pyarrow")
 pq = pytest.importorskip("pyarrow.parquet")
 
+from softcurve.base.status import Status  # noqa: E402
 from softcurve.cli import main  # noqa: E402
 from softcurve.scenarios.config import ConfigError  # noqa: E402
-from softcurve.scenarios.sweep import (  # noqa: E402
-    load_sweep,
-    run_sweep,
-    settling_time,
-    summarise,
-    sweep_from_dict,
-)
+from softcurve.scenarios.sweep import run_sweep, settling_time, summarize  # noqa: E402
+from softcurve.scenarios.sweep_config import load_sweep, sweep_from_dict  # noqa: E402
 from softcurve.simulation.batch import simulate_batch  # noqa: E402
 
 BASE = {
@@ -102,8 +98,8 @@ def test_settling_time_definition():
 
 def test_summaries_match_the_batch(paper_model):
     q0s = np.array([[0.064, 20.0, 0.0], [0.064, -5.0, 3.0]])
-    batch = simulate_batch(paper_model, 0.3, q0s, np.zeros(3), dt=0.01)
-    columns = summarise(batch, ("final_state", "tip_range", "peak_energy"), 0.02)
+    batch = simulate_batch(paper_model, q0s, np.zeros(3), t_final=0.3, dt=0.01)
+    columns = summarize(batch, ("final_state", "tip_range", "peak_energy"), 0.02)
     assert columns["final_kx1"][1] == batch.q[1, -1, 1]
     assert columns["final_lam3"][0] == batch.lam[0, -1, 2]
     np.testing.assert_array_equal(columns["tip_range_y"], np.ptp(batch.tip[:, :, 1], axis=1))
@@ -115,6 +111,7 @@ def test_summaries_match_the_batch(paper_model):
 def test_sweep_table(config, uninterrupted):
     table = uninterrupted.table.to_pydict()
     assert uninterrupted.failed == 0 and table["index"] == list(range(6))
+    assert uninterrupted.status is Status.SUCCESS and uninterrupted.success
     np.testing.assert_array_equal(
         np.column_stack([table["q0[1]"], table["segments[0].bending_stiffness.a1"]]),
         config.design_points(),
@@ -263,7 +260,8 @@ def test_failed_simulations_are_rows_with_status_and_nan_outputs(tmp_path, capsy
     data["simulation"].update(q0=[0.0644, 0.0, 0.0], qd0=[0.0, 0.0, 0.0], max_steps=150)
     result = run_sweep(sweep_from_dict(data, "t"), tmp_path / "api", workers=0)
     table = result.table.to_pydict()
-    assert result.failed == 1 and table["status"] == ["success", "failed"]
+    assert result.failed == 1 and table["status"] == ["success", "integration_failed"]
+    assert result.status is Status.PARTIAL and "1 of 2 simulations failed" in result.message
     assert "CV_TOO_MUCH_WORK" in table["message"][1]
     assert np.isnan(table["settling_time"][1]) and np.isnan(table["final_l1"][1])
     assert np.isfinite(table["settling_time"][0]) and np.isfinite(table["peak_energy"][0])

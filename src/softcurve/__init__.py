@@ -1,78 +1,158 @@
 """softcurve: dynamics of hyper-elastic soft robots as spatial curves of constant curvature.
 
-The layers follow the paper: parameters (:mod:`softcurve.robot`, :mod:`softcurve.materials`,
-:mod:`softcurve.presets`), the symbolic model (:mod:`softcurve.kinematics`,
-:mod:`softcurve.dynamics`), the compiled model (:class:`softcurve.Model`) and the analyses
-built on it.
+This facade gathers the public API; the package is written in layers, each a folder
+that imports only the ones below it (docs/architecture.md): :mod:`softcurve.base`
+(validation, the result protocol), :mod:`softcurve.description` (robots, materials,
+actuators, presets), :mod:`softcurve.symbolic` (kinematics and the equation of motion in
+CasADi), :mod:`softcurve.compiled` (:class:`Model`, compiled to C),
+:mod:`softcurve.figures`, :mod:`softcurve.analysis` (equilibria, linearization),
+:mod:`softcurve.simulation`, :mod:`softcurve.control`, :mod:`softcurve.identification`,
+:mod:`softcurve.scenarios` (TOML files, sweeps) and :mod:`softcurve.cli`.
+
+Examples
+--------
+>>> import numpy as np
+>>> import softcurve as sc
+>>> model = sc.Model(sc.presets.ifac2020())
+>>> q = np.array([0.064, 25.0, 0.0])  # length [m], curvatures kx, ky [1/m]
+>>> model.tip_pose(q).position.round(4)  # [m]
+array([0.0412, 0.    , 0.04  ])
 """
 
 from softcurve._version import __version__ as __version__
+from softcurve.analysis.equilibrium import Equilibrium, EquilibriumTable
+from softcurve.analysis.linear import Linearization
+from softcurve.analysis.quasistatic import InputSweep, InverseStatics, input_sweep, inverse_statics
 from softcurve.analysis.statics import equilibria, equilibrium, linearize
+from softcurve.base.status import Result, Status
 from softcurve.base.validation import ParameterError
 from softcurve.compiled.build import CompilerWarning
+from softcurve.compiled.codegen import ExportedC, export_c
 from softcurve.compiled.model import DynamicsTerms, Model, Pose
 from softcurve.control.controllers import (
+    ActuatorDriven,
+    Allocation,
     ComputedTorque,
+    InputAllocator,
     PDGravityElastic,
-    PressureAllocator,
-    PressureDriven,
-    Reference,
-    tip_circle,
+    SampledController,
 )
+from softcurve.control.mpc import ActuatorMPC
+from softcurve.control.references import Reference, tip_circle
 from softcurve.description import presets
-from softcurve.description.actuators import (
-    Actuator,
-    Bellows,
-    ConstantPressureMap,
-    PneumaticActuator,
-)
+from softcurve.description.actuator import Actuator
+from softcurve.description.layout import ParameterLayout
 from softcurve.description.materials import Creep, LinearStiffness, TanhStiffness
+from softcurve.description.pneumatic import Bellows, ConstantPressureMap, PneumaticActuator
 from softcurve.description.robot import Robot, Segment
-from softcurve.identification.dynamic import Free, fit_equilibria, fit_trajectory
+from softcurve.figures import save_figure
+from softcurve.identification.dynamic import (
+    fit_equilibria,
+    fit_trajectory,
+    predict_equilibria,
+    predict_trajectory,
+)
 from softcurve.identification.experiments import Experiment, ExperimentError, load_csv, load_mat
-from softcurve.identification.stiffness import FitReport, fit_stiffness
-from softcurve.simulation.batch import BatchTrajectory, simulate_batch
+from softcurve.identification.maps import (
+    InputMap,
+    OutputMap,
+    bellows_input_map,
+    bending_angle,
+    constant_input_map,
+    curvatures,
+    tip_position,
+)
+from softcurve.identification.parameters import Free, tanh_parameters
+from softcurve.identification.report import FitReport
+from softcurve.identification.stiffness import fit_stiffness
+from softcurve.scenarios.config import Scenario, load_config
+from softcurve.scenarios.sweep import SweepResult, run_sweep
+from softcurve.scenarios.sweep_config import SweepConfig, load_sweep
+from softcurve.simulation.batch import simulate_batch
+from softcurve.simulation.batch_trajectory import BatchTrajectory
+from softcurve.simulation.settings import SimulationSettings
 from softcurve.simulation.simulate import simulate
 from softcurve.simulation.trajectory import State, Trajectory, load_trajectory
 
 __all__ = [
-    "BatchTrajectory",
-    "Bellows",
-    "ConstantPressureMap",
-    "PneumaticActuator",
-    "Actuator",
-    "ComputedTorque",
-    "PDGravityElastic",
-    "PressureAllocator",
-    "PressureDriven",
-    "Reference",
-    "tip_circle",
-    "equilibria",
-    "equilibrium",
-    "linearize",
-    "CompilerWarning",
-    "DynamicsTerms",
-    "Creep",
-    "LinearStiffness",
-    "Model",
-    "ParameterError",
-    "Pose",
+    # description
     "Robot",
     "Segment",
+    "LinearStiffness",
     "TanhStiffness",
+    "Creep",
+    "Actuator",
+    "Bellows",
+    "PneumaticActuator",
+    "ConstantPressureMap",
+    "ParameterLayout",
     "presets",
+    # the compiled model
+    "Model",
+    "DynamicsTerms",
+    "Pose",
+    "CompilerWarning",
+    "export_c",
+    "ExportedC",
+    # results and errors
+    "Status",
+    "Result",
+    "ParameterError",
+    "save_figure",
+    # analysis
+    "equilibrium",
+    "equilibria",
+    "Equilibrium",
+    "EquilibriumTable",
+    "linearize",
+    "Linearization",
+    "input_sweep",
+    "InputSweep",
+    "inverse_statics",
+    "InverseStatics",
+    # simulation
     "simulate",
     "simulate_batch",
+    "SimulationSettings",
     "State",
     "Trajectory",
+    "BatchTrajectory",
     "load_trajectory",
+    # control
+    "SampledController",
+    "ComputedTorque",
+    "PDGravityElastic",
+    "InputAllocator",
+    "Allocation",
+    "ActuatorDriven",
+    "ActuatorMPC",
+    "Reference",
+    "tip_circle",
+    # identification
     "Experiment",
     "ExperimentError",
     "load_csv",
     "load_mat",
-    "FitReport",
     "fit_stiffness",
-    "Free",
-    "fit_equilibria",
     "fit_trajectory",
+    "fit_equilibria",
+    "predict_trajectory",
+    "predict_equilibria",
+    "FitReport",
+    "Free",
+    "tanh_parameters",
+    "OutputMap",
+    "InputMap",
+    "tip_position",
+    "bending_angle",
+    "curvatures",
+    "bellows_input_map",
+    "constant_input_map",
+    # scenarios
+    "Scenario",
+    "load_config",
+    "SweepConfig",
+    "load_sweep",
+    "run_sweep",
+    "SweepResult",
 ]

@@ -1,7 +1,7 @@
-"""Linearisation of the loaded dynamics about any state: ``A``, ``B``, modes.
+"""Linearization of the loaded dynamics about any state: ``A``, ``B``, modes.
 
-The loads of :class:`~softcurve.loads.StaticLoad` are part of the vector field, so their
-configuration dependence (``H(q) p``, ``J(q)^T w``) enters ``A``. At an equilibrium the
+The loads of :class:`~softcurve.analysis.loads.StaticLoad` are part of the vector field,
+so their configuration dependence (``H(q) u``, ``J(q)^T w``) enters ``A``. At an equilibrium the
 undamped modes solve ``K v = w^2 D v`` with ``K`` the tangent stiffness of the loads.
 """
 
@@ -13,21 +13,31 @@ import numpy as np
 import scipy.linalg
 
 from softcurve.analysis.loads import StaticLoad, linear_function
+from softcurve.base.status import Result, Status
 from softcurve.base.validation import ParameterError, real_array
+
+WITH_RESPECT_TO = ("tau", "actuator")
+"""What ``B`` maps: generalized forces, or the actuator's inputs through ``H(q)``."""
 
 
 @dataclass(frozen=True, eq=False)
-class Linearization:
-    """``dx' = A dx + B du`` about ``(x, u)``, and the modes of ``D v'' + K v = 0``.
+class Linearization(Result):
+    """``dx' = A dx + B dv`` about ``(x, v)``, and the modes of ``D v'' + K v = 0``.
 
     Attributes
     ----------
     x : ndarray, shape (n_state,)
-        The state linearised about, ``(q, qd, lam)``.
+        The state linearized about, ``(q, qd, lam)``.
+    status : Status
+        SUCCESS, or LEFT_DOMAIN when the derivatives are not finite there.
+    message : str
+        Whether the state is asymptotically stable, and the largest real part.
     A : ndarray, shape (n_state, n_state)
-    B : ndarray, shape (n_state, n_u)
-        Input ``"tau"`` (generalized forces) or ``"pressures"`` [Pa], see ``inputs``.
-    inputs : str
+    B : ndarray, shape (n_state, n) or (n_state, m)
+        With respect to generalized forces (``wrt="tau"``) or to the actuator's inputs
+        (``wrt="actuator"``, per unit of its ``input_unit``).
+    wrt : str
+        ``"tau"`` or ``"actuator"``.
     eigenvalues : ndarray, shape (n_state,), complex
         Of ``A``, ordered by real part (largest first): ``Re < 0`` everywhere is
         asymptotic stability.
@@ -44,9 +54,11 @@ class Linearization:
     """
 
     x: np.ndarray
+    status: Status
+    message: str
     A: np.ndarray
     B: np.ndarray
-    inputs: str
+    wrt: str
     eigenvalues: np.ndarray
     mass_matrix: np.ndarray
     stiffness: np.ndarray
@@ -56,6 +68,7 @@ class Linearization:
 
     @property
     def asymptotically_stable(self) -> bool:
+        """Whether every eigenvalue of ``A`` has a negative real part."""
         return bool(np.all(self.eigenvalues.real < 0))
 
     @property
@@ -68,31 +81,54 @@ class Linearization:
         return ratio
 
 
-def linearize(model, q, qd=None, lam=None, *, inputs: str = "tau", **loads) -> Linearization:
-    """Linearise the loaded dynamics about the state ``(q, qd, lam)``.
+def linearize(model, q, qd=None, lam=None, *, wrt: str = "tau", **loads) -> Linearization:
+    """Linearize the loaded dynamics about the state ``(q, qd, lam)``.
 
-    The loads (see :class:`StaticLoad`) are part of the vector field, so their
-    configuration dependence (``H(q) p``, ``J(q)^T w``) enters ``A``. Any state may be
-    given; at an equilibrium with ``qd = 0`` the modes are the small oscillations.
+    The loads (see :class:`~softcurve.analysis.loads.StaticLoad`) are part of the vector
+    field, so their configuration dependence (``H(q) u``, ``J(q)^T w``) enters ``A``.
+    Any state may be given; at an equilibrium with ``qd = 0`` the modes are the small
+    oscillations.
 
     Parameters
     ----------
     model : Model
-    q, qd, lam : array_like
-        The state; ``qd`` and ``lam`` default to zeros.
-    inputs : {"tau", "pressures"}
-        What ``B`` maps: extra generalized forces, or extra pressures through
+        The compiled model.
+    q : array_like, shape (n,)
+        Configuration [m, 1/m, 1/m].
+    qd : array_like, shape (n,), optional
+        Rates [m/s, 1/(m s), 1/(m s)]; default zero.
+    lam : array_like, shape (n_creep,), optional
+        Creep states; default zero.
+    wrt : {"tau", "actuator"}
+        What ``B`` maps: extra generalized forces, or extra actuator inputs through
         ``H(q)`` (needs ``actuator``).
     **loads
-        ``tau``, ``actuator``, ``pressures``, ``tip_force``, ``tip_moment``, ``gravity``.
+        ``tau``, ``actuator``, ``inputs`` (default: the actuator's rest inputs),
+        ``tip_force``, ``tip_moment``, ``gravity``.
+
+    Returns
+    -------
+    Linearization
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import softcurve as sc
+    >>> model = sc.Model(sc.presets.ifac2020())
+    >>> e = sc.equilibrium(model, [0.0644, 0.0, 0.0])
+    >>> lin = sc.linearize(model, e.q)
+    >>> lin.success, lin.asymptotically_stable, lin.A.shape
+    (True, True, (9, 9))
+    >>> bool(np.all(lin.frequencies > 0))
+    True
     """
-    if inputs not in ("tau", "pressures"):
-        raise ParameterError(f"inputs must be 'tau' or 'pressures', got {inputs!r}")
+    if wrt not in WITH_RESPECT_TO:
+        raise ParameterError(f"wrt must be one of {WITH_RESPECT_TO}, got {wrt!r}")
     actuator = loads.get("actuator")
-    if inputs == "pressures" and actuator is None:
-        raise ParameterError("inputs='pressures' needs an actuator")
-    if actuator is not None and loads.get("pressures") is None:
-        loads["pressures"] = np.clip(np.zeros(actuator.n_inputs), actuator.lower, actuator.upper)
+    if wrt == "actuator" and actuator is None:
+        raise ParameterError("wrt='actuator' needs an actuator")
+    if actuator is not None and loads.get("inputs") is None:
+        loads["inputs"] = actuator.rest_inputs()
     load = StaticLoad(model, **loads)
     q = real_array("q", q, (model.n,))
     qd = real_array("qd", np.zeros(model.n) if qd is None else qd, (model.n,))
@@ -102,8 +138,10 @@ def linearize(model, q, qd=None, lam=None, *, inputs: str = "tau", **loads) -> L
         np.array(v, dtype=np.float64)
         for v in linear_function(model, load.actuator)(x, *load.arguments())
     )
-    if inputs == "pressures":
+    if wrt == "actuator":
         b = b @ actuator.input_matrix(q)
+    if not all(np.all(np.isfinite(v)) for v in (a, b, d, k)):
+        return _not_finite(x, a, b, d, k, wrt)
     if load.conservative:  # K is a Hessian, symmetric up to rounding
         omega2, modes = scipy.linalg.eigh(0.5 * (k + k.T), d)
     else:
@@ -113,15 +151,38 @@ def linearize(model, q, qd=None, lam=None, *, inputs: str = "tau", **loads) -> L
         modes = modes / np.sqrt(np.einsum("ij,ik,kj->j", modes, d, modes))
     eigenvalues = np.linalg.eigvals(a)
     eigenvalues = eigenvalues[np.argsort(-eigenvalues.real, kind="stable")]
+    largest = float(eigenvalues.real[0])
+    stable = "asymptotically stable" if largest < 0 else "not asymptotically stable"
     return Linearization(
         x=x,
+        status=Status.SUCCESS,
+        message=f"{stable}: largest real part of an eigenvalue of A {largest:.4g} 1/s",
         A=a,
         B=b,
-        inputs=inputs,
+        wrt=wrt,
         eigenvalues=eigenvalues,
         mass_matrix=d,
         stiffness=k,
         omega_squared=omega2,
         frequencies=np.sqrt(np.abs(omega2)) / (2.0 * np.pi),
         modes=modes,
+    )
+
+
+def _not_finite(x, a, b, d, k, wrt) -> Linearization:
+    n = d.shape[0]
+    nan = np.full(n, np.nan)
+    return Linearization(
+        x=x,
+        status=Status.LEFT_DOMAIN,
+        message="the derivatives are not finite at this state (a length at or below zero?)",
+        A=a,
+        B=b,
+        wrt=wrt,
+        eigenvalues=np.full(a.shape[0], np.nan, dtype=complex),
+        mass_matrix=d,
+        stiffness=k,
+        omega_squared=nan,
+        frequencies=nan,
+        modes=np.full((n, n), np.nan),
     )

@@ -1,8 +1,9 @@
 """Constant loads on a robot and their symbolic forms, shared by the static and
-linear analyses (:mod:`softcurve.statics`, :mod:`softcurve.linear`).
+linear analyses (:mod:`softcurve.analysis.statics`, :mod:`softcurve.analysis.linear`).
 
-The loads are constant generalized forces ``tau``, constant pressures through a
-:class:`~softcurve.actuation.Actuator`, and a constant world-frame tip wrench; the
+The loads are constant generalized forces ``tau``, constant actuator inputs ``u``
+through an :class:`~softcurve.description.actuator.Actuator` (``H(q) u``), and a
+constant world-frame tip wrench; the
 gravity vector may be overridden without recompiling (it is a run-time parameter).
 The CasADi Functions built from them are cached per model and actuator.
 """
@@ -15,7 +16,7 @@ import casadi as ca
 import numpy as np
 
 from softcurve.base.validation import ParameterError, real_array
-from softcurve.description.actuators import Actuator
+from softcurve.description.actuator import Actuator
 from softcurve.symbolic.kinematics import segment_frames
 
 
@@ -31,9 +32,10 @@ class StaticLoad:
     tau : array_like, shape (n,), optional
         Constant generalized forces.
     actuator : Actuator, optional
-        Pressure map; needed with ``pressures``.
-    pressures : array_like, shape (m,), optional
-        Gauge pressures [Pa], within the actuator's bounds.
+        The actuator; needed with ``inputs``.
+    inputs : array_like, shape (m,), optional
+        Constant actuator inputs [the actuator's ``input_unit``, e.g. Pa], within its
+        bounds.
     tip_force : array_like, shape (3,), optional
         Constant world-frame force on the tip [N].
     tip_moment : array_like, shape (3,), optional
@@ -45,7 +47,7 @@ class StaticLoad:
     model: object
     tau: np.ndarray | None = None
     actuator: Actuator | None = None
-    pressures: np.ndarray | None = None
+    inputs: np.ndarray | None = None
     tip_force: np.ndarray | None = None
     tip_moment: np.ndarray | None = None
     gravity: np.ndarray | None = None
@@ -53,17 +55,17 @@ class StaticLoad:
 
     def __post_init__(self):
         n = self.model.n
-        set_ = object.__setattr__  # frozen dataclass: normalise fields once here
+        set_ = object.__setattr__  # frozen dataclass: normalize fields once here
         set_(self, "tau", real_array("tau", np.zeros(n) if self.tau is None else self.tau, (n,)))
-        if (self.actuator is None) != (self.pressures is None):
-            raise ParameterError("pressures and actuator must be given together")
+        if (self.actuator is None) != (self.inputs is None):
+            raise ParameterError("inputs and actuator must be given together")
         if self.actuator is not None:
             if not isinstance(self.actuator, Actuator):
                 raise ParameterError(
-                    f"actuator must be a Actuator, got {type(self.actuator).__name__}"
+                    f"actuator must be an Actuator, got {type(self.actuator).__name__}"
                 )
             self.actuator.check_robot(self.model.robot)
-            set_(self, "pressures", self.actuator.check_inputs(self.pressures))
+            set_(self, "inputs", self.actuator.check_inputs(self.inputs))
         for name in ("tip_force", "tip_moment"):
             value = getattr(self, name)
             set_(self, name, real_array(name, np.zeros(3) if value is None else value, (3,)))
@@ -80,13 +82,8 @@ class StaticLoad:
 
     def arguments(self) -> list:
         """The load inputs of the cached CasADi Functions, after ``q`` or ``x``."""
-        pressures = np.zeros(0) if self.pressures is None else self.pressures
-        return [self.parameters, self.tau, pressures, self.tip_force, self.tip_moment]
-
-
-def cached(model, actuator, name, build):
-    """One CasADi Function per (model, actuator, name), in the model's cache."""
-    return model.cached(("loads", name, actuator), build)
+        inputs = np.zeros(0) if self.inputs is None else self.inputs
+        return [self.parameters, self.tau, inputs, self.tip_force, self.tip_moment]
 
 
 def _load_symbols(model, actuator):
@@ -94,7 +91,7 @@ def _load_symbols(model, actuator):
     e = model.expressions
     q, n = e.q, model.n
     m_inputs = 0 if actuator is None else actuator.n_inputs
-    tau, pressures = ca.SX.sym("tau", n), ca.SX.sym("pressures", m_inputs)
+    tau, u = ca.SX.sym("tau", n), ca.SX.sym("u", m_inputs)
     force, moment = ca.SX.sym("f", 3), ca.SX.sym("m", 3)
     (tip,) = segment_frames(q, e.n_segments, e.base_rotation, [(e.n_segments - 1, 1.0)])
     linear = ca.jacobian(tip.position, q)
@@ -102,11 +99,11 @@ def _load_symbols(model, actuator):
     load = tau + linear.T @ force + angular.T @ moment
     potential = e.gravity_energy + e.elastic_energy - ca.dot(tau, q) - ca.dot(force, tip.position)
     if actuator is not None:
-        load += actuator.input_matrix_symbolic(q) @ pressures
-        potential -= actuator.input_work_symbolic(q, pressures)
+        load += actuator.input_matrix_symbolic(q) @ u
+        potential -= actuator.input_work_symbolic(q, u)
     return {
-        "inputs": [e.p, tau, pressures, force, moment],
-        "names": ["p", "tau", "pressures", "f", "m"],
+        "inputs": [e.p, tau, u, force, moment],
+        "names": ["p", "tau", "u", "f", "m"],
         "load": load,
         "potential": potential,
         "tip": tip.position,
@@ -114,8 +111,16 @@ def _load_symbols(model, actuator):
 
 
 def static_function(model, actuator: Actuator | None) -> ca.Function:
-    """``F(q, p, tau, pressures, f, m) -> (r, K, W, tip)``: the residual ``r = N - loads``,
-    ``K = dr/dq``, the conservative potential ``W`` [J] and the tip position [m]."""
+    """``F(q, p, tau, u, f, m) -> (r, K, W, tip)``: the residual ``r = N - loads``,
+    ``K = dr/dq``, the conservative potential ``W`` [J] and the tip position [m].
+
+    Parameters
+    ----------
+    model : Model
+        The compiled model.
+    actuator : Actuator or None
+        The actuator whose inputs ``u`` enter (None: no inputs).
+    """
 
     def build():
         e, sym = model.expressions, _load_symbols(model, actuator)
@@ -128,12 +133,20 @@ def static_function(model, actuator: Actuator | None) -> ca.Function:
             ["r", "K", "W", "tip"],
         )
 
-    return cached(model, actuator, "static", build)
+    return model.cached(("loads", "static", actuator), build)
 
 
 def linear_function(model, actuator: Actuator | None) -> ca.Function:
-    """``F(x, p, tau, pressures, f, m) -> (A, B, D, K)`` of the closed-form loaded dynamics
-    ``xdot = f(x, tau + H(q) p + J^T w)``; ``B = df/dtau``."""
+    """``F(x, p, tau, u, f, m) -> (A, B, D, K)`` of the closed-form loaded dynamics
+    ``xdot = f(x, tau + H(q) u + J^T w)``; ``B = df/dtau``.
+
+    Parameters
+    ----------
+    model : Model
+        The compiled model.
+    actuator : Actuator or None
+        The actuator whose inputs ``u`` enter (None: no inputs).
+    """
 
     def build():
         e, sym = model.expressions, _load_symbols(model, actuator)
@@ -155,36 +168,58 @@ def linear_function(model, actuator: Actuator | None) -> ca.Function:
             ["A", "B", "D", "K"],
         )
 
-    return cached(model, actuator, "linear", build)
+    return model.cached(("loads", "linear", actuator), build)
 
 
 def elastic_stiffness_function(model) -> ca.Function:
-    """``K_e(q, p) = d(elastic force)/dq``, the elastic part of the tangent stiffness."""
+    """``K_e(q, p) = d(elastic force)/dq``, the elastic part of the tangent stiffness.
+
+    Parameters
+    ----------
+    model : Model
+        The compiled model.
+    """
     e = model.expressions
-    return cached(
-        model,
-        None,
-        "elastic_stiffness",
+    return model.cached(
+        ("loads", "elastic_stiffness"),
         lambda: ca.Function("k", [e.q, e.p], [ca.jacobian(e.elastic_force, e.q)]),
     )
 
 
 def coordinate_scale(robot) -> np.ndarray:
     """``S = (l0, 1/l0, 1/l0)`` per segment: ``q / S`` is dimensionless (a bending of one
-    radian is 1) and ``S * force`` is an energy [J]."""
+    radian is 1) and ``S * force`` is an energy [J].
+
+    Parameters
+    ----------
+    robot : Robot
+        Supplies the rest lengths ``l0`` [m].
+    """
     return np.array(
         [v for s in robot.segments for v in (s.rest_length, 1 / s.rest_length, 1 / s.rest_length)]
     )
 
 
 def rest_configuration(robot) -> np.ndarray:
-    """The straight, unstretched configuration ``(l0, 0, 0)`` per segment."""
+    """The straight, unstretched configuration ``(l0, 0, 0)`` per segment.
+
+    Parameters
+    ----------
+    robot : Robot
+        Supplies the rest lengths ``l0`` [m].
+    """
     return np.array([v for s in robot.segments for v in (s.rest_length, 0.0, 0.0)])
 
 
 def residual_reference(model) -> np.ndarray:
     """``diag(S K_e S)`` at rest [J]: the elastic stiffness of each scaled coordinate,
-    positive for every admissible stiffness law; the unit of the scaled residuals."""
+    positive for every admissible stiffness law; the unit of the scaled residuals.
+
+    Parameters
+    ----------
+    model : Model
+        The compiled model.
+    """
     stiffness = np.array(
         elastic_stiffness_function(model)(rest_configuration(model.robot), model.parameters)
     )

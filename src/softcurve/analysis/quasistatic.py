@@ -1,13 +1,13 @@
-"""Quasi-static maps of a pressure-driven robot: pressure sweeps and inverse statics.
+"""Quasi-static maps of an actuated robot: input sweeps and inverse statics.
 
-A *pressure sweep* follows the equilibrium ``N(q) = H(q) p`` (plus any other load of
-:class:`~softcurve.loads.StaticLoad`) along a path of pressures by continuation:
-each point starts Newton's method from the previous one, so the branch is followed
-and its stability is tracked (compare the paper's Fig. 3, which maps pressure to
-deformation through the fitted stiffness). *Inverse statics* finds the bounded
-pressures that put the tip closest to a target point, as the nonlinear program
-``min |p_tip(q) - target|^2`` subject to the equilibrium and the pressure bounds,
-solved by IPOPT on the exact CasADi derivatives.
+An *input sweep* follows the equilibrium ``N(q) = H(q) u`` (plus any other load of
+:class:`~softcurve.analysis.loads.StaticLoad`) along a path of actuator inputs ``u``
+(pressures, tensions) by continuation: each point starts the equilibrium solver from the
+previous one, so the branch is followed and its stability is tracked (compare the
+paper's Fig. 3, which maps pressure to deformation through the fitted stiffness).
+*Inverse statics* finds the bounded inputs that put the tip closest to a target point,
+as the nonlinear program ``min |p_tip(q) - target|^2`` subject to the equilibrium and
+the input bounds, solved by IPOPT on the exact CasADi derivatives.
 """
 
 from __future__ import annotations
@@ -25,34 +25,44 @@ from softcurve.analysis.loads import (
     static_function,
 )
 from softcurve.analysis.statics import default_bounds, equilibrium
-from softcurve.base.validation import ParameterError, real_array
-from softcurve.description.actuators import Actuator
+from softcurve.base.status import Result, Status
+from softcurve.base.validation import ParameterError, real_array, real_scalar
+from softcurve.description.actuator import Actuator
+from softcurve.figures import plot_input_sweep
+
+IPOPT_SOLVED = ("Solve_Succeeded", "Solved_To_Acceptable_Level")
+IPOPT_ITERATION_LIMIT = "Maximum_Iterations_Exceeded"
 
 
 @dataclass(frozen=True, eq=False)
-class PressureSweep:
-    """Equilibria along a path of pressures.
+class InputSweep(Result):
+    """Equilibria along a path of actuator inputs.
 
     Attributes
     ----------
-    pressures : ndarray, shape (k, m)
-        [Pa].
+    inputs : ndarray, shape (k, m)
+        The path [the actuator's ``input_unit``, e.g. Pa].
     q : ndarray, shape (k, n)
+        Equilibria [m, 1/m, 1/m].
     tip : ndarray, shape (k, 3)
         World tip positions [m].
     converged : ndarray, shape (k,), bool
+        Whether each point met the solver's tolerance.
     stability : tuple of str
-        Classification of each point (see :mod:`softcurve.statics`).
-    status, message : str
-        ``"ok"`` when every point converged, else ``"failed"`` and where.
+        Classification of each point (see :mod:`softcurve.analysis.statics`).
+    status : Status
+        SUCCESS when every point converged, PARTIAL when some did not, NOT_CONVERGED
+        when none did.
+    message : str
+        How many points failed, and the first.
     """
 
-    pressures: np.ndarray
+    inputs: np.ndarray
     q: np.ndarray
     tip: np.ndarray
     converged: np.ndarray
     stability: tuple[str, ...]
-    status: str
+    status: Status
     message: str
 
     @property
@@ -60,114 +70,112 @@ class PressureSweep:
         """Net curvature (k, N) [1/m] of each segment."""
         return np.hypot(self.q[:, 1::3], self.q[:, 2::3])
 
-    def plot(self, abscissa=None, label: str = "pressure [kPa]"):
-        """Tip position and curvature against ``abscissa`` (default: the pressure that
-        varies most, in kPa); returns the Matplotlib figure."""
-        import matplotlib.pyplot as plt
+    def plot(self, ax=None, *, x=None, x_label: str | None = None):
+        """Tip position and curvature along the sweep, points that are not stable marked.
 
-        if abscissa is None:
-            column = int(np.argmax(np.ptp(self.pressures, axis=0)))
-            abscissa = self.pressures[:, column] / 1e3
-            label = f"p{column + 1} [kPa]"
-        fig, (ax_tip, ax_k) = plt.subplots(1, 2, figsize=(9, 3.5), constrained_layout=True)
-        for i, name in enumerate("xyz"):
-            ax_tip.plot(abscissa, 1e3 * self.tip[:, i], label=f"tip {name}")
-        ax_tip.set_xlabel(label)
-        ax_tip.set_ylabel("tip position [mm]")
-        ax_tip.legend()
-        for j in range(self.curvature.shape[1]):
-            ax_k.plot(abscissa, self.curvature[:, j], label=f"segment {j}")
-        unstable = np.array([s != "stable" for s in self.stability])
-        if unstable.any():
-            ax_k.plot(abscissa[unstable], self.curvature[unstable, 0], "rx", label="not stable")
-        ax_k.set_xlabel(label)
-        ax_k.set_ylabel("curvature |kappa| [1/m]")
-        ax_k.legend()
-        return fig
+        Parameters
+        ----------
+        ax : None or sequence of matplotlib.axes.Axes, shape (2,)
+            Panels for the tip position and the curvature; None draws a new figure.
+        x : array_like, shape (k,), optional
+            The abscissa (default: the input that varies most, pressures in kPa).
+        x_label : str, optional
+            Label of the abscissa, with its unit (default: the input's name, or none for
+            a given ``x``).
+
+        Returns
+        -------
+        matplotlib.figure.Figure
+            Write it with :func:`softcurve.figures.save_figure`.
+        """
+        return plot_input_sweep(self, ax, x=x, x_label=x_label)
 
 
-def pressure_sweep(model, actuator: Actuator, pressures, *, q_start=None, **loads):
-    """Follow the equilibrium along ``pressures`` (k, m) by continuation.
+def input_sweep(model, actuator: Actuator, inputs, *, q0=None, **loads) -> InputSweep:
+    """Follow the equilibrium along a path of actuator ``inputs`` (k, m) by continuation.
 
     Parameters
     ----------
     model : Model
+        The compiled model.
     actuator : Actuator
-    pressures : array_like, shape (k, m)
-        Path of pressures [Pa], within the bounds.
-    q_start : array_like, shape (n,), optional
-        Guess for the first point (default: the rest configuration).
+        The actuator the inputs drive.
+    inputs : array_like, shape (k, m)
+        Path of inputs [the actuator's ``input_unit``, e.g. Pa], within its bounds.
+    q0 : array_like, shape (n,), optional
+        Initial guess for the first point [m, 1/m, 1/m] (default: the rest
+        configuration).
     **loads
-        Further loads of :class:`~softcurve.loads.StaticLoad` (``gravity``, ``tip_force``...).
+        Further loads of :class:`~softcurve.analysis.loads.StaticLoad` (``gravity``,
+        ``tip_force``...).
     """
-    pressures = np.asarray(pressures, dtype=np.float64)
-    if pressures.ndim != 2 or pressures.shape[1] != actuator.n_inputs:
-        raise ParameterError(
-            f"pressures must have shape (k, {actuator.n_inputs}), got {pressures.shape}"
-        )
-    q = (
-        rest_configuration(model.robot)
-        if q_start is None
-        else real_array("q_start", q_start, (model.n,))
-    )
+    path = np.asarray(inputs, dtype=np.float64)
+    if path.ndim != 2 or path.shape[1] != actuator.n_inputs:
+        raise ParameterError(f"inputs must have shape (k, {actuator.n_inputs}), got {path.shape}")
+    q = rest_configuration(model.robot) if q0 is None else real_array("q0", q0, (model.n,))
     qs, tips, converged, stability = [], [], [], []
-    for p in pressures:
-        e = equilibrium(model, q, actuator=actuator, pressures=p, **loads)
-        if e.converged:
+    for u in path:
+        e = equilibrium(model, q, actuator=actuator, inputs=u, **loads)
+        if e.success:
             q = e.q
         qs.append(e.q)
         tips.append(e.tip_position)
-        converged.append(e.converged)
+        converged.append(e.success)
         stability.append(e.stability)
     converged = np.array(converged)
     failed = np.flatnonzero(~converged)
-    message = (
-        f"{len(pressures)} equilibria followed"
-        if not failed.size
-        else f"{failed.size} of {len(pressures)} points did not converge (first: {failed[0]})"
-    )
-    return PressureSweep(
-        pressures=pressures,
+    if not failed.size:
+        status, message = Status.SUCCESS, f"{len(path)} equilibria followed"
+    else:
+        status = Status.PARTIAL if failed.size < len(path) else Status.NOT_CONVERGED
+        message = f"{failed.size} of {len(path)} points did not converge (first: {failed[0]})"
+    return InputSweep(
+        inputs=path,
         q=np.array(qs),
         tip=np.array(tips),
         converged=converged,
         stability=tuple(stability),
-        status="ok" if not failed.size else "failed",
+        status=status,
         message=message,
     )
 
 
 @dataclass(frozen=True, eq=False)
-class InverseStatics:
-    """Bounded pressures whose equilibrium puts the tip closest to a target.
+class InverseStatics(Result):
+    """Bounded actuator inputs whose equilibrium puts the tip closest to a target.
 
     Attributes
     ----------
-    pressures : ndarray, shape (m,)
-        [Pa], within the actuator's bounds.
+    inputs : ndarray, shape (m,)
+        [the actuator's ``input_unit``], within its bounds.
     q : ndarray, shape (n,)
-        The equilibrium they produce.
+        The equilibrium they produce [m, 1/m, 1/m].
     tip : ndarray, shape (3,)
-        Its tip position [m]; ``target`` the point asked for.
+        Its tip position [m].
+    target : ndarray, shape (3,)
+        The point asked for [m].
     distance : float
         ``|tip - target|`` [m].
     stability : str
-        Of the equilibrium, see :mod:`softcurve.statics`.
+        Of the equilibrium, see :mod:`softcurve.analysis.statics`.
     saturated : ndarray, shape (m,), bool
-        Pressures at a bound (a target beyond reach saturates some).
-    status : str
-        ``"ok"``, or ``"failed"`` when IPOPT failed or the equilibrium did not verify.
+        Inputs at a bound (a target beyond reach saturates some).
+    status : Status
+        SUCCESS when the tip reaches the target; INFEASIBLE when the input bounds keep
+        it away (the closest point is returned); NOT_CONVERGED or EVALUATION_LIMIT when
+        IPOPT or the equilibrium check failed.
     message : str
+        IPOPT's status, the distance, the stability and the saturated inputs.
     """
 
-    pressures: np.ndarray
+    inputs: np.ndarray
     q: np.ndarray
     tip: np.ndarray
     target: np.ndarray
     distance: float
     stability: str
     saturated: np.ndarray
-    status: str
+    status: Status
     message: str
 
 
@@ -184,50 +192,71 @@ def _guesses(model, target, starts: int):
     return guesses
 
 
-def inverse_statics(
-    model, actuator: Actuator, target, *, starts: int = 3, max_iterations: int = 200, **loads
-) -> InverseStatics:
-    """The bounded pressures that put the tip closest to ``target`` at equilibrium.
+def _status(e, ipopt_status: str, distance: float, tolerance: float) -> Status:
+    if not e.success:
+        return e.status
+    if ipopt_status == IPOPT_ITERATION_LIMIT:
+        return Status.EVALUATION_LIMIT
+    if ipopt_status not in IPOPT_SOLVED:
+        return Status.NOT_CONVERGED
+    return Status.SUCCESS if distance <= tolerance else Status.INFEASIBLE
 
-    Solves ``min |p_tip(q) - target|^2`` over ``(q, p)`` subject to the equilibrium
-    ``N(q) = H(q) p + other loads``, ``lower <= p <= upper`` and ``q`` within
-    :func:`~softcurve.statics.default_bounds`, from ``starts`` initial guesses (IPOPT,
-    exact derivatives), keeping the stable solution closest to the target when there is
-    one. The equilibrium is then re-solved at the optimal pressures and classified.
+
+def inverse_statics(
+    model,
+    actuator: Actuator,
+    target,
+    *,
+    starts: int = 3,
+    max_iterations: int = 200,
+    tolerance: float = 1e-6,
+    **loads,
+) -> InverseStatics:
+    """The bounded actuator inputs that put the tip closest to ``target`` at equilibrium.
+
+    Solves ``min |p_tip(q) - target|^2`` over ``(q, u)`` subject to the equilibrium
+    ``N(q) = H(q) u + other loads``, ``lower <= u <= upper`` and ``q`` within
+    :func:`~softcurve.analysis.statics.default_bounds`, from ``starts`` initial guesses
+    (IPOPT, exact derivatives), keeping the stable solution closest to the target when
+    there is one. The equilibrium is then re-solved at the optimal inputs and classified.
 
     Parameters
     ----------
     model : Model
+        The compiled model.
     actuator : Actuator
+        The actuator whose inputs are chosen.
     target : array_like, shape (3,)
         World point [m].
     starts : int
         Number of initial guesses (rest, then arcs bending toward the target).
     max_iterations : int
         IPOPT iteration budget per start.
+    tolerance : float
+        A tip closer than ``tolerance`` times the robot's rest length to the target
+        reaches it (dimensionless); farther is INFEASIBLE.
     **loads
-        Further loads (``gravity``, ``tip_force``...; not ``pressures``).
+        Further loads (``gravity``, ``tip_force``...; not ``inputs``).
     """
     target = real_array("target", target, (3,))
-    if "pressures" in loads or "actuator" in loads:
-        raise ParameterError("inverse_statics chooses the pressures: do not pass them")
-    load = StaticLoad(
-        model, actuator=actuator, pressures=actuator.clip(np.zeros(actuator.n_inputs)), **loads
-    )
+    tolerance = real_scalar("tolerance", tolerance, positive=True)
+    if "inputs" in loads or "actuator" in loads:
+        raise ParameterError("inverse_statics chooses the actuator inputs: do not pass them")
+    load = StaticLoad(model, actuator=actuator, inputs=actuator.rest_inputs(), **loads)
     function = static_function(model, actuator)
     bounds = default_bounds(model.robot)
     args = load.arguments()
 
     opti = ca.Opti()
-    q, p = opti.variable(model.n), opti.variable(actuator.n_inputs)
+    q, u = opti.variable(model.n), opti.variable(actuator.n_inputs)
     scale = np.maximum(np.abs(actuator.upper), np.abs(actuator.lower))
-    residual, _, _, tip = function(q, args[0], args[1], p, args[3], args[4])
+    residual, _, _, tip = function(q, args[0], args[1], u, args[3], args[4])
     length = model.robot.rest_length
     opti.minimize(ca.sumsqr(tip - target) / length**2)
-    # the equilibrium in the scaled residual units of softcurve.statics
+    # the equilibrium in the scaled residual units of softcurve.analysis.solver
     unit = coordinate_scale(model.robot) / residual_reference(model)
     opti.subject_to(unit * residual == 0)
-    opti.subject_to(opti.bounded(actuator.lower / scale, p / scale, actuator.upper / scale))
+    opti.subject_to(opti.bounded(actuator.lower / scale, u / scale, actuator.upper / scale))
     opti.subject_to(opti.bounded(bounds[:, 0], q, bounds[:, 1]))
     opti.solver(
         "ipopt",
@@ -237,41 +266,43 @@ def inverse_statics(
     best = None
     for guess in _guesses(model, target, starts):
         opti.set_initial(q, guess)
-        opti.set_initial(p, 0.5 * (actuator.lower + actuator.upper))
+        opti.set_initial(u, 0.5 * (actuator.lower + actuator.upper))
         try:
             solution = opti.solve()
             stats = solution.stats()
-            q_opt, p_opt = solution.value(q), solution.value(p)
+            q_opt, u_opt = solution.value(q), solution.value(u)
         except RuntimeError:
             stats = opti.stats()
-            q_opt, p_opt = opti.debug.value(q), opti.debug.value(p)
-        p_opt = actuator.clip(np.atleast_1d(p_opt))
-        e = equilibrium(model, np.atleast_1d(q_opt), actuator=actuator, pressures=p_opt, **loads)
+            q_opt, u_opt = opti.debug.value(q), opti.debug.value(u)
+        u_opt = actuator.clip(np.atleast_1d(u_opt))
+        e = equilibrium(model, np.atleast_1d(q_opt), actuator=actuator, inputs=u_opt, **loads)
         candidate = (
-            not e.converged,
+            not e.success,
             e.stability != "stable",
             float(np.linalg.norm(e.tip_position - target)),
             e,
-            p_opt,
+            u_opt,
             stats.get("return_status", "unknown"),
         )
         if best is None or candidate[:3] < best[:3]:
             best = candidate
-    _, _, distance, e, p_opt, ipopt_status = best
-    ok = e.converged and ipopt_status in ("Solve_Succeeded", "Solved_To_Acceptable_Level")
-    saturated = (p_opt <= actuator.lower) | (p_opt >= actuator.upper)
+    _, _, distance, e, u_opt, ipopt_status = best
+    saturated = (u_opt <= actuator.lower) | (u_opt >= actuator.upper)
+    status = _status(e, ipopt_status, distance, tolerance * length)
     message = (
         f"IPOPT: {ipopt_status}; tip {1e3 * distance:.3g} mm from the target; equilibrium "
-        f"{e.stability}; {int(saturated.sum())} pressure(s) at a bound"
+        f"{e.stability}; {int(saturated.sum())} input(s) at a bound"
     )
+    if status is Status.INFEASIBLE:
+        message += "; the target is out of reach within the input bounds"
     return InverseStatics(
-        pressures=p_opt,
+        inputs=u_opt,
         q=e.q,
         tip=e.tip_position,
         target=target,
         distance=distance,
         stability=e.stability,
         saturated=saturated,
-        status="ok" if ok else "failed",
+        status=status,
         message=message,
     )

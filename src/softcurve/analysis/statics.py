@@ -1,13 +1,14 @@
-"""Equilibria, their stability, and linearisation (section 4.2 of the paper).
+"""Equilibria and their stability (section 4.2 of the paper).
 
-An equilibrium solves ``N(q) = tau + H(q) p + J_tip(q)^T w`` for constant generalized
-forces ``tau``, constant pressures ``p`` through a :class:`~softcurve.actuation.Actuator`
-and a constant tip wrench ``w = (f, m)`` given in the world frame. The gravity
-direction may be changed for the analysis (``gravity=``) without recompiling: it is a
-run-time parameter of the model.
+An equilibrium solves ``N(q) = tau + H(q) u + J_tip(q)^T w`` for constant generalized
+forces ``tau``, constant actuator inputs ``u`` (pressures, tensions) through an
+:class:`~softcurve.description.actuator.Actuator` and a constant tip wrench
+``w = (f, m)`` given in the world frame. The gravity direction may be changed for the
+analysis (``gravity=``) without recompiling: it is a run-time parameter of the model.
 
 Stability is read from the tangent stiffness ``K = d/dq (N - loads)``. Gravity,
-elasticity, constant ``tau``, constant pressures (``p_i dV_i`` is exact) and a constant
+elasticity, constant ``tau``, constant actuator inputs (``p_i dV_i`` is exact for
+pressures, ``-T . dL`` for tensions) and a constant
 world tip force (potential ``-f . p_tip``) are conservative, so ``K`` is the Hessian of
 the total potential and is symmetric: all eigenvalues positive is a strict local
 minimum (``"stable"``), all negative a local maximum (``"unstable"``), mixed signs a
@@ -25,18 +26,16 @@ bends toward +x) and classified by ``K`` on the complement of the ring's tangent
 
 Coordinates are compared in the scaled units ``z = (l / l0, kx l0, ky l0)`` per segment,
 and residuals as ``S r`` [J] with ``S = diag(l0, 1/l0, 1/l0)``, relative to the elastic
-stiffness of each coordinate at rest.
+stiffness of each coordinate at rest; :mod:`softcurve.analysis.solver` solves them.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 import scipy.linalg
-import scipy.optimize
 import scipy.stats
 
+from softcurve.analysis.equilibrium import Equilibrium, EquilibriumTable
 from softcurve.analysis.linear import Linearization, linearize
 from softcurve.analysis.loads import (
     StaticLoad,
@@ -45,6 +44,8 @@ from softcurve.analysis.loads import (
     rest_configuration,
     static_function,
 )
+from softcurve.analysis.solver import Root, solve_equilibrium
+from softcurve.base.status import Status
 from softcurve.base.validation import ParameterError, real_array
 
 __all__ = [
@@ -58,8 +59,6 @@ __all__ = [
     "linearize",
     "rotate_about_axis",
 ]
-
-STABILITY_KINDS = ("stable", "unstable", "saddle", "degenerate")
 
 
 class _Problem:
@@ -83,15 +82,39 @@ class _Problem:
             np.array(tip, dtype=np.float64).ravel(),
         )
 
+    def system(self, q):
+        """``(r, K)`` at ``q``, for :func:`~softcurve.analysis.solver.solve_equilibrium`."""
+        r, k, *_ = self.evaluate(q)
+        return r, k
+
     def scaled_residual(self, q) -> np.ndarray:
         """``S r / reference``: dimensionless, compared with ``tol``."""
         r, *_ = self.evaluate(q)
         return self.scale * r / self.reference
 
+    def solve(self, q0, tol: float, max_evaluations: int) -> Root:
+        """The root nearest (in the solver's sense) to ``q0``."""
+        return solve_equilibrium(
+            self.system,
+            q0,
+            scale=self.scale,
+            reference=self.reference,
+            tol=tol,
+            max_evaluations=max_evaluations,
+        )
+
 
 def rotate_about_axis(q, angle: float) -> np.ndarray:
-    """``q`` with every segment's curvature vector ``(kx, ky)`` rotated by ``angle`` [rad]
-    about the base z axis (the robot's configuration turned about its base axis)."""
+    """``q`` with every segment's curvature vector ``(kx, ky)`` rotated by ``angle`` about
+    the base z axis (the robot's configuration turned about its base axis).
+
+    Parameters
+    ----------
+    q : array_like, shape (n,)
+        Configuration [m, 1/m, 1/m].
+    angle : float
+        Rotation [rad], counterclockwise seen from +z.
+    """
     q = np.array(q, dtype=np.float64)
     c, s = np.cos(angle), np.sin(angle)
     kx, ky = q[1::3].copy(), q[2::3].copy()
@@ -103,137 +126,6 @@ def _ring_tangent(q) -> np.ndarray:
     tangent = np.zeros_like(q)
     tangent[1::3], tangent[2::3] = -q[2::3], q[1::3]
     return tangent
-
-
-# -- results ----------------------------------------------------------------------------
-@dataclass(frozen=True, eq=False)
-class Equilibrium:
-    """One equilibrium (or one representative of a ring of them).
-
-    Attributes
-    ----------
-    q : ndarray, shape (n,)
-        Configuration; for a ring, the member bending toward +x (first bent segment).
-    converged : bool
-        Whether the solver met the tolerance; ``message`` says more.
-    stability : str
-        ``"stable"``, ``"unstable"`` (local maximum), ``"saddle"`` or ``"degenerate"``.
-    continuum : str or None
-        ``"ring"`` for a continuum under rotational symmetry, else None.
-    eigenvalues : ndarray, shape (n,) or (n - 1,)
-        Of the scaled tangent stiffness ``S K S`` [J] (real parts), ascending; for a
-        ring, on the complement of the ring's tangent.
-    residual : ndarray, shape (n,)
-        ``N(q) - loads`` [N, N m^2].
-    potential : float
-        Total potential of the conservative loads [J].
-    tip_position : ndarray, shape (3,)
-        World tip position [m].
-    message : str
-    """
-
-    q: np.ndarray
-    converged: bool
-    stability: str
-    continuum: str | None
-    eigenvalues: np.ndarray
-    residual: np.ndarray
-    potential: float
-    tip_position: np.ndarray
-    message: str = ""
-
-    @property
-    def curvature(self) -> np.ndarray:
-        """Net curvature ``kappa`` [1/m] of each segment."""
-        return np.hypot(self.q[1::3], self.q[2::3])
-
-    @property
-    def unstable_directions(self) -> int:
-        """Number of negative eigenvalues (the Morse index)."""
-        return int(np.sum(self.eigenvalues < 0))
-
-
-@dataclass(frozen=True, eq=False)
-class EquilibriumTable:
-    """All equilibria found in a region, deduplicated, ordered by potential.
-
-    Attributes
-    ----------
-    equilibria : tuple of Equilibrium
-    status : str
-        ``"ok"`` or ``"none_found"``.
-    message : str
-    starts, converged_starts, evaluations : int
-        Multi-start statistics (residual and tangent evaluations in total).
-    bounds : ndarray, shape (n, 2)
-        The region searched.
-    load : StaticLoad
-    """
-
-    equilibria: tuple[Equilibrium, ...]
-    status: str
-    message: str
-    starts: int
-    converged_starts: int
-    evaluations: int
-    bounds: np.ndarray
-    load: StaticLoad
-
-    def __len__(self) -> int:
-        return len(self.equilibria)
-
-    def __iter__(self):
-        return iter(self.equilibria)
-
-    def __getitem__(self, i) -> Equilibrium:
-        return self.equilibria[i]
-
-    @property
-    def stable(self) -> tuple[Equilibrium, ...]:
-        return tuple(e for e in self.equilibria if e.stability == "stable")
-
-    def table(self) -> str:
-        """A plain-text table, one row per equilibrium or ring."""
-        n_seg = self.load.model.robot.n_segments
-        head = f"{'#':>2}  {'stability':<10} {'set':<6} "
-        head += " ".join(
-            f"{f'l({i}) [m]':>10} {f'kx({i}) [1/m]':>11} {f'ky({i}) [1/m]':>11}"
-            for i in range(n_seg)
-        )
-        head += f" {'|kappa| [1/m]':>13} {'V [J]':>12} {'min eig [J]':>12}"
-        rows = [head]
-        for k, e in enumerate(self.equilibria):
-            coords = " ".join(
-                f"{e.q[3 * i]:10.6f} {e.q[3 * i + 1]:11.5f} {e.q[3 * i + 2]:11.5f}"
-                for i in range(n_seg)
-            )
-            kappa = ",".join(f"{c:.5f}" for c in e.curvature)
-            rows.append(
-                f"{k:>2}  {e.stability:<10} {e.continuum or 'point':<6} {coords} {kappa:>13} "
-                f"{e.potential:12.5e} {e.eigenvalues[0]:12.4e}"
-            )
-        return "\n".join(rows)
-
-    def plot(self, ax=None):
-        """Backbones of every equilibrium in the x-z plane (rings drawn by their
-        representative); returns the Matplotlib axes."""
-        import matplotlib.pyplot as plt
-
-        if ax is None:
-            _, ax = plt.subplots(figsize=(5, 5))
-        styles = {"stable": "-", "unstable": "--", "saddle": ":", "degenerate": "-."}
-        model = self.load.model
-        for k, e in enumerate(self.equilibria):
-            backbone = np.array(
-                [np.array(model.pose(e.q, s).position) for s in np.linspace(0, 1, 40)]
-            )
-            label = f"#{k} {e.stability}" + (" ring" if e.continuum else "")
-            ax.plot(backbone[:, 0], backbone[:, 2], styles[e.stability], label=label)
-        ax.set_xlabel("x [m]")
-        ax.set_ylabel("z [m]")
-        ax.set_aspect("equal")
-        ax.legend(fontsize="small")
-        return ax
 
 
 # -- solving ----------------------------------------------------------------------------
@@ -279,39 +171,9 @@ def _canonical(q) -> np.ndarray:
     return turned
 
 
-def _scaled_system(problem: _Problem, z):
-    """The residual and its Jacobian in the scaled variables ``z = q / S``."""
-    u = problem.scale
-    r, k, *_ = problem.evaluate(z * u)
-    return u * r / problem.reference, (u[:, None] * k * u[None, :]) / problem.reference[:, None]
-
-
-def _newton(problem: _Problem, q0, tol: float, max_evaluations: int):
-    """Solve ``r(q) = 0`` from ``q0`` (MINPACK's hybrid method in scaled variables, then
-    Newton polishing); returns (q, converged, message)."""
-    u = problem.scale
-    solution = scipy.optimize.root(
-        lambda z: _scaled_system(problem, z),
-        np.asarray(q0, dtype=np.float64) / u,
-        jac=True,
-        method="hybr",
-        options={"maxfev": max_evaluations, "xtol": 1e-13},
-    )
-    q = solution.x * u
-    for _ in range(2):  # polish: quadratic convergence from where hybr stopped
-        r, k, *_ = problem.evaluate(q)
-        step = np.linalg.lstsq(k, r, rcond=None)[0]
-        if not np.all(np.isfinite(step)):
-            break
-        q = q - step
-    residual = np.max(np.abs(problem.scaled_residual(q)))
-    converged = bool(np.isfinite(residual) and residual <= tol)
-    message = f"scaled residual {residual:.1e} ({'<=' if converged else '>'} tol {tol:.0e})"
-    return q, converged, message
-
-
-def _result(problem: _Problem, q, converged: bool, message: str, tol, zero_tolerance, distinct):
-    ring = converged and _is_ring(problem, q, tol, distinct)
+def _result(problem: _Problem, root: Root, tol, zero_tolerance, distinct) -> Equilibrium:
+    q, message = root.q, root.message
+    ring = root.converged and _is_ring(problem, q, tol, distinct)
     if ring:
         q = _canonical(q)
         message += "; a ring of equilibria (rotational symmetry about the base axis)"
@@ -321,20 +183,20 @@ def _result(problem: _Problem, q, converged: bool, message: str, tol, zero_toler
         message += "; tip moment is not conservative: classification by static divergence only"
     return Equilibrium(
         q=q,
-        converged=converged,
+        status=root.status,
+        message=message,
         stability=stability,
         continuum="ring" if ring else None,
         eigenvalues=eigenvalues,
         residual=r,
         potential=w,
         tip_position=tip,
-        message=message,
     )
 
 
 def equilibrium(
     model,
-    q_guess,
+    q0,
     *,
     tol: float = 1e-10,
     zero_tolerance: float = 1e-8,
@@ -342,36 +204,59 @@ def equilibrium(
     max_evaluations: int = 400,
     **loads,
 ) -> Equilibrium:
-    """The equilibrium nearest (in the solver's sense) to ``q_guess``, classified.
+    """The equilibrium nearest (in the solver's sense) to ``q0``, classified.
 
     Parameters
     ----------
     model : Model
-    q_guess : array_like, shape (n,)
-        Starting configuration.
+        The compiled model.
+    q0 : array_like, shape (n,)
+        Initial guess [m, 1/m, 1/m].
     tol : float
         Acceptance: ``|S r|_i <= tol * (elastic stiffness of coordinate i at rest)``,
         dimensionless.
     zero_tolerance : float
         An eigenvalue of ``S K S`` below ``zero_tolerance`` times the largest elastic
-        stiffness [J] counts as zero (``"degenerate"``).
+        stiffness [J] counts as zero (``"degenerate"``), dimensionless.
     distinct : float
-        A ring whose diameter in the scaled coordinates is below this is one point.
+        A ring whose diameter in the scaled coordinates is below this is one point,
+        dimensionless.
     max_evaluations : int
         Budget of residual evaluations of the root finder.
     **loads
-        ``tau``, ``actuator`` with ``pressures``, ``tip_force``, ``tip_moment``,
-        ``gravity``: see :class:`StaticLoad`.
+        ``tau``, ``actuator`` with ``inputs``, ``tip_force``, ``tip_moment``,
+        ``gravity``: see :class:`~softcurve.analysis.loads.StaticLoad`.
+
+    Returns
+    -------
+    Equilibrium
+        ``status`` SUCCESS when the residual met ``tol``.
+
+    Examples
+    --------
+    >>> import softcurve as sc
+    >>> model = sc.Model(sc.presets.ifac2020())
+    >>> e = sc.equilibrium(model, [0.0644, 0.0, 0.0])
+    >>> e.success, e.stability
+    (True, 'stable')
+    >>> bool(e.q[0] < 0.0644)  # the upright robot is compressed by its weight
+    True
     """
     problem = _Problem(StaticLoad(model, **loads))
-    q_guess = real_array("q_guess", q_guess, (model.n,))
-    q, converged, message = _newton(problem, q_guess, tol, max_evaluations)
-    return _result(problem, q, converged, message, tol, zero_tolerance, distinct)
+    q0 = real_array("q0", q0, (model.n,))
+    root = problem.solve(q0, tol, max_evaluations)
+    return _result(problem, root, tol, zero_tolerance, distinct)
 
 
 def default_bounds(robot) -> np.ndarray:
     """The region searched by default: per segment ``l`` in ``[0.5, 1.5] l0`` and
-    ``|kx|, |ky| <= pi / l0`` (bending angles up to half a turn), shape (n, 2)."""
+    ``|kx|, |ky| <= pi / l0`` (bending angles up to half a turn), shape (n, 2).
+
+    Parameters
+    ----------
+    robot : Robot
+        Supplies the rest lengths ``l0`` [m].
+    """
     rows = []
     for s in robot.segments:
         k = np.pi / s.rest_length
@@ -401,24 +286,38 @@ def equilibria(
     Parameters
     ----------
     model : Model
+        The compiled model.
     bounds : array_like, shape (n, 2), optional
-        Box of configurations searched; default :func:`default_bounds`.
+        Box of configurations searched [m, 1/m, 1/m]; default :func:`default_bounds`.
     starts : int
         Number of starting points (>= 1).
     seed : int
         Seed of the Halton scrambling.
-    tol, zero_tolerance, max_evaluations
-        See :func:`equilibrium`.
+    tol : float
+        See :func:`equilibrium` (dimensionless).
+    zero_tolerance : float
+        See :func:`equilibrium` (dimensionless).
     distinct : float
         Minimum scaled distance (max norm of ``z = (l/l0, kx l0, ky l0)``) between two
-        reported equilibria.
+        reported equilibria, dimensionless.
+    max_evaluations : int
+        Budget of residual evaluations per start.
     **loads
-        See :class:`StaticLoad`.
+        See :class:`~softcurve.analysis.loads.StaticLoad`.
 
     Returns
     -------
     EquilibriumTable
-        Ordered by total potential, lowest first.
+        Ordered by total potential, lowest first; ``status`` NOT_CONVERGED when no start
+        converged inside ``bounds``.
+
+    Examples
+    --------
+    >>> import softcurve as sc
+    >>> model = sc.Model(sc.presets.ifac2020())
+    >>> table = sc.equilibria(model, starts=4)
+    >>> table.success, len(table), table[0].stability
+    (True, 1, 'stable')
     """
     load = StaticLoad(model, **loads)
     problem = _Problem(load)
@@ -434,26 +333,27 @@ def equilibria(
         points += list(bounds[:, 0] + unit * (bounds[:, 1] - bounds[:, 0]))
     found: list[Equilibrium] = []
     converged_starts = 0
-    for q0 in points:
-        q, converged, message = _newton(problem, q0, tol, max_evaluations)
-        if not converged:
+    for start in points:
+        root = problem.solve(start, tol, max_evaluations)
+        if not root.converged:
             continue
         converged_starts += 1
-        if np.any(q < bounds[:, 0]) or np.any(q > bounds[:, 1]):
+        if np.any(root.q < bounds[:, 0]) or np.any(root.q > bounds[:, 1]):
             continue
-        candidate = _result(problem, q, True, message, tol, zero_tolerance, distinct)
+        candidate = _result(problem, root, tol, zero_tolerance, distinct)
         z = candidate.q / problem.scale
         if all(np.max(np.abs(z - e.q / problem.scale)) > distinct for e in found):
             found.append(candidate)
     found.sort(key=lambda e: e.potential)
-    status = "ok" if found else "none_found"
     message = (
         f"{len(found)} distinct equilibria ({sum(e.continuum is not None for e in found)} "
         f"rings) from {converged_starts}/{len(points)} converged starts"
     )
+    if not found:
+        message += "; none inside the bounds: widen them, add starts or change the loads"
     return EquilibriumTable(
         equilibria=tuple(found),
-        status=status,
+        status=Status.SUCCESS if found else Status.NOT_CONVERGED,
         message=message,
         starts=len(points),
         converged_starts=converged_starts,

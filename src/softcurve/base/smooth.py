@@ -60,22 +60,46 @@ def _branch(z, series, closed_form):
 
 
 def sinc(z):
-    """``sin(y) / y`` with ``y = sqrt(z)``."""
+    """``sin(y) / y`` with ``y = sqrt(z)``.
+
+    Parameters
+    ----------
+    z : casadi.SX, casadi.MX or float
+        The squared argument ``y**2``, dimensionless, >= 0.
+    """
     return _branch(z, lambda z: _series(z, _SINC), lambda y: ca.sin(y) / y)
 
 
 def cosc(z):
-    """``(1 - cos y) / y**2`` with ``y = sqrt(z)``."""
+    """``(1 - cos y) / y**2`` with ``y = sqrt(z)``.
+
+    Parameters
+    ----------
+    z : casadi.SX, casadi.MX or float
+        The squared argument ``y**2``, dimensionless, >= 0.
+    """
     return _branch(z, lambda z: _series(z, _COSC), lambda y: (1 - ca.cos(y)) / y**2)
 
 
 def sinc3(z):
-    """``(y - sin y) / y**3`` with ``y = sqrt(z)``."""
+    """``(y - sin y) / y**3`` with ``y = sqrt(z)``.
+
+    Parameters
+    ----------
+    z : casadi.SX, casadi.MX or float
+        The squared argument ``y**2``, dimensionless, >= 0.
+    """
     return _branch(z, lambda z: _series(z, _SINC3), lambda y: (y - ca.sin(y)) / y**3)
 
 
 def tanh_squared(z):
-    """``tanh(y)**2`` with ``y = sqrt(z)``."""
+    """``tanh(y)**2`` with ``y = sqrt(z)``.
+
+    Parameters
+    ----------
+    z : casadi.SX, casadi.MX or float
+        The squared argument ``y**2``, dimensionless, >= 0.
+    """
 
     def series(z):
         ratio = _series(z, _SINHC) / _series(z, _COSH)
@@ -85,14 +109,26 @@ def tanh_squared(z):
 
 
 def y_tanh(z):
-    """``y * tanh(y)`` with ``y = sqrt(z)``."""
+    """``y * tanh(y)`` with ``y = sqrt(z)``.
+
+    Parameters
+    ----------
+    z : casadi.SX, casadi.MX or float
+        The squared argument ``y**2``, dimensionless, >= 0.
+    """
     return _branch(
         z, lambda z: z * _series(z, _SINHC) / _series(z, _COSH), lambda y: y * ca.tanh(y)
     )
 
 
 def log_cosh(z):
-    """``log(cosh(y))`` with ``y = sqrt(z)``, free of overflow for large ``y``."""
+    """``log(cosh(y))`` with ``y = sqrt(z)``, free of overflow for large ``y``.
+
+    Parameters
+    ----------
+    z : casadi.SX, casadi.MX or float
+        The squared argument ``y**2``, dimensionless, >= 0.
+    """
 
     def series(z):
         # cosh y - 1 = 2 sinh(y/2)^2 = (z/2) * (sinh(y/2)/(y/2))^2, then log1p.

@@ -97,7 +97,20 @@ class Status(str, enum.Enum):
 
     @classmethod
     def parse(cls, value) -> Status:
-        """The member whose value is ``value`` (a member passes through)."""
+        """The member whose value is ``value`` (a member passes through).
+
+        Parameters
+        ----------
+        value : str or Status
+            A member's value, e.g. ``"success"`` as stored in files.
+
+        Examples
+        --------
+        >>> Status.parse("left_domain") is Status.LEFT_DOMAIN
+        True
+        >>> str(Status.SUCCESS)
+        'success: finished as asked'
+        """
         return value if isinstance(value, cls) else cls(str(value))
 
 

@@ -13,7 +13,28 @@ class ParameterError(ValueError):
 
 
 def real_scalar(name: str, value, *, positive: bool = False, nonzero: bool = False) -> float:
-    """Return ``value`` as a finite float, or raise :class:`ParameterError`."""
+    """Return ``value`` as a finite float, or raise :class:`ParameterError`.
+
+    Parameters
+    ----------
+    name : str
+        The field's name, for the message.
+    value : object
+        What the user gave; a real number (not a bool or string) passes.
+    positive : bool
+        Require ``value > 0``.
+    nonzero : bool
+        Require ``value != 0``.
+
+    Examples
+    --------
+    >>> real_scalar("mass", 0.05, positive=True)
+    0.05
+    >>> real_scalar("mass", -1, positive=True)
+    Traceback (most recent call last):
+    ...
+    softcurve.base.validation.ParameterError: mass must be > 0, got -1.0
+    """
     if isinstance(value, bool | str | bytes) or not np.isscalar(value) or not np.isrealobj(value):
         raise ParameterError(f"{name} must be a real number, got {value!r}")
     x = float(value)
@@ -27,7 +48,17 @@ def real_scalar(name: str, value, *, positive: bool = False, nonzero: bool = Fal
 
 
 def real_array(name: str, value, shape: tuple[int, ...]) -> np.ndarray:
-    """Return ``value`` as a read-only finite float64 array of ``shape``."""
+    """Return ``value`` as a read-only finite float64 array of ``shape``.
+
+    Parameters
+    ----------
+    name : str
+        The field's name, for the message.
+    value : array_like, shape ``shape``
+        What the user gave, in any unit.
+    shape : tuple of int
+        The required shape.
+    """
     try:
         a = np.array(value, dtype=np.float64)
     except (TypeError, ValueError) as exc:
@@ -41,7 +72,17 @@ def real_array(name: str, value, shape: tuple[int, ...]) -> np.ndarray:
 
 
 def positive_definite(name: str, value, size: int) -> np.ndarray:
-    """A symmetric positive-definite ``size x size`` matrix; a vector means a diagonal."""
+    """A symmetric positive-definite ``size x size`` matrix; a vector means a diagonal.
+
+    Parameters
+    ----------
+    name : str
+        The field's name, for the message.
+    value : array_like, shape (size, size) or (size,)
+        The matrix, or its diagonal.
+    size : int
+        Number of rows and columns.
+    """
     a = np.asarray(value, dtype=np.float64) if not np.isscalar(value) else None
     if a is not None and a.shape == (size,):
         value = np.diag(a)

@@ -14,6 +14,8 @@ import importlib
 import os
 import sys
 
+import matplotlib
+
 from softcurve._version import __version__
 from softcurve.base.validation import ParameterError
 
@@ -34,7 +36,13 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def add_progress_options(parser: argparse.ArgumentParser) -> None:
-    """``--progress`` / ``--no-progress`` (default: when stderr is a terminal) and ``-q``."""
+    """``--progress`` / ``--no-progress`` (default: when stderr is a terminal) and ``-q``.
+
+    Parameters
+    ----------
+    parser : argparse.ArgumentParser
+        The subcommand's parser.
+    """
     progress = parser.add_mutually_exclusive_group()
     progress.add_argument(
         "--progress",
@@ -48,6 +56,14 @@ def add_progress_options(parser: argparse.ArgumentParser) -> None:
 
 
 def main(argv: list[str] | None = None) -> int:
+    """Run the ``softcurve`` command; returns the exit code.
+
+    Parameters
+    ----------
+    argv : list of str, optional
+        The arguments (default: ``sys.argv[1:]``).
+    """
+    matplotlib.use("Agg")  # the command writes figures to files and never opens a window
     parser = build_parser()
     args = parser.parse_args(argv)
     if getattr(args, "handler", None) is None:

@@ -31,7 +31,7 @@ def add_arguments(parser) -> None:
 def robot_and_actuator(args):
     """``(robot, actuator)`` from the parsed arguments."""
     from softcurve.description import presets
-    from softcurve.description.actuators import PneumaticActuator
+    from softcurve.description.pneumatic import PneumaticActuator
 
     robot, actuator = presets.ifac2020(), None
     if args.config is not None:

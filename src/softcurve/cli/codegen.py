@@ -8,6 +8,13 @@ from . import _robots
 
 
 def register(subparsers) -> None:
+    """Add ``softcurve codegen`` to ``subparsers``.
+
+    Parameters
+    ----------
+    subparsers : argparse._SubParsersAction
+        The subcommands of ``softcurve``.
+    """
     parser = subparsers.add_parser(
         "codegen",
         help="export forward/inverse dynamics, N(q) and H(q) as standalone C with a test",
@@ -31,6 +38,13 @@ def register(subparsers) -> None:
 
 
 def run(args) -> int:
+    """Run ``softcurve codegen``; returns the exit code.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The parsed command line.
+    """
     from softcurve.compiled.codegen import build_and_run_test, export_c
     from softcurve.compiled.model import Model
 

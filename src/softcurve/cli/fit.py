@@ -9,8 +9,17 @@ Trajectory fits need a robot and output maps and are a Python API
 
 from __future__ import annotations
 
+from softcurve.figures import save_figure
+
 
 def register(subparsers) -> None:
+    """Add ``softcurve fit`` to ``subparsers``.
+
+    Parameters
+    ----------
+    subparsers : argparse._SubParsersAction
+        The subcommands of ``softcurve``.
+    """
     parser = subparsers.add_parser(
         "fit",
         help="fit a stiffness law (tanh or linear) to force-strain data in a CSV file",
@@ -29,6 +38,13 @@ def register(subparsers) -> None:
 
 
 def run(args) -> int:
+    """Run ``softcurve fit``; returns the exit code.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The parsed command line.
+    """
     from softcurve.identification.experiments import load_csv
     from softcurve.identification.stiffness import fit_stiffness
 
@@ -51,10 +67,10 @@ def run(args) -> int:
         )
         print(f"law: {type(law).__name__}({arguments})")
     if args.figure:
-        import matplotlib
+        import matplotlib.pyplot as plt  # here: 0.6 s that commands without figures skip
 
-        matplotlib.use("Agg")
         figure = report.plot(title=f"{args.law} law fitted to {args.csv}")
-        figure.savefig(args.figure, dpi=110)
+        save_figure(figure, args.figure)
+        plt.close(figure)
         print(f"figure: {args.figure}")
     return 0 if report.success else 1

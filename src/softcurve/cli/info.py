@@ -8,9 +8,16 @@ import numpy as np
 
 
 def register(subparsers) -> None:
+    """Add ``softcurve info`` to ``subparsers``.
+
+    Parameters
+    ----------
+    subparsers : argparse._SubParsersAction
+        The subcommands of ``softcurve``.
+    """
     parser = subparsers.add_parser(
         "info",
-        help="summarise the paper's study case (preset ifac2020) and its compiled model",
+        help="summarize the paper's study case (preset ifac2020) and its compiled model",
         description="Build the compiled model of the paper's study case and print its "
         "parameters, the straight configuration's inertia and energy, and timings.",
     )
@@ -18,6 +25,13 @@ def register(subparsers) -> None:
 
 
 def run(args) -> int:
+    """Run ``softcurve info``; returns the exit code.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The parsed command line.
+    """
     from softcurve.compiled.model import Model
     from softcurve.description import presets
 

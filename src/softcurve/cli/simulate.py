@@ -17,10 +17,19 @@ from pathlib import Path
 
 import numpy as np
 
+from softcurve.figures import save_figure
+
 from . import add_progress_options
 
 
 def register(subparsers) -> None:
+    """Add ``softcurve simulate`` to ``subparsers``.
+
+    Parameters
+    ----------
+    subparsers : argparse._SubParsersAction
+        The subcommands of ``softcurve``.
+    """
     parser = subparsers.add_parser(
         "simulate",
         help="simulate a robot (default: the paper's section 4.2 case) and write data and figures",
@@ -77,10 +86,18 @@ def _scenario(args):
     overrides = {k: v for k, v in overrides.items() if v is not None}
     if args.fps < 1:
         raise ParameterError(f"--fps must be >= 1, got {args.fps}")
-    return dataclasses.replace(scenario, **overrides)
+    # Scenario and SimulationSettings check themselves: the overrides are validated here
+    return dataclasses.replace(scenario, settings=scenario.settings.replace(**overrides))
 
 
 def run(args) -> int:
+    """Run ``softcurve simulate``; returns the exit code.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The parsed command line.
+    """
     from softcurve.compiled.model import Model
     from softcurve.simulation.simulate import simulate
 
@@ -98,30 +115,26 @@ def run(args) -> int:
     show_progress = args.progress if args.progress is not None else sys.stderr.isatty()
     trajectory = simulate(
         model,
-        scenario.t_final,
         q0,
         qd0,
         lam0,
-        scenario.tau,
-        scenario.dt,
-        method=scenario.method,
-        rtol=scenario.rtol,
-        atol=scenario.atol,
-        max_steps=scenario.max_steps,
+        tau=scenario.tau,
+        actuator=scenario.actuator() if scenario.inputs is not None else None,
+        inputs=scenario.inputs,
+        settings=scenario.settings,
         progress=show_progress,
-        pressures=scenario.pressures,
-        actuator=scenario.actuator() if scenario.pressures is not None else None,
     )
     output.mkdir(parents=True, exist_ok=True)
     written = [trajectory.save(output / "trajectory.csv")]
     if args.npz:
         written.append(trajectory.save(output / "trajectory.npz"))
     if not args.no_figures and trajectory.t.size:
-        import matplotlib.pyplot as plt
+        import matplotlib.pyplot as plt  # here: 0.6 s that commands without figures skip
 
         for name, draw in (("states.png", trajectory.plot), ("tip.png", trajectory.plot_tip)):
-            plt.close(draw(output / name))
-            written.append(output / name)
+            figure = draw()
+            written.append(save_figure(figure, output / name))
+            plt.close(figure)
     if args.animate and trajectory.t.size > 1:
         written.append(trajectory.animate(output / "animation.gif", fps=args.fps))
         if shutil.which("ffmpeg"):
@@ -143,8 +156,9 @@ def _summary(scenario, model, trajectory, built, total, written) -> str:
     fmt = lambda a: "(" + ", ".join(f"{v:.6g}" for v in a) + ")"  # noqa: E731
     lines = [
         f"softcurve simulate: {scenario.source}, {model.robot.n_segments} segment(s), "
-        f"t = 0 .. {simulated:.6g} s, output every {scenario.dt:g} s ({trajectory.t.size} points)",
-        f"  status      {trajectory.status}: {trajectory.message}",
+        f"t = 0 .. {simulated:.6g} s, output every {scenario.settings.dt:g} s "
+        f"({trajectory.t.size} points)",
+        f"  status      {trajectory.status.value}: {trajectory.message}",
         f"  final q     {fmt(trajectory.q[-1])}" if trajectory.t.size else "  final q     -",
         f"  final qd    {fmt(trajectory.qd[-1])}" if trajectory.t.size else "  final qd    -",
         f"  final tip   {fmt(trajectory.tip[-1] * 1e3)} mm" if trajectory.t.size else "",

@@ -1,7 +1,8 @@
 """``softcurve sweep``: run a parameter sweep from a TOML file into one Parquet table.
 
-Exit code 0 when every simulation succeeded, 1 when some failed (their rows carry
-status "failed" and a message), 2 for a bad configuration (reported before any work).
+Exit code 0 when every simulation succeeded, 1 when some failed (their rows carry their
+status, e.g. "integration_failed", and a message), 2 for a bad configuration (reported
+before any work).
 """
 
 from __future__ import annotations
@@ -12,6 +13,13 @@ from . import add_progress_options
 
 
 def register(subparsers) -> None:
+    """Add ``softcurve sweep`` to ``subparsers``.
+
+    Parameters
+    ----------
+    subparsers : argparse._SubParsersAction
+        The subcommands of ``softcurve``.
+    """
     parser = subparsers.add_parser(
         "sweep",
         help="run a grid, random or Sobol design of simulations into one Parquet table",
@@ -49,8 +57,16 @@ def register(subparsers) -> None:
 
 
 def run(args) -> int:
+    """Run ``softcurve sweep``; returns the exit code.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The parsed command line.
+    """
     from softcurve.base.validation import ParameterError
-    from softcurve.scenarios.sweep import load_sweep, run_sweep
+    from softcurve.scenarios.sweep import run_sweep
+    from softcurve.scenarios.sweep_config import load_sweep
 
     try:
         import pyarrow  # noqa: F401
@@ -70,7 +86,7 @@ def run(args) -> int:
         restart=args.restart,
         progress=show,
     )
-    simulated = config.size * config.scenario.t_final
+    simulated = config.size * config.settings.t_final
     summary = (
         f"softcurve sweep: {config.source}: {config.design} design of {config.size} "
         f"simulations over {', '.join(v.name for v in config.variables)}\n"

@@ -122,7 +122,17 @@ def _cache_key(structure: tuple, quadrature_nodes: int, command: list[str]) -> s
 
 
 def compiled_library(structure, quadrature_nodes, symbolic) -> Path | None:
-    """The cached library for this structure, compiling it first if needed; None on failure."""
+    """The cached library for this structure, compiling it first if needed; None on failure.
+
+    Parameters
+    ----------
+    structure : tuple
+        :meth:`Robot.structure`.
+    quadrature_nodes : int
+        Gauss-Legendre nodes per segment, part of the cache key.
+    symbolic : callable
+        Returns the structure's functions by name (called only when compiling).
+    """
     compiler = _compiler()
     if compiler is None:
         warnings.warn(
@@ -181,19 +191,19 @@ def _compile(
         os.replace(staged, library)  # atomic: other processes see all or nothing
 
 
-def compile_function(function: ca.Function, optimisation: str = "-O1") -> ca.Function:
+def compile_function(function: ca.Function, optimization: str = "-O1") -> ca.Function:
     """``function`` generated as C, compiled, cached on disk by its content and loaded.
 
     For CasADi functions built on a model's expressions (the identification's
     sensitivity equations, say) that are evaluated often: the same compiler and cache as
-    :class:`Model`, keyed by the serialised function, so a second process loads it.
+    :class:`Model`, keyed by the serialized function, so a second process loads it.
 
     Parameters
     ----------
     function : casadi.Function
         An SX or MX function without Python callbacks.
-    optimisation : str
-        The compiler's optimisation flag; ``-O1`` compiles large generated files several
+    optimization : str
+        The compiler's optimization flag; ``-O1`` compiles large generated files several
         times faster than ``-O2`` at a small cost in speed.
 
     Returns
@@ -207,11 +217,11 @@ def compile_function(function: ca.Function, optimisation: str = "-O1") -> ca.Fun
     if compiler is None:
         return function
     digest = hashlib.sha256(function.serialize().encode())
-    digest.update(f"{ca.__version__} {sys.platform} {compiler} {optimisation}".encode())
+    digest.update(f"{ca.__version__} {sys.platform} {compiler} {optimization}".encode())
     library = cache_directory() / f"function_{digest.hexdigest()[:24]}.so"
     if not library.exists():
         try:
-            _compile({function.name(): function}, compiler, library, (optimisation, "-fPIC"))
+            _compile({function.name(): function}, compiler, library, (optimization, "-fPIC"))
         except (OSError, subprocess.CalledProcessError):
             return function
     return ca.external(function.name(), str(library), {"enable_fd": True})

@@ -1,5 +1,8 @@
 """Standalone C for embedded controllers: forward and inverse dynamics, ``N(q)``, ``H(q)``.
 
+``H(q)`` is the input matrix of an :class:`~softcurve.description.actuator.Actuator`
+(``tau = H(q) u``: pressures, tensions), exported as ``<prefix>_input_matrix``.
+
 :func:`export_c` writes ``<prefix>.c`` and ``<prefix>.h`` (CasADi's code generator:
 plain C99, no dependency but ``libm``) and a test program ``test_<prefix>.c`` that calls
 every function on one sample state, prints the results and compares them with the
@@ -27,16 +30,23 @@ from pathlib import Path
 import casadi as ca
 import numpy as np
 
+from softcurve.base.status import Result, Status
 from softcurve.base.validation import ParameterError
-from softcurve.description.actuators import Actuator
+from softcurve.description.actuator import Actuator
 
 _TOLERANCE = 1e-12
 
 
 @dataclass(frozen=True)
-class ExportedC:
+class ExportedC(Result):
     """What :func:`export_c` wrote.
 
+    Attributes
+    ----------
+    status : Status
+        SUCCESS (a failure raises instead).
+    message : str
+        What was written where.
     source, header, test : Path
         ``<prefix>.c``, ``<prefix>.h`` and ``test_<prefix>.c``.
     functions : tuple of str
@@ -47,6 +57,8 @@ class ExportedC:
         A command (run in the output directory) that builds the test program.
     """
 
+    status: Status
+    message: str
     source: Path
     header: Path
     test: Path
@@ -72,7 +84,7 @@ def _functions(model, actuator: Actuator | None, prefix: str, embed: bool):
     }
     if actuator is not None:
         actuator.check_robot(model.robot)
-        specs["pressure_matrix"] = ([e.q], ["q"], actuator.input_matrix_symbolic(e.q))
+        specs["input_matrix"] = ([e.q], ["q"], actuator.input_matrix_symbolic(e.q))
     functions = {}
     for name, (inputs, names, output) in specs.items():
         output = ca.densify(ca.SX(output))
@@ -181,10 +193,11 @@ def export_c(
     Parameters
     ----------
     model : Model
-    directory : path
+        The compiled model.
+    directory : str or Path
         Created if missing; existing files of the same names are overwritten.
     actuator : Actuator, optional
-        Adds ``<prefix>_pressure_matrix(q) -> H`` (n x m, column-major).
+        Adds ``<prefix>_input_matrix(q) -> H`` (n x m, column-major).
     prefix : str
         A C identifier: file names and function names start with it.
     embed_parameters : bool
@@ -212,6 +225,8 @@ def export_c(
         "cc", "-std=c99", "-O2", f"test_{prefix}.c", f"{prefix}.c", "-o", f"test_{prefix}", "-lm"
     ]  # fmt: skip
     return ExportedC(
+        status=Status.SUCCESS,
+        message=f"{len(functions)} functions and their test program written to {directory}",
         source=directory / f"{prefix}.c",
         header=directory / f"{prefix}.h",
         test=test,
@@ -226,10 +241,21 @@ def build_and_run_test(
 ) -> str:
     """Compile and run the exported test program; return its output.
 
-    ``optimization`` replaces ``-O2`` (e.g. ``"-O0"`` compiles several times faster).
+    Parameters
+    ----------
+    exported : ExportedC
+        What :func:`export_c` wrote.
+    compiler : str, optional
+        The C compiler (default: ``cc``, ``gcc`` or ``clang``, the first found).
+    optimization : str
+        Replaces ``-O2`` (e.g. ``"-O0"`` compiles several times faster).
 
-    Raises ``FileNotFoundError`` when no C compiler is found and
-    ``subprocess.CalledProcessError`` when compiling fails or the test reports a mismatch.
+    Raises
+    ------
+    FileNotFoundError
+        When no C compiler is found.
+    subprocess.CalledProcessError
+        When compiling fails or the test reports a mismatch.
     """
     compiler = compiler or shutil.which("cc") or shutil.which("gcc") or shutil.which("clang")
     if compiler is None:

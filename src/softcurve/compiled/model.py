@@ -1,43 +1,36 @@
-"""The compiled model: NumPy in, NumPy out, over CasADi functions compiled to C.
+"""The compiled model: the physics of a robot, NumPy in, NumPy out.
 
-:class:`Model` builds the symbolic expressions of :mod:`softcurve.dynamics` once,
-turns them into CasADi Functions of ``(state..., p)`` where ``p`` is the robot's
-parameter vector, generates C for all of them in one library, compiles it with the
-system C compiler and loads it. The library is cached on disk under a key made of
-the generated source and the compiler command, so a second process with a robot of
-the same structure (any parameter values) starts without compiling. Without a C
-compiler the same Functions run in CasADi's virtual machine, with one warning.
+:class:`Model` adds the equation of motion's terms, energies and poses to
+:class:`~softcurve.compiled.functions.CompiledFunctions`, which compiles the robot's
+CasADi Functions to C (through :mod:`softcurve.compiled.build` and its on-disk cache),
+loads and calls them, and owns the per-model cache :meth:`Model.cached`.
 
-Code generation and the on-disk cache live in :mod:`softcurve.compiled.build`; the
-per-model cache of CasADi objects built on a model (integrators, maps, load functions)
-is :meth:`Model.cached`.
+Units, per segment: coordinates ``q = (l, kx, ky)`` [m, 1/m, 1/m], rates ``qd``
+[m/s, 1/(m s), 1/(m s)], accelerations ``qdd`` [m/s^2, 1/(m s^2), 1/(m s^2)] and
+generalized forces ``tau`` [N, N m^2, N m^2] (their products with ``qd`` are powers in W).
 """
 
 from __future__ import annotations
 
-import ctypes
-import threading
 from dataclasses import dataclass
-from pathlib import Path
 
 import casadi as ca
 import numpy as np
 
-from softcurve.base.validation import ParameterError
-from softcurve.compiled.build import COMPILED_FUNCTIONS, compiled_library
-from softcurve.compiled.native import NativeFunction
-from softcurve.description.robot import Robot
-from softcurve.symbolic.dynamics import (
-    DEFAULT_QUADRATURE_NODES,
-    DynamicsExpressions,
-    build_dynamics,
-)
-from softcurve.symbolic.functions import symbolic_functions
+from softcurve.compiled.functions import CompiledFunctions
 
 
 @dataclass(frozen=True)
 class Pose:
-    """Orientation ``rotation`` (3, 3) and ``position`` (3,) [m] in the world frame."""
+    """A frame in the world frame; unpacks as ``rotation, position = pose``.
+
+    Parameters
+    ----------
+    rotation : ndarray, shape (3, 3)
+        Orientation: the frame's axes as columns, in world coordinates.
+    position : ndarray, shape (3,)
+        Origin [m] in world coordinates.
+    """
 
     rotation: np.ndarray
     position: np.ndarray
@@ -50,9 +43,20 @@ class Pose:
 class DynamicsTerms:
     """The terms of ``D qdd + C qd + G + K + R qd = tau + K_c^T lam`` at one state.
 
-    Attributes: ``mass_matrix`` (n, n), ``coriolis_force``, ``gravity_force``,
-    ``elastic_force``, ``damping_force`` (``R qd``) and ``creep_force`` (``K_c^T lam``),
-    each (n,).
+    Parameters
+    ----------
+    mass_matrix : ndarray, shape (n, n)
+        ``D(q)``, symmetric positive definite.
+    coriolis_force : ndarray, shape (n,)
+        ``C(q, qd) qd`` [N, N m^2, N m^2 per segment].
+    gravity_force : ndarray, shape (n,)
+        ``G(q) = dV_g/dq`` [N, N m^2, N m^2 per segment].
+    elastic_force : ndarray, shape (n,)
+        ``K(q) = dV_e/dq`` [N, N m^2, N m^2 per segment].
+    damping_force : ndarray, shape (n,)
+        ``R qd`` [N, N m^2, N m^2 per segment].
+    creep_force : ndarray, shape (n,)
+        ``K_c^T lam`` [N, N m^2, N m^2 per segment].
     """
 
     mass_matrix: np.ndarray
@@ -63,7 +67,13 @@ class DynamicsTerms:
     creep_force: np.ndarray
 
     def inverse_dynamics(self, qdd) -> np.ndarray:
-        """``tau`` that produces the accelerations ``qdd`` at this state."""
+        """``tau`` that produces the accelerations ``qdd`` at this state.
+
+        Parameters
+        ----------
+        qdd : array_like, shape (n,)
+            Accelerations [m/s^2, 1/(m s^2), 1/(m s^2) per segment].
+        """
         return (
             self.mass_matrix @ qdd
             + self.coriolis_force
@@ -74,12 +84,7 @@ class DynamicsTerms:
         )
 
 
-CACHED_PER_MODEL = 64
-"""Entries of :meth:`Model.cached` per model; a batch or identification builds a few
-integrators and maps per output grid, so 64 covers every study in the docs."""
-
-
-class Model:
+class Model(CompiledFunctions):
     """The dynamics of a robot, compiled.
 
     Parameters
@@ -97,147 +102,39 @@ class Model:
     Notes
     -----
     Every numeric method takes float64 arrays of shape ``(n,)`` for ``q``, ``qd``,
-    ``qdd`` and ``tau`` (``n = 3 N``) and ``(n_creep,)`` for ``lam`` (omit it or
-    pass None for zeros), and returns float64 arrays.
+    ``qdd`` and ``tau`` (``n = 3 N``, units in the module docstring) and
+    ``(n_creep,)`` for ``lam`` (omit it or pass None for zeros), and returns float64
+    arrays.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import softcurve as sc
+    >>> model = sc.Model(sc.presets.ifac2020())  # compiled once, then loaded from disk
+    >>> model.n, model.n_creep
+    (3, 3)
+    >>> q = np.array([0.064, 25.0, 0.0])  # length [m], curvatures kx, ky [1/m]
+    >>> qd = np.array([0.0, 0.0, 1500.0])  # their rates
+    >>> model.mass_matrix(q).shape
+    (3, 3)
+    >>> qdd = model.forward_dynamics(q, qd)  # creep states at zero
+    >>> np.allclose(model.inverse_dynamics(q, qd, qdd), 0.0, atol=1e-9)
+    True
+    >>> model.tip_pose(q).position.round(4)  # [m]
+    array([0.0412, 0.    , 0.04  ])
     """
-
-    def __init__(
-        self,
-        robot: Robot,
-        *,
-        quadrature_nodes: int = DEFAULT_QUADRATURE_NODES,
-        compile: bool = True,
-    ):
-        if not isinstance(robot, Robot):
-            raise ParameterError(f"robot must be a Robot, got {type(robot).__name__}")
-        if not (isinstance(quadrature_nodes, int) and 1 <= quadrature_nodes <= 64):
-            raise ParameterError(
-                f"quadrature_nodes must be an integer in [1, 64], got {quadrature_nodes!r}"
-            )
-        self.robot = robot
-        self.n = robot.n
-        self.n_creep = robot.n_creep
-        self.n_state = 2 * self.n + self.n_creep
-        self.quadrature_nodes = quadrature_nodes
-        self.parameters = robot.parameter_vector()
-        self._structure = robot.structure()
-        self._symbolic: dict[str, ca.Function] | None = None
-        self._native: dict[str, NativeFunction] | None = None
-        self._cache: dict = {}
-        self._cache_lock = threading.Lock()
-        self.compiled_library: Path | None = None
-        if compile:
-            library = compiled_library(self._structure, quadrature_nodes, lambda: self.symbolic)
-            if library is not None:
-                handle = ctypes.CDLL(str(library))
-                self._native = {name: NativeFunction(handle, name) for name in COMPILED_FUNCTIONS}
-                self.compiled_library = library
-
-    @property
-    def expressions(self) -> DynamicsExpressions:
-        """The symbolic equation of motion (built on first use)."""
-        if self._expressions is None:
-            self._expressions = build_dynamics(self._structure, self.quadrature_nodes)
-        return self._expressions
-
-    _expressions: DynamicsExpressions | None = None
-
-    @property
-    def symbolic(self) -> dict[str, ca.Function]:
-        """Every numeric entry point as a CasADi SX Function whose last input is ``p``."""
-        if self._symbolic is None:
-            self._symbolic = symbolic_functions(self.expressions)
-        return self._symbolic
-
-    # -- the per-model cache -------------------------------------------------------
-    def cached(self, key, build):
-        """``build()`` once per ``key`` for this model, kept while the model lives.
-
-        The one cache of CasADi objects built on a model (integrators, maps, load
-        functions): CasADi builds derivative functions and integrator memory on first
-        use, so rebuilding them per call would cost milliseconds. At most
-        :data:`CACHED_PER_MODEL` entries; the oldest half is dropped beyond that.
-        """
-        with self._cache_lock:
-            if key in self._cache:
-                return self._cache[key]
-        value = build()
-        with self._cache_lock:
-            if len(self._cache) >= CACHED_PER_MODEL:
-                for old in list(self._cache)[: CACHED_PER_MODEL // 2]:
-                    del self._cache[old]
-            return self._cache.setdefault(key, value)
-
-    def function(self, name: str, options: dict | None = None) -> ca.Function:
-        """The model's function ``name(..., p)`` as a CasADi Function: the compiled one,
-        loaded as a CasADi ``external`` with ``options``, when the model has a library and
-        compiles ``name``; else the symbolic one (see :attr:`symbolic`)."""
-        if self.compiled_library is not None and name in COMPILED_FUNCTIONS:
-            return ca.external(name, str(self.compiled_library), options or {})
-        return self.symbolic[name]
-
-    def evaluate_along(self, name: str, *columns) -> list[np.ndarray]:
-        """Evaluate the function ``name`` at many points in one compiled call.
-
-        Parameters
-        ----------
-        name : str
-            A key of :attr:`symbolic`, e.g. ``"pose"`` or ``"potential_energy"``.
-        *columns : array_like, shape (T, k), or scalar
-            Per-point inputs (one row per point) or a value shared by all points, in the
-            order of the function's inputs before ``p``.
-
-        Returns
-        -------
-        list of ndarray, each shape (T, size of the output)
-            One array per output of the function, flattened per point (column major).
-        """
-        count = next(np.shape(c)[0] for c in columns if np.ndim(c) == 2)
-
-        def build():
-            function = self.function(name)
-            return function, function.map(count)
-
-        function, mapped = self.cached(("map", name, count), build)
-        inputs = [np.asarray(c, dtype=np.float64).T if np.ndim(c) == 2 else c for c in columns]
-        outputs = mapped(*inputs, self.parameters)
-        if not isinstance(outputs, tuple | list):
-            outputs = (outputs,)
-        result = []
-        for i, o in enumerate(outputs):
-            rows, cols = function.size1_out(i), function.size2_out(i)
-            dense = np.asarray(o, dtype=np.float64)  # (rows, cols * count), column blocks
-            per_point = dense.reshape(rows, count, cols)
-            result.append(per_point.transpose(1, 0, 2).reshape(count, rows * cols))
-        return result
-
-    # -- state helpers -------------------------------------------------------------
-    def _vector(self, name: str, value, size: int) -> np.ndarray:
-        if value is None and name == "lam":
-            return np.zeros(size)
-        a = np.asarray(value, dtype=np.float64)
-        if a.shape != (size,):
-            raise ValueError(f"{name} must have shape ({size},), got {a.shape}")
-        return a
-
-    def _call(self, name: str, *args) -> list[np.ndarray]:
-        if self._native is not None and name in self._native:
-            return self._native[name](*args, self.parameters)
-        out = self.symbolic[name](*args, self.parameters)
-        if not isinstance(out, tuple | list):
-            out = (out,)
-        arrays = [np.array(o, dtype=np.float64) for o in out]
-        return [a.ravel() if a.shape[1] == 1 else a for a in arrays]
-
-    def split_state(self, x):
-        """``(q, qd, lam)`` views of a state vector ``x`` of shape (n_state,)."""
-        x = self._vector("x", x, self.n_state)
-        n = self.n
-        return x[:n], x[n : 2 * n], x[2 * n :]
 
     # -- dynamics ------------------------------------------------------------------
     def dynamics_terms(self, q, qd, lam=None) -> DynamicsTerms:
-        """Every term of eq. (16) at one state, from one compiled evaluation."""
+        """Every term of eq. (16) at one state, from one compiled evaluation.
+
+        Parameters
+        ----------
+        q, qd : array_like, shape (n,)
+            Coordinates and their rates.
+        lam : array_like, shape (n_creep,), optional
+            Creep states (default zeros).
+        """
         values = self._call(
             "dynamics_terms",
             self._vector("q", q, self.n),
@@ -247,49 +144,113 @@ class Model:
         return DynamicsTerms(*values)
 
     def mass_matrix(self, q) -> np.ndarray:
-        """Inertia matrix ``D(q)``, shape (n, n), symmetric positive definite."""
+        """Inertia matrix ``D(q)``, shape (n, n), symmetric positive definite.
+
+        Parameters
+        ----------
+        q : array_like, shape (n,)
+            Coordinates.
+        """
         return self.dynamics_terms(q, np.zeros(self.n)).mass_matrix
 
     def coriolis_matrix(self, q, qd) -> np.ndarray:
         """``C(q, qd)`` with Christoffel symbols of ``D``, shape (n, n); ``Ddot - 2C`` is
-        skew-symmetric. Evaluated in CasADi's virtual machine (analysis, not a hot path)."""
+        skew-symmetric. Evaluated in CasADi's virtual machine (analysis, not a hot path).
+
+        Parameters
+        ----------
+        q, qd : array_like, shape (n,)
+            Coordinates and their rates.
+        """
         out = self.symbolic["coriolis_matrix"](
             self._vector("q", q, self.n), self._vector("qd", qd, self.n), self.parameters
         )
         return np.array(out, dtype=np.float64)
 
     def coriolis_force(self, q, qd) -> np.ndarray:
-        """``C(q, qd) qd``, shape (n,)."""
+        """``C(q, qd) qd``, shape (n,).
+
+        Parameters
+        ----------
+        q, qd : array_like, shape (n,)
+            Coordinates and their rates.
+        """
         return self.dynamics_terms(q, qd).coriolis_force
 
     def gravity_force(self, q) -> np.ndarray:
-        """``dV_g/dq``, shape (n,) [N or N m]."""
+        """``dV_g/dq``, shape (n,).
+
+        Parameters
+        ----------
+        q : array_like, shape (n,)
+            Coordinates.
+        """
         return self.dynamics_terms(q, np.zeros(self.n)).gravity_force
 
     def elastic_force(self, q) -> np.ndarray:
-        """``dV_e/dq``, shape (n,)."""
+        """``dV_e/dq``, shape (n,).
+
+        Parameters
+        ----------
+        q : array_like, shape (n,)
+            Coordinates.
+        """
         return self.dynamics_terms(q, np.zeros(self.n)).elastic_force
 
     def potential_force(self, q) -> np.ndarray:
-        """``N(q) = dV/dq``, gravity plus elastic, shape (n,)."""
+        """``N(q) = dV/dq``, gravity plus elastic, shape (n,).
+
+        Parameters
+        ----------
+        q : array_like, shape (n,)
+            Coordinates.
+        """
         return self.gravity_force(q) + self.elastic_force(q)
 
     def potential_energy(self, q) -> float:
-        """``V(q)`` [J], gravitational plus elastic."""
+        """``V(q)`` [J], gravitational plus elastic.
+
+        Parameters
+        ----------
+        q : array_like, shape (n,)
+            Coordinates.
+        """
         g, e = self._call("potential_energy", self._vector("q", q, self.n))
         return float(g[0] + e[0])
 
     def kinetic_energy(self, q, qd) -> float:
-        """``T(q, qd) = qd' D(q) qd / 2`` [J]."""
+        """``T(q, qd) = qd' D(q) qd / 2`` [J].
+
+        Parameters
+        ----------
+        q, qd : array_like, shape (n,)
+            Coordinates and their rates.
+        """
         qd = self._vector("qd", qd, self.n)
         return float(0.5 * qd @ self.mass_matrix(q) @ qd)
 
     def energy(self, q, qd) -> float:
-        """Total mechanical energy ``T + V`` [J]."""
+        """Total mechanical energy ``T + V`` [J].
+
+        Parameters
+        ----------
+        q, qd : array_like, shape (n,)
+            Coordinates and their rates.
+        """
         return self.kinetic_energy(q, qd) + self.potential_energy(q)
 
     def forward_dynamics(self, q, qd, tau=None, lam=None) -> np.ndarray:
-        """Accelerations ``qdd`` solving eq. (16) for the given forces, shape (n,)."""
+        """Accelerations ``qdd`` solving eq. (16) for the given forces, shape (n,).
+
+        Parameters
+        ----------
+        q, qd : array_like, shape (n,)
+            Coordinates and their rates.
+        tau : array_like, shape (n,), optional
+            Generalized input forces (default zeros).
+        lam : array_like, shape (n_creep,), optional
+            Creep states (default zeros).
+        """
         x = np.concatenate(
             [
                 self._vector("q", q, self.n),
@@ -300,17 +261,41 @@ class Model:
         return self.state_derivative(x, tau)[self.n : 2 * self.n]
 
     def inverse_dynamics(self, q, qd, qdd, lam=None) -> np.ndarray:
-        """Generalized forces ``tau`` that produce ``qdd``, shape (n,)."""
+        """Generalized forces ``tau`` that produce ``qdd``, shape (n,).
+
+        Parameters
+        ----------
+        q, qd, qdd : array_like, shape (n,)
+            Coordinates, their rates and accelerations.
+        lam : array_like, shape (n_creep,), optional
+            Creep states (default zeros).
+        """
         return self.dynamics_terms(q, qd, lam).inverse_dynamics(self._vector("qdd", qdd, self.n))
 
     def creep_rate(self, qd, lam) -> np.ndarray:
-        """``lambda'`` of eq. (19), shape (n_creep,)."""
+        """``lambda'`` of eq. (19), shape (n_creep,).
+
+        Parameters
+        ----------
+        qd : array_like, shape (n,)
+            Coordinate rates.
+        lam : array_like, shape (n_creep,)
+            Creep states.
+        """
         return self._call(
             "creep_rate", self._vector("qd", qd, self.n), self._vector("lam", lam, self.n_creep)
         )[0]
 
     def state_derivative(self, x, tau=None) -> np.ndarray:
-        """``xdot`` for the state ``x = (q, qd, lam)``, shape (n_state,)."""
+        """``xdot`` for the state ``x = (q, qd, lam)``, shape (n_state,).
+
+        Parameters
+        ----------
+        x : array_like, shape (n_state,)
+            State ``(q, qd, lam)``.
+        tau : array_like, shape (n,), optional
+            Generalized input forces (default zeros).
+        """
         tau = np.zeros(self.n) if tau is None else self._vector("tau", tau, self.n)
         return self._call("rhs", self._vector("x", x, self.n_state), tau)[0]
 
@@ -341,31 +326,69 @@ class Model:
         return s
 
     def pose(self, q, s) -> Pose:
-        """World pose at material coordinate ``s`` in [0, 1] of the whole robot.
+        """World pose at material coordinate ``s`` of the whole robot.
 
         Segment ``i`` covers ``[i/N, (i+1)/N]``; ``s = 1`` is the tip.
+
+        Parameters
+        ----------
+        q : array_like, shape (n,)
+            Coordinates.
+        s : float
+            Material coordinate in [0, 1], dimensionless.
         """
         rotation, position = self._call("pose", self._vector("q", q, self.n), self._s(s))
         return Pose(rotation, position)
 
     def tip_pose(self, q) -> Pose:
-        """World pose of the tip (``s = 1``)."""
+        """World pose of the tip (``s = 1``).
+
+        Parameters
+        ----------
+        q : array_like, shape (n,)
+            Coordinates.
+        """
         return self.pose(q, 1.0)
 
     def jacobian(self, q, s) -> np.ndarray:
         """Geometric Jacobian (6, n) at ``s``: rows 0-2 linear velocity, rows 3-5 angular
-        velocity, both in the world frame, per unit ``qd``."""
+        velocity, both in the world frame, per unit ``qd``.
+
+        Parameters
+        ----------
+        q : array_like, shape (n,)
+            Coordinates.
+        s : float
+            Material coordinate in [0, 1], dimensionless.
+        """
         return self._call("jacobian", self._vector("q", q, self.n), self._s(s))[0]
 
     def body_twist(self, q, qd, s) -> np.ndarray:
-        """Twist (6,) of the material point at ``s`` in its own frame: linear then angular."""
+        """Twist (6,) of the material point at ``s`` in its own frame: linear [m/s] then
+        angular [rad/s].
+
+        Parameters
+        ----------
+        q, qd : array_like, shape (n,)
+            Coordinates and their rates.
+        s : float
+            Material coordinate in [0, 1], dimensionless.
+        """
         q = self._vector("q", q, self.n)
         rotation, _ = self.pose(q, s)
         twist = self.jacobian(q, s) @ self._vector("qd", qd, self.n)
         return np.concatenate([rotation.T @ twist[:3], rotation.T @ twist[3:]])
 
     def backbone(self, q, points: int = 50) -> np.ndarray:
-        """Positions (points, 3) [m] along the backbone, from base to tip."""
+        """Positions (points, 3) [m] along the backbone, from base to tip.
+
+        Parameters
+        ----------
+        q : array_like, shape (n,)
+            Coordinates.
+        points : int
+            Number of points, >= 2, equally spaced in the material coordinate.
+        """
         if not (isinstance(points, int | np.integer) and points >= 2):
             raise ValueError(f"points must be an integer >= 2, got {points!r}")
         q = self._vector("q", q, self.n)

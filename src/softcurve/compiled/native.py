@@ -43,6 +43,14 @@ class NativeFunction:
     Call it with one array per input (dense, the input's number of elements);
     it returns a list of dense float64 arrays of each output's shape
     (vectors flattened).
+
+    Parameters
+    ----------
+    library : ctypes.CDLL
+        A library that CasADi generated, with ``name`` and its ``name_work``,
+        ``name_sparsity_in`` ... symbols.
+    name : str
+        The function's name in the library.
     """
 
     def __init__(self, library: ctypes.CDLL, name: str):

@@ -1,22 +1,25 @@
-"""Model-based control: computed torque, PD with compensation, and pressure allocation.
+"""Model-based control: computed torque, PD with compensation, and input allocation.
 
 Controllers follow the protocol of :func:`softcurve.simulate`: an object with a
-``sample_time`` [s] and ``__call__(t, q, qd, lam) -> tau`` (shape (n,)), whose output
-is held constant between samples, and an optional ``reset()``. :func:`closed_loop_rhs`
-evaluates one at every right-hand-side call instead: the continuous-time limit, in
-which computed torque with a perfect model is exact.
+``sample_time`` [s] and ``__call__(t, q, qd, lam)``, whose output is held constant
+between samples, and an optional ``reset()``. The output is generalized forces
+``tau`` (n,), or, for a controller run with ``simulate(..., actuator=...)``, the
+actuator's inputs ``u`` (m,) (its commands, when the actuator has a lag), which the
+robot receives as ``H(q) u``. :func:`closed_loop_rhs` evaluates a controller at every
+right-hand-side call instead: the continuous-time limit, in which computed torque with a
+perfect model is exact.
 
-- :class:`ComputedTorque` (feedback linearisation): ``tau = ID(q, qd, qdd_r + Kd e' + Kp e,
+- :class:`ComputedTorque` (feedback linearization): ``tau = ID(q, qd, qdd_r + Kd e' + Kp e,
   lam)`` with ``ID`` the controller model's inverse dynamics (including damping and the
   creep force ``K^T lam``), so a perfect model gives ``e'' + Kd e' + Kp e = 0``.
 - :class:`PDGravityElastic`: ``tau = N(q) + Kp (q_r - q) + Kd (qd_r - qd)``.
-- :class:`PressureAllocator` maps a wanted ``tau`` to bounded pressures by bounded least
-  squares, ``min |W (H(q) p - tau)|`` over ``lower <= p <= upper`` with ``W = diag(S)``
-  (energy units, see :mod:`softcurve.statics`); :class:`PressureDriven` wraps a
-  controller so that the robot receives ``H(q) p`` from saturated (and, with the
-  actuator's ``time_constant``, lagged) pressures.
-- :class:`Reference` is ``q_r(t)`` with exact derivatives (CasADi), e.g.
-  :func:`tip_circle` for a single segment.
+- :class:`InputAllocator` maps a wanted ``tau`` to bounded actuator inputs by bounded
+  least squares, ``min |W (H(q) u - tau)|`` over ``lower <= u <= upper`` with
+  ``W = diag(S)`` (energy units, see :mod:`softcurve.analysis.solver`);
+  :class:`ActuatorDriven` wraps a generalized-force controller into one that returns
+  the actuator's inputs (saturated and, with the actuator's ``time_constant``, with the
+  lag inverted over one sample).
+- References ``q_r(t)`` are in :mod:`softcurve.control.references`.
 """
 
 from __future__ import annotations
@@ -25,106 +28,14 @@ import math
 from collections.abc import Callable
 from dataclasses import dataclass
 
-import casadi as ca
 import numpy as np
 import scipy.optimize
 
 from softcurve.analysis.loads import coordinate_scale
+from softcurve.base.status import Result, Status
 from softcurve.base.validation import ParameterError, real_array, real_scalar
-from softcurve.description.actuators import Actuator
-
-
-# -- references -------------------------------------------------------------------------
-@dataclass(frozen=True)
-class ReferenceSample:
-    """``q_r``, ``qd_r``, ``qdd_r`` at one time, each shape (n,)."""
-
-    q: np.ndarray
-    qd: np.ndarray
-    qdd: np.ndarray
-
-
-class Reference:
-    """A reference trajectory ``q_r(t)`` with exact first and second derivatives.
-
-    Parameters
-    ----------
-    expression : callable
-        ``expression(t) -> q_r`` for a CasADi scalar symbol ``t``; returns an (n,)
-        expression built from CasADi operations.
-    n : int
-        Number of coordinates.
-    """
-
-    def __init__(self, expression: Callable, n: int):
-        t = ca.SX.sym("t")
-        q = ca.vertcat(expression(t))
-        if q.shape != (n, 1):
-            raise ParameterError(f"the reference expression must have shape ({n},), got {q.shape}")
-        qd = ca.jacobian(q, t)
-        qdd = ca.jacobian(qd, t)
-        self.n = n
-        self._function = ca.Function("reference", [t], [q, qd, qdd])
-
-    def __call__(self, t: float) -> ReferenceSample:
-        q, qd, qdd = (np.array(v, dtype=np.float64).ravel() for v in self._function(float(t)))
-        return ReferenceSample(q, qd, qdd)
-
-    @classmethod
-    def constant(cls, q) -> Reference:
-        """A set point."""
-        q = np.asarray(q, dtype=np.float64)
-        return cls(lambda t: ca.DM(q) + 0 * t, q.size)
-
-    @classmethod
-    def sinusoid(cls, center, amplitude, frequency: float, phase=0.0) -> Reference:
-        """``center + amplitude sin(2 pi frequency t + phase)`` per coordinate."""
-        center = np.asarray(center, dtype=np.float64)
-        amplitude = np.broadcast_to(np.asarray(amplitude, dtype=np.float64), center.shape)
-        phase = np.broadcast_to(np.asarray(phase, dtype=np.float64), center.shape)
-        w = 2.0 * math.pi * real_scalar("frequency", frequency, positive=True)
-        return cls(
-            lambda t: ca.DM(center) + ca.DM(amplitude) * ca.sin(w * t + ca.DM(phase)),
-            center.size,
-        )
-
-
-def tip_to_coordinates(position):
-    """Closed-form inverse kinematics of one constant-curvature segment (CasADi or float).
-
-    The arc from the origin (tangent +z) through ``position = (x, y, z)`` with ``z > 0``:
-    ``d = |(x, y)|``, bending angle ``beta = 2 atan2(d, z)``, curvature
-    ``kappa = 2 d / (d^2 + z^2)``, length ``l = beta / kappa`` and
-    ``(kx, ky) = kappa (x, y) / d``. Requires ``d > 0`` (the tip off the axis).
-    """
-    x, y, z = position[0], position[1], position[2]
-    d = ca.sqrt(x**2 + y**2)
-    beta = 2 * ca.atan2(d, z)
-    kappa = 2 * d / (d**2 + z**2)
-    return ca.vertcat(beta / kappa, kappa * x / d, kappa * y / d)
-
-
-def tip_circle(center, radius: float, period: float, *, phase: float = 0.0) -> Reference:
-    """Reference for a single segment whose tip runs a horizontal circle.
-
-    The circle ``center + radius (cos w t, sin w t, 0)`` with ``w = 2 pi / period``,
-    in the base frame; it must not pass through the z axis (see
-    :func:`tip_to_coordinates`).
-    """
-    center = real_array("center", center, (3,))
-    radius = real_scalar("radius", radius, positive=True)
-    w = 2.0 * math.pi / real_scalar("period", period, positive=True)
-    if np.hypot(center[0], center[1]) <= radius or center[2] <= 0:
-        raise ParameterError(
-            "the tip circle must stay off the z axis (|center_xy| > radius) and above the "
-            f"base (center z > 0); got center {center.tolist()}, radius {radius}"
-        )
-
-    def expression(t):
-        point = ca.DM(center) + radius * ca.vertcat(ca.cos(w * t + phase), ca.sin(w * t + phase), 0)
-        return tip_to_coordinates(point)
-
-    return Reference(expression, 3)
+from softcurve.control.references import Reference
+from softcurve.description.actuator import Actuator
 
 
 # -- controllers ------------------------------------------------------------------------
@@ -135,33 +46,47 @@ def _gain(name: str, value, n: int) -> np.ndarray:
     return g.copy()
 
 
-class _Sampled:
-    """Sample time and the record of every sample a controller computed."""
+class SampledController:
+    """Base of the controllers: the sample time and the record of every sample computed.
+
+    Parameters
+    ----------
+    sample_time : float
+        Time between two samples [s], > 0; the output is held in between.
+    """
 
     def __init__(self, sample_time: float):
         self.sample_time = real_scalar("sample_time", sample_time, positive=True)
         self.log: list[dict] = []
 
     def reset(self) -> None:
+        """Forget the record (and any state) before a new run."""
         self.log = []
 
     def history(self, key: str) -> np.ndarray:
-        """One logged quantity (e.g. ``"t"``, ``"tau"``, ``"pressures"``) over all samples."""
+        """One logged quantity over all samples.
+
+        Parameters
+        ----------
+        key : str
+            ``"t"``, ``"tau"``, ``"inputs"``, ... (each controller says what it logs).
+        """
         return np.array([entry[key] for entry in self.log])
 
 
-class ComputedTorque(_Sampled):
-    """Feedback linearisation of a reference trajectory.
+class ComputedTorque(SampledController):
+    """Feedback linearization of a reference trajectory.
 
     Parameters
     ----------
     model : Model
         The controller's model of the robot (may differ from the simulated one).
     reference : Reference
+        ``q_r(t)`` to track.
     kp, kd : float or array_like, shape (n,)
         Gains of the error dynamics ``e'' + kd e' + kp e = 0`` [1/s^2, 1/s].
     sample_time : float
-        [s].
+        Time between two samples [s].
     """
 
     def __init__(self, model, reference: Reference, *, kp, kd, sample_time: float):
@@ -179,17 +104,21 @@ class ComputedTorque(_Sampled):
         return tau
 
 
-class PDGravityElastic(_Sampled):
+class PDGravityElastic(SampledController):
     """PD control plus compensation of gravity and elasticity at the current configuration:
     ``tau = N(q) + kp (q_r - q) + kd (qd_r - qd)``.
 
     Parameters
     ----------
     model : Model
+        The controller's model of the robot.
     reference : Reference
+        ``q_r(t)``; its rates ``qd_r`` enter the damping term.
     kp, kd : float or array_like, shape (n,)
-        [N/m, N m^2 per 1/m ...]: generalized stiffness and damping per coordinate.
+        Generalized stiffness [N/m, N m^2 per 1/m] and damping [N s/m, N m^2 s per 1/m]
+        per coordinate.
     sample_time : float
+        Time between two samples [s].
     """
 
     def __init__(self, model, reference: Reference, *, kp, kd, sample_time: float):
@@ -204,79 +133,97 @@ class PDGravityElastic(_Sampled):
         return tau
 
 
-def closed_loop_rhs(model, controller) -> Callable:
+def closed_loop_rhs(model, controller, *, actuator: Actuator | None = None) -> Callable:
     """``f(t, x) -> xdot`` of the robot under ``controller`` evaluated at every call (no
-    hold): the continuous-time closed loop, for SciPy's ``solve_ivp``."""
+    hold): the continuous-time closed loop, for SciPy's ``solve_ivp``.
+
+    Parameters
+    ----------
+    model : Model
+        The robot.
+    controller : callable
+        ``controller(t, q, qd, lam)`` returning ``tau`` (n,), or the actuator's inputs
+        (m,) when ``actuator`` is given.
+    actuator : Actuator, optional
+        The robot then receives ``H(q) u`` (inputs without lag).
+    """
 
     def f(t, x):
         q, qd, lam = model.split_state(x)
+        output = controller(t, q, qd, lam)
+        tau = output if actuator is None else actuator.input_matrix(q) @ output
         # a fresh array: SciPy keeps the stages it is given
-        return np.array(model.state_derivative(x, controller(t, q, qd, lam)))
+        return np.array(model.state_derivative(x, tau))
 
     return f
 
 
-# -- pressures --------------------------------------------------------------------------
-def pressure_input(actuator: Actuator, pressures) -> Callable:
-    """A ``tau(t, state)`` input for :func:`softcurve.simulate` from bellow pressures.
+# -- actuator inputs ---------------------------------------------------------------------
+@dataclass(frozen=True, eq=False)
+class Allocation(Result):
+    """Bounded actuator inputs for a wanted generalized force.
 
-    ``pressures`` is a constant array (m,) [Pa] or a callable ``pressures(t) -> (m,)``;
-    each value is checked against the bounds (:class:`ParameterError` names the entry),
-    and the robot receives ``H(q) p`` at the current configuration, held like any
-    callable input between output times.
-    """
-    if callable(pressures):
-        schedule = pressures
-    else:
-        constant = actuator.check_inputs(pressures)
-
-        def schedule(t):
-            return constant
-
-    def tau(t, state):
-        p = actuator.check_inputs(schedule(t), name=f"pressures at t = {t:g} s")
-        return actuator.input_matrix(state.q) @ p
-
-    return tau
-
-
-@dataclass(frozen=True)
-class Allocation:
-    """Bounded pressures for a wanted generalized force.
-
-    pressures (m,) [Pa]; tau_requested, tau_achieved (n,); saturated (m,) bool, True where
-    a bound is active; residual: ``|W (H p - tau)|`` [J].
+    Attributes
+    ----------
+    inputs : ndarray, shape (m,)
+        [the actuator's ``input_unit``], within its bounds.
+    tau_requested, tau_achieved : ndarray, shape (n,)
+        The wanted ``tau`` and ``H(q) u``.
+    saturated : ndarray, shape (m,), bool
+        True where a bound is active.
+    residual : float
+        ``|W (H u - tau)|`` [J].
+    status : Status
+        SUCCESS when ``H u`` meets ``tau`` (to ``tolerance`` of the allocator), else
+        INFEASIBLE: the bounds keep the inputs from producing it (the closest is returned).
+    message : str
+        The residual and the saturated inputs.
     """
 
-    pressures: np.ndarray
+    inputs: np.ndarray
     tau_requested: np.ndarray
     tau_achieved: np.ndarray
     saturated: np.ndarray
     residual: float
+    status: Status
+    message: str
 
 
-class PressureAllocator:
-    """``tau -> p``: bounded least squares in energy units.
+class InputAllocator:
+    """``tau -> u``: bounded least squares in energy units.
 
     Parameters
     ----------
     actuator : Actuator
+        The actuator whose inputs are chosen.
     robot : Robot
         Supplies the weights ``W = diag(l0, 1/l0, 1/l0)`` per segment.
+    tolerance : float
+        An allocation whose residual is below ``tolerance`` times ``|W tau|`` is exact
+        (dimensionless).
     """
 
-    def __init__(self, actuator: Actuator, robot):
+    def __init__(self, actuator: Actuator, robot, *, tolerance: float = 1e-9):
         actuator.check_robot(robot)
         self.actuator = actuator
         self.weights = coordinate_scale(robot)
+        self.tolerance = real_scalar("tolerance", tolerance, positive=True)
 
     def allocate(self, q, tau) -> Allocation:
-        """The pressures within bounds whose ``H(q) p`` is closest to ``tau``."""
+        """The inputs within bounds whose ``H(q) u`` is closest to ``tau``.
+
+        Parameters
+        ----------
+        q : array_like, shape (n,)
+            Configuration [m, 1/m, 1/m].
+        tau : array_like, shape (n,)
+            Wanted generalized forces [N, N m^2].
+        """
         h = self.actuator.input_matrix(q)
         tau = real_array("tau", tau, (self.actuator.n,))
         w = self.weights
         lower, upper = self.actuator.lower, self.actuator.upper
-        # Column scaling by the pressure range keeps the problem well conditioned.
+        # Column scaling by the input range keeps the problem well conditioned.
         span = upper - lower
         solution = scipy.optimize.lsq_linear(
             (w[:, None] * h) * span[None, :],
@@ -284,77 +231,93 @@ class PressureAllocator:
             bounds=(0.0, 1.0),
             method="bvls",
         )
-        p = np.clip(lower + span * solution.x, lower, upper)
-        achieved = h @ p
+        u = np.clip(lower + span * solution.x, lower, upper)
+        achieved = h @ u
         saturated = (solution.x <= 0.0) | (solution.x >= 1.0)
-        return Allocation(p, tau, achieved, saturated, float(np.linalg.norm(w * (achieved - tau))))
+        residual = float(np.linalg.norm(w * (achieved - tau)))
+        exact = residual <= self.tolerance * max(float(np.linalg.norm(w * tau)), 1e-300)
+        message = f"residual {residual:.3g} J; {int(saturated.sum())} input(s) at a bound"
+        return Allocation(
+            inputs=u,
+            tau_requested=tau,
+            tau_achieved=achieved,
+            saturated=saturated,
+            residual=residual,
+            status=Status.SUCCESS if exact else Status.INFEASIBLE,
+            message=message,
+        )
 
 
-class PressureDriven(_Sampled):
-    """A generalized-force controller driving the robot through bounded pressures.
+class ActuatorDriven(SampledController):
+    """A generalized-force controller turned into one that returns actuator inputs.
 
-    At each sample the wrapped controller's ``tau`` is allocated to pressures
-    (:class:`PressureAllocator`); with the actuator's ``time_constant`` the pressures
-    follow their commands with the exact first-order response over the previous
-    sample; the robot receives ``H(q) p`` held until the next sample.
+    At each sample the wrapped controller's ``tau`` is allocated to bounded inputs
+    (:class:`InputAllocator`) and the inputs ``u`` (m,) are returned; run it with
+    ``simulate(model, q0, qd0, actuator=actuator, controller=driven, ...)``, which
+    applies ``H(q) u``. With the actuator's ``time_constant`` the returned values are
+    commands, which the inputs follow with the first-order lag; the wrapper tracks the
+    inputs by the exact response over each sample (:meth:`Actuator.input_step`).
 
-    With ``compensate_lag`` the command is the one that brings each pressure to its
-    allocated value by the next sample, ``c = (p* - a p) / (1 - a)`` with
+    With ``compensate_lag`` the command is the one that brings each input to its
+    allocated value by the next sample, ``c = (u* - a u) / (1 - a)`` with
     ``a = exp(-sample_time / time_constant)``, saturated to the bounds (the exact inverse
-    of the first-order lag over one sample); the pressures then reach their targets one
+    of the first-order lag over one sample); the inputs then reach their targets one
     sample late instead of with the lag.
+
+    Logged per sample: ``t``, ``tau_wanted``, ``allocated``, ``command``, ``inputs`` (the
+    inputs at the sample), ``tau`` (``H(q) u`` with them) and ``saturated``.
 
     Parameters
     ----------
-    controller
-        Any controller of the protocol (its ``sample_time`` is used).
+    controller : callable
+        Any controller of the protocol returning ``tau`` (its ``sample_time`` is used).
     actuator : Actuator
+        The actuator driving the robot.
     robot : Robot
+        The robot (weights of the allocation).
     compensate_lag : bool
-        Invert the pressure lag over one sample (default True; no effect without a lag).
+        Invert the input lag over one sample (default True; no effect without a lag).
     """
 
     def __init__(self, controller, actuator: Actuator, robot, *, compensate_lag: bool = True):
         super().__init__(controller.sample_time)
         self.controller = controller
         self.compensate_lag = bool(compensate_lag)
-        self.allocator = PressureAllocator(actuator, robot)
+        self.allocator = InputAllocator(actuator, robot)
         self.actuator = actuator
         self.reset()
 
     def reset(self) -> None:
+        """Forget the record, reset the wrapped controller; the inputs start at rest."""
         super().reset()
         if hasattr(self.controller, "reset"):
             self.controller.reset()
-        self._pressures = self.actuator.clip(np.zeros(self.actuator.n_inputs))
-        self._command = self._pressures.copy()
+        self._inputs = self.actuator.rest_inputs()
+        self._command = self._inputs.copy()
         self._time: float | None = None
 
     def __call__(self, t, q, qd, lam=None) -> np.ndarray:
         if self._time is not None:
-            self._pressures = self.actuator.input_step(
-                self._pressures, self._command, t - self._time
-            )
+            self._inputs = self.actuator.input_step(self._inputs, self._command, t - self._time)
         tau_wanted = np.array(self.controller(t, q, qd, lam), dtype=np.float64)
         allocation = self.allocator.allocate(q, tau_wanted)
-        command = allocation.pressures
+        command = allocation.inputs
         lag = self.actuator.time_constant
         if lag is None:
-            self._pressures = command
+            self._inputs = command
         elif self.compensate_lag:
             a = math.exp(-self.sample_time / lag)
-            command = self.actuator.clip((command - a * self._pressures) / (1.0 - a))
+            command = self.actuator.clip((command - a * self._inputs) / (1.0 - a))
         self._command, self._time = command, t
-        tau = self.actuator.input_matrix(q) @ self._pressures
         self.log.append(
             {
                 "t": t,
                 "tau_wanted": tau_wanted,
-                "tau": tau,
-                "allocated": allocation.pressures,
+                "tau": self.actuator.input_matrix(q) @ self._inputs,
+                "allocated": allocation.inputs,
                 "command": command,
-                "pressures": self._pressures.copy(),
+                "inputs": self._inputs.copy(),
                 "saturated": allocation.saturated,
             }
         )
-        return tau
+        return command.copy()

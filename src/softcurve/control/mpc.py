@@ -1,21 +1,22 @@
-"""Model-predictive control with bounded pressures, re-linearised at every sample.
+"""Model-predictive control with bounded actuator inputs, re-linearized at every sample.
 
-At each sample the loaded dynamics are linearised about the measured state and the
-pressures currently applied (:func:`softcurve.linear.linearize`, exact CasADi
-derivatives), and discretised exactly for a zero-order hold of the pressure changes,
-affine term included::
+At each sample the loaded dynamics are linearized about the measured state and the
+inputs currently applied (:func:`softcurve.analysis.linear.linearize` with
+``wrt="actuator"``, exact CasADi derivatives), and discretized exactly for a zero-order
+hold of the input changes, affine term included::
 
-    x_(k+1) - x_0 = Ad (x_k - x_0) + Bd (p_k - p_0) + c,   [Ad Bd c] from expm
+    x_(k+1) - x_0 = Ad (x_k - x_0) + Bd (u_k - u_0) + c,   [Ad Bd c] from expm
 
-Over ``horizon`` samples the controller minimises
+Over ``horizon`` samples the controller minimizes
 
-    sum_k |W (q_k - q_r(t + k Ts))|^2 + rate_weight sum_k |(p_k - p_(k-1)) / span|^2
+    sum_k |W (q_k - q_r(t + k Ts))|^2 + rate_weight sum_k |(u_k - u_(k-1)) / span|^2
 
-with ``W = diag(1/l0, l0, l0)`` (one metre of length weighs like one radian of bending),
-subject to ``lower <= p_k <= upper``. The predictions are linear in the pressures, so
+with ``W = diag(1/l0, l0, l0)`` (one meter of length weighs like one radian of bending),
+subject to ``lower <= u_k <= upper``. The predictions are linear in the inputs, so
 this is a bounded linear least-squares problem, solved exactly by SciPy's BVLS; the
-first pressures are applied. The nonlinear model enters through the re-linearisation
-at every sample (a linear time-varying MPC); pressure lag is not modelled.
+first inputs are returned (run it with ``simulate(..., actuator=...)``). The nonlinear
+model enters through the re-linearization at every sample (a linear time-varying MPC);
+an input lag is not modeled.
 """
 
 from __future__ import annotations
@@ -27,25 +28,32 @@ import scipy.optimize
 from softcurve.analysis.linear import linearize
 from softcurve.analysis.loads import coordinate_scale
 from softcurve.base.validation import ParameterError, real_scalar
-from softcurve.control.controllers import Reference, _Sampled
-from softcurve.description.actuators import Actuator
+from softcurve.control.controllers import SampledController
+from softcurve.control.references import Reference
+from softcurve.description.actuator import Actuator
 
 
-class PressureMPC(_Sampled):
-    """Bounded-pressure MPC of a reference ``q_r(t)``, re-linearised at every sample.
+class ActuatorMPC(SampledController):
+    """Bounded-input MPC of a reference ``q_r(t)``, re-linearized at every sample.
+
+    Returns the actuator's inputs (m,); logged per sample: ``t``, ``inputs``, ``tau``
+    (``H(q) u``), the solver's ``status`` and the ``cost``.
 
     Parameters
     ----------
     model : Model
         The controller's model.
     actuator : Actuator
+        The actuator whose inputs are chosen.
     reference : Reference
+        ``q_r(t)`` to track.
     horizon : int
         Samples predicted (>= 1).
     sample_time : float
-        [s]; also the prediction step.
+        Time between two samples [s]; also the prediction step.
     rate_weight : float
-        Weight (>= 0) of the pressure increments, normalised by the pressure range.
+        Weight (>= 0) of the input increments, normalized by the input range
+        (dimensionless).
     """
 
     def __init__(
@@ -75,15 +83,14 @@ class PressureMPC(_Sampled):
         self.reset()
 
     def reset(self) -> None:
+        """Forget the record; the inputs start at rest."""
         super().reset()
-        self._applied = self.actuator.clip(np.zeros(self.actuator.n_inputs))
+        self._applied = self.actuator.rest_inputs()
 
-    def _discretise(self, q, qd, lam):
-        """``Ad, Bd, c`` of one sample about the state and the applied pressures."""
+    def _discretize(self, q, qd, lam):
+        """``Ad, Bd, c`` of one sample about the state and the applied inputs."""
         p0 = self._applied
-        lin = linearize(
-            self.model, q, qd, lam, actuator=self.actuator, pressures=p0, inputs="pressures"
-        )
+        lin = linearize(self.model, q, qd, lam, actuator=self.actuator, inputs=p0, wrt="actuator")
         x = lin.x
         drift = self.model.state_derivative(x, self.actuator.input_matrix(q) @ p0)
         n_x, m = lin.B.shape
@@ -95,10 +102,10 @@ class PressureMPC(_Sampled):
 
     def __call__(self, t, q, qd, lam=None) -> np.ndarray:
         lam = np.zeros(self.model.n_creep) if lam is None else np.asarray(lam, dtype=float)
-        ad, bd, c = self._discretise(q, qd, lam)
+        ad, bd, c = self._discretize(q, qd, lam)
         n, m, horizon = self.model.n, self.actuator.n_inputs, self.horizon
         p0 = self._applied
-        # q_k - q = G_k (P - p0 repeated) + h_k: predictions linear in the pressures
+        # q_k - q = G_k (P - p0 repeated) + h_k: predictions linear in the inputs
         rows, offsets = [], []
         state_gain = np.zeros((ad.shape[0], horizon * m))
         state_offset = np.zeros(ad.shape[0])
@@ -122,11 +129,11 @@ class PressureMPC(_Sampled):
         solution = scipy.optimize.lsq_linear(
             matrix * scale, rhs, bounds=(lower / scale, upper / scale), method="bvls"
         )
-        pressures = self.actuator.clip(p0 + scale[:m] * solution.x[:m])
-        self._applied = pressures
-        tau = self.actuator.input_matrix(q) @ pressures
+        inputs = self.actuator.clip(p0 + scale[:m] * solution.x[:m])
+        self._applied = inputs
+        tau = self.actuator.input_matrix(q) @ inputs
         self.log.append(
-            {"t": t, "tau": tau, "pressures": pressures, "status": solution.status,
+            {"t": t, "tau": tau, "inputs": inputs, "status": solution.status,
              "cost": float(2 * solution.cost)}
         )  # fmt: skip
-        return tau
+        return inputs.copy()

@@ -28,7 +28,7 @@ _MATRIX3 = tuple(f"[{i},{j}]" for i in range(3) for j in range(3))
 class ParameterField:
     """One named block of the parameter vector.
 
-    Attributes
+    Parameters
     ----------
     name : str
         Field path, e.g. ``"segments[0].damping"`` or ``"gravity"``.
@@ -76,7 +76,7 @@ class ParameterLayout:
     >>> import softcurve as sc
     >>> layout = sc.presets.ifac2020().layout
     >>> layout.slice("gravity")
-    slice(38, 41, None)
+    slice(33, 36, None)
     >>> layout.names[3]
     'segments[0].elongation_stiffness.a1'
     """
@@ -115,7 +115,13 @@ class ParameterLayout:
     @classmethod
     @functools.lru_cache(maxsize=64)
     def of_structure(cls, structure: tuple) -> ParameterLayout:
-        """The layout of ``structure``, built once per structure."""
+        """The layout of ``structure``, built once per structure.
+
+        Parameters
+        ----------
+        structure : tuple
+            :meth:`Robot.structure`.
+        """
         return cls(structure)
 
     def __repr__(self) -> str:
@@ -123,21 +129,39 @@ class ParameterLayout:
 
     # -- look-ups ------------------------------------------------------------------------
     def field(self, name: str) -> ParameterField:
-        """The field called ``name`` (e.g. ``"segments[1].mass"``); ParameterError if none."""
+        """The field called ``name``; ParameterError if none.
+
+        Parameters
+        ----------
+        name : str
+            A field path, e.g. ``"segments[1].mass"`` or ``"gravity"``.
+        """
         try:
             return self._fields[name]
         except KeyError:
             raise ParameterError(self._unknown("field", name, list(self._fields))) from None
 
     def index(self, name: str) -> int:
-        """Position of the entry ``name`` (e.g. ``"gravity[2]"``); ParameterError if none."""
+        """Position of the entry ``name`` in the vector; ParameterError if none.
+
+        Parameters
+        ----------
+        name : str
+            An entry of :attr:`names`, e.g. ``"gravity[2]"``.
+        """
         try:
             return self._entries[name]
         except KeyError:
             raise ParameterError(self._unknown("parameter", name, list(self.names))) from None
 
     def slice(self, name: str) -> slice:
-        """Where a field (``"gravity"``) or a single entry (``"gravity[2]"``) lies."""
+        """Where a field or a single entry lies in the vector.
+
+        Parameters
+        ----------
+        name : str
+            A field (``"gravity"``) or an entry (``"gravity[2]"``).
+        """
         if name in self._fields:
             return self._fields[name].slice
         i = self.index(name)
@@ -157,8 +181,18 @@ class ParameterLayout:
 
     # -- vectors -------------------------------------------------------------------------
     def split(self, p) -> dict:
-        """Each field's part of ``p`` (a NumPy vector or a CasADi column), matrices as
-        3 x 3, scalars as one-entry parts: ``{field name: part}``."""
+        """Each field's part of ``p``, matrices as 3 x 3, scalars as one-entry parts.
+
+        Parameters
+        ----------
+        p : ndarray or casadi.SX, shape (size,)
+            A parameter vector, numeric or symbolic.
+
+        Returns
+        -------
+        dict
+            ``{field name: part}``.
+        """
         parts = {}
         for f in self.fields:
             part = p[f.slice]
@@ -170,7 +204,13 @@ class ParameterLayout:
         return parts
 
     def pack(self, robot) -> np.ndarray:
-        """The parameter vector of ``robot`` (whose structure must be this layout's)."""
+        """The parameter vector of ``robot``, shape (size,).
+
+        Parameters
+        ----------
+        robot : Robot
+            A robot whose structure is this layout's.
+        """
         self._check_structure(robot)
         vector = np.empty(self.size)
         for f in self.fields:
@@ -182,6 +222,13 @@ class ParameterLayout:
 
         Segments, stiffness-law types and creep stay; every number is taken from
         ``vector`` and validated again by the robot's constructors.
+
+        Parameters
+        ----------
+        vector : array_like, shape (size,)
+            Values in the order of :attr:`names`.
+        robot : Robot
+            A robot whose structure is this layout's.
         """
         self._check_structure(robot)
         vector = np.asarray(vector, dtype=np.float64)

@@ -31,7 +31,7 @@ class LinearStiffness:
     Parameters
     ----------
     k0 : float
-        Stiffness, > 0 (N/m for elongation, N m/rad for bending).
+        Stiffness, > 0 ([N/m] for elongation, [N m/rad] for bending).
     """
 
     k0: float
@@ -43,24 +43,53 @@ class LinearStiffness:
         object.__setattr__(self, "k0", real_scalar("k0", self.k0, positive=True))
 
     def parameters(self) -> tuple[float, ...]:
+        """The law's numbers as they enter the parameter vector: ``(k0,)``."""
         return (self.k0,)
 
     def stiffness(self, x):
-        """``k(x)`` for a float or array ``x``."""
+        """``k(x)`` for a float or array ``x``.
+
+        Parameters
+        ----------
+        x : float or array_like
+            Strain: elongation ``l - l0`` [m] or bending angle [rad].
+        """
         return np.full_like(np.asarray(x, dtype=np.float64), self.k0)
 
     def force(self, x):
-        """Generalized elastic force ``k(x) x``."""
+        """Generalized elastic force ``k(x) x`` [N or N m].
+
+        Parameters
+        ----------
+        x : float or array_like
+            Strain: elongation ``l - l0`` [m] or bending angle [rad].
+        """
         return self.stiffness(x) * np.asarray(x, dtype=np.float64)
 
     @staticmethod
     def coefficient(z, p):
-        """Symbolic ``k(sqrt(z))`` for parameters ``p = (k0,)``."""
+        """Symbolic ``k(sqrt(z))`` for parameters ``p = (k0,)``.
+
+        Parameters
+        ----------
+        z : casadi.SX or float
+            Squared strain [m^2 or rad^2].
+        p : casadi.SX, shape (n_parameters,)
+            The law's parameters, in the order of :meth:`parameters`.
+        """
         return p[0] + 0 * z
 
     @staticmethod
     def energy(z, p):
-        """Symbolic ``int_0^sqrt(z) k(t) t dt``."""
+        """Symbolic ``int_0^sqrt(z) k(t) t dt`` [J].
+
+        Parameters
+        ----------
+        z : casadi.SX or float
+            Squared strain [m^2 or rad^2].
+        p : casadi.SX, shape (n_parameters,)
+            The law's parameters, in the order of :meth:`parameters`.
+        """
         return 0.5 * p[0] * z
 
 
@@ -77,11 +106,19 @@ class TanhStiffness:
     Parameters
     ----------
     a1 : float
-        Stiffness at large strain, > 0.
+        Stiffness at large strain, > 0 ([N/m] for elongation, [N m/rad] for bending).
     a2 : float
-        Softening at zero strain, < a1.
+        Softening at zero strain, < a1 ([N/m] or [N m/rad], as ``a1``).
     a3 : float
-        Inverse strain scale of the transition (1/m or 1/rad), nonzero.
+        Inverse strain scale of the transition ([1/m] or [1/rad]), nonzero.
+
+    Examples
+    --------
+    >>> law = TanhStiffness(2.23e3, 1.74e3, -4.55e2)  # the paper's elongation law
+    >>> float(law.stiffness(0.0))  # a1 - a2 [N/m]
+    490.0
+    >>> float(law.force(0.01))  # [N]
+    22.29...
     """
 
     a1: float
@@ -104,22 +141,55 @@ class TanhStiffness:
             object.__setattr__(self, name, value)
 
     def parameters(self) -> tuple[float, ...]:
+        """The law's numbers as they enter the parameter vector: ``(a1, a2, a3)``."""
         return (self.a1, self.a2, self.a3)
 
     def stiffness(self, x):
+        """``k(x)`` for a float or array ``x``.
+
+        Parameters
+        ----------
+        x : float or array_like
+            Strain: elongation ``l - l0`` [m] or bending angle [rad].
+        """
         x = np.asarray(x, dtype=np.float64)
         return self.a1 + self.a2 * (np.tanh(self.a3 * x) ** 2 - 1.0)
 
     def force(self, x):
+        """Generalized elastic force ``k(x) x`` [N or N m].
+
+        Parameters
+        ----------
+        x : float or array_like
+            Strain: elongation ``l - l0`` [m] or bending angle [rad].
+        """
         return self.stiffness(x) * np.asarray(x, dtype=np.float64)
 
     @staticmethod
     def coefficient(z, p):
+        """Symbolic ``k(sqrt(z))``, smooth at ``z = 0``.
+
+        Parameters
+        ----------
+        z : casadi.SX or float
+            Squared strain [m^2 or rad^2].
+        p : casadi.SX, shape (n_parameters,)
+            The law's parameters, in the order of :meth:`parameters`.
+        """
         a1, a2, a3 = p[0], p[1], p[2]
         return a1 - a2 + a2 * _smooth.tanh_squared(a3**2 * z)
 
     @staticmethod
     def energy(z, p):
+        """Symbolic ``int_0^sqrt(z) k(t) t dt`` [J], smooth at ``z = 0``.
+
+        Parameters
+        ----------
+        z : casadi.SX or float
+            Squared strain [m^2 or rad^2].
+        p : casadi.SX, shape (n_parameters,)
+            The law's parameters, in the order of :meth:`parameters`.
+        """
         # int_0^y t tanh(c t)^2 dt = y^2/2 + (log cosh(c y) - c y tanh(c y)) / c^2
         a1, a2, a3 = p[0], p[1], p[2]
         w = a3**2 * z
@@ -165,11 +235,21 @@ class Creep:
 
     @classmethod
     def from_gamma(cls, gamma, compliance) -> Creep:
-        """Build from the paper's ``gamma = (gamma_1, ..., gamma_6)`` and ``K``."""
+        """Build from the paper's ``gamma = (gamma_1, ..., gamma_6)`` and ``K``.
+
+        Parameters
+        ----------
+        gamma : array_like, shape (6,)
+            ``(rate_1, gain_1, rate_2, gain_2, rate_3, gain_3)``, interleaved as in the
+            paper's eq. (19).
+        compliance : array_like, shape (3, 3) or (3,)
+            ``K``; a vector is a diagonal.
+        """
         gamma = real_array("creep.gamma", gamma, (6,))
         return cls(rate=gamma[0::2], gain=gamma[1::2], compliance=compliance)
 
     def parameters(self) -> tuple[float, ...]:
+        """The numbers as they enter the parameter vector: rate, gain, compliance (row major)."""
         return (*self.rate, *self.gain, *self.compliance.ravel())
 
     n_parameters: ClassVar[int] = 15

@@ -1,4 +1,5 @@
-"""Robots from the literature, as ready-made :class:`~softcurve.robot.Robot` values."""
+"""Robots from the literature, as ready-made :class:`~softcurve.description.robot.Robot`
+values."""
 
 from __future__ import annotations
 
@@ -22,6 +23,17 @@ def ifac2020(*, creep: bool = True, damping: bool = True) -> Robot:
         Include the creep model (three creep states).
     damping : bool
         Include the damping ``R``; without it and without creep the model conserves energy.
+
+    Examples
+    --------
+    >>> import softcurve as sc
+    >>> robot = sc.presets.ifac2020()
+    >>> robot.n_segments, robot.n, robot.n_creep
+    (1, 3, 3)
+    >>> robot.mass, robot.rest_length  # [kg], [m]
+    (0.0494, 0.0644)
+    >>> sc.presets.ifac2020(creep=False).n_creep
+    0
     """
     alpha = (2.23e3, 1.74e3, -4.55e2, 4.23e-1, 3.99e-1, -2.29e-1)
     gamma = (3.21e2, 5.22e-1, 2.84e2, 1.82e-3, 2.84e2, 1.82e-3)

@@ -41,6 +41,22 @@ class Segment:
         ``(N s/m, N m s, N m s)``.
     creep : Creep or None
         Kelvin-Voigt creep (three creep states), or None for none.
+
+    Examples
+    --------
+    >>> import softcurve as sc
+    >>> segment = sc.Segment(
+    ...     rest_length=0.0644,
+    ...     mass=0.0494,
+    ...     radius=0.0235,
+    ...     elongation_stiffness=sc.LinearStiffness(500.0),
+    ...     bending_stiffness=sc.TanhStiffness(0.423, 0.399, -0.229),
+    ...     damping=[0.12, 5.93e-7, 5.93e-7],
+    ... )
+    >>> segment.damping.diagonal()
+    array([1.2e-01, 5.93e-07, 5.93e-07])
+    >>> segment.replace(mass=0.06).mass
+    0.06
     """
 
     rest_length: float
@@ -65,7 +81,13 @@ class Segment:
             raise ParameterError(f"creep must be a Creep or None, got {type(self.creep).__name__}")
 
     def replace(self, **changes) -> Segment:
-        """A copy with some fields changed (validated again)."""
+        """A copy with some fields changed (validated again).
+
+        Parameters
+        ----------
+        **changes
+            New values of fields, by name (e.g. ``mass=0.06``).
+        """
         return dataclasses.replace(self, **changes)
 
 
@@ -94,6 +116,24 @@ class Robot:
         The base frame has its origin at the base of the first segment and ``z``
         along the undeformed backbone; poses are reported in the world frame,
         which is the base frame when this is the identity.
+
+    Examples
+    --------
+    A two-segment robot hanging from its base, built from the paper's segment:
+
+    >>> import numpy as np
+    >>> import softcurve as sc
+    >>> segment = sc.presets.ifac2020().segments[0]
+    >>> robot = sc.Robot(segments=(segment, segment), gravity=[0.0, 0.0, 9.81])
+    >>> robot.n, robot.n_creep
+    (6, 6)
+    >>> round(robot.rest_length, 4)  # [m]
+    0.1288
+    >>> robot.with_segments(3).n_segments
+    3
+    >>> p = robot.parameter_vector()
+    >>> robot.with_parameter_vector(p).mass == robot.mass
+    True
     """
 
     segments: tuple[Segment, ...]
@@ -123,6 +163,7 @@ class Robot:
 
     @property
     def n_segments(self) -> int:
+        """Number of segments ``N``."""
         return len(self.segments)
 
     @property
@@ -170,7 +211,13 @@ class Robot:
         return list(self.layout.names)
 
     def replace(self, **changes) -> Robot:
-        """A copy with some fields changed (validated again)."""
+        """A copy with some fields changed (validated again).
+
+        Parameters
+        ----------
+        **changes
+            New values of fields, by name (e.g. ``gravity=[0, 0, 9.81]``).
+        """
         return dataclasses.replace(self, **changes)
 
     def with_parameter_vector(self, vector) -> Robot:
@@ -193,7 +240,14 @@ class Robot:
         return self.layout.unpack(vector, self)
 
     def with_segments(self, count: int) -> Robot:
-        """The same robot with its segment list repeated to ``count`` segments."""
+        """The same robot with its segment list repeated to ``count`` segments.
+
+        Parameters
+        ----------
+        count : int
+            Number of segments, >= 1; segment ``i`` is a copy of segment
+            ``i % n_segments``.
+        """
         if count < 1:
             raise ParameterError(f"count must be >= 1, got {count}")
         return self.replace(

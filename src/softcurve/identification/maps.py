@@ -5,7 +5,7 @@ angle, curvatures, a tip position), possibly with sensor offsets; an
 :class:`InputMap` turns measured inputs into generalized forces (bellow pressures
 through a geometric or a constant pressure map, with an unknown mounting angle).
 Both may read named *extra* parameters, which the fits of
-:mod:`softcurve.identify_dynamic` can estimate. The functions build CasADi
+:mod:`softcurve.identification.dynamic` can estimate. The functions build CasADi
 expressions and work with SX or MX arguments.
 """
 
@@ -19,6 +19,7 @@ import numpy as np
 
 from softcurve.base.validation import ParameterError
 from softcurve.compiled.model import Model
+from softcurve.description.pneumatic import PneumaticActuator
 
 
 @dataclass(frozen=True)
@@ -94,15 +95,13 @@ def _azimuths(values, prefix: str, numbering: int):
 def bellows_input_map(
     *, area: float, distance: float, numbering: int = 1, prefix: str = "bellows"
 ) -> InputMap:
-    """Three bellows with ``H(q)`` from geometry (:class:`softcurve.actuation.PneumaticActuator`).
+    """Three bellows with ``H(q)`` from geometry (:class:`PneumaticActuator`).
 
     Extra parameters: ``prefix.area`` [m^2], ``prefix.distance`` [m] and
     ``prefix.angle`` [rad], the azimuth of bellow 0 in the sensor's frame (mounting
     angle); bellow ``i`` sits at ``angle + numbering * 2 pi i / 3``. ``numbering = -1``
     is for bellows numbered clockwise. The inputs are the gauge pressures [Pa].
     """
-    from softcurve.description.actuators import PneumaticActuator
-
     actuator = PneumaticActuator.three_bellows(distance=distance, area=area, p_max=1e9)
 
     def function(q, u, values):

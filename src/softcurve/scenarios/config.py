@@ -1,55 +1,103 @@
-"""Files: scenario configurations (TOML) and trajectories (CSV, NPZ).
+"""Scenario files (TOML): a robot and a simulation, read into a :class:`Scenario`.
 
-A configuration describes a robot and a simulation; the schema is in
-``docs/configuration.md`` and examples are in ``examples/``. Every key is checked:
-unknown keys, wrong types and values out of range raise :class:`ConfigError` whose
-message is ``"<file>: <key path>: <reason>"``.
-
-Every file written here is written whole or not at all: to a temporary file in the
-target directory, then renamed over the target (:func:`atomic_path`).
+The schema is in ``docs/configuration.md`` and examples are in ``examples/``. Every key
+is checked: unknown keys, wrong types and values out of range raise :class:`ConfigError`
+whose message is ``"<file>: <key path>: <reason>"``. The simulation's settings are
+checked by :class:`~softcurve.simulation.settings.SimulationSettings`, the rest by
+:class:`Scenario` itself, so a scenario built or changed in Python is checked alike.
 """
 
 from __future__ import annotations
 
-import sys
 from dataclasses import dataclass
-from pathlib import Path
 
 import numpy as np
 
 from softcurve.base.validation import ParameterError
 from softcurve.description import presets
+from softcurve.description.actuator import Actuator
 from softcurve.description.materials import Creep, LinearStiffness, TanhStiffness
 from softcurve.description.robot import Robot, Segment
-
-if sys.version_info >= (3, 11):
-    import tomllib
-else:  # pragma: no cover
-    import tomli as tomllib
+from softcurve.scenarios.actuation import from_mapping
+from softcurve.scenarios.tables import ConfigError, Reader, read_toml
+from softcurve.simulation.settings import SettingsError, SimulationSettings
 
 
-class ConfigError(ParameterError):
-    """A configuration file is malformed; the message names the file and the key."""
+def _entries(field: str, value, size: int) -> tuple | None:
+    """``value`` as a tuple of ``size`` finite floats (None stays None)."""
+    if value is None:
+        return None
+    try:
+        entries = np.array(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise SettingsError(field, f"must be {size} numbers, got {value!r}") from None
+    if entries.shape != (size,) or not np.all(np.isfinite(entries)):
+        raise SettingsError(field, f"must have {size} entries, all finite, got {value!r}")
+    return tuple(float(v) for v in entries)
 
 
 @dataclass(frozen=True)
 class Scenario:
-    """A robot and what to simulate with it (see :func:`softcurve.simulate`)."""
+    """A robot and what to simulate with it (see :func:`softcurve.simulate`); validated on
+    construction, also by ``dataclasses.replace``.
+
+    Parameters
+    ----------
+    robot : Robot
+        The robot.
+    settings : SimulationSettings
+        End time, output interval, integrator and tolerances (default: the paper's case,
+        10 s with an output every 1 ms).
+    q0 : tuple of float, shape (n,), optional
+        Initial coordinates [m, 1/m, 1/m] (default: straight at rest length).
+    qd0 : tuple of float, shape (n,), optional
+        Initial rates [m/s, 1/(m s), 1/(m s)] (default zero).
+    lam0 : tuple of float, shape (n_creep,), optional
+        Initial creep states (default zero).
+    tau : tuple of float, shape (n,), optional
+        Constant input forces [N, N m] (default zero).
+    inputs : tuple of float, shape (m,), optional
+        Constant inputs of the actuator of ``actuation`` (e.g. pressures [Pa]), instead of
+        ``tau``.
+    source : str
+        Where the scenario comes from (a file name), for messages.
+    actuation : dict, optional
+        The raw ``[actuation]`` table, read by :func:`softcurve.description.pneumatic.from_mapping`.
+    """
 
     robot: Robot
-    t_final: float = 10.0
-    dt: float = 1e-3
-    q0: tuple | None = None  # None: the straight rest configuration
+    settings: SimulationSettings = SimulationSettings()
+    q0: tuple | None = None
     qd0: tuple | None = None
     lam0: tuple | None = None
     tau: tuple | None = None
-    pressures: tuple | None = None  # [Pa], with the pressure map of [actuation]
-    method: str = "cvodes"
-    rtol: float = 1e-6
-    atol: float | tuple | None = None
-    max_steps: int = 50_000
+    inputs: tuple | None = None
     source: str = "built-in"
-    actuation: dict | None = None  # the raw [actuation] table, read by the actuation model
+    actuation: dict | None = None
+
+    def __post_init__(self):
+        if not isinstance(self.robot, Robot):
+            raise SettingsError("robot", f"must be a softcurve.Robot, got {self.robot!r}")
+        if not isinstance(self.settings, SimulationSettings):
+            raise SettingsError("settings", f"must be a SimulationSettings, got {self.settings!r}")
+        n, set_ = self.robot.n, object.__setattr__
+        for field, size in (("q0", n), ("qd0", n), ("lam0", self.robot.n_creep), ("tau", n)):
+            set_(self, field, _entries(field, getattr(self, field), size))
+        if self.q0 is not None and any(self.q0[i] <= 0 for i in range(0, n, 3)):
+            raise SettingsError("q0", "lengths l (entries 0, 3, ...) must be > 0")
+        if self.inputs is not None:
+            self._check_inputs()
+
+    def _check_inputs(self) -> None:
+        if self.actuation is None:
+            raise SettingsError("inputs", "needs an [actuation] table (the actuator they drive)")
+        if self.tau is not None:
+            raise SettingsError("inputs", "give tau or inputs, not both")
+        try:
+            inputs = self.actuator().check_inputs(self.inputs, "inputs")
+        except ParameterError as exc:
+            raise SettingsError("inputs", str(exc)) from None
+        object.__setattr__(self, "inputs", tuple(float(u) for u in inputs))
 
     def initial_state(self):
         """``(q0, qd0, lam0)`` as arrays, with the defaults filled in."""
@@ -60,230 +108,83 @@ class Scenario:
         lam0 = np.zeros(n_creep) if self.lam0 is None else np.array(self.lam0, dtype=float)
         return q0, qd0, lam0
 
-    def actuator(self):
-        """The pressure map of the ``[actuation]`` table, or None without one."""
+    def actuator(self) -> Actuator | None:
+        """The actuator of the ``[actuation]`` table, or None without one."""
         if self.actuation is None:
             return None
-        from softcurve.description.actuators import from_mapping
-
         where = f"{self.source}: actuation"
         return from_mapping(self.actuation, n_segments=self.robot.n_segments, where=where)
 
 
 def paper_scenario() -> Scenario:
     """The paper's section 4.2 case: preset ifac2020, q0 = (0.064, 25, 0),
-    qd0 = (0, 0, 1500), lam0 = 0, 10 s, output every 1 ms."""
+    qd0 = (0, 0, 1500), lam0 = 0, 10 s, output every 1 ms (the default settings)."""
     return Scenario(
         robot=presets.ifac2020(),
-        t_final=10.0,
-        dt=1e-3,
         q0=(0.064, 25.0, 0.0),
         qd0=(0.0, 0.0, 1500.0),
         source="built-in paper case",
     )
 
 
-# -- reading configurations --------------------------------------------------------------
-class _Reader:
-    """Typed access to one TOML table, recording which keys were used."""
-
-    def __init__(self, file: str, path: str, table):
-        self.file, self.path = file, path
-        if not isinstance(table, dict):
-            self.fail("", f"must be a table, got {_kind(table)}")
-        self.table = table
-        self.used: set[str] = set()
-
-    def key(self, name: str) -> str:
-        return f"{self.path}.{name}" if self.path else name
-
-    def fail(self, name: str, reason: str):
-        where = self.key(name) if name else self.path or "(top level)"
-        raise ConfigError(f"{self.file}: {where}: {reason}")
-
-    def has(self, name: str) -> bool:
-        return name in self.table
-
-    def get(self, name, kind, default=None, *, required=False):
-        self.used.add(name)
-        if name not in self.table:
-            if required:
-                self.fail(name, "is required")
-            return default
-        value = self.table[name]
-        checker = {
-            "number": _number,
-            "string": _string,
-            "bool": _bool,
-            "vector": _vector,
-            "integer": _integer,
-            "table": _table,
-            "tables": _tables,
-        }[kind]
-        ok, result = checker(value)
-        if not ok:
-            self.fail(name, f"must be {result}, got {_kind(value)} {value!r}")
-        return result
-
-    def positive(self, name, default=None, *, required=False):
-        value = self.get(name, "number", default, required=required)
-        if value is not None and not value > 0:
-            self.fail(name, f"must be > 0, got {value!r}")
-        return value
-
-    def vector(self, name, length=None, default=None):
-        value = self.get(name, "vector", default)
-        if value is not None and length is not None and len(value) not in _as_tuple(length):
-            self.fail(
-                name,
-                f"must have {' or '.join(map(str, _as_tuple(length)))} entries, got {len(value)}",
-            )
-        return value
-
-    def sub(self, name) -> _Reader:
-        self.used.add(name)
-        return _Reader(self.file, self.key(name), self.table[name])
-
-    def done(self) -> None:
-        unknown = sorted(set(self.table) - self.used)
-        if unknown:
-            known = ", ".join(sorted(self.used)) or "none"
-            self.fail(unknown[0], f"unknown key (allowed here: {known})")
-
-
-def _as_tuple(x):
-    return x if isinstance(x, tuple) else (x,)
-
-
-def _kind(value) -> str:
-    return {
-        bool: "a boolean",
-        str: "a string",
-        int: "an integer",
-        float: "a number",
-        list: "an array",
-        dict: "a table",
-    }.get(type(value), type(value).__name__)
-
-
-def _number(v):
-    if isinstance(v, int | float) and not isinstance(v, bool):
-        if np.isfinite(v):
-            return True, float(v)
-    return False, "a finite number"
-
-
-def _integer(v):
-    return (True, v) if isinstance(v, int) and not isinstance(v, bool) else (False, "an integer")
-
-
-def _string(v):
-    return (True, v) if isinstance(v, str) else (False, "a string")
-
-
-def _bool(v):
-    return (True, v) if isinstance(v, bool) else (False, "true or false")
-
-
-def _vector(v):
-    if isinstance(v, list) and v and all(_number(x)[0] for x in v):
-        return True, tuple(float(x) for x in v)
-    if isinstance(v, list) and v and all(isinstance(r, list) for r in v):
-        rows = [_vector(r) for r in v]
-        if all(ok for ok, _ in rows) and len({len(r) for _, r in rows}) == 1:
-            return True, tuple(r for _, r in rows)
-    return False, "a non-empty array of finite numbers (or of equal rows)"
-
-
-def _table(v):
-    return (True, v) if isinstance(v, dict) else (False, "a table")
-
-
-def _tables(v):
-    ok = isinstance(v, list) and v and all(isinstance(x, dict) for x in v)
-    return (True, v) if ok else (False, "an array of tables ([[...]])")
-
-
 def load_config(path) -> Scenario:
-    """Read a scenario from a TOML file; raises :class:`ConfigError` on any problem."""
-    path = Path(path)
-    file = str(path)
-    try:
-        text = path.read_bytes().decode("utf-8")
-    except FileNotFoundError:
-        raise ConfigError(f"{file}: no such file") from None
-    except (IsADirectoryError, PermissionError, UnicodeDecodeError) as exc:
-        raise ConfigError(f"{file}: cannot read: {exc}") from None
-    try:
-        data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise ConfigError(f"{file}: not valid TOML: {exc}") from None
-    return scenario_from_dict(data, file)
+    """Read a scenario from a TOML file; raises :class:`ConfigError` on any problem.
+
+    Parameters
+    ----------
+    path : str or Path
+        The TOML file.
+    """
+    return scenario_from_dict(*read_toml(path))
 
 
 def scenario_from_dict(data: dict, file: str = "<config>") -> Scenario:
-    """Build a :class:`Scenario` from the parsed TOML ``data`` (see :func:`load_config`)."""
-    top = _Reader(file, "", data)
+    """Build a :class:`Scenario` from the parsed TOML ``data`` (see :func:`load_config`).
+
+    Parameters
+    ----------
+    data : dict
+        The parsed TOML.
+    file : str
+        Its name, for messages.
+    """
+    top = Reader(file, "", data)
     if not top.has("robot"):
         top.fail("robot", "is required (a [robot] table with preset = ... or [[robot.segments]])")
     robot = _robot(top.sub("robot"))
-    sim = top.sub("simulation") if top.has("simulation") else _Reader(file, "simulation", {})
+    sim = top.sub("simulation") if top.has("simulation") else Reader(file, "simulation", {})
     actuation = top.get("actuation", "table")
     top.done()
-    values = {
-        "t_final": sim.positive("t_final", 10.0),
-        "dt": sim.positive("dt", 1e-3),
-        "q0": sim.vector("q0", robot.n),
-        "qd0": sim.vector("qd0", robot.n),
-        "lam0": sim.vector("lam0", robot.n_creep) if robot.n_creep else sim.vector("lam0", 0),
-        "tau": sim.vector("tau", robot.n),
-        "pressures": sim.vector("pressures"),
-        "method": sim.get("method", "string", "cvodes"),
-        "rtol": sim.positive("rtol", 1e-6),
-        "max_steps": sim.get("max_steps", "integer", 50_000),
+    settings = {
+        "t_final": sim.positive("t_final"),
+        "dt": sim.positive("dt"),
+        "method": sim.get("method", "string"),
+        "rtol": sim.positive("rtol"),
+        "max_steps": sim.get("max_steps", "integer"),
     }
     if sim.has("atol"):
         atol = sim.table["atol"]
-        values["atol"] = (
+        settings["atol"] = (
             sim.positive("atol")
             if not isinstance(atol, list)
             else sim.vector("atol", 2 * robot.n + robot.n_creep)
         )
-        if isinstance(values["atol"], tuple) and min(values["atol"]) <= 0:
-            sim.fail("atol", "must be > 0 in every entry")
+    values = {
+        "q0": sim.vector("q0", robot.n),
+        "qd0": sim.vector("qd0", robot.n),
+        "lam0": sim.vector("lam0", robot.n_creep),
+        "tau": sim.vector("tau", robot.n),
+        "inputs": sim.vector("inputs"),
+    }
     sim.done()
-    from softcurve.simulation.simulate import METHODS
-
-    if values["method"] not in METHODS:
-        sim.fail("method", f"must be one of {', '.join(METHODS)}, got {values['method']!r}")
-    if values["dt"] > values["t_final"]:
-        sim.fail("dt", f"must be <= t_final = {values['t_final']}, got {values['dt']}")
-    if not values["rtol"] < 1:
-        sim.fail("rtol", f"must be < 1, got {values['rtol']}")
-    if values["max_steps"] < 1:
-        sim.fail("max_steps", f"must be >= 1, got {values['max_steps']}")
-    q0 = values["q0"]
-    if q0 is not None and any(q0[3 * i] <= 0 for i in range(robot.n_segments)):
-        sim.fail("q0", "lengths l (entries 0, 3, ...) must be > 0")
-    scenario = Scenario(robot=robot, source=file, actuation=actuation, **values)
-    if scenario.pressures is not None:
-        _check_pressures(sim, scenario)
-    return scenario
-
-
-def _check_pressures(sim: _Reader, scenario: Scenario) -> None:
-    if scenario.actuation is None:
-        sim.fail("pressures", "needs an [actuation] table (the map from pressures to forces)")
-    if scenario.tau is not None:
-        sim.fail("pressures", "give tau or pressures, not both")
-    actuator = scenario.actuator()
     try:
-        actuator.check_inputs(scenario.pressures)
-    except ParameterError as exc:
-        sim.fail("pressures", str(exc))
+        chosen = SimulationSettings(**{k: v for k, v in settings.items() if v is not None})
+        return Scenario(robot, chosen, source=file, actuation=actuation, **values)
+    except SettingsError as exc:
+        sim.fail(exc.field, exc.reason)
 
 
-def _robot(r: _Reader) -> Robot:
+def _robot(r: Reader) -> Robot:
     extra = {}
     if r.has("gravity"):
         extra["gravity"] = r.vector("gravity", 3)
@@ -302,7 +203,7 @@ def _robot(r: _Reader) -> Robot:
             robot = presets.ifac2020(creep=creep, damping=damping)
             return robot.replace(**extra) if extra else robot
         segments = [
-            _segment(_Reader(r.file, f"{r.key('segments')}[{i}]", table))
+            _segment(Reader(r.file, f"{r.key('segments')}[{i}]", table))
             for i, table in enumerate(r.get("segments", "tables", required=True))
         ]
         r.done()
@@ -313,7 +214,7 @@ def _robot(r: _Reader) -> Robot:
         r.fail("", str(exc))
 
 
-def _segment(r: _Reader) -> Segment:
+def _segment(r: Reader) -> Segment:
     values = {name: r.positive(name, required=True) for name in ("rest_length", "mass", "radius")}
     for mode in ("elongation_stiffness", "bending_stiffness"):
         r.get(mode, "table", required=True)
@@ -329,7 +230,7 @@ def _segment(r: _Reader) -> Segment:
         r.fail("", str(exc))
 
 
-def _stiffness(r: _Reader):
+def _stiffness(r: Reader):
     law = r.get("law", "string", required=True)
     try:
         if law == "tanh":
@@ -347,7 +248,7 @@ def _stiffness(r: _Reader):
     r.fail("law", f"must be 'tanh' or 'linear', got {law!r}")
 
 
-def _creep(r: _Reader) -> Creep:
+def _creep(r: Reader) -> Creep:
     compliance = r.get("compliance", "vector", required=True)
     try:
         if r.has("gamma"):

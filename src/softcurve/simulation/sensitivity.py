@@ -7,7 +7,7 @@ The augmented right-hand side is generated as C by CasADi, compiled once by
 :func:`softcurve.compiled.build.compile_function` (same compiler and cache as the model),
 loaded as an ``external`` and integrated by CVODES, so an evaluation of the residuals
 and their exact Jacobian never returns to Python. The chain rule from ``d`` to the free
-parameters ``theta`` (ties, re-parametrisations, initial states) and from the state to
+parameters ``theta`` (ties, re-parametrizations, initial states) and from the state to
 the outputs is applied afterwards, sample by sample.
 """
 
@@ -17,15 +17,15 @@ import casadi as ca
 import numpy as np
 
 from softcurve.compiled.build import compile_function
+from softcurve.simulation.engine import cvodes_options
 
-_CVODES = {
-    "abstol": 1e-10,
-    "reltol": 1e-8,
-    "max_num_steps": 100000,
-    "linear_multistep_method": "adams",
-    "nonlinear_solver_iteration": "functional",
-    "disable_internal_warnings": True,
-}
+SENSITIVITY_CVODES = cvodes_options(
+    "adams", 1e-8, 1e-10, 100_000, max_order=None, nonlinear_solver_iteration="functional"
+)
+"""CVODES on the augmented, unscaled system, as the trajectory fits were validated with
+(``tests/test_identify.py``): tolerances tighter than a simulation's, Adams with
+functional iteration (no Newton matrix of the augmented system) at CVODES's own order
+cap; ``options`` of :func:`trajectory_sensitivities` override them."""
 
 
 def trajectory_sensitivities(model, parameters, output, input_map, x0, experiment, options):
@@ -89,7 +89,7 @@ def trajectory_sensitivities(model, parameters, output, input_map, x0, experimen
         {"x": xa, "u": ua, "p": da, "ode": rhs(xa, ua, da)},
         float(t[0]),
         t,
-        {**_CVODES, **(options or {})},
+        {**SENSITIVITY_CVODES, **(options or {})},
     )
     y = output.function(q, qd, v_s, ds[:n_p])
     out = ca.Function("out", [xs, ds], [y, ca.jacobian(y, xs), ca.jacobian(y, ds)]).map(t.size)

@@ -4,10 +4,12 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import cached_property
 from pathlib import Path
 
 import numpy as np
 
+from softcurve.base.status import Result, Status
 from softcurve.compiled.model import Model
 from softcurve.figures import animate, plot_states, plot_tip
 from softcurve.simulation.trajectory_files import read_trajectory, save_trajectory
@@ -15,7 +17,19 @@ from softcurve.simulation.trajectory_files import read_trajectory, save_trajecto
 
 @dataclass(frozen=True)
 class State:
-    """The state passed to a ``tau(t, state)`` callable: ``q``, ``qd``, ``lam`` and ``x``."""
+    """The state passed to a ``tau(t, state)`` or ``inputs(t, state)`` callable.
+
+    Parameters
+    ----------
+    q : ndarray, shape (n,)
+        Coordinates [m, 1/m, 1/m].
+    qd : ndarray, shape (n,)
+        Rates [m/s, 1/(m s), 1/(m s)].
+    lam : ndarray, shape (n_creep,)
+        Creep states.
+    x : ndarray, shape (n_state,)
+        ``(q, qd, lam)`` stacked.
+    """
 
     q: np.ndarray
     qd: np.ndarray
@@ -23,33 +37,38 @@ class State:
     x: np.ndarray
 
 
-@dataclass(eq=False)
-class Trajectory:
-    """A simulated (or loaded) trajectory on the output grid.
+@dataclass(frozen=True, eq=False)
+class Trajectory(Result):
+    """A simulated (or loaded) trajectory on the output grid; immutable.
 
-    Attributes
+    Parameters
     ----------
-    t : ndarray (T,)
+    t : ndarray, shape (T,)
         Output times [s].
-    q, qd : ndarray (T, n)
-        Coordinates ``(l, kx, ky)`` per segment [m, 1/m] and their rates.
-    lam : ndarray (T, n_creep)
+    q : ndarray, shape (T, n)
+        Coordinates ``(l, kx, ky)`` per segment [m, 1/m, 1/m].
+    qd : ndarray, shape (T, n)
+        Their rates [m/s, 1/(m s), 1/(m s)].
+    lam : ndarray, shape (T, n_creep)
         Creep states.
-    tip : ndarray (T, 3)
-        Tip position in the world frame [m]; computed from the model on first access
-        (about 2 us per output time), stored in saved files.
-    tau : ndarray (T, n) or None
-        Input forces applied from each output time on (zero-order hold); with
-        ``pressures``, the force ``H(q) p`` at each output time.
-    pressures : ndarray (T, m) or None
-        The chamber pressures [Pa] when the robot was driven by pressures (the lagging
-        states with a ``time_constant``); saved as columns ``p1 ...``.
+    tip_positions : ndarray, shape (T, 3), optional
+        Tip positions [m] where known (loaded files, batch members); else :attr:`tip`
+        computes them from the model.
+    tau : ndarray, shape (T, n), optional
+        Generalized input forces [N, N m] applied from each output time on (zero-order
+        hold); with an actuator, the force ``H(q) u`` at each output time.
+    inputs : ndarray, shape (T, m), optional
+        The actuator's inputs (e.g. chamber pressures [Pa]) when an actuator drove the
+        robot (the lagging states with a ``time_constant``); saved as columns ``u1 ...``.
     stats : dict
         ``method``, ``steps``, ``rhs_evaluations``, ``jacobian_evaluations``,
         ``wall_time`` [s] and the tolerances used.
-    status : {"success", "failed"}
+    status : Status
+        ``SUCCESS``, ``INTEGRATION_FAILED`` or ``LEFT_DOMAIN`` (a string is parsed).
     message : str
         What happened; on failure, where and what to try.
+    model : Model, optional
+        The model that was simulated (None for a loaded file).
     """
 
     t: np.ndarray
@@ -58,28 +77,28 @@ class Trajectory:
     lam: np.ndarray
     tip_positions: np.ndarray | None = field(default=None, repr=False)
     tau: np.ndarray | None = None
-    pressures: np.ndarray | None = None
+    inputs: np.ndarray | None = None
     stats: dict = field(default_factory=dict)
-    status: str = "success"
+    status: Status = Status.SUCCESS
     message: str = ""
     model: Model | None = field(default=None, repr=False)
 
-    @property
-    def tip(self) -> np.ndarray:
-        """Tip positions (T, 3) [m] in the world frame."""
-        if self.tip_positions is None:
-            if self.t.size == 0:
-                self.tip_positions = np.empty((0, 3))
-            else:
-                self.tip_positions = self._model(None).evaluate_along("pose", self.q, 1.0)[1]
-        return self.tip_positions
+    def __post_init__(self):
+        object.__setattr__(self, "status", Status.parse(self.status))
 
-    @property
-    def success(self) -> bool:
-        return self.status == "success"
+    @cached_property
+    def tip(self) -> np.ndarray:
+        """Tip positions (T, 3) [m] in the world frame; computed from the model on first
+        access (about 2 us per output time) unless given."""
+        if self.tip_positions is not None:
+            return self.tip_positions
+        if self.t.size == 0:
+            return np.empty((0, 3))
+        return self._model(None).evaluate_along("pose", self.q, 1.0)[1]
 
     @property
     def n(self) -> int:
+        """Number of coordinates."""
         return self.q.shape[1]
 
     @property
@@ -94,7 +113,13 @@ class Trajectory:
         return model
 
     def energy(self, model: Model | None = None) -> np.ndarray:
-        """Mechanical energy ``T + V`` [J] at every output time, shape (T,)."""
+        """Mechanical energy ``T + V`` [J] at every output time, shape (T,).
+
+        Parameters
+        ----------
+        model : Model, optional
+            The model to evaluate with (default the one simulated).
+        """
         model = self._model(model)
         terms = model.evaluate_along("dynamics_terms", self.q, self.qd, self.lam)
         mass = terms[0].reshape(-1, self.n, self.n)
@@ -103,24 +128,88 @@ class Trajectory:
         return kinetic + gravity[:, 0] + elastic[:, 0]
 
     def save(self, path) -> Path:
-        """Write to ``path`` (.csv or .npz), atomically; returns the path.
-        :func:`softcurve.load_trajectory` reads it back."""
+        """Write to ``path`` atomically; returns the path.
+        :func:`softcurve.load_trajectory` reads it back.
+
+        Parameters
+        ----------
+        path : str or Path
+            Target file, ``.csv`` or ``.npz``.
+        """
         return save_trajectory(self, path)
 
-    def plot(self, path=None):
-        """The states figure (paper Fig. 4): ``l``, ``kx``, ``ky`` against time."""
-        return plot_states(self, path)
+    def plot(self, ax=None):
+        """The states figure (paper Fig. 4): ``l``, ``kx``, ``ky`` of each segment against
+        time, one panel each.
 
-    def plot_tip(self, path=None):
-        """The 3-D tip trajectory (paper Fig. 5)."""
-        return plot_tip(self, path)
+        Parameters
+        ----------
+        ax : None or sequence of matplotlib.axes.Axes, shape (3,)
+            Panels for ``l``, ``kx`` and ``ky``; None draws a new figure.
 
-    def animate(self, path, model: Model | None = None, **options) -> Path:
-        """An animation of the backbone, written to ``path`` (.gif, or .mp4 with ffmpeg)."""
-        return animate(self, path, self._model(model), **options)
+        Returns
+        -------
+        matplotlib.figure.Figure
+            Write it with :func:`softcurve.figures.save_figure`.
+        """
+        return plot_states(self, ax)
+
+    def plot_tip(self, ax=None):
+        """The 3-D tip trajectory (paper Fig. 5), colored by time.
+
+        Parameters
+        ----------
+        ax : None or matplotlib.axes.Axes, shape (1,)
+            A 3-D Axes (``projection="3d"``); None draws a new figure.
+
+        Returns
+        -------
+        matplotlib.figure.Figure
+        """
+        return plot_tip(self, ax)
+
+    def animate(
+        self,
+        path,
+        model: Model | None = None,
+        *,
+        fps: float = 25,
+        speed: float = 1.0,
+        points: int = 20,
+        dpi: float = 60,
+    ) -> Path:
+        """Write an animation of the backbone to ``path``, whole or not at all.
+
+        Parameters
+        ----------
+        path : str or Path
+            ``.gif``, or ``.mp4`` where ffmpeg is on the PATH.
+        model : Model, optional
+            Gives the backbone shapes (default: the model attached to the trajectory).
+        fps : float, optional
+            Frames per second of the file [1/s].
+        speed : float, optional
+            Simulated time per time of animation [s/s].
+        points : int, optional
+            Points along the backbone [count].
+        dpi : float, optional
+            Resolution of the frames [dots per inch].
+
+        Returns
+        -------
+        Path
+            ``path``.
+        """
+        return animate(self, path, self._model(model), fps=fps, speed=speed, points=points, dpi=dpi)
 
 
 def load_trajectory(path) -> Trajectory:
-    """Read a trajectory written by :meth:`Trajectory.save` (.csv or .npz); no model is
-    attached (pass one to :meth:`Trajectory.energy` or :meth:`Trajectory.animate`)."""
+    """Read a trajectory written by :meth:`Trajectory.save`; no model is attached (pass
+    one to :meth:`Trajectory.energy` or :meth:`Trajectory.animate`).
+
+    Parameters
+    ----------
+    path : str or Path
+        A ``.csv`` or ``.npz`` file.
+    """
     return Trajectory(**read_trajectory(path))

@@ -11,18 +11,34 @@ import numpy as np
 
 from softcurve.base.files import atomic_write
 
-FORMAT_VERSION = 1
-"""Version of the trajectory format written (in the metadata line)."""
+FORMAT_VERSION = 2
+"""Version of the trajectory format written (in the metadata line). Version 1 named the
+actuator's inputs ``pressures`` (columns ``p1 ...``) and a failure ``"failed"``; both are
+still read."""
+
+_LEGACY_STATUS = {"failed": "integration_failed"}
 
 
-def column_names(n: int, n_creep: int, with_tau: bool, n_pressures: int = 0) -> list[str]:
+def column_names(n: int, n_creep: int, with_tau: bool, n_inputs: int = 0) -> list[str]:
     """CSV columns: t, l1 kx1 ky1 ..., l1_dot ..., lam1 ..., tip_x tip_y tip_z, tau1 ...,
-    p1 ... (chamber pressures [Pa], when the robot was driven by pressures)."""
+    u1 ... (the actuator's inputs, when an actuator drove the robot).
+
+    Parameters
+    ----------
+    n : int
+        Number of coordinates.
+    n_creep : int
+        Number of creep states.
+    with_tau : bool
+        Whether the input forces are columns.
+    n_inputs : int
+        Number of actuator inputs.
+    """
     q = [f"{c}{i + 1}" for i in range(n // 3) for c in ("l", "kx", "ky")]
     names = ["t", *q, *(f"{c}_dot" for c in q), *(f"lam{i + 1}" for i in range(n_creep))]
     names += ["tip_x", "tip_y", "tip_z"]
     names += [f"tau{i + 1}" for i in range(n)] if with_tau else []
-    return names + [f"p{i + 1}" for i in range(n_pressures)]
+    return names + [f"u{i + 1}" for i in range(n_inputs)]
 
 
 def _meta(trajectory) -> dict:
@@ -31,8 +47,8 @@ def _meta(trajectory) -> dict:
         "version": FORMAT_VERSION,
         "n": trajectory.n,
         "n_creep": trajectory.lam.shape[1],
-        "n_pressures": 0 if trajectory.pressures is None else trajectory.pressures.shape[1],
-        "status": trajectory.status,
+        "n_inputs": 0 if trajectory.inputs is None else trajectory.inputs.shape[1],
+        "status": trajectory.status.value,
         "message": trajectory.message,
         "stats": trajectory.stats,
     }
@@ -40,11 +56,19 @@ def _meta(trajectory) -> dict:
 
 def save_trajectory(trajectory, path) -> Path:
     """Write a trajectory to ``path``: ``.csv`` (one JSON comment line of metadata, a
-    header, one row per output time, 17 significant digits) or ``.npz``."""
+    header, one row per output time, 17 significant digits) or ``.npz``.
+
+    Parameters
+    ----------
+    trajectory : Trajectory
+        What to write.
+    path : str or Path
+        Target file, ``.csv`` or ``.npz``.
+    """
     path = Path(path)
-    tau, pressures = trajectory.tau, trajectory.pressures
-    if pressures is not None and tau is None:
-        raise ValueError("a trajectory with pressures must carry tau (the force H(q) p)")
+    tau, inputs = trajectory.tau, trajectory.inputs
+    if inputs is not None and tau is None:
+        raise ValueError("a trajectory with actuator inputs must carry tau (the force H(q) u)")
     meta = _meta(trajectory)
     if path.suffix == ".csv":
         blocks = [
@@ -53,11 +77,11 @@ def save_trajectory(trajectory, path) -> Path:
             trajectory.qd,
             trajectory.lam,
             trajectory.tip,
-        ] + [a for a in (tau, pressures) if a is not None]
+        ] + [a for a in (tau, inputs) if a is not None]
         table = np.hstack(blocks)
         buffer = io.StringIO()
         buffer.write("# " + json.dumps(meta) + "\n")
-        names = column_names(trajectory.n, meta["n_creep"], tau is not None, meta["n_pressures"])
+        names = column_names(trajectory.n, meta["n_creep"], tau is not None, meta["n_inputs"])
         buffer.write(",".join(names) + "\n")
         np.savetxt(buffer, table, delimiter=",", fmt="%.17g")
         return atomic_write(path, buffer.getvalue().encode())
@@ -72,8 +96,8 @@ def save_trajectory(trajectory, path) -> Path:
         }
         if tau is not None:
             arrays["tau"] = tau
-        if pressures is not None:
-            arrays["pressures"] = pressures
+        if inputs is not None:
+            arrays["inputs"] = inputs
         buffer = io.BytesIO()
         np.savez_compressed(buffer, **arrays)
         return atomic_write(path, buffer.getvalue())
@@ -82,7 +106,13 @@ def save_trajectory(trajectory, path) -> Path:
 
 def read_trajectory(path) -> dict:
     """The fields of a trajectory written by :func:`save_trajectory`, as keyword
-    arguments of :class:`~softcurve.simulation.trajectory.Trajectory`."""
+    arguments of :class:`~softcurve.simulation.trajectory.Trajectory`.
+
+    Parameters
+    ----------
+    path : str or Path
+        A ``.csv`` or ``.npz`` file (format version 1 or 2).
+    """
     path = Path(path)
     if path.suffix == ".npz":
         with np.load(path, allow_pickle=False) as data:
@@ -90,7 +120,8 @@ def read_trajectory(path) -> dict:
             arrays = {k: data[k] for k in ("t", "q", "qd", "lam")}
             arrays["tip_positions"] = data["tip"]
             tau = data["tau"] if "tau" in data else None
-            pressures = data["pressures"] if "pressures" in data else None
+            key = "inputs" if "inputs" in data else "pressures"  # version 1: pressures
+            inputs = data[key] if key in data else None
     elif path.suffix == ".csv":
         with open(path, encoding="utf-8") as f:
             first = f.readline()
@@ -112,8 +143,8 @@ def read_trajectory(path) -> dict:
             "tip_positions": table[:, cuts[3] : cuts[4]],
         }
         tau = table[:, cuts[4] : cuts[4] + n] if table.shape[1] > cuts[4] else None
-        m = meta.get("n_pressures", 0)
-        pressures = table[:, cuts[4] + n : cuts[4] + n + m] if m else None
+        m = meta.get("n_inputs", meta.get("n_pressures", 0))  # version 1: n_pressures
+        inputs = table[:, cuts[4] + n : cuts[4] + n + m] if m else None
     else:
         raise ValueError(f"path must end in .csv or .npz, got {path.name!r}")
     if meta.get("format") != "softcurve-trajectory":
@@ -121,8 +152,8 @@ def read_trajectory(path) -> dict:
     return {
         **{k: np.array(v) for k, v in arrays.items()},
         "tau": tau,
-        "pressures": pressures,
+        "inputs": inputs,
         "stats": meta["stats"],
-        "status": meta["status"],
+        "status": _LEGACY_STATUS.get(meta["status"], meta["status"]),
         "message": meta["message"],
     }

@@ -29,21 +29,43 @@ DEFAULT_QUADRATURE_NODES = 11
 
 @dataclass(frozen=True)
 class SegmentSymbols:
-    """The symbolic parameters of one segment, sliced from ``p``."""
+    """The symbolic parameters of one segment, sliced from ``p``.
+
+    Parameters
+    ----------
+    rest_length, mass, radius : casadi.SX
+        ``l0`` [m], ``m`` [kg] and ``r`` [m].
+    elongation, bending : casadi.SX, shape (n_parameters,)
+        The stiffness laws' parameters.
+    damping : casadi.SX, shape (3, 3)
+        ``R``.
+    creep_rate, creep_gain : casadi.SX, shape (3,), or None
+        Creep decay rates [1/s] and gains; None without creep.
+    creep_compliance : casadi.SX, shape (3, 3), or None
+        ``K`` of the creep force ``K^T lambda``; None without creep.
+    """
 
     rest_length: ca.SX
     mass: ca.SX
     radius: ca.SX
     elongation: ca.SX
     bending: ca.SX
-    damping: ca.SX  # (3, 3)
+    damping: ca.SX
     creep_rate: ca.SX | None
     creep_gain: ca.SX | None
-    creep_compliance: ca.SX | None  # (3, 3)
+    creep_compliance: ca.SX | None
 
 
 def unpack_parameters(p, layout: ParameterLayout):
-    """Slice ``p`` into per-segment symbols, gravity (3,) and base rotation (3, 3)."""
+    """Slice ``p`` into per-segment symbols, gravity (3,) and base rotation (3, 3).
+
+    Parameters
+    ----------
+    p : casadi.SX, shape (layout.size,)
+        The symbolic parameter vector.
+    layout : ParameterLayout
+        Where each field lies in ``p``.
+    """
     part = layout.split(p)
     segments = []
     for k, (_, _, has_creep) in enumerate(layout.structure):
@@ -61,7 +83,28 @@ def unpack_parameters(p, layout: ParameterLayout):
 class DynamicsExpressions:
     """Every term of the equation of motion, as SX expressions of the symbols below.
 
-    Symbols: ``q, qd, qdd, tau`` (n,), ``lam`` (n_creep,), ``p`` (n_p,).
+    Parameters
+    ----------
+    q, qd, qdd, tau : casadi.SX, shape (n,)
+        Symbols of the coordinates, their rates and accelerations, the input forces.
+    lam : casadi.SX, shape (n_creep,)
+        Symbol of the creep states.
+    p : casadi.SX, shape (n_p,)
+        Symbol of the parameter vector.
+    n_segments : int
+        Number of segments N.
+    base_rotation : casadi.SX, shape (3, 3)
+        The base frame's orientation, sliced from ``p``.
+    mass_matrix, coriolis_matrix : casadi.SX, shape (n, n)
+        ``D(q)`` and ``C(q, qd)``.
+    coriolis_force, gravity_force, elastic_force, damping_force, creep_force : casadi.SX, (n,)
+        ``C(q, qd) qd``, ``G(q)``, ``K(q)``, ``R qd`` and ``K^T lambda``.
+    creep_rate : casadi.SX, shape (n_creep,)
+        ``lambda'``.
+    kinetic_energy, gravity_energy, elastic_energy : casadi.SX
+        ``T``, ``V_g`` and ``V_e`` [J].
+    forward_dynamics, inverse_dynamics : casadi.SX, shape (n,)
+        ``qdd`` for given ``tau``, and ``tau`` for given ``qdd``.
     """
 
     q: ca.SX
@@ -71,20 +114,20 @@ class DynamicsExpressions:
     lam: ca.SX
     p: ca.SX
     n_segments: int
-    base_rotation: ca.SX  # (3, 3), sliced from p
+    base_rotation: ca.SX
     mass_matrix: ca.SX
     coriolis_matrix: ca.SX
-    coriolis_force: ca.SX  # C(q, qd) qd
+    coriolis_force: ca.SX
     gravity_force: ca.SX
     elastic_force: ca.SX
     damping_force: ca.SX
-    creep_force: ca.SX  # K^T lambda
-    creep_rate: ca.SX  # lambda'
+    creep_force: ca.SX
+    creep_rate: ca.SX
     kinetic_energy: ca.SX
     gravity_energy: ca.SX
     elastic_energy: ca.SX
-    forward_dynamics: ca.SX  # qdd
-    inverse_dynamics: ca.SX  # tau
+    forward_dynamics: ca.SX
+    inverse_dynamics: ca.SX
 
 
 def build_dynamics(

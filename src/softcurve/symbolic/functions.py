@@ -13,7 +13,18 @@ from softcurve.symbolic.kinematics import frame_at
 
 
 def symbolic_functions(e) -> dict[str, ca.Function]:
-    """All numeric entry points as SX Functions whose last input is ``p``."""
+    """All numeric entry points as SX Functions whose last input is ``p``.
+
+    Parameters
+    ----------
+    e : DynamicsExpressions
+        The symbolic equation of motion of one robot structure.
+
+    Returns
+    -------
+    dict of str to casadi.Function
+        By name: ``"rhs"``, ``"pose"``, ``"mass_matrix"`` and the others below.
+    """
     q, qd, qdd, tau, lam, p = e.q, e.qd, e.qdd, e.tau, e.lam, e.p
     x = ca.vertcat(q, qd, lam)
     xs = ca.SX.sym("x", x.shape[0])

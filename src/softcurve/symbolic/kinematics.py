@@ -7,10 +7,10 @@ a segment the frame is the rotation ``exp([w]x)`` with rotation vector
 angular velocity is ``Jr(w) dw/dt``, ``Jr`` the right Jacobian: that is the exact
 time derivative of the pose at fixed material point (MODEL.md), not the paper's
 eq. (10). All trigonometric factors are smooth functions of ``|w|^2`` from
-:mod:`softcurve._smooth`, exact at zero curvature.
+:mod:`softcurve.base.smooth`, exact at zero curvature.
 
 Functions here take and return CasADi expressions; masses and forces live in
-:mod:`softcurve.dynamics`.
+:mod:`softcurve.symbolic.dynamics`.
 """
 
 from __future__ import annotations
@@ -25,7 +25,15 @@ E_Z = ca.DM([0.0, 0.0, 1.0])
 
 
 def rotation_vector(q_i, s):
-    """``w = s l (-ky, kx, 0)``: the rotation from the segment base to material point ``s``."""
+    """``w = s l (-ky, kx, 0)``: the rotation from the segment base to material point ``s``.
+
+    Parameters
+    ----------
+    q_i : casadi.SX, shape (3,)
+        The segment's coordinates ``(l, kx, ky)`` [m, 1/m, 1/m].
+    s : casadi.SX or float
+        Material coordinate of the segment, in [0, 1].
+    """
     length, kx, ky = q_i[0], q_i[1], q_i[2]
     return s * length * ca.vertcat(-ky, kx, 0)
 
@@ -36,7 +44,16 @@ def _so3_terms(w):
 
 
 def segment_pose(q_i, s):
-    """Rotation (3x3) and position (3,) of material point ``s`` in the segment's base frame."""
+    """Rotation (3x3) and position (3,) [m] of material point ``s`` in the segment's
+    base frame.
+
+    Parameters
+    ----------
+    q_i : casadi.SX, shape (3,)
+        The segment's coordinates ``(l, kx, ky)`` [m, 1/m, 1/m].
+    s : casadi.SX or float
+        Material coordinate of the segment, in [0, 1].
+    """
     w = rotation_vector(q_i, s)
     wx, z = _so3_terms(w)
     wx2 = wx @ wx
@@ -50,6 +67,13 @@ def segment_angular_jacobian(q_i, s):
     """Body-frame angular velocity Jacobian (3x3) of point ``s`` w.r.t. ``q_i``.
 
     ``omega_body = Jr(w) dw/dq qd`` with ``Jr(w) = I - cosc [w]x + sinc3 [w]x^2``.
+
+    Parameters
+    ----------
+    q_i : casadi.SX, shape (3,)
+        The segment's coordinates ``(l, kx, ky)`` [m, 1/m, 1/m].
+    s : casadi.SX or float
+        Material coordinate of the segment, in [0, 1].
     """
     w = rotation_vector(q_i, s)
     wx, z = _so3_terms(w)
@@ -61,8 +85,14 @@ def segment_angular_jacobian(q_i, s):
 class Frame:
     """Pose of a material point and its body angular-velocity Jacobian (symbolic).
 
-    rotation : (3, 3) world-frame orientation; position : (3,) world-frame position [m];
-    angular_jacobian : (3, n) body-frame angular velocity per unit ``qd``.
+    Parameters
+    ----------
+    rotation : casadi.SX, shape (3, 3)
+        World-frame orientation.
+    position : casadi.SX, shape (3,)
+        World-frame position [m].
+    angular_jacobian : casadi.SX, shape (3, n)
+        Body-frame angular velocity per unit ``qd``.
     """
 
     rotation: ca.SX
@@ -120,6 +150,17 @@ def frame_at(q, n_segments: int, base_rotation, s):
     """Frame at material coordinate ``s`` in [0, 1] of the whole robot (symbolic ``s``).
 
     Segment ``i`` covers ``[i/N, (i+1)/N]``; ``s = 1`` is the tip.
+
+    Parameters
+    ----------
+    q : casadi.SX, shape (3N,)
+        Generalized coordinates.
+    n_segments : int
+        Number of segments N.
+    base_rotation : casadi.SX or casadi.DM, shape (3, 3)
+        World orientation of the base frame.
+    s : casadi.SX
+        Material coordinate of the whole robot, in [0, 1].
     """
     points = []
     for i in range(n_segments):

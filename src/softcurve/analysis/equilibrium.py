@@ -1,0 +1,145 @@
+"""Results of the static analysis: one :class:`Equilibrium`, and the
+:class:`EquilibriumTable` of all equilibria found in a region."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from softcurve.analysis.loads import StaticLoad
+from softcurve.base.status import Result, Status
+from softcurve.figures import plot_equilibria
+
+STABILITY_KINDS = ("stable", "unstable", "saddle", "degenerate")
+"""The classification of an equilibrium (see :mod:`softcurve.analysis.statics`)."""
+
+
+@dataclass(frozen=True, eq=False)
+class Equilibrium(Result):
+    """One equilibrium (or one representative of a ring of them).
+
+    Attributes
+    ----------
+    q : ndarray, shape (n,)
+        Configuration; for a ring, the member bending toward +x (first bent segment).
+    status : Status
+        SUCCESS when the solver met the tolerance, else NOT_CONVERGED or
+        EVALUATION_LIMIT.
+    message : str
+        The scaled residual reached, and notes (ring, non-conservative loads).
+    stability : str
+        ``"stable"``, ``"unstable"`` (local maximum), ``"saddle"`` or ``"degenerate"``.
+    continuum : str or None
+        ``"ring"`` for a continuum under rotational symmetry, else None.
+    eigenvalues : ndarray, shape (n,) or (n - 1,)
+        Of the scaled tangent stiffness ``S K S`` [J] (real parts), ascending; for a
+        ring, on the complement of the ring's tangent.
+    residual : ndarray, shape (n,)
+        ``N(q) - loads`` [N, N m^2].
+    potential : float
+        Total potential of the conservative loads [J].
+    tip_position : ndarray, shape (3,)
+        World tip position [m].
+    """
+
+    q: np.ndarray
+    status: Status
+    message: str
+    stability: str
+    continuum: str | None
+    eigenvalues: np.ndarray
+    residual: np.ndarray
+    potential: float
+    tip_position: np.ndarray
+
+    @property
+    def curvature(self) -> np.ndarray:
+        """Net curvature ``kappa`` [1/m] of each segment."""
+        return np.hypot(self.q[1::3], self.q[2::3])
+
+    @property
+    def unstable_directions(self) -> int:
+        """Number of negative eigenvalues (the Morse index)."""
+        return int(np.sum(self.eigenvalues < 0))
+
+
+@dataclass(frozen=True, eq=False)
+class EquilibriumTable(Result):
+    """All equilibria found in a region, deduplicated, ordered by potential.
+
+    Attributes
+    ----------
+    equilibria : tuple of Equilibrium
+    status : Status
+        SUCCESS when at least one equilibrium was found in the region, else
+        NOT_CONVERGED (no start converged inside it).
+    message : str
+        How many equilibria and rings, from how many converged starts.
+    starts, converged_starts, evaluations : int
+        Multi-start statistics (residual and tangent evaluations in total).
+    bounds : ndarray, shape (n, 2)
+        The region searched.
+    load : StaticLoad
+    """
+
+    equilibria: tuple[Equilibrium, ...]
+    status: Status
+    message: str
+    starts: int
+    converged_starts: int
+    evaluations: int
+    bounds: np.ndarray
+    load: StaticLoad
+
+    def __len__(self) -> int:
+        return len(self.equilibria)
+
+    def __iter__(self):
+        return iter(self.equilibria)
+
+    def __getitem__(self, i) -> Equilibrium:
+        return self.equilibria[i]
+
+    @property
+    def stable(self) -> tuple[Equilibrium, ...]:
+        """The stable equilibria, lowest potential first."""
+        return tuple(e for e in self.equilibria if e.stability == "stable")
+
+    def table(self) -> str:
+        """A plain-text table, one row per equilibrium or ring."""
+        n_seg = self.load.model.robot.n_segments
+        head = f"{'#':>2}  {'stability':<10} {'set':<6} "
+        head += " ".join(
+            f"{f'l({i}) [m]':>10} {f'kx({i}) [1/m]':>11} {f'ky({i}) [1/m]':>11}"
+            for i in range(n_seg)
+        )
+        head += f" {'|kappa| [1/m]':>13} {'V [J]':>12} {'min eig [J]':>12}"
+        rows = [head]
+        for k, e in enumerate(self.equilibria):
+            coords = " ".join(
+                f"{e.q[3 * i]:10.6f} {e.q[3 * i + 1]:11.5f} {e.q[3 * i + 2]:11.5f}"
+                for i in range(n_seg)
+            )
+            kappa = ",".join(f"{c:.5f}" for c in e.curvature)
+            rows.append(
+                f"{k:>2}  {e.stability:<10} {e.continuum or 'point':<6} {coords} {kappa:>13} "
+                f"{e.potential:12.5e} {e.eigenvalues[0]:12.4e}"
+            )
+        return "\n".join(rows)
+
+    def plot(self, ax=None):
+        """Backbones of every equilibrium in the x-z plane, styled by stability (rings
+        drawn by their representative).
+
+        Parameters
+        ----------
+        ax : None or matplotlib.axes.Axes, shape (1,)
+            Where to draw; None draws a new figure.
+
+        Returns
+        -------
+        matplotlib.figure.Figure
+            Write it with :func:`softcurve.figures.save_figure`.
+        """
+        return plot_equilibria(self, ax)

@@ -1,0 +1,215 @@
+"""A robot's CasADi Functions, compiled and loaded: the machinery under :class:`Model`.
+
+:class:`CompiledFunctions` builds the symbolic expressions of
+:mod:`softcurve.symbolic.dynamics` once, turns them into CasADi Functions of
+``(inputs..., p)`` where ``p`` is the robot's parameter vector, has
+:mod:`softcurve.compiled.build` compile them to one cached C library, loads it, and calls
+it with NumPy arrays. It also owns the one per-model cache (:meth:`~CompiledFunctions.cached`).
+The physical quantities (dynamics, energies, poses) are the methods of its subclass
+:class:`softcurve.compiled.model.Model`.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import threading
+from pathlib import Path
+
+import casadi as ca
+import numpy as np
+
+from softcurve.base.validation import ParameterError
+from softcurve.compiled.build import COMPILED_FUNCTIONS, compiled_library
+from softcurve.compiled.native import NativeFunction
+from softcurve.description.robot import Robot
+from softcurve.symbolic.dynamics import (
+    DEFAULT_QUADRATURE_NODES,
+    DynamicsExpressions,
+    build_dynamics,
+)
+from softcurve.symbolic.functions import symbolic_functions
+
+CACHED_PER_MODEL = 64
+"""Entries of :meth:`CompiledFunctions.cached` per model; a batch or identification builds
+a few integrators and maps per output grid, so 64 covers every study in the docs."""
+
+
+class CompiledFunctions:
+    """The numeric entry points of one robot, compiled to C or in CasADi's virtual machine.
+
+    Parameters
+    ----------
+    robot : Robot
+        The robot description; its numbers are bound to every call.
+    quadrature_nodes : int, optional
+        Gauss-Legendre nodes per segment for the backbone integrals (default 11,
+        round-off accuracy for bending angles up to pi per segment; see
+        docs/model.md).
+    compile : bool, optional
+        Compile to C (default). With False, or when no C compiler works, the
+        functions run in CasADi's virtual machine.
+    """
+
+    def __init__(
+        self,
+        robot: Robot,
+        *,
+        quadrature_nodes: int = DEFAULT_QUADRATURE_NODES,
+        compile: bool = True,
+    ):
+        if not isinstance(robot, Robot):
+            raise ParameterError(f"robot must be a Robot, got {type(robot).__name__}")
+        if not (isinstance(quadrature_nodes, int) and 1 <= quadrature_nodes <= 64):
+            raise ParameterError(
+                f"quadrature_nodes must be an integer in [1, 64], got {quadrature_nodes!r}"
+            )
+        self.robot = robot
+        self.n = robot.n
+        self.n_creep = robot.n_creep
+        self.n_state = 2 * self.n + self.n_creep
+        self.quadrature_nodes = quadrature_nodes
+        self.parameters = robot.parameter_vector()
+        self._structure = robot.structure()
+        self._symbolic: dict[str, ca.Function] | None = None
+        self._native: dict[str, NativeFunction] | None = None
+        self._cache: dict = {}
+        self._cache_lock = threading.Lock()
+        self.compiled_library: Path | None = None
+        if compile:
+            library = compiled_library(self._structure, quadrature_nodes, lambda: self.symbolic)
+            if library is not None:
+                handle = ctypes.CDLL(str(library))
+                self._native = {name: NativeFunction(handle, name) for name in COMPILED_FUNCTIONS}
+                self.compiled_library = library
+
+    @property
+    def expressions(self) -> DynamicsExpressions:
+        """The symbolic equation of motion (built on first use)."""
+        if self._expressions is None:
+            self._expressions = build_dynamics(self._structure, self.quadrature_nodes)
+        return self._expressions
+
+    _expressions: DynamicsExpressions | None = None
+
+    @property
+    def symbolic(self) -> dict[str, ca.Function]:
+        """Every numeric entry point as a CasADi SX Function whose last input is ``p``."""
+        if self._symbolic is None:
+            self._symbolic = symbolic_functions(self.expressions)
+        return self._symbolic
+
+    # -- the per-model cache -------------------------------------------------------
+    def cached(self, key, build):
+        """``build()`` once per ``key`` for this model, kept while the model lives.
+
+        The one cache of CasADi objects built on a model (integrators, maps, load
+        functions): CasADi builds derivative functions and integrator memory on first
+        use, so rebuilding them per call would cost milliseconds. At most
+        :data:`CACHED_PER_MODEL` entries; the oldest half is dropped beyond that.
+
+        Parameters
+        ----------
+        key : hashable
+            What is built, e.g. ``("map", "pose", 100)``; equal keys share one value.
+        build : callable
+            Called without arguments, only when ``key`` is not cached yet.
+
+        Returns
+        -------
+        object
+            The value of ``build()`` stored under ``key``.
+        """
+        with self._cache_lock:
+            if key in self._cache:
+                return self._cache[key]
+        value = build()
+        with self._cache_lock:
+            if len(self._cache) >= CACHED_PER_MODEL:
+                for old in list(self._cache)[: CACHED_PER_MODEL // 2]:
+                    del self._cache[old]
+            return self._cache.setdefault(key, value)
+
+    def function(self, name: str, options: dict | None = None) -> ca.Function:
+        """The model's function ``name(..., p)`` as a CasADi Function.
+
+        Parameters
+        ----------
+        name : str
+            A key of :attr:`symbolic`, e.g. ``"rhs"`` or ``"pose"``.
+        options : dict, optional
+            CasADi options of the ``external`` that loads a compiled function.
+
+        Returns
+        -------
+        casadi.Function
+            The compiled one, loaded as a CasADi ``external``, when the model has a
+            library that compiles ``name``; else the symbolic one.
+        """
+        if self.compiled_library is not None and name in COMPILED_FUNCTIONS:
+            return ca.external(name, str(self.compiled_library), options or {})
+        return self.symbolic[name]
+
+    def evaluate_along(self, name: str, *columns) -> list[np.ndarray]:
+        """Evaluate the function ``name`` at many points in one compiled call.
+
+        Parameters
+        ----------
+        name : str
+            A key of :attr:`symbolic`, e.g. ``"pose"`` or ``"potential_energy"``.
+        *columns : array_like, shape (T, k), or scalar
+            Per-point inputs (one row per point) or a value shared by all points, in the
+            order of the function's inputs before ``p``.
+
+        Returns
+        -------
+        list of ndarray, each shape (T, size of the output)
+            One array per output of the function, flattened per point (column major).
+        """
+        count = next(np.shape(c)[0] for c in columns if np.ndim(c) == 2)
+
+        def build():
+            function = self.function(name)
+            return function, function.map(count)
+
+        function, mapped = self.cached(("map", name, count), build)
+        inputs = [np.asarray(c, dtype=np.float64).T if np.ndim(c) == 2 else c for c in columns]
+        outputs = mapped(*inputs, self.parameters)
+        if not isinstance(outputs, tuple | list):
+            outputs = (outputs,)
+        result = []
+        for i, o in enumerate(outputs):
+            rows, cols = function.size1_out(i), function.size2_out(i)
+            dense = np.asarray(o, dtype=np.float64)  # (rows, cols * count), column blocks
+            per_point = dense.reshape(rows, count, cols)
+            result.append(per_point.transpose(1, 0, 2).reshape(count, rows * cols))
+        return result
+
+    def split_state(self, x):
+        """``(q, qd, lam)`` views of a state vector.
+
+        Parameters
+        ----------
+        x : array_like, shape (n_state,)
+            State ``(q, qd, lam)``, ``n_state = 2 n + n_creep``.
+        """
+        x = self._vector("x", x, self.n_state)
+        n = self.n
+        return x[:n], x[n : 2 * n], x[2 * n :]
+
+    # -- NumPy in, NumPy out -------------------------------------------------------
+    def _vector(self, name: str, value, size: int) -> np.ndarray:
+        if value is None and name == "lam":
+            return np.zeros(size)
+        a = np.asarray(value, dtype=np.float64)
+        if a.shape != (size,):
+            raise ValueError(f"{name} must have shape ({size},), got {a.shape}")
+        return a
+
+    def _call(self, name: str, *args) -> list[np.ndarray]:
+        if self._native is not None and name in self._native:
+            return self._native[name](*args, self.parameters)
+        out = self.symbolic[name](*args, self.parameters)
+        if not isinstance(out, tuple | list):
+            out = (out,)
+        arrays = [np.array(o, dtype=np.float64) for o in out]
+        return [a.ravel() if a.shape[1] == 1 else a for a in arrays]

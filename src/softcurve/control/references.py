@@ -1,0 +1,109 @@
+"""References for the controllers: ``q_r(t)`` with exact derivatives (CasADi).
+
+:class:`Reference` wraps any CasADi expression of time; :func:`tip_circle` is the
+reference of a single segment whose tip runs a horizontal circle, through the
+closed-form inverse kinematics :func:`tip_to_coordinates`.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import casadi as ca
+import numpy as np
+
+from softcurve.base.validation import ParameterError, real_array, real_scalar
+
+
+@dataclass(frozen=True)
+class ReferenceSample:
+    """``q_r``, ``qd_r``, ``qdd_r`` at one time, each shape (n,)."""
+
+    q: np.ndarray
+    qd: np.ndarray
+    qdd: np.ndarray
+
+
+class Reference:
+    """A reference trajectory ``q_r(t)`` with exact first and second derivatives.
+
+    Parameters
+    ----------
+    expression : callable
+        ``expression(t) -> q_r`` for a CasADi scalar symbol ``t``; returns an (n,)
+        expression built from CasADi operations.
+    n : int
+        Number of coordinates.
+    """
+
+    def __init__(self, expression: Callable, n: int):
+        t = ca.SX.sym("t")
+        q = ca.vertcat(expression(t))
+        if q.shape != (n, 1):
+            raise ParameterError(f"the reference expression must have shape ({n},), got {q.shape}")
+        qd = ca.jacobian(q, t)
+        qdd = ca.jacobian(qd, t)
+        self.n = n
+        self._function = ca.Function("reference", [t], [q, qd, qdd])
+
+    def __call__(self, t: float) -> ReferenceSample:
+        q, qd, qdd = (np.array(v, dtype=np.float64).ravel() for v in self._function(float(t)))
+        return ReferenceSample(q, qd, qdd)
+
+    @classmethod
+    def constant(cls, q) -> Reference:
+        """A set point."""
+        q = np.asarray(q, dtype=np.float64)
+        return cls(lambda t: ca.DM(q) + 0 * t, q.size)
+
+    @classmethod
+    def sinusoid(cls, center, amplitude, frequency: float, phase=0.0) -> Reference:
+        """``center + amplitude sin(2 pi frequency t + phase)`` per coordinate."""
+        center = np.asarray(center, dtype=np.float64)
+        amplitude = np.broadcast_to(np.asarray(amplitude, dtype=np.float64), center.shape)
+        phase = np.broadcast_to(np.asarray(phase, dtype=np.float64), center.shape)
+        w = 2.0 * math.pi * real_scalar("frequency", frequency, positive=True)
+        return cls(
+            lambda t: ca.DM(center) + ca.DM(amplitude) * ca.sin(w * t + ca.DM(phase)),
+            center.size,
+        )
+
+
+def tip_to_coordinates(position):
+    """Closed-form inverse kinematics of one constant-curvature segment (CasADi or float).
+
+    The arc from the origin (tangent +z) through ``position = (x, y, z)`` with ``z > 0``:
+    ``d = |(x, y)|``, bending angle ``beta = 2 atan2(d, z)``, curvature
+    ``kappa = 2 d / (d^2 + z^2)``, length ``l = beta / kappa`` and
+    ``(kx, ky) = kappa (x, y) / d``. Requires ``d > 0`` (the tip off the axis).
+    """
+    x, y, z = position[0], position[1], position[2]
+    d = ca.sqrt(x**2 + y**2)
+    beta = 2 * ca.atan2(d, z)
+    kappa = 2 * d / (d**2 + z**2)
+    return ca.vertcat(beta / kappa, kappa * x / d, kappa * y / d)
+
+
+def tip_circle(center, radius: float, period: float, *, phase: float = 0.0) -> Reference:
+    """Reference for a single segment whose tip runs a horizontal circle.
+
+    The circle ``center + radius (cos w t, sin w t, 0)`` with ``w = 2 pi / period``,
+    in the base frame; it must not pass through the z axis (see
+    :func:`tip_to_coordinates`).
+    """
+    center = real_array("center", center, (3,))
+    radius = real_scalar("radius", radius, positive=True)
+    w = 2.0 * math.pi / real_scalar("period", period, positive=True)
+    if np.hypot(center[0], center[1]) <= radius or center[2] <= 0:
+        raise ParameterError(
+            "the tip circle must stay off the z axis (|center_xy| > radius) and above the "
+            f"base (center z > 0); got center {center.tolist()}, radius {radius}"
+        )
+
+    def expression(t):
+        point = ca.DM(center) + radius * ca.vertcat(ca.cos(w * t + phase), ca.sin(w * t + phase), 0)
+        return tip_to_coordinates(point)
+
+    return Reference(expression, 3)

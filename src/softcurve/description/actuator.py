@@ -1,0 +1,228 @@
+"""The actuator interface: bounded inputs ``u`` (m,) acting on a robot as ``tau = H(q) u``.
+
+:class:`Actuator` is the one route by which actuator inputs reach the robot, in
+simulation, statics, linearization, quasi-static maps, control and C export. A kind of
+actuator says what its inputs are (``input_name``, ``input_unit``), gives ``H(q)``
+symbolically (:meth:`Actuator.input_matrix_symbolic`) and the work ``W(q)`` of constant
+inputs (:meth:`Actuator.input_work_symbolic`, whose gradient is ``H(q) u``), and holds
+its bounds ``lower <= u <= upper`` and an optional first-order lag of the inputs behind
+their commands. Pneumatic chambers (:mod:`softcurve.description.pneumatic`, pressures
+[Pa]) implement it; tendons (``tau = -J_L(q)^T T``, tensions ``T >= 0`` [N], work
+``-L(q) . T``) fit the same methods.
+"""
+
+from __future__ import annotations
+
+import math
+
+import casadi as ca
+import numpy as np
+
+from softcurve.base.validation import ParameterError, real_array, real_scalar
+
+
+def optional_time_constant(value) -> float | None:
+    """A first-order lag [s] > 0, or None for inputs that follow their command at once.
+
+    Parameters
+    ----------
+    value : float or None
+        The lag [s], checked.
+    """
+    return None if value is None else real_scalar("time_constant", value, positive=True)
+
+
+class Actuator:
+    """An actuator: bounded inputs ``u`` (m,) acting on the robot as ``tau = H(q) u``.
+
+    Subclasses set the attributes below (in ``__post_init__`` of a frozen dataclass) and
+    implement :meth:`input_matrix_symbolic`, :meth:`input_work_symbolic`,
+    :meth:`parameter_vector` and :meth:`parameter_names`.
+
+    Attributes
+    ----------
+    n : int
+        Number of generalized coordinates (``3 N``).
+    n_inputs : int
+        Number of inputs ``m``.
+    lower, upper : ndarray, shape (m,)
+        Input bounds [``input_unit``].
+    time_constant : float or None
+        First-order lag of the inputs behind their commands [s]; None for inputs that
+        follow their command at once.
+    input_name : str
+        What the inputs are (``"pressures"``, ``"tensions"``), for messages.
+    input_unit : str
+        Their unit (``"Pa"``, ``"N"``).
+    """
+
+    n: int
+    n_inputs: int
+    lower: np.ndarray
+    upper: np.ndarray
+    time_constant: float | None
+    input_name: str = "inputs"
+    input_unit: str = ""
+
+    # -- the map ---------------------------------------------------------------------
+    def input_matrix_symbolic(self, q, theta=None):
+        """``H(q)`` (n, m) as a CasADi expression.
+
+        Parameters
+        ----------
+        q : casadi.SX or casadi.MX, shape (n,)
+            Generalized coordinates [m, 1/m, 1/m].
+        theta : casadi.SX or casadi.MX, shape (k,), optional
+            Symbols replacing :meth:`parameter_vector` (e.g. to identify areas).
+        """
+        raise NotImplementedError
+
+    def input_work_symbolic(self, q, inputs):
+        """``W(q)`` [J] with ``dW/dq = H(q) u`` at constant inputs ``u`` (CasADi scalar).
+
+        Constant inputs are conservative: ``-W`` is their potential, and its Hessian
+        enters the stability of an equilibrium (:mod:`softcurve.analysis.statics`).
+
+        Parameters
+        ----------
+        q : casadi.SX or casadi.MX, shape (n,)
+            Generalized coordinates [m, 1/m, 1/m].
+        inputs : casadi.SX or casadi.MX, shape (m,)
+            Constant inputs [``input_unit``].
+        """
+        raise NotImplementedError
+
+    def parameter_vector(self) -> np.ndarray:
+        """The numbers ``H`` depends on, named by :meth:`parameter_names`."""
+        raise NotImplementedError
+
+    def parameter_names(self) -> list[str]:
+        """Names of the entries of :meth:`parameter_vector`."""
+        raise NotImplementedError
+
+    def input_matrix(self, q) -> np.ndarray:
+        """``H(q)``, shape (n, m), mapping inputs to generalized forces.
+
+        Parameters
+        ----------
+        q : array_like, shape (n,)
+            Generalized coordinates [m, 1/m, 1/m].
+        """
+        q = self._coordinates(q)
+        function = self.__dict__.get("_matrix_function")
+        if function is None:
+            symbol = ca.SX.sym("q", self.n)
+            function = ca.Function("H", [symbol], [ca.densify(self.input_matrix_symbolic(symbol))])
+            object.__setattr__(self, "_matrix_function", function)  # a cache, not state
+        return np.array(function(q), dtype=np.float64)
+
+    def generalized_force(self, q, inputs) -> np.ndarray:
+        """``tau = H(q) u``, shape (n,); the inputs must lie within the bounds.
+
+        Parameters
+        ----------
+        q : array_like, shape (n,)
+            Generalized coordinates [m, 1/m, 1/m].
+        inputs : array_like, shape (m,)
+            Actuator inputs [``input_unit``].
+        """
+        return self.input_matrix(q) @ self.check_inputs(inputs)
+
+    # -- the inputs ------------------------------------------------------------------
+    def check_inputs(self, inputs, name: str | None = None) -> np.ndarray:
+        """``inputs`` as a float64 array (m,), or :class:`ParameterError` if any is
+        outside ``[lower, upper]`` or not finite.
+
+        Parameters
+        ----------
+        inputs : array_like, shape (m,)
+            Actuator inputs [``input_unit``].
+        name : str, optional
+            Name used in the error message (default :attr:`input_name`).
+        """
+        name = self.input_name if name is None else name
+        u = real_array(name, inputs, (self.n_inputs,))
+        bad = np.flatnonzero((u < self.lower) | (u > self.upper))
+        if bad.size:
+            i, unit = int(bad[0]), f" {self.input_unit}" if self.input_unit else ""
+            raise ParameterError(
+                f"{name}[{i}] = {float(u[i])!r}{unit} is outside its bounds "
+                f"[{float(self.lower[i])!r}, {float(self.upper[i])!r}]{unit}"
+            )
+        return u
+
+    def clip(self, inputs) -> np.ndarray:
+        """Saturate inputs to ``[lower, upper]``.
+
+        Parameters
+        ----------
+        inputs : array_like, shape (m,)
+            Actuator inputs [``input_unit``].
+        """
+        u = np.asarray(inputs, dtype=np.float64)
+        if u.shape != (self.n_inputs,):
+            raise ValueError(f"{self.input_name} must have shape ({self.n_inputs},), got {u.shape}")
+        return np.clip(u, self.lower, self.upper)
+
+    def rest_inputs(self) -> np.ndarray:
+        """The inputs at rest, zero saturated to the bounds, shape (m,)."""
+        return self.clip(np.zeros(self.n_inputs))
+
+    def input_rate(self, inputs, command) -> np.ndarray:
+        """``u' = (c - u) / time_constant`` with the command ``c`` saturated first.
+
+        Parameters
+        ----------
+        inputs : array_like, shape (m,)
+            Current inputs [``input_unit``].
+        command : array_like, shape (m,)
+            Commanded inputs [``input_unit``].
+        """
+        if self.time_constant is None:
+            raise ParameterError("input_rate needs a time_constant (this actuator has none)")
+        return (self.clip(command) - np.asarray(inputs, dtype=np.float64)) / self.time_constant
+
+    def input_step(self, inputs, command, dt: float) -> np.ndarray:
+        """Exact inputs after holding ``command`` (saturated) for ``dt`` seconds.
+
+        ``u(dt) = c + (u(0) - c) exp(-dt / time_constant)``; without a time constant the
+        inputs equal the saturated command.
+
+        Parameters
+        ----------
+        inputs : array_like, shape (m,)
+            Inputs at the start [``input_unit``].
+        command : array_like, shape (m,)
+            Command held over the interval [``input_unit``].
+        dt : float
+            Length of the interval [s], >= 0.
+        """
+        c = self.clip(command)
+        if self.time_constant is None:
+            return c
+        dt = real_scalar("dt", dt)
+        if dt < 0:
+            raise ParameterError(f"dt must be >= 0, got {dt!r}")
+        u = np.asarray(inputs, dtype=np.float64)
+        return c + (u - c) * math.exp(-dt / self.time_constant)
+
+    # -- helpers ---------------------------------------------------------------------
+    def check_robot(self, robot) -> None:
+        """Raise :class:`ParameterError` unless the actuator fits ``robot``'s coordinates.
+
+        Parameters
+        ----------
+        robot : Robot
+            The robot driven.
+        """
+        if robot.n != self.n:
+            raise ParameterError(
+                f"the actuator acts on n = {self.n} coordinates but the robot has "
+                f"n = {robot.n} ({robot.n_segments} segments)"
+            )
+
+    def _coordinates(self, q) -> np.ndarray:
+        q = np.asarray(q, dtype=np.float64)
+        if q.shape != (self.n,):
+            raise ValueError(f"q must have shape ({self.n},), got {q.shape}")
+        return q

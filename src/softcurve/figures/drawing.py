@@ -1,0 +1,191 @@
+"""Where a figure is drawn (a new figure or the caller's Axes), how it is written, and
+the backbone shapes that several figures draw."""
+
+from __future__ import annotations
+
+import operator
+from pathlib import Path
+
+import numpy as np
+
+from softcurve.base.files import atomic_path
+from softcurve.base.validation import ParameterError, real_scalar
+
+
+def pyplot():
+    """``matplotlib.pyplot``, imported on first use, never switching the backend.
+
+    Imported here rather than at module level because it costs about 0.6 s, which
+    ``import softcurve`` should not pay when no figure is drawn.
+    """
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def panels(ax, count: int, what: str, *, rows: int | None = None, projection=None, **figure):
+    """The figure and the ``count`` Axes that ``what`` is drawn into, row by row.
+
+    Parameters
+    ----------
+    ax : None, matplotlib.axes.Axes or sequence of Axes, shape (count,)
+        None for a new figure of ``rows`` rows; otherwise the caller's Axes (any nesting,
+        read row by row), exactly ``count`` of them.
+    count : int
+        Number of panels of the plot.
+    what : str
+        The plot's name, for error messages.
+    rows : int, optional
+        Rows of a new figure (default: ``count``, one panel per row).
+    projection : str, optional
+        ``"3d"`` for 3-D panels (the caller's Axes must be 3-D too).
+    **figure
+        Passed to ``matplotlib.pyplot.subplots`` for a new figure (``figsize``, ``sharex``).
+
+    Returns
+    -------
+    figure : matplotlib.figure.Figure
+        The (root) figure the panels belong to.
+    axes : list of matplotlib.axes.Axes, length count
+    """
+    plt = pyplot()
+    if ax is None:
+        rows = count if rows is None else rows
+        new, grid = plt.subplots(
+            rows,
+            count // rows,
+            squeeze=False,
+            layout="constrained",
+            subplot_kw=None if projection is None else {"projection": projection},
+            **figure,
+        )
+        return new, list(grid.ravel())
+    given = _flatten(ax, plt.Axes, what)
+    if len(given) != count:
+        one = "an Axes or " if count == 1 else ""
+        raise ParameterError(
+            f"{what} has {count} panel(s): ax must be None, {one}a sequence of {count} "
+            f"Matplotlib Axes, got {len(given)}"
+        )
+    if projection is not None and any(a.name != projection for a in given):
+        raise ParameterError(
+            f"{what} needs Axes made with projection={projection!r}, got {[a.name for a in given]}"
+        )
+    root = given[0].figure
+    while not isinstance(root, plt.Figure):  # a SubFigure: its parent holds it
+        root = root.figure
+    return root, given
+
+
+def _flatten(ax, axes_type, what: str) -> list:
+    if isinstance(ax, axes_type):
+        return [ax]
+    if isinstance(ax, str | bytes) or not hasattr(ax, "__iter__"):
+        raise ParameterError(
+            f"ax of {what} must be None, a Matplotlib Axes or a sequence of them, got {ax!r}"
+        )
+    return [a for item in ax for a in _flatten(item, axes_type, what)]
+
+
+def whole_number(name: str, value, minimum: int) -> int:
+    """``value`` as an int of at least ``minimum``, or raise :class:`ParameterError`.
+
+    Parameters
+    ----------
+    name : str
+        The option's name, for the message.
+    value : int
+        The number to check [count].
+    minimum : int
+        Its smallest allowed value [count].
+
+    Returns
+    -------
+    int
+    """
+    try:
+        number = operator.index(value)
+    except TypeError:
+        raise ParameterError(f"{name} must be an integer, got {value!r}") from None
+    if number < minimum:
+        raise ParameterError(f"{name} must be >= {minimum}, got {number}")
+    return number
+
+
+def save_figure(figure, path, *, dpi: float = 110) -> Path:
+    """Write ``figure`` to ``path``, whole or not at all.
+
+    The file appears complete or not at all (a temporary file beside it is renamed over
+    it), so readers never see half a figure.
+
+    Parameters
+    ----------
+    figure : matplotlib.figure.Figure
+        What a ``.plot()`` method returns.
+    path : str or pathlib.Path
+        The file; its suffix gives the format (``.png``, ``.pdf``, ``.svg``...; no
+        suffix: PNG).
+    dpi : float, optional
+        Resolution of raster formats [dots per inch].
+
+    Returns
+    -------
+    pathlib.Path
+        ``path``.
+
+    Examples
+    --------
+    >>> import tempfile, pathlib
+    >>> import matplotlib.pyplot as plt
+    >>> from softcurve.figures import save_figure
+    >>> figure, ax = plt.subplots()
+    >>> with tempfile.TemporaryDirectory() as folder:
+    ...     save_figure(figure, pathlib.Path(folder) / "empty.png").stat().st_size > 0
+    True
+    >>> plt.close(figure)
+    """
+    plt = pyplot()
+    if not isinstance(figure, plt.Figure):
+        raise ParameterError(
+            f"figure must be a matplotlib.figure.Figure (what .plot() returns), "
+            f"got {type(figure).__name__}"
+        )
+    dpi = real_scalar("dpi", dpi, positive=True)
+    path = Path(path)
+    file_format = path.suffix.lstrip(".").lower() or "png"
+    supported = figure.canvas.get_supported_filetypes()
+    if file_format not in supported:
+        raise ParameterError(
+            f"cannot write a figure as {path.name!r}: the suffix must be one of "
+            f"{sorted('.' + s for s in supported)}"
+        )
+    with atomic_path(path) as tmp:
+        figure.savefig(tmp, dpi=dpi, format=file_format)
+    return path
+
+
+def backbones(model, q, points: int) -> np.ndarray:
+    """World positions along the robot, one backbone per configuration.
+
+    Parameters
+    ----------
+    model : softcurve.Model
+        Gives the pose at each material coordinate.
+    q : array_like, shape (k, n)
+        Configurations [m, 1/m, 1/m per segment].
+    points : int
+        Points along each backbone, evenly spaced in ``s`` from base to tip.
+
+    Returns
+    -------
+    ndarray, shape (k, points, 3)
+        Positions [m].
+    """
+    q = np.atleast_2d(np.asarray(q, dtype=np.float64))
+    if q.shape[0] == 0:
+        return np.empty((0, points, 3))
+    s = np.linspace(0.0, 1.0, points)
+    positions = model.evaluate_along(
+        "pose", np.repeat(q, points, axis=0), np.tile(s, q.shape[0])[:, None]
+    )[1]
+    return positions.reshape(q.shape[0], points, 3)

@@ -1,0 +1,206 @@
+"""Figures of trajectories: the states (paper Fig. 4), the tip path (Fig. 5), the tips
+of a batch, and an animation of the backbone."""
+
+from __future__ import annotations
+
+import shutil
+from pathlib import Path
+
+import numpy as np
+
+from softcurve.base.files import atomic_path
+from softcurve.base.validation import ParameterError, real_scalar
+from softcurve.figures.drawing import backbones, panels, whole_number
+
+MM_PER_M = 1e3
+STATE_LABELS = ("length l [m]", r"curvature $\kappa_x$ [1/m]", r"curvature $\kappa_y$ [1/m]")
+"""Per segment, the coordinates are ``(l, kx, ky)``: one panel each."""
+ANIMATION_SUFFIXES = (".gif", ".mp4")
+MARGIN = 1.1
+"""Axis limits of the animation: the space the backbone sweeps, 10 % wider."""
+MINIMUM_REACH = 0.1
+"""Half-width of the animation's x-y axes at least, over the rest length: a robot that
+stays straight is still drawn in a box, not on a line."""
+
+
+def plot_states(trajectory, ax=None):
+    """``l``, ``kx`` and ``ky`` of every segment against time, one panel each (Fig. 4).
+
+    Parameters
+    ----------
+    trajectory : softcurve.Trajectory
+        Read: ``t`` shape (T,) [s], ``q`` shape (T, 3 N) [m, 1/m, 1/m], ``success``.
+    ax : None or sequence of matplotlib.axes.Axes, shape (3,)
+        Panels for ``l``, ``kx`` and ``ky``; None draws a new figure.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+    """
+    figure, axes = panels(
+        ax, len(STATE_LABELS), "the states figure", sharex=True, figsize=(7.0, 6.0)
+    )
+    segments = trajectory.q.shape[1] // len(STATE_LABELS)
+    for row, label in enumerate(STATE_LABELS):
+        for i in range(segments):
+            axes[row].plot(
+                trajectory.t,
+                trajectory.q[:, len(STATE_LABELS) * i + row],
+                lw=0.9,
+                label=f"segment {i + 1}" if segments > 1 else None,
+            )
+        axes[row].set_ylabel(label)
+        axes[row].grid(True, alpha=0.3)
+    if segments > 1:
+        axes[0].legend(loc="upper right", fontsize="small")
+    axes[-1].set_xlabel("time t [s]")
+    title = "State trajectories"
+    if not trajectory.success:
+        title += f" (FAILED at t = {trajectory.t[-1]:.4g} s)" if trajectory.t.size else " (FAILED)"
+    axes[0].set_title(title)
+    return figure
+
+
+def plot_tip(trajectory, ax=None):
+    """The tip position in 3-D, colored by time, with its start and end marked (Fig. 5).
+
+    Parameters
+    ----------
+    trajectory : softcurve.Trajectory
+        Read: ``t`` shape (T,) [s] and ``tip`` shape (T, 3) [m].
+    ax : None or matplotlib.axes.Axes, shape (1,)
+        A 3-D Axes (``projection="3d"``); None draws a new figure.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+    """
+    figure, (ax,) = panels(ax, 1, "the tip figure", projection="3d", figsize=(6.0, 5.5))
+    tip = trajectory.tip * MM_PER_M
+    if tip.shape[0]:
+        points = ax.scatter(tip[:, 0], tip[:, 1], tip[:, 2], c=trajectory.t, s=1.0, cmap="viridis")
+        ax.plot(tip[:, 0], tip[:, 1], tip[:, 2], lw=0.4, color="0.4", alpha=0.6)
+        ax.scatter(*tip[0], color="tab:red", s=25, label="start")
+        ax.scatter(*tip[-1], color="black", marker="x", s=40, label="end")
+        figure.colorbar(points, ax=ax, shrink=0.6, label="time t [s]")
+        ax.legend(loc="upper left", fontsize="small")
+    ax.set_xlabel("x [mm]")
+    ax.set_ylabel("y [mm]")
+    ax.set_zlabel("z [mm]")
+    ax.set_title("End-effector trajectory")
+    return figure
+
+
+def plot_batch_tips(batch, ax=None, *, members: int = 50):
+    """The tip position of the first ``members`` members of a batch against time, one
+    panel per world axis.
+
+    Parameters
+    ----------
+    batch : softcurve.BatchTrajectory
+        Read: ``t`` shape (T,) [s], ``tip`` shape (B, T, 3) [m], ``size``.
+    ax : None or sequence of matplotlib.axes.Axes, shape (3,)
+        Panels for tip x, y and z; None draws a new figure.
+    members : int, optional
+        How many members to draw (the first ones) [count].
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+    """
+    members = whole_number("members", members, 1)
+    figure, axes = panels(ax, 3, "the batch tip figure", sharex=True, figsize=(7.0, 6.0))
+    for row, axis in enumerate("xyz"):
+        axes[row].plot(batch.t, MM_PER_M * batch.tip[:members, :, row].T, lw=0.6, alpha=0.7)
+        axes[row].set_ylabel(f"tip {axis} [mm]")
+    axes[-1].set_xlabel("time [s]")
+    axes[0].set_title(f"{min(members, batch.size)} of {batch.size} members")
+    return figure
+
+
+def animate(
+    trajectory,
+    path,
+    model,
+    *,
+    fps: float = 25,
+    speed: float = 1.0,
+    points: int = 20,
+    dpi: float = 60,
+) -> Path:
+    """Write an animation of the backbone to ``path``, whole or not at all.
+
+    Parameters
+    ----------
+    trajectory : softcurve.Trajectory
+        Read: ``t`` shape (T,) [s], T >= 2, and ``q`` shape (T, n).
+    path : str or pathlib.Path
+        ``.gif`` (Pillow, always available) or ``.mp4`` (needs ffmpeg on the PATH).
+    model : softcurve.Model
+        Gives the backbone shape of each frame.
+    fps : float, optional
+        Frames per second of the file [1/s].
+    speed : float, optional
+        Simulated time per time of animation [s/s].
+    points : int, optional
+        Points along the backbone [count].
+    dpi : float, optional
+        Resolution of the frames [dots per inch].
+
+    Returns
+    -------
+    pathlib.Path
+        ``path``.
+    """
+    from matplotlib import animation  # on first use, like drawing.pyplot
+    from matplotlib.figure import Figure
+
+    path = Path(path)
+    if path.suffix not in ANIMATION_SUFFIXES:
+        raise ParameterError(f"animation path must end in .gif or .mp4, got {path.name!r}")
+    if path.suffix == ".mp4" and shutil.which("ffmpeg") is None:
+        raise RuntimeError("writing .mp4 needs ffmpeg on the PATH; write a .gif instead")
+    fps = real_scalar("fps", fps, positive=True)
+    speed = real_scalar("speed", speed, positive=True)
+    dpi = real_scalar("dpi", dpi, positive=True)
+    points = whole_number("points", points, 2)
+    if trajectory.t.size < 2:
+        raise ParameterError("the trajectory has fewer than two samples: nothing to animate")
+    frame_times = np.arange(trajectory.t[0], trajectory.t[-1], speed / fps)
+    frames = np.searchsorted(trajectory.t, frame_times).clip(0, trajectory.t.size - 1)
+    shapes = backbones(model, trajectory.q[frames], points) * MM_PER_M
+    least_reach = MINIMUM_REACH * model.robot.rest_length * MM_PER_M
+    reach = max(np.abs(shapes[..., :2]).max(), least_reach) * MARGIN
+    top = max(shapes[..., 2].max(), 0.0) * MARGIN
+    bottom = min(shapes[..., 2].min(), 0.0) * MARGIN
+    # not through pyplot: the figure only feeds the file, so no window may show it
+    figure = Figure(figsize=(4.0, 4.0))
+    ax = figure.add_subplot(projection="3d")
+    ax.set(
+        xlim=(-reach, reach),
+        ylim=(-reach, reach),
+        zlim=(bottom, top),
+        xlabel="x [mm]",
+        ylabel="y [mm]",
+        zlabel="z [mm]",
+    )
+    (line,) = ax.plot([], [], [], lw=4, color="tab:blue")
+    (tip,) = ax.plot([], [], [], "o", color="tab:red")
+    title = ax.set_title("")
+
+    def draw(i):
+        shape = shapes[i]
+        line.set_data_3d(shape[:, 0], shape[:, 1], shape[:, 2])
+        tip.set_data_3d(shape[-1:, 0], shape[-1:, 1], shape[-1:, 2])
+        title.set_text(f"t = {trajectory.t[frames[i]]:.3f} s")
+        return line, tip, title
+
+    movie = animation.FuncAnimation(figure, draw, frames=len(frames), blit=False)
+    writer = (
+        animation.PillowWriter(fps=fps)
+        if path.suffix == ".gif"
+        else animation.FFMpegWriter(fps=fps)
+    )
+    with atomic_path(path) as tmp:
+        movie.save(str(tmp), writer=writer, dpi=dpi)
+    return path

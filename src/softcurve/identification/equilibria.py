@@ -1,0 +1,137 @@
+"""Quasi-static predictions for the equilibrium fit, with their exact Jacobian.
+
+Each sample of an experiment is a static equilibrium ``N(q; p) = tau(q, u; values)``,
+solved by the package's one equilibrium solver for many equilibria at once
+(:func:`softcurve.analysis.solver.solve_equilibria`), each sample starting from its
+solution at the previous evaluation of the fit (parameters change little between two
+evaluations), at the first evaluation from the given initial guess. The implicit function
+theorem gives the derivative of each solution with respect to the parameters,
+``dq/dd = -K^-1 dr/dd`` with ``K = dr/dq``, and the chain rule the Jacobian of the
+outputs; the derivatives come from CasADi, evaluated for all samples in one call.
+"""
+
+from __future__ import annotations
+
+import casadi as ca
+import numpy as np
+
+from softcurve.analysis.loads import coordinate_scale, residual_reference
+from softcurve.analysis.solver import solve_equilibria
+
+EQUILIBRIUM_TOLERANCE = 1e-10
+"""Scaled residual accepted at every sample (as :func:`softcurve.equilibrium`'s default)."""
+
+MAX_EVALUATIONS = 400
+"""Residual evaluations allowed per sample and start."""
+
+
+class EquilibriumPredictor:
+    """``experiment -> evaluate(theta) -> (Y (k, T), dvec(Y)/dtheta (k T, P))``.
+
+    Parameters
+    ----------
+    model : Model
+        The compiled model.
+    parameters : FreeParameters
+        The free parameters and how they enter ``p`` and the extra values.
+    output : OutputMap
+        The measured signals.
+    input_map : InputMap or None
+        Generalized forces from the experiment's inputs.
+    q0 : array_like, shape (n,)
+        Initial guess of every sample at the first evaluation [m, 1/m, 1/m].
+    """
+
+    def __init__(self, model, parameters, output, input_map, q0):
+        self.model, self.parameters = model, parameters
+        self.output, self.input_map = output, input_map
+        self.q0 = np.asarray(q0, dtype=np.float64)
+        self.scale = coordinate_scale(model.robot)
+        self.reference = residual_reference(model)
+
+    def __call__(self, experiment):
+        model, P = self.model, self.parameters
+        n, n_p = model.n, P.p0.size
+        keys = sorted(P.extra)
+        theta = ca.MX.sym("theta", len(P.free))
+        p, values = P.expressions(theta)
+        d = ca.vertcat(p, *(ca.MX(values[k]) for k in keys))
+        direct = ca.Function("direct", [theta], [d, ca.densify(ca.jacobian(d, theta))])
+
+        u_names = list(experiment.inputs)
+        q, u = ca.SX.sym("q", n), ca.SX.sym("u", len(u_names))
+        ds = ca.SX.sym("d", d.shape[0])
+        p_s, v_s = ds[:n_p], {k: ds[n_p + i] for i, k in enumerate(keys)}
+        tau = ca.SX.zeros(n) if self.input_map is None else self.input_map.function(q, u, v_s)
+        gravity, elastic = model.symbolic["gravity_force"], model.symbolic["elastic_force"]
+        residual = gravity(q, p_s) + elastic(q, p_s) - tau
+        stiffness = ca.jacobian(residual, q)
+        balance = ca.Function("balance", [q, u, ds], [residual, stiffness])
+        balance_all = balance.map(experiment.t.size)
+        y = self.output.function(q, ca.SX.zeros(n), v_s, p_s)
+        sensitivities = ca.Function(
+            "sensitivities",
+            [q, u, ds],
+            [y, stiffness, ca.jacobian(residual, ds), ca.jacobian(y, q), ca.jacobian(y, ds)],
+        ).map(experiment.t.size)
+        inputs = experiment.input_matrix(u_names) if u_names else np.zeros((experiment.t.size, 0))
+        samples = experiment.t.size
+        last = np.tile(self.q0[:, None], (1, samples))
+
+        def solve(d_value) -> np.ndarray:
+            def batch_system(q_all):
+                r, k = balance_all(q_all, inputs.T, d_value)
+                k = np.array(k, dtype=np.float64).reshape(n, samples, n).transpose(1, 0, 2)
+                return np.array(r, dtype=np.float64), k
+
+            def system_of(j):
+                def system(q_value):
+                    r, k = balance(q_value, inputs[j], d_value)
+                    return np.array(r, dtype=np.float64).ravel(), np.array(k, dtype=np.float64)
+
+                return system
+
+            options = dict(scale=self.scale, reference=self.reference, tol=EQUILIBRIUM_TOLERANCE)
+            roots = solve_equilibria(
+                batch_system, system_of, last, max_evaluations=MAX_EVALUATIONS, **options
+            )
+            failed = [j for j, root in enumerate(roots) if not root.converged]
+            if failed and not np.array_equal(last, np.tile(self.q0[:, None], (1, samples))):
+                retry = solve_equilibria(
+                    batch_system,
+                    system_of,
+                    np.tile(self.q0[:, None], (1, len(roots))),
+                    max_evaluations=MAX_EVALUATIONS,
+                    **options,
+                )
+                roots = [retry[j] if j in failed else root for j, root in enumerate(roots)]
+                failed = [j for j, root in enumerate(roots) if not root.converged]
+            if failed:
+                j = failed[0]
+                raise RuntimeError(
+                    f"no equilibrium found at {len(failed)} sample(s), the first {j} "
+                    f"(t = {experiment.t[j]:g} s): {roots[j].message}; the robot may snap "
+                    "through or buckle there"
+                )
+            solution = np.column_stack([root.q for root in roots])
+            last[:] = solution
+            return solution
+
+        def evaluate(theta_value):
+            d_value, d_jacobian = (np.array(v, dtype=np.float64) for v in direct(theta_value))
+            d_value = d_value.ravel()
+            q_all = solve(d_value)
+            y_all, k, r_d, y_q, y_d = (
+                np.array(v, dtype=np.float64) for v in sensitivities(q_all, inputs.T, d_value)
+            )
+            n_d, n_y = d_value.size, y_all.shape[0]
+            k = k.reshape(n, samples, n).transpose(1, 0, 2)
+            r_d = r_d.reshape(n, samples, n_d).transpose(1, 0, 2)
+            y_q = y_q.reshape(n_y, samples, n).transpose(1, 0, 2)
+            y_d = y_d.reshape(n_y, samples, n_d).transpose(1, 0, 2)
+            # implicit function theorem: dq/dd = -K^-1 dr/dd, per sample
+            total = y_d - y_q @ np.linalg.solve(k, r_d)
+            jacobian = (total @ d_jacobian).reshape(samples * n_y, -1)
+            return y_all, jacobian
+
+        return evaluate

@@ -1,0 +1,317 @@
+"""Sweep files: a design over named parameters and initial conditions, read and checked
+into a :class:`SweepConfig` before any simulation runs (schema: ``docs/sweeps.md``)."""
+
+from __future__ import annotations
+
+import hashlib
+import itertools
+import json
+import math
+import re
+from dataclasses import dataclass
+
+import numpy as np
+
+from softcurve._version import __version__
+from softcurve.base.validation import ParameterError
+from softcurve.scenarios.config import Scenario, scenario_from_dict
+from softcurve.scenarios.tables import ConfigError, Reader, read_toml
+from softcurve.simulation.settings import SimulationSettings
+from softcurve.symbolic.dynamics import DEFAULT_QUADRATURE_NODES
+
+DESIGNS = ("grid", "random", "sobol")
+OUTPUTS = ("final_state", "tip_range", "settling_time", "peak_energy")
+MAX_DESIGN_SIZE = 10_000_000
+STATE = re.compile(r"^(q0|qd0|lam0|tau)\[(\d+)\]$")
+
+
+@dataclass(frozen=True)
+class Variable:
+    """One swept quantity, sampled in ``[low, high]``.
+
+    Parameters
+    ----------
+    name : str
+        A robot parameter entry (``robot.layout.names``) or ``q0[i]``, ``qd0[i]``,
+        ``lam0[i]``, ``tau[i]``.
+    low : float
+        Lower end, in the quantity's unit.
+    high : float
+        Upper end (> low).
+    scale : {"linear", "log"}
+        Spacing of the samples.
+    points : int, optional
+        Points of a grid design.
+    """
+
+    name: str
+    low: float
+    high: float
+    scale: str = "linear"
+    points: int | None = None  # grid designs
+
+    def values(self, unit: np.ndarray) -> np.ndarray:
+        """Map ``unit`` in [0, 1] onto ``[low, high]`` (the ends exactly).
+
+        Parameters
+        ----------
+        unit : ndarray
+            Points in [0, 1].
+        """
+        if self.scale == "log":
+            values = np.exp(np.log(self.low) + unit * (np.log(self.high) - np.log(self.low)))
+        else:
+            values = self.low * (1.0 - unit) + self.high * unit
+        return np.where(unit == 0.0, self.low, np.where(unit == 1.0, self.high, values))
+
+
+@dataclass(frozen=True)
+class SweepConfig:
+    """A validated sweep: the scenario, the variables and how to run and summarize.
+
+    Parameters
+    ----------
+    scenario : Scenario
+        The robot and the simulation every design point starts from.
+    variables : tuple of Variable
+        The swept quantities.
+    design : {"grid", "random", "sobol"}
+        How the points are chosen.
+    samples : int or None
+        Points of a random or Sobol design.
+    seed : int
+        Seed of a random or Sobol design.
+    chunk_size : int
+        Simulations per chunk (one file per chunk).
+    output_dt : float
+        Output interval of the simulations [s].
+    outputs : tuple of str
+        Summaries per simulation, from ``OUTPUTS``.
+    settling_fraction : float
+        Band of the settling time, a fraction of the largest tip excursion.
+    fingerprint : str
+        Hash of the configuration and the softcurve version.
+    quadrature_nodes : int
+        Quadrature nodes of the model.
+    source : str
+        The file read.
+    """
+
+    scenario: Scenario
+    variables: tuple[Variable, ...]
+    design: str
+    samples: int | None
+    seed: int
+    chunk_size: int
+    output_dt: float
+    outputs: tuple[str, ...]
+    settling_fraction: float
+    fingerprint: str
+    quadrature_nodes: int = DEFAULT_QUADRATURE_NODES
+    source: str = "<config>"
+
+    def design_points(self) -> np.ndarray:
+        """The design, shape (size, len(variables)), one row per simulation."""
+        d = len(self.variables)
+        if self.design == "grid":
+            axes = [np.linspace(0.0, 1.0, v.points) for v in self.variables]
+            unit = np.array(list(itertools.product(*axes)), dtype=np.float64).reshape(-1, d)
+        elif self.design == "random":
+            unit = np.random.default_rng(self.seed).random((self.samples, d))
+        else:
+            from scipy.stats import qmc
+
+            sobol = qmc.Sobol(d, scramble=True, seed=self.seed)
+            unit = sobol.random_base2(int(math.log2(self.samples)))
+        return np.column_stack([v.values(unit[:, j]) for j, v in enumerate(self.variables)])
+
+    @property
+    def settings(self) -> SimulationSettings:
+        """The scenario's settings with the sweep's output interval."""
+        return self.scenario.settings.replace(dt=self.output_dt)
+
+    @property
+    def size(self) -> int:
+        """Number of design points."""
+        if self.design == "grid":
+            return math.prod(v.points for v in self.variables)
+        return self.samples
+
+
+# -- reading and checking ------------------------------------------------------------------
+def load_sweep(path) -> SweepConfig:
+    """Read and check a sweep file; raises :class:`ConfigError` naming the key.
+
+    Parameters
+    ----------
+    path : str or Path
+        The TOML file.
+    """
+    return sweep_from_dict(*read_toml(path))
+
+
+def sweep_from_dict(data: dict, file: str = "<config>") -> SweepConfig:
+    """Build a :class:`SweepConfig` from parsed TOML; every check happens here.
+
+    Parameters
+    ----------
+    data : dict
+        The parsed TOML.
+    file : str
+        Its name, for messages.
+    """
+    if not isinstance(data, dict) or "sweep" not in data:
+        raise ConfigError(f"{file}: sweep: is required (a [sweep] table, see docs/sweeps.md)")
+    rest = {k: v for k, v in data.items() if k != "sweep"}
+    scenario = scenario_from_dict(rest, file)
+    if scenario.settings.method == "rk45":
+        raise ConfigError(f"{file}: simulation.method: sweeps run cvodes, adams or bdf, got 'rk45'")
+    if scenario.inputs is not None:
+        raise ConfigError(f"{file}: simulation.inputs: sweeps take tau, not actuator inputs")
+    r = Reader(file, "sweep", data["sweep"])
+    design = r.get("design", "string", required=True)
+    if design not in DESIGNS:
+        r.fail("design", f"must be one of {', '.join(DESIGNS)}, got {design!r}")
+    samples = r.get("samples", "integer")
+    if design == "grid" and samples is not None:
+        r.fail("samples", "is for random and sobol designs; a grid takes points per variable")
+    if design != "grid":
+        if samples is None or samples < 1:
+            r.fail("samples", f"is required for a {design} design: an integer >= 1")
+        if design == "sobol" and samples & (samples - 1):
+            r.fail("samples", f"must be a power of 2 for a sobol design (balance), got {samples}")
+    seed = r.get("seed", "integer", 0)
+    if seed < 0:
+        r.fail("seed", f"must be >= 0, got {seed}")
+    chunk_size = r.get("chunk_size", "integer", 64)
+    if chunk_size < 1:
+        r.fail("chunk_size", f"must be >= 1, got {chunk_size}")
+    t_final = scenario.settings.t_final
+    output_dt = r.positive("output_dt", min(0.01, t_final))
+    if output_dt > t_final:
+        r.fail("output_dt", f"must be <= simulation.t_final = {t_final}, got {output_dt}")
+    outputs = _strings(r, "outputs")
+    nodes = r.get("quadrature_nodes", "integer", DEFAULT_QUADRATURE_NODES)
+    if not 1 <= nodes <= 64:
+        r.fail("quadrature_nodes", f"must be in [1, 64], got {nodes}")
+    fraction = r.positive("settling_fraction", 0.02)
+    if not fraction < 1:
+        r.fail("settling_fraction", f"must be in (0, 1), got {fraction}")
+    tables = r.get("variables", "tables", required=True)
+    variables = tuple(
+        _variable(Reader(file, f"sweep.variables[{i}]", t), design, scenario)
+        for i, t in enumerate(tables)
+    )
+    r.done()
+    names = [v.name for v in variables]
+    for name in names:
+        if names.count(name) > 1:
+            r.fail("variables", f"{name!r} appears more than once")
+    config = SweepConfig(
+        scenario=scenario,
+        variables=variables,
+        design=design,
+        samples=samples,
+        seed=seed,
+        chunk_size=chunk_size,
+        output_dt=output_dt,
+        outputs=outputs,
+        settling_fraction=fraction,
+        fingerprint=_fingerprint(data),
+        source=file,
+        quadrature_nodes=nodes,
+    )
+    if config.size > MAX_DESIGN_SIZE:
+        r.fail("variables", f"the design has {config.size} points, more than {MAX_DESIGN_SIZE}")
+    _check_design_box(config, r)
+    return config
+
+
+def _strings(r: Reader, name: str) -> tuple[str, ...]:
+    r.used.add(name)
+    value = r.table.get(name, list(OUTPUTS))
+    if not (isinstance(value, list) and value and all(isinstance(v, str) for v in value)):
+        r.fail(name, f"must be a non-empty array of names from {', '.join(OUTPUTS)}")
+    for v in value:
+        if v not in OUTPUTS:
+            r.fail(name, f"unknown output {v!r} (allowed: {', '.join(OUTPUTS)})")
+    return tuple(dict.fromkeys(value))
+
+
+def parameter_index(robot, name: str) -> int | None:
+    """Where the parameter entry ``name`` lies in ``robot``'s vector, None if it is none.
+
+    Parameters
+    ----------
+    robot : Robot
+        The robot.
+    name : str
+        An entry name, e.g. ``"gravity[2]"``.
+    """
+    try:
+        return robot.layout.index(name)
+    except ParameterError:
+        return None
+
+
+def _variable(r: Reader, design: str, scenario) -> Variable:
+    robot = scenario.robot
+    name = r.get("name", "string", required=True)
+    match = STATE.match(name)
+    if match:
+        kind, index = match.group(1), int(match.group(2))
+        size = robot.n_creep if kind == "lam0" else robot.n
+        if index >= size:
+            r.fail("name", f"{name!r}: index out of range, {kind} has {size} entries")
+    elif parameter_index(robot, name) is None:
+        r.fail(
+            "name",
+            f"{name!r} is neither q0[i], qd0[i], lam0[i], tau[i] nor a parameter "
+            f"of the robot (e.g. {robot.layout.names[6]!r}; "
+            "softcurve.Robot.parameter_names() lists them)",
+        )
+    elif name.startswith("base_rotation"):
+        r.fail("name", "base_rotation entries cannot be swept one by one (it must stay a rotation)")
+    low, high = r.get("low", "number", required=True), r.get("high", "number", required=True)
+    if not low < high:
+        r.fail("high", f"must be > low = {low}, got {high}")
+    scale = r.get("scale", "string", "linear")
+    if scale not in ("linear", "log"):
+        r.fail("scale", f"must be 'linear' or 'log', got {scale!r}")
+    if scale == "log" and not low > 0:
+        r.fail("low", f"must be > 0 on a log scale, got {low}")
+    points = r.get("points", "integer")
+    if design == "grid" and (points is None or points < 2):
+        r.fail("points", f"is required for a grid design: an integer >= 2, got {points!r}")
+    if design != "grid" and points is not None:
+        r.fail("points", f"is for grid designs; a {design} design takes sweep.samples")
+    r.done()
+    return Variable(name, low, high, scale, points)
+
+
+def _check_design_box(config: SweepConfig, r: Reader) -> None:
+    """Every robot of the design is valid if every corner of the box of swept parameters is:
+    the valid set (positive values, ``a1 > a2``, positive definite matrices, ...) is
+    convex, and the box is the convex hull of its corners. Initial lengths likewise."""
+    robot = config.scenario.robot
+    swept = [v for v in config.variables if not STATE.match(v.name)]
+    corners = itertools.product(*[(v.low, v.high) for v in swept]) if len(swept) <= 12 else ()
+    base = robot.parameter_vector()
+    for corner in corners:
+        vector = base.copy()
+        for v, value in zip(swept, corner, strict=True):
+            vector[robot.layout.index(v.name)] = value
+        try:
+            robot.with_parameter_vector(vector)
+        except ValueError as exc:
+            where = ", ".join(f"{v.name} = {c:g}" for v, c in zip(swept, corner, strict=True))
+            r.fail("variables", f"the robot at the corner {where} of the design is invalid: {exc}")
+    for v in config.variables:
+        match = STATE.match(v.name)
+        if match and match.group(1) == "q0" and int(match.group(2)) % 3 == 0 and v.low <= 0:
+            r.fail("variables", f"{v.name} is a length: low must be > 0, got {v.low}")
+
+
+def _fingerprint(data: dict) -> str:
+    text = json.dumps({"config": data, "softcurve": __version__}, sort_keys=True, default=str)
+    return hashlib.sha256(text.encode()).hexdigest()[:16]

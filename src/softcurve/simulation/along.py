@@ -1,0 +1,168 @@
+"""Compiled functions evaluated along the members of a batch: one CasADi ``map`` over
+members (split over threads) of a ``map`` over output times, in blocks of members that
+bound the memory. Used by :func:`~softcurve.simulation.batch.simulate_batch` and its
+:class:`~softcurve.simulation.batch_trajectory.BatchTrajectory`."""
+
+from __future__ import annotations
+
+import casadi as ca
+import numpy as np
+
+
+def mapped(function: ca.Function, size: int, threads: int) -> ca.Function:
+    """``function`` mapped over ``size`` calls, on ``threads`` threads.
+
+    Parameters
+    ----------
+    function : casadi.Function
+        One call.
+    size : int
+        Number of calls.
+    threads : int
+        Threads of the compiled map.
+    """
+    if size == 1:
+        return function
+    return function.map(size, "thread", threads) if threads > 1 else function.map(size)
+
+
+BLOCK_DOUBLES = 1 << 22
+"""Members per compiled call are limited so that one call's arrays hold about this many
+doubles (32 MB): the transient copies CasADi and NumPy make stay small next to the result."""
+
+
+def blocks(size: int, count: int, width: int) -> list[slice]:
+    """Consecutive member ranges of at most ``BLOCK_DOUBLES / (count * width)`` members.
+
+    Parameters
+    ----------
+    size : int
+        Number of members.
+    count : int
+        Number of time points per member.
+    width : int
+        Number of doubles per time point.
+    """
+    step = max(1, min(size, BLOCK_DOUBLES // max(1, count * width)))
+    return [slice(a, min(size, a + step)) for a in range(0, size, step)]
+
+
+def along(model, name, build, columns, parameters, threads) -> list[np.ndarray]:
+    """Evaluate ``build() -> Function(*per_point_inputs, p)`` at every (member, time):
+    ``columns`` are (B, T, k) arrays, ``parameters`` (B, n_p); returns (B, T, m) arrays.
+
+    Parameters
+    ----------
+    model : Model
+        The compiled model.
+    name : str
+        Cache key of the point function.
+    build : callable
+        ``build() -> casadi.Function(*per_point_inputs, p)``.
+    columns : list of ndarray, shape (B, T, k)
+        The per-point inputs.
+    parameters : ndarray, shape (B, n_p)
+        Parameter vector per member.
+    threads : int
+        Threads of the compiled map.
+    """
+    size, count = columns[0].shape[:2]
+    point = model.cached(name, build)
+    shared = [point.n_in() - 1]  # p: one per member, shared by its time points
+    over_time = model.cached(
+        (name, count), lambda: point.map(f"{name}_along", "serial", count, shared, [])
+    )
+    width = sum(c.shape[2] for c in columns) + point.nnz_out()
+    pieces = []
+    for block in blocks(size, count, width):
+        members = block.stop - block.start
+        function = mapped(over_time, members, threads)
+        inputs = [np.ascontiguousarray(c[block].reshape(members * count, -1).T) for c in columns]
+        outputs = function(*inputs, parameters[block].T)
+        outputs = outputs if isinstance(outputs, tuple | list) else (outputs,)
+        pieces.append([np.asarray(o).T.reshape(members, count, -1) for o in outputs])
+    return [np.concatenate(parts) for parts in zip(*pieces, strict=True)]
+
+
+def tip_along(model, q, parameters, threads) -> np.ndarray:
+    """Tip positions [m] at coordinates ``q`` (B, T, n) of members with ``parameters``
+    (B, n_p): (B, T, 3).
+
+    Parameters
+    ----------
+    model : Model
+        The compiled model.
+    q : ndarray, shape (B, T, n)
+        Coordinates [m, 1/m, 1/m].
+    parameters : ndarray, shape (B, n_p)
+        Parameter vector per member.
+    threads : int
+        Threads of the compiled map.
+    """
+
+    def build():
+        pose = model.function("pose")
+        qs, p = ca.MX.sym("q", model.n), ca.MX.sym("p", model.parameters.size)
+        return ca.Function("tip", [qs, p], [pose(qs, 1.0, p)[1]])
+
+    return along(model, "tip", build, [q], parameters, threads)[0]
+
+
+def energy_along(model, q, qd, parameters, threads) -> np.ndarray:
+    """Mechanical energy [J] at ``q``, ``qd`` (B, T, n) of members with ``parameters``
+    (B, n_p): (B, T).
+
+    Parameters
+    ----------
+    model : Model
+        The compiled model.
+    q : ndarray, shape (B, T, n)
+        Coordinates [m, 1/m, 1/m].
+    qd : ndarray, shape (B, T, n)
+        Rates [m/s, 1/(m s), 1/(m s)].
+    parameters : ndarray, shape (B, n_p)
+        Parameter vector per member.
+    threads : int
+        Threads of the compiled map.
+    """
+
+    def build():
+        terms, potential = (
+            model.function("dynamics_terms"),
+            model.function("potential_energy"),
+        )
+        qs, qds = ca.MX.sym("q", model.n), ca.MX.sym("qd", model.n)
+        p = ca.MX.sym("p", model.parameters.size)
+        mass = terms(qs, qds, ca.MX.zeros(model.n_creep), p)[0]
+        gravity, elastic = potential(qs, p)
+        return ca.Function(
+            "energy", [qs, qds, p], [0.5 * ca.dot(qds, mass @ qds) + gravity + elastic]
+        )
+
+    return along(model, "energy", build, [q, qd], parameters, threads)[0][..., 0]
+
+
+def rhs_along(model, x, tau, parameters, threads) -> np.ndarray:
+    """The state derivative at states ``x`` (B, K, n_state) with inputs ``tau`` (B, K, n).
+
+    Parameters
+    ----------
+    model : Model
+        The compiled model.
+    x : ndarray, shape (B, K, n_state)
+        States.
+    tau : ndarray, shape (B, K, n)
+        Input forces [N, N m].
+    parameters : ndarray, shape (B, n_p)
+        Parameter vector per member.
+    threads : int
+        Threads of the compiled map.
+    """
+
+    def build():
+        rhs = model.function("rhs")
+        xs, u = ca.MX.sym("x", model.n_state), ca.MX.sym("u", model.n)
+        p = ca.MX.sym("p", model.parameters.size)
+        return ca.Function("rhs_point", [xs, u, p], [rhs(xs, u, p)])
+
+    return along(model, "rhs_point", build, [x, np.array(tau)], parameters, threads)[0]

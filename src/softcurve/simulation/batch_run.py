@@ -1,0 +1,156 @@
+"""The integration of a batch: one CVODES integrator on the compiled right-hand side,
+mapped over members in compiled code (:class:`MemberRun`), failures isolated to their
+members; and the per-member linearization that chooses Adams or BDF."""
+
+from __future__ import annotations
+
+import contextlib
+import io
+
+import numpy as np
+
+from softcurve.base.status import Status
+from softcurve.compiled.model import Model
+from softcurve.simulation.along import mapped, rhs_along
+from softcurve.simulation.engine import (
+    NON_FINITE,
+    cvodes_options,
+    cvodes_reason,
+    difference_eigenvalues,
+    difference_points,
+    failure_message,
+    failure_status,
+    linear_rates,
+)
+from softcurve.simulation.integrators import BufferedCall, cvodes_integrator
+
+
+def member_rates(model, x0, tau, parameters, nominal, threads) -> tuple:
+    """:func:`~softcurve.simulation.engine.linear_rates` of every member at once: the
+    central-difference linearization of the right-hand side at the initial states ``x0``
+    (B, n_state) under ``tau`` (B, n), all points in one compiled map.
+
+    Parameters
+    ----------
+    model : Model
+        The compiled model.
+    x0 : ndarray, shape (B, n_state)
+        Initial states.
+    tau : ndarray, shape (B, n)
+        Input forces [N, N m].
+    parameters : ndarray, shape (B, n_p)
+        Parameter vector per member.
+    nominal : ndarray, shape (B, n_state)
+        State scales.
+    threads : int
+        Threads of the compiled map.
+    """
+    points, steps = difference_points(x0, nominal)  # (B, 2 n_state, n_state), (B, n_state)
+    taus = np.broadcast_to(tau[:, None, :], (*points.shape[:2], model.n))
+    values = rhs_along(model, points, taus, parameters, threads)
+    return linear_rates(difference_eigenvalues(values, steps))
+
+
+class MemberRun:
+    """One batch integration: the compiled map over members, with failures isolated.
+
+    Parameters
+    ----------
+    model : Model
+        The compiled model (its parameters are replaced per member).
+    grid : ndarray, shape (T,)
+        Output times [s].
+    options : tuple
+        ``(rtol, abstol of the scaled state, max_steps)`` for :func:`cvodes_options`.
+    threads : int
+        Threads of the compiled map.
+    tau : ndarray, shape (B, n)
+        Constant input force per member [N, N m].
+    params : ndarray, shape (B, n_p)
+        Parameter vector per member.
+    nominal : ndarray, shape (B, n_state)
+        State scale per member.
+    states : ndarray, shape (B, T, n_state)
+        Filled in place (NaN after a member's failure).
+    """
+
+    def __init__(self, model: Model, grid, options, threads, tau, params, nominal, states):
+        self.model, self.grid, self.options, self.threads = model, grid, options, threads
+        self.tau, self.params, self.nominal, self.states = tau, params, nominal, states
+        size = states.shape[0]
+        self.reached = np.full(size, grid.size)
+        self.status = np.full(size, Status.SUCCESS, dtype=object)
+        self.messages = [""] * size
+
+    def _p(self, members, h) -> np.ndarray:
+        count = len(members)
+        return np.hstack([self.params[members], np.full((count, 1), h), self.nominal[members]]).T
+
+    def _mapped_integrator(self, multistep, tout, count):
+        """The integrator mapped over ``count`` members, cached with the model."""
+        threads = min(self.threads, count)
+        options = cvodes_options(multistep, *self.options)
+        key = ("batch", tuple(sorted(options.items())), tout.tobytes(), count, threads)
+
+        def build():
+            integrator = cvodes_integrator(self.model, tout, options)
+            return BufferedCall(mapped(integrator, count, threads))
+
+        return self.model.cached(key, build)
+
+    def integrate(self, multistep, members, k0, k1) -> None:
+        """Fill ``states[members, k0+1 : k1+1]`` from ``states[members, k0]``; a failing map
+        is split in halves until the failing members are found, which are then integrated
+        output by output."""
+        grid, states = self.grid[k0 : k1 + 1], self.states
+        h = grid[-1] - grid[0]
+        tout = (grid[1:] - grid[0]) / h
+        count, outputs = len(members), tout.size
+        # column-major CasADi matrices: one member's (or one output's) column after another
+        x0 = np.ascontiguousarray(states[members, k0] / self.nominal[members])
+        p = np.ascontiguousarray(self._p(members, h).T)
+        u = np.repeat(self.tau[members], outputs, axis=0)
+        xf = np.zeros((count, outputs, self.model.n_state))
+        # on a failure, CasADi's map prints every input of the batch to sys.stderr; the
+        # reason is kept from the member integrated alone (below)
+        with contextlib.redirect_stderr(io.StringIO()):
+            failure, _ = self._mapped_integrator(multistep, tout, count)({0: x0, 2: p, 3: u}, xf)
+        if failure is not None:
+            if count > 1:
+                half = count // 2
+                for part in (members[:half], members[half:]):
+                    self.integrate(multistep, part, k0, k1)
+            else:
+                self._one_by_one(multistep, int(members[0]), k0, k1)
+            return
+        states[members, k0 + 1 : k1 + 1] = xf * self.nominal[members, None, :]
+        for b in members:
+            bad = ~np.all(np.isfinite(states[b, k0 + 1 : k1 + 1]), axis=1)
+            if np.any(bad):
+                self._fail(b, k0 + 1 + int(np.argmax(bad)), NON_FINITE, multistep)
+
+    def _one_by_one(self, multistep, b, k0, k1) -> None:
+        """Output interval by output interval, to keep every output reached before a failure."""
+        integrator = self._mapped_integrator(multistep, np.ones(1), 1)
+        nominal, states = self.nominal[b], self.states
+        for k in range(k0 + 1, k1 + 1):
+            h = self.grid[k] - self.grid[k - 1]
+            x0 = np.ascontiguousarray(states[b, k - 1] / nominal)
+            p = np.ascontiguousarray(self._p([b], h).T)
+            xf = np.zeros(self.model.n_state)
+            u = np.ascontiguousarray(self.tau[b])
+            failure, _ = integrator({0: x0, 2: p, 3: u}, xf)
+            if failure is not None:
+                self._fail(b, k, cvodes_reason(failure), multistep)
+                return
+            states[b, k] = xf * nominal
+            if not np.all(np.isfinite(states[b, k])):
+                self._fail(b, k, NON_FINITE, multistep)
+                return
+
+    def _fail(self, b, k, reason, multistep) -> None:
+        """Member ``b`` failed reaching output ``k``: keep outputs ``0 .. k-1``."""
+        self.states[b, k:] = np.nan
+        self.reached[b] = k
+        self.status[b] = failure_status(reason)
+        self.messages[b] = failure_message(reason, self.grid, k, f"cvodes-{multistep}")

@@ -1,0 +1,185 @@
+"""The result of :func:`~softcurve.simulation.batch.simulate_batch`: :class:`BatchTrajectory`."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from functools import cached_property
+
+import numpy as np
+
+from softcurve.base.status import Result, Status
+from softcurve.compiled.model import Model
+from softcurve.figures import plot_batch_tips
+from softcurve.simulation.along import energy_along, tip_along
+from softcurve.simulation.trajectory import Trajectory
+
+
+def batch_status(member_status: np.ndarray) -> tuple[Status, str]:
+    """The status of a whole batch from its members': ``SUCCESS`` when every member
+    succeeded, ``INTEGRATION_FAILED`` when none did, else ``PARTIAL``; and its message.
+
+    Parameters
+    ----------
+    member_status : ndarray, shape (B,)
+        Status of each member.
+    """
+    failed = np.flatnonzero(member_status != Status.SUCCESS)
+    size = member_status.size
+    if failed.size == 0:
+        return Status.SUCCESS, f"all {size} members reached t_final"
+    listed = ", ".join(map(str, failed[:10])) + (", ..." if failed.size > 10 else "")
+    status = Status.INTEGRATION_FAILED if failed.size == size else Status.PARTIAL
+    return status, (
+        f"{failed.size} of {size} members failed (members {listed}): see member_status "
+        "and member_message"
+    )
+
+
+@dataclass(frozen=True, eq=False)
+class BatchTrajectory(Result):
+    """``B`` trajectories on one output grid; immutable.
+
+    Parameters
+    ----------
+    t : ndarray, shape (T,)
+        Output times [s], shared by all members.
+    q : ndarray, shape (B, T, n)
+        Coordinates per member [m, 1/m, 1/m].
+    qd : ndarray, shape (B, T, n)
+        Rates per member [m/s, 1/(m s), 1/(m s)].
+    lam : ndarray, shape (B, T, n_creep)
+        Creep states.
+    tau : ndarray, shape (B, n)
+        The constant input force of each member [N, N m].
+    parameters : ndarray, shape (B, n_p)
+        The parameter vector of each member (``model.robot.layout.names``).
+    member_status : ndarray, shape (B,), of Status
+        ``SUCCESS``, ``INTEGRATION_FAILED`` or ``LEFT_DOMAIN`` per member.
+    member_message : tuple of str, length B
+        What happened to each member.
+    reached : ndarray, shape (B,), of int
+        Number of valid output times per member; after a failure the remaining entries
+        of ``q``, ``qd``, ``lam`` and ``tip`` are NaN (never otherwise).
+    status : Status
+        ``SUCCESS``, ``PARTIAL`` (some members failed) or ``INTEGRATION_FAILED`` (all did).
+    message : str
+        Which members failed.
+    stats : dict
+        ``methods`` (per member), ``wall_time`` [s] of the integration, ``threads``,
+        ``size``, ``simulated_time`` [s] (summed over members) and the tolerances.
+    model : Model, optional
+        The model simulated (its robot gives the structure).
+    """
+
+    t: np.ndarray
+    q: np.ndarray
+    qd: np.ndarray
+    lam: np.ndarray
+    tau: np.ndarray
+    parameters: np.ndarray
+    member_status: np.ndarray
+    member_message: tuple
+    reached: np.ndarray
+    status: Status = Status.SUCCESS
+    message: str = ""
+    stats: dict = field(default_factory=dict)
+    model: Model | None = field(default=None, repr=False)
+
+    def __post_init__(self):
+        member_status = np.array([Status.parse(s) for s in self.member_status], dtype=object)
+        object.__setattr__(self, "member_status", member_status)
+        object.__setattr__(self, "member_message", tuple(self.member_message))
+        object.__setattr__(self, "status", Status.parse(self.status))
+
+    @cached_property
+    def tip(self) -> np.ndarray:
+        """Tip positions (B, T, 3) [m] in the world frame, computed on first access; NaN
+        where the state is."""
+        q = self.q
+        tip = tip_along(self.model, np.nan_to_num(q), self.parameters, self.stats["threads"])
+        tip[np.isnan(q[..., 0])] = np.nan
+        return tip
+
+    @property
+    def size(self) -> int:
+        """Number of members ``B``."""
+        return self.q.shape[0]
+
+    def __len__(self) -> int:
+        return self.size
+
+    @property
+    def member_success(self) -> np.ndarray:
+        """(B,) bool: which members reached ``t_final``."""
+        return np.array([s is Status.SUCCESS for s in self.member_status], dtype=bool)
+
+    @property
+    def x(self) -> np.ndarray:
+        """States ``(q, qd, lam)``, shape (B, T, n_state)."""
+        return np.concatenate([self.q, self.qd, self.lam], axis=2)
+
+    def member_model(self, i: int) -> Model:
+        """The compiled model with member ``i``'s parameters (shares the compiled library).
+
+        Parameters
+        ----------
+        i : int
+            Member index.
+        """
+        if np.array_equal(self.parameters[i], self.model.parameters):
+            return self.model
+        return Model(
+            self.model.robot.with_parameter_vector(self.parameters[i]),
+            quadrature_nodes=self.model.quadrature_nodes,
+        )
+
+    def member(self, i: int) -> Trajectory:
+        """Member ``i`` as the :class:`~softcurve.Trajectory` of a single simulation.
+
+        Parameters
+        ----------
+        i : int
+            Member index (negative counts from the end).
+        """
+        i = int(i)
+        if not -self.size <= i < self.size:
+            raise IndexError(f"member index {i} out of range for a batch of {self.size}")
+        i %= self.size
+        k = int(self.reached[i])
+        stats = {key: value for key, value in self.stats.items() if key != "methods"}
+        stats["method"] = self.stats["methods"][i]
+        return Trajectory(
+            t=self.t[:k].copy(),
+            q=self.q[i, :k].copy(),
+            qd=self.qd[i, :k].copy(),
+            lam=self.lam[i, :k].copy(),
+            tip_positions=self.tip[i, :k].copy(),
+            tau=np.repeat(self.tau[i][None, :], k, axis=0),
+            stats=stats,
+            status=self.member_status[i],
+            message=self.member_message[i],
+            model=self.member_model(i),
+        )
+
+    def plot(self, ax=None, *, members: int = 50):
+        """The tip position of the first ``members`` members against time, one panel per
+        world axis.
+
+        Parameters
+        ----------
+        ax : None or sequence of matplotlib.axes.Axes, shape (3,)
+            Panels for tip x, y and z; None draws a new figure.
+        members : int, optional
+            How many members to draw (the first ones) [count].
+
+        Returns
+        -------
+        matplotlib.figure.Figure
+            Write it with :func:`softcurve.figures.save_figure`.
+        """
+        return plot_batch_tips(self, ax, members=members)
+
+    def energy(self) -> np.ndarray:
+        """Mechanical energy ``T + V`` [J] of every member at every output time, (B, T);
+        NaN after a member's failure."""
+        return energy_along(self.model, self.q, self.qd, self.parameters, self.stats["threads"])

@@ -1,0 +1,195 @@
+"""Stepping a simulation along its output grid: the fast route (whole restart segments in
+compiled code) and the sampled route (inputs computed in Python at output times or
+controller samples, held in between), with the progress bar of long runs."""
+
+from __future__ import annotations
+
+import math
+import sys
+import time
+
+import numpy as np
+
+from softcurve.base.validation import ParameterError
+from softcurve.simulation.engine import (
+    NON_FINITE,
+    RESTART_INTERVAL,
+    IntegrationFailure,
+    restart_segments,
+)
+from softcurve.simulation.trajectory import State
+
+
+class Stopped(Exception):
+    """The run stopped at output ``reached`` (exclusive) for ``reason``."""
+
+    def __init__(self, reached: int, reason: str):
+        self.reached, self.reason = reached, reason
+
+
+def run_on_grid(engine, grid, states, inputs, bar, settle=None) -> int:
+    """All outputs in one call per restart segment (see ``RESTART_INTERVAL``), split
+    further only to report progress; with ``settle``, each segment after the first is
+    integrated with BDF when ``settle(x, tau)`` at its start, else Adams
+    (``SETTLED_RATIO``).
+
+    Parameters
+    ----------
+    engine : CvodesEngine or ScipyEngine
+        The integrator.
+    grid : ndarray, shape (T,)
+        Output times [s].
+    states : ndarray, shape (T, n_state [+ m])
+        Filled in place from row 0.
+    inputs : ndarray, shape (T, width)
+        Input per output interval.
+    bar : Progress or None
+        The progress bar.
+    settle : callable, optional
+        ``settle(x, tau) -> bool``: switch to BDF at a restart.
+    """
+    chunk = grid.size if bar is None else max(1, math.ceil((grid.size - 1) / 50))
+    for k0, k1 in restart_segments(grid, RESTART_INTERVAL):
+        if settle is not None and k0 > 0:
+            engine.use("bdf" if settle(states[k0], inputs[k0]) else "adams")
+        k = k0
+        while k < k1:
+            m = min(chunk, k1 - k)
+            _advance(engine, grid, states, inputs, k, m)
+            k += m
+            if bar is not None:
+                bar.update(grid[k])
+    return grid.size
+
+
+def _advance(engine, grid, states, inputs, k, m) -> None:
+    """Fill states[k+1 : k+m+1] from states[k]; on failure retry point by point to keep
+    every output reached, then raise Stopped."""
+    h = grid[k + m] - grid[k]
+    tout = (grid[k + 1 : k + m + 1] - grid[k]) / h
+    try:
+        states[k + 1 : k + m + 1] = engine.advance(states[k], h, tout, inputs[k : k + m])
+        _check_finite(states, k + 1, k + m + 1)
+        return
+    except IntegrationFailure as failure:
+        reason, partial = failure.reason, failure.states
+    done = k + partial.shape[0]
+    states[k + 1 : done + 1] = partial
+    if m > 1 and partial.shape[0] == 0 and engine.name == "cvodes":
+        for j in range(k, k + m):
+            _advance(engine, grid, states, inputs, j, 1)
+        return
+    raise Stopped(done + 1, reason)
+
+
+def _check_finite(states, a, b) -> None:
+    bad = ~np.all(np.isfinite(states[a:b]), axis=1)
+    if np.any(bad):
+        first = a + int(np.argmax(bad))
+        raise Stopped(first, NON_FINITE)
+
+
+def run_sampled(engine, model, grid, states, applied, inputs, controller, sample_time, bar, check):
+    """Piece by piece between output times and controller samples, input held;
+    ``check(value, name)`` validates each value the callable or the controller returns
+    (its shape, and the actuator's bounds).
+
+    Parameters
+    ----------
+    engine : CvodesEngine or ScipyEngine
+        The integrator.
+    model : Model
+        The compiled model.
+    grid : ndarray, shape (T,)
+        Output times [s].
+    states : ndarray, shape (T, n_state [+ m])
+        Filled in place from row 0.
+    applied : ndarray, shape (T, width)
+        Filled with the input held at each output.
+    inputs : callable or None
+        ``inputs(t, state)``, or None under a controller.
+    controller : object or None
+        The controller.
+    sample_time : float or None
+        The controller's sample time [s].
+    bar : Progress or None
+        The progress bar.
+    check : callable
+        ``check(value, name) -> ndarray``.
+    """
+    n, n_state, width = model.n, model.n_state, applied.shape[1]
+    if controller is not None:
+        if callable(getattr(controller, "reset", None)):
+            controller.reset()
+        samples = np.arange(0.0, grid[-1], sample_time)
+    else:
+        samples = grid[:-1]
+    tolerance = 1e-9 * min(grid[1] - grid[0], sample_time or np.inf)
+    times = np.unique(np.concatenate([grid, samples]))
+    times = times[np.concatenate([[True], np.diff(times) > tolerance])]
+    sample_index = np.searchsorted(times, samples - tolerance)
+    is_sample = np.zeros(times.size, bool)
+    is_sample[sample_index] = True
+    grid_index = np.searchsorted(times, grid - tolerance)
+    current = np.zeros(width)
+    x = states[0].copy()
+    output = 0
+    for i in range(times.size - 1):
+        if is_sample[i]:
+            q, qd, lam = x[:n], x[n : 2 * n], x[2 * n : n_state]
+            if controller is not None:
+                value = controller(times[i], q.copy(), qd.copy(), lam.copy())
+                source = "controller"
+            else:
+                value = inputs(times[i], State(q.copy(), qd.copy(), lam.copy(), x[:n_state].copy()))
+                source = "callable"
+            try:
+                current = check(value, f"the {source}'s inputs")
+            except ParameterError as exc:
+                raise ParameterError(f"{exc} (at t = {times[i]:.6g} s)") from None
+        while output < grid.size and grid_index[output] <= i:
+            applied[output] = current
+            output += 1
+        h = times[i + 1] - times[i]
+        try:
+            x_next = engine.advance(x, h, np.ones(1), current[None, :])[0]
+        except IntegrationFailure as failure:
+            raise Stopped(output, f"{failure.reason} (near t = {times[i]:.6g} s)") from None
+        if not np.all(np.isfinite(x_next)):
+            raise Stopped(output, f"{NON_FINITE} near t = {times[i]:.6g} s")
+        x = x_next
+        if grid_index[output] == i + 1:
+            states[output] = x
+            if bar is not None:
+                bar.update(times[i + 1])
+    applied[output:] = current
+    return grid.size
+
+
+class Progress:
+    """A one-line progress bar on stderr that appears once a run has taken a second."""
+
+    def __init__(self, total: float, delay: float = 1.0, stream=None):
+        self.total, self.delay = total, delay
+        self.stream = stream or sys.stderr
+        self.start = time.perf_counter()
+        self.shown = False
+
+    def update(self, t: float) -> None:
+        elapsed = time.perf_counter() - self.start
+        if elapsed < self.delay:
+            return
+        fraction = min(1.0, t / self.total)
+        filled = int(30 * fraction)
+        eta = elapsed * (1 - fraction) / max(fraction, 1e-12)
+        self.stream.write(
+            f"\r[{'#' * filled}{'.' * (30 - filled)}] {100 * fraction:5.1f}% "
+            f"t = {t:.3g} s, {elapsed:.1f} s elapsed, ~{eta:.0f} s left "
+        )
+        self.stream.flush()
+        self.shown = True
+
+    def close(self) -> None:
+        if self.shown:
+            self.stream.write("\n")
+            self.stream.flush()

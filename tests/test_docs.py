@@ -1,0 +1,310 @@
+"""Docs that cannot rot: every public parameter is documented, with its unit or shape.
+
+Which objects are checked (the public API):
+
+- every name in ``softcurve.__all__``: functions; classes with their constructor (the
+  signature of the class, documented in the class docstring or in ``__init__``'s) and
+  their public methods (names not starting with ``_``, static and class methods included,
+  inherited ones where a softcurve class defines them; properties take no parameters
+  and are skipped); modules (``presets``) with their public functions;
+- the public functions of every public module of the package (no part of the dotted
+  name starts with ``_``): the names not starting with ``_`` that the module defines
+  itself (imports excluded).
+
+What each one must satisfy, from its numpy-style docstring parsed by numpydoc:
+
+1. every parameter of its signature appears in ``Parameters`` (or ``Other
+   Parameters``), except ``self`` and ``cls``; ``*columns`` and ``**options`` are written
+   with or without their stars; ``a, b : float`` documents both;
+2. every documented parameter exists in the signature;
+3. every documented parameter has a type line (``name : type``), except ``*columns``
+   and ``**options``, which may leave it out;
+4. a numeric parameter, one whose type line says float, complex, scalar, number,
+   array_like or ndarray, says what its numbers are in one of three ways:
+
+   - a shape in the type line: ``array_like, shape (n,)`` or ``ndarray (3, 3)``;
+   - a unit in square brackets in the type line or description: ``[m]``, ``[N m/rad]``,
+     ``[1/s]``, ``[s]``, or ``[-]`` for a dimensionless number (a bracket right after a
+     name, ``q[0]``, is indexing and does not count);
+   - a description that names its kind of number: dimensionless, unitless, count,
+     number of, tolerance, ratio, fraction, probability or index.
+
+   Integers are counts or indices by nature and need none of these.
+
+Run ``python -m pytest -q tests/test_docs.py``; a failure lists every offender as
+``module.qualname: parameter 'x' ...``, so all can be fixed in one pass.
+"""
+
+from __future__ import annotations
+
+import enum
+import importlib
+import inspect
+import pkgutil
+import re
+import warnings
+
+from numpydoc.docscrape import NumpyDocString
+
+import softcurve
+
+NUMERIC_TYPE = re.compile(r"\b(float|complex|scalar|number|array_like|array-like|ndarray)s?\b")
+SHAPE = re.compile(r"\bshape\b|\([^()]*,[^()]*\)")
+UNIT = re.compile(r"(?<![\w\])`'\"])\[[^\[\]]+\]")
+DIMENSIONLESS = re.compile(
+    r"\b(dimensionless|unitless|counts?|number of|tolerances?|ratios?|fractions?|"
+    r"probabilit(y|ies)|index|indices)\b",
+    re.IGNORECASE,
+)
+
+
+# -- the checker -------------------------------------------------------------------------
+def _documented(*docstrings: str | None) -> dict[str, tuple[str, str]]:
+    """``{name without stars: (type line, description)}`` over the docstrings' parameter
+    sections."""
+    documented = {}
+    for docstring in docstrings:
+        if not docstring:
+            continue
+        with warnings.catch_warnings():  # unknown sections are no concern of this test
+            warnings.simplefilter("ignore")
+            parsed = NumpyDocString(inspect.cleandoc(docstring))
+        for section in ("Parameters", "Other Parameters"):
+            for parameter in parsed[section]:
+                for name in parameter.name.split(","):
+                    documented[name.strip().lstrip("*")] = (
+                        parameter.type,
+                        " ".join(parameter.desc),
+                    )
+    return documented
+
+
+def _signature_names(signature: inspect.Signature) -> list[str]:
+    names = list(signature.parameters)
+    if names and names[0] in ("self", "cls"):
+        names = names[1:]
+    return names
+
+
+def _unit_problem(type_line: str, description: str) -> str | None:
+    """Why a documented parameter breaks rules 3 and 4, or None."""
+    if not type_line.strip():
+        return "has no type line ('name : type')"
+    if not NUMERIC_TYPE.search(type_line):
+        return None
+    if SHAPE.search(type_line) or UNIT.search(type_line) or UNIT.search(description):
+        return None
+    if DIMENSIONLESS.search(description):
+        return None
+    return (
+        f"is numeric ({type_line.strip()}) but gives no unit in [brackets], no shape "
+        "and does not say it is dimensionless (a count, tolerance, ratio, index ...)"
+    )
+
+
+def parameter_offenses(label: str, signature: inspect.Signature, *docstrings) -> list[str]:
+    """Every broken rule of one callable, as ``label: parameter 'x' ...`` lines."""
+    names = _signature_names(signature)
+    documented = _documented(*docstrings)
+    stars = {inspect.Parameter.VAR_POSITIONAL: "*", inspect.Parameter.VAR_KEYWORD: "**"}
+    found = []
+    for name in names:
+        if name not in documented:
+            star = stars.get(signature.parameters[name].kind, "")
+            found.append(f"{label}: parameter '{star}{name}' is not documented")
+    for name, (type_line, description) in documented.items():
+        if name not in names:
+            found.append(f"{label}: parameter '{name}' is documented but not in the signature")
+            continue
+        variadic = signature.parameters[name].kind in stars
+        problem = None if variadic and not type_line else _unit_problem(type_line, description)
+        if problem:
+            found.append(f"{label}: parameter '{name}' {problem}")
+    return found
+
+
+def _label(obj) -> str:
+    return f"{obj.__module__}.{obj.__qualname__}"
+
+
+def function_offenses(function) -> list[str]:
+    """The broken rules of a function or method (``self``/``cls`` skipped)."""
+    return parameter_offenses(_label(function), inspect.signature(function), function.__doc__)
+
+
+def _own_classes(cls) -> list[type]:
+    """``cls`` and its bases that softcurve defines (not object, Enum, Exception ...)."""
+    return [k for k in cls.__mro__ if k is cls or k.__module__.split(".")[0] == "softcurve"]
+
+
+def _public_methods(cls):
+    seen = set()
+    for klass in _own_classes(cls):
+        for name, attribute in vars(klass).items():
+            if name.startswith("_") or name in seen:
+                continue
+            seen.add(name)
+            if isinstance(attribute, staticmethod | classmethod):
+                attribute = attribute.__func__
+            if inspect.isfunction(attribute) or hasattr(attribute, "__wrapped__"):
+                yield attribute
+
+
+def class_offenses(cls) -> list[str]:
+    """The broken rules of a class's constructor and public methods."""
+    found = []
+    defines_init = any("__init__" in vars(k) for k in _own_classes(cls))
+    if defines_init and not issubclass(cls, enum.Enum):
+        init = cls.__init__
+        own_init_doc = init.__doc__ if "__init__" in vars(cls) and init.__doc__ else None
+        found += parameter_offenses(_label(cls), inspect.signature(cls), cls.__doc__, own_init_doc)
+    for method in _public_methods(cls):
+        found += function_offenses(method)
+    return found
+
+
+# -- the public API ----------------------------------------------------------------------
+def public_modules() -> list:
+    """Every module of the package with no part of its name starting with ``_``."""
+    modules = []
+    for info in pkgutil.walk_packages(softcurve.__path__, "softcurve."):
+        if not any(part.startswith("_") for part in info.name.split(".")):
+            modules.append(importlib.import_module(info.name))
+    return modules
+
+
+def _module_functions(module) -> list:
+    return [
+        obj
+        for name, obj in vars(module).items()
+        if not name.startswith("_")
+        and inspect.isfunction(obj)
+        and obj.__module__ == module.__name__
+    ]
+
+
+def public_api() -> list:
+    """The classes and functions checked, each once, in a stable order."""
+    objects = []
+    for name in softcurve.__all__:
+        obj = getattr(softcurve, name)
+        objects += _module_functions(obj) if inspect.ismodule(obj) else [obj]
+    for module in public_modules():
+        objects += _module_functions(module)
+    unique = {id(obj): obj for obj in objects}
+    return sorted(unique.values(), key=_label)
+
+
+def api_offenses() -> list[str]:
+    found = []
+    for obj in public_api():
+        found += class_offenses(obj) if inspect.isclass(obj) else function_offenses(obj)
+    return sorted(set(found))
+
+
+# -- the tests ---------------------------------------------------------------------------
+def test_public_api_documents_every_parameter_with_unit_or_shape():
+    offenses = api_offenses()
+    assert not offenses, (
+        f"{len(offenses)} documentation problems (rules in tests/test_docs.py's docstring):\n"
+        + "\n".join(offenses)
+    )
+
+
+def test_the_walk_reaches_the_entry_points():
+    labels = {_label(obj) for obj in public_api()}
+    for expected in (
+        "softcurve.compiled.model.Model",
+        "softcurve.description.presets.ifac2020",
+        "softcurve.simulation.simulate.simulate",
+        "softcurve.description.robot.Robot",
+    ):
+        assert expected in labels
+    methods = {_label(m) for m in _public_methods(softcurve.Model)}
+    assert "softcurve.compiled.model.Model.forward_dynamics" in methods
+
+
+def _badly_documented(q, speed, length, count: int, *columns, **options):
+    """A deliberately bad example.
+
+    Parameters
+    ----------
+    q : array_like
+        Coordinates.
+    speed : float
+        How fast it goes.
+    length
+        No type line.
+    ghost : float
+        Not a parameter [m].
+    """
+
+
+def _well_documented(q, speed, tolerance, count: int, *columns, **options):
+    """A good example.
+
+    Parameters
+    ----------
+    q : array_like, shape (n,)
+        Coordinates.
+    speed : float
+        How fast it goes [m/s].
+    tolerance : float
+        Relative tolerance of the solve.
+    count : int
+        How many.
+    *columns : ndarray (T, k)
+        Inputs.
+    **options
+        Passed on.
+    """
+
+
+class _BadlyDocumentedClass:
+    """Constructor parameters belong here.
+
+    Parameters
+    ----------
+    mass : float
+        The mass.
+    """
+
+    def __init__(self, mass, radius):
+        pass
+
+    def scaled(self, factor):
+        """No parameter section."""
+
+
+def test_the_checker_catches_a_badly_documented_function():
+    label = f"{__name__}._badly_documented"
+    offenses = function_offenses(_badly_documented)
+    assert sorted(offenses) == sorted(
+        [
+            f"{label}: parameter 'count' is not documented",
+            f"{label}: parameter '*columns' is not documented",
+            f"{label}: parameter '**options' is not documented",
+            f"{label}: parameter 'ghost' is documented but not in the signature",
+            f"{label}: parameter 'length' has no type line ('name : type')",
+            f"{label}: parameter 'q' is numeric (array_like) but gives no unit in [brackets], "
+            "no shape and does not say it is dimensionless (a count, tolerance, ratio, index ...)",
+            f"{label}: parameter 'speed' is numeric (float) but gives no unit in [brackets], "
+            "no shape and does not say it is dimensionless (a count, tolerance, ratio, index ...)",
+        ]
+    )
+    assert function_offenses(_well_documented) == []
+
+
+def test_the_checker_catches_a_badly_documented_class():
+    cls = f"{__name__}._BadlyDocumentedClass"
+    offenses = class_offenses(_BadlyDocumentedClass)
+    assert f"{cls}: parameter 'radius' is not documented" in offenses
+    assert any(o.startswith(f"{cls}: parameter 'mass' is numeric") for o in offenses)
+    assert f"{cls}.scaled: parameter 'factor' is not documented" in offenses
+    assert len(offenses) == 3
+
+
+def test_indexing_is_not_a_unit():
+    assert _unit_problem("float", "The entry q[0] of the state.") is not None
+    assert _unit_problem("float", "Length [m] of the segment.") is None
+    assert _unit_problem("float", "Material coordinate in [0, 1].") is None

@@ -1,0 +1,255 @@
+"""Figures: one ``.plot(ax=None)`` signature returning a Figure, drawn into new or given
+Axes; the package never changes Matplotlib's backend; figures are written whole."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+import textwrap
+import types
+
+import matplotlib.pyplot as plt
+import numpy as np
+import pytest
+from matplotlib.figure import Figure
+
+import softcurve as sc
+from softcurve.analysis.quasistatic import input_sweep
+from softcurve.analysis.statics import equilibria
+from softcurve.figures import plot_input_sweep, save_figure
+
+PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+
+
+@pytest.fixture(autouse=True)
+def _close_figures():
+    yield
+    plt.close("all")
+
+
+@pytest.fixture(scope="module")
+def trajectory(paper_model):
+    return sc.simulate(paper_model, [0.0644, 5.0, 0.0], np.zeros(3), t_final=0.01)
+
+
+@pytest.fixture(scope="module")
+def batch(paper_model):
+    return sc.simulate_batch(
+        paper_model, [[0.064, 5.0, 0.0], [0.064, -5.0, 0.0]], np.zeros(3), t_final=0.1
+    )
+
+
+@pytest.fixture(scope="module")
+def pressure_map():
+    return sc.ConstantPressureMap.authors_fit(p_max=1e5)
+
+
+@pytest.fixture(scope="module")
+def table(paper_model, pressure_map):
+    return equilibria(
+        paper_model, starts=2, actuator=pressure_map, inputs=np.array([4e4, 0.0, 1e4])
+    )
+
+
+@pytest.fixture(scope="module")
+def sweep(paper_model, pressure_map):
+    path = np.outer(np.linspace(0.0, 1e5, 5), [1.0, 0.0, 0.0])
+    return input_sweep(paper_model, pressure_map, path)
+
+
+@pytest.fixture(scope="module")
+def fit_report():
+    x = np.linspace(-0.5, 0.5, 50)
+    force = 0.01 * x + 1e-4 * np.random.default_rng(3).standard_normal(x.size)
+    return sc.fit_stiffness(x, force, "linear")
+
+
+# (result fixture, method, number of panels, projection of the panels)
+PLOTS = [
+    ("trajectory", "plot", 3, None),
+    ("trajectory", "plot_tip", 1, "3d"),
+    ("batch", "plot", 3, None),
+    ("table", "plot", 1, None),
+    ("sweep", "plot", 2, None),
+    ("fit_report", "plot", 2, None),
+]
+IDS = [f"{name}.{method}" for name, method, _, _ in PLOTS]
+
+
+def _drawn(ax) -> bool:
+    return bool(ax.lines or ax.collections)
+
+
+@pytest.mark.parametrize(("name", "method", "panels", "projection"), PLOTS, ids=IDS)
+def test_plot_draws_a_new_figure(request, name, method, panels, projection):
+    figure = getattr(request.getfixturevalue(name), method)()
+    assert isinstance(figure, Figure)
+    assert plt.fignum_exists(figure.number)  # made through pyplot: plt.show() shows it
+    drawn = [ax for ax in figure.axes if ax.name == (projection or "rectilinear")]
+    assert len(drawn) == panels and all(_drawn(ax) for ax in drawn)
+
+
+@pytest.mark.parametrize(("name", "method", "panels", "projection"), PLOTS, ids=IDS)
+def test_plot_draws_into_given_axes(request, name, method, panels, projection):
+    figure, axes = plt.subplots(1, panels, squeeze=False, subplot_kw={"projection": projection})
+    axes = list(axes.ravel())
+    result = getattr(request.getfixturevalue(name), method)
+    assert result(ax=axes) is figure
+    assert all(_drawn(ax) for ax in axes)
+    if panels == 1:
+        other, ax = plt.subplots(subplot_kw={"projection": projection})
+        assert result(ax) is other and _drawn(ax)
+
+
+@pytest.mark.parametrize(("name", "method", "panels", "projection"), PLOTS, ids=IDS)
+def test_plot_rejects_the_wrong_number_of_axes(request, name, method, panels, projection):
+    result = getattr(request.getfixturevalue(name), method)
+    _, axes = plt.subplots(1, panels + 1, squeeze=False, subplot_kw={"projection": projection})
+    with pytest.raises(sc.ParameterError, match=rf"{panels} panel\(s\).*{panels} Matplotlib Axes"):
+        result(ax=list(axes.ravel()))
+    with pytest.raises(sc.ParameterError, match="must be None, a Matplotlib Axes"):
+        result(ax="states.png")  # the old path argument
+
+
+def test_a_subfigure_gives_its_root_figure(trajectory):
+    figure = plt.figure()
+    left, _ = figure.subfigures(1, 2)
+    assert trajectory.plot(left.subplots(3, 1)) is figure
+
+
+def test_fit_axes_as_a_grid_and_a_title(fit_report):
+    figure, axes = plt.subplots(2, 1)
+    assert fit_report.plot(axes, title="linear law") is figure
+    assert figure.get_suptitle() == "linear law"
+    assert axes[1].get_xlabel() == fit_report.abscissa_label
+    assert axes[0].get_ylabel().startswith(fit_report.signals[0])
+
+
+def test_tip_needs_three_dimensional_axes(trajectory):
+    _, ax = plt.subplots()
+    with pytest.raises(sc.ParameterError, match="projection='3d'"):
+        trajectory.plot_tip(ax)
+
+
+def test_sweep_abscissa_is_a_keyword_option(sweep):
+    figure = sweep.plot()
+    assert figure.axes[0].get_xlabel().startswith("u1")  # the input that varies most
+    x = np.arange(sweep.inputs.shape[0], dtype=float)
+    figure = sweep.plot(x=x, x_label="step [-]")
+    np.testing.assert_array_equal(figure.axes[0].lines[0].get_xdata(), x)
+    assert figure.axes[1].get_xlabel() == "step [-]"
+    with pytest.raises(sc.ParameterError, match=r"x must have shape \(5,\)"):
+        sweep.plot(x=x[:3])
+
+
+def test_sweep_pressures_are_drawn_in_kilopascal(sweep):
+    pressures = types.SimpleNamespace(
+        inputs=np.column_stack([np.zeros(5), np.linspace(0.0, 2e4, 5)]),
+        input_unit="Pa",
+        tip=sweep.tip,
+        curvature=sweep.curvature,
+        stability=sweep.stability,
+    )
+    figure = plot_input_sweep(pressures)
+    assert figure.axes[0].get_xlabel() == "u2 [kPa]"
+    np.testing.assert_allclose(figure.axes[0].lines[0].get_xdata(), np.linspace(0.0, 20.0, 5))
+
+
+def test_batch_members_option(batch):
+    figure = batch.plot(members=1)
+    assert len(figure.axes) == 3 and len(figure.axes[0].lines) == 1
+    assert figure.axes[0].get_title() == "1 of 2 members"
+    with pytest.raises(sc.ParameterError, match="members must be >= 1"):
+        batch.plot(members=0)
+
+
+def test_figures_of_a_two_segment_trajectory(two_segment_model, tmp_path):
+    q0 = np.array([0.0644, 5.0, 0.0, 0.0644, 0.0, 5.0])
+    trajectory = sc.simulate(two_segment_model, q0, np.zeros(6), t_final=0.01)
+    figure = trajectory.plot()
+    assert len(figure.axes[0].lines) == 2
+    assert save_figure(figure, tmp_path / "states.png").stat().st_size > 0
+    save_figure(trajectory.plot_tip(), tmp_path / "tip.png")
+    path = trajectory.animate(tmp_path / "backbone.gif", fps=500)
+    assert path.read_bytes()[:6] == b"GIF89a"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["backbone.gif", "states.png", "tip.png"]
+    with pytest.raises(sc.ParameterError, match=r"\.gif or \.mp4"):
+        trajectory.animate(tmp_path / "backbone.png")
+
+
+def test_equilibria_and_sweep_figures_are_written(table, sweep, tmp_path):
+    assert save_figure(sweep.plot(), tmp_path / "sweep.png").stat().st_size > 0
+    assert save_figure(table.plot(), tmp_path / "equilibria.png").stat().st_size > 0
+    assert len(table) == 1
+
+
+def test_plotting_leaves_the_backend_alone(tmp_path):
+    """A user's script: import softcurve, simulate, plot; the backend the user chose stays."""
+    script = textwrap.dedent(
+        """
+        import matplotlib
+        import numpy as np
+        import softcurve as sc
+
+        before = matplotlib.get_backend()
+        model = sc.Model(sc.presets.ifac2020(), compile=False)
+        trajectory = sc.simulate(model, [0.0644, 5.0, 0.0], np.zeros(3), t_final=0.005)
+        trajectory.plot()
+        trajectory.plot_tip()
+        import matplotlib.pyplot as plt
+
+        print(before, matplotlib.get_backend(), len(plt.get_fignums()))
+        """
+    )
+    environment = {**os.environ, "MPLBACKEND": "svg"}
+    run = subprocess.run(
+        [sys.executable, "-c", script],
+        env=environment,
+        capture_output=True,
+        text=True,
+        timeout=300,
+        check=False,
+    )
+    assert run.returncode == 0, run.stderr
+    assert run.stdout.split() == ["svg", "svg", "2"]
+
+
+def test_save_figure_writes_whole_files(tmp_path):
+    figure, ax = plt.subplots()
+    ax.plot([0.0, 1.0], [0.0, 1.0])
+    assert save_figure(figure, tmp_path / "line.png") == tmp_path / "line.png"
+    assert (tmp_path / "line.png").read_bytes()[:8] == PNG_SIGNATURE
+    save_figure(figure, tmp_path / "line.svg", dpi=72)
+    assert b"<svg" in (tmp_path / "line.svg").read_bytes()[:1000]
+    save_figure(figure, tmp_path / "line")  # no suffix: PNG
+    assert (tmp_path / "line").read_bytes()[:8] == PNG_SIGNATURE
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["line", "line.png", "line.svg"]
+
+
+def test_save_figure_failing_keeps_the_old_file(tmp_path, monkeypatch):
+    figure, _ = plt.subplots()
+    target = save_figure(figure, tmp_path / "kept.png")
+    old = target.read_bytes()
+
+    def fail_halfway(path, **options):
+        with open(path, "wb") as half:
+            half.write(old[: len(old) // 2])
+        raise OSError("disk full")
+
+    monkeypatch.setattr(figure, "savefig", fail_halfway)
+    with pytest.raises(OSError, match="disk full"):
+        save_figure(figure, target)
+    assert target.read_bytes() == old
+    assert [p.name for p in tmp_path.iterdir()] == ["kept.png"]  # no temporary file left
+
+
+def test_save_figure_rejects_what_it_cannot_write(trajectory, tmp_path):
+    figure = trajectory.plot()
+    with pytest.raises(sc.ParameterError, match="suffix must be one of"):
+        save_figure(figure, tmp_path / "states.docx")
+    with pytest.raises(sc.ParameterError, match="must be a matplotlib.figure.Figure"):
+        save_figure(figure.axes[0], tmp_path / "states.png")
+    with pytest.raises(sc.ParameterError, match="dpi must be > 0"):
+        save_figure(figure, tmp_path / "states.png", dpi=0)
+    assert list(tmp_path.iterdir()) == []
