@@ -1,6 +1,6 @@
 """Quasi-static pressure maps and inverse statics of the paper's robot with three bellows.
 
-Left: the equilibrium as one bellow is pressurised from 0 to 60 kPa (tip position and
+Left: the equilibrium as one bellow is pressurized from 0 to 60 kPa (tip position and
 curvature against pressure, in the spirit of the paper's Fig. 3), followed by
 continuation. Right: for target points on a horizontal circle (radius 15 mm, 66 mm
 high) and on a line at 50 mm height, the bounded pressures that put the tip closest to

@@ -4,7 +4,7 @@ Run:  python examples/paper_reproduction.py [--figures DIR]
 
 Simulates preset ifac2020 from q0 = (0.064, 25, 0), qd0 = (0, 0, 1500) and prints the
 frequencies and decay rates of the elongation and bending oscillations (from the
-trajectory, and from the linearisation for comparison), the energy, the equilibrium
+trajectory, and from the linearization for comparison), the energy, the equilibrium
 reached, the equilibrium with the authors' l0 = 0.064 m and rest bend of 0.01 rad, and
 whether 1 ms output resolves the motion. With --figures, also writes a close-up of the
 first second (the figures of the full 10 s come from ``softcurve simulate``).
@@ -76,7 +76,7 @@ def main() -> None:
     for label, x in (("initial state", run.x[0]), ("final state", run.x[-1])):
         oscillating, real = modes(model, x)
         print(
-            f"\nlinearisation at the {label}: (decay rate [1/s], frequency [Hz]) "
+            f"\nlinearization at the {label}: (decay rate [1/s], frequency [Hz]) "
             f"{oscillating}; real modes [1/s] {[round(r, 1) for r in real]}"
         )
 
@@ -101,7 +101,7 @@ def main() -> None:
     straight = sc.simulate(authors, Q0, QD0, t_final=10.0).q[-1]
     bending = segment.bending_stiffness
     k_b0 = bending.a1 - bending.a2
-    offset = np.array([0.0, k_b0 * 0.01 * 0.064, 0.0])  # rest bend 0.01 rad, linearised
+    offset = np.array([0.0, k_b0 * 0.01 * 0.064, 0.0])  # rest bend 0.01 rad, linearized
     bent = sc.simulate(authors, Q0, QD0, tau=offset, t_final=10.0).q[-1]
     print(
         "\nwith the authors' l0 = 0.064 m: equilibrium "

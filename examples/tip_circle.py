@@ -4,13 +4,13 @@ The paper's robot (preset ifac2020) with three bellows of illustrative geometry 
 paper does not publish it) follows a horizontal circle of radius 10 mm at 65 mm height,
 one turn every 2 s. The reference in coordinates comes from the closed-form inverse
 kinematics of one constant-curvature segment; the controller is computed torque
-(feedback linearisation, 20 Hz error dynamics) sampled at 500 Hz; its generalized
+(feedback linearization, 20 Hz error dynamics) sampled at 500 Hz; its generalized
 forces become pressures in [0, 60 kPa] by bounded least squares, and the pressures
 follow their commands with a 10 ms first-order lag, inverted over one sample by the
 pressure commands. The robot starts on the circle at rest with zero pressure, hence
 the initial transient. A second run uses a controller model with 10 % softer
-stiffness laws. A third run uses the re-linearised model-predictive controller
-(softcurve.control.mpc: 10 samples of 10 ms, pressures bounded, no lag modelled or simulated).
+stiffness laws. A third run uses the re-linearized model-predictive controller
+(softcurve.control.mpc: 10 samples of 10 ms, pressures bounded, no lag modeled or simulated).
 
     python examples/tip_circle.py [--output tip_circle.png]
 """

@@ -19,7 +19,7 @@ T_FINAL, DT = 0.4, 0.01
 
 
 def state_scale(model, reference):
-    """Per-state scale for normalised comparisons: max |x| over time plus the natural scale."""
+    """Per-state scale for normalized comparisons: max |x| over time plus the natural scale."""
     natural = nominal_scale(model, np.zeros(model.n_state))
     return np.abs(reference.x).max(axis=0) + natural
 

@@ -31,12 +31,19 @@ What each one must satisfy, from its numpy-style docstring parsed by numpydoc:
 
    Integers are counts or indices by nature and need none of these.
 
+A result class that is a dataclass (``Equilibrium``, ``Trajectory``, ``FitReport`` ...)
+is built by the library, not by its users, and numpy convention documents its fields
+under ``Attributes``; for a dataclass, rules 1 to 4 therefore accept a constructor
+parameter documented in either ``Parameters`` or ``Attributes``, and an entry found in
+``Attributes`` must satisfy rules 2 to 4 like one in ``Parameters``.
+
 Run ``python -m pytest -q tests/test_docs.py``; a failure lists every offender as
 ``module.qualname: parameter 'x' ...``, so all can be fixed in one pass.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import enum
 import importlib
 import inspect
@@ -59,9 +66,14 @@ DIMENSIONLESS = re.compile(
 
 
 # -- the checker -------------------------------------------------------------------------
-def _documented(*docstrings: str | None) -> dict[str, tuple[str, str]]:
-    """``{name without stars: (type line, description)}`` over the docstrings' parameter
-    sections."""
+PARAMETER_SECTIONS = ("Parameters", "Other Parameters")
+DATACLASS_SECTIONS = (*PARAMETER_SECTIONS, "Attributes")
+
+
+def _documented(
+    *docstrings: str | None, sections: tuple[str, ...] = PARAMETER_SECTIONS
+) -> dict[str, tuple[str, str]]:
+    """``{name without stars: (type line, description)}`` over the docstrings' ``sections``."""
     documented = {}
     for docstring in docstrings:
         if not docstring:
@@ -69,7 +81,7 @@ def _documented(*docstrings: str | None) -> dict[str, tuple[str, str]]:
         with warnings.catch_warnings():  # unknown sections are no concern of this test
             warnings.simplefilter("ignore")
             parsed = NumpyDocString(inspect.cleandoc(docstring))
-        for section in ("Parameters", "Other Parameters"):
+        for section in sections:
             for parameter in parsed[section]:
                 for name in parameter.name.split(","):
                     documented[name.strip().lstrip("*")] = (
@@ -102,10 +114,16 @@ def _unit_problem(type_line: str, description: str) -> str | None:
     )
 
 
-def parameter_offenses(label: str, signature: inspect.Signature, *docstrings) -> list[str]:
-    """Every broken rule of one callable, as ``label: parameter 'x' ...`` lines."""
+def parameter_offenses(
+    label: str,
+    signature: inspect.Signature,
+    *docstrings,
+    sections: tuple[str, ...] = PARAMETER_SECTIONS,
+) -> list[str]:
+    """Every broken rule of one callable, as ``label: parameter 'x' ...`` lines, reading
+    the parameters from the docstrings' ``sections``."""
     names = _signature_names(signature)
-    documented = _documented(*docstrings)
+    documented = _documented(*docstrings, sections=sections)
     stars = {inspect.Parameter.VAR_POSITIONAL: "*", inspect.Parameter.VAR_KEYWORD: "**"}
     found = []
     for name in names:
@@ -151,13 +169,17 @@ def _public_methods(cls):
 
 
 def class_offenses(cls) -> list[str]:
-    """The broken rules of a class's constructor and public methods."""
+    """The broken rules of a class's constructor and public methods; a dataclass may
+    document its fields under ``Attributes`` instead of ``Parameters``."""
     found = []
     defines_init = any("__init__" in vars(k) for k in _own_classes(cls))
     if defines_init and not issubclass(cls, enum.Enum):
         init = cls.__init__
         own_init_doc = init.__doc__ if "__init__" in vars(cls) and init.__doc__ else None
-        found += parameter_offenses(_label(cls), inspect.signature(cls), cls.__doc__, own_init_doc)
+        sections = DATACLASS_SECTIONS if dataclasses.is_dataclass(cls) else PARAMETER_SECTIONS
+        found += parameter_offenses(
+            _label(cls), inspect.signature(cls), cls.__doc__, own_init_doc, sections=sections
+        )
     for method in _public_methods(cls):
         found += function_offenses(method)
     return found
@@ -293,6 +315,55 @@ def test_the_checker_catches_a_badly_documented_function():
         ]
     )
     assert function_offenses(_well_documented) == []
+
+
+@dataclasses.dataclass(frozen=True)
+class _ResultDataclass:
+    """A result built by the library: fields under Attributes.
+
+    Attributes
+    ----------
+    q : ndarray, shape (n,)
+        Coordinates [m, 1/m, 1/m].
+    speed : float
+        How fast it went.
+    ghost : float
+        Not a field [m].
+    """
+
+    q: object
+    speed: float
+    count: int
+
+
+class _PlainClassWithAttributes:
+    """Not a dataclass: Attributes do not document the constructor.
+
+    Attributes
+    ----------
+    mass : float
+        The mass [kg].
+    """
+
+    def __init__(self, mass):
+        pass
+
+
+def test_a_dataclass_may_document_its_fields_under_attributes():
+    cls = f"{__name__}._ResultDataclass"
+    offenses = class_offenses(_ResultDataclass)
+    assert sorted(offenses) == sorted(
+        [
+            f"{cls}: parameter 'count' is not documented",
+            f"{cls}: parameter 'ghost' is documented but not in the signature",
+            f"{cls}: parameter 'speed' is numeric (float) but gives no unit in [brackets], "
+            "no shape and does not say it is dimensionless (a count, tolerance, ratio, index ...)",
+        ]
+    )
+    plain = f"{__name__}._PlainClassWithAttributes"
+    assert class_offenses(_PlainClassWithAttributes) == [
+        f"{plain}: parameter 'mass' is not documented"
+    ]
 
 
 def test_the_checker_catches_a_badly_documented_class():

@@ -141,7 +141,7 @@ def test_a_minimal_file_gets_the_defaults(tmp_path):
 
 
 BAD = [
-    ("[robot]\npreset = 'ifac2020'\ncolour = 'red'\n", "robot.colour: unknown key"),
+    ("[robot]\npreset = 'ifac2020'\ncolor = 'red'\n", "robot.color: unknown key"),
     ("[robot]\npreset = 'ifac2020'\n[simulaton]\nt_final = 1.0\n", "simulaton: unknown key"),
     ("[robot]\npreset = 'ifac2021'\n", "robot.preset: unknown preset"),
     (

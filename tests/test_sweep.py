@@ -180,7 +180,7 @@ BAD = [
     ({"quadrature_nodes": 0}, r"sweep\.quadrature_nodes: must be in \[1, 64\]"),
     ({"seed": -1}, r"sweep\.seed: must be >= 0"),
     ({"output_dt": 1.0}, r"sweep\.output_dt: must be <= simulation\.t_final"),
-    ({"colour": "red"}, r"sweep\.colour: unknown key"),
+    ({"color": "red"}, r"sweep\.color: unknown key"),
     (one("segments[0].stiffness", 0, 1, points=2), r"variables\[0\]\.name: .* is neither"),
     (one("q0[3]", 0, 1, points=2), r"index out of range"),
     (one("q0[1]", 1, 1, points=2), r"variables\[0\]\.high: must be > low"),

@@ -71,6 +71,7 @@ class EquilibriumTable(Result):
     Attributes
     ----------
     equilibria : tuple of Equilibrium
+        The distinct equilibria found inside ``bounds``, lowest potential first.
     status : Status
         SUCCESS when at least one equilibrium was found in the region, else
         NOT_CONVERGED (no start converged inside it).
@@ -79,8 +80,10 @@ class EquilibriumTable(Result):
     starts, converged_starts, evaluations : int
         Multi-start statistics (residual and tangent evaluations in total).
     bounds : ndarray, shape (n, 2)
-        The region searched.
+        The region searched, one ``(low, high)`` row per coordinate [m, 1/m, 1/m]
+        per segment.
     load : StaticLoad
+        The constant loads the equilibria balance.
     """
 
     equilibria: tuple[Equilibrium, ...]

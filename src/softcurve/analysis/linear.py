@@ -33,6 +33,7 @@ class Linearization(Result):
     message : str
         Whether the state is asymptotically stable, and the largest real part.
     A : ndarray, shape (n_state, n_state)
+        Jacobian of the state derivative with respect to the state at ``(x, v)``.
     B : ndarray, shape (n_state, n) or (n_state, m)
         With respect to generalized forces (``wrt="tau"``) or to the actuator's inputs
         (``wrt="actuator"``, per unit of its ``input_unit``).

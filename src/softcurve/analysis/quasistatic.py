@@ -147,7 +147,7 @@ class InverseStatics(Result):
     Attributes
     ----------
     inputs : ndarray, shape (m,)
-        [the actuator's ``input_unit``], within its bounds.
+        The inputs found [the actuator's ``input_unit``], within their bounds.
     q : ndarray, shape (n,)
         The equilibrium they produce [m, 1/m, 1/m].
     tip : ndarray, shape (3,)

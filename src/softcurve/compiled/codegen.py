@@ -250,6 +250,11 @@ def build_and_run_test(
     optimization : str
         Replaces ``-O2`` (e.g. ``"-O0"`` compiles several times faster).
 
+    Returns
+    -------
+    str
+        The test program's standard output.
+
     Raises
     ------
     FileNotFoundError

@@ -166,9 +166,9 @@ class Allocation(Result):
     Attributes
     ----------
     inputs : ndarray, shape (m,)
-        [the actuator's ``input_unit``], within its bounds.
+        The allocated inputs [the actuator's ``input_unit``], within its bounds.
     tau_requested, tau_achieved : ndarray, shape (n,)
-        The wanted ``tau`` and ``H(q) u``.
+        The wanted ``tau`` and the achieved ``H(q) u`` [N, N m^2, N m^2] per segment.
     saturated : ndarray, shape (m,), bool
         True where a bound is active.
     residual : float

@@ -19,7 +19,17 @@ from softcurve.base.validation import ParameterError, real_array, real_scalar
 
 @dataclass(frozen=True)
 class ReferenceSample:
-    """``q_r``, ``qd_r``, ``qdd_r`` at one time, each shape (n,)."""
+    """The reference and its exact time derivatives at one time.
+
+    Attributes
+    ----------
+    q : ndarray, shape (n,)
+        Reference coordinates ``q_r`` [m, 1/m, 1/m] per segment.
+    qd : ndarray, shape (n,)
+        Their rates ``qd_r`` [m/s, 1/(m s), 1/(m s)] per segment.
+    qdd : ndarray, shape (n,)
+        Their accelerations ``qdd_r`` [m/s^2, 1/(m s^2), 1/(m s^2)] per segment.
+    """
 
     q: np.ndarray
     qd: np.ndarray
@@ -54,13 +64,31 @@ class Reference:
 
     @classmethod
     def constant(cls, q) -> Reference:
-        """A set point."""
+        """A set point.
+
+        Parameters
+        ----------
+        q : array_like, shape (n,)
+            The constant reference coordinates [m, 1/m, 1/m] per segment.
+        """
         q = np.asarray(q, dtype=np.float64)
         return cls(lambda t: ca.DM(q) + 0 * t, q.size)
 
     @classmethod
     def sinusoid(cls, center, amplitude, frequency: float, phase=0.0) -> Reference:
-        """``center + amplitude sin(2 pi frequency t + phase)`` per coordinate."""
+        """``center + amplitude sin(2 pi frequency t + phase)`` per coordinate.
+
+        Parameters
+        ----------
+        center : array_like, shape (n,)
+            Mean coordinates [m, 1/m, 1/m] per segment.
+        amplitude : float or array_like, shape (n,)
+            Amplitude per coordinate, in the units of ``center``; a scalar applies to all.
+        frequency : float
+            Frequency [Hz].
+        phase : float or array_like, shape (n,)
+            Phase per coordinate [rad]; a scalar applies to all.
+        """
         center = np.asarray(center, dtype=np.float64)
         amplitude = np.broadcast_to(np.asarray(amplitude, dtype=np.float64), center.shape)
         phase = np.broadcast_to(np.asarray(phase, dtype=np.float64), center.shape)
@@ -78,6 +106,16 @@ def tip_to_coordinates(position):
     ``d = |(x, y)|``, bending angle ``beta = 2 atan2(d, z)``, curvature
     ``kappa = 2 d / (d^2 + z^2)``, length ``l = beta / kappa`` and
     ``(kx, ky) = kappa (x, y) / d``. Requires ``d > 0`` (the tip off the axis).
+
+    Parameters
+    ----------
+    position : array_like or casadi.SX, shape (3,)
+        Tip position in the base frame [m].
+
+    Returns
+    -------
+    casadi.SX or casadi.DM, shape (3, 1)
+        The coordinates ``(l, kx, ky)`` [m, 1/m, 1/m].
     """
     x, y, z = position[0], position[1], position[2]
     d = ca.sqrt(x**2 + y**2)
@@ -92,6 +130,18 @@ def tip_circle(center, radius: float, period: float, *, phase: float = 0.0) -> R
     The circle ``center + radius (cos w t, sin w t, 0)`` with ``w = 2 pi / period``,
     in the base frame; it must not pass through the z axis (see
     :func:`tip_to_coordinates`).
+
+    Parameters
+    ----------
+    center : array_like, shape (3,)
+        Center of the circle in the base frame [m]; above the base (z > 0) and farther
+        from the z axis than ``radius``.
+    radius : float
+        Radius of the circle [m].
+    period : float
+        Time of one revolution [s].
+    phase : float
+        Angle on the circle at ``t = 0`` [rad].
     """
     center = real_array("center", center, (3,))
     radius = real_scalar("radius", radius, positive=True)

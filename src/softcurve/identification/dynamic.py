@@ -194,7 +194,7 @@ def fit_trajectory(
     max_evaluations : int
         Budget of residual evaluations (each is one simulation with sensitivities).
     confidence : float
-        Level of the report's intervals, in (0, 1).
+        Confidence level of the report's intervals, a probability in (0, 1).
     integrator_options : dict, optional
         Extra CVODES options of the sensitivity integration.
 
@@ -262,7 +262,7 @@ def fit_equilibria(
     max_evaluations : int
         Budget of residual evaluations.
     confidence : float
-        Level of the report's intervals, in (0, 1).
+        Confidence level of the report's intervals, a probability in (0, 1).
     """
     q0 = rest_configuration(model.robot) if q0 is None else real_array("q0", q0, (model.n,))
     problem = _Problem(model, output, input_map, free, extra, bind, parameters)
@@ -281,10 +281,26 @@ def fit_equilibria(
 def predict_trajectory(model: Model, experiment: Experiment, fit: FitReport, **problem):
     """Simulate ``experiment`` with the estimate of ``fit``, without refitting.
 
-    ``problem`` holds the fit's ``output``, ``x0``, ``input_map``, ``bind`` (and
-    optionally ``signals``, ``weights``); the fitted robot parameters and extra values
-    are taken from ``fit``. Returns a :class:`FitReport` with no free parameters, whose
-    ``rms`` and ``max_error`` are the prediction errors.
+    The fitted robot parameters and extra values are taken from ``fit``.
+
+    Parameters
+    ----------
+    model : Model
+        The compiled model the fit used.
+    experiment : Experiment
+        The experiment to predict (time grid, measured signals, inputs).
+    fit : FitReport
+        A report of :func:`fit_trajectory` or :func:`fit_equilibria`; its
+        ``extra["parameters"]`` and ``extra["values"]`` give the estimate.
+    **problem
+        The fit's keyword arguments ``output``, ``x0``, ``input_map``, ``bind`` (and
+        optionally ``signals``, ``weights``, ``extra``), passed on to
+        :func:`fit_trajectory` with no free parameters.
+
+    Returns
+    -------
+    FitReport
+        With no free parameters; its ``rms`` and ``max_error`` are the prediction errors.
     """
     values = {**problem.pop("extra", {}), **fit.extra["values"]}
     return fit_trajectory(
@@ -293,8 +309,28 @@ def predict_trajectory(model: Model, experiment: Experiment, fit: FitReport, **p
 
 
 def predict_equilibria(model: Model, experiment: Experiment, fit: FitReport, **problem):
-    """Quasi-static prediction of ``experiment`` with the estimate of ``fit`` (see
-    :func:`predict_trajectory`); ``problem`` holds ``output``, ``input_map``, ``bind``."""
+    """Quasi-static prediction of ``experiment`` with the estimate of ``fit``, without
+    refitting (see :func:`predict_trajectory`).
+
+    Parameters
+    ----------
+    model : Model
+        The compiled model the fit used.
+    experiment : Experiment
+        The experiment to predict (time grid, measured signals, inputs).
+    fit : FitReport
+        A report of :func:`fit_equilibria` or :func:`fit_trajectory`; its
+        ``extra["parameters"]`` and ``extra["values"]`` give the estimate.
+    **problem
+        The fit's keyword arguments ``output``, ``input_map``, ``bind`` (and optionally
+        ``q0``, ``signals``, ``weights``, ``extra``), passed on to :func:`fit_equilibria`
+        with no free parameters.
+
+    Returns
+    -------
+    FitReport
+        With no free parameters; its ``rms`` and ``max_error`` are the prediction errors.
+    """
     values = {**problem.pop("extra", {}), **fit.extra["values"]}
     return fit_equilibria(
         model, experiment, free=[], extra=values, parameters=fit.extra["parameters"], **problem

@@ -102,11 +102,23 @@ class Experiment:
         return float(self.t[-1] - self.t[0])
 
     def signal_matrix(self, names=None) -> np.ndarray:
-        """Signals stacked as columns, shape (T, len(names)) (all signals by default)."""
+        """Signals stacked as columns, shape (T, len(names)).
+
+        Parameters
+        ----------
+        names : list of str, optional
+            The signals, in column order (default: all, in the experiment's order).
+        """
         return self._stack(self.signals, names, "signal")
 
     def input_matrix(self, names=None) -> np.ndarray:
-        """Inputs stacked as columns, shape (T, len(names)) (all inputs by default)."""
+        """Inputs stacked as columns, shape (T, len(names)).
+
+        Parameters
+        ----------
+        names : list of str, optional
+            The inputs, in column order (default: all, in the experiment's order).
+        """
         return self._stack(self.inputs, names, "input")
 
     def _stack(self, table, names, kind) -> np.ndarray:
@@ -131,7 +143,17 @@ class Experiment:
         )
 
     def trim(self, start: float | None = None, stop: float | None = None, *, rezero=False):
-        """The samples with ``start <= t <= stop`` [s]; ``rezero`` shifts time to start at 0."""
+        """The samples with ``start <= t <= stop``, as a new experiment.
+
+        Parameters
+        ----------
+        start : float, optional
+            First time kept [s] (default: the first sample).
+        stop : float, optional
+            Last time kept [s] (default: the last sample).
+        rezero : bool
+            Shift the time so that the trimmed experiment starts at 0.
+        """
         lo = self.t[0] if start is None else float(start)
         hi = self.t[-1] if stop is None else float(stop)
         keep = (self.t >= lo) & (self.t <= hi)
@@ -144,7 +166,13 @@ class Experiment:
         return self._with(t, lambda v: v[keep])
 
     def resample(self, dt: float) -> Experiment:
-        """Linear interpolation onto a uniform grid of step ``dt`` [s] from ``t[0]``."""
+        """Linear interpolation onto a uniform grid from ``t[0]``, as a new experiment.
+
+        Parameters
+        ----------
+        dt : float
+            Step of the new grid [s]; at most the experiment's duration.
+        """
         dt = float(dt)
         if not (np.isfinite(dt) and dt > 0):
             raise ExperimentError(f"dt must be a positive number of seconds, got {dt!r}")
@@ -155,7 +183,13 @@ class Experiment:
         return self._with(t, lambda v: np.interp(t, self.t, v))
 
     def with_signals(self, **signals) -> Experiment:
-        """A copy with signals replaced or added (e.g. offsets removed)."""
+        """A copy with signals replaced or added (e.g. offsets removed).
+
+        Parameters
+        ----------
+        **signals : array_like, shape (T,)
+            New signal columns by name, on the experiment's time grid.
+        """
         return Experiment(self.t, {**self.signals, **signals}, self.inputs, self.units, self.name)
 
 
@@ -254,9 +288,24 @@ def load_csv(
 ) -> Experiment:
     """Read an experiment from a CSV file with one header row of column names.
 
-    ``signals`` and ``inputs`` are lists of column names or dicts experiment name ->
-    column name; ``time`` names the time column [s] (default ``"t"``), or give
-    ``time=None`` and ``sample_rate`` [Hz]. Empty or non-numeric cells are errors.
+    Empty or non-numeric cells are errors.
+
+    Parameters
+    ----------
+    path : str or Path
+        The file.
+    signals : list of str or dict of str to str
+        Column names, or experiment name -> column name.
+    time : str or None
+        Column holding the sample times [s]; None to use ``sample_rate`` instead.
+    sample_rate : float, optional
+        Sampling rate [Hz] when ``time`` is None (``t = k / rate``).
+    inputs : list of str or dict of str to str, optional
+        Input columns, in the same form as ``signals``.
+    units : dict of str to str, optional
+        Unit of each signal and input.
+    name : str, optional
+        Label (default: the file name without suffix).
     """
     path = Path(path)
     if not path.is_file():

@@ -26,8 +26,22 @@ from softcurve.description.pneumatic import PneumaticActuator
 class OutputMap:
     """Measured signals as a function of the state: ``y = function(q, qd, values, p)``.
 
-    ``values`` is a dict of the named extra parameters (CasADi expressions), ``p`` the
-    robot's parameter vector. ``names`` and ``units`` label the outputs, in order.
+    Built by :func:`bending_angle`, :func:`curvatures` and :func:`tip_position`, or by
+    hand for another sensor.
+
+    Parameters
+    ----------
+    function : callable
+        ``function(q, qd, values, p) -> y``: CasADi expressions of the coordinates ``q``
+        [m, 1/m, 1/m], their rates ``qd``, the dict ``values`` of named extra parameters
+        and the robot's parameter vector ``p``; returns the (k,) outputs.
+    names : tuple of str
+        Labels of the k outputs, in order.
+    units : tuple of str
+        Unit of each output (e.g. ``"deg"``, ``"1/m"``), in order.
+    parameters : dict of str to float
+        The named extra parameters ``function`` reads, with nominal values [unit of
+        each parameter].
     """
 
     function: Callable
@@ -40,7 +54,17 @@ class OutputMap:
 class InputMap:
     """Generalized forces from measured inputs: ``tau = function(q, u, values)``.
 
-    ``parameters`` holds the named extra parameters it reads, with nominal values.
+    Built by :func:`bellows_input_map` and :func:`constant_input_map`, or by hand.
+
+    Parameters
+    ----------
+    function : callable
+        ``function(q, u, values) -> tau``: CasADi expressions of the coordinates ``q``
+        [m, 1/m, 1/m], the measured inputs ``u`` and the dict ``values`` of named extra
+        parameters; returns the (n,) generalized forces [N, N m^2, N m^2] per segment.
+    parameters : dict of str to float
+        The named extra parameters ``function`` reads, with nominal values [unit of
+        each parameter].
     """
 
     function: Callable
@@ -50,8 +74,17 @@ class InputMap:
 def bending_angle(segment: int = 0, *, degrees: bool = True, offset: str | None = None):
     """Signed bending angle ``beta = kx * l`` of one segment, for motion in the x-z plane.
 
-    That is what an IMU at the tip of a single segment measures. ``offset`` names an
-    extra parameter (sensor zero) added to the output.
+    That is what an IMU at the tip of a single segment measures.
+
+    Parameters
+    ----------
+    segment : int
+        Index of the segment, from the base.
+    degrees : bool
+        Output in degrees (else radians).
+    offset : str, optional
+        Name of an extra parameter (sensor zero, nominal 0, in the output's unit) added
+        to the output.
     """
     factor = 180.0 / np.pi if degrees else 1.0
 
@@ -65,7 +98,16 @@ def bending_angle(segment: int = 0, *, degrees: bool = True, offset: str | None 
 
 
 def curvatures(segment: int = 0, *, offsets: tuple[str, str] | None = None):
-    """``(kx, ky)`` of one segment [1/m], plus optional sensor offsets (extra parameters)."""
+    """``(kx, ky)`` of one segment [1/m], plus optional sensor offsets.
+
+    Parameters
+    ----------
+    segment : int
+        Index of the segment, from the base.
+    offsets : tuple of str, optional
+        Names of two extra parameters (sensor zeros [1/m], nominal 0) added to
+        ``kx`` and ``ky``.
+    """
 
     def function(q, qd, values, p):
         y = ca.vertcat(q[3 * segment + 1], q[3 * segment + 2])
@@ -77,7 +119,13 @@ def curvatures(segment: int = 0, *, offsets: tuple[str, str] | None = None):
 
 
 def tip_position(model: Model):
-    """Tip position in the world frame [m]."""
+    """Tip position in the world frame [m].
+
+    Parameters
+    ----------
+    model : Model
+        The compiled model whose kinematics gives the tip pose.
+    """
     pose = model.symbolic["pose"]
 
     def function(q, qd, values, p):
@@ -101,6 +149,17 @@ def bellows_input_map(
     ``prefix.angle`` [rad], the azimuth of bellow 0 in the sensor's frame (mounting
     angle); bellow ``i`` sits at ``angle + numbering * 2 pi i / 3``. ``numbering = -1``
     is for bellows numbered clockwise. The inputs are the gauge pressures [Pa].
+
+    Parameters
+    ----------
+    area : float
+        Nominal effective cross-section of every bellow [m^2].
+    distance : float
+        Nominal distance ``rho`` from the backbone to each bellow's center line [m].
+    numbering : int
+        +1 for bellows numbered counter-clockwise, -1 for clockwise.
+    prefix : str
+        Prefix of the extra parameters' names.
     """
     actuator = PneumaticActuator.three_bellows(distance=distance, area=area, p_max=1e9)
 
@@ -122,6 +181,17 @@ def constant_input_map(
 
     Extra parameters ``prefix.a_e`` [N/Pa], ``prefix.a_k`` [N m^2/Pa] and
     ``prefix.angle`` [rad] (azimuth of bellow 0, as in :func:`bellows_input_map`).
+
+    Parameters
+    ----------
+    elongation_gain : float
+        Nominal ``a_e`` [N/Pa].
+    bending_gain : float
+        Nominal ``a_k`` [N m^2/Pa].
+    numbering : int
+        +1 for bellows numbered counter-clockwise, -1 for clockwise.
+    prefix : str
+        Prefix of the extra parameters' names.
     """
 
     def function(q, u, values):

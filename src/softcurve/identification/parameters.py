@@ -29,11 +29,12 @@ class Free:
         A robot parameter (``"segments[0].damping[1,1]"``) or a named extra parameter;
         a tuple ties several robot parameters to one value (e.g. both bending dampings).
     lower, upper : float
-        Bounds.
+        Bounds [unit of the parameter] (default: none).
     initial : float, optional
-        Starting value (default: the current value).
+        Starting value [unit of the parameter] (default: the current value).
     scale : float, optional
-        Typical magnitude, for conditioning (default: ``|initial|``, or 1 if zero).
+        Typical magnitude, for conditioning [unit of the parameter] (default:
+        ``|initial|``, or 1 if zero).
     """
 
     name: str | tuple[str, ...]

@@ -37,19 +37,26 @@ class FitReport(Result):
     names : tuple of str
         Fitted parameters.
     values, standard_errors : ndarray, shape (P,)
-        Estimates and their asymptotic standard errors (inf when not identifiable).
+        Estimates and their asymptotic standard errors (inf when not identifiable),
+        each in the unit of its parameter.
     correlation : ndarray, shape (P, P)
         Correlation matrix of the estimates (NaN rows for non-identifiable ones).
     abscissa : ndarray, shape (T,)
         Time [s] or strain of each data point, for plots.
     measured, predicted : ndarray, shape (T, k)
-        Data and the model at the estimate, one column per signal.
+        Data and the model at the estimate, one column per signal, in its unit.
     signals : tuple of str
-        Column names; ``units`` their units.
+        Column names.
+    units : tuple of str
+        Unit of each signal, in order (``""`` when unknown).
+    abscissa_label : str
+        Name and unit of the abscissa, for plots.
     confidence : float
-        Level of the intervals (default 0.95).
+        Confidence level of the intervals, a probability (default 0.95).
     n_evaluations : int
         Residual evaluations used.
+    identifiable : ndarray of bool, shape (P,)
+        False for parameters the data do not determine.
     extra : dict
         Fit-specific results (the fitted law, robot, initial state...).
     """
@@ -188,7 +195,13 @@ def covariance(jacobian: np.ndarray, residuals: np.ndarray):
 
 
 def correlation_matrix(cov: np.ndarray) -> np.ndarray:
-    """Correlation from a covariance; NaN where a variance is inf or zero."""
+    """Correlation from a covariance; NaN where a variance is inf or zero.
+
+    Parameters
+    ----------
+    cov : ndarray, shape (P, P)
+        Covariance matrix of P estimates.
+    """
     sd = np.sqrt(np.diag(cov))
     with np.errstate(invalid="ignore", divide="ignore"):
         c = cov / np.outer(sd, sd)

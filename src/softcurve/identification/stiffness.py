@@ -60,7 +60,7 @@ def fit_stiffness(
     max_evaluations : int
         Budget of residual evaluations per starting point.
     confidence : float
-        Level of the report's intervals, in (0, 1).
+        Confidence level of the report's intervals, a probability in (0, 1).
     label : str
         Name and unit of the strain, for the report's figure.
     force_unit : str

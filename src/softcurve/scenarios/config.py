@@ -55,7 +55,7 @@ class Scenario:
     lam0 : tuple of float, shape (n_creep,), optional
         Initial creep states (default zero).
     tau : tuple of float, shape (n,), optional
-        Constant input forces [N, N m] (default zero).
+        Constant input forces [N, N m^2, N m^2] (default zero).
     inputs : tuple of float, shape (m,), optional
         Constant inputs of the actuator of ``actuation`` (e.g. pressures [Pa]), instead of
         ``tau``.

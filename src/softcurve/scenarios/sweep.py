@@ -153,7 +153,7 @@ def summarize(batch, outputs, fraction: float) -> dict:
 class SweepResult(Result):
     """What :func:`run_sweep` did; immutable.
 
-    Parameters
+    Attributes
     ----------
     path : Path
         The file ``results.parquet``.

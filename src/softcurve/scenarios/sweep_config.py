@@ -35,9 +35,9 @@ class Variable:
         A robot parameter entry (``robot.layout.names``) or ``q0[i]``, ``qd0[i]``,
         ``lam0[i]``, ``tau[i]``.
     low : float
-        Lower end, in the quantity's unit.
+        Lower end [unit of the quantity].
     high : float
-        Upper end (> low).
+        Upper end (> low) [unit of the quantity].
     scale : {"linear", "log"}
         Spacing of the samples.
     points : int, optional

@@ -152,7 +152,7 @@ def rhs_along(model, x, tau, parameters, threads) -> np.ndarray:
     x : ndarray, shape (B, K, n_state)
         States.
     tau : ndarray, shape (B, K, n)
-        Input forces [N, N m].
+        Input forces [N, N m^2, N m^2].
     parameters : ndarray, shape (B, n_p)
         Parameter vector per member.
     threads : int

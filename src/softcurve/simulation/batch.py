@@ -109,7 +109,7 @@ def simulate_batch(
     lam0 : array_like, shape (B, n_creep) or (n_creep,), optional
         Initial creep states (default zero).
     tau : array_like, shape (B, n) or (n,), optional
-        Constant input forces [N, N m] (default zero).
+        Constant input forces [N, N m^2, N m^2] (default zero).
     parameters : array_like, shape (B, n_p) or (n_p,), optional
         Parameter vectors in the order of ``model.robot.layout.names`` (default the
         model's); each is validated as a robot (:meth:`Robot.with_parameter_vector`).

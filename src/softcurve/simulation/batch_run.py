@@ -37,7 +37,7 @@ def member_rates(model, x0, tau, parameters, nominal, threads) -> tuple:
     x0 : ndarray, shape (B, n_state)
         Initial states.
     tau : ndarray, shape (B, n)
-        Input forces [N, N m].
+        Input forces [N, N m^2, N m^2].
     parameters : ndarray, shape (B, n_p)
         Parameter vector per member.
     nominal : ndarray, shape (B, n_state)
@@ -65,7 +65,7 @@ class MemberRun:
     threads : int
         Threads of the compiled map.
     tau : ndarray, shape (B, n)
-        Constant input force per member [N, N m].
+        Constant input force per member [N, N m^2, N m^2].
     params : ndarray, shape (B, n_p)
         Parameter vector per member.
     nominal : ndarray, shape (B, n_state)

@@ -39,7 +39,7 @@ def batch_status(member_status: np.ndarray) -> tuple[Status, str]:
 class BatchTrajectory(Result):
     """``B`` trajectories on one output grid; immutable.
 
-    Parameters
+    Attributes
     ----------
     t : ndarray, shape (T,)
         Output times [s], shared by all members.
@@ -48,9 +48,10 @@ class BatchTrajectory(Result):
     qd : ndarray, shape (B, T, n)
         Rates per member [m/s, 1/(m s), 1/(m s)].
     lam : ndarray, shape (B, T, n_creep)
-        Creep states.
+        Creep states, three per segment with creep [unit of the coordinate times that
+        of ``Creep.gain``].
     tau : ndarray, shape (B, n)
-        The constant input force of each member [N, N m].
+        The constant input force of each member [N, N m^2, N m^2].
     parameters : ndarray, shape (B, n_p)
         The parameter vector of each member (``model.robot.layout.names``).
     member_status : ndarray, shape (B,), of Status

@@ -142,7 +142,7 @@ def linear_rates(eigenvalues: np.ndarray) -> tuple:
 
 def linearization_eigenvalues(model, x0, tau0=None, nominal=None) -> np.ndarray:
     """Eigenvalues [1/s] of the central-difference linearization of ``model``'s right-hand
-    side at the state ``x0`` (n_state,) under the force ``tau0`` (n,) [N, N m] (default
+    side at the state ``x0`` (n_state,) under the force ``tau0`` (n,) [N, N m^2, N m^2] (default
     zero), with steps relative to ``nominal`` (default :func:`nominal_scale`).
 
     Parameters
@@ -152,7 +152,7 @@ def linearization_eigenvalues(model, x0, tau0=None, nominal=None) -> np.ndarray:
     x0 : array_like, shape (n_state,)
         The state.
     tau0 : array_like, shape (n,), optional
-        Input force [N, N m] (default zero).
+        Input force [N, N m^2, N m^2] (default zero).
     nominal : ndarray, shape (n_state,), optional
         State scales (default :func:`nominal_scale`).
     """
@@ -175,7 +175,7 @@ def linearization_rates(model, x0, tau0=None, nominal=None) -> tuple[float, floa
     x0 : array_like, shape (n_state,)
         The state.
     tau0 : array_like, shape (n,), optional
-        Input force [N, N m] (default zero).
+        Input force [N, N m^2, N m^2] (default zero).
     nominal : ndarray, shape (n_state,), optional
         State scales (default :func:`nominal_scale`).
     """
@@ -194,7 +194,7 @@ def stiffness_ratio(model, x0, tau0=None, nominal=None) -> float:
     x0 : array_like, shape (n_state,)
         The state.
     tau0 : array_like, shape (n,), optional
-        Input force [N, N m] (default zero).
+        Input force [N, N m^2, N m^2] (default zero).
     nominal : ndarray, shape (n_state,), optional
         State scales (default :func:`nominal_scale`).
     """

@@ -200,7 +200,7 @@ def simulate(
     lam0 : array_like, shape (n_creep,), optional
         Initial creep states (default zero).
     tau : None, array_like (n,) or (T, n), or callable
-        Generalized input forces [N, N m], see the module notes (default zero).
+        Generalized input forces [N, N m^2, N m^2], see the module notes (default zero).
     controller : object, optional
         ``sample_time`` [s] and ``__call__(t, q, qd, lam)`` returning ``tau`` (n,), or with
         an ``actuator`` its inputs (m,), held between samples; ``reset()`` is called first

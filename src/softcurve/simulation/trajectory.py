@@ -26,7 +26,8 @@ class State:
     qd : ndarray, shape (n,)
         Rates [m/s, 1/(m s), 1/(m s)].
     lam : ndarray, shape (n_creep,)
-        Creep states.
+        Creep states, three per segment with creep [unit of the coordinate times that
+        of ``Creep.gain``].
     x : ndarray, shape (n_state,)
         ``(q, qd, lam)`` stacked.
     """
@@ -41,7 +42,7 @@ class State:
 class Trajectory(Result):
     """A simulated (or loaded) trajectory on the output grid; immutable.
 
-    Parameters
+    Attributes
     ----------
     t : ndarray, shape (T,)
         Output times [s].
@@ -50,12 +51,13 @@ class Trajectory(Result):
     qd : ndarray, shape (T, n)
         Their rates [m/s, 1/(m s), 1/(m s)].
     lam : ndarray, shape (T, n_creep)
-        Creep states.
+        Creep states, three per segment with creep [unit of the coordinate times that
+        of ``Creep.gain``].
     tip_positions : ndarray, shape (T, 3), optional
         Tip positions [m] where known (loaded files, batch members); else :attr:`tip`
         computes them from the model.
     tau : ndarray, shape (T, n), optional
-        Generalized input forces [N, N m] applied from each output time on (zero-order
+        Generalized input forces [N, N m^2, N m^2] applied from each output time on (zero-order
         hold); with an actuator, the force ``H(q) u`` at each output time.
     inputs : ndarray, shape (T, m), optional
         The actuator's inputs (e.g. chamber pressures [Pa]) when an actuator drove the
