@@ -4,24 +4,11 @@ from __future__ import annotations
 
 import subprocess
 
-from . import _robots
+from . import Command, _robots
 
 
-def register(subparsers) -> None:
-    """Add ``softcurve codegen`` to ``subparsers``.
-
-    Parameters
-    ----------
-    subparsers : argparse._SubParsersAction
-        The subcommands of ``softcurve``.
-    """
-    parser = subparsers.add_parser(
-        "codegen",
-        help="export forward/inverse dynamics, N(q) and H(q) as standalone C with a test",
-        description="Write <prefix>.c, <prefix>.h and test_<prefix>.c (plain C99 + libm) "
-        "into the output directory. The test program checks every function against the "
-        "values of the Python model; --check compiles and runs it.",
-    )
+def _add_arguments(parser) -> None:
+    """The options of ``softcurve codegen``."""
     _robots.add_arguments(parser)
     parser.add_argument(
         "--output", "-o", default="softcurve_c", help="directory (default ./softcurve_c)"
@@ -34,17 +21,10 @@ def register(subparsers) -> None:
     )
     parser.add_argument("--no-actuator", action="store_true", help="do not export H(q)")
     parser.add_argument("--check", action="store_true", help="compile and run the test program")
-    parser.set_defaults(handler=run)
 
 
-def run(args) -> int:
-    """Run ``softcurve codegen``; returns the exit code.
-
-    Parameters
-    ----------
-    args : argparse.Namespace
-        The parsed command line.
-    """
+def _run(args) -> int:
+    """Run ``softcurve codegen``; returns the exit code."""
     from softcurve.compiled.codegen import build_and_run_test, export_c
     from softcurve.compiled.model import Model
 
@@ -67,3 +47,14 @@ def run(args) -> int:
             return 1
         print(f"  test program: {output.strip().splitlines()[-1]}")
     return 0
+
+
+COMMAND = Command(
+    "codegen",
+    help="export forward/inverse dynamics, N(q) and H(q) as standalone C with a test",
+    description="Write <prefix>.c, <prefix>.h and test_<prefix>.c (plain C99 + libm) "
+    "into the output directory. The test program checks every function against the "
+    "values of the Python model; --check compiles and runs it.",
+    add_arguments=_add_arguments,
+    run=_run,
+)

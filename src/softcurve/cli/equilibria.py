@@ -4,27 +4,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from softcurve.figures import save_figure
-
-from . import _robots
+from . import Command, _robots, write_figure
 
 
-def register(subparsers) -> None:
-    """Add ``softcurve equilibria`` to ``subparsers``.
-
-    Parameters
-    ----------
-    subparsers : argparse._SubParsersAction
-        The subcommands of ``softcurve``.
-    """
-    parser = subparsers.add_parser(
-        "equilibria",
-        help="find and classify the equilibria of a robot (stable, unstable, saddle, rings)",
-        description="Solve N(q) = tau + H(q) p + J^T w from many starting points, deduplicate, "
-        "classify each equilibrium by the Hessian of the potential (rings of equilibria under "
-        "rotational symmetry are reported once) and print the table. Exit code 1 when none "
-        "is found.",
-    )
+def _add_arguments(parser) -> None:
+    """The options of ``softcurve equilibria``."""
     _robots.add_arguments(parser)
     gravity = parser.add_mutually_exclusive_group()
     gravity.add_argument("--hanging", action="store_true", help="gravity (0, 0, +9.81) m/s^2")
@@ -43,17 +27,10 @@ def register(subparsers) -> None:
         "--modes", action="store_true", help="also print natural frequencies and mode shapes"
     )
     parser.add_argument("--plot", metavar="PATH", help="save the backbones of the equilibria")
-    parser.set_defaults(handler=run)
 
 
-def run(args) -> int:
-    """Run ``softcurve equilibria``; returns the exit code.
-
-    Parameters
-    ----------
-    args : argparse.Namespace
-        The parsed command line.
-    """
+def _run(args) -> int:
+    """Run ``softcurve equilibria``; returns the exit code."""
     from softcurve.analysis.statics import equilibria, linearize
     from softcurve.compiled.model import Model
 
@@ -86,10 +63,18 @@ def run(args) -> int:
             print("    mode shapes (columns):")
             print("    " + np.array2string(lin.modes, precision=4).replace("\n", "\n    "))
     if args.plot:
-        import matplotlib.pyplot as plt  # here: 0.6 s that commands without figures skip
-
-        figure = table.plot()
-        save_figure(figure, args.plot, dpi=120)
-        plt.close(figure)
+        write_figure(table.plot, args.plot, dpi=120)
         print(f"  figure: {args.plot}")
     return 0 if table.success else 1
+
+
+COMMAND = Command(
+    "equilibria",
+    help="find and classify the equilibria of a robot (stable, unstable, saddle, rings)",
+    description="Solve N(q) = tau + H(q) p + J^T w from many starting points, deduplicate, "
+    "classify each equilibrium by the Hessian of the potential (rings of equilibria under "
+    "rotational symmetry are reported once) and print the table. Exit code 1 when none "
+    "is found.",
+    add_arguments=_add_arguments,
+    run=_run,
+)

@@ -9,24 +9,11 @@ Trajectory fits need a robot and output maps and are a Python API
 
 from __future__ import annotations
 
-from softcurve.figures import save_figure
+from . import Command, write_figure
 
 
-def register(subparsers) -> None:
-    """Add ``softcurve fit`` to ``subparsers``.
-
-    Parameters
-    ----------
-    subparsers : argparse._SubParsersAction
-        The subcommands of ``softcurve``.
-    """
-    parser = subparsers.add_parser(
-        "fit",
-        help="fit a stiffness law (tanh or linear) to force-strain data in a CSV file",
-        description="Fit k(x) x = force to quasi-static data (the paper's Fig. 3) and print "
-        "a report: estimates, confidence intervals, correlations, residuals. Exit code 1 if "
-        "the fit fails.",
-    )
+def _add_arguments(parser) -> None:
+    """The options of ``softcurve fit``."""
     parser.add_argument("csv", help="CSV file with a header row")
     parser.add_argument("--strain", required=True, help="column of the strain (m or rad)")
     parser.add_argument("--force", required=True, help="column of the force (N or N m)")
@@ -34,17 +21,10 @@ def register(subparsers) -> None:
     parser.add_argument("--weights", help="optional column of residual weights")
     parser.add_argument("--confidence", type=float, default=0.95, help="interval level")
     parser.add_argument("--figure", help="write the fit figure to this PNG file")
-    parser.set_defaults(handler=run)
 
 
-def run(args) -> int:
-    """Run ``softcurve fit``; returns the exit code.
-
-    Parameters
-    ----------
-    args : argparse.Namespace
-        The parsed command line.
-    """
+def _run(args) -> int:
+    """Run ``softcurve fit``; returns the exit code."""
     from softcurve.identification.experiments import load_csv
     from softcurve.identification.stiffness import fit_stiffness
 
@@ -67,10 +47,17 @@ def run(args) -> int:
         )
         print(f"law: {type(law).__name__}({arguments})")
     if args.figure:
-        import matplotlib.pyplot as plt  # here: 0.6 s that commands without figures skip
-
-        figure = report.plot(title=f"{args.law} law fitted to {args.csv}")
-        save_figure(figure, args.figure)
-        plt.close(figure)
+        write_figure(lambda: report.plot(title=f"{args.law} law fitted to {args.csv}"), args.figure)
         print(f"figure: {args.figure}")
     return 0 if report.success else 1
+
+
+COMMAND = Command(
+    "fit",
+    help="fit a stiffness law (tanh or linear) to force-strain data in a CSV file",
+    description="Fit k(x) x = force to quasi-static data (the paper's Fig. 3) and print "
+    "a report: estimates, confidence intervals, correlations, residuals. Exit code 1 if "
+    "the fit fails.",
+    add_arguments=_add_arguments,
+    run=_run,
+)

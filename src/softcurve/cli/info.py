@@ -6,32 +6,15 @@ import time
 
 import numpy as np
 
-
-def register(subparsers) -> None:
-    """Add ``softcurve info`` to ``subparsers``.
-
-    Parameters
-    ----------
-    subparsers : argparse._SubParsersAction
-        The subcommands of ``softcurve``.
-    """
-    parser = subparsers.add_parser(
-        "info",
-        help="summarize the paper's study case (preset ifac2020) and its compiled model",
-        description="Build the compiled model of the paper's study case and print its "
-        "parameters, the straight configuration's inertia and energy, and timings.",
-    )
-    parser.set_defaults(handler=run)
+from . import Command
 
 
-def run(args) -> int:
-    """Run ``softcurve info``; returns the exit code.
+def _add_arguments(parser) -> None:
+    """The options of ``softcurve info``."""
 
-    Parameters
-    ----------
-    args : argparse.Namespace
-        The parsed command line.
-    """
+
+def _run(args) -> int:
+    """Run ``softcurve info``; returns the exit code."""
     from softcurve.compiled.model import Model
     from softcurve.description import presets
 
@@ -55,3 +38,13 @@ def run(args) -> int:
     print(f"    qdd = {model.forward_dynamics(q0, qd0).tolist()}")
     print(f"    tip position = {model.tip_pose(q0).position.tolist()} m")
     return 0
+
+
+COMMAND = Command(
+    "info",
+    help="summarize the paper's study case (preset ifac2020) and its compiled model",
+    description="Build the compiled model of the paper's study case and print its "
+    "parameters, the straight configuration's inertia and energy, and timings.",
+    add_arguments=_add_arguments,
+    run=_run,
+)

@@ -17,29 +17,11 @@ from pathlib import Path
 
 import numpy as np
 
-from softcurve.figures import save_figure
-
-from . import add_progress_options
+from . import Command, add_progress_options, write_figure
 
 
-def register(subparsers) -> None:
-    """Add ``softcurve simulate`` to ``subparsers``.
-
-    Parameters
-    ----------
-    subparsers : argparse._SubParsersAction
-        The subcommands of ``softcurve``.
-    """
-    parser = subparsers.add_parser(
-        "simulate",
-        help="simulate a robot (default: the paper's section 4.2 case) and write data and figures",
-        description="Simulate a soft robot from a TOML scenario (schema: docs/configuration.md, "
-        "examples in examples/) or, without one, the paper's case: preset ifac2020, "
-        "q0 = (0.064, 25, 0), qd0 = (0, 0, 1500), 10 s, output every 1 ms. Writes "
-        "trajectory.csv, states.png and tip.png into the output folder. Exit code 0: "
-        "success; 1: the integrator failed (partial results written); 2: bad arguments "
-        "or configuration.",
-    )
+def _add_arguments(parser) -> None:
+    """The options of ``softcurve simulate``."""
     parser.add_argument("config", nargs="?", help="scenario TOML file (default: the paper's case)")
     parser.add_argument(
         "-o",
@@ -67,7 +49,6 @@ def register(subparsers) -> None:
     )
     parser.add_argument("--fps", type=int, default=25, help="animation frames per second")
     add_progress_options(parser)
-    parser.set_defaults(handler=run)
 
 
 def _scenario(args):
@@ -90,14 +71,8 @@ def _scenario(args):
     return dataclasses.replace(scenario, settings=scenario.settings.replace(**overrides))
 
 
-def run(args) -> int:
-    """Run ``softcurve simulate``; returns the exit code.
-
-    Parameters
-    ----------
-    args : argparse.Namespace
-        The parsed command line.
-    """
+def _run(args) -> int:
+    """Run ``softcurve simulate``; returns the exit code."""
     from softcurve.compiled.model import Model
     from softcurve.simulation.simulate import simulate
 
@@ -129,12 +104,8 @@ def run(args) -> int:
     if args.npz:
         written.append(trajectory.save(output / "trajectory.npz"))
     if not args.no_figures and trajectory.t.size:
-        import matplotlib.pyplot as plt  # here: 0.6 s that commands without figures skip
-
         for name, draw in (("states.png", trajectory.plot), ("tip.png", trajectory.plot_tip)):
-            figure = draw()
-            written.append(save_figure(figure, output / name))
-            plt.close(figure)
+            written.append(write_figure(draw, output / name))
     if args.animate and trajectory.t.size > 1:
         written.append(trajectory.animate(output / "animation.gif", fps=args.fps))
         if shutil.which("ffmpeg"):
@@ -171,3 +142,17 @@ def _summary(scenario, model, trajectory, built, total, written) -> str:
         "  wrote       " + ", ".join(str(p) for p in written),
     ]
     return "\n".join(line for line in lines if line)
+
+
+COMMAND = Command(
+    "simulate",
+    help="simulate a robot (default: the paper's section 4.2 case) and write data and figures",
+    description="Simulate a soft robot from a TOML scenario (schema: docs/configuration.md, "
+    "examples in examples/) or, without one, the paper's case: preset ifac2020, "
+    "q0 = (0.064, 25, 0), qd0 = (0, 0, 1500), 10 s, output every 1 ms. Writes "
+    "trajectory.csv, states.png and tip.png into the output folder. Exit code 0: "
+    "success; 1: the integrator failed (partial results written); 2: bad arguments "
+    "or configuration.",
+    add_arguments=_add_arguments,
+    run=_run,
+)

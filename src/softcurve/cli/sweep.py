@@ -9,26 +9,11 @@ from __future__ import annotations
 
 import sys
 
-from . import add_progress_options
+from . import Command, add_progress_options
 
 
-def register(subparsers) -> None:
-    """Add ``softcurve sweep`` to ``subparsers``.
-
-    Parameters
-    ----------
-    subparsers : argparse._SubParsersAction
-        The subcommands of ``softcurve``.
-    """
-    parser = subparsers.add_parser(
-        "sweep",
-        help="run a grid, random or Sobol design of simulations into one Parquet table",
-        description="Run the design of a sweep file (schema: docs/sweeps.md, examples: "
-        "examples/sweep_*.toml) and write OUTPUT/results.parquet: one row per simulation "
-        "with the swept values and the chosen outputs. Chunks are written as they finish; "
-        "run the same command again to resume a killed sweep. Needs pyarrow "
-        "(pip install 'softcurve[sweep]'; with --scheduler, 'softcurve[cluster]').",
-    )
+def _add_arguments(parser) -> None:
+    """The options of ``softcurve sweep``."""
     parser.add_argument("config", help="sweep TOML file")
     parser.add_argument(
         "-o",
@@ -53,17 +38,10 @@ def register(subparsers) -> None:
         help="discard results already in the output folder instead of resuming",
     )
     add_progress_options(parser)
-    parser.set_defaults(handler=run)
 
 
-def run(args) -> int:
-    """Run ``softcurve sweep``; returns the exit code.
-
-    Parameters
-    ----------
-    args : argparse.Namespace
-        The parsed command line.
-    """
+def _run(args) -> int:
+    """Run ``softcurve sweep``; returns the exit code."""
     from softcurve.base.validation import ParameterError
     from softcurve.scenarios.sweep import run_sweep
     from softcurve.scenarios.sweep_config import load_sweep
@@ -111,3 +89,16 @@ def run(args) -> int:
     if not args.quiet:
         print(summary)
     return 0
+
+
+COMMAND = Command(
+    "sweep",
+    help="run a grid, random or Sobol design of simulations into one Parquet table",
+    description="Run the design of a sweep file (schema: docs/sweeps.md, examples: "
+    "examples/sweep_*.toml) and write OUTPUT/results.parquet: one row per simulation "
+    "with the swept values and the chosen outputs. Chunks are written as they finish; "
+    "run the same command again to resume a killed sweep. Needs pyarrow "
+    "(pip install 'softcurve[sweep]'; with --scheduler, 'softcurve[cluster]').",
+    add_arguments=_add_arguments,
+    run=_run,
+)

@@ -37,17 +37,8 @@ a few integrators and maps per output grid, so 64 covers every study in the docs
 class CompiledFunctions:
     """The numeric entry points of one robot, compiled to C or in CasADi's virtual machine.
 
-    Parameters
-    ----------
-    robot : Robot
-        The robot description; its numbers are bound to every call.
-    quadrature_nodes : int, optional
-        Gauss-Legendre nodes per segment for the backbone integrals (default 11,
-        round-off accuracy for bending angles up to pi per segment; see
-        docs/model.md).
-    compile : bool, optional
-        Compile to C (default). With False, or when no C compiler works, the
-        functions run in CasADi's virtual machine.
+    Built as its subclass :class:`~softcurve.compiled.model.Model`, whose docstring gives
+    the constructor's parameters.
     """
 
     def __init__(

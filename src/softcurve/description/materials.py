@@ -24,8 +24,59 @@ from softcurve.base import smooth as _smooth
 from softcurve.base.validation import ParameterError, real_array, real_scalar
 
 
+class _StiffnessLaw:
+    """The interface of every stiffness law; a law supplies the formulas ``_stiffness(x)``
+    on a float64 array and the symbolic ``_coefficient(z, p)`` and ``_energy(z, p)``."""
+
+    def stiffness(self, x):
+        """``k(x)`` for a float or array ``x``.
+
+        Parameters
+        ----------
+        x : float or array_like
+            Strain: elongation ``l - l0`` [m] or bending angle [rad].
+        """
+        return self._stiffness(np.asarray(x, dtype=np.float64))
+
+    def force(self, x):
+        """Generalized elastic force ``k(x) x`` [N or N m].
+
+        Parameters
+        ----------
+        x : float or array_like
+            Strain: elongation ``l - l0`` [m] or bending angle [rad].
+        """
+        return self.stiffness(x) * np.asarray(x, dtype=np.float64)
+
+    @classmethod
+    def coefficient(cls, z, p):
+        """Symbolic ``k(sqrt(z))``, smooth at ``z = 0``.
+
+        Parameters
+        ----------
+        z : casadi.SX or float
+            Squared strain [m^2 or rad^2].
+        p : casadi.SX, shape (n_parameters,)
+            The law's parameters, in the order of :meth:`parameters`.
+        """
+        return cls._coefficient(z, p)
+
+    @classmethod
+    def energy(cls, z, p):
+        """Symbolic ``int_0^sqrt(z) k(t) t dt`` [J], smooth at ``z = 0``.
+
+        Parameters
+        ----------
+        z : casadi.SX or float
+            Squared strain [m^2 or rad^2].
+        p : casadi.SX, shape (n_parameters,)
+            The law's parameters, in the order of :meth:`parameters`.
+        """
+        return cls._energy(z, p)
+
+
 @dataclass(frozen=True)
-class LinearStiffness:
+class LinearStiffness(_StiffnessLaw):
     """Hookean law ``k(x) = k0``.
 
     Parameters
@@ -46,55 +97,20 @@ class LinearStiffness:
         """The law's numbers as they enter the parameter vector: ``(k0,)``."""
         return (self.k0,)
 
-    def stiffness(self, x):
-        """``k(x)`` for a float or array ``x``.
-
-        Parameters
-        ----------
-        x : float or array_like
-            Strain: elongation ``l - l0`` [m] or bending angle [rad].
-        """
-        return np.full_like(np.asarray(x, dtype=np.float64), self.k0)
-
-    def force(self, x):
-        """Generalized elastic force ``k(x) x`` [N or N m].
-
-        Parameters
-        ----------
-        x : float or array_like
-            Strain: elongation ``l - l0`` [m] or bending angle [rad].
-        """
-        return self.stiffness(x) * np.asarray(x, dtype=np.float64)
+    def _stiffness(self, x):
+        return np.full_like(x, self.k0)
 
     @staticmethod
-    def coefficient(z, p):
-        """Symbolic ``k(sqrt(z))`` for parameters ``p = (k0,)``.
-
-        Parameters
-        ----------
-        z : casadi.SX or float
-            Squared strain [m^2 or rad^2].
-        p : casadi.SX, shape (n_parameters,)
-            The law's parameters, in the order of :meth:`parameters`.
-        """
+    def _coefficient(z, p):
         return p[0] + 0 * z
 
     @staticmethod
-    def energy(z, p):
-        """Symbolic ``int_0^sqrt(z) k(t) t dt`` [J].
-
-        Parameters
-        ----------
-        z : casadi.SX or float
-            Squared strain [m^2 or rad^2].
-        p : casadi.SX, shape (n_parameters,)
-            The law's parameters, in the order of :meth:`parameters`.
-        """
+    def _energy(z, p):
         return 0.5 * p[0] * z
 
 
 @dataclass(frozen=True)
-class TanhStiffness:
+class TanhStiffness(_StiffnessLaw):
     """The paper's hyper-elastic ansatz, eqs. (17)-(18): ``k(x) = a1 + a2 (tanh(a3 x)**2 - 1)``.
 
     ``k`` runs from ``a1 - a2`` at ``x = 0`` to ``a1`` as ``|x| -> inf``; with ``a2 > 0`` it
@@ -144,52 +160,16 @@ class TanhStiffness:
         """The law's numbers as they enter the parameter vector: ``(a1, a2, a3)``."""
         return (self.a1, self.a2, self.a3)
 
-    def stiffness(self, x):
-        """``k(x)`` for a float or array ``x``.
-
-        Parameters
-        ----------
-        x : float or array_like
-            Strain: elongation ``l - l0`` [m] or bending angle [rad].
-        """
-        x = np.asarray(x, dtype=np.float64)
+    def _stiffness(self, x):
         return self.a1 + self.a2 * (np.tanh(self.a3 * x) ** 2 - 1.0)
 
-    def force(self, x):
-        """Generalized elastic force ``k(x) x`` [N or N m].
-
-        Parameters
-        ----------
-        x : float or array_like
-            Strain: elongation ``l - l0`` [m] or bending angle [rad].
-        """
-        return self.stiffness(x) * np.asarray(x, dtype=np.float64)
-
     @staticmethod
-    def coefficient(z, p):
-        """Symbolic ``k(sqrt(z))``, smooth at ``z = 0``.
-
-        Parameters
-        ----------
-        z : casadi.SX or float
-            Squared strain [m^2 or rad^2].
-        p : casadi.SX, shape (n_parameters,)
-            The law's parameters, in the order of :meth:`parameters`.
-        """
+    def _coefficient(z, p):
         a1, a2, a3 = p[0], p[1], p[2]
         return a1 - a2 + a2 * _smooth.tanh_squared(a3**2 * z)
 
     @staticmethod
-    def energy(z, p):
-        """Symbolic ``int_0^sqrt(z) k(t) t dt`` [J], smooth at ``z = 0``.
-
-        Parameters
-        ----------
-        z : casadi.SX or float
-            Squared strain [m^2 or rad^2].
-        p : casadi.SX, shape (n_parameters,)
-            The law's parameters, in the order of :meth:`parameters`.
-        """
+    def _energy(z, p):
         # int_0^y t tanh(c t)^2 dt = y^2/2 + (log cosh(c y) - c y tanh(c y)) / c^2
         a1, a2, a3 = p[0], p[1], p[2]
         w = a3**2 * z

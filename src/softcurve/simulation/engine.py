@@ -140,10 +140,11 @@ def linear_rates(eigenvalues: np.ndarray) -> tuple:
     return decay / oscillation, np.max(np.abs(eigenvalues), axis=-1, initial=0.0)
 
 
-def linearization_eigenvalues(model, x0, tau0=None, nominal=None) -> np.ndarray:
-    """Eigenvalues [1/s] of the central-difference linearization of ``model``'s right-hand
-    side at the state ``x0`` (n_state,) under the force ``tau0`` (n,) [N, N m^2, N m^2] (default
-    zero), with steps relative to ``nominal`` (default :func:`nominal_scale`).
+def linearization_rates(model, x0, tau0=None, nominal=None) -> tuple[float, float]:
+    """:func:`linear_rates` of the eigenvalues of the central-difference linearization of
+    ``model``'s right-hand side at ``x0``: ``(stiffness ratio, fastest rate [1/s])``. The
+    stiffness ratio, the fastest decay rate over the fastest oscillation frequency (at
+    least ``1 rad/s``), is large for stiff problems.
 
     Parameters
     ----------
@@ -154,51 +155,16 @@ def linearization_eigenvalues(model, x0, tau0=None, nominal=None) -> np.ndarray:
     tau0 : array_like, shape (n,), optional
         Input force [N, N m^2, N m^2] (default zero).
     nominal : ndarray, shape (n_state,), optional
-        State scales (default :func:`nominal_scale`).
+        State scales, relative to which the steps are taken (default
+        :func:`nominal_scale`).
     """
     x0 = np.asarray(x0, dtype=np.float64)
     tau0 = np.zeros(model.n) if tau0 is None else tau0
     nominal = nominal_scale(model, x0) if nominal is None else nominal
     points, steps = difference_points(x0, nominal)
     values = np.array([model.state_derivative(x, tau0) for x in points])
-    return difference_eigenvalues(values, steps)
-
-
-def linearization_rates(model, x0, tau0=None, nominal=None) -> tuple[float, float]:
-    """``(stiffness ratio, fastest rate [1/s])`` of :func:`linearization_eigenvalues`;
-    see :func:`linear_rates`.
-
-    Parameters
-    ----------
-    model : Model
-        The compiled model.
-    x0 : array_like, shape (n_state,)
-        The state.
-    tau0 : array_like, shape (n,), optional
-        Input force [N, N m^2, N m^2] (default zero).
-    nominal : ndarray, shape (n_state,), optional
-        State scales (default :func:`nominal_scale`).
-    """
-    ratio, fastest = linear_rates(linearization_eigenvalues(model, x0, tau0, nominal))
+    ratio, fastest = linear_rates(difference_eigenvalues(values, steps))
     return float(ratio), float(fastest)
-
-
-def stiffness_ratio(model, x0, tau0=None, nominal=None) -> float:
-    """Fastest decay rate over fastest oscillation frequency of the linearization at ``x0``
-    (at least ``1 rad/s``): large for stiff problems.
-
-    Parameters
-    ----------
-    model : Model
-        The compiled model.
-    x0 : array_like, shape (n_state,)
-        The state.
-    tau0 : array_like, shape (n,), optional
-        Input force [N, N m^2, N m^2] (default zero).
-    nominal : ndarray, shape (n_state,), optional
-        State scales (default :func:`nominal_scale`).
-    """
-    return linearization_rates(model, x0, tau0, nominal)[0]
 
 
 def multistep_family(ratio):
