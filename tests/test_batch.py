@@ -201,3 +201,36 @@ def test_blocks_of_members_give_the_same_results(paper_model, states, monkeypatc
     np.testing.assert_array_equal(blocked.x, whole.x)
     np.testing.assert_array_equal(blocked.tip, whole.tip)
     np.testing.assert_array_equal(blocked.energy(), whole.energy())
+
+
+def test_a_member_leaving_the_domain_stops_alone(paper_model):
+    """Issue 11, case 3 in a batch: the member whose length crosses zero stops with
+    LEFT_DOMAIN at its first output outside the domain; the others are untouched."""
+    q0s = np.array([[0.0644, 0.0, 0.0], [0.064, 0.0, 0.0], [0.064, 25.0, 0.0]])
+    qd0s = np.array([[0.0, 0.0, 0.0], [-50.0, 0.0, 0.0], [0.0, 0.0, 1500.0]])
+    for processes in (1, 2):
+        batch = simulate_batch(paper_model, q0s, qd0s, t_final=0.1, dt=1e-4, processes=processes)
+        assert list(batch.member_status) == ["success", "left_domain", "success"]
+        assert batch.status is Status.PARTIAL
+        message = batch.member_message[1]
+        assert "the state left the model's domain at t = " in message
+        assert "l of segment 1 (q[0]) = -" in message and "too soft" in message
+        reached = batch.reached[1]
+        assert 10 <= reached < batch.t.size and np.all(batch.q[1, :reached, 0] > 0)
+        assert np.all(np.isnan(batch.q[1, reached:]))
+        member = batch.member(1)
+        assert member.status is Status.LEFT_DOMAIN and member.t.size == reached
+        single = sc.simulate(paper_model, q0s[1], qd0s[1], t_final=0.1, dt=1e-4)
+        assert single.status is Status.LEFT_DOMAIN and single.t.size == reached
+
+
+def test_q0_outside_the_domain_is_refused_per_member(paper_model):
+    q0s = np.array([[0.064, 0.0, 0.0], [0.064, 200.0, 0.0]])
+    with pytest.raises(sc.ParameterError, match=r"q0\[1\] \(member 1\): bending angles"):
+        simulate_batch(paper_model, q0s, np.zeros(3), t_final=0.1)
+    # the limit follows each member's own rest length
+    parameters = np.repeat(paper_model.parameters[None, :], 2, axis=0)
+    parameters[1, paper_model.robot.layout.index("segments[0].rest_length")] = 0.01
+    q0s = np.array([[0.2, 0.0, 0.0], [0.2, 0.0, 0.0]])
+    with pytest.raises(sc.ParameterError, match=r"q0\[1\] \(member 1\): lengths l .*0.1 m"):
+        simulate_batch(paper_model, q0s, np.zeros(3), parameters=parameters, t_final=0.1)

@@ -56,3 +56,23 @@ def test_cli_codegen_writes_the_files(tmp_path, capsys):
     assert main(["codegen", "--output", str(tmp_path), "--prefix", "arm"]) == 0
     assert {p.name for p in tmp_path.iterdir()} >= {"arm.c", "arm.h", "test_arm.c"}
     assert "arm_input_matrix" in capsys.readouterr().out
+
+
+@pytest.mark.skipif(COMPILER is None, reason="no C compiler (cc, gcc or clang) found")
+@pytest.mark.parametrize("output", [None, "out/c"], ids=["default", "relative"])
+def test_cli_codegen_check_with_a_relative_output(tmp_path, monkeypatch, capsys, output):
+    """A relative -o (the default softcurve_c too) is resolved once: the test program is
+    built and run in it, not at the path doubled (issue 11, case 1)."""
+    monkeypatch.chdir(tmp_path)
+    argv = ["codegen", "--check", "--no-actuator"] + ([] if output is None else ["-o", output])
+    assert main(argv) == 0
+    captured = capsys.readouterr()
+    assert "test program: OK" in captured.out and "No such file" not in captured.err
+    folder = tmp_path / (output or "softcurve_c")
+    assert {p.name for p in folder.iterdir()} >= {
+        "softcurve_model.c",
+        "softcurve_model.h",
+        "test_softcurve_model.c",
+        "test_softcurve_model",
+    }
+    assert str(folder) in captured.out  # the paths printed are the resolved ones

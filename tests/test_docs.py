@@ -145,9 +145,11 @@ def _label(obj) -> str:
     return f"{obj.__module__}.{obj.__qualname__}"
 
 
-def function_offenses(function) -> list[str]:
-    """The broken rules of a function or method (``self``/``cls`` skipped)."""
-    return parameter_offenses(_label(function), inspect.signature(function), function.__doc__)
+def function_offenses(function, docstring=None) -> list[str]:
+    """The broken rules of a function or method (``self``/``cls`` skipped); ``docstring``
+    defaults to the function's own."""
+    docstring = function.__doc__ if docstring is None else docstring
+    return parameter_offenses(_label(function), inspect.signature(function), docstring)
 
 
 def _own_classes(cls) -> list[type]:
@@ -165,7 +167,7 @@ def _public_methods(cls):
             if isinstance(attribute, staticmethod | classmethod):
                 attribute = attribute.__func__
             if inspect.isfunction(attribute) or hasattr(attribute, "__wrapped__"):
-                yield attribute
+                yield name, attribute
 
 
 def class_offenses(cls) -> list[str]:
@@ -180,8 +182,10 @@ def class_offenses(cls) -> list[str]:
         found += parameter_offenses(
             _label(cls), inspect.signature(cls), cls.__doc__, own_init_doc, sections=sections
         )
-    for method in _public_methods(cls):
-        found += function_offenses(method)
+    for name, method in _public_methods(cls):
+        # an implementation of a documented interface method inherits its docstring, as
+        # in help(): inspect.getdoc looks it up along the method resolution order
+        found += function_offenses(method, inspect.getdoc(getattr(cls, name)))
     return found
 
 
@@ -242,7 +246,7 @@ def test_the_walk_reaches_the_entry_points():
         "softcurve.description.robot.Robot",
     ):
         assert expected in labels
-    methods = {_label(m) for m in _public_methods(softcurve.Model)}
+    methods = {_label(m) for _, m in _public_methods(softcurve.Model)}
     assert "softcurve.compiled.model.Model.forward_dynamics" in methods
 
 

@@ -168,3 +168,11 @@ def test_compile_function_without_a_working_compiler_returns_the_function(monkey
     assert model_module.compile_function(function) is function
     monkeypatch.setattr(model_module, "_compiler", lambda: None)
     assert model_module.compile_function(function) is function
+
+
+def test_the_cached_library_has_a_checksum_beside_it(paper_model):
+    library = paper_model.compiled_library
+    checksum = model_module.checksum_file(library)
+    assert checksum.name == library.name + ".sha256"
+    assert checksum.read_text().split()[::2] == ["sha256", "size"]
+    assert model_module.library_problem(library) is None

@@ -448,3 +448,104 @@ def test_settings_are_validated_once_and_options_override_them(paper_model):
     for field, value, named in bad:
         with pytest.raises(sc.ParameterError, match=named):
             SimulationSettings(**{field: value})
+
+
+# -- the model's domain and passivity (issue 11, cases 3 and 4) ------------------------------
+def test_a_length_crossing_zero_stops_with_left_domain(paper_model):
+    """A huge initial rate drives l through zero: before, the run reported success with
+    l < 0; now it stops at the first output outside the domain, keeping the rest."""
+    run = sc.simulate(paper_model, [0.064, 0.0, 0.0], [-50.0, 0.0, 0.0], t_final=0.5, dt=1e-4)
+    assert run.status is Status.LEFT_DOMAIN and not run.success
+    assert 10 <= run.t.size < 5001 and np.all(run.q[:, 0] > 0)
+    stopped = run.t[-1] + 1e-4
+    for words in (
+        f"the state left the model's domain at t = {stopped:.6g} s",
+        "l of segment 1 (q[0]) = -",
+        "0 < l <= 10 rest lengths",
+        "too soft for its loads",
+        "initial rate qd0 too large",
+        f"the trajectory stops at t = {run.t[-1]:.6g} s",
+    ):
+        assert words in run.message, (words, run.message)
+    kept = sc.simulate(paper_model, [0.064, 0.0, 0.0], [-50.0, 0.0, 0.0], t_final=run.t[-1],
+                       dt=1e-4)  # fmt: skip
+    assert kept.success and normalized_error(run, kept) < 1e-5  # the same run, to its rtol
+
+
+@pytest.mark.parametrize(("gravity", "words"), [(-9.81, "= -"), (9.81, "l of segment 1")])
+def test_a_robot_too_soft_for_its_weight_leaves_the_domain(gravity, words):
+    """A 1e-3 N/m segment collapses upright (l < 0) or stretches past ten rest lengths
+    hanging; both stop, also with RK45 (checked at every output)."""
+    robot = sc.presets.ifac2020(creep=False)
+    soft = robot.segments[0].replace(elongation_stiffness=sc.LinearStiffness(1e-3))
+    model = sc.Model(robot.replace(segments=(soft,), gravity=[0.0, 0.0, gravity]), compile=False)
+    for method in ("cvodes", "rk45"):
+        run = sc.simulate(model, [0.0644, 0, 0], [0, 0, 0], t_final=2.0, dt=0.01, method=method)
+        assert run.status is Status.LEFT_DOMAIN, (method, run.message)
+        assert words in run.message and "too soft" in run.message
+        assert np.all((run.q[:, 0] > 0) & (run.q[:, 0] <= 0.644))
+
+
+def test_controller_never_sees_a_state_outside_the_domain(paper_model):
+    seen = []
+
+    def tau(t, state):
+        seen.append(state.q[0])
+        return np.zeros(3)
+
+    run = sc.simulate(paper_model, [0.064, 0, 0], [-50.0, 0, 0], tau=tau, t_final=0.1, dt=1e-3)
+    assert run.status is Status.LEFT_DOMAIN and "l of segment 1" in run.message
+    assert min(seen) > 0
+
+
+def test_q0_outside_the_domain_is_refused_as_by_the_scenario_loader(paper_model):
+    from softcurve.scenarios.config import Scenario
+
+    with pytest.raises(sc.ParameterError, match=r"q0: lengths l must be in the model's domain"):
+        sc.simulate(paper_model, [-0.01, 0.0, 0.0], np.zeros(3), t_final=0.1)
+    try:
+        sc.simulate(paper_model, [-0.01, 0.0, 0.0], np.zeros(3), t_final=0.1)
+    except sc.ParameterError as error:
+        from_simulate = str(error).removeprefix("q0: ")
+    with pytest.raises(sc.ParameterError) as from_scenario:
+        Scenario(paper_model.robot, q0=(-0.01, 0.0, 0.0))
+    assert str(from_scenario.value) == f"q0 {from_simulate}"  # one check, one message
+    with pytest.raises(sc.ParameterError, match="bends 12.8 rad"):
+        sc.simulate(paper_model, [0.064, 200.0, 0.0], np.zeros(3), t_final=0.1)
+
+
+def _random_passive_creep(rng) -> tuple[sc.Creep, np.ndarray]:
+    """A full (non-diagonal) passive creep: P symmetric positive definite, K = P G, rates
+    drawn until P R + R P is positive semidefinite. Returns the creep and P."""
+    while True:
+        a = rng.normal(size=(3, 3))
+        p = a @ a.T + 0.1 * np.eye(3)
+        gain = rng.choice([-1.0, 1.0], 3) * rng.uniform(0.05, 1.0, 3)
+        rate = rng.uniform(20.0, 300.0, 3)
+        r = np.diag(rate)
+        if np.linalg.eigvalsh(p @ r + r @ p)[0] > 0:
+            scale = np.array([50.0, 5e-3, 5e-3])  # forces of the paper's order per coordinate
+            p = p * np.sqrt(scale[:, None] * scale[None, :])
+            return sc.Creep(rate, gain, p @ np.diag(gain)), p
+
+
+def test_random_passive_creep_never_creates_energy(rng):
+    """Without damping, gravity or input, E + lam' P lam / 2 (P = K G^-1) never grows and
+    falls by the creep dissipation int lam' P R lam dt."""
+    robot = sc.presets.ifac2020(damping=False).replace(gravity=[0.0, 0.0, 0.0])
+    for _ in range(3):
+        creep, p = _random_passive_creep(rng)
+        segment = robot.segments[0].replace(creep=creep)
+        model = sc.Model(robot.replace(segments=(segment,)))
+        lam0 = rng.normal(size=3) * np.array([1e-3, 1.0, 1.0]) * np.abs(creep.gain)
+        run = sc.simulate(model, Q0, QD0 / 3, lam0, t_final=0.3, dt=1e-4, rtol=1e-10)
+        assert run.success, run.message
+        storage = 0.5 * np.einsum("ti,ij,tj->t", run.lam, p, run.lam)
+        total = run.energy() + storage
+        magnitude = np.max(np.abs(run.energy())) + np.max(storage)
+        assert np.max(np.diff(total)) <= 1e-7 * magnitude, np.max(np.diff(total)) / magnitude
+        r = np.diag(creep.rate)
+        dissipation = np.einsum("ti,ij,tj->t", run.lam, 0.5 * (p @ r + r @ p), run.lam)
+        lost = cumulative_simpson(dissipation, x=run.t, initial=0.0)
+        assert_close(total[0] - total, lost, rtol=0, atol=1e-6 * magnitude, what="balance")
+        assert lost[-1] > 1e-3 * magnitude  # the balance is not trivially zero

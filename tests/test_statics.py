@@ -295,3 +295,13 @@ def test_cli_equilibria_prints_the_table(capsys):
     assert "ring" in out and "saddle" in out
     assert main(["equilibria", "--pressures", "1e9", "0", "0"]) == 2  # beyond p_max
     assert "outside its bounds" in capsys.readouterr().err
+
+
+def test_initial_guesses_outside_the_domain_are_refused(paper_model):
+    """Issue 11: the one configuration check (Robot.check_configuration) on statics."""
+    with pytest.raises(ParameterError, match=r"q0: lengths l .* l of segment 1 \(q0\[0\]\)"):
+        equilibrium(paper_model, [-0.01, 0.0, 0.0])
+    with pytest.raises(ParameterError, match=r"bounds\[:, 0\] \(lower lengths\): lengths l"):
+        equilibria(paper_model, bounds=[[0.0, 0.07], [-1.0, 1.0], [-1.0, 1.0]])
+    with pytest.raises(ParameterError, match=r"bounds\[:, 1\] \(upper lengths\): lengths l"):
+        equilibria(paper_model, bounds=[[0.06, 1.0], [-1.0, 1.0], [-1.0, 1.0]])

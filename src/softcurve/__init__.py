@@ -26,7 +26,7 @@ from softcurve.analysis.quasistatic import InputSweep, InverseStatics, input_swe
 from softcurve.analysis.statics import equilibria, equilibrium, linearize
 from softcurve.base.status import Result, Status
 from softcurve.base.validation import ParameterError
-from softcurve.compiled.build import CompilerWarning
+from softcurve.compiled.build import CacheWarning, CompilerWarning
 from softcurve.compiled.codegen import ExportedC, export_c
 from softcurve.compiled.model import DynamicsTerms, Model, Pose
 from softcurve.control.controllers import (
@@ -92,6 +92,7 @@ __all__ = [
     "DynamicsTerms",
     "Pose",
     "CompilerWarning",
+    "CacheWarning",
     "export_c",
     "ExportedC",
     # results and errors

@@ -15,6 +15,7 @@ from dataclasses import dataclass, field
 import casadi as ca
 import numpy as np
 
+from softcurve.base.docs import shared_parameters
 from softcurve.base.validation import ParameterError, real_array
 from softcurve.description.actuator import Actuator
 from softcurve.symbolic.kinematics import segment_frames
@@ -110,16 +111,15 @@ def _load_symbols(model, actuator):
     }
 
 
+@shared_parameters
 def static_function(model, actuator: Actuator | None) -> ca.Function:
     """``F(q, p, tau, u, f, m) -> (r, K, W, tip)``: the residual ``r = N - loads``,
     ``K = dr/dq``, the conservative potential ``W`` [J] and the tip position [m].
 
     Parameters
     ----------
-    model : Model
-        The compiled model.
-    actuator : Actuator or None
-        The actuator whose inputs ``u`` enter (None: no inputs).
+    %(model)s
+    %(actuator)s
     """
 
     def build():
@@ -136,16 +136,15 @@ def static_function(model, actuator: Actuator | None) -> ca.Function:
     return model.cached(("loads", "static", actuator), build)
 
 
+@shared_parameters
 def linear_function(model, actuator: Actuator | None) -> ca.Function:
     """``F(x, p, tau, u, f, m) -> (A, B, D, K)`` of the closed-form loaded dynamics
     ``xdot = f(x, tau + H(q) u + J^T w)``; ``B = df/dtau``.
 
     Parameters
     ----------
-    model : Model
-        The compiled model.
-    actuator : Actuator or None
-        The actuator whose inputs ``u`` enter (None: no inputs).
+    %(model)s
+    %(actuator)s
     """
 
     def build():

@@ -211,7 +211,8 @@ def equilibrium(
     model : Model
         The compiled model.
     q0 : array_like, shape (n,)
-        Initial guess [m, 1/m, 1/m].
+        Initial guess [m, 1/m, 1/m], in the model's domain
+        (:meth:`~softcurve.Robot.check_configuration`).
     tol : float
         Acceptance: ``|S r|_i <= tol * (elastic stiffness of coordinate i at rest)``,
         dimensionless.
@@ -243,7 +244,7 @@ def equilibrium(
     True
     """
     problem = _Problem(StaticLoad(model, **loads))
-    q0 = real_array("q0", q0, (model.n,))
+    q0 = model.robot.check_configuration(real_array("q0", q0, (model.n,)), "q0")
     root = problem.solve(q0, tol, max_evaluations)
     return _result(problem, root, tol, zero_tolerance, distinct)
 
@@ -323,8 +324,12 @@ def equilibria(
     problem = _Problem(load)
     bounds = default_bounds(model.robot) if bounds is None else bounds
     bounds = real_array("bounds", bounds, (model.n, 2))
-    if not np.all(bounds[:, 1] > bounds[:, 0]) or not np.all(bounds[0::3, 0] > 0):
-        raise ParameterError("bounds must have lower < upper in every row and lengths > 0")
+    if not np.all(bounds[:, 1] > bounds[:, 0]):
+        raise ParameterError("bounds must have lower < upper in every row")
+    for side, column in (("lower", 0), ("upper", 1)):  # lengths in the model's domain
+        straight = np.zeros(model.n)
+        straight[0::3] = bounds[0::3, column]
+        model.robot.check_configuration(straight, f"bounds[:, {column}] ({side} lengths)")
     if not (isinstance(starts, int) and starts >= 1):
         raise ParameterError(f"starts must be an integer >= 1, got {starts!r}")
     points = [rest_configuration(model.robot)]

@@ -5,9 +5,14 @@ over the target when complete, so readers see the old file or the new one, never
 from __future__ import annotations
 
 import contextlib
+import errno
 import os
-import tempfile
+import re
+import secrets
+import socket
 from pathlib import Path
+
+from softcurve.base.validation import ParameterError
 
 _UMASK = os.umask(0o022)
 os.umask(_UMASK)  # read once: files are created with the usual permissions
@@ -38,8 +43,10 @@ def atomic_path(path):
     """
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=path.suffix, dir=path.parent)
-    os.close(fd)
+    remove_stale_temporaries(path)
+    # the writer's pid in the name: a later write can tell a killed writer's leftover
+    tmp = path.parent / f".{path.name}.{temporary_tag()}.{secrets.token_hex(4)}{path.suffix}"
+    os.close(os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600))
     try:
         yield Path(tmp)
         os.chmod(tmp, 0o666 & ~_UMASK)
@@ -68,3 +75,183 @@ def atomic_write(path, data: bytes) -> Path:
     with atomic_path(path) as tmp:
         tmp.write_bytes(data)
     return Path(path)
+
+
+_TEMPORARY = re.compile(r"\.(?P<name>.+)\.pid(?P<pid>\d+)@(?P<host>[\w-]*)\.[0-9a-f]{8}")
+
+
+def temporary_tag() -> str:
+    """``pid<PID>@<host>``: who writes a temporary file of :func:`atomic_path`, so that
+    a later write can tell the leftover of a killed writer on this machine."""
+    return f"pid{os.getpid()}@{re.sub(r'[^A-Za-z0-9_-]', '-', socket.gethostname())}"
+
+
+def _running(pid: int) -> bool:
+    """Whether a process ``pid`` exists (on this machine)."""
+    if pid == os.getpid():
+        return True
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except OSError:  # e.g. EPERM: it exists but belongs to someone else
+        return True
+    return True
+
+
+def remove_stale_temporaries(path) -> list[Path]:
+    """Delete the temporary files of :func:`atomic_path` for ``path`` whose writer is no
+    longer running (a killed writer leaves its part behind); returns those deleted.
+
+    Temporary files of running writers are kept, and so are those written on other
+    machines (the name carries the host: on a folder shared by a cluster, a pid means
+    nothing elsewhere).
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The target file; its folder is searched.
+    """
+    path = Path(path)
+    removed = []
+    try:
+        candidates = list(path.parent.glob(f".{glob_escape(path.name)}.pid*{path.suffix}"))
+    except OSError:
+        return removed
+    for candidate in candidates:
+        match = _TEMPORARY.match(candidate.name)
+        if (
+            match
+            and match["name"] == path.name
+            and match["host"] == temporary_tag().partition("@")[2]
+            and not _running(int(match["pid"]))
+        ):
+            with contextlib.suppress(OSError):
+                candidate.unlink()
+                removed.append(candidate)
+    return removed
+
+
+def glob_escape(name: str) -> str:
+    """``name`` with the glob metacharacters ``*?[`` escaped.
+
+    Parameters
+    ----------
+    name : str
+        A file name.
+    """
+    return re.sub(r"([*?\[])", r"[\1]", name)
+
+
+def writable_folder(folder, option: str = "--output") -> Path:
+    """Create ``folder`` if needed and check that files can be written in it, before any
+    work is done; :class:`~softcurve.ParameterError` naming ``option``, the folder and
+    the cause otherwise (under a file, read-only, read-only filesystem, no space).
+
+    Parameters
+    ----------
+    folder : str or os.PathLike
+        The output folder.
+    option : str
+        How the user gave it (e.g. ``"--output"``), for the message.
+
+    Returns
+    -------
+    pathlib.Path
+        ``folder``.
+    """
+    folder = Path(folder)
+    if folder.exists() and not folder.is_dir():
+        raise ParameterError(f"{option} {folder}: exists and is not a folder; choose a folder")
+    probe = folder / f".softcurve-probe.pid{os.getpid()}.{secrets.token_hex(4)}"
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+        os.close(os.open(probe, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600))
+        probe.unlink()
+    except OSError as exc:
+        raise ParameterError(
+            f"{option} {folder}: cannot write there ({_cause(exc)}); choose another folder"
+        ) from None
+    return folder
+
+
+def writable_file(path, option: str) -> Path:
+    """Check, before any work, that the file ``path`` can be written: its folder is
+    created and probed by :func:`writable_folder`, and ``path`` must not be a folder.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The file to be written.
+    option : str
+        How the user gave it (e.g. ``"--plot"``), for the message.
+
+    Returns
+    -------
+    pathlib.Path
+        ``path``.
+    """
+    path = Path(path)
+    if path.is_dir():
+        raise ParameterError(f"{option} {path}: is a folder; give a file name")
+    writable_folder(path.parent, f"{option} {path}: folder")
+    return path
+
+
+def _cause(exc: OSError) -> str:
+    """A short reason for an OSError: the usual ones in words, else its text."""
+    reasons = {
+        errno.ENOTDIR: "a part of the path is a file, not a folder",
+        errno.EEXIST: "a part of the path is a file, not a folder",
+        errno.EACCES: "permission denied",
+        errno.EPERM: "operation not permitted",
+        errno.EROFS: "read-only filesystem",
+        errno.ENOSPC: "no space left on the device",
+    }
+    return reasons.get(exc.errno, exc.strerror or str(exc))
+
+
+class FolderLocked(ParameterError):
+    """Another process holds the lock of a folder (:func:`folder_lock`)."""
+
+
+@contextlib.contextmanager
+def folder_lock(folder, what: str = "softcurve"):
+    """Hold an exclusive lock on ``folder`` (its file ``.softcurve.lock``) for the block,
+    so that two processes never work in one folder at once; :class:`FolderLocked`
+    naming the folder and the holder's pid when another process holds it.
+
+    The lock is ``fcntl.flock``: released by the system when its holder exits, however
+    it exits, so a killed process never leaves a stale lock. On systems without
+    ``fcntl`` (Windows) the block runs without a lock.
+
+    Parameters
+    ----------
+    folder : str or os.PathLike
+        An existing folder.
+    what : str
+        What holds the lock (e.g. ``"sweep"``), for the message.
+    """
+    try:
+        import fcntl
+    except ImportError:  # pragma: no cover - Windows
+        yield
+        return
+    lock = Path(folder) / ".softcurve.lock"
+    fd = os.open(lock, os.O_RDWR | os.O_CREAT, 0o666 & ~_UMASK)
+    try:
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError as exc:
+            if exc.errno not in (errno.EWOULDBLOCK, errno.EACCES, errno.EAGAIN):
+                raise
+            holder = os.pread(fd, 32, 0).decode(errors="replace").strip() or "unknown"
+            raise FolderLocked(
+                f"{folder}: another {what} is running in this folder (pid {holder}); "
+                "wait for it to finish, or choose another output folder"
+            ) from None
+        os.ftruncate(fd, 0)
+        os.pwrite(fd, f"{os.getpid()}\n".encode(), 0)
+        yield
+    finally:
+        os.close(fd)  # releases the lock

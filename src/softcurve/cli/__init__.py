@@ -3,17 +3,22 @@
 Each subcommand lives in its own module of this package, which defines ``COMMAND``,
 a :class:`Command`: its name, help texts, options and the function that runs it and
 returns the exit code. Add a module's name to ``COMMANDS`` to expose it. Errors the
-user can fix (bad files, bad values) are printed on stderr without a traceback and
-give exit code 2; a solver that fails gives exit code 1.
+user can fix (bad files, bad values, an output folder that cannot be written) are
+printed on stderr as one line without a traceback and give exit code 2; a solver that
+fails, or an unexpected error, gives exit code 1 (``--debug`` shows the traceback).
 """
 
 from __future__ import annotations
 
 import argparse
 import dataclasses
+import functools
 import importlib
 import os
+import re
 import sys
+import traceback
+import warnings
 from collections.abc import Callable
 
 import matplotlib
@@ -51,13 +56,26 @@ class Command:
     run: Callable[[argparse.Namespace], int]
 
 
+class Parser(argparse.ArgumentParser):
+    """An argument parser that reads ``-1e6``, ``-2E+4``, ``-.5`` and ``-inf`` as
+    negative numbers, not as options (argparse's own pattern misses the exponent)."""
+
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs)
+        self._negative_number_matcher = re.compile(
+            r"^-(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?$|^-(inf|infinity|nan)$", re.IGNORECASE
+        )
+
+
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+    parser = Parser(
         prog="softcurve",
         description="Dynamics of hyper-elastic soft robots as spatial curves "
         "(piecewise constant curvature): simulation, equilibria, control, identification.",
     )
     parser.add_argument("--version", action="version", version=f"softcurve {__version__}")
+    debug_help = "show the traceback of an error"
+    parser.add_argument("--debug", action="store_true", help=debug_help)
     subparsers = parser.add_subparsers(dest="command", metavar="COMMAND")
     for module in COMMANDS:
         command = importlib.import_module(f"{__name__}.{module}").COMMAND
@@ -65,6 +83,9 @@ def build_parser() -> argparse.ArgumentParser:
             command.name, help=command.help, description=command.description
         )
         command.add_arguments(subparser)
+        subparser.add_argument(
+            "--debug", action="store_true", default=argparse.SUPPRESS, help=debug_help
+        )
         subparser.set_defaults(handler=command.run)
     return parser
 
@@ -124,13 +145,40 @@ def main(argv: list[str] | None = None) -> int:
         parser.print_help()
         return 2
     try:
-        return int(args.handler(args))
-    except (ParameterError, FileNotFoundError, IsADirectoryError) as exc:
-        print(f"softcurve {args.command}: error: {exc}", file=sys.stderr)
-        return 2
+        with warnings.catch_warnings():
+            if not args.debug:  # one line per warning, without the source line
+                warnings.showwarning = functools.partial(_show_warning, args.command)
+            return int(args.handler(args))
     except BrokenPipeError:  # the reader went away (softcurve info | head): not an error
         sys.stdout = open(os.devnull, "w")
         return 0
+    except Exception as exc:
+        code, line = _error_line(exc)
+        if args.debug:
+            traceback.print_exc()
+        else:
+            line += "" if code == 2 else " (run with --debug for the traceback)"
+        print(f"softcurve {args.command}: error: {line}", file=sys.stderr)
+        return code
+
+
+def _show_warning(command, message, category, filename, lineno, file=None, line=None):
+    """Print a warning as ``softcurve COMMAND: warning: text`` on one line."""
+    text = " ".join(str(message).split())
+    print(f"softcurve {command}: warning: {text}", file=sys.stderr if file is None else file)
+
+
+def _error_line(exc: Exception) -> tuple[int, str]:
+    """``(exit code, one line)`` for an error: 2 for input the user can fix, 1 else."""
+    text = " ".join(str(exc).split()) or type(exc).__name__
+    if isinstance(exc, ParameterError | FileNotFoundError | IsADirectoryError):
+        return 2, text
+    if isinstance(exc, MemoryError):
+        return 1, "out of memory: ask for fewer outputs (--dt, --t-final) or less work"
+    if isinstance(exc, OSError):
+        where = f"{exc.filename}: " if exc.filename else ""
+        return 1, f"{where}{exc.strerror or text} (check the folder and the free space)"
+    return 1, f"{type(exc).__name__}: {text}"
 
 
 if __name__ == "__main__":  # pragma: no cover

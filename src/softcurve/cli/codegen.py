@@ -25,9 +25,11 @@ def _add_arguments(parser) -> None:
 
 def _run(args) -> int:
     """Run ``softcurve codegen``; returns the exit code."""
+    from softcurve.base.files import writable_folder
     from softcurve.compiled.codegen import build_and_run_test, export_c
     from softcurve.compiled.model import Model
 
+    writable_folder(args.output, "--output")  # before any work
     robot, actuator = _robots.robot_and_actuator(args)
     exported = export_c(
         Model(robot, compile=False),

@@ -32,7 +32,11 @@ def _add_arguments(parser) -> None:
 def _run(args) -> int:
     """Run ``softcurve equilibria``; returns the exit code."""
     from softcurve.analysis.statics import equilibria, linearize
+    from softcurve.base.files import writable_file
     from softcurve.compiled.model import Model
+
+    if args.plot:
+        writable_file(args.plot, "--plot")  # before any work
 
     robot, actuator = _robots.robot_and_actuator(args)
     model = Model(robot, compile=False)  # the analysis is symbolic: no need to compile

@@ -9,6 +9,8 @@ Trajectory fits need a robot and output maps and are a Python API
 
 from __future__ import annotations
 
+import sys
+
 from . import Command, write_figure
 
 
@@ -19,14 +21,25 @@ def _add_arguments(parser) -> None:
     parser.add_argument("--force", required=True, help="column of the force (N or N m)")
     parser.add_argument("--law", choices=("tanh", "linear"), default="tanh")
     parser.add_argument("--weights", help="optional column of residual weights")
-    parser.add_argument("--confidence", type=float, default=0.95, help="interval level")
+    parser.add_argument(
+        "--confidence", type=float, default=0.95, help="interval level in (0, 1) (default 0.95)"
+    )
     parser.add_argument("--figure", help="write the fit figure to this PNG file")
 
 
 def _run(args) -> int:
     """Run ``softcurve fit``; returns the exit code."""
+    from softcurve.base.files import writable_file
+    from softcurve.base.validation import ParameterError
     from softcurve.identification.experiments import load_csv
     from softcurve.identification.stiffness import fit_stiffness
+
+    if not 0 < args.confidence < 1:
+        raise ParameterError(
+            f"--confidence must be a probability in (0, 1), e.g. 0.95, got {args.confidence}"
+        )
+    if args.figure:
+        writable_file(args.figure, "--figure")  # before any work
 
     signals = [args.strain, args.force] + ([args.weights] if args.weights else [])
     # rows are data points, in any order: number them instead of reading a time column
@@ -49,7 +62,10 @@ def _run(args) -> int:
     if args.figure:
         write_figure(lambda: report.plot(title=f"{args.law} law fitted to {args.csv}"), args.figure)
         print(f"figure: {args.figure}")
-    return 0 if report.success else 1
+    if not report.success:
+        print(f"softcurve fit: {report.status.value}: {report.message}", file=sys.stderr)
+        return 1
+    return 0
 
 
 COMMAND = Command(
@@ -57,7 +73,8 @@ COMMAND = Command(
     help="fit a stiffness law (tanh or linear) to force-strain data in a CSV file",
     description="Fit k(x) x = force to quasi-static data (the paper's Fig. 3) and print "
     "a report: estimates, confidence intervals, correlations, residuals. Exit code 1 if "
-    "the fit fails.",
+    "the fit fails or a parameter is not identifiable from the data; 2 for bad input "
+    "(e.g. fewer points than the law's parameters plus one).",
     add_arguments=_add_arguments,
     run=_run,
 )

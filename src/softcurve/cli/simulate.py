@@ -10,12 +10,23 @@ figures are still written), 2 for usage or configuration errors.
 from __future__ import annotations
 
 import dataclasses
+import math
+import re
 import shutil
 import sys
 import time
-from pathlib import Path
 
 import numpy as np
+
+from softcurve.base.files import writable_folder
+from softcurve.base.validation import ParameterError
+from softcurve.simulation.settings import (
+    BYTES_PER_VALUE,
+    CSV_BYTES_PER_VALUE,
+    SettingsError,
+    output_count,
+)
+from softcurve.simulation.trajectory_files import save_trajectory
 
 from . import Command, add_progress_options, write_figure
 
@@ -40,6 +51,13 @@ def _add_arguments(parser) -> None:
     parser.add_argument("--rtol", type=float, help="relative tolerance (default 1e-6)")
     parser.add_argument("--atol", type=float, help="absolute tolerance for every state")
     parser.add_argument("--max-steps", type=int, help="internal steps allowed per output interval")
+    parser.add_argument(
+        "--max-outputs",
+        type=int,
+        metavar="N",
+        help="output times allowed (default 10 000 000, about 1 GB of memory and 3 GB of CSV "
+        "for one segment): larger records are refused before integrating",
+    )
     parser.add_argument("--npz", action="store_true", help="also write trajectory.npz")
     parser.add_argument("--no-figures", action="store_true", help="skip states.png and tip.png")
     parser.add_argument(
@@ -52,7 +70,6 @@ def _add_arguments(parser) -> None:
 
 
 def _scenario(args):
-    from softcurve.base.validation import ParameterError
     from softcurve.scenarios.config import load_config, paper_scenario
 
     scenario = load_config(args.config) if args.config else paper_scenario()
@@ -63,12 +80,70 @@ def _scenario(args):
         "rtol": args.rtol,
         "atol": args.atol,
         "max_steps": args.max_steps,
+        "max_outputs": args.max_outputs,
     }
     overrides = {k: v for k, v in overrides.items() if v is not None}
     if args.fps < 1:
         raise ParameterError(f"--fps must be >= 1, got {args.fps}")
+    settings = scenario.settings
+    limit = overrides.get("max_outputs", settings.max_outputs)
+    t_final, dt = overrides.get("t_final", settings.t_final), overrides.get("dt", settings.dt)
+    if all(isinstance(x, float) and 0 < x < math.inf for x in (t_final, dt)) and limit >= 2:
+        columns = 1 + 2 * scenario.robot.n + scenario.robot.n_creep + 3  # t, q, qd, lam, tip
+        outputs = output_count(t_final, dt)
+        if outputs > limit:
+            values = outputs * columns
+            memory, csv = values * BYTES_PER_VALUE, values * CSV_BYTES_PER_VALUE
+            raise ParameterError(
+                f"--t-final {t_final:g} s with --dt {dt:g} s asks for {outputs:.4g} output "
+                f"times ({_size(memory)} in memory, {_size(csv)} of CSV), more than "
+                f"--max-outputs {limit}: shorten --t-final, raise --dt, or raise --max-outputs"
+            )
     # Scenario and SimulationSettings check themselves: the overrides are validated here
-    return dataclasses.replace(scenario, settings=scenario.settings.replace(**overrides))
+    try:
+        return dataclasses.replace(scenario, settings=settings.replace(**overrides))
+    except SettingsError as exc:
+        raise ParameterError(as_flags(str(exc))) from None
+
+
+LARGE_CSV = 100e6
+"""CSV size [bytes] above which ``simulate`` says that it is writing (about 7 s at the
+15 MB/s of NumPy's text output) when no progress bar is shown."""
+
+
+def _size(size: float) -> str:
+    """A byte count in MB, GB or TB."""
+    for unit, scale in (("TB", 1e12), ("GB", 1e9)):
+        if size >= scale:
+            return f"{size / scale:.3g} {unit}"
+    return f"{size / 1e6:.3g} MB"
+
+
+FLAGS = {
+    r"method='(\w+)'": r"--method \1",
+    r"\bt_final\b": "--t-final",
+    r"\bdt\b": "--dt",
+    r"\brtol\b": "--rtol",
+    r"\batol\b": "--atol",
+    r"\bmax_steps\b": "--max-steps",
+    r"\bmax_outputs\b": "--max-outputs",
+}
+"""The Python names of settings, as the command line spells them."""
+
+
+def as_flags(text: str) -> str:
+    """``text`` (a message or advice of the library) with the settings' Python names
+    replaced by the options of ``softcurve simulate`` (``method='bdf'`` -> ``--method
+    bdf``, ``max_steps`` -> ``--max-steps``).
+
+    Parameters
+    ----------
+    text : str
+        A message that names settings as Python arguments.
+    """
+    for pattern, flag in FLAGS.items():
+        text = re.sub(r"(?<![-\w.])" + pattern, flag, text)
+    return text
 
 
 def _run(args) -> int:
@@ -78,11 +153,7 @@ def _run(args) -> int:
 
     scenario = _scenario(args)
     say = (lambda *a: None) if args.quiet else print
-    output = Path(args.output)
-    if output.exists() and not output.is_dir():
-        from softcurve.base.validation import ParameterError
-
-        raise ParameterError(f"--output {output}: exists and is not a folder")
+    output = writable_folder(args.output, "--output")  # before any work
     start = time.perf_counter()
     model = Model(scenario.robot)
     built = time.perf_counter() - start
@@ -99,8 +170,14 @@ def _run(args) -> int:
         settings=scenario.settings,
         progress=show_progress,
     )
-    output.mkdir(parents=True, exist_ok=True)
-    written = [trajectory.save(output / "trajectory.csv")]
+    csv_size = (
+        trajectory.t.size
+        * (1 + 2 * trajectory.n + trajectory.lam.shape[1] + 3)
+        * (CSV_BYTES_PER_VALUE)
+    )
+    if csv_size > LARGE_CSV and not show_progress and not args.quiet:
+        print(f"softcurve simulate: writing about {_size(csv_size)} of CSV ...", file=sys.stderr)
+    written = [save_trajectory(trajectory, output / "trajectory.csv", progress=show_progress)]
     if args.npz:
         written.append(trajectory.save(output / "trajectory.npz"))
     if not args.no_figures and trajectory.t.size:
@@ -115,7 +192,10 @@ def _run(args) -> int:
         say(_summary(scenario, model, trajectory, built, total, written))
         return 0
     print(_summary(scenario, model, trajectory, built, total, written), file=sys.stderr)
-    print(f"softcurve simulate: integration failed: {trajectory.message}", file=sys.stderr)
+    print(
+        f"softcurve simulate: integration failed: {as_flags(trajectory.message)}",
+        file=sys.stderr,
+    )
     return 1
 
 
@@ -129,7 +209,7 @@ def _summary(scenario, model, trajectory, built, total, written) -> str:
         f"softcurve simulate: {scenario.source}, {model.robot.n_segments} segment(s), "
         f"t = 0 .. {simulated:.6g} s, output every {scenario.settings.dt:g} s "
         f"({trajectory.t.size} points)",
-        f"  status      {trajectory.status.value}: {trajectory.message}",
+        f"  status      {trajectory.status.value}: {as_flags(trajectory.message)}",
         f"  final q     {fmt(trajectory.q[-1])}" if trajectory.t.size else "  final q     -",
         f"  final qd    {fmt(trajectory.qd[-1])}" if trajectory.t.size else "  final qd    -",
         f"  final tip   {fmt(trajectory.tip[-1] * 1e3)} mm" if trajectory.t.size else "",

@@ -7,7 +7,9 @@ before any work).
 
 from __future__ import annotations
 
+import signal
 import sys
+import threading
 
 from . import Command, add_progress_options
 
@@ -56,7 +58,8 @@ def _run(args) -> int:
         raise ParameterError(f"--workers must be >= 0, got {args.workers}")
     config = load_sweep(args.config)
     show = args.progress if args.progress is not None else sys.stderr.isatty()
-    result = run_sweep(
+    result = _run_until_signal(
+        run_sweep,
         config,
         args.output,
         workers=args.workers,
@@ -89,6 +92,34 @@ def _run(args) -> int:
     if not args.quiet:
         print(summary)
     return 0
+
+
+def _terminated(signum, frame):
+    """SIGTERM: end like an interrupt, so that the workers are stopped on the way out."""
+    raise SystemExit(128 + signum)
+
+
+def _run_until_signal(function, *args, **kwargs):
+    """``function(*args, **kwargs)``; on SIGTERM or an interrupt the worker processes are
+    killed before the exception goes on (the chunks written so far are kept)."""
+    from softcurve.simulation.workers import stop_workers
+
+    main_thread = threading.current_thread() is threading.main_thread()
+    previous = signal.signal(signal.SIGTERM, _terminated) if main_thread else None
+    try:
+        return function(*args, **kwargs)
+    except BaseException as exc:
+        stop_workers()
+        if isinstance(exc, KeyboardInterrupt | SystemExit):
+            print(
+                "softcurve sweep: stopped; the chunks written are kept: run the same command "
+                "to resume",
+                file=sys.stderr,
+            )
+        raise
+    finally:
+        if main_thread:
+            signal.signal(signal.SIGTERM, previous)
 
 
 COMMAND = Command(

@@ -4,6 +4,12 @@ The one place that knows about code generation, compilers and the on-disk cache:
 library of a model is cached under a key made of its structure, the sources of the
 symbolic layer, CasADi's version and the compiler command, so a second process with a
 robot of the same structure (any parameter values) starts without compiling.
+
+Every library has a checksum file beside it (``<library>.sha256``: its SHA-256 and size).
+A cached library is verified before it is loaded, so a damaged or partly copied file
+never reaches the dynamic loader (a truncated library would crash the process with
+SIGBUS); one that fails its checksum, has none or fails to load is rebuilt once, with a
+:class:`CacheWarning` naming the file and the reason.
 """
 
 from __future__ import annotations
@@ -17,14 +23,31 @@ import subprocess
 import sys
 import tempfile
 import warnings
+from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import casadi as ca
 
+from softcurve.base.files import atomic_write
+
 
 class CompilerWarning(UserWarning):
     """No C compiler was found or it failed: the model runs in CasADi's virtual machine."""
+
+
+class CacheWarning(UserWarning):
+    """A cached compiled library was damaged (checksum, size) or failed to load, and was
+    replaced by a fresh build."""
+
+
+_CHECKSUM_SUFFIX = ".sha256"
+_LOAD_ERRORS = (OSError, RuntimeError)
+"""What loading a library raises: ``ctypes.CDLL`` an OSError, CasADi's ``external`` a
+RuntimeError."""
+_FUNCTION_CACHE_FORMAT = "checksummed-1"
+"""Part of :func:`compile_function`'s cache key, so libraries cached before checksum
+files existed are not taken for damaged ones."""
 
 
 _COMPILE_FLAGS = ("-O2", "-fPIC", "-fvisibility=hidden", "-DGCC_HASCLASSVISIBILITY")
@@ -121,8 +144,114 @@ def _cache_key(structure: tuple, quadrature_nodes: int, command: list[str]) -> s
     return digest.hexdigest()[:24]
 
 
-def compiled_library(structure, quadrature_nodes, symbolic) -> Path | None:
-    """The cached library for this structure, compiling it first if needed; None on failure.
+def checksum_file(library) -> Path:
+    """The checksum file beside a cached library: ``<library>.sha256``.
+
+    Parameters
+    ----------
+    library : str or os.PathLike
+        A library in the cache.
+
+    Returns
+    -------
+    pathlib.Path
+        Its checksum file, one line ``sha256 <hex digest> size <bytes>``.
+    """
+    library = Path(library)
+    return library.with_name(library.name + _CHECKSUM_SUFFIX)
+
+
+def _checksum_line(data: bytes) -> str:
+    return f"sha256 {hashlib.sha256(data).hexdigest()} size {len(data)}\n"
+
+
+def library_problem(library) -> str | None:
+    """Why a cached library must not be loaded, or None when it matches its checksum file.
+
+    The size is compared first (a partial copy fails without being read), then the
+    SHA-256 of the content: one read of the file (about 0.1-0.5 MB).
+
+    Parameters
+    ----------
+    library : str or os.PathLike
+        A library in the cache.
+
+    Returns
+    -------
+    str or None
+        The reason in words ("has no checksum file ...", "has 0 bytes ..."), or None.
+    """
+    library, checksum = Path(library), checksum_file(library)
+    try:
+        fields = checksum.read_text(encoding="ascii").split()
+    except FileNotFoundError:
+        return f"has no checksum file ({checksum.name})"
+    except (OSError, UnicodeDecodeError) as exc:
+        return f"has an unreadable checksum file ({checksum.name}: {exc})"
+    if len(fields) != 4 or fields[0] != "sha256" or fields[2] != "size" or not fields[3].isdigit():
+        return f"has a malformed checksum file ({checksum.name})"
+    try:
+        size = library.stat().st_size
+        if size != int(fields[3]):
+            return f"has {size} bytes where its checksum file records {fields[3]} (partial copy?)"
+        data = library.read_bytes()
+    except OSError as exc:
+        return f"cannot be read ({exc})"
+    if hashlib.sha256(data).hexdigest() != fields[1]:
+        return "does not match its checksum (damaged)"
+    return None
+
+
+_VERIFIED: dict[Path, tuple[int, int, int, int]] = {}
+"""The libraries this process verified and loaded, with the (device, inode, size,
+modification time) they had: a later model of the same structure skips the read while
+the file is unchanged (a replaced or rewritten file is verified again)."""
+
+
+def _identity(path: Path) -> tuple[int, int, int, int] | None:
+    try:
+        stat = path.stat()
+    except FileNotFoundError:
+        return None
+    return stat.st_dev, stat.st_ino, stat.st_size, stat.st_mtime_ns
+
+
+class _UnusableLibrary(OSError):
+    """A freshly built library failed to load."""
+
+
+def _load_or_build(library: Path, build: Callable[[Path], None], load: Callable, stacklevel: int):
+    """``load(library)``, building the library first when it is missing; a cached one that
+    fails :func:`library_problem` or fails to load is replaced by a fresh build once,
+    with a :class:`CacheWarning`. Raises what ``build`` raises, or :class:`_UnusableLibrary`
+    when the fresh build fails to load too."""
+    identity = _identity(library)
+    if identity is not None:
+        problem = None if _VERIFIED.get(library) == identity else library_problem(library)
+        if problem is None:  # checked before dlopen: a truncated file would SIGBUS in it
+            try:
+                loaded = load(library)
+            except _LOAD_ERRORS as exc:
+                problem = f"failed to load ({str(exc).strip()[:300]})"
+            else:
+                _VERIFIED[library] = identity
+                return loaded
+        warnings.warn(
+            f"softcurve cache: the compiled library {library} {problem}; replacing it with a "
+            "fresh build (a shared cache needs atomic renames: see docs/sweeps.md)",
+            CacheWarning,
+            stacklevel=stacklevel + 1,
+        )
+    build(library)
+    try:
+        return load(library)
+    except _LOAD_ERRORS as exc:
+        raise _UnusableLibrary(f"{library} failed to load after a fresh build: {exc}") from exc
+
+
+def compiled_library(structure, quadrature_nodes, symbolic, load=None):
+    """The cached library for this structure, verified and loaded, compiling it first if
+    needed (or if the cached one is damaged); None on failure.
 
     Parameters
     ----------
@@ -132,6 +261,16 @@ def compiled_library(structure, quadrature_nodes, symbolic) -> Path | None:
         Gauss-Legendre nodes per segment, part of the cache key.
     symbolic : callable
         Returns the structure's functions by name (called only when compiling).
+    load : callable, optional
+        ``load(path)`` opens the library (``ctypes.CDLL``, say) and raises OSError or
+        RuntimeError when it cannot; default: return the path unchanged.
+
+    Returns
+    -------
+    tuple of (pathlib.Path, object) or None
+        The library's path and what ``load`` returned; None (with a
+        :class:`CompilerWarning`) when no compiler works: the model then runs in CasADi's
+        virtual machine.
     """
     compiler = _compiler()
     if compiler is None:
@@ -143,17 +282,19 @@ def compiled_library(structure, quadrature_nodes, symbolic) -> Path | None:
         )
         return None
     library = cache_directory() / f"model_{_cache_key(structure, quadrature_nodes, compiler)}.so"
-    if library.exists():
-        return library
-    try:
+
+    def build(path: Path) -> None:
         functions = symbolic()
         selected = {name: functions[name] for name in COMPILED_FUNCTIONS}
         try:
-            _compile(selected, compiler, library, _compile_flags())
+            _compile(selected, compiler, path, _compile_flags())
         except subprocess.CalledProcessError:
             if _compile_flags() == _COMPILE_FLAGS:
                 raise
-            _compile(selected, compiler, library)  # a compiler without -march=native
+            _compile(selected, compiler, path)  # a compiler without -march=native
+
+    try:
+        loaded = _load_or_build(library, build, load or (lambda path: path), stacklevel=3)
     except (OSError, subprocess.CalledProcessError) as exc:
         detail = getattr(exc, "stderr", None) or str(exc)
         warnings.warn(
@@ -163,7 +304,7 @@ def compiled_library(structure, quadrature_nodes, symbolic) -> Path | None:
             stacklevel=3,
         )
         return None
-    return library
+    return library, loaded
 
 
 def _compile(
@@ -172,7 +313,7 @@ def _compile(
     library: Path,
     flags: tuple[str, ...] = _COMPILE_FLAGS,
 ) -> None:
-    """One C file per function, compiled in parallel, linked into ``library`` atomically."""
+    """One C file per function, compiled in parallel, linked, then written by :func:`_install`."""
     library.parent.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory() as tmp:
         jobs = []
@@ -186,9 +327,17 @@ def _compile(
         partial = Path(tmp, "model.so")
         objects = [f"{name}.o" for name in functions]
         _run([*compiler, "-shared", "-o", str(partial), *objects, "-lm"], tmp)
-        staged = library.parent / f".{library.name}.{os.getpid()}"
-        shutil.copyfile(partial, staged)
-        os.replace(staged, library)  # atomic: other processes see all or nothing
+        _install(library, partial.read_bytes())
+
+
+def _install(library: Path, data: bytes) -> None:
+    """Write ``data`` as ``library`` with its checksum file, each renamed into place whole.
+
+    The checksum file comes first, so a reader never finds the new library without it; a
+    checksum file without its library only means the library is built again. Two
+    processes installing at once write the same bytes (the build is deterministic)."""
+    atomic_write(checksum_file(library), _checksum_line(data).encode("ascii"))
+    atomic_write(library, data)
 
 
 def compile_function(function: ca.Function, optimization: str = "-O1") -> ca.Function:
@@ -196,7 +345,9 @@ def compile_function(function: ca.Function, optimization: str = "-O1") -> ca.Fun
 
     For CasADi functions built on a model's expressions (the identification's
     sensitivity equations, say) that are evaluated often: the same compiler and cache as
-    :class:`Model`, keyed by the serialized function, so a second process loads it.
+    :class:`Model`, keyed by the serialized function, so a second process loads it. A
+    cached library is verified and, if damaged, rebuilt once as the model's (with a
+    :class:`CacheWarning`).
 
     Parameters
     ----------
@@ -218,13 +369,18 @@ def compile_function(function: ca.Function, optimization: str = "-O1") -> ca.Fun
         return function
     digest = hashlib.sha256(function.serialize().encode())
     digest.update(f"{ca.__version__} {sys.platform} {compiler} {optimization}".encode())
+    digest.update(_FUNCTION_CACHE_FORMAT.encode())
     library = cache_directory() / f"function_{digest.hexdigest()[:24]}.so"
-    if not library.exists():
-        try:
-            _compile({function.name(): function}, compiler, library, (optimization, "-fPIC"))
-        except (OSError, subprocess.CalledProcessError):
-            return function
-    return ca.external(function.name(), str(library), {"enable_fd": True})
+    name = function.name()
+    try:
+        return _load_or_build(
+            library,
+            lambda path: _compile({name: function}, compiler, path, (optimization, "-fPIC")),
+            lambda path: ca.external(name, str(path), {"enable_fd": True}),
+            stacklevel=2,
+        )
+    except (OSError, subprocess.CalledProcessError):
+        return function
 
 
 def _run(command: list[str], directory: str) -> None:

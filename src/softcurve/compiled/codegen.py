@@ -195,7 +195,9 @@ def export_c(
     model : Model
         The compiled model.
     directory : str or Path
-        Created if missing; existing files of the same names are overwritten.
+        Created if missing; existing files of the same names are overwritten. A relative
+        path is resolved once, against the current working directory: the paths of the
+        result are absolute.
     actuator : Actuator, optional
         Adds ``<prefix>_input_matrix(q) -> H`` (n x m, column-major).
     prefix : str
@@ -207,7 +209,7 @@ def export_c(
     """
     if not (prefix.isidentifier() and prefix.isascii()):
         raise ParameterError(f"prefix must be a C identifier, got {prefix!r}")
-    directory = Path(directory)
+    directory = Path(directory).resolve()  # once: the test is built and run inside it
     directory.mkdir(parents=True, exist_ok=True)
     functions = _functions(model, actuator, prefix, embed_parameters)
     generator = ca.CodeGenerator(f"{prefix}.c", {"with_header": True})
@@ -265,7 +267,7 @@ def build_and_run_test(
     compiler = compiler or shutil.which("cc") or shutil.which("gcc") or shutil.which("clang")
     if compiler is None:
         raise FileNotFoundError("no C compiler (cc, gcc or clang) found")
-    directory = exported.source.parent
+    directory = exported.source.parent.resolve()  # the program runs by its absolute path
     command = [compiler, *(optimization if a == "-O2" else a for a in exported.compile_command[1:])]
     subprocess.run(command, cwd=directory, check=True, capture_output=True, text=True)
     program = directory / exported.compile_command[exported.compile_command.index("-o") + 1]

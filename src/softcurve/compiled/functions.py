@@ -34,6 +34,13 @@ CACHED_PER_MODEL = 64
 a few integrators and maps per output grid, so 64 covers every study in the docs."""
 
 
+def _load(library: Path) -> dict[str, NativeFunction]:
+    """The compiled functions of a verified library (ctypes raises OSError if it cannot be
+    loaded; :func:`~softcurve.compiled.build.compiled_library` then rebuilds it once)."""
+    handle = ctypes.CDLL(str(library))
+    return {name: NativeFunction(handle, name) for name in COMPILED_FUNCTIONS}
+
+
 class CompiledFunctions:
     """The numeric entry points of one robot, compiled to C or in CasADi's virtual machine.
 
@@ -67,11 +74,11 @@ class CompiledFunctions:
         self._cache_lock = threading.Lock()
         self.compiled_library: Path | None = None
         if compile:
-            library = compiled_library(self._structure, quadrature_nodes, lambda: self.symbolic)
-            if library is not None:
-                handle = ctypes.CDLL(str(library))
-                self._native = {name: NativeFunction(handle, name) for name in COMPILED_FUNCTIONS}
-                self.compiled_library = library
+            loaded = compiled_library(
+                self._structure, quadrature_nodes, lambda: self.symbolic, load=_load
+            )
+            if loaded is not None:
+                self.compiled_library, self._native = loaded
 
     @property
     def expressions(self) -> DynamicsExpressions:

@@ -104,7 +104,8 @@ class Model(CompiledFunctions):
     Every numeric method takes float64 arrays of shape ``(n,)`` for ``q``, ``qd``,
     ``qdd`` and ``tau`` (``n = 3 N``, units in the module docstring) and
     ``(n_creep,)`` for ``lam`` (omit it or pass None for zeros), and returns float64
-    arrays.
+    arrays. A ``q`` outside the model's domain raises :class:`ParameterError`
+    (:meth:`Robot.check_configuration`); ``state_derivative`` and ``rhs`` do not check.
 
     Examples
     --------
@@ -137,7 +138,7 @@ class Model(CompiledFunctions):
         """
         values = self._call(
             "dynamics_terms",
-            self._vector("q", q, self.n),
+            self.robot.check_configuration(q, "q"),
             self._vector("qd", qd, self.n),
             self._vector("lam", lam, self.n_creep),
         )
@@ -163,7 +164,7 @@ class Model(CompiledFunctions):
             Coordinates and their rates.
         """
         out = self.symbolic["coriolis_matrix"](
-            self._vector("q", q, self.n), self._vector("qd", qd, self.n), self.parameters
+            self.robot.check_configuration(q, "q"), self._vector("qd", qd, self.n), self.parameters
         )
         return np.array(out, dtype=np.float64)
 
@@ -215,7 +216,7 @@ class Model(CompiledFunctions):
         q : array_like, shape (n,)
             Coordinates.
         """
-        g, e = self._call("potential_energy", self._vector("q", q, self.n))
+        g, e = self._call("potential_energy", self.robot.check_configuration(q, "q"))
         return float(g[0] + e[0])
 
     def kinetic_energy(self, q, qd) -> float:
@@ -253,7 +254,7 @@ class Model(CompiledFunctions):
         """
         x = np.concatenate(
             [
-                self._vector("q", q, self.n),
+                self.robot.check_configuration(q, "q"),
                 self._vector("qd", qd, self.n),
                 self._vector("lam", lam, self.n_creep),
             ]
@@ -337,7 +338,7 @@ class Model(CompiledFunctions):
         s : float
             Material coordinate in [0, 1], dimensionless.
         """
-        rotation, position = self._call("pose", self._vector("q", q, self.n), self._s(s))
+        rotation, position = self._call("pose", self.robot.check_configuration(q, "q"), self._s(s))
         return Pose(rotation, position)
 
     def tip_pose(self, q) -> Pose:
@@ -361,7 +362,7 @@ class Model(CompiledFunctions):
         s : float
             Material coordinate in [0, 1], dimensionless.
         """
-        return self._call("jacobian", self._vector("q", q, self.n), self._s(s))[0]
+        return self._call("jacobian", self.robot.check_configuration(q, "q"), self._s(s))[0]
 
     def body_twist(self, q, qd, s) -> np.ndarray:
         """Twist (6,) of the material point at ``s`` in its own frame: linear [m/s] then
@@ -374,7 +375,7 @@ class Model(CompiledFunctions):
         s : float
             Material coordinate in [0, 1], dimensionless.
         """
-        q = self._vector("q", q, self.n)
+        q = self.robot.check_configuration(q, "q")
         rotation, _ = self.pose(q, s)
         twist = self.jacobian(q, s) @ self._vector("qd", qd, self.n)
         return np.concatenate([rotation.T @ twist[:3], rotation.T @ twist[3:]])
@@ -391,5 +392,5 @@ class Model(CompiledFunctions):
         """
         if not (isinstance(points, int | np.integer) and points >= 2):
             raise ValueError(f"points must be an integer >= 2, got {points!r}")
-        q = self._vector("q", q, self.n)
+        q = self.robot.check_configuration(q, "q")
         return np.array([self.pose(q, s).position for s in np.linspace(0.0, 1.0, points)])

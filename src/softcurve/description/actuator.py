@@ -66,7 +66,8 @@ class Actuator:
 
     # -- the map ---------------------------------------------------------------------
     def input_matrix_symbolic(self, q, theta=None):
-        """``H(q)`` (n, m) as a CasADi expression.
+        """``H(q)`` (n, m) as a CasADi expression: the generalized force per unit input,
+        [N, N m^2, N m^2] per ``input_unit`` (for pressures [m^2, m^4, m^4]).
 
         Parameters
         ----------

@@ -180,12 +180,91 @@ STIFFNESS_LAWS = {law.kind: law for law in (LinearStiffness, TanhStiffness)}
 """Stiffness laws by their ``kind`` name, as used in configuration files."""
 
 
+PASSIVITY_TOLERANCE = 1e-12
+"""Relative tolerance of the passivity test of :class:`Creep`: ``P = K G^-1`` counts as
+symmetric when ``|P - P^T| <= PASSIVITY_TOLERANCE * max |P|``, and a matrix as positive
+semidefinite when its smallest eigenvalue is ``>= -PASSIVITY_TOLERANCE`` times its
+largest magnitude. A ``K`` computed as ``P G`` from a symmetric ``P`` differs from
+symmetry by a few units of round-off (1e-16), far inside; a real violation is of the
+order of the entries themselves."""
+
+
+def passivity_problem(rate, gain, compliance) -> str | None:
+    """Why creep with these numbers is not passive (see :class:`Creep`), or None.
+
+    Parameters
+    ----------
+    rate : ndarray, shape (3,)
+        Decay rates [1/s], > 0.
+    gain : ndarray, shape (3,)
+        Couplings to the coordinate rates.
+    compliance : ndarray, shape (3, 3)
+        ``K``.
+    """
+    driven = gain != 0
+    for j in np.flatnonzero(~driven):
+        pushing = np.flatnonzero(driven & (compliance[:, j] != 0))
+        if pushing.size:
+            i = int(pushing[0])
+            return (
+                f"creep state {i} (gain {gain[i]:.6g}) pushes coordinate {j} through "
+                f"compliance[{i}, {j}] = {compliance[i, j]:.6g}, but gain[{j}] = 0: that "
+                "coordinate's motion never charges it"
+            )
+    p = compliance[np.ix_(driven, driven)] / gain[driven]
+    if p.size == 0:
+        return None
+    size = np.max(np.abs(p))
+    if np.max(np.abs(p - p.T), initial=0.0) > PASSIVITY_TOLERANCE * size:
+        return f"P = K G^-1 = {p.tolist()} is not symmetric"
+    p = 0.5 * (p + p.T)
+    r = np.diag(rate[driven])
+    for label, matrix in (("P = K G^-1", p), ("P R + R P", p @ r + r @ p)):
+        eigenvalues = np.linalg.eigvalsh(matrix)
+        if eigenvalues[0] < -PASSIVITY_TOLERANCE * np.max(np.abs(eigenvalues)):
+            return f"{label} has the negative eigenvalue {eigenvalues[0]:.6g}"
+    return None
+
+
 @dataclass(frozen=True, eq=False)
 class Creep:
     """Kelvin-Voigt creep of one segment, eq. (19) of the paper.
 
     ``lambda_i' = -rate_i lambda_i - gain_i qd_i`` and the creep force on the
     segment's coordinates is ``K^T lambda``.
+
+    Creep must be passive: it may store the energy the robot's motion puts into it and
+    give it back, never create energy. With ``R = diag(rate)``, ``G = diag(gain)`` and
+    ``K = compliance``, take the storage ``S = lambda^T P lambda / 2``. Along any motion
+    ``dS/dt = -lambda^T P R lambda - lambda^T P G qd``, and the creep force delivers the
+    power ``qd^T K^T lambda = lambda^T K qd`` to the robot. The two cross terms cancel
+    exactly when ``P G = K``, that is ``P = K G^-1``, and then
+
+    ``d(E + S)/dt = -lambda^T P R lambda - qd^T R_damping qd + qd^T tau``,
+
+    so the robot's energy ``E`` plus ``S`` never grows without input work if and only
+    if ``S >= 0`` and ``-lambda^T P R lambda <= 0`` for every ``lambda``: ``P``
+    symmetric positive semidefinite and ``P R + R P`` positive semidefinite (the
+    Kalman-Yakubovich-Popov conditions for this storage; ``P`` is the only
+    candidate, as ``P G = K`` fixes it). Construction raises :class:`ParameterError`
+    otherwise, stating this rule. For a diagonal ``K`` the rule reads
+    ``compliance_i / gain_i >= 0``: a negative compliance with a positive gain makes
+    the robot active. A semidefinite ``P`` is allowed: a creep state whose row of
+    ``K`` is zero exerts no force and stores nothing (the zero-compliance creep of an
+    energy test).
+
+    A zero gain ``gain_j = 0`` leaves creep state ``j`` undriven: it decays from its
+    initial value, ``lambda_j(t) = lambda_j(0) exp(-rate_j t)``, whatever the robot does.
+    Its force ``K[j]^T lambda_j`` is then a load given in advance, like ``tau``: it is
+    zero from the default ``lam0 = 0`` (so a zero gain switches that creep mode off, as
+    the validation example does), and from a nonzero ``lam0_j`` it does the work of a
+    relaxing pre-stress, counted as input work, not created by the motion. So undriven
+    states are accepted with any row of ``K``; the rule applies to the driven states
+    (``gain != 0``): ``P G = K`` restricted to their rows needs ``K[i, j] = 0`` for
+    driven ``i`` and undriven ``j`` (a driven state pushing a coordinate that does not
+    charge it would create energy), and ``P = K_dd G_d^-1`` on the driven block must
+    pass both tests. The symmetry and eigenvalue tests are relative to
+    ``PASSIVITY_TOLERANCE``.
 
     Parameters
     ----------
@@ -212,6 +291,15 @@ class Creep:
         object.__setattr__(self, "rate", rate)
         object.__setattr__(self, "gain", real_array("creep.gain", self.gain, (3,)))
         object.__setattr__(self, "compliance", real_array("creep.compliance", compliance, (3, 3)))
+        problem = passivity_problem(rate, self.gain, self.compliance)
+        if problem is not None:
+            raise ParameterError(
+                f"creep makes the robot active (it can create energy): {problem}. Rule: with "
+                "R = diag(rate), G = diag(gain), K = compliance, P = K G^-1 must be symmetric "
+                "positive semidefinite and P R + R P positive semidefinite (for a diagonal K: "
+                "compliance_i / gain_i >= 0), on the states with gain != 0; K[i, j] = 0 where "
+                "gain_i != 0 and gain_j = 0"
+            )
 
     @classmethod
     def from_gamma(cls, gamma, compliance) -> Creep:

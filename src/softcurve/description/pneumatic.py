@@ -230,15 +230,6 @@ class PneumaticActuator(Actuator):
         return ca.vertcat(*lengths)
 
     def input_work_symbolic(self, q, inputs):
-        """``W(q)`` [J] of constant pressures, ``dW/dq = H(q) p``.
-
-        Parameters
-        ----------
-        q : casadi.SX or casadi.MX, shape (n,)
-            Generalized coordinates [m, 1/m, 1/m].
-        inputs : casadi.SX or casadi.MX, shape (m,)
-            Gauge pressures [Pa].
-        """
         areas = ca.DM([b.area for b in self.bellows])
         return ca.dot(inputs * areas, self.fiber_lengths_symbolic(q))
 
@@ -255,15 +246,6 @@ class PneumaticActuator(Actuator):
         return np.array([b.area for b in self.bellows]) * lengths
 
     def input_matrix_symbolic(self, q, theta=None):
-        """``H(q)`` (n, m) [m^2, m^3] as a CasADi expression.
-
-        Parameters
-        ----------
-        q : casadi.SX or casadi.MX, shape (n,)
-            Generalized coordinates [m, 1/m, 1/m].
-        theta : casadi.SX or casadi.MX, optional
-            Symbols replacing :meth:`parameter_vector`.
-        """
         # Closed form of A dL/dq (module docstring); tests check it against dV/dq.
         columns = []
         for i, b in enumerate(self.bellows):
@@ -369,27 +351,9 @@ class ConstantPressureMap(Actuator):
         return [f"matrix[{i},{j}]" for i in range(self.n) for j in range(self.n_inputs)]
 
     def input_work_symbolic(self, q, inputs):
-        """``W(q)`` [J] of constant pressures, ``dW/dq = H(q) p``.
-
-        Parameters
-        ----------
-        q : casadi.SX or casadi.MX, shape (n,)
-            Generalized coordinates [m, 1/m, 1/m].
-        inputs : casadi.SX or casadi.MX, shape (m,)
-            Gauge pressures [Pa].
-        """
         return ca.dot(q, ca.DM(self.constant) @ inputs)
 
     def input_matrix_symbolic(self, q, theta=None):
-        """``H(q)`` (n, m) [m^2, m^3] as a CasADi expression.
-
-        Parameters
-        ----------
-        q : casadi.SX or casadi.MX, shape (n,)
-            Generalized coordinates [m, 1/m, 1/m].
-        theta : casadi.SX or casadi.MX, optional
-            Symbols replacing :meth:`parameter_vector`.
-        """
         if theta is None:
             return ca.DM(self.constant)
         return ca.reshape(theta, self.n_inputs, self.n).T

@@ -9,7 +9,9 @@ built, and a bad value raises :class:`ParameterError` naming it.
 from __future__ import annotations
 
 import dataclasses
+import math
 from dataclasses import dataclass, field
+from functools import cached_property
 
 import numpy as np
 
@@ -18,6 +20,88 @@ from softcurve.description.layout import ParameterLayout
 from softcurve.description.materials import Creep, LinearStiffness, TanhStiffness
 
 StiffnessLaw = LinearStiffness | TanhStiffness
+
+MAX_STRETCH = 10.0
+"""Longest segment allowed, in rest lengths: the model's domain has ``l <= MAX_STRETCH *
+l0``. The most stretchable silicone rubbers of soft robots break at an elongation of
+about 900 % (Ecoflex 00-30 and Dragon Skin 10 datasheets), that is at ten rest lengths: a
+longer segment has torn, and such a state is a numerical runaway (a robot too soft for
+its loads, an initial rate too large), not a motion."""
+
+MAX_BEND = 2.0 * math.pi
+"""Largest bending angle ``|kappa| l`` of a segment [rad] in the model's domain: a full
+turn. Beyond it the arc overlaps itself, which a solid segment cannot do. The backbone
+quadrature is at round-off up to pi per segment with the default 11 nodes and within
+1e-13 relative at 2 pi (docs/model.md, "Quadrature"), so the whole domain is computed
+accurately."""
+
+
+def in_domain(q, rest_lengths) -> np.ndarray:
+    """Whether configurations lie in the model's domain: every ``l`` in ``(0, MAX_STRETCH
+    l0]``, every bending angle ``|kappa| l <= MAX_BEND``, every entry finite (NaN fails
+    every comparison). Vectorized; the check run at a simulation's output times.
+
+    Parameters
+    ----------
+    q : array_like, shape (..., n)
+        Configurations ``(l, kx, ky)`` per segment [m, 1/m, 1/m].
+    rest_lengths : array_like, shape (N,) or (..., N)
+        Rest length ``l0`` [m] of each segment (per configuration where it differs).
+
+    Returns
+    -------
+    ndarray of bool, shape (...)
+    """
+    q = np.asarray(q, dtype=np.float64)
+    length, kx, ky = q[..., 0::3], q[..., 1::3], q[..., 2::3]
+    limit = MAX_STRETCH * np.asarray(rest_lengths, dtype=np.float64)
+    with np.errstate(invalid="ignore", over="ignore"):
+        inside = (length > 0) & (length <= limit) & (length * np.hypot(kx, ky) <= MAX_BEND)
+    return np.all(inside, axis=-1)
+
+
+def domain_problem(q, rest_lengths, *, entry: str = "entry") -> str | None:
+    """What puts the configuration ``q`` outside the model's domain (see
+    :func:`in_domain`), naming the coordinate, its value and the allowed range; None
+    inside.
+
+    Parameters
+    ----------
+    q : array_like, shape (n,)
+        One configuration [m, 1/m, 1/m].
+    rest_lengths : array_like, shape (N,)
+        Rest length ``l0`` [m] of each segment.
+    entry : str
+        How an index into ``q`` is named in the message (e.g. ``"q[3]"``); default
+        ``"entry 3"``.
+    """
+    q = np.asarray(q, dtype=np.float64)
+
+    def place(index: int) -> str:
+        return f"{entry} {index}" if entry == "entry" else f"{entry}[{index}]"
+
+    for i, l0 in enumerate(np.asarray(rest_lengths, dtype=np.float64)):
+        length, kx, ky = (float(v) for v in q[3 * i : 3 * i + 3])
+        for k, (name, value) in enumerate((("l", length), ("kx", kx), ("ky", ky))):
+            if not math.isfinite(value):
+                return (
+                    f"entries must be finite: {name} of segment {i + 1} ({place(3 * i + k)}) "
+                    f"= {value}"
+                )
+        if not 0 < length <= MAX_STRETCH * l0:
+            return (
+                f"lengths l must be in the model's domain 0 < l <= {MAX_STRETCH:g} rest lengths "
+                f"({MAX_STRETCH * l0:.6g} m): l of segment {i + 1} ({place(3 * i)}) = "
+                f"{length:.6g} m"
+            )
+        bend = length * math.hypot(kx, ky)
+        if not bend <= MAX_BEND:
+            return (
+                f"bending angles |kappa| l must be <= 2 pi rad (a full turn, the model's "
+                f"domain): segment {i + 1} bends {bend:.6g} rad (l = {length:.6g} m, "
+                f"kx = {kx:.6g} 1/m, ky = {ky:.6g} 1/m)"
+            )
+    return None
 
 
 @dataclass(frozen=True, eq=False)
@@ -92,11 +176,22 @@ class Segment:
 
 
 def _damping(value) -> np.ndarray:
-    """Damping may be zero (a conservative model) but otherwise positive definite."""
+    """Damping may be zero (a conservative model) but otherwise symmetric positive
+    definite: the damping force ``R qd`` takes the power ``qd^T R qd`` from the robot,
+    which must be >= 0 for every motion (else the damper is a source of energy), and
+    the code requires > 0 for every nonzero ``qd`` (no undamped direction hidden in a
+    damped segment)."""
     a = np.asarray(value, dtype=np.float64)
     if a.shape == (3,) and np.all(a == 0) or a.shape == (3, 3) and np.all(a == 0):
         return real_array("damping", np.zeros((3, 3)), (3, 3))
-    return positive_definite("damping", value, 3)
+    try:
+        return positive_definite("damping", value, 3)
+    except ParameterError as exc:
+        raise ParameterError(
+            f"{exc}. Rule: the damping force R qd dissipates the power qd^T R qd, so R must be "
+            "symmetric positive definite (qd^T R qd > 0 for every motion qd) or exactly zero; "
+            "a negative entry makes the robot active (it creates energy)"
+        ) from None
 
 
 @dataclass(frozen=True, eq=False)
@@ -192,6 +287,53 @@ class Robot:
             (s.elongation_stiffness.kind, s.bending_stiffness.kind, s.creep is not None)
             for s in self.segments
         )
+
+    @cached_property
+    def rest_lengths(self) -> np.ndarray:
+        """Rest length ``l0`` [m] of each segment, shape (N,)."""
+        lengths = np.array([s.rest_length for s in self.segments])
+        lengths.setflags(write=False)
+        return lengths
+
+    @cached_property
+    def _length_limits(self) -> list[float]:
+        return [MAX_STRETCH * s.rest_length for s in self.segments]
+
+    def check_configuration(self, q, name: str = "q0") -> np.ndarray:
+        """``q`` as a float64 array of shape (n,), checked to lie in the model's domain.
+
+        The domain, the one check of every configuration a user gives (``simulate``,
+        ``simulate_batch``, statics, the compiled model's methods, scenario files): every
+        segment length ``0 < l <= MAX_STRETCH * l0``, every bending angle ``|kappa| l <=
+        MAX_BEND`` (2 pi), every entry finite. Simulations stop where the state leaves it
+        (status ``LEFT_DOMAIN``).
+
+        Parameters
+        ----------
+        q : array_like, shape (n,)
+            Coordinates ``(l, kx, ky)`` per segment [m, 1/m, 1/m].
+        name : str
+            The argument's name, for the message.
+
+        Raises
+        ------
+        ParameterError
+            Naming the argument, the coordinate, its value and the allowed range.
+        """
+        q = np.asarray(q, dtype=np.float64)
+        if q.shape != (self.n,):
+            raise ParameterError(f"{name} must have shape ({self.n},), got {q.shape}")
+        # plain floats: for a few segments ~1 us, several times faster than NumPy's
+        # reductions; NaN fails every comparison
+        values, hypot = q.tolist(), math.hypot
+        for i, limit in enumerate(self._length_limits):
+            length, kx, ky = values[3 * i : 3 * i + 3]
+            if not (0.0 < length <= limit and length * hypot(kx, ky) <= MAX_BEND):
+                break
+        else:
+            return q
+        problem = domain_problem(q, self.rest_lengths, entry=name)
+        raise ParameterError(f"{name}: {problem}")
 
     @property
     def layout(self) -> ParameterLayout:

@@ -8,6 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
+from softcurve.base.docs import parameters_from
 from softcurve.base.files import atomic_path
 from softcurve.base.validation import ParameterError, real_scalar
 from softcurve.figures.drawing import backbones, panels, whole_number
@@ -21,6 +22,24 @@ MARGIN = 1.1
 MINIMUM_REACH = 0.1
 """Half-width of the animation's x-y axes at least, over the rest length: a robot that
 stays straight is still drawn in a box, not on a line."""
+
+
+FIGURE_OPTIONS = {
+    "fps": ("float, optional", "Frames per second of the file [1/s]."),
+    "speed": ("float, optional", "Simulated time per time of animation [s/s]."),
+    "points": ("int, optional", "Points along the backbone [count]."),
+    "dpi": ("float, optional", "Resolution of the frames [dots per inch]."),
+    "ax": (
+        "None or sequence of matplotlib.axes.Axes, shape (3,)",
+        "Panels for tip x, y and z; None draws a new figure.",
+    ),
+    "members": ("int, optional", "How many members to draw (the first ones) [count]."),
+}
+"""Options of the animation and the batch figure (``ax``: its panels), documented once for
+the figure functions and the result methods that call them
+(:func:`softcurve.base.docs.parameters_from`)."""
+
+figure_options = parameters_from(FIGURE_OPTIONS)
 
 
 def plot_states(trajectory, ax=None):
@@ -91,6 +110,7 @@ def plot_tip(trajectory, ax=None):
     return figure
 
 
+@figure_options
 def plot_batch_tips(batch, ax=None, *, members: int = 50):
     """The tip position of the first ``members`` members of a batch against time, one
     panel per world axis.
@@ -99,10 +119,8 @@ def plot_batch_tips(batch, ax=None, *, members: int = 50):
     ----------
     batch : softcurve.BatchTrajectory
         Read: ``t`` shape (T,) [s], ``tip`` shape (B, T, 3) [m], ``size``.
-    ax : None or sequence of matplotlib.axes.Axes, shape (3,)
-        Panels for tip x, y and z; None draws a new figure.
-    members : int, optional
-        How many members to draw (the first ones) [count].
+    %(ax)s
+    %(members)s
 
     Returns
     -------
@@ -118,6 +136,7 @@ def plot_batch_tips(batch, ax=None, *, members: int = 50):
     return figure
 
 
+@figure_options
 def animate(
     trajectory,
     path,
@@ -138,14 +157,10 @@ def animate(
         ``.gif`` (Pillow, always available) or ``.mp4`` (needs ffmpeg on the PATH).
     model : softcurve.Model
         Gives the backbone shape of each frame.
-    fps : float, optional
-        Frames per second of the file [1/s].
-    speed : float, optional
-        Simulated time per time of animation [s/s].
-    points : int, optional
-        Points along the backbone [count].
-    dpi : float, optional
-        Resolution of the frames [dots per inch].
+    %(fps)s
+    %(speed)s
+    %(points)s
+    %(dpi)s
 
     Returns
     -------

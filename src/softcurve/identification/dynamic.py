@@ -27,6 +27,7 @@ from __future__ import annotations
 import numpy as np
 
 from softcurve.analysis.loads import rest_configuration
+from softcurve.base.docs import parameters_from
 from softcurve.base.status import Status
 from softcurve.base.validation import ParameterError, real_array
 from softcurve.compiled.model import Model
@@ -144,6 +145,34 @@ def _trajectory_predictor(problem: _Problem, x0, integrator_options):
     return predictor
 
 
+FIT_OPTIONS = {
+    "bind": (
+        "dict, optional",
+        "Robot parameter name -> ``rule(values)`` expression of extra parameters.",
+    ),
+    "signals": (
+        "list of str, optional",
+        "Experiment signals matched to the outputs, in order (default: output names).",
+    ),
+    "weights": (
+        "array_like, shape (k,), optional",
+        "One weight per signal (e.g. the inverse of its noise level) [1/signal unit].",
+    ),
+    "parameters": (
+        "array_like, shape (P,), optional",
+        "Robot parameter vector to start from (default ``model.parameters``).",
+    ),
+    "confidence": (
+        "float",
+        "Confidence level of the report's intervals, a probability in (0, 1).",
+    ),
+}
+"""The options ``fit_trajectory`` and ``fit_equilibria`` share, documented once."""
+
+_fit_options = parameters_from(FIT_OPTIONS)
+
+
+@_fit_options
 def fit_trajectory(
     model: Model,
     experiment: Experiment,
@@ -183,18 +212,13 @@ def fit_trajectory(
         Generalized forces from the experiment's inputs (all of them, in order).
     extra : dict, optional
         Named extra parameters and their values (used by ``x0`` or ``bind``).
-    bind : dict, optional
-        Robot parameter name -> ``rule(values)`` expression of extra parameters.
-    signals : list of str, optional
-        Experiment signals matched to the outputs, in order (default: output names).
-    weights : array_like, shape (k,), optional
-        One weight per signal (e.g. the inverse of its noise level) [1/signal unit].
-    parameters : array_like, shape (P,), optional
-        Robot parameter vector to start from (default ``model.parameters``).
+    %(bind)s
+    %(signals)s
+    %(weights)s
+    %(parameters)s
     max_evaluations : int
         Budget of residual evaluations (each is one simulation with sensitivities).
-    confidence : float
-        Confidence level of the report's intervals, a probability in (0, 1).
+    %(confidence)s
     integrator_options : dict, optional
         Extra CVODES options of the sensitivity integration.
 
@@ -211,6 +235,7 @@ def fit_trajectory(
     )
 
 
+@_fit_options
 def fit_equilibria(
     model: Model,
     experiment: Experiment,
@@ -251,18 +276,13 @@ def fit_equilibria(
         solutions.
     extra : dict, optional
         Named extra parameters and their values.
-    bind : dict, optional
-        Robot parameter name -> ``rule(values)`` expression of extra parameters.
-    signals : list of str, optional
-        Experiment signals matched to the outputs, in order (default: output names).
-    weights : array_like, shape (k,), optional
-        One weight per signal (e.g. the inverse of its noise level) [1/signal unit].
-    parameters : array_like, shape (P,), optional
-        Robot parameter vector to start from (default ``model.parameters``).
+    %(bind)s
+    %(signals)s
+    %(weights)s
+    %(parameters)s
     max_evaluations : int
         Budget of residual evaluations.
-    confidence : float
-        Confidence level of the report's intervals, a probability in (0, 1).
+    %(confidence)s
     """
     q0 = rest_configuration(model.robot) if q0 is None else real_array("q0", q0, (model.n,))
     problem = _Problem(model, output, input_map, free, extra, bind, parameters)

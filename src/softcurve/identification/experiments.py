@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 import scipy.io
 
+from softcurve.base.docs import parameters_from
 from softcurve.base.validation import ParameterError
 
 
@@ -42,6 +43,17 @@ def _column(name: str, value, length: int | None, source: str) -> np.ndarray:
             f"the first at sample {first}"
         )
     return a
+
+
+_columns = parameters_from(
+    {
+        "names": (
+            "list of str, optional",
+            "Names of the signals or inputs, in column order (default: all, in the "
+            "experiment's order).",
+        )
+    }
+)
 
 
 @dataclass(frozen=True, eq=False)
@@ -101,23 +113,23 @@ class Experiment:
         """``t[-1] - t[0]`` [s]."""
         return float(self.t[-1] - self.t[0])
 
+    @_columns
     def signal_matrix(self, names=None) -> np.ndarray:
         """Signals stacked as columns, shape (T, len(names)).
 
         Parameters
         ----------
-        names : list of str, optional
-            The signals, in column order (default: all, in the experiment's order).
+        %(names)s
         """
         return self._stack(self.signals, names, "signal")
 
+    @_columns
     def input_matrix(self, names=None) -> np.ndarray:
         """Inputs stacked as columns, shape (T, len(names)).
 
         Parameters
         ----------
-        names : list of str, optional
-            The inputs, in column order (default: all, in the experiment's order).
+        %(names)s
         """
         return self._stack(self.inputs, names, "input")
 

@@ -11,6 +11,7 @@ with an infinite standard error instead of a misleading number.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -18,6 +19,7 @@ import scipy.optimize
 import scipy.stats
 
 from softcurve.base.status import Result, Status
+from softcurve.base.validation import ParameterError
 from softcurve.figures import plot_fit
 
 
@@ -77,6 +79,9 @@ class FitReport(Result):
     n_evaluations: int = 0
     identifiable: np.ndarray = field(default_factory=lambda: np.zeros(0, bool))
     extra: dict = field(default_factory=dict)
+
+    def __post_init__(self):
+        check_confidence(self.confidence)
 
     @property
     def residuals(self) -> np.ndarray:
@@ -155,6 +160,26 @@ class FitReport(Result):
             Write it with :func:`softcurve.figures.save_figure`.
         """
         return plot_fit(self, ax, title=title)
+
+
+def check_confidence(confidence) -> float:
+    """``confidence`` as a float in (0, 1), or :class:`~softcurve.ParameterError`.
+
+    Parameters
+    ----------
+    confidence : float
+        Confidence level of intervals, a probability (e.g. 0.95 for 95 %).
+    """
+    try:
+        level = float(confidence)
+    except (TypeError, ValueError):
+        level = math.nan
+    if isinstance(confidence, bool) or not 0 < level < 1:
+        raise ParameterError(
+            f"confidence must be a probability in (0, 1), e.g. 0.95 for 95 % intervals, "
+            f"got {confidence!r}"
+        )
+    return level
 
 
 def covariance(jacobian: np.ndarray, residuals: np.ndarray):

@@ -12,7 +12,12 @@ import numpy as np
 from softcurve.base.status import Status
 from softcurve.base.validation import ParameterError
 from softcurve.description.materials import LinearStiffness, TanhStiffness
-from softcurve.identification.report import FitReport, solve_least_squares, summarize
+from softcurve.identification.report import (
+    FitReport,
+    check_confidence,
+    solve_least_squares,
+    summarize,
+)
 
 # -- static identification of a stiffness law ---------------------------------------
 
@@ -71,6 +76,12 @@ def fit_stiffness(
     FitReport
         Names ``("a1", "a2", "a3")`` or ``("k0",)``; ``extra["law"]`` is the fitted law.
 
+    Raises
+    ------
+    ParameterError
+        Bad data or options, before any work: fewer data points than the law's
+        parameters plus one, ``confidence`` outside (0, 1), non-finite data.
+
     Examples
     --------
     >>> import numpy as np
@@ -97,6 +108,14 @@ def fit_stiffness(
     k_secant = float(np.sum(w * x * f) / np.sum(w * x * x))
     if not k_secant > 0:
         raise ParameterError("the data do not show a positive stiffness (force against strain)")
+    check_confidence(confidence)
+    unknowns = 1 if kind == "linear" else 3
+    if x.size <= unknowns:  # an exact fit leaves no residual to estimate the errors from
+        raise ParameterError(
+            f"the {kind} law has {unknowns} parameter(s): fitting it needs at least "
+            f"{unknowns + 1} data points (more than the parameters, for the intervals), "
+            f"got {x.size}"
+        )
     x_max = float(np.max(np.abs(x)))
 
     if kind == "linear":

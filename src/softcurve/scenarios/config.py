@@ -17,7 +17,7 @@ from softcurve.base.validation import ParameterError
 from softcurve.description import presets
 from softcurve.description.actuator import Actuator
 from softcurve.description.materials import Creep, LinearStiffness, TanhStiffness
-from softcurve.description.robot import Robot, Segment
+from softcurve.description.robot import Robot, Segment, domain_problem
 from softcurve.scenarios.actuation import from_mapping
 from softcurve.scenarios.tables import ConfigError, Reader, read_toml
 from softcurve.simulation.settings import SettingsError, SimulationSettings
@@ -83,8 +83,13 @@ class Scenario:
         n, set_ = self.robot.n, object.__setattr__
         for field, size in (("q0", n), ("qd0", n), ("lam0", self.robot.n_creep), ("tau", n)):
             set_(self, field, _entries(field, getattr(self, field), size))
-        if self.q0 is not None and any(self.q0[i] <= 0 for i in range(0, n, 3)):
-            raise SettingsError("q0", "lengths l (entries 0, 3, ...) must be > 0")
+        problem = (
+            None
+            if self.q0 is None
+            else domain_problem(self.q0, self.robot.rest_lengths, entry="q0")
+        )
+        if problem is not None:  # the one check of Robot.check_configuration
+            raise SettingsError("q0", problem)
         if self.inputs is not None:
             self._check_inputs()
 
@@ -161,6 +166,7 @@ def scenario_from_dict(data: dict, file: str = "<config>") -> Scenario:
         "method": sim.get("method", "string"),
         "rtol": sim.positive("rtol"),
         "max_steps": sim.get("max_steps", "integer"),
+        "max_outputs": sim.get("max_outputs", "integer"),
     }
     if sim.has("atol"):
         atol = sim.table["atol"]

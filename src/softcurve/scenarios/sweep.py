@@ -22,17 +22,18 @@ from __future__ import annotations
 
 import json
 import math
-import sys
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
-from softcurve.base.files import atomic_path
+from softcurve.base.files import atomic_path, folder_lock, writable_folder
+from softcurve.base.progress import ProgressLine
 from softcurve.base.status import Result, Status
 from softcurve.scenarios.config import ConfigError
 from softcurve.scenarios.sweep_config import STATE, SweepConfig, load_sweep
+from softcurve.scenarios.sweep_parts import intact, part_path, read_part
 from softcurve.simulation.batch import simulate_batch
 from softcurve.simulation.trajectory_files import column_names
 from softcurve.simulation.workers import default_threads, run_in_processes, worker_model
@@ -214,16 +215,28 @@ def run_sweep(
         A progress line on stderr.
     on_chunk : callable, optional
         ``on_chunk(chunk_index, done, total)`` after each chunk is written.
-    """
-    import pyarrow as pa
-    import pyarrow.parquet as pq
 
+    Raises
+    ------
+    ParameterError
+        Before any work: ``output`` cannot be written, or another sweep is running in
+        it (:class:`~softcurve.base.files.FolderLocked`, naming that sweep's pid).
+    """
     if not isinstance(config, SweepConfig):
         config = load_sweep(config)
     if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int)
                                 or workers < 0):  # fmt: skip
         raise ConfigError(f"workers must be an integer >= 0, got {workers!r}")
-    output = Path(output)
+    output = writable_folder(output, "output")
+    with folder_lock(output, "sweep"):  # one sweep at a time in a folder
+        return _sweep(config, output, workers, scheduler, restart, progress, on_chunk)
+
+
+def _sweep(config, output, workers, scheduler, restart, progress, on_chunk) -> SweepResult:
+    """:func:`run_sweep` in the locked folder ``output``."""
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
     parts = output / "parts"
     manifest = {
         "format": FORMAT,
@@ -238,14 +251,14 @@ def run_sweep(
         (c, c * config.chunk_size, min(config.size, (c + 1) * config.chunk_size))
         for c in range(math.ceil(config.size / config.chunk_size))
     ]
-    done = {c for c, _, _ in chunks if _part(parts, c).exists()}
+    done = {c for c, a, b in chunks if intact(part_path(parts, c), b - a)}
     design = config.design_points() if len(done) < len(chunks) else None
     pending = [(c, a, design[a:b]) for c, a, b in chunks if c not in done]
-    bar = _Progress(len(chunks), len(done), progress)
+    bar = ProgressLine(len(chunks), len(done), progress, unit="chunks")
     start = time.perf_counter()
 
     def write(c, columns):
-        with atomic_path(_part(parts, c)) as tmp:
+        with atomic_path(part_path(parts, c)) as tmp:
             pq.write_table(pa.table(columns), tmp)
         done.add(c)
         bar.update(len(done))
@@ -260,7 +273,7 @@ def run_sweep(
         bar.close()
         if client is not None and client is not scheduler:
             client.close()
-    table = pa.concat_tables([pq.read_table(_part(parts, c)) for c, _, _ in chunks])
+    table = pa.concat_tables([read_part(part_path(parts, c)) for c, _, _ in chunks])
     table = table.sort_by("index")
     with atomic_path(output / "results.parquet") as tmp:
         pq.write_table(table, tmp)
@@ -283,10 +296,6 @@ def run_sweep(
         message,
         {"size": config.size, "chunks": len(chunks)},
     )
-
-
-def _part(parts: Path, c: int) -> Path:
-    return parts / f"chunk-{c:06d}.parquet"
 
 
 def _prepare(output: Path, parts: Path, manifest: dict, restart: bool) -> None:
@@ -357,30 +366,3 @@ def _on_dask(config, pending, client):
     except BaseException:
         client.cancel(list(futures))
         raise
-
-
-class _Progress:
-    """``[#####.....] 12/40 chunks, 10.1 s, ~23 s left`` on stderr."""
-
-    def __init__(self, total: int, done: int, show: bool):
-        self.total, self.first, self.show = total, done, show
-        self.start = time.perf_counter()
-        self.update(done)
-
-    def update(self, done: int) -> None:
-        if not self.show:
-            return
-        elapsed = time.perf_counter() - self.start
-        rate = (done - self.first) / elapsed if elapsed > 0 else 0.0
-        left = f", ~{(self.total - done) / rate:.0f} s left" if rate > 0 else ""
-        filled = int(30 * done / max(self.total, 1))
-        sys.stderr.write(
-            f"\r[{'#' * filled}{'.' * (30 - filled)}] {done}/{self.total} chunks, "
-            f"{elapsed:.1f} s{left}   "
-        )
-        sys.stderr.flush()
-
-    def close(self) -> None:
-        if self.show:
-            sys.stderr.write("\n")
-            sys.stderr.flush()

@@ -4,6 +4,7 @@ key path (:class:`ConfigError`)."""
 
 from __future__ import annotations
 
+import difflib
 import sys
 from pathlib import Path
 
@@ -15,6 +16,11 @@ if sys.version_info >= (3, 11):
     import tomllib
 else:  # pragma: no cover
     import tomli as tomllib
+
+
+CLOSE = 0.75
+"""Similarity (difflib ratio, 0 to 1) above which an unknown key is taken for a typo of a
+known one: one or two letters swapped, missing or extra in a word of ten."""
 
 
 class ConfigError(ParameterError):
@@ -78,6 +84,9 @@ class Reader:
         self.used.add(name)
         if name not in self.table:
             if required:
+                typo = difflib.get_close_matches(name, [str(k) for k in self.table], 1, CLOSE)
+                if typo:  # rest_lenght for rest_length: name the key that is there
+                    self.fail(typo[0], f"unknown key; did you mean {name!r}? ({name} is required)")
                 self.fail(name, "is required")
             return default
         value = self.table[name]
@@ -118,7 +127,9 @@ class Reader:
         unknown = sorted(set(self.table) - self.used)
         if unknown:
             known = ", ".join(sorted(self.used)) or "none"
-            self.fail(unknown[0], f"unknown key (allowed here: {known})")
+            close = difflib.get_close_matches(str(unknown[0]), sorted(self.used), 1, CLOSE)
+            hint = f"did you mean {close[0]!r}? " if close else ""
+            self.fail(unknown[0], f"unknown key; {hint}(allowed here: {known})")
 
 
 def _as_tuple(x):

@@ -8,7 +8,10 @@ from __future__ import annotations
 import casadi as ca
 import numpy as np
 
+from softcurve.base.docs import shared_parameters
 
+
+@shared_parameters
 def mapped(function: ca.Function, size: int, threads: int) -> ca.Function:
     """``function`` mapped over ``size`` calls, on ``threads`` threads.
 
@@ -18,8 +21,7 @@ def mapped(function: ca.Function, size: int, threads: int) -> ca.Function:
         One call.
     size : int
         Number of calls.
-    threads : int
-        Threads of the compiled map.
+    %(threads)s
     """
     if size == 1:
         return function
@@ -47,24 +49,22 @@ def blocks(size: int, count: int, width: int) -> list[slice]:
     return [slice(a, min(size, a + step)) for a in range(0, size, step)]
 
 
+@shared_parameters
 def along(model, name, build, columns, parameters, threads) -> list[np.ndarray]:
     """Evaluate ``build() -> Function(*per_point_inputs, p)`` at every (member, time):
     ``columns`` are (B, T, k) arrays, ``parameters`` (B, n_p); returns (B, T, m) arrays.
 
     Parameters
     ----------
-    model : Model
-        The compiled model.
+    %(model)s
     name : str
         Cache key of the point function.
     build : callable
         ``build() -> casadi.Function(*per_point_inputs, p)``.
     columns : list of ndarray, shape (B, T, k)
         The per-point inputs.
-    parameters : ndarray, shape (B, n_p)
-        Parameter vector per member.
-    threads : int
-        Threads of the compiled map.
+    %(parameters)s
+    %(threads)s
     """
     size, count = columns[0].shape[:2]
     point = model.cached(name, build)
@@ -84,20 +84,18 @@ def along(model, name, build, columns, parameters, threads) -> list[np.ndarray]:
     return [np.concatenate(parts) for parts in zip(*pieces, strict=True)]
 
 
+@shared_parameters
 def tip_along(model, q, parameters, threads) -> np.ndarray:
     """Tip positions [m] at coordinates ``q`` (B, T, n) of members with ``parameters``
     (B, n_p): (B, T, 3).
 
     Parameters
     ----------
-    model : Model
-        The compiled model.
+    %(model)s
     q : ndarray, shape (B, T, n)
         Coordinates [m, 1/m, 1/m].
-    parameters : ndarray, shape (B, n_p)
-        Parameter vector per member.
-    threads : int
-        Threads of the compiled map.
+    %(parameters)s
+    %(threads)s
     """
 
     def build():
@@ -108,22 +106,20 @@ def tip_along(model, q, parameters, threads) -> np.ndarray:
     return along(model, "tip", build, [q], parameters, threads)[0]
 
 
+@shared_parameters
 def energy_along(model, q, qd, parameters, threads) -> np.ndarray:
     """Mechanical energy [J] at ``q``, ``qd`` (B, T, n) of members with ``parameters``
     (B, n_p): (B, T).
 
     Parameters
     ----------
-    model : Model
-        The compiled model.
+    %(model)s
     q : ndarray, shape (B, T, n)
         Coordinates [m, 1/m, 1/m].
     qd : ndarray, shape (B, T, n)
         Rates [m/s, 1/(m s), 1/(m s)].
-    parameters : ndarray, shape (B, n_p)
-        Parameter vector per member.
-    threads : int
-        Threads of the compiled map.
+    %(parameters)s
+    %(threads)s
     """
 
     def build():
@@ -142,21 +138,19 @@ def energy_along(model, q, qd, parameters, threads) -> np.ndarray:
     return along(model, "energy", build, [q, qd], parameters, threads)[0][..., 0]
 
 
+@shared_parameters
 def rhs_along(model, x, tau, parameters, threads) -> np.ndarray:
     """The state derivative at states ``x`` (B, K, n_state) with inputs ``tau`` (B, K, n).
 
     Parameters
     ----------
-    model : Model
-        The compiled model.
+    %(model)s
     x : ndarray, shape (B, K, n_state)
         States.
     tau : ndarray, shape (B, K, n)
         Input forces [N, N m^2, N m^2].
-    parameters : ndarray, shape (B, n_p)
-        Parameter vector per member.
-    threads : int
-        Threads of the compiled map.
+    %(parameters)s
+    %(threads)s
     """
 
     def build():

@@ -24,7 +24,7 @@ import numpy as np
 
 from softcurve.base.validation import ParameterError
 from softcurve.compiled.model import Model
-from softcurve.description.robot import Robot
+from softcurve.description.robot import Robot, domain_problem, in_domain
 from softcurve.simulation.along import blocks, rhs_along
 from softcurve.simulation.batch_run import MemberRun, member_rates
 from softcurve.simulation.batch_trajectory import BatchTrajectory, batch_status
@@ -174,19 +174,26 @@ def simulate_batch(
             )
     arrays = {name: np.array(np.broadcast_to(a, (size, a.shape[1]))) for name, a in arrays.items()}
     x0 = np.hstack([arrays["q0"], arrays["qd0"], arrays["lam0"]])
-    nominal = _nominal(model, arrays["parameters"], x0)
+    nominal, rest_lengths = _nominal(model, arrays["parameters"], x0)
+    outside = ~in_domain(arrays["q0"], rest_lengths)
+    if np.any(outside):
+        b = int(np.argmax(outside))
+        problem = domain_problem(arrays["q0"][b], rest_lengths[b], entry=f"q0[{b}]")
+        raise ParameterError(f"q0[{b}] (member {b}): {problem}")
     if settings.atol is None:
         abstol = settings.rtol
     else:
         abstol = float(np.min(settings.atol_vector(nominal[0]) / nominal))
     if processes > 1 and size > 1:
         return _in_processes(model, min(processes, size), threads, arrays, settings)
-    return _integrate(model, x0, arrays, nominal, abstol, settings, threads)
+    return _integrate(model, x0, arrays, (nominal, rest_lengths), abstol, settings, threads)
 
 
-def _integrate(model, x0, arrays, nominal, abstol, settings, threads) -> BatchTrajectory:
-    """The batch in this process (see :func:`simulate_batch`)."""
+def _integrate(model, x0, arrays, scales, abstol, settings, threads) -> BatchTrajectory:
+    """The batch in this process (see :func:`simulate_batch`); ``scales`` are the state
+    scales and the rest lengths of every member."""
     tau, params = arrays["tau"], arrays["parameters"]
+    nominal, rest_lengths = scales
     size, method = x0.shape[0], settings.method
     grid = settings.output_times()
     if method == "cvodes":
@@ -200,6 +207,7 @@ def _integrate(model, x0, arrays, nominal, abstol, settings, threads) -> BatchTr
     start = time.perf_counter()
     options = (settings.rtol, abstol, settings.max_steps)
     run = MemberRun(model, grid, options, threads, tau, params, nominal, states)
+    run.rest_lengths = rest_lengths
     for k0, k1 in restart_segments(grid):
         if method == "cvodes" and k0 > 0:  # as simulate(): BDF for settled members
             xdot = rhs_along(model, np.nan_to_num(states[:, k0 : k0 + 1]), tau[:, None, :],
@@ -251,10 +259,12 @@ def _result(t, q, qd, lam, arrays, member_status, messages, reached, stats, mode
     )
 
 
-def _nominal(model: Model, params: np.ndarray, x0: np.ndarray) -> np.ndarray:
-    """``nominal_scale`` of each member's own robot; validates every parameter vector."""
+def _nominal(model: Model, params: np.ndarray, x0: np.ndarray) -> tuple:
+    """``(nominal_scale, rest lengths (B, N))`` of each member's own robot; validates
+    every parameter vector."""
     robots: dict[bytes, _RobotView] = {model.parameters.tobytes(): _RobotView(model.robot)}
     nominal = np.empty_like(x0)
+    rest_lengths = np.empty((x0.shape[0], model.robot.n_segments))
     for b in range(x0.shape[0]):
         key = params[b].tobytes()
         if key not in robots:
@@ -263,7 +273,8 @@ def _nominal(model: Model, params: np.ndarray, x0: np.ndarray) -> np.ndarray:
             except ParameterError as exc:
                 raise ParameterError(f"parameters[{b}]: {exc}") from None
         nominal[b] = nominal_scale(robots[key], x0[b])
-    return nominal
+        rest_lengths[b] = robots[key].robot.rest_lengths
+    return nominal, rest_lengths
 
 
 def _chunk(robot, quadrature_nodes, arrays, settings) -> BatchTrajectory:

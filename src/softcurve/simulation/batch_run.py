@@ -13,7 +13,6 @@ from softcurve.base.status import Status
 from softcurve.compiled.model import Model
 from softcurve.simulation.along import mapped, rhs_along
 from softcurve.simulation.engine import (
-    NON_FINITE,
     cvodes_options,
     cvodes_reason,
     difference_eigenvalues,
@@ -23,6 +22,7 @@ from softcurve.simulation.engine import (
     linear_rates,
 )
 from softcurve.simulation.integrators import BufferedCall, cvodes_integrator
+from softcurve.simulation.stepping import domain_reason, outside_domain
 
 
 def member_rates(model, x0, tau, parameters, nominal, threads) -> tuple:
@@ -72,6 +72,12 @@ class MemberRun:
         State scale per member.
     states : ndarray, shape (B, T, n_state)
         Filled in place (NaN after a member's failure).
+
+    Attributes
+    ----------
+    rest_lengths : ndarray, shape (B, N) or (N,)
+        Rest length of each member's segments [m], for the domain check of the outputs
+        (default the model's robot's).
     """
 
     def __init__(self, model: Model, grid, options, threads, tau, params, nominal, states):
@@ -81,6 +87,9 @@ class MemberRun:
         self.reached = np.full(size, grid.size)
         self.status = np.full(size, Status.SUCCESS, dtype=object)
         self.messages = [""] * size
+        self.rest_lengths = np.broadcast_to(
+            model.robot.rest_lengths, (size, model.robot.n_segments)
+        )
 
     def _p(self, members, h) -> np.ndarray:
         count = len(members)
@@ -124,10 +133,10 @@ class MemberRun:
                 self._one_by_one(multistep, int(members[0]), k0, k1)
             return
         states[members, k0 + 1 : k1 + 1] = xf * self.nominal[members, None, :]
-        for b in members:
-            bad = ~np.all(np.isfinite(states[b, k0 + 1 : k1 + 1]), axis=1)
-            if np.any(bad):
-                self._fail(b, k0 + 1 + int(np.argmax(bad)), NON_FINITE, multistep)
+        n, rest = self.model.n, self.rest_lengths[members]
+        bad = outside_domain(states[members, k0 + 1 : k1 + 1], n, rest[:, None, :])
+        for j in np.flatnonzero(np.any(bad, axis=1)):
+            self._outside(int(members[j]), k0 + 1 + int(np.argmax(bad[j])), multistep)
 
     def _one_by_one(self, multistep, b, k0, k1) -> None:
         """Output interval by output interval, to keep every output reached before a failure."""
@@ -144,9 +153,14 @@ class MemberRun:
                 self._fail(b, k, cvodes_reason(failure), multistep)
                 return
             states[b, k] = xf * nominal
-            if not np.all(np.isfinite(states[b, k])):
-                self._fail(b, k, NON_FINITE, multistep)
+            if outside_domain(states[b, k], self.model.n, self.rest_lengths[b]):
+                self._outside(b, k, multistep)
                 return
+
+    def _outside(self, b, k, multistep) -> None:
+        """Member ``b`` left the model's domain at output ``k``."""
+        reason = domain_reason(self.states[b, k], self.model.n, self.rest_lengths[b], self.grid[k])
+        self._fail(b, k, reason, multistep)
 
     def _fail(self, b, k, reason, multistep) -> None:
         """Member ``b`` failed reaching output ``k``: keep outputs ``0 .. k-1``."""

@@ -10,6 +10,7 @@ import numpy as np
 from softcurve.base.status import Result, Status
 from softcurve.compiled.model import Model
 from softcurve.figures import plot_batch_tips
+from softcurve.figures.trajectories import figure_options
 from softcurve.simulation.along import energy_along, tip_along
 from softcurve.simulation.trajectory import Trajectory
 
@@ -162,16 +163,15 @@ class BatchTrajectory(Result):
             model=self.member_model(i),
         )
 
+    @figure_options
     def plot(self, ax=None, *, members: int = 50):
         """The tip position of the first ``members`` members against time, one panel per
         world axis.
 
         Parameters
         ----------
-        ax : None or sequence of matplotlib.axes.Axes, shape (3,)
-            Panels for tip x, y and z; None draws a new figure.
-        members : int, optional
-            How many members to draw (the first ones) [count].
+        %(ax)s
+        %(members)s
 
         Returns
         -------

@@ -289,17 +289,22 @@ def cvodes_reason(text: str) -> str:
 NON_FINITE = "the state became non-finite"
 """The reason of a failure where the state left the domain (status ``LEFT_DOMAIN``)."""
 
+LEFT_DOMAIN = "the state left the model's domain"
+"""How the reason of a run stopped by the domain check at an output time begins
+(:func:`softcurve.simulation.stepping.outside_domain`, status ``LEFT_DOMAIN``)."""
+
 
 def failure_status(reason: str) -> Status:
-    """``LEFT_DOMAIN`` where the state (or the right-hand side) became non-finite, else
-    ``INTEGRATION_FAILED``.
+    """``LEFT_DOMAIN`` where the state left the model's domain or the right-hand side
+    became non-finite, else ``INTEGRATION_FAILED``.
 
     Parameters
     ----------
     reason : str
         Why the run stopped.
     """
-    return Status.LEFT_DOMAIN if "non-finite" in reason else Status.INTEGRATION_FAILED
+    left = "non-finite" in reason or reason.startswith(LEFT_DOMAIN)
+    return Status.LEFT_DOMAIN if left else Status.INTEGRATION_FAILED
 
 
 def success_message(t_final: float, family: str) -> str:
@@ -330,11 +335,20 @@ def failure_message(reason: str, grid: np.ndarray, reached: int, family: str) ->
     family : str
         The integrator, e.g. ``"cvodes-adams"``.
     """
+    where = (
+        f"{reason}; the trajectory stops at t = {grid[reached - 1]:.6g} s "
+        f"(output {reached - 1} of {grid.size - 1})"
+    )
+    if reason.startswith(LEFT_DOMAIN):
+        return (
+            f"{where}, the last output inside the domain. Likely cause: the robot is too soft "
+            "for its loads or inputs (a length crossing zero or stretching without bound), "
+            "or an initial rate qd0 too large for it; rarely a tolerance too loose. What to "
+            "try: stiffen the robot or reduce the loads, inputs or initial rates; tighten "
+            "rtol; check that the initial state and inputs are physical"
+        )
     advice = ["loosen rtol/atol", "raise max_steps"]
     if family != "cvodes-bdf":
         advice.insert(0, "method='bdf' if the problem is stiff")
     advice.append("check that the initial state and inputs are physical")
-    return (
-        f"{reason}; the trajectory stops at t = {grid[reached - 1]:.6g} s "
-        f"(output {reached - 1} of {grid.size - 1}). What to try: " + "; ".join(advice)
-    )
+    return f"{where}. What to try: " + "; ".join(advice)

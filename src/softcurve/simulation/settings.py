@@ -21,6 +21,19 @@ METHODS = ("cvodes", "adams", "bdf", "rk45")
 force CVODES's family, ``"rk45"`` is SciPy's explicit Runge-Kutta 4(5)."""
 
 
+MAX_OUTPUTS = 10_000_000
+"""Default limit of output times: 1000 times the paper's 10 s at 1 ms; the state of a
+one-segment robot (13 columns with time and tip) then takes about 1 GB of memory and
+3 GB of CSV text, more than a typical laptop should be asked for by accident."""
+
+BYTES_PER_VALUE = 8
+"""Bytes of one output value in memory (float64)."""
+
+CSV_BYTES_PER_VALUE = 24
+"""Bytes of one output value in a CSV file: up to 17 significant digits, sign, point,
+exponent and the separator (measured: 23 on average for a paper trajectory)."""
+
+
 class SettingsError(ParameterError):
     """A simulation setting is out of its range; ``field`` names it, ``reason`` says why."""
 
@@ -62,6 +75,10 @@ class SimulationSettings:
         state's natural scale (:func:`~softcurve.simulation.engine.nominal_scale`).
     max_steps : int
         Internal steps allowed between two output times, >= 1 (default 50 000).
+    max_outputs : int
+        Output times allowed, >= 2 (default :data:`MAX_OUTPUTS`): ``t_final / dt + 1``
+        above it is refused before anything is allocated, with the size the outputs
+        would take; raise it for longer records.
 
     Examples
     --------
@@ -77,6 +94,7 @@ class SimulationSettings:
     rtol: float = 1e-6
     atol: float | tuple[float, ...] | None = None
     max_steps: int = 50_000
+    max_outputs: int = MAX_OUTPUTS
 
     def __post_init__(self):
         t_final = _number("t_final", self.t_final, unit="[s]")
@@ -94,7 +112,21 @@ class SimulationSettings:
         integer = isinstance(max_steps, int | np.integer) and not isinstance(max_steps, bool)
         if not integer or max_steps < 1:
             raise SettingsError("max_steps", f"must be an integer >= 1, got {max_steps!r}")
+        limit = self.max_outputs
+        integer = isinstance(limit, int | np.integer) and not isinstance(limit, bool)
+        if not integer or limit < 2:
+            raise SettingsError("max_outputs", f"must be an integer >= 2, got {limit!r}")
+        outputs = output_count(t_final, dt)
+        if outputs > limit:
+            raise SettingsError(
+                "t_final",
+                f"= {t_final!r} [s] with dt = {dt!r} [s] asks for {outputs:.4g} output times "
+                f"(about {outputs * 13 * BYTES_PER_VALUE / 2**30:.3g} GiB in memory for one "
+                f"segment), more than max_outputs = {int(limit)}: shorten t_final, raise dt, "
+                "or raise max_outputs",
+            )
         set_ = object.__setattr__
+        set_(self, "max_outputs", int(limit))
         set_(self, "t_final", t_final)
         set_(self, "dt", dt)
         set_(self, "rtol", rtol)
@@ -128,6 +160,19 @@ class SimulationSettings:
         grid[-1] = self.t_final
         return grid
 
+    def output_size(self, columns: int) -> tuple[float, float]:
+        """``(memory, csv)``: bytes the outputs take with ``columns`` values per output
+        time, in memory (float64) and as CSV text (estimated, see
+        :data:`CSV_BYTES_PER_VALUE`).
+
+        Parameters
+        ----------
+        columns : int
+            Values per output time (e.g. time, states, tip).
+        """
+        values = output_count(self.t_final, self.dt) * columns
+        return values * BYTES_PER_VALUE, values * CSV_BYTES_PER_VALUE
+
     def atol_vector(self, nominal: np.ndarray) -> np.ndarray:
         """The absolute tolerance of every state, shape of ``nominal`` (n_state,): ``atol``,
         or ``rtol * nominal`` by default.
@@ -146,6 +191,23 @@ class SimulationSettings:
                 "atol", f"must have {nominal.size} entries (one per state), got {len(self.atol)}"
             )
         return np.array(self.atol)
+
+
+def output_count(t_final: float, dt: float) -> float:
+    """Number of output times of ``t_final`` [s] at ``dt`` [s] (a float: it may be
+    astronomically large, or inf; computed without allocating anything).
+
+    Parameters
+    ----------
+    t_final : float
+        End time [s], > 0.
+    dt : float
+        Output interval [s], > 0.
+    """
+    ratio = t_final / dt
+    if not ratio < 2.0**52:  # beyond exact integers, or inf: the ratio itself
+        return ratio + 1.0
+    return math.ceil(ratio * (1 - 1e-12)) + 1.0
 
 
 def _atol(value):

@@ -79,7 +79,7 @@ from softcurve.simulation.engine import (
 )
 from softcurve.simulation.integrators import ActuatorInput, CvodesEngine, ScipyEngine
 from softcurve.simulation.settings import SimulationSettings, settings_with
-from softcurve.simulation.stepping import Progress, Stopped, run_on_grid, run_sampled
+from softcurve.simulation.stepping import Domain, Progress, Stopped, run_on_grid, run_sampled
 from softcurve.simulation.trajectory import Trajectory
 
 
@@ -93,13 +93,15 @@ def initial_state(model: Model, q0, qd0, lam0=None) -> np.ndarray:
     model : Model
         The compiled model.
     q0 : array_like, shape (n,)
-        Coordinates [m, 1/m, 1/m].
+        Coordinates [m, 1/m, 1/m], in the model's domain
+        (:meth:`~softcurve.Robot.check_configuration`).
     qd0 : array_like, shape (n,)
         Rates [m/s, 1/(m s), 1/(m s)].
     lam0 : array_like, shape (n_creep,), optional
         Creep states (default zero).
     """
-    parts = [real_array("q0", q0, (model.n,)), real_array("qd0", qd0, (model.n,))]
+    q0 = model.robot.check_configuration(real_array("q0", q0, (model.n,)), "q0")
+    parts = [q0, real_array("qd0", qd0, (model.n,))]
     parts.append(
         np.zeros(model.n_creep) if lam0 is None else real_array("lam0", lam0, (model.n_creep,))
     )
@@ -223,8 +225,12 @@ def simulate(
     Returns
     -------
     Trajectory
-        On failure, status ``INTEGRATION_FAILED`` (or ``LEFT_DOMAIN`` where the state
-        became non-finite) and the trajectory up to the failure.
+        On failure, status ``INTEGRATION_FAILED``, or ``LEFT_DOMAIN`` where the state left
+        the model's domain at an output time (a length ``l <= 0`` or beyond ``MAX_STRETCH``
+        rest lengths, a bend beyond ``MAX_BEND``, a non-finite value; see
+        :meth:`~softcurve.Robot.check_configuration`) or became non-finite, with a message
+        naming the time, the coordinate and the likely cause; the trajectory is kept up to
+        the last output inside the domain.
 
     Examples
     --------
@@ -279,7 +285,7 @@ def simulate(
     try:
         if controller is None and not callable(values):
             applied[:] = values
-            reached = run_on_grid(engine, grid, states, values, bar, settle)
+            reached = run_on_grid(engine, grid, states, values, bar, Domain(model, grid), settle)
         else:
             reached = run_sampled(
                 engine, model, grid, states, applied, values, controller, sample_time, bar, check

@@ -12,6 +12,7 @@ import numpy as np
 from softcurve.base.status import Result, Status
 from softcurve.compiled.model import Model
 from softcurve.figures import animate, plot_states, plot_tip
+from softcurve.figures.trajectories import figure_options
 from softcurve.simulation.trajectory_files import read_trajectory, save_trajectory
 
 
@@ -170,6 +171,7 @@ class Trajectory(Result):
         """
         return plot_tip(self, ax)
 
+    @figure_options
     def animate(
         self,
         path,
@@ -188,14 +190,10 @@ class Trajectory(Result):
             ``.gif``, or ``.mp4`` where ffmpeg is on the PATH.
         model : Model, optional
             Gives the backbone shapes (default: the model attached to the trajectory).
-        fps : float, optional
-            Frames per second of the file [1/s].
-        speed : float, optional
-            Simulated time per time of animation [s/s].
-        points : int, optional
-            Points along the backbone [count].
-        dpi : float, optional
-            Resolution of the frames [dots per inch].
+        %(fps)s
+        %(speed)s
+        %(points)s
+        %(dpi)s
 
         Returns
         -------

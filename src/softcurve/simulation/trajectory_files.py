@@ -9,7 +9,8 @@ from pathlib import Path
 
 import numpy as np
 
-from softcurve.base.files import atomic_write
+from softcurve.base.files import atomic_path, atomic_write
+from softcurve.base.progress import ProgressLine
 
 FORMAT_VERSION = 2
 """Version of the trajectory format written (in the metadata line). Version 1 named the
@@ -17,6 +18,24 @@ actuator's inputs ``pressures`` (columns ``p1 ...``) and a failure ``"failed"``;
 still read."""
 
 _LEGACY_STATUS = {"failed": "integration_failed"}
+
+ROWS_PER_BLOCK = 100_000
+"""Rows formatted at once when a CSV file is written (about 30 MB of text for one
+segment, 1 to 2 s): the progress bar moves once per block."""
+
+
+def _write_rows(out, table: np.ndarray, name: str, progress: bool) -> None:
+    """Write ``table`` (rows, columns) as CSV lines into the open file ``out``, block by
+    block, with a progress bar when ``progress`` and the table has more than one block."""
+    blocks = max(1, -(-table.shape[0] // ROWS_PER_BLOCK))
+    bar = ProgressLine(blocks, 0, progress and blocks > 1, "blocks", f"writing {name}")
+    try:
+        for b in range(blocks):
+            part = table[b * ROWS_PER_BLOCK : (b + 1) * ROWS_PER_BLOCK]
+            np.savetxt(out, part, delimiter=",", fmt="%.17g")
+            bar.update(b + 1)
+    finally:
+        bar.close()
 
 
 def column_names(n: int, n_creep: int, with_tau: bool, n_inputs: int = 0) -> list[str]:
@@ -54,7 +73,7 @@ def _meta(trajectory) -> dict:
     }
 
 
-def save_trajectory(trajectory, path) -> Path:
+def save_trajectory(trajectory, path, *, progress: bool = False) -> Path:
     """Write a trajectory to ``path``: ``.csv`` (one JSON comment line of metadata, a
     header, one row per output time, 17 significant digits) or ``.npz``.
 
@@ -64,6 +83,9 @@ def save_trajectory(trajectory, path) -> Path:
         What to write.
     path : str or Path
         Target file, ``.csv`` or ``.npz``.
+    progress : bool
+        A progress bar on stderr while a long CSV file is written (more than
+        :data:`ROWS_PER_BLOCK` rows).
     """
     path = Path(path)
     tau, inputs = trajectory.tau, trajectory.inputs
@@ -79,12 +101,12 @@ def save_trajectory(trajectory, path) -> Path:
             trajectory.tip,
         ] + [a for a in (tau, inputs) if a is not None]
         table = np.hstack(blocks)
-        buffer = io.StringIO()
-        buffer.write("# " + json.dumps(meta) + "\n")
         names = column_names(trajectory.n, meta["n_creep"], tau is not None, meta["n_inputs"])
-        buffer.write(",".join(names) + "\n")
-        np.savetxt(buffer, table, delimiter=",", fmt="%.17g")
-        return atomic_write(path, buffer.getvalue().encode())
+        with atomic_path(path) as tmp, open(tmp, "w", encoding="utf-8") as out:
+            out.write("# " + json.dumps(meta) + "\n")
+            out.write(",".join(names) + "\n")
+            _write_rows(out, table, path.name, progress)
+        return path
     if path.suffix == ".npz":
         arrays = {
             "t": trajectory.t,

@@ -5,13 +5,22 @@ costs about a second), and yields each result as it finishes; an error in a task
 interrupt, cancels the tasks not yet started. :func:`worker_model` keeps the model a
 worker has loaded for the next task on the same robot.
 
+Workers die with the process that started them, whatever kills it: on Linux the kernel
+sends them SIGKILL when it exits (``prctl(PR_SET_PDEATHSIG)``); elsewhere, and as a
+second guard, a thread in each worker ends it once its parent is gone.
+
 Processes rather than threads: CasADi's integrator reads the process CPU clock around
 every evaluation of the model, and the threads of one process contend for that clock.
 """
 
 from __future__ import annotations
 
+import ctypes
 import os
+import signal
+import sys
+import threading
+import time
 from collections.abc import Callable, Iterator
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from concurrent.futures.process import BrokenProcessPool
@@ -22,6 +31,46 @@ from softcurve.description.robot import Robot
 
 _POOL: list = []  # [(size, ProcessPoolExecutor)], at most one
 _WORKER_MODELS: dict = {}
+
+_PR_SET_PDEATHSIG = 1  # from <linux/prctl.h>
+PARENT_POLL = 0.5
+"""Seconds between two checks of a worker that its parent still runs: a worker outlives
+a killed parent by at most this long where the kernel cannot end it."""
+
+
+def _worker_start(parent: int) -> None:
+    """Initializer of each worker: die when the process ``parent`` is gone."""
+    if sys.platform.startswith("linux"):
+        try:
+            libc = ctypes.CDLL(None, use_errno=True)
+            libc.prctl(_PR_SET_PDEATHSIG, signal.SIGKILL, 0, 0, 0)
+        except (OSError, AttributeError):  # pragma: no cover - no prctl: the thread guards
+            pass
+    if os.getppid() != parent:  # the parent died before prctl took effect
+        os._exit(1)
+    threading.Thread(target=_watch_parent, args=(parent,), daemon=True).start()
+
+
+def _watch_parent(parent: int) -> None:
+    """End this worker once its parent has exited (its parent pid changes)."""
+    while os.getppid() == parent:
+        time.sleep(PARENT_POLL)
+    os._exit(1)
+
+
+def stop_workers() -> None:
+    """Kill the worker processes now (an interrupt or SIGTERM: the chunks they are running
+    are abandoned) and forget the pool; the next call starts a new one."""
+    if not _POOL:
+        return
+    pool = _POOL.pop()[1]
+    processes = list(getattr(pool, "_processes", {}).values())  # no public API before 3.14
+    for process in processes:
+        if process.is_alive():
+            process.kill()
+    pool.shutdown(wait=False, cancel_futures=True)
+    for process in processes:
+        process.join(timeout=PARENT_POLL)
 
 
 def default_threads() -> int:
@@ -53,7 +102,13 @@ def _pool(size: int) -> ProcessPoolExecutor:
     if _POOL and _POOL[0][0] != size:
         _POOL.pop()[1].shutdown()
     if not _POOL:
-        _POOL.append((size, ProcessPoolExecutor(size, mp_context=get_context("spawn"))))
+        pool = ProcessPoolExecutor(
+            size,
+            mp_context=get_context("spawn"),
+            initializer=_worker_start,
+            initargs=(os.getpid(),),
+        )
+        _POOL.append((size, pool))
     return _POOL[0][1]
 
 
@@ -76,6 +131,10 @@ def run_in_processes(function: Callable, tasks: dict, processes: int) -> Iterato
         futures = {pool.submit(function, *arguments): key for key, arguments in tasks.items()}
         for future in as_completed(futures):
             yield futures[future], future.result()
+    except (KeyboardInterrupt, SystemExit):  # the running tasks would go on: kill them
+        futures = {}
+        stop_workers()
+        raise
     except BrokenProcessPool as exc:
         _POOL.clear()
         raise RuntimeError(

@@ -20,19 +20,19 @@ from dataclasses import dataclass
 import casadi as ca
 
 from softcurve.base import smooth as _smooth
+from softcurve.base.docs import shared_parameters
 
 E_Z = ca.DM([0.0, 0.0, 1.0])
 
 
+@shared_parameters
 def rotation_vector(q_i, s):
     """``w = s l (-ky, kx, 0)``: the rotation from the segment base to material point ``s``.
 
     Parameters
     ----------
-    q_i : casadi.SX, shape (3,)
-        The segment's coordinates ``(l, kx, ky)`` [m, 1/m, 1/m].
-    s : casadi.SX or float
-        Material coordinate of the segment, in [0, 1].
+    %(q_i)s
+    %(s)s
     """
     length, kx, ky = q_i[0], q_i[1], q_i[2]
     return s * length * ca.vertcat(-ky, kx, 0)
@@ -43,16 +43,15 @@ def _so3_terms(w):
     return ca.skew(w), z
 
 
+@shared_parameters
 def segment_pose(q_i, s):
     """Rotation (3x3) and position (3,) [m] of material point ``s`` in the segment's
     base frame.
 
     Parameters
     ----------
-    q_i : casadi.SX, shape (3,)
-        The segment's coordinates ``(l, kx, ky)`` [m, 1/m, 1/m].
-    s : casadi.SX or float
-        Material coordinate of the segment, in [0, 1].
+    %(q_i)s
+    %(s)s
     """
     w = rotation_vector(q_i, s)
     wx, z = _so3_terms(w)
@@ -63,6 +62,7 @@ def segment_pose(q_i, s):
     return rotation, position
 
 
+@shared_parameters
 def segment_angular_jacobian(q_i, s):
     """Body-frame angular velocity Jacobian (3x3) of point ``s`` w.r.t. ``q_i``.
 
@@ -70,10 +70,8 @@ def segment_angular_jacobian(q_i, s):
 
     Parameters
     ----------
-    q_i : casadi.SX, shape (3,)
-        The segment's coordinates ``(l, kx, ky)`` [m, 1/m, 1/m].
-    s : casadi.SX or float
-        Material coordinate of the segment, in [0, 1].
+    %(q_i)s
+    %(s)s
     """
     w = rotation_vector(q_i, s)
     wx, z = _so3_terms(w)

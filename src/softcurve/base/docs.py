@@ -1,0 +1,95 @@
+"""One text for each parameter that many functions take: its type, meaning, unit and shape.
+
+The units of the generalized coordinates and forces, say, are then written once, and a
+docstring cannot drift from the others. A docstring names a shared parameter by a line
+``%(name)s`` in its Parameters section; :func:`shared_parameters` replaces that line by
+the numpy-style entry, indented like the marker::
+
+    @shared_parameters
+    def gravity_force(self, q):
+        '''``dV_g/dq``, shape (n,).
+
+        Parameters
+        ----------
+        %(q)s
+        '''
+
+Tools that read ``__doc__`` (``help()``, numpydoc, Sphinx autodoc, the documentation
+test) see the complete entry.
+"""
+
+from __future__ import annotations
+
+import re
+
+PARAMETERS: dict[str, tuple[str, str]] = {
+    "q": (
+        "array_like, shape (n,)",
+        "Generalized coordinates ``(l, kx, ky)`` of each segment [m, 1/m, 1/m].",
+    ),
+    "qd": (
+        "array_like, shape (n,)",
+        "Their rates [m/s, 1/(m s), 1/(m s)].",
+    ),
+    "lam": (
+        "array_like, shape (n_creep,), optional",
+        "Creep states, three per segment with creep (default zero).",
+    ),
+    "tau": (
+        "array_like, shape (n,)",
+        "Generalized forces [N, N m^2, N m^2] per segment (power is ``tau . qd``).",
+    ),
+    "model": ("Model", "The compiled model."),
+    "actuator": ("Actuator or None", "The actuator whose inputs ``u`` enter (None: none)."),
+    "q_i": (
+        "casadi.SX, shape (3,)",
+        "The segment's coordinates ``(l, kx, ky)`` [m, 1/m, 1/m].",
+    ),
+    "s": (
+        "casadi.SX or float",
+        "Material coordinate along the segment, in [0, 1] (dimensionless).",
+    ),
+    "threads": ("int", "Threads of the mapped evaluation."),
+    "parameters": (
+        "ndarray, shape (B, n_p)",
+        "One robot parameter vector per member (``Robot.layout``).",
+    ),
+}
+"""Shared parameter: ``(type line, description)``."""
+
+_MARKER = re.compile(r"^(?P<indent>[ \t]*)%\((?P<name>\w+)\)s[ \t]*$", re.MULTILINE)
+
+
+def parameters_from(table: dict[str, tuple[str, str]]):
+    """A decorator like :func:`shared_parameters` that reads its entries from ``table``
+    (for parameters shared within one layer, e.g. the options of the fits).
+
+    Parameters
+    ----------
+    table : dict
+        Parameter name -> ``(type line, description)``.
+    """
+
+    def entry(match: re.Match) -> str:
+        kind, description = table[match["name"]]
+        indent = match["indent"]
+        return f"{indent}{match['name']} : {kind}\n{indent}    {description}"
+
+    def decorate(function):
+        """Substitute the shared entries into ``function.__doc__``.
+
+        Parameters
+        ----------
+        function : callable
+            A function or method whose docstring names shared parameters.
+        """
+        if function.__doc__:
+            function.__doc__ = _MARKER.sub(entry, function.__doc__)
+        return function
+
+    return decorate
+
+
+shared_parameters = parameters_from(PARAMETERS)
+"""Decorator: replace each line ``%(name)s`` of the docstring by the entry of the shared
+parameter ``name`` of :data:`PARAMETERS` (a KeyError names an unknown one at import)."""
