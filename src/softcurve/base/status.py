@@ -60,9 +60,9 @@ class Status(str, enum.Enum):
     )
     LEFT_DOMAIN = (
         "left_domain",
-        "the state left the model's domain (a segment length reached zero or a value "
-        "became non-finite); check the initial state, the inputs and the stiffness, which "
-        "may be too soft for the loads",
+        "the state left the model's domain (0 < l <= 10 rest lengths, a bend of at most "
+        "one turn, finite values; docs/model.md); check the initial state, the inputs and "
+        "the stiffness, which may be too soft for the loads",
     )
     NOT_CONVERGED = (
         "not_converged",
