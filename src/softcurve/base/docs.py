@@ -21,6 +21,7 @@ test) see the complete entry.
 from __future__ import annotations
 
 import re
+import types
 
 PARAMETERS: dict[str, tuple[str, str]] = {
     "q": (
@@ -75,16 +76,25 @@ def parameters_from(table: dict[str, tuple[str, str]]):
         indent = match["indent"]
         return f"{indent}{match['name']} : {kind}\n{indent}    {description}"
 
+    def substitute(function):
+        if getattr(function, "__doc__", None):
+            function.__doc__ = _MARKER.sub(entry, function.__doc__)
+
     def decorate(function):
-        """Substitute the shared entries into ``function.__doc__``.
+        """Substitute the shared entries into ``function.__doc__``; for a class, into the
+        docstrings of the class and of every function defined in it.
 
         Parameters
         ----------
-        function : callable
-            A function or method whose docstring names shared parameters.
+        function : callable or type
+            A function, method or class whose docstrings name shared parameters.
         """
-        if function.__doc__:
-            function.__doc__ = _MARKER.sub(entry, function.__doc__)
+        substitute(function)
+        if isinstance(function, type):
+            for attribute in vars(function).values():
+                method = getattr(attribute, "__func__", attribute)  # class and static methods
+                if isinstance(method, types.FunctionType):
+                    substitute(method)
         return function
 
     return decorate

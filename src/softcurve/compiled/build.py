@@ -29,6 +29,7 @@ from pathlib import Path
 
 import casadi as ca
 
+from softcurve.base.docs import parameters_from
 from softcurve.base.files import atomic_write
 
 
@@ -144,13 +145,18 @@ def _cache_key(structure: tuple, quadrature_nodes: int, command: list[str]) -> s
     return digest.hexdigest()[:24]
 
 
+_library_docs = parameters_from(
+    {"library": ("str or os.PathLike", "A compiled library in the cache (a ``.so`` file).")}
+)
+
+
+@_library_docs
 def checksum_file(library) -> Path:
     """The checksum file beside a cached library: ``<library>.sha256``.
 
     Parameters
     ----------
-    library : str or os.PathLike
-        A library in the cache.
+    %(library)s
 
     Returns
     -------
@@ -165,6 +171,7 @@ def _checksum_line(data: bytes) -> str:
     return f"sha256 {hashlib.sha256(data).hexdigest()} size {len(data)}\n"
 
 
+@_library_docs
 def library_problem(library) -> str | None:
     """Why a cached library must not be loaded, or None when it matches its checksum file.
 
@@ -173,8 +180,7 @@ def library_problem(library) -> str | None:
 
     Parameters
     ----------
-    library : str or os.PathLike
-        A library in the cache.
+    %(library)s
 
     Returns
     -------

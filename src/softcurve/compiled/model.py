@@ -17,6 +17,7 @@ from dataclasses import dataclass
 import casadi as ca
 import numpy as np
 
+from softcurve.base.docs import shared_parameters
 from softcurve.compiled.functions import CompiledFunctions
 
 
@@ -84,6 +85,7 @@ class DynamicsTerms:
         )
 
 
+@shared_parameters
 class Model(CompiledFunctions):
     """The dynamics of a robot, compiled.
 
@@ -149,8 +151,7 @@ class Model(CompiledFunctions):
 
         Parameters
         ----------
-        q : array_like, shape (n,)
-            Coordinates.
+        %(q)s
         """
         return self.dynamics_terms(q, np.zeros(self.n)).mass_matrix
 
@@ -183,8 +184,7 @@ class Model(CompiledFunctions):
 
         Parameters
         ----------
-        q : array_like, shape (n,)
-            Coordinates.
+        %(q)s
         """
         return self.dynamics_terms(q, np.zeros(self.n)).gravity_force
 
@@ -193,8 +193,7 @@ class Model(CompiledFunctions):
 
         Parameters
         ----------
-        q : array_like, shape (n,)
-            Coordinates.
+        %(q)s
         """
         return self.dynamics_terms(q, np.zeros(self.n)).elastic_force
 
@@ -203,8 +202,7 @@ class Model(CompiledFunctions):
 
         Parameters
         ----------
-        q : array_like, shape (n,)
-            Coordinates.
+        %(q)s
         """
         return self.gravity_force(q) + self.elastic_force(q)
 
@@ -213,8 +211,7 @@ class Model(CompiledFunctions):
 
         Parameters
         ----------
-        q : array_like, shape (n,)
-            Coordinates.
+        %(q)s
         """
         g, e = self._call("potential_energy", self.robot.check_configuration(q, "q"))
         return float(g[0] + e[0])
@@ -333,8 +330,7 @@ class Model(CompiledFunctions):
 
         Parameters
         ----------
-        q : array_like, shape (n,)
-            Coordinates.
+        %(q)s
         s : float
             Material coordinate in [0, 1], dimensionless.
         """
@@ -346,8 +342,7 @@ class Model(CompiledFunctions):
 
         Parameters
         ----------
-        q : array_like, shape (n,)
-            Coordinates.
+        %(q)s
         """
         return self.pose(q, 1.0)
 
@@ -357,8 +352,7 @@ class Model(CompiledFunctions):
 
         Parameters
         ----------
-        q : array_like, shape (n,)
-            Coordinates.
+        %(q)s
         s : float
             Material coordinate in [0, 1], dimensionless.
         """
@@ -385,8 +379,7 @@ class Model(CompiledFunctions):
 
         Parameters
         ----------
-        q : array_like, shape (n,)
-            Coordinates.
+        %(q)s
         points : int
             Number of points, >= 2, equally spaced in the material coordinate.
         """

@@ -21,9 +21,20 @@ from typing import ClassVar
 import numpy as np
 
 from softcurve.base import smooth as _smooth
+from softcurve.base.docs import parameters_from
 from softcurve.base.validation import ParameterError, real_array, real_scalar
 
+_LAW_PARAMETERS = {
+    "x": ("float or array_like", "Strain: elongation ``l - l0`` [m] or bending angle [rad]."),
+    "z": ("casadi.SX or float", "Squared strain [m^2 or rad^2]."),
+    "p": (
+        "casadi.SX, shape (n_parameters,)",
+        "The law's parameters, in the order of :meth:`parameters`.",
+    ),
+}
 
+
+@parameters_from(_LAW_PARAMETERS)
 class _StiffnessLaw:
     """The interface of every stiffness law; a law supplies the formulas ``_stiffness(x)``
     on a float64 array and the symbolic ``_coefficient(z, p)`` and ``_energy(z, p)``."""
@@ -33,8 +44,7 @@ class _StiffnessLaw:
 
         Parameters
         ----------
-        x : float or array_like
-            Strain: elongation ``l - l0`` [m] or bending angle [rad].
+        %(x)s
         """
         return self._stiffness(np.asarray(x, dtype=np.float64))
 
@@ -43,8 +53,7 @@ class _StiffnessLaw:
 
         Parameters
         ----------
-        x : float or array_like
-            Strain: elongation ``l - l0`` [m] or bending angle [rad].
+        %(x)s
         """
         return self.stiffness(x) * np.asarray(x, dtype=np.float64)
 
@@ -54,10 +63,8 @@ class _StiffnessLaw:
 
         Parameters
         ----------
-        z : casadi.SX or float
-            Squared strain [m^2 or rad^2].
-        p : casadi.SX, shape (n_parameters,)
-            The law's parameters, in the order of :meth:`parameters`.
+        %(z)s
+        %(p)s
         """
         return cls._coefficient(z, p)
 
@@ -67,10 +74,8 @@ class _StiffnessLaw:
 
         Parameters
         ----------
-        z : casadi.SX or float
-            Squared strain [m^2 or rad^2].
-        p : casadi.SX, shape (n_parameters,)
-            The law's parameters, in the order of :meth:`parameters`.
+        %(z)s
+        %(p)s
         """
         return cls._energy(z, p)
 

@@ -145,6 +145,15 @@ def _trajectory_predictor(problem: _Problem, x0, integrator_options):
     return predictor
 
 
+PREDICTION_PARAMETERS = {
+    "model": ("Model", "The compiled model the fit used."),
+    "experiment": (
+        "Experiment",
+        "The experiment to predict (time grid, measured signals, inputs).",
+    ),
+}
+"""The parameters ``predict_trajectory`` and ``predict_equilibria`` share."""
+
 FIT_OPTIONS = {
     "bind": (
         "dict, optional",
@@ -298,6 +307,7 @@ def fit_equilibria(
     )
 
 
+@parameters_from(PREDICTION_PARAMETERS)
 def predict_trajectory(model: Model, experiment: Experiment, fit: FitReport, **problem):
     """Simulate ``experiment`` with the estimate of ``fit``, without refitting.
 
@@ -305,10 +315,8 @@ def predict_trajectory(model: Model, experiment: Experiment, fit: FitReport, **p
 
     Parameters
     ----------
-    model : Model
-        The compiled model the fit used.
-    experiment : Experiment
-        The experiment to predict (time grid, measured signals, inputs).
+    %(model)s
+    %(experiment)s
     fit : FitReport
         A report of :func:`fit_trajectory` or :func:`fit_equilibria`; its
         ``extra["parameters"]`` and ``extra["values"]`` give the estimate.
@@ -328,16 +336,15 @@ def predict_trajectory(model: Model, experiment: Experiment, fit: FitReport, **p
     )
 
 
+@parameters_from(PREDICTION_PARAMETERS)
 def predict_equilibria(model: Model, experiment: Experiment, fit: FitReport, **problem):
     """Quasi-static prediction of ``experiment`` with the estimate of ``fit``, without
     refitting (see :func:`predict_trajectory`).
 
     Parameters
     ----------
-    model : Model
-        The compiled model the fit used.
-    experiment : Experiment
-        The experiment to predict (time grid, measured signals, inputs).
+    %(model)s
+    %(experiment)s
     fit : FitReport
         A report of :func:`fit_equilibria` or :func:`fit_trajectory`; its
         ``extra["parameters"]`` and ``extra["values"]`` give the estimate.

@@ -19,7 +19,7 @@ from softcurve.description.actuator import Actuator
 from softcurve.description.materials import Creep, LinearStiffness, TanhStiffness
 from softcurve.description.robot import Robot, Segment, domain_problem
 from softcurve.scenarios.actuation import from_mapping
-from softcurve.scenarios.tables import ConfigError, Reader, read_toml
+from softcurve.scenarios.tables import ConfigError, Reader, read_toml, toml_parameters
 from softcurve.simulation.settings import SettingsError, SimulationSettings
 
 
@@ -132,26 +132,25 @@ def paper_scenario() -> Scenario:
     )
 
 
+@toml_parameters
 def load_config(path) -> Scenario:
     """Read a scenario from a TOML file; raises :class:`ConfigError` on any problem.
 
     Parameters
     ----------
-    path : str or Path
-        The TOML file.
+    %(path)s
     """
     return scenario_from_dict(*read_toml(path))
 
 
+@toml_parameters
 def scenario_from_dict(data: dict, file: str = "<config>") -> Scenario:
     """Build a :class:`Scenario` from the parsed TOML ``data`` (see :func:`load_config`).
 
     Parameters
     ----------
-    data : dict
-        The parsed TOML.
-    file : str
-        Its name, for messages.
+    %(data)s
+    %(file)s
     """
     top = Reader(file, "", data)
     if not top.has("robot"):

@@ -15,7 +15,7 @@ import numpy as np
 from softcurve._version import __version__
 from softcurve.base.validation import ParameterError
 from softcurve.scenarios.config import Scenario, scenario_from_dict
-from softcurve.scenarios.tables import ConfigError, Reader, read_toml
+from softcurve.scenarios.tables import ConfigError, Reader, read_toml, toml_parameters
 from softcurve.simulation.settings import SimulationSettings
 from softcurve.symbolic.dynamics import DEFAULT_QUADRATURE_NODES
 
@@ -139,26 +139,25 @@ class SweepConfig:
 
 
 # -- reading and checking ------------------------------------------------------------------
+@toml_parameters
 def load_sweep(path) -> SweepConfig:
     """Read and check a sweep file; raises :class:`ConfigError` naming the key.
 
     Parameters
     ----------
-    path : str or Path
-        The TOML file.
+    %(path)s
     """
     return sweep_from_dict(*read_toml(path))
 
 
+@toml_parameters
 def sweep_from_dict(data: dict, file: str = "<config>") -> SweepConfig:
     """Build a :class:`SweepConfig` from parsed TOML; every check happens here.
 
     Parameters
     ----------
-    data : dict
-        The parsed TOML.
-    file : str
-        Its name, for messages.
+    %(data)s
+    %(file)s
     """
     if not isinstance(data, dict) or "sweep" not in data:
         raise ConfigError(f"{file}: sweep: is required (a [sweep] table, see docs/sweeps.md)")

@@ -10,6 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
+from softcurve.base.docs import parameters_from
 from softcurve.base.validation import ParameterError
 
 if sys.version_info >= (3, 11):
@@ -21,6 +22,16 @@ else:  # pragma: no cover
 CLOSE = 0.75
 """Similarity (difflib ratio, 0 to 1) above which an unknown key is taken for a typo of a
 known one: one or two letters swapped, missing or extra in a word of ten."""
+
+
+toml_parameters = parameters_from(
+    {
+        "path": ("str or Path", "The TOML file."),
+        "data": ("dict", "The parsed TOML."),
+        "file": ("str", "Its name, for messages."),
+    }
+)
+"""Documents the parameters the readers of TOML files share."""
 
 
 class ConfigError(ParameterError):
