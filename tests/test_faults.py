@@ -488,3 +488,26 @@ def test_negative_creep_compliance_in_a_file(tmp_path, capsys):
     code, _, err = run(["simulate", config, "-o", out], capsys)
     assert code == 2 and "compliance" in err
     assert not (out / "trajectory.csv").exists()
+
+
+def test_worker_pool_survives_the_end_of_the_thread_that_started_it(tmp_path):
+    """Workers die with the thread that spawned them (the kernel's parent-death signal
+    follows threads): a pool started from a finished thread must not serve the next call."""
+    script = tmp_path / "pool_from_thread.py"
+    script.write_text(
+        "import threading\n"
+        "from softcurve.simulation.workers import run_in_processes\n"
+        "def square(x):\n    return x * x\n"
+        "def run():\n    return dict(run_in_processes(square, {i: (i,) for i in range(4)}, 2))\n"
+        "if __name__ == '__main__':\n"
+        "    out = {}\n"
+        "    t = threading.Thread(target=lambda: out.update(run()))\n"
+        "    t.start(); t.join()\n"
+        "    print(sorted(out.values()), sorted(run().values()))\n"
+    )
+    done = subprocess.run(
+        [sys.executable, "-W", "ignore", str(script)],
+        capture_output=True, text=True, timeout=120, cwd=tmp_path,
+    )  # fmt: skip
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.strip() == "[0, 1, 4, 9] [0, 1, 4, 9]"

@@ -3,9 +3,12 @@
 from __future__ import annotations
 
 import re
+import subprocess
+import sys
 from pathlib import Path
 
 import matplotlib.pyplot as plt
+import pytest
 
 README = Path(__file__).resolve().parents[1] / "README.md"
 
@@ -18,3 +21,22 @@ def test_quickstart_runs(capsys):
     assert namespace["trajectory"].success
     assert "[[" in capsys.readouterr().out  # the mass matrix was printed
     plt.close("all")
+
+
+SCRIPTS = sorted(
+    str(p.relative_to(README.parent))
+    for folder in ("examples", "benchmarks")
+    for p in (README.parent / folder).glob("*.py")
+)
+
+
+@pytest.mark.parametrize("script", SCRIPTS)
+def test_every_example_and_benchmark_starts(script):
+    """Each script the README names imports the current API and parses its options (a
+    renamed function fails here, not in a user's hands)."""
+    done = subprocess.run(
+        [sys.executable, script, "--help"],
+        capture_output=True, text=True, timeout=120, cwd=README.parent,
+    )  # fmt: skip
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert "usage:" in done.stdout

@@ -305,3 +305,8 @@ def test_initial_guesses_outside_the_domain_are_refused(paper_model):
         equilibria(paper_model, bounds=[[0.0, 0.07], [-1.0, 1.0], [-1.0, 1.0]])
     with pytest.raises(ParameterError, match=r"bounds\[:, 1\] \(upper lengths\): lengths l"):
         equilibria(paper_model, bounds=[[0.06, 1.0], [-1.0, 1.0], [-1.0, 1.0]])
+
+
+def test_linearize_refuses_a_configuration_outside_the_domain(paper_model):
+    with pytest.raises(ParameterError, match=r"q: lengths l must be in the model's domain"):
+        linearize(paper_model, [-0.01, 0.0, 0.0])

@@ -131,7 +131,7 @@ def linearize(model, q, qd=None, lam=None, *, wrt: str = "tau", **loads) -> Line
     if actuator is not None and loads.get("inputs") is None:
         loads["inputs"] = actuator.rest_inputs()
     load = StaticLoad(model, **loads)
-    q = real_array("q", q, (model.n,))
+    q = model.robot.check_configuration(real_array("q", q, (model.n,)), "q")
     qd = real_array("qd", np.zeros(model.n) if qd is None else qd, (model.n,))
     lam = real_array("lam", np.zeros(model.n_creep) if lam is None else lam, (model.n_creep,))
     x = np.concatenate([q, qd, lam])

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import subprocess
+import sys
 
 from . import Command, _robots
 
@@ -29,8 +30,8 @@ def _run(args) -> int:
     from softcurve.compiled.codegen import build_and_run_test, export_c
     from softcurve.compiled.model import Model
 
+    robot, actuator = _robots.robot_and_actuator(args)  # a bad file: no folder made
     writable_folder(args.output, "--output")  # before any work
-    robot, actuator = _robots.robot_and_actuator(args)
     exported = export_c(
         Model(robot, compile=False),
         args.output,
@@ -45,7 +46,8 @@ def _run(args) -> int:
         try:
             output = build_and_run_test(exported)
         except subprocess.CalledProcessError as exc:
-            print(f"  test FAILED: {(exc.stderr or exc.stdout or '').strip()[:400]}")
+            detail = (exc.stderr or exc.stdout or "").strip()[:400]
+            print(f"softcurve codegen: test FAILED: {detail}", file=sys.stderr)
             return 1
         print(f"  test program: {output.strip().splitlines()[-1]}")
     return 0

@@ -10,7 +10,6 @@ figures are still written), 2 for usage or configuration errors.
 from __future__ import annotations
 
 import dataclasses
-import math
 import re
 import shutil
 import sys
@@ -20,12 +19,7 @@ import numpy as np
 
 from softcurve.base.files import writable_folder
 from softcurve.base.validation import ParameterError
-from softcurve.simulation.settings import (
-    BYTES_PER_VALUE,
-    CSV_BYTES_PER_VALUE,
-    SettingsError,
-    output_count,
-)
+from softcurve.simulation.settings import CSV_BYTES_PER_VALUE, SettingsError, format_bytes
 from softcurve.simulation.trajectory_files import save_trajectory
 
 from . import Command, add_progress_options, write_figure
@@ -86,19 +80,6 @@ def _scenario(args):
     if args.fps < 1:
         raise ParameterError(f"--fps must be >= 1, got {args.fps}")
     settings = scenario.settings
-    limit = overrides.get("max_outputs", settings.max_outputs)
-    t_final, dt = overrides.get("t_final", settings.t_final), overrides.get("dt", settings.dt)
-    if all(isinstance(x, float) and 0 < x < math.inf for x in (t_final, dt)) and limit >= 2:
-        columns = 1 + 2 * scenario.robot.n + scenario.robot.n_creep + 3  # t, q, qd, lam, tip
-        outputs = output_count(t_final, dt)
-        if outputs > limit:
-            values = outputs * columns
-            memory, csv = values * BYTES_PER_VALUE, values * CSV_BYTES_PER_VALUE
-            raise ParameterError(
-                f"--t-final {t_final:g} s with --dt {dt:g} s asks for {outputs:.4g} output "
-                f"times ({_size(memory)} in memory, {_size(csv)} of CSV), more than "
-                f"--max-outputs {limit}: shorten --t-final, raise --dt, or raise --max-outputs"
-            )
     # Scenario and SimulationSettings check themselves: the overrides are validated here
     try:
         return dataclasses.replace(scenario, settings=settings.replace(**overrides))
@@ -109,14 +90,6 @@ def _scenario(args):
 LARGE_CSV = 100e6
 """CSV size [bytes] above which ``simulate`` says that it is writing (about 7 s at the
 15 MB/s of NumPy's text output) when no progress bar is shown."""
-
-
-def _size(size: float) -> str:
-    """A byte count in MB, GB or TB."""
-    for unit, scale in (("TB", 1e12), ("GB", 1e9)):
-        if size >= scale:
-            return f"{size / scale:.3g} {unit}"
-    return f"{size / 1e6:.3g} MB"
 
 
 FLAGS = {
@@ -176,7 +149,10 @@ def _run(args) -> int:
         * (CSV_BYTES_PER_VALUE)
     )
     if csv_size > LARGE_CSV and not show_progress and not args.quiet:
-        print(f"softcurve simulate: writing about {_size(csv_size)} of CSV ...", file=sys.stderr)
+        print(
+            f"softcurve simulate: writing about {format_bytes(csv_size)} of CSV ...",
+            file=sys.stderr,
+        )
     written = [save_trajectory(trajectory, output / "trajectory.csv", progress=show_progress)]
     if args.npz:
         written.append(trajectory.save(output / "trajectory.npz"))

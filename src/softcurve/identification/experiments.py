@@ -322,8 +322,13 @@ def load_csv(
     path = Path(path)
     if not path.is_file():
         raise FileNotFoundError(f"experiment file {str(path)!r} does not exist")
-    with path.open(newline="") as handle:
-        rows = list(csv.reader(handle))
+    try:
+        with path.open(newline="", encoding="utf-8") as handle:
+            rows = list(csv.reader(handle))
+    except UnicodeDecodeError as exc:
+        raise ExperimentError(
+            f"{path}: not a UTF-8 text file (byte {exc.start}); save it as UTF-8 CSV"
+        ) from None
     if len(rows) < 2:
         raise ExperimentError(f"{path}: needs a header row and at least one data row")
     header = [h.strip() for h in rows[0]]

@@ -34,7 +34,7 @@ def trajectory_sensitivities(model, parameters, output, input_map, x0, experimen
     Parameters
     ----------
     model : Model
-    parameters : identify_dynamic._Parameters
+    parameters : softcurve.identification.parameters.FreeParameters
         The free parameters and how they enter ``p`` and the extra values.
     output : OutputMap
     input_map : InputMap or None

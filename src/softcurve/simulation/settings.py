@@ -20,6 +20,11 @@ METHODS = ("cvodes", "adams", "bdf", "rk45")
 """Integrators: ``"cvodes"`` chooses Adams or BDF per problem, ``"adams"`` and ``"bdf"``
 force CVODES's family, ``"rk45"`` is SciPy's explicit Runge-Kutta 4(5)."""
 
+RTOL_MIN = 100 * np.finfo(np.float64).eps
+"""Smallest relative tolerance (about 2.2e-14): tighter ones ask for fewer than 100 units
+in the last place over a whole run, which float64 arithmetic cannot deliver, and CVODES
+stops with CV_TOO_MUCH_ACC after the work is done; they are refused up front instead."""
+
 
 MAX_OUTPUTS = 10_000_000
 """Default limit of output times: 1000 times the paper's 10 s at 1 ms; the state of a
@@ -45,11 +50,25 @@ class SettingsError(ParameterError):
 def _number(field: str, value, *, unit: str) -> float:
     """``value`` as a finite float > 0, or :class:`SettingsError`."""
     if isinstance(value, bool | str | bytes) or not np.isscalar(value) or not np.isrealobj(value):
-        raise SettingsError(field, f"must be a real number > 0 {unit}, got {value!r}")
+        raise SettingsError(field, f"must be a real number > 0{unit}, got {value!r}")
     x = float(value)
     if not (math.isfinite(x) and x > 0):
-        raise SettingsError(field, f"must be a finite number > 0 {unit}, got {x!r}")
+        raise SettingsError(field, f"must be a finite number > 0{unit}, got {x!r}")
     return x
+
+
+def format_bytes(size: float) -> str:
+    """A byte count in MB, GB or TB, for messages.
+
+    Parameters
+    ----------
+    size : float
+        Bytes [B].
+    """
+    for unit, scale in (("TB", 1e12), ("GB", 1e9)):
+        if size >= scale:
+            return f"{size / scale:.3g} {unit}"
+    return f"{size / 1e6:.3g} MB"
 
 
 @dataclass(frozen=True)
@@ -97,8 +116,8 @@ class SimulationSettings:
     max_outputs: int = MAX_OUTPUTS
 
     def __post_init__(self):
-        t_final = _number("t_final", self.t_final, unit="[s]")
-        dt = _number("dt", self.dt, unit="[s]")
+        t_final = _number("t_final", self.t_final, unit=" [s]")
+        dt = _number("dt", self.dt, unit=" [s]")
         if dt > t_final:
             raise SettingsError("dt", f"must be <= t_final = {t_final!r} [s], got {dt!r}")
         if self.method not in METHODS:
@@ -106,8 +125,8 @@ class SimulationSettings:
                 "method", f"must be one of {', '.join(METHODS)}, got {self.method!r}"
             )
         rtol = _number("rtol", self.rtol, unit="")
-        if not rtol < 1:
-            raise SettingsError("rtol", f"must be in (0, 1), got {rtol!r}")
+        if not RTOL_MIN <= rtol < 1:
+            raise SettingsError("rtol", f"must be in [{RTOL_MIN:g}, 1), got {rtol!r}")
         max_steps = self.max_steps
         integer = isinstance(max_steps, int | np.integer) and not isinstance(max_steps, bool)
         if not integer or max_steps < 1:
@@ -120,10 +139,11 @@ class SimulationSettings:
         if outputs > limit:
             raise SettingsError(
                 "t_final",
-                f"= {t_final!r} [s] with dt = {dt!r} [s] asks for {outputs:.4g} output times "
-                f"(about {outputs * 13 * BYTES_PER_VALUE / 2**30:.3g} GiB in memory for one "
-                f"segment), more than max_outputs = {int(limit)}: shorten t_final, raise dt, "
-                "or raise max_outputs",
+                f"{t_final:g} s with dt {dt:g} s asks for {outputs:.4g} output times "
+                f"({format_bytes(outputs * BYTES_PER_VALUE)} in memory and "
+                f"{format_bytes(outputs * CSV_BYTES_PER_VALUE)} of CSV for each recorded value, "
+                f"13 of them for one segment with creep), more than max_outputs "
+                f"{int(limit)}: shorten t_final, raise dt, or raise max_outputs",
             )
         set_ = object.__setattr__
         set_(self, "max_outputs", int(limit))

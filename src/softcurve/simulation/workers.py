@@ -5,9 +5,8 @@ costs about a second), and yields each result as it finishes; an error in a task
 interrupt, cancels the tasks not yet started. :func:`worker_model` keeps the model a
 worker has loaded for the next task on the same robot.
 
-Workers die with the process that started them, whatever kills it: on Linux the kernel
-sends them SIGKILL when it exits (``prctl(PR_SET_PDEATHSIG)``); elsewhere, and as a
-second guard, a thread in each worker ends it once its parent is gone.
+Workers die with the process that started them, whatever kills it: a thread in each
+worker ends it once its parent is gone (checked every ``PARENT_POLL`` seconds).
 
 Processes rather than threads: CasADi's integrator reads the process CPU clock around
 every evaluation of the model, and the threads of one process contend for that clock.
@@ -15,10 +14,7 @@ every evaluation of the model, and the threads of one process contend for that c
 
 from __future__ import annotations
 
-import ctypes
 import os
-import signal
-import sys
 import threading
 import time
 from collections.abc import Callable, Iterator
@@ -32,21 +28,19 @@ from softcurve.description.robot import Robot
 _POOL: list = []  # [(size, ProcessPoolExecutor)], at most one
 _WORKER_MODELS: dict = {}
 
-_PR_SET_PDEATHSIG = 1  # from <linux/prctl.h>
 PARENT_POLL = 0.5
-"""Seconds between two checks of a worker that its parent still runs: a worker outlives
-a killed parent by at most this long where the kernel cannot end it."""
+"""Seconds between two checks of a worker that its parent still runs: a worker outlives a
+killed parent by about this long, or until the compiled call it is in returns (the watcher
+needs the interpreter)."""
 
 
 def _worker_start(parent: int) -> None:
     """Initializer of each worker: die when the process ``parent`` is gone."""
-    if sys.platform.startswith("linux"):
-        try:
-            libc = ctypes.CDLL(None, use_errno=True)
-            libc.prctl(_PR_SET_PDEATHSIG, signal.SIGKILL, 0, 0, 0)
-        except (OSError, AttributeError):  # pragma: no cover - no prctl: the thread guards
-            pass
-    if os.getppid() != parent:  # the parent died before prctl took effect
+    # Not the kernel's parent-death signal (prctl PR_SET_PDEATHSIG): it follows the THREAD
+    # that spawned the worker, and executors spawn workers in whichever thread submits, so
+    # a pool started from a thread that ends would lose its workers. A watcher thread is
+    # portable and follows the process.
+    if os.getppid() != parent:  # the parent died while this worker started
         os._exit(1)
     threading.Thread(target=_watch_parent, args=(parent,), daemon=True).start()
 
