@@ -32,12 +32,13 @@ def _run(args) -> int:
     from softcurve.base.files import writable_file
     from softcurve.base.validation import ParameterError
     from softcurve.identification.experiments import load_csv
+    from softcurve.identification.report import check_confidence
     from softcurve.identification.stiffness import fit_stiffness
 
-    if not 0 < args.confidence < 1:
-        raise ParameterError(
-            f"--confidence must be a probability in (0, 1), e.g. 0.95, got {args.confidence}"
-        )
+    try:  # the library's one check, before any work, named as the option
+        check_confidence(args.confidence)
+    except ParameterError as exc:
+        raise ParameterError(f"--{exc}") from None
     if args.figure:
         writable_file(args.figure, "--figure")  # before any work
 

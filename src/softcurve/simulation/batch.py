@@ -206,8 +206,7 @@ def _integrate(model, x0, arrays, scales, abstol, settings, threads) -> BatchTra
     states[:, 0] = x0
     start = time.perf_counter()
     options = (settings.rtol, abstol, settings.max_steps)
-    run = MemberRun(model, grid, options, threads, tau, params, nominal, states)
-    run.rest_lengths = rest_lengths
+    run = MemberRun(model, grid, options, threads, tau, params, nominal, states, rest_lengths)
     for k0, k1 in restart_segments(grid):
         if method == "cvodes" and k0 > 0:  # as simulate(): BDF for settled members
             xdot = rhs_along(model, np.nan_to_num(states[:, k0 : k0 + 1]), tau[:, None, :],

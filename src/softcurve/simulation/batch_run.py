@@ -72,24 +72,20 @@ class MemberRun:
         State scale per member.
     states : ndarray, shape (B, T, n_state)
         Filled in place (NaN after a member's failure).
-
-    Attributes
-    ----------
-    rest_lengths : ndarray, shape (B, N) or (N,)
-        Rest length of each member's segments [m], for the domain check of the outputs
-        (default the model's robot's).
+    rest_lengths : ndarray, shape (B, N)
+        Rest length of each member's segments [m], for the domain check of the outputs.
     """
 
-    def __init__(self, model: Model, grid, options, threads, tau, params, nominal, states):
+    def __init__(
+        self, model: Model, grid, options, threads, tau, params, nominal, states, rest_lengths
+    ):
         self.model, self.grid, self.options, self.threads = model, grid, options, threads
         self.tau, self.params, self.nominal, self.states = tau, params, nominal, states
+        self.rest_lengths = rest_lengths
         size = states.shape[0]
         self.reached = np.full(size, grid.size)
         self.status = np.full(size, Status.SUCCESS, dtype=object)
         self.messages = [""] * size
-        self.rest_lengths = np.broadcast_to(
-            model.robot.rest_lengths, (size, model.robot.n_segments)
-        )
 
     def _p(self, members, h) -> np.ndarray:
         count = len(members)

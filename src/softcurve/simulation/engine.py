@@ -286,9 +286,6 @@ def cvodes_reason(text: str) -> str:
     return "CVODES failed: " + text.strip().splitlines()[-1][:300]
 
 
-NON_FINITE = "the state became non-finite"
-"""The reason of a failure where the state left the domain (status ``LEFT_DOMAIN``)."""
-
 LEFT_DOMAIN = "the state left the model's domain"
 """How the reason of a run stopped by the domain check at an output time begins
 (:func:`softcurve.simulation.stepping.outside_domain`, status ``LEFT_DOMAIN``)."""
