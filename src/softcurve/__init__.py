@@ -44,6 +44,7 @@ from softcurve.description.actuator import Actuator
 from softcurve.description.layout import ParameterLayout
 from softcurve.description.materials import Creep, LinearStiffness, TanhStiffness
 from softcurve.description.pneumatic import Bellows, ConstantPressureMap, PneumaticActuator
+from softcurve.description.tendons import Tendon, TendonActuator
 from softcurve.description.robot import Robot, Segment
 from softcurve.figures import save_figure
 from softcurve.identification.dynamic import (
@@ -85,6 +86,8 @@ __all__ = [
     "Bellows",
     "PneumaticActuator",
     "ConstantPressureMap",
+    "Tendon",
+    "TendonActuator",
     "ParameterLayout",
     "presets",
     # the compiled model

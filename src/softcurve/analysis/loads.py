@@ -78,8 +78,10 @@ class StaticLoad:
 
     @property
     def conservative(self) -> bool:
-        """False when a tip moment is applied."""
-        return not np.any(self.tip_moment)
+        """False when a tip moment is applied or the actuator is not conservative
+        (e.g. tendons with friction)."""
+        actuator_conservative = self.actuator is None or self.actuator.conservative
+        return actuator_conservative and not np.any(self.tip_moment)
 
     def arguments(self) -> list:
         """The load inputs of the cached CasADi Functions, after ``q`` or ``x``."""

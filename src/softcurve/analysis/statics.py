@@ -8,7 +8,7 @@ analysis (``gravity=``) without recompiling: it is a run-time parameter of the m
 
 Stability is read from the tangent stiffness ``K = d/dq (N - loads)``. Gravity,
 elasticity, constant ``tau``, constant actuator inputs (``p_i dV_i`` is exact for
-pressures, ``-T . dL`` for tensions) and a constant
+pressures, ``-T . dL`` for tensions without friction) and a constant
 world tip force (potential ``-f . p_tip``) are conservative, so ``K`` is the Hessian of
 the total potential and is symmetric: all eigenvalues positive is a strict local
 minimum (``"stable"``), all negative a local maximum (``"unstable"``), mixed signs a
@@ -16,7 +16,8 @@ minimum (``"stable"``), all negative a local maximum (``"unstable"``), mixed sig
 constant world tip moment is not conservative in three dimensions (rotations do not
 commute): it enters ``K`` through ``d(J_w^T m)/dq``, which is not symmetric, and the
 classification is then by the real parts of ``K``'s eigenvalues (static divergence
-only); the eigenvalues of :func:`linearize`'s ``A`` decide the dynamic stability.
+only); the eigenvalues of :func:`linearize`'s ``A`` decide the dynamic stability. Tendons
+with friction are not conservative either and are classified the same way.
 
 Continua: when the loads are symmetric about the base axis (gravity along it, no
 lateral load), a bent equilibrium rotated about the axis is again an equilibrium. Each
@@ -180,7 +181,8 @@ def _result(problem: _Problem, root: Root, tol, zero_tolerance, distinct) -> Equ
     r, k, w, tip = problem.evaluate(q)
     stability, eigenvalues = _classify(problem, q, k, ring, zero_tolerance)
     if not problem.load.conservative:
-        message += "; tip moment is not conservative: classification by static divergence only"
+        what = "tip moment" if np.any(problem.load.tip_moment) else "actuator (friction)"
+        message += f"; {what} is not conservative: classification by static divergence only"
     return Equilibrium(
         q=q,
         status=root.status,

@@ -32,6 +32,51 @@ def optional_time_constant(value) -> float | None:
     return None if value is None else real_scalar("time_constant", value, positive=True)
 
 
+def offset_fiber_length(q, segment: int, azimuth, distance):
+    """Length [m] of the fiber at ``distance`` ``rho`` and ``azimuth`` ``phi`` from the
+    backbone of one constant-curvature segment: ``l (1 - rho (kx cos phi + ky sin phi))``
+    (CasADi; exact, and a polynomial in ``q``).
+
+    Parameters
+    ----------
+    q : casadi.SX or casadi.MX, shape (n,)
+        Generalized coordinates [m, 1/m, 1/m].
+    segment : int
+        Index ``j`` of the segment (coordinates ``q[3j : 3j + 3]``).
+    azimuth : float or casadi.SX or casadi.MX
+        ``phi`` [rad], from +x toward +y in the segment's cross-section.
+    distance : float or casadi.SX or casadi.MX
+        ``rho`` [m].
+    """
+    length, kx, ky = q[3 * segment], q[3 * segment + 1], q[3 * segment + 2]
+    return length * (1 - distance * (kx * ca.cos(azimuth) + ky * ca.sin(azimuth)))
+
+
+def offset_fiber_gradient(q, segment: int, azimuth, distance) -> list:
+    """``dL/dq`` of :func:`offset_fiber_length` as a list of n CasADi entries, in closed
+    form (``1 - rho k_phi``, ``-l rho cos phi``, ``-l rho sin phi`` at the segment's
+    coordinates, zero elsewhere), so ``q`` may be any expression, not only a symbol.
+
+    Parameters
+    ----------
+    q : casadi.SX or casadi.MX, shape (n,)
+        Generalized coordinates [m, 1/m, 1/m].
+    segment : int
+        Index ``j`` of the segment.
+    azimuth : float or casadi.SX or casadi.MX
+        ``phi`` [rad].
+    distance : float or casadi.SX or casadi.MX
+        ``rho`` [m].
+    """
+    gradient = [0] * q.shape[0]
+    length, kx, ky = q[3 * segment], q[3 * segment + 1], q[3 * segment + 2]
+    c, s = ca.cos(azimuth), ca.sin(azimuth)
+    gradient[3 * segment] = 1 - distance * (kx * c + ky * s)
+    gradient[3 * segment + 1] = -length * distance * c
+    gradient[3 * segment + 2] = -length * distance * s
+    return gradient
+
+
 class Actuator:
     """An actuator: bounded inputs ``u`` (m,) acting on the robot as ``tau = H(q) u``.
 
@@ -63,6 +108,9 @@ class Actuator:
     time_constant: float | None
     input_name: str = "inputs"
     input_unit: str = ""
+    conservative: bool = True
+    """True when constant inputs do the work :meth:`input_work_symbolic` exactly (no
+    friction); statics then classify equilibria by a symmetric Hessian."""
 
     # -- the map ---------------------------------------------------------------------
     def input_matrix_symbolic(self, q, theta=None):

@@ -33,7 +33,12 @@ import casadi as ca
 import numpy as np
 
 from softcurve.base.validation import ParameterError, real_array, real_scalar
-from softcurve.description.actuator import Actuator, optional_time_constant
+from softcurve.description.actuator import (
+    Actuator,
+    offset_fiber_gradient,
+    offset_fiber_length,
+    optional_time_constant,
+)
 
 ATMOSPHERIC_PRESSURE = 101325.0
 """Standard atmosphere [Pa]: no gauge pressure can be below ``-ATMOSPHERIC_PRESSURE``."""
@@ -222,11 +227,7 @@ class PneumaticActuator(Actuator):
         lengths = []
         for i, b in enumerate(self.bellows):
             phi, rho, _ = self._geometry(i, theta)
-            total = 0
-            for j in b.segments:
-                length, kx, ky = q[3 * j], q[3 * j + 1], q[3 * j + 2]
-                total += length * (1 - rho * (kx * ca.cos(phi) + ky * ca.sin(phi)))
-            lengths.append(total)
+            lengths.append(sum(offset_fiber_length(q, j, phi, rho) for j in b.segments))
         return ca.vertcat(*lengths)
 
     def input_work_symbolic(self, q, inputs):
@@ -246,17 +247,13 @@ class PneumaticActuator(Actuator):
         return np.array([b.area for b in self.bellows]) * lengths
 
     def input_matrix_symbolic(self, q, theta=None):
-        # Closed form of A dL/dq (module docstring); tests check it against dV/dq.
         columns = []
         for i, b in enumerate(self.bellows):
             phi, rho, area = self._geometry(i, theta)
             column = [0] * self.n
-            c, s = ca.cos(phi), ca.sin(phi)
             for j in b.segments:
-                length, kx, ky = q[3 * j], q[3 * j + 1], q[3 * j + 2]
-                column[3 * j] = area * (1 - rho * (kx * c + ky * s))
-                column[3 * j + 1] = -area * length * rho * c
-                column[3 * j + 2] = -area * length * rho * s
+                gradient = offset_fiber_gradient(q, j, phi, rho)
+                column[3 * j : 3 * j + 3] = [area * g for g in gradient[3 * j : 3 * j + 3]]
             columns.append(ca.vertcat(*column))
         return ca.horzcat(*columns)
 

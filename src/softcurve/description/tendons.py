@@ -1,0 +1,345 @@
+"""Tendon actuators: from tendon tensions to generalized forces, ``tau = H(q) T``.
+
+A :class:`Tendon` runs parallel to the backbone at distance ``rho`` and azimuth ``phi``
+(in each segment's base frame, from +x toward +y, like the bellows) through the segments
+``0 .. anchor`` and is tied to the tip of segment ``anchor`` (MODEL.md, "Tendon
+actuation"). In segment ``j`` it is an offset fiber of the constant-curvature arc::
+
+    L_j = l_j (1 - rho (kx_j cos phi + ky_j sin phi))
+
+exact for constant curvature and a polynomial in ``q`` (smooth at zero curvature). A
+tension ``T >= 0`` [N] pulled at the base does the work ``-T dL``, so the tendon
+shortens the robot and bends it TOWARD itself (``kx > 0`` for ``phi = 0``)::
+
+    tau = -T sum_j dL_j/dq
+
+Tensions are bounded to ``[t_min, t_max]`` with ``t_min >= 0`` (a tendon cannot push;
+slack is tension zero). Without friction the tendon is conservative, of potential
+``T L(q)``.
+
+**Friction (optional, off by default).** A tendon pulled through its guides loses
+tension along the routing by the capstan (Euler-Eytelwein) law ``T(theta) = T
+exp(-mu theta)``, ``theta`` the angle the tendon has turned through since the base;
+Kato et al. (IEEE/ASME Trans. Mechatronics 20(5), 2015) validated this tension
+propagation on a tendon-driven continuum robot. The offset fiber of an arc is a
+concentric arc, so in segment ``j`` the tendon turns through the segment's bending
+angle ``beta_j = l_j kappa_j``. Because the tension varies along a segment while its
+virtual elongation is uniform in the material coordinate, segment ``j`` sees the mean
+tension::
+
+    T_j = T exp(-mu Theta_(j-1)) (1 - exp(-mu beta_j)) / (mu beta_j)
+
+with ``Theta_(j-1)`` the angle turned in segments ``0 .. j-1``. The law describes a
+tendon being pulled in (loading); friction makes the tendon non-conservative
+(:attr:`TendonActuator.conservative` is False). ``|beta|`` has a kink at zero
+curvature (Coulomb friction switches on there), so the angle is rounded off as
+``sqrt(beta^2 + eps^2) - eps`` with ``eps = Tendon.wrap_smoothing`` [rad], keeping
+``tau`` differentiable at a straight robot, as a regularized Coulomb law does.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import casadi as ca
+import numpy as np
+
+from softcurve.base.validation import ParameterError, real_array, real_scalar
+from softcurve.description.actuator import (
+    Actuator,
+    offset_fiber_gradient,
+    offset_fiber_length,
+    optional_time_constant,
+)
+
+DEFAULT_AZIMUTHS = (0.0, 2.0 * math.pi / 3.0, 4.0 * math.pi / 3.0)
+"""Three tendons evenly spaced, measured from +x toward +y [rad]."""
+
+WRAP_SMOOTHING = 1e-3
+"""Default rounding of the wrap angle [rad] under friction: below about a milliradian
+of bending the friction is shaded off smoothly (1 mrad changes the capstan factor of a
+tendon with mu = 0.3 by 3e-4, below what tendon-friction experiments resolve)."""
+
+
+SERIES_LIMIT = 1e-3
+"""Below this ``x`` the mean capstan factor ``(1 - exp(-x)) / x`` is its five-term
+series, whose truncation error ``x^5 / 720`` is then under 2e-18 (round-off)."""
+
+
+def _mean_capstan_factor(x):
+    """``(1 - exp(-x)) / x`` (CasADi), exact to round-off for every ``x >= 0`` and smooth
+    through ``x = 0``, where it is 1 (the mean of ``exp(-x s)`` over ``s`` in [0, 1])."""
+    series = 1 - x / 2 + x**2 / 6 - x**3 / 24 + x**4 / 120
+    return ca.if_else(x < SERIES_LIMIT, series, -ca.expm1(-x) / ca.fmax(x, SERIES_LIMIT))
+
+
+def _count(name: str, value, minimum: int) -> int:
+    if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < minimum:
+        raise ParameterError(f"{name} must be an integer >= {minimum}, got {value!r}")
+    return int(value)
+
+
+@dataclass(frozen=True)
+class Tendon:
+    """One tendon routed parallel to the backbone from the base to a segment's tip.
+
+    Parameters
+    ----------
+    azimuth : float
+        Angle ``phi`` [rad] of the tendon in each segment's cross-section, from +x
+        toward +y.
+    distance : float
+        ``rho`` [m], > 0, from the backbone to the tendon.
+    t_max : float
+        Upper tension bound [N], > t_min.
+    t_min : float
+        Lower tension bound [N], >= 0 (a pretension; default 0, a slack tendon).
+    anchor : int
+        Index of the segment at whose tip the tendon is tied; it runs through segments
+        ``0 .. anchor`` (default 0, the first segment only).
+    friction : float
+        Capstan friction coefficient ``mu`` >= 0 of the routing (default 0: none).
+    wrap_smoothing : float
+        Rounding ``eps`` [rad] > 0 of the wrap angle under friction (module docstring).
+    """
+
+    azimuth: float
+    distance: float
+    t_max: float
+    t_min: float = 0.0
+    anchor: int = 0
+    friction: float = 0.0
+    wrap_smoothing: float = WRAP_SMOOTHING
+
+    def __post_init__(self):
+        set_ = object.__setattr__  # frozen dataclass: normalize fields once here
+        set_(self, "azimuth", real_scalar("azimuth", self.azimuth))
+        set_(self, "distance", real_scalar("distance", self.distance, positive=True))
+        t_min = real_scalar("t_min", self.t_min)
+        if t_min < 0:
+            raise ParameterError(f"t_min must be >= 0 N (a tendon cannot push), got {t_min!r}")
+        t_max = real_scalar("t_max", self.t_max)
+        if not t_max > t_min:
+            raise ParameterError(f"t_max must be > t_min = {t_min!r} N, got {t_max!r}")
+        set_(self, "t_min", t_min)
+        set_(self, "t_max", t_max)
+        set_(self, "anchor", _count("anchor", self.anchor, 0))
+        friction = real_scalar("friction", self.friction)
+        if friction < 0:
+            raise ParameterError(f"friction must be >= 0, got {friction!r}")
+        set_(self, "friction", friction)
+        set_(
+            self,
+            "wrap_smoothing",
+            real_scalar("wrap_smoothing", self.wrap_smoothing, positive=True),
+        )
+
+
+@dataclass(frozen=True, eq=False)
+class TendonActuator(Actuator):
+    """Tendons whose ``H(q)`` follows from the virtual work of their tensions.
+
+    Parameters
+    ----------
+    tendons : sequence of Tendon
+        The tendons, in the order of the tension vector.
+    n_segments : int
+        Number of segments of the robot driven (``n = 3 n_segments``); every
+        ``Tendon.anchor`` must be below it.
+    time_constant : float or None
+        First-order lag of the tensions behind their commands [s], or None.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import softcurve as sc
+    >>> tendon = sc.Tendon(azimuth=0.0, distance=0.01, t_max=10.0)
+    >>> actuator = sc.TendonActuator([tendon])
+    >>> actuator.tendon_lengths([0.2, 0.0, 0.0])  # straight: the segment's length [m]
+    array([0.2])
+    >>> actuator.generalized_force([0.2, 0.0, 0.0], [2.0])  # shortens, bends toward +x
+    array([-2.   ,  0.004,  0.   ])
+    """
+
+    tendons: tuple[Tendon, ...]
+    n_segments: int = 1
+    time_constant: float | None = None
+    input_name = "tensions"
+    input_unit = "N"
+
+    def __post_init__(self):
+        tendons = (self.tendons,) if isinstance(self.tendons, Tendon) else self.tendons
+        try:
+            tendons = tuple(tendons)
+        except TypeError:
+            raise ParameterError(
+                f"tendons must be a sequence of Tendon, got {type(self.tendons).__name__}"
+            ) from None
+        if not tendons:
+            raise ParameterError("tendons must hold at least one Tendon, got none")
+        for i, t in enumerate(tendons):
+            if not isinstance(t, Tendon):
+                raise ParameterError(f"tendons[{i}] must be a Tendon, got {type(t).__name__}")
+        n_segments = _count("n_segments", self.n_segments, 1)
+        for i, t in enumerate(tendons):
+            if t.anchor >= n_segments:
+                raise ParameterError(
+                    f"tendons[{i}].anchor = {t.anchor} is beyond the robot's last segment "
+                    f"(n_segments = {n_segments}, anchors 0 .. {n_segments - 1})"
+                )
+        set_ = object.__setattr__
+        set_(self, "tendons", tendons)
+        set_(self, "n_segments", n_segments)
+        set_(self, "time_constant", optional_time_constant(self.time_constant))
+        set_(self, "n", 3 * n_segments)
+        set_(self, "n_inputs", len(tendons))
+        set_(self, "lower", real_array("t_min", [t.t_min for t in tendons], (len(tendons),)))
+        set_(self, "upper", real_array("t_max", [t.t_max for t in tendons], (len(tendons),)))
+
+    @classmethod
+    def three_per_segment(
+        cls,
+        *,
+        distance: float,
+        t_max: float,
+        t_min: float = 0.0,
+        n_segments: int = 1,
+        azimuths=DEFAULT_AZIMUTHS,
+        friction: float = 0.0,
+        time_constant: float | None = None,
+    ) -> TendonActuator:
+        """Identical tendons at ``azimuths``, one set tied to the tip of every segment
+        (``len(azimuths) N`` tensions, proximal set first); a distal set runs through
+        every segment before its anchor.
+
+        Parameters
+        ----------
+        distance : float
+            ``rho`` [m] of every tendon.
+        t_max, t_min : float
+            Tension bounds [N].
+        n_segments : int
+            Number of segments; each gets its own tendons.
+        azimuths : sequence of float
+            Azimuths [rad] of the tendons of each set.
+        friction : float
+            Capstan friction coefficient of every tendon.
+        time_constant : float or None
+            First-order tension lag [s], or None.
+        """
+        tendons = tuple(
+            Tendon(float(phi), distance, t_max, t_min, k, friction)
+            for k in range(_count("n_segments", n_segments, 1))
+            for phi in azimuths
+        )
+        return cls(tendons, n_segments=n_segments, time_constant=time_constant)
+
+    @property
+    def conservative(self) -> bool:
+        """True without friction: the tensions' work is ``-T . L(q)``."""
+        return all(t.friction == 0 for t in self.tendons)
+
+    def parameter_vector(self) -> np.ndarray:
+        return np.array(
+            [v for t in self.tendons for v in (t.azimuth, t.distance, t.friction)],
+            dtype=np.float64,
+        )
+
+    def parameter_names(self) -> list[str]:
+        return [
+            f"tendons[{i}].{name}"
+            for i in range(self.n_inputs)
+            for name in ("azimuth", "distance", "friction")
+        ]
+
+    # -- symbolic --------------------------------------------------------------------
+    def segment_lengths_symbolic(self, q, theta=None) -> list[list]:
+        """Lengths ``L_ij(q)`` [m] of tendon ``i`` in segment ``j <= anchor_i`` (CasADi).
+
+        Parameters
+        ----------
+        q : casadi.SX or casadi.MX, shape (n,)
+            Generalized coordinates [m, 1/m, 1/m].
+        theta : casadi.SX or casadi.MX, shape (3 m,), optional
+            ``(azimuth, distance, friction)`` of each tendon, replacing their values.
+        """
+        lengths = []
+        for i, tendon in enumerate(self.tendons):
+            phi, rho, _ = self._geometry(i, theta)
+            lengths.append([offset_fiber_length(q, j, phi, rho) for j in range(tendon.anchor + 1)])
+        return lengths
+
+    def tendon_lengths_symbolic(self, q, theta=None):
+        """Lengths ``L_i(q)`` (m,) [m] of the tendons from the base to their anchors.
+
+        Parameters
+        ----------
+        q : casadi.SX or casadi.MX, shape (n,)
+            Generalized coordinates [m, 1/m, 1/m].
+        theta : casadi.SX or casadi.MX, shape (3 m,), optional
+            ``(azimuth, distance, friction)`` of each tendon, replacing their values.
+        """
+        return ca.vertcat(*[sum(parts) for parts in self.segment_lengths_symbolic(q, theta)])
+
+    def tension_factors_symbolic(self, q, theta=None) -> list[list]:
+        """Mean tension in segment ``j`` per unit tension at the base (capstan law, module
+        docstring); exactly 1 for a tendon without friction.
+
+        Parameters
+        ----------
+        q : casadi.SX or casadi.MX, shape (n,)
+            Generalized coordinates [m, 1/m, 1/m].
+        theta : casadi.SX or casadi.MX, shape (3 m,), optional
+            ``(azimuth, distance, friction)`` of each tendon, replacing their values.
+        """
+        factors = []
+        for i, tendon in enumerate(self.tendons):
+            mu = self._geometry(i, theta)[2]
+            if theta is None and tendon.friction == 0:
+                factors.append([1] * (tendon.anchor + 1))
+                continue
+            eps, turned, row = tendon.wrap_smoothing, 0, []
+            for j in range(tendon.anchor + 1):
+                length, kx, ky = q[3 * j], q[3 * j + 1], q[3 * j + 2]
+                beta = ca.sqrt(length**2 * (kx**2 + ky**2) + eps**2) - eps
+                # (1 - exp(-x)) / x, written with expm1 so that it stays exact as x -> 0
+                row.append(ca.exp(-mu * turned) * _mean_capstan_factor(mu * beta))
+                turned = turned + beta
+            factors.append(row)
+        return factors
+
+    def input_matrix_symbolic(self, q, theta=None):
+        factors = self.tension_factors_symbolic(q, theta)
+        columns = []
+        for i, weights in enumerate(factors):
+            phi, rho, _ = self._geometry(i, theta)
+            column = [0] * self.n
+            for j, weight in enumerate(weights):
+                gradient = offset_fiber_gradient(q, j, phi, rho)
+                column[3 * j : 3 * j + 3] = [-weight * g for g in gradient[3 * j : 3 * j + 3]]
+            columns.append(ca.vertcat(*column))
+        return ca.horzcat(*columns)
+
+    def input_work_symbolic(self, q, inputs):
+        # Without friction exact: dW/dq = H(q) T. With friction there is no potential;
+        # this is the frictionless work, used only to order equilibria.
+        return -ca.dot(inputs, self.tendon_lengths_symbolic(q))
+
+    # -- numeric ---------------------------------------------------------------------
+    def tendon_lengths(self, q) -> np.ndarray:
+        """Lengths ``L_i(q)`` (m,) [m] of the tendons from the base to their anchors.
+
+        Parameters
+        ----------
+        q : array_like, shape (n,)
+            Generalized coordinates [m, 1/m, 1/m].
+        """
+        q = self._coordinates(q)
+        return np.array(ca.DM(self.tendon_lengths_symbolic(ca.DM(q)))).ravel()
+
+    def _geometry(self, i: int, theta):
+        if theta is None:
+            t = self.tendons[i]
+            return t.azimuth, t.distance, t.friction
+        return theta[3 * i], theta[3 * i + 1], theta[3 * i + 2]
