@@ -21,7 +21,7 @@ import casadi as ca
 import numpy as np
 
 import softcurve as sc
-from softcurve.analysis.quasistatic import inverse_statics
+from softcurve.analysis.inverse_statics import inverse_statics
 from softcurve.analysis.statics import equilibria
 from softcurve.compiled.codegen import build_and_run_test, export_c
 from softcurve.control.controllers import ComputedTorque

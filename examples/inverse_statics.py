@@ -23,7 +23,8 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 import softcurve as sc
-from softcurve.analysis.quasistatic import input_sweep, inverse_statics
+from softcurve.analysis.inverse_statics import inverse_statics
+from softcurve.analysis.quasistatic import input_sweep
 
 
 def main() -> None:

@@ -349,10 +349,10 @@ def test_pressure_inputs_are_validated(paper_model):
         sc.simulate(paper_model, q0, qd0, t_final=1.0, actuator=_bellows())
     with pytest.raises(sc.ParameterError, match="shape"):
         sc.simulate(paper_model, q0, qd0, t_final=1.0, inputs=[0, 0], actuator=_bellows())
-    with pytest.raises(sc.ParameterError, match=r"the callable's inputs\[0\] = -1.0 Pa"):
+    with pytest.raises(sc.ParameterError, match=r"the callable's pressures\[0\] = -1.0 Pa"):
         sc.simulate(paper_model, q0, qd0, t_final=0.01, inputs=lambda t, s: [-1.0, 0, 0],
                     actuator=_bellows())  # fmt: skip
-    with pytest.raises(sc.ParameterError, match=r"the controller's inputs\[0\] = -1.0 Pa"):
+    with pytest.raises(sc.ParameterError, match=r"the controller's pressures\[0\] = -1.0 Pa"):
         sc.simulate(paper_model, q0, qd0, t_final=0.01, actuator=_bellows(),
                     controller=Constant([-1.0, 0.0, 0.0], 5e-3))  # fmt: skip
 

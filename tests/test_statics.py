@@ -8,7 +8,8 @@ import scipy.optimize
 
 import softcurve as sc
 from softcurve import ParameterError, PneumaticActuator
-from softcurve.analysis.quasistatic import input_sweep, inverse_statics
+from softcurve.analysis.inverse_statics import inverse_statics
+from softcurve.analysis.quasistatic import input_sweep
 from softcurve.analysis.statics import equilibria, equilibrium, linearize, rotate_about_axis
 from softcurve.base.status import Status
 from softcurve.cli import main
@@ -275,7 +276,9 @@ def test_constant_inputs_in_simulate_settle_at_the_static_equilibrium(paper_mode
     assert run.success, run.message
     static = equilibrium(paper_model, [0.0644, 0, 0], actuator=act, inputs=p)
     assert_close(run.q[-1], static.q, rtol=1e-5, scale=np.abs(static.q))
-    with pytest.raises(ParameterError, match=r"inputs\[1\] = -1.0 Pa is outside .*\(at t = 0 s\)"):
+    with pytest.raises(
+        ParameterError, match=r"pressures\[1\] = -1.0 Pa is outside .*\(at t = 0 s\)"
+    ):
         simulate(
             paper_model,
             [0.0644, 0, 0],

@@ -21,8 +21,9 @@ array([0.0412, 0.    , 0.04  ])
 
 from softcurve._version import __version__ as __version__
 from softcurve.analysis.equilibrium import Equilibrium, EquilibriumTable
+from softcurve.analysis.inverse_statics import InverseStatics, inverse_statics
 from softcurve.analysis.linear import Linearization
-from softcurve.analysis.quasistatic import InputSweep, InverseStatics, input_sweep, inverse_statics
+from softcurve.analysis.quasistatic import InputSweep, input_sweep
 from softcurve.analysis.statics import equilibria, equilibrium, linearize
 from softcurve.base.status import Result, Status
 from softcurve.base.validation import ParameterError
@@ -36,6 +37,7 @@ from softcurve.control.controllers import (
     InputAllocator,
     PDGravityElastic,
     SampledController,
+    SaturatedInputs,
 )
 from softcurve.control.mpc import ActuatorMPC
 from softcurve.control.references import Reference, tip_circle
@@ -44,8 +46,8 @@ from softcurve.description.actuator import Actuator
 from softcurve.description.layout import ParameterLayout
 from softcurve.description.materials import Creep, LinearStiffness, TanhStiffness
 from softcurve.description.pneumatic import Bellows, ConstantPressureMap, PneumaticActuator
-from softcurve.description.tendons import Tendon, TendonActuator
 from softcurve.description.robot import Robot, Segment
+from softcurve.description.tendons import Tendon, TendonActuator
 from softcurve.figures import save_figure
 from softcurve.identification.dynamic import (
     fit_equilibria,
@@ -129,6 +131,7 @@ __all__ = [
     "InputAllocator",
     "Allocation",
     "ActuatorDriven",
+    "SaturatedInputs",
     "ActuatorMPC",
     "Reference",
     "tip_circle",

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from softcurve.base.validation import ParameterError
+
 from . import Command, _robots, write_figure
 
 
@@ -16,7 +18,14 @@ def _add_arguments(parser) -> None:
         "--gravity", nargs=3, type=float, metavar=("GX", "GY", "GZ"), help="gravity [m/s^2]"
     )
     parser.add_argument(
-        "--pressures", nargs="+", type=float, metavar="P", help="bellow pressures [Pa]"
+        "--inputs",
+        "--pressures",
+        dest="inputs",
+        nargs="+",
+        type=float,
+        metavar="U",
+        help="constant actuator inputs, one per input of the actuator: bellow pressures "
+        "[Pa] or tendon tensions [N] (--pressures is the older name)",
     )
     parser.add_argument(
         "--tip-force", nargs=3, type=float, metavar=("FX", "FY", "FZ"), help="world tip force [N]"
@@ -45,8 +54,12 @@ def _run(args) -> int:
         loads["gravity"] = -robot.gravity
     elif args.gravity is not None:
         loads["gravity"] = args.gravity
-    if args.pressures is not None:
-        loads.update(actuator=actuator, inputs=args.pressures)
+    if args.inputs is not None:
+        try:  # named as the actuator names them: "tensions[0] = 12.0 N is outside ..."
+            inputs = actuator.check_inputs(args.inputs)
+        except ParameterError as exc:
+            raise ParameterError(f"--inputs: {exc}") from None
+        loads.update(actuator=actuator, inputs=inputs)
     if args.tip_force is not None:
         loads["tip_force"] = args.tip_force
     table = equilibria(model, starts=args.starts, seed=args.seed, **loads)
@@ -55,8 +68,9 @@ def _run(args) -> int:
         f"softcurve equilibria: {robot.n_segments} segment(s), "
         f"gravity {np.array2string(gravity)} m/s^2"
     )
-    if args.pressures is not None:
-        print(f"  pressures {args.pressures} Pa")
+    if args.inputs is not None:
+        unit = f" {actuator.input_unit}" if actuator.input_unit else ""
+        print(f"  {actuator.input_name} {args.inputs}{unit}")
     print(f"  {table.message}; {table.evaluations} residual evaluations")
     print(table.table())
     if args.modes:
@@ -75,7 +89,8 @@ def _run(args) -> int:
 COMMAND = Command(
     "equilibria",
     help="find and classify the equilibria of a robot (stable, unstable, saddle, rings)",
-    description="Solve N(q) = tau + H(q) p + J^T w from many starting points, deduplicate, "
+    description="Solve N(q) = tau + H(q) u + J^T w from many starting points (u: the "
+    "actuator's inputs, pressures or tensions, given by --inputs), deduplicate, "
     "classify each equilibrium by the Hessian of the potential (rings of equilibria under "
     "rotational symmetry are reported once) and print the table. Exit code 1 when none "
     "is found.",

@@ -1,4 +1,4 @@
-"""Model-based control: computed torque, PD with compensation, and input allocation.
+"""Model-based control: computed torque, PD with compensation, and actuator inputs.
 
 Controllers follow the protocol of :func:`softcurve.simulate`: an object with a
 ``sample_time`` [s] and ``__call__(t, q, qd, lam)``, whose output is held constant
@@ -14,11 +14,14 @@ perfect model is exact.
   creep force ``K^T lam``), so a perfect model gives ``e'' + Kd e' + Kp e = 0``.
 - :class:`PDGravityElastic`: ``tau = N(q) + Kp (q_r - q) + Kd (qd_r - qd)``.
 - :class:`InputAllocator` maps a wanted ``tau`` to bounded actuator inputs by bounded
-  least squares, ``min |W (H(q) u - tau)|`` over ``lower <= u <= upper`` with
-  ``W = diag(S)`` (energy units, see :mod:`softcurve.analysis.solver`);
-  :class:`ActuatorDriven` wraps a generalized-force controller into one that returns
-  the actuator's inputs (saturated and, with the actuator's ``time_constant``, with the
-  lag inverted over one sample).
+  least squares (pressures, tensions: never below their lower bound, so never a
+  negative tension; a bound that stops the inputs is flagged); :class:`ActuatorDriven` wraps a
+  generalized-force controller into one that returns the actuator's inputs (saturated
+  and, with the actuator's ``time_constant``, with the lag inverted over one sample).
+- :class:`SaturatedInputs` clips the inputs a controller returns to the actuator's
+  bounds. ``simulate`` refuses inputs outside them (a controller commanding a negative
+  tension stops the run with a ParameterError); a controller whose raw output may leave
+  the bounds is run through this wrapper, which records where it clipped.
 - References ``q_r(t)`` are in :mod:`softcurve.control.references`.
 """
 
@@ -192,6 +195,17 @@ class Allocation(Result):
 class InputAllocator:
     """``tau -> u``: bounded least squares in energy units.
 
+    Inputs are kept within ``[lower, upper]`` (tensions within ``[t_min, t_max]``,
+    ``t_min >= 0``: never negative); a ``tau`` the bounds cannot produce (a tendon would
+    have to push) is met as closely as they allow, the inputs at their bounds flagged
+    ``saturated``. With more inputs than ``H(q)`` has rank (e.g. four tendons per
+    segment) the closest ``H u`` is reached by a set of inputs and BVLS returns one of
+    them. For tendons without friction every member of that set has the same total
+    tension: for a change ``dT`` in the null space of ``H`` the first segment's bending
+    rows (``sum dT_i rho_i (cos phi_i, sin phi_i) = 0``) turn its axial row into
+    ``sum dT_i = 0``, so a minimum-total rule (that of
+    :func:`~softcurve.analysis.inverse_statics.inverse_statics`) could not choose here.
+
     Parameters
     ----------
     actuator : Actuator
@@ -265,7 +279,8 @@ class ActuatorDriven(SampledController):
     sample late instead of with the lag.
 
     Logged per sample: ``t``, ``tau_wanted``, ``allocated``, ``command``, ``inputs`` (the
-    inputs at the sample), ``tau`` (``H(q) u`` with them) and ``saturated``.
+    inputs at the sample), ``tau`` (``H(q) u`` with them), ``saturated`` (allocated inputs
+    at a bound) and ``command_saturated`` (commands at a bound, after the lag inversion).
 
     Parameters
     ----------
@@ -318,6 +333,58 @@ class ActuatorDriven(SampledController):
                 "command": command,
                 "inputs": self._inputs.copy(),
                 "saturated": allocation.saturated,
+                "command_saturated": at_bound(self.actuator, command),
             }
         )
         return command.copy()
+
+
+def at_bound(actuator: Actuator, inputs) -> np.ndarray:
+    """Which inputs sit on a bound of ``actuator``, shape (m,), bool.
+
+    Parameters
+    ----------
+    actuator : Actuator
+        Gives the bounds ``lower``, ``upper``.
+    inputs : array_like, shape (m,)
+        Inputs [the actuator's ``input_unit``].
+    """
+    u = np.asarray(inputs, dtype=np.float64)
+    return (u <= actuator.lower) | (u >= actuator.upper)
+
+
+class SaturatedInputs(SampledController):
+    """A controller returning actuator inputs, its output clipped to the actuator's bounds.
+
+    ``simulate(..., actuator=...)`` refuses a controller output outside the bounds (a
+    negative tension, a pressure above ``p_max``); wrapped in this, the output is
+    saturated instead (:meth:`Actuator.clip`), e.g. a PD law on tensions that would
+    command a tendon to push. Logged per sample: ``t``, ``requested`` (the wrapped
+    controller's output), ``inputs`` (the clipped inputs returned) and ``saturated``
+    (where a bound is active).
+
+    Parameters
+    ----------
+    controller : callable
+        A controller of the protocol returning the actuator's inputs (m,) [its
+        ``input_unit``]; its ``sample_time`` is used.
+    actuator : Actuator
+        Gives the bounds.
+    """
+
+    def __init__(self, controller, actuator: Actuator):
+        super().__init__(getattr(controller, "sample_time", None))
+        self.controller, self.actuator = controller, actuator
+
+    def reset(self) -> None:
+        """Forget the record and reset the wrapped controller."""
+        super().reset()
+        if hasattr(self.controller, "reset"):
+            self.controller.reset()
+
+    def __call__(self, t, q, qd, lam=None) -> np.ndarray:
+        requested = np.array(self.controller(t, q, qd, lam), dtype=np.float64)
+        inputs = self.actuator.clip(requested)
+        saturated = at_bound(self.actuator, inputs)
+        self.log.append({"t": t, "requested": requested, "inputs": inputs, "saturated": saturated})
+        return inputs.copy()

@@ -124,12 +124,17 @@ def tip_to_coordinates(position):
     return ca.vertcat(beta / kappa, kappa * x / d, kappa * y / d)
 
 
-def tip_circle(center, radius: float, period: float, *, phase: float = 0.0) -> Reference:
-    """Reference for a single segment whose tip runs a horizontal circle.
+def tip_circle(
+    center, radius: float, period: float, *, phase: float = 0.0, segments: int = 1
+) -> Reference:
+    """Reference for a robot whose tip runs a horizontal circle.
 
     The circle ``center + radius (cos w t, sin w t, 0)`` with ``w = 2 pi / period``,
     in the base frame; it must not pass through the z axis (see
-    :func:`tip_to_coordinates`).
+    :func:`tip_to_coordinates`). With several segments the backbone is kept one circular
+    arc through the tip, shared equally: each segment has a ``1/segments`` share of the
+    arc's length and the arc's curvature ``(kx, ky)`` (the frames of constant-curvature
+    segments do not twist, so equal curvatures continue one arc).
 
     Parameters
     ----------
@@ -142,6 +147,8 @@ def tip_circle(center, radius: float, period: float, *, phase: float = 0.0) -> R
         Time of one revolution [s].
     phase : float
         Angle on the circle at ``t = 0`` [rad].
+    segments : int
+        Number of segments of the robot (the reference has ``3 segments`` coordinates).
     """
     center = real_array("center", center, (3,))
     radius = real_scalar("radius", radius, positive=True)
@@ -152,8 +159,12 @@ def tip_circle(center, radius: float, period: float, *, phase: float = 0.0) -> R
             f"base (center z > 0); got center {center.tolist()}, radius {radius}"
         )
 
+    if isinstance(segments, bool) or not isinstance(segments, int) or segments < 1:
+        raise ParameterError(f"segments must be an integer >= 1, got {segments!r}")
+
     def expression(t):
         point = ca.DM(center) + radius * ca.vertcat(ca.cos(w * t + phase), ca.sin(w * t + phase), 0)
-        return tip_to_coordinates(point)
+        arc = tip_to_coordinates(point)
+        return ca.repmat(ca.vertcat(arc[0] / segments, arc[1], arc[2]), segments, 1)
 
-    return Reference(expression, 3)
+    return Reference(expression, 3 * segments)

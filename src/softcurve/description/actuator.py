@@ -149,6 +149,26 @@ class Actuator:
         """Names of the entries of :meth:`parameter_vector`."""
         raise NotImplementedError
 
+    def with_parameter_vector(self, vector) -> Actuator:
+        """This actuator with its :meth:`parameter_vector` replaced by ``vector``,
+        validated as a new actuator (a distance must stay > 0, ...); the actuator itself
+        when ``vector`` equals its own.
+
+        Parameters
+        ----------
+        vector : array_like, shape (k,)
+            Values in the order of :meth:`parameter_names`, each in its unit.
+        """
+        names = self.parameter_names()
+        vector = real_array("actuator parameters", vector, (len(names),))
+        if np.array_equal(vector, self.parameter_vector()):
+            return self
+        return self._rebuilt(vector)
+
+    def _rebuilt(self, vector: np.ndarray) -> Actuator:
+        """A new actuator of this kind with parameter vector ``vector`` (checked shape)."""
+        raise NotImplementedError
+
     def input_matrix(self, q) -> np.ndarray:
         """``H(q)``, shape (n, m), mapping inputs to generalized forces.
 

@@ -26,6 +26,7 @@ A bellow acts on the segments in ``Bellows.segments``; pressures are gauge press
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 
@@ -214,6 +215,19 @@ class PneumaticActuator(Actuator):
             for name in ("azimuth", "distance", "area")
         ]
 
+    def _rebuilt(self, vector: np.ndarray) -> PneumaticActuator:
+        bellows = []
+        for i, (chamber, (azimuth, distance, area)) in enumerate(
+            zip(self.bellows, vector.reshape(-1, 3), strict=True)
+        ):
+            try:
+                bellows.append(
+                    dataclasses.replace(chamber, azimuth=azimuth, distance=distance, area=area)
+                )
+            except ParameterError as exc:
+                raise ParameterError(f"bellows[{i}]: {exc}") from None
+        return dataclasses.replace(self, bellows=tuple(bellows))
+
     def fiber_lengths_symbolic(self, q, theta=None):
         """Lengths ``L_i(q)`` (m,) [m] of the chambers' center lines (CasADi).
 
@@ -346,6 +360,9 @@ class ConstantPressureMap(Actuator):
 
     def parameter_names(self) -> list[str]:
         return [f"matrix[{i},{j}]" for i in range(self.n) for j in range(self.n_inputs)]
+
+    def _rebuilt(self, vector: np.ndarray) -> ConstantPressureMap:
+        return dataclasses.replace(self, constant=vector.reshape(self.n, self.n_inputs))
 
     def input_work_symbolic(self, q, inputs):
         return ca.dot(q, ca.DM(self.constant) @ inputs)

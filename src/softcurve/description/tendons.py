@@ -39,6 +39,7 @@ curvature (Coulomb friction switches on there), so the angle is rounded off as
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 
@@ -99,7 +100,8 @@ class Tendon:
         Index of the segment at whose tip the tendon is tied; it runs through segments
         ``0 .. anchor`` (default 0, the first segment only).
     friction : float
-        Capstan friction coefficient ``mu`` >= 0 of the routing (default 0: none).
+        Capstan friction coefficient ``mu`` >= 0 of the routing, dimensionless (default
+        0: none).
     wrap_smoothing : float
         Rounding ``eps`` [rad] > 0 of the wrap angle under friction (module docstring).
     """
@@ -224,7 +226,7 @@ class TendonActuator(Actuator):
         azimuths : sequence of float
             Azimuths [rad] of the tendons of each set.
         friction : float
-            Capstan friction coefficient of every tendon.
+            Capstan friction coefficient ``mu`` >= 0 of every tendon, dimensionless.
         time_constant : float or None
             First-order tension lag [s], or None.
         """
@@ -252,6 +254,21 @@ class TendonActuator(Actuator):
             for i in range(self.n_inputs)
             for name in ("azimuth", "distance", "friction")
         ]
+
+    def _rebuilt(self, vector: np.ndarray) -> TendonActuator:
+        tendons = []
+        for i, (tendon, (azimuth, distance, friction)) in enumerate(
+            zip(self.tendons, vector.reshape(-1, 3), strict=True)
+        ):
+            try:
+                tendons.append(
+                    dataclasses.replace(
+                        tendon, azimuth=azimuth, distance=distance, friction=friction
+                    )
+                )
+            except ParameterError as exc:
+                raise ParameterError(f"tendons[{i}]: {exc}") from None
+        return dataclasses.replace(self, tendons=tuple(tendons))
 
     # -- symbolic --------------------------------------------------------------------
     def segment_lengths_symbolic(self, q, theta=None) -> list[list]:

@@ -8,6 +8,7 @@ shows them with ``plt.show()``; nothing here changes Matplotlib's backend (the
 a figure whole or not at all.
 """
 
+from softcurve.figures.actuation import plot_backbones, plot_inputs
 from softcurve.figures.drawing import save_figure
 from softcurve.figures.fits import plot_fit
 from softcurve.figures.statics import plot_equilibria, plot_input_sweep
@@ -15,10 +16,12 @@ from softcurve.figures.trajectories import animate, plot_batch_tips, plot_states
 
 __all__ = [
     "animate",
+    "plot_backbones",
     "plot_batch_tips",
     "plot_equilibria",
     "plot_fit",
     "plot_input_sweep",
+    "plot_inputs",
     "plot_states",
     "plot_tip",
     "save_figure",

@@ -3,7 +3,8 @@
 An :class:`OutputMap` turns the state into measured signals (a tip IMU's bending
 angle, curvatures, a tip position), possibly with sensor offsets; an
 :class:`InputMap` turns measured inputs into generalized forces (bellow pressures
-through a geometric or a constant pressure map, with an unknown mounting angle).
+through a geometric or a constant pressure map, tendon tensions through their routing,
+with an unknown mounting angle).
 Both may read named *extra* parameters, which the fits of
 :mod:`softcurve.identification.dynamic` can estimate. The functions build CasADi
 expressions and work with SX or MX arguments.
@@ -20,6 +21,7 @@ import numpy as np
 from softcurve.base.validation import ParameterError
 from softcurve.compiled.model import Model
 from softcurve.description.pneumatic import PneumaticActuator
+from softcurve.description.tendons import TendonActuator
 
 
 @dataclass(frozen=True)
@@ -54,7 +56,8 @@ class OutputMap:
 class InputMap:
     """Generalized forces from measured inputs: ``tau = function(q, u, values)``.
 
-    Built by :func:`bellows_input_map` and :func:`constant_input_map`, or by hand.
+    Built by :func:`bellows_input_map`, :func:`tendon_input_map` and
+    :func:`constant_input_map`, or by hand.
 
     Parameters
     ----------
@@ -170,6 +173,59 @@ def bellows_input_map(
         return actuator.input_matrix_symbolic(q, ca.vertcat(*geometry)) @ u
 
     nominal = {f"{prefix}.area": area, f"{prefix}.distance": distance, f"{prefix}.angle": 0.0}
+    return InputMap(function, nominal)
+
+
+def tendon_input_map(
+    *,
+    distance: float,
+    n_segments: int = 1,
+    numbering: int = 1,
+    friction: float | None = None,
+    prefix: str = "tendons",
+) -> InputMap:
+    """Three tendons per segment with ``H(q)`` from their routing
+    (:meth:`TendonActuator.three_per_segment`: set ``j`` is tied to the tip of segment
+    ``j``, the inputs are the tensions [N], proximal set first).
+
+    Extra parameters: ``prefix.distance`` ``rho`` [m] of every tendon and
+    ``prefix.angle`` [rad], the azimuth of tendon 0 of each set in the sensor's frame
+    (mounting angle); tendon ``i`` of a set sits at ``angle + numbering * 2 pi i / 3``.
+    With ``friction`` given, also ``prefix.friction``, the capstan coefficient ``mu`` of
+    the routing. From statics alone, ``rho`` and the bending stiffness enter (nearly)
+    only as their ratio (``docs/validation.md``, "Tendons"): fix one to fit the other.
+
+    Parameters
+    ----------
+    distance : float
+        Nominal distance ``rho`` from the backbone to each tendon [m].
+    n_segments : int
+        Number of segments (three tendons each).
+    numbering : int
+        +1 for tendons numbered counter-clockwise, -1 for clockwise.
+    friction : float, optional
+        Nominal capstan friction coefficient (dimensionless, >= 0); None for a
+        frictionless routing without the extra parameter.
+    prefix : str
+        Prefix of the extra parameters' names.
+    """
+    mu = 0.0 if friction is None else friction
+    actuator = TendonActuator.three_per_segment(
+        distance=distance, t_max=1e9, n_segments=n_segments, friction=mu
+    )
+
+    def function(q, u, values):
+        geometry = []
+        rho = values[f"{prefix}.distance"]
+        mu = 0.0 if friction is None else values[f"{prefix}.friction"]
+        for _ in range(n_segments):
+            for phi in _azimuths(values, prefix, numbering):
+                geometry += [phi, rho, mu]
+        return actuator.input_matrix_symbolic(q, ca.vertcat(*geometry)) @ u
+
+    nominal = {f"{prefix}.distance": distance, f"{prefix}.angle": 0.0}
+    if friction is not None:
+        nominal[f"{prefix}.friction"] = float(friction)
     return InputMap(function, nominal)
 
 

@@ -57,12 +57,13 @@ class Scenario:
     tau : tuple of float, shape (n,), optional
         Constant input forces [N, N m^2, N m^2] (default zero).
     inputs : tuple of float, shape (m,), optional
-        Constant inputs of the actuator of ``actuation`` (e.g. pressures [Pa]), instead of
-        ``tau``.
+        Constant inputs of the actuator of ``actuation`` (pressures [Pa], tensions [N],
+        named by the actuator's ``input_name`` in messages), instead of ``tau``.
     source : str
         Where the scenario comes from (a file name), for messages.
     actuation : dict, optional
-        The raw ``[actuation]`` table, read by :func:`softcurve.description.pneumatic.from_mapping`.
+        The raw ``[actuation]`` table, read by
+        :func:`softcurve.scenarios.actuation.from_mapping`.
     """
 
     robot: Robot
@@ -90,6 +91,16 @@ class Scenario:
         )
         if problem is not None:  # the one check of Robot.check_configuration
             raise SettingsError("q0", problem)
+        actuator = None
+        if self.actuation is not None:  # built and checked once, here
+            where = f"{self.source}: actuation"
+            try:
+                actuator = from_mapping(
+                    self.actuation, n_segments=self.robot.n_segments, where=where
+                )
+            except ParameterError as exc:
+                raise ConfigError(str(exc)) from None
+        set_(self, "_actuator", actuator)
         if self.inputs is not None:
             self._check_inputs()
 
@@ -98,10 +109,12 @@ class Scenario:
             raise SettingsError("inputs", "needs an [actuation] table (the actuator they drive)")
         if self.tau is not None:
             raise SettingsError("inputs", "give tau or inputs, not both")
+        actuator = self.actuator()
         try:
-            inputs = self.actuator().check_inputs(self.inputs, "inputs")
-        except ParameterError as exc:
-            raise SettingsError("inputs", str(exc)) from None
+            inputs = actuator.check_inputs(self.inputs, "inputs")
+        except ParameterError as exc:  # named as in the file, and what they are
+            what = f"the {actuator.input_name} of [actuation]"
+            raise SettingsError("inputs", f"{exc} (inputs are {what})") from None
         object.__setattr__(self, "inputs", tuple(float(u) for u in inputs))
 
     def initial_state(self):
@@ -115,10 +128,7 @@ class Scenario:
 
     def actuator(self) -> Actuator | None:
         """The actuator of the ``[actuation]`` table, or None without one."""
-        if self.actuation is None:
-            return None
-        where = f"{self.source}: actuation"
-        return from_mapping(self.actuation, n_segments=self.robot.n_segments, where=where)
+        return self._actuator
 
 
 def paper_scenario() -> Scenario:

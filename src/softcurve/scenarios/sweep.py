@@ -1,6 +1,6 @@
-"""Parameter sweeps: a design over named parameters and initial conditions, run in chunks
-through :func:`~softcurve.simulation.batch.simulate_batch`, summarized into one Parquet
-table.
+"""Parameter sweeps: a design over named robot parameters, initial conditions, actuator
+inputs and actuator parameters, run in chunks through
+:func:`~softcurve.simulation.batch.simulate_batch`, summarized into one Parquet table.
 
 A sweep is described by a TOML file: the robot and simulation of a scenario
 (``docs/configuration.md``) plus a ``[sweep]`` table (``docs/sweeps.md``). The whole
@@ -32,7 +32,7 @@ from softcurve.base.files import atomic_path, folder_lock, writable_folder
 from softcurve.base.progress import ProgressLine
 from softcurve.base.status import Result, Status
 from softcurve.scenarios.config import ConfigError
-from softcurve.scenarios.sweep_config import STATE, SweepConfig, load_sweep
+from softcurve.scenarios.sweep_config import SweepConfig, load_sweep
 from softcurve.scenarios.sweep_parts import intact, part_path, read_part
 from softcurve.simulation.batch import simulate_batch
 from softcurve.simulation.trajectory_files import column_names
@@ -57,31 +57,13 @@ def run_chunk(config: SweepConfig, start: int, design: np.ndarray, threads: int 
     threads : int
         Threads of the batch.
     """
-    scenario = config.scenario
-    robot = scenario.robot
-    model = worker_model(robot, config.quadrature_nodes)
-    size = design.shape[0]
-    q0, qd0, lam0 = scenario.initial_state()
-    tau = np.zeros(robot.n) if scenario.tau is None else np.array(scenario.tau, dtype=float)
-    inputs = {"q0": q0, "qd0": qd0, "lam0": lam0, "tau": tau}
-    inputs = {k: np.repeat(v[None, :], size, axis=0) for k, v in inputs.items()}
-    parameters = np.repeat(robot.parameter_vector()[None, :], size, axis=0)
-    for j, v in enumerate(config.variables):
-        match = STATE.match(v.name)
-        if match:
-            inputs[match.group(1)][:, int(match.group(2))] = design[:, j]
-        else:
-            parameters[:, robot.layout.index(v.name)] = design[:, j]
+    model = worker_model(config.scenario.robot, config.quadrature_nodes)
+    arguments = config.batch_arguments(design)
+    q0, qd0, lam0 = (arguments.pop(k) for k in ("q0", "qd0", "lam0"))
     batch = simulate_batch(
-        model,
-        inputs["q0"],
-        inputs["qd0"],
-        inputs["lam0"],
-        tau=inputs["tau"],
-        parameters=parameters,
-        settings=config.settings,
-        threads=threads,
+        model, q0, qd0, lam0, settings=config.settings, threads=threads, **arguments
     )
+    size = design.shape[0]
     columns = {"index": np.arange(start, start + size, dtype=np.int64)}
     columns.update({v.name: design[:, j] for j, v in enumerate(config.variables)})
     columns.update(summarize(batch, config.outputs, config.settling_fraction))

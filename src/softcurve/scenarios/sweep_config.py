@@ -7,14 +7,19 @@ import hashlib
 import itertools
 import json
 import math
-import re
 from dataclasses import dataclass
 
 import numpy as np
 
 from softcurve._version import __version__
-from softcurve.base.validation import ParameterError
 from softcurve.scenarios.config import Scenario, scenario_from_dict
+from softcurve.scenarios.sweep_variables import (
+    ACTUATED,
+    Variable,
+    check_design_box,
+    read_variable,
+    variable_target,
+)
 from softcurve.scenarios.tables import ConfigError, Reader, read_toml, toml_parameters
 from softcurve.simulation.settings import SimulationSettings
 from softcurve.symbolic.dynamics import DEFAULT_QUADRATURE_NODES
@@ -22,47 +27,6 @@ from softcurve.symbolic.dynamics import DEFAULT_QUADRATURE_NODES
 DESIGNS = ("grid", "random", "sobol")
 OUTPUTS = ("final_state", "tip_range", "settling_time", "peak_energy")
 MAX_DESIGN_SIZE = 10_000_000
-STATE = re.compile(r"^(q0|qd0|lam0|tau)\[(\d+)\]$")
-
-
-@dataclass(frozen=True)
-class Variable:
-    """One swept quantity, sampled in ``[low, high]``.
-
-    Parameters
-    ----------
-    name : str
-        A robot parameter entry (``robot.layout.names``) or ``q0[i]``, ``qd0[i]``,
-        ``lam0[i]``, ``tau[i]``.
-    low : float
-        Lower end [unit of the quantity].
-    high : float
-        Upper end (> low) [unit of the quantity].
-    scale : {"linear", "log"}
-        Spacing of the samples.
-    points : int, optional
-        Points of a grid design.
-    """
-
-    name: str
-    low: float
-    high: float
-    scale: str = "linear"
-    points: int | None = None  # grid designs
-
-    def values(self, unit: np.ndarray) -> np.ndarray:
-        """Map ``unit`` in [0, 1] onto ``[low, high]`` (the ends exactly).
-
-        Parameters
-        ----------
-        unit : ndarray
-            Points in [0, 1].
-        """
-        if self.scale == "log":
-            values = np.exp(np.log(self.low) + unit * (np.log(self.high) - np.log(self.low)))
-        else:
-            values = self.low * (1.0 - unit) + self.high * unit
-        return np.where(unit == 0.0, self.low, np.where(unit == 1.0, self.high, values))
 
 
 @dataclass(frozen=True)
@@ -131,6 +95,41 @@ class SweepConfig:
         return self.scenario.settings.replace(dt=self.output_dt)
 
     @property
+    def actuated(self) -> bool:
+        """Whether the actuator drives the members: the scenario gives its ``inputs`` or
+        a variable is one of them or an actuator parameter."""
+        swept = (variable_target(self.scenario, v.name)[0] for v in self.variables)
+        return self.scenario.inputs is not None or any(kind in ACTUATED for kind in swept)
+
+    def batch_arguments(self, design: np.ndarray) -> dict:
+        """The arguments of :func:`~softcurve.simulation.batch.simulate_batch` for the
+        design rows ``design`` (rows, len(variables)): ``q0``, ``qd0``, ``lam0``,
+        ``parameters`` and either ``tau`` or ``actuator``, ``inputs`` and
+        ``actuator_parameters``, one row per design point.
+
+        Parameters
+        ----------
+        design : ndarray, shape (rows, len(variables))
+            Design points.
+        """
+        scenario = self.scenario
+        q0, qd0, lam0 = scenario.initial_state()
+        rows = {"q0": q0, "qd0": qd0, "lam0": lam0, "parameters": scenario.robot.parameter_vector()}
+        actuator = scenario.actuator() if self.actuated else None
+        if actuator is None:
+            rows["tau"] = np.zeros(scenario.robot.n) if scenario.tau is None else scenario.tau
+        else:
+            given = scenario.inputs
+            rows["inputs"] = actuator.rest_inputs() if given is None else given
+            rows["actuator_parameters"] = actuator.parameter_vector()
+        size = design.shape[0]
+        rows = {k: np.repeat(np.asarray(v, float)[None, :], size, axis=0) for k, v in rows.items()}
+        for j, v in enumerate(self.variables):
+            kind, indices = variable_target(scenario, v.name)
+            rows[kind][:, indices] = design[:, j : j + 1]
+        return {**rows, "actuator": actuator} if actuator is not None else rows
+
+    @property
     def size(self) -> int:
         """Number of design points."""
         if self.design == "grid":
@@ -165,8 +164,6 @@ def sweep_from_dict(data: dict, file: str = "<config>") -> SweepConfig:
     scenario = scenario_from_dict(rest, file)
     if scenario.settings.method == "rk45":
         raise ConfigError(f"{file}: simulation.method: sweeps run cvodes, adams or bdf, got 'rk45'")
-    if scenario.inputs is not None:
-        raise ConfigError(f"{file}: simulation.inputs: sweeps take tau, not actuator inputs")
     r = Reader(file, "sweep", data["sweep"])
     design = r.get("design", "string", required=True)
     if design not in DESIGNS:
@@ -198,7 +195,7 @@ def sweep_from_dict(data: dict, file: str = "<config>") -> SweepConfig:
         r.fail("settling_fraction", f"must be in (0, 1), got {fraction}")
     tables = r.get("variables", "tables", required=True)
     variables = tuple(
-        _variable(Reader(file, f"sweep.variables[{i}]", t), design, scenario)
+        read_variable(Reader(file, f"sweep.variables[{i}]", t), design, scenario)
         for i, t in enumerate(tables)
     )
     r.done()
@@ -220,9 +217,14 @@ def sweep_from_dict(data: dict, file: str = "<config>") -> SweepConfig:
         source=file,
         quadrature_nodes=nodes,
     )
+    if config.actuated and scenario.tau is not None:
+        raise ConfigError(
+            f"{file}: simulation.tau: the actuator drives this sweep (simulation.inputs or an "
+            "actuator variable): give simulation.inputs, not tau"
+        )
     if config.size > MAX_DESIGN_SIZE:
         r.fail("variables", f"the design has {config.size} points, more than {MAX_DESIGN_SIZE}")
-    _check_design_box(config, r)
+    check_design_box(config, r)
     return config
 
 
@@ -235,80 +237,6 @@ def _strings(r: Reader, name: str) -> tuple[str, ...]:
         if v not in OUTPUTS:
             r.fail(name, f"unknown output {v!r} (allowed: {', '.join(OUTPUTS)})")
     return tuple(dict.fromkeys(value))
-
-
-def parameter_index(robot, name: str) -> int | None:
-    """Where the parameter entry ``name`` lies in ``robot``'s vector, None if it is none.
-
-    Parameters
-    ----------
-    robot : Robot
-        The robot.
-    name : str
-        An entry name, e.g. ``"gravity[2]"``.
-    """
-    try:
-        return robot.layout.index(name)
-    except ParameterError:
-        return None
-
-
-def _variable(r: Reader, design: str, scenario) -> Variable:
-    robot = scenario.robot
-    name = r.get("name", "string", required=True)
-    match = STATE.match(name)
-    if match:
-        kind, index = match.group(1), int(match.group(2))
-        size = robot.n_creep if kind == "lam0" else robot.n
-        if index >= size:
-            r.fail("name", f"{name!r}: index out of range, {kind} has {size} entries")
-    elif parameter_index(robot, name) is None:
-        r.fail(
-            "name",
-            f"{name!r} is neither q0[i], qd0[i], lam0[i], tau[i] nor a parameter "
-            f"of the robot (e.g. {robot.layout.names[6]!r}; "
-            "softcurve.Robot.parameter_names() lists them)",
-        )
-    elif name.startswith("base_rotation"):
-        r.fail("name", "base_rotation entries cannot be swept one by one (it must stay a rotation)")
-    low, high = r.get("low", "number", required=True), r.get("high", "number", required=True)
-    if not low < high:
-        r.fail("high", f"must be > low = {low}, got {high}")
-    scale = r.get("scale", "string", "linear")
-    if scale not in ("linear", "log"):
-        r.fail("scale", f"must be 'linear' or 'log', got {scale!r}")
-    if scale == "log" and not low > 0:
-        r.fail("low", f"must be > 0 on a log scale, got {low}")
-    points = r.get("points", "integer")
-    if design == "grid" and (points is None or points < 2):
-        r.fail("points", f"is required for a grid design: an integer >= 2, got {points!r}")
-    if design != "grid" and points is not None:
-        r.fail("points", f"is for grid designs; a {design} design takes sweep.samples")
-    r.done()
-    return Variable(name, low, high, scale, points)
-
-
-def _check_design_box(config: SweepConfig, r: Reader) -> None:
-    """Every robot of the design is valid if every corner of the box of swept parameters is:
-    the valid set (positive values, ``a1 > a2``, positive definite matrices, ...) is
-    convex, and the box is the convex hull of its corners. Initial lengths likewise."""
-    robot = config.scenario.robot
-    swept = [v for v in config.variables if not STATE.match(v.name)]
-    corners = itertools.product(*[(v.low, v.high) for v in swept]) if len(swept) <= 12 else ()
-    base = robot.parameter_vector()
-    for corner in corners:
-        vector = base.copy()
-        for v, value in zip(swept, corner, strict=True):
-            vector[robot.layout.index(v.name)] = value
-        try:
-            robot.with_parameter_vector(vector)
-        except ValueError as exc:
-            where = ", ".join(f"{v.name} = {c:g}" for v, c in zip(swept, corner, strict=True))
-            r.fail("variables", f"the robot at the corner {where} of the design is invalid: {exc}")
-    for v in config.variables:
-        match = STATE.match(v.name)
-        if match and match.group(1) == "q0" and int(match.group(2)) % 3 == 0 and v.low <= 0:
-            r.fail("variables", f"{v.name} is a length: low must be > 0, got {v.low}")
 
 
 def _fingerprint(data: dict) -> str:

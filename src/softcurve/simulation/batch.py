@@ -2,11 +2,14 @@
 :class:`~softcurve.simulation.batch_trajectory.BatchTrajectory`.
 
 A batch is ``B`` robots of one structure (one compiled model) that differ in their
-initial states, constant inputs and parameter values. The robot's parameter vector is a
-run-time input of the compiled functions, so the whole batch shares one CVODES integrator
-built on the compiled right-hand side (as :func:`~softcurve.simulation.simulate.simulate`
-does) and CasADi's ``map`` runs it over the batch in compiled code, split over threads:
-the integration never returns to Python between members.
+initial states, constant inputs (forces, or an actuator's inputs and parameters:
+:mod:`softcurve.simulation.batch_actuation`) and parameter values. The robot's parameter
+vector is a run-time input of the compiled functions, so the whole batch shares one CVODES
+integrator built on the compiled right-hand side (as
+:func:`~softcurve.simulation.simulate.simulate` does) and CasADi's ``map`` runs it over
+the batch in compiled code, split over threads: the integration never returns to Python
+between members (members driven by an actuator: one integrator per distinct set of
+actuator parameters).
 
 Each member is integrated exactly as :func:`~softcurve.simulation.simulate.simulate`
 would integrate it: the same scaled state (``nominal_scale`` of the member's own robot
@@ -24,8 +27,10 @@ import numpy as np
 
 from softcurve.base.validation import ParameterError
 from softcurve.compiled.model import Model
+from softcurve.description.actuator import Actuator
 from softcurve.description.robot import Robot, domain_problem, in_domain
 from softcurve.simulation.along import blocks, rhs_along
+from softcurve.simulation.batch_actuation import Drives, drive_arrays, member_rows
 from softcurve.simulation.batch_run import MemberRun, member_rates
 from softcurve.simulation.batch_trajectory import BatchTrajectory, batch_status
 from softcurve.simulation.engine import (
@@ -51,28 +56,6 @@ class _RobotView:
         self.robot = robot
 
 
-def _rows(name: str, value, width: int, default=None) -> np.ndarray | None:
-    """``value`` as (B, width) or (1, width) float64, finite; None stays None."""
-    if value is None:
-        return None if default is None else np.asarray(default, dtype=np.float64)[None, :]
-    try:
-        a = np.array(value, dtype=np.float64)
-    except (TypeError, ValueError):
-        raise ParameterError(f"{name} must be a real array of shape (B, {width})") from None
-    if a.ndim == 1:
-        a = a[None, :]
-    if a.ndim != 2 or a.shape[1] != width or a.shape[0] < 1:
-        raise ParameterError(
-            f"{name} must have shape (B, {width}) or ({width},), got {np.shape(value)}"
-        )
-    bad = ~np.all(np.isfinite(a), axis=1)
-    if np.any(bad):
-        raise ParameterError(
-            f"{name}[{int(np.argmax(bad))}] must be finite, got {a[np.argmax(bad)].tolist()}"
-        )
-    return a
-
-
 def _count(name: str, value, default: int) -> int:
     value = default if value is None else value
     if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < 1:
@@ -88,6 +71,9 @@ def simulate_batch(
     *,
     tau=None,
     parameters=None,
+    actuator: Actuator | None = None,
+    inputs=None,
+    actuator_parameters=None,
     settings: SimulationSettings | None = None,
     threads: int | None = None,
     processes: int | None = None,
@@ -113,6 +99,20 @@ def simulate_batch(
     parameters : array_like, shape (B, n_p) or (n_p,), optional
         Parameter vectors in the order of ``model.robot.layout.names`` (default the
         model's); each is validated as a robot (:meth:`Robot.with_parameter_vector`).
+    actuator : Actuator, optional
+        Drive the members by this actuator's ``inputs`` instead of ``tau``: the force
+        ``H(q) u`` is evaluated along each trajectory inside the integrator, as in
+        :func:`~softcurve.simulation.simulate.simulate` (with the actuator's
+        ``time_constant``, ``inputs`` are commands and the inputs start at zero).
+    inputs : array_like, shape (B, m) or (m,), optional
+        Constant actuator inputs per member [``actuator.input_unit``: Pa, N], within the
+        actuator's bounds; required with ``actuator``.
+    actuator_parameters : array_like, shape (B, k) or (k,), optional
+        Actuator parameter vectors in the order of ``actuator.parameter_names()`` (e.g. a
+        tendon's azimuth [rad], distance [m] and friction), default
+        ``actuator.parameter_vector()``; each is validated as an actuator. Members with
+        equal vectors share one integrator; each distinct vector builds its own (a few
+        milliseconds).
     settings : SimulationSettings, optional
         As in :func:`~softcurve.simulation.simulate.simulate`; ``method`` is "cvodes"
         (chosen per member), "adams" or "bdf". Memory is ``B * T * (2 n + n_creep + 3)``
@@ -159,11 +159,13 @@ def simulate_batch(
     processes = _count("processes", processes, 1)
     n, n_creep = model.n, model.n_creep
     arrays = {
-        "q0": _rows("q0", q0, n),
-        "qd0": _rows("qd0", qd0, n),
-        "lam0": _rows("lam0", lam0, n_creep, np.zeros(n_creep)),
-        "tau": _rows("tau", tau, n, np.zeros(n)),
-        "parameters": _rows("parameters", parameters, model.parameters.size, model.parameters),
+        "q0": member_rows("q0", q0, n),
+        "qd0": member_rows("qd0", qd0, n),
+        "lam0": member_rows("lam0", lam0, n_creep, np.zeros(n_creep)),
+        "parameters": member_rows(
+            "parameters", parameters, model.parameters.size, model.parameters
+        ),
+        **drive_arrays(model, tau, actuator, inputs, actuator_parameters),
     }
     sizes = {name: a.shape[0] for name, a in arrays.items() if a.shape[0] != 1}
     size = max(sizes.values(), default=1)
@@ -185,37 +187,52 @@ def simulate_batch(
     else:
         abstol = float(np.min(settings.atol_vector(nominal[0]) / nominal))
     if processes > 1 and size > 1:
-        return _in_processes(model, min(processes, size), threads, arrays, settings)
-    return _integrate(model, x0, arrays, (nominal, rest_lengths), abstol, settings, threads)
+        return _in_processes(model, min(processes, size), threads, arrays, settings, actuator)
+    drives = None
+    if actuator is not None:
+        drives = Drives.of(actuator, n, arrays["inputs"], arrays["actuator_parameters"])
+        x0, nominal = drives.extended(x0, nominal)
+        abstol = min(abstol, settings.rtol) if drives.lag else abstol  # as simulate()
+    scales = (nominal, rest_lengths)
+    return _integrate(model, x0, arrays, scales, abstol, settings, threads, drives)
 
 
-def _integrate(model, x0, arrays, scales, abstol, settings, threads) -> BatchTrajectory:
+def _integrate(model, x0, arrays, scales, abstol, settings, threads, drives) -> BatchTrajectory:
     """The batch in this process (see :func:`simulate_batch`); ``scales`` are the state
-    scales and the rest lengths of every member."""
-    tau, params = arrays["tau"], arrays["parameters"]
+    scales and the rest lengths of every member, ``drives`` the actuator's (or None)."""
+    params = arrays["parameters"]
     nominal, rest_lengths = scales
-    size, method = x0.shape[0], settings.method
+    size, method, n_state = x0.shape[0], settings.method, model.n_state
     grid = settings.output_times()
+    if drives is None:
+        u = tau = arrays["tau"]
+    else:  # the force at the start chooses the family, as in simulate()
+        u, tau = arrays["inputs"], drives.initial_forces(x0[:, : model.n], x0, arrays["inputs"])
     if method == "cvodes":
-        ratios, fastest = member_rates(model, x0, tau, params, nominal, threads)
+        rates = member_rates(model, x0[:, :n_state], tau, params, nominal[:, :n_state], threads)
+        ratios, fastest = rates
         initial = multistep_family(ratios)
     else:
         initial = np.full(size, method)
     methods, used_bdf = initial, np.zeros(size, bool)
-    states = np.full((size, grid.size, model.n_state), np.nan)
+    states = np.full((size, grid.size, x0.shape[1]), np.nan)
     states[:, 0] = x0
     start = time.perf_counter()
     options = (settings.rtol, abstol, settings.max_steps)
-    run = MemberRun(model, grid, options, threads, tau, params, nominal, states, rest_lengths)
+    run = MemberRun(model, grid, options, threads, u, params, nominal, states, rest_lengths,
+                    drives)  # fmt: skip
+    groups = [np.arange(size)] if drives is None else [
+        np.flatnonzero(drives.group == g) for g in range(len(drives.inputs))]  # fmt: skip
     for k0, k1 in restart_segments(grid):
-        if method == "cvodes" and k0 > 0:  # as simulate(): BDF for settled members
+        if method == "cvodes" and k0 > 0 and drives is None:  # as simulate(): BDF if settled
             xdot = rhs_along(model, np.nan_to_num(states[:, k0 : k0 + 1]), tau[:, None, :],
                              params, threads)[:, 0]  # fmt: skip
             methods = np.where(settled(xdot, nominal, fastest), "bdf", initial)
             used_bdf |= methods == "bdf"
-        for multistep in ("adams", "bdf"):
-            members = np.flatnonzero((methods == multistep) & (run.reached == grid.size))
-            for block in blocks(members.size, k1 - k0 + 1, model.n_state + model.n):
+        for multistep, group in ((m, g) for m in ("adams", "bdf") for g in groups):
+            chosen = (methods[group] == multistep) & (run.reached[group] == grid.size)
+            members = group[chosen]
+            for block in blocks(members.size, k1 - k0 + 1, x0.shape[1] + u.shape[1]):
                 run.integrate(multistep, members[block], k0, k1)
     wall = time.perf_counter() - start
     families = [f"cvodes-{m}" for m in initial]
@@ -224,7 +241,10 @@ def _integrate(model, x0, arrays, scales, abstol, settings, threads) -> BatchTra
     messages = run.messages
     for b in np.flatnonzero(run.reached == grid.size):
         messages[b] = success_message(settings.t_final, families[b])
-    n = model.n
+    inputs = None
+    if drives is not None:
+        inputs = states[..., n_state:] if drives.lag else np.repeat(u[:, None, :], grid.size, 1)
+        inputs = np.where(np.isnan(states[..., :1]), np.nan, inputs)  # NaN after a failure
     stats = {
         "methods": families,
         "rtol": settings.rtol,
@@ -235,18 +255,22 @@ def _integrate(model, x0, arrays, scales, abstol, settings, threads) -> BatchTra
         "wall_time": wall,
         "simulated_time": float(np.sum(grid[run.reached - 1])),
     }
-    return _result(grid, states[..., :n], states[..., n : 2 * n], states[..., 2 * n :],
-                   arrays, run.status, messages, run.reached, stats, model)  # fmt: skip
+    x = states[..., :n_state]
+    return _result(grid, x, inputs, arrays, run.status, messages, run.reached, stats, model,
+                   None if drives is None else drives.actuator)  # fmt: skip
 
 
-def _result(t, q, qd, lam, arrays, member_status, messages, reached, stats, model):
+def _result(t, x, inputs, arrays, member_status, messages, reached, stats, model, actuator):
+    """The :class:`BatchTrajectory` of states ``x`` (B, T, n_state) and, with an actuator,
+    its inputs (B, T, m)."""
     status, message = batch_status(np.asarray(member_status, dtype=object))
+    n = model.n
     return BatchTrajectory(
         t=t,
-        q=q,
-        qd=qd,
-        lam=lam,
-        tau=arrays["tau"],
+        q=x[..., :n],
+        qd=x[..., n : 2 * n],
+        lam=x[..., 2 * n :],
+        tau=arrays.get("tau"),
         parameters=arrays["parameters"],
         member_status=member_status,
         member_message=messages,
@@ -255,6 +279,9 @@ def _result(t, q, qd, lam, arrays, member_status, messages, reached, stats, mode
         message=message,
         stats=stats,
         model=model,
+        actuator=actuator,
+        inputs=inputs,
+        actuator_parameters=arrays.get("actuator_parameters"),
     )
 
 
@@ -276,24 +303,18 @@ def _nominal(model: Model, params: np.ndarray, x0: np.ndarray) -> tuple:
     return nominal, rest_lengths
 
 
-def _chunk(robot, quadrature_nodes, arrays, settings) -> BatchTrajectory:
+def _chunk(robot, quadrature_nodes, arrays, settings, actuator=None) -> tuple:
     """One chunk of a batch, in a worker process; the parent keeps the model (a Model
     holds a loaded library)."""
     model = worker_model(robot, quadrature_nodes)
-    chunk = simulate_batch(
-        model,
-        arrays["q0"],
-        arrays["qd0"],
-        arrays["lam0"],
-        tau=arrays["tau"],
-        parameters=arrays["parameters"],
-        settings=settings,
-        threads=1,
-    )
-    return chunk.member_status, chunk.member_message, chunk.reached, chunk.stats, chunk.x
+    rest = {k: a for k, a in arrays.items() if k not in ("q0", "qd0", "lam0")}
+    chunk = simulate_batch(model, arrays["q0"], arrays["qd0"], arrays["lam0"],
+                           settings=settings, threads=1, actuator=actuator, **rest)  # fmt: skip
+    x = chunk.x if actuator is None else np.concatenate([chunk.x, chunk.inputs], axis=2)
+    return chunk.member_status, chunk.member_message, chunk.reached, chunk.stats, x
 
 
-def _in_processes(model, processes, threads, arrays, settings) -> BatchTrajectory:
+def _in_processes(model, processes, threads, arrays, settings, actuator) -> BatchTrajectory:
     """:func:`simulate_batch` in chunks over ``processes`` worker processes; ``threads`` is
     kept for what is later evaluated along the result in this process (tip, energy)."""
     start = time.perf_counter()
@@ -306,6 +327,7 @@ def _in_processes(model, processes, threads, arrays, settings) -> BatchTrajector
             model.quadrature_nodes,
             {k: a[lo:hi] for k, a in arrays.items()},
             settings,
+            actuator,
         )  # fmt: skip
         for lo, hi in zip(bounds[:-1], bounds[1:], strict=True)
     }
@@ -313,7 +335,6 @@ def _in_processes(model, processes, threads, arrays, settings) -> BatchTrajector
     chunks = [done[lo] for lo in sorted(done)]
     member_status, messages, reached, stats, x = (list(part) for part in zip(*chunks, strict=True))
     x = np.concatenate(x)
-    n = model.n
     stats = {
         **stats[0],
         "methods": [m for s in stats for m in s["methods"]],
@@ -323,9 +344,11 @@ def _in_processes(model, processes, threads, arrays, settings) -> BatchTrajector
         "wall_time": time.perf_counter() - start,
         "simulated_time": float(sum(s["simulated_time"] for s in stats)),
     }
-    return _result(settings.output_times(), x[..., :n], x[..., n : 2 * n], x[..., 2 * n :],
-                   arrays, np.concatenate(member_status), [m for c in messages for m in c],
-                   np.concatenate(reached), stats, model)  # fmt: skip
+    n_state = model.n_state
+    return _result(settings.output_times(), x[..., :n_state],
+                   None if actuator is None else x[..., n_state:], arrays,
+                   np.concatenate(member_status), [m for c in messages for m in c],
+                   np.concatenate(reached), stats, model, actuator)  # fmt: skip
 
 
 def simulated_seconds_per_second(batch: BatchTrajectory) -> float:

@@ -64,24 +64,38 @@ class MemberRun:
         ``(rtol, abstol of the scaled state, max_steps)`` for :func:`cvodes_options`.
     threads : int
         Threads of the compiled map.
-    tau : ndarray, shape (B, n)
-        Constant input force per member [N, N m^2, N m^2].
+    tau : ndarray, shape (B, n) or (B, m)
+        Constant input per member: the force [N, N m^2, N m^2], or with ``drives`` the
+        actuator's inputs (commands when they lag) [their unit].
     params : ndarray, shape (B, n_p)
         Parameter vector per member.
-    nominal : ndarray, shape (B, n_state)
-        State scale per member.
-    states : ndarray, shape (B, T, n_state)
+    nominal : ndarray, shape (B, n_state [+ m])
+        State scale per member (with lagging inputs: theirs after ``(q, qd, lam)``).
+    states : ndarray, shape (B, T, n_state [+ m])
         Filled in place (NaN after a member's failure).
     rest_lengths : ndarray, shape (B, N)
         Rest length of each member's segments [m], for the domain check of the outputs.
+    drives : Drives, optional
+        The actuator of each member (:mod:`softcurve.simulation.batch_actuation`); the
+        members integrated in one call must share one.
     """
 
     def __init__(
-        self, model: Model, grid, options, threads, tau, params, nominal, states, rest_lengths
+        self,
+        model: Model,
+        grid,
+        options,
+        threads,
+        tau,
+        params,
+        nominal,
+        states,
+        rest_lengths,
+        drives=None,
     ):
         self.model, self.grid, self.options, self.threads = model, grid, options, threads
         self.tau, self.params, self.nominal, self.states = tau, params, nominal, states
-        self.rest_lengths = rest_lengths
+        self.rest_lengths, self.drives = rest_lengths, drives
         size = states.shape[0]
         self.reached = np.full(size, grid.size)
         self.status = np.full(size, Status.SUCCESS, dtype=object)
@@ -91,14 +105,20 @@ class MemberRun:
         count = len(members)
         return np.hstack([self.params[members], np.full((count, 1), h), self.nominal[members]]).T
 
-    def _mapped_integrator(self, multistep, tout, count):
-        """The integrator mapped over ``count`` members, cached with the model."""
+    def _drive(self, member: int):
+        """The :class:`ActuatorInput` of ``member``, or None when forces drive it."""
+        return None if self.drives is None else self.drives.inputs[self.drives.group[member]]
+
+    def _mapped_integrator(self, multistep, tout, count, drive):
+        """The integrator mapped over ``count`` members driven by ``drive`` (an
+        :class:`ActuatorInput` or None), cached with the model."""
         threads = min(self.threads, count)
         options = cvodes_options(multistep, *self.options)
-        key = ("batch", tuple(sorted(options.items())), tout.tobytes(), count, threads)
+        key = ("batch", tuple(sorted(options.items())), tout.tobytes(), count, threads,
+               None if drive is None else drive.key)  # fmt: skip
 
         def build():
-            integrator = cvodes_integrator(self.model, tout, options)
+            integrator = cvodes_integrator(self.model, tout, options, drive)
             return BufferedCall(mapped(integrator, count, threads))
 
         return self.model.cached(key, build)
@@ -110,16 +130,17 @@ class MemberRun:
         grid, states = self.grid[k0 : k1 + 1], self.states
         h = grid[-1] - grid[0]
         tout = (grid[1:] - grid[0]) / h
-        count, outputs = len(members), tout.size
+        count, outputs, drive = len(members), tout.size, self._drive(int(members[0]))
         # column-major CasADi matrices: one member's (or one output's) column after another
         x0 = np.ascontiguousarray(states[members, k0] / self.nominal[members])
         p = np.ascontiguousarray(self._p(members, h).T)
         u = np.repeat(self.tau[members], outputs, axis=0)
-        xf = np.zeros((count, outputs, self.model.n_state))
+        xf = np.zeros((count, outputs, states.shape[2]))
         # on a failure, CasADi's map prints every input of the batch to sys.stderr; the
         # reason is kept from the member integrated alone (below)
         with contextlib.redirect_stderr(io.StringIO()):
-            failure, _ = self._mapped_integrator(multistep, tout, count)({0: x0, 2: p, 3: u}, xf)
+            integrator = self._mapped_integrator(multistep, tout, count, drive)
+            failure, _ = integrator({0: x0, 2: p, 3: u}, xf)
         if failure is not None:
             if count > 1:
                 half = count // 2
@@ -136,13 +157,13 @@ class MemberRun:
 
     def _one_by_one(self, multistep, b, k0, k1) -> None:
         """Output interval by output interval, to keep every output reached before a failure."""
-        integrator = self._mapped_integrator(multistep, np.ones(1), 1)
+        integrator = self._mapped_integrator(multistep, np.ones(1), 1, self._drive(b))
         nominal, states = self.nominal[b], self.states
         for k in range(k0 + 1, k1 + 1):
             h = self.grid[k] - self.grid[k - 1]
             x0 = np.ascontiguousarray(states[b, k - 1] / nominal)
             p = np.ascontiguousarray(self._p([b], h).T)
-            xf = np.zeros(self.model.n_state)
+            xf = np.zeros(states.shape[2])
             u = np.ascontiguousarray(self.tau[b])
             failure, _ = integrator({0: x0, 2: p, 3: u}, xf)
             if failure is not None:

@@ -9,9 +9,11 @@ import numpy as np
 
 from softcurve.base.status import Result, Status
 from softcurve.compiled.model import Model
+from softcurve.description.actuator import Actuator
 from softcurve.figures import plot_batch_tips
 from softcurve.figures.trajectories import figure_options
 from softcurve.simulation.along import energy_along, tip_along
+from softcurve.simulation.integrators import ActuatorInput
 from softcurve.simulation.trajectory import Trajectory
 
 
@@ -51,8 +53,9 @@ class BatchTrajectory(Result):
     lam : ndarray, shape (B, T, n_creep)
         Creep states, three per segment with creep [unit of the coordinate times that
         of ``Creep.gain``].
-    tau : ndarray, shape (B, n)
-        The constant input force of each member [N, N m^2, N m^2].
+    tau : ndarray, shape (B, n), or None
+        The constant input force of each member [N, N m^2, N m^2]; None when an actuator
+        drove the members (its force ``H(q) u`` changes along each trajectory).
     parameters : ndarray, shape (B, n_p)
         The parameter vector of each member (``model.robot.layout.names``).
     member_status : ndarray, shape (B,), of Status
@@ -71,13 +74,22 @@ class BatchTrajectory(Result):
         ``size``, ``simulated_time`` [s] (summed over members) and the tolerances.
     model : Model, optional
         The model simulated (its robot gives the structure).
+    actuator : Actuator, optional
+        The actuator that drove the members (with its default parameters), or None.
+    inputs : ndarray, shape (B, T, m), optional
+        With an actuator: its inputs of each member at every output time [its
+        ``input_unit``] (the states of lagging inputs, or the constant inputs); NaN after
+        a member's failure.
+    actuator_parameters : ndarray, shape (B, k), optional
+        With an actuator: each member's actuator parameters
+        (``actuator.parameter_names()``).
     """
 
     t: np.ndarray
     q: np.ndarray
     qd: np.ndarray
     lam: np.ndarray
-    tau: np.ndarray
+    tau: np.ndarray | None
     parameters: np.ndarray
     member_status: np.ndarray
     member_message: tuple
@@ -86,6 +98,9 @@ class BatchTrajectory(Result):
     message: str = ""
     stats: dict = field(default_factory=dict)
     model: Model | None = field(default=None, repr=False)
+    actuator: Actuator | None = field(default=None, repr=False)
+    inputs: np.ndarray | None = None
+    actuator_parameters: np.ndarray | None = None
 
     def __post_init__(self):
         member_status = np.array([Status.parse(s) for s in self.member_status], dtype=object)
@@ -135,6 +150,18 @@ class BatchTrajectory(Result):
             quadrature_nodes=self.model.quadrature_nodes,
         )
 
+    def member_actuator(self, i: int) -> Actuator | None:
+        """The actuator of member ``i``, with its actuator parameters; None without one.
+
+        Parameters
+        ----------
+        i : int
+            Member index.
+        """
+        if self.actuator is None:
+            return None
+        return self.actuator.with_parameter_vector(self.actuator_parameters[i])
+
     def member(self, i: int) -> Trajectory:
         """Member ``i`` as the :class:`~softcurve.Trajectory` of a single simulation.
 
@@ -150,13 +177,21 @@ class BatchTrajectory(Result):
         k = int(self.reached[i])
         stats = {key: value for key, value in self.stats.items() if key != "methods"}
         stats["method"] = self.stats["methods"][i]
+        inputs = None
+        if self.actuator is None:
+            tau = np.repeat(self.tau[i][None, :], k, axis=0)
+        else:  # H(q) u along the trajectory, as simulate() reports it
+            inputs = self.inputs[i, :k].copy()
+            force = ActuatorInput.of(self.member_actuator(i), self.model.n)
+            tau = force.forces(self.q[i, :k], inputs) if k else np.empty((0, self.model.n))
         return Trajectory(
             t=self.t[:k].copy(),
             q=self.q[i, :k].copy(),
             qd=self.qd[i, :k].copy(),
             lam=self.lam[i, :k].copy(),
             tip_positions=self.tip[i, :k].copy(),
-            tau=np.repeat(self.tau[i][None, :], k, axis=0),
+            tau=tau,
+            inputs=inputs,
             stats=stats,
             status=self.member_status[i],
             message=self.member_message[i],

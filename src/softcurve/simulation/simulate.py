@@ -139,8 +139,8 @@ def _drive(model: Model, grid, tau, controller, actuator, inputs):
         if inputs is not None:
             raise ParameterError("inputs are an actuator's: give actuator= too (an Actuator)")
 
-        def check(value, name):
-            return np.array(real_array(name, value, (model.n,)))
+        def check(value, source):
+            return np.array(real_array(f"the {source}'s tau", value, (model.n,)))
 
         values = None if controller is not None else _input_grid("tau", tau, model.n, grid)
         return values, None, check
@@ -161,7 +161,11 @@ def _drive(model: Model, grid, tau, controller, actuator, inputs):
         if not callable(values):
             for row in np.unique(values, axis=0):
                 actuator.check_inputs(row, "inputs")
-    return values, ActuatorInput.of(actuator, model.n), actuator.check_inputs
+
+    def check_inputs(value, source):
+        return actuator.check_inputs(value, f"the {source}'s {actuator.input_name}")
+
+    return values, ActuatorInput.of(actuator, model.n), check_inputs
 
 
 def _sample_time(controller):

@@ -156,7 +156,7 @@ def _advance(engine, grid, states, inputs, k, m, domain) -> None:
 
 def run_sampled(engine, model, grid, states, applied, inputs, controller, sample_time, bar, check):
     """Piece by piece between output times and controller samples, input held;
-    ``check(value, name)`` validates each value the callable or the controller returns
+    ``check(value, source)`` validates each value the callable or the controller returns
     (its shape, and the actuator's bounds). The run stops at the first output or sample
     whose state is outside the model's domain, before the controller sees it.
 
@@ -181,7 +181,8 @@ def run_sampled(engine, model, grid, states, applied, inputs, controller, sample
     bar : Progress or None
         The progress bar.
     check : callable
-        ``check(value, name) -> ndarray``.
+        ``check(value, source) -> ndarray``, ``source`` "controller" or "callable" (for
+        the message).
     """
     n, n_state, width = model.n, model.n_state, applied.shape[1]
     if controller is not None:
@@ -210,7 +211,7 @@ def run_sampled(engine, model, grid, states, applied, inputs, controller, sample
                 value = inputs(times[i], State(q.copy(), qd.copy(), lam.copy(), x[:n_state].copy()))
                 source = "callable"
             try:
-                current = check(value, f"the {source}'s inputs")
+                current = check(value, source)
             except ParameterError as exc:
                 raise ParameterError(f"{exc} (at t = {times[i]:.6g} s)") from None
         while output < grid.size and grid_index[output] <= i:

@@ -1,0 +1,132 @@
+"""Figures of actuated runs: the actuator's inputs against time with their bounds, and the
+backbone at chosen times with a reference path."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from softcurve.base.validation import ParameterError, real_array
+from softcurve.figures.drawing import backbones, panels, whole_number
+from softcurve.figures.statics import DISPLAY_UNITS
+
+MM_PER_M = 1e3
+BOUND_STYLE = {"color": "0.35", "lw": 0.9, "ls": "--"}
+
+
+def plot_inputs(trajectory, actuator, ax=None, *, labels=None):
+    """The actuator's inputs against time, one line each, with their bounds drawn.
+
+    The axis is labelled with the actuator's ``input_name`` and ``input_unit``
+    (``"tensions [N]"``; pressures are drawn in kPa).
+
+    Parameters
+    ----------
+    trajectory : softcurve.Trajectory
+        Read: ``t`` shape (T,) [s] and ``inputs`` shape (T, m) [the actuator's
+        ``input_unit``] (a run with ``actuator=``).
+    actuator : Actuator
+        Gives ``lower``, ``upper`` (drawn as dashed lines), ``input_name`` and
+        ``input_unit``.
+    ax : None or matplotlib.axes.Axes, shape (1,)
+        Where to draw; None draws a new figure.
+    labels : sequence of str, optional
+        A legend entry per input (default ``1 .. m``).
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+    """
+    inputs = getattr(trajectory, "inputs", None)
+    if inputs is None:
+        raise ParameterError(
+            "the trajectory holds no actuator inputs: simulate it with actuator= to draw them"
+        )
+    inputs = np.asarray(inputs, dtype=np.float64)
+    m = actuator.n_inputs
+    if inputs.ndim != 2 or inputs.shape[1] != m:
+        raise ParameterError(
+            f"the trajectory's inputs have shape {inputs.shape}, the actuator has {m} inputs"
+        )
+    labels = [str(i + 1) for i in range(m)] if labels is None else [str(a) for a in labels]
+    if len(labels) != m:
+        raise ParameterError(f"labels must name the {m} inputs, got {len(labels)}")
+    unit, factor = DISPLAY_UNITS.get(actuator.input_unit, (actuator.input_unit, 1.0))
+    figure, (ax,) = panels(ax, 1, "the inputs figure", figsize=(7.0, 3.8))
+    for i in range(m):
+        ax.plot(trajectory.t, factor * inputs[:, i], lw=1.0, label=labels[i])
+    bounds = np.unique(np.concatenate([actuator.lower, actuator.upper]))
+    for k, value in enumerate(bounds):
+        ax.axhline(factor * value, **BOUND_STYLE, label="bounds" if k == 0 else None)
+    ax.set_xlabel("time t [s]")
+    ax.set_ylabel(f"{actuator.input_name} [{unit}]" if unit else actuator.input_name)
+    ax.legend(
+        title=actuator.input_name,
+        fontsize="small",
+        ncol=max(1, (m + 1) // 4),
+        loc="center left",
+        bbox_to_anchor=(1.0, 0.5),
+    )
+    ax.grid(True, alpha=0.3)
+    return figure
+
+
+def plot_backbones(trajectory, times, ax=None, *, model=None, path=None, points: int = 40):
+    """The backbone at chosen times, seen from the side (x-z) and from above (x-y), with
+    a reference path of the tip.
+
+    Parameters
+    ----------
+    trajectory : softcurve.Trajectory
+        Read: ``t`` shape (T,) [s], ``q`` shape (T, n) [m, 1/m, 1/m] and ``model``; the
+        output sample nearest each time is drawn.
+    times : array_like, shape (k,)
+        The times to draw [s].
+    ax : None or sequence of matplotlib.axes.Axes, shape (2,)
+        Panels for the side and the top view; None draws a new figure.
+    model : softcurve.Model, optional
+        Gives the backbone's shape (default ``trajectory.model``).
+    path : array_like, shape (P, 3), optional
+        A reference path of the tip [m], drawn dashed in both views.
+    points : int, optional
+        Points along each backbone [count].
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+    """
+    model = getattr(trajectory, "model", None) if model is None else model
+    if model is None:
+        raise ParameterError("the trajectory has no model attached: pass model=Model(robot)")
+    points = whole_number("points", points, 2)
+    times = np.atleast_1d(np.asarray(times, dtype=np.float64))
+    if times.ndim != 1 or not np.all(np.isfinite(times)):
+        raise ParameterError(f"times must be a finite 1-D array [s], got shape {times.shape}")
+    if trajectory.t.size == 0:
+        raise ParameterError("the trajectory has no samples: nothing to draw")
+    index = np.abs(trajectory.t[None, :] - times[:, None]).argmin(axis=1)
+    shapes = backbones(model, trajectory.q[index], points) * MM_PER_M
+    figure, (side, top) = panels(ax, 2, "the backbones figure", rows=1, figsize=(9.0, 4.2))
+    colors = _colors(len(index))
+    if path is not None:
+        path = real_array("path", path, (np.asarray(path).shape[0], 3)) * MM_PER_M
+        side.plot(path[:, 0], path[:, 2], "k--", lw=0.9, label="reference path")
+        top.plot(path[:, 0], path[:, 1], "k--", lw=0.9, label="reference path")
+    for shape, k, color in zip(shapes, index, colors, strict=True):
+        label = f"t = {trajectory.t[k]:.2f} s"
+        side.plot(shape[:, 0], shape[:, 2], color=color, lw=2.0, label=label)
+        side.plot(shape[-1, 0], shape[-1, 2], "o", color=color, ms=4)
+        top.plot(shape[:, 0], shape[:, 1], color=color, lw=2.0)
+        top.plot(shape[-1, 0], shape[-1, 1], "o", color=color, ms=4)
+    side.set(xlabel="x [mm]", ylabel="z [mm]", title="side view")
+    top.set(xlabel="x [mm]", ylabel="y [mm]", title="top view")
+    for view in (side, top):
+        view.set_aspect("equal", adjustable="datalim")  # true shapes, panels filled
+        view.grid(True, alpha=0.3)
+    side.legend(fontsize="small", loc="lower right")
+    return figure
+
+
+def _colors(count: int) -> list:
+    from matplotlib import colormaps  # on first use, like drawing.pyplot
+
+    return [colormaps["viridis"](v) for v in np.linspace(0.0, 0.9, max(count, 1))][:count]
