@@ -41,11 +41,12 @@ from softcurve.control.mpc import ActuatorMPC
 from softcurve.control.references import Reference, tip_circle
 from softcurve.description import presets
 from softcurve.description.actuator import Actuator
+from softcurve.description.environment import Capsule, ContactLaw, Environment, Plane, Sphere
 from softcurve.description.layout import ParameterLayout
 from softcurve.description.materials import Creep, LinearStiffness, TanhStiffness
 from softcurve.description.pneumatic import Bellows, ConstantPressureMap, PneumaticActuator
-from softcurve.description.tendons import Tendon, TendonActuator
 from softcurve.description.robot import Robot, Segment
+from softcurve.description.tendons import Tendon, TendonActuator
 from softcurve.figures import save_figure
 from softcurve.identification.dynamic import (
     fit_equilibria,
@@ -88,6 +89,11 @@ __all__ = [
     "ConstantPressureMap",
     "Tendon",
     "TendonActuator",
+    "Plane",
+    "Sphere",
+    "Capsule",
+    "ContactLaw",
+    "Environment",
     "ParameterLayout",
     "presets",
     # the compiled model
