@@ -43,6 +43,7 @@ from softcurve.control.mpc import ActuatorMPC
 from softcurve.control.references import Reference, tip_circle
 from softcurve.description import presets
 from softcurve.description.actuator import Actuator
+from softcurve.description.environment import Capsule, ContactLaw, Environment, Plane, Sphere
 from softcurve.description.layout import ParameterLayout
 from softcurve.description.materials import Creep, LinearStiffness, TanhStiffness
 from softcurve.description.pneumatic import Bellows, ConstantPressureMap, PneumaticActuator
@@ -90,6 +91,11 @@ __all__ = [
     "ConstantPressureMap",
     "Tendon",
     "TendonActuator",
+    "Plane",
+    "Sphere",
+    "Capsule",
+    "ContactLaw",
+    "Environment",
     "ParameterLayout",
     "presets",
     # the compiled model

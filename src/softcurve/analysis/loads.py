@@ -18,6 +18,7 @@ import numpy as np
 from softcurve.base.docs import shared_parameters
 from softcurve.base.validation import ParameterError, real_array
 from softcurve.description.actuator import Actuator
+from softcurve.symbolic.contact import contact_statics
 from softcurve.symbolic.kinematics import segment_frames
 
 
@@ -104,13 +105,23 @@ def _load_symbols(model, actuator):
     if actuator is not None:
         load += actuator.input_matrix_symbolic(q) @ u
         potential -= actuator.input_work_symbolic(q, u)
+    contact = contact_statics(e)  # the penalty force and energy, with an environment
+    if contact is not None:
+        potential += contact[1]
     return {
         "inputs": [e.p, tau, u, force, moment],
         "names": ["p", "tau", "u", "f", "m"],
         "load": load,
         "potential": potential,
         "tip": tip.position,
+        "contact": None if contact is None else contact[0],
     }
+
+
+def _static_residual(e, sym):
+    """``N(q) - loads``, minus the conservative contact force with an environment."""
+    residual = e.gravity_force + e.elastic_force - sym["load"]
+    return residual if sym["contact"] is None else residual - sym["contact"]
 
 
 @shared_parameters
@@ -126,7 +137,7 @@ def static_function(model, actuator: Actuator | None) -> ca.Function:
 
     def build():
         e, sym = model.expressions, _load_symbols(model, actuator)
-        residual = e.gravity_force + e.elastic_force - sym["load"]
+        residual = _static_residual(e, sym)
         return ca.Function(
             "static",
             [e.q, *sym["inputs"]],
@@ -154,7 +165,7 @@ def linear_function(model, actuator: Actuator | None) -> ca.Function:
         x = ca.vertcat(e.q, e.qd, e.lam)
         qdd = ca.substitute(e.forward_dynamics, e.tau, sym["load"])
         xdot = ca.vertcat(e.qd, qdd, e.creep_rate)
-        residual = e.gravity_force + e.elastic_force - sym["load"]
+        residual = _static_residual(e, sym)
         tau = sym["inputs"][1]
         return ca.Function(
             "linear",

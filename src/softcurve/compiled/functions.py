@@ -12,6 +12,7 @@ The physical quantities (dynamics, energies, poses) are the methods of its subcl
 from __future__ import annotations
 
 import ctypes
+import hashlib
 import threading
 from pathlib import Path
 
@@ -21,7 +22,9 @@ import numpy as np
 from softcurve.base.validation import ParameterError
 from softcurve.compiled.build import COMPILED_FUNCTIONS, compiled_library
 from softcurve.compiled.native import NativeFunction
+from softcurve.description.environment import Environment
 from softcurve.description.robot import Robot
+from softcurve.symbolic.contact import contact_functions, with_contact
 from softcurve.symbolic.dynamics import (
     DEFAULT_QUADRATURE_NODES,
     DynamicsExpressions,
@@ -52,6 +55,7 @@ class CompiledFunctions:
         self,
         robot: Robot,
         *,
+        environment: Environment | None = None,
         quadrature_nodes: int = DEFAULT_QUADRATURE_NODES,
         compile: bool = True,
     ):
@@ -61,7 +65,14 @@ class CompiledFunctions:
             raise ParameterError(
                 f"quadrature_nodes must be an integer in [1, 64], got {quadrature_nodes!r}"
             )
+        if environment is not None:
+            if not isinstance(environment, Environment):
+                raise ParameterError(
+                    f"environment must be an Environment or None, got {type(environment).__name__}"
+                )
+            environment.check_robot(robot)
         self.robot = robot
+        self.environment = environment
         self.n = robot.n
         self.n_creep = robot.n_creep
         self.n_state = 2 * self.n + self.n_creep
@@ -75,16 +86,33 @@ class CompiledFunctions:
         self.compiled_library: Path | None = None
         if compile:
             loaded = compiled_library(
-                self._structure, quadrature_nodes, lambda: self.symbolic, load=_load
+                self._cache_structure(), quadrature_nodes, lambda: self.symbolic, load=_load
             )
             if loaded is not None:
                 self.compiled_library, self._native = loaded
 
+    def _cache_structure(self) -> tuple:
+        """What the compiled library depends on besides the symbolic layer's sources:
+        the robot's structure alone without environment (the free model's key is the same
+        as before environments existed), else also the environment's numbers (compiled in
+        as constants) and the sources of the contact modules."""
+        if self.environment is None:
+            return self._structure
+        digest = hashlib.sha256()
+        package = Path(__file__).parent.parent
+        for name in ("description/environment.py", "symbolic/contact.py"):
+            digest.update((package / name).read_bytes())
+        return (self._structure, "environment", self.environment.key(), digest.hexdigest())
+
     @property
     def expressions(self) -> DynamicsExpressions:
-        """The symbolic equation of motion (built on first use)."""
+        """The symbolic equation of motion (built on first use); a
+        :class:`~softcurve.symbolic.contact.ContactExpressions` with an environment."""
         if self._expressions is None:
-            self._expressions = build_dynamics(self._structure, self.quadrature_nodes)
+            e = build_dynamics(self._structure, self.quadrature_nodes)
+            if self.environment is not None:
+                e = with_contact(e, self._structure, self.environment)
+            self._expressions = e
         return self._expressions
 
     _expressions: DynamicsExpressions | None = None
@@ -93,7 +121,10 @@ class CompiledFunctions:
     def symbolic(self) -> dict[str, ca.Function]:
         """Every numeric entry point as a CasADi SX Function whose last input is ``p``."""
         if self._symbolic is None:
-            self._symbolic = symbolic_functions(self.expressions)
+            e = self.expressions
+            self._symbolic = (
+                symbolic_functions(e) if self.environment is None else contact_functions(e)
+            )
         return self._symbolic
 
     # -- the per-model cache -------------------------------------------------------
@@ -193,6 +224,38 @@ class CompiledFunctions:
         x = self._vector("x", x, self.n_state)
         n = self.n
         return x[:n], x[n : 2 * n], x[2 * n :]
+
+    def contact(self, q, qd=None) -> dict[str, np.ndarray]:
+        """The contact with the environment at one state (CasADi's virtual machine).
+
+        Parameters
+        ----------
+        q : array_like, shape (n,)
+            Generalized coordinates ``(l, kx, ky)`` of each segment [m, 1/m, 1/m].
+        qd : array_like, shape (n,), optional
+            Their rates [m/s, 1/(m s), 1/(m s)] (default zero: the elastic part only).
+
+        Returns
+        -------
+        dict of str to ndarray
+            ``"generalized"`` (n,): the generalized contact force [N, N m^2, N m^2];
+            ``"energy"`` (): the penalty energy [J]; ``"forces"`` (n_obstacles, 3): the
+            force [N] of each obstacle on the robot, base frame; ``"points"``
+            (n_obstacles, 3): its point of application [m], NaN out of contact.
+        """
+        if self.environment is None:
+            raise ParameterError("this model has no environment: Model(robot, environment=...)")
+        q = self.robot.check_configuration(q, "q")
+        qd = np.zeros(self.n) if qd is None else self._vector("qd", qd, self.n)
+        out = self.symbolic["contact"](q, qd, self.parameters)
+        forces, points = np.array(out[2]).T, np.array(out[3]).T
+        points[~np.any(forces != 0.0, axis=1)] = np.nan
+        return {
+            "generalized": np.array(out[0]).ravel(),
+            "energy": np.array(float(out[1])),
+            "forces": forces,
+            "points": points,
+        }
 
     # -- NumPy in, NumPy out -------------------------------------------------------
     def _vector(self, name: str, value, size: int) -> np.ndarray:

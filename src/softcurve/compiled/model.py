@@ -58,6 +58,9 @@ class DynamicsTerms:
         ``R qd`` [N, N m^2, N m^2 per segment].
     creep_force : ndarray, shape (n,)
         ``K_c^T lam`` [N, N m^2, N m^2 per segment].
+    contact_force : ndarray, shape (n,), optional
+        Generalized contact force ``sum J^T F`` [N, N m^2, N m^2 per segment]; None
+        for a model without environment.
     """
 
     mass_matrix: np.ndarray
@@ -66,6 +69,7 @@ class DynamicsTerms:
     elastic_force: np.ndarray
     damping_force: np.ndarray
     creep_force: np.ndarray
+    contact_force: np.ndarray | None = None
 
     def inverse_dynamics(self, qdd) -> np.ndarray:
         """``tau`` that produces the accelerations ``qdd`` at this state.
@@ -82,6 +86,7 @@ class DynamicsTerms:
             + self.elastic_force
             + self.damping_force
             - self.creep_force
+            - (0.0 if self.contact_force is None else self.contact_force)
         )
 
 
@@ -93,6 +98,9 @@ class Model(CompiledFunctions):
     ----------
     robot : Robot
         The robot description; its numbers are bound to every method below.
+    environment : Environment, optional
+        Obstacles and contact law (docs/contact.md); their forces enter every method
+        below. Without it (default) the model is the free robot's.
     quadrature_nodes : int, optional
         Gauss-Legendre nodes per segment for the backbone integrals (default 11,
         round-off accuracy for bending angles up to pi per segment; see
@@ -198,23 +206,26 @@ class Model(CompiledFunctions):
         return self.dynamics_terms(q, np.zeros(self.n)).elastic_force
 
     def potential_force(self, q) -> np.ndarray:
-        """``N(q) = dV/dq``, gravity plus elastic, shape (n,).
+        """``N(q) = dV/dq``, gravity plus elastic (minus the contact force at rest, the
+        penalty's gradient, with an environment), shape (n,).
 
         Parameters
         ----------
         %(q)s
         """
-        return self.gravity_force(q) + self.elastic_force(q)
+        zero = np.zeros(self.n)  # at rest, without creep: inverse dynamics is G + K - Fc
+        return self.dynamics_terms(q, zero).inverse_dynamics(zero)
 
     def potential_energy(self, q) -> float:
-        """``V(q)`` [J], gravitational plus elastic.
+        """``V(q)`` [J], gravitational plus elastic (plus the penalty energy of the
+        contact, with an environment).
 
         Parameters
         ----------
         %(q)s
         """
-        g, e = self._call("potential_energy", self.robot.check_configuration(q, "q"))
-        return float(g[0] + e[0])
+        parts = self._call("potential_energy", self.robot.check_configuration(q, "q"))
+        return float(sum(part[0] for part in parts))
 
     def kinetic_energy(self, q, qd) -> float:
         """``T(q, qd) = qd' D(q) qd / 2`` [J].

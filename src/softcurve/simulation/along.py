@@ -130,9 +130,10 @@ def energy_along(model, q, qd, parameters, threads) -> np.ndarray:
         qs, qds = ca.MX.sym("q", model.n), ca.MX.sym("qd", model.n)
         p = ca.MX.sym("p", model.parameters.size)
         mass = terms(qs, qds, ca.MX.zeros(model.n_creep), p)[0]
-        gravity, elastic = potential(qs, p)
+        parts = potential(qs, p)  # gravity, elastic (and penalty, with an environment)
+        potential_energy = sum(parts) if isinstance(parts, list | tuple) else parts
         return ca.Function(
-            "energy", [qs, qds, p], [0.5 * ca.dot(qds, mass @ qds) + gravity + elastic]
+            "energy", [qs, qds, p], [0.5 * ca.dot(qds, mass @ qds) + potential_energy]
         )
 
     return along(model, "energy", build, [q, qd], parameters, threads)[0][..., 0]

@@ -127,8 +127,8 @@ class Trajectory(Result):
         terms = model.evaluate_along("dynamics_terms", self.q, self.qd, self.lam)
         mass = terms[0].reshape(-1, self.n, self.n)
         kinetic = 0.5 * np.einsum("ti,tij,tj->t", self.qd, mass, self.qd)
-        gravity, elastic = model.evaluate_along("potential_energy", self.q)
-        return kinetic + gravity[:, 0] + elastic[:, 0]
+        potential = model.evaluate_along("potential_energy", self.q)  # Vg, Ve (, Vc)
+        return kinetic + sum(part[:, 0] for part in potential)
 
     def save(self, path) -> Path:
         """Write to ``path`` atomically; returns the path.
