@@ -1,12 +1,15 @@
 """Robots from the literature, as ready-made :class:`~softcurve.description.robot.Robot`
-values."""
+values (and the actuators that drive them)."""
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
-from softcurve.description.materials import Creep, TanhStiffness
+from softcurve.description.materials import Creep, LinearStiffness, TanhStiffness
 from softcurve.description.robot import Robot, Segment
+from softcurve.description.tendons import TendonActuator
 
 
 def ifac2020(*, creep: bool = True, damping: bool = True) -> Robot:
@@ -47,3 +50,101 @@ def ifac2020(*, creep: bool = True, damping: bool = True) -> Robot:
         creep=Creep.from_gamma(gamma, [502.3, 1.53e-2, 1.53e-2]) if creep else None,
     )
     return Robot(segments=(segment,), gravity=np.array([0.0, 0.0, -9.81]))
+
+
+# Rao, Peyron, Lilge and Burgner-Kahrs, "How to model tendon-driven continuum robots and
+# benchmark modelling performance", Front. Robot. AI 7:630245 (2021); the numbers are
+# those of the authors' code, github.com/SvenLilge/tdcr-modeling,
+# matlab/Parameters/tdcr_2segments.m and c++/main.cpp.
+RAO2021_LENGTH = 0.2
+"""Rest length of each of the two segments [m] (``L = [200e-3; 200e-3]``)."""
+RAO2021_YOUNG = 54e9
+"""Young's modulus of the nitinol backbone [Pa] (``E = 54*10^9``)."""
+RAO2021_BACKBONE_RADIUS = 0.7e-3
+"""Radius of the solid backbone rod [m] (``ro = 1.4/2*10^-3``, ``ri = 0``)."""
+RAO2021_PITCH = 10e-3
+"""Distance from each tendon to the backbone [m] (``r_disk = 10*1e-3``)."""
+RAO2021_AZIMUTHS = (math.pi / 2, -math.pi / 6, 7 * math.pi / 6)
+"""Azimuths of the three tendons of each segment [rad], from +x toward +y: the repo's
+routing vectors ``(0, r)``, ``r (cos(-pi/6), sin(-pi/6))``, ``r (cos(7pi/6), sin(7pi/6))``
+in the disk frame (z along the backbone), which is softcurve's segment base frame."""
+RAO2021_DISKS = 10
+"""Spacer disks per segment (``n = [10; 10]``)."""
+RAO2021_BACKBONE_DENSITY = 0.0115
+"""Mass of the backbone per length [kg/m] (``m_bb = 0.0115*l*g``)."""
+RAO2021_DISK_MASS = 0.2e-3
+"""Mass of one spacer disk [kg] (``m_disk = 0.2*1e-3``)."""
+
+
+def rao2021(*, gravity: bool = False) -> Robot:
+    """The two-segment tendon-driven continuum robot of Rao, Peyron, Lilge and
+    Burgner-Kahrs (Front. Robot. AI 7:630245, 2021), with the numbers of the authors'
+    code (github.com/SvenLilge/tdcr-modeling, matlab/Parameters/tdcr_2segments.m).
+
+    Two segments of l0 = 200 mm on a solid nitinol backbone (E = 54 GPa, radius
+    0.7 mm). softcurve's elastic energy is ``0.5 k_b (kappa l)^2 + 0.5 k_e (l - l0)^2``
+    where a rod's is ``0.5 E I kappa^2 l + 0.5 E A (l - l0)^2 / l0``, so
+    ``k_b = E I / l0`` = 0.0509 N m/rad and ``k_e = E A / l0`` = 4.16e5 N/m. Mass per
+    segment: backbone 0.0115 kg/m x 0.2 m plus ten 0.2 g spacer disks = 4.3 g. The
+    repo has no disk radius; the slice radius (rotary inertia only) is the tendons'
+    10 mm. No damping (statics only in the source). Torsion and shear of the rod are
+    not modelled (constant-curvature segments).
+
+    Parameters
+    ----------
+    gravity : bool
+        False (the default, as the repo's parameter file sets ``g = 0``): no gravity.
+        True: ``(0, 0, -9.81)`` m/s^2, the robot upright on its base as in the repo's
+        rod model (gravity along ``-z``).
+
+    Examples
+    --------
+    >>> import softcurve as sc
+    >>> robot = sc.presets.rao2021()
+    >>> robot.n_segments, robot.rest_length  # [m]
+    (2, 0.4)
+    >>> round(robot.segments[0].bending_stiffness.k0, 6)  # E I / l0 [N m/rad]
+    0.050915
+    >>> round(robot.segments[0].mass, 6), robot.gravity  # [kg], [m/s^2]
+    (0.0043, array([0., 0., 0.]))
+    """
+    second_moment = math.pi / 4 * RAO2021_BACKBONE_RADIUS**4
+    area = math.pi * RAO2021_BACKBONE_RADIUS**2
+    segment = Segment(
+        rest_length=RAO2021_LENGTH,
+        mass=RAO2021_BACKBONE_DENSITY * RAO2021_LENGTH + RAO2021_DISKS * RAO2021_DISK_MASS,
+        radius=RAO2021_PITCH,
+        elongation_stiffness=LinearStiffness(RAO2021_YOUNG * area / RAO2021_LENGTH),
+        bending_stiffness=LinearStiffness(RAO2021_YOUNG * second_moment / RAO2021_LENGTH),
+    )
+    g = np.array([0.0, 0.0, -9.81]) if gravity else np.zeros(3)
+    return Robot(segments=(segment, segment), gravity=g)
+
+
+def rao2021_tendons(*, t_max: float = 20.0) -> TendonActuator:
+    """The tendons of :func:`rao2021`: three per segment at 10 mm from the backbone, at
+    the azimuths :data:`RAO2021_AZIMUTHS` (90, -30 and 210 degrees from +x toward +y),
+    the proximal set (tensions 0-2) tied to the tip of segment 0 and the distal set
+    (tensions 3-5, same azimuths) to the tip of segment 1, through segment 0. The
+    ordering is the repo's (``F = [F1 F2 F3 F4 F5 F6]``); no friction (none in the
+    source). A pulled tendon bends its segment toward itself, as in the repo.
+
+    Parameters
+    ----------
+    t_max : float
+        Upper tension bound of every tendon [N] (the source gives none; its cases use
+        up to 8 N).
+
+    Examples
+    --------
+    >>> import softcurve as sc
+    >>> actuator = sc.presets.rao2021_tendons()
+    >>> actuator.n_inputs, [t.anchor for t in actuator.tendons]
+    (6, [0, 0, 0, 1, 1, 1])
+    >>> tau = actuator.generalized_force([0.2, 0, 0, 0.2, 0, 0], [1, 0, 0, 0, 0, 0])
+    >>> tau.round(6) + 0.0  # [N, N m, N m] per segment: tendon 1 (+y) shortens, bends to +y
+    array([-1.   ,  0.   ,  0.002,  0.   ,  0.   ,  0.   ])
+    """
+    return TendonActuator.three_per_segment(
+        distance=RAO2021_PITCH, t_max=t_max, n_segments=2, azimuths=RAO2021_AZIMUTHS
+    )
