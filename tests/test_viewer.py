@@ -19,7 +19,7 @@ from softcurve.figures.scene import build_scene, frame_indices, ring_frames
 pytest.importorskip("plotly", reason="the viewer needs Plotly (pip install softcurve[viewer])")
 
 sys.path.insert(0, str(Path(__file__).parent))
-from chromium import Chromium, find_browser  # noqa: E402
+from chromium import Chromium, find_browser
 
 FIGURES = Path(__file__).resolve().parents[1] / "docs" / "figures"
 UPDATE_SCREENSHOTS = "SOFTCURVE_UPDATE_SCREENSHOTS"
@@ -150,4 +150,3 @@ def test_viewer_in_headless_chromium(trajectory, tmp_path):
     if os.environ.get(UPDATE_SCREENSHOTS) == "1":
         for name, png in zip(("viewer_t0.png", "viewer_t1.png"), shots, strict=True):
             (FIGURES / name).write_bytes(png)
-

@@ -147,24 +147,26 @@ class Trajectory(Result):
         """
         return save_trajectory(self, path)
 
-    def plot(self, ax=None):
+    @figure_options
+    def plot(self, ax=None, *, window="auto"):
         """The states figure (paper Fig. 4): ``l``, ``kx``, ``ky`` of each segment against
-        time, one panel each.
+        time, one panel each; round-off curvatures of a planar run are drawn as zero.
 
         Parameters
         ----------
         ax : None or sequence of matplotlib.axes.Axes, shape (3,)
             Panels for ``l``, ``kx`` and ``ky``; None draws a new figure.
+        %(window)s
 
         Returns
         -------
         matplotlib.figure.Figure
             Write it with :func:`softcurve.figures.save_figure`.
         """
-        return plot_states(self, ax)
+        return plot_states(self, ax, window=window)
 
     def plot_tip(self, ax=None):
-        """The 3-D tip trajectory (paper Fig. 5), colored by time.
+        """The 3-D tip trajectory (paper Fig. 5), colored by time, on equal axes.
 
         Parameters
         ----------
@@ -186,7 +188,8 @@ class Trajectory(Result):
         fps: float = 25,
         speed: float = 1.0,
         points: int = 20,
-        dpi: float = 60,
+        dpi: float = 80,
+        figsize=(5.0, 5.0),
     ) -> Path:
         """Write an animation of the backbone to ``path``, whole or not at all.
 
@@ -200,13 +203,23 @@ class Trajectory(Result):
         %(speed)s
         %(points)s
         %(dpi)s
+        %(figsize)s
 
         Returns
         -------
         Path
             ``path``.
         """
-        return animate(self, path, self._model(model), fps=fps, speed=speed, points=points, dpi=dpi)
+        return animate(
+            self,
+            path,
+            self._model(model),
+            fps=fps,
+            speed=speed,
+            points=points,
+            dpi=dpi,
+            figsize=figsize,
+        )
 
     @viewer_options
     def to_html(
