@@ -150,3 +150,11 @@ def test_viewer_in_headless_chromium(trajectory, tmp_path):
     if os.environ.get(UPDATE_SCREENSHOTS) == "1":
         for name, png in zip(("viewer_t0.png", "viewer_t1.png"), shots, strict=True):
             (FIGURES / name).write_bytes(png)
+
+
+def test_ten_seconds_stay_under_ten_megabytes(paper_model, tmp_path):
+    t = np.arange(0.0, 10.0 + 5e-4, 1e-3)  # the paper case's output grid
+    q = np.column_stack([0.064 + 0 * t, 25.0 * np.cos(8 * t), 25.0 * np.sin(8 * t)])
+    trajectory = sc.Trajectory(t, q, np.zeros_like(q), np.empty((t.size, 0)), model=paper_model)
+    size = trajectory.to_html(tmp_path / "ten.html").stat().st_size
+    assert size < 10e6, f"{size / 1e6:.1f} MB"
