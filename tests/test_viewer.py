@@ -140,6 +140,10 @@ def test_viewer_in_headless_chromium(trajectory, tmp_path):
             assert drawn == str(frame)
             shots.append(browser.screenshot())
         label = browser.evaluate("document.getElementById('label').textContent")
+        browser.evaluate("window.softcurveViewer.show(0)")
+        browser.evaluate("document.getElementById('play').click()")  # plays at real time
+        browser.wait_for("Number(document.body.dataset.frame) > 0")
+        browser.evaluate("window.softcurveViewer.pause()")
         errors = list(browser.errors)
     assert not errors, f"console errors in the viewer: {errors}"
     assert label == f"t = {trajectory.t[frame_indices(trajectory.t, 25)[later]]:.3f} s"
