@@ -10,6 +10,7 @@ import numpy as np
 from softcurve.analysis.loads import StaticLoad
 from softcurve.base.status import Result, Status
 from softcurve.figures import plot_equilibria
+from softcurve.figures.viewer import equilibria_viewer, viewer_options
 
 STABILITY_KINDS = ("stable", "unstable", "saddle", "degenerate")
 """The classification of an equilibrium (see :mod:`softcurve.analysis.statics`)."""
@@ -62,6 +63,30 @@ class Equilibrium(Result):
     def unstable_directions(self) -> int:
         """Number of negative eigenvalues (the Morse index)."""
         return int(np.sum(self.eigenvalues < 0))
+
+    @viewer_options
+    def to_html(self, path, model, *, actuator=None, obstacles=(), rings: int = 16):
+        """Write the interactive 3-D viewer of this equilibrium: one self-contained,
+        offline HTML file (docs/viewer.md; needs the extra ``viewer``: Plotly).
+
+        Parameters
+        ----------
+        path : str or pathlib.Path
+            The ``.html`` file, written whole or not at all.
+        model : Model
+            The model the equilibrium was found for (its shape and radii).
+        %(actuator)s
+        %(obstacles)s
+        %(rings)s
+
+        Returns
+        -------
+        pathlib.Path
+            ``path``.
+        """
+        return equilibria_viewer(
+            [self], path, model, actuator=actuator, obstacles=obstacles, rings=rings
+        )
 
 
 @dataclass(frozen=True, eq=False)
@@ -130,6 +155,33 @@ class EquilibriumTable(Result):
                 f"{e.potential:12.5e} {e.eigenvalues[0]:12.4e}"
             )
         return "\n".join(rows)
+
+    @viewer_options
+    def to_html(self, path, *, obstacles=(), rings: int = 16):
+        """Write the interactive 3-D viewer of the equilibria, one per slider position
+        (docs/viewer.md; needs the extra ``viewer``: Plotly); the tendons of the load's
+        actuator are drawn.
+
+        Parameters
+        ----------
+        path : str or pathlib.Path
+            The ``.html`` file, written whole or not at all.
+        %(obstacles)s
+        %(rings)s
+
+        Returns
+        -------
+        pathlib.Path
+            ``path``.
+        """
+        return equilibria_viewer(
+            self.equilibria,
+            path,
+            self.load.model,
+            actuator=self.load.actuator,
+            obstacles=obstacles,
+            rings=rings,
+        )
 
     def plot(self, ax=None):
         """Backbones of every equilibrium in the x-z plane, styled by stability (rings

@@ -110,7 +110,7 @@ def add_progress_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("-q", "--quiet", action="store_true", help="print nothing on success")
 
 
-def write_figure(draw, path, **options):
+def write_figure(draw, path, *, figsize=None, **options):
     """Draw a figure, save it and close it; returns the path written.
 
     Parameters
@@ -119,12 +119,16 @@ def write_figure(draw, path, **options):
         ``draw() -> matplotlib.figure.Figure``, e.g. a result's ``plot`` method.
     path : str or Path
         The image file.
+    figsize : tuple of float, optional
+        ``(width, height)`` of the figure [inches] (default: the figure's own).
     **options
         Passed on to :func:`softcurve.figures.save_figure` (e.g. ``dpi``).
     """
     import matplotlib.pyplot as plt  # here: 0.6 s that commands without figures skip
 
     figure = draw()
+    if figsize is not None:
+        figure.set_size_inches(*figsize)
     written = save_figure(figure, path, **options)
     plt.close(figure)
     return written

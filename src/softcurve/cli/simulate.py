@@ -2,7 +2,8 @@
 
 Writes into the output folder: ``trajectory.csv`` (and ``trajectory.npz`` with
 ``--npz``), ``states.png`` (paper Fig. 4), ``tip.png`` (Fig. 5) and, with
-``--animate``, ``animation.gif`` (``.mp4`` too where ffmpeg exists); prints a summary.
+``--animate``, ``animation.gif`` (``.mp4`` too where ffmpeg exists), with ``--html``
+``viewer.html`` (the interactive 3-D viewer); prints a summary.
 Exit code 0 on success, 1 when the integrator fails (the partial trajectory and its
 figures are still written), 2 for usage or configuration errors.
 """
@@ -59,7 +60,25 @@ def _add_arguments(parser) -> None:
         action="store_true",
         help="also write animation.gif (and animation.mp4 if ffmpeg exists)",
     )
-    parser.add_argument("--fps", type=int, default=25, help="animation frames per second")
+    parser.add_argument(
+        "--fps", type=int, default=25, help="frames per second of the animation and the viewer"
+    )
+    parser.add_argument(
+        "--html",
+        action="store_true",
+        help="also write viewer.html, the interactive 3-D viewer (one offline file; needs "
+        "the extra viewer: pip install softcurve[viewer])",
+    )
+    parser.add_argument(
+        "--figsize",
+        type=float,
+        nargs=2,
+        metavar=("W", "H"),
+        help="size of the figures and the animation [inches]",
+    )
+    parser.add_argument(
+        "--dpi", type=float, help="resolution of the figures and the animation [dots per inch]"
+    )
     add_progress_options(parser)
 
 
@@ -79,6 +98,10 @@ def _scenario(args):
     overrides = {k: v for k, v in overrides.items() if v is not None}
     if args.fps < 1:
         raise ParameterError(f"--fps must be >= 1, got {args.fps}")
+    if args.figsize is not None and not all(0 < v < 1000 for v in args.figsize):
+        raise ParameterError(f"--figsize must be two sizes in (0, 1000) inches, got {args.figsize}")
+    if args.dpi is not None and not 0 < args.dpi <= 2000:
+        raise ParameterError(f"--dpi must be in (0, 2000], got {args.dpi}")
     settings = scenario.settings
     # Scenario and SimulationSettings check themselves: the overrides are validated here
     try:
@@ -156,13 +179,17 @@ def _run(args) -> int:
     written = [save_trajectory(trajectory, output / "trajectory.csv", progress=show_progress)]
     if args.npz:
         written.append(trajectory.save(output / "trajectory.npz"))
+    looks = {"figsize": args.figsize, "dpi": args.dpi}
+    looks = {k: v for k, v in looks.items() if v is not None}
     if not args.no_figures and trajectory.t.size:
         for name, draw in (("states.png", trajectory.plot), ("tip.png", trajectory.plot_tip)):
-            written.append(write_figure(draw, output / name))
+            written.append(write_figure(draw, output / name, **looks))
     if args.animate and trajectory.t.size > 1:
-        written.append(trajectory.animate(output / "animation.gif", fps=args.fps))
+        written.append(trajectory.animate(output / "animation.gif", fps=args.fps, **looks))
         if shutil.which("ffmpeg"):
-            written.append(trajectory.animate(output / "animation.mp4", fps=args.fps))
+            written.append(trajectory.animate(output / "animation.mp4", fps=args.fps, **looks))
+    if args.html and trajectory.t.size:
+        written.append(trajectory.to_html(output / "viewer.html", fps=args.fps))
     total = time.perf_counter() - start
     if trajectory.success:
         say(_summary(scenario, model, trajectory, built, total, written))

@@ -196,6 +196,7 @@ class BatchTrajectory(Result):
             status=self.member_status[i],
             message=self.member_message[i],
             model=self.member_model(i),
+            actuator=self.member_actuator(i),
         )
 
     @figure_options

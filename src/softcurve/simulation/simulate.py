@@ -301,7 +301,7 @@ def simulate(
     if bar is not None:
         bar.close()
     stats.update(engine.counts, method=engine.method, wall_time=wall)
-    return _result(model, grid, states, applied, reached, failure, stats, actuated)
+    return _result(model, grid, states, applied, reached, failure, stats, actuated, actuator)
 
 
 def _initial_force(model, model_x0, x0, values, actuated) -> np.ndarray:
@@ -314,7 +314,9 @@ def _initial_force(model, model_x0, x0, values, actuated) -> np.ndarray:
     return np.array(actuated.force(model_x0[: model.n], start)).ravel()
 
 
-def _result(model, grid, states, applied, reached, failure, stats, actuated) -> Trajectory:
+def _result(
+    model, grid, states, applied, reached, failure, stats, actuated, actuator
+) -> Trajectory:
     n = model.n
     x = states[:reached]
     q, qd, lam = x[:, :n], x[:, n : 2 * n], x[:, 2 * n : model.n_state]
@@ -341,4 +343,5 @@ def _result(model, grid, states, applied, reached, failure, stats, actuated) -> 
         status=status,
         message=message,
         model=model,
+        actuator=actuator,
     )

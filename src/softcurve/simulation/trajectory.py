@@ -11,8 +11,10 @@ import numpy as np
 
 from softcurve.base.status import Result, Status
 from softcurve.compiled.model import Model
+from softcurve.description.actuator import Actuator
 from softcurve.figures import animate, plot_states, plot_tip
 from softcurve.figures.trajectories import figure_options
+from softcurve.figures.viewer import trajectory_viewer, viewer_options
 from softcurve.simulation.trajectory_files import read_trajectory, save_trajectory
 
 
@@ -72,6 +74,9 @@ class Trajectory(Result):
         What happened; on failure, where and what to try.
     model : Model, optional
         The model that was simulated (None for a loaded file).
+    actuator : Actuator, optional
+        The actuator that drove the robot (None without one, or for a loaded file); the
+        viewer draws the tendons of a :class:`~softcurve.TendonActuator`.
     """
 
     t: np.ndarray
@@ -85,6 +90,7 @@ class Trajectory(Result):
     status: Status = Status.SUCCESS
     message: str = ""
     model: Model | None = field(default=None, repr=False)
+    actuator: Actuator | None = field(default=None, repr=False)
 
     def __post_init__(self):
         object.__setattr__(self, "status", Status.parse(self.status))
@@ -141,24 +147,26 @@ class Trajectory(Result):
         """
         return save_trajectory(self, path)
 
-    def plot(self, ax=None):
+    @figure_options
+    def plot(self, ax=None, *, window="auto"):
         """The states figure (paper Fig. 4): ``l``, ``kx``, ``ky`` of each segment against
-        time, one panel each.
+        time, one panel each; round-off curvatures of a planar run are drawn as zero.
 
         Parameters
         ----------
         ax : None or sequence of matplotlib.axes.Axes, shape (3,)
             Panels for ``l``, ``kx`` and ``ky``; None draws a new figure.
+        %(window)s
 
         Returns
         -------
         matplotlib.figure.Figure
             Write it with :func:`softcurve.figures.save_figure`.
         """
-        return plot_states(self, ax)
+        return plot_states(self, ax, window=window)
 
     def plot_tip(self, ax=None):
-        """The 3-D tip trajectory (paper Fig. 5), colored by time.
+        """The 3-D tip trajectory (paper Fig. 5), colored by time, on equal axes.
 
         Parameters
         ----------
@@ -180,7 +188,8 @@ class Trajectory(Result):
         fps: float = 25,
         speed: float = 1.0,
         points: int = 20,
-        dpi: float = 60,
+        dpi: float = 80,
+        figsize=(5.0, 5.0),
     ) -> Path:
         """Write an animation of the backbone to ``path``, whole or not at all.
 
@@ -194,13 +203,65 @@ class Trajectory(Result):
         %(speed)s
         %(points)s
         %(dpi)s
+        %(figsize)s
 
         Returns
         -------
         Path
             ``path``.
         """
-        return animate(self, path, self._model(model), fps=fps, speed=speed, points=points, dpi=dpi)
+        return animate(
+            self,
+            path,
+            self._model(model),
+            fps=fps,
+            speed=speed,
+            points=points,
+            dpi=dpi,
+            figsize=figsize,
+        )
+
+    @viewer_options
+    def to_html(
+        self,
+        path,
+        model: Model | None = None,
+        *,
+        actuator=None,
+        obstacles=(),
+        fps: float = 25,
+        rings: int = 16,
+    ) -> Path:
+        """Write the interactive 3-D viewer: one self-contained, offline HTML file showing
+        the robot as a tube of its radius, segment by segment, with its base frame, tip
+        path and tendons; play/pause, time slider, real-time or slowed playback, orbit
+        and zoom (docs/viewer.md; needs the extra ``viewer``: Plotly).
+
+        Parameters
+        ----------
+        path : str or Path
+            The ``.html`` file, written whole or not at all.
+        model : Model, optional
+            Gives the robot's shape and radii (default: the model attached).
+        %(actuator)s
+        %(obstacles)s
+        %(fps)s
+        %(rings)s
+
+        Returns
+        -------
+        Path
+            ``path``.
+        """
+        return trajectory_viewer(
+            self,
+            path,
+            self._model(model),
+            actuator=self.actuator if actuator is None else actuator,
+            obstacles=obstacles,
+            fps=fps,
+            rings=rings,
+        )
 
 
 def load_trajectory(path) -> Trajectory:

@@ -1,0 +1,164 @@
+"""The interactive 3-D viewer: the scene it draws, one offline HTML file, and the page
+in a real browser (headless Chromium over the DevTools pipe, tests/chromium.py)."""
+
+from __future__ import annotations
+
+import io
+import os
+import re
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import softcurve as sc
+from softcurve.base.validation import ParameterError
+from softcurve.figures.scene import build_scene, frame_indices, ring_frames
+
+pytest.importorskip("plotly", reason="the viewer needs Plotly (pip install softcurve[viewer])")
+
+sys.path.insert(0, str(Path(__file__).parent))
+from chromium import Chromium, find_browser
+
+FIGURES = Path(__file__).resolve().parents[1] / "docs" / "figures"
+UPDATE_SCREENSHOTS = "SOFTCURVE_UPDATE_SCREENSHOTS"
+"""Set to 1 to rewrite docs/figures/viewer_t0.png and viewer_t1.png from the test."""
+
+
+@pytest.fixture(scope="module")
+def trajectory(paper_model):
+    return sc.simulate(paper_model, [0.064, 25.0, 0.0], [0.0, 0.0, 1500.0], t_final=0.3)
+
+
+@pytest.fixture(scope="module")
+def tendons():
+    return sc.TendonActuator.three_per_segment(distance=0.015, t_max=20.0)
+
+
+@pytest.fixture(scope="module")
+def pulled(paper_model, tendons):
+    return sc.simulate(
+        paper_model, [0.064, 0.0, 0.0], np.zeros(3), actuator=tendons, inputs=[5.0, 0.0, 0.0],
+        t_final=0.2,
+    )  # fmt: skip
+
+
+class Box:
+    """A drawable obstacle: a unit cube's surface, 12 triangles."""
+
+    def surface(self):
+        corners = np.array([[x, y, z] for x in (0, 1) for y in (0, 1) for z in (0, 1)]) * 0.02
+        faces = [[0, 1, 3], [0, 3, 2], [4, 6, 7], [4, 7, 5], [0, 4, 5], [0, 5, 1],
+                 [2, 3, 7], [2, 7, 6], [0, 2, 6], [0, 6, 4], [1, 5, 7], [1, 7, 3]]  # fmt: skip
+        return corners + [0.05, 0.0, 0.0], np.array(faces)
+
+
+def test_rings_are_the_models_poses(paper_model):
+    q = np.array([[0.064, 25.0, 3.0], [0.07, -10.0, 8.0]])
+    rings = ring_frames(paper_model, q, 5)  # s = 0, 0.25, ..., 1
+    for f in range(2):
+        rotation, position = paper_model.pose(q[f], 0.75)
+        np.testing.assert_allclose(rings[f, 3, :3], 1e3 * position, rtol=1e-12, atol=1e-12)
+        np.testing.assert_allclose(rings[f, 3, 3:6], rotation[:, 0], atol=1e-12)
+        np.testing.assert_allclose(rings[f, 3, 6:], rotation[:, 1], atol=1e-12)
+
+
+def test_frames_at_the_frame_rate():
+    t = np.arange(0.0, 1.0001, 0.001)
+    frames = frame_indices(t, 25)
+    assert frames.size == 26 and frames[-1] == t.size - 1
+    np.testing.assert_allclose(np.diff(t[frames]), 0.04, atol=1e-9)
+    with pytest.raises(ParameterError, match="fps"):
+        frame_indices(t, 0)
+
+
+def test_scene_axes_are_equal_and_hold_the_robot(paper_model, trajectory):
+    scene = build_scene(paper_model, trajectory.q, ["a"] * trajectory.t.size, rings=4)
+    spans = np.diff(scene.bounds, axis=1).ravel()
+    np.testing.assert_allclose(spans, spans[0])
+    centres = scene.rings[..., :3].reshape(-1, 3)
+    assert (centres >= scene.bounds[:, 0]).all() and (centres <= scene.bounds[:, 1]).all()
+
+
+def test_one_self_contained_file(trajectory, tmp_path):
+    path = trajectory.to_html(tmp_path / "robot.html")
+    text = path.read_text()
+    assert not re.search(r"<script[^>]+src=|<link\b|@import", text)  # every script embedded
+    assert text.count("<html") == 1 and "Plotly.newPlot" in text
+    assert [p.name for p in tmp_path.iterdir()] == ["robot.html"]  # written whole
+    assert '"tendons":[]' in text
+
+
+def test_tendons_and_obstacles_are_drawn(pulled, tmp_path):
+    text = pulled.to_html(tmp_path / "tendons.html", obstacles=[Box()]).read_text()
+    assert text.count('"azimuth"') == 3
+    assert '"obstacles":[{"vertices"' in text
+    with pytest.raises(ParameterError, match=r"obstacles\[0\]"):
+        pulled.to_html(tmp_path / "bad.html", obstacles=[object()])
+
+
+def test_batch_members_and_equilibria(paper_model, tendons, tmp_path):
+    batch = sc.simulate_batch(
+        paper_model, [[0.064, 5.0, 0.0], [0.064, -5.0, 0.0]], np.zeros(3), t_final=0.05
+    )
+    assert batch.member(1).to_html(tmp_path / "member.html").stat().st_size > 0
+    table = sc.equilibria(paper_model, starts=2, actuator=tendons, inputs=[5.0, 0.0, 0.0])
+    assert '"azimuth"' in table.to_html(tmp_path / "table.html").read_text()
+    assert table[0].to_html(tmp_path / "one.html", paper_model).exists()
+
+
+def test_viewer_refuses_other_suffixes(trajectory, tmp_path):
+    with pytest.raises(ParameterError, match=r"\.html"):
+        trajectory.to_html(tmp_path / "robot.png")
+
+
+def _robot_pixels(png: bytes) -> np.ndarray:
+    """Where the first segment's blue (#1f77b4, shaded) is, as a boolean image."""
+    from matplotlib.image import imread
+
+    rgb = imread(io.BytesIO(png), format="png")[..., :3]
+    r, g, b = rgb[..., 0], rgb[..., 1], rgb[..., 2]
+    return (b > 0.35) & (b - r > 0.2) & (b > g + 0.05)
+
+
+@pytest.mark.skipif(find_browser() is None, reason="no Chromium installed (apt install chromium)")
+def test_viewer_in_headless_chromium(trajectory, tmp_path):
+    path = trajectory.to_html(tmp_path / "robot.html")
+    tip = trajectory.tip
+    later = int(np.argmax(np.linalg.norm(tip[frame_indices(trajectory.t, 25)] - tip[0], axis=1)))
+    shots = []
+    with Chromium(find_browser()) as browser:
+        browser.open(path.as_uri() + "#frame=0")
+        browser.wait_for('document.body.dataset.frame === "0"')
+        for frame in (0, later):
+            drawn = browser.evaluate(
+                f"window.softcurveViewer.show({frame}).then(() => new Promise("
+                "r => requestAnimationFrame(() => requestAnimationFrame(r))))"
+                ".then(() => document.body.dataset.frame)"
+            )
+            assert drawn == str(frame)
+            shots.append(browser.screenshot())
+        label = browser.evaluate("document.getElementById('label').textContent")
+        browser.evaluate("window.softcurveViewer.show(0)")
+        browser.evaluate("document.getElementById('play').click()")  # plays at real time
+        browser.wait_for("Number(document.body.dataset.frame) > 0")
+        browser.evaluate("window.softcurveViewer.pause()")
+        errors = list(browser.errors)
+    assert not errors, f"console errors in the viewer: {errors}"
+    assert label == f"t = {trajectory.t[frame_indices(trajectory.t, 25)[later]]:.3f} s"
+    before, after = (_robot_pixels(png) for png in shots)
+    assert before.sum() > 2000 and after.sum() > 2000, "the robot's tube is not drawn"
+    changed = (before ^ after).sum() / (before | after).sum()
+    assert changed > 0.1, f"the robot did not move between the frames ({changed:.1%} changed)"
+    if os.environ.get(UPDATE_SCREENSHOTS) == "1":
+        for name, png in zip(("viewer_t0.png", "viewer_t1.png"), shots, strict=True):
+            (FIGURES / name).write_bytes(png)
+
+
+def test_ten_seconds_stay_under_ten_megabytes(paper_model, tmp_path):
+    t = np.arange(0.0, 10.0 + 5e-4, 1e-3)  # the paper case's output grid
+    q = np.column_stack([0.064 + 0 * t, 25.0 * np.cos(8 * t), 25.0 * np.sin(8 * t)])
+    trajectory = sc.Trajectory(t, q, np.zeros_like(q), np.empty((t.size, 0)), model=paper_model)
+    size = trajectory.to_html(tmp_path / "ten.html").stat().st_size
+    assert size < 10e6, f"{size / 1e6:.1f} MB"
