@@ -49,6 +49,9 @@ LAYERS = (
 
 GALLERY_FIGURES = {
     "ifac2020.toml": ("paper-states.png", "paper-tip.png"),
+    "inverse_statics.py": ("inverse_statics.png",),
+    "sweep_grid.toml": ("sweep_grid.png",),
+    "tip_circle.py": ("tip_circle.png",),
     "paper_reproduction.py": ("paper-states-first-second.png",),
     "tendon_tracking.py": ("tendon_tracking_tensions.png", "tendon_tracking_shapes.png"),
     "validate_caasenbrood2021.py": (
