@@ -207,9 +207,15 @@ def test_bad_configurations_fail_before_any_work(change, message):
 def test_cli_sweep_and_bad_file(tmp_path, capsys):
     good, bad = tmp_path / "good.toml", tmp_path / "bad.toml"
     write_toml(good, config_dict())
-    assert main(["sweep", str(good), "-o", str(tmp_path / "out"), "--workers", "0"]) == 0
-    assert "6 simulations" in capsys.readouterr().out
-    assert pq.read_table(tmp_path / "out" / "results.parquet").num_rows == 6
+    out = tmp_path / "out"
+    assert main(["sweep", str(good), "-o", str(out), "--workers", "0", "--figure"]) == 0
+    printed = capsys.readouterr().out
+    assert "6 simulations" in printed and f"figure      {out / 'sweep.png'}" in printed
+    assert pq.read_table(out / "results.parquet").num_rows == 6
+    assert (out / "sweep.png").read_bytes().startswith(b"\x89PNG\r\n\x1a\n")
+    never = str(tmp_path / "never")
+    assert main(["sweep", str(good), "-o", never, "--figure", "summary.xyz"]) == 2
+    assert "--figure summary.xyz: the suffix must be one of" in capsys.readouterr().err
     write_toml(bad, config_dict(design="sobol", samples=12))
     assert main(["sweep", str(bad), "-o", str(tmp_path / "never")]) == 2
     assert "sweep.samples: must be a power of 2" in capsys.readouterr().err
@@ -278,3 +284,66 @@ def test_example_files_are_valid(name, size):
     path = Path(__file__).resolve().parents[1] / "examples" / name
     config = load_sweep(path)
     assert config.size == size and config.design_points().shape == (size, len(config.variables))
+
+
+# -- the figure of the table -----------------------------------------------------------------
+def test_sweep_figure_draws_each_output_against_each_variable(uninterrupted):
+    import matplotlib.pyplot as plt
+
+    from softcurve.figures import plot_sweep
+
+    variables = ["q0[1]", "segments[0].bending_stiffness.a1"]
+    table = uninterrupted.table.to_pydict()
+    pd = pytest.importorskip("pandas")
+    for source in (uninterrupted.table, pd.read_parquet(uninterrupted.path), table):
+        figure = uninterrupted.plot() if source is table else plot_sweep(source)
+        axes = figure.axes
+        assert len(axes) == 4 * 2  # final tip, tip range, settling time, peak energy
+        assert [a.get_xlabel() for a in axes[-2:]] == variables
+        assert axes[4].get_ylabel() == "settling time [s]"
+        for v, variable in enumerate(variables):  # the points are the table's values
+            x, y = axes[4 + v].lines[0].get_data()
+            np.testing.assert_array_equal(x, table[variable])
+            np.testing.assert_array_equal(y, table["settling_time"])
+        x_tip, z_tip = (axes[0].lines[k].get_data()[1] for k in (0, 2))
+        np.testing.assert_allclose(z_tip, 1e3 * np.array(table["final_tip_z"]))  # [mm]
+        np.testing.assert_allclose(x_tip, 1e3 * np.array(table["final_tip_x"]))
+        plt.close(figure)
+    figure = plot_sweep(uninterrupted.table, variables="q0[1]")
+    assert len(figure.axes) == 4
+    plt.close(figure)
+
+
+def test_sweep_figure_of_failed_rows_and_bad_arguments():
+    import matplotlib.pyplot as plt
+
+    from softcurve.base.validation import ParameterError
+    from softcurve.figures import plot_sweep
+
+    table = {
+        "index": np.arange(3),
+        "tensions[0]": np.array([0.0, 1.0, 2.0]),
+        "peak_energy": np.array([0.1, np.nan, 0.3]),
+        "status": np.array(["success", "integration_failed", "success"]),
+        "message": np.array(["", "CVODES failed", ""]),
+    }
+    figure = plot_sweep(table)
+    assert figure.get_suptitle() == "sweep of 3 simulations, 1 failed (not drawn)"
+    assert [a.get_ylabel() for a in figure.axes] == ["peak energy [J]"]
+    _, given = plt.subplots(1, 1)
+    assert plot_sweep(table, given) is given.figure  # the caller's Axes
+    with pytest.raises(ParameterError, match="variables: 'peak_energy' is not a swept"):
+        plot_sweep(table, variables=["peak_energy"])
+    with pytest.raises(ParameterError, match="needs at least one swept variable"):
+        plot_sweep({"index": [0], "status": ["success"], "peak_energy": [1.0]})
+    with pytest.raises(ParameterError, match="table must be a sweep table"):
+        plot_sweep(42)
+    plt.close("all")
+
+
+def test_reading_the_table_as_docs_sweeps_shows(uninterrupted):
+    pd = pytest.importorskip("pandas")
+    table = pd.read_parquet(uninterrupted.path)
+    ok = table[table.status == "success"]
+    mean = ok.groupby("q0[1]")["settling_time"].mean()
+    assert list(mean.index) == [-20.0, 0.0, 20.0] and np.isfinite(mean).all()

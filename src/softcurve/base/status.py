@@ -20,8 +20,8 @@ import enum
 class Status(str, enum.Enum):
     """How a computation ended; ``str(status)`` reads as advice for the user.
 
-    Members
-    -------
+    Attributes
+    ----------
     SUCCESS
         Finished as asked.
     INTEGRATION_FAILED

@@ -10,8 +10,16 @@ from __future__ import annotations
 import signal
 import sys
 import threading
+from pathlib import Path
 
-from . import Command, add_progress_options
+import matplotlib.figure
+
+from softcurve.base.validation import ParameterError
+
+from . import Command, add_progress_options, write_figure
+
+FIGURE = "sweep.png"
+"""The figure's file in the output folder when ``--figure`` names none."""
 
 
 def _add_arguments(parser) -> None:
@@ -39,12 +47,19 @@ def _add_arguments(parser) -> None:
         action="store_true",
         help="discard results already in the output folder instead of resuming",
     )
+    parser.add_argument(
+        "--figure",
+        nargs="?",
+        const=FIGURE,
+        metavar="FILE",
+        help="also draw each output against each swept variable into FILE (default: "
+        f"{FIGURE} in the output folder; the suffix gives the format: .png, .pdf, .svg)",
+    )
     add_progress_options(parser)
 
 
 def _run(args) -> int:
     """Run ``softcurve sweep``; returns the exit code."""
-    from softcurve.base.validation import ParameterError
     from softcurve.scenarios.sweep import run_sweep
     from softcurve.scenarios.sweep_config import load_sweep
 
@@ -57,6 +72,7 @@ def _run(args) -> int:
     if args.workers is not None and args.workers < 0:
         raise ParameterError(f"--workers must be >= 0, got {args.workers}")
     config = load_sweep(args.config)
+    figure = _figure_path(args.figure, args.output)
     show = args.progress if args.progress is not None else sys.stderr.isatty()
     result = _run_until_signal(
         run_sweep,
@@ -81,6 +97,8 @@ def _run(args) -> int:
         )
         + f"\n  wrote       {result.path}"
     )
+    if figure is not None:
+        summary += f"\n  figure      {write_figure(result.plot, figure)}"
     if result.failed:
         print(summary, file=sys.stderr)
         print(
@@ -92,6 +110,25 @@ def _run(args) -> int:
     if not args.quiet:
         print(summary)
     return 0
+
+
+def _figure_path(figure, output):
+    """The figure's file: a bare name goes into the output folder; checked before any work
+    (its format, and that its folder exists)."""
+    if figure is None:
+        return None
+    path = Path(figure)
+    if path.parent == Path():
+        path = Path(output) / path
+    suffix = path.suffix.lstrip(".").lower() or "png"
+    supported = matplotlib.figure.Figure().canvas.get_supported_filetypes()
+    if suffix not in supported:
+        raise ParameterError(
+            f"--figure {figure}: the suffix must be one of {sorted('.' + s for s in supported)}"
+        )
+    if path.parent != Path(output) and not path.parent.is_dir():
+        raise ParameterError(f"--figure {figure}: the folder {path.parent} does not exist")
+    return path
 
 
 def _terminated(signum, frame):

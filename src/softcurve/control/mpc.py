@@ -7,7 +7,7 @@ hold of the input changes, affine term included::
 
     x_(k+1) - x_0 = Ad (x_k - x_0) + Bd (u_k - u_0) + c,   [Ad Bd c] from expm
 
-Over ``horizon`` samples the controller minimizes
+Over ``horizon`` samples the controller minimizes::
 
     sum_k |W (q_k - q_r(t + k Ts))|^2 + rate_weight sum_k |(u_k - u_(k-1)) / span|^2
 

@@ -12,6 +12,7 @@ from softcurve.figures.actuation import plot_backbones, plot_inputs
 from softcurve.figures.drawing import save_figure
 from softcurve.figures.fits import plot_fit
 from softcurve.figures.statics import plot_equilibria, plot_input_sweep
+from softcurve.figures.sweeps import plot_sweep
 from softcurve.figures.trajectories import animate, plot_batch_tips, plot_states, plot_tip
 
 __all__ = [
@@ -23,6 +24,7 @@ __all__ = [
     "plot_input_sweep",
     "plot_inputs",
     "plot_states",
+    "plot_sweep",
     "plot_tip",
     "save_figure",
 ]

@@ -31,6 +31,7 @@ import numpy as np
 from softcurve.base.files import atomic_path, folder_lock, writable_folder
 from softcurve.base.progress import ProgressLine
 from softcurve.base.status import Result, Status
+from softcurve.figures import plot_sweep
 from softcurve.scenarios.config import ConfigError
 from softcurve.scenarios.sweep_config import SweepConfig, load_sweep
 from softcurve.scenarios.sweep_parts import intact, part_path, read_part
@@ -155,7 +156,7 @@ class SweepResult(Result):
     message : str
         How many failed.
     stats : dict
-        ``size`` (design points) and ``chunks``.
+        ``size`` (design points), ``chunks`` and ``variables`` (the swept names).
     """
 
     path: Path
@@ -167,6 +168,22 @@ class SweepResult(Result):
     status: Status = Status.SUCCESS
     message: str = ""
     stats: dict = field(default_factory=dict)
+
+    def plot(self, ax=None):
+        """Each output against each swept variable, one point per simulation.
+
+        Parameters
+        ----------
+        ax : None or sequence of matplotlib.axes.Axes, shape (outputs, variables)
+            The panels, row by row (see :func:`softcurve.figures.plot_sweep`); None draws
+            a new figure.
+
+        Returns
+        -------
+        matplotlib.figure.Figure
+            Write it with :func:`softcurve.figures.save_figure`.
+        """
+        return plot_sweep(self.table, ax, variables=self.stats.get("variables"))
 
 
 def run_sweep(
@@ -276,7 +293,11 @@ def _sweep(config, output, workers, scheduler, restart, progress, on_chunk) -> S
         time.perf_counter() - start,
         status,
         message,
-        {"size": config.size, "chunks": len(chunks)},
+        {
+            "size": config.size,
+            "chunks": len(chunks),
+            "variables": tuple(v.name for v in config.variables),
+        },
     )
 
 
