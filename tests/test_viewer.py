@@ -108,6 +108,17 @@ def test_batch_members_and_equilibria(paper_model, tendons, tmp_path):
     assert table[0].to_html(tmp_path / "one.html", paper_model).exists()
 
 
+def test_equilibria_command_writes_the_viewer(tmp_path, capsys):
+    from softcurve.cli import main
+
+    target = tmp_path / "views" / "equilibria.html"
+    assert main(["equilibria", "--starts", "2", "--html", str(target)]) == 0
+    assert f"viewer: {target}" in capsys.readouterr().out
+    assert "<script" in target.read_text() and "https://" not in target.read_text()[:2000]
+    assert main(["equilibria", "--starts", "2", "--html", str(tmp_path)]) == 2  # a folder
+    assert "--html" in capsys.readouterr().err
+
+
 def test_viewer_refuses_other_suffixes(trajectory, tmp_path):
     with pytest.raises(ParameterError, match=r"\.html"):
         trajectory.to_html(tmp_path / "robot.png")

@@ -36,6 +36,12 @@ def _add_arguments(parser) -> None:
         "--modes", action="store_true", help="also print natural frequencies and mode shapes"
     )
     parser.add_argument("--plot", metavar="PATH", help="save the backbones of the equilibria")
+    parser.add_argument(
+        "--html",
+        metavar="PATH",
+        help="also write the interactive 3-D viewer of the equilibria, one per slider "
+        "position (one offline .html file; needs the extra 'viewer')",
+    )
 
 
 def _run(args) -> int:
@@ -44,8 +50,9 @@ def _run(args) -> int:
     from softcurve.base.files import writable_file
     from softcurve.compiled.model import Model
 
-    if args.plot:
-        writable_file(args.plot, "--plot")  # before any work
+    for option in ("plot", "html"):
+        if getattr(args, option):
+            writable_file(getattr(args, option), f"--{option}")  # before any work
 
     robot, actuator = _robots.robot_and_actuator(args)
     model = Model(robot, compile=False)  # the analysis is symbolic: no need to compile
@@ -83,6 +90,8 @@ def _run(args) -> int:
     if args.plot:
         write_figure(table.plot, args.plot, dpi=120)
         print(f"  figure: {args.plot}")
+    if args.html and len(table):
+        print(f"  viewer: {table.to_html(args.html)}")
     return 0 if table.success else 1
 
 
