@@ -12,6 +12,7 @@ from softcurve.base.docs import parameters_from
 from softcurve.base.files import atomic_path
 from softcurve.base.validation import ParameterError, real_scalar
 from softcurve.figures.drawing import backbones, panels, whole_number
+from softcurve.figures.obstacles import draw_obstacles
 
 MM_PER_M = 1e3
 STATE_LABELS = ("length l [m]", r"curvature $\kappa_x$ [1/m]", r"curvature $\kappa_y$ [1/m]")
@@ -103,6 +104,7 @@ def plot_tip(trajectory, ax=None):
         ax.scatter(*tip[-1], color="black", marker="x", s=40, label="end")
         figure.colorbar(points, ax=ax, shrink=0.6, label="time t [s]")
         ax.legend(loc="upper left", fontsize="small")
+    draw_obstacles(ax, getattr(trajectory, "model", None))
     ax.set_xlabel("x [mm]")
     ax.set_ylabel("y [mm]")
     ax.set_zlabel("z [mm]")
@@ -199,6 +201,7 @@ def animate(
         ylabel="y [mm]",
         zlabel="z [mm]",
     )
+    draw_obstacles(ax, model)
     (line,) = ax.plot([], [], [], lw=4, color="tab:blue")
     (tip,) = ax.plot([], [], [], "o", color="tab:red")
     title = ax.set_title("")

@@ -1,0 +1,91 @@
+"""Contact in results, scenario files and the rest of the library (issue 13, items 3-4 and
+"everywhere"): the contact history of a trajectory, its figure and the obstacles in the 3-D
+figures; ``[environment]`` in TOML; batches in worker processes, C export, equilibria and
+linearization with contact. Models run in CasADi's virtual machine (no compile)."""
+
+from __future__ import annotations
+
+import matplotlib.pyplot as plt
+import numpy as np
+import pytest
+from matplotlib.figure import Figure
+
+import softcurve as sc
+
+from .conftest import assert_close
+
+RC = 1e-3
+"""Contact radius [m]: a thin body."""
+WALL_X = 0.03
+"""The wall x = 30 mm (solid beyond), which a robot bent toward +x presses."""
+
+
+def _environment(*extra) -> sc.Environment:
+    wall = sc.Plane([WALL_X, 0.0, 0.0], [-1.0, 0.0, 0.0])
+    law = sc.ContactLaw(1e7, damping=1.0, smoothing=1e-6)
+    return sc.Environment([wall, *extra], law, contact_radius=[RC])
+
+
+@pytest.fixture(scope="module")
+def model() -> sc.Model:
+    robot = sc.presets.ifac2020()
+    return sc.Model(robot, environment=_environment(sc.Sphere([0, 0.1, 0.05], 0.02)), compile=False)
+
+
+@pytest.fixture(scope="module")
+def pressed(model) -> sc.Trajectory:
+    """States bending the robot progressively into the wall (no integration needed)."""
+    t = np.linspace(0.0, 0.1, 11)
+    q = np.column_stack([np.full(t.size, 0.0644), np.linspace(0.0, 16.0, t.size), 0 * t])
+    qd = np.column_stack([0 * t, np.full(t.size, 300.0), 0 * t])
+    lam = np.zeros((t.size, model.n_creep))
+    return sc.Trajectory(t=t, q=q, qd=qd, lam=lam, model=model)
+
+
+def test_contact_history_equals_the_model_at_every_time(model, pressed):
+    history = pressed.contact()
+    assert history.forces.shape == (11, 2, 3) and history.points.shape == (11, 2, 3)
+    assert history.labels == ("0: plane", "1: sphere")
+    for k in range(pressed.t.size):
+        one = model.contact(pressed.q[k], pressed.qd[k])
+        assert_close(history.forces[k], one["forces"], atol=1e-14, what="forces")
+        assert_close(history.generalized[k], one["generalized"], atol=1e-14, what="Fc")
+        assert_close(history.energy[k], one["energy"], atol=1e-18, what="Vc")
+        np.testing.assert_array_equal(np.isnan(history.points[k]), np.isnan(one["points"]))
+        assert_close(np.nan_to_num(history.points[k]), np.nan_to_num(one["points"]), atol=1e-15)
+    assert not history.in_contact[0, 0] and history.in_contact[-1, 0]  # straight, then bent
+    assert not history.in_contact[:, 1].any()  # the sphere is never touched
+    assert history.magnitude[-1, 0] > 0 and history.forces[-1, 0, 0] < 0  # the wall pushes -x
+    assert_close(history.points[-1, 0, 0], WALL_X - RC, atol=2e-3, what="point on the wall")
+    with pytest.raises(ValueError):
+        history.forces[0, 0, 0] = 1.0  # immutable
+
+
+def test_contact_history_needs_an_environment(pressed):
+    free = sc.Model(sc.presets.ifac2020(), compile=False)
+    with pytest.raises(sc.ParameterError, match="has no environment"):
+        pressed.contact(free)
+
+
+def test_contact_figure_and_obstacles_in_the_3d_figures(pressed, tmp_path):
+    figure = pressed.contact().plot()
+    assert isinstance(figure, Figure) and len(figure.axes) == 2
+    assert len(figure.axes[0].lines) == 2  # one magnitude per obstacle
+    plt.close(figure)
+    figure = pressed.plot_tip()
+    surfaces = [c for c in figure.axes[0].collections if type(c).__name__ == "Poly3DCollection"]
+    assert len(surfaces) == 2  # the wall and the sphere
+    plt.close(figure)
+    path = pressed.animate(tmp_path / "a.gif", fps=5, speed=0.5, points=5, dpi=30)
+    assert path.stat().st_size > 0
+
+
+def test_capsule_surface_is_on_the_capsule():
+    from softcurve.figures.obstacles import obstacle_surfaces
+
+    capsule = sc.Capsule([0, 0, 0], [0.1, 0.0, 0.0], 0.02)
+    for grid in obstacle_surfaces(capsule, 0.1):
+        x = np.stack(grid).reshape(3, -1).T
+        t = np.clip(x[:, 0] / 0.1, 0, 1)
+        distance = np.linalg.norm(x - np.outer(t, [0.1, 0, 0]), axis=1)
+        assert_close(distance, 0.02, rtol=1e-12, what="capsule surface")
