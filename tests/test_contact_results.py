@@ -5,6 +5,8 @@ linearization with contact. Models run in CasADi's virtual machine (no compile).
 
 from __future__ import annotations
 
+import re
+
 import matplotlib.pyplot as plt
 import numpy as np
 import pytest
@@ -89,3 +91,84 @@ def test_capsule_surface_is_on_the_capsule():
         t = np.clip(x[:, 0] / 0.1, 0, 1)
         distance = np.linalg.norm(x - np.outer(t, [0.1, 0, 0]), axis=1)
         assert_close(distance, 0.02, rtol=1e-12, what="capsule surface")
+
+
+# -- scenario files ------------------------------------------------------------------
+WALL_TOML = """
+[robot]
+preset = "ifac2020"
+
+[environment]
+contact_radius = [0.001]
+
+[environment.law]
+stiffness = 1e7
+damping = 1.0
+
+[[environment.obstacles]]
+kind = "plane"
+point = [0.03, 0.0, 0.0]
+normal = [-1.0, 0.0, 0.0]
+
+[[environment.obstacles]]
+kind = "capsule"
+a = [0.0, 0.05, 0.0]
+b = [0.0, 0.05, 0.1]
+radius = 0.01
+
+[simulation]
+t_final = 0.01
+q0 = [0.0644, 5.0, 0.0]
+"""
+
+
+def _scenario(text, tmp_path):
+    path = tmp_path / "contact.toml"
+    path.write_text(text)
+    return sc.load_config(path)
+
+
+def test_environment_table_is_read(tmp_path):
+    scenario = _scenario(WALL_TOML, tmp_path)
+    environment = scenario.environment
+    assert isinstance(environment, sc.Environment)
+    assert [type(o).__name__ for o in environment.obstacles] == ["Plane", "Capsule"]
+    assert environment.law == sc.ContactLaw(1e7, damping=1.0)
+    assert environment.contact_radius == (0.001,)
+    np.testing.assert_array_equal(environment.obstacles[1].b, [0.0, 0.05, 0.1])
+
+
+@pytest.mark.parametrize(
+    ("old", "new", "words"),
+    [
+        ('kind = "plane"', 'kind = "wall"', "obstacles[0].kind must be one of"),
+        ("normal = [-1.0, 0.0, 0.0]", "normal = [0.0, 0.0, 0.0]", "Plane.normal must be a nonzero"),
+        ("radius = 0.01", "radius = -0.01", "obstacles[1]: Capsule.radius must be > 0, got -0.01"),
+        ("radius = 0.01", "radius = 0.01\ncolour = 1", "obstacles[1]: unknown key(s) ['colour']"),
+        ("damping = 1.0", "dampnig = 1.0", "environment.law: unknown key(s) ['dampnig']"),
+        ("stiffness = 1e7", "stiffness = -1e7", "ContactLaw.stiffness must be > 0"),
+        ("stiffness = 1e7", "", "environment.law: missing required key(s) ['stiffness']"),
+        ("contact_radius = [0.001]", "contact_radius = [0.001, 0.002]", "one entry per segment"),
+        ("contact_radius = [0.001]", "radius = [0.001]", "environment: unknown key(s) ['radius']"),
+        ("q0 = [0.0644, 5.0, 0.0]", "q0 = [0.0644, 25.0, 0.0]", "inside obstacle 0 (Plane)"),
+    ],
+)
+def test_environment_table_errors_are_named(tmp_path, old, new, words):
+    assert old in WALL_TOML
+    with pytest.raises(sc.ParameterError, match=re.escape(words)) as error:
+        _scenario(WALL_TOML.replace(old, new, 1), tmp_path)
+    assert str(tmp_path / "contact.toml") in str(error.value)
+
+
+def test_start_inside_an_obstacle_is_refused_before_any_work(model):
+    # bent by 25 1/m the tip is at x = 41 mm: its backbone 11 mm inside the wall
+    with pytest.raises(sc.ParameterError, match=r"inside obstacle 0 \(Plane\): its backbone is 1"):
+        sc.simulate(model, [0.0644, 25.0, 0.0], np.zeros(3), t_final=0.01)
+    with pytest.raises(sc.ParameterError, match=r"q0\[1\] \(member 1\) starts the robot inside"):
+        sc.simulate_batch(model, [[0.0644, 5.0, 0.0], [0.0644, 25.0, 0.0]], np.zeros(3),
+                          t_final=0.01)  # fmt: skip
+    touching = [0.0644, 15.5, 0.0]  # tip penetrating the body, backbone outside: allowed
+    assert model.contact(touching)["energy"] > 0
+    from softcurve.symbolic.gaps import start_problem
+
+    assert start_problem(model.environment, model.robot, touching) is None

@@ -47,8 +47,10 @@ def _run(args) -> int:
     if args.plot:
         writable_file(args.plot, "--plot")  # before any work
 
-    robot, actuator = _robots.robot_and_actuator(args)
-    model = Model(robot, compile=False)  # the analysis is symbolic: no need to compile
+    robot, actuator, environment = _robots.robot_and_actuator(args)
+    model = Model(
+        robot, environment=environment, compile=False
+    )  # the analysis is symbolic: no need to compile
     loads = {}
     if args.hanging:
         loads["gravity"] = -robot.gravity

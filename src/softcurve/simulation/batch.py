@@ -42,6 +42,7 @@ from softcurve.simulation.engine import (
 )
 from softcurve.simulation.settings import SimulationSettings, settings_with
 from softcurve.simulation.workers import default_threads, run_in_processes, worker_model
+from softcurve.symbolic.gaps import check_start
 
 CHUNKS_PER_PROCESS = 4
 """Chunks of members per worker process: members differ in their cost (a violent
@@ -182,6 +183,9 @@ def simulate_batch(
         b = int(np.argmax(outside))
         problem = domain_problem(arrays["q0"][b], rest_lengths[b], entry=f"q0[{b}]")
         raise ParameterError(f"q0[{b}] (member {b}): {problem}")
+    if model.environment is not None:  # no member starts inside an obstacle
+        for b in np.unique(arrays["q0"], axis=0, return_index=True)[1]:
+            check_start(model.environment, model.robot, arrays["q0"][b], f"q0[{b}] (member {b})")
     if settings.atol is None:
         abstol = settings.rtol
     else:
