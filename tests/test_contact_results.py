@@ -5,6 +5,7 @@ linearization with contact. Models run in CasADi's virtual machine (no compile).
 
 from __future__ import annotations
 
+import pickle
 import re
 
 import matplotlib.pyplot as plt
@@ -172,3 +173,72 @@ def test_start_inside_an_obstacle_is_refused_before_any_work(model):
     from softcurve.symbolic.gaps import start_problem
 
     assert start_problem(model.environment, model.robot, touching) is None
+
+
+# -- everywhere: batches in worker processes, C export, statics and linearization -------
+def test_batch_in_worker_processes_keeps_the_environment(model):
+    """Workers rebuild the model WITH its environment (and uncompiled, as the parent's):
+    a chunk run as a worker runs it, from the pickled description, equals simulate."""
+    from softcurve.simulation.batch import _chunk
+    from softcurve.simulation.workers import model_description
+
+    description = pickle.loads(pickle.dumps(model_description(model)))
+    assert description[2].key() == model.environment.key() and description[3] is False
+    q0 = np.array([[0.0644, 14.0, 0.0], [0.0644, 15.5, 0.0]])  # near the wall, touching it
+    qd0 = np.array([[0.0, 300.0, 0.0]] * 2)  # toward the wall
+    arrays = {"q0": q0, "qd0": qd0, "lam0": np.zeros((2, 3)), "tau": np.zeros((2, 3)),
+              "parameters": np.tile(model.parameters, (2, 1))}  # fmt: skip
+    settings = sc.SimulationSettings(t_final=0.01, dt=0.005)
+    status, _, _, _, x = _chunk(description, arrays, settings)
+    assert all(s is sc.Status.SUCCESS for s in status)
+    for b in range(2):
+        single = sc.simulate(model, q0[b], qd0[b], settings=settings)
+        assert_close(x[b, :, :3], single.q, rtol=1e-5, scale=np.abs(single.q).max(0), what="q")
+    assert model.contact(x[1, 1, :3])["energy"] > 0  # member 1 presses the wall
+    batch = sc.simulate_batch(model, q0, qd0, settings=settings)
+    assert batch.member_model(0).environment is model.environment
+    assert batch.member(1).contact().in_contact[:, 0].any()
+
+
+def test_c_export_includes_the_contact(tmp_path):
+    from softcurve.compiled.codegen import _functions, build_and_run_test
+
+    robot = sc.presets.ifac2020()
+    law = sc.ContactLaw(1e7, damping=1.0, friction=0.5, points_per_segment=2)  # small code
+    environment = sc.Environment([sc.Plane([WALL_X, 0, 0], [-1, 0, 0])], law, [RC])
+    model = sc.Model(robot, environment=environment, compile=False)
+    free = sc.Model(robot, compile=False)
+    functions = _functions(model, None, "walled", True)
+    q, qd = np.array([0.0644, 16.0, 0.0]), np.array([0.0, 50.0, 10.0])  # pressed, moving
+    assert model.contact(q)["energy"] > 0
+    exported_n = np.array(functions["potential_force"](q)).ravel()
+    assert_close(exported_n, model.potential_force(q), rtol=1e-12, what="N(q) with contact")
+    assert np.abs(exported_n - free.potential_force(q))[1] > 1e-3  # not the free model's
+    qdd = np.array(functions["forward_dynamics"](q, qd, np.zeros(3), np.zeros(3))).ravel()
+    assert_close(qdd, model.forward_dynamics(q, qd), rtol=1e-12, what="forward dynamics")
+    exported = sc.export_c(model, tmp_path, prefix="walled")
+    assert "OK" in build_and_run_test(exported, optimization="-O0")
+
+
+def test_equilibrium_against_a_wall_and_its_linearization():
+    """A tip force pushes the robot against the wall: the equilibrium is stable, the
+    contact carries part of the load, and the wall stiffens the bending mode."""
+    robot = sc.presets.ifac2020()
+    free = sc.Model(robot, compile=False)
+    force = np.array([0.3, 0.0, 0.0])
+    loose = sc.equilibrium(free, [0.0644, 0.0, 0.0], tip_force=force)
+    wall = 0.6 * loose.tip_position[0] + RC  # the free robot would pass it
+    law = sc.ContactLaw(1e7, damping=1.0, smoothing=1e-6)
+    environment = sc.Environment([sc.Plane([wall, 0, 0], [-1, 0, 0])], law, [RC])
+    model = sc.Model(robot, environment=environment, compile=False)
+    pressed = sc.equilibrium(model, loose.q, tip_force=force)
+    assert pressed.success and pressed.stability == "stable", pressed.message
+    contact = model.contact(pressed.q)
+    assert 0.0 < -contact["forces"][0, 0] < force[0]
+    assert wall - RC < pressed.tip_position[0] < wall  # the body touches the wall
+    linear = sc.linearize(model, pressed.q, tip_force=force)
+    assert linear.asymptotically_stable
+    loose_linear = sc.linearize(free, pressed.q, tip_force=force)
+    stiff, loose = np.sort(linear.frequencies), np.sort(loose_linear.frequencies)
+    assert stiff[1] > 3 * loose[1]  # bending toward the wall: the wall's stiffness
+    assert_close(stiff[0], loose[0], rtol=0.01, what="out-of-plane bending, frictionless")
