@@ -1,12 +1,13 @@
 """Where a configuration stands with respect to the obstacles: the check that a robot
 does not start inside one (docs/contact.md, "Starting states").
 
-A start is refused when the backbone itself is inside an obstacle at one of the points
-the contact is measured at (the base included): there the penalty law no longer
-describes a contact (a body pressed into a surface) but a robot passed through the
-obstacle, and a sphere's or capsule's normal would point the wrong way. A body that
-only touches, as at a contact equilibrium (penetration less than its contact radius),
-is a valid start.
+A start is refused when, at one of the points the contact is measured at (the base
+included), the body is entirely inside an obstacle: its backbone lies deeper below the
+obstacle's surface than the contact radius (or than half the radius of a sphere or
+capsule, whose normal would otherwise soon point the wrong way). There the penalty law
+no longer describes a body pressed into a surface but a robot that passed through the
+obstacle. A body pressed in, as at a contact equilibrium (where a thin body's backbone
+may be slightly below the surface), is a valid start.
 """
 
 from __future__ import annotations
@@ -34,6 +35,14 @@ def _distances(environment, structure: tuple):
     return ca.Function("distances", [q], [ca.vertcat(*rows)]), points
 
 
+def _allowed_depths(environment, robot, points) -> np.ndarray:
+    """How deep [m] the backbone may lie below each obstacle's surface, (points, obstacles)."""
+    radii = environment.contact_radius or (None,) * robot.n_segments
+    radii = [s.radius if r is None else r for s, r in zip(robot.segments, radii, strict=True)]
+    halves = [getattr(o, "radius", np.inf) / 2 for o in environment.obstacles]
+    return np.array([[min(radii[i], half) for half in halves] for i, _ in points])
+
+
 def start_problem(environment, robot, q, name: str = "q0") -> str | None:
     """Why the configuration ``q`` puts the robot inside an obstacle, or None.
 
@@ -52,24 +61,25 @@ def start_problem(environment, robot, q, name: str = "q0") -> str | None:
     -------
     str or None
         A message naming the obstacle, how deep [mm] the backbone is inside it and where
-        (material coordinate), or None when the backbone is outside every obstacle.
+        (material coordinate), or None when no body point is entirely inside one.
     """
     if environment is None:
         return None
     function, points = _distances(environment, robot.structure())
-    distances = np.array(function(np.asarray(q, dtype=np.float64)), dtype=np.float64)
-    row, column = np.unravel_index(np.argmin(distances), distances.shape)
-    depth = -distances[row, column]
-    if not depth > 0:
+    depths = -np.array(function(np.asarray(q, dtype=np.float64)), dtype=np.float64)
+    excess = depths - _allowed_depths(environment, robot, points)
+    row, column = np.unravel_index(np.argmax(excess), excess.shape)
+    if not excess[row, column] > 0:
         return None
     obstacle = environment.obstacles[column]
     segment, s = points[row]
     where = (segment + s) / robot.n_segments
+    allowed = depths[row, column] - excess[row, column]
     return (
         f"{name} starts the robot inside obstacle {column} ({type(obstacle).__name__}): "
-        f"its backbone is {1e3 * depth:.4g} mm deep in it at s = {where:.4g} "
-        f"(segment {segment + 1}); start it outside every obstacle (a body that only "
-        f"touches, penetrating less than its contact radius, is allowed)"
+        f"its backbone is {1e3 * depths[row, column]:.4g} mm deep in it at s = {where:.4g} "
+        f"(segment {segment + 1}), more than the {1e3 * allowed:.4g} mm of a body pressed "
+        f"in; start it outside every obstacle"
     )
 
 
