@@ -98,6 +98,32 @@ def test_tendons_and_obstacles_are_drawn(pulled, tmp_path):
         pulled.to_html(tmp_path / "bad.html", obstacles=[object()])
 
 
+def test_the_models_environment_is_drawn(tmp_path):
+    """Each obstacle of ``Model(robot, environment=)`` becomes one mesh in the page, its
+    vertices on the obstacle's surface."""
+    import json
+
+    from softcurve.figures.obstacles import environment_meshes
+
+    sphere = sc.Sphere(center=[-0.05, 0.0, 0.05], radius=0.01)
+    capsule = sc.Capsule(a=[0.0, 0.05, 0.0], b=[0.0, 0.05, 0.08], radius=0.005)
+    plane = sc.Plane(point=[0.04, 0.0, 0.0], normal=[-1.0, 0.0, 0.0])
+    environment = sc.Environment([plane, sphere, capsule], sc.ContactLaw(stiffness=1e6))
+    model = sc.Model(sc.presets.ifac2020(), environment=environment, compile=False)
+    sphere_mesh, capsule_mesh = environment_meshes(model, 0.1)[1:]
+    vertices, triangles = sphere_mesh.surface()
+    assert np.allclose(np.linalg.norm(vertices - sphere.center, axis=1), sphere.radius)
+    assert triangles.max() < len(vertices) and triangles.shape[1] == 3
+    vertices, _ = capsule_mesh.surface()
+    along = np.clip((vertices - capsule.a) @ (capsule.b - capsule.a) / 0.08**2, 0, 1)
+    nearest = capsule.a + along[:, None] * (capsule.b - capsule.a)
+    assert np.allclose(np.linalg.norm(vertices - nearest, axis=1), capsule.radius)
+    run = sc.simulate(model, [0.064, 5.0, 0.0], np.zeros(3), t_final=0.05)
+    text = run.to_html(tmp_path / "walls.html", obstacles=[Box()]).read_text()
+    scene = json.loads(re.search(r'"obstacles":(\[.*?\]),"baseAxes"', text).group(1))
+    assert len(scene) == 4  # three of the environment, the Box given by hand
+
+
 def test_batch_members_and_equilibria(paper_model, tendons, tmp_path):
     batch = sc.simulate_batch(
         paper_model, [[0.064, 5.0, 0.0], [0.064, -5.0, 0.0]], np.zeros(3), t_final=0.05

@@ -74,6 +74,7 @@ from softcurve.scenarios.sweep import SweepResult, run_sweep
 from softcurve.scenarios.sweep_config import SweepConfig, load_sweep
 from softcurve.simulation.batch import simulate_batch
 from softcurve.simulation.batch_trajectory import BatchTrajectory
+from softcurve.simulation.contact_history import ContactHistory
 from softcurve.simulation.settings import SimulationSettings
 from softcurve.simulation.simulate import simulate
 from softcurve.simulation.trajectory import State, Trajectory, load_trajectory
@@ -128,6 +129,7 @@ __all__ = [
     "SimulationSettings",
     "State",
     "Trajectory",
+    "ContactHistory",
     "BatchTrajectory",
     "load_trajectory",
     # control

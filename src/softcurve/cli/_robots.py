@@ -15,7 +15,8 @@ def add_arguments(parser) -> None:
     parser.add_argument(
         "config",
         nargs="?",
-        help="TOML file with the robot (and an [actuation] table); default: preset ifac2020",
+        help="TOML file with the robot (and [actuation], [environment] tables); "
+        "default: preset ifac2020",
     )
     parser.add_argument(
         "--bellows",
@@ -29,19 +30,20 @@ def add_arguments(parser) -> None:
 
 
 def robot_and_actuator(args):
-    """``(robot, actuator)`` from the parsed arguments."""
+    """``(robot, actuator, environment)`` from the parsed arguments (the environment of
+    the file's ``[environment]`` table, or None)."""
     from softcurve.description import presets
     from softcurve.description.pneumatic import PneumaticActuator
 
-    robot, actuator = presets.ifac2020(), None
+    robot, actuator, environment = presets.ifac2020(), None, None
     if args.config is not None:
         from softcurve.scenarios.config import load_config
 
         scenario = load_config(args.config)
-        robot, actuator = scenario.robot, scenario.actuator()
+        robot, actuator, environment = scenario.robot, scenario.actuator(), scenario.environment
     if actuator is None or args.bellows is not None:
         rho, area, p_max = args.bellows or ILLUSTRATIVE_BELLOWS
         actuator = PneumaticActuator.three_bellows(
             distance=rho, area=area, p_max=p_max, n_segments=robot.n_segments
         )
-    return robot, actuator
+    return robot, actuator, environment

@@ -30,10 +30,10 @@ def _run(args) -> int:
     from softcurve.compiled.codegen import build_and_run_test, export_c
     from softcurve.compiled.model import Model
 
-    robot, actuator = _robots.robot_and_actuator(args)  # a bad file: no folder made
+    robot, actuator, environment = _robots.robot_and_actuator(args)  # a bad file: no folder
     writable_folder(args.output, "--output")  # before any work
     exported = export_c(
-        Model(robot, compile=False),
+        Model(robot, environment=environment, compile=False),
         args.output,
         actuator=None if args.no_actuator else actuator,
         prefix=args.prefix,

@@ -54,8 +54,10 @@ def _run(args) -> int:
         if getattr(args, option):
             writable_file(getattr(args, option), f"--{option}")  # before any work
 
-    robot, actuator = _robots.robot_and_actuator(args)
-    model = Model(robot, compile=False)  # the analysis is symbolic: no need to compile
+    robot, actuator, environment = _robots.robot_and_actuator(args)
+    model = Model(
+        robot, environment=environment, compile=False
+    )  # the analysis is symbolic: no need to compile
     loads = {}
     if args.hanging:
         loads["gravity"] = -robot.gravity

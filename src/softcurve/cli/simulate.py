@@ -1,7 +1,8 @@
 """``softcurve simulate``: simulate a robot (by default the paper's case) and write the results.
 
 Writes into the output folder: ``trajectory.csv`` (and ``trajectory.npz`` with
-``--npz``), ``states.png`` (paper Fig. 4), ``tip.png`` (Fig. 5) and, with
+``--npz``), ``states.png`` (paper Fig. 4), ``tip.png`` (Fig. 5), ``contact.png`` (the
+forces of the obstacles, with an ``[environment]``) and, with
 ``--animate``, ``animation.gif`` (``.mp4`` too where ffmpeg exists), with ``--html``
 ``viewer.html`` (the interactive 3-D viewer); prints a summary.
 Exit code 0 on success, 1 when the integrator fails (the partial trajectory and its
@@ -151,7 +152,7 @@ def _run(args) -> int:
     say = (lambda *a: None) if args.quiet else print
     output = writable_folder(args.output, "--output")  # before any work
     start = time.perf_counter()
-    model = Model(scenario.robot)
+    model = Model(scenario.robot, environment=scenario.environment)
     built = time.perf_counter() - start
     q0, qd0, lam0 = scenario.initial_state()
     show_progress = args.progress if args.progress is not None else sys.stderr.isatty()
@@ -182,7 +183,10 @@ def _run(args) -> int:
     looks = {"figsize": args.figsize, "dpi": args.dpi}
     looks = {k: v for k, v in looks.items() if v is not None}
     if not args.no_figures and trajectory.t.size:
-        for name, draw in (("states.png", trajectory.plot), ("tip.png", trajectory.plot_tip)):
+        figures = [("states.png", trajectory.plot), ("tip.png", trajectory.plot_tip)]
+        if model.environment is not None:
+            figures.append(("contact.png", lambda: trajectory.contact().plot()))
+        for name, draw in figures:
             written.append(write_figure(draw, output / name, **looks))
     if args.animate and trajectory.t.size > 1:
         written.append(trajectory.animate(output / "animation.gif", fps=args.fps, **looks))
@@ -217,6 +221,7 @@ def _summary(scenario, model, trajectory, built, total, written) -> str:
         f"  final qd    {fmt(trajectory.qd[-1])}" if trajectory.t.size else "  final qd    -",
         f"  final tip   {fmt(trajectory.tip[-1] * 1e3)} mm" if trajectory.t.size else "",
         f"  energy      {energy[0]:.6g} J -> {energy[-1]:.6g} J",
+        _contact_line(model, trajectory),
         f"  integrator  {stats['method']}, rtol {stats['rtol']:g}: {stats['steps']} steps, "
         f"{stats['rhs_evaluations']} rhs and {stats['jacobian_evaluations']} Jacobian evaluations",
         f"  wall time   {1e3 * wall:.1f} ms integrating"
@@ -225,6 +230,14 @@ def _summary(scenario, model, trajectory, built, total, written) -> str:
         "  wrote       " + ", ".join(str(p) for p in written),
     ]
     return "\n".join(line for line in lines if line)
+
+
+def _contact_line(model, trajectory) -> str:
+    """The largest force of each obstacle, or nothing without an environment."""
+    if model.environment is None or not trajectory.t.size:
+        return ""
+    largest = trajectory.contact().magnitude.max(axis=0)
+    return "  contact     max |F| " + ", ".join(f"{f:.4g} N" for f in largest) + " (per obstacle)"
 
 
 COMMAND = Command(

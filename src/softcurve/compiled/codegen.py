@@ -1,5 +1,9 @@
 """Standalone C for embedded controllers: forward and inverse dynamics, ``N(q)``, ``H(q)``.
 
+A model with an environment exports its contact too: forward and inverse dynamics
+include the contact force (with damping and friction) and ``N(q)`` the gradient of the
+penalty energy; the obstacles and the law are constants of the code.
+
 ``H(q)`` is the input matrix of an :class:`~softcurve.description.actuator.Actuator`
 (``tau = H(q) u``: pressures, tensions), exported as ``<prefix>_input_matrix``.
 
@@ -36,6 +40,7 @@ from softcurve.base.files import atomic_write
 from softcurve.base.status import Result, Status
 from softcurve.base.validation import ParameterError
 from softcurve.description.actuator import Actuator
+from softcurve.symbolic.contact import contact_statics
 
 _TOLERANCE = 1e-12
 
@@ -85,6 +90,9 @@ def _functions(model, actuator: Actuator | None, prefix: str, embed: bool):
         ),
         "potential_force": ([e.q], ["q"], e.gravity_force + e.elastic_force),
     }
+    contact = contact_statics(e)  # with an environment: the penalty's gradient too
+    if contact is not None:
+        specs["potential_force"] = ([e.q], ["q"], e.gravity_force + e.elastic_force - contact[0])
     if actuator is not None:
         actuator.check_robot(model.robot)
         specs["input_matrix"] = ([e.q], ["q"], actuator.input_matrix_symbolic(e.q))

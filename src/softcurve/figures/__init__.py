@@ -11,14 +11,17 @@ a figure whole or not at all.
 from softcurve.figures.actuation import plot_backbones, plot_inputs
 from softcurve.figures.drawing import save_figure
 from softcurve.figures.fits import plot_fit
+from softcurve.figures.obstacles import draw_obstacles, plot_contact_forces
 from softcurve.figures.statics import plot_equilibria, plot_input_sweep
 from softcurve.figures.sweeps import plot_sweep
 from softcurve.figures.trajectories import animate, plot_batch_tips, plot_states, plot_tip
 
 __all__ = [
     "animate",
+    "draw_obstacles",
     "plot_backbones",
     "plot_batch_tips",
+    "plot_contact_forces",
     "plot_equilibria",
     "plot_fit",
     "plot_input_sweep",

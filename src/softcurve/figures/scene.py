@@ -18,6 +18,7 @@ import numpy as np
 from softcurve.base.validation import ParameterError, real_array, real_scalar
 from softcurve.description.tendons import TendonActuator
 from softcurve.figures.drawing import whole_number
+from softcurve.figures.obstacles import environment_meshes
 
 MM_PER_M = 1e3
 FRAME_VALUES = 9
@@ -271,7 +272,8 @@ def build_scene(
     actuator : softcurve.Actuator, optional
         Tendons are drawn when it is a :class:`~softcurve.TendonActuator`.
     obstacles : sequence
-        Obstacles with a ``surface()`` method (:func:`drawable_obstacles`).
+        Obstacles with a ``surface()`` method (:func:`drawable_obstacles`), drawn besides
+        those of ``model.environment``.
     rings : int
         Rings along each segment [count], >= 2.
     title : str
@@ -294,7 +296,9 @@ def build_scene(
     if tip_path is not None:
         path = _points("tip_path", tip_path) * MM_PER_M
         path = path[:: max(1, -(-len(path) // MAX_PATH_POINTS))]
-    meshes = drawable_obstacles(obstacles)
+    # the model's own obstacles, then any the caller adds
+    reach = 1.5 * model.robot.rest_length
+    meshes = drawable_obstacles((*environment_meshes(model, reach), *obstacles))
     base_axes = max(0.3 * model.robot.rest_length * MM_PER_M, 2.0 * radii.max())
     extent = [
         frames[..., :3].reshape(-1, 3) + radii.max(),

@@ -12,6 +12,7 @@ from softcurve.base.docs import parameters_from
 from softcurve.base.files import atomic_path
 from softcurve.base.validation import ParameterError, real_scalar
 from softcurve.figures.drawing import backbones, panels, whole_number
+from softcurve.figures.obstacles import draw_obstacles
 from softcurve.figures.scales import NOISE, equal_limits, negligible, time_window
 
 MM_PER_M = 1e3
@@ -140,6 +141,7 @@ def plot_tip(trajectory, ax=None):
     for k, name in enumerate("xyz"):
         note = f" (< {NOISE:g} reach: 0)" if k in zeroed else ""
         getattr(ax, f"set_{name}label")(f"{name} [mm]{note}")
+    draw_obstacles(ax, getattr(trajectory, "model", None))
     ax.set_title("End-effector trajectory")
     return figure
 
@@ -274,6 +276,7 @@ def animate(
         limits - limits.mean(axis=1, keepdims=True)
     )
     figure, ax = animation_axes(figsize, limits)
+    draw_obstacles(ax, model)
     (line,) = ax.plot([], [], [], lw=4, color="tab:blue")
     (tip,) = ax.plot([], [], [], "o", color="tab:red")
     title = ax.set_title("")

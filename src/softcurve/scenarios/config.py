@@ -9,6 +9,7 @@ checked by :class:`~softcurve.simulation.settings.SimulationSettings`, the rest 
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
 
 import numpy as np
@@ -16,11 +17,14 @@ import numpy as np
 from softcurve.base.validation import ParameterError
 from softcurve.description import presets
 from softcurve.description.actuator import Actuator
+from softcurve.description.environment import Environment
 from softcurve.description.materials import Creep, LinearStiffness, TanhStiffness
 from softcurve.description.robot import Robot, Segment, domain_problem
 from softcurve.scenarios.actuation import from_mapping
+from softcurve.scenarios.environment import environment_from_mapping
 from softcurve.scenarios.tables import ConfigError, Reader, read_toml, toml_parameters
 from softcurve.simulation.settings import SettingsError, SimulationSettings
+from softcurve.symbolic.gaps import start_problem
 
 
 def _entries(field: str, value, size: int) -> tuple | None:
@@ -64,6 +68,11 @@ class Scenario:
     actuation : dict, optional
         The raw ``[actuation]`` table, read by
         :func:`softcurve.scenarios.actuation.from_mapping`.
+    environment : Environment or dict, optional
+        Obstacles and contact law, or the raw ``[environment]`` table (read by
+        :func:`softcurve.scenarios.environment.environment_from_mapping`); stored as an
+        :class:`Environment`. ``q0`` (or the straight default) must not start the robot
+        inside an obstacle.
     """
 
     robot: Robot
@@ -75,6 +84,7 @@ class Scenario:
     inputs: tuple | None = None
     source: str = "built-in"
     actuation: dict | None = None
+    environment: Environment | dict | None = None
 
     def __post_init__(self):
         if not isinstance(self.robot, Robot):
@@ -101,8 +111,34 @@ class Scenario:
             except ParameterError as exc:
                 raise ConfigError(str(exc)) from None
         set_(self, "_actuator", actuator)
+        self._check_environment()
         if self.inputs is not None:
             self._check_inputs()
+
+    def _check_environment(self) -> None:
+        environment = self.environment
+        if environment is None:
+            return
+        try:
+            if isinstance(environment, Mapping):
+                environment = environment_from_mapping(
+                    environment, where=f"{self.source}: environment"
+                )
+            elif not isinstance(environment, Environment):
+                raise ParameterError(
+                    f"{self.source}: environment must be a softcurve.Environment or a table, "
+                    f"got {type(environment).__name__}"
+                )
+        except ParameterError as exc:
+            raise ConfigError(str(exc)) from None
+        try:
+            environment.check_robot(self.robot)
+        except ParameterError as exc:
+            raise ConfigError(f"{self.source}: environment: {exc}") from None
+        object.__setattr__(self, "environment", environment)
+        problem = start_problem(environment, self.robot, self.initial_state()[0])
+        if problem is not None:
+            raise SettingsError("q0", problem)
 
     def _check_inputs(self) -> None:
         if self.actuation is None:
@@ -168,6 +204,7 @@ def scenario_from_dict(data: dict, file: str = "<config>") -> Scenario:
     robot = _robot(top.sub("robot"))
     sim = top.sub("simulation") if top.has("simulation") else Reader(file, "simulation", {})
     actuation = top.get("actuation", "table")
+    environment = top.get("environment", "table")
     top.done()
     settings = {
         "t_final": sim.positive("t_final"),
@@ -194,7 +231,9 @@ def scenario_from_dict(data: dict, file: str = "<config>") -> Scenario:
     sim.done()
     try:
         chosen = SimulationSettings(**{k: v for k, v in settings.items() if v is not None})
-        return Scenario(robot, chosen, source=file, actuation=actuation, **values)
+        return Scenario(
+            robot, chosen, source=file, actuation=actuation, environment=environment, **values
+        )
     except SettingsError as exc:
         sim.fail(exc.field, exc.reason)
 

@@ -58,7 +58,9 @@ def run_chunk(config: SweepConfig, start: int, design: np.ndarray, threads: int 
     threads : int
         Threads of the batch.
     """
-    model = worker_model(config.scenario.robot, config.quadrature_nodes)
+    model = worker_model(
+        config.scenario.robot, config.quadrature_nodes, config.scenario.environment
+    )
     arguments = config.batch_arguments(design)
     q0, qd0, lam0 = (arguments.pop(k) for k in ("q0", "qd0", "lam0"))
     batch = simulate_batch(

@@ -41,7 +41,13 @@ from softcurve.simulation.engine import (
     success_message,
 )
 from softcurve.simulation.settings import SimulationSettings, settings_with
-from softcurve.simulation.workers import default_threads, run_in_processes, worker_model
+from softcurve.simulation.workers import (
+    default_threads,
+    model_description,
+    run_in_processes,
+    worker_model,
+)
+from softcurve.symbolic.gaps import check_start
 
 CHUNKS_PER_PROCESS = 4
 """Chunks of members per worker process: members differ in their cost (a violent
@@ -182,6 +188,9 @@ def simulate_batch(
         b = int(np.argmax(outside))
         problem = domain_problem(arrays["q0"][b], rest_lengths[b], entry=f"q0[{b}]")
         raise ParameterError(f"q0[{b}] (member {b}): {problem}")
+    if model.environment is not None:  # no member starts inside an obstacle
+        for b in np.unique(arrays["q0"], axis=0, return_index=True)[1]:
+            check_start(model.environment, model.robot, arrays["q0"][b], f"q0[{b}] (member {b})")
     if settings.atol is None:
         abstol = settings.rtol
     else:
@@ -303,10 +312,10 @@ def _nominal(model: Model, params: np.ndarray, x0: np.ndarray) -> tuple:
     return nominal, rest_lengths
 
 
-def _chunk(robot, quadrature_nodes, arrays, settings, actuator=None) -> tuple:
+def _chunk(described, arrays, settings, actuator=None) -> tuple:
     """One chunk of a batch, in a worker process; the parent keeps the model (a Model
-    holds a loaded library)."""
-    model = worker_model(robot, quadrature_nodes)
+    holds a loaded library): ``described`` are the arguments of :func:`worker_model`."""
+    model = worker_model(*described)
     rest = {k: a for k, a in arrays.items() if k not in ("q0", "qd0", "lam0")}
     chunk = simulate_batch(model, arrays["q0"], arrays["qd0"], arrays["lam0"],
                            settings=settings, threads=1, actuator=actuator, **rest)  # fmt: skip
@@ -323,8 +332,7 @@ def _in_processes(model, processes, threads, arrays, settings, actuator) -> Batc
     bounds = np.linspace(0, size, count + 1).astype(int)
     tasks = {
         lo: (
-            model.robot,
-            model.quadrature_nodes,
+            model_description(model),
             {k: a[lo:hi] for k, a in arrays.items()},
             settings,
             actuator,

@@ -147,7 +147,9 @@ class BatchTrajectory(Result):
             return self.model
         return Model(
             self.model.robot.with_parameter_vector(self.parameters[i]),
+            environment=self.model.environment,
             quadrature_nodes=self.model.quadrature_nodes,
+            compile=self.model.compiled_library is not None,
         )
 
     def member_actuator(self, i: int) -> Actuator | None:

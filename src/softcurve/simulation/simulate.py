@@ -81,6 +81,7 @@ from softcurve.simulation.integrators import ActuatorInput, CvodesEngine, ScipyE
 from softcurve.simulation.settings import SimulationSettings, settings_with
 from softcurve.simulation.stepping import Domain, Progress, Stopped, run_on_grid, run_sampled
 from softcurve.simulation.trajectory import Trajectory
+from softcurve.symbolic.gaps import check_start
 
 
 # -- argument checks -----------------------------------------------------------------------
@@ -101,6 +102,7 @@ def initial_state(model: Model, q0, qd0, lam0=None) -> np.ndarray:
         Creep states (default zero).
     """
     q0 = model.robot.check_configuration(real_array("q0", q0, (model.n,)), "q0")
+    check_start(model.environment, model.robot, q0)  # not inside an obstacle
     parts = [q0, real_array("qd0", qd0, (model.n,))]
     parts.append(
         np.zeros(model.n_creep) if lam0 is None else real_array("lam0", lam0, (model.n_creep,))

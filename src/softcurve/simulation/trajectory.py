@@ -15,6 +15,7 @@ from softcurve.description.actuator import Actuator
 from softcurve.figures import animate, plot_states, plot_tip
 from softcurve.figures.trajectories import figure_options
 from softcurve.figures.viewer import trajectory_viewer, viewer_options
+from softcurve.simulation.contact_history import ContactHistory, contact_along
 from softcurve.simulation.trajectory_files import read_trajectory, save_trajectory
 
 
@@ -135,6 +136,21 @@ class Trajectory(Result):
         kinetic = 0.5 * np.einsum("ti,tij,tj->t", self.qd, mass, self.qd)
         potential = model.evaluate_along("potential_energy", self.q)  # Vg, Ve (, Vc)
         return kinetic + sum(part[:, 0] for part in potential)
+
+    def contact(self, model: Model | None = None) -> ContactHistory:
+        """The force and point of each obstacle on the robot at every output time.
+
+        Parameters
+        ----------
+        model : Model, optional
+            A model with an environment to evaluate with (default the one simulated).
+
+        Returns
+        -------
+        ContactHistory
+            Arrays per obstacle over time; ``.plot()`` draws the forces.
+        """
+        return contact_along(self._model(model), self.t, self.q, self.qd)
 
     def save(self, path) -> Path:
         """Write to ``path`` atomically; returns the path.

@@ -74,7 +74,9 @@ def default_threads() -> int:
     return os.cpu_count() or 1
 
 
-def worker_model(robot: Robot, quadrature_nodes: int) -> Model:
+def worker_model(
+    robot: Robot, quadrature_nodes: int, environment=None, compile: bool = True
+) -> Model:
     """The model of ``robot`` in a worker process, kept between the tasks it runs (loading
     the cached library takes milliseconds, building integrators on it more).
 
@@ -84,12 +86,38 @@ def worker_model(robot: Robot, quadrature_nodes: int) -> Model:
         The robot to model.
     quadrature_nodes : int
         Quadrature nodes of the model.
+    environment : Environment, optional
+        The obstacles and contact law of the model (None: the free robot).
+    compile : bool
+        Whether the model is compiled (as the parent's: False runs in CasADi's virtual
+        machine).
     """
-    key = (robot.structure(), robot.parameter_vector().tobytes(), quadrature_nodes)
+    key = (
+        robot.structure(),
+        robot.parameter_vector().tobytes(),
+        quadrature_nodes,
+        None if environment is None else environment.key(),
+        compile,
+    )
     if key not in _WORKER_MODELS:
         _WORKER_MODELS.clear()
-        _WORKER_MODELS[key] = Model(robot, quadrature_nodes=quadrature_nodes)
+        _WORKER_MODELS[key] = Model(
+            robot, environment=environment, quadrature_nodes=quadrature_nodes, compile=compile
+        )
     return _WORKER_MODELS[key]
+
+
+def model_description(model: Model) -> tuple:
+    """The arguments of :func:`worker_model` that rebuild ``model`` in a worker: robot,
+    quadrature nodes, environment and whether it is compiled.
+
+    Parameters
+    ----------
+    model : Model
+        The parent's model.
+    """
+    compiled = model.compiled_library is not None
+    return (model.robot, model.quadrature_nodes, model.environment, compiled)
 
 
 def _pool(size: int) -> ProcessPoolExecutor:

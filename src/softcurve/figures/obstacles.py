@@ -1,0 +1,202 @@
+"""Figures of the contact: the forces of the obstacles against time, and the obstacles
+themselves (planes, spheres, capsules) drawn into the 3-D plots and animations.
+
+Obstacles are given in the robot's base frame; they are drawn in the world frame (turned
+by ``Robot.base_rotation``), like the backbone, in millimetres.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from softcurve.figures.drawing import panels
+
+MM_PER_M = 1e3
+OBSTACLE_STYLE = {"color": "0.55", "alpha": 0.25, "linewidth": 0.0}
+"""How obstacles look: translucent grey surfaces."""
+RESOLUTION = 16
+"""Points per circle of a sphere or capsule surface."""
+
+
+def _tangents(normal: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Two unit vectors orthogonal to ``normal`` and to each other."""
+    helper = np.eye(3)[int(np.argmin(np.abs(normal)))]
+    first = np.cross(normal, helper)
+    first /= np.linalg.norm(first)
+    return first, np.cross(normal, first)
+
+
+def obstacle_surfaces(obstacle, extent: float) -> list[tuple[np.ndarray, ...]]:
+    """Grids ``(X, Y, Z)`` [m] of the obstacle's surface in its own (base) frame.
+
+    Parameters
+    ----------
+    obstacle : Plane, Sphere or Capsule
+        The obstacle (duck-typed on its fields ``normal``, ``center`` or ``a``).
+    extent : float
+        Half-width [m] of the square drawn for a plane, centred on the point of the plane
+        nearest the robot's base.
+
+    Returns
+    -------
+    list of tuple of ndarray
+        One ``(X, Y, Z)`` triple of equal 2-D arrays per surface patch.
+    """
+    angle = np.linspace(0.0, 2.0 * np.pi, RESOLUTION + 1)
+    if hasattr(obstacle, "normal"):  # a plane: a square around the foot of the base
+        n = obstacle.normal
+        centre = np.dot(obstacle.point, n) * n
+        u, v = _tangents(n)
+        a, b = np.meshgrid([-extent, extent], [-extent, extent])
+        grid = centre[:, None, None] + u[:, None, None] * a + v[:, None, None] * b
+        return [tuple(grid)]
+    if hasattr(obstacle, "center"):  # a sphere
+        return [tuple(obstacle.center[:, None, None] + obstacle.radius * _ball(np.eye(3), 0, 1))]
+    axis = obstacle.b - obstacle.a  # a capsule: a tube and a half ball at each end
+    w = axis / np.linalg.norm(axis)
+    u, v = _tangents(w)
+    ring = obstacle.radius * (np.outer(u, np.cos(angle)) + np.outer(v, np.sin(angle)))
+    tube = np.stack([obstacle.a[:, None] + ring, obstacle.b[:, None] + ring], axis=2)
+    frame = np.column_stack([u, v, w])
+    ends = [
+        tuple(end[:, None, None] + obstacle.radius * _ball(frame, *half))
+        for end, half in ((obstacle.a, (0.5, 1.0)), (obstacle.b, (0.0, 0.5)))
+    ]
+    return [tuple(tube), *ends]
+
+
+@dataclass(frozen=True)
+class ObstacleMesh:
+    """An obstacle of the environment as a triangle mesh, for the 3-D viewer
+    (:func:`softcurve.figures.scene.drawable_obstacles`).
+
+    Parameters
+    ----------
+    obstacle : Plane, Sphere or Capsule
+        The obstacle.
+    extent : float
+        Half-width [m] of the square drawn for a plane.
+    """
+
+    obstacle: object
+    extent: float
+
+    def surface(self) -> tuple[np.ndarray, np.ndarray]:
+        """``(vertices (V, 3) [m], triangles (M, 3))``: each grid patch of
+        :func:`obstacle_surfaces` split into two triangles per cell."""
+        vertices, triangles = [], []
+        for grid in obstacle_surfaces(self.obstacle, self.extent):
+            x = np.stack(grid, axis=-1)  # (rows, columns, 3)
+            rows, columns = x.shape[:2]
+            first = sum(len(v) for v in vertices)
+            index = first + np.arange(rows * columns).reshape(rows, columns)
+            a, b = index[:-1, :-1].ravel(), index[:-1, 1:].ravel()
+            c, d = index[1:, :-1].ravel(), index[1:, 1:].ravel()
+            triangles.append(np.concatenate([np.stack([a, b, d], 1), np.stack([a, d, c], 1)]))
+            vertices.append(x.reshape(-1, 3))
+        return np.concatenate(vertices), np.concatenate(triangles)
+
+
+def environment_meshes(model, extent: float) -> tuple[ObstacleMesh, ...]:
+    """The obstacles of ``model.environment`` as meshes (none without an environment).
+
+    Parameters
+    ----------
+    model : Model
+        The model; its ``environment`` may be None.
+    extent : float
+        Half-width [m] of the square drawn for a plane.
+    """
+    environment = getattr(model, "environment", None)
+    if environment is None:
+        return ()
+    return tuple(ObstacleMesh(obstacle, extent) for obstacle in environment.obstacles)
+
+
+def _ball(frame: np.ndarray, first: float, last: float) -> np.ndarray:
+    """Unit sphere points (3, azimuths, polar angles) between the polar angles
+    ``first pi`` and ``last pi`` from the third column of ``frame`` (3, 3)."""
+    angle = np.linspace(0.0, 2.0 * np.pi, RESOLUTION + 1)
+    polar = np.linspace(first * np.pi, last * np.pi, RESOLUTION // 2 + 1)
+    local = np.stack(
+        [
+            np.outer(np.cos(angle), np.sin(polar)),
+            np.outer(np.sin(angle), np.sin(polar)),
+            np.outer(np.ones_like(angle), np.cos(polar)),
+        ]
+    )
+    return np.einsum("ij,j...->i...", frame, local)
+
+
+def draw_obstacles(ax, model, extent: float | None = None) -> list:
+    """Draw the obstacles of ``model``'s environment into the 3-D Axes ``ax``, in mm.
+
+    Parameters
+    ----------
+    ax : matplotlib.axes.Axes
+        A 3-D Axes (``projection="3d"``) whose units are millimetres.
+    model : softcurve.Model or None
+        Read: ``environment`` (nothing is drawn without one) and ``robot.base_rotation``
+        (3, 3) and ``robot.rest_length`` [m]; None draws nothing.
+    extent : float, optional
+        Half-width [m] of the square drawn for a plane (default: the robot's rest
+        length).
+
+    Returns
+    -------
+    list
+        The Matplotlib artists drawn (empty without an environment).
+    """
+    environment = getattr(model, "environment", None)
+    if environment is None:
+        return []
+    rotation = np.asarray(model.robot.base_rotation, dtype=float)
+    extent = model.robot.rest_length if extent is None else extent
+    artists = []
+    for obstacle in environment.obstacles:
+        for grid in obstacle_surfaces(obstacle, extent):
+            world = np.einsum("ij,j...->i...", rotation, np.stack(grid)) * MM_PER_M
+            artists.append(ax.plot_surface(*world, **OBSTACLE_STYLE))
+    return artists
+
+
+def plot_contact_forces(contact, ax=None):
+    """The force of each obstacle on the robot against time: its magnitude and, below,
+    its three components, base frame.
+
+    Parameters
+    ----------
+    contact : softcurve.ContactHistory
+        Read: ``t`` shape (T,) [s], ``forces`` shape (T, n_obstacles, 3) [N] and
+        ``labels`` (n_obstacles,).
+    ax : None or sequence of matplotlib.axes.Axes, shape (2,)
+        Panels for the magnitudes and the components; None draws a new figure.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+    """
+    figure, axes = panels(ax, 2, "the contact force figure", sharex=True, figsize=(7.0, 5.0))
+    for o, label in enumerate(contact.labels):
+        (line,) = axes[0].plot(
+            contact.t, np.linalg.norm(contact.forces[:, o], axis=1), lw=1.0, label=label
+        )
+        for k, style in enumerate(("-", "--", ":")):
+            axes[1].plot(
+                contact.t,
+                contact.forces[:, o, k],
+                style,
+                color=line.get_color(),
+                lw=0.9,
+                label=f"{label}, {'xyz'[k]}",
+            )
+    axes[0].set_ylabel("contact force |F| [N]")
+    axes[1].set_ylabel("components F [N]")
+    axes[1].set_xlabel("time t [s]")
+    axes[0].set_title("Forces of the obstacles on the robot")
+    for a in axes:
+        a.grid(True, alpha=0.3)
+        a.legend(loc="upper right", fontsize="small")
+    return figure

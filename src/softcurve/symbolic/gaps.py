@@ -1,0 +1,103 @@
+"""Where a configuration stands with respect to the obstacles: the check that a robot
+does not start inside one (docs/contact.md, "Starting states").
+
+A start is refused when, at one of the points the contact is measured at (the base
+included), the body is entirely inside an obstacle: its backbone lies deeper below the
+obstacle's surface than the contact radius (or than half the radius of a sphere or
+capsule, whose normal would otherwise soon point the wrong way). There the penalty law
+no longer describes a body pressed into a surface but a robot that passed through the
+obstacle. A body pressed in, as at a contact equilibrium (where a thin body's backbone
+may be slightly below the surface), is a valid start.
+"""
+
+from __future__ import annotations
+
+from functools import lru_cache
+
+import casadi as ca
+import numpy as np
+
+from softcurve.base.validation import ParameterError
+from softcurve.symbolic.contact import contact_points, signed_distance
+from softcurve.symbolic.kinematics import segment_frames
+
+
+@lru_cache(maxsize=16)
+def _distances(environment, structure: tuple):
+    """``(Function q -> signed distances (points, obstacles), [(segment, s)])``."""
+    n_segments = len(structure)
+    points = [(0, 0.0)] + [(i, s) for i, s, _ in contact_points(structure, environment)]
+    q = ca.SX.sym("q", 3 * n_segments)
+    frames = segment_frames(q, n_segments, ca.SX.eye(3), points)
+    rows = [
+        ca.horzcat(*[signed_distance(o, f.position) for o in environment.obstacles]) for f in frames
+    ]
+    return ca.Function("distances", [q], [ca.vertcat(*rows)]), points
+
+
+def _allowed_depths(environment, robot, points) -> np.ndarray:
+    """How deep [m] the backbone may lie below each obstacle's surface, (points, obstacles)."""
+    radii = environment.contact_radius or (None,) * robot.n_segments
+    radii = [s.radius if r is None else r for s, r in zip(robot.segments, radii, strict=True)]
+    halves = [getattr(o, "radius", np.inf) / 2 for o in environment.obstacles]
+    return np.array([[min(radii[i], half) for half in halves] for i, _ in points])
+
+
+def start_problem(environment, robot, q, name: str = "q0") -> str | None:
+    """Why the configuration ``q`` puts the robot inside an obstacle, or None.
+
+    Parameters
+    ----------
+    environment : Environment or None
+        The obstacles (None: nothing to check).
+    robot : Robot
+        The robot.
+    q : array_like, shape (n,)
+        Coordinates [m, 1/m, 1/m], in the robot's domain.
+    name : str
+        How ``q`` is called in the message.
+
+    Returns
+    -------
+    str or None
+        A message naming the obstacle, how deep [mm] the backbone is inside it and where
+        (material coordinate), or None when no body point is entirely inside one.
+    """
+    if environment is None:
+        return None
+    function, points = _distances(environment, robot.structure())
+    depths = -np.array(function(np.asarray(q, dtype=np.float64)), dtype=np.float64)
+    excess = depths - _allowed_depths(environment, robot, points)
+    row, column = np.unravel_index(np.argmax(excess), excess.shape)
+    if not excess[row, column] > 0:
+        return None
+    obstacle = environment.obstacles[column]
+    segment, s = points[row]
+    where = (segment + s) / robot.n_segments
+    allowed = depths[row, column] - excess[row, column]
+    return (
+        f"{name} starts the robot inside obstacle {column} ({type(obstacle).__name__}): "
+        f"its backbone is {1e3 * depths[row, column]:.4g} mm deep in it at s = {where:.4g} "
+        f"(segment {segment + 1}), more than the {1e3 * allowed:.4g} mm of a body pressed "
+        f"in; start it outside every obstacle"
+    )
+
+
+def check_start(environment, robot, q, name: str = "q0") -> None:
+    """Raise :class:`ParameterError` when ``q`` puts the robot inside an obstacle
+    (:func:`start_problem`).
+
+    Parameters
+    ----------
+    environment : Environment or None
+        The obstacles (None: nothing to check).
+    robot : Robot
+        The robot.
+    q : array_like, shape (n,)
+        Coordinates [m, 1/m, 1/m], in the robot's domain.
+    name : str
+        How ``q`` is called in the message.
+    """
+    problem = start_problem(environment, robot, q, name)
+    if problem is not None:
+        raise ParameterError(problem)
