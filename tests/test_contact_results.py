@@ -177,6 +177,35 @@ def test_start_inside_an_obstacle_is_refused_before_any_work(model):
     assert start_problem(model.environment, model.robot, touching) is None
 
 
+def test_a_thick_body_pressed_deep_into_a_wall_is_refused_by_its_force():
+    """The paper robot (contact radius 23.5 mm) with a wall 10-15 mm from its straight
+    backbone: no body point is entirely inside, but the penalty force would exceed the
+    k_e(0) l0 = 31.6 N that squeezes the segment to zero length; 30 mm away it touches
+    lightly and is allowed."""
+    from softcurve.symbolic.gaps import start_problem
+
+    robot = sc.presets.ifac2020()
+    law = sc.ContactLaw(stiffness=1e6)
+    for wall, refused in ((0.01, True), (0.015, True), (0.03, False)):
+        environment = sc.Environment([sc.Plane([wall, 0, 0], [-1, 0, 0])], law)
+        problem = start_problem(environment, robot, [0.0644, 0.0, 0.0])
+        assert (problem is not None) == refused, problem
+        if refused:
+            assert "penalty force of" in problem and "31.56 N" in problem
+
+
+def test_a_model_with_obstacles_is_integrated_with_the_stiff_family():
+    """A start clear of the wall has the free model's stiffness; the contact ahead does
+    not, so "cvodes" picks BDF from the start (engine.multistep_family)."""
+    environment = sc.Environment([sc.Plane([0.03, 0, 0], [-1, 0, 0])], sc.ContactLaw(1e6))
+    model = sc.Model(sc.presets.ifac2020(), environment=environment, compile=False)
+    run = sc.simulate(model, [0.0644, 0.0, 0.0], np.zeros(3), t_final=0.01)
+    assert run.stats["method"] == "cvodes-bdf"
+    free = sc.simulate(sc.Model(sc.presets.ifac2020(), compile=False), [0.0644, 0.0, 0.0],
+                       np.zeros(3), t_final=0.01)  # fmt: skip
+    assert free.stats["method"] != "cvodes-bdf"
+
+
 # -- everywhere: batches in worker processes, C export, statics and linearization -------
 def test_batch_in_worker_processes_keeps_the_environment(model):
     """Workers rebuild the model WITH its environment (and uncompiled, as the parent's):

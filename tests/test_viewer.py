@@ -122,6 +122,12 @@ def test_the_models_environment_is_drawn(tmp_path):
     text = run.to_html(tmp_path / "walls.html", obstacles=[Box()]).read_text()
     scene = json.loads(re.search(r'"obstacles":(\[.*?\]),"baseAxes"', text).group(1))
     assert len(scene) == 4  # three of the environment, the Box given by hand
+    # obstacles are given in the base frame and drawn, like the robot, in the world frame
+    flipped = sc.presets.ifac2020().replace(base_rotation=np.diag([1.0, -1.0, -1.0]))
+    model = sc.Model(flipped, environment=environment, compile=False)
+    vertices, _ = environment_meshes(model, 0.1)[1].surface()
+    center = np.diag([1.0, -1.0, -1.0]) @ sphere.center
+    assert np.allclose(np.linalg.norm(vertices - center, axis=1), sphere.radius)
 
 
 def test_batch_members_and_equilibria(paper_model, tendons, tmp_path):

@@ -183,6 +183,8 @@ def _result(problem: _Problem, root: Root, tol, zero_tolerance, distinct) -> Equ
     if not problem.load.conservative:
         what = "tip moment" if np.any(problem.load.tip_moment) else "actuator (friction)"
         message += f"; {what} is not conservative: classification by static divergence only"
+        if not np.any(problem.load.tip_moment):
+            message += " (the potential counts the frictionless tendon work)"
     return Equilibrium(
         q=q,
         status=root.status,

@@ -78,17 +78,21 @@ class ObstacleMesh:
         The obstacle.
     extent : float
         Half-width [m] of the square drawn for a plane.
+    rotation : ndarray, shape (3, 3)
+        The robot's base rotation: obstacles are given in the base frame, the robot is
+        drawn in the world frame.
     """
 
     obstacle: object
     extent: float
+    rotation: np.ndarray
 
     def surface(self) -> tuple[np.ndarray, np.ndarray]:
-        """``(vertices (V, 3) [m], triangles (M, 3))``: each grid patch of
-        :func:`obstacle_surfaces` split into two triangles per cell."""
+        """``(vertices (V, 3) [m], triangles (M, 3))`` in the world frame: each grid patch
+        of :func:`world_surfaces` split into two triangles per cell."""
         vertices, triangles = [], []
-        for grid in obstacle_surfaces(self.obstacle, self.extent):
-            x = np.stack(grid, axis=-1)  # (rows, columns, 3)
+        for grid in world_surfaces(self.obstacle, self.extent, self.rotation):
+            x = np.moveaxis(grid, 0, -1)  # (rows, columns, 3)
             rows, columns = x.shape[:2]
             first = sum(len(v) for v in vertices)
             index = first + np.arange(rows * columns).reshape(rows, columns)
@@ -112,7 +116,29 @@ def environment_meshes(model, extent: float) -> tuple[ObstacleMesh, ...]:
     environment = getattr(model, "environment", None)
     if environment is None:
         return ()
-    return tuple(ObstacleMesh(obstacle, extent) for obstacle in environment.obstacles)
+    rotation = np.asarray(model.robot.base_rotation, dtype=float)
+    return tuple(ObstacleMesh(o, extent, rotation) for o in environment.obstacles)
+
+
+def world_surfaces(obstacle, extent: float, rotation) -> list[np.ndarray]:
+    """The grids of :func:`obstacle_surfaces` in the world frame [m], each (3, rows,
+    columns): the one place where obstacles (given in the base frame) are turned into the
+    frame the robot is drawn in.
+
+    Parameters
+    ----------
+    obstacle : Plane, Sphere or Capsule
+        The obstacle.
+    extent : float
+        Half-width [m] of the square drawn for a plane.
+    rotation : array_like, shape (3, 3)
+        The robot's base rotation.
+    """
+    rotation = np.asarray(rotation, dtype=float)
+    return [
+        np.einsum("ij,j...->i...", rotation, np.stack(grid))
+        for grid in obstacle_surfaces(obstacle, extent)
+    ]
 
 
 def _ball(frame: np.ndarray, first: float, last: float) -> np.ndarray:
@@ -156,9 +182,8 @@ def draw_obstacles(ax, model, extent: float | None = None) -> list:
     extent = model.robot.rest_length if extent is None else extent
     artists = []
     for obstacle in environment.obstacles:
-        for grid in obstacle_surfaces(obstacle, extent):
-            world = np.einsum("ij,j...->i...", rotation, np.stack(grid)) * MM_PER_M
-            artists.append(ax.plot_surface(*world, **OBSTACLE_STYLE))
+        for grid in world_surfaces(obstacle, extent, rotation):
+            artists.append(ax.plot_surface(*(grid * MM_PER_M), **OBSTACLE_STYLE))
     return artists
 
 

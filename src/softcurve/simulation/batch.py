@@ -220,7 +220,7 @@ def _integrate(model, x0, arrays, scales, abstol, settings, threads, drives) -> 
     if method == "cvodes":
         rates = member_rates(model, x0[:, :n_state], tau, params, nominal[:, :n_state], threads)
         ratios, fastest = rates
-        initial = multistep_family(ratios)
+        initial = multistep_family(ratios, model.environment is not None)
     else:
         initial = np.full(size, method)
     methods, used_bdf = initial, np.zeros(size, bool)

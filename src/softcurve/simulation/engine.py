@@ -167,16 +167,25 @@ def linearization_rates(model, x0, tau0=None, nominal=None) -> tuple[float, floa
     return float(ratio), float(fastest)
 
 
-def multistep_family(ratio):
+def multistep_family(ratio, contact: bool = False):
     """CVODES's family for ``method="cvodes"``: ``"bdf"`` where the stiffness ``ratio``
-    exceeds ``STIFFNESS_RATIO``, else ``"adams"`` (elementwise for arrays).
+    exceeds ``STIFFNESS_RATIO`` or the model has obstacles, else ``"adams"``
+    (elementwise for arrays).
+
+    A robot that starts clear of its obstacles has the free model's stiffness at the
+    start, but a penalty contact is far stiffer than the robot (docs/contact.md) once it
+    touches, which the start cannot show: with obstacles the stiff family is chosen from
+    the start.
 
     Parameters
     ----------
     ratio : float or ndarray
         Stiffness ratio(s), dimensionless.
+    contact : bool
+        Whether the model has an environment.
     """
-    return np.where(np.asarray(ratio) > STIFFNESS_RATIO, "bdf", "adams")
+    stiff = (np.asarray(ratio) > STIFFNESS_RATIO) | contact
+    return np.where(stiff, "bdf", "adams")
 
 
 SETTLED_RATIO = 1000.0

@@ -275,7 +275,7 @@ def simulate(
             tau0 = _initial_force(model, model_x0, x0, values, actuated)
             ratio, fastest = linearization_rates(model, model_x0, tau0, nominal[: model.n_state])
             stats["stiffness_ratio"] = ratio
-            multistep = str(multistep_family(ratio))
+            multistep = str(multistep_family(ratio, model.environment is not None))
             if multistep == "adams" and actuated is None:
 
                 def settle(x, tau):

@@ -60,13 +60,22 @@ def start_problem(environment, robot, q, name: str = "q0") -> str | None:
     Returns
     -------
     str or None
-        A message naming the obstacle, how deep [mm] the backbone is inside it and where
-        (material coordinate), or None when no body point is entirely inside one.
+        A message naming the obstacle and how deep [mm] the backbone is inside it and
+        where (material coordinate), or the penalty force [N] the start would put on the
+        robot when it exceeds the force that squeezes a segment to zero length; None when
+        the start is outside every obstacle or pressed into one as a robot at rest can be.
     """
     if environment is None:
         return None
     function, points = _distances(environment, robot.structure())
     depths = -np.array(function(np.asarray(q, dtype=np.float64)), dtype=np.float64)
+
+    problem = _depth_problem(environment, robot, points, depths, name)
+    return problem or _force_problem(environment, robot, points, depths, name)
+
+
+def _depth_problem(environment, robot, points, depths, name) -> str | None:
+    """A body point entirely inside an obstacle: its backbone deeper than allowed."""
     excess = depths - _allowed_depths(environment, robot, points)
     row, column = np.unravel_index(np.argmax(excess), excess.shape)
     if not excess[row, column] > 0:
@@ -80,6 +89,34 @@ def start_problem(environment, robot, q, name: str = "q0") -> str | None:
         f"its backbone is {1e3 * depths[row, column]:.4g} mm deep in it at s = {where:.4g} "
         f"(segment {segment + 1}), more than the {1e3 * allowed:.4g} mm of a body pressed "
         f"in; start it outside every obstacle"
+    )
+
+
+def _force_problem(environment, robot, points, depths, name) -> str | None:
+    """A start pressed so deep into an obstacle that its penalty force (the law without
+    the rounding, summed with the points' weights) exceeds the force that would squeeze
+    the softest segment to zero length, ``k_e(0) l0``: no robot rests there, and the
+    integrator would throw it off with an unphysical force."""
+    law = environment.law
+    radii = environment.contact_radius or (None,) * robot.n_segments
+    radii = [s.radius if r is None else r for s, r in zip(robot.segments, radii, strict=True)]
+    weights = [0.0] + [w for _, _, w in contact_points(robot.structure(), environment)]
+    forces = np.zeros(depths.shape[1])
+    for (segment, _), weight, row in zip(points, weights, depths, strict=True):
+        penetration = np.maximum(radii[segment] + row, 0.0)
+        length = robot.segments[segment].rest_length
+        forces += weight * length * law.stiffness * penetration**law.exponent
+    squeeze = min(
+        float(seg.elongation_stiffness.stiffness(0.0)) * seg.rest_length for seg in robot.segments
+    )
+    worst = int(np.argmax(forces))
+    if not forces[worst] > squeeze:
+        return None
+    obstacle = environment.obstacles[worst]
+    return (
+        f"{name} starts the robot pressed into obstacle {worst} ({type(obstacle).__name__}) "
+        f"with a penalty force of {forces[worst]:.4g} N, more than the {squeeze:.4g} N that "
+        f"would squeeze a segment to zero length; start it outside every obstacle"
     )
 
 
