@@ -61,11 +61,11 @@ BAD_TABLES = [
     ({**TENDONS, "area": 1e-4}, r"actuation: unknown key\(s\) \['area'\] for kind 'tendons'; "
      r"allowed: \['azimuths', 'distance', 'friction', 'kind', 't_max', 't_min', 'tendons', "
      r"'time_constant'\]"),
-    ({**TENDONS, "distance": -0.01}, r"actuation: distance must be > 0, got -0\.01"),
-    ({**TENDONS, "t_min": -1.0}, r"actuation: t_min must be >= 0 N \(a tendon cannot push\), "
+    ({**TENDONS, "distance": -0.01}, r"actuation: Tendon.distance must be > 0, got -0\.01"),
+    ({**TENDONS, "t_min": -1.0}, r"actuation: Tendon.t_min must be >= 0 N \(a tendon cannot push\), "
      r"got -1\.0"),
-    ({**TENDONS, "t_max": 0.0}, r"actuation: t_max must be > t_min = 0\.0 N, got 0\.0"),
-    ({**TENDONS, "friction": -0.1}, r"actuation: friction must be >= 0, got -0\.1"),
+    ({**TENDONS, "t_max": 0.0}, r"actuation: Tendon.t_max must be > t_min = 0\.0 N, got 0\.0"),
+    ({**TENDONS, "friction": -0.1}, r"actuation: Tendon.friction must be >= 0, got -0\.1"),
     ({**TENDONS, "azimuths": "0 120 240"}, r"actuation: azimuths must be an array of angles"),
     ({**TENDONS, "time_constant": 0}, r"actuation: time_constant must be > 0"),
     ({"kind": "tendons", "tendons": []}, r"actuation: tendons must be a non-empty array of "
@@ -78,7 +78,7 @@ BAD_TABLES = [
     ({"kind": "tendons", "tendons": [{"azimuth": 0, "distance": 0.01, "t_max": 1, "anchor": 1}]},
      r"actuation: tendons\[0\]\.anchor = 1 is beyond the robot's last segment \(n_segments = 1"),
     ({"kind": "tendons", "tendons": [{"azimuth": 0, "distance": 0, "t_max": 1}]},
-     r"actuation: tendons\[0\]: distance must be > 0, got 0\.0"),
+     r"actuation: tendons\[0\]: Tendon.distance must be > 0, got 0\.0"),
     ({"kind": "tendons", "distance": 0.01, "tendons": [{"azimuth": 0, "distance": 1, "t_max": 1}]},
      r"actuation: keys \['distance'\] are not allowed next to a 'tendons' list"),
 ]  # fmt: skip
@@ -200,7 +200,7 @@ def test_batch_refuses_bad_actuator_input(paper_model):
     cases = [
         (dict(inputs=[[1, 0, 0], [6, 0, 0]]), r"inputs\[1\]\[0\] = 6\.0 N is outside its bounds"),
         (dict(inputs=[1, 0, 0], actuator_parameters=[0, -0.01, 0] * 3),
-         r"actuator_parameters\[0\]: tendons\[0\]: distance must be > 0, got -0\.01"),
+         r"actuator_parameters\[0\]: tendons\[0\]: Tendon.distance must be > 0, got -0\.01"),
         (dict(inputs=[1, 0, 0], tau=np.zeros(3)), r"give inputs= .*, not tau"),
         (dict(inputs=[1, 0]), r"inputs must have shape \(B, 3\)"),
     ]  # fmt: skip
@@ -270,7 +270,7 @@ BAD_SWEEPS = [
      r"'inputs\[3\]': index out of range, inputs has 3 entries"),
     (sweep_with({"name": "tendons[*].distance", "low": -0.01, "high": 0.01, "points": 2}),
      r"the actuator at the corner tendons\[\*\]\.distance = -0\.01 of the design is invalid: "
-     r"tendons\[0\]: distance must be > 0"),
+     r"tendons\[0\]: Tendon.distance must be > 0"),
     (sweep_with({"name": "tendons[0].radius", "low": 0.0, "high": 1.0, "points": 2}),
      r"'tendons\[0\]\.radius' is neither .* an actuator input inputs\[i\] \(tensions\[i\]\) or "
      r"an actuator parameter \(e\.g\. 'tendons\[0\]\.distance'"),
@@ -295,7 +295,7 @@ def test_actuator_with_parameter_vector_rebuilds_and_checks():
     changed = actuator.with_parameter_vector(theta)
     assert changed.tendons[4].friction == 0.3 and changed.tendons[4].anchor == 1
     assert_close(changed.parameter_vector(), theta)
-    with pytest.raises(ParameterError, match=r"tendons\[4\]: friction must be >= 0"):
+    with pytest.raises(ParameterError, match=r"tendons\[4\]: Tendon.friction must be >= 0"):
         actuator.with_parameter_vector(np.where(theta == 0.3, -0.3, theta))
 
 

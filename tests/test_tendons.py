@@ -327,3 +327,71 @@ def test_bad_actuators_name_the_field():
             actuator=TendonActuator([Tendon(0.0, 0.01, 5.0)]),
             inputs=[1.0],
         )
+
+
+# -- linearization with tensions as inputs ------------------------------------------------
+@pytest.mark.parametrize("friction", [0.0, 0.3])
+def test_linearization_with_tensions_matches_finite_differences(rng, friction):
+    """A and B of linearize(wrt="actuator") against central differences of the state
+    derivative in the state and in the tensions, with and without capstan friction (K is
+    then not symmetric)."""
+    model = sc.Model(robot(2, gravity=(0.0, 0.0, -9.81)))
+    act = TendonActuator.three_per_segment(
+        distance=0.01, t_max=10.0, n_segments=2, friction=friction
+    )
+    tensions = np.array([2.0, 0.5, 0.0, 1.0, 0.0, 0.3])
+    q = np.array([0.19, 6.0, -3.0, 0.2, -4.0, 5.0])
+    qd = rng.normal(size=6) * [0.01, 5, 5, 0.01, 5, 5]
+    lin = sc.linearize(model, q, qd, actuator=act, inputs=tensions, wrt="actuator")
+    x = np.concatenate([q, qd])
+
+    def rhs(x, du=0.0):
+        tau = act.input_matrix(x[:6]) @ (tensions + du)
+        return np.array(model.state_derivative(x, tau))
+
+    steps = 1e-6 * (np.abs(x) + 1e-3)
+    a = np.column_stack(
+        [
+            (rhs(x + h * e) - rhs(x - h * e)) / (2 * h)
+            for h, e in zip(steps, np.eye(12), strict=True)
+        ]
+    )
+    # rows span 1e3..1e7 (stiff elongation): each row against its own largest entry; a
+    # wrong sign or factor in H(q) or its derivative is an O(1) error in these units
+    rows = np.abs(a).max(axis=1, keepdims=True)
+    assert_close(lin.A, a, rtol=1e-4, scale=rows)
+    b = np.column_stack([(rhs(x, 0.1 * e) - rhs(x, -0.1 * e)) / 0.2 for e in np.eye(6)])
+    assert_close(lin.B, b, rtol=1e-6, atol=1e-8 * np.abs(b).max())
+
+
+def test_capstan_work_against_the_tension_integrated_along_the_routing(rng):
+    """Independent of the closed form: integrate dT/dtheta = -mu T along a finely split
+    routing (theta the angle turned so far) and take the virtual work of the varying
+    tension on each segment's uniformly stretched fiber, sum_j int T dL_j."""
+    mu = 0.4
+    act = TendonActuator(
+        [Tendon(0.9, 0.01, 5.0, anchor=2, friction=mu, wrap_smoothing=1e-12)], n_segments=3
+    )
+    q = random_q(rng, 3)
+    beta = q[0::3] * np.hypot(q[1::3], q[2::3])
+    samples = 20001
+    tension, h_expected = 1.0, np.zeros(9)
+    for j in range(3):
+        s = np.linspace(0.0, 1.0, samples)
+        theta = s * beta[j]
+        # explicit integration of the ODE in theta, second order (Heun), from the segment's
+        # entry tension: no exponential anywhere
+        t = np.empty(samples)
+        t[0] = tension
+        dtheta = np.diff(theta)
+        for k in range(samples - 1):
+            slope = -mu * t[k]
+            guess = t[k] + dtheta[k] * slope
+            t[k + 1] = t[k] + 0.5 * dtheta[k] * (slope - mu * guess)
+        mean = np.trapezoid(t, s)
+        phi, rho, (length, kx, ky) = 0.9, 0.01, q[3 * j : 3 * j + 3]
+        gradient = [1 - rho * (kx * math.cos(phi) + ky * math.sin(phi)),
+                    -length * rho * math.cos(phi), -length * rho * math.sin(phi)]  # fmt: skip
+        h_expected[3 * j : 3 * j + 3] = -mean * np.array(gradient)
+        tension = t[-1]
+    assert_close(act.input_matrix(q)[:, 0], h_expected, rtol=1e-9, scale=np.abs(h_expected).max())

@@ -116,25 +116,27 @@ class Tendon:
 
     def __post_init__(self):
         set_ = object.__setattr__  # frozen dataclass: normalize fields once here
-        set_(self, "azimuth", real_scalar("azimuth", self.azimuth))
-        set_(self, "distance", real_scalar("distance", self.distance, positive=True))
-        t_min = real_scalar("t_min", self.t_min)
+        set_(self, "azimuth", real_scalar("Tendon.azimuth", self.azimuth))
+        set_(self, "distance", real_scalar("Tendon.distance", self.distance, positive=True))
+        t_min = real_scalar("Tendon.t_min", self.t_min)
         if t_min < 0:
-            raise ParameterError(f"t_min must be >= 0 N (a tendon cannot push), got {t_min!r}")
-        t_max = real_scalar("t_max", self.t_max)
+            raise ParameterError(
+                f"Tendon.t_min must be >= 0 N (a tendon cannot push), got {t_min!r}"
+            )
+        t_max = real_scalar("Tendon.t_max", self.t_max)
         if not t_max > t_min:
-            raise ParameterError(f"t_max must be > t_min = {t_min!r} N, got {t_max!r}")
+            raise ParameterError(f"Tendon.t_max must be > t_min = {t_min!r} N, got {t_max!r}")
         set_(self, "t_min", t_min)
         set_(self, "t_max", t_max)
-        set_(self, "anchor", _count("anchor", self.anchor, 0))
-        friction = real_scalar("friction", self.friction)
+        set_(self, "anchor", _count("Tendon.anchor", self.anchor, 0))
+        friction = real_scalar("Tendon.friction", self.friction)
         if friction < 0:
-            raise ParameterError(f"friction must be >= 0, got {friction!r}")
+            raise ParameterError(f"Tendon.friction must be >= 0, got {friction!r}")
         set_(self, "friction", friction)
         set_(
             self,
             "wrap_smoothing",
-            real_scalar("wrap_smoothing", self.wrap_smoothing, positive=True),
+            real_scalar("Tendon.wrap_smoothing", self.wrap_smoothing, positive=True),
         )
 
 
@@ -230,10 +232,13 @@ class TendonActuator(Actuator):
         time_constant : float or None
             First-order tension lag [s], or None.
         """
+        if np.ndim(azimuths) != 1 or not len(azimuths):
+            raise ParameterError(f"azimuths must be a sequence of angles [rad], got {azimuths!r}")
+        angles = [real_scalar(f"azimuths[{i}]", phi) for i, phi in enumerate(azimuths)]
         tendons = tuple(
-            Tendon(float(phi), distance, t_max, t_min, k, friction)
+            Tendon(phi, distance, t_max, t_min, k, friction)
             for k in range(_count("n_segments", n_segments, 1))
-            for phi in azimuths
+            for phi in angles
         )
         return cls(tendons, n_segments=n_segments, time_constant=time_constant)
 
