@@ -255,7 +255,8 @@ def run(ea, sc, args):
     for n in args.segments:
         args_n = argparse.Namespace(**{**vars(args), "segments": n})
         for w in (None, wall):
-            rows.append((f"softcurve, {n} PCC segments", w, softcurve_case(args_n, w)))
+            label = f"softcurve, {n} PCC segment{'s' if n > 1 else ''}"
+            rows.append((label, w, softcurve_case(args_n, w)))
     print()
     print("| model | wall | tip x [mm] | tip z [mm] | contact force [N] | wall time [s] |")
     print("|---|---|---:|---:|---:|---:|")
