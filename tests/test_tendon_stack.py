@@ -62,8 +62,8 @@ BAD_TABLES = [
      r"allowed: \['azimuths', 'distance', 'friction', 'kind', 't_max', 't_min', 'tendons', "
      r"'time_constant'\]"),
     ({**TENDONS, "distance": -0.01}, r"actuation: Tendon.distance must be > 0, got -0\.01"),
-    ({**TENDONS, "t_min": -1.0}, r"actuation: Tendon.t_min must be >= 0 N \(a tendon cannot push\), "
-     r"got -1\.0"),
+    ({**TENDONS, "t_min": -1.0},
+     r"actuation: Tendon.t_min must be >= 0 N \(a tendon cannot push\), got -1\.0"),
     ({**TENDONS, "t_max": 0.0}, r"actuation: Tendon.t_max must be > t_min = 0\.0 N, got 0\.0"),
     ({**TENDONS, "friction": -0.1}, r"actuation: Tendon.friction must be >= 0, got -0\.1"),
     ({**TENDONS, "azimuths": "0 120 240"}, r"actuation: azimuths must be an array of angles"),
