@@ -77,14 +77,19 @@ def plot_states(trajectory, ax=None, *, window="auto"):
         ax, len(STATE_LABELS), "the states figure", sharex=True, figsize=(7.0, 6.0)
     )
     segments = trajectory.q.shape[1] // len(STATE_LABELS)
-    start, end = time_window(trajectory.t, trajectory.q, window)
+    drawn, zeroed_rows = np.array(trajectory.q, dtype=np.float64), set()
+    for column in range(drawn.shape[1]):
+        row, first = column % len(STATE_LABELS), column - column % len(STATE_LABELS)
+        length = np.abs(drawn[:, first]).max(initial=0.0)
+        if row and length > 0 and negligible(drawn[:, column], 1.0 / length):
+            drawn[:, column] = 0.0
+            zeroed_rows.add(row)
+    # the window follows what is drawn: round-off "moving" until late does not stretch it
+    start, end = time_window(trajectory.t, drawn, window)
     for row, label in enumerate(STATE_LABELS):
-        zeroed = False
+        zeroed = row in zeroed_rows
         for i in range(segments):
-            values = trajectory.q[:, len(STATE_LABELS) * i + row]
-            length = np.abs(trajectory.q[:, len(STATE_LABELS) * i]).max(initial=0.0)
-            if row and length > 0 and negligible(values, 1.0 / length):
-                values, zeroed = np.zeros_like(values), True
+            values = drawn[:, len(STATE_LABELS) * i + row]
             axes[row].plot(
                 trajectory.t, values, lw=0.9, label=f"segment {i + 1}" if segments > 1 else None
             )
