@@ -13,6 +13,7 @@ their commands. Pneumatic chambers (:mod:`softcurve.description.pneumatic`, pres
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import casadi as ca
@@ -165,9 +166,38 @@ class Actuator:
             return self
         return self._rebuilt(vector)
 
+    # Actuators made of parts (bellows, tendons) name the field that holds the parts and
+    # the parts' fields that are parameters; the three methods below then need no more.
+    _parts_field: str = ""
+    _part_parameters: tuple[str, ...] = ()
+
+    def _parts_vector(self) -> np.ndarray:
+        parts = getattr(self, self._parts_field)
+        return np.array(
+            [getattr(p, name) for p in parts for name in self._part_parameters], dtype=np.float64
+        )
+
+    def _parts_names(self) -> list[str]:
+        count = len(getattr(self, self._parts_field))
+        return [
+            f"{self._parts_field}[{i}].{n}" for i in range(count) for n in self._part_parameters
+        ]
+
     def _rebuilt(self, vector: np.ndarray) -> Actuator:
-        """A new actuator of this kind with parameter vector ``vector`` (checked shape)."""
-        raise NotImplementedError
+        """A new actuator of this kind with parameter vector ``vector`` (checked shape):
+        each part rebuilt with its parameters replaced, so its own checks apply."""
+        if not self._parts_field:
+            raise NotImplementedError
+        rebuilt = []
+        values = vector.reshape(-1, len(self._part_parameters))
+        for i, (part, row) in enumerate(zip(getattr(self, self._parts_field), values, strict=True)):
+            try:
+                rebuilt.append(
+                    dataclasses.replace(part, **dict(zip(self._part_parameters, row, strict=True)))
+                )
+            except ParameterError as exc:
+                raise ParameterError(f"{self._parts_field}[{i}]: {exc}") from None
+        return dataclasses.replace(self, **{self._parts_field: tuple(rebuilt)})
 
     def input_matrix(self, q) -> np.ndarray:
         """``H(q)``, shape (n, m), mapping inputs to generalized forces.

@@ -137,6 +137,8 @@ class PneumaticActuator(Actuator):
     time_constant: float | None = None
     input_name = "pressures"
     input_unit = "Pa"
+    _parts_field = "bellows"
+    _part_parameters = ("azimuth", "distance", "area")
 
     def __post_init__(self):
         if isinstance(self.bellows, Bellows):
@@ -204,29 +206,10 @@ class PneumaticActuator(Actuator):
         return cls(bellows, n_segments=n_segments, time_constant=time_constant)
 
     def parameter_vector(self) -> np.ndarray:
-        return np.array(
-            [v for b in self.bellows for v in (b.azimuth, b.distance, b.area)], dtype=np.float64
-        )
+        return self._parts_vector()
 
     def parameter_names(self) -> list[str]:
-        return [
-            f"bellows[{i}].{name}"
-            for i in range(self.n_inputs)
-            for name in ("azimuth", "distance", "area")
-        ]
-
-    def _rebuilt(self, vector: np.ndarray) -> PneumaticActuator:
-        bellows = []
-        for i, (chamber, (azimuth, distance, area)) in enumerate(
-            zip(self.bellows, vector.reshape(-1, 3), strict=True)
-        ):
-            try:
-                bellows.append(
-                    dataclasses.replace(chamber, azimuth=azimuth, distance=distance, area=area)
-                )
-            except ParameterError as exc:
-                raise ParameterError(f"bellows[{i}]: {exc}") from None
-        return dataclasses.replace(self, bellows=tuple(bellows))
+        return self._parts_names()
 
     def fiber_lengths_symbolic(self, q, theta=None):
         """Lengths ``L_i(q)`` (m,) [m] of the chambers' center lines (CasADi).

@@ -39,7 +39,6 @@ curvature (Coulomb friction switches on there), so the angle is rounded off as
 
 from __future__ import annotations
 
-import dataclasses
 import math
 from dataclasses import dataclass
 
@@ -171,6 +170,8 @@ class TendonActuator(Actuator):
     time_constant: float | None = None
     input_name = "tensions"
     input_unit = "N"
+    _parts_field = "tendons"
+    _part_parameters = ("azimuth", "distance", "friction")
 
     def __post_init__(self):
         tendons = (self.tendons,) if isinstance(self.tendons, Tendon) else self.tendons
@@ -248,32 +249,10 @@ class TendonActuator(Actuator):
         return all(t.friction == 0 for t in self.tendons)
 
     def parameter_vector(self) -> np.ndarray:
-        return np.array(
-            [v for t in self.tendons for v in (t.azimuth, t.distance, t.friction)],
-            dtype=np.float64,
-        )
+        return self._parts_vector()
 
     def parameter_names(self) -> list[str]:
-        return [
-            f"tendons[{i}].{name}"
-            for i in range(self.n_inputs)
-            for name in ("azimuth", "distance", "friction")
-        ]
-
-    def _rebuilt(self, vector: np.ndarray) -> TendonActuator:
-        tendons = []
-        for i, (tendon, (azimuth, distance, friction)) in enumerate(
-            zip(self.tendons, vector.reshape(-1, 3), strict=True)
-        ):
-            try:
-                tendons.append(
-                    dataclasses.replace(
-                        tendon, azimuth=azimuth, distance=distance, friction=friction
-                    )
-                )
-            except ParameterError as exc:
-                raise ParameterError(f"tendons[{i}]: {exc}") from None
-        return dataclasses.replace(self, tendons=tuple(tendons))
+        return self._parts_names()
 
     # -- symbolic --------------------------------------------------------------------
     def segment_lengths_symbolic(self, q, theta=None) -> list[list]:
