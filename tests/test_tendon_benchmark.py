@@ -50,7 +50,7 @@ TOTAL = sum(bench.LENGTHS)
 
 @pytest.fixture(scope="module")
 def model():
-    return sc.Model(sc.presets.rao2021())
+    return sc.Model(sc.presets.rao2021(), compile=False)  # statics only: symbolic
 
 
 @pytest.fixture(scope="module")

@@ -164,7 +164,7 @@ def test_mean_capstan_factor_is_exact_across_the_series_switch():
 
 
 def test_friction_makes_equilibria_non_conservative():
-    model = sc.Model(robot(1))
+    model = sc.Model(robot(1), compile=False)
     act = TendonActuator([Tendon(0.0, 0.01, 5.0, friction=0.2)])
     e = sc.equilibrium(model, [REST, 0.0, 0.0], actuator=act, inputs=[2.0])
     assert e.success and e.stability == "stable"
@@ -186,7 +186,7 @@ def test_one_tendon_bends_a_segment_to_t_rho_over_ei(azimuth):
     ei, rho, tension = 0.05 * REST, 0.01, 3.0
     act = TendonActuator([Tendon(azimuth, rho, 10.0)])
     for k_e in (2e3, 2e9):
-        model = sc.Model(robot(1, elongation_stiffness=LinearStiffness(k_e)))
+        model = sc.Model(robot(1, elongation_stiffness=LinearStiffness(k_e)), compile=False)
         e = sc.equilibrium(model, [REST, 0.0, 0.0], actuator=act, inputs=[tension])
         assert e.success
         length, kx, ky = e.q
@@ -335,7 +335,7 @@ def test_linearization_with_tensions_matches_finite_differences(rng, friction):
     """A and B of linearize(wrt="actuator") against central differences of the state
     derivative in the state and in the tensions, with and without capstan friction (K is
     then not symmetric)."""
-    model = sc.Model(robot(2, gravity=(0.0, 0.0, -9.81)))
+    model = sc.Model(robot(2, gravity=(0.0, 0.0, -9.81)), compile=False)
     act = TendonActuator.three_per_segment(
         distance=0.01, t_max=10.0, n_segments=2, friction=friction
     )
