@@ -171,6 +171,44 @@ class Actuator:
     _parts_field: str = ""
     _part_parameters: tuple[str, ...] = ()
 
+    def _init_parts(self, part_type: type, beyond, bounds: tuple[str, str]) -> None:
+        """Check and store the parts (a single part or a non-empty sequence of
+        ``part_type``) and ``n_segments``, then set ``time_constant``, ``n``,
+        ``n_inputs``, ``lower`` and ``upper`` (from the parts' fields ``bounds``).
+        ``beyond(part, n_segments)`` says what of a part lies beyond the robot's last
+        segment (``"anchor = 2 is beyond ..."``), or None."""
+        field, given = self._parts_field, getattr(self, self._parts_field)
+        parts = (given,) if isinstance(given, part_type) else given
+        kind = part_type.__name__
+        try:
+            parts = tuple(parts)
+        except TypeError:
+            raise ParameterError(
+                f"{field} must be a sequence of {kind}, got {type(given).__name__}"
+            ) from None
+        if not parts:
+            raise ParameterError(f"{field} must hold at least one {kind}, got none")
+        for i, part in enumerate(parts):
+            if not isinstance(part, part_type):
+                raise ParameterError(f"{field}[{i}] must be a {kind}, got {type(part).__name__}")
+        n_segments = self.n_segments
+        whole = isinstance(n_segments, int | np.integer) and not isinstance(n_segments, bool)
+        if not whole or n_segments < 1:
+            raise ParameterError(f"n_segments must be an integer >= 1, got {n_segments!r}")
+        for i, part in enumerate(parts):
+            problem = beyond(part, int(n_segments))
+            if problem is not None:
+                raise ParameterError(f"{field}[{i}].{problem}")
+        set_ = object.__setattr__  # frozen dataclasses: normalized once, here
+        set_(self, field, parts)
+        set_(self, "n_segments", int(n_segments))
+        set_(self, "time_constant", optional_time_constant(self.time_constant))
+        set_(self, "n", 3 * int(n_segments))
+        set_(self, "n_inputs", len(parts))
+        for name, attribute in zip(("lower", "upper"), bounds, strict=True):
+            values = [getattr(part, attribute) for part in parts]
+            set_(self, name, real_array(attribute, values, (len(parts),)))
+
     def _parts_vector(self) -> np.ndarray:
         parts = getattr(self, self._parts_field)
         return np.array(

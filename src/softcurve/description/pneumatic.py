@@ -141,32 +141,15 @@ class PneumaticActuator(Actuator):
     _part_parameters = ("azimuth", "distance", "area")
 
     def __post_init__(self):
-        if isinstance(self.bellows, Bellows):
-            object.__setattr__(self, "bellows", (self.bellows,))
-        bellows = tuple(self.bellows)
-        if not bellows:
-            raise ParameterError("bellows must hold at least one Bellows, got none")
-        for i, b in enumerate(bellows):
-            if not isinstance(b, Bellows):
-                raise ParameterError(f"bellows[{i}] must be a Bellows, got {type(b).__name__}")
-        if not (isinstance(self.n_segments, int | np.integer) and self.n_segments >= 1):
-            raise ParameterError(f"n_segments must be an integer >= 1, got {self.n_segments!r}")
-        for i, b in enumerate(bellows):
-            if max(b.segments) >= self.n_segments:
-                raise ParameterError(
-                    f"bellows[{i}].segments = {b.segments} refers to a segment beyond "
-                    f"n_segments = {self.n_segments}"
-                )
-        object.__setattr__(self, "bellows", bellows)
-        object.__setattr__(self, "n_segments", int(self.n_segments))
-        object.__setattr__(self, "time_constant", optional_time_constant(self.time_constant))
-        object.__setattr__(self, "n", 3 * self.n_segments)
-        object.__setattr__(self, "n_inputs", len(bellows))
-        for name, values in (
-            ("lower", [b.p_min for b in bellows]),
-            ("upper", [b.p_max for b in bellows]),
-        ):
-            object.__setattr__(self, name, real_array(name, values, (len(bellows),)))
+        def beyond(chamber, n_segments):
+            if max(chamber.segments) < n_segments:
+                return None
+            return (
+                f"segments = {chamber.segments} refers to a segment beyond "
+                f"n_segments = {n_segments}"
+            )
+
+        self._init_parts(Bellows, beyond, ("p_min", "p_max"))
 
     @classmethod
     def three_bellows(

@@ -45,12 +45,11 @@ from dataclasses import dataclass
 import casadi as ca
 import numpy as np
 
-from softcurve.base.validation import ParameterError, real_array, real_scalar
+from softcurve.base.validation import ParameterError, real_scalar
 from softcurve.description.actuator import (
     Actuator,
     offset_fiber_gradient,
     offset_fiber_length,
-    optional_time_constant,
 )
 
 DEFAULT_AZIMUTHS = (0.0, 2.0 * math.pi / 3.0, 4.0 * math.pi / 3.0)
@@ -174,33 +173,15 @@ class TendonActuator(Actuator):
     _part_parameters = ("azimuth", "distance", "friction")
 
     def __post_init__(self):
-        tendons = (self.tendons,) if isinstance(self.tendons, Tendon) else self.tendons
-        try:
-            tendons = tuple(tendons)
-        except TypeError:
-            raise ParameterError(
-                f"tendons must be a sequence of Tendon, got {type(self.tendons).__name__}"
-            ) from None
-        if not tendons:
-            raise ParameterError("tendons must hold at least one Tendon, got none")
-        for i, t in enumerate(tendons):
-            if not isinstance(t, Tendon):
-                raise ParameterError(f"tendons[{i}] must be a Tendon, got {type(t).__name__}")
-        n_segments = _count("n_segments", self.n_segments, 1)
-        for i, t in enumerate(tendons):
-            if t.anchor >= n_segments:
-                raise ParameterError(
-                    f"tendons[{i}].anchor = {t.anchor} is beyond the robot's last segment "
-                    f"(n_segments = {n_segments}, anchors 0 .. {n_segments - 1})"
-                )
-        set_ = object.__setattr__
-        set_(self, "tendons", tendons)
-        set_(self, "n_segments", n_segments)
-        set_(self, "time_constant", optional_time_constant(self.time_constant))
-        set_(self, "n", 3 * n_segments)
-        set_(self, "n_inputs", len(tendons))
-        set_(self, "lower", real_array("t_min", [t.t_min for t in tendons], (len(tendons),)))
-        set_(self, "upper", real_array("t_max", [t.t_max for t in tendons], (len(tendons),)))
+        def beyond(tendon, n_segments):
+            if tendon.anchor < n_segments:
+                return None
+            return (
+                f"anchor = {tendon.anchor} is beyond the robot's last segment "
+                f"(n_segments = {n_segments}, anchors 0 .. {n_segments - 1})"
+            )
+
+        self._init_parts(Tendon, beyond, ("t_min", "t_max"))
 
     @classmethod
     def three_per_segment(
