@@ -276,6 +276,19 @@ class Environment:
                 f"({robot.n_segments}), got {len(self.contact_radius)}"
             )
 
+    def radii(self, slice_radii) -> list:
+        """The contact radius of each segment: ``contact_radius[i]``, or where that is
+        None (or not given) the segment's slice radius.
+
+        Parameters
+        ----------
+        slice_radii : sequence, shape (N,)
+            The segments' slice radii [m] (numbers, or CasADi symbols of the model's
+            parameters).
+        """
+        given = self.contact_radius or (None,) * len(slice_radii)
+        return [r if c is None else c for r, c in zip(slice_radii, given, strict=True)]
+
     def key(self) -> tuple:
         """The environment as a tuple of plain values: the compiled model's cache key holds
         it, since its numbers are compiled into the code."""

@@ -165,8 +165,7 @@ def with_contact(e: DynamicsExpressions, structure: tuple, environment: Environm
     """
     law = environment.law
     segments, _, _ = unpack_parameters(e.p, ParameterLayout.of_structure(structure))
-    radii = environment.contact_radius or (None,) * len(segments)
-    radii = [seg.radius if r is None else r for seg, r in zip(segments, radii, strict=True)]
+    radii = environment.radii([seg.radius for seg in segments])
     points = contact_points(structure, environment)
     frames = segment_frames(e.q, e.n_segments, ca.SX.eye(3), [(i, s) for i, s, _ in points])
     y = ca.SX.sym("y", 3)

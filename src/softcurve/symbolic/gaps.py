@@ -37,8 +37,7 @@ def _distances(environment, structure: tuple):
 
 def _allowed_depths(environment, robot, points) -> np.ndarray:
     """How deep [m] the backbone may lie below each obstacle's surface, (points, obstacles)."""
-    radii = environment.contact_radius or (None,) * robot.n_segments
-    radii = [s.radius if r is None else r for s, r in zip(robot.segments, radii, strict=True)]
+    radii = environment.radii([segment.radius for segment in robot.segments])
     halves = [getattr(o, "radius", np.inf) / 2 for o in environment.obstacles]
     return np.array([[min(radii[i], half) for half in halves] for i, _ in points])
 
@@ -98,8 +97,7 @@ def _force_problem(environment, robot, points, depths, name) -> str | None:
     the softest segment to zero length, ``k_e(0) l0``: no robot rests there, and the
     integrator would throw it off with an unphysical force."""
     law = environment.law
-    radii = environment.contact_radius or (None,) * robot.n_segments
-    radii = [s.radius if r is None else r for s, r in zip(robot.segments, radii, strict=True)]
+    radii = environment.radii([segment.radius for segment in robot.segments])
     weights = [0.0] + [w for _, _, w in contact_points(robot.structure(), environment)]
     forces = np.zeros(depths.shape[1])
     for (segment, _), weight, row in zip(points, weights, depths, strict=True):
