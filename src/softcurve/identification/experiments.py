@@ -238,7 +238,10 @@ def load_csv(
                 raise ExperimentError(
                     f"{path}, line {number}, column {h!r}: {cell!r} is not a number"
                 ) from None
-    as_dict = dict if isinstance(signals, dict) else (lambda names: {n: n for n in names})
+
+    def as_dict(names):
+        return dict(names) if isinstance(names, dict) else {n: n for n in names}
+
     return _build(
         str(path),
         {k: np.array(v) for k, v in table.items()},
