@@ -45,12 +45,13 @@ def _numbering(numbering) -> int:
 
 def _count(kind: str, n_segments, **given) -> int:
     """The number of parts: the length of the sequences given (equal), else 3 per segment."""
-    if isinstance(n_segments, bool) or not isinstance(n_segments, int) or n_segments < 1:
+    whole = isinstance(n_segments, int | np.integer) and not isinstance(n_segments, bool)
+    if not whole or n_segments < 1:
         raise ParameterError(f"n_segments must be an integer >= 1, got {n_segments!r}")
     lengths = {k: len(v) for k, v in given.items() if v is not None}
     if len(set(lengths.values())) > 1:
         raise ParameterError(f"one entry per {kind} in each of {sorted(lengths)}, got {lengths}")
-    count = next(iter(lengths.values()), 3 * n_segments)
+    count = next(iter(lengths.values()), 3 * int(n_segments))
     if count < 1:
         raise ParameterError(f"at least one {kind} is needed, got {lengths}")
     return count
@@ -185,11 +186,11 @@ def tendon_input_map(
     distance ``prefix.distance`` [m] from the backbone, is tied to the tip of segment
     ``anchors[i]`` and its tension [N] acts with the gain ``prefix[i].gain``. The
     defaults are three tendons per segment, set ``j`` tied to the tip of segment ``j``
-    (proximal set first), evenly spaced, gains 1 (:meth:`TendonActuator.
-    three_per_segment`). With ``friction`` given, also ``prefix.friction``, the capstan
-    coefficient ``mu`` of the routing. From statics alone, ``rho`` and the bending
-    stiffness enter (nearly) only as their ratio (``docs/validation.md``, "Tendons"):
-    fix one to fit the other.
+    (proximal set first), evenly spaced, gains 1
+    (:meth:`TendonActuator.three_per_segment`). With ``friction`` given, also
+    ``prefix.friction``, the capstan coefficient ``mu`` of the routing. From statics
+    alone, ``rho`` and the bending stiffness enter (nearly) only as their ratio
+    (``docs/validation.md``, "Tendons"): fix one to fit the other.
 
     Parameters
     ----------
