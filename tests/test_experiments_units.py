@@ -160,3 +160,12 @@ def test_missing_and_unreadable_files_are_experiment_errors(tmp_path):
     with pytest.raises(sc.ExperimentError, match=r"'train' is an array of shape"):
         scipy.io.savemat(tmp_path / "flat.mat", {"train": T})
         load_mat_trials(tmp_path / "flat.mat", "train", time="t", signals={"y": "y"})
+
+
+def test_csv_loader_errors_name_the_file(tmp_path):
+    path = tmp_path / "run.csv"
+    path.write_text("p,y\n1,2\n3,4\n")
+    with pytest.raises(sc.ExperimentError, match=r"run.csv: sample_rate must be a positive"):
+        load_csv(path, signals=["y"], time=None, sample_rate="fast")
+    with pytest.raises(sc.ExperimentError, match=r"run.csv: 'p:1': 'p' is an array of shape"):
+        load_csv(path, signals={"y": "p:1"}, time=None, sample_rate=10.0)

@@ -39,9 +39,14 @@ def _time(source, table, time, sample_rate, length) -> np.ndarray:
         raise ExperimentError(f"{source}: give exactly one of time (a column) or sample_rate")
     if time is not None:
         return _lookup(source, table, time)
-    rate = float(sample_rate)
+    try:
+        rate = float(sample_rate)
+    except (TypeError, ValueError):
+        rate = np.nan
     if not (np.isfinite(rate) and rate > 0):
-        raise ExperimentError(f"sample_rate must be a positive number in Hz, got {sample_rate!r}")
+        raise ExperimentError(
+            f"{source}: sample_rate must be a positive number in Hz, got {sample_rate!r}"
+        )
     return np.arange(length) / rate
 
 
@@ -220,6 +225,8 @@ def load_csv(
         raise ExperimentError(
             f"{path}: not a UTF-8 text file (byte {exc.start}); save it as UTF-8 CSV"
         ) from None
+    except OSError as exc:
+        raise ExperimentError(f"{path}: cannot be read ({exc.strerror or exc})") from None
     if len(rows) < 2:
         raise ExperimentError(f"{path}: needs a header row and at least one data row")
     header = [h.strip() for h in rows[0]]
