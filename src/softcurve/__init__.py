@@ -56,19 +56,32 @@ from softcurve.identification.dynamic import (
     predict_equilibria,
     predict_trajectory,
 )
-from softcurve.identification.experiments import Experiment, ExperimentError, load_csv, load_mat
+from softcurve.identification.experiments import (
+    Experiment,
+    ExperimentError,
+    load_csv,
+    load_mat,
+    load_mat_trials,
+)
+from softcurve.identification.initial import InitialState, initial_equilibrium
 from softcurve.identification.maps import (
     InputMap,
     OutputMap,
+    SensorFrame,
+    actuator_input_map,
     bellows_input_map,
     bending_angle,
     constant_input_map,
     curvatures,
+    imu_orientation,
+    marker_position,
+    tendon_input_map,
     tip_position,
 )
 from softcurve.identification.parameters import Free, tanh_parameters
 from softcurve.identification.report import FitReport
 from softcurve.identification.stiffness import fit_stiffness
+from softcurve.identification.units import check_units
 from softcurve.scenarios.config import Scenario, load_config
 from softcurve.scenarios.sweep import SweepResult, run_sweep
 from softcurve.scenarios.sweep_config import SweepConfig, load_sweep
@@ -163,6 +176,15 @@ __all__ = [
     "curvatures",
     "bellows_input_map",
     "constant_input_map",
+    "tendon_input_map",
+    "actuator_input_map",
+    "marker_position",
+    "imu_orientation",
+    "SensorFrame",
+    "load_mat_trials",
+    "check_units",
+    "initial_equilibrium",
+    "InitialState",
     # scenarios
     "Scenario",
     "load_config",

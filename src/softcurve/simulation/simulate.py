@@ -54,7 +54,8 @@ the robot is driven by the actuator's inputs ``u`` instead: ``inputs`` takes the
 checked against the actuator's bounds, and the force ``H(q) u`` is evaluated along the
 trajectory inside the integrator (not held). With the actuator's ``time_constant`` the
 given inputs are commands and the actuator's inputs are integrated states,
-``u' = (command - u) / time_constant``, starting at zero (clipped into the bounds).
+``u' = (command - u) / time_constant``, starting at ``actuator_state`` (default: zero
+clipped into the bounds).
 Inputs that need Python at run time integrate piece by piece and are slower.
 """
 
@@ -191,6 +192,7 @@ def simulate(
     controller=None,
     actuator: Actuator | None = None,
     inputs=None,
+    actuator_state=None,
     settings: SimulationSettings | None = None,
     progress: bool = False,
     **options,
@@ -219,6 +221,10 @@ def simulate(
     inputs : None, array_like (m,) or (T, m), or callable
         The actuator's inputs (e.g. pressures [Pa, gauge]) in the forms ``tau`` takes,
         within the actuator's bounds; commands when the actuator has a ``time_constant``.
+    actuator_state : array_like, shape (m,), optional
+        Initial inputs of an actuator with a ``time_constant`` (e.g. the chambers'
+        pressures at the start [Pa]), within its bounds (default: zero clipped into
+        them).
     settings : SimulationSettings, optional
         End time, output interval, integrator, tolerances, step budget (default
         :class:`SimulationSettings`).
@@ -256,9 +262,13 @@ def simulate(
     nominal = nominal_scale(model, x0)
     atol = settings.atol_vector(nominal)
     model_x0 = x0
+    if actuator_state is not None and (actuated is None or not actuated.n_states):
+        raise ParameterError(
+            "actuator_state is the initial state of a lagging actuator: give an actuator "
+            "with a time_constant (without one its inputs follow their commands at once)"
+        )
     if actuated is not None and actuated.n_states:
-        # lagging actuator inputs start at zero (clipped into the bounds)
-        start = np.clip(0.0, actuated.lower, actuated.upper)
+        start = _actuator_start(actuator, actuator_state)
         scale = np.maximum(np.abs(actuated.lower), np.abs(actuated.upper))
         x0 = np.concatenate([x0, start])
         nominal = np.concatenate([nominal, scale])
@@ -304,6 +314,14 @@ def simulate(
         bar.close()
     stats.update(engine.counts, method=engine.method, wall_time=wall)
     return _result(model, grid, states, applied, reached, failure, stats, actuated, actuator)
+
+
+def _actuator_start(actuator: Actuator, actuator_state) -> np.ndarray:
+    """The initial inputs of a lagging actuator: checked against its bounds, or zero
+    clipped into them."""
+    if actuator_state is None:
+        return np.clip(0.0, actuator.lower, actuator.upper)
+    return actuator.check_inputs(actuator_state, "actuator_state")
 
 
 def _initial_force(model, model_x0, x0, values, actuated) -> np.ndarray:
