@@ -162,10 +162,11 @@ class Factorization:
 @dataclass(frozen=True)
 class Tableau:
     """A Rosenbrock(-W) method in its published form ``(alpha, Gamma, b)`` (Hairer and
-    Wanner, Solving ODEs II, IV.7), for ``x' = f(x)``::
+    Wanner, Solving ODEs II, IV.7), for ``x' = f(x)``, with ``gamma = Gamma_ii``:
 
-        (I - gamma h J) k_i = f(x + h sum_j alpha_ij k_j) + h J sum_{j<i} gamma_ij k_j
-        x_next = x + h sum_i b_i k_i,        gamma = Gamma_ii
+    - stages: ``(I - gamma h J) k_i = f(x + h sum_j alpha_ij k_j) + h J sum_{j<i}
+      gamma_ij k_j``;
+    - step: ``x_next = x + h sum_i b_i k_i``.
 
     Parameters
     ----------
@@ -189,11 +190,9 @@ class Tableau:
 
     def transformed(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
         """``(a, c, m, gamma)`` of the form without matrix-vector products, in stage
-        variables ``v_i`` (Hairer and Wanner's ``u_i / (gamma h)``)::
-
-            (I - gamma h J) v_i = f(x + h sum_j a_ij v_j) + sum_j c_ij v_j
-            x_next = x + h sum_i m_i v_i
-        """
+        variables ``v_i`` (Hairer and Wanner's ``u_i / (gamma h)``): stages
+        ``(I - gamma h J) v_i = f(x + h sum_j a_ij v_j) + sum_j c_ij v_j``, step
+        ``x_next = x + h sum_i m_i v_i``."""
         alpha, big, b = (np.array(v, dtype=np.float64) for v in (self.alpha, self.gamma, self.b))
         gamma = big[0, 0]
         # a = alpha Gamma^-1, c = 1/gamma - Gamma^-1, m = b Gamma^-1 (solves, no inverse)
