@@ -1,21 +1,14 @@
-"""The fixed-step scheme of :class:`~softcurve.simulation.stepper.Stepper`, as one CasADi
-function per member, compiled.
+"""The fixed-step scheme of :class:`~softcurve.simulation.stepper.Stepper`: one CasADi
+function per member that advances a state by one control period, generated as C.
 
-A control period of length ``T`` is split into ``substeps`` equal steps ``h`` of the
-two-stage Rosenbrock-W method ROS2 of Verwer, Spee, Blom and Hundsdorfer (SIAM J. Sci.
-Comput. 20(4), 1999), for ``x' = f(x)`` with the input held over the period::
-
-    (I - gamma h J) k1 = f(x_n)
-    (I - gamma h J) k2 = f(x_n + h k1) - 2 k1
-    x_{n+1} = x_n + h (3 k1 + k2) / 2,        gamma = 1 + 1/sqrt(2)
-
-It is of order 2 for *any* matrix ``J`` (a W-method), and L-stable when ``J`` is the
-exact Jacobian: the stiff elongation, creep, actuator-lag and penalty-contact modes are
-damped, never amplified, whatever ``h``. So ``J`` is the exact Jacobian at the start of
-the period, reused by every substep (one factorization of ``I - gamma h J`` per period,
-a sparse QR written out by CasADi, no inverse). The state layout is simulate's: ``(q, qd,
-lam)`` then, with an actuator that has a ``time_constant``, its lagging inputs
-(:class:`~softcurve.simulation.integrators.ActuatorInput`).
+The period is split into ``substeps`` steps ``h`` of a Rosenbrock-W method
+(:class:`Tableau`: ROS34PW2 of order 3, or ROS2 of order 2, both L-stable), the inputs
+held. A W-method keeps its order with any matrix ``J``, so one forward-difference
+Jacobian (:func:`newton_matrix`) serves several steps; ``I - gamma h J`` is factorized
+by Householder QR (:class:`Factorization`), no inverse. The state layout is
+``simulate``'s: ``(q, qd, lam)`` then the actuator's lagging inputs
+(:class:`~softcurve.simulation.integrators.ActuatorInput`). docs/stepping.md gives the
+accuracy and the cost.
 """
 
 from __future__ import annotations
@@ -343,8 +336,10 @@ def _solver(qr: Factorization, factors):
     return lambda b: qr.solve(*factors, b)
 
 
-OPTIMIZATION = "-O2"
-"""Compiler flag of the stepper (``benchmarks/bench_stepper.py`` compares -O1)."""
+OPTIMIZATION = "-O1"
+"""Compiler flag of the stepper: -O1 compiled the paper robot's stepper in 23 s, -O2 in
+40-48 s (loaded machine), at speeds equal within the noise (``bench_stepper.py`` section
+3: 800-910 against 710-1180 us per member-period in alternating runs)."""
 
 
 def observation(model, x, p):
