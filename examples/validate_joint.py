@@ -7,7 +7,7 @@ both recordings with one set of material parameters, cross-predictions where onl
 test recording's initial state is estimated, and a dynamic fit of the open loop with a
 slow creep state (does the hysteresis ask for a slower creep than the oscillations?)::
 
-    python examples/validate_joint.py [--only oscillation|openloop] [--quick]
+    python examples/validate_joint.py [--only oscillation|openloop|creep] [--quick]
 
 Every figure of the tables "real-data goals" in ``docs/validation.md`` is printed by it.
 The joint fit is a prototype built from the package's blocks (one
