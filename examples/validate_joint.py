@@ -27,6 +27,7 @@ from pathlib import Path
 
 import casadi as ca
 import numpy as np
+import scipy.optimize
 
 import softcurve as sc
 from softcurve.description.pneumatic import PneumaticActuator
@@ -300,7 +301,9 @@ def openloop_reference(directory):
     print("| creep rate [1/s] | factor c | fit 0-20 s kx, ky | predict 20-40 s kx, ky |")
     print("| --- | --- | --- | --- |")
     for r, c, *e in hysteresis_probe(p):
-        label = f"{r:g}" if np.isfinite(r) else "all seven together (Prony series), c = |c|"
+        norm = "c: norm of the factors"
+        label = f"{r:g}" if np.isfinite(r) else f"all seven together (Prony series); {norm}"
+        label = label if r != -np.inf else f"all seven, passive (every c >= 0); {norm}"
         print(f"| {label} | {c:.3g} | {e[0]:.2f}, {e[1]:.2f} | {e[2]:.2f}, {e[3]:.2f} |")
     print()
     return openloop, results, b17
@@ -440,7 +443,8 @@ def hysteresis_probe(prediction, rates=(0.03, 0.1, 0.3, 1.0, 3.0, 10.0, 30.0)):
     predicted curvature rate, ``s' = -r s + kappa_dot`` (what one linear creep state per
     coordinate adds, to first order), fit one factor ``c`` with ``kappa = kappa_qs - c s``
     on 0-20 s and apply it to 20-40 s; last row (rate inf): all rates at once, one factor
-    each (a Prony series). Returns rows ``(r, c, rms 0-20, rms 20-40)``, the RMS per
+    each (a Prony series), and the same with every factor >= 0 (rate -inf; the sign a
+    passive creep term has). Returns rows ``(r, c, rms 0-20, rms 20-40)``, the RMS per
     component (kx, ky) [1/m]."""
     t, y, m = prediction.abscissa, prediction.predicted, prediction.measured
     dt = float(t[1] - t[0])
@@ -464,6 +468,13 @@ def hysteresis_probe(prediction, rates=(0.03, 0.1, 0.3, 1.0, 3.0, 10.0, 30.0)):
     c, *_ = np.linalg.lstsq(basis[keep], residual.ravel()[keep], rcond=None)
     e = residual - (basis @ c).reshape(y.shape)
     rows.append((np.inf, float(np.linalg.norm(c)), *np.sqrt(np.mean(e[train] ** 2, axis=0)),
+                 *np.sqrt(np.mean(e[~train] ** 2, axis=0))))  # fmt: skip
+    print("Prony factors, free sign:", np.array2string(c, precision=3))
+    # passive: kappa = kappa_qs - (K gain / k) s with K / gain >= 0, so every c >= 0
+    c, _ = scipy.optimize.nnls(basis[keep], residual.ravel()[keep])
+    e = residual - (basis @ c).reshape(y.shape)
+    print("Prony factors, passive (>= 0):", np.array2string(c, precision=3))
+    rows.append((-np.inf, float(np.linalg.norm(c)), *np.sqrt(np.mean(e[train] ** 2, axis=0)),
                  *np.sqrt(np.mean(e[~train] ** 2, axis=0))))  # fmt: skip
     return rows
 
