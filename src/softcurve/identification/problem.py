@@ -169,13 +169,17 @@ class Problem:
             z, status, message, count = np.zeros(0), Status.SUCCESS, "nothing to fit", 0
         theta = z * J.scale
         try:
+            if solutions and best.residuals is None:  # nothing could be evaluated
+                raise RuntimeError("no point could be evaluated")
             results = evaluate(theta)
             count += 1
             predicted = [np.asarray(y).T for y, _ in results]
             r, jac = residual_and_jacobian(z)
             jac = jac / J.scale
         except (RuntimeError, FloatingPointError) as exc:
-            status, message = Status.NOT_CONVERGED, f"the model could not be evaluated: {exc}"
+            if not (solutions and best.residuals is None):
+                message += f"; the model could not be evaluated at the estimate: {exc}"
+            status = Status.NOT_CONVERGED
             predicted = [np.full_like(m, np.nan) for m in measured]
             r, jac = np.zeros(0), np.zeros((0, size))
         errors, corr, identifiable, status, message = summarize(J.names, jac, r, status, message)

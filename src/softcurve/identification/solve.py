@@ -4,11 +4,11 @@ SciPy's trust-region reflective method (``scipy.optimize.least_squares``, ``"trf
 with an exact Jacobian does the work. A trial point where the model cannot be evaluated
 (the equilibrium solver or the integrator fails, or the residuals are not finite) is a
 *rejected step*: the run stops there and starts again from the best point found so far
-with a trust region a quarter of the failed step's length (SciPy's first trust radius is
-``|x0 / x_scale|``, so a run on the shifted variables ``w = (z - z_best) / radius`` from
-``w = 0`` starts with exactly that radius). This repeats until the solver converges, the
-budget of evaluations runs out, or the radius falls below :data:`SMALLEST_RADIUS`. The
-result is always the best point evaluated.
+confined to a box around it whose half-width is a quarter of the failed step's length
+(an outer trust region: a run that stops at the box's edge starts again from there with
+a box :data:`GROW` times larger). This repeats until the solver converges inside its
+box, the budget of evaluations runs out, or the half-width falls below
+:data:`SMALLEST_RADIUS`. The result is always the best point evaluated.
 
 :func:`multi_start` runs the same from several seeded starting points (uniform within
 finite bounds, else perturbations of the given start) and keeps every optimum, so the
@@ -32,6 +32,13 @@ LinAlgError, non-finite residuals FloatingPointError."""
 SHRINK = 0.25
 """Trust radius after a failed trial point, as a fraction of that step's length (the
 classical trust-region contraction of a rejected step)."""
+
+GROW = 4.0
+"""Growth of the box when a run after a rejected step stops at the box's edge (the
+inverse of :data:`SHRINK`: back to the failed step's length in one go)."""
+
+EDGE = 1e-9
+"""Relative distance from the box's edge under which a run stopped at it."""
 
 SMALLEST_RADIUS = 1e-8
 """Below this radius (of the scaled variables, whose typical size is 1) the failures are
@@ -127,6 +134,8 @@ def robust_least_squares(
         key = z.tobytes()
         if key in cache:
             return cache[key]
+        if best[0] is not None and key == best[0][1].tobytes():
+            return best[0][2], best[0][3]
         count += 1
         try:
             r, jac = residual_and_jacobian(z)
@@ -147,21 +156,16 @@ def robust_least_squares(
     rejected, radius, reasons = 0, None, []
     status, message = Status.NOT_CONVERGED, ""
     while count < max_evaluations:
-        # First run: from z0 with SciPy's own first radius. After a rejected step: on
-        # w = (z - best) / radius from w = 0, so that the first radius is ``radius``.
-        origin = np.zeros_like(z0) if radius is None else best[0][1]
-        factor = 1.0 if radius is None else radius
-        w0 = z0 if radius is None else np.zeros_like(z0)
-
-        def shifted(w, origin=origin, factor=factor):
-            return np.clip(origin + w * factor, lower, upper)
-
-        lo, hi = (lower - origin) / factor, (upper - origin) / factor
+        # First run: from z0 within the bounds. After a rejected step: from the best
+        # point within a box of half-width ``radius`` around it (an outer trust region).
+        start = z0 if radius is None else best[0][1]
+        lo = lower if radius is None else np.maximum(lower, start - radius)
+        hi = upper if radius is None else np.minimum(upper, start + radius)
         try:
             result = scipy.optimize.least_squares(
-                lambda w, s=shifted: evaluate(s(w))[0],
-                w0,
-                jac=lambda w, s=shifted, f=factor: evaluate(s(w))[1] * f,
+                lambda z: evaluate(z)[0],
+                start,
+                jac=lambda z: evaluate(z)[1],
                 bounds=(lo, hi),
                 method="trf",
                 max_nfev=max(max_evaluations - count, 1),
@@ -176,11 +180,17 @@ def robust_least_squares(
             if best[0] is None:
                 message = f"the model cannot be evaluated at the starting values: {failure.reason}"
                 break
-            step = float(np.linalg.norm(failure.z - best[0][1]))
+            step = float(np.max(np.abs(failure.z - best[0][1])))
             radius = SHRINK * (step if step > 0 else (radius or 1.0))
             if radius < SMALLEST_RADIUS:
                 message = f"the model cannot be evaluated next to the best point: {failure.reason}"
                 break
+            continue
+        z = best[0][1]
+        edge = (lo > lower) & (z <= lo + EDGE * np.maximum(1.0, np.abs(z)))
+        edge |= (hi < upper) & (z >= hi - EDGE * np.maximum(1.0, np.abs(z)))
+        if result.status >= 0 and radius is not None and edge.any():
+            radius *= GROW  # stopped at the edge of the box, not at a minimum: go on
             continue
         if result.status > 0:
             status, message = Status.SUCCESS, str(result.message)

@@ -96,8 +96,36 @@ def _restore(token: str, blob: bytes) -> SensitivityEvaluator:
     return _LOADED[token]
 
 
+def hold_inputs(t: np.ndarray, u: np.ndarray, hold: str) -> np.ndarray:
+    """The integrator's input columns for inputs sampled at ``t``.
+
+    CasADi applies column ``k`` on ``(t[k-1], t[k]]``. ``"constant"``: the sample at the
+    end of each interval, ``u_k``. ``"linear"``: the line through both samples,
+    ``a_k + b_k t`` with rows ``(a, b)``, so the inputs are continuous in time (no jump
+    for the integrator to restart at).
+
+    Parameters
+    ----------
+    t : ndarray, shape (T,)
+        Sample times [s].
+    u : ndarray, shape (m, T)
+        Input samples [unit of each input].
+    hold : {"constant", "linear"}
+        How the inputs go between samples.
+    """
+    if hold == "constant" or u.shape[0] == 0:
+        return u
+    if hold != "linear":
+        raise ValueError(f"hold must be 'constant' or 'linear', got {hold!r}")
+    slope = np.zeros_like(u)
+    slope[:, 1:] = np.diff(u, axis=1) / np.diff(t)
+    before = np.concatenate([u[:, :1], u[:, :-1]], axis=1)
+    start = np.concatenate([t[:1], t[:-1]])
+    return np.vstack([before - slope * start, slope])
+
+
 def trajectory_sensitivities(
-    model, parameters, output, input_map, x0, experiment, options, lag=None
+    model, parameters, output, input_map, x0, experiment, options, lag=None, hold="constant"
 ) -> SensitivityEvaluator:
     """An evaluator ``theta -> (Y (k, T), dvec(Y)/dtheta (k T, P))`` for one experiment.
 
@@ -120,6 +148,8 @@ def trajectory_sensitivities(
     lag : str, optional
         Name of the extra parameter holding the time constant [s] of a first-order lag
         ``u_a' = (u - u_a) / T`` of every input before the input map (None: no lag).
+    hold : {"constant", "linear"}
+        Inputs between samples (:func:`hold_inputs`).
     """
     P = parameters
     u_names = list(experiment.inputs)
@@ -161,16 +191,19 @@ def trajectory_sensitivities(
         [ca.cse(ca.vertcat(f, ca.vec(s_dot)))],
     )
     rhs = compile_function(augmented)
+    n_u = len(u_names)
     xa, ua, da = (
         ca.MX.sym("x", n_x * (1 + m)),
-        ca.MX.sym("u", len(u_names)),
+        ca.MX.sym("u", n_u * (2 if hold == "linear" else 1)),
         ca.MX.sym("d", ds.shape[0] + m),
     )
+    time = ca.MX.sym("t")
+    applied_u = ua[:n_u] + ua[n_u:] * time if hold == "linear" else ua
     t = experiment.t
     integrator = ca.integrator(
         "sensitivity",
         "cvodes",
-        {"x": xa, "u": ua, "p": da, "ode": rhs(xa, ua, da)},
+        {"x": xa, "u": ua, "p": da, "t": time, "ode": rhs(xa, applied_u, da)},
         float(t[0]),
         t,
         {**SENSITIVITY_CVODES, **(options or {})},
@@ -178,6 +211,7 @@ def trajectory_sensitivities(
     y = output.function(q, qd, v_s, ds[:n_p])
     out = ca.Function("out", [xs, ds], [y, ca.jacobian(y, xs), ca.jacobian(y, ds)]).map(t.size)
     u_data = experiment.input_matrix(u_names).T if u_names else np.zeros((0, t.size))
+    u_data = hold_inputs(t, u_data, hold)
     seed = np.zeros((n_x, m))
     for j, i in enumerate(active):
         if i >= n_p + n_v:
