@@ -118,6 +118,13 @@ class Problem:
         n_starts = _count("starts", options.get("starts", 1), 1)
         processes = _count("processes", options.get("processes", 1), 1)
         names, measured, w = [], [], []
+        if isinstance(weights, dict):
+            unknown = sorted(set(weights) - {e.name for e in experiments})
+            if unknown:
+                raise ParameterError(
+                    f"weights: a dict is per experiment, but {unknown} are not experiments "
+                    f"of this fit ({[e.name for e in experiments]})"
+                )
         for e in experiments:
             per = weights.get(e.name) if isinstance(weights, dict) else weights
             names, data = _signals(e, self.output, signals)
