@@ -117,6 +117,10 @@ def test_joint_fit_checks_its_arguments(recordings):
         fit_trajectory(model, data, output=output, x0=[_state(10.0)] * 3, free=[])
     with pytest.raises(sc.ParameterError, match="has 3 lam entries|has 0 lam entries"):
         fit_trajectory(model, data, output=output, x0=_state(10.0), free=["x0.lam[5]"])
+    # one callable initial state per experiment, in a list
+    starts = [lambda v, b=bends[e.name]: _state(b) for e in data]
+    both = fit_trajectory(model, data, output=bending_angle(), x0=starts, free=[], processes=1)
+    assert both.success and [p[0] for p in both.parts] == ["a", "b"]
 
 
 def test_weights_per_sample_and_time_window():

@@ -131,6 +131,8 @@ def _per_experiment(name, value, experiments, is_one):
 
 
 def _one_state(value) -> bool:
+    if isinstance(value, list | tuple) and value:  # a list of states or of callables?
+        return not (callable(value[0]) or np.ndim(value[0]) == 1)
     return callable(value) or np.ndim(value) == 1
 
 
