@@ -175,3 +175,11 @@ def test_the_input_lag_time_constant_is_recovered(recordings):
     )
     assert report.success, report.message
     np.testing.assert_allclose(report.values, [truth, 2.3e-5], rtol=1e-5)
+    # the lagged inputs start at the first sample unless set: bellow 0 already inflated
+    inflated = fit_trajectory(
+        model, template, output=curvatures(), input_map=inputs, x0=x0, free=[],
+        input_lag=truth, extra={"x0.u[0][steps]": 2e4},
+    )  # fmt: skip
+    difference = np.abs(inflated.predicted - clean.predicted)
+    assert np.max(difference[t < 0.05]) > 1.0  # [1/m]
+    assert np.max(difference[-1]) < 0.2 * np.max(difference[t < 0.05])  # and it dies out
