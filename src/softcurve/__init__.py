@@ -63,7 +63,7 @@ from softcurve.identification.experiments import (
     load_mat,
     load_mat_trials,
 )
-from softcurve.identification.initial import InitialState, initial_equilibrium
+from softcurve.identification.initial_equilibrium import InitialState, initial_equilibrium
 from softcurve.identification.maps import (
     InputMap,
     OutputMap,
@@ -79,7 +79,7 @@ from softcurve.identification.maps import (
     tip_position,
 )
 from softcurve.identification.parameters import Free, tanh_parameters
-from softcurve.identification.report import FitReport
+from softcurve.identification.report import FitError, FitReport, FitWarning
 from softcurve.identification.stiffness import fit_stiffness
 from softcurve.identification.units import check_units
 from softcurve.scenarios.config import Scenario, load_config
@@ -166,7 +166,9 @@ __all__ = [
     "fit_equilibria",
     "predict_trajectory",
     "predict_equilibria",
+    "FitError",
     "FitReport",
+    "FitWarning",
     "Free",
     "tanh_parameters",
     "OutputMap",

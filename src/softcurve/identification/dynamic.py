@@ -19,7 +19,17 @@ What can be estimated: any entry of ``robot.layout`` (a *robot* parameter), and 
 well-posed re-parametrization of the tanh law, see
 :func:`~softcurve.identification.parameters.tanh_parameters`). Sensor offsets, a
 bellows' mounting angle and pressure-map gains are extra parameters of the output and
-input maps (:mod:`softcurve.identification.maps`).
+input maps (:mod:`softcurve.identification.maps`); entries of the initial state are
+``x0.q[i]``, ``x0.qd[i]``, ``x0.lam[i]`` and, with an input lag, ``x0.u[i]``
+(:mod:`softcurve.identification.initial`).
+
+Both fits take one experiment or a list of them: parameters are shared by all unless
+declared ``Free(..., per_experiment=True)`` (:mod:`softcurve.identification.joint`);
+each experiment is simulated on its own, with its own sensitivities, in worker
+processes. A trial point the model cannot evaluate is a rejected step, ``starts=K``
+runs a seeded multi-start, ``progress=True`` shows a progress line
+(:mod:`softcurve.identification.problem`). Predicting from a failed fit raises
+:class:`~softcurve.identification.report.FitError`.
 """
 
 from __future__ import annotations
@@ -28,133 +38,51 @@ import numpy as np
 
 from softcurve.analysis.loads import rest_configuration
 from softcurve.base.docs import parameters_from
-from softcurve.base.status import Status
 from softcurve.base.validation import ParameterError, real_array
 from softcurve.compiled.model import Model
 from softcurve.identification.equilibria import EquilibriumPredictor
-from softcurve.identification.experiments import Experiment
+from softcurve.identification.initial import LAG, initial_state, start_values
+from softcurve.identification.joint import experiment_list
 from softcurve.identification.maps import InputMap, OutputMap
-from softcurve.identification.parameters import FreeParameters
-from softcurve.identification.report import FitReport, solve_least_squares, summarize
+from softcurve.identification.problem import Problem
+from softcurve.identification.report import FitReport, usable_fit
+from softcurve.identification.weights import WEIGHTS_DOC
 from softcurve.simulation.sensitivity import trajectory_sensitivities
-
-
-def _signals(experiment: Experiment, output: OutputMap, signals):
-    names = list(output.names) if signals is None else list(signals)
-    if len(names) != len(output.names):
-        raise ParameterError(
-            f"signals: the output map gives {len(output.names)} outputs {output.names}, "
-            f"got {len(names)} signal names {names}"
-        )
-    return names, experiment.signal_matrix(names)
-
-
-def _weights(weights, k):
-    w = np.ones(k) if weights is None else np.asarray(weights, dtype=np.float64).ravel()
-    if w.shape != (k,) or not np.all(w > 0):
-        raise ParameterError(f"weights must be {k} positive numbers (one per signal)")
-    return w
-
-
-class _Problem:
-    """Free parameters + a predictor ``predict(theta MX) -> Y (k, T) MX``; fits or predicts."""
-
-    def __init__(self, model, output, input_map, free, extra, bind, p):
-        self.model = model
-        self.output = output
-        self.input_map = input_map
-        extras = {**output.parameters, **(input_map.parameters if input_map else {})}
-        extras.update(extra or {})
-        self.parameters = FreeParameters(model, free, extras, bind or {}, p)
-
-    def run(self, predictor, experiment, signals, weights, max_evaluations, confidence, kind):
-        names, measured = _signals(experiment, self.output, signals)
-        w = _weights(weights, len(names))
-        P = self.parameters
-        evaluate = predictor(experiment)  # theta -> (Y (k, T), dvec(Y)/dtheta (k T, P))
-
-        def residual_and_jacobian(z):
-            y, jac = evaluate(z * P.scale)
-            r = ((y.T - measured) * w).ravel()
-            return r, (jac * np.tile(w, experiment.t.size)[:, None]) * P.scale
-
-        if len(P.free):
-            z, *_, status, message, count = solve_least_squares(
-                residual_and_jacobian, P.theta0 / P.scale, P.lower, P.upper, max_evaluations
-            )
-        else:
-            z, status, message, count = np.zeros(0), Status.SUCCESS, "nothing to fit", 1
-        theta_value = z * P.scale
-        try:
-            y_num, jac_num = evaluate(theta_value)
-            r_num = ((y_num.T - measured) * w).ravel()
-            jac_num = jac_num * np.tile(w, experiment.t.size)[:, None]
-        except (RuntimeError, FloatingPointError) as exc:
-            status, message = Status.NOT_CONVERGED, f"the model could not be evaluated: {exc}"
-            y_num = np.full((len(names), experiment.t.size), np.nan)
-            r_num, jac_num = np.zeros(0), np.zeros((0, len(P.free)))
-        errors, corr, identifiable, status, message = summarize(
-            P.names, jac_num, r_num, status, message
-        )
-        at_bound = [
-            name
-            for name, v, lo, hi in zip(P.names, z, P.lower, P.upper, strict=True)
-            if min(abs(v - lo), abs(v - hi)) <= 1e-8 * max(1.0, abs(v))
-        ]
-        if at_bound:
-            message += f"; at a bound (interval not meaningful there): {at_bound}"
-        p_value, extra_values = P.evaluate(theta_value)
-        try:
-            robot = self.model.robot.with_parameter_vector(p_value)
-        except ParameterError as exc:
-            robot, status = None, Status.INFEASIBLE
-            message += f"; the estimate is not an admissible robot: {exc}"
-        return FitReport(
-            status=status,
-            message=f"{kind}: {message}",
-            names=P.names,
-            values=theta_value,
-            standard_errors=errors,
-            correlation=corr,
-            abscissa=experiment.t,
-            measured=measured,
-            predicted=np.asarray(y_num).T,
-            signals=tuple(names),
-            units=tuple(
-                experiment.units.get(n) or u for n, u in zip(names, self.output.units, strict=True)
-            ),
-            confidence=confidence,
-            n_evaluations=count,
-            identifiable=identifiable,
-            extra={"robot": robot, "parameters": p_value, "values": extra_values},
-        )
-
-
-def _trajectory_predictor(problem: _Problem, x0, integrator_options):
-    def predictor(experiment):
-        return trajectory_sensitivities(
-            problem.model,
-            problem.parameters,
-            problem.output,
-            problem.input_map,
-            x0,
-            experiment,
-            integrator_options,
-        )
-
-    return predictor
-
+from softcurve.simulation.workers import default_threads
 
 PREDICTION_PARAMETERS = {
     "model": ("Model", "The compiled model the fit used."),
     "experiment": (
-        "Experiment",
-        "The experiment to predict (time grid, measured signals, inputs).",
+        "Experiment or list of Experiment",
+        "The experiment(s) to predict (time grid, measured signals, inputs); one that "
+        "the fit had gets its per-experiment values, another the nominal ones.",
+    ),
+    "fit": (
+        "FitReport",
+        "A report of :func:`fit_trajectory` or :func:`fit_equilibria`; its "
+        "``extra['parameters']``, ``extra['values']`` and ``extra['per_experiment']`` "
+        "give the estimate. A failed fit raises :class:`FitError`, one that ran out of "
+        "evaluations warns (:class:`FitWarning`).",
     ),
 }
 """The parameters ``predict_trajectory`` and ``predict_equilibria`` share."""
 
 FIT_OPTIONS = {
+    "experiment": (
+        "Experiment or list of Experiment",
+        "Time grid, measured signals and inputs (held constant between samples); a list "
+        "is fitted jointly, each experiment simulated on its own.",
+    ),
+    "free": (
+        "list of Free or str",
+        "What to estimate; a bare string is ``Free(name)`` without bounds; "
+        "``Free(..., per_experiment=True)`` gives one value per experiment.",
+    ),
+    "extra": (
+        "dict, optional",
+        "Named extra parameters and their values; a key ``name[experiment]`` sets the "
+        "value for one experiment.",
+    ),
     "bind": (
         "dict, optional",
         "Robot parameter name -> ``rule(values)`` expression of extra parameters.",
@@ -163,10 +91,7 @@ FIT_OPTIONS = {
         "list of str, optional",
         "Experiment signals matched to the outputs, in order (default: output names).",
     ),
-    "weights": (
-        "array_like, shape (k,), optional",
-        "One weight per signal (e.g. the inverse of its noise level) [1/signal unit].",
-    ),
+    "weights": WEIGHTS_DOC,
     "parameters": (
         "array_like, shape (P,), optional",
         "Robot parameter vector to start from (default ``model.parameters``).",
@@ -175,16 +100,46 @@ FIT_OPTIONS = {
         "float",
         "Confidence level of the report's intervals, a probability in (0, 1).",
     ),
+    "starts": (
+        "int",
+        "Starting points of a multi-start (1: only the given start); the report keeps "
+        "every optimum (``optima``) and its table their spread.",
+    ),
+    "seed": ("int, optional", "Seed of the multi-start's random starting points."),
+    "progress": ("bool", "A progress line of the evaluations on stderr."),
 }
 """The options ``fit_trajectory`` and ``fit_equilibria`` share, documented once."""
 
 _fit_options = parameters_from(FIT_OPTIONS)
 
 
+def _per_experiment(name, value, experiments, is_one):
+    """``value`` for each experiment: one shared, a list in order or a dict by name."""
+    if isinstance(value, dict):
+        missing = [e.name for e in experiments if e.name not in value]
+        if missing:
+            raise ParameterError(f"{name}: no entry for experiments {missing}")
+        return [value[e.name] for e in experiments]
+    if is_one(value):
+        return [value] * len(experiments)
+    values = list(value)
+    if len(values) != len(experiments):
+        raise ParameterError(
+            f"{name}: one for all, or one per experiment ({len(experiments)}), got {len(values)}"
+        )
+    return values
+
+
+def _one_state(value) -> bool:
+    if isinstance(value, list | tuple) and value:  # a list of states or of callables?
+        return not (callable(value[0]) or np.ndim(value[0]) == 1)
+    return callable(value) or np.ndim(value) == 1
+
+
 @_fit_options
 def fit_trajectory(
     model: Model,
-    experiment: Experiment,
+    experiment,
     *,
     output: OutputMap,
     x0,
@@ -198,56 +153,116 @@ def fit_trajectory(
     max_evaluations: int = 60,
     confidence: float = 0.95,
     integrator_options: dict | None = None,
+    input_lag: float | None = None,
+    input_hold: str = "constant",
+    starts: int = 1,
+    seed: int | None = None,
+    progress: bool = False,
+    processes: int | None = None,
 ) -> FitReport:
-    """Trajectory least squares: simulate the experiment and fit the free parameters.
+    """Trajectory least squares: simulate the experiment(s) and fit the free parameters.
 
     Parameters
     ----------
     model : Model
         The compiled model; its robot gives the values of everything not free.
-    experiment : Experiment
-        Time grid, measured signals and (for forced motion) inputs, held constant
-        between samples.
+    %(experiment)s
     output : OutputMap
         Model outputs matched to the signals (:func:`bending_angle`, :func:`curvatures`,
         :func:`tip_position`).
-    x0 : array_like, shape (n_state,), or callable
+    x0 : array_like, shape (n_state,), or callable, or a list or dict of them
         Initial state ``(q, qd, lam)``; a callable receives the dict of extra
-        parameters (CasADi expressions) and returns the state, so that initial creep
-        states or angles can be estimated.
-    free : list of Free or str
-        What to estimate; a bare string is ``Free(name)`` without bounds.
+        parameters (CasADi expressions) and returns the state. One for all
+        experiments, a list (in order) or a dict by experiment name. Its entries can be
+        estimated by name (``"x0.lam[1]"``, :mod:`softcurve.identification.initial`).
+    %(free)s
     input_map : InputMap, optional
         Generalized forces from the experiment's inputs (all of them, in order).
-    extra : dict, optional
-        Named extra parameters and their values (used by ``x0`` or ``bind``).
+    %(extra)s
     %(bind)s
     %(signals)s
     %(weights)s
     %(parameters)s
     max_evaluations : int
-        Budget of residual evaluations (each is one simulation with sensitivities).
+        Budget of residual evaluations per start (each is one simulation with
+        sensitivities of every experiment).
     %(confidence)s
     integrator_options : dict, optional
         Extra CVODES options of the sensitivity integration.
+    input_lag : float, optional
+        Nominal time constant [s] of a first-order lag of every input before the input
+        map (the extra parameter ``"input_lag"``, free like any other); the lagged
+        inputs start at each experiment's first input sample (``"x0.u[i]"`` to fit
+        them). None: no lag.
+    input_hold : {"constant", "linear"}
+        The inputs between two samples: the later sample (``"constant"``, a jump at
+        every sample) or the line through both (``"linear"``: continuous inputs, which
+        the integrator crosses without restarting: 3.8 times fewer steps on the
+        benchmark of ``benchmarks/bench_identification.py``).
+    %(starts)s
+    %(seed)s
+    %(progress)s
+    processes : int, optional
+        Worker processes evaluating the experiments in parallel (default: one per
+        experiment, at most the usable cores; 1 evaluates them here in turn).
 
     Returns
     -------
     FitReport
-        With ``extra["robot"]`` the fitted robot, ``extra["parameters"]`` its
-        vector, ``extra["values"]`` the extra parameters.
+        With ``extra["robot"]`` the fitted robot, ``extra["parameters"]`` its vector,
+        ``extra["values"]`` the shared extra parameters and ``extra["per_experiment"]``
+        each experiment's own; ``parts`` and :meth:`FitReport.part` give each
+        experiment's rows.
     """
-    problem = _Problem(model, output, input_map, free, extra, bind, parameters)
-    predictor = _trajectory_predictor(problem, x0, integrator_options)
+    experiments, _ = experiment_list(experiment)
+    states = _per_experiment("x0", x0, experiments, _one_state)
+    lagged = input_lag is not None
+    if lagged:
+        if input_map is None or not (np.isfinite(input_lag) and input_lag > 0):
+            raise ParameterError(
+                f"input_lag must be a time constant > 0 [s] with an input_map, got {input_lag!r}"
+            )
+        extra = {LAG: float(input_lag), **(extra or {})}
+    first = {e.name: e.input_matrix()[0] for e in experiments}
+    index = {e.name: i for i, e in enumerate(experiments)}
+
+    def starts_of(e, names):
+        return start_values(model, states[index[e.name]], first[e.name], names, lagged)
+
+    problem = Problem(
+        model, output, input_map, free, extra, bind, parameters, experiment, starts_of
+    )
+    evaluators = []
+    for e, part, state in zip(experiments, problem.parameters.parts, states, strict=True):
+
+        def start(values, state=state, u0=first[e.name]):
+            return initial_state(model, state, values, u0, lagged)
+
+        evaluators.append(
+            trajectory_sensitivities(
+                model,
+                part,
+                output,
+                input_map,
+                start,
+                e,
+                integrator_options,
+                LAG if lagged else None,
+                input_hold,
+            )
+        )
+    if processes is None:
+        processes = min(len(experiments), default_threads())
+    options = dict(starts=starts, seed=seed, progress=progress, processes=processes)
     return problem.run(
-        predictor, experiment, signals, weights, max_evaluations, confidence, "trajectory fit"
+        evaluators, signals, weights, max_evaluations, confidence, "trajectory fit", options=options
     )
 
 
 @_fit_options
 def fit_equilibria(
     model: Model,
-    experiment: Experiment,
+    experiment,
     *,
     output: OutputMap,
     input_map: InputMap,
@@ -260,84 +275,105 @@ def fit_equilibria(
     parameters=None,
     max_evaluations: int = 100,
     confidence: float = 0.95,
+    starts: int = 1,
+    seed: int | None = None,
+    progress: bool = False,
 ) -> FitReport:
     """Quasi-static least squares: each sample is an equilibrium ``N(q) = tau(q, u)``.
 
     Valid when the inputs change much more slowly than the robot's lowest natural
     period (damping and creep then play no role). With no free parameters this is a
-    prediction.
+    prediction. The experiments are solved in this process, one after another (their
+    samples are solved together, in compiled code).
 
     Parameters
     ----------
     model : Model
         The compiled model; its robot gives the values of everything not free.
-    experiment : Experiment
-        Time grid, measured signals and inputs.
+    %(experiment)s
     output : OutputMap
         Model outputs matched to the signals.
     input_map : InputMap
         Generalized forces from the experiment's inputs (all of them, in order).
-    free : list of Free or str
-        What to estimate.
+    %(free)s
     q0 : array_like, shape (n,), optional
         Initial guess of every sample's equilibrium [m, 1/m, 1/m] (default: the
         straight robot at rest length); later evaluations start from the previous
         solutions.
-    extra : dict, optional
-        Named extra parameters and their values.
+    %(extra)s
     %(bind)s
     %(signals)s
     %(weights)s
     %(parameters)s
     max_evaluations : int
-        Budget of residual evaluations.
+        Budget of residual evaluations per start.
     %(confidence)s
+    %(starts)s
+    %(seed)s
+    %(progress)s
+
+    Returns
+    -------
+    FitReport
+        As :func:`fit_trajectory`'s.
     """
     q0 = rest_configuration(model.robot) if q0 is None else real_array("q0", q0, (model.n,))
-    problem = _Problem(model, output, input_map, free, extra, bind, parameters)
-    predictor = EquilibriumPredictor(model, problem.parameters, output, input_map, q0)
+    problem = Problem(model, output, input_map, free, extra, bind, parameters, experiment)
+    evaluators = [
+        EquilibriumPredictor(model, part, output, input_map, q0)(e)
+        for e, part in zip(problem.experiments, problem.parameters.parts, strict=True)
+    ]
+    options = dict(starts=starts, seed=seed, progress=progress, processes=1)
     return problem.run(
-        predictor,
-        experiment,
+        evaluators,
         signals,
         weights,
         max_evaluations,
         confidence,
         "equilibrium fit",
+        options=options,
     )
 
 
-@parameters_from(PREDICTION_PARAMETERS)
-def predict_trajectory(model: Model, experiment: Experiment, fit: FitReport, **problem):
-    """Simulate ``experiment`` with the estimate of ``fit``, without refitting.
+def _fitted_values(fit: FitReport, experiment, given: dict) -> dict:
+    """The extra values of ``fit`` for ``experiment``: shared ones plus, for experiments
+    the fit had, their own (as ``name[experiment]`` keys)."""
+    usable_fit(fit)
+    values = {**given, **fit.extra["values"]}
+    experiments, _ = experiment_list(experiment)
+    for e in experiments:
+        for name, value in fit.extra.get("per_experiment", {}).get(e.name, {}).items():
+            values[f"{name}[{e.name}]"] = value
+    return values
 
-    The fitted robot parameters and extra values are taken from ``fit``.
+
+@parameters_from(PREDICTION_PARAMETERS)
+def predict_trajectory(model: Model, experiment, fit: FitReport, **problem):
+    """Simulate ``experiment`` with the estimate of ``fit``, without refitting.
 
     Parameters
     ----------
     %(model)s
     %(experiment)s
-    fit : FitReport
-        A report of :func:`fit_trajectory` or :func:`fit_equilibria`; its
-        ``extra["parameters"]`` and ``extra["values"]`` give the estimate.
+    %(fit)s
     **problem
-        The fit's keyword arguments ``output``, ``x0``, ``input_map``, ``bind`` (and
-        optionally ``signals``, ``weights``, ``extra``), passed on to
-        :func:`fit_trajectory` with no free parameters.
+        The fit's keyword arguments ``output``, ``x0``, ``input_map``, ``bind``,
+        ``input_lag`` (and optionally ``signals``, ``weights``, ``extra``), passed on
+        to :func:`fit_trajectory` with no free parameters.
 
     Returns
     -------
     FitReport
         With no free parameters; its ``rms`` and ``max_error`` are the prediction errors.
     """
-    values = {**problem.pop("extra", {}), **fit.extra["values"]}
+    values = _fitted_values(fit, experiment, problem.pop("extra", {}))
     return fit_trajectory(
         model, experiment, free=[], extra=values, parameters=fit.extra["parameters"], **problem
     )
 
 
 @parameters_from(PREDICTION_PARAMETERS)
-def predict_equilibria(model: Model, experiment: Experiment, fit: FitReport, **problem):
+def predict_equilibria(model: Model, experiment, fit: FitReport, **problem):
     """Quasi-static prediction of ``experiment`` with the estimate of ``fit``, without
     refitting (see :func:`predict_trajectory`).
 
@@ -345,9 +381,7 @@ def predict_equilibria(model: Model, experiment: Experiment, fit: FitReport, **p
     ----------
     %(model)s
     %(experiment)s
-    fit : FitReport
-        A report of :func:`fit_equilibria` or :func:`fit_trajectory`; its
-        ``extra["parameters"]`` and ``extra["values"]`` give the estimate.
+    %(fit)s
     **problem
         The fit's keyword arguments ``output``, ``input_map``, ``bind`` (and optionally
         ``q0``, ``signals``, ``weights``, ``extra``), passed on to :func:`fit_equilibria`
@@ -358,7 +392,8 @@ def predict_equilibria(model: Model, experiment: Experiment, fit: FitReport, **p
     FitReport
         With no free parameters; its ``rms`` and ``max_error`` are the prediction errors.
     """
-    values = {**problem.pop("extra", {}), **fit.extra["values"]}
+    values = _fitted_values(fit, experiment, problem.pop("extra", {}))
+    values.pop(LAG, None)
     return fit_equilibria(
         model, experiment, free=[], extra=values, parameters=fit.extra["parameters"], **problem
     )

@@ -56,7 +56,11 @@ class EquilibriumPredictor:
         theta = ca.MX.sym("theta", len(P.free))
         p, values = P.expressions(theta)
         d = ca.vertcat(p, *(ca.MX(values[k]) for k in keys))
-        direct = ca.Function("direct", [theta], [d, ca.densify(ca.jacobian(d, theta))])
+        jac_d = ca.jacobian(d, theta)
+        # only the entries of d that depend on the free parameters: a robot of several
+        # segments has several times the parameters, most of them fixed
+        active = sorted(set(jac_d.sparsity().get_triplet()[0]))
+        direct = ca.Function("direct", [theta], [d, ca.densify(jac_d[active, :])])
 
         u_names = list(experiment.inputs)
         q, u = ca.SX.sym("q", n), ca.SX.sym("u", len(u_names))
@@ -69,10 +73,17 @@ class EquilibriumPredictor:
         balance = ca.Function("balance", [q, u, ds], [residual, stiffness])
         balance_all = balance.map(experiment.t.size)
         y = self.output.function(q, ca.SX.zeros(n), v_s, p_s)
+        moving = ca.vertcat(*(ds[i] for i in active)) if active else ca.SX(0, 1)
         sensitivities = ca.Function(
             "sensitivities",
             [q, u, ds],
-            [y, stiffness, ca.jacobian(residual, ds), ca.jacobian(y, q), ca.jacobian(y, ds)],
+            [
+                y,
+                stiffness,
+                ca.jacobian(residual, moving),
+                ca.jacobian(y, q),
+                ca.jacobian(y, moving),
+            ],
         ).map(experiment.t.size)
         inputs = experiment.input_matrix(u_names) if u_names else np.zeros((experiment.t.size, 0))
         samples = experiment.t.size
@@ -124,7 +135,7 @@ class EquilibriumPredictor:
             y_all, k, r_d, y_q, y_d = (
                 np.array(v, dtype=np.float64) for v in sensitivities(q_all, inputs.T, d_value)
             )
-            n_d, n_y = d_value.size, y_all.shape[0]
+            n_d, n_y = len(active), y_all.shape[0]
             k = k.reshape(n, samples, n).transpose(1, 0, 2)
             r_d = r_d.reshape(n, samples, n_d).transpose(1, 0, 2)
             y_q = y_q.reshape(n_y, samples, n).transpose(1, 0, 2)

@@ -1,154 +1,125 @@
-"""The state an experiment starts from: the equilibrium at its first input.
+"""Entries of an experiment's initial state as named parameters, and the actuator lag.
 
-A recording usually starts with the robot at rest under the first measured input.
-:func:`initial_equilibrium` solves the static balance ``N(q) = tau(q, u_0)`` there, with
-the same input map (and extra parameter values) a fit uses, by the package's one
-equilibrium solver (:mod:`softcurve.analysis.solver`), and returns the state
-``x0 = (q, 0, 0)`` (at rest, creep relaxed) for :func:`~softcurve.simulate` and for
-``fit_trajectory(x0=...)``, with the first inputs as the initial state of a lagging
-actuator (``simulate(..., actuator_state=...)``).
+A trajectory fit starts each experiment from ``x0 = (q, qd, lam)`` (coordinates, rates,
+creep states) and, with an input lag, the actuator states ``u`` after it. Any entry can
+be estimated by naming it in ``free`` (usually with ``per_experiment=True``):
+
+- ``"x0.q[i]"``, ``"x0.qd[i]"``: coordinate ``i`` and its rate [m, 1/m, 1/m per s...];
+- ``"x0.lam[i]"``: creep state ``i`` (same unit as the coordinate it creeps);
+- ``"x0.u[i]"``: the lagged actuator input ``i`` at the first sample [unit of the
+  input, e.g. Pa].
+
+Its starting value is the entry of that experiment's ``x0`` (for ``x0.u``, the first
+input sample: the actuator settled). The same names in ``extra`` set an entry without
+fitting it, e.g. ``extra={"x0.lam[1][b42]": 0.2}`` for experiment ``b42``.
+
+The *input lag* (``fit_trajectory(input_lag=...)``) passes every measured input through
+a first-order lag ``u_a' = (u - u_a) / T`` before the input map; its time constant ``T``
+[s] is the extra parameter :data:`LAG`, so it can be fitted like any other.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import re
 
 import casadi as ca
 import numpy as np
 
-from softcurve.analysis.loads import coordinate_scale, residual_reference, rest_configuration
-from softcurve.analysis.solver import solve_equilibrium
-from softcurve.base.status import Result, Status
-from softcurve.base.validation import ParameterError, real_array
-from softcurve.compiled.model import Model
-from softcurve.description.actuator import Actuator
-from softcurve.identification.equilibria import EQUILIBRIUM_TOLERANCE, MAX_EVALUATIONS
-from softcurve.identification.input_maps import actuator_input_map
-from softcurve.identification.map_types import InputMap
-from softcurve.identification.recordings import Experiment
-from softcurve.identification.units import check_units
+from softcurve.base.validation import ParameterError
+
+LAG = "input_lag"
+"""Name of the extra parameter holding the input lag's time constant [s]."""
+
+_ENTRY = re.compile(r"^x0\.(q|qd|lam|u)\[(\d+)\]$")
 
 
-@dataclass(frozen=True, eq=False)
-class InitialState(Result):
-    """The equilibrium at one sample of an experiment, as a starting state.
+def is_state_entry(name: str) -> bool:
+    """Whether ``name`` names an initial-state entry (``x0.q[i]``...).
 
-    Attributes
+    Parameters
     ----------
-    q : ndarray, shape (n,)
-        The equilibrium configuration [m, 1/m, 1/m].
-    x0 : ndarray, shape (n_state,)
-        The state ``(q, qd = 0, lam = 0)`` for ``simulate`` or ``fit_trajectory``.
-    inputs : ndarray, shape (m,)
-        The experiment's inputs at that sample, in its units (SI): the initial state of
-        a lagging actuator (``simulate(..., actuator_state=...)``).
-    residual : ndarray, shape (n,)
-        ``N(q) - tau(q, u)`` [N, N m^2, N m^2].
-    time : float
-        The time of the sample [s].
-    status : Status
-        SUCCESS when the scaled residual met the tolerance, else NOT_CONVERGED or
-        EVALUATION_LIMIT.
-    message : str
-        What the solver reached.
+    name : str
+        A parameter name.
     """
-
-    q: np.ndarray
-    x0: np.ndarray
-    inputs: np.ndarray
-    residual: np.ndarray
-    time: float
-    status: Status
-    message: str
+    return _ENTRY.match(name) is not None
 
 
-def initial_equilibrium(
-    model: Model,
-    experiment: Experiment,
-    input_map: InputMap | Actuator | None = None,
-    *,
-    extra: dict | None = None,
-    parameters=None,
-    q0=None,
-    sample: int = 0,
-    tol: float = EQUILIBRIUM_TOLERANCE,
-    max_evaluations: int = MAX_EVALUATIONS,
-) -> InitialState:
-    """The static equilibrium under the experiment's inputs at one sample (the first).
+def state_index(model, name: str, n_inputs: int) -> int:
+    """Position of the entry ``name`` in the (augmented) initial state.
 
     Parameters
     ----------
     model : Model
-        The model (``compile=False`` suffices: only its symbolic forces are used).
-    experiment : Experiment
-        The recording; all its inputs, in order, feed ``input_map``.
-    input_map : InputMap or Actuator, optional
-        How the inputs act (an actuator acts through
-        :func:`~softcurve.identification.input_maps.actuator_input_map`); None for
-        the robot under gravity alone.
-    extra : dict, optional
-        Values of the map's extra parameters, overriding their nominal values (e.g. a
-        fit's ``report.extra["values"]``).
-    parameters : array_like, shape (P,), optional
-        Robot parameter vector (default ``model.parameters``; e.g. a fit's
-        ``report.extra["parameters"]``).
-    q0 : array_like, shape (n,), optional
-        Initial guess [m, 1/m, 1/m] (default: straight at rest length).
-    sample : int
-        Index of the sample (default 0, the first).
-    tol : float
-        Tolerance on the scaled residual (dimensionless, see
-        :mod:`softcurve.analysis.solver`).
-    max_evaluations : int
-        Budget of residual evaluations.
+        Gives ``n`` coordinates and ``n_state - 2 n`` creep states.
+    name : str
+        ``x0.q[i]``, ``x0.qd[i]``, ``x0.lam[i]`` or ``x0.u[i]``.
+    n_inputs : int
+        Lagged actuator states after the model's state (0 without an input lag).
     """
-    if not isinstance(model, Model):
-        raise ParameterError(f"model must be a softcurve.Model, got {type(model).__name__}")
-    if not isinstance(experiment, Experiment):
-        raise ParameterError(f"experiment must be an Experiment, got {type(experiment).__name__}")
-    if isinstance(input_map, Actuator):
-        input_map = actuator_input_map(input_map)
-    if input_map is not None and not isinstance(input_map, InputMap):
+    kind, i = _ENTRY.match(name).groups()
+    i = int(i)
+    n, n_creep = model.n, model.n_state - 2 * model.n
+    size = {"q": n, "qd": n, "lam": n_creep, "u": n_inputs}[kind]
+    if i >= size:
         raise ParameterError(
-            f"input_map must be an InputMap, an Actuator or None, got {type(input_map).__name__}"
+            f"{name!r}: the state has {size} {kind} entries"
+            + (" (the input lag is off: input_lag=None)" if kind == "u" and size == 0 else "")
         )
-    if not -experiment.t.size <= sample < experiment.t.size:
+    return {"q": 0, "qd": n, "lam": 2 * n, "u": model.n_state}[kind] + i
+
+
+def start_values(model, x0, first_input, names, lagged: bool) -> dict:
+    """The starting value of every state entry in ``names`` for one experiment.
+
+    Parameters
+    ----------
+    model : Model
+        The model.
+    x0 : array_like, shape (n_state,), or callable
+        The experiment's initial state (a callable is evaluated at the nominal extras by
+        the caller and must then be given as an array here).
+    first_input : ndarray, shape (m,)
+        The experiment's first input sample (initial lagged inputs).
+    names : iterable of str
+        Parameter names; those that are not state entries are ignored.
+    lagged : bool
+        Whether the inputs pass through the lag (``x0.u[i]`` allowed).
+    """
+    entries = [n for n in names if is_state_entry(n)]
+    if not entries:
+        return {}
+    if callable(x0):
+        raise ParameterError(f"{entries}: give x0 as an array (not a callable) to name its entries")
+    state = np.concatenate([np.asarray(x0, dtype=np.float64).ravel(), first_input])
+    m = first_input.size if lagged else 0
+    return {n: float(state[state_index(model, n, m)]) for n in entries}
+
+
+def initial_state(model, x0, values: dict, first_input, lagged: bool):
+    """The initial state (MX) with every state entry named in ``values`` substituted.
+
+    Parameters
+    ----------
+    model : Model
+        The model.
+    x0 : array_like, shape (n_state,), or callable
+        The initial state ``(q, qd, lam)``, or ``x0(values)`` returning it.
+    values : dict
+        Extra parameters (CasADi expressions) by name.
+    first_input : ndarray, shape (m,)
+        First input sample: the lagged inputs' start unless named in ``values``.
+    lagged : bool
+        Whether to append the lagged inputs.
+    """
+    start = x0(values) if callable(x0) else ca.DM(np.asarray(x0, dtype=np.float64))
+    start = ca.MX(start) if not isinstance(start, ca.MX) else start
+    if start.shape != (model.n_state, 1):
         raise ParameterError(
-            f"sample must be an index in [0, {experiment.t.size - 1}], got {sample!r}"
+            f"x0 must have {model.n_state} entries (q, qd, lam), got shape {start.shape}"
         )
-    check_units(experiment, input_map=input_map)
-    p = model.parameters if parameters is None else real_array("parameters", parameters,
-                                                               model.parameters.shape)  # fmt: skip
-    q0 = rest_configuration(model.robot) if q0 is None else real_array("q0", q0, (model.n,))
-    inputs = experiment.input_matrix()[sample]
-    values = {**(input_map.parameters if input_map else {}), **(extra or {})}
-    q = ca.SX.sym("q", model.n)
-    tau = ca.SX.zeros(model.n)
-    if input_map is not None:
-        tau = input_map.function(q, ca.DM(inputs), {k: ca.SX(float(v)) for k, v in values.items()})
-    forces = model.symbolic["gravity_force"](q, p) + model.symbolic["elastic_force"](q, p)
-    residual = forces - tau
-    balance = ca.Function("balance", [q], [residual, ca.jacobian(residual, q)])
-
-    def system(q_value):
-        r, k = balance(q_value)
-        return np.array(r, dtype=np.float64).ravel(), np.array(k, dtype=np.float64)
-
-    root = solve_equilibrium(
-        system,
-        q0,
-        scale=coordinate_scale(model.robot),
-        reference=residual_reference(model),
-        tol=tol,
-        max_evaluations=max_evaluations,
-    )
-    x0 = np.concatenate([root.q, np.zeros(model.n), np.zeros(model.n_creep)])
-    return InitialState(
-        q=root.q,
-        x0=x0,
-        inputs=np.array(inputs),
-        residual=system(root.q)[0],
-        time=float(experiment.t[sample]),
-        status=root.status,
-        message=f"equilibrium at t = {experiment.t[sample]:g} s: {root.message}",
-    )
+    entries = ca.vertsplit(ca.vertcat(start, ca.MX(ca.DM(first_input))) if lagged else start)
+    m = first_input.size if lagged else 0
+    for name, value in values.items():
+        if is_state_entry(name):
+            entries[state_index(model, name, m)] = ca.MX(value)
+    return ca.vertcat(*entries)

@@ -35,6 +35,12 @@ class Free:
     scale : float, optional
         Typical magnitude, for conditioning [unit of the parameter] (default:
         ``|initial|``, or 1 if zero).
+    per_experiment : bool
+        In a fit of several experiments, one value per experiment (reported as
+        ``name[experiment]``) instead of one shared by all: sensor offsets, initial
+        states (``"x0.lam[1]"``, :mod:`softcurve.identification.initial`), initial
+        actuator states. Only extra parameters and initial-state entries can be per
+        experiment (the robot is one).
     """
 
     name: str | tuple[str, ...]
@@ -42,6 +48,7 @@ class Free:
     upper: float = np.inf
     initial: float | None = None
     scale: float | None = None
+    per_experiment: bool = False
 
     @property
     def label(self) -> str:
@@ -130,6 +137,12 @@ class FreeParameters:
                     )
             if len(f.targets) > 1 and any(t in self.extra for t in f.targets):
                 raise ParameterError(f"free: only robot parameters can be tied, got {f.name}")
+            if f.per_experiment and any(t not in self.extra for t in f.targets):
+                raise ParameterError(
+                    f"free {f.label!r}: per_experiment=True needs an extra parameter or an "
+                    "initial-state entry (x0.q[i], x0.qd[i], x0.lam[i], x0.u[i]); the robot's "
+                    "parameters are shared by all experiments"
+                )
             if not f.lower < f.upper:
                 raise ParameterError(f"free {f.label!r}: lower must be < upper")
         self.theta0 = np.array(

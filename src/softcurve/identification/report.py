@@ -1,7 +1,9 @@
 """The fit report and the least-squares machinery shared by every fit.
 
 Every fit is a bounded nonlinear least-squares problem solved by SciPy's trust-region
-reflective method with an exact Jacobian (:func:`solve_least_squares`). At the optimum
+reflective method with an exact Jacobian, where a point the model cannot evaluate is a
+rejected step (:func:`solve_least_squares`, :mod:`softcurve.identification.solve`).
+At the optimum
 the Jacobian gives the usual asymptotic covariance ``s^2 (J^T J)^-1`` (``s^2`` the
 residual variance), from which the report draws standard errors, confidence intervals
 (Student t) and the correlation matrix (:func:`summarize`). A parameter whose Jacobian
@@ -12,15 +14,24 @@ with an infinite standard error instead of a misleading number.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+import warnings
+from dataclasses import dataclass, field, replace
 
 import numpy as np
-import scipy.optimize
 import scipy.stats
 
 from softcurve.base.status import Result, Status
 from softcurve.base.validation import ParameterError
 from softcurve.figures import plot_fit
+from softcurve.identification.solve import robust_least_squares
+
+
+class FitError(ParameterError):
+    """A prediction was asked of a fit that failed (its values are not an estimate)."""
+
+
+class FitWarning(UserWarning):
+    """A prediction uses a fit that stopped early (its values are the best point found)."""
 
 
 @dataclass(frozen=True, eq=False)
@@ -59,6 +70,15 @@ class FitReport(Result):
         Residual evaluations used.
     identifiable : ndarray of bool, shape (P,)
         False for parameters the data do not determine.
+    parts : tuple of (str, int)
+        Experiment name and number of samples, in the order their rows are stacked in
+        ``abscissa``, ``measured`` and ``predicted`` (one entry for a single experiment;
+        empty for fits not made of experiments). :meth:`part` gives one of them.
+    optima : ndarray, shape (K, P) or None
+        With a multi-start (``starts=K``), the optimum reached from each start, in the
+        unit of each parameter; the table shows their spread.
+    optimum_costs : ndarray, shape (K,) or None
+        Half the sum of squared weighted residuals at each of them.
     extra : dict
         Fit-specific results (the fitted law, robot, initial state...).
     """
@@ -78,6 +98,9 @@ class FitReport(Result):
     confidence: float = 0.95
     n_evaluations: int = 0
     identifiable: np.ndarray = field(default_factory=lambda: np.zeros(0, bool))
+    parts: tuple = ()
+    optima: np.ndarray | None = None
+    optimum_costs: np.ndarray | None = None
     extra: dict = field(default_factory=dict)
 
     def __post_init__(self):
@@ -117,6 +140,37 @@ class FitReport(Result):
             raise KeyError(f"{name!r} was not fitted; fitted: {list(self.names)}")
         return float(self.values[self.names.index(name)])
 
+    def part(self, name: str) -> FitReport:
+        """The rows of one experiment, as a report with the same estimates.
+
+        Parameters
+        ----------
+        name : str
+            One of the experiment names in :attr:`parts`.
+        """
+        start = 0
+        for label, count in self.parts:
+            if label == name:
+                rows = slice(start, start + count)
+                return replace(
+                    self,
+                    abscissa=self.abscissa[rows],
+                    measured=self.measured[rows],
+                    predicted=self.predicted[rows],
+                    parts=((label, count),),
+                )
+            start += count
+        raise KeyError(f"no experiment {name!r} in this fit; it has {[p[0] for p in self.parts]}")
+
+    def spread(self) -> np.ndarray | None:
+        """Range (max - min) of each parameter over the multi-start optima whose cost is
+        within 1 % of the best, shape (P,); None without a multi-start."""
+        if self.optima is None:
+            return None
+        best = np.min(self.optimum_costs)
+        near = self.optima[self.optimum_costs <= best * 1.01 + 1e-300]
+        return np.ptp(near, axis=0)
+
     def table(self) -> str:
         """A plain-text table of estimates, intervals and the largest correlations."""
         pct = int(round(100 * self.confidence))
@@ -138,6 +192,19 @@ class FitReport(Result):
             lines.append(f"correlation {a} ~ {b}: {c:+.3f}")
         for name, r, m, u in zip(self.signals, self.rms, self.max_error, self.units, strict=False):
             lines.append(f"residual {name}: RMS {r:.4g} {u}, max {m:.4g} {u}")
+        if len(self.parts) > 1:
+            for label, _ in self.parts:
+                rms = ", ".join(f"{v:.4g}" for v in self.part(label).rms)
+                lines.append(f"experiment {label}: RMS {rms} ({', '.join(self.signals)})")
+        if self.optima is not None:
+            costs = self.optimum_costs
+            near = int(np.sum(costs <= np.min(costs) * 1.01 + 1e-300))
+            lines.append(
+                f"multi-start: {len(costs)} starts, {near} reached the best cost "
+                f"{np.min(costs):.4g} (within 1 %), worst {np.max(costs):.4g}"
+            )
+            for name, value, width in zip(self.names, self.values, self.spread(), strict=True):
+                lines.append(f"  spread of {name}: {width:.3g} (estimate {value:.5g})")
         return "\n".join(lines)
 
     def __str__(self) -> str:
@@ -236,7 +303,8 @@ def correlation_matrix(cov: np.ndarray) -> np.ndarray:
 
 
 def solve_least_squares(residual_and_jacobian, z0, lower, upper, max_evaluations):
-    """Run SciPy's bounded trust-region reflective solver on scaled variables ``z``.
+    """Bounded least squares on scaled variables ``z``, failed points rejected
+    (:func:`softcurve.identification.solve.robust_least_squares`).
 
     Parameters
     ----------
@@ -252,50 +320,39 @@ def solve_least_squares(residual_and_jacobian, z0, lower, upper, max_evaluations
     Returns
     -------
     tuple
-        ``(z, r, J, status, message, n_evaluations)`` with ``status`` a :class:`Status`:
-        SUCCESS, EVALUATION_LIMIT or NOT_CONVERGED.
+        ``(z, r, J, status, message, n_evaluations)`` at the best point evaluated, with
+        ``status`` a :class:`Status`: SUCCESS, EVALUATION_LIMIT or NOT_CONVERGED.
     """
-    cache: dict[bytes, tuple[np.ndarray, np.ndarray]] = {}
+    s = robust_least_squares(residual_and_jacobian, z0, lower, upper, max_evaluations)
+    return s.z, s.residuals, s.jacobian, s.status, s.message, s.n_evaluations
 
-    def both(z):
-        key = np.asarray(z, dtype=np.float64).tobytes()
-        if key not in cache:
-            cache.clear()
-            r, jac = residual_and_jacobian(np.asarray(z, dtype=np.float64))
-            if not (np.all(np.isfinite(r)) and np.all(np.isfinite(jac))):
-                raise FloatingPointError("the model returned non-finite residuals")
-            cache[key] = (r, jac)
-        return cache[key]
 
-    count = 0
+def usable_fit(fit: FitReport) -> FitReport:
+    """``fit`` if its values can be predicted from, else :class:`FitError`.
 
-    def fun(z):
-        nonlocal count
-        count += 1
-        return both(z)[0]
+    A fit that failed (NOT_CONVERGED: no point could be evaluated, or the model fails
+    at the estimate; INFEASIBLE: the estimate is not an admissible robot) raises; one
+    that ran out of evaluations warns (:class:`FitWarning`): its values are the best
+    point found, not a converged estimate.
 
-    z0 = np.clip(np.asarray(z0, dtype=np.float64), lower, upper)
-    try:
-        result = scipy.optimize.least_squares(
-            fun,
-            z0,
-            jac=lambda z: both(z)[1],
-            bounds=(lower, upper),
-            method="trf",
-            max_nfev=max_evaluations,
-            x_scale=1.0,
-            xtol=1e-10,
-            ftol=1e-10,
-            gtol=1e-10,
+    Parameters
+    ----------
+    fit : FitReport
+        The fit to predict from.
+    """
+    if fit.status in (Status.NOT_CONVERGED, Status.INFEASIBLE):
+        raise FitError(
+            f"fit: cannot predict from a failed fit (status {fit.status.value}: "
+            f"{fit.message}); {fit.status.advice}"
         )
-    except (FloatingPointError, RuntimeError) as exc:
-        r, jac = cache.get(next(iter(cache)), (None, None)) if cache else (None, None)
-        return z0, r, jac, Status.NOT_CONVERGED, f"the model could not be evaluated: {exc}", count
-    status = Status.SUCCESS if result.status > 0 else Status.EVALUATION_LIMIT
-    if result.status < 0:
-        status = Status.NOT_CONVERGED
-    r, jac = both(result.x)
-    return result.x, r, jac, status, str(result.message), count
+    if fit.status is Status.EVALUATION_LIMIT:
+        warnings.warn(
+            f"predicting from a fit that ran out of evaluations ({fit.message}): its values "
+            "are the best point found; raise max_evaluations or start closer",
+            FitWarning,
+            stacklevel=3,
+        )
+    return fit
 
 
 def summarize(names, jac_theta, weighted_residuals, status: Status, message: str):

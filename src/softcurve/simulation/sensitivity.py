@@ -13,6 +13,9 @@ the outputs is applied afterwards, sample by sample.
 
 from __future__ import annotations
 
+import pickle
+import uuid
+
 import casadi as ca
 import numpy as np
 
@@ -28,23 +31,130 @@ functional iteration (no Newton matrix of the augmented system) at CVODES's own 
 cap; ``options`` of :func:`trajectory_sensitivities` override them."""
 
 
-def trajectory_sensitivities(model, parameters, output, input_map, x0, experiment, options):
+class SensitivityEvaluator:
+    """``theta -> (Y (k, T), dvec(Y)/dtheta (k T, P))`` for one experiment.
+
+    Holds only CasADi functions and arrays, so it can be pickled into a worker process
+    (CasADi serializes its functions; a compiled ``external`` is reloaded from its
+    library on disk).
+    """
+
+    def __init__(self, direct, integrator, out, u_data, seed, scale, active, sizes):
+        self.direct, self.integrator, self.out = direct, integrator, out
+        self.u_data, self.seed, self.scale, self.active = u_data, seed, scale, active
+        self.n_p, self.n_v, self.n_x = sizes
+        self.token, self._blob = uuid.uuid4().hex, None
+
+    def __reduce__(self):
+        # Serialized once; a worker that has loaded this evaluator before reuses it
+        # (deserializing builds the CVODES memory again).
+        if self._blob is None:
+            state = (self.direct, self.integrator, self.out, self.u_data, self.seed)
+            state += (self.scale, self.active, (self.n_p, self.n_v, self.n_x))
+            self._blob = pickle.dumps(state)
+        return (_restore, (self.token, self._blob))
+
+    def __call__(self, theta_value):
+        """Outputs and their Jacobian at ``theta_value``.
+
+        Parameters
+        ----------
+        theta_value : array_like, shape (P,)
+            The free parameters, in the units of each.
+        """
+        n_x, start = self.n_x, self.n_p + self.n_v
+        d_value, jac = (np.array(a) for a in self.direct(theta_value))
+        d_value = d_value.ravel()
+        x_start = np.concatenate([d_value[start:], self.seed.ravel(order="F")])
+        parameters = np.concatenate([d_value, self.scale])
+        states = np.array(self.integrator(x0=x_start, p=parameters, u=self.u_data)["xf"])
+        size = states.shape[1]
+        y_value, y_x, y_d = (
+            np.array(a) for a in self.out(states[:n_x], np.tile(d_value[:, None], size))
+        )
+        k, m = y_value.shape[0], len(self.active)
+        s_all = states[n_x:].reshape(m, n_x, size).transpose(2, 1, 0) / self.scale
+        y_x = y_x.reshape(k, size, n_x).transpose(1, 0, 2)  # (T, k, n_x)
+        y_d = y_d.reshape(k, size, -1).transpose(1, 0, 2)  # (T, k, n_d)
+        total = np.einsum("tkx,txm,mp->tkp", y_x, s_all, jac[self.active]) + y_d @ jac
+        return y_value, total.reshape(size * k, -1)
+
+
+_LOADED: dict = {}
+LOADED_KEPT = 16
+"""Evaluators a worker process keeps loaded (the experiments of the current fits)."""
+
+
+def _restore(token: str, blob: bytes) -> SensitivityEvaluator:
+    """The evaluator ``token``, loaded from ``blob`` unless this process has it."""
+    if token not in _LOADED:
+        if len(_LOADED) >= LOADED_KEPT:
+            _LOADED.pop(next(iter(_LOADED)))
+        evaluator = SensitivityEvaluator(*pickle.loads(blob))
+        evaluator.token, evaluator._blob = token, blob
+        _LOADED[token] = evaluator
+    return _LOADED[token]
+
+
+def hold_inputs(t: np.ndarray, u: np.ndarray, hold: str) -> np.ndarray:
+    """The integrator's input columns for inputs sampled at ``t``.
+
+    CasADi applies column ``k`` on ``(t[k-1], t[k]]``. ``"constant"``: the sample at the
+    end of each interval, ``u_k``. ``"linear"``: the line through both samples,
+    ``a_k + b_k t`` with rows ``(a, b)``, so the inputs are continuous in time (no jump
+    for the integrator to restart at).
+
+    Parameters
+    ----------
+    t : ndarray, shape (T,)
+        Sample times [s].
+    u : ndarray, shape (m, T)
+        Input samples [unit of each input].
+    hold : {"constant", "linear"}
+        How the inputs go between samples.
+    """
+    if hold == "constant" or u.shape[0] == 0:
+        return u
+    if hold != "linear":
+        raise ValueError(f"hold must be 'constant' or 'linear', got {hold!r}")
+    slope = np.zeros_like(u)
+    slope[:, 1:] = np.diff(u, axis=1) / np.diff(t)
+    before = np.concatenate([u[:, :1], u[:, :-1]], axis=1)
+    start = np.concatenate([t[:1], t[:-1]])
+    return np.vstack([before - slope * start, slope])
+
+
+def trajectory_sensitivities(
+    model, parameters, output, input_map, x0, experiment, options, lag=None, hold="constant"
+) -> SensitivityEvaluator:
     """An evaluator ``theta -> (Y (k, T), dvec(Y)/dtheta (k T, P))`` for one experiment.
 
     Parameters
     ----------
     model : Model
+        The compiled model.
     parameters : softcurve.identification.parameters.FreeParameters
         The free parameters and how they enter ``p`` and the extra values.
     output : OutputMap
+        The measured signals as functions of the state.
     input_map : InputMap or None
-    x0 : array_like (n_state,) or callable(values) -> initial state
+        Generalized forces from the inputs.
+    x0 : array_like (n_state [+ m],) or callable(values) -> initial state
+        With ``lag``, the state ends with the ``m`` lagged inputs.
     experiment : Experiment
+        Time grid and inputs.
     options : dict or None
         Extra CVODES options.
+    lag : str, optional
+        Name of the extra parameter holding the time constant [s] of a first-order lag
+        ``u_a' = (u - u_a) / T`` of every input before the input map (None: no lag).
+    hold : {"constant", "linear"}
+        Inputs between samples (:func:`hold_inputs`).
     """
     P = parameters
-    n_x, n_p = model.n_state, P.p0.size
+    u_names = list(experiment.inputs)
+    n_model, n_p = model.n_state, P.p0.size
+    n_x = n_model + (len(u_names) if lag else 0)
     keys = sorted(P.extra)
     n_v = len(keys)
     theta = ca.MX.sym("theta", len(P.free))
@@ -52,41 +162,48 @@ def trajectory_sensitivities(model, parameters, output, input_map, x0, experimen
     start = x0(values) if callable(x0) else ca.DM(np.asarray(x0, dtype=np.float64))
     start = ca.MX(start) if not isinstance(start, ca.MX) else start
     if start.shape != (n_x, 1):
-        raise ValueError(f"x0 must have {n_x} entries (q, qd, lam), got shape {start.shape}")
+        raise ValueError(f"x0 must have {n_x} entries (q, qd, lam[, u]), got {start.shape}")
     d = ca.vertcat(p, *(ca.MX(values[k]) for k in keys), start)
     jac_d = ca.jacobian(d, theta)
     active = sorted(set(jac_d.sparsity().get_triplet()[0]))
     direct = ca.Function("direct", [theta], [d, ca.densify(jac_d)])
 
-    u_names = list(experiment.inputs)
     xs, us = ca.SX.sym("x", n_x), ca.SX.sym("u", len(u_names))
     ds = ca.SX.sym("d", n_p + n_v + n_x)
     v_s = {k: ds[n_p + i] for i, k in enumerate(keys)}
     q, qd = xs[: model.n], xs[model.n : 2 * model.n]
-    tau = input_map.function(q, us, v_s) if input_map is not None else ca.SX.zeros(model.n)
-    f = model.casadi_rhs()(xs, tau, ds[:n_p])
+    applied = xs[n_model:] if lag else us
+    tau = input_map.function(q, applied, v_s) if input_map is not None else ca.SX.zeros(model.n)
+    f = model.casadi_rhs()(xs[:n_model], tau, ds[:n_p])
+    if lag:
+        f = ca.vertcat(f, (us - applied) / v_s[lag])
     d0 = np.array(direct(P.theta0)[0]).ravel()
     scale = np.array([abs(d0[i]) if d0[i] != 0 else 1.0 for i in active])
     m = len(active)
-    sens = ca.SX.sym("S", n_x, m)
-    f_d = ca.jacobian(f, ds)[:, active] @ ca.diag(ca.DM(scale)) if m else ca.SX(n_x, 0)
+    # The column scales are an input (not constants of the code), so that experiments
+    # and fits of one structure share one compiled library.
+    sens, sc_s = ca.SX.sym("S", n_x, m), ca.SX.sym("scale", m)
+    f_d = ca.jacobian(f, ds)[:, active] @ ca.diag(sc_s) if m else ca.SX(n_x, 0)
     s_dot = ca.jacobian(f, xs) @ sens + f_d
     augmented = ca.Function(
         "softcurve_sensitivity",
-        [ca.vertcat(xs, ca.vec(sens)), us, ds],
+        [ca.vertcat(xs, ca.vec(sens)), us, ca.vertcat(ds, sc_s)],
         [ca.cse(ca.vertcat(f, ca.vec(s_dot)))],
     )
     rhs = compile_function(augmented)
+    n_u = len(u_names)
     xa, ua, da = (
         ca.MX.sym("x", n_x * (1 + m)),
-        ca.MX.sym("u", len(u_names)),
-        ca.MX.sym("d", ds.shape[0]),
+        ca.MX.sym("u", n_u * (2 if hold == "linear" else 1)),
+        ca.MX.sym("d", ds.shape[0] + m),
     )
+    time = ca.MX.sym("t")
+    applied_u = ua[:n_u] + ua[n_u:] * time if hold == "linear" else ua
     t = experiment.t
     integrator = ca.integrator(
         "sensitivity",
         "cvodes",
-        {"x": xa, "u": ua, "p": da, "ode": rhs(xa, ua, da)},
+        {"x": xa, "u": ua, "p": da, "t": time, "ode": rhs(xa, applied_u, da)},
         float(t[0]),
         t,
         {**SENSITIVITY_CVODES, **(options or {})},
@@ -94,24 +211,11 @@ def trajectory_sensitivities(model, parameters, output, input_map, x0, experimen
     y = output.function(q, qd, v_s, ds[:n_p])
     out = ca.Function("out", [xs, ds], [y, ca.jacobian(y, xs), ca.jacobian(y, ds)]).map(t.size)
     u_data = experiment.input_matrix(u_names).T if u_names else np.zeros((0, t.size))
+    u_data = hold_inputs(t, u_data, hold)
     seed = np.zeros((n_x, m))
     for j, i in enumerate(active):
         if i >= n_p + n_v:
             seed[i - n_p - n_v, j] = scale[j]
-
-    def evaluate(theta_value):
-        d_value, jac = (np.array(a) for a in direct(theta_value))
-        d_value = d_value.ravel()
-        x_start = np.concatenate([d_value[n_p + n_v :], seed.ravel(order="F")])
-        states = np.array(integrator(x0=x_start, p=d_value, u=u_data)["xf"])
-        y_value, y_x, y_d = (
-            np.array(a) for a in out(states[:n_x], np.tile(d_value[:, None], t.size))
-        )
-        k = y_value.shape[0]
-        s_all = states[n_x:].reshape(m, n_x, t.size).transpose(2, 1, 0) / scale  # (T, n_x, m)
-        y_x = y_x.reshape(k, t.size, n_x).transpose(1, 0, 2)  # (T, k, n_x)
-        y_d = y_d.reshape(k, t.size, -1).transpose(1, 0, 2)  # (T, k, n_d)
-        total = np.einsum("tkx,txm,mp->tkp", y_x, s_all, jac[active]) + y_d @ jac
-        return y_value, total.reshape(t.size * k, -1)
-
-    return evaluate
+    return SensitivityEvaluator(
+        direct, integrator, out, u_data, seed, scale, active, (n_p, n_v, n_x)
+    )

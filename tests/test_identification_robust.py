@@ -1,0 +1,147 @@
+"""Robust fits: a trial point the model cannot evaluate is a rejected step; predicting
+from a failed fit raises; multi-start reports the spread of its optima."""
+
+import numpy as np
+import pytest
+
+import softcurve as sc
+import softcurve.identification.dynamic as dynamic
+from softcurve.base.status import Status
+from softcurve.identification.dynamic import fit_trajectory, predict_trajectory
+from softcurve.identification.experiments import Experiment
+from softcurve.identification.maps import bending_angle
+from softcurve.identification.parameters import Free
+from softcurve.identification.report import FitError, FitWarning
+from softcurve.identification.solve import robust_least_squares, starting_points
+
+SEG = "segments[0]."
+LENGTH = 0.064
+
+
+def _rosenbrock(fail_at):
+    """Rosenbrock's residuals; the evaluations numbered in ``fail_at`` raise."""
+    calls = []
+
+    def residual_and_jacobian(z):
+        calls.append(z.copy())
+        if len(calls) in fail_at:
+            raise RuntimeError("CVode returned CV_CONV_FAILURE (forced)")
+        r = np.array([10.0 * (z[1] - z[0] ** 2), 1.0 - z[0]])
+        jac = np.array([[-20.0 * z[0], 10.0], [-1.0, 0.0]])
+        return r, jac
+
+    return residual_and_jacobian, calls
+
+
+def test_a_failed_trial_point_is_rejected_and_the_fit_converges():
+    bounds = (np.full(2, -5.0), np.full(2, 5.0))
+    clean = robust_least_squares(_rosenbrock(())[0], [-1.2, 1.0], *bounds, 200)
+    assert clean.status is Status.SUCCESS and clean.rejected == 0
+    # the first trial point after the start, and a later one, cannot be evaluated
+    function, calls = _rosenbrock((2, 6))
+    solution = robust_least_squares(function, [-1.2, 1.0], *bounds, 200)
+    assert solution.status is Status.SUCCESS, solution.message
+    assert solution.rejected == 2 and "2 trial point(s) could not be evaluated" in solution.message
+    np.testing.assert_allclose(solution.z, [1.0, 1.0], atol=1e-8)
+    # after the first rejection the next trial is within a quarter of the failed step
+    failed = np.max(np.abs(calls[1] - calls[0]))
+    assert np.max(np.abs(calls[2] - calls[0])) <= 0.25 * failed * (1 + 1e-12)
+    assert solution.n_evaluations == len(calls) < 200
+
+
+def test_a_model_that_cannot_be_evaluated_at_the_start_reports_the_start():
+    function, _ = _rosenbrock(range(1, 100))
+    solution = robust_least_squares(function, [0.5, 0.5], np.full(2, -5.0), np.full(2, 5.0), 50)
+    assert solution.status is Status.NOT_CONVERGED and solution.residuals is None
+    assert "cannot be evaluated at the starting values" in solution.message
+    np.testing.assert_array_equal(solution.z, [0.5, 0.5])
+
+
+def test_starting_points_are_seeded_and_within_bounds():
+    lower, upper = np.array([0.0, -np.inf]), np.array([2.0, np.inf])
+    points = starting_points(np.array([1.0, 3.0]), lower, upper, 5, seed=3)
+    again = starting_points(np.array([1.0, 3.0]), lower, upper, 5, seed=3)
+    np.testing.assert_array_equal(points, again)
+    np.testing.assert_array_equal(points[0], [1.0, 3.0])
+    assert np.all((points[:, 0] >= 0) & (points[:, 0] <= 2))
+    assert np.all(np.abs(points[:, 1] - 3.0) <= 1.5)
+
+
+@pytest.fixture(scope="module")
+def oscillation():
+    segment = sc.Segment(
+        rest_length=LENGTH,
+        mass=0.017,
+        radius=0.013,
+        elongation_stiffness=sc.LinearStiffness(1000.0),
+        bending_stiffness=sc.LinearStiffness(0.008),
+        damping=[0.5, 4e-7, 4e-7],
+    )
+    model = sc.Model(sc.Robot(segments=(segment,)), quadrature_nodes=4)
+    x0 = np.array([LENGTH, np.radians(20.0) / LENGTH, 0.0, 0.0, 0.0, 0.0])
+    t = np.arange(0.0, 0.3 + 1e-12, 2e-3)
+    template = Experiment(t, {"beta": np.zeros_like(t)}, units={"beta": "deg"})
+    clean = fit_trajectory(model, template, output=bending_angle(), x0=x0, free=[])
+    return model, x0, template.with_signals(beta=clean.predicted[:, 0])
+
+
+FREE = [
+    Free(SEG + "bending_stiffness.k0", 1e-4, 1.0, initial=0.012),
+    Free(SEG + "damping[1,1]", 1e-9, 1e-4, initial=1e-6),
+]
+
+
+def _failing(fail_at):
+    """``trajectory_sensitivities`` whose evaluators raise at the calls in ``fail_at``."""
+    original = dynamic.trajectory_sensitivities
+
+    def build(*args, **kwargs):
+        evaluate, calls = original(*args, **kwargs), []
+
+        def flaky(theta):
+            calls.append(theta)
+            if len(calls) in fail_at:
+                raise RuntimeError('CVode returned "CV_ERR_FAILURE" (forced)')
+            return evaluate(theta)
+
+        return flaky
+
+    return build
+
+
+def test_a_fit_survives_a_trial_point_where_the_integrator_fails(oscillation, monkeypatch):
+    model, x0, data = oscillation
+    monkeypatch.setattr(dynamic, "trajectory_sensitivities", _failing({2}))
+    report = fit_trajectory(model, data, output=bending_angle(), x0=x0, free=FREE)
+    assert report.success, report.message
+    assert "1 trial point(s) could not be evaluated and were rejected" in report.message
+    np.testing.assert_allclose(report.values, [0.008, 4e-7], rtol=1e-5)
+
+
+def test_predicting_from_a_failed_fit_raises(oscillation, monkeypatch):
+    model, x0, data = oscillation
+    with monkeypatch.context() as patch:
+        patch.setattr(dynamic, "trajectory_sensitivities", _failing(set(range(1, 99))))
+        failed = fit_trajectory(model, data, output=bending_angle(), x0=x0, free=FREE)
+    assert failed.status is Status.NOT_CONVERGED
+    assert "cannot be evaluated at the starting values" in failed.message
+    np.testing.assert_array_equal(failed.values, [0.012, 1e-6])
+    with pytest.raises(FitError, match="cannot predict from a failed fit"):
+        predict_trajectory(model, data, failed, output=bending_angle(), x0=x0)
+    early = fit_trajectory(model, data, output=bending_angle(), x0=x0, free=FREE, max_evaluations=2)
+    assert early.status is Status.EVALUATION_LIMIT
+    with pytest.warns(FitWarning, match="ran out of evaluations"):
+        predict_trajectory(model, data, early, output=bending_angle(), x0=x0)
+
+
+def test_multi_start_reports_the_spread_of_its_optima(oscillation):
+    model, x0, data = oscillation
+    report = fit_trajectory(model, data, output=bending_angle(), x0=x0, free=FREE, starts=3, seed=2)
+    assert report.success, report.message
+    assert report.optima.shape == (3, 2) and report.optimum_costs.shape == (3,)
+    # the starts differ (uniform within the bounds) but reach the same minimum
+    np.testing.assert_allclose(report.values, [0.008, 4e-7], rtol=1e-5)
+    assert np.all(report.spread() <= 1e-5 * np.abs(report.values))
+    assert "multi-start: 3 starts" in report.table()
+    with pytest.raises(sc.ParameterError, match="starts must be an integer"):
+        fit_trajectory(model, data, output=bending_angle(), x0=x0, free=FREE, starts=0)
