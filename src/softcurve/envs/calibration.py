@@ -90,8 +90,9 @@ class Calibration:
 
 
 def calibrate(setup) -> Calibration:
-    """Hold :data:`CALIBRATION_MEMBERS` random admissible inputs for :data:`SETTLE_TIME`
-    from the start state, in one batch of the stepper (cached).
+    """Hold :data:`CALIBRATION_MEMBERS` random admissible inputs, and each input alone at
+    its upper bound (the others at their lower), for :data:`SETTLE_TIME` from the start
+    state, in one batch of the stepper (cached).
 
     Parameters
     ----------
@@ -103,9 +104,11 @@ def calibrate(setup) -> Calibration:
         stepper = setup.stepper
         rng = np.random.default_rng(CALIBRATION_SEED)
         lower, upper = stepper.lower, stepper.upper
-        inputs = lower + rng.random((CALIBRATION_MEMBERS, lower.size)) * (upper - lower)
-        x = np.tile(setup.x0, (CALIBRATION_MEMBERS, 1))
-        ok = np.ones(CALIBRATION_MEMBERS, dtype=bool)
+        random = lower + rng.random((CALIBRATION_MEMBERS, lower.size)) * (upper - lower)
+        corners = np.where(np.eye(lower.size, dtype=bool), upper, lower)  # one input full
+        inputs = np.vstack([random, corners])
+        x = np.tile(setup.x0, (inputs.shape[0], 1))
+        ok = np.ones(inputs.shape[0], dtype=bool)
         states = [x]
         for _ in range(max(1, math.ceil(SETTLE_TIME / stepper.period - 1e-9))):
             result = stepper.step(x, inputs)

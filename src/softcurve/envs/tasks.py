@@ -225,13 +225,13 @@ class PressTask(Task):
     n_goal = 2
 
     def __init__(self, setup, tolerance=None):
-        super().__init__(setup, tolerance)
         environment = setup.stepper.model.environment
         planes = [o for o in getattr(environment, "obstacles", ()) if isinstance(o, Plane)]
         if not planes:
             raise ParameterError(
                 f"{setup.source}: Press needs an environment with a wall (a Plane obstacle)"
             )
+        super().__init__(setup, tolerance)
         self.normal = planes[0].normal
         self.largest = float(np.max(self.calibration.forces @ self.normal))
         if not self.largest > 0:
