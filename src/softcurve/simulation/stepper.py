@@ -1,0 +1,300 @@
+"""A compiled, batched fixed-step stepper: many robots advanced by one control period in
+one call into compiled code, for learning environments and other fixed-rate loops.
+
+:class:`Stepper` advances ``N`` members (states ``x`` (N, n_state), inputs (N, m)) by
+``period`` seconds with ``substeps`` steps of the L-stable Rosenbrock-W method ROS2
+(:mod:`softcurve.simulation.stepper_scheme`), the input held over the period. The state
+layout is :func:`~softcurve.simulation.simulate.simulate`'s: ``(q, qd, lam)`` then, with
+an actuator that has a ``time_constant``, its lagging inputs. A member whose new state is
+non-finite or outside the model's domain is flagged in :class:`StepResult` and keeps its
+state; the others are unaffected, and no member's failure raises.
+
+Use :func:`~softcurve.simulation.simulate.simulate` for error-controlled accuracy; the
+stepper's error is fixed by ``substeps`` (``docs/stepping.md`` gives it against a tight
+reference and the throughput).
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass
+
+import casadi as ca
+import numpy as np
+
+from softcurve.base.status import Result, Status
+from softcurve.base.validation import ParameterError, real_scalar
+from softcurve.compiled.model import Model
+from softcurve.description.actuator import Actuator
+from softcurve.simulation.integrators import ActuatorInput, BufferedCall
+from softcurve.simulation.simulate import initial_state as checked_state
+from softcurve.simulation.stepper_scheme import observer, period_function
+from softcurve.simulation.stepping import domain_reason, outside_domain
+
+DEFAULT_SUBSTEPS = 32
+"""ROS2 steps per period when ``substeps`` is not given (provisional: see docs/stepping.md)."""
+
+
+@dataclass(frozen=True)
+class StepResult(Result):
+    """The members after one period.
+
+    Parameters
+    ----------
+    x : ndarray, shape (N, n_state)
+        States at the end of the period; a failed member keeps its state from before the
+        step.
+    tip : ndarray, shape (N, 3)
+        Tip position [m] in the world frame at the end of the period (for a failed
+        member, at its kept state).
+    contact_force : ndarray, shape (N, 3)
+        Total force [N] of the environment on the robot, world frame (zeros without an
+        environment).
+    ok : ndarray, shape (N,), bool
+        Whether each member advanced.
+    reasons : tuple of (str or None), length N
+        None, or why the member failed (non-finite state, left the model's domain).
+    """
+
+    x: np.ndarray
+    tip: np.ndarray
+    contact_force: np.ndarray
+    ok: np.ndarray
+    reasons: tuple
+
+    @property
+    def status(self) -> Status:
+        """``SUCCESS`` when every member advanced, ``LEFT_DOMAIN`` when none did, else
+        ``PARTIAL``."""
+        if self.ok.all():
+            return Status.SUCCESS
+        return Status.LEFT_DOMAIN if not self.ok.any() else Status.PARTIAL
+
+    @property
+    def message(self) -> str:
+        """How many members advanced, and the first failure's reason."""
+        failed = np.flatnonzero(~self.ok)
+        text = f"{self.ok.size - failed.size} of {self.ok.size} members advanced"
+        if failed.size:
+            text += f"; member {failed[0]}: {self.reasons[failed[0]]}"
+        return text
+
+
+class Stepper:
+    """Advance many robots by one control period in one compiled call.
+
+    Parameters
+    ----------
+    model : Model
+        The compiled model (with or without environment); its robot parameters are
+        read at every step (one compiled function serves any values of the same
+        structure).
+    actuator : Actuator, optional
+        The inputs are the actuator's (commands when it has a ``time_constant``); without
+        one, the inputs are generalized forces [N, N m^2, N m^2].
+    period : float
+        Control period [s] > 0: the inputs are held over it.
+    substeps : int, optional
+        ROS2 steps per period, >= 1 (default :data:`DEFAULT_SUBSTEPS`).
+    threads : int, optional
+        Threads of the batched call, >= 1 (default ``os.cpu_count()``).
+    """
+
+    def __init__(self, model, actuator=None, *, period, substeps=None, threads=None):
+        if not isinstance(model, Model):
+            raise ParameterError(f"model must be a softcurve.Model, got {type(model).__name__}")
+        if actuator is not None:
+            if not isinstance(actuator, Actuator):
+                raise ParameterError(
+                    f"actuator must be a softcurve.Actuator or None, got {type(actuator).__name__}"
+                )
+            actuator.check_robot(model.robot)
+        self._model, self._actuator = model, actuator
+        self._period = real_scalar("period", period, positive=True)
+        self._substeps = _count("substeps", DEFAULT_SUBSTEPS if substeps is None else substeps)
+        self._threads = _count("threads", (os.cpu_count() or 1) if threads is None else threads)
+        self._input = None if actuator is None else ActuatorInput.of(actuator, model.n)
+        extra = 0 if self._input is None else self._input.n_states
+        self._n_state = model.n_state + extra
+        if actuator is None:
+            self._lower, self._upper = np.full(model.n, -np.inf), np.full(model.n, np.inf)
+        else:
+            self._lower, self._upper = actuator.lower.copy(), actuator.upper.copy()
+        self._function = period_function(model, self._input, self._period, self._substeps)
+        inputs_key = None if self._input is None else self._input.key
+        self._key = (self._period, self._substeps, inputs_key)
+        self._observer = observer(model)
+        self._calls: dict[int, BufferedCall] = {}
+
+    # -- properties ---------------------------------------------------------------
+    @property
+    def model(self) -> Model:
+        """The model."""
+        return self._model
+
+    @property
+    def actuator(self) -> Actuator | None:
+        """The actuator, or None (inputs are generalized forces)."""
+        return self._actuator
+
+    @property
+    def period(self) -> float:
+        """The control period [s]."""
+        return self._period
+
+    @property
+    def substeps(self) -> int:
+        """ROS2 steps per period."""
+        return self._substeps
+
+    @property
+    def n_state(self) -> int:
+        """Length of the state: ``model.n_state`` plus the actuator's lag states."""
+        return self._n_state
+
+    @property
+    def n_inputs(self) -> int:
+        """Inputs per member: the actuator's, or ``model.n`` forces without one."""
+        return self._lower.size
+
+    @property
+    def lower(self) -> np.ndarray:
+        """Lower bounds of the inputs (m,); -inf for forces."""
+        return self._lower.copy()
+
+    @property
+    def upper(self) -> np.ndarray:
+        """Upper bounds of the inputs (m,); inf for forces."""
+        return self._upper.copy()
+
+    # -- states ---------------------------------------------------------------------
+    def initial_state(self, q0, qd0=None, inputs=None) -> np.ndarray:
+        """A state (n_state,): ``(q0, qd0)``, creep states zero, lag states ``inputs``.
+
+        Parameters
+        ----------
+        q0 : array_like, shape (n,)
+            Coordinates [m, 1/m, 1/m] in the model's domain, clear of the obstacles.
+        qd0 : array_like, shape (n,), optional
+            Rates [m/s, 1/(m s), 1/(m s)] (default zero).
+        inputs : array_like, shape (m,), optional
+            The actuator's inputs at the start (its lag states; clipped to the bounds),
+            default zero clipped to the bounds as in ``simulate``; ignored without lag.
+        """
+        n = self._model.n
+        x = checked_state(self._model, q0, np.zeros(n) if qd0 is None else qd0)
+        extra = self._n_state - self._model.n_state
+        if not extra:
+            return x
+        start = np.zeros(extra) if inputs is None else np.asarray(inputs, dtype=np.float64)
+        if start.shape != (extra,) or not np.all(np.isfinite(start)):
+            raise ParameterError(f"inputs must be finite with shape ({extra},), got {inputs!r}")
+        return np.concatenate([x, np.clip(start, self._lower, self._upper)])
+
+    def tip(self, x) -> np.ndarray:
+        """Tip positions [m] (N, 3), world frame, at the states ``x`` (N, n_state).
+
+        Parameters
+        ----------
+        x : array_like, shape (N, n_state)
+            States.
+        """
+        return self._observe(self._states(x))[0]
+
+    # -- the step -------------------------------------------------------------------
+    def step(self, x, inputs) -> StepResult:
+        """Advance every member by one period with its inputs held.
+
+        Parameters
+        ----------
+        x : array_like, shape (N, n_state)
+            States.
+        inputs : array_like, shape (N, m)
+            The actuator's inputs (commands with a ``time_constant``), or forces without
+            an actuator; clipped to ``[lower, upper]``.
+
+        Returns
+        -------
+        StepResult
+            States, tips and contact forces at the end of the period, and which members
+            failed and why.
+        """
+        x = self._states(x)
+        count = x.shape[0]
+        u = np.asarray(inputs, dtype=np.float64)
+        if u.shape != (count, self.n_inputs):
+            raise ParameterError(
+                f"inputs must have shape ({count}, {self.n_inputs}), got {u.shape}"
+            )
+        u = np.ascontiguousarray(np.clip(u, self._lower, self._upper))
+        out = np.empty((count, self._n_state + 6))
+        failure, _ = self._call(count)({0: x, 1: u, 2: self._model.parameters}, out)
+        x_next = out[:, : self._n_state]
+        n, rest = self._model.n, self._model.robot.rest_lengths
+        bad_start = outside_domain(x, n, rest)
+        bad = bad_start | outside_domain(x_next, n, rest)
+        if failure is not None:
+            bad[:] = True
+        reasons = [None] * count
+        for i in np.flatnonzero(bad):
+            if failure is not None:
+                reasons[i] = f"the compiled step failed: {failure}"
+            elif bad_start[i]:
+                reasons[i] = domain_reason(x[i], n, rest, 0.0) + " (the state given to the step)"
+            else:
+                reasons[i] = domain_reason(x_next[i], n, rest, self._period) + (
+                    " (t from the start of the step)"
+                )
+        tip = out[:, self._n_state : self._n_state + 3]
+        force = out[:, self._n_state + 3 :]
+        if bad.any():
+            x_next[bad] = x[bad]
+            tip[bad], force[bad] = self._observe(x[bad])
+        return StepResult(
+            x=x_next.copy(),
+            tip=tip.copy(),
+            contact_force=force.copy(),
+            ok=~bad,
+            reasons=tuple(reasons),
+        )
+
+    # -- helpers --------------------------------------------------------------------
+    def _states(self, x) -> np.ndarray:
+        x = np.asarray(x, dtype=np.float64)
+        if x.ndim != 2 or x.shape[1] != self._n_state or x.shape[0] < 1:
+            raise ParameterError(
+                f"x must have shape (N, {self._n_state}) with N >= 1, got {x.shape}"
+            )
+        return np.ascontiguousarray(x)
+
+    def _call(self, count: int) -> BufferedCall:
+        """The period function mapped over ``count`` members (threads), cached per count."""
+        call = self._calls.get(count)
+        if call is None:
+            key = ("stepper-map", self._key, count, self._threads)
+
+            def build():
+                f = self._function
+                if count == 1:
+                    return BufferedCall(f)
+                mapped = f.map(count, "thread", self._threads)
+                x = ca.MX.sym("x", f.size1_in(0), count)
+                u = ca.MX.sym("u", f.size1_in(1), count)
+                p = ca.MX.sym("p", f.size1_in(2))  # shared by the members
+                out = mapped(x, u, ca.repmat(p, 1, count))
+                return BufferedCall(ca.Function("softcurve_stepper_map", [x, u, p], [out]))
+
+            call = self._calls[count] = self._model.cached(key, build)
+        return call
+
+    def _observe(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Tips and contact forces (each (N, 3)) at states ``x`` (N, n_state)."""
+        states = x[:, : self._model.n_state].T
+        out = np.array(self._observer.map(x.shape[0])(states, self._model.parameters)).T
+        return out[:, :3].copy(), out[:, 3:].copy()
+
+
+def _count(name: str, value) -> int:
+    if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < 1:
+        raise ParameterError(f"{name} must be an integer >= 1, got {value!r}")
+    return int(value)

@@ -1,0 +1,159 @@
+"""The batched fixed-step stepper: agreement with simulate, batch equals single calls,
+bounds, failing members, dissipation, forces without actuator."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import softcurve as sc
+from softcurve.base.status import Status
+from softcurve.base.validation import ParameterError
+from softcurve.simulation.stepper import Stepper
+
+PERIOD = 0.02  # the learning environments' control period [s]
+
+
+@pytest.fixture(scope="module")
+def actuator():
+    """examples/pneumatic.toml: three bellows, 0..60 kPa, 20 ms pressure lag."""
+    return sc.PneumaticActuator.three_bellows(
+        distance=0.012, area=2e-4, p_max=6e4, time_constant=0.02
+    )
+
+
+@pytest.fixture(scope="module")
+def stepper(paper_model, actuator):
+    return Stepper(paper_model, actuator, period=PERIOD)
+
+
+def commands(rng, actuator, count: int) -> np.ndarray:
+    return rng.uniform(actuator.lower, actuator.upper, (count, actuator.n_inputs))
+
+
+def test_agrees_with_simulate_on_piecewise_constant_commands(paper_model, actuator, stepper, rng):
+    """Random pressure commands held for one period each, 0.3 s: the stepper's tip
+    follows simulate's (rtol 1e-10) within 5 % of the tip's travel (provisional bound,
+    docs/stepping.md)."""
+    periods = 15
+    held = commands(rng, actuator, periods)
+    q0 = np.array([0.064, 0.0, 0.0])
+    reference = sc.simulate(
+        paper_model,
+        q0,
+        np.zeros(3),
+        actuator=actuator,
+        inputs=np.vstack([held, held[-1:]]),
+        t_final=periods * PERIOD,
+        dt=PERIOD,
+        rtol=1e-10,
+    )
+    assert reference.success, reference.message
+    x = stepper.initial_state(q0)[None, :]
+    tips = [stepper.tip(x)[0]]
+    for k in range(periods):
+        result = stepper.step(x, held[k : k + 1])
+        assert result.ok.all() and result.success, result.message
+        x = result.x
+        tips.append(result.tip[0])
+    tips = np.array(tips)
+    expected = np.array([paper_model.tip_pose(q).position for q in reference.q])
+    travel = np.ptp(expected, axis=0).max()
+    assert np.abs(tips - expected).max() < 0.05 * travel
+    scale = np.abs(reference.q).max(axis=0)
+    assert np.all(np.abs(x[0, :3] - reference.q[-1]) < 0.05 * scale)
+    np.testing.assert_allclose(x[0, 9:], reference.inputs[-1], rtol=0.02, atol=0.02 * 6e4)
+
+
+def test_members_equal_separate_calls(stepper, actuator, rng):
+    count = 5
+    x0 = stepper.initial_state([0.064, 5.0, -3.0], [0.01, 10.0, 0.0])
+    x = (
+        np.tile(x0, (count, 1))
+        + rng.normal(0.0, 1e-3, (count, stepper.n_state))
+        * np.r_[0.001, 1, 1, 0.01, 10, 10, 0, 0, 0, 1e3, 1e3, 1e3]
+    )
+    u = commands(rng, actuator, count)
+    together = stepper.step(x, u)
+    for i in range(count):
+        alone = stepper.step(x[i : i + 1], u[i : i + 1])
+        np.testing.assert_allclose(alone.x[0], together.x[i], rtol=1e-13, atol=1e-300)
+        np.testing.assert_allclose(alone.tip[0], together.tip[i], rtol=1e-13)
+    assert stepper.step(x[:2], u[:2]).x.shape == (2, stepper.n_state)  # N may change
+
+
+def test_inputs_are_clipped_to_the_bounds(stepper):
+    x = np.tile(stepper.initial_state([0.064, 0.0, 0.0]), (2, 1))
+    beyond = np.array([[-1e5, 2e5, 3e4], [0.0, 6e4, 3e4]])
+    result = stepper.step(x, beyond)
+    np.testing.assert_array_equal(result.x[0], result.x[1])
+    np.testing.assert_array_equal(stepper.lower, np.zeros(3))
+    np.testing.assert_array_equal(stepper.upper, np.full(3, 6e4))
+
+
+def test_a_failing_member_is_flagged_and_the_others_are_unaffected(stepper, actuator, rng):
+    x = np.tile(stepper.initial_state([0.064, 5.0, 0.0]), (4, 1))
+    u = commands(rng, actuator, 4)
+    clean = stepper.step(x, u)
+    bad = x.copy()
+    bad[1, 0] = np.nan  # non-finite
+    bad[2, 0] = -0.01  # a negative length: outside the domain
+    result = stepper.step(bad, u)
+    np.testing.assert_array_equal(result.ok, [True, False, False, True])
+    assert result.status is Status.PARTIAL and "member 1" in result.message
+    assert "not finite" in result.reasons[1] or "finite" in result.reasons[1]
+    assert "l must be in the model's domain" in result.reasons[2]
+    np.testing.assert_array_equal(result.x[[0, 3]], clean.x[[0, 3]])
+    np.testing.assert_array_equal(result.x[1:3], bad[1:3])  # kept
+    assert result.reasons[0] is None and result.reasons[3] is None
+
+
+def test_the_scheme_creates_no_energy_and_is_stable_at_long_steps(conservative_model):
+    """Undamped robot whose creep exerts no force: the exact flow conserves the
+    mechanical energy, so the scheme may only lose energy over a run (L-stable ROS2 damps
+    what it cannot resolve; within a run the nonlinear energy may wobble a little); at
+    a period 0.5 s, a step 2 periods of the fastest oscillation (247 rad/s) long, it
+    stays bounded and settles."""
+    q0, qd0 = [0.064, 25.0, 0.0], [0.0, 0.0, 1500.0]
+    for period, periods in ((PERIOD, 25), (0.5, 10)):
+        stepper = Stepper(conservative_model, period=period, substeps=None)
+        x = stepper.initial_state(q0, qd0)[None, :]
+        n = conservative_model.n
+        energy = [conservative_model.energy(x[0, :n], x[0, n : 2 * n])]
+        for _ in range(periods):
+            result = stepper.step(x, np.zeros((1, n)))
+            assert result.ok[0], result.reasons
+            x = result.x
+            energy.append(conservative_model.energy(x[0, :n], x[0, n : 2 * n]))
+        energy = np.array(energy)
+        swing = energy[0] - conservative_model.potential_energy(x[0, :n])
+        assert np.all(energy[1:] <= energy[0] * (1 + 1e-9)), energy
+        assert energy[-1] < energy[0] - 1e-3 * abs(swing)
+
+
+def test_forces_without_actuator(paper_model):
+    """Generalized forces as inputs: a constant bending moment bends the robot as
+    simulate does."""
+    stepper = Stepper(paper_model, period=PERIOD)
+    assert stepper.n_inputs == paper_model.n and stepper.n_state == paper_model.n_state
+    assert np.all(np.isinf(stepper.lower)) and np.all(np.isinf(stepper.upper))
+    tau = np.array([0.0, 1e-3, 0.0])
+    x = stepper.initial_state([0.064, 0.0, 0.0])[None, :]
+    for _ in range(10):
+        x = stepper.step(x, tau[None, :]).x
+    reference = sc.simulate(
+        paper_model, [0.064, 0.0, 0.0], np.zeros(3), tau=tau, t_final=10 * PERIOD, rtol=1e-10
+    )
+    scale = np.abs(reference.q).max(axis=0) + np.array([0.064, 1.0, 1.0])
+    assert np.all(np.abs(x[0, :3] - reference.q[-1]) < 0.02 * scale)
+
+
+def test_bad_arguments_raise(paper_model, actuator, stepper):
+    with pytest.raises(ParameterError, match="period"):
+        Stepper(paper_model, actuator, period=0.0)
+    with pytest.raises(ParameterError, match="substeps"):
+        Stepper(paper_model, actuator, period=PERIOD, substeps=0)
+    with pytest.raises(ParameterError, match="x must have shape"):
+        stepper.step(np.zeros((2, 3)), np.zeros((2, 3)))
+    with pytest.raises(ParameterError, match="inputs must have shape"):
+        stepper.step(np.zeros((2, stepper.n_state)), np.zeros((3, 3)))
