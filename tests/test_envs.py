@@ -21,6 +21,7 @@ from gymnasium.utils.env_checker import check_env  # noqa: E402
 
 import softcurve.envs as envs  # noqa: E402
 from softcurve.envs.core import NOT_FINITE  # noqa: E402
+from softcurve.envs.setup import build_setup  # noqa: E402
 
 STEPS = 3
 """Episode length of most tests (control periods): short, so that autoresets happen."""
@@ -157,7 +158,6 @@ time_constant = 0.02
 [simulation]
 dt = 0.02
 t_final = 0.1
-q0 = [0.064, 0.0, 0.0]
 """
 
 
@@ -167,7 +167,9 @@ def test_a_scenario_file_gives_robot_actuator_period_and_episode_length(tmp_path
     env = envs.Reach.from_scenario(path)
     setup = env.episodes.setup
     assert setup.period == 0.02 and setup.max_episode_steps == 5
-    assert setup.x0[0] == 0.064
+    bent = tmp_path / "bent.toml"  # the start, checked on the setup (no calibration)
+    bent.write_text(textwrap.dedent(SCENARIO) + "q0 = [0.064, 5.0, 0.0]\n")
+    assert build_setup(scenario=bent, duration=1.0).x0[:3].tolist() == [0.064, 5.0, 0.0]
     vector = gymnasium.make_vec("softcurve/Reach-v0", num_envs=2, scenario=str(path))
     assert vector.episodes.setup.max_episode_steps == 5
     without = tmp_path / "bare.toml"
