@@ -10,7 +10,6 @@ import subprocess
 import sys
 import textwrap
 import warnings
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -186,12 +185,3 @@ def test_softcurve_imports_without_gymnasium():
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert "pip install 'softcurve[envs]'" in out.stdout
-
-
-def test_training_example_documents_its_options():
-    out = subprocess.run(
-        [sys.executable, "examples/train_reach.py", "--help"],
-        capture_output=True, text=True, check=True,
-        cwd=Path(__file__).resolve().parents[1],
-    )  # fmt: skip
-    assert "--algo" in out.stdout and "--steps" in out.stdout
