@@ -87,7 +87,7 @@ class Episodes:
             The actions, dimensionless.
         """
         a = np.asarray(actions, dtype=np.float64).reshape(self.size, self.lower.size)
-        if not np.all(np.isfinite(a)):
+        if not np.isfinite(a).all():
             bad = int(np.argmax(~np.all(np.isfinite(a), axis=1)))
             raise ParameterError(f"actions of member {bad} are not finite: {a[bad].tolist()}")
         return self.lower + (np.clip(a, -1.0, 1.0) + 1.0) / 2.0 * (self.upper - self.lower)
@@ -108,23 +108,28 @@ class Episodes:
         state = (x - calibration.state_mean) / calibration.state_scale
         where = (tip - calibration.center) / calibration.radius
         observation = np.hstack([state, where, goal])
-        observation = np.nan_to_num(observation, nan=0.0, posinf=OBSERVATION_LIMIT,
-                                    neginf=-OBSERVATION_LIMIT)  # fmt: skip
+        if not np.isfinite(observation).all():  # only after a failure
+            observation = np.nan_to_num(observation, nan=0.0, posinf=OBSERVATION_LIMIT,
+                                        neginf=-OBSERVATION_LIMIT)  # fmt: skip
         np.clip(observation, -OBSERVATION_LIMIT, OBSERVATION_LIMIT, out=observation)
         return observation.astype(np.float32)
 
     def _outcome(self, members, x, tip, force, ok, reasons) -> tuple:
         """Observations, rewards, success and info of ``members`` at states ``x``."""
         goal, reward, success, extra = self.task.evaluate(
-            self.parameters[members], self.steps[members], np.nan_to_num(tip), force
+            self.parameters[members], self.steps[members], tip, force
         )
-        reward = np.where(ok, reward, FAILURE_REWARD)
+        failure = np.full(len(members), None, dtype=object)
+        if not ok.all():
+            reward = np.where(ok, np.nan_to_num(reward), FAILURE_REWARD)
+            for i in np.flatnonzero(~ok):
+                failure[i] = reasons[i]
         info = {
             "tip": tip,
             "time": self.steps[members] * self.setup.period,
             "is_success": success & ok,
             **extra,
-            "failure": np.array(reasons, dtype=object),
+            "failure": failure,
         }
         return self.observe(x, tip, goal), reward, info
 
@@ -176,24 +181,26 @@ class Episodes:
             The actions in [-1, 1] (clipped), dimensionless.
         """
         inputs = self.inputs(actions)
-        finite = np.all(np.isfinite(self.x), axis=1)
-        start = np.where(finite[:, None], self.x, self.setup.x0)
+        finite = np.isfinite(self.x).all(axis=1)
+        start = self.x if finite.all() else np.where(finite[:, None], self.x, self.setup.x0)
         result = self.setup.stepper.step(start, inputs)
-        x = np.array(result.x, dtype=np.float64)
-        ok = np.asarray(result.ok, dtype=bool) & finite
-        reasons = list(result.reasons)
-        for i in np.flatnonzero(~finite):
-            reasons[i] = NOT_FINITE
-        arrived = np.all(np.isfinite(x), axis=1)
-        for i in np.flatnonzero(ok & ~arrived):
-            reasons[i] = "the stepper returned a state that is not finite"
-        ok &= arrived
-        x[~ok] = self.x[~ok]  # a failed member keeps its state from before the step
-        tip = np.where(ok[:, None], result.tip, np.nan)
-        kept = np.flatnonzero(~ok & np.all(np.isfinite(x), axis=1))
-        if kept.size:  # the tip of the state kept
-            tip[kept] = self.setup.stepper.tip(x[kept])
-        force = np.where(ok[:, None], result.contact_force, 0.0)
+        x, tip, force = result.x, result.tip, result.contact_force
+        ok = result.ok & finite & np.isfinite(x).all(axis=1)
+        reasons = result.reasons
+        if not ok.all():  # the failed members keep their state from before the step
+            reasons = list(reasons)
+            for i in np.flatnonzero(~ok):
+                reasons[i] = (
+                    NOT_FINITE
+                    if not finite[i]
+                    else (reasons[i] or "the stepper returned a state that is not finite")
+                )
+            x, tip, force = x.copy(), tip.copy(), force.copy()
+            x[~ok] = self.x[~ok]
+            tip[~ok], force[~ok] = np.nan, 0.0
+            kept = np.flatnonzero(~ok & np.isfinite(x).all(axis=1))
+            if kept.size:  # the tip of the state kept
+                tip[kept] = self.setup.stepper.tip(x[kept])
         self.x = x
         self.steps += 1
         members = np.arange(self.size)

@@ -23,11 +23,14 @@ from softcurve.envs.tasks import PressTask, ReachTask, TrackTask
 
 
 def _masked(info: dict, size: int) -> dict:
-    """``info`` with an all-true mask ``_k`` for each key ``k`` (Gymnasium's layout)."""
+    """``info`` with an all-true mask ``_k`` for each key ``k`` (Gymnasium's layout; one
+    read-only array shared by the keys)."""
+    every = np.ones(size, dtype=bool)
+    every.flags.writeable = False
     out = {}
     for key, value in info.items():
         out[key] = value
-        out[f"_{key}"] = np.ones(size, dtype=bool)
+        out[f"_{key}"] = every
     return out
 
 
