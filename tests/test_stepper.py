@@ -33,8 +33,8 @@ def commands(rng, actuator, count: int) -> np.ndarray:
 
 def test_agrees_with_simulate_on_piecewise_constant_commands(paper_model, actuator, stepper, rng):
     """Random pressure commands held for one period each, 0.3 s: the stepper's tip
-    follows simulate's (rtol 1e-10) within 5 % of the tip's travel (provisional bound,
-    docs/stepping.md)."""
+    follows simulate's (rtol 1e-10) within the bound that set DEFAULT_SUBSTEPS, 1 mm and
+    2 % of the tip's travel (docs/stepping.md); so do the states."""
     periods = 15
     held = commands(rng, actuator, periods)
     q0 = np.array([0.064, 0.0, 0.0])
@@ -59,9 +59,9 @@ def test_agrees_with_simulate_on_piecewise_constant_commands(paper_model, actuat
     tips = np.array(tips)
     expected = np.array([paper_model.tip_pose(q).position for q in reference.q])
     travel = np.ptp(expected, axis=0).max()
-    assert np.abs(tips - expected).max() < 0.05 * travel
+    assert np.abs(tips - expected).max() < min(1e-3, 0.02 * travel)
     scale = np.abs(reference.q).max(axis=0)
-    assert np.all(np.abs(x[0, :3] - reference.q[-1]) < 0.05 * scale)
+    assert np.all(np.abs(x[0, :3] - reference.q[-1]) < 0.02 * scale)
     np.testing.assert_allclose(x[0, 9:], reference.inputs[-1], rtol=0.02, atol=0.02 * 6e4)
 
 
@@ -110,31 +110,39 @@ def test_a_failing_member_is_flagged_and_the_others_are_unaffected(stepper, actu
 
 def test_the_scheme_creates_no_energy_and_is_stable_at_long_steps(conservative_model):
     """Undamped robot whose creep exerts no force: the exact flow conserves the
-    mechanical energy, so the scheme may only lose energy over a run (L-stable ROS2 damps
-    what it cannot resolve; within a run the nonlinear energy may wobble a little); at
-    a period 0.5 s, a step 2 periods of the fastest oscillation (247 rad/s) long, it
-    stays bounded and settles."""
+    mechanical energy. At the 20 ms period the default scheme resolves the motion and
+    the energy stays within its truncation error (2e-4 relative, order 3) of the start,
+    never growing; ROS2 in single steps of 50 ms, twice the period of the fastest
+    oscillation (247 rad/s), loses energy at every step (L-stable: it damps what it
+    cannot resolve) and the robot settles."""
     q0, qd0 = [0.064, 25.0, 0.0], [0.0, 0.0, 1500.0]
-    for period, periods in ((PERIOD, 25), (0.5, 10)):
-        stepper = Stepper(conservative_model, period=period, substeps=None)
+    for period, method, substeps, tolerance in (
+        (PERIOD, None, None, 2e-4),
+        (0.05, "ROS2", 1, 0.0),
+    ):
+        stepper = Stepper(
+            conservative_model, period=period, substeps=substeps, method=method, compiled=False
+        )
         x = stepper.initial_state(q0, qd0)[None, :]
         n = conservative_model.n
         energy = [conservative_model.energy(x[0, :n], x[0, n : 2 * n])]
-        for _ in range(periods):
+        for _ in range(25):
             result = stepper.step(x, np.zeros((1, n)))
             assert result.ok[0], result.reasons
             x = result.x
             energy.append(conservative_model.energy(x[0, :n], x[0, n : 2 * n]))
         energy = np.array(energy)
         swing = energy[0] - conservative_model.potential_energy(x[0, :n])
-        assert np.all(energy[1:] <= energy[0] * (1 + 1e-9)), energy
+        assert np.all(energy[1:] <= energy[0] * (1 + tolerance)), energy
+        if not tolerance:
+            assert np.all(np.diff(energy) <= 0), energy
         assert energy[-1] < energy[0] - 1e-3 * abs(swing)
 
 
 def test_forces_without_actuator(paper_model):
     """Generalized forces as inputs: a constant bending moment bends the robot as
     simulate does."""
-    stepper = Stepper(paper_model, period=PERIOD)
+    stepper = Stepper(paper_model, period=PERIOD, compiled=False)
     assert stepper.n_inputs == paper_model.n and stepper.n_state == paper_model.n_state
     assert np.all(np.isinf(stepper.lower)) and np.all(np.isinf(stepper.upper))
     tau = np.array([0.0, 1e-3, 0.0])
@@ -148,6 +156,34 @@ def test_forces_without_actuator(paper_model):
     assert np.all(np.abs(x[0, :3] - reference.q[-1]) < 0.02 * scale)
 
 
+def test_compiled_equals_the_virtual_machine_and_the_error_falls_as_order_3(
+    paper_model, actuator, stepper, rng
+):
+    """The generated C and CasADi's virtual machine on the model's library compute the
+    same scheme (to the round-off of the forward-difference Jacobian, ~1e-8, which a
+    W-method damps further); the error against simulate falls each time the steps are
+    halved, faster than for a first-order method (ROS34PW2 is of order 3: the 2 s runs
+    of docs/stepping.md fall as substeps**-3)."""
+    x = np.tile(stepper.initial_state([0.064, 5.0, -3.0]), (3, 1))
+    u = commands(rng, actuator, 3)
+    machine = Stepper(paper_model, actuator, period=PERIOD, compiled=False)
+    scale = np.abs(x).max(axis=0) + np.r_[0.064, 1, 1, 0.1, 100, 100, 1, 1, 1, 6e4, 6e4, 6e4]
+    difference = np.abs(machine.step(x, u).x - stepper.step(x, u).x) / scale
+    assert difference.max() < 1e-8
+    q0, held = [0.064, 0.0, 0.0], commands(rng, actuator, 1)[0]
+    reference = sc.simulate(
+        paper_model, q0, np.zeros(3), actuator=actuator, inputs=held, t_final=0.1, rtol=1e-11
+    )
+    errors = []
+    for substeps in (4, 8, 16):
+        coarse = Stepper(paper_model, actuator, period=PERIOD, substeps=substeps, compiled=False)
+        x = coarse.initial_state(q0)[None, :]
+        for _ in range(5):
+            x = coarse.step(x, held[None, :]).x
+        errors.append(np.abs(x[0, :3] - reference.q[-1]).max() / np.abs(reference.q[-1]).max())
+    assert errors[0] > 3 * errors[1] > 9 * errors[2], errors
+
+
 def test_bad_arguments_raise(paper_model, actuator, stepper):
     with pytest.raises(ParameterError, match="period"):
         Stepper(paper_model, actuator, period=0.0)
@@ -157,3 +193,25 @@ def test_bad_arguments_raise(paper_model, actuator, stepper):
         stepper.step(np.zeros((2, 3)), np.zeros((2, 3)))
     with pytest.raises(ParameterError, match="inputs must have shape"):
         stepper.step(np.zeros((2, stepper.n_state)), np.zeros((3, 3)))
+
+
+def test_contact_force_under_a_ceiling():
+    """The paper's robot (thin body) stretching into a ceiling 1 mm above its body: the
+    stepper's contact force is the obstacle's force on the robot at the new state
+    (model.contact) and pushes down. A model without compiled library (compile=False):
+    nothing is compiled."""
+    robot = sc.presets.ifac2020()
+    ceiling = sc.Plane([0.0, 0.0, 0.062], [0.0, 0.0, -1.0])
+    law = sc.ContactLaw(stiffness=1e7, smoothing=1e-6, damping=1.0, friction=0.5)
+    environment = sc.Environment([ceiling], law, contact_radius=[1e-3])
+    model = sc.Model(robot, environment=environment, compile=False)
+    stepper = Stepper(model, period=0.01, substeps=4, method="ROS2")
+    x = stepper.initial_state([0.06, 0.0, 0.0], [0.2, 0.0, 0.0])[None, :]
+    result = stepper.step(x, np.zeros((1, 3)))
+    assert result.ok[0], result.reasons
+    n = model.n
+    q, qd = result.x[0, :n], result.x[0, n : 2 * n]
+    expected = model.contact(q, qd)["forces"].sum(axis=0)
+    np.testing.assert_allclose(result.contact_force[0], expected, rtol=1e-9, atol=1e-12)
+    assert result.contact_force[0, 2] < -0.01  # the ceiling pushes down [N]
+    np.testing.assert_allclose(result.tip[0], model.tip_pose(q).position, rtol=1e-12)

@@ -28,11 +28,30 @@ from softcurve.compiled.model import Model
 from softcurve.description.actuator import Actuator
 from softcurve.simulation.integrators import ActuatorInput, BufferedCall
 from softcurve.simulation.simulate import initial_state as checked_state
-from softcurve.simulation.stepper_scheme import observer, period_function
+from softcurve.simulation.stepper_scheme import METHODS, observer, period_function
 from softcurve.simulation.stepping import domain_reason, outside_domain
 
-DEFAULT_SUBSTEPS = 32
-"""ROS2 steps per period when ``substeps`` is not given (provisional: see docs/stepping.md)."""
+DEFAULT_METHOD = "ROS34PW2"
+"""The Rosenbrock-W method when ``method`` is not given: order 3 with the Jacobian of the
+period's start; ROS2 (order 2) needs 64 steps per 20 ms for the error ROS34PW2 reaches
+with 16 (docs/stepping.md), twice the right-hand sides."""
+
+DEFAULT_SUBSTEPS = 16
+"""Steps per period when ``substeps`` is not given, measured for a 20 ms period
+(``benchmarks/bench_stepper.py``, docs/stepping.md): the paper's robot under random
+pressure commands held 20 ms each over 2 s (the harshest input a policy gives) stays
+within 1 mm (1 % of the tip's travel) of ``simulate`` at ``rtol = 1e-10``; 12 steps
+give 2.2 mm, 8 give 6 mm (the error falls as ``substeps**-3``). A longer period needs
+proportionally more."""
+
+CONTACT_JACOBIAN_EVERY = 1
+"""Steps between fresh Jacobians with an environment (default of ``jacobian_every``).
+Measured (docs/stepping.md): the paper's robot stretching into a ceiling with friction
+(``ContactLaw(1e7, damping=1, friction=0.5)``), 0.1 s at 20 ms periods with ROS34PW2 x
+16: the curvature ends 0.004 1/m from ``simulate(rtol=1e-10)`` with a Jacobian at every
+step, 0.45 with one every 4 steps and 0.59 with one per period (the friction force then
+has the wrong sign): a Jacobian from before the body touched, or before it stuck, does
+not see the contact's stiffness."""
 
 
 @dataclass(frozen=True)
@@ -98,9 +117,33 @@ class Stepper:
         ROS2 steps per period, >= 1 (default :data:`DEFAULT_SUBSTEPS`).
     threads : int, optional
         Threads of the batched call, >= 1 (default ``os.cpu_count()``).
+    method : str, optional
+        The Rosenbrock-W method, a key of
+        :data:`~softcurve.simulation.stepper_scheme.METHODS` (default
+        :data:`DEFAULT_METHOD`).
+    compiled : bool
+        Generate the whole period as C and compile it (default; cached on disk, one
+        library per robot structure, environment, actuator, method and ``substeps``), or
+        evaluate it in CasADi's virtual machine on the model's right-hand side (no
+        compile, slower). A model built with ``compile=False`` is never compiled.
+    jacobian_every : int, optional
+        Steps between fresh Jacobians, >= 1. Default: one per period for a free robot;
+        every step with an environment, whose contact and friction switch on and off
+        within a period (:data:`CONTACT_JACOBIAN_EVERY`).
     """
 
-    def __init__(self, model, actuator=None, *, period, substeps=None, threads=None):
+    def __init__(
+        self,
+        model,
+        actuator=None,
+        *,
+        period,
+        substeps=None,
+        threads=None,
+        method=None,
+        compiled=True,
+        jacobian_every=None,
+    ):
         if not isinstance(model, Model):
             raise ParameterError(f"model must be a softcurve.Model, got {type(model).__name__}")
         if actuator is not None:
@@ -120,10 +163,22 @@ class Stepper:
             self._lower, self._upper = np.full(model.n, -np.inf), np.full(model.n, np.inf)
         else:
             self._lower, self._upper = actuator.lower.copy(), actuator.upper.copy()
-        self._function = period_function(model, self._input, self._period, self._substeps)
+        method = DEFAULT_METHOD if method is None else method
+        if method not in METHODS:
+            raise ParameterError(f"method must be one of {sorted(METHODS)}, got {method!r}")
+        self._method = method
+        compiled = bool(compiled) and model.compiled_library is not None
+        if jacobian_every is None:
+            free = model.environment is None
+            jacobian_every = self._substeps if free else CONTACT_JACOBIAN_EVERY
+        self._every = min(_count("jacobian_every", jacobian_every), self._substeps)
+        self._function = period_function(
+            model, self._input, self._substeps, method, compiled, None, self._every
+        )
         inputs_key = None if self._input is None else self._input.key
-        self._key = (self._period, self._substeps, inputs_key)
-        self._observer = observer(model)
+        self._key = (self._substeps, method, compiled, self._every, inputs_key)
+        self._period_array = np.array([self._period])
+        self._observer = observer(model, symbolic=False)
         self._calls: dict[int, BufferedCall] = {}
 
     # -- properties ---------------------------------------------------------------
@@ -146,6 +201,16 @@ class Stepper:
     def substeps(self) -> int:
         """ROS2 steps per period."""
         return self._substeps
+
+    @property
+    def method(self) -> str:
+        """The Rosenbrock-W method."""
+        return self._method
+
+    @property
+    def jacobian_every(self) -> int:
+        """Steps between fresh Jacobians."""
+        return self._every
 
     @property
     def n_state(self) -> int:
@@ -228,7 +293,8 @@ class Stepper:
             )
         u = np.ascontiguousarray(np.clip(u, self._lower, self._upper))
         out = np.empty((count, self._n_state + 6))
-        failure, _ = self._call(count)({0: x, 1: u, 2: self._model.parameters}, out)
+        shared = {2: self._model.parameters, 3: self._period_array}
+        failure, _ = self._call(count)({0: x, 1: u, **shared}, out)
         x_next = out[:, : self._n_state]
         n, rest = self._model.n, self._model.robot.rest_lengths
         bad_start = outside_domain(x, n, rest)
@@ -275,14 +341,14 @@ class Stepper:
 
             def build():
                 f = self._function
-                if count == 1:
-                    return BufferedCall(f)
-                mapped = f.map(count, "thread", self._threads)
+                mapped = f if count == 1 else f.map(count, "thread", self._threads)
                 x = ca.MX.sym("x", f.size1_in(0), count)
                 u = ca.MX.sym("u", f.size1_in(1), count)
                 p = ca.MX.sym("p", f.size1_in(2))  # shared by the members
-                out = mapped(x, u, ca.repmat(p, 1, count))
-                return BufferedCall(ca.Function("softcurve_stepper_map", [x, u, p], [out]))
+                period = ca.MX.sym("period")
+                out = mapped(x, u, ca.repmat(p, 1, count), ca.repmat(period, 1, count))
+                wrapper = ca.Function("softcurve_stepper_map", [x, u, p, period], [out])
+                return BufferedCall(wrapper)
 
             call = self._calls[count] = self._model.cached(key, build)
         return call

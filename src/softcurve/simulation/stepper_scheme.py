@@ -21,6 +21,7 @@ lam)`` then, with an actuator that has a ``time_constant``, its lagging inputs
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import casadi as ca
 import numpy as np
@@ -29,14 +30,10 @@ from softcurve.compiled.build import compile_function
 from softcurve.simulation.engine import nominal_scale
 from softcurve.simulation.integrators import ActuatorInput
 
-GAMMA = 1.0 + 1.0 / math.sqrt(2.0)
-"""ROS2's ``gamma``: with it the method is L-stable (Verwer et al. 1999)."""
 
-
-def state_derivative(model, inputs: ActuatorInput | None) -> ca.Function:
-    """``(x, u, p) -> xdot`` on the model's compiled ``rhs`` (an ``external``; its symbolic
-    form without a compiled library), the actuator's force ``H(q) u`` and lag in CasADi's
-    virtual machine (a few dozen operations), kept with the model.
+def state_derivative(model, inputs: ActuatorInput | None, symbolic: bool) -> ca.Function:
+    """``(x, u, p) -> xdot``: the model's ``rhs`` with the actuator's force ``H(q) u`` and
+    lag, kept with the model.
 
     Parameters
     ----------
@@ -44,10 +41,13 @@ def state_derivative(model, inputs: ActuatorInput | None) -> ca.Function:
         The model.
     inputs : ActuatorInput or None
         The actuator's input, or None for generalized forces.
+    symbolic : bool
+        On the model's symbolic ``rhs`` (to be generated as C with the stepper), else on
+        its compiled library (an ``external``) with the rest in CasADi's virtual machine.
     """
 
     def build():
-        rhs = model.function("rhs")
+        rhs = model.symbolic["rhs"] if symbolic else model.function("rhs")
         n, n_state = model.n, model.n_state
         extra = 0 if inputs is None else inputs.n_states
         x = ca.MX.sym("x", n_state + extra)
@@ -67,7 +67,7 @@ def state_derivative(model, inputs: ActuatorInput | None) -> ca.Function:
         xdot = ca.vertcat(rhs(x[:n_state], tau, p), *rates)
         return ca.Function("softcurve_xdot", [x, u, p], [xdot], ["x", "u", "p"], ["xdot"])
 
-    return model.cached(("stepper-xdot", None if inputs is None else inputs.key), build)
+    return model.cached(("stepper-xdot", symbolic, None if inputs is None else inputs.key), build)
 
 
 def state_scale(model, inputs: ActuatorInput | None) -> np.ndarray:
@@ -95,10 +95,9 @@ round-off errors of a forward difference balance. Any matrix keeps ROS2 of order
 error of the differences (~1e-8 relative) only perturbs its stability function."""
 
 
-def newton_matrix(model, inputs, x, u, p, gamma_h):
-    """``I - gamma_h J`` (MX) with ``J`` the Jacobian of :func:`state_derivative` at
-    ``x`` by forward differences (one batched call of ``n_state + 1`` evaluations), and
-    the derivative at ``x``.
+def jacobian_pattern(model, inputs) -> ca.Sparsity:
+    """The structural sparsity of the Jacobian of :func:`state_derivative` with its
+    diagonal (``q' = qd``, creep rates of ``(qd, lam)`` only, lag states diagonal).
 
     Parameters
     ----------
@@ -106,30 +105,186 @@ def newton_matrix(model, inputs, x, u, p, gamma_h):
         The model.
     inputs : ActuatorInput or None
         The actuator's input, or None for generalized forces.
+    """
+    pattern = state_derivative(model, inputs, True).sparsity_jac(0, 0)
+    return pattern + ca.Sparsity.diag(pattern.size1())
+
+
+def newton_matrix(f, scale, pattern, x, u, p, gamma_h):
+    """``(I - gamma_h J, f(x))`` (MX): ``J`` the Jacobian of ``f`` at ``x`` by forward
+    differences (one batched call of ``n_state + 1`` evaluations) on its structural
+    ``pattern``.
+
+    Parameters
+    ----------
+    f : casadi.Function
+        ``(x, u, p) -> xdot`` (:func:`state_derivative`).
+    scale : ndarray, shape (n_state [+ m],)
+        :func:`state_scale`.
+    pattern : casadi.Sparsity
+        :func:`jacobian_pattern`.
     x, u, p : casadi.MX
         State, inputs and robot parameters.
-    gamma_h : float
+    gamma_h : casadi.MX or float
         ``gamma h`` [s].
     """
-    f = state_derivative(model, inputs)
     size = x.shape[0]
-    scale = ca.DM(state_scale(model, inputs))
-    steps = DIFFERENCE_STEP * ca.fmax(ca.fabs(x), scale)
+    steps = DIFFERENCE_STEP * ca.fmax(ca.fabs(x), ca.DM(scale))
     points = ca.horzcat(x, ca.repmat(x, 1, size) + ca.diag(steps))
     values = f.map(size + 1)(points, u, p)
     f0 = values[:, 0]
     jacobian = (values[:, 1:] - ca.repmat(f0, 1, size)) / ca.repmat(steps.T, size, 1)
-    return ca.MX.eye(size) - gamma_h * jacobian, f0
+    return ca.project(ca.MX.eye(size) - gamma_h * jacobian, pattern), f0
 
 
-LINEAR_SOLVER = "qr"
-"""CasADi's linear solver of the Newton systems (dense ``n_state`` x ``n_state``)."""
+class Factorization:
+    """Householder QR of a Newton matrix of fixed sparsity as two SX functions: the
+    factors once per period, the solve once per stage (CasADi's ``qr_sparse`` and
+    ``qr_solve``: no inverse, no pivoting needed for QR).
+
+    Parameters
+    ----------
+    pattern : casadi.Sparsity
+        Sparsity of the Newton matrix (with its diagonal).
+    """
+
+    def __init__(self, pattern: ca.Sparsity):
+        matrix = ca.SX.sym("M", pattern)
+        v, r, beta, prinv, pc = ca.qr_sparse(matrix)
+        self.factor = ca.Function("newton_qr", [matrix], [v, r, beta])
+        names = ("v", "r", "beta")
+        factors = [ca.SX.sym(n, e.sparsity()) for n, e in zip(names, (v, r, beta), strict=True)]
+        b = ca.SX.sym("b", pattern.size1())
+        x = ca.qr_solve(b, *factors, prinv, pc)
+        self.solve = ca.Function("newton_solve", [*factors, b], [x])
 
 
-def period_function(model, inputs, period: float, substeps: int) -> ca.Function:
-    """``(x, u, p) -> (x_next, tip, contact_force)`` stacked (``n_state + 6``) for one
-    member: ``substeps`` ROS2 steps over ``period`` [s] with the Newton matrix of the
-    period's start, then the observation at the end; kept with the model.
+@dataclass(frozen=True)
+class Tableau:
+    """A Rosenbrock(-W) method in its published form ``(alpha, Gamma, b)`` (Hairer and
+    Wanner, Solving ODEs II, IV.7), for ``x' = f(x)``::
+
+        (I - gamma h J) k_i = f(x + h sum_j alpha_ij k_j) + h J sum_{j<i} gamma_ij k_j
+        x_next = x + h sum_i b_i k_i,        gamma = Gamma_ii
+
+    Parameters
+    ----------
+    name : str
+        Its name.
+    order : int
+        Its order with any matrix ``J`` (a W-method).
+    alpha : tuple of tuple of float
+        Strictly lower triangular (s x s).
+    gamma : tuple of tuple of float
+        Lower triangular with the constant diagonal ``gamma`` (s x s).
+    b : tuple of float
+        Weights (s,).
+    """
+
+    name: str
+    order: int
+    alpha: tuple
+    gamma: tuple
+    b: tuple
+
+    def transformed(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
+        """``(a, c, m, gamma)`` of the form without matrix-vector products, in stage
+        variables ``v_i`` (Hairer and Wanner's ``u_i / (gamma h)``)::
+
+            (I - gamma h J) v_i = f(x + h sum_j a_ij v_j) + sum_j c_ij v_j
+            x_next = x + h sum_i m_i v_i
+        """
+        alpha, big, b = (np.array(v, dtype=np.float64) for v in (self.alpha, self.gamma, self.b))
+        gamma = big[0, 0]
+        # a = alpha Gamma^-1, c = 1/gamma - Gamma^-1, m = b Gamma^-1 (solves, no inverse)
+        a = np.linalg.solve(big.T, alpha.T).T
+        inverse_rows = np.linalg.solve(big.T, np.eye(big.shape[0])).T
+        c = np.diag(np.full(big.shape[0], 1 / gamma)) - inverse_rows
+        m = np.linalg.solve(big.T, b)
+        return gamma * np.tril(a, -1), gamma * np.tril(c, -1), gamma * m, gamma
+
+
+_G2 = 1.0 + 1.0 / math.sqrt(2.0)
+ROS2 = Tableau("ROS2", 2, ((0.0, 0.0), (1.0, 0.0)), ((_G2, 0.0), (-2.0 * _G2, _G2)), (0.5, 0.5))
+"""Verwer, Spee, Blom and Hundsdorfer (SIAM J. Sci. Comput. 20(4), 1999): two stages,
+order 2 with any ``J``, L-stable with ``gamma = 1 + 1/sqrt(2)``."""
+
+_G4 = 0.43586652150845900
+ROS34PW2 = Tableau(
+    "ROS34PW2",
+    3,
+    (
+        (0.0, 0.0, 0.0, 0.0),
+        (8.7173304301691801e-01, 0.0, 0.0, 0.0),
+        (8.4457060015369423e-01, -1.1299064236484185e-01, 0.0, 0.0),
+        (0.0, 0.0, 1.0, 0.0),
+    ),
+    (
+        (_G4, 0.0, 0.0, 0.0),
+        (-8.7173304301691801e-01, _G4, 0.0, 0.0),
+        (-9.0338057013044082e-01, 5.4180672388095326e-02, _G4, 0.0),
+        (2.4212380706095346e-01, -1.2232505839045147e00, 5.4526025533510214e-01, _G4),
+    ),
+    (2.4212380706095346e-01, -1.2232505839045147e00, 1.5452602553351020e00, _G4),
+)
+"""Rang and Angermann (BIT 45, 2005): four stages, order 3 with any ``J`` (a W-method),
+L-stable and stiffly accurate."""
+
+METHODS = {t.name: t for t in (ROS2, ROS34PW2)}
+
+
+def rosenbrock_step(f, x, u, p, solve, f0, h, tableau: Tableau):
+    """One step of ``tableau`` (MX) from ``x`` with the Newton systems solved by
+    ``solve`` and ``f0 = f(x)``.
+
+    Parameters
+    ----------
+    f : casadi.Function
+        ``(x, u, p) -> xdot``.
+    x, u, p : casadi.MX
+        State, inputs, robot parameters.
+    solve : callable
+        ``solve(b)``: ``(I - gamma h J)^-1 b`` by a factorization.
+    f0 : casadi.MX
+        ``f(x, u, p)``.
+    h : casadi.MX or float
+        Step [s].
+    tableau : Tableau
+        The method.
+    """
+    a, c, m, _ = tableau.transformed()
+    stages = []
+    for i in range(a.shape[0]):
+        if i == 0:
+            slope = f0
+        else:
+            shift = sum(a[i, j] * stages[j] for j in range(i) if a[i, j])
+            slope = f(x + h * shift, u, p) if not isinstance(shift, int) else f0
+        for j in range(i):
+            if c[i, j]:
+                slope = slope + c[i, j] * stages[j]
+        stages.append(solve(slope))
+    return x + h * sum(m[i] * stages[i] for i in range(len(stages)) if m[i])
+
+
+def period_function(
+    model,
+    inputs,
+    substeps: int,
+    method: str,
+    compiled: bool = True,
+    optimization=None,
+    jacobian_every: int | None = None,
+):
+    """``(x, u, p, period) -> (x_next, tip, contact_force)`` stacked (``n_state + 6``) for
+    one member: ``substeps`` steps of ``method`` over ``period`` [s] with the Newton matrix
+    of the period's start, then the observation at the end; kept with the model.
+
+    With ``compiled``, the whole period is generated as one C function (the model's
+    symbolic right-hand side called in a loop) and compiled with :func:`compile_function`
+    (cached on disk by content: one library per robot structure, actuator, method and
+    ``substeps``; any period and parameter values); else it runs in CasADi's virtual
+    machine on the model's compiled ``rhs``.
 
     Parameters
     ----------
@@ -137,31 +292,57 @@ def period_function(model, inputs, period: float, substeps: int) -> ca.Function:
         The model.
     inputs : ActuatorInput or None
         The actuator's input, or None for generalized forces.
-    period : float
-        The period [s].
     substeps : int
-        ROS2 steps per period.
+        Steps per period.
+    method : str
+        A key of :data:`METHODS`.
+    compiled : bool
+        Generate and compile C (default), or evaluate in CasADi's virtual machine.
+    optimization : str, optional
+        The compiler's optimization flag (default :data:`OPTIMIZATION`).
+    jacobian_every : int, optional
+        Steps between fresh Jacobians (default ``substeps``: one per period).
     """
+    tableau = METHODS[method]
+    optimization = OPTIMIZATION if optimization is None else optimization
+    every = substeps if jacobian_every is None else min(jacobian_every, substeps)
 
     def build():
-        f = state_derivative(model, inputs)
+        f = state_derivative(model, inputs, compiled)
         x = ca.MX.sym("x", f.size1_in(0))
         u = ca.MX.sym("u", f.size1_in(1))
         p = ca.MX.sym("p", f.size1_in(2))
+        period = ca.MX.sym("period")
         h = period / substeps
-        matrix, f0 = newton_matrix(model, inputs, x, u, p, GAMMA * h)
-        y, slope = x, f0
+        scale, pattern = state_scale(model, inputs), jacobian_pattern(model, inputs)
+        qr = Factorization(pattern)
+        y = x
         for i in range(substeps):
-            if i:
+            if i % every == 0:
+                matrix, slope = newton_matrix(f, scale, pattern, y, u, p, tableau.gamma[0][0] * h)
+                factors = qr.factor(matrix)
+            else:
                 slope = f(y, u, p)
-            k1 = ca.solve(matrix, slope, LINEAR_SOLVER)
-            k2 = ca.solve(matrix, f(y + h * k1, u, p) - 2 * k1, LINEAR_SOLVER)
-            y = y + h * (1.5 * k1 + 0.5 * k2)
-        out = ca.vertcat(y, observer(model)(y[: model.n_state], p))
-        return ca.Function("softcurve_stepper", [x, u, p], [out], ["x", "u", "p"], ["out"])
+            y = rosenbrock_step(f, y, u, p, _solver(qr, factors), slope, h, tableau)
+        observe = observer(model, compiled)
+        out = ca.vertcat(y, observe(y[: model.n_state], p))
+        function = ca.Function(
+            "softcurve_stepper", [x, u, p, period], [out], ["x", "u", "p", "period"], ["out"]
+        )
+        return compile_function(function, optimization) if compiled else function
 
-    key = ("stepper-period", period, substeps, None if inputs is None else inputs.key)
+    inputs_key = None if inputs is None else inputs.key
+    key = ("stepper", substeps, method, compiled, optimization, every, inputs_key)
     return model.cached(key, build)
+
+
+def _solver(qr: Factorization, factors):
+    """``b -> (I - gamma h J)^-1 b`` with the factors of one Newton matrix."""
+    return lambda b: qr.solve(*factors, b)
+
+
+OPTIMIZATION = "-O2"
+"""Compiler flag of the stepper (``benchmarks/bench_stepper.py`` compares -O1)."""
 
 
 def observation(model, x, p):
@@ -187,26 +368,28 @@ def observation(model, x, p):
     return tip, rotation @ ca.sum2(per_obstacle)
 
 
-def observer(model) -> ca.Function:
+def observer(model, symbolic: bool) -> ca.Function:
     """``(x, p) -> (tip position, total contact force)`` stacked (6,), world frame, for
-    ``x = (q, qd, lam)``: the model's compiled ``pose`` without environment; with one, the
-    contact's sum compiled (cached on disk by content), kept with the model.
+    ``x = (q, qd, lam)``: without environment on the model's compiled ``pose``; with one,
+    in CasADi's virtual machine (the compiled stepper generates its own; this one serves
+    the few states a step does not advance and :meth:`Stepper.tip`), kept with the model.
 
     Parameters
     ----------
     model : Model
         The model.
+    symbolic : bool
+        An SX function (to be generated as C with the stepper).
     """
 
     def build():
-        x = ca.SX.sym("x", model.n_state)
-        p = ca.SX.sym("p", model.parameters.size)
-        if model.environment is None:
-            pose = model.function("pose")
-            xm, pm = ca.MX.sym("x", model.n_state), ca.MX.sym("p", p.shape[0])
-            out = ca.vertcat(pose(xm[: model.n], 1.0, pm)[1], ca.MX.zeros(3))
-            return ca.Function("softcurve_observe", [xm, pm], [out])
-        out = ca.cse(ca.vertcat(*observation(model, x, p)))
-        return compile_function(ca.Function("softcurve_observe", [x, p], [out]))
+        if symbolic or model.environment is not None:
+            x = ca.SX.sym("x", model.n_state)
+            p = ca.SX.sym("p", model.parameters.size)
+            return ca.Function("observe", [x, p], [ca.vertcat(*observation(model, x, p))])
+        pose = model.function("pose")
+        x, p = ca.MX.sym("x", model.n_state), ca.MX.sym("p", model.parameters.size)
+        out = ca.vertcat(pose(x[: model.n], 1.0, p)[1], ca.MX.zeros(3))
+        return ca.Function("softcurve_observe", [x, p], [out])
 
-    return model.cached(("stepper-observe",), build)
+    return model.cached(("stepper-observe", symbolic), build)

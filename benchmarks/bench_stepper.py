@@ -1,0 +1,258 @@
+"""Throughput and accuracy of the batched fixed-step stepper (softcurve.simulation.stepper).
+
+Run:  python benchmarks/bench_stepper.py [--repeat 5] [--sizes 1,16,256,1024]
+      [--accuracy-periods 100] [--skip-tendons] [--skip-o1]
+
+The case is the paper's robot (preset ifac2020) with the bellows of
+examples/pneumatic.toml (three per segment, 12 mm from the backbone, 2e-4 m^2, 0..60 kPa,
+20 ms pressure lag), stepped at a 20 ms control period with the default method and
+substeps.
+
+1. Throughput: member-periods per wall-clock second for N members in one call (best of
+   ``--repeat``), the real-time factor of one member (simulated / wall time), wall and
+   CPU time per member-period, and the same as a multiple of one evaluation of the
+   model's compiled right-hand side (``model.function("rhs")`` through CasADi's buffer
+   interface, best of 20,000): the work of one member-period in right-hand sides.
+2. Threads: N = 256 with 1 thread and with all cores (the speed-up shows whether the
+   threads run in parallel).
+3. Compiler flags: the stepper compiled with -O1 against -O2 (``--skip-o1`` skips the
+   extra compile).
+4. Accuracy: random pressure commands, uniform in the bounds, held 20 ms each over
+   ``--accuracy-periods`` periods (2 s), two seeds, against ``simulate(..., rtol=1e-10)``
+   with the same piecewise-constant commands: the max tip-position error [mm] and
+   relative to the tip's travel (its largest coordinate range), per method and
+   substeps, with the right-hand sides per period. Run in CasADi's virtual machine on
+   the model's compiled right-hand side (the same scheme as the compiled code to
+   round-off; no compile per row).
+5. The same accuracy for the two-segment tendon robot (presets rao2021 with
+   rao2021_tendons, tensions 0..8 N) at 20 ms (``--skip-tendons`` skips it).
+
+The load average is printed: the machine's other work slows every row.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import time
+
+import numpy as np
+
+import softcurve as sc
+from softcurve.simulation.integrators import ActuatorInput
+from softcurve.simulation.stepper import DEFAULT_METHOD, DEFAULT_SUBSTEPS, Stepper
+from softcurve.simulation.stepper_scheme import METHODS, period_function
+
+PERIOD = 0.02
+
+
+def paper_actuator():
+    return sc.PneumaticActuator.three_bellows(
+        distance=0.012, area=2e-4, p_max=6e4, time_constant=0.02
+    )
+
+
+def best_wall(repeat: int, run) -> tuple[float, float]:
+    """``(best wall time, CPU time of that run)`` [s] of ``run()``."""
+    best = (np.inf, np.inf)
+    for _ in range(repeat):
+        wall, cpu = time.perf_counter(), time.process_time()
+        run()
+        best = min(best, (time.perf_counter() - wall, time.process_time() - cpu))
+    return best
+
+
+def rhs_cost(model) -> float:
+    """Wall time [us] of one evaluation of the compiled right-hand side, best of 20,000."""
+    f = model.function("rhs")
+    buffer, evaluate = f.buffer()
+    x = np.r_[0.064, 25.0, 0.0, 0.0, 0.0, 1500.0, 0.0, 0.0, 0.0][: model.n_state]
+    x = np.ascontiguousarray(np.resize(x, model.n_state))
+    tau, out, p = np.zeros(model.n), np.zeros(model.n_state), model.parameters.copy()
+    for i, a in enumerate((x, tau, p)):
+        buffer.set_arg(i, memoryview(a))
+    buffer.set_res(0, memoryview(out))
+    best = np.inf
+    for _ in range(20):
+        start = time.perf_counter()
+        for _ in range(1000):
+            evaluate()
+        best = min(best, (time.perf_counter() - start) / 1000)
+    return best * 1e6
+
+
+def states(stepper, count: int) -> np.ndarray:
+    """``count`` copies of the straight robot at rest."""
+    robot = stepper.model.robot
+    q0 = np.concatenate([[s.rest_length, 0.0, 0.0] for s in robot.segments])
+    return np.tile(stepper.initial_state(q0), (count, 1))
+
+
+def throughput(stepper, sizes, repeat, rhs_us) -> None:
+    rng = np.random.default_rng(0)
+    print(
+        f"{'N':>6} {'member-periods/s':>17} {'real-time x':>12} {'wall us/member':>15} "
+        f"{'CPU us/member':>14} {'rhs evals':>10}"
+    )
+    for count in sizes:
+        x = states(stepper, count)
+        u = rng.uniform(stepper.lower, stepper.upper, (count, stepper.n_inputs))
+        stepper.step(x, u)  # builds the map for this N
+        calls = max(1, 2000 // count)
+
+        def run(x=x, u=u, calls=calls):
+            for _ in range(calls):
+                stepper.step(x, u)
+
+        wall, cpu = best_wall(repeat, run)
+        per_member = wall / (calls * count)
+        realtime = f"{PERIOD / per_member:12.0f}" if count == 1 else f"{'':>12}"
+        print(
+            f"{count:6d} {1 / per_member:17.0f} {realtime} {per_member * 1e6:15.1f} "
+            f"{cpu / (calls * count) * 1e6:14.1f} {per_member * 1e6 / rhs_us:10.1f}"
+        )
+
+
+def threads(model, actuator, repeat) -> None:
+    rng = np.random.default_rng(1)
+    rates = {}
+    for count in (1, os.cpu_count() or 1):
+        stepper = Stepper(model, actuator, period=PERIOD, threads=count)
+        x = states(stepper, 256)
+        u = rng.uniform(stepper.lower, stepper.upper, (256, stepper.n_inputs))
+        stepper.step(x, u)
+        wall, _ = best_wall(repeat, lambda s=stepper, x=x, u=u: s.step(x, u))
+        rates[count] = 256 / wall
+        print(f"threads={count}: {rates[count]:.0f} member-periods/s at N = 256")
+    if len(rates) > 1:
+        values = list(rates.values())
+        print(f"speed-up of {max(rates)} threads over 1: {values[-1] / values[0]:.2f}x")
+
+
+def compiler_flags(model, actuator, repeat) -> None:
+    inputs = ActuatorInput.of(actuator, model.n)
+    x = np.zeros(model.n_state + actuator.n_inputs)
+    x[0] = 0.064
+    u = np.full(actuator.n_inputs, 3e4)
+    period = np.array([PERIOD])
+    for flag in ("-O1", "-O2"):
+        start = time.perf_counter()
+        f = period_function(model, inputs, DEFAULT_SUBSTEPS, DEFAULT_METHOD, True, flag)
+        built = time.perf_counter() - start
+        buffer, evaluate = f.buffer()
+        out = np.zeros(f.nnz_out(0))
+        p = model.parameters.copy()
+        for i, a in enumerate((x, u, p, period)):
+            buffer.set_arg(i, memoryview(a))
+        buffer.set_res(0, memoryview(out))
+
+        def run(evaluate=evaluate):
+            for _ in range(200):
+                evaluate()
+
+        wall, _ = best_wall(repeat, run)
+        print(f"{flag}: {wall / 200 * 1e6:8.1f} us per member-period (load/compile {built:.1f} s)")
+
+
+def commands(rng, actuator, periods) -> np.ndarray:
+    return rng.uniform(actuator.lower, actuator.upper, (periods, actuator.n_inputs))
+
+
+def accuracy(model, actuator, q0, periods, rows, seeds=(1, 2)) -> None:
+    cases = []
+    for seed in seeds:
+        held = commands(np.random.default_rng(seed), actuator, periods)
+        reference = sc.simulate(
+            model,
+            q0,
+            np.zeros(model.n),
+            actuator=actuator,
+            inputs=np.vstack([held, held[-1:]]),
+            t_final=periods * PERIOD,
+            dt=PERIOD,
+            rtol=1e-10,
+        )
+        if not reference.success:
+            print(f"seed {seed}: reference failed: {reference.message}")
+            continue
+        tips = np.array([model.tip_pose(q).position for q in reference.q])
+        cases.append((seed, held, tips))
+    print(
+        f"{'method':>9} {'substeps':>8} {'rhs/period':>10}  "
+        + "  ".join(f"seed {seed}: error [mm] (% of travel)" for seed, _, _ in cases)
+    )
+    extra = actuator.n_inputs if actuator.time_constant is not None else 0
+    for method, substeps in rows:
+        stages = len(METHODS[method].b)
+        rhs = model.n_state + extra + 1 + stages * substeps - 1
+        stepper = Stepper(
+            model, actuator, period=PERIOD, substeps=substeps, method=method, compiled=False
+        )
+        texts = []
+        for _, held, expected in cases:
+            x = stepper.initial_state(q0)[None, :]
+            tips = [stepper.tip(x)[0]]
+            failed = None
+            for k in range(periods):
+                result = stepper.step(x, held[k : k + 1])
+                if not result.ok[0]:
+                    failed = result.reasons[0]
+                    break
+                x = result.x
+                tips.append(result.tip[0])
+            if failed:
+                texts.append(f"failed at period {k}: {failed[:60]}")
+                continue
+            error = np.abs(np.array(tips) - expected).max()
+            travel = np.ptp(expected, axis=0).max()
+            texts.append(f"{error * 1e3:14.3f} mm ({100 * error / travel:5.2f} %)    ")
+        print(f"{method:>9} {substeps:8d} {rhs:10d}  " + "  ".join(texts), flush=True)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--repeat", type=int, default=5)
+    parser.add_argument("--sizes", default="1,16,256,1024")
+    parser.add_argument("--accuracy-periods", type=int, default=100)
+    parser.add_argument("--skip-tendons", action="store_true")
+    parser.add_argument("--skip-o1", action="store_true")
+    args = parser.parse_args()
+    sizes = [int(s) for s in args.sizes.split(",")]
+
+    print(f"load average at start: {os.getloadavg()}, cores: {os.cpu_count()}")
+    model, actuator = sc.Model(sc.presets.ifac2020()), paper_actuator()
+    stepper = Stepper(model, actuator, period=PERIOD)
+    rhs_us = rhs_cost(model)
+    print(
+        f"\n1. Throughput: paper robot, bellows, period {PERIOD * 1e3:g} ms, "
+        f"{stepper.method} x {stepper.substeps} substeps, compiled, "
+        f"{os.cpu_count()} threads; one compiled rhs: {rhs_us:.2f} us"
+    )
+    throughput(stepper, sizes, args.repeat, rhs_us)
+    print("\n2. Threads")
+    threads(model, actuator, args.repeat)
+    if not args.skip_o1:
+        print("\n3. Compiler flags of the stepper (one member)")
+        compiler_flags(model, actuator, args.repeat)
+    rows = [("ROS2", s) for s in (8, 16, 32, 64)] + [("ROS34PW2", s) for s in (4, 8, 12, 16, 24)]
+    print(
+        f"\n4. Accuracy: paper robot, random pressures held {PERIOD * 1e3:g} ms, "
+        f"{args.accuracy_periods * PERIOD:g} s, against simulate(rtol=1e-10)"
+    )
+    accuracy(model, actuator, np.array([0.064, 0.0, 0.0]), args.accuracy_periods, rows)
+    if not args.skip_tendons:
+        print(
+            f"\n5. Accuracy: two-segment tendon robot (rao2021), tensions 0..8 N held "
+            f"{PERIOD * 1e3:g} ms, {args.accuracy_periods * PERIOD:g} s"
+        )
+        robot = sc.presets.rao2021()
+        tendons = sc.presets.rao2021_tendons(t_max=8.0)
+        tendon_model = sc.Model(robot)
+        q0 = np.concatenate([[s.rest_length, 0.0, 0.0] for s in robot.segments])
+        rows = [("ROS34PW2", s) for s in (4, 8, 16)]
+        accuracy(tendon_model, tendons, q0, args.accuracy_periods, rows)
+    print(f"\nload average at end: {os.getloadavg()}")
+
+
+if __name__ == "__main__":
+    main()
