@@ -10,6 +10,7 @@ command by 0.02 s (``examples/pneumatic.toml``), controlled every 0.02 s.
 from __future__ import annotations
 
 import math
+import pickle
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -118,6 +119,21 @@ class Setup:
         return self.stepper.period
 
 
+_STEPPERS: dict[bytes, Stepper] = {}
+"""Steppers by content (robot, obstacles, actuator, period, substeps, threads): the
+environments of one process share them, since building one (its compiled period
+function, loaded from the on-disk cache) takes seconds; a stepper keeps no state between
+calls."""
+
+
+def _stepper(robot, environment, actuator, period, substeps, threads) -> Stepper:
+    key = pickle.dumps((robot, environment, actuator, period, substeps, threads))
+    if key not in _STEPPERS:
+        model = Model(robot, environment=environment)  # loaded from the on-disk cache
+        _STEPPERS[key] = Stepper(model, actuator, period=period, substeps=substeps, threads=threads)
+    return _STEPPERS[key]
+
+
 def _scenario(value) -> tuple[Scenario, set[str]]:
     """The scenario and which ``[simulation]`` keys its file sets explicitly."""
     if isinstance(value, Scenario):
@@ -196,8 +212,7 @@ def build_setup(
         raise ParameterError(f"max_episode_steps must be an integer >= 1, got {steps!r}")
     if environment is not None:
         environment.check_robot(robot)
-    model = Model(robot, environment=environment)  # loaded from the on-disk cache
-    stepper = Stepper(model, actuator, period=period, substeps=substeps, threads=threads)
+    stepper = _stepper(robot, environment, actuator, period, substeps, threads)
     if q0 is None:
         q0 = np.concatenate([[s.rest_length, 0.0, 0.0] for s in robot.segments])
     x0 = np.array(stepper.initial_state(q0, qd0), dtype=np.float64)
