@@ -231,6 +231,7 @@ ROS34PW2 = Tableau(
 L-stable and stiffly accurate."""
 
 METHODS = {t.name: t for t in (ROS2, ROS34PW2)}
+"""The methods by name."""
 
 
 def rosenbrock_step(f, x, u, p, solve, f0, h, tableau: Tableau):
@@ -277,14 +278,16 @@ def period_function(
     jacobian_every: int | None = None,
 ):
     """``(x, u, p, period) -> (x_next, tip, contact_force)`` stacked (``n_state + 6``) for
-    one member: ``substeps`` steps of ``method`` over ``period`` [s] with the Newton matrix
-    of the period's start, then the observation at the end; kept with the model.
+    one member: ``substeps`` steps of ``method`` over ``period`` [s] with a fresh Newton
+    matrix every ``jacobian_every`` steps, then the observation at the end; kept with the
+    model.
 
     With ``compiled``, the whole period is generated as one C function (the model's
-    symbolic right-hand side called in a loop) and compiled with :func:`compile_function`
-    (cached on disk by content: one library per robot structure, actuator, method and
-    ``substeps``; any period and parameter values); else it runs in CasADi's virtual
-    machine on the model's compiled ``rhs``.
+    symbolic right-hand side called in a loop) and compiled with
+    :func:`~softcurve.compiled.build.compile_function` (cached on disk by content: one
+    library per robot structure, environment, actuator, method and ``substeps``; any
+    period and parameter values); else it runs in CasADi's virtual machine on the
+    model's compiled ``rhs``.
 
     Parameters
     ----------
@@ -372,7 +375,8 @@ def observer(model, symbolic: bool) -> ca.Function:
     """``(x, p) -> (tip position, total contact force)`` stacked (6,), world frame, for
     ``x = (q, qd, lam)``: without environment on the model's compiled ``pose``; with one,
     in CasADi's virtual machine (the compiled stepper generates its own; this one serves
-    the few states a step does not advance and :meth:`Stepper.tip`), kept with the model.
+    the few states a step does not advance and
+    :meth:`~softcurve.simulation.stepper.Stepper.tip`), kept with the model.
 
     Parameters
     ----------
