@@ -1,4 +1,4 @@
-"""Train a policy on softcurve/Reach-v0 with Stable-Baselines3 (SAC or PPO) on the native
+"""Train a policy on softcurve/Reach-v0 with Stable-Baselines3 (PPO or SAC) on the native
 vector environment, and write what it learned into an output folder:
 
 - ``learning_curve.csv`` and ``learning_curve.png``: mean episode return and success
@@ -25,11 +25,12 @@ from pathlib import Path
 
 def _arguments(argv=None) -> argparse.Namespace:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--algo", choices=("sac", "ppo"), default="sac", help="the algorithm")
-    parser.add_argument("--steps", type=int, default=60_000, help="environment steps in all")
-    parser.add_argument("--envs", type=int, default=16, help="robots in the vector env")
+    parser.add_argument("--algo", choices=("ppo", "sac"), default="ppo", help="the algorithm")
+    parser.add_argument("--steps", type=int, default=3_000_000,
+                        help="environment steps at most (see --minutes)")  # fmt: skip
+    parser.add_argument("--envs", type=int, default=32, help="robots in the vector env")
     parser.add_argument("--seed", type=int, default=0, help="seed of the run")
-    parser.add_argument("--minutes", type=float, default=12.0,
+    parser.add_argument("--minutes", type=float, default=11.0,
                         help="stop learning after this wall time [min] (the steps reached "
                         "are printed)")  # fmt: skip
     parser.add_argument("--output", type=Path, default=Path("train-reach"), help="folder")
