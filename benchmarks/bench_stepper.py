@@ -25,7 +25,9 @@ substeps.
    the model's compiled right-hand side (the same scheme as the compiled code to
    round-off; no compile per row).
 5. The same accuracy for the two-segment tendon robot (presets rao2021 with
-   rao2021_tendons, tensions 0..8 N) at 20 ms (``--skip-tendons`` skips it).
+   rao2021_tendons, tensions 0..8 N) at 20 ms over ``--tendon-periods`` periods (0.4 s;
+   the reference, at rtol 1e-8, needs ~8,000 right-hand sides per period), with a
+   Jacobian per period or per step (``--skip-tendons`` skips it).
 6. Contact: the paper's robot (body radius 1 mm) stretching into a ceiling 2 mm below its
    free tip, ``ContactLaw(1e7, smoothing=1e-6, damping=1, friction=0.5)``, from
    ``q0 = (60.5 mm, 2 1/m, 0)`` at rest, 0.1 s in 20 ms periods with ROS34PW2 x 16 and a
@@ -163,7 +165,7 @@ def commands(rng, actuator, periods) -> np.ndarray:
     return rng.uniform(actuator.lower, actuator.upper, (periods, actuator.n_inputs))
 
 
-def accuracy(model, actuator, q0, periods, rows, seeds=(1, 2)) -> None:
+def accuracy(model, actuator, q0, periods, rows, seeds=(1, 2), rtol=1e-10) -> None:
     cases = []
     for seed in seeds:
         held = commands(np.random.default_rng(seed), actuator, periods)
@@ -175,7 +177,7 @@ def accuracy(model, actuator, q0, periods, rows, seeds=(1, 2)) -> None:
             inputs=np.vstack([held, held[-1:]]),
             t_final=periods * PERIOD,
             dt=PERIOD,
-            rtol=1e-10,
+            rtol=rtol,
         )
         if not reference.success:
             print(f"seed {seed}: reference failed: {reference.message}")
@@ -183,15 +185,23 @@ def accuracy(model, actuator, q0, periods, rows, seeds=(1, 2)) -> None:
         tips = np.array([model.tip_pose(q).position for q in reference.q])
         cases.append((seed, held, tips))
     print(
-        f"{'method':>9} {'substeps':>8} {'rhs/period':>10}  "
+        f"{'method':>9} {'substeps':>8} {'Jacobian every':>14} {'rhs/period':>10}  "
         + "  ".join(f"seed {seed}: error [mm] (% of travel)" for seed, _, _ in cases)
     )
     extra = actuator.n_inputs if actuator.time_constant is not None else 0
-    for method, substeps in rows:
+    for row in rows:
+        method, substeps, every = (*row, row[1])[:3]
         stages = len(METHODS[method].b)
-        rhs = model.n_state + extra + 1 + stages * substeps - 1
+        jacobians = -(-substeps // every)
+        rhs = jacobians * (model.n_state + extra + 1) + stages * substeps - jacobians
         stepper = Stepper(
-            model, actuator, period=PERIOD, substeps=substeps, method=method, compiled=False
+            model,
+            actuator,
+            period=PERIOD,
+            substeps=substeps,
+            method=method,
+            compiled=False,
+            jacobian_every=every,
         )
         texts = []
         for _, held, expected in cases:
@@ -211,7 +221,8 @@ def accuracy(model, actuator, q0, periods, rows, seeds=(1, 2)) -> None:
             error = np.abs(np.array(tips) - expected).max()
             travel = np.ptp(expected, axis=0).max()
             texts.append(f"{error * 1e3:14.3f} mm ({100 * error / travel:5.2f} %)    ")
-        print(f"{method:>9} {substeps:8d} {rhs:10d}  " + "  ".join(texts), flush=True)
+        line = f"{method:>9} {substeps:8d} {every:14d} {rhs:10d}  "
+        print(line + "  ".join(texts), flush=True)
 
 
 def contact() -> None:
@@ -244,6 +255,7 @@ def main() -> None:
     parser.add_argument("--sizes", default="1,16,256,1024")
     parser.add_argument("--accuracy-periods", type=int, default=100)
     parser.add_argument("--skip-tendons", action="store_true")
+    parser.add_argument("--tendon-periods", type=int, default=20)
     parser.add_argument("--skip-o1", action="store_true")
     parser.add_argument("--skip-contact", action="store_true")
     args = parser.parse_args()
@@ -272,15 +284,16 @@ def main() -> None:
     accuracy(model, actuator, np.array([0.064, 0.0, 0.0]), args.accuracy_periods, rows)
     if not args.skip_tendons:
         print(
-            f"\n5. Accuracy: two-segment tendon robot (rao2021), tensions 0..8 N held "
-            f"{PERIOD * 1e3:g} ms, {args.accuracy_periods * PERIOD:g} s"
+            "\n5. Accuracy: two-segment tendon robot (rao2021), tensions 0..8 N held "
+            f"{PERIOD * 1e3:g} ms, {args.tendon_periods * PERIOD:g} s, against rtol=1e-8"
         )
         robot = sc.presets.rao2021()
         tendons = sc.presets.rao2021_tendons(t_max=8.0)
         tendon_model = sc.Model(robot)
         q0 = np.concatenate([[s.rest_length, 0.0, 0.0] for s in robot.segments])
-        rows = [("ROS34PW2", s) for s in (4, 8, 16)]
-        accuracy(tendon_model, tendons, q0, args.accuracy_periods, rows)
+        rows = [("ROS34PW2", 16), ("ROS34PW2", 64), ("ROS34PW2", 16, 1), ("ROS2", 16, 1)]
+        rows += [("ROS2", 64, 1)]
+        accuracy(tendon_model, tendons, q0, args.tendon_periods, rows, rtol=1e-8)
     if not args.skip_contact:
         print("\n6. Contact: a ceiling with friction, 0.1 s, ROS34PW2 x 16 per 20 ms")
         contact()

@@ -1,21 +1,14 @@
-"""The fixed-step scheme of :class:`~softcurve.simulation.stepper.Stepper`, as one CasADi
-function per member, compiled.
+"""The fixed-step scheme of :class:`~softcurve.simulation.stepper.Stepper`: one CasADi
+function per member that advances a state by one control period, generated as C.
 
-A control period of length ``T`` is split into ``substeps`` equal steps ``h`` of the
-two-stage Rosenbrock-W method ROS2 of Verwer, Spee, Blom and Hundsdorfer (SIAM J. Sci.
-Comput. 20(4), 1999), for ``x' = f(x)`` with the input held over the period::
-
-    (I - gamma h J) k1 = f(x_n)
-    (I - gamma h J) k2 = f(x_n + h k1) - 2 k1
-    x_{n+1} = x_n + h (3 k1 + k2) / 2,        gamma = 1 + 1/sqrt(2)
-
-It is of order 2 for *any* matrix ``J`` (a W-method), and L-stable when ``J`` is the
-exact Jacobian: the stiff elongation, creep, actuator-lag and penalty-contact modes are
-damped, never amplified, whatever ``h``. So ``J`` is the exact Jacobian at the start of
-the period, reused by every substep (one factorization of ``I - gamma h J`` per period,
-a sparse QR written out by CasADi, no inverse). The state layout is simulate's: ``(q, qd,
-lam)`` then, with an actuator that has a ``time_constant``, its lagging inputs
-(:class:`~softcurve.simulation.integrators.ActuatorInput`).
+The period is split into ``substeps`` steps ``h`` of a Rosenbrock-W method
+(:class:`Tableau`: ROS34PW2 of order 3, or ROS2 of order 2, both L-stable), the inputs
+held. A W-method keeps its order with any matrix ``J``, so one forward-difference
+Jacobian (:func:`newton_matrix`) serves several steps; ``I - gamma h J`` is factorized
+by Householder QR (:class:`Factorization`), no inverse. The state layout is
+``simulate``'s: ``(q, qd, lam)`` then the actuator's lagging inputs
+(:class:`~softcurve.simulation.integrators.ActuatorInput`). docs/stepping.md gives the
+accuracy and the cost.
 """
 
 from __future__ import annotations
@@ -162,10 +155,11 @@ class Factorization:
 @dataclass(frozen=True)
 class Tableau:
     """A Rosenbrock(-W) method in its published form ``(alpha, Gamma, b)`` (Hairer and
-    Wanner, Solving ODEs II, IV.7), for ``x' = f(x)``::
+    Wanner, Solving ODEs II, IV.7), for ``x' = f(x)``, with ``gamma = Gamma_ii``:
 
-        (I - gamma h J) k_i = f(x + h sum_j alpha_ij k_j) + h J sum_{j<i} gamma_ij k_j
-        x_next = x + h sum_i b_i k_i,        gamma = Gamma_ii
+    - stages: ``(I - gamma h J) k_i = f(x + h sum_j alpha_ij k_j) + h J sum_{j<i}
+      gamma_ij k_j``;
+    - step: ``x_next = x + h sum_i b_i k_i``.
 
     Parameters
     ----------
@@ -189,11 +183,9 @@ class Tableau:
 
     def transformed(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
         """``(a, c, m, gamma)`` of the form without matrix-vector products, in stage
-        variables ``v_i`` (Hairer and Wanner's ``u_i / (gamma h)``)::
-
-            (I - gamma h J) v_i = f(x + h sum_j a_ij v_j) + sum_j c_ij v_j
-            x_next = x + h sum_i m_i v_i
-        """
+        variables ``v_i`` (Hairer and Wanner's ``u_i / (gamma h)``): stages
+        ``(I - gamma h J) v_i = f(x + h sum_j a_ij v_j) + sum_j c_ij v_j``, step
+        ``x_next = x + h sum_i m_i v_i``."""
         alpha, big, b = (np.array(v, dtype=np.float64) for v in (self.alpha, self.gamma, self.b))
         gamma = big[0, 0]
         # a = alpha Gamma^-1, c = 1/gamma - Gamma^-1, m = b Gamma^-1 (solves, no inverse)
@@ -344,8 +336,10 @@ def _solver(qr: Factorization, factors):
     return lambda b: qr.solve(*factors, b)
 
 
-OPTIMIZATION = "-O2"
-"""Compiler flag of the stepper (``benchmarks/bench_stepper.py`` compares -O1)."""
+OPTIMIZATION = "-O1"
+"""Compiler flag of the stepper: -O1 compiled the paper robot's stepper in 23 s, -O2 in
+40-48 s (loaded machine), at speeds equal within the noise (``bench_stepper.py`` section
+3: 800-910 against 710-1180 us per member-period in alternating runs)."""
 
 
 def observation(model, x, p):
