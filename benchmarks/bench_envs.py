@@ -44,15 +44,10 @@ PERIOD = 0.02
 
 
 def _robots(tendons: bool):
-    yield "paper robot, 3 bellows (pressures)", {}
-    if tendons:
-        yield (
-            "rao2021, 2 segments, 6 tendons (tensions)",
-            {
-                "robot": sc.presets.rao2021(),
-                "actuator": sc.presets.rao2021_tendons(),
-            },
-        )
+    yield "paper robot, 3 bellows (pressures)", {}, True
+    if tendons:  # no reference: simulate needs minutes per second of this undamped robot
+        robot = {"robot": sc.presets.rao2021(), "actuator": sc.presets.rao2021_tendons()}
+        yield "rao2021, 2 segments, 6 tendons (tensions)", robot, False
 
 
 def _throughput(vector, seconds: float, rng) -> tuple[float, float]:
@@ -62,10 +57,15 @@ def _throughput(vector, seconds: float, rng) -> tuple[float, float]:
     for _ in range(3):  # warm-up: first calls build buffers
         vector.step(rng.uniform(-1, 1, (size, m)))
     steps, start = 0, time.perf_counter()
+    failed = 0
     while time.perf_counter() - start < seconds or steps < 3:
-        vector.step(rng.uniform(-1, 1, (size, m)))
+        info = vector.step(rng.uniform(-1, 1, (size, m)))[-1]
+        if "final_info" in info:
+            failed += sum(f is not None for f in info["final_info"]["failure"])
         steps += 1
     env_rate = steps * size / (time.perf_counter() - start)
+    if failed:
+        print(f"  ({failed} of {steps * size} environment steps failed and were truncated)")
     episodes = vector.episodes
     stepper, x = episodes.setup.stepper, episodes.x.copy()
     inputs = episodes.inputs(rng.uniform(-1, 1, (size, m)))
@@ -90,13 +90,20 @@ def _accuracy(vector) -> tuple[float, float]:
         tips.append(result.tip)
     tips = np.stack(tips, axis=1)  # (16, count, 3)
     n = stepper.model.n
-    worst = 0.0
+    worst, notes = 0.0, set()
     for i in range(16):
         reference = sc.simulate(
             stepper.model, x0[:n], x0[n : 2 * n], t_final=1.0, dt=PERIOD,
-            actuator=stepper.actuator, inputs=inputs[i], rtol=1e-10,
+            actuator=stepper.actuator, inputs=inputs[i], rtol=1e-10, max_steps=1_000_000,
         )  # fmt: skip
-        worst = max(worst, float(np.max(np.linalg.norm(reference.tip[1:] - tips[i], axis=1))))
+        reached = min(reference.tip.shape[0] - 1, count)
+        if not reference.success:
+            notes.add(f"reference stopped after {reached} periods: {reference.message[:120]}")
+        if reached:
+            difference = reference.tip[1 : reached + 1] - tips[i, :reached]
+            worst = max(worst, float(np.max(np.linalg.norm(difference, axis=1))))
+    for note in sorted(notes):
+        print(f"  note: {note}")
     return worst, worst / episodes.task.calibration.radius
 
 
@@ -111,16 +118,20 @@ def main() -> None:
     print(f"softcurve {sc.__version__}, Python {platform.python_version()}, "
           f"{os.cpu_count()} CPUs, load average {os.getloadavg()}")  # fmt: skip
     rng = np.random.default_rng(0)
-    for label, robot in _robots(not args.no_tendons):
+    for label, robot, reference in _robots(not args.no_tendons):
         start = time.perf_counter()
         first = ReachVector(1, period=PERIOD, **robot)
         stepper = first.episodes.setup.stepper
         setup_time = time.perf_counter() - start
         print(f"\n{label}: control period {PERIOD * 1e3:g} ms, substeps {stepper.substeps}, "
               f"set-up (compile or load, calibration) {setup_time:.1f} s")  # fmt: skip
-        error, relative = _accuracy(first)
-        print(f"accuracy: tip within {error * 1e3:.3g} mm of softcurve.simulate at rtol 1e-10 "
-              f"over 1 s ({relative:.2g} of the workspace radius)")  # fmt: skip
+        if reference:
+            error, relative = _accuracy(first)
+            print(f"accuracy: tip within {error * 1e3:.3g} mm of softcurve.simulate at rtol "
+                  f"1e-10 over 1 s ({relative:.2g} of the workspace radius)")  # fmt: skip
+        else:
+            print("accuracy: not measured here (docs/stepping.md: the stepper does not follow "
+                  "this undamped robot at 20 ms)")  # fmt: skip
         print(f"{'N':>6} {'env steps/s':>12} {'sim s/s':>10} {'stepper steps/s':>16} "
               f"{'real-time factor (N=1)':>23}")  # fmt: skip
         for size in sizes:

@@ -1,7 +1,7 @@
 """Registration of the tasks with Gymnasium.
 
-Gymnasium 1.x has no plugin discovery (the ``gymnasium.envs`` entry points of the 0.2x
-releases were removed in 1.0), so the ids are registered when :mod:`softcurve.envs` is
+Gymnasium 1.x has no plugin discovery (1.4, the version tested, looks up no package entry
+points in ``gymnasium.envs.registration``), so the ids are registered when :mod:`softcurve.envs` is
 imported: ``import softcurve.envs`` then ``gymnasium.make("softcurve/Reach-v0")``, or
 in one string, ``gymnasium.make("softcurve.envs:softcurve/Reach-v0")`` (Gymnasium imports
 the module before the ``:``). Each id has a ``vector_entry_point``:
