@@ -26,9 +26,10 @@ from softcurve.base.validation import ParameterError
 
 CALIBRATION_MEMBERS = 64
 """Random constant inputs held in the calibration, next to the corners (each input alone
-at its upper bound, which bends a bellows or tendon robot furthest): enough to place the
-workspace's centre and the states' scales to a few percent, while the calibration stays
-one batch of the stepper of the size of a small vector environment."""
+at its upper bound). Measured on the paper's robot against 512 members: the workspace's
+radius within 2.5 %, its centre within 5 % of the radius and every state scale within
+-7 % to +9 % (32 members: centre 15 % off), at an eighth of the cost (1.3 s against 7.9 s
+on a loaded 2-core machine)."""
 SETTLE_TIME = 1.0
 """How long each calibration input is held [s]: for the paper's robot with one bellow at
 full pressure the tip is then within 0.04 mm of where it is after 2 s (1 mm after 0.5 s;
