@@ -185,3 +185,21 @@ def test_softcurve_imports_without_gymnasium():
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert "pip install 'softcurve[envs]'" in out.stdout
+
+
+def test_the_track_target_is_reachable_by_its_own_command():
+    """Driving Track with the rotating command that drew its path puts the tip on the
+    moving target once the start transient has decayed (0.02 mm, tolerance 5 mm)."""
+    from softcurve.envs.calibration import rotating_inputs
+
+    env = envs.Track()
+    env.reset(seed=3)
+    stepper, task = env.episodes.setup.stepper, env.task
+    phase = env.episodes.parameters[0, 0] + task.rate * stepper.period * np.arange(1, 201)
+    commands = rotating_inputs(stepper, phase)
+    distances = []
+    for command in commands:
+        action = 2 * (command - stepper.lower) / (stepper.upper - stepper.lower) - 1
+        *_, info = env.step(action)
+        distances.append(info["distance"])
+    assert max(distances[150:]) < 0.02 * task.tolerance
