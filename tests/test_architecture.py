@@ -24,6 +24,7 @@ LAYERS = (
     ("softcurve.control",),
     ("softcurve.identification",),
     ("softcurve.scenarios",),
+    ("softcurve.envs",),
     ("softcurve.cli", "softcurve.__main__"),
 )
 """Bottom to top; a module may import its own layer and the layers below it."""

@@ -1,0 +1,147 @@
+"""Throughput of the learning environments (softcurve.envs), in the form of the published
+GPU figures, and the accuracy of the stepper behind them.
+
+Run:  python benchmarks/bench_envs.py [--sizes 1,16,256,1024] [--repeat 3] [--seconds 2]
+      [--no-tendons]
+
+Robots: the paper's one-segment robot (preset ifac2020) with three bellows driven by
+pressures (0-6e4 Pa, 20 ms lag; the default of softcurve/Reach-v0), and the two-segment
+tendon robot of Rao et al. 2021 (presets rao2021 and rao2021_tendons: six tensions,
+0-20 N), both at a 20 ms control period. For each number of environments N, the
+VectorEnv's ``step`` runs with uniformly random actions in [-1, 1] (drawn inside the
+timed loop), 2 s episodes and the autoreset included; printed: aggregate environment
+steps per second, simulated seconds per second (steps/s times the period) and the
+real-time factor of one environment (the same number at N = 1), the best of
+``--repeat`` runs of about ``--seconds`` each, and the stepper alone (``Stepper.step``
+on the same batch) for the overhead of the environment.
+
+Accuracy: 16 members hold random constant inputs for 1 s from the start state; their
+tips after every period against ``softcurve.simulate`` at rtol 1e-10 with the same
+inputs (max distance over members and periods, in mm and relative to the workspace's
+radius).
+
+Published figures quoted by issue 15, for comparison: SoRoMoX, about 21 simulated
+seconds per second at 256 environments (desktop GPU, explicit 0.1 ms steps, a 3-DoF soft
+robot); DisMech-RL, a few thousand environment steps per second with 500 environments on
+a CPU. At a 20 ms control period, 21 simulated s/s is about 1,000 environment steps/s;
+the issue's target on a 2-core machine is >= 50,000 at 256 environments.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import platform
+import time
+
+import numpy as np
+
+import softcurve as sc
+from softcurve.envs import ReachVector
+
+PERIOD = 0.02
+"""Control period [s] of every row."""
+
+
+def _robots(tendons: bool):
+    yield "paper robot, 3 bellows (pressures)", {}, True
+    if tendons:  # no reference: simulate needs minutes per second of this undamped robot
+        robot = {"robot": sc.presets.rao2021(), "actuator": sc.presets.rao2021_tendons()}
+        yield "rao2021, 2 segments, 6 tendons (tensions)", robot, False
+
+
+def _throughput(vector, seconds: float, rng) -> tuple[float, float]:
+    """Environment steps per second through ``vector.step``, and through the stepper."""
+    size, m = vector.num_envs, vector.single_action_space.shape[0]
+    vector.reset(seed=0)
+    for _ in range(3):  # warm-up: first calls build buffers
+        vector.step(rng.uniform(-1, 1, (size, m)))
+    steps, start = 0, time.perf_counter()
+    failed = 0
+    while time.perf_counter() - start < seconds or steps < 3:
+        info = vector.step(rng.uniform(-1, 1, (size, m)))[-1]
+        if "final_info" in info:
+            failed += sum(f is not None for f in info["final_info"]["failure"])
+        steps += 1
+    env_rate = steps * size / (time.perf_counter() - start)
+    if failed:
+        print(f"  ({failed} of {steps * size} environment steps failed and were truncated)")
+    episodes = vector.episodes
+    stepper, x = episodes.setup.stepper, episodes.x.copy()
+    inputs = episodes.inputs(rng.uniform(-1, 1, (size, m)))
+    steps, start = 0, time.perf_counter()
+    while time.perf_counter() - start < seconds / 2 or steps < 3:
+        x = stepper.step(x, inputs).x
+        steps += 1
+    return env_rate, steps * size / (time.perf_counter() - start)
+
+
+def _accuracy(vector) -> tuple[float, float]:
+    """Max tip distance [m] against sc.simulate at rtol 1e-10, and relative to the radius."""
+    episodes = vector.episodes
+    stepper, x0 = episodes.setup.stepper, episodes.setup.x0
+    rng = np.random.default_rng(1)
+    inputs = stepper.lower + rng.random((16, stepper.lower.size)) * (stepper.upper - stepper.lower)
+    count = round(1.0 / PERIOD)
+    x, tips = np.tile(x0, (16, 1)), []
+    for _ in range(count):
+        result = stepper.step(x, inputs)
+        x = result.x
+        tips.append(result.tip)
+    tips = np.stack(tips, axis=1)  # (16, count, 3)
+    n = stepper.model.n
+    worst, notes = 0.0, set()
+    for i in range(16):
+        reference = sc.simulate(
+            stepper.model, x0[:n], x0[n : 2 * n], t_final=1.0, dt=PERIOD,
+            actuator=stepper.actuator, inputs=inputs[i], rtol=1e-10, max_steps=1_000_000,
+        )  # fmt: skip
+        reached = min(reference.tip.shape[0] - 1, count)
+        if not reference.success:
+            notes.add(f"reference stopped after {reached} periods: {reference.message[:120]}")
+        if reached:
+            difference = reference.tip[1 : reached + 1] - tips[i, :reached]
+            worst = max(worst, float(np.max(np.linalg.norm(difference, axis=1))))
+    for note in sorted(notes):
+        print(f"  note: {note}")
+    return worst, worst / episodes.task.calibration.radius
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--sizes", default="1,16,256,1024", help="numbers of environments")
+    parser.add_argument("--repeat", type=int, default=3, help="runs per row (best kept)")
+    parser.add_argument("--seconds", type=float, default=2.0, help="duration of one run [s]")
+    parser.add_argument("--no-tendons", action="store_true", help="skip the tendon robot")
+    args = parser.parse_args()
+    sizes = [int(s) for s in args.sizes.split(",")]
+    print(f"softcurve {sc.__version__}, Python {platform.python_version()}, "
+          f"{os.cpu_count()} CPUs, load average {os.getloadavg()}")  # fmt: skip
+    rng = np.random.default_rng(0)
+    for label, robot, reference in _robots(not args.no_tendons):
+        start = time.perf_counter()
+        first = ReachVector(1, period=PERIOD, **robot)
+        stepper = first.episodes.setup.stepper
+        setup_time = time.perf_counter() - start
+        print(f"\n{label}: control period {PERIOD * 1e3:g} ms, substeps {stepper.substeps}, "
+              f"set-up (compile or load, calibration) {setup_time:.1f} s")  # fmt: skip
+        if reference:
+            error, relative = _accuracy(first)
+            print(f"accuracy: tip within {error * 1e3:.3g} mm of softcurve.simulate at rtol "
+                  f"1e-10 over 1 s ({relative:.2g} of the workspace radius)")  # fmt: skip
+        else:
+            print("accuracy: not measured here (docs/stepping.md: the stepper does not follow "
+                  "this undamped robot at 20 ms)")  # fmt: skip
+        print(f"{'N':>6} {'env steps/s':>12} {'sim s/s':>10} {'stepper steps/s':>16} "
+              f"{'real-time factor (N=1)':>23}")  # fmt: skip
+        for size in sizes:
+            vector = first if size == 1 else ReachVector(size, period=PERIOD, **robot)
+            best = max(_throughput(vector, args.seconds, rng) for _ in range(args.repeat))
+            factor = f"{best[0] * PERIOD:.0f}x" if size == 1 else ""
+            print(f"{size:>6} {best[0]:>12,.0f} {best[0] * PERIOD:>10,.0f} {best[1]:>16,.0f} "
+                  f"{factor:>23}")  # fmt: skip
+    print(f"\nload average after the runs: {os.getloadavg()}")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,211 @@
+"""The episodes of N robots, stepped together: actions to actuator inputs, one call of
+the compiled stepper for all members, observations, rewards, truncation and the
+failures of single members. The single environment is the case N = 1 of this class;
+the vector environment adds the autoreset.
+
+Observation of a member (float32), in this order: the state ``x`` (coordinates, rates,
+creep states, lagging inputs) minus its calibration mean over its calibration standard
+deviation; the tip minus the workspace's centre over its radius; the task's goal
+(:mod:`softcurve.envs.tasks`). Non-finite entries (only possible after a failure) read
+0 and every entry is clipped to +-:data:`OBSERVATION_LIMIT`.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from gymnasium import spaces
+from gymnasium.utils import seeding
+
+from softcurve.base.validation import ParameterError
+from softcurve.envs.setup import build_setup
+from softcurve.envs.tasks import FAILURE_REWARD
+
+OBSERVATION_LIMIT = 1e3
+"""Bound of every observation entry: a thousand calibration scales, far beyond any
+state the robot reaches within its input bounds (the observations are of order one)."""
+NOT_FINITE = "the state was not finite before the step"
+"""Failure reason of a member whose state held NaN or infinity when it was stepped."""
+
+
+def make_episodes(task_class, num_envs: int, tolerance=None, **options):
+    """The :class:`Episodes` of ``num_envs`` members of ``task_class``.
+
+    Parameters
+    ----------
+    task_class : type
+        A :class:`~softcurve.envs.tasks.Task` subclass.
+    num_envs : int
+        Number of members.
+    tolerance : float, optional
+        The task's success tolerance (its unit).
+    **options : dict
+        The keywords of :func:`~softcurve.envs.setup.build_setup` (robot, actuator,
+        scenario, environment, period, max_episode_steps, substeps, threads).
+    """
+    if isinstance(num_envs, bool) or not isinstance(num_envs, int | np.integer) or num_envs < 1:
+        raise ParameterError(f"num_envs must be an integer >= 1, got {num_envs!r}")
+    if options.get("environment") is None and options.get("scenario") is None:
+        options["environment"] = task_class.default_environment(options.get("robot") is not None)
+    setup = build_setup(duration=task_class.duration, **options)
+    return Episodes(task_class(setup, tolerance), int(num_envs))
+
+
+class Episodes:
+    """N members' episodes; see the module docstring.
+
+    Parameters
+    ----------
+    task : Task
+        The task (with its setup and calibration).
+    size : int
+        Number of members N.
+    """
+
+    def __init__(self, task, size: int):
+        self.task, self.setup, self.size = task, task.setup, size
+        stepper = self.setup.stepper
+        self.lower, self.upper = np.asarray(stepper.lower), np.asarray(stepper.upper)
+        self.x = np.tile(self.setup.x0, (size, 1))
+        self.steps = np.zeros(size, dtype=np.int64)
+        self.parameters = np.zeros((size, task.n_parameters))
+        self.rngs: list[np.random.Generator | None] = [None] * size
+        self.tip0 = np.asarray(stepper.tip(self.setup.x0[None, :]))[0]
+        self.force0 = np.zeros(3)  # the start state is clear of obstacles (Scenario checks)
+        dim = self.setup.x0.size + 3 + task.n_goal
+        limit = np.float32(OBSERVATION_LIMIT)
+        self.observation_space = spaces.Box(-limit, limit, (dim,), np.float32)
+        self.action_space = spaces.Box(-1.0, 1.0, (self.lower.size,), np.float32)
+
+    # -- actions and observations ---------------------------------------------------
+    def inputs(self, actions) -> np.ndarray:
+        """Actuator inputs (N, m), in the actuator's unit, of actions in [-1, 1] (clipped
+        there first): -1 is the lower bound, 1 the upper.
+
+        Parameters
+        ----------
+        actions : array_like, shape (N, m)
+            The actions, dimensionless.
+        """
+        a = np.asarray(actions, dtype=np.float64).reshape(self.size, self.lower.size)
+        if not np.isfinite(a).all():
+            bad = int(np.argmax(~np.all(np.isfinite(a), axis=1)))
+            raise ParameterError(f"actions of member {bad} are not finite: {a[bad].tolist()}")
+        return self.lower + (np.clip(a, -1.0, 1.0) + 1.0) / 2.0 * (self.upper - self.lower)
+
+    def observe(self, x, tip, goal) -> np.ndarray:
+        """Observations (N, dim) of states, tips and goals (module docstring).
+
+        Parameters
+        ----------
+        x : ndarray, shape (N, n_state)
+            States.
+        tip : ndarray, shape (N, 3)
+            Tip positions [m].
+        goal : ndarray, shape (N, n_goal)
+            The task's goal features, dimensionless.
+        """
+        calibration = self.task.calibration
+        state = (x - calibration.state_mean) / calibration.state_scale
+        where = (tip - calibration.center) / calibration.radius
+        observation = np.hstack([state, where, goal])
+        if not np.isfinite(observation).all():  # only after a failure
+            observation = np.nan_to_num(observation, nan=0.0, posinf=OBSERVATION_LIMIT,
+                                        neginf=-OBSERVATION_LIMIT)  # fmt: skip
+        np.clip(observation, -OBSERVATION_LIMIT, OBSERVATION_LIMIT, out=observation)
+        return observation.astype(np.float32)
+
+    def _outcome(self, members, x, tip, force, ok, reasons) -> tuple:
+        """Observations, rewards, success and info of ``members`` at states ``x``."""
+        goal, reward, success, extra = self.task.evaluate(
+            self.parameters[members], self.steps[members], tip, force
+        )
+        failure = np.full(len(members), None, dtype=object)
+        if not ok.all():
+            reward = np.where(ok, np.nan_to_num(reward), FAILURE_REWARD)
+            for i in np.flatnonzero(~ok):
+                failure[i] = reasons[i]
+        info = {
+            "tip": tip,
+            "time": self.steps[members] * self.setup.period,
+            "is_success": success & ok,
+            **extra,
+            "failure": failure,
+        }
+        return self.observe(x, tip, goal), reward, info
+
+    # -- seeding, reset, step -------------------------------------------------------
+    def seed(self, members, seeds) -> None:
+        """Give ``members`` new generators from ``seeds`` (an int each, or None: keep
+        the member's generator, or draw a fresh one if it has none).
+
+        Parameters
+        ----------
+        members : sequence of int
+            Member indices.
+        seeds : sequence of int or None
+            One seed per member.
+        """
+        for i, seed in zip(members, seeds, strict=True):
+            if seed is not None or self.rngs[i] is None:
+                self.rngs[i] = seeding.np_random(seed)[0]
+
+    def reset(self, members) -> tuple[np.ndarray, dict]:
+        """Start new episodes for ``members`` (indices); returns their observations and
+        info (arrays over those members).
+
+        Parameters
+        ----------
+        members : ndarray of int, shape (k,)
+            Member indices.
+        """
+        members = np.asarray(members, dtype=np.int64)
+        self.seed(members, [None] * members.size)
+        self.x[members] = self.setup.x0
+        self.steps[members] = 0
+        for i in members:
+            self.parameters[i] = self.task.draw(self.rngs[i])
+        k = members.size
+        tip, force = np.tile(self.tip0, (k, 1)), np.tile(self.force0, (k, 1))
+        observation, _, info = self._outcome(
+            members, self.x[members], tip, force, np.ones(k, dtype=bool), [None] * k
+        )
+        return observation, info
+
+    def step(self, actions) -> tuple:
+        """Advance every member by one control period: ``(observation, reward,
+        terminated, truncated, info)`` as arrays over the members (no reset here).
+
+        Parameters
+        ----------
+        actions : array_like, shape (N, m)
+            The actions in [-1, 1] (clipped), dimensionless.
+        """
+        inputs = self.inputs(actions)
+        finite = np.isfinite(self.x).all(axis=1)
+        start = self.x if finite.all() else np.where(finite[:, None], self.x, self.setup.x0)
+        result = self.setup.stepper.step(start, inputs)
+        x, tip, force = result.x, result.tip, result.contact_force
+        ok = result.ok & finite & np.isfinite(x).all(axis=1)
+        reasons = result.reasons
+        if not ok.all():  # the failed members keep their state from before the step
+            reasons = list(reasons)
+            for i in np.flatnonzero(~ok):
+                reasons[i] = (
+                    NOT_FINITE
+                    if not finite[i]
+                    else (reasons[i] or "the stepper returned a state that is not finite")
+                )
+            x, tip, force = x.copy(), tip.copy(), force.copy()
+            x[~ok] = self.x[~ok]
+            tip[~ok], force[~ok] = np.nan, 0.0
+            kept = np.flatnonzero(~ok & np.isfinite(x).all(axis=1))
+            if kept.size:  # the tip of the state kept
+                tip[kept] = self.setup.stepper.tip(x[kept])
+        self.x = x
+        self.steps += 1
+        members = np.arange(self.size)
+        observation, reward, info = self._outcome(members, x, tip, force, ok, reasons)
+        info["inputs"] = inputs
+        terminated = np.zeros(self.size, dtype=bool)
+        truncated = (self.steps >= self.setup.max_episode_steps) | ~ok
+        return observation, reward, terminated, truncated, info

@@ -1,0 +1,225 @@
+"""What a learning environment simulates: the robot, its actuator, the obstacles, the
+control period and the episode's start, from Python objects or a TOML scenario
+(:mod:`softcurve.scenarios`), built and checked once.
+
+Defaults (no robot given): the paper's robot (:func:`softcurve.presets.ifac2020`) with
+three bellows 12 mm from the backbone, 2e-4 m^2 each, 0 to 6e4 Pa gauge, lagging their
+command by 0.02 s (``examples/pneumatic.toml``), controlled every 0.02 s.
+"""
+
+from __future__ import annotations
+
+import math
+import pickle
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from softcurve.base.docs import parameters_from
+from softcurve.base.validation import ParameterError, real_scalar
+from softcurve.compiled.model import Model
+from softcurve.description import presets
+from softcurve.description.actuator import Actuator
+from softcurve.description.pneumatic import PneumaticActuator
+from softcurve.description.robot import Robot
+from softcurve.scenarios.config import Scenario, scenario_from_dict
+from softcurve.scenarios.tables import read_toml
+from softcurve.simulation.settings import SimulationSettings
+from softcurve.simulation.stepper import Stepper
+
+DEFAULT_PERIOD = 0.02
+"""Control period [s] without a scenario or ``period=``: 50 Hz, the rate of the
+pressure controllers of soft pneumatic robots and ten times the pressure lag below."""
+
+DEFAULT_BELLOWS = {
+    "distance": 0.012,
+    "area": 2.0e-4,
+    "p_min": 0.0,
+    "p_max": 6.0e4,
+    "time_constant": 0.02,
+}
+"""The bellows of ``examples/pneumatic.toml`` (illustrative: the paper does not publish
+its bellows' geometry)."""
+
+ENV_PARAMETERS = {
+    "robot": ("Robot, optional", "The robot (default: ``softcurve.presets.ifac2020()``)."),
+    "actuator": (
+        "Actuator, optional",
+        "What the actions drive: bellows (pressures [Pa]) or tendons (tensions [N]); "
+        "default: the three bellows of ``examples/pneumatic.toml``.",
+    ),
+    "scenario": (
+        "Scenario or str or Path, optional",
+        "A scenario (or its TOML file) giving the robot, the ``[actuation]``, the "
+        "``[environment]``, the start ``q0``/``qd0``/``lam0``, and, where the file sets "
+        "them, the control period (``[simulation] dt``) and the episode's duration "
+        "(``t_final``); instead of ``robot``/``actuator``.",
+    ),
+    "environment": (
+        "Environment, optional",
+        "Obstacles and contact law (default: the scenario's, or the task's own).",
+    ),
+    "period": ("float, optional", "Control period [s] (default: the scenario's dt or 0.02 s)."),
+    "max_episode_steps": (
+        "int, optional",
+        "Number of control periods after which an episode is truncated (default: the "
+        "task's duration, or the scenario's ``t_final``, over the period).",
+    ),
+    "tolerance": (
+        "float, optional",
+        "Success tolerance, in the task's unit (Reach, Track: [m]; Press: [N]; default "
+        "a twentieth of the workspace or force range).",
+    ),
+    "substeps": ("int, optional", "Integrator steps per period (the stepper's default)."),
+    "threads": ("int, optional", "Threads of the stepper (its default)."),
+    "render_mode": ("str, optional", "Gymnasium's render mode; only None is supported."),
+}
+"""The constructor parameters every environment shares."""
+
+env_parameters = parameters_from(ENV_PARAMETERS)
+"""Decorator: substitute the shared entries of :data:`ENV_PARAMETERS` into docstrings."""
+
+
+def default_actuator(n_segments: int = 1) -> PneumaticActuator:
+    """Three bellows per segment, as ``examples/pneumatic.toml`` (:data:`DEFAULT_BELLOWS`).
+
+    Parameters
+    ----------
+    n_segments : int
+        Number of segments of the robot.
+    """
+    return PneumaticActuator.three_bellows(n_segments=n_segments, **DEFAULT_BELLOWS)
+
+
+@dataclass(frozen=True)
+class Setup:
+    """A robot ready to be stepped: the stepper, the episode's start and length.
+
+    Attributes
+    ----------
+    stepper : Stepper
+        The compiled stepper (model, actuator, period).
+    x0 : ndarray, shape (n_state,)
+        The state every episode starts from.
+    max_episode_steps : int
+        Control periods per episode (truncation).
+    source : str
+        Where the robot came from (a file name or "built-in"), for messages.
+    """
+
+    stepper: Stepper
+    x0: np.ndarray
+    max_episode_steps: int
+    source: str
+
+    @property
+    def period(self) -> float:
+        """The control period [s]."""
+        return self.stepper.period
+
+
+_STEPPERS: dict[bytes, Stepper] = {}
+"""Steppers by content (robot, obstacles, actuator, period, substeps, threads): the
+environments of one process share them, since building one (its compiled period
+function, loaded from the on-disk cache) takes seconds; a stepper keeps no state between
+calls."""
+
+
+def _stepper(robot, environment, actuator, period, substeps, threads) -> Stepper:
+    key = pickle.dumps((robot, environment, actuator, period, substeps, threads))
+    if key not in _STEPPERS:
+        model = Model(robot, environment=environment)  # loaded from the on-disk cache
+        _STEPPERS[key] = Stepper(model, actuator, period=period, substeps=substeps, threads=threads)
+    return _STEPPERS[key]
+
+
+def _scenario(value) -> tuple[Scenario, set[str]]:
+    """The scenario and which ``[simulation]`` keys its file sets explicitly."""
+    if isinstance(value, Scenario):
+        default = SimulationSettings()
+        given = {k for k in ("dt", "t_final") if getattr(value.settings, k) != getattr(default, k)}
+        return value, given
+    if isinstance(value, str | Path):
+        data, file = read_toml(value)
+        simulation = data.get("simulation", {})
+        given = {k for k in ("dt", "t_final") if isinstance(simulation, dict) and k in simulation}
+        return scenario_from_dict(data, file), given
+    raise ParameterError(f"scenario must be a softcurve Scenario or a TOML path, got {value!r}")
+
+
+def build_setup(
+    *,
+    robot=None,
+    actuator=None,
+    scenario=None,
+    environment=None,
+    period=None,
+    duration: float,
+    max_episode_steps=None,
+    substeps=None,
+    threads=None,
+) -> Setup:
+    """The :class:`Setup` of an environment from Python objects or a scenario.
+
+    Parameters
+    ----------
+    %(robot)s
+    %(actuator)s
+    %(scenario)s
+    %(environment)s
+    %(period)s
+    duration : float
+        The task's default episode duration [s].
+    %(max_episode_steps)s
+    %(substeps)s
+    %(threads)s
+    """
+    q0 = qd0 = lam0 = None
+    source = "built-in"
+    given: set[str] = set()
+    if scenario is not None:
+        if robot is not None or actuator is not None:
+            raise ParameterError("give scenario= or robot=/actuator=, not both")
+        scenario, given = _scenario(scenario)
+        robot, actuator, source = scenario.robot, scenario.actuator(), scenario.source
+        if actuator is None:
+            raise ParameterError(
+                f"{source}: a learning environment needs an [actuation] table (what the "
+                "actions drive)"
+            )
+        q0, qd0, lam0 = scenario.initial_state()
+        if environment is None:
+            environment = scenario.environment
+        if period is None and "dt" in given:
+            period = scenario.settings.dt
+        if max_episode_steps is None and "t_final" in given:
+            duration = scenario.settings.t_final
+    robot = presets.ifac2020() if robot is None else robot
+    if not isinstance(robot, Robot):
+        raise ParameterError(f"robot must be a softcurve.Robot, got {robot!r}")
+    actuator = default_actuator(robot.n_segments) if actuator is None else actuator
+    if not isinstance(actuator, Actuator) or actuator.n != robot.n:
+        raise ParameterError(
+            f"actuator must be a softcurve.Actuator acting on the robot's n = {robot.n} "
+            f"coordinates, got {actuator!r}"
+        )
+    period = real_scalar("period", DEFAULT_PERIOD if period is None else period, positive=True)
+    if max_episode_steps is None:
+        max_episode_steps = max(1, math.ceil(duration / period - 1e-9))
+    steps = max_episode_steps
+    if isinstance(steps, bool) or not isinstance(steps, int | np.integer) or steps < 1:
+        raise ParameterError(f"max_episode_steps must be an integer >= 1, got {steps!r}")
+    if environment is not None:
+        environment.check_robot(robot)
+    stepper = _stepper(robot, environment, actuator, period, substeps, threads)
+    if q0 is None:
+        q0 = np.concatenate([[s.rest_length, 0.0, 0.0] for s in robot.segments])
+    x0 = np.array(stepper.initial_state(q0, qd0), dtype=np.float64)
+    if lam0 is not None and robot.n_creep:
+        x0[2 * robot.n : 2 * robot.n + robot.n_creep] = lam0  # (q, qd, lam, inputs)
+    x0.setflags(write=False)
+    return Setup(stepper, x0, int(max_episode_steps), source)
+
+
+build_setup = env_parameters(build_setup)

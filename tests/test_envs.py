@@ -1,0 +1,205 @@
+"""The Gymnasium environments (softcurve.envs): Gymnasium's checker, registration,
+seeding, the vector environment against single ones, action bounds, failures of single
+members and scenario files. The paper's robot with its default bellows throughout (one
+compiled model, shared with the other tests); Press, which compiles a model with a wall,
+is in tests/test_envs_press.py."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+import textwrap
+import warnings
+
+import numpy as np
+import pytest
+
+gymnasium = pytest.importorskip("gymnasium")
+
+from gymnasium.utils.env_checker import check_env  # noqa: E402
+
+import softcurve.envs as envs  # noqa: E402
+from softcurve.envs.core import NOT_FINITE  # noqa: E402
+from softcurve.envs.setup import build_setup  # noqa: E402
+
+STEPS = 3
+"""Episode length of most tests (control periods): short, so that autoresets happen."""
+
+
+def _actions(rng, count, size, m):
+    """Random actions, some beyond [-1, 1] (they are clipped)."""
+    return rng.uniform(-1.5, 1.5, size=(count, size, m))
+
+
+@pytest.mark.parametrize("name", ["Reach", "Track"])
+def test_gymnasium_checker_passes(name):
+    env = gymnasium.make(f"softcurve/{name}-v0", max_episode_steps=STEPS)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # the checker's warnings are failures too
+        check_env(env.unwrapped, skip_render_check=True)
+    observation, info = env.reset(seed=0)
+    assert env.observation_space.contains(observation)
+    assert info["failure"] is None
+
+
+def test_registered_with_and_without_module_prefix():
+    assert set(envs.TASK_IDS) <= set(gymnasium.registry)
+    env = gymnasium.make("softcurve.envs:softcurve/Reach-v0", max_episode_steps=STEPS)
+    assert isinstance(env.unwrapped, envs.Reach)
+    vector = gymnasium.make_vec(
+        "softcurve/Reach-v0", num_envs=2, vectorization_mode="vector_entry_point",
+        max_episode_steps=STEPS,
+    )  # fmt: skip
+    assert isinstance(vector, envs.ReachVector) and vector.num_envs == 2
+    assert vector.metadata["autoreset_mode"] == gymnasium.vector.AutoresetMode.SAME_STEP
+
+
+def _episode(env, seed, actions):
+    observations, rewards = [env.reset(seed=seed)[0]], []
+    for action in actions:
+        observation, reward, *_ = env.step(action)
+        observations.append(observation)
+        rewards.append(reward)
+    return np.array(observations), np.array(rewards)
+
+
+def test_same_seed_same_episode_and_another_seed_another_target():
+    env = envs.Reach(max_episode_steps=STEPS)
+    actions = _actions(np.random.default_rng(1), STEPS, 1, 3)[:, 0]
+    first, rewards = _episode(env, 7, actions)
+    again, rewards_again = _episode(envs.Reach(max_episode_steps=STEPS), 7, actions)
+    np.testing.assert_array_equal(first, again)
+    np.testing.assert_array_equal(rewards, rewards_again)
+    targets = {tuple(env.reset(seed=s)[1]["target"]) for s in range(5)}
+    assert len(targets) > 1
+
+
+def test_vector_equals_single_environments_with_autoreset():
+    """Member i of the vector environment seeded with s is the single environment seeded
+    with s + i, through an autoreset (episodes of 2 periods, 5 steps)."""
+    size, steps, seed = 3, 5, 11
+    vector = envs.ReachVector(size, max_episode_steps=2)
+    singles = [envs.Reach(max_episode_steps=2) for _ in range(size)]
+    actions = _actions(np.random.default_rng(2), steps, size, 3)
+    observations, _ = vector.reset(seed=seed)
+    resets = 0
+    expected = np.array([env.reset(seed=seed + i)[0] for i, env in enumerate(singles)])
+    np.testing.assert_allclose(observations, expected, rtol=1e-6, atol=1e-6)
+    for k in range(steps):
+        observations, rewards, _, truncated, infos = vector.step(actions[k])
+        for i, env in enumerate(singles):
+            observation, reward, _, ended, info = env.step(actions[k, i])
+            assert ended == truncated[i]
+            assert reward == pytest.approx(rewards[i], rel=1e-6, abs=1e-9)
+            if ended:
+                final = infos["final_obs"][i]
+                np.testing.assert_allclose(final, observation, rtol=1e-5, atol=1e-5)
+                observation, info = env.reset()
+                resets += 1
+            np.testing.assert_allclose(observations[i], observation, rtol=1e-5, atol=1e-5)
+            np.testing.assert_allclose(infos["target"][i], info["target"], rtol=1e-12)
+    assert resets == 2 * size  # after steps 2 and 4
+
+
+def test_actions_beyond_the_bounds_are_clipped():
+    vector = envs.ReachVector(2, max_episode_steps=STEPS)
+    vector.reset(seed=0)
+    stepper = vector.episodes.setup.stepper
+    actions = np.array([[5.0, -5.0, 1.0], [-1.0, 0.0, 3.0]])
+    _, _, _, _, info = vector.step(actions)
+    expected = stepper.lower + (np.clip(actions, -1, 1) + 1) / 2 * (stepper.upper - stepper.lower)
+    np.testing.assert_array_equal(info["inputs"], expected)
+    assert np.all(info["inputs"] >= stepper.lower) and np.all(info["inputs"] <= stepper.upper)
+    lagging = vector.episodes.x[:, stepper.model.n_state :]  # the lagging pressures
+    assert np.all(lagging >= stepper.lower - 1e-6 * stepper.upper)
+    assert np.all(lagging <= stepper.upper * (1 + 1e-6))
+
+
+def test_a_failing_member_ends_only_its_own_episode():
+    vector = envs.ReachVector(3, max_episode_steps=50)
+    vector.reset(seed=3)
+    vector.step(np.zeros((3, 3)))
+    vector.episodes.x[1] = np.nan  # a member broken from outside
+    observations, rewards, terminated, truncated, infos = vector.step(np.zeros((3, 3)))
+    assert list(truncated) == [False, True, False] and not terminated.any()
+    assert np.all(np.isfinite(observations)) and np.all(np.isfinite(rewards))
+    assert infos["final_info"]["failure"][1] == NOT_FINITE and infos["_final_info"][1]
+    assert np.all(np.isfinite(infos["final_obs"][1]))
+    assert rewards[1] == -1.0
+    assert list(infos["time"]) == pytest.approx([0.04, 0.0, 0.04])  # member 1 restarted
+    assert np.all(np.isfinite(vector.episodes.x))
+    observations, _, _, truncated, infos = vector.step(np.zeros((3, 3)))
+    assert not truncated.any() and np.all(np.isfinite(observations))
+    assert list(infos["failure"]) == [None, None, None]
+
+
+def test_single_environment_failure_is_a_truncation_with_its_reason():
+    env = envs.Reach(max_episode_steps=50)
+    env.reset(seed=0)
+    env.episodes.x[0, 0] = np.inf
+    observation, reward, terminated, truncated, info = env.step(np.zeros(3))
+    assert truncated and not terminated and reward == -1.0
+    assert info["failure"] == NOT_FINITE
+    assert np.all(np.isfinite(observation))
+
+
+SCENARIO = """
+[robot]
+preset = "ifac2020"
+
+[actuation]
+kind = "bellows"
+distance = 0.012
+area = 2.0e-4
+p_max = 6.0e4
+time_constant = 0.02
+
+[simulation]
+dt = 0.02
+t_final = 0.1
+"""
+
+
+def test_a_scenario_file_gives_robot_actuator_period_and_episode_length(tmp_path):
+    path = tmp_path / "reach.toml"
+    path.write_text(textwrap.dedent(SCENARIO))
+    env = envs.Reach.from_scenario(path)
+    setup = env.episodes.setup
+    assert setup.period == 0.02 and setup.max_episode_steps == 5
+    bent = tmp_path / "bent.toml"  # the start, checked on the setup (no calibration)
+    bent.write_text(textwrap.dedent(SCENARIO) + "q0 = [0.064, 5.0, 0.0]\n")
+    assert build_setup(scenario=bent, duration=1.0).x0[:3].tolist() == [0.064, 5.0, 0.0]
+    vector = gymnasium.make_vec("softcurve/Reach-v0", num_envs=2, scenario=str(path))
+    assert vector.episodes.setup.max_episode_steps == 5
+    without = tmp_path / "bare.toml"
+    without.write_text('[robot]\npreset = "ifac2020"\n')
+    with pytest.raises(ValueError, match="actuation"):
+        envs.Reach.from_scenario(without)
+
+
+def test_softcurve_imports_without_gymnasium():
+    code = (
+        "import sys; sys.modules['gymnasium'] = None\n"
+        "import softcurve\n"
+        "try:\n    import softcurve.envs\nexcept ModuleNotFoundError as e:\n    print(e)\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert "pip install 'softcurve[envs]'" in out.stdout
+
+
+def test_the_track_target_is_reachable_by_its_own_command():
+    """Driving Track with the rotating command that drew its path puts the tip on the
+    moving target once the start transient has decayed (0.02 mm, tolerance 5 mm)."""
+    from softcurve.envs.calibration import rotating_inputs
+
+    env = envs.Track()
+    env.reset(seed=3)
+    stepper, task = env.episodes.setup.stepper, env.task
+    phase = env.episodes.parameters[0, 0] + task.rate * stepper.period * np.arange(1, 201)
+    commands = rotating_inputs(stepper, phase)
+    distances = []
+    for command in commands:
+        action = 2 * (command - stepper.lower) / (stepper.upper - stepper.lower) - 1
+        *_, info = env.step(action)
+        distances.append(info["distance"])
+    assert max(distances[150:]) < 0.02 * task.tolerance
