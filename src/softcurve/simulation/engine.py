@@ -265,6 +265,10 @@ def cvodes_options(
         "abstol": abstol,
         "max_num_steps": int(max_steps),
         "disable_internal_warnings": True,
+        # no timing: CasADi otherwise reads the process CPU clock (a system call) around
+        # every evaluation of the model, a third of a paper-case run (docs/performance.md)
+        "record_time": False,
+        "print_time": False,
         **extra,
     }
     if max_order is not None:
@@ -286,6 +290,8 @@ def cvodes_reason(text: str) -> str:
         ("CV_ERR_FAILURE", "the error test failed repeatedly (step size became too small)"),
         ("CV_CONV_FAILURE", "the Newton iteration failed repeatedly"),
         ("CV_RHSFUNC_FAIL", "the right-hand side failed (non-finite values)"),
+        ("CV_FIRST_RHSFUNC_ERR", "the right-hand side failed (non-finite values)"),
+        ("CV_TOO_MUCH_ACC", "the tolerances are too tight for float64 arithmetic"),
         ("CV_REPTD_RHSFUNC_ERR", "the right-hand side failed (non-finite values)"),
         ("CV_LSETUP_FAIL", "the linear solver setup failed (singular Newton matrix)"),
         ("CV_LSOLVE_FAIL", "the linear solve failed"),

@@ -1,0 +1,315 @@
+"""The C source of softcurve's CVODES driver, compiled by :mod:`softcurve.simulation.native`.
+
+Kept as a Python string so that it ships with the package like any module.
+"""
+
+DRIVER_SOURCE = r"""/* softcurve's driver of SUNDIALS CVODES: integrate members of a batch (or one run) on a
+ * CasADi-generated right-hand side f(x, u, p) -> xdot, all in C.
+ *
+ * CVODES is the copy inside CasADi (SUNDIALS 2.x interface, libcasadi_integrator_cvodes),
+ * declared here because CasADi ships no headers for it. The Newton systems are solved by
+ * CVSPGMR preconditioned with the exact LU factors of the Newton matrix I - gamma J, whose
+ * Jacobian J comes from forward differences of f; with the same J in the Jacobian-vector
+ * product, GMRES converges in one iteration, so this is a direct dense solve. CVODES says
+ * when J may be reused (jok): only then is it recomputed.
+ *
+ * The state is integrated scaled, xs = x / nominal, with one absolute tolerance.
+ */
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+typedef double realtype;
+typedef struct _generic_N_Vector *N_Vector;
+typedef int (*CVRhsFn)(realtype t, N_Vector y, N_Vector ydot, void *data);
+typedef int (*CVPrecSetupFn)(realtype t, N_Vector y, N_Vector fy, int jok, int *jcur,
+                             realtype gamma, void *data, N_Vector t1, N_Vector t2, N_Vector t3);
+typedef int (*CVPrecSolveFn)(realtype t, N_Vector y, N_Vector fy, N_Vector r, N_Vector z,
+                             realtype gamma, realtype delta, int lr, void *data, N_Vector tmp);
+typedef int (*CVJacTimesFn)(N_Vector v, N_Vector Jv, realtype t, N_Vector y, N_Vector fy,
+                            void *data, N_Vector tmp);
+typedef void (*CVErrHandlerFn)(int code, const char *module, const char *function, char *msg,
+                               void *data);
+
+extern N_Vector N_VNew_Serial(long int length);
+extern realtype *N_VGetArrayPointer(N_Vector v);
+extern void N_VDestroy(N_Vector v);
+extern void *CVodeCreate(int lmm, int iter);
+extern int CVodeInit(void *mem, CVRhsFn f, realtype t0, N_Vector y0);
+extern int CVodeReInit(void *mem, realtype t0, N_Vector y0);
+extern int CVodeSStolerances(void *mem, realtype rtol, realtype atol);
+extern int CVodeSetUserData(void *mem, void *data);
+extern int CVodeSetMaxNumSteps(void *mem, long int mxsteps);
+extern int CVodeSetMaxOrd(void *mem, int maxord);
+extern int CVodeSetStopTime(void *mem, realtype tstop);
+extern int CVodeSetErrHandlerFn(void *mem, CVErrHandlerFn f, void *data);
+extern int CVode(void *mem, realtype tout, N_Vector yout, realtype *tret, int itask);
+extern int CVodeGetNumSteps(void *mem, long int *n);
+extern int CVodeGetNumRhsEvals(void *mem, long int *n);
+extern int CVodeGetNumLinSolvSetups(void *mem, long int *n);
+extern int CVodeGetNumErrTestFails(void *mem, long int *n);
+extern int CVodeGetNumNonlinSolvConvFails(void *mem, long int *n);
+extern void CVodeFree(void **mem);
+extern int CVSpgmr(void *mem, int pretype, int maxl);
+extern int CVSpilsSetPreconditioner(void *mem, CVPrecSetupFn setup, CVPrecSolveFn solve);
+extern int CVSpilsSetJacTimesVecFn(void *mem, CVJacTimesFn jtimes);
+
+#define CV_ADAMS 1
+#define CV_BDF 2
+#define CV_NEWTON 2
+#define CV_NORMAL 1
+#define PREC_LEFT 1
+#define GMRES_DIMENSION 2 /* one iteration converges (exact preconditioner); one spare */
+#define STATS 6
+
+typedef int (*casadi_fn)(const double **arg, double **res, long long *iw, double *w, int mem);
+
+/* What the Python side passes: the model's generated right-hand side f(x, tau, p) (nx
+ * states, nu forces, np parameters) with its work sizes (the largest over f and force), and
+ * optionally an actuator's force(q, v) -> tau = H(q) v with m inputs: the member's input is
+ * then v (m) or, with lag, the command of v, whose m states follow x with the rate
+ * (clip(command, lower, upper) - v) / time_constant. */
+typedef struct {
+    casadi_fn f, force;
+    int nx, nu, np, m, lag;
+    long long sz_arg, sz_res, sz_iw, sz_w;
+    const double *lower, *upper;
+    double time_constant;
+} sc_function;
+
+typedef struct {
+    const sc_function *fn;
+    const double *u, *p, *nominal;
+    const double **arg;
+    double **res;
+    long long *iw;
+    double *w, *x, *xdot, *tau, *J, *LU, *ftmp;
+    int n; /* states integrated: nx, plus m lagging inputs */
+    int *piv;
+    long jacobians, evaluations;
+} sc_work;
+
+static void quiet(int code, const char *module, const char *function, char *msg, void *data) {
+    (void)code; (void)module; (void)function; (void)msg; (void)data;
+}
+
+/* ydot = f(nominal * y, u, p) / nominal; 1 (recoverable) on a non-finite value */
+static int evaluate(sc_work *s, const double *y, double *ydot) {
+    const sc_function *fn = s->fn;
+    int i, n = s->n;
+    for (i = 0; i < n; ++i) s->x[i] = s->nominal[i] * y[i];
+    s->arg[1] = s->u;
+    if (fn->force != NULL) {
+        s->arg[0] = s->x;
+        s->arg[1] = fn->lag ? s->x + fn->nx : s->u;
+        s->res[0] = s->tau;
+        if (fn->force(s->arg, s->res, s->iw, s->w, 0)) return -1;
+        s->arg[1] = s->tau;
+    }
+    s->arg[0] = s->x;
+    s->arg[2] = s->p;
+    s->res[0] = s->xdot;
+    if (fn->f(s->arg, s->res, s->iw, s->w, 0)) return -1;
+    for (i = 0; fn->lag && i < fn->m; ++i) {
+        double command = s->u[i] < fn->lower[i] ? fn->lower[i] : s->u[i];
+        command = command > fn->upper[i] ? fn->upper[i] : command;
+        s->xdot[fn->nx + i] = (command - s->x[fn->nx + i]) / fn->time_constant;
+    }
+    s->evaluations++;
+    for (i = 0; i < n; ++i) {
+        ydot[i] = s->xdot[i] / s->nominal[i];
+        if (!isfinite(ydot[i])) return 1;
+    }
+    return 0;
+}
+
+static int rhs(realtype t, N_Vector y, N_Vector ydot, void *data) {
+    (void)t;
+    return evaluate((sc_work *)data, N_VGetArrayPointer(y), N_VGetArrayPointer(ydot));
+}
+
+/* Forward-difference Jacobian (column-major) when CVODES asks for a fresh one, then the LU
+ * factors (partial pivoting) of I - gamma J. */
+static int setup(realtype t, N_Vector yv, N_Vector fyv, int jok, int *jcur, realtype gamma,
+                 void *data, N_Vector t1, N_Vector t2, N_Vector t3) {
+    sc_work *s = (sc_work *)data;
+    int n = s->n, i, j, k, flag;
+    double *y = N_VGetArrayPointer(yv), *fy = N_VGetArrayPointer(fyv), *A = s->LU;
+    (void)t; (void)t1; (void)t2; (void)t3;
+    if (!jok) {
+        for (j = 0; j < n; ++j) {
+            double saved = y[j];
+            double step = 1.4901161193847656e-08 * (fabs(saved) > 1.0 ? fabs(saved) : 1.0);
+            y[j] = saved + step;
+            flag = evaluate(s, y, s->ftmp);
+            y[j] = saved;
+            if (flag) return flag;
+            for (i = 0; i < n; ++i) s->J[i + j * n] = (s->ftmp[i] - fy[i]) / step;
+        }
+        s->jacobians++;
+        *jcur = 1;
+    } else {
+        *jcur = 0;
+    }
+    for (k = 0; k < n * n; ++k) A[k] = -gamma * s->J[k];
+    for (i = 0; i < n; ++i) A[i + i * n] += 1.0;
+    for (k = 0; k < n; ++k) {
+        int p = k;
+        double big = fabs(A[k + k * n]);
+        for (i = k + 1; i < n; ++i)
+            if (fabs(A[i + k * n]) > big) big = fabs(A[i + k * n]), p = i;
+        if (big == 0.0) return 1;
+        s->piv[k] = p;
+        if (p != k)
+            for (j = 0; j < n; ++j) {
+                double a = A[k + j * n];
+                A[k + j * n] = A[p + j * n];
+                A[p + j * n] = a;
+            }
+        for (i = k + 1; i < n; ++i) A[i + k * n] /= A[k + k * n];
+        for (j = k + 1; j < n; ++j)
+            for (i = k + 1; i < n; ++i) A[i + j * n] -= A[i + k * n] * A[k + j * n];
+    }
+    return 0;
+}
+
+static int solve(realtype t, N_Vector yv, N_Vector fyv, N_Vector rv, N_Vector zv, realtype gamma,
+                 realtype delta, int lr, void *data, N_Vector tmp) {
+    sc_work *s = (sc_work *)data;
+    int n = s->n, i, k;
+    double *r = N_VGetArrayPointer(rv), *z = N_VGetArrayPointer(zv), *A = s->LU;
+    (void)t; (void)yv; (void)fyv; (void)gamma; (void)delta; (void)lr; (void)tmp;
+    if (z != r) memcpy(z, r, n * sizeof(double));
+    for (k = 0; k < n; ++k) /* the row swaps of the factorization, then L, then U */
+        if (s->piv[k] != k) {
+            double a = z[k];
+            z[k] = z[s->piv[k]];
+            z[s->piv[k]] = a;
+        }
+    for (k = 0; k < n; ++k)
+        for (i = k + 1; i < n; ++i) z[i] -= A[i + k * n] * z[k];
+    for (k = n - 1; k >= 0; --k) {
+        z[k] /= A[k + k * n];
+        for (i = 0; i < k; ++i) z[i] -= A[i + k * n] * z[k];
+    }
+    return 0;
+}
+
+static int jtimes(N_Vector vv, N_Vector Jvv, realtype t, N_Vector y, N_Vector fy, void *data,
+                  N_Vector tmp) {
+    sc_work *s = (sc_work *)data;
+    int n = s->n, i, j;
+    double *v = N_VGetArrayPointer(vv), *Jv = N_VGetArrayPointer(Jvv);
+    (void)t; (void)y; (void)fy; (void)tmp;
+    for (i = 0; i < n; ++i) Jv[i] = 0.0;
+    for (j = 0; j < n; ++j)
+        for (i = 0; i < n; ++i) Jv[i] += s->J[i + j * n] * v[j];
+    return 0;
+}
+
+static void *create(int lmm, N_Vector y, sc_work *s, double rtol, double atol, long max_steps,
+                    int max_order) {
+    void *mem = CVodeCreate(lmm, CV_NEWTON);
+    if (mem == NULL) return NULL;
+    if (CVodeInit(mem, rhs, 0.0, y) || CVodeSStolerances(mem, rtol, atol) ||
+        CVodeSetUserData(mem, s) || CVodeSetMaxNumSteps(mem, max_steps) ||
+        CVodeSetErrHandlerFn(mem, quiet, NULL) || CVSpgmr(mem, PREC_LEFT, GMRES_DIMENSION) ||
+        CVSpilsSetPreconditioner(mem, setup, solve) || CVSpilsSetJacTimesVecFn(mem, jtimes) ||
+        (max_order > 0 && CVodeSetMaxOrd(mem, lmm == CV_BDF && max_order > 5 ? 5 : max_order))) {
+        CVodeFree(&mem);
+        return NULL;
+    }
+    return mem;
+}
+
+/* Integrate `count` members from x0 (physical) at time 0 to the output times `times[0..k)`,
+ * member b with family lmm[b] (1 Adams, 2 BDF), input u[b], parameters p[b], scale
+ * nominal[b]. Writes out[b, i, :] (physical), reached[b] (outputs computed), flag[b] (0 or
+ * CVODES's flag; -100 when the solver could not be set up) and adds to stats[b, :]: steps,
+ * right-hand sides, Jacobians, linear-solver setups, error-test failures, Newton failures. */
+__attribute__((visibility("default"))) int softcurve_cvodes(const sc_function *fn, int count, const int *lmm, const double *x0,
+                     const double *u, const double *p, const double *nominal,
+                     const double *times, int k, double rtol, double atol, long max_steps,
+                     int max_order, double *out, int *reached, int *flag, long *stats) {
+    int n = fn->nx + (fn->lag ? fn->m : 0), inputs = fn->force ? fn->m : fn->nu, b, i, j;
+    sc_work s;
+    void *mem[3] = {NULL, NULL, NULL};
+    N_Vector y = N_VNew_Serial(n);
+    long long sz_arg = fn->sz_arg > 3 ? fn->sz_arg : 3, sz_res = fn->sz_res > 1 ? fn->sz_res : 1;
+    memset(&s, 0, sizeof(s));
+    s.fn = fn;
+    s.n = n;
+    s.arg = (const double **)calloc(sz_arg, sizeof(double *));
+    s.res = (double **)calloc(sz_res, sizeof(double *));
+    s.iw = (long long *)calloc(fn->sz_iw + 1, sizeof(long long));
+    s.w = (double *)calloc(fn->sz_w + 1 + 4 * n + fn->nx + 2 * n * n, sizeof(double));
+    s.piv = (int *)calloc(n, sizeof(int));
+    if (y == NULL || !s.arg || !s.res || !s.iw || !s.w || !s.piv) {
+        for (b = 0; b < count; ++b) flag[b] = -100, reached[b] = 0;
+        goto done;
+    }
+    s.x = s.w + fn->sz_w + 1;
+    s.xdot = s.x + n;
+    s.tau = s.xdot + n;
+    s.ftmp = s.tau + fn->nx;
+    s.J = s.ftmp + n;
+    s.LU = s.J + n * n;
+    for (b = 0; b < count; ++b) {
+        int family = lmm[b] == CV_BDF ? CV_BDF : CV_ADAMS;
+        double *ys = N_VGetArrayPointer(y), tret;
+        long before[5] = {0, 0, 0, 0, 0}, after[5] = {0, 0, 0, 0, 0};
+        s.u = u + (long)b * inputs;
+        s.p = p + (long)b * fn->np;
+        s.nominal = nominal + (long)b * n;
+        s.jacobians = s.evaluations = 0;
+        for (i = 0; i < n; ++i) ys[i] = x0[(long)b * n + i] / s.nominal[i];
+        if (mem[family] == NULL) {
+            mem[family] = create(family, y, &s, rtol, atol, max_steps, max_order);
+        } else if (CVodeReInit(mem[family], 0.0, y)) {
+            flag[b] = -100, reached[b] = 0;
+            continue;
+        }
+        if (mem[family] == NULL) {
+            flag[b] = -100, reached[b] = 0;
+            continue;
+        }
+        CVodeGetNumSteps(mem[family], &before[0]);
+        CVodeGetNumRhsEvals(mem[family], &before[1]);
+        CVodeGetNumLinSolvSetups(mem[family], &before[2]);
+        CVodeGetNumErrTestFails(mem[family], &before[3]);
+        CVodeGetNumNonlinSolvConvFails(mem[family], &before[4]);
+        CVodeSetStopTime(mem[family], times[k - 1]);
+        flag[b] = 0;
+        for (i = 0; i < k; ++i) {
+            int status = CVode(mem[family], times[i], y, &tret, CV_NORMAL);
+            if (status < 0) {
+                flag[b] = status;
+                break;
+            }
+            for (j = 0; j < n; ++j) out[((long)b * k + i) * n + j] = ys[j] * s.nominal[j];
+        }
+        reached[b] = i;
+        CVodeGetNumSteps(mem[family], &after[0]);
+        CVodeGetNumRhsEvals(mem[family], &after[1]);
+        CVodeGetNumLinSolvSetups(mem[family], &after[2]);
+        CVodeGetNumErrTestFails(mem[family], &after[3]);
+        CVodeGetNumNonlinSolvConvFails(mem[family], &after[4]);
+        stats[b * STATS + 0] += after[0] - before[0];
+        stats[b * STATS + 1] += after[1] - before[1];
+        stats[b * STATS + 2] += s.jacobians;
+        stats[b * STATS + 3] += after[2] - before[2];
+        stats[b * STATS + 4] += after[3] - before[3];
+        stats[b * STATS + 5] += after[4] - before[4];
+    }
+done:
+    for (i = 1; i < 3; ++i)
+        if (mem[i] != NULL) CVodeFree(&mem[i]);
+    if (y != NULL) N_VDestroy(y);
+    free(s.arg);
+    free(s.res);
+    free(s.iw);
+    free(s.w);
+    free(s.piv);
+    return 0;
+}
+"""
