@@ -31,7 +31,7 @@ from softcurve.description.actuator import Actuator
 from softcurve.description.robot import Robot, domain_problem, in_domain
 from softcurve.simulation.along import blocks, rhs_along
 from softcurve.simulation.batch_actuation import Drives, drive_arrays, member_rows
-from softcurve.simulation.batch_run import MemberRun, member_rates
+from softcurve.simulation.batch_run import MemberRun, integrate_native, member_rates
 from softcurve.simulation.batch_trajectory import BatchTrajectory, batch_status
 from softcurve.simulation.engine import (
     multistep_family,
@@ -222,7 +222,7 @@ def _integrate(model, x0, arrays, scales, abstol, settings, threads, drives) -> 
         ratios, fastest = rates
         initial = multistep_family(ratios, model.environment is not None)
     else:
-        initial = np.full(size, method)
+        initial, fastest = np.full(size, method), None
     methods, used_bdf = initial, np.zeros(size, bool)
     states = np.full((size, grid.size, x0.shape[1]), np.nan)
     states[:, 0] = x0
@@ -232,7 +232,11 @@ def _integrate(model, x0, arrays, scales, abstol, settings, threads, drives) -> 
                     drives)  # fmt: skip
     groups = [np.arange(size)] if drives is None else [
         np.flatnonzero(drives.group == g) for g in range(len(drives.inputs))]  # fmt: skip
-    for k0, k1 in restart_segments(grid):
+    switch = fastest if method == "cvodes" and drives is None else None  # BDF once settled
+    native_bdf = integrate_native(run, initial, switch)  # the C driver, where it is built
+    if native_bdf is not None:
+        used_bdf = native_bdf & (initial == "adams")
+    for k0, k1 in restart_segments(grid) if native_bdf is None else ():
         if method == "cvodes" and k0 > 0 and drives is None:  # as simulate(): BDF if settled
             xdot = rhs_along(model, np.nan_to_num(states[:, k0 : k0 + 1]), tau[:, None, :],
                              params, threads)[:, 0]  # fmt: skip

@@ -207,11 +207,11 @@ static int jtimes(N_Vector vv, N_Vector Jvv, realtype t, N_Vector y, N_Vector fy
     return 0;
 }
 
-static void *create(int lmm, N_Vector y, sc_work *s, double rtol, double atol, long max_steps,
-                    int max_order) {
+static void *create(int lmm, double t0, N_Vector y, sc_work *s, double rtol, double atol,
+                    long max_steps, int max_order) {
     void *mem = CVodeCreate(lmm, CV_NEWTON);
     if (mem == NULL) return NULL;
-    if (CVodeInit(mem, rhs, 0.0, y) || CVodeSStolerances(mem, rtol, atol) ||
+    if (CVodeInit(mem, rhs, t0, y) || CVodeSStolerances(mem, rtol, atol) ||
         CVodeSetUserData(mem, s) || CVodeSetMaxNumSteps(mem, max_steps) ||
         CVodeSetErrHandlerFn(mem, quiet, NULL) || CVSpgmr(mem, PREC_LEFT, GMRES_DIMENSION) ||
         CVSpilsSetPreconditioner(mem, setup, solve) || CVSpilsSetJacTimesVecFn(mem, jtimes) ||
@@ -222,16 +222,40 @@ static void *create(int lmm, N_Vector y, sc_work *s, double rtol, double atol, l
     return mem;
 }
 
-/* Integrate `count` members from x0 (physical) at time 0 to the output times `times[0..k)`,
- * member b with family lmm[b] (1 Adams, 2 BDF), input u[b], parameters p[b], scale
- * nominal[b]. Writes out[b, i, :] (physical), reached[b] (outputs computed), flag[b] (0 or
- * CVODES's flag; -100 when the solver could not be set up) and adds to stats[b, :]: steps,
- * right-hand sides, Jacobians, linear-solver setups, error-test failures, Newton failures. */
-__attribute__((visibility("default"))) int softcurve_cvodes(const sc_function *fn, int count, const int *lmm, const double *x0,
-                     const double *u, const double *p, const double *nominal,
-                     const double *times, int k, double rtol, double atol, long max_steps,
-                     int max_order, double *out, int *reached, int *flag, long *stats) {
-    int n = fn->nx + (fn->lag ? fn->m : 0), inputs = fn->force ? fn->m : fn->nu, b, i, j;
+/* Whether the configuration q (n_seg segments of (l, kx, ky)) lies outside the model's
+ * domain: l in (0, longest], bending angle l |kappa| <= max_bend, finite (the rule of
+ * softcurve.description.robot.in_domain, which words the message). */
+static int outside(const double *x, int width, const double *longest, int n_seg,
+                   double max_bend) {
+    int i;
+    for (i = 0; i < width; ++i)
+        if (!isfinite(x[i])) return 1;
+    for (i = 0; longest != NULL && i < n_seg; ++i) {
+        double l = x[3 * i];
+        if (!(l > 0.0 && l <= longest[i] && l * hypot(x[3 * i + 1], x[3 * i + 2]) <= max_bend))
+            return 1;
+    }
+    return 0;
+}
+
+/* Integrate `count` members over the grid `times[0..k)` from out[b, 0, :] (physical, at
+ * times[0]), in segments ending at the output indices ends[0..n_ends) (the last is k - 1),
+ * each a fresh start of CVODES with the member's input of that segment u[b, s, :]. Member b
+ * starts with family lmm[b] (1 Adams, 2 BDF); where restart[s] and fastest[b] > 0, segment s
+ * is integrated with BDF if the member has settled (max |xdot / nominal| * settled_ratio <
+ * fastest[b]) and with lmm[b] otherwise. A member stops at its first output outside the
+ * domain (longest[b, :] per segment, NULL: no check) or at a failure of CVODES. Writes
+ * out[b, i, :], reached[b] (outputs filled, the one outside the domain included), flag[b]
+ * (0, 1 outside the domain, CVODES's negative flag, -100 when it could not be set up),
+ * used_bdf[b], and adds to stats[b, :]: steps, right-hand sides, Jacobians, linear-solver
+ * setups, error-test failures, Newton failures. */
+__attribute__((visibility("default"))) int softcurve_cvodes(
+    const sc_function *fn, int count, const int *lmm, const double *fastest,
+    double settled_ratio, const double *u, const double *p, const double *nominal,
+    const double *longest, int n_seg, double max_bend, const double *times, int k,
+    const int *ends, const int *restart, int n_ends, double rtol, double atol, long max_steps,
+    int max_order, double *out, int *reached, int *flag, int *used_bdf, long *stats) {
+    int n = fn->nx + (fn->lag ? fn->m : 0), inputs = fn->force ? fn->m : fn->nu, b, i, j, e;
     sc_work s;
     void *mem[3] = {NULL, NULL, NULL};
     N_Vector y = N_VNew_Serial(n);
@@ -245,7 +269,7 @@ __attribute__((visibility("default"))) int softcurve_cvodes(const sc_function *f
     s.w = (double *)calloc(fn->sz_w + 1 + 4 * n + fn->nx + 2 * n * n, sizeof(double));
     s.piv = (int *)calloc(n, sizeof(int));
     if (y == NULL || !s.arg || !s.res || !s.iw || !s.w || !s.piv) {
-        for (b = 0; b < count; ++b) flag[b] = -100, reached[b] = 0;
+        for (b = 0; b < count; ++b) flag[b] = -100, reached[b] = 1;
         goto done;
     }
     s.x = s.w + fn->sz_w + 1;
@@ -255,51 +279,59 @@ __attribute__((visibility("default"))) int softcurve_cvodes(const sc_function *f
     s.J = s.ftmp + n;
     s.LU = s.J + n * n;
     for (b = 0; b < count; ++b) {
-        int family = lmm[b] == CV_BDF ? CV_BDF : CV_ADAMS;
-        double *ys = N_VGetArrayPointer(y), tret;
-        long before[5] = {0, 0, 0, 0, 0}, after[5] = {0, 0, 0, 0, 0};
-        s.u = u + (long)b * inputs;
+        int family = lmm[b] == CV_BDF ? CV_BDF : CV_ADAMS, first = 0;
+        double *ys = N_VGetArrayPointer(y), *row = out + (long)b * k * n, tret;
         s.p = p + (long)b * fn->np;
         s.nominal = nominal + (long)b * n;
-        s.jacobians = s.evaluations = 0;
-        for (i = 0; i < n; ++i) ys[i] = x0[(long)b * n + i] / s.nominal[i];
-        if (mem[family] == NULL) {
-            mem[family] = create(family, y, &s, rtol, atol, max_steps, max_order);
-        } else if (CVodeReInit(mem[family], 0.0, y)) {
-            flag[b] = -100, reached[b] = 0;
-            continue;
-        }
-        if (mem[family] == NULL) {
-            flag[b] = -100, reached[b] = 0;
-            continue;
-        }
-        CVodeGetNumSteps(mem[family], &before[0]);
-        CVodeGetNumRhsEvals(mem[family], &before[1]);
-        CVodeGetNumLinSolvSetups(mem[family], &before[2]);
-        CVodeGetNumErrTestFails(mem[family], &before[3]);
-        CVodeGetNumNonlinSolvConvFails(mem[family], &before[4]);
-        CVodeSetStopTime(mem[family], times[k - 1]);
         flag[b] = 0;
-        for (i = 0; i < k; ++i) {
-            int status = CVode(mem[family], times[i], y, &tret, CV_NORMAL);
-            if (status < 0) {
-                flag[b] = status;
-                break;
+        used_bdf[b] = family == CV_BDF;
+        reached[b] = 1;
+        for (e = 0; e < n_ends && flag[b] == 0; first = ends[e], ++e) {
+            long counters[5] = {0, 0, 0, 0, 0};
+            s.u = u + ((long)b * n_ends + e) * inputs;
+            for (j = 0; j < n; ++j) ys[j] = row[(long)first * n + j] / s.nominal[j];
+            if (e > 0 && restart[e] && fastest[b] > 0.0) {
+                double fastest_state = 0.0;
+                if (evaluate(&s, ys, s.ftmp) == 0)
+                    for (j = 0; j < n; ++j)
+                        if (fabs(s.ftmp[j]) > fastest_state) fastest_state = fabs(s.ftmp[j]);
+                family = fastest_state * settled_ratio < fastest[b] ? CV_BDF : lmm[b];
+                used_bdf[b] |= family == CV_BDF;
             }
-            for (j = 0; j < n; ++j) out[((long)b * k + i) * n + j] = ys[j] * s.nominal[j];
+            s.jacobians = s.evaluations = 0;
+            if (mem[family] == NULL)
+                mem[family] = create(family, times[first], y, &s, rtol, atol, max_steps, max_order);
+            else if (CVodeReInit(mem[family], times[first], y))
+                flag[b] = -100;
+            if (mem[family] == NULL) flag[b] = -100;
+            if (flag[b]) break;
+            CVodeSetStopTime(mem[family], times[ends[e]]);
+            for (i = first + 1; i <= ends[e]; ++i) {
+                int status = CVode(mem[family], times[i], y, &tret, CV_NORMAL);
+                if (status < 0) {
+                    flag[b] = status;
+                    break;
+                }
+                for (j = 0; j < n; ++j) row[(long)i * n + j] = ys[j] * s.nominal[j];
+                reached[b] = i + 1;
+                if (outside(row + (long)i * n, n, longest ? longest + (long)b * n_seg : NULL,
+                            n_seg, max_bend)) {
+                    flag[b] = 1;
+                    break;
+                }
+            }
+            CVodeGetNumSteps(mem[family], &counters[0]);
+            CVodeGetNumRhsEvals(mem[family], &counters[1]);
+            CVodeGetNumLinSolvSetups(mem[family], &counters[2]);
+            CVodeGetNumErrTestFails(mem[family], &counters[3]);
+            CVodeGetNumNonlinSolvConvFails(mem[family], &counters[4]);
+            stats[b * STATS + 0] += counters[0];
+            stats[b * STATS + 1] += counters[1];
+            stats[b * STATS + 2] += s.jacobians;
+            stats[b * STATS + 3] += counters[2];
+            stats[b * STATS + 4] += counters[3];
+            stats[b * STATS + 5] += counters[4];
         }
-        reached[b] = i;
-        CVodeGetNumSteps(mem[family], &after[0]);
-        CVodeGetNumRhsEvals(mem[family], &after[1]);
-        CVodeGetNumLinSolvSetups(mem[family], &after[2]);
-        CVodeGetNumErrTestFails(mem[family], &after[3]);
-        CVodeGetNumNonlinSolvConvFails(mem[family], &after[4]);
-        stats[b * STATS + 0] += after[0] - before[0];
-        stats[b * STATS + 1] += after[1] - before[1];
-        stats[b * STATS + 2] += s.jacobians;
-        stats[b * STATS + 3] += after[2] - before[2];
-        stats[b * STATS + 4] += after[3] - before[3];
-        stats[b * STATS + 5] += after[4] - before[4];
     }
 done:
     for (i = 1; i < 3; ++i)

@@ -317,18 +317,47 @@ class CvodesEngine(_Engine):
 
     def _native(self, x, h, tout, tau) -> np.ndarray:
         """:meth:`_constant` with the C driver; a failure keeps the outputs reached."""
+        out, reached, flags = self.run_native(
+            x[None], np.atleast_2d(tau)[:, None, :], np.r_[0.0, h * tout], [tout.size], [False]
+        )
+        if flags[0]:
+            reason = cvodes_reason(native.reason(flags[0]))
+            raise IntegrationFailure(reason, out[0, 1 : reached[0]].copy())
+        return out[0, 1:]
+
+    def run_native(self, x0, u, times, ends, restart, fastest=None, longest=None) -> tuple:
+        """:func:`softcurve.simulation.native.integrate` of this run from ``x0`` (1, N) with
+        ``u`` (1, S, k) over ``times`` in segments ending at ``ends`` (starting a restart
+        interval where ``restart``), counted: ``(states (1, T, N), reached, flags)``.
+
+        Parameters
+        ----------
+        x0 : ndarray, shape (1, N)
+            Initial state.
+        u : ndarray, shape (1, S, k)
+            Input per segment.
+        times : ndarray, shape (T,)
+            Output times [s].
+        ends, restart : sequence, shape (S,)
+            Last output of each segment, and whether it begins a restart interval.
+        fastest : float, optional
+            Switch to BDF once settled relative to this rate [1/s] (None: no switch).
+        longest : ndarray, shape (n_segments,), optional
+            Stop at the first output outside the domain (None: no check).
+        """
         rtol, abstol, max_steps = self._settings
-        out, reached, flags, counts = native.integrate(
-            self.native, [1 if self.multistep == "adams" else 2], x[None], np.atleast_2d(tau),
-            self.model.parameters[None], self.nominal[None], h * tout,
-            (rtol, abstol, max_steps, MAX_ORDER),
+        family = 1 if self.multistep == "adams" else 2
+        out, reached, flags, counts, used_bdf = native.integrate(
+            self.native, [family], x0, u, self.model.parameters[None], self.nominal[None],
+            times, (ends, restart), (rtol, abstol, max_steps, MAX_ORDER),
+            fastest=None if fastest is None else np.array([fastest]),
+            longest=None if longest is None else longest[None],
         )  # fmt: skip
         for name, value in zip(native.STATISTICS, counts[0], strict=True):
             self.counts[name] += int(value)
-        if flags[0]:
-            reason = cvodes_reason(native.reason(flags[0]))
-            raise IntegrationFailure(reason, out[0, : reached[0]].copy())
-        return out[0]
+        if used_bdf[0] and "bdf" not in self.families:
+            self.families.append("bdf")
+        return out, reached, flags
 
 
 class ScipyEngine(_Engine):

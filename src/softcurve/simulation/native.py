@@ -29,6 +29,8 @@ import numpy as np
 
 from softcurve.compiled.native import NativeFunction
 from softcurve.compiled.source import compile_source
+from softcurve.description.robot import MAX_BEND
+from softcurve.simulation import engine
 from softcurve.simulation.cvodes_driver import DRIVER_SOURCE
 
 PLUGIN = "libcasadi_integrator_cvodes.so"
@@ -100,9 +102,12 @@ def _load():
         return None
     function = library.softcurve_cvodes
     pointer = ctypes.c_void_p
-    function.argtypes = [ctypes.POINTER(_Function), ctypes.c_int] + [pointer] * 6 + [
-        ctypes.c_int, ctypes.c_double, ctypes.c_double, ctypes.c_long, ctypes.c_int,
-    ] + [pointer] * 4  # fmt: skip
+    integer, real = ctypes.c_int, ctypes.c_double
+    function.argtypes = [
+        ctypes.POINTER(_Function), integer, pointer, pointer, real, pointer, pointer, pointer,
+        pointer, integer, real, pointer, integer, pointer, pointer, integer, real, real,
+        ctypes.c_long, integer, pointer, pointer, pointer, pointer, pointer,
+    ]  # fmt: skip
     function.restype = ctypes.c_int
     return function
 
@@ -185,52 +190,75 @@ def _compiled_force(force: ca.Function) -> NativeFunction | None:
     return None if library is None else NativeFunction(library, force.name())
 
 
-def integrate(problem, lmm, x0, u, p, nominal, times, tolerances, threads=1) -> tuple:
-    """Integrate members from ``x0`` at time 0 to ``times``, each with a constant input.
+def integrate(problem, lmm, x0, u, p, nominal, times, segments, tolerances, *, fastest=None,
+              longest=None, threads=1) -> tuple:  # fmt: skip
+    """Integrate members from ``x0`` at ``times[0]`` over the output ``times``, restarting
+    CVODES at the end of every segment, with one constant input per member and segment.
 
     Parameters
     ----------
     problem : Problem
         What to integrate.
-    lmm : ndarray of int, shape (B,)
+    lmm : array_like of int, shape (B,)
         Family per member: 1 Adams, 2 BDF.
     x0 : ndarray, shape (B, N)
         Initial states (``N`` = n_state, plus the lagging inputs).
-    u : ndarray, shape (B, k)
-        Input per member: forces [N, N m^2, N m^2] or the actuator's inputs (commands).
+    u : ndarray, shape (B, S, k)
+        Input per member and segment: forces [N, N m^2, N m^2] or the actuator's inputs
+        (commands).
     p : ndarray, shape (B, n_p)
         Parameter vector per member.
     nominal : ndarray, shape (B, N)
         State scales (> 0).
     times : ndarray, shape (T,)
-        Output times [s] after time 0, increasing.
+        Output times [s], increasing; ``x0`` is at ``times[0]``.
+    segments : tuple
+        ``(ends (S,), restart (S,))``: the output index where each segment ends (the last
+        is ``T - 1``), and whether it begins a restart interval, where a member with
+        ``fastest`` switches to BDF once settled
+        (:data:`~softcurve.simulation.engine.SETTLED_RATIO`) and back to its own family.
     tolerances : tuple
         ``(rtol, abstol of the scaled state, max_steps per output, max_order)``.
+    fastest : ndarray, shape (B,), optional
+        Fastest rate of each member's initial linearization [1/s] (0 or None: no switch).
+    longest : ndarray, shape (B, n_segments), optional
+        Longest length of each segment in the model's domain [m]: a member stops at its
+        first output outside the domain (None: no check).
     threads : int
         Threads over the members.
 
     Returns
     -------
     tuple
-        ``(states (B, T, N), reached (B,), flags (B,), counts (B, 6))``: outputs, how
-        many were computed, CVODES's flag (0: success; :data:`FLAGS`), and the counters
-        of :data:`STATISTICS`.
+        ``(states (B, T, N), reached (B,), flags (B,), counts (B, 6), used_bdf (B,))``:
+        outputs, how many were computed (the first outside the domain included), the flag
+        (0: success, 1: outside the domain, else CVODES's, :data:`FLAGS`), the counters of
+        :data:`STATISTICS` and whether BDF was used.
     """
     count, width = x0.shape
-    arrays = [np.ascontiguousarray(a, dtype=np.float64) for a in (x0, u, p, nominal, times)]
-    lmm = np.ascontiguousarray(lmm, dtype=np.int32)
     out = np.zeros((count, times.size, width))
-    reached = np.zeros(count, dtype=np.int32)
-    flags = np.zeros(count, dtype=np.int32)
+    out[:, 0] = x0
+    ends, restart = (np.ascontiguousarray(a, dtype=np.int32) for a in segments)
+    fastest = np.zeros(count) if fastest is None else fastest
+    arrays = [np.ascontiguousarray(a, dtype=np.float64) for a in (fastest, u, p, nominal)]
+    lmm = np.ascontiguousarray(lmm, dtype=np.int32)
+    if longest is not None:
+        longest = np.ascontiguousarray(longest, dtype=np.float64)
+    times = np.ascontiguousarray(times, dtype=np.float64)
+    reached, flags, used = (np.zeros(count, dtype=np.int32) for _ in range(3))
     counts = np.zeros((count, len(STATISTICS)), dtype=np.int64)
     call = driver()
     rtol, abstol, max_steps, max_order = tolerances
+    n_seg = 0 if longest is None else longest.shape[1]
 
     def run(a: int, b: int) -> None:
-        pointers = [arr[a:b].ctypes.data for arr in (lmm, *arrays[:4])]
-        call(ctypes.byref(problem.struct), b - a, *pointers, arrays[4].ctypes.data,
-             times.size, rtol, abstol, max_steps, max_order or 0, out[a:b].ctypes.data,
-             reached[a:b].ctypes.data, flags[a:b].ctypes.data, counts[a:b].ctypes.data)  # fmt: skip
+        fast, uu, pp, nom = (arr[a:b].ctypes.data for arr in arrays)
+        call(ctypes.byref(problem.struct), b - a, lmm[a:].ctypes.data, fast, engine.SETTLED_RATIO,
+             uu, pp, nom, None if longest is None else longest[a:].ctypes.data, n_seg,
+             MAX_BEND, times.ctypes.data, times.size, ends.ctypes.data, restart.ctypes.data,
+             ends.size, rtol, abstol, max_steps, max_order or 0, out[a:b].ctypes.data,
+             reached[a:].ctypes.data, flags[a:].ctypes.data, used[a:].ctypes.data,
+             counts[a:b].ctypes.data)  # fmt: skip
 
     threads = max(1, min(threads, count))
     if threads == 1:
@@ -239,7 +267,7 @@ def integrate(problem, lmm, x0, u, p, nominal, times, tolerances, threads=1) -> 
         bounds = np.linspace(0, count, min(count, CHUNKS_PER_THREAD * threads) + 1).astype(int)
         with ThreadPoolExecutor(threads) as pool:
             list(pool.map(run, bounds[:-1], bounds[1:]))
-    return out, reached, flags, counts
+    return out, reached, flags, counts, used.astype(bool)
 
 
 def reason(flag: int) -> str:

@@ -74,7 +74,6 @@ from softcurve.simulation.engine import (
     linearization_rates,
     multistep_family,
     nominal_scale,
-    settled,
     success_message,
 )
 from softcurve.simulation.integrators import ActuatorInput, CvodesEngine, ScipyEngine
@@ -266,7 +265,7 @@ def simulate(
 
     method, rtol = settings.method, settings.rtol
     stats = {"method": method, "rtol": rtol, "atol": atol.tolist(), "dt": settings.dt}
-    settle = None  # at a restart: True once the robot has settled (then BDF)
+    fastest = None  # at a restart: BDF once the robot moves slower than this allows
     if method == "rk45":
         engine = ScipyEngine(model, rtol, atol, settings.max_steps, actuated)
     else:
@@ -276,11 +275,8 @@ def simulate(
             ratio, fastest = linearization_rates(model, model_x0, tau0, nominal[: model.n_state])
             stats["stiffness_ratio"] = ratio
             multistep = str(multistep_family(ratio, model.environment is not None))
-            if multistep == "adams" and actuated is None:
-
-                def settle(x, tau):
-                    return settled(model.state_derivative(x, tau), nominal, fastest)
-
+            if multistep != "adams" or actuated is not None:
+                fastest = None
         engine = CvodesEngine(model, multistep, rtol, atol, nominal, settings.max_steps, actuated)
 
     states = np.empty((grid.size, x0.size))
@@ -291,7 +287,7 @@ def simulate(
     try:
         if controller is None and not callable(values):
             applied[:] = values
-            reached = run_on_grid(engine, grid, states, values, bar, Domain(model, grid), settle)
+            reached = run_on_grid(engine, grid, states, values, bar, Domain(model, grid), fastest)
         else:
             reached = run_sampled(
                 engine, model, grid, states, applied, values, controller, sample_time, bar, check
