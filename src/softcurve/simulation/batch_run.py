@@ -191,6 +191,12 @@ class MemberRun:
         self.messages[b] = failure_message(reason, self.grid, k, f"cvodes-{multistep}")
 
 
+COMPILED_ACTUATORS = 8
+"""Largest number of distinct actuators (parameter vectors) in a batch integrated by the C
+driver: each needs its ``H(q) u`` compiled once (about 0.3 s, then cached on disk); a
+batch with more uses CasADi's integrator, which needs no compilation."""
+
+
 def integrate_native(run: MemberRun, initial, fastest) -> np.ndarray | None:
     """The whole batch of ``run`` with CVODES's C driver (:mod:`softcurve.simulation.native`):
     one call per group of members that share an actuator, every restart segment inside it,
@@ -209,6 +215,8 @@ def integrate_native(run: MemberRun, initial, fastest) -> np.ndarray | None:
         Adams switch to BDF at a restart once settled (None: no switch).
     """
     groups = [None] if run.drives is None else list(run.drives.inputs)
+    if len(groups) > COMPILED_ACTUATORS:
+        return None
     problems = [native.problem(run.model, drive) for drive in groups]
     if any(problem is None for problem in problems):
         return None

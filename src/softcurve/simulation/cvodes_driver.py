@@ -3,8 +3,9 @@
 Kept as a Python string so that it ships with the package like any module.
 """
 
-DRIVER_SOURCE = r"""/* softcurve's driver of SUNDIALS CVODES: integrate members of a batch (or one run) on a
- * CasADi-generated right-hand side f(x, u, p) -> xdot, all in C.
+DRIVER_SOURCE = r"""
+/* softcurve's driver of SUNDIALS CVODES: integrate members of a batch (or one run) on
+ * a CasADi-generated right-hand side f(x, u, p) -> xdot, all in C.
  *
  * CVODES is the copy inside CasADi (SUNDIALS 2.x interface, libcasadi_integrator_cvodes),
  * declared here because CasADi ships no headers for it. The Newton systems are solved by

@@ -1,4 +1,4 @@
-"""The integrators of the one engine: CVODES compiled on the model's right-hand side, and
+"""The integrators of the one engine: CVODES on the model's compiled right-hand side, and
 SciPy's RK45 stepped from Python.
 
 Both answer one question: starting from state ``x`` at time ``t0``, integrate over
@@ -7,14 +7,10 @@ and return the state at the output times ``t0 + h * tout`` (``0 < tout <= 1``). 
 is the generalized force ``tau`` or, with an :class:`ActuatorInput`, the actuator's inputs,
 whose force ``H(q) u`` is evaluated inside the integrator.
 
-CVODES runs inside CasADi's compiled integrator. The right-hand side is the model's
-compiled ``rhs`` loaded as a CasADi ``external`` function, so an integration of
-thousands of steps never returns to Python. Its Newton matrix comes from forward
-differences of that compiled function (one Jacobian costs ``n_state + 1`` right-hand
-sides). An exact Jacobian is no cheaper: for the paper's robot its generated code has
-84,500 instructions against 10,900 for the right-hand side (7.7 right-hand sides against
-10), and given to CVODES as the library's ``jac_`` function it took the same 23 us per
-Jacobian as the finite differences while adding ~20 s of compilation.
+CVODES runs in compiled code and never returns to Python during an integration: through
+softcurve's C driver (:mod:`softcurve.simulation.native`; Jacobian by forward
+differences, kept while CVODES allows) where it builds, else inside CasADi's
+``integrator`` on :func:`scaled_dae`. Measurements of both in ``docs/performance.md``.
 """
 
 from __future__ import annotations
@@ -326,24 +322,15 @@ class CvodesEngine(_Engine):
         return out[0, 1:]
 
     def run_native(self, x0, u, times, ends, restart, fastest=None, longest=None) -> tuple:
-        """:func:`softcurve.simulation.native.integrate` of this run from ``x0`` (1, N) with
-        ``u`` (1, S, k) over ``times`` in segments ending at ``ends`` (starting a restart
-        interval where ``restart``), counted: ``(states (1, T, N), reached, flags)``.
+        """:func:`softcurve.simulation.native.integrate` of this run (one member: ``x0``
+        (1, N), ``u`` (1, S, k)) with this engine's family, counted; ``fastest`` [1/s] and
+        ``longest`` (n_segments,) [m] are that function's for the one member (None: no
+        switch to BDF, no domain check). Returns ``(states (1, T, N), reached, flags)``.
 
         Parameters
         ----------
-        x0 : ndarray, shape (1, N)
-            Initial state.
-        u : ndarray, shape (1, S, k)
-            Input per segment.
-        times : ndarray, shape (T,)
-            Output times [s].
-        ends, restart : sequence, shape (S,)
-            Last output of each segment, and whether it begins a restart interval.
-        fastest : float, optional
-            Switch to BDF once settled relative to this rate [1/s] (None: no switch).
-        longest : ndarray, shape (n_segments,), optional
-            Stop at the first output outside the domain (None: no check).
+        x0, u, times, ends, restart, fastest, longest
+            As :func:`softcurve.simulation.native.integrate` takes them, for one member.
         """
         rtol, abstol, max_steps = self._settings
         family = 1 if self.multistep == "adams" else 2

@@ -18,6 +18,7 @@ in one call, on threads that do not contend.
 
 from __future__ import annotations
 
+import contextlib
 import ctypes
 import os
 import threading
@@ -79,11 +80,25 @@ _LOCK = threading.Lock()
 
 def driver():
     """The driver's entry point ``softcurve_cvodes`` (ctypes), built and loaded once per
-    process; None where it cannot be (see the module notes)."""
+    process; None where it cannot be (see the module notes) or inside :func:`casadi_only`."""
     with _LOCK:
         if not _DRIVER:
             _DRIVER.append(_load())
-        return _DRIVER[0]
+        return None if _BYPASS else _DRIVER[0]
+
+
+_BYPASS: list = []
+
+
+@contextlib.contextmanager
+def casadi_only():
+    """Within this context, new engines and batches use CasADi's integrator (the previous
+    route, for comparisons: ``benchmarks/bench_simulate.py``, the tests)."""
+    _BYPASS.append(True)
+    try:
+        yield
+    finally:
+        _BYPASS.pop()
 
 
 def _load():
