@@ -4,12 +4,13 @@
 A batch is ``B`` robots of one structure (one compiled model) that differ in their
 initial states, constant inputs (forces, or an actuator's inputs and parameters:
 :mod:`softcurve.simulation.batch_actuation`) and parameter values. The robot's parameter
-vector is a run-time input of the compiled functions, so the whole batch shares one CVODES
-integrator built on the compiled right-hand side (as
-:func:`~softcurve.simulation.simulate.simulate` does) and CasADi's ``map`` runs it over
-the batch in compiled code, split over threads: the integration never returns to Python
-between members (members driven by an actuator: one integrator per distinct set of
-actuator parameters).
+vector is a run-time input of the compiled functions, so the whole batch is integrated by
+one call of softcurve's C driver of CVODES (:mod:`softcurve.simulation.native`) on the
+compiled right-hand side (as :func:`~softcurve.simulation.simulate.simulate` does), the
+members split over threads: the integration never returns to Python between members
+(members driven by an actuator: one call per distinct set of actuator parameters). Where
+the driver cannot be built, one CasADi CVODES integrator mapped over the members does the
+same work about 3x slower (``docs/performance.md``).
 
 Each member is integrated exactly as :func:`~softcurve.simulation.simulate.simulate`
 would integrate it: the same scaled state (``nominal_scale`` of the member's own robot
@@ -127,15 +128,16 @@ def simulate_batch(
         the batch, so a given ``atol`` is applied as the tightest ``atol / nominal`` over
         the members.
     threads : int, optional
-        Threads of the compiled map (default: the cores usable by this process).
+        Threads over the members (default: the cores usable by this process).
     processes : int, optional
         Worker processes (default 1: the batch runs in this process on ``threads``
         threads). With more, the members are split into chunks of consecutive members
         (``CHUNKS_PER_PROCESS`` per worker), each integrated by a worker process on one
         thread; the workers are spawned at the first such call (about a second) and kept
-        for later ones. Faster than threads on large batches: CasADi's integrator reads
-        the process's CPU clock around every evaluation of the model, and the threads of
-        one process contend for that clock (``benchmarks/bench_batch.py``). Results are
+        for later ones. With softcurve's C driver threads are as fast (it reads no
+        clock); on CasADi's integrator, the fallback, processes are faster: it reads the
+        process's CPU clock around every evaluation of the model, and the threads of one
+        process contend for that clock (``benchmarks/bench_batch.py``). Results are
         identical either way. Workers are spawned, so a script must call this under
         ``if __name__ == "__main__":``.
     **options : dict

@@ -27,12 +27,13 @@ Integrators (``method``)
     on the same compiled right-hand side, stepped from Python: 5-10x slower, for
     comparison and for robots where an explicit method is wanted.
 
-How CVODES gets compiled code, measured on the paper's case
-(``benchmarks/bench_simulate.py``): the library that :class:`~softcurve.Model` has
-already compiled is loaded as a CasADi ``external`` (numbers in
-``docs/paper-reproduction.md``); the same integration with the right-hand side in CasADi's
-virtual machine takes about 6x longer; CasADi's ``jit`` would compile the right-hand
-side and its exact Jacobian again for every new integrator (about 50 s with gcc -O2).
+How CVODES runs, measured on the paper's case (``benchmarks/bench_simulate.py``,
+``docs/performance.md``): softcurve's C driver (:mod:`softcurve.simulation.native`)
+calls the library that :class:`~softcurve.Model` has already compiled, keeps the Newton
+matrix's Jacobian while CVODES allows and integrates the whole output grid in one call:
+about 3x faster than CasADi's CVODES integrator on the same library, which remains the
+route where the driver cannot be built. With the right-hand side in CasADi's virtual
+machine (``Model(robot, compile=False)``) the integration takes about 10x longer.
 Multistep histories cannot cross a jump of the input, so the integrator restarts
 wherever the input changes, and also every ``RESTART_INTERVAL`` (1 s) of simulated time:
 after a transient, a method left at high order is stability-bound on the fast damped
