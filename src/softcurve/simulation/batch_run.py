@@ -12,6 +12,7 @@ import numpy as np
 from softcurve.base.status import Status
 from softcurve.compiled.model import Model
 from softcurve.description.robot import MAX_STRETCH
+from softcurve.simulation import engine as _engine
 from softcurve.simulation import native
 from softcurve.simulation.along import blocks, mapped, rhs_along
 from softcurve.simulation.engine import (
@@ -238,7 +239,8 @@ def integrate_native(run: MemberRun, initial, fastest) -> np.ndarray | None:
             out, reached, flags, _, used = native.integrate(
                 problem, lmm[members], states[members, 0], u, run.params[members],
                 run.nominal[members], grid, (ends, restart), tolerances,
-                fastest=settle[members], longest=longest[members], threads=run.threads,
+                fastest=settle[members], settled_ratio=_engine.SETTLED_RATIO,
+                longest=longest[members], threads=run.threads,
             )  # fmt: skip
             used_bdf[members] = used
             states[members, 1:] = out[:, 1:]

@@ -117,10 +117,9 @@ static int evaluate(sc_work *s, const double *y, double *ydot) {
         s->xdot[fn->nx + i] = (command - s->x[fn->nx + i]) / fn->time_constant;
     }
     s->evaluations++;
-    for (i = 0; i < n; ++i) {
-        ydot[i] = s->xdot[i] / s->nominal[i];
+    for (i = 0; i < n; ++i) ydot[i] = s->xdot[i] / s->nominal[i];
+    for (i = 0; i < n; ++i)
         if (!isfinite(ydot[i])) return 1;
-    }
     return 0;
 }
 
@@ -344,5 +343,42 @@ done:
     free(s.w);
     free(s.piv);
     return 0;
+}
+/* f at `count` states x[b, :] (physical, nx + lagging inputs) with inputs u[b, :] and
+ * parameters p (shared): xdot[b, :]. Returns 0, or -100 when out of memory. */
+__attribute__((visibility("default"))) int softcurve_rhs(const sc_function *fn, int count,
+                                                         const double *x, const double *u,
+                                                         const double *p, double *xdot) {
+    int n = fn->nx + (fn->lag ? fn->m : 0), inputs = fn->force ? fn->m : fn->nu, b, i, status = 0;
+    sc_work s;
+    long long sz_arg = fn->sz_arg > 3 ? fn->sz_arg : 3, sz_res = fn->sz_res > 1 ? fn->sz_res : 1;
+    double *ones = (double *)malloc(n * sizeof(double));
+    memset(&s, 0, sizeof(s));
+    s.fn = fn;
+    s.n = n;
+    s.p = p;
+    s.arg = (const double **)calloc(sz_arg, sizeof(double *));
+    s.res = (double **)calloc(sz_res, sizeof(double *));
+    s.iw = (long long *)calloc(fn->sz_iw + 1, sizeof(long long));
+    s.w = (double *)calloc(fn->sz_w + 1 + 3 * n + fn->nx, sizeof(double));
+    if (!ones || !s.arg || !s.res || !s.iw || !s.w) {
+        status = -100;
+    } else {
+        for (i = 0; i < n; ++i) ones[i] = 1.0;
+        s.nominal = ones;
+        s.x = s.w + fn->sz_w + 1;
+        s.xdot = s.x + n;
+        s.tau = s.xdot + n;
+        for (b = 0; b < count && status == 0; ++b) {
+            s.u = u + (long)b * inputs;
+            if (evaluate(&s, x + (long)b * n, xdot + (long)b * n) < 0) status = -1;
+        }
+    }
+    free(ones);
+    free(s.arg);
+    free(s.res);
+    free(s.iw);
+    free(s.w);
+    return status;
 }
 """

@@ -23,6 +23,7 @@ import casadi as ca
 import numpy as np
 from scipy.integrate import RK45
 
+from softcurve.simulation import engine as _engine
 from softcurve.simulation import native
 from softcurve.simulation.engine import (
     MAX_ORDER,
@@ -323,9 +324,8 @@ class CvodesEngine(_Engine):
 
     def run_native(self, x0, u, times, ends, restart, fastest=None, longest=None) -> tuple:
         """:func:`softcurve.simulation.native.integrate` of this run (one member: ``x0``
-        (1, N), ``u`` (1, S, k)) with this engine's family, counted; ``fastest`` [1/s] and
-        ``longest`` (n_segments,) [m] are that function's for the one member (None: no
-        switch to BDF, no domain check). Returns ``(states (1, T, N), reached, flags)``.
+        (1, N), ``u`` (1, S, k); ``fastest`` [1/s], ``longest`` (n_segments,) [m] or None)
+        with this engine's family, counted: ``(states (1, T, N), reached, flags)``.
 
         Parameters
         ----------
@@ -338,6 +338,7 @@ class CvodesEngine(_Engine):
             self.native, [family], x0, u, self.model.parameters[None], self.nominal[None],
             times, (ends, restart), (rtol, abstol, max_steps, MAX_ORDER),
             fastest=None if fastest is None else np.array([fastest]),
+            settled_ratio=_engine.SETTLED_RATIO,
             longest=None if longest is None else longest[None],
         )  # fmt: skip
         for name, value in zip(native.STATISTICS, counts[0], strict=True):

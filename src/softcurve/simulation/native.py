@@ -31,7 +31,6 @@ import numpy as np
 from softcurve.compiled.native import NativeFunction
 from softcurve.compiled.source import compile_source
 from softcurve.description.robot import MAX_BEND
-from softcurve.simulation import engine
 from softcurve.simulation.cvodes_driver import DRIVER_SOURCE
 
 PLUGIN = "libcasadi_integrator_cvodes.so"
@@ -88,6 +87,12 @@ def driver():
 
 
 _BYPASS: list = []
+_LIBRARY: list = []  # the loaded driver library, once built
+
+
+def _entry(name: str):
+    """The driver library's function ``name`` (after :func:`driver` succeeded)."""
+    return getattr(_LIBRARY[0], name)
 
 
 @contextlib.contextmanager
@@ -115,6 +120,10 @@ def _load():
     library = compile_source("cvodes_driver", DRIVER_SOURCE, link)
     if library is None:
         return None
+    _LIBRARY.append(library)
+    evaluate_function = library.softcurve_rhs
+    evaluate_function.argtypes = [ctypes.POINTER(_Function), ctypes.c_int] + [ctypes.c_void_p] * 4
+    evaluate_function.restype = ctypes.c_int
     function = library.softcurve_cvodes
     pointer = ctypes.c_void_p
     integer, real = ctypes.c_int, ctypes.c_double
@@ -206,7 +215,7 @@ def _compiled_force(force: ca.Function) -> NativeFunction | None:
 
 
 def integrate(problem, lmm, x0, u, p, nominal, times, segments, tolerances, *, fastest=None,
-              longest=None, threads=1) -> tuple:  # fmt: skip
+              settled_ratio=0.0, longest=None, threads=1) -> tuple:  # fmt: skip
     """Integrate members from ``x0`` at ``times[0]`` over the output ``times``, restarting
     CVODES at the end of every segment, with one constant input per member and segment.
 
@@ -236,6 +245,9 @@ def integrate(problem, lmm, x0, u, p, nominal, times, segments, tolerances, *, f
         ``(rtol, abstol of the scaled state, max_steps per output, max_order)``.
     fastest : ndarray, shape (B,), optional
         Fastest rate of each member's initial linearization [1/s] (0 or None: no switch).
+    settled_ratio : float
+        :data:`~softcurve.simulation.engine.SETTLED_RATIO` (a ratio, dimensionless), with
+        ``fastest``.
     longest : ndarray, shape (B, n_segments), optional
         Longest length of each segment in the model's domain [m]: a member stops at its
         first output outside the domain (None: no check).
@@ -268,7 +280,7 @@ def integrate(problem, lmm, x0, u, p, nominal, times, segments, tolerances, *, f
 
     def run(a: int, b: int) -> None:
         fast, uu, pp, nom = (arr[a:b].ctypes.data for arr in arrays)
-        call(ctypes.byref(problem.struct), b - a, lmm[a:].ctypes.data, fast, engine.SETTLED_RATIO,
+        call(ctypes.byref(problem.struct), b - a, lmm[a:].ctypes.data, fast, settled_ratio,
              uu, pp, nom, None if longest is None else longest[a:].ctypes.data, n_seg,
              MAX_BEND, times.ctypes.data, times.size, ends.ctypes.data, restart.ctypes.data,
              ends.size, rtol, abstol, max_steps, max_order or 0, out[a:b].ctypes.data,
@@ -283,6 +295,30 @@ def integrate(problem, lmm, x0, u, p, nominal, times, segments, tolerances, *, f
         with ThreadPoolExecutor(threads) as pool:
             list(pool.map(run, bounds[:-1], bounds[1:]))
     return out, reached, flags, counts, used.astype(bool)
+
+
+def evaluate(problem, x, u, p) -> np.ndarray:
+    """The right-hand side at many states in one call: ``xdot`` (K, N) at states ``x``
+    (K, N) with inputs ``u`` (K, k) and the parameter vector ``p`` (n_p,).
+
+    Parameters
+    ----------
+    problem : Problem
+        What to evaluate.
+    x : ndarray, shape (K, N)
+        States.
+    u : ndarray, shape (K, k)
+        Inputs: forces [N, N m^2, N m^2] or the actuator's inputs.
+    p : ndarray, shape (n_p,)
+        Parameter vector.
+    """
+    x, u, p = (np.ascontiguousarray(a, dtype=np.float64) for a in (x, u, p))
+    out = np.empty_like(x)
+    function = _entry("softcurve_rhs")
+    if function(ctypes.byref(problem.struct), x.shape[0], x.ctypes.data, u.ctypes.data,
+                p.ctypes.data, out.ctypes.data):  # fmt: skip
+        raise RuntimeError("the compiled right-hand side failed")
+    return out
 
 
 def reason(flag: int) -> str:
