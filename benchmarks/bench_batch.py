@@ -9,7 +9,8 @@ initial curvature kx spread over [20, 30] 1/m and the initial rate dky/dt over
 ``--loop`` members (scaled to the batch size); simulate_batch on 1 thread and on all
 usable cores; ``simulate_batch(..., processes=cores)``, one worker process per core,
 each on one thread (what ``softcurve sweep`` does); for the default model (11 quadrature
-nodes per segment) and for ``Model(robot, quadrature_nodes=6)``.
+nodes per segment) and for ``Model(robot, quadrature_nodes=6)``; then the previous route
+(CasADi's CVODES integrator instead of softcurve's C driver) on threads and processes.
 
 Columns: the median wall time of ``--repeat`` runs and that run's CPU time in this
 process; simulated seconds per wall-clock second of the median run (the target of issue
@@ -33,11 +34,14 @@ import time
 import numpy as np
 
 import softcurve as sc
+from softcurve.simulation import native
 from softcurve.simulation.batch import default_threads, simulate_batch
 from softcurve.simulation.engine import nominal_scale
+from softcurve.simulation.workers import stop_workers
 from softcurve.symbolic.dynamics import DEFAULT_QUADRATURE_NODES
 
 T_FINAL = 10.0
+TARGET = 6000
 
 
 def members(size: int) -> tuple[np.ndarray, np.ndarray]:
@@ -56,6 +60,30 @@ def best_of(repeat, run):
         times.append((time.perf_counter() - wall, time.process_time() - cpu))
     times.sort()
     return (times[len(times) // 2], times[0][0]), result
+
+
+def previous(model, q0s, qd0s, args, threads, row) -> None:
+    """The batch on CasADi's CVODES integrator, as before the C driver: on threads in this
+    process, and in worker processes started with the driver switched off."""
+    settings = {"t_final": T_FINAL, "dt": args.dt}
+    with native.casadi_only():
+        ((wall, cpu), best), x = best_of(
+            args.repeat, lambda: simulate_batch(model, q0s, qd0s, threads=threads, **settings).x
+        )
+    row(f"previous: CasADi, {threads} thread(s)", wall, cpu, x, best)
+    if threads > 1:
+        stop_workers()
+        os.environ["SOFTCURVE_NATIVE_CVODES"] = "0"  # read by the workers spawned next
+        try:
+            simulate_batch(model, q0s[:4], qd0s[:4], processes=threads, **settings)  # warm-up
+            ((wall, cpu), best), x = best_of(
+                args.repeat,
+                lambda: simulate_batch(model, q0s, qd0s, processes=threads, **settings).x,
+            )
+        finally:
+            stop_workers()
+            del os.environ["SOFTCURVE_NATIVE_CVODES"]
+        row(f"previous: CasADi, {threads} processes", wall, cpu, x, best)
 
 
 def main() -> None:
@@ -144,6 +172,10 @@ def main() -> None:
                 ),
             )
             row(f"batch, {nodes} nodes, {label}", wall, cpu, x, best)
+        if nodes == model.quadrature_nodes:
+            previous(timed, q0s, qd0s, args, threads, row)
+    print(f"Target (issue 15): >= {TARGET:,} simulated s per s on 2 cores (best column).")
+    print("'previous' rows: CasADi's CVODES integrator, the route before softcurve's C driver.")
     print("cpu: this process only (the worker processes of the last rows are not counted);")
     nodes = model.quadrature_nodes
     print(f"error: against the {nodes}-node model at rtol 1e-10, so it includes the model error")

@@ -5,9 +5,11 @@ Run:  python benchmarks/bench_cvodes_options.py [--size 60]
 Prints, for a batch of paper-case robots (10 s, rtol 1e-6, one thread):
 1. simulated seconds per CPU second against the restart interval of the multistep method
    (``softcurve.simulation.engine.RESTART_INTERVAL`` is 1 s);
-2. the same for other CVODES options: ``max_order`` (softcurve's default is 5, CasADi's
-   12; ``softcurve.simulation.engine.MAX_ORDER``) and the linear solver, and without the switch to
-   BDF once a member has settled (``softcurve.simulation.engine.SETTLED_RATIO``);
+2. the same for other CVODES options on CasADi's integrator (the route before
+   softcurve's C driver, whose rate is printed first): ``max_order`` (softcurve's default
+   is 5, CasADi's 12; ``softcurve.simulation.engine.MAX_ORDER``) and the linear solver,
+   and without the switch to BDF once a member has settled
+   (``softcurve.simulation.engine.SETTLED_RATIO``);
 3. the size of the compiled right-hand side against its exact state Jacobian (the
    integrator uses finite differences: 10 right-hand sides per Jacobian);
 4. the CPU time of one worker process integrating 100 members alone and while a second
@@ -28,7 +30,7 @@ import casadi as ca
 import numpy as np
 
 import softcurve as sc
-from softcurve.simulation import batch, batch_run
+from softcurve.simulation import batch, batch_run, native
 from softcurve.simulation import engine as _engines
 
 T_FINAL = 10.0
@@ -80,6 +82,26 @@ def _worker(args) -> tuple[float, float]:
     return time.process_time() - start
 
 
+def casadi_options(model, q0, qd0) -> None:
+    """Section 2 on CasADi's integrator: its options."""
+    variants = (
+        {},
+        {"max_order": 12},
+        {"max_order": 8},
+        {"max_order": 4},
+        {"linear_solver": "csparse"},
+        {"linear_solver": "lapacklu"},
+    )
+    for extra in variants:
+        with_options(extra)
+        print(f"   {str(extra or 'defaults'):>30}: {rate(model, q0, qd0):7.0f}")
+    with_options({})
+    default = _engines.SETTLED_RATIO
+    _engines.SETTLED_RATIO = np.inf
+    print(f"   {'Adams throughout (no BDF once settled)':>30}: {rate(model, q0, qd0):7.0f}")
+    _engines.SETTLED_RATIO = default
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--size", type=int, default=60, help="members per batch")
@@ -97,22 +119,10 @@ def main() -> None:
     batch.restart_segments.__defaults__ = defaults
 
     print(f"2. CVODES options (restarts every 1 s; defaults: max_order {_engines.MAX_ORDER})")
-    variants = (
-        {},
-        {"max_order": 12},
-        {"max_order": 8},
-        {"max_order": 4},
-        {"linear_solver": "csparse"},
-        {"linear_solver": "lapacklu"},
-    )
-    for extra in variants:
-        with_options(extra)
-        print(f"   {str(extra or 'defaults'):>30}: {rate(model, q0, qd0):7.0f}")
-    with_options({})
-    default = _engines.SETTLED_RATIO
-    _engines.SETTLED_RATIO = np.inf
-    print(f"   {'Adams throughout (no BDF once settled)':>30}: {rate(model, q0, qd0):7.0f}")
-    _engines.SETTLED_RATIO = default
+    print("   on CasADi's integrator, whose options these are (softcurve's C driver: first row)")
+    print(f"   {'C driver (default route)':>30}: {rate(model, q0, qd0):7.0f}")
+    with native.casadi_only():
+        casadi_options(model, q0, qd0)
 
     print("3. instructions of the compiled right-hand side and of its exact state Jacobian")
     rhs = model.symbolic["rhs"]

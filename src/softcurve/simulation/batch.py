@@ -4,12 +4,13 @@
 A batch is ``B`` robots of one structure (one compiled model) that differ in their
 initial states, constant inputs (forces, or an actuator's inputs and parameters:
 :mod:`softcurve.simulation.batch_actuation`) and parameter values. The robot's parameter
-vector is a run-time input of the compiled functions, so the whole batch shares one CVODES
-integrator built on the compiled right-hand side (as
-:func:`~softcurve.simulation.simulate.simulate` does) and CasADi's ``map`` runs it over
-the batch in compiled code, split over threads: the integration never returns to Python
-between members (members driven by an actuator: one integrator per distinct set of
-actuator parameters).
+vector is a run-time input of the compiled functions, so the whole batch is integrated by
+one call of softcurve's C driver of CVODES (:mod:`softcurve.simulation.native`) on the
+compiled right-hand side (as :func:`~softcurve.simulation.simulate.simulate` does), the
+members split over threads: the integration never returns to Python between members
+(members driven by an actuator: one call per distinct set of actuator parameters). Where
+the driver cannot be built, one CasADi CVODES integrator mapped over the members does the
+same work about 3x slower (``docs/performance.md``).
 
 Each member is integrated exactly as :func:`~softcurve.simulation.simulate.simulate`
 would integrate it: the same scaled state (``nominal_scale`` of the member's own robot
@@ -31,7 +32,7 @@ from softcurve.description.actuator import Actuator
 from softcurve.description.robot import Robot, domain_problem, in_domain
 from softcurve.simulation.along import blocks, rhs_along
 from softcurve.simulation.batch_actuation import Drives, drive_arrays, member_rows
-from softcurve.simulation.batch_run import MemberRun, member_rates
+from softcurve.simulation.batch_run import MemberRun, integrate_native, member_rates
 from softcurve.simulation.batch_trajectory import BatchTrajectory, batch_status
 from softcurve.simulation.engine import (
     multistep_family,
@@ -127,15 +128,16 @@ def simulate_batch(
         the batch, so a given ``atol`` is applied as the tightest ``atol / nominal`` over
         the members.
     threads : int, optional
-        Threads of the compiled map (default: the cores usable by this process).
+        Threads over the members (default: the cores usable by this process).
     processes : int, optional
         Worker processes (default 1: the batch runs in this process on ``threads``
         threads). With more, the members are split into chunks of consecutive members
         (``CHUNKS_PER_PROCESS`` per worker), each integrated by a worker process on one
         thread; the workers are spawned at the first such call (about a second) and kept
-        for later ones. Faster than threads on large batches: CasADi's integrator reads
-        the process's CPU clock around every evaluation of the model, and the threads of
-        one process contend for that clock (``benchmarks/bench_batch.py``). Results are
+        for later ones. With softcurve's C driver threads are as fast (it reads no
+        clock); on CasADi's integrator, the fallback, processes are faster: it reads the
+        process's CPU clock around every evaluation of the model, and the threads of one
+        process contend for that clock (``benchmarks/bench_batch.py``). Results are
         identical either way. Workers are spawned, so a script must call this under
         ``if __name__ == "__main__":``.
     **options : dict
@@ -222,7 +224,7 @@ def _integrate(model, x0, arrays, scales, abstol, settings, threads, drives) -> 
         ratios, fastest = rates
         initial = multistep_family(ratios, model.environment is not None)
     else:
-        initial = np.full(size, method)
+        initial, fastest = np.full(size, method), None
     methods, used_bdf = initial, np.zeros(size, bool)
     states = np.full((size, grid.size, x0.shape[1]), np.nan)
     states[:, 0] = x0
@@ -232,7 +234,11 @@ def _integrate(model, x0, arrays, scales, abstol, settings, threads, drives) -> 
                     drives)  # fmt: skip
     groups = [np.arange(size)] if drives is None else [
         np.flatnonzero(drives.group == g) for g in range(len(drives.inputs))]  # fmt: skip
-    for k0, k1 in restart_segments(grid):
+    switch = fastest if method == "cvodes" and drives is None else None  # BDF once settled
+    native_bdf = integrate_native(run, initial, switch)  # the C driver, where it is built
+    if native_bdf is not None:
+        used_bdf = native_bdf & (initial == "adams")
+    for k0, k1 in restart_segments(grid) if native_bdf is None else ():
         if method == "cvodes" and k0 > 0 and drives is None:  # as simulate(): BDF if settled
             xdot = rhs_along(model, np.nan_to_num(states[:, k0 : k0 + 1]), tau[:, None, :],
                              params, threads)[:, 0]  # fmt: skip

@@ -11,8 +11,12 @@ import numpy as np
 
 from softcurve.base.status import Status
 from softcurve.compiled.model import Model
-from softcurve.simulation.along import mapped, rhs_along
+from softcurve.description.robot import MAX_STRETCH
+from softcurve.simulation import engine as _engine
+from softcurve.simulation import native
+from softcurve.simulation.along import blocks, mapped, rhs_along
 from softcurve.simulation.engine import (
+    MAX_ORDER,
     cvodes_options,
     cvodes_reason,
     difference_eigenvalues,
@@ -20,6 +24,7 @@ from softcurve.simulation.engine import (
     failure_message,
     failure_status,
     linear_rates,
+    restart_segments,
 )
 from softcurve.simulation.integrators import BufferedCall, cvodes_integrator
 from softcurve.simulation.stepping import domain_reason, outside_domain
@@ -185,3 +190,65 @@ class MemberRun:
         self.reached[b] = k
         self.status[b] = failure_status(reason)
         self.messages[b] = failure_message(reason, self.grid, k, f"cvodes-{multistep}")
+
+
+COMPILED_ACTUATORS = 8
+"""Largest number of distinct actuators (parameter vectors) in a batch integrated by the C
+driver: each needs its ``H(q) u`` compiled once (about 0.3 s, then cached on disk); a
+batch with more uses CasADi's integrator, which needs no compilation."""
+
+
+def integrate_native(run: MemberRun, initial, fastest) -> np.ndarray | None:
+    """The whole batch of ``run`` with CVODES's C driver (:mod:`softcurve.simulation.native`):
+    one call per group of members that share an actuator, every restart segment inside it,
+    members on ``run.threads`` threads. Fills ``run.states`` and the failures as
+    :meth:`MemberRun.integrate` does; returns which members used BDF, or None (nothing
+    done) where the driver is not available.
+
+    Parameters
+    ----------
+    run : MemberRun
+        The batch (its states hold the initial states).
+    initial : ndarray of str, shape (B,)
+        Each member's family, "adams" or "bdf".
+    fastest : ndarray, shape (B,) or None
+        Fastest rate of each member's initial linearization [1/s]: members that start with
+        Adams switch to BDF at a restart once settled (None: no switch).
+    """
+    groups = [None] if run.drives is None else list(run.drives.inputs)
+    if len(groups) > COMPILED_ACTUATORS:
+        return None
+    problems = [native.problem(run.model, drive) for drive in groups]
+    if any(problem is None for problem in problems):
+        return None
+    grid, states = run.grid, run.states
+    segments = restart_segments(grid)
+    ends = [k1 for _, k1 in segments]
+    restart = [True] * len(ends)
+    used_bdf = np.zeros(states.shape[0], bool)
+    longest = MAX_STRETCH * run.rest_lengths
+    lmm = np.where(np.asarray(initial) == "adams", 1, 2)
+    settle = np.zeros(states.shape[0]) if fastest is None else np.where(lmm == 1, fastest, 0.0)
+    tolerances = (*run.options, MAX_ORDER)
+    for g, problem in enumerate(problems):
+        group = np.arange(states.shape[0]) if run.drives is None else (
+            np.flatnonzero(run.drives.group == g))  # fmt: skip
+        for block in blocks(group.size, grid.size, states.shape[2]):
+            members = group[block]
+            u = np.repeat(run.tau[members][:, None, :], len(ends), axis=1)
+            out, reached, flags, _, used = native.integrate(
+                problem, lmm[members], states[members, 0], u, run.params[members],
+                run.nominal[members], grid, (ends, restart), tolerances,
+                fastest=settle[members], settled_ratio=_engine.SETTLED_RATIO,
+                longest=longest[members], threads=run.threads,
+            )  # fmt: skip
+            used_bdf[members] = used
+            states[members, 1:] = out[:, 1:]
+            for j in np.flatnonzero(flags):
+                b, done = int(members[j]), int(reached[j])
+                if flags[j] == 1:
+                    run._outside(b, done - 1, "adams+bdf" if used[j] else initial[b])
+                else:
+                    reason = cvodes_reason(native.reason(flags[j]))
+                    run._fail(b, done, reason, "adams+bdf" if used[j] else initial[b])
+    return used_bdf

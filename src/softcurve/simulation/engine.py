@@ -16,6 +16,7 @@ from __future__ import annotations
 import numpy as np
 
 from softcurve.base.status import Status
+from softcurve.simulation import native
 
 STIFFNESS_RATIO = 10.0
 """``"cvodes"`` uses BDF when max decay rate > STIFFNESS_RATIO * max oscillation frequency."""
@@ -162,7 +163,12 @@ def linearization_rates(model, x0, tau0=None, nominal=None) -> tuple[float, floa
     tau0 = np.zeros(model.n) if tau0 is None else tau0
     nominal = nominal_scale(model, x0) if nominal is None else nominal
     points, steps = difference_points(x0, nominal)
-    values = np.array([model.state_derivative(x, tau0) for x in points])
+    problem = native.problem(model) if x0.size == model.n_state else None
+    if problem is not None:  # one compiled call rather than 2 n_state calls from Python
+        taus = np.broadcast_to(np.asarray(tau0, dtype=np.float64), (points.shape[0], model.n))
+        values = native.evaluate(problem, points, taus, model.parameters)
+    else:
+        values = np.array([model.state_derivative(x, tau0) for x in points])
     ratio, fastest = linear_rates(difference_eigenvalues(values, steps))
     return float(ratio), float(fastest)
 
@@ -198,7 +204,8 @@ stability rather than accuracy. Both families are error-controlled, so the choic
 the work, not the accuracy. Measured (``benchmarks/bench_cvodes_options.py``, section 5):
 five paper-case members after 2 s take 619 BDF steps against 1060 Adams steps for the
 remaining 8 s, and after 1 s (still moving) no fewer; section 2 prints the batch's rate
-without the switch (1020 against 1321 simulated s per CPU s on 2026-11-29)."""
+without the switch (1020 against 1321 simulated s per CPU s on 2026-11-29, CasADi's
+integrator; the C driver applies the same rule inside its one call)."""
 
 
 def settled(xdot: np.ndarray, nominal: np.ndarray, fastest) -> np.ndarray:
@@ -234,7 +241,8 @@ five, and the error test fails more often. Measured on 60 paper-case members, 10
 rtol 1e-6 (``benchmarks/bench_cvodes_options.py``, section 2, 2026-11-29): 1300 against
 1069 simulated seconds per CPU second for order 12, the same error against rtol 1e-10
 (1.1e-5 against 1.2e-5); orders 4 and 8 in between. That was before the switch to BDF
-once settled (``SETTLED_RATIO``); with it, 1321 against 1217."""
+once settled (``SETTLED_RATIO``); with it, 1321 against 1217 (CasADi's integrator; the C
+driver of :mod:`softcurve.simulation.native` takes the same cap)."""
 
 
 def cvodes_options(
@@ -265,6 +273,10 @@ def cvodes_options(
         "abstol": abstol,
         "max_num_steps": int(max_steps),
         "disable_internal_warnings": True,
+        # no timing: CasADi otherwise reads the process CPU clock (a system call) around
+        # every evaluation of the model, a third of a paper-case run (docs/performance.md)
+        "record_time": False,
+        "print_time": False,
         **extra,
     }
     if max_order is not None:
@@ -286,6 +298,8 @@ def cvodes_reason(text: str) -> str:
         ("CV_ERR_FAILURE", "the error test failed repeatedly (step size became too small)"),
         ("CV_CONV_FAILURE", "the Newton iteration failed repeatedly"),
         ("CV_RHSFUNC_FAIL", "the right-hand side failed (non-finite values)"),
+        ("CV_FIRST_RHSFUNC_ERR", "the right-hand side failed (non-finite values)"),
+        ("CV_TOO_MUCH_ACC", "the tolerances are too tight for float64 arithmetic"),
         ("CV_REPTD_RHSFUNC_ERR", "the right-hand side failed (non-finite values)"),
         ("CV_LSETUP_FAIL", "the linear solver setup failed (singular Newton matrix)"),
         ("CV_LSOLVE_FAIL", "the linear solve failed"),

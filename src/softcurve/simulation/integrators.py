@@ -1,4 +1,4 @@
-"""The integrators of the one engine: CVODES compiled on the model's right-hand side, and
+"""The integrators of the one engine: CVODES on the model's compiled right-hand side, and
 SciPy's RK45 stepped from Python.
 
 Both answer one question: starting from state ``x`` at time ``t0``, integrate over
@@ -7,14 +7,10 @@ and return the state at the output times ``t0 + h * tout`` (``0 < tout <= 1``). 
 is the generalized force ``tau`` or, with an :class:`ActuatorInput`, the actuator's inputs,
 whose force ``H(q) u`` is evaluated inside the integrator.
 
-CVODES runs inside CasADi's compiled integrator. The right-hand side is the model's
-compiled ``rhs`` loaded as a CasADi ``external`` function, so an integration of
-thousands of steps never returns to Python. Its Newton matrix comes from forward
-differences of that compiled function (one Jacobian costs ``n_state + 1`` right-hand
-sides). An exact Jacobian is no cheaper: for the paper's robot its generated code has
-84,500 instructions against 10,900 for the right-hand side (7.7 right-hand sides against
-10), and given to CVODES as the library's ``jac_`` function it took the same 23 us per
-Jacobian as the finite differences while adding ~20 s of compilation.
+CVODES runs in compiled code and never returns to Python during an integration: through
+softcurve's C driver (:mod:`softcurve.simulation.native`; Jacobian by forward
+differences, kept while CVODES allows) where it builds, else inside CasADi's
+``integrator`` on :func:`scaled_dae`. Measurements of both in ``docs/performance.md``.
 """
 
 from __future__ import annotations
@@ -27,7 +23,14 @@ import casadi as ca
 import numpy as np
 from scipy.integrate import RK45
 
-from softcurve.simulation.engine import IntegrationFailure, cvodes_options, cvodes_reason
+from softcurve.simulation import engine as _engine
+from softcurve.simulation import native
+from softcurve.simulation.engine import (
+    MAX_ORDER,
+    IntegrationFailure,
+    cvodes_options,
+    cvodes_reason,
+)
 
 
 @dataclass(frozen=True)
@@ -246,6 +249,11 @@ class CvodesEngine(_Engine):
         Internal steps allowed between two output times.
     inputs : ActuatorInput, optional
         When the inputs are an actuator's rather than forces.
+
+    Notes
+    -----
+    Integrates with softcurve's C driver of CVODES (:mod:`softcurve.simulation.native`)
+    where it is available, else with CasADi's CVODES integrator on :func:`scaled_dae`.
     """
 
     name = "cvodes"
@@ -257,17 +265,13 @@ class CvodesEngine(_Engine):
         self._settings = (rtol, float(np.min(atol / nominal)), max_steps)
         self.families = [multistep]
         self.use(multistep)
-        self.counts = {
-            "steps": 0,
-            "rhs_evaluations": 0,
-            "jacobian_evaluations": 0,
-            "error_test_failures": 0,
-            "newton_failures": 0,
-        }
+        self.native = native.problem(model, inputs)
+        self.counts = dict.fromkeys(native.STATISTICS, 0)
 
     def use(self, multistep: str) -> None:
         """Integrate from here on with ``multistep`` ("adams" or "bdf")."""
         self.options = cvodes_options(multistep, *self._settings)
+        self.multistep = multistep
         if multistep not in self.families:
             self.families.append(multistep)
 
@@ -291,10 +295,13 @@ class CvodesEngine(_Engine):
         c["rhs_evaluations"] += int(stats.get("nfevals", 0))
         # one Jacobian per linear-solver setup (CasADi's call counters accumulate over calls)
         c["jacobian_evaluations"] += int(stats.get("nlinsetups", 0))
+        c["linear_solver_setups"] += int(stats.get("nlinsetups", 0))
         c["error_test_failures"] += int(stats.get("netfails", 0))
         c["newton_failures"] += int(stats.get("nncfails", 0))
 
     def _constant(self, x, h, tout, tau) -> np.ndarray:
+        if self.native is not None:
+            return self._native(x, h, tout, tau)
         x0 = np.ascontiguousarray(x / self.nominal)
         p = np.concatenate([self.model.parameters, [h], self.nominal])
         u = np.tile(np.asarray(tau, dtype=np.float64), tout.size)  # column-major (n, k)
@@ -304,6 +311,41 @@ class CvodesEngine(_Engine):
         if failure is not None:
             raise IntegrationFailure(cvodes_reason(failure), np.empty((0, x.size)))
         return out.reshape(tout.size, x.size) * self.nominal
+
+    def _native(self, x, h, tout, tau) -> np.ndarray:
+        """:meth:`_constant` with the C driver; a failure keeps the outputs reached."""
+        out, reached, flags = self.run_native(
+            x[None], np.atleast_2d(tau)[:, None, :], np.r_[0.0, h * tout], [tout.size], [False]
+        )
+        if flags[0]:
+            reason = cvodes_reason(native.reason(flags[0]))
+            raise IntegrationFailure(reason, out[0, 1 : reached[0]].copy())
+        return out[0, 1:]
+
+    def run_native(self, x0, u, times, ends, restart, fastest=None, longest=None) -> tuple:
+        """:func:`softcurve.simulation.native.integrate` of this run (one member: ``x0``
+        (1, N), ``u`` (1, S, k); ``fastest`` [1/s], ``longest`` (n_segments,) [m] or None)
+        with this engine's family, counted: ``(states (1, T, N), reached, flags)``.
+
+        Parameters
+        ----------
+        x0, u, times, ends, restart, fastest, longest
+            As :func:`softcurve.simulation.native.integrate` takes them, for one member.
+        """
+        rtol, abstol, max_steps = self._settings
+        family = 1 if self.multistep == "adams" else 2
+        out, reached, flags, counts, used_bdf = native.integrate(
+            self.native, [family], x0, u, self.model.parameters[None], self.nominal[None],
+            times, (ends, restart), (rtol, abstol, max_steps, MAX_ORDER),
+            fastest=None if fastest is None else np.array([fastest]),
+            settled_ratio=_engine.SETTLED_RATIO,
+            longest=None if longest is None else longest[None],
+        )  # fmt: skip
+        for name, value in zip(native.STATISTICS, counts[0], strict=True):
+            self.counts[name] += int(value)
+        if used_bdf[0] and "bdf" not in self.families:
+            self.families.append("bdf")
+        return out, reached, flags
 
 
 class ScipyEngine(_Engine):

@@ -27,12 +27,13 @@ Integrators (``method``)
     on the same compiled right-hand side, stepped from Python: 5-10x slower, for
     comparison and for robots where an explicit method is wanted.
 
-How CVODES gets compiled code, measured on the paper's case
-(``benchmarks/bench_simulate.py``): the library that :class:`~softcurve.Model` has
-already compiled is loaded as a CasADi ``external`` (numbers in
-``docs/paper-reproduction.md``); the same integration with the right-hand side in CasADi's
-virtual machine takes about 6x longer; CasADi's ``jit`` would compile the right-hand
-side and its exact Jacobian again for every new integrator (about 50 s with gcc -O2).
+How CVODES runs, measured on the paper's case (``benchmarks/bench_simulate.py``,
+``docs/performance.md``): softcurve's C driver (:mod:`softcurve.simulation.native`)
+calls the library that :class:`~softcurve.Model` has already compiled, keeps the Newton
+matrix's Jacobian while CVODES allows and integrates the whole output grid in one call:
+about 3x faster than CasADi's CVODES integrator on the same library, which remains the
+route where the driver cannot be built. With the right-hand side in CasADi's virtual
+machine (``Model(robot, compile=False)``) the integration takes about 10x longer.
 Multistep histories cannot cross a jump of the input, so the integrator restarts
 wherever the input changes, and also every ``RESTART_INTERVAL`` (1 s) of simulated time:
 after a transient, a method left at high order is stability-bound on the fast damped
@@ -75,7 +76,6 @@ from softcurve.simulation.engine import (
     linearization_rates,
     multistep_family,
     nominal_scale,
-    settled,
     success_message,
 )
 from softcurve.simulation.integrators import ActuatorInput, CvodesEngine, ScipyEngine
@@ -276,7 +276,7 @@ def simulate(
 
     method, rtol = settings.method, settings.rtol
     stats = {"method": method, "rtol": rtol, "atol": atol.tolist(), "dt": settings.dt}
-    settle = None  # at a restart: True once the robot has settled (then BDF)
+    fastest = None  # at a restart: BDF once the robot moves slower than this allows
     if method == "rk45":
         engine = ScipyEngine(model, rtol, atol, settings.max_steps, actuated)
     else:
@@ -286,11 +286,8 @@ def simulate(
             ratio, fastest = linearization_rates(model, model_x0, tau0, nominal[: model.n_state])
             stats["stiffness_ratio"] = ratio
             multistep = str(multistep_family(ratio, model.environment is not None))
-            if multistep == "adams" and actuated is None:
-
-                def settle(x, tau):
-                    return settled(model.state_derivative(x, tau), nominal, fastest)
-
+            if multistep != "adams" or actuated is not None:
+                fastest = None
         engine = CvodesEngine(model, multistep, rtol, atol, nominal, settings.max_steps, actuated)
 
     states = np.empty((grid.size, x0.size))
@@ -301,7 +298,7 @@ def simulate(
     try:
         if controller is None and not callable(values):
             applied[:] = values
-            reached = run_on_grid(engine, grid, states, values, bar, Domain(model, grid), settle)
+            reached = run_on_grid(engine, grid, states, values, bar, Domain(model, grid), fastest)
         else:
             reached = run_sampled(
                 engine, model, grid, states, applied, values, controller, sample_time, bar, check

@@ -12,12 +12,15 @@ import time
 import numpy as np
 
 from softcurve.base.validation import ParameterError
-from softcurve.description.robot import domain_problem, in_domain
+from softcurve.description.robot import MAX_STRETCH, domain_problem, in_domain
+from softcurve.simulation import native
 from softcurve.simulation.engine import (
     LEFT_DOMAIN,
     RESTART_INTERVAL,
     IntegrationFailure,
+    cvodes_reason,
     restart_segments,
+    settled,
 )
 from softcurve.simulation.trajectory import State
 
@@ -95,11 +98,11 @@ class Domain:
             raise Stopped(first, reason)
 
 
-def run_on_grid(engine, grid, states, inputs, bar, domain, settle=None) -> int:
+def run_on_grid(engine, grid, states, inputs, bar, domain, fastest=None) -> int:
     """All outputs in one call per restart segment (see ``RESTART_INTERVAL``), split
-    further only to report progress; with ``settle``, each segment after the first is
-    integrated with BDF when ``settle(x, tau)`` at its start, else Adams
-    (``SETTLED_RATIO``).
+    further only to report progress, or with CVODES's C driver the whole grid in one call;
+    with ``fastest``, each segment after the first is integrated with BDF once the robot
+    has settled, else Adams (``SETTLED_RATIO``).
 
     Parameters
     ----------
@@ -115,13 +118,19 @@ def run_on_grid(engine, grid, states, inputs, bar, domain, settle=None) -> int:
         The progress bar.
     domain : Domain
         The check of every output against the model's domain.
-    settle : callable, optional
-        ``settle(x, tau) -> bool``: switch to BDF at a restart.
+    fastest : float, optional
+        Fastest rate of the initial linearization [1/s]: switch to BDF at a restart once
+        settled (:func:`~softcurve.simulation.engine.settled`).
     """
+    segments = restart_segments(grid, RESTART_INTERVAL)
+    if bar is None and getattr(engine, "native", None) is not None:
+        return _run_native(engine, grid, states, inputs, domain, segments, fastest)
     chunk = grid.size if bar is None else max(1, math.ceil((grid.size - 1) / 50))
-    for k0, k1 in restart_segments(grid, RESTART_INTERVAL):
-        if settle is not None and k0 > 0:
-            engine.use("bdf" if settle(states[k0], inputs[k0]) else "adams")
+    model, nominal = getattr(engine, "model", None), getattr(engine, "nominal", None)
+    for k0, k1 in segments:
+        if fastest is not None and k0 > 0:
+            rates = model.state_derivative(states[k0], inputs[k0])
+            engine.use("bdf" if settled(rates, nominal, fastest) else "adams")
         k = k0
         while k < k1:
             m = min(chunk, k1 - k)
@@ -130,6 +139,31 @@ def run_on_grid(engine, grid, states, inputs, bar, domain, settle=None) -> int:
             if bar is not None:
                 bar.update(grid[k])
     return grid.size
+
+
+def _run_native(engine, grid, states, inputs, domain, segments, fastest) -> int:
+    """:func:`run_on_grid` in one call of the C driver: segments end at the restarts and
+    wherever the input changes; the driver stops at the first output outside the domain,
+    which :class:`Domain` then words."""
+    ends, restart = [], []
+    changes = set((np.flatnonzero(np.any(inputs[1:-1] != inputs[:-2], axis=1)) + 1).tolist())
+    for k0, k1 in segments:
+        cuts = sorted(c for c in changes if k0 < c < k1)
+        ends.extend([*cuts, k1])
+        restart.extend([True] + [False] * len(cuts))
+    starts = np.array([0, *ends[:-1]], dtype=int)
+    longest = MAX_STRETCH * np.asarray(domain.robot.rest_lengths, dtype=np.float64)
+    out, reached, flags = engine.run_native(
+        states[:1], inputs[starts][None], grid, ends, restart, fastest, longest
+    )
+    done = int(reached[0])
+    states[1:done] = out[0, 1:done]
+    if flags[0] == 0:
+        return grid.size
+    domain.check(states, 1, done)
+    if flags[0] == 1:  # outside by the driver's test, inside by Python's: stop there
+        raise Stopped(done - 1, f"{LEFT_DOMAIN} at t = {grid[done - 1]:.6g} s")
+    raise Stopped(done, cvodes_reason(native.reason(flags[0])))
 
 
 def _advance(engine, grid, states, inputs, k, m, domain) -> None:
