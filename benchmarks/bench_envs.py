@@ -20,6 +20,14 @@ tips after every period against ``softcurve.simulate`` at rtol 1e-10 with the sa
 inputs (max distance over members and periods, in mm and relative to the workspace's
 radius).
 
+Floor: the same 256 robots integrated over one period by the adaptive CVODES of
+``softcurve.simulate`` (softcurve's C driver, ``softcurve.simulation.native``), from
+states reached under random pressures, at rtol 1e-6 and 1e-4: the steps and right-hand
+sides one period of this robot needs under a new random input at every period, the
+member-periods per second on 2 threads, and the cost of one right-hand side (with the
+bellows' force) in a batch call: how far below the cost of these evaluations any
+integrator of the same accuracy must stay.
+
 Published figures quoted by issue 15, for comparison: SoRoMoX, about 21 simulated
 seconds per second at 256 environments (desktop GPU, explicit 0.1 ms steps, a 3-DoF soft
 robot); DisMech-RL, a few thousand environment steps per second with 500 environments on
@@ -38,6 +46,9 @@ import numpy as np
 
 import softcurve as sc
 from softcurve.envs import ReachVector
+from softcurve.simulation import native
+from softcurve.simulation.integrators import ActuatorInput
+from softcurve.simulation.stepper_scheme import state_scale as stepper_scale
 
 PERIOD = 0.02
 """Control period [s] of every row."""
@@ -107,6 +118,44 @@ def _accuracy(vector) -> tuple[float, float]:
     return worst, worst / episodes.task.calibration.radius
 
 
+def _adaptive_floor(vector, rng) -> None:
+    """Print what the adaptive CVODES needs per period for the robots of ``vector``."""
+    stepper = vector.episodes.setup.stepper
+    model, actuator = stepper.model, stepper.actuator
+    problem = native.problem(model, ActuatorInput.of(actuator, model.n))
+    if problem is None:
+        print("adaptive floor: softcurve's C driver of CVODES is not available here")
+        return
+    size, m = 256, actuator.n_inputs
+    x = np.tile(vector.episodes.setup.x0, (size, 1))
+    for _ in range(25):  # 0.5 s of random pressures: states of a policy's episode
+        x = stepper.step(x, rng.uniform(actuator.lower, actuator.upper, (size, m))).x
+    nominal = np.tile(stepper_scale(model, ActuatorInput.of(actuator, model.n)), (size, 1))
+    p = np.tile(model.parameters, (size, 1))
+    times, segments = np.array([0.0, PERIOD]), (np.array([1]), np.array([1]))
+    for rtol in (1e-6, 1e-4):
+        best, counts = np.inf, None
+        for _ in range(5):
+            u = rng.uniform(actuator.lower, actuator.upper, (size, 1, m))
+            start = time.perf_counter()
+            _, _, _, counts, _ = native.integrate(
+                problem, np.ones(size, dtype=int), x, u, p, nominal, times, segments,
+                (rtol, rtol, 100_000, 0), threads=os.cpu_count() or 1,
+            )  # fmt: skip
+            best = min(best, time.perf_counter() - start)
+        steps, rhs, jacobians = counts[:, :3].mean(axis=0)
+        print(f"  adaptive CVODES, rtol {rtol:g}: {size / best:,.0f} member-periods/s "
+              f"({steps:.0f} steps, {rhs:.0f} right-hand sides and {jacobians:.1f} "
+              f"Jacobians per member and period)")  # fmt: skip
+    xs, us = np.repeat(x, 20, axis=0), rng.uniform(actuator.lower, actuator.upper, (20 * size, m))
+    start = time.perf_counter()
+    native.evaluate(problem, xs, us, model.parameters)
+    print(
+        f"  one right-hand side with the bellows' force: "
+        f"{(time.perf_counter() - start) / xs.shape[0] * 1e6:.2f} us (batch call)"
+    )
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--sizes", default="1,16,256,1024", help="numbers of environments")
@@ -132,6 +181,8 @@ def main() -> None:
         else:
             print("accuracy: not measured here (docs/stepping.md: the stepper does not follow "
                   "this undamped robot at 20 ms)")  # fmt: skip
+        if reference:
+            _adaptive_floor(first, rng)
         print(f"{'N':>6} {'env steps/s':>12} {'sim s/s':>10} {'stepper steps/s':>16} "
               f"{'real-time factor (N=1)':>23}")  # fmt: skip
         for size in sizes:

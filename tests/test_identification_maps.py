@@ -322,3 +322,25 @@ def test_simulate_checks_the_initial_actuator_state(paper_model):
     with pytest.raises(sc.ParameterError, match="time_constant"):
         sc.simulate(paper_model, q0, zero, actuator=instant, inputs=zero,
                     actuator_state=zero, t_final=0.01)  # fmt: skip
+
+
+def test_batch_members_start_from_their_actuator_states_as_simulate(paper_model):
+    lagging = sc.PneumaticActuator.three_bellows(
+        distance=0.01, area=2e-5, p_max=1e5, time_constant=0.05
+    )
+    q0, zero = np.array([0.0644, 0.0, 0.0]), np.zeros(3)
+    inputs, states = [[1e4, 1e4, 1e4], zero], [[1e4, 2e4, 3e4], [0.0, 0.0, 5e4]]
+    batch = sc.simulate_batch(paper_model, q0, zero, actuator=lagging, inputs=inputs,
+                              actuator_state=states, t_final=0.05, dt=0.01)  # fmt: skip
+    for b in range(2):
+        single = sc.simulate(paper_model, q0, zero, actuator=lagging, inputs=inputs[b],
+                             actuator_state=states[b], t_final=0.05, dt=0.01)  # fmt: skip
+        assert_close(batch.inputs[b], single.inputs, rtol=0.0, atol=0.0, what="inputs")
+        assert_close(batch.x[b], single.x, rtol=0.0, atol=0.0, what="states")
+    with pytest.raises(sc.ParameterError, match=r"actuator_state\[1\]\[2\] = 200000.0 Pa"):
+        sc.simulate_batch(paper_model, q0, zero, actuator=lagging, inputs=zero,
+                          actuator_state=[zero, [0.0, 0.0, 2e5]], t_final=0.01)  # fmt: skip
+    instant = sc.PneumaticActuator.three_bellows(distance=0.01, area=2e-5, p_max=1e5)
+    with pytest.raises(sc.ParameterError, match="time_constant"):
+        sc.simulate_batch(paper_model, q0, zero, actuator=instant, inputs=zero,
+                          actuator_state=zero, t_final=0.01)  # fmt: skip

@@ -288,6 +288,26 @@ class Actuator:
             )
         return u
 
+    def lag_start(self, state=None, name: str = "actuator_state") -> np.ndarray:
+        """The inputs (m,) at which this actuator's first-order lag starts: ``state``
+        checked against the bounds, or zero clipped into them.
+
+        Parameters
+        ----------
+        state : array_like, shape (m,), optional
+            The inputs at the start [``input_unit``].
+        name : str
+            Name used in the error messages.
+        """
+        if self.time_constant is None and state is not None:
+            raise ParameterError(
+                f"{name} is the initial state of a lagging actuator: give an actuator "
+                "with a time_constant (without one its inputs follow their commands at once)"
+            )
+        if state is None:
+            return np.clip(0.0, self.lower, self.upper)
+        return self.check_inputs(state, name)
+
     def clip(self, inputs) -> np.ndarray:
         """Saturate inputs to ``[lower, upper]``.
 

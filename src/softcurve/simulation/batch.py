@@ -81,6 +81,7 @@ def simulate_batch(
     actuator: Actuator | None = None,
     inputs=None,
     actuator_parameters=None,
+    actuator_state=None,
     settings: SimulationSettings | None = None,
     threads: int | None = None,
     processes: int | None = None,
@@ -120,6 +121,10 @@ def simulate_batch(
         ``actuator.parameter_vector()``; each is validated as an actuator. Members with
         equal vectors share one integrator; each distinct vector builds its own (a few
         milliseconds).
+    actuator_state : array_like, shape (B, m) or (m,), optional
+        Initial inputs of an actuator with a ``time_constant`` per member (e.g. the
+        chambers' pressures at the start [Pa]), within its bounds (default: zero clipped
+        into them), as in :func:`~softcurve.simulation.simulate.simulate`.
     settings : SimulationSettings, optional
         As in :func:`~softcurve.simulation.simulate.simulate`; ``method`` is "cvodes"
         (chosen per member), "adams" or "bdf". Memory is ``B * T * (2 n + n_creep + 3)``
@@ -173,7 +178,7 @@ def simulate_batch(
         "parameters": member_rows(
             "parameters", parameters, model.parameters.size, model.parameters
         ),
-        **drive_arrays(model, tau, actuator, inputs, actuator_parameters),
+        **drive_arrays(model, tau, actuator, inputs, actuator_parameters, actuator_state),
     }
     sizes = {name: a.shape[0] for name, a in arrays.items() if a.shape[0] != 1}
     size = max(sizes.values(), default=1)
@@ -202,7 +207,7 @@ def simulate_batch(
     drives = None
     if actuator is not None:
         drives = Drives.of(actuator, n, arrays["inputs"], arrays["actuator_parameters"])
-        x0, nominal = drives.extended(x0, nominal)
+        x0, nominal = drives.extended(x0, nominal, arrays.get("actuator_state"))
         abstol = min(abstol, settings.rtol) if drives.lag else abstol  # as simulate()
     scales = (nominal, rest_lengths)
     return _integrate(model, x0, arrays, scales, abstol, settings, threads, drives)

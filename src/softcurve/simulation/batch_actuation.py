@@ -58,10 +58,11 @@ def member_rows(name: str, value, width: int, default=None) -> np.ndarray | None
     return a
 
 
-def drive_arrays(model, tau, actuator, inputs, actuator_parameters) -> dict:
+def drive_arrays(model, tau, actuator, inputs, actuator_parameters, actuator_state=None) -> dict:
     """The per-member arrays of what drives a batch's members: ``{"tau": (B, n)}``, or
-    with an actuator ``{"inputs": (B, m), "actuator_parameters": (B, k)}`` (B may be 1:
-    shared); the arguments of :func:`~softcurve.simulation.batch.simulate_batch`.
+    with an actuator ``{"inputs": (B, m), "actuator_parameters": (B, k)}`` and, when it
+    lags, ``"actuator_state": (B, m)`` (B may be 1: shared); the arguments of
+    :func:`~softcurve.simulation.batch.simulate_batch`.
 
     Parameters
     ----------
@@ -75,11 +76,16 @@ def drive_arrays(model, tau, actuator, inputs, actuator_parameters) -> dict:
         Its inputs per member, required with ``actuator``.
     actuator_parameters : array_like, shape (B, k) or (k,), or None
         Its parameters per member (default ``actuator.parameter_vector()``).
+    actuator_state : array_like, shape (B, m) or (m,), or None
+        The lagging inputs at the start per member (default zero clipped into the bounds).
     """
     n = model.n
     if actuator is None:
-        if inputs is not None or actuator_parameters is not None:
-            raise ParameterError("inputs are an actuator's: give actuator= too (an Actuator)")
+        if inputs is not None or actuator_parameters is not None or actuator_state is not None:
+            raise ParameterError(
+                "inputs, actuator_parameters and actuator_state are an actuator's: give "
+                "actuator= too (an Actuator)"
+            )
         return {"tau": member_rows("tau", tau, n, np.zeros(n))}
     if not isinstance(actuator, Actuator):
         raise ParameterError(
@@ -90,12 +96,21 @@ def drive_arrays(model, tau, actuator, inputs, actuator_parameters) -> dict:
         raise ParameterError("with an actuator, give inputs= (the actuator's inputs), not tau")
     actuator.check_robot(model.robot)
     theta = actuator.parameter_vector()
-    return {
+    arrays = {
         "inputs": member_rows("inputs", inputs, actuator.n_inputs),
         "actuator_parameters": member_rows(
             "actuator_parameters", actuator_parameters, theta.size, theta
         ),  # fmt: skip
     }
+    if actuator.time_constant is not None or actuator_state is not None:
+        start = member_rows(
+            "actuator_state", actuator_state, actuator.n_inputs, actuator.lag_start()
+        )
+        shared = start.shape[0] == 1
+        for b, row in enumerate(start):
+            actuator.lag_start(row, "actuator_state" if shared else f"actuator_state[{b}]")
+        arrays["actuator_state"] = start
+    return arrays
 
 
 @dataclass(frozen=True, eq=False)
@@ -156,9 +171,9 @@ class Drives:
         """Whether the inputs lag their commands (extra states after ``(q, qd, lam)``)."""
         return self.actuator.time_constant is not None
 
-    def extended(self, x0: np.ndarray, nominal: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """``(x0, nominal)`` (B, n_state [+ m]): with a lag, the inputs start at zero
-        clipped into the bounds, on the scale of their largest bound (as in
+    def extended(self, x0: np.ndarray, nominal: np.ndarray, start: np.ndarray):
+        """``(x0, nominal)`` (B, n_state [+ m]): with a lag, the inputs start at ``start``,
+        on the scale of their largest bound (as in
         :func:`~softcurve.simulation.simulate.simulate`).
 
         Parameters
@@ -167,11 +182,12 @@ class Drives:
             Initial states.
         nominal : ndarray, shape (B, n_state)
             Their scales.
+        start : ndarray, shape (B, m)
+            The lagging inputs at the start (``drive_arrays``'s ``"actuator_state"``).
         """
         if not self.lag:
             return x0, nominal
         a, size = self.actuator, x0.shape[0]
-        start = np.broadcast_to(np.clip(0.0, a.lower, a.upper), (size, a.n_inputs))
         scale = np.broadcast_to(np.maximum(np.abs(a.lower), np.abs(a.upper)), (size, a.n_inputs))
         return np.hstack([x0, start]), np.hstack([nominal, scale])
 

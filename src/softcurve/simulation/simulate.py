@@ -262,13 +262,11 @@ def simulate(
     nominal = nominal_scale(model, x0)
     atol = settings.atol_vector(nominal)
     model_x0 = x0
-    if actuator_state is not None and (actuated is None or not actuated.n_states):
-        raise ParameterError(
-            "actuator_state is the initial state of a lagging actuator: give an actuator "
-            "with a time_constant (without one its inputs follow their commands at once)"
-        )
+    if actuator_state is not None and actuator is None:
+        raise ParameterError("actuator_state is an actuator's initial state: give actuator= too")
+    if actuator is not None:
+        start = actuator.lag_start(actuator_state)
     if actuated is not None and actuated.n_states:
-        start = _actuator_start(actuator, actuator_state)
         scale = np.maximum(np.abs(actuated.lower), np.abs(actuated.upper))
         x0 = np.concatenate([x0, start])
         nominal = np.concatenate([nominal, scale])
@@ -311,14 +309,6 @@ def simulate(
         bar.close()
     stats.update(engine.counts, method=engine.method, wall_time=wall)
     return _result(model, grid, states, applied, reached, failure, stats, actuated, actuator)
-
-
-def _actuator_start(actuator: Actuator, actuator_state) -> np.ndarray:
-    """The initial inputs of a lagging actuator: checked against its bounds, or zero
-    clipped into them."""
-    if actuator_state is None:
-        return np.clip(0.0, actuator.lower, actuator.upper)
-    return actuator.check_inputs(actuator_state, "actuator_state")
 
 
 def _initial_force(model, model_x0, x0, values, actuated) -> np.ndarray:
