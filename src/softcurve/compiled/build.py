@@ -346,7 +346,7 @@ def _install(library: Path, data: bytes) -> None:
     atomic_write(library, data)
 
 
-def compile_function(function: ca.Function, optimization: str = "-O1") -> ca.Function:
+def compile_function(function: ca.Function, optimization: str = "-O1", load=None):
     """``function`` generated as C, compiled, cached on disk by its content and loaded.
 
     For CasADi functions built on a model's expressions (the identification's
@@ -363,12 +363,17 @@ def compile_function(function: ca.Function, optimization: str = "-O1") -> ca.Fun
         The compiler's optimization flag; ``-O1`` compiles large generated files several
         times faster than ``-O2`` at a small cost in speed.
 
+    load : callable, optional
+        ``load(path, name)`` opens the compiled library (e.g. as a
+        :class:`~softcurve.compiled.native.NativeFunction`, called without CasADi and
+        without the GIL); default: CasADi's ``external``.
+
     Returns
     -------
-    casadi.Function
+    casadi.Function or object
         The compiled function as a CasADi ``external`` (derivatives by finite
-        differences), or ``function`` itself when no C compiler works (then it runs in
-        CasADi's virtual machine).
+        differences) or what ``load`` returned, or ``function`` itself when no C compiler
+        works (then it runs in CasADi's virtual machine).
     """
     compiler = _compiler()
     if compiler is None:
@@ -382,7 +387,9 @@ def compile_function(function: ca.Function, optimization: str = "-O1") -> ca.Fun
         return _load_or_build(
             library,
             lambda path: _compile({name: function}, compiler, path, (optimization, "-fPIC")),
-            lambda path: ca.external(name, str(path), {"enable_fd": True}),
+            (lambda path: ca.external(name, str(path), {"enable_fd": True}))
+            if load is None
+            else (lambda path: load(path, name)),
             stacklevel=2,
         )
     except (OSError, subprocess.CalledProcessError):

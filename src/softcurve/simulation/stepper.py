@@ -28,7 +28,9 @@ from softcurve.compiled.model import Model
 from softcurve.description.actuator import Actuator
 from softcurve.simulation.integrators import ActuatorInput, BufferedCall
 from softcurve.simulation.simulate import initial_state as checked_state
-from softcurve.simulation.stepper_scheme import METHODS, observer, period_function
+from softcurve.simulation.stepper_native import ThreadedMembers
+from softcurve.simulation.stepper_observe import observer
+from softcurve.simulation.stepper_scheme import METHODS, period_function
 from softcurve.simulation.stepping import domain_reason, outside_domain
 
 DEFAULT_METHOD = "ROS34PW2"
@@ -175,6 +177,12 @@ class Stepper:
         self._function = period_function(
             model, self._input, self._substeps, method, compiled, None, self._every
         )
+        native = None
+        if compiled:
+            native = period_function(
+                model, self._input, self._substeps, method, True, None, self._every, native=True
+            )
+        self._members = None if native is None else ThreadedMembers(native, self._threads)
         inputs_key = None if self._input is None else self._input.key
         self._key = (self._substeps, method, compiled, self._every, inputs_key)
         self._period_array = np.array([self._period])
@@ -293,18 +301,25 @@ class Stepper:
             )
         u = np.ascontiguousarray(np.clip(u, self._lower, self._upper))
         out = np.empty((count, self._n_state + 6))
-        shared = {2: self._model.parameters, 3: self._period_array}
-        failure, _ = self._call(count)({0: x, 1: u, **shared}, out)
+        failures = {}
+        if self._members is not None:  # threads of compiled code, without the GIL
+            out[:] = np.nan
+            parameters = self._model.parameters
+            failures = dict(self._members(x, u, parameters, self._period_array, out))
+        else:
+            shared = {2: self._model.parameters, 3: self._period_array}
+            failure, _ = self._call(count)({0: x, 1: u, **shared}, out)
+            if failure is not None:
+                failures = dict.fromkeys(range(count), failure)
         x_next = out[:, : self._n_state]
         n, rest = self._model.n, self._model.robot.rest_lengths
         bad_start = outside_domain(x, n, rest)
         bad = bad_start | outside_domain(x_next, n, rest)
-        if failure is not None:
-            bad[:] = True
+        bad[list(failures)] = True
         reasons = [None] * count
         for i in np.flatnonzero(bad):
-            if failure is not None:
-                reasons[i] = f"the compiled step failed: {failure}"
+            if i in failures:
+                reasons[i] = f"the compiled step failed: {failures[i]}"
             elif bad_start[i]:
                 reasons[i] = domain_reason(x[i], n, rest, 0.0) + " (the state given to the step)"
             else:

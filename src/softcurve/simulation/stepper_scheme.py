@@ -20,8 +20,11 @@ import casadi as ca
 import numpy as np
 
 from softcurve.compiled.build import compile_function
+from softcurve.compiled.native import NativeFunction
 from softcurve.simulation.engine import nominal_scale
 from softcurve.simulation.integrators import ActuatorInput
+from softcurve.simulation.stepper_native import load_native
+from softcurve.simulation.stepper_observe import observer
 
 
 def state_derivative(model, inputs: ActuatorInput | None, symbolic: bool) -> ca.Function:
@@ -268,6 +271,7 @@ def period_function(
     compiled: bool = True,
     optimization=None,
     jacobian_every: int | None = None,
+    native: bool = False,
 ):
     """``(x, u, p, period) -> (x_next, tip, contact_force)`` stacked (``n_state + 6``) for
     one member: ``substeps`` steps of ``method`` over ``period`` [s] with a fresh Newton
@@ -297,12 +301,17 @@ def period_function(
         The compiler's optimization flag (default :data:`OPTIMIZATION`).
     jacobian_every : int, optional
         Steps between fresh Jacobians (default ``substeps``: one per period).
+    native : bool
+        With ``compiled``, return the compiled library's function as a
+        :class:`~softcurve.compiled.native.NativeFunction` (called through ctypes, which
+        releases the GIL: threads of Python run members in parallel) instead of a
+        CasADi ``external``; None where no compiler works.
     """
     tableau = METHODS[method]
     optimization = OPTIMIZATION if optimization is None else optimization
     every = substeps if jacobian_every is None else min(jacobian_every, substeps)
 
-    def build():
+    def graph():
         f = state_derivative(model, inputs, compiled)
         x = ca.MX.sym("x", f.size1_in(0))
         u = ca.MX.sym("u", f.size1_in(1))
@@ -321,14 +330,23 @@ def period_function(
             y = rosenbrock_step(f, y, u, p, _solver(qr, factors), slope, h, tableau)
         observe = observer(model, compiled)
         out = ca.vertcat(y, observe(y[: model.n_state], p))
-        function = ca.Function(
+        return ca.Function(
             "softcurve_stepper", [x, u, p, period], [out], ["x", "u", "p", "period"], ["out"]
         )
-        return compile_function(function, optimization) if compiled else function
 
     inputs_key = None if inputs is None else inputs.key
-    key = ("stepper", substeps, method, compiled, optimization, every, inputs_key)
-    return model.cached(key, build)
+    key = ("stepper", substeps, method, compiled, every, inputs_key)
+    function = model.cached(key, graph)
+    if not compiled:
+        return function
+
+    def build():
+        if not native:
+            return compile_function(function, optimization)
+        loaded = compile_function(function, optimization, load=load_native)
+        return loaded if isinstance(loaded, NativeFunction) else None
+
+    return model.cached((*key, optimization, native), build)
 
 
 def _solver(qr: Factorization, factors):
@@ -340,54 +358,3 @@ OPTIMIZATION = "-O1"
 """Compiler flag of the stepper: -O1 compiled the paper robot's stepper in 23 s, -O2 in
 40-48 s (loaded machine), at speeds equal within the noise (``bench_stepper.py`` section
 3: 800-910 against 710-1180 us per member-period in alternating runs)."""
-
-
-def observation(model, x, p):
-    """``(tip position (3,), total contact force (3,))`` at the state ``x``, both in the
-    world frame, as SX; the force is zero without an environment.
-
-    Parameters
-    ----------
-    model : Model
-        The model.
-    x : casadi.SX, shape (n_state,)
-        The state ``(q, qd, lam)``.
-    p : casadi.SX, shape (n_p,)
-        Robot parameters.
-    """
-    n = model.n
-    tip = model.symbolic["pose"](x[:n], 1.0, p)[1]
-    if model.environment is None:
-        return tip, ca.SX.zeros(3)
-    e = model.expressions
-    rotation = ca.Function("base_rotation", [e.p], [e.base_rotation])(p)
-    per_obstacle = model.symbolic["contact"](x[:n], x[n : 2 * n], p)[2]  # (3, k), base frame
-    return tip, rotation @ ca.sum2(per_obstacle)
-
-
-def observer(model, symbolic: bool) -> ca.Function:
-    """``(x, p) -> (tip position, total contact force)`` stacked (6,), world frame, for
-    ``x = (q, qd, lam)``: without environment on the model's compiled ``pose``; with one,
-    in CasADi's virtual machine (the compiled stepper generates its own; this one serves
-    the few states a step does not advance and
-    :meth:`~softcurve.simulation.stepper.Stepper.tip`), kept with the model.
-
-    Parameters
-    ----------
-    model : Model
-        The model.
-    symbolic : bool
-        An SX function (to be generated as C with the stepper).
-    """
-
-    def build():
-        if symbolic or model.environment is not None:
-            x = ca.SX.sym("x", model.n_state)
-            p = ca.SX.sym("p", model.parameters.size)
-            return ca.Function("observe", [x, p], [ca.vertcat(*observation(model, x, p))])
-        pose = model.function("pose")
-        x, p = ca.MX.sym("x", model.n_state), ca.MX.sym("p", model.parameters.size)
-        out = ca.vertcat(pose(x[: model.n], 1.0, p)[1], ca.MX.zeros(3))
-        return ca.Function("softcurve_observe", [x, p], [out])
-
-    return model.cached(("stepper-observe", symbolic), build)
