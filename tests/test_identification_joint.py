@@ -134,6 +134,8 @@ def test_weights_per_sample_and_time_window():
         weight_matrix(np.ones(5), t, 2)
     with pytest.raises(sc.ParameterError, match=">= 0"):
         weight_matrix([(0.0, 1.0, 0.0)], t, 2)
+    rows = [[1.0, 1.0, 0.0]] * 11  # per sample: ignore the third signal, not a window
+    np.testing.assert_array_equal(weight_matrix(rows, t, 3), np.array(rows))
 
 
 def test_a_discounted_settling_period_removes_its_bias(recordings):
@@ -183,3 +185,24 @@ def test_the_input_lag_time_constant_is_recovered(recordings):
     difference = np.abs(inflated.predicted - clean.predicted)
     assert np.max(difference[t < 0.05]) > 1.0  # [1/m]
     assert np.max(difference[-1]) < 0.2 * np.max(difference[t < 0.05])  # and it dies out
+
+
+def test_predictions_never_take_another_experiments_own_values(recordings):
+    """A value set or fitted for one experiment (its offset, its initial state) stays
+    with it: predicting each experiment reproduces the joint evaluation, and an
+    experiment the fit did not have gets the nominal value, not a fitted one's."""
+    model, (a, b), bends, _ = recordings
+    out = bending_angle(offset="offset")
+    x0 = {"a": _state(bends["a"]), "b": _state(bends["b"])}
+    joint = fit_trajectory(model, [a, b], output=out, x0=x0, free=[],
+                           extra={"offset[a]": 0.5}, processes=1)  # fmt: skip
+    assert "offset" not in joint.extra["values"]
+    rows = slice(a.t.size, None)
+    alone = predict_trajectory(model, b, joint, output=out, x0=x0["b"], processes=1)
+    assert np.max(np.abs(alone.predicted[:, 0] - joint.predicted[rows, 0])) <= 1e-9
+    own_offset = [Free("offset", -5, 5, scale=1.0, per_experiment=True)]
+    single = fit_trajectory(model, a, output=out, x0=x0["a"], free=own_offset, processes=1,
+                            max_evaluations=10)  # fmt: skip
+    other = predict_trajectory(model, b, single, output=out, x0=x0["b"], processes=1)
+    nominal = predict_trajectory(model, b, joint, output=bending_angle(), x0=x0["b"], processes=1)
+    assert np.max(np.abs(other.predicted[:, 0] - nominal.predicted[:, 0])) <= 1e-9

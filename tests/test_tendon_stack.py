@@ -207,7 +207,7 @@ def test_batch_refuses_bad_actuator_input(paper_model):
     for extra, message in cases:
         with pytest.raises(ParameterError, match=message):
             simulate_batch(paper_model, REST, np.zeros(3), **{**run, **extra})
-    with pytest.raises(ParameterError, match="inputs are an actuator's"):
+    with pytest.raises(ParameterError, match="actuator_state are an actuator's"):
         simulate_batch(paper_model, REST, np.zeros(3), inputs=[1, 0, 0], t_final=0.02)
 
 

@@ -13,7 +13,7 @@ try:
     import gymnasium  # noqa: F401
 except ModuleNotFoundError as exc:  # pragma: no cover - depends on the installation
     raise ModuleNotFoundError(
-        "softcurve.envs needs Gymnasium: pip install 'softcurve[envs]' (gymnasium>=1.0)"
+        "softcurve.envs needs Gymnasium: pip install 'softcurve[envs]' (gymnasium>=1.1)"
     ) from exc
 
 from softcurve.envs.registration import TASK_IDS, register_tasks

@@ -336,13 +336,14 @@ def fit_equilibria(
 
 
 def _fitted_values(fit: FitReport, experiment, given: dict) -> dict:
-    """The extra values of ``fit`` for ``experiment``: shared ones plus, for experiments
-    the fit had, their own (as ``name[experiment]`` keys)."""
+    """``fit``'s shared extra values, plus their own (``name[experiment]``) for the
+    experiments it had; others keep the nominal per-experiment values, never another's."""
     usable_fit(fit)
-    values = {**given, **fit.extra["values"]}
-    experiments, _ = experiment_list(experiment)
-    for e in experiments:
-        for name, value in fit.extra.get("per_experiment", {}).get(e.name, {}).items():
+    per = fit.extra.get("per_experiment", {})
+    own = {name for values in per.values() for name in values}
+    values = {**given, **{k: v for k, v in fit.extra["values"].items() if k not in own}}
+    for e in experiment_list(experiment)[0]:
+        for name, value in per.get(e.name, {}).items():
             values[f"{name}[{e.name}]"] = value
     return values
 

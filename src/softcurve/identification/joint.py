@@ -81,9 +81,13 @@ class JointParameters:
         The experiments' names.
     single : bool
         One experiment given bare: names carry no ``[experiment]`` suffix.
+    specific : set of str, optional
+        Extra parameters that are not free but set per experiment (``name[experiment]``
+        keys): reported per experiment, never as shared values.
     """
 
-    def __init__(self, parts, names, single: bool):
+    def __init__(self, parts, names, single: bool, specific=frozenset()):
+        self.specific = frozenset(specific)
         free = parts[0].free
         labels, theta0, scale, lower, upper = [], [], [], [], []
         self.index = np.zeros((len(parts), len(free)), dtype=int)
@@ -126,7 +130,7 @@ class JointParameters:
         theta : ndarray, shape (P,)
             Joint free parameters, each in its unit.
         """
-        own = {t for f in self.free if f.per_experiment for t in f.targets}
+        own = {t for f in self.free if f.per_experiment for t in f.targets} | self.specific
         per = {}
         for e, (part, name) in enumerate(zip(self.parts, self.experiments, strict=True)):
             p, values = part.evaluate(self.local(theta, e))

@@ -91,7 +91,8 @@ class Problem:
             own = starts(e, wanted | set(per[e.name])) if starts else {}
             values = {**maps, **own, **shared, **per[e.name]}
             parts.append(FreeParameters(model, free, values, bind or {}, p))
-        self.parameters = JointParameters(parts, names, single)
+        specific = {name for values in per.values() for name in values}
+        self.parameters = JointParameters(parts, names, single, specific)
 
     def run(
         self, evaluators, signals, weights, max_evaluations, confidence, kind, *, options

@@ -267,7 +267,9 @@ def covariance(jacobian: np.ndarray, residuals: np.ndarray):
     identifiable : ndarray of bool, shape (P,)
         False for parameters in the numerical null space of ``J``.
     """
-    n, p = jacobian.shape
+    p = jacobian.shape[1]
+    # samples with weight zero carry no information: they are not degrees of freedom
+    n = int(np.count_nonzero(np.any(jacobian != 0, axis=1) | (residuals != 0)))
     s2 = float(residuals @ residuals) / max(n - p, 1)
     # Column equilibration first, so that the rank test does not depend on units.
     norms = np.linalg.norm(jacobian, axis=0)

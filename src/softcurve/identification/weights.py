@@ -8,9 +8,10 @@ experiments ``e``, samples ``t`` and signals ``j``. :func:`weight_matrix` builds
 - array, shape ``(k,)``: one weight per signal (e.g. the inverse of its noise level);
 - array, shape ``(T,)`` (when ``T != k``) or ``(T, k)``: per sample (and signal);
 - callable ``w(t)`` of the sample times [s] returning shape ``(T,)`` or ``(T, k)``;
-- list of windows ``(t0, t1, weight)``: samples with ``t0 <= t <= t1`` get ``weight``
-  (later windows win where they overlap), the others 1; e.g. ``[(0.0, 5.0, 0.0)]``
-  ignores a settling period of 5 s.
+- list of windows, each a tuple ``(t0, t1, weight)``: samples with ``t0 <= t <= t1`` get
+  ``weight`` (later windows win where they overlap), the others 1; e.g.
+  ``[(0.0, 5.0, 0.0)]`` ignores a settling period of 5 s. Windows are tuples, so that a
+  ``(T, 3)`` nested list of per-sample weights is never read as windows.
 
 Weights are >= 0 and not all zero. In a fit of several experiments, ``weights`` applies
 to each; a dict ``{experiment name: weights}`` gives each its own.
@@ -66,7 +67,7 @@ def weight_matrix(spec, t: np.ndarray, k: int, name: str = "") -> np.ndarray:
         return np.ones((t.size, k))
     if callable(spec):
         w = np.asarray(spec(t), dtype=np.float64)
-    elif isinstance(spec, list | tuple) and spec and np.ndim(spec[0]) == 1:
+    elif isinstance(spec, list | tuple) and spec and all(isinstance(r, tuple) for r in spec):
         w = _windows(spec, t)
     else:
         w = np.asarray(spec, dtype=np.float64)
