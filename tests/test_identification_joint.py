@@ -4,13 +4,14 @@ Data are made by softcurve itself (the small robot of test_identify.py, 4 quadra
 nodes, 0.3 s free oscillations), so the truth is known exactly.
 """
 
+import casadi as ca
 import numpy as np
 import pytest
 
 import softcurve as sc
 from softcurve.identification.dynamic import fit_trajectory, predict_trajectory
 from softcurve.identification.experiments import Experiment
-from softcurve.identification.maps import bending_angle
+from softcurve.identification.maps import bending_angle, curvatures
 from softcurve.identification.parameters import Free
 from softcurve.identification.weights import weight_matrix
 
@@ -206,3 +207,21 @@ def test_predictions_never_take_another_experiments_own_values(recordings):
     other = predict_trajectory(model, b, single, output=out, x0=x0["b"], processes=1)
     nominal = predict_trajectory(model, b, joint, output=bending_angle(), x0=x0["b"], processes=1)
     assert np.max(np.abs(other.predicted[:, 0] - nominal.predicted[:, 0])) <= 1e-9
+
+
+def test_held_inputs_act_when_sampled_as_in_simulate(recordings):
+    """The default ("constant") hold is simulate's zero-order hold: an input acts from
+    its sample time on, never before; the fit's prediction equals simulate's run."""
+    model = recordings[0]
+    dt, t_final = 0.01, 0.3
+    t = np.arange(0.0, t_final + 1e-12, dt)
+    moment = np.where(t >= 0.1, 2e-4, 0.0)  # a step of the bending moment on kx [N m^2]
+    tau = np.column_stack([np.zeros_like(t), moment, np.zeros_like(t)])
+    run = sc.simulate(model, [LENGTH, 0, 0], [0, 0, 0], tau=tau, t_final=t_final, dt=dt,
+                      rtol=1e-10)  # fmt: skip
+    passthrough = sc.InputMap(lambda q, u, values: ca.vertcat(0, u[0], 0), {})
+    data = Experiment(t, {"kx": run.q[:, 1], "ky": run.q[:, 2]}, {"m": moment}, name="step")
+    fit = fit_trajectory(model, data, output=curvatures(), input_map=passthrough,
+                         x0=_state(0.0), free=[], processes=1)  # fmt: skip
+    span = np.ptp(run.q[:, 1])
+    assert np.max(np.abs(fit.predicted[:, 0] - run.q[:, 1])) <= 1e-5 * span

@@ -100,7 +100,9 @@ def hold_inputs(t: np.ndarray, u: np.ndarray, hold: str) -> np.ndarray:
     """The integrator's input columns for inputs sampled at ``t``.
 
     CasADi applies column ``k`` on ``(t[k-1], t[k]]``. ``"constant"``: the sample at the
-    end of each interval, ``u_k``. ``"linear"``: the line through both samples,
+    start of each interval, ``u_(k-1)``, held until the next one (a zero-order hold, as
+    :func:`~softcurve.simulation.simulate.simulate` applies a grid of inputs: an input
+    never acts before it was sampled). ``"linear"``: the line through both samples,
     ``a_k + b_k t`` with rows ``(a, b)``, so the inputs are continuous in time (no jump
     for the integrator to restart at).
 
@@ -113,13 +115,15 @@ def hold_inputs(t: np.ndarray, u: np.ndarray, hold: str) -> np.ndarray:
     hold : {"constant", "linear"}
         How the inputs go between samples.
     """
-    if hold == "constant" or u.shape[0] == 0:
+    if u.shape[0] == 0:
         return u
+    before = np.concatenate([u[:, :1], u[:, :-1]], axis=1)
+    if hold == "constant":
+        return before
     if hold != "linear":
         raise ValueError(f"hold must be 'constant' or 'linear', got {hold!r}")
     slope = np.zeros_like(u)
     slope[:, 1:] = np.diff(u, axis=1) / np.diff(t)
-    before = np.concatenate([u[:, :1], u[:, :-1]], axis=1)
     start = np.concatenate([t[:1], t[:-1]])
     return np.vstack([before - slope * start, slope])
 
