@@ -31,10 +31,6 @@ from softcurve.identification.weights import weight_matrix
 AT_BOUND = 1e-8
 """Relative distance to a bound under which an estimate is reported as at the bound."""
 
-SPREAD_COST = 1.01
-"""Optima of a multi-start within this factor of the best cost count as the same
-minimum in the spread of the report (1 % more cost)."""
-
 
 def _signals(experiment, output, signals):
     names = list(output.names) if signals is None else list(signals)

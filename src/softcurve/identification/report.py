@@ -25,6 +25,10 @@ from softcurve.base.validation import ParameterError
 from softcurve.figures import plot_fit
 from softcurve.identification.solve import robust_least_squares
 
+SPREAD_COST = 1.01
+"""Optima of a multi-start within this factor of the best cost count as the same
+minimum in the spread of the report (1 % more cost)."""
+
 
 class FitError(ParameterError):
     """A prediction was asked of a fit that failed (its values are not an estimate)."""
@@ -168,7 +172,7 @@ class FitReport(Result):
         if self.optima is None:
             return None
         best = np.min(self.optimum_costs)
-        near = self.optima[self.optimum_costs <= best * 1.01 + 1e-300]
+        near = self.optima[self.optimum_costs <= best * SPREAD_COST + 1e-300]
         return np.ptp(near, axis=0)
 
     def table(self) -> str:
@@ -198,7 +202,7 @@ class FitReport(Result):
                 lines.append(f"experiment {label}: RMS {rms} ({', '.join(self.signals)})")
         if self.optima is not None:
             costs = self.optimum_costs
-            near = int(np.sum(costs <= np.min(costs) * 1.01 + 1e-300))
+            near = int(np.sum(costs <= np.min(costs) * SPREAD_COST + 1e-300))
             lines.append(
                 f"multi-start: {len(costs)} starts, {near} reached the best cost "
                 f"{np.min(costs):.4g} (within 1 %), worst {np.max(costs):.4g}"
