@@ -187,14 +187,22 @@ def test_softcurve_imports_without_gymnasium():
     assert "pip install 'softcurve[envs]'" in out.stdout
 
 
-def test_the_track_target_is_reachable_by_its_own_command():
+@pytest.mark.parametrize("period", [0.02, 0.03])  # 2 s is 100 periods; 66.7: not whole
+def test_the_track_target_is_reachable_by_its_own_command(period):
     """Driving Track with the rotating command that drew its path puts the tip on the
-    moving target once the start transient has decayed (0.02 mm, tolerance 5 mm)."""
+    moving target once the start transient has decayed (0.02 mm, tolerance 5 mm), also
+    where the path's turn is not a whole number of periods (the same 16 steps per period:
+    no new compile)."""
     from softcurve.envs.calibration import rotating_inputs
 
-    env = envs.Track()
+    env = envs.Track(period=period, substeps=16)
     env.reset(seed=3)
     stepper, task = env.episodes.setup.stepper, env.task
+    turn = task.path.shape[0]  # the path's points: one per period over one turn
+    start, after_a_turn = (
+        task.target(env.episodes.parameters, np.array([k]))[0] for k in (0, turn)
+    )
+    np.testing.assert_allclose(after_a_turn, start, rtol=0, atol=1e-12)
     phase = env.episodes.parameters[0, 0] + task.rate * stepper.period * np.arange(1, 201)
     commands = rotating_inputs(stepper, phase)
     distances = []

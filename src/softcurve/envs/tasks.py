@@ -14,7 +14,7 @@ import numpy as np
 
 from softcurve.base.validation import ParameterError, real_scalar
 from softcurve.description.environment import ContactLaw, Environment, Plane
-from softcurve.envs.calibration import TRACK_CYCLE, calibrate, track_path
+from softcurve.envs.calibration import calibrate, track_path
 
 FAILURE_REWARD = -1.0
 """Reward of a step whose integration failed: the worst reward of any task."""
@@ -140,9 +140,11 @@ class ReachTask(Task):
 
 class TrackTask(Task):
     """Follow a target moving along a closed reachable path (the tip under a command
-    rotating through the actuators, one turn every ``TRACK_CYCLE`` = 2 s), starting at a
-    random phase. Goal: the target and its velocity over the turn's angular rate (both
-    scaled like the tip). Reward and success as *Reach*, against the moving target.
+    rotating through the actuators, one turn in
+    :data:`~softcurve.envs.calibration.TRACK_CYCLE` = 2 s rounded to whole control
+    periods, at least 8), starting at a random phase. Goal: the target and its velocity
+    over the turn's angular rate (both scaled like the tip). Reward and success as
+    *Reach*, against the moving target.
 
     Parameters
     ----------
@@ -161,7 +163,9 @@ class TrackTask(Task):
         super().__init__(setup, tolerance)
         self.tolerance = _tolerance(tolerance, DEFAULT_TOLERANCE * self.diameter, "m")
         self.path = track_path(setup)
-        self.rate = 2 * np.pi / TRACK_CYCLE
+        # the rate the path was recorded at: one point per period, a whole number of
+        # periods per turn (TRACK_CYCLE rounded), so the target moves as the robot did
+        self.rate = 2 * np.pi / (self.path.shape[0] * setup.period)
 
     def draw(self, rng):
         return np.array([rng.uniform(0.0, 2 * np.pi)])
