@@ -12,6 +12,24 @@ class ParameterError(ValueError):
     """
 
 
+def whole_count(name: str, value, minimum: int = 1) -> int:
+    """Return ``value`` as an int of at least ``minimum``, or raise :class:`ParameterError`
+    (a bool is not a count; NumPy integers are).
+
+    Parameters
+    ----------
+    name : str
+        The field's name, for the message.
+    value : int
+        The count to check.
+    minimum : int
+        Its smallest allowed value.
+    """
+    if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < minimum:
+        raise ParameterError(f"{name} must be an integer >= {minimum}, got {value!r}")
+    return int(value)
+
+
 def real_scalar(name: str, value, *, positive: bool = False, nonzero: bool = False) -> float:
     """Return ``value`` as a finite float, or raise :class:`ParameterError`.
 

@@ -19,7 +19,7 @@ import math
 import casadi as ca
 import numpy as np
 
-from softcurve.base.validation import ParameterError, real_array, real_scalar
+from softcurve.base.validation import ParameterError, real_array, real_scalar, whole_count
 
 
 def optional_time_constant(value) -> float | None:
@@ -191,12 +191,9 @@ class Actuator:
         for i, part in enumerate(parts):
             if not isinstance(part, part_type):
                 raise ParameterError(f"{field}[{i}] must be a {kind}, got {type(part).__name__}")
-        n_segments = self.n_segments
-        whole = isinstance(n_segments, int | np.integer) and not isinstance(n_segments, bool)
-        if not whole or n_segments < 1:
-            raise ParameterError(f"n_segments must be an integer >= 1, got {n_segments!r}")
+        n_segments = whole_count("n_segments", self.n_segments)
         for i, part in enumerate(parts):
-            problem = beyond(part, int(n_segments))
+            problem = beyond(part, n_segments)
             if problem is not None:
                 raise ParameterError(f"{field}[{i}].{problem}")
         set_ = object.__setattr__  # frozen dataclasses: normalized once, here

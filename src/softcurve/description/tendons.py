@@ -45,7 +45,7 @@ from dataclasses import dataclass
 import casadi as ca
 import numpy as np
 
-from softcurve.base.validation import ParameterError, real_scalar
+from softcurve.base.validation import ParameterError, real_scalar, whole_count
 from softcurve.description.actuator import (
     Actuator,
     offset_fiber_gradient,
@@ -71,12 +71,6 @@ def _mean_capstan_factor(x):
     through ``x = 0``, where it is 1 (the mean of ``exp(-x s)`` over ``s`` in [0, 1])."""
     series = 1 - x / 2 + x**2 / 6 - x**3 / 24 + x**4 / 120
     return ca.if_else(x < SERIES_LIMIT, series, -ca.expm1(-x) / ca.fmax(x, SERIES_LIMIT))
-
-
-def _count(name: str, value, minimum: int) -> int:
-    if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < minimum:
-        raise ParameterError(f"{name} must be an integer >= {minimum}, got {value!r}")
-    return int(value)
 
 
 @dataclass(frozen=True)
@@ -126,7 +120,7 @@ class Tendon:
             raise ParameterError(f"Tendon.t_max must be > t_min = {t_min!r} N, got {t_max!r}")
         set_(self, "t_min", t_min)
         set_(self, "t_max", t_max)
-        set_(self, "anchor", _count("Tendon.anchor", self.anchor, 0))
+        set_(self, "anchor", whole_count("Tendon.anchor", self.anchor, 0))
         friction = real_scalar("Tendon.friction", self.friction)
         if friction < 0:
             raise ParameterError(f"Tendon.friction must be >= 0, got {friction!r}")
@@ -219,7 +213,7 @@ class TendonActuator(Actuator):
         angles = [real_scalar(f"azimuths[{i}]", phi) for i, phi in enumerate(azimuths)]
         tendons = tuple(
             Tendon(phi, distance, t_max, t_min, k, friction)
-            for k in range(_count("n_segments", n_segments, 1))
+            for k in range(whole_count("n_segments", n_segments))
             for phi in angles
         )
         return cls(tendons, n_segments=n_segments, time_constant=time_constant)

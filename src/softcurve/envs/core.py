@@ -16,7 +16,7 @@ import numpy as np
 from gymnasium import spaces
 from gymnasium.utils import seeding
 
-from softcurve.base.validation import ParameterError
+from softcurve.base.validation import ParameterError, whole_count
 from softcurve.envs.setup import build_setup
 from softcurve.envs.tasks import FAILURE_REWARD
 
@@ -42,8 +42,7 @@ def make_episodes(task_class, num_envs: int, tolerance=None, **options):
         The keywords of :func:`~softcurve.envs.setup.build_setup` (robot, actuator,
         scenario, environment, period, max_episode_steps, substeps, threads).
     """
-    if isinstance(num_envs, bool) or not isinstance(num_envs, int | np.integer) or num_envs < 1:
-        raise ParameterError(f"num_envs must be an integer >= 1, got {num_envs!r}")
+    whole_count("num_envs", num_envs)
     if options.get("environment") is None and options.get("scenario") is None:
         options["environment"] = task_class.default_environment(options.get("robot") is not None)
     setup = build_setup(duration=task_class.duration, **options)

@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from softcurve.base.docs import parameters_from
-from softcurve.base.validation import ParameterError, real_scalar
+from softcurve.base.validation import ParameterError, real_scalar, whole_count
 from softcurve.compiled.model import Model
 from softcurve.description import presets
 from softcurve.description.actuator import Actuator
@@ -207,9 +207,7 @@ def build_setup(
     period = real_scalar("period", DEFAULT_PERIOD if period is None else period, positive=True)
     if max_episode_steps is None:
         max_episode_steps = max(1, math.ceil(duration / period - 1e-9))
-    steps = max_episode_steps
-    if isinstance(steps, bool) or not isinstance(steps, int | np.integer) or steps < 1:
-        raise ParameterError(f"max_episode_steps must be an integer >= 1, got {steps!r}")
+    whole_count("max_episode_steps", max_episode_steps)
     if environment is not None:
         environment.check_robot(robot)
     stepper = _stepper(robot, environment, actuator, period, substeps, threads)

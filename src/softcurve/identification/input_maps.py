@@ -27,7 +27,7 @@ from collections.abc import Sequence
 import casadi as ca
 import numpy as np
 
-from softcurve.base.validation import ParameterError, real_array, real_scalar
+from softcurve.base.validation import ParameterError, real_array, real_scalar, whole_count
 from softcurve.description.actuator import Actuator
 from softcurve.description.pneumatic import Bellows, PneumaticActuator
 from softcurve.description.tendons import Tendon, TendonActuator
@@ -45,9 +45,7 @@ def _numbering(numbering) -> int:
 
 def _count(kind: str, n_segments, **given) -> int:
     """The number of parts: the length of the sequences given (equal), else 3 per segment."""
-    whole = isinstance(n_segments, int | np.integer) and not isinstance(n_segments, bool)
-    if not whole or n_segments < 1:
-        raise ParameterError(f"n_segments must be an integer >= 1, got {n_segments!r}")
+    whole_count("n_segments", n_segments)
     lengths = {k: len(v) for k, v in given.items() if v is not None}
     if len(set(lengths.values())) > 1:
         raise ParameterError(f"one entry per {kind} in each of {sorted(lengths)}, got {lengths}")

@@ -15,7 +15,7 @@ import numpy as np
 
 from softcurve.base.progress import ProgressLine
 from softcurve.base.status import Status
-from softcurve.base.validation import ParameterError
+from softcurve.base.validation import ParameterError, whole_count
 from softcurve.identification.joint import (
     JointParameters,
     evaluate_all,
@@ -40,12 +40,6 @@ def _signals(experiment, output, signals):
             f"got {len(names)} signal names {names}"
         )
     return names, experiment.signal_matrix(names)
-
-
-def _count(name, value, lowest):
-    if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < lowest:
-        raise ParameterError(f"{name} must be an integer >= {lowest}, got {value!r}")
-    return int(value)
 
 
 class Problem:
@@ -113,8 +107,8 @@ class Problem:
             ``starts``, ``seed``, ``progress``, ``processes``.
         """
         J, experiments = self.parameters, self.experiments
-        n_starts = _count("starts", options.get("starts", 1), 1)
-        processes = _count("processes", options.get("processes", 1), 1)
+        n_starts = whole_count("starts", options.get("starts", 1))
+        processes = whole_count("processes", options.get("processes", 1))
         names, measured, w = [], [], []
         if isinstance(weights, dict):
             unknown = sorted(set(weights) - {e.name for e in experiments})

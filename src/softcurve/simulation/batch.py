@@ -26,7 +26,7 @@ import time
 
 import numpy as np
 
-from softcurve.base.validation import ParameterError
+from softcurve.base.validation import ParameterError, whole_count
 from softcurve.compiled.model import Model
 from softcurve.description.actuator import Actuator
 from softcurve.description.robot import Robot, domain_problem, in_domain
@@ -64,10 +64,7 @@ class _RobotView:
 
 
 def _count(name: str, value, default: int) -> int:
-    value = default if value is None else value
-    if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < 1:
-        raise ParameterError(f"{name} must be an integer >= 1, got {value!r}")
-    return int(value)
+    return whole_count(name, default if value is None else value)
 
 
 def simulate_batch(

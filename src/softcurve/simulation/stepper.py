@@ -24,7 +24,7 @@ import casadi as ca
 import numpy as np
 
 from softcurve.base.status import Result, Status
-from softcurve.base.validation import ParameterError, real_scalar
+from softcurve.base.validation import ParameterError, real_scalar, whole_count
 from softcurve.compiled.model import Model
 from softcurve.description.actuator import Actuator
 from softcurve.simulation.integrators import ActuatorInput, BufferedCall
@@ -166,8 +166,10 @@ class Stepper:
         self._period = real_scalar("period", period, positive=True)
         if substeps is None:  # the measured step, whatever the period
             substeps = max(1, math.ceil(self._period / DEFAULT_STEP - 1e-9))
-        self._substeps = _count("substeps", substeps)
-        self._threads = _count("threads", (os.cpu_count() or 1) if threads is None else threads)
+        self._substeps = whole_count("substeps", substeps)
+        self._threads = whole_count(
+            "threads", (os.cpu_count() or 1) if threads is None else threads
+        )
         self._input = None if actuator is None else ActuatorInput.of(actuator, model.n)
         extra = 0 if self._input is None else self._input.n_states
         self._n_state = model.n_state + extra
@@ -183,7 +185,7 @@ class Stepper:
         if jacobian_every is None:
             free = model.environment is None
             jacobian_every = self._substeps if free else CONTACT_JACOBIAN_EVERY
-        self._every = min(_count("jacobian_every", jacobian_every), self._substeps)
+        self._every = min(whole_count("jacobian_every", jacobian_every), self._substeps)
         self._function = period_function(
             model, self._input, self._substeps, method, compiled, None, self._every
         )
@@ -383,9 +385,3 @@ class Stepper:
         states = x[:, : self._model.n_state].T
         out = np.array(self._observer.map(x.shape[0])(states, self._model.parameters)).T
         return out[:, :3].copy(), out[:, 3:].copy()
-
-
-def _count(name: str, value) -> int:
-    if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < 1:
-        raise ParameterError(f"{name} must be an integer >= 1, got {value!r}")
-    return int(value)
