@@ -25,6 +25,7 @@ from scipy.integrate import RK45
 
 from softcurve.simulation import engine as _engine
 from softcurve.simulation import native
+from softcurve.simulation.actuated import actuated_derivative
 from softcurve.simulation.engine import (
     MAX_ORDER,
     IntegrationFailure,
@@ -121,25 +122,14 @@ def scaled_dae(model, inputs: ActuatorInput | None = None) -> ca.Function:
 
     def build():
         rhs = model.function("rhs", {"enable_fd": True, "fd_method": "forward"})
-        n_par, n_state = model.parameters.size, model.n_state
-        extra = 0 if inputs is None else inputs.n_states
-        xs = ca.MX.sym("x", n_state + extra)
-        p = ca.MX.sym("p", n_par + 1 + n_state + extra)
-        u = ca.MX.sym("u", model.n if inputs is None else inputs.n_inputs)
+        xdot_of = actuated_derivative(model, inputs, rhs)
+        n_par = model.parameters.size
+        size = xdot_of.size1_in(0)
+        xs = ca.MX.sym("x", size)
+        p = ca.MX.sym("p", n_par + 1 + size)
+        u = ca.MX.sym("u", xdot_of.size1_in(1))
         scale = p[n_par + 1 :]
-        x = scale * xs
-        q = x[: model.n]
-        rates = []
-        if inputs is None:
-            tau = u
-        elif inputs.time_constant is None:
-            tau = inputs.force(q, u)
-        else:
-            lagging = x[n_state:]
-            tau = inputs.force(q, lagging)
-            command = ca.fmin(ca.fmax(u, ca.DM(inputs.lower)), ca.DM(inputs.upper))
-            rates = [(command - lagging) / inputs.time_constant]
-        xdot = ca.vertcat(rhs(x[:n_state], tau, p[:n_par]), *rates)
+        xdot = xdot_of(scale * xs, u, p[:n_par])
         ode = p[n_par] * xdot / scale
         empty = ca.MX(0, 1)
         return ca.Function(

@@ -21,6 +21,7 @@ import numpy as np
 
 from softcurve.compiled.build import compile_function
 from softcurve.compiled.native import NativeFunction
+from softcurve.simulation.actuated import actuated_derivative
 from softcurve.simulation.engine import nominal_scale
 from softcurve.simulation.integrators import ActuatorInput
 from softcurve.simulation.stepper_native import load_native
@@ -44,24 +45,7 @@ def state_derivative(model, inputs: ActuatorInput | None, symbolic: bool) -> ca.
 
     def build():
         rhs = model.symbolic["rhs"] if symbolic else model.function("rhs")
-        n, n_state = model.n, model.n_state
-        extra = 0 if inputs is None else inputs.n_states
-        x = ca.MX.sym("x", n_state + extra)
-        u = ca.MX.sym("u", model.n if inputs is None else inputs.n_inputs)
-        p = ca.MX.sym("p", model.parameters.size)
-        rates = []
-        if inputs is None:
-            tau = u
-        else:
-            command = ca.fmin(ca.fmax(u, ca.DM(inputs.lower)), ca.DM(inputs.upper))
-            if inputs.time_constant is None:
-                tau = inputs.force(x[:n], command)
-            else:
-                lagging = x[n_state:]
-                tau = inputs.force(x[:n], lagging)
-                rates = [(command - lagging) / inputs.time_constant]
-        xdot = ca.vertcat(rhs(x[:n_state], tau, p), *rates)
-        return ca.Function("softcurve_xdot", [x, u, p], [xdot], ["x", "u", "p"], ["xdot"])
+        return actuated_derivative(model, inputs, rhs)
 
     return model.cached(("stepper-xdot", symbolic, None if inputs is None else inputs.key), build)
 
