@@ -186,15 +186,15 @@ class Stepper:
             free = model.environment is None
             jacobian_every = self._substeps if free else CONTACT_JACOBIAN_EVERY
         self._every = min(whole_count("jacobian_every", jacobian_every), self._substeps)
-        self._function = period_function(
-            model, self._input, self._substeps, method, compiled, None, self._every
-        )
+        scheme = (model, self._input, self._substeps, method)
         native = None
         if compiled:
-            native = period_function(
-                model, self._input, self._substeps, method, True, None, self._every, native=True
-            )
+            native = period_function(*scheme, True, None, self._every, native=True)
         self._members = None if native is None else ThreadedMembers(native, self._threads)
+        # CasADi evaluates the period only where ctypes cannot (no compiled library)
+        self._function = None
+        if native is None:
+            self._function = period_function(*scheme, compiled, None, self._every)
         inputs_key = None if self._input is None else self._input.key
         self._key = (self._substeps, method, compiled, self._every, inputs_key)
         self._period_array = np.array([self._period])
