@@ -1,7 +1,7 @@
 """Identification speed (issue 16, item 6): one evaluation of a dynamic fit, and a
 quasi-static fit of one segment against three.
 
-Run:  python benchmarks/bench_identification.py [--repeat N] [--quick] [--joint]
+Run:  python benchmarks/bench_identification.py [--repeat N] [--quick] [--joint] [--casadi]
 
 1. Dynamic: the paper robot (ifac2020, creep included) with three bellows driven by
    random smooth pressures (piecewise linear between knots 5 s apart, 10-20 kPa) for
@@ -18,6 +18,9 @@ Run:  python benchmarks/bench_identification.py [--repeat N] [--quick] [--joint]
    functions), from the same 10 % perturbed start.
 3. ``--joint``: two copies of the dynamic experiment evaluated one after the other and in
    two worker processes (the speed-up of the parallel joint fit).
+
+``--casadi`` repeats 1. through CasADi's CVODES integrator (the route without softcurve's
+CVODES driver, ``softcurve.simulation.native.casadi_only``), in the same minutes.
 
 The targets are issue 16's; "previous" are the figures reported in the issue (the
 machine of that report) and measured here before this work (ae209f2^, load average
@@ -39,6 +42,7 @@ from softcurve.identification.experiments import Experiment
 from softcurve.identification.joint import evaluate_all
 from softcurve.identification.maps import InputMap, bellows_input_map, curvatures
 from softcurve.identification.parameters import Free, FreeParameters
+from softcurve.simulation import native
 from softcurve.simulation.sensitivity import trajectory_sensitivities
 
 SEG = "segments[0]."
@@ -93,13 +97,16 @@ def dynamic(args) -> None:
         evaluate, theta = dynamic_evaluator(duration, hold, options)
         evaluate(theta)  # warm-up
         wall, _ = best_of(args.repeat, lambda e=evaluate, th=theta: e(th))
-        stats = evaluate.integrator.stats()
+        stats = evaluate.stats
         scaled = wall * 300.0 / duration
         tolerances = "default tolerances" if options is None else str(options)
+        sensitivities = stats.get("sensitivity_evaluations")
         print(
-            f"  hold={hold:8s}, {tolerances}: {wall:7.2f} s ({scaled:.1f} s per 300 s; target "
-            f"{TARGET_DYNAMIC:g} s), {stats.get('nsteps')} steps, {stats.get('nfevals')} "
-            f"right-hand sides, {stats.get('netfails')} error-test failures"
+            f"  hold={hold:8s}, {tolerances}, {stats['route']}: {wall:7.2f} s ({scaled:.1f} s "
+            f"per 300 s; target {TARGET_DYNAMIC:g} s), {stats['steps']} steps, "
+            f"{stats['rhs_evaluations']} right-hand sides"
+            + ("" if sensitivities is None else f", {sensitivities} sensitivity evaluations")
+            + f", {stats['error_test_failures']} error-test failures"
         )
     if args.joint:
         evaluate, theta = dynamic_evaluator(duration, "linear")
@@ -165,6 +172,9 @@ def main() -> None:
     parser.add_argument(
         "--linear-only", action="store_true", help="skip the (slow) constant-hold case"
     )
+    parser.add_argument(
+        "--casadi", action="store_true", help="also through CasADi's CVODES (no driver)"
+    )
     args = parser.parse_args()
     loose = {"reltol": 1e-6, "abstol": 1e-8}
     args.cases = [("constant", None), ("linear", None), ("linear", loose)]
@@ -173,6 +183,10 @@ def main() -> None:
     print(f"load average {os.getloadavg()}, {os.cpu_count()} cores")
     print("previous: " + "; ".join(f"{k}: {v}" for k, v in PREVIOUS.items()))
     dynamic(args)
+    if args.casadi:
+        print("\n   the same through CasADi's CVODES (the route without softcurve's driver):")
+        with native.casadi_only():
+            dynamic(args)
     quasi_static(args)
 
 

@@ -15,8 +15,8 @@ substeps.
    interface, best of 20,000): the work of one member-period in right-hand sides.
 2. Threads: N = 256 with 1 thread and with all cores (the speed-up shows whether the
    threads run in parallel).
-3. Compiler flags: the stepper compiled with -O1 against -O2 (``--skip-o1`` skips the
-   extra compile).
+3. Compiler flags: the stepper compiled with softcurve's flags (``FUNCTION_FLAGS``) against
+   -O2 (``--skip-o1`` skips the extra compile; ``bench_compile_flags.py`` compares more).
 4. Accuracy: random pressure commands, uniform in the bounds, held 20 ms each over
    ``--accuracy-periods`` periods (2 s), two seeds, against ``simulate(..., rtol=1e-10)``
    with the same piecewise-constant commands: the max tip-position error [mm] and
@@ -46,6 +46,7 @@ import time
 import numpy as np
 
 import softcurve as sc
+from softcurve.compiled.generated import FUNCTION_FLAGS
 from softcurve.simulation.integrators import ActuatorInput
 from softcurve.simulation.stepper import DEFAULT_METHOD, DEFAULT_SUBSTEPS, Stepper
 from softcurve.simulation.stepper_scheme import METHODS, period_function
@@ -142,9 +143,9 @@ def compiler_flags(model, actuator, repeat) -> None:
     x[0] = 0.064
     u = np.full(actuator.n_inputs, 3e4)
     period = np.array([PERIOD])
-    for flag in ("-O1", "-O2"):
+    for flags in (FUNCTION_FLAGS, ("-O2",)):
         start = time.perf_counter()
-        f = period_function(model, inputs, DEFAULT_SUBSTEPS, DEFAULT_METHOD, True, flag)
+        f = period_function(model, inputs, DEFAULT_SUBSTEPS, DEFAULT_METHOD, True, flags)
         built = time.perf_counter() - start
         buffer, evaluate = f.buffer()
         out = np.zeros(f.nnz_out(0))
@@ -158,7 +159,10 @@ def compiler_flags(model, actuator, repeat) -> None:
                 evaluate()
 
         wall, _ = best_wall(repeat, run)
-        print(f"{flag}: {wall / 200 * 1e6:8.1f} us per member-period (load/compile {built:.1f} s)")
+        print(
+            f"{' '.join(flags)} (with -march=native unless SOFTCURVE_PORTABLE): "
+            f"{wall / 200 * 1e6:8.1f} us per member-period (load/compile {built:.1f} s)"
+        )
 
 
 def commands(rng, actuator, periods) -> np.ndarray:

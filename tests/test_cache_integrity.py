@@ -26,7 +26,7 @@ import numpy as np
 import pytest
 
 import softcurve as sc
-from softcurve.compiled import build
+from softcurve.compiled import build, generated
 from softcurve.compiled.build import CacheWarning, checksum_file, library_problem
 
 from .conftest import assert_close
@@ -180,7 +180,7 @@ def test_a_damaged_function_library_is_rebuilt(tmp_path, monkeypatch):
     x = ca.SX.sym("x", 2)
     square = ca.Function("square_for_cache_test", [x], [ca.sumsqr(x) + ca.sin(x[0])])
     monkeypatch.setenv("SOFTCURVE_CACHE_DIR", str(tmp_path / "first"))
-    first = build.compile_function(square)
+    first = generated.compile_function(square)
     (built,) = (tmp_path / "first").glob("function_*.so")
     shutil.copytree(tmp_path / "first", tmp_path / "second")
     monkeypatch.setenv("SOFTCURVE_CACHE_DIR", str(tmp_path / "second"))
@@ -188,7 +188,7 @@ def test_a_damaged_function_library_is_rebuilt(tmp_path, monkeypatch):
     assert library_problem(library) is None
     _half(library)
     with pytest.warns(CacheWarning, match=re.escape(str(library))):
-        again = build.compile_function(square)
+        again = generated.compile_function(square)
     assert library_problem(library) is None
     assert float(again([0.5, -2.0])) == pytest.approx(float(first([0.5, -2.0])), rel=1e-15)
 

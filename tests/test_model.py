@@ -12,6 +12,7 @@ import pytest
 
 import softcurve as sc
 from softcurve.compiled import build as model_module
+from softcurve.compiled import generated
 
 from .conftest import assert_close
 
@@ -150,24 +151,59 @@ def _small_function():
 def test_compile_function_agrees_with_the_function_and_is_cached(monkeypatch, tmp_path):
     monkeypatch.setenv("SOFTCURVE_CACHE_DIR", str(tmp_path))
     function = _small_function()
-    compiled = model_module.compile_function(function)
+    compiled = generated.compile_function(function)
     assert compiled.class_name() == "External"
     libraries = list(tmp_path.glob("function_*.so"))
     assert len(libraries) == 1
     x = np.array([0.3, -2.0, 1.5])
     np.testing.assert_allclose(np.array(compiled(x)), np.array(function(x)), rtol=1e-15)
     stamp = libraries[0].stat().st_mtime_ns
-    model_module.compile_function(function)
+    generated.compile_function(function)
     assert libraries[0].stat().st_mtime_ns == stamp  # loaded, not compiled again
+
+
+def test_compile_function_builds_for_this_cpu_and_falls_back_without_march_native(
+    monkeypatch, tmp_path
+):
+    real = shutil.which("cc") or shutil.which("gcc")
+    if real is None:
+        pytest.skip("no C compiler")
+    log = tmp_path / "flags.log"
+    wrapper = tmp_path / "cc-logging"
+    wrapper.write_text(f'#!/bin/sh\necho "$@" >> {log}\nexec {real} "$@"\n')
+    wrapper.chmod(0o755)
+    monkeypatch.delenv("SOFTCURVE_PORTABLE", raising=False)
+    monkeypatch.setenv("CC", str(wrapper))
+    monkeypatch.setenv("SOFTCURVE_CACHE_DIR", str(tmp_path / "native"))
+    function = _small_function()
+    generated.compile_function(function)
+    assert "-O1 -march=native" in log.read_text()
+    monkeypatch.setenv("SOFTCURVE_PORTABLE", "1")
+    generated.compile_function(function)  # another cache entry: built again, portable
+    assert len(list((tmp_path / "native").glob("function_*.so"))) == 2
+    assert log.read_text().splitlines()[-2].split()[:2] == ["-O1", "-fPIC"]
+
+    refusing = tmp_path / "cc-without-native"
+    refusing.write_text(
+        f'#!/bin/sh\nfor a in "$@"; do [ "$a" = -march=native ] && exit 1; done\nexec {real} "$@"\n'
+    )
+    refusing.chmod(0o755)
+    monkeypatch.delenv("SOFTCURVE_PORTABLE")
+    monkeypatch.setenv("CC", str(refusing))
+    monkeypatch.setenv("SOFTCURVE_CACHE_DIR", str(tmp_path / "refused"))
+    compiled = generated.compile_function(function)
+    assert compiled.class_name() == "External"  # compiled, without -march=native
+    x = np.array([0.3, -2.0, 1.5])
+    np.testing.assert_allclose(np.array(compiled(x)), np.array(function(x)), rtol=1e-15)
 
 
 def test_compile_function_without_a_working_compiler_returns_the_function(monkeypatch, tmp_path):
     monkeypatch.setenv("SOFTCURVE_CACHE_DIR", str(tmp_path))
     monkeypatch.setenv("CC", "false")
     function = _small_function()
-    assert model_module.compile_function(function) is function
+    assert generated.compile_function(function) is function
     monkeypatch.setattr(model_module, "_compiler", lambda: None)
-    assert model_module.compile_function(function) is function
+    assert generated.compile_function(function) is function
 
 
 def test_the_cached_library_has_a_checksum_beside_it(paper_model):

@@ -96,12 +96,17 @@ def _cpu_identity() -> str:
     return f"{platform.machine()} " + " ".join(fields.get(k, "") for k in keys)
 
 
-def _compile_flags() -> tuple[str, ...]:
-    """The model's compiler flags: :data:`_COMPILE_FLAGS`, plus :data:`_NATIVE_FLAGS`
-    unless ``SOFTCURVE_PORTABLE`` is set (to anything but "0")."""
+def _native_flags() -> tuple[str, ...]:
+    """:data:`_NATIVE_FLAGS`, or none where ``SOFTCURVE_PORTABLE`` is set (to anything but
+    "0")."""
     if os.environ.get("SOFTCURVE_PORTABLE", "0") not in ("", "0"):
-        return _COMPILE_FLAGS
-    return _COMPILE_FLAGS + _NATIVE_FLAGS
+        return ()
+    return _NATIVE_FLAGS
+
+
+def _compile_flags() -> tuple[str, ...]:
+    """The model's compiler flags: :data:`_COMPILE_FLAGS` and :func:`_native_flags`."""
+    return _COMPILE_FLAGS + _native_flags()
 
 
 COMPILED_FUNCTIONS = (
@@ -344,56 +349,6 @@ def _install(library: Path, data: bytes) -> None:
     processes installing at once write the same bytes (the build is deterministic)."""
     atomic_write(checksum_file(library), _checksum_line(data).encode("ascii"))
     atomic_write(library, data)
-
-
-def compile_function(function: ca.Function, optimization: str = "-O1", load=None):
-    """``function`` generated as C, compiled, cached on disk by its content and loaded.
-
-    For CasADi functions built on a model's expressions (the identification's
-    sensitivity equations, say) that are evaluated often: the same compiler and cache as
-    :class:`Model`, keyed by the serialized function, so a second process loads it. A
-    cached library is verified and, if damaged, rebuilt once as the model's (with a
-    :class:`CacheWarning`).
-
-    Parameters
-    ----------
-    function : casadi.Function
-        An SX or MX function without Python callbacks.
-    optimization : str
-        The compiler's optimization flag; ``-O1`` compiles large generated files several
-        times faster than ``-O2`` at a small cost in speed.
-
-    load : callable, optional
-        ``load(path, name)`` opens the compiled library (e.g. as a
-        :class:`~softcurve.compiled.native.NativeFunction`, called without CasADi and
-        without the GIL); default: CasADi's ``external``.
-
-    Returns
-    -------
-    casadi.Function or object
-        The compiled function as a CasADi ``external`` (derivatives by finite
-        differences) or what ``load`` returned, or ``function`` itself when no C compiler
-        works (then it runs in CasADi's virtual machine).
-    """
-    compiler = _compiler()
-    if compiler is None:
-        return function
-    digest = hashlib.sha256(function.serialize().encode())
-    digest.update(f"{ca.__version__} {sys.platform} {compiler} {optimization}".encode())
-    digest.update(_FUNCTION_CACHE_FORMAT.encode())
-    library = cache_directory() / f"function_{digest.hexdigest()[:24]}.so"
-    name = function.name()
-    try:
-        return _load_or_build(
-            library,
-            lambda path: _compile({name: function}, compiler, path, (optimization, "-fPIC")),
-            (lambda path: ca.external(name, str(path), {"enable_fd": True}))
-            if load is None
-            else (lambda path: load(path, name)),
-            stacklevel=2,
-        )
-    except (OSError, subprocess.CalledProcessError):
-        return function
 
 
 def _run(command: list[str], directory: str) -> None:

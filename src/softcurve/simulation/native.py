@@ -32,6 +32,7 @@ from softcurve.compiled.native import NativeFunction
 from softcurve.compiled.source import compile_source
 from softcurve.description.robot import MAX_BEND
 from softcurve.simulation.cvodes_driver import DRIVER_SOURCE
+from softcurve.simulation.sensitivity_driver import SENSITIVITY_SOURCE
 
 PLUGIN = "libcasadi_integrator_cvodes.so"
 """CasADi's CVODES plugin, which holds SUNDIALS CVODES (the 2.x interface: ``CVSpgmr``)."""
@@ -117,7 +118,7 @@ def _load():
     except OSError:
         return None
     link = (f"-L{directory}", f"-l:{PLUGIN}", f"-Wl,-rpath,{directory}")
-    library = compile_source("cvodes_driver", DRIVER_SOURCE, link)
+    library = compile_source("cvodes_driver", DRIVER_SOURCE + SENSITIVITY_SOURCE, link)
     if library is None:
         return None
     _LIBRARY.append(library)
@@ -133,6 +134,12 @@ def _load():
         ctypes.c_long, integer, pointer, pointer, pointer, pointer, pointer,
     ]  # fmt: skip
     function.restype = ctypes.c_int
+    sensitivity = library.softcurve_sensitivities
+    sensitivity.argtypes = [
+        ctypes.POINTER(_Function), pointer, pointer, integer, pointer, pointer, pointer,
+        integer, pointer, integer, integer, real, real, ctypes.c_long, pointer, pointer, pointer,
+    ]  # fmt: skip
+    sensitivity.restype = ctypes.c_int
     return function
 
 
@@ -295,6 +302,60 @@ def integrate(problem, lmm, x0, u, p, nominal, times, segments, tolerances, *, f
         with ThreadPoolExecutor(threads) as pool:
             list(pool.map(run, bounds[:-1], bounds[1:]))
     return out, reached, flags, counts, used.astype(bool)
+
+
+SENSITIVITY_STATISTICS = ("steps", "rhs_evaluations", "jacobian_evaluations",
+                          "linear_solver_setups", "error_test_failures",
+                          "sensitivity_evaluations")  # fmt: skip
+"""The counters :func:`sensitivities` returns, in the driver's order."""
+
+
+def sensitivities(problem, columns, start, d, d_scaled, times, table, linear, tolerances):
+    """States and forward sensitivities over ``times`` in one call into the driver.
+
+    Parameters
+    ----------
+    problem : Problem
+        ``f(x, u, d)`` of the state (no actuator).
+    columns : NativeFunction
+        ``fs(x;vec(S), u, d;scale) -> f;vec(S')`` for ``m`` columns.
+    start : ndarray, shape (W,)
+        ``(x0, vec(S0))`` with ``W = nx (1 + m)``, at ``times[0]``.
+    d, d_scaled : ndarray
+        The parameters of ``f`` and ``(d, scale)`` of ``fs``.
+    times : ndarray, shape (T,)
+        Output times [s], increasing.
+    table : ndarray, shape (T, k) or (T, 2 k)
+        Row ``i``: the inputs on ``(times[i-1], times[i]]``, or the line ``(a, b)`` of
+        ``u = a + b t`` there with ``linear``.
+    linear : bool
+        Inputs continuous (integrated through) or held (a restart at every sample).
+    tolerances : tuple
+        ``(rtol, atol, max_steps per output, family)``, family 1 Adams or 2 BDF.
+
+    Returns
+    -------
+    tuple
+        ``(out (T, W), reached, flag, counts)``: the outputs (rows after ``reached`` are
+        zero), how many were computed (``start`` included), 0 or CVODES's negative flag
+        (:data:`FLAGS`) and the counters of :data:`SENSITIVITY_STATISTICS`.
+    """
+    out = np.zeros((times.size, start.size))
+    out[0] = start
+    arrays = [np.ascontiguousarray(a, dtype=np.float64) for a in (d, d_scaled, times, table)]
+    sizes = np.array([columns._sz_arg, columns._sz_res, columns._sz_iw, columns._sz_w])
+    sizes = sizes.astype(np.int64)
+    counts = np.zeros(len(SENSITIVITY_STATISTICS), dtype=np.int64)
+    reached = ctypes.c_int(0)
+    rtol, atol, max_steps, family = tolerances
+    m = start.size // problem.struct.nx - 1
+    flag = _entry("softcurve_sensitivities")(
+        ctypes.byref(problem.struct), ctypes.cast(columns._function, ctypes.c_void_p).value,
+        sizes.ctypes.data, m, arrays[0].ctypes.data, arrays[1].ctypes.data,
+        arrays[2].ctypes.data, times.size, arrays[3].ctypes.data, int(linear), family, rtol,
+        atol, max_steps, out.ctypes.data, counts.ctypes.data, ctypes.byref(reached),
+    )  # fmt: skip
+    return out, reached.value, flag, dict(zip(SENSITIVITY_STATISTICS, counts.tolist(), strict=True))
 
 
 def evaluate(problem, x, u, p) -> np.ndarray:

@@ -4,11 +4,21 @@ The equation of motion ``x' = f(x, tau(q, u, v), p)`` is augmented with the
 variational equations ``S' = f_x S + f_d`` for the columns of ``d = (p, v, x0)``
 that depend on the free parameters (``S(0)`` selects the free entries of ``x0``).
 The augmented right-hand side is generated as C by CasADi, compiled once by
-:func:`softcurve.compiled.build.compile_function` (same compiler and cache as the model),
+:func:`softcurve.compiled.generated.compile_function` (same compiler and cache as the model),
 loaded as an ``external`` and integrated by CVODES, so an evaluation of the residuals
 and their exact Jacobian never returns to Python. The chain rule from ``d`` to the free
 parameters ``theta`` (ties, re-parametrizations, initial states) and from the state to
 the outputs is applied afterwards, sample by sample.
+
+Two routes integrate it. Where softcurve's CVODES driver is available
+(:mod:`softcurve.simulation.native`), the state is integrated by Adams-Newton on its own
+Newton matrix and the sensitivity columns by CVODES's staggered corrector, all in C and
+without a restart at the samples of a linear input hold; otherwise (no driver, or
+CVODES options other than :data:`NATIVE_OPTIONS`) CasADi's CVODES integrates the
+augmented system with :data:`SENSITIVITY_CVODES`. Both agree to the tolerances
+(``tests/test_identify.py``); the driver is 1.6-1.8x faster on
+``benchmarks/bench_identification.py``'s case (``benchmarks/study_sensitivity_driver.py``
+compares families and tolerances).
 """
 
 from __future__ import annotations
@@ -19,8 +29,11 @@ import uuid
 import casadi as ca
 import numpy as np
 
-from softcurve.compiled.build import compile_function
+from softcurve.compiled.generated import compile_function
+from softcurve.compiled.native import NativeFunction
+from softcurve.simulation import native
 from softcurve.simulation.engine import cvodes_options
+from softcurve.simulation.stepper_native import load_native
 
 SENSITIVITY_CVODES = cvodes_options(
     "adams", 1e-8, 1e-10, 100_000, max_order=None, nonlinear_solver_iteration="functional"
@@ -28,7 +41,17 @@ SENSITIVITY_CVODES = cvodes_options(
 """CVODES on the augmented, unscaled system, as the trajectory fits were validated with
 (``tests/test_identify.py``): tolerances tighter than a simulation's, Adams with
 functional iteration (no Newton matrix of the augmented system) at CVODES's own order
-cap; ``options`` of :func:`trajectory_sensitivities` override them."""
+cap; ``options`` of :func:`trajectory_sensitivities` override them. The driver's route
+takes the same tolerances and step limit."""
+
+NATIVE_OPTIONS = frozenset({"reltol", "abstol", "max_num_steps"})
+"""The CVODES options the driver's route understands; others select CasADi's route."""
+
+NATIVE_FAMILY = 1
+"""Adams (1), with Newton iteration, in the driver's route: on the 30 s benchmark case
+(``benchmarks/study_sensitivity_driver.py``, 2026-11-30) 13,142 steps in 0.62 s at rtol
+1e-8 against BDF's 17,936 steps in 1.01 s (the paper robot's lightly damped modes favour
+Adams's higher orders)."""
 
 
 class SensitivityEvaluator:
@@ -36,21 +59,24 @@ class SensitivityEvaluator:
 
     Holds only CasADi functions and arrays, so it can be pickled into a worker process
     (CasADi serializes its functions; a compiled ``external`` is reloaded from its
-    library on disk).
+    library on disk, and so are the driver's functions, at the first call in a process).
     """
 
-    def __init__(self, direct, integrator, out, u_data, seed, scale, active, sizes):
+    def __init__(self, direct, integrator, out, u_data, seed, scale, active, sizes, driven):
         self.direct, self.integrator, self.out = direct, integrator, out
         self.u_data, self.seed, self.scale, self.active = u_data, seed, scale, active
         self.n_p, self.n_v, self.n_x = sizes
-        self.token, self._blob = uuid.uuid4().hex, None
+        self.driven = driven  # (f, fs, times, table, linear, tolerances) or None
+        self.token, self._blob, self._native = uuid.uuid4().hex, None, None
+        self.stats: dict = {}
+        """The last evaluation's route and counters (steps, right-hand sides, ...)."""
 
     def __reduce__(self):
         # Serialized once; a worker that has loaded this evaluator before reuses it
         # (deserializing builds the CVODES memory again).
         if self._blob is None:
             state = (self.direct, self.integrator, self.out, self.u_data, self.seed)
-            state += (self.scale, self.active, (self.n_p, self.n_v, self.n_x))
+            state += (self.scale, self.active, (self.n_p, self.n_v, self.n_x), self.driven)
             self._blob = pickle.dumps(state)
         return (_restore, (self.token, self._blob))
 
@@ -67,7 +93,7 @@ class SensitivityEvaluator:
         d_value = d_value.ravel()
         x_start = np.concatenate([d_value[start:], self.seed.ravel(order="F")])
         parameters = np.concatenate([d_value, self.scale])
-        states = np.array(self.integrator(x0=x_start, p=parameters, u=self.u_data)["xf"])
+        states = self._integrate(x_start, d_value, parameters)
         size = states.shape[1]
         y_value, y_x, y_d = (
             np.array(a) for a in self.out(states[:n_x], np.tile(d_value[:, None], size))
@@ -78,6 +104,41 @@ class SensitivityEvaluator:
         y_d = y_d.reshape(k, size, -1).transpose(1, 0, 2)  # (T, k, n_d)
         total = np.einsum("tkx,txm,mp->tkp", y_x, s_all, jac[self.active]) + y_d @ jac
         return y_value, total.reshape(size * k, -1)
+
+    def _integrate(self, start, d_value, d_scaled) -> np.ndarray:
+        """``(x, vec(S))`` at every sample, (W, T), by the driver or CasADi's CVODES."""
+        route = self._route()
+        if route is None:
+            states = np.array(self.integrator(x0=start, p=d_scaled, u=self.u_data)["xf"])
+            counts = self.integrator.stats()
+            self.stats = {"route": "casadi", "steps": counts.get("nsteps"),
+                          "rhs_evaluations": counts.get("nfevals"),
+                          "error_test_failures": counts.get("netfails")}  # fmt: skip
+            return states
+        problem, columns = route
+        times, table, linear, tolerances = self.driven[2:]
+        out, reached, flag, counts = native.sensitivities(
+            problem, columns, start, d_value, d_scaled, times, table, linear, tolerances
+        )
+        self.stats = {"route": "driver", **counts}
+        if flag:
+            raise RuntimeError(
+                f"CVODES failed after t = {times[reached - 1]:g} s: {native.reason(flag)}"
+            )
+        return out.T
+
+    def _route(self):
+        """(problem, sensitivity function) of the driver, loaded once per process, or None."""
+        if self.driven is None or native.driver() is None:
+            return None
+        if self._native is None:
+            plain, augmented = self.driven[:2]
+            f, fs = (compile_function(g, load=load_native) for g in (plain, augmented))
+            self._native = False
+            if isinstance(f, NativeFunction) and isinstance(fs, NativeFunction):
+                sizes = (self.n_x, plain.size1_in(1), plain.size1_in(2))
+                self._native = (native.Problem(f, *sizes), fs)
+        return self._native or None
 
 
 _LOADED: dict = {}
@@ -220,6 +281,14 @@ def trajectory_sensitivities(
     for j, i in enumerate(active):
         if i >= n_p + n_v:
             seed[i - n_p - n_v, j] = scale[j]
+    driven = None
+    if set(options or {}) <= NATIVE_OPTIONS:
+        settings = {**SENSITIVITY_CVODES, **(options or {})}
+        f_state = augmented(ca.vertcat(xs, ca.SX.zeros(n_x * m)), us, ca.vertcat(ds, np.ones(m)))
+        plain = ca.Function("softcurve_state", [xs, us, ds], [f_state[:n_x]])
+        tolerances = (settings["reltol"], settings["abstol"], settings["max_num_steps"])
+        table = np.ascontiguousarray(u_data.T)
+        driven = (plain, augmented, t, table, hold == "linear", (*tolerances, NATIVE_FAMILY))
     return SensitivityEvaluator(
-        direct, integrator, out, u_data, seed, scale, active, (n_p, n_v, n_x)
+        direct, integrator, out, u_data, seed, scale, active, (n_p, n_v, n_x), driven
     )

@@ -19,7 +19,7 @@ from dataclasses import dataclass
 import casadi as ca
 import numpy as np
 
-from softcurve.compiled.build import compile_function
+from softcurve.compiled.generated import compile_function
 from softcurve.compiled.native import NativeFunction
 from softcurve.simulation.actuated import actuated_derivative
 from softcurve.simulation.engine import nominal_scale
@@ -253,7 +253,7 @@ def period_function(
     substeps: int,
     method: str,
     compiled: bool = True,
-    optimization=None,
+    flags=None,
     jacobian_every: int | None = None,
     native: bool = False,
 ):
@@ -264,7 +264,7 @@ def period_function(
 
     With ``compiled``, the whole period is generated as one C function (the model's
     symbolic right-hand side called in a loop) and compiled with
-    :func:`~softcurve.compiled.build.compile_function` (cached on disk by content: one
+    :func:`~softcurve.compiled.generated.compile_function` (cached on disk by content: one
     library per robot structure, environment, actuator, method and ``substeps``; any
     period and parameter values); else it runs in CasADi's virtual machine on the
     model's compiled ``rhs``.
@@ -281,8 +281,9 @@ def period_function(
         A key of :data:`METHODS`.
     compiled : bool
         Generate and compile C (default), or evaluate in CasADi's virtual machine.
-    optimization : str, optional
-        The compiler's optimization flag (default :data:`OPTIMIZATION`).
+    flags : tuple of str, optional
+        The compiler's optimization flags (default
+        :data:`~softcurve.compiled.generated.FUNCTION_FLAGS`).
     jacobian_every : int, optional
         Steps between fresh Jacobians (default ``substeps``: one per period).
     native : bool
@@ -292,7 +293,6 @@ def period_function(
         CasADi ``external``; None where no compiler works.
     """
     tableau = METHODS[method]
-    optimization = OPTIMIZATION if optimization is None else optimization
     every = substeps if jacobian_every is None else min(jacobian_every, substeps)
 
     def graph():
@@ -326,19 +326,13 @@ def period_function(
 
     def build():
         if not native:
-            return compile_function(function, optimization)
-        loaded = compile_function(function, optimization, load=load_native)
+            return compile_function(function, flags)
+        loaded = compile_function(function, flags, load=load_native)
         return loaded if isinstance(loaded, NativeFunction) else None
 
-    return model.cached((*key, optimization, native), build)
+    return model.cached((*key, flags, native), build)
 
 
 def _solver(qr: Factorization, factors):
     """``b -> (I - gamma h J)^-1 b`` with the factors of one Newton matrix."""
     return lambda b: qr.solve(*factors, b)
-
-
-OPTIMIZATION = "-O1"
-"""Compiler flag of the stepper: -O1 compiled the paper robot's stepper in 23 s, -O2 in
-40-48 s (loaded machine), at speeds equal within the noise (``bench_stepper.py`` section
-3: 800-910 against 710-1180 us per member-period in alternating runs)."""

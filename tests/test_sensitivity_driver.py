@@ -1,0 +1,109 @@
+"""The identification's forward sensitivities through softcurve's CVODES driver against
+CasADi's CVODES on the augmented system (the route without the driver): both inputs
+holds, an input lag, a failure, and the evaluator carried into another process."""
+
+from __future__ import annotations
+
+import pickle
+
+import numpy as np
+import pytest
+
+import softcurve as sc
+from softcurve.identification.experiments import Experiment
+from softcurve.identification.maps import bellows_input_map, curvatures
+from softcurve.identification.parameters import Free, FreeParameters
+from softcurve.simulation import native, sensitivity
+from softcurve.simulation.sensitivity import trajectory_sensitivities
+
+SEG = "segments[0]."
+
+
+@pytest.fixture(scope="module")
+def model():
+    model = sc.Model(sc.presets.ifac2020(), quadrature_nodes=4)
+    if native.problem(model) is None:
+        pytest.skip("softcurve's CVODES driver is not available here (no C compiler)")
+    return model
+
+
+def _evaluator(model, hold, lag=None, options=None):
+    """Bellows with smooth random pressures for 1.5 s at 12 Hz; four free parameters."""
+    rng = np.random.default_rng(16)
+    t = np.arange(0.0, 1.5 + 1e-9, 1 / 12)
+    knots = np.linspace(0.0, 1.5, 4)
+    pressures = {f"p{i}": np.interp(t, knots, 1e4 + 1e4 * rng.random(4)) for i in range(3)}
+    experiment = Experiment(t, {"kx": 0 * t, "ky": 0 * t}, pressures)
+    inputs = bellows_input_map(area=2e-5, distance=0.01)
+    free = [
+        Free(SEG + "bending_stiffness.a1"),
+        Free(SEG + "damping[1,1]"),
+        Free("bellows.area"),
+        Free("bellows.angle", scale=1.0),
+    ]
+    extra = dict(inputs.parameters)
+    if lag:
+        free.append(Free("input_lag", scale=0.01))
+        extra["input_lag"] = 0.02
+    parameters = FreeParameters(model, free, extra, {}, None)
+    x0 = np.zeros(model.n_state + (3 if lag else 0))
+    x0[:3] = [0.0644, 1.0, 0.0]
+    if lag:
+        x0[model.n_state :] = [p[0] for p in pressures.values()]
+    evaluate = trajectory_sensitivities(
+        model, parameters, curvatures(), inputs, x0, experiment, options,
+        "input_lag" if lag else None, hold,
+    )  # fmt: skip
+    return evaluate, parameters.theta0
+
+
+@pytest.mark.parametrize(("hold", "lag"), [("linear", None), ("constant", None), ("linear", 1)])
+def test_the_driver_agrees_with_casadis_cvodes(model, hold, lag):
+    evaluate, theta = _evaluator(model, hold, lag)
+    y, jacobian = evaluate(theta)
+    assert evaluate.stats["route"] == "driver"
+    assert evaluate.stats["sensitivity_evaluations"] > 0
+    with native.casadi_only():
+        reference, theta_again = _evaluator(model, hold, lag)
+        y_ref, jacobian_ref = reference(theta_again)
+    assert reference.stats["route"] == "casadi"
+    # both at rtol 1e-8: the outputs agree to a few times that, relative to their range
+    assert np.abs(y - y_ref).max() <= 1e-6 * np.abs(y_ref).max()
+    for j in range(jacobian.shape[1]):
+        column, expected = jacobian[:, j], jacobian_ref[:, j]
+        assert np.abs(column - expected).max() <= 1e-5 * np.abs(expected).max(), j
+
+
+def test_the_driver_counts_every_restart_of_a_held_input(model):
+    evaluate, theta = _evaluator(model, "constant")
+    evaluate(theta)
+    held = dict(evaluate.stats)
+    evaluate, theta = _evaluator(model, "linear")
+    evaluate(theta)
+    # 18 restarts (one per sample): more steps than the single run of the linear hold
+    assert held["steps"] > evaluate.stats["steps"] > 0
+
+
+def test_options_the_driver_does_not_know_select_casadis_route(model):
+    evaluate, theta = _evaluator(model, "linear", options={"max_order": 3})
+    evaluate(theta)
+    assert evaluate.stats["route"] == "casadi"
+
+
+def test_a_failure_of_the_driver_is_a_runtime_error_naming_cvodes(model):
+    evaluate, theta = _evaluator(model, "linear", options={"max_num_steps": 2})
+    with pytest.raises(RuntimeError, match="CVODES failed after t = 0 s: CV_TOO_MUCH_WORK"):
+        evaluate(theta)
+
+
+def test_an_evaluator_carried_to_a_new_process_loads_the_driver_again(model):
+    evaluate, theta = _evaluator(model, "linear")
+    expected = evaluate(theta)
+    blob = pickle.dumps(evaluate)
+    sensitivity._LOADED.clear()  # as in a fresh worker process
+    restored = pickle.loads(blob)
+    assert restored is not evaluate
+    y, jacobian = restored(theta)
+    assert restored.stats["route"] == "driver"
+    np.testing.assert_array_equal(y, expected[0])
+    np.testing.assert_array_equal(jacobian, expected[1])
