@@ -10,10 +10,9 @@ slow creep state (does the hysteresis ask for a slower creep than the oscillatio
     python examples/validate_joint.py [--only oscillation|openloop|creep] [--quick]
 
 Every figure of the tables "real-data goals" in ``docs/validation.md`` is printed by it.
-The joint fit is a prototype built from the package's blocks (one
-:class:`~softcurve.identification.parameters.FreeParameters` for the union of shared and
-per-recording parameters, one sensitivity evaluator per recording, residuals and
-Jacobians stacked, :func:`~softcurve.identification.report.solve_least_squares`).
+The joint fits are the library's: :func:`~softcurve.identification.dynamic.fit_trajectory`
+of a list of recordings, with the per-recording initial state and IMU zero as
+``Free(..., per_experiment=True)`` entries ``x0.lam[1]``, ``x0.q[1]`` and ``offset``.
 """
 
 from __future__ import annotations
@@ -33,9 +32,7 @@ import softcurve as sc
 from softcurve.description.pneumatic import PneumaticActuator
 from softcurve.identification.dynamic import fit_trajectory, predict_trajectory
 from softcurve.identification.maps import InputMap, bending_angle
-from softcurve.identification.parameters import Free, FreeParameters
-from softcurve.identification.report import solve_least_squares, summarize
-from softcurve.simulation.sensitivity import trajectory_sensitivities
+from softcurve.identification.parameters import Free
 
 HERE = Path(__file__).resolve().parent
 _spec = importlib.util.spec_from_file_location("vc", HERE / "validate_caasenbrood2021.py")
@@ -51,45 +48,7 @@ LAMBDA_SCALE = 1e-2
 GOALS = {"b42 in-sample": 0.20, "cross": 1.0, "joint": 0.4, "openloop": 0.30}
 
 
-# -- per-recording initial state -----------------------------------------------------
-
-
-def initial_names(tag: str, what: tuple[str, ...]) -> dict:
-    """Extra parameters of recording ``tag``'s initial state and their nominal values."""
-    names = {"lam": f"{tag}.lambda0", "beta": f"{tag}.beta0", "offset": f"{tag}.offset"}
-    return {k: v for k, v in names.items() if k in what}
-
-
-def initial_state(experiment, names: dict):
-    """``x0(values)``: released at rest at ``beta0`` (rad) with creep state ``lambda0``.
-
-    Without a named parameter the measured first angle and a relaxed creep state are
-    used (the assumption of validate_caasenbrood2021.py).
-    """
-    beta_measured = float(np.radians(experiment.signals["beta"][0]))
-
-    def x0(values):
-        beta0 = values[names["beta"]] if "beta" in names else beta_measured
-        lam = values[names["lam"]] if "lam" in names else 0.0
-        return ca.vertcat(vc.REST_LENGTH, beta0 / vc.REST_LENGTH, 0, 0, 0, 0, 0, lam, 0)
-
-    return x0
-
-
-def initial_freedom(experiment, names: dict):
-    """(Free list, extra values) of one recording's initial state."""
-    beta = float(np.radians(experiment.signals["beta"][0]))
-    free, values = [], {}
-    if "lam" in names:
-        free.append(Free(names["lam"], -1.0, 1.0, initial=0.0, scale=LAMBDA_SCALE))
-        values[names["lam"]] = 0.0
-    if "beta" in names:
-        free.append(Free(names["beta"], beta - 0.05, beta + 0.05, initial=beta, scale=0.1))
-        values[names["beta"]] = beta
-    if "offset" in names:
-        free.append(Free(names["offset"], -3.0, 3.0, initial=0.0, scale=0.1))
-        values[names["offset"]] = 0.0
-    return free, values
+# -- the material ---------------------------------------------------------------------
 
 
 def material_freedom(robot, law: str):
@@ -103,61 +62,54 @@ def material_freedom(robot, law: str):
     return values, bind, free
 
 
-# -- joint fit of several recordings (prototype) -------------------------------------
+# -- joint fit of several recordings (the library's fit_trajectory of a list) --------
+
+
+def recording_freedom(experiments: dict, what: tuple[str, ...]) -> list:
+    """Per-recording ``Free`` entries of the initial state and the IMU zero (``what`` of
+    ``lam``, ``beta``, ``offset``): one value per recording, named ``name[recording]``."""
+    betas = [float(np.radians(e.signals["beta"][0])) for e in experiments.values()]
+    free = []
+    if "lam" in what:  # the bending creep state at release
+        free.append(Free("x0.lam[1]", -1.0, 1.0, initial=0.0, scale=LAMBDA_SCALE,
+                         per_experiment=True))  # fmt: skip
+    if "beta" in what:  # the released bend, within 0.05 rad of each first sample
+        lower, upper = (min(betas) - 0.05) / vc.REST_LENGTH, (max(betas) + 0.05) / vc.REST_LENGTH
+        free.append(Free("x0.q[1]", lower, upper, scale=0.1 / vc.REST_LENGTH,
+                         per_experiment=True))  # fmt: skip
+    if "offset" in what:
+        free.append(Free("offset", -3.0, 3.0, initial=0.0, scale=0.1, per_experiment=True))
+    return free
 
 
 def joint_fit(model, experiments: dict, shared, extra, bind, what, max_evaluations=120):
-    """Least squares over several recordings: shared material, per-recording initial
-    state (``what`` of ``lam``, ``beta``, ``offset``). Returns a dict with the estimate,
-    per-recording predictions and RMS, standard errors and the status."""
-    free, values, problems = list(shared), dict(extra), {}
-    for tag, experiment in experiments.items():
-        names = initial_names(tag, what)
-        f, v = initial_freedom(experiment, names)
-        free += f
-        values.update(v)
-        output = bending_angle(offset=names.get("offset"))
-        problems[tag] = (output, initial_state(experiment, names))
-        values.update(output.parameters)
-    P = FreeParameters(model, free, values, bind)
-    evaluators = {
-        tag: trajectory_sensitivities(model, P, out, None, x0, experiments[tag], None)
-        for tag, (out, x0) in problems.items()
-    }
-    measured = {tag: e.signal_matrix(["beta"]) for tag, e in experiments.items()}
-
-    def residual_and_jacobian(z):
-        rs, js = [], []
-        for tag, evaluate in evaluators.items():
-            y, jac = evaluate(z * P.scale)
-            rs.append((y.T - measured[tag]).ravel())
-            js.append(jac * P.scale)
-        return np.concatenate(rs), np.vstack(js)
-
-    z, r, jac, status, message, count = solve_least_squares(
-        residual_and_jacobian, P.theta0 / P.scale, P.lower, P.upper, max_evaluations
-    )
-    theta = z * P.scale
-    r, jac = residual_and_jacobian(z)
-    errors, _, _, status, message = summarize(P.names, jac / P.scale, r, status, message)
-    predicted, rms = {}, {}
-    for tag, evaluate in evaluators.items():
-        y, _ = evaluate(theta)
-        predicted[tag] = y.T
-        rms[tag] = float(np.sqrt(np.mean((y.T - measured[tag]) ** 2)))
-    p_value, extra_values = P.evaluate(theta)
+    """``fit_trajectory`` of the recordings together: the shared material and, per
+    recording, the initial state and IMU zero of ``what`` (started from rest at the first
+    measured angle, creep relaxed). Returns a dict with the estimate, per-recording
+    predictions and RMS [deg], standard errors and the status."""
+    data = [replace(e, name=tag) for tag, e in experiments.items()]
+    values = dict(extra)
+    if "offset" in what:
+        values["offset"] = 0.0
+    report = fit_trajectory(
+        model, data, output=bending_angle(offset="offset" if "offset" in what else None),
+        x0={e.name: vc.release_state(e) for e in data},
+        free=list(shared) + recording_freedom(experiments, what), extra=values, bind=bind,
+        max_evaluations=max_evaluations, processes=1,
+    )  # fmt: skip
+    residual = report.predicted - report.measured
     return {
-        "names": P.names,
-        "values": theta,
-        "errors": errors,
-        "status": status,
-        "message": message,
-        "evaluations": count,
-        "rms": rms,
-        "rms_all": float(np.sqrt(np.mean(r**2))),
-        "predicted": predicted,
-        "parameters": p_value,
-        "extra_values": extra_values,
+        "names": report.names,
+        "values": report.values,
+        "errors": report.standard_errors,
+        "status": report.status,
+        "message": report.message,
+        "evaluations": report.n_evaluations,
+        "rms": {tag: float(report.part(tag).rms[0]) for tag in experiments},
+        "rms_all": float(np.sqrt(np.mean(residual**2))),
+        "predicted": {tag: report.part(tag).predicted for tag in experiments},
+        "parameters": report.extra["parameters"],
+        "extra_values": report.extra["values"],
     }
 
 
@@ -191,20 +143,21 @@ def single_fit(model, experiments, train, law, what, max_evaluations=120, start=
 def cross_predict(model, experiments, fit: dict, train: str, test: str, what):
     """The test recording simulated with the material of ``fit``: (a) relaxed creep and
     the measured first angle (no parameter of the test recording estimated), (b) only the
-    test recording's initial state (``what``) estimated, the material fixed."""
-    experiment = experiments[test]
+    test recording's initial state and zero (``what``) estimated, the material fixed."""
+    experiment = replace(experiments[test], name=test)
+    own = ("x0.", "offset")  # the training recording's initial state and zero stay with it
     values = {**fit["extra"], **fit["extra_values"]}
+    values = {k: v for k, v in values.items() if not k.startswith(own)}
     common = {"bind": fit["bind"], "parameters": fit["parameters"]}
+    x0 = vc.release_state(experiment)
     relaxed = fit_trajectory(
-        model, experiment, output=bending_angle(), x0=vc.release_state(experiment),
-        free=[], extra=values, **common,
-    )  # fmt: skip
-    names = initial_names(test, what)
-    free, start = initial_freedom(experiment, names)
+        model, experiment, output=bending_angle(), x0=x0, free=[], extra=values, **common
+    )
+    offset = "offset" if "offset" in what else None
     state = fit_trajectory(
-        model, experiment, output=bending_angle(offset=names.get("offset")),
-        x0=initial_state(experiment, names), free=free, extra={**values, **start},
-        max_evaluations=60, **common,
+        model, experiment, output=bending_angle(offset=offset), x0=x0,
+        free=recording_freedom({test: experiment}, what),
+        extra={**values, **({offset: 0.0} if offset else {})}, max_evaluations=60, **common,
     )  # fmt: skip
     return relaxed, state
 

@@ -4,7 +4,9 @@ holds, an input lag, a failure, and the evaluator carried into another process."
 
 from __future__ import annotations
 
+import multiprocessing
 import pickle
+from concurrent.futures import ProcessPoolExecutor
 
 import numpy as np
 import pytest
@@ -13,7 +15,7 @@ import softcurve as sc
 from softcurve.identification.experiments import Experiment
 from softcurve.identification.maps import bellows_input_map, curvatures
 from softcurve.identification.parameters import Free, FreeParameters
-from softcurve.simulation import native, sensitivity
+from softcurve.simulation import native
 from softcurve.simulation.sensitivity import trajectory_sensitivities
 
 SEG = "segments[0]."
@@ -57,21 +59,39 @@ def _evaluator(model, hold, lag=None, options=None):
     return evaluate, parameters.theta0
 
 
-@pytest.mark.parametrize(("hold", "lag"), [("linear", None), ("constant", None), ("linear", 1)])
-def test_the_driver_agrees_with_casadis_cvodes(model, hold, lag):
-    evaluate, theta = _evaluator(model, hold, lag)
+@pytest.mark.parametrize("lag", [None, 1])
+def test_the_driver_agrees_with_casadis_cvodes(model, lag):
+    evaluate, theta = _evaluator(model, "linear", lag)
     y, jacobian = evaluate(theta)
     assert evaluate.stats["route"] == "driver"
     assert evaluate.stats["sensitivity_evaluations"] > 0
     with native.casadi_only():
-        reference, theta_again = _evaluator(model, hold, lag)
+        reference, theta_again = _evaluator(model, "linear", lag)
         y_ref, jacobian_ref = reference(theta_again)
     assert reference.stats["route"] == "casadi"
-    # both at rtol 1e-8: the outputs agree to a few times that, relative to their range
-    assert np.abs(y - y_ref).max() <= 1e-6 * np.abs(y_ref).max()
+    _assert_agree(y, jacobian, y_ref, jacobian_ref, 1e-6)
+
+
+def test_the_driver_restarts_at_every_held_input(model):
+    """Against CasADi's route at rtol 1e-10: at the default tolerances CasADi's route is
+    the less accurate of the two across the jumps of held inputs (8e-7 against 8e-10 from
+    a reference at 1e-12; CasADi's Adams with functional iteration fails at 1e-12)."""
+    evaluate, theta = _evaluator(model, "constant")
+    y, jacobian = evaluate(theta)
+    with native.casadi_only():
+        tight = {"reltol": 1e-10, "abstol": 1e-12, "max_num_steps": 10**6}
+        reference, theta_again = _evaluator(model, "constant", options=tight)
+        y_ref, jacobian_ref = reference(theta_again)
+    _assert_agree(y, jacobian, y_ref, jacobian_ref, 1e-7)
+
+
+def _assert_agree(y, jacobian, y_ref, jacobian_ref, tolerance):
+    """Outputs within ``tolerance`` and each Jacobian column within 10 ``tolerance`` of
+    the reference's largest entry (the routes integrate at rtol 1e-8)."""
+    assert np.abs(y - y_ref).max() <= tolerance * np.abs(y_ref).max()
     for j in range(jacobian.shape[1]):
         column, expected = jacobian[:, j], jacobian_ref[:, j]
-        assert np.abs(column - expected).max() <= 1e-5 * np.abs(expected).max(), j
+        assert np.abs(column - expected).max() <= 10 * tolerance * np.abs(expected).max(), j
 
 
 def test_the_driver_counts_every_restart_of_a_held_input(model):
@@ -80,7 +100,7 @@ def test_the_driver_counts_every_restart_of_a_held_input(model):
     held = dict(evaluate.stats)
     evaluate, theta = _evaluator(model, "linear")
     evaluate(theta)
-    # 18 restarts (one per sample): more steps than the single run of the linear hold
+    # 17 restarts (one per sample after the first): more steps than the linear hold's run
     assert held["steps"] > evaluate.stats["steps"] > 0
 
 
@@ -96,14 +116,21 @@ def test_a_failure_of_the_driver_is_a_runtime_error_naming_cvodes(model):
         evaluate(theta)
 
 
+def _evaluate_in_this_process(evaluate, theta):
+    y, jacobian = evaluate(theta)
+    return y, jacobian, evaluate.stats["route"]
+
+
 def test_an_evaluator_carried_to_a_new_process_loads_the_driver_again(model):
     evaluate, theta = _evaluator(model, "linear")
-    expected = evaluate(theta)
+    y, jacobian = evaluate(theta)
     blob = pickle.dumps(evaluate)
-    sensitivity._LOADED.clear()  # as in a fresh worker process
-    restored = pickle.loads(blob)
-    assert restored is not evaluate
-    y, jacobian = restored(theta)
-    assert restored.stats["route"] == "driver"
-    np.testing.assert_array_equal(y, expected[0])
-    np.testing.assert_array_equal(jacobian, expected[1])
+    assert len(blob) < 1_000_000  # the libraries' paths travel, not their functions
+    spawn = multiprocessing.get_context("spawn")
+    with ProcessPoolExecutor(1, mp_context=spawn) as pool:
+        y_new, jacobian_new, route = pool.submit(
+            _evaluate_in_this_process, evaluate, theta
+        ).result()
+    assert route == "driver"
+    np.testing.assert_array_equal(y_new, y)
+    np.testing.assert_array_equal(jacobian_new, jacobian)

@@ -50,6 +50,6 @@ def test_b42_with_identified_initial_creep_state():
     # goal 0.20 deg (reached: 0.205 at 2 ms, 0.14 with the angle and IMU zero free);
     # assumed relaxed (lambda(0) = 0) the same model fits 0.31 deg
     assert fit["rms"]["b42"] < 0.25
-    lam = fit["values"][fit["names"].index("b42.lambda0")]
-    error = fit["errors"][fit["names"].index("b42.lambda0")]
+    lam = fit["values"][fit["names"].index("x0.lam[1][b42]")]
+    error = fit["errors"][fit["names"].index("x0.lam[1][b42]")]
     assert np.isfinite(error) and lam > 0  # held bent before release: a pre-stress

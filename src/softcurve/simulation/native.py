@@ -307,7 +307,8 @@ def integrate(problem, lmm, x0, u, p, nominal, times, segments, tolerances, *, f
 SENSITIVITY_STATISTICS = ("steps", "rhs_evaluations", "jacobian_evaluations",
                           "linear_solver_setups", "error_test_failures",
                           "sensitivity_evaluations")  # fmt: skip
-"""The counters :func:`sensitivities` returns, in the driver's order."""
+"""The counters :func:`sensitivities` returns, in the driver's order (the right-hand
+sides are CVODES's; those of the finite-difference Jacobians are not among them)."""
 
 
 def sensitivities(problem, columns, start, d, d_scaled, times, table, linear, tolerances):
@@ -321,8 +322,10 @@ def sensitivities(problem, columns, start, d, d_scaled, times, table, linear, to
         ``fs(x;vec(S), u, d;scale) -> f;vec(S')`` for ``m`` columns.
     start : ndarray, shape (W,)
         ``(x0, vec(S0))`` with ``W = nx (1 + m)``, at ``times[0]``.
-    d, d_scaled : ndarray
-        The parameters of ``f`` and ``(d, scale)`` of ``fs``.
+    d : ndarray, shape (n_d,)
+        The parameters of ``f``.
+    d_scaled : ndarray, shape (n_d + m,)
+        ``(d, scale)``: the parameters of ``fs`` with its column scales.
     times : ndarray, shape (T,)
         Output times [s], increasing.
     table : ndarray, shape (T, k) or (T, 2 k)

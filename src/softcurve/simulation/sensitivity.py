@@ -16,9 +16,9 @@ Newton matrix and the sensitivity columns by CVODES's staggered corrector, all i
 without a restart at the samples of a linear input hold; otherwise (no driver, or
 CVODES options other than :data:`NATIVE_OPTIONS`) CasADi's CVODES integrates the
 augmented system with :data:`SENSITIVITY_CVODES`. Both agree to the tolerances
-(``tests/test_identify.py``); the driver is 1.6-1.8x faster on
-``benchmarks/bench_identification.py``'s case (``benchmarks/study_sensitivity_driver.py``
-compares families and tolerances).
+(``tests/test_sensitivity_driver.py``); the driver is 1.5x (inputs held) to 2.8x (linear
+hold) faster on ``benchmarks/bench_identification.py``'s case
+(``benchmarks/study_sensitivity_driver.py`` compares families and tolerances).
 """
 
 from __future__ import annotations
@@ -30,7 +30,6 @@ import casadi as ca
 import numpy as np
 
 from softcurve.compiled.generated import compile_function
-from softcurve.compiled.native import NativeFunction
 from softcurve.simulation import native
 from softcurve.simulation.engine import cvodes_options
 from softcurve.simulation.stepper_native import load_native
@@ -66,10 +65,12 @@ class SensitivityEvaluator:
         self.direct, self.integrator, self.out = direct, integrator, out
         self.u_data, self.seed, self.scale, self.active = u_data, seed, scale, active
         self.n_p, self.n_v, self.n_x = sizes
-        self.driven = driven  # (f, fs, times, table, linear, tolerances) or None
+        # ((path, name) of f and of fs, sizes, times, table, linear, tolerances) or None
+        self.driven = driven
         self.token, self._blob, self._native = uuid.uuid4().hex, None, None
         self.stats: dict = {}
-        """The last evaluation's route and counters (steps, right-hand sides, ...)."""
+        """The last evaluation's route and counters (steps, right-hand sides, ...), in the
+        process that evaluated it (a worker's, under a parallel fit)."""
 
     def __reduce__(self):
         # Serialized once; a worker that has loaded this evaluator before reuses it
@@ -116,7 +117,7 @@ class SensitivityEvaluator:
                           "error_test_failures": counts.get("netfails")}  # fmt: skip
             return states
         problem, columns = route
-        times, table, linear, tolerances = self.driven[2:]
+        times, table, linear, tolerances = self.driven[3:]
         out, reached, flag, counts = native.sensitivities(
             problem, columns, start, d_value, d_scaled, times, table, linear, tolerances
         )
@@ -131,13 +132,14 @@ class SensitivityEvaluator:
         """(problem, sensitivity function) of the driver, loaded once per process, or None."""
         if self.driven is None or native.driver() is None:
             return None
-        if self._native is None:
-            plain, augmented = self.driven[:2]
-            f, fs = (compile_function(g, load=load_native) for g in (plain, augmented))
-            self._native = False
-            if isinstance(f, NativeFunction) and isinstance(fs, NativeFunction):
-                sizes = (self.n_x, plain.size1_in(1), plain.size1_in(2))
-                self._native = (native.Problem(f, *sizes), fs)
+        if self._native is None:  # a worker process: load the libraries the parent built
+            (f_path, f_name), (fs_path, fs_name), sizes = self.driven[:3]
+            try:
+                route = (native.Problem(load_native(f_path, f_name), *sizes),
+                         load_native(fs_path, fs_name))  # fmt: skip
+            except OSError:  # the library left the cache: CasADi's route
+                route = False
+            self._native = route
         return self._native or None
 
 
@@ -253,7 +255,7 @@ def trajectory_sensitivities(
     augmented = ca.Function(
         "softcurve_sensitivity",
         [ca.vertcat(xs, ca.vec(sens)), us, ca.vertcat(ds, sc_s)],
-        [ca.cse(ca.vertcat(f, ca.vec(s_dot)))],
+        [ca.densify(ca.cse(ca.vertcat(f, ca.vec(s_dot))))],
     )
     rhs = compile_function(augmented)
     n_u = len(u_names)
@@ -281,14 +283,29 @@ def trajectory_sensitivities(
     for j, i in enumerate(active):
         if i >= n_p + n_v:
             seed[i - n_p - n_v, j] = scale[j]
-    driven = None
-    if set(options or {}) <= NATIVE_OPTIONS:
+    driven, loaded = None, None
+    if set(options or {}) <= NATIVE_OPTIONS and native.driver() is not None:
         settings = {**SENSITIVITY_CVODES, **(options or {})}
         f_state = augmented(ca.vertcat(xs, ca.SX.zeros(n_x * m)), us, ca.vertcat(ds, np.ones(m)))
-        plain = ca.Function("softcurve_state", [xs, us, ds], [f_state[:n_x]])
-        tolerances = (settings["reltol"], settings["abstol"], settings["max_num_steps"])
-        table = np.ascontiguousarray(u_data.T)
-        driven = (plain, augmented, t, table, hold == "linear", (*tolerances, NATIVE_FAMILY))
-    return SensitivityEvaluator(
+        plain = ca.Function("softcurve_state", [xs, us, ds], [ca.densify(f_state[:n_x])])
+        libraries = [compile_function(g, load=_located) for g in (plain, augmented)]
+        if all(isinstance(entry, tuple) for entry in libraries):
+            tolerances = (float(settings["reltol"]), float(settings["abstol"]))
+            tolerances += (int(settings["max_num_steps"]), NATIVE_FAMILY)
+            table = np.ascontiguousarray(u_data.T)
+            sizes = (n_x, plain.size1_in(1), plain.size1_in(2))
+            located = tuple(entry[:2] for entry in libraries)
+            driven = (*located, sizes, t, table, hold == "linear", tolerances)
+            (f_loaded, fs_loaded) = (entry[2] for entry in libraries)
+            loaded = (native.Problem(f_loaded, *sizes), fs_loaded)
+    evaluator = SensitivityEvaluator(
         direct, integrator, out, u_data, seed, scale, active, (n_p, n_v, n_x), driven
     )
+    evaluator._native = loaded
+    return evaluator
+
+
+def _located(path, name: str) -> tuple:
+    """``(path, name, the loaded function)`` of a compiled library, for the driver's route:
+    the path and name travel to worker processes, the loaded function stays here."""
+    return (str(path), name, load_native(path, name))

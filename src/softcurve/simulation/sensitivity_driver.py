@@ -105,7 +105,7 @@ __attribute__((visibility("default"))) int softcurve_sensitivities(
     const double *dsc, const double *times, int count, const double *table, int linear,
     int lmm, double rtol, double atol, long max_steps, double *out, long *stats,
     int *reached) {
-    int n = fn->nx, width = fn->nx * (1 + m), i, j, flag = 0;
+    int n = fn->nx, width = fn->nx * (1 + m), i, j, flag = 0, counted = 0;
     size_t bytes = n * sizeof(double);
     sc_sensitivity z;
     void *mem = NULL;
@@ -172,11 +172,13 @@ __attribute__((visibility("default"))) int softcurve_sensitivities(
             z.row = i;
             inputs_at(&z, times[i]);
             add_counters(mem, stats);
+            counted = 1;
             if (CVodeReInit(mem, times[i - 1], y) ||
                 (m > 0 && CVodeSensReInit(mem, CV_STAGGERED, yS))) {
                 flag = -100;
                 break;
             }
+            counted = 0;
             CVodeSetStopTime(mem, times[i]);
         }
         flag = CVode(mem, times[i], y, &tret, CV_NORMAL);
@@ -187,7 +189,7 @@ __attribute__((visibility("default"))) int softcurve_sensitivities(
         for (j = 0; j < m; ++j) memcpy(row + n * (1 + j), N_VGetArrayPointer(yS[j]), bytes);
         *reached = i + 1;
     }
-    add_counters(mem, stats);
+    if (!counted) add_counters(mem, stats);
     stats[2] = z.s.jacobians;
     stats[5] = z.sensitivity_evaluations;
 done:
