@@ -73,7 +73,7 @@ def recording_freedom(experiments: dict, what: tuple[str, ...]) -> list:
     if "lam" in what:  # the bending creep state at release
         free.append(Free("x0.lam[1]", -1.0, 1.0, initial=0.0, scale=LAMBDA_SCALE,
                          per_experiment=True))  # fmt: skip
-    if "beta" in what:  # the released bend, within 0.05 rad of each first sample
+    if "beta" in what:  # the released bend: one box for all, 0.05 rad beyond the first samples
         lower, upper = (min(betas) - 0.05) / vc.REST_LENGTH, (max(betas) + 0.05) / vc.REST_LENGTH
         free.append(Free("x0.q[1]", lower, upper, scale=0.1 / vc.REST_LENGTH,
                          per_experiment=True))  # fmt: skip

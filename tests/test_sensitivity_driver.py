@@ -78,10 +78,12 @@ def test_the_driver_restarts_at_every_held_input(model):
     a reference at 1e-12; CasADi's Adams with functional iteration fails at 1e-12)."""
     evaluate, theta = _evaluator(model, "constant")
     y, jacobian = evaluate(theta)
+    assert evaluate.stats["route"] == "driver"
     with native.casadi_only():
         tight = {"reltol": 1e-10, "abstol": 1e-12, "max_num_steps": 10**6}
         reference, theta_again = _evaluator(model, "constant", options=tight)
         y_ref, jacobian_ref = reference(theta_again)
+    assert reference.stats["route"] == "casadi"
     _assert_agree(y, jacobian, y_ref, jacobian_ref, 1e-7)
 
 

@@ -137,7 +137,7 @@ class SensitivityEvaluator:
             try:
                 route = (native.Problem(load_native(f_path, f_name), *sizes),
                          load_native(fs_path, fs_name))  # fmt: skip
-            except OSError:  # the library left the cache: CasADi's route
+            except (OSError, RuntimeError, AttributeError):  # not loadable: CasADi's route
                 route = False
             self._native = route
         return self._native or None
