@@ -184,17 +184,24 @@ def test_compile_function_builds_for_this_cpu_and_falls_back_without_march_nativ
     assert log.read_text().splitlines()[-2].split()[:2] == ["-O1", "-fPIC"]
 
     refusing = tmp_path / "cc-without-native"
+    refused = tmp_path / "refused.log"
     refusing.write_text(
-        f'#!/bin/sh\nfor a in "$@"; do [ "$a" = -march=native ] && exit 1; done\nexec {real} "$@"\n'
+        f'#!/bin/sh\nfor a in "$@"; do [ "$a" = -march=native ] && echo x >> {refused} && exit 1;'
+        f' done\nexec {real} "$@"\n'
     )
     refusing.chmod(0o755)
     monkeypatch.delenv("SOFTCURVE_PORTABLE")
     monkeypatch.setenv("CC", str(refusing))
     monkeypatch.setenv("SOFTCURVE_CACHE_DIR", str(tmp_path / "refused"))
+    monkeypatch.setattr(generated, "_REFUSING_NATIVE", set())
     compiled = generated.compile_function(function)
     assert compiled.class_name() == "External"  # compiled, without -march=native
     x = np.array([0.3, -2.0, 1.5])
     np.testing.assert_allclose(np.array(compiled(x)), np.array(function(x)), rtol=1e-15)
+    assert generated._REFUSING_NATIVE == {(str(refusing),)}
+    x = ca.SX.sym("x")
+    generated.compile_function(ca.Function("softcurve_test_other", [x], [ca.cos(x)]))
+    assert refused.read_text().count("x") == 1  # remembered: the second asked no more
 
 
 def test_compile_function_without_a_working_compiler_returns_the_function(monkeypatch, tmp_path):

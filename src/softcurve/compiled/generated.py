@@ -26,6 +26,12 @@ plain ``-O1``; GCC's straight-line vectorizer and second scheduling pass added n
 measurable."""
 
 
+_REFUSING_NATIVE: set[tuple[str, ...]] = set()
+"""Compiler commands that refused ``-march=native`` in this process: later functions are
+compiled without it at once, instead of failing first (a failed compile of a large
+function costs as much as a good one)."""
+
+
 def compile_function(function: ca.Function, flags: tuple[str, ...] | None = None, load=None):
     """``function`` generated as C, compiled, cached on disk by its content and loaded.
 
@@ -70,12 +76,14 @@ def compile_function(function: ca.Function, flags: tuple[str, ...] | None = None
     name = function.name()
 
     def make(path):
+        wanted = () if tuple(compiler) in _REFUSING_NATIVE else native
         try:
-            build._compile({name: function}, compiler, path, (*flags, *native, "-fPIC"))
+            build._compile({name: function}, compiler, path, (*flags, *wanted, "-fPIC"))
         except subprocess.CalledProcessError:
-            if not native:
+            if not wanted:
                 raise
-            build._compile({name: function}, compiler, path, (*flags, "-fPIC"))  # no -march=native
+            build._compile({name: function}, compiler, path, (*flags, "-fPIC"))
+            _REFUSING_NATIVE.add(tuple(compiler))  # built without it: the flag was refused
 
     try:
         return build._load_or_build(
