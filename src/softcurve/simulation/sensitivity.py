@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import pickle
 import uuid
+from pathlib import Path
 
 import casadi as ca
 import numpy as np
@@ -307,5 +308,6 @@ def trajectory_sensitivities(
 
 def _located(path, name: str) -> tuple:
     """``(path, name, the loaded function)`` of a compiled library, for the driver's route:
-    the path and name travel to worker processes, the loaded function stays here."""
-    return (str(path), name, load_native(path, name))
+    the path (absolute: a worker may start elsewhere) and name travel to worker processes,
+    the loaded function stays here."""
+    return (str(Path(path).resolve()), name, load_native(path, name))
