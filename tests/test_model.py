@@ -193,12 +193,12 @@ def test_compile_function_builds_for_this_cpu_and_falls_back_without_march_nativ
     monkeypatch.delenv("SOFTCURVE_PORTABLE")
     monkeypatch.setenv("CC", str(refusing))
     monkeypatch.setenv("SOFTCURVE_CACHE_DIR", str(tmp_path / "refused"))
-    monkeypatch.setattr(generated, "_REFUSING_NATIVE", set())
+    monkeypatch.setattr(model_module, "_REFUSING_NATIVE", set())
     compiled = generated.compile_function(function)
     assert compiled.class_name() == "External"  # compiled, without -march=native
     x = np.array([0.3, -2.0, 1.5])
     np.testing.assert_allclose(np.array(compiled(x)), np.array(function(x)), rtol=1e-15)
-    assert generated._REFUSING_NATIVE == {(str(refusing),)}
+    assert model_module._REFUSING_NATIVE == {(str(refusing),)}
     x = ca.SX.sym("x")
     generated.compile_function(ca.Function("softcurve_test_other", [x], [ca.cos(x)]))
     assert refused.read_text().count("x") == 1  # remembered: the second asked no more

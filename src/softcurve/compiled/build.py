@@ -297,12 +297,7 @@ def compiled_library(structure, quadrature_nodes, symbolic, load=None):
     def build(path: Path) -> None:
         functions = symbolic()
         selected = {name: functions[name] for name in COMPILED_FUNCTIONS}
-        try:
-            _compile(selected, compiler, path, _compile_flags())
-        except subprocess.CalledProcessError:
-            if _compile_flags() == _COMPILE_FLAGS:
-                raise
-            _compile(selected, compiler, path)  # a compiler without -march=native
+        _compile_for_this_cpu(selected, compiler, path, _COMPILE_FLAGS)
 
     try:
         loaded = _load_or_build(library, build, load or (lambda path: path), stacklevel=3)
@@ -339,6 +334,26 @@ def _compile(
         objects = [f"{name}.o" for name in functions]
         _run([*compiler, "-shared", "-o", str(partial), *objects, "-lm"], tmp)
         _install(library, partial.read_bytes())
+
+
+_REFUSING_NATIVE: set[tuple[str, ...]] = set()
+"""Compiler commands that refused :data:`_NATIVE_FLAGS` in this process: later builds go
+without them at once, instead of failing first (a failed compile of a large generated
+file costs as much as a good one)."""
+
+
+def _compile_for_this_cpu(functions, compiler, library, flags, tail=()) -> None:
+    """:func:`_compile` with ``(*flags, *native, *tail)``, ``native`` from
+    :func:`_native_flags`; again without them where the compiler refuses them (remembered
+    in :data:`_REFUSING_NATIVE`)."""
+    wanted = () if tuple(compiler) in _REFUSING_NATIVE else _native_flags()
+    try:
+        _compile(functions, compiler, library, (*flags, *wanted, *tail))
+    except subprocess.CalledProcessError:
+        if not wanted:
+            raise
+        _compile(functions, compiler, library, (*flags, *tail))
+        _REFUSING_NATIVE.add(tuple(compiler))  # built without them: they were refused
 
 
 def _install(library: Path, data: bytes) -> None:

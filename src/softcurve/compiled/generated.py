@@ -26,12 +26,6 @@ plain ``-O1``; GCC's straight-line vectorizer and second scheduling pass added n
 measurable."""
 
 
-_REFUSING_NATIVE: set[tuple[str, ...]] = set()
-"""Compiler commands that refused ``-march=native`` in this process: later functions are
-compiled without it at once, instead of failing first (a failed compile of a large
-function costs as much as a good one)."""
-
-
 def compile_function(function: ca.Function, flags: tuple[str, ...] | None = None, load=None):
     """``function`` generated as C, compiled, cached on disk by its content and loaded.
 
@@ -66,29 +60,20 @@ def compile_function(function: ca.Function, flags: tuple[str, ...] | None = None
     if compiler is None:
         return function
     flags = FUNCTION_FLAGS if flags is None else tuple(flags)
-    native = build._native_flags()
     digest = hashlib.sha256(function.serialize().encode())
     digest.update(f"{ca.__version__} {sys.platform} {compiler} {flags}".encode())
-    if native:
+    if build._native_flags():
         digest.update(build._cpu_identity().encode())
     digest.update(build._FUNCTION_CACHE_FORMAT.encode())
     library = build.cache_directory() / f"function_{digest.hexdigest()[:24]}.so"
     name = function.name()
 
-    def make(path):
-        wanted = () if tuple(compiler) in _REFUSING_NATIVE else native
-        try:
-            build._compile({name: function}, compiler, path, (*flags, *wanted, "-fPIC"))
-        except subprocess.CalledProcessError:
-            if not wanted:
-                raise
-            build._compile({name: function}, compiler, path, (*flags, "-fPIC"))
-            _REFUSING_NATIVE.add(tuple(compiler))  # built without it: the flag was refused
-
     try:
         return build._load_or_build(
             library,
-            make,
+            lambda path: build._compile_for_this_cpu(
+                {name: function}, compiler, path, flags, ("-fPIC",)
+            ),
             (lambda path: ca.external(name, str(path), {"enable_fd": True}))
             if load is None
             else (lambda path: load(path, name)),
