@@ -38,7 +38,8 @@ def main() -> None:
     evaluate, theta = bench_identification.dynamic_evaluator(args.duration, "linear")
     evaluate(theta)  # compiles and loads the driver's functions
     problem, columns = evaluate._route()
-    f, fs, times, table, linear, (_, _, max_steps, _) = evaluate.driven
+    route = evaluate.driven
+    times, table, linear, max_steps = route.times, route.table, route.linear, route.tolerances[2]
     d_value = np.array(evaluate.direct(theta)[0]).ravel()
     start = np.concatenate([d_value[evaluate.n_p + evaluate.n_v :], evaluate.seed.ravel("F")])
     d_scaled = np.concatenate([d_value, evaluate.scale])

@@ -346,8 +346,7 @@ def sensitivities(problem, columns, start, d, d_scaled, times, table, linear, to
     out = np.zeros((times.size, start.size))
     out[0] = start
     arrays = [np.ascontiguousarray(a, dtype=np.float64) for a in (d, d_scaled, times, table)]
-    sizes = np.array([columns._sz_arg, columns._sz_res, columns._sz_iw, columns._sz_w])
-    sizes = sizes.astype(np.int64)
+    sizes = np.array([columns._sz_arg, columns._sz_res, columns._sz_iw, columns._sz_w], np.int64)
     counts = np.zeros(len(SENSITIVITY_STATISTICS), dtype=np.int64)
     reached = ctypes.c_int(0)
     rtol, atol, max_steps, family = tolerances

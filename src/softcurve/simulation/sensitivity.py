@@ -26,6 +26,7 @@ from __future__ import annotations
 import pickle
 import uuid
 from pathlib import Path
+from typing import NamedTuple
 
 import casadi as ca
 import numpy as np
@@ -54,6 +55,26 @@ NATIVE_FAMILY = 1
 Adams's higher orders)."""
 
 
+class DriverRoute(NamedTuple):
+    """What a :class:`SensitivityEvaluator` needs for the driver's route, and carries into
+    worker processes: the compiled libraries by ``(path, name)``, not their functions."""
+
+    state: tuple[str, str]
+    """``f(x, u, d)``: its library's absolute path and the function's name."""
+    columns: tuple[str, str]
+    """``fs(x;vec(S), u, d;scale) -> f;vec(S')``: path and name."""
+    sizes: tuple[int, int, int]
+    """``(nx, nu, n_d)`` of ``f``."""
+    times: np.ndarray
+    """Output times [s], shape (T,)."""
+    table: np.ndarray
+    """The inputs per interval, shape (T, k) or (T, 2 k) (:func:`native.sensitivities`)."""
+    linear: bool
+    """The inputs are linear between samples (else held)."""
+    tolerances: tuple
+    """``(rtol, atol, max_steps per output, family)``."""
+
+
 class SensitivityEvaluator:
     """``theta -> (Y (k, T), dvec(Y)/dtheta (k T, P))`` for one experiment.
 
@@ -66,8 +87,7 @@ class SensitivityEvaluator:
         self.direct, self.integrator, self.out = direct, integrator, out
         self.u_data, self.seed, self.scale, self.active = u_data, seed, scale, active
         self.n_p, self.n_v, self.n_x = sizes
-        # ((path, name) of f and of fs, sizes, times, table, linear, tolerances) or None
-        self.driven = driven
+        self.driven: DriverRoute | None = driven
         self.token, self._blob, self._native = uuid.uuid4().hex, None, None
         self.stats: dict = {}
         """The last evaluation's route and counters (steps, right-hand sides, ...), in the
@@ -118,14 +138,15 @@ class SensitivityEvaluator:
                           "error_test_failures": counts.get("netfails")}  # fmt: skip
             return states
         problem, columns = route
-        times, table, linear, tolerances = self.driven[3:]
+        driven = self.driven
         out, reached, flag, counts = native.sensitivities(
-            problem, columns, start, d_value, d_scaled, times, table, linear, tolerances
-        )
+            problem, columns, start, d_value, d_scaled, driven.times, driven.table,
+            driven.linear, driven.tolerances,
+        )  # fmt: skip
         self.stats = {"route": "driver", **counts}
         if flag:
             raise RuntimeError(
-                f"CVODES failed after t = {times[reached - 1]:g} s: {native.reason(flag)}"
+                f"CVODES failed after t = {driven.times[reached - 1]:g} s: {native.reason(flag)}"
             )
         return out.T
 
@@ -134,10 +155,10 @@ class SensitivityEvaluator:
         if self.driven is None or native.driver() is None:
             return None
         if self._native is None:  # a worker process: load the libraries the parent built
-            (f_path, f_name), (fs_path, fs_name), sizes = self.driven[:3]
+            driven = self.driven
             try:
-                route = (native.Problem(load_native(f_path, f_name), *sizes),
-                         load_native(fs_path, fs_name))  # fmt: skip
+                route = (native.Problem(load_native(*driven.state), *driven.sizes),
+                         load_native(*driven.columns))  # fmt: skip
             except (OSError, RuntimeError, AttributeError):  # not loadable: CasADi's route
                 route = False
             self._native = route
@@ -295,8 +316,8 @@ def trajectory_sensitivities(
             tolerances += (int(settings["max_num_steps"]), NATIVE_FAMILY)
             table = np.ascontiguousarray(u_data.T)
             sizes = (n_x, plain.size1_in(1), plain.size1_in(2))
-            located = tuple(entry[:2] for entry in libraries)
-            driven = (*located, sizes, t, table, hold == "linear", tolerances)
+            (state, columns) = (entry[:2] for entry in libraries)
+            driven = DriverRoute(state, columns, sizes, t, table, hold == "linear", tolerances)
             (f_loaded, fs_loaded) = (entry[2] for entry in libraries)
             loaded = (native.Problem(f_loaded, *sizes), fs_loaded)
     evaluator = SensitivityEvaluator(
