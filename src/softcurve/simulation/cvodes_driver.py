@@ -90,6 +90,35 @@ typedef struct {
     long jacobians, evaluations;
 } sc_work;
 
+/* Work arrays of f for n states (x, xdot, tau, ftmp, J and LU in one block after f's own
+ * work); 0, or 1 when out of memory (work_close frees what was allocated). */
+static int work_open(sc_work *s, const sc_function *fn, int n) {
+    memset(s, 0, sizeof(*s));
+    s->fn = fn;
+    s->n = n;
+    s->arg = (const double **)calloc(fn->sz_arg > 3 ? fn->sz_arg : 3, sizeof(double *));
+    s->res = (double **)calloc(fn->sz_res > 1 ? fn->sz_res : 1, sizeof(double *));
+    s->iw = (long long *)calloc(fn->sz_iw + 1, sizeof(long long));
+    s->w = (double *)calloc(fn->sz_w + 1 + 4 * n + fn->nx + 2 * n * n, sizeof(double));
+    s->piv = (int *)calloc(n, sizeof(int));
+    if (!s->arg || !s->res || !s->iw || !s->w || !s->piv) return 1;
+    s->x = s->w + fn->sz_w + 1;
+    s->xdot = s->x + n;
+    s->tau = s->xdot + n;
+    s->ftmp = s->tau + fn->nx;
+    s->J = s->ftmp + n;
+    s->LU = s->J + n * n;
+    return 0;
+}
+
+static void work_close(sc_work *s) {
+    free(s->arg);
+    free(s->res);
+    free(s->iw);
+    free(s->w);
+    free(s->piv);
+}
+
 static void quiet(int code, const char *module, const char *function, char *msg, void *data) {
     (void)code; (void)module; (void)function; (void)msg; (void)data;
 }
@@ -259,25 +288,10 @@ __attribute__((visibility("default"))) int softcurve_cvodes(
     sc_work s;
     void *mem[3] = {NULL, NULL, NULL};
     N_Vector y = N_VNew_Serial(n);
-    long long sz_arg = fn->sz_arg > 3 ? fn->sz_arg : 3, sz_res = fn->sz_res > 1 ? fn->sz_res : 1;
-    memset(&s, 0, sizeof(s));
-    s.fn = fn;
-    s.n = n;
-    s.arg = (const double **)calloc(sz_arg, sizeof(double *));
-    s.res = (double **)calloc(sz_res, sizeof(double *));
-    s.iw = (long long *)calloc(fn->sz_iw + 1, sizeof(long long));
-    s.w = (double *)calloc(fn->sz_w + 1 + 4 * n + fn->nx + 2 * n * n, sizeof(double));
-    s.piv = (int *)calloc(n, sizeof(int));
-    if (y == NULL || !s.arg || !s.res || !s.iw || !s.w || !s.piv) {
+    if (work_open(&s, fn, n) || y == NULL) {
         for (b = 0; b < count; ++b) flag[b] = -100, reached[b] = 1;
         goto done;
     }
-    s.x = s.w + fn->sz_w + 1;
-    s.xdot = s.x + n;
-    s.tau = s.xdot + n;
-    s.ftmp = s.tau + fn->nx;
-    s.J = s.ftmp + n;
-    s.LU = s.J + n * n;
     for (b = 0; b < count; ++b) {
         int family = lmm[b] == CV_BDF ? CV_BDF : CV_ADAMS, first = 0;
         double *ys = N_VGetArrayPointer(y), *row = out + (long)b * k * n, tret;
@@ -337,11 +351,7 @@ done:
     for (i = 1; i < 3; ++i)
         if (mem[i] != NULL) CVodeFree(&mem[i]);
     if (y != NULL) N_VDestroy(y);
-    free(s.arg);
-    free(s.res);
-    free(s.iw);
-    free(s.w);
-    free(s.piv);
+    work_close(&s);
     return 0;
 }
 /* f at `count` states x[b, :] (physical, nx + lagging inputs) with inputs u[b, :] and
@@ -351,34 +361,20 @@ __attribute__((visibility("default"))) int softcurve_rhs(const sc_function *fn, 
                                                          const double *p, double *xdot) {
     int n = fn->nx + (fn->lag ? fn->m : 0), inputs = fn->force ? fn->m : fn->nu, b, i, status = 0;
     sc_work s;
-    long long sz_arg = fn->sz_arg > 3 ? fn->sz_arg : 3, sz_res = fn->sz_res > 1 ? fn->sz_res : 1;
     double *ones = (double *)malloc(n * sizeof(double));
-    memset(&s, 0, sizeof(s));
-    s.fn = fn;
-    s.n = n;
-    s.p = p;
-    s.arg = (const double **)calloc(sz_arg, sizeof(double *));
-    s.res = (double **)calloc(sz_res, sizeof(double *));
-    s.iw = (long long *)calloc(fn->sz_iw + 1, sizeof(long long));
-    s.w = (double *)calloc(fn->sz_w + 1 + 3 * n + fn->nx, sizeof(double));
-    if (!ones || !s.arg || !s.res || !s.iw || !s.w) {
+    if (work_open(&s, fn, n) || !ones) {
         status = -100;
     } else {
         for (i = 0; i < n; ++i) ones[i] = 1.0;
         s.nominal = ones;
-        s.x = s.w + fn->sz_w + 1;
-        s.xdot = s.x + n;
-        s.tau = s.xdot + n;
+        s.p = p;
         for (b = 0; b < count && status == 0; ++b) {
             s.u = u + (long)b * inputs;
             if (evaluate(&s, x + (long)b * n, xdot + (long)b * n) < 0) status = -1;
         }
     }
     free(ones);
-    free(s.arg);
-    free(s.res);
-    free(s.iw);
-    free(s.w);
+    work_close(&s);
     return status;
 }
 """

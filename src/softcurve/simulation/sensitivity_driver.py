@@ -113,32 +113,20 @@ __attribute__((visibility("default"))) int softcurve_sensitivities(
     double *ones = (double *)malloc(n * sizeof(double)), tret;
     memset(&z, 0, sizeof(z));
     *reached = 1;
-    z.s.fn = fn;
-    z.s.n = n;
+    flag = work_open(&z.s, fn, n) ? -100 : 0;
     z.s.p = d;
-    z.s.arg = (const double **)calloc(fn->sz_arg > 3 ? fn->sz_arg : 3, sizeof(double *));
-    z.s.res = (double **)calloc(fn->sz_res > 1 ? fn->sz_res : 1, sizeof(double *));
-    z.s.iw = (long long *)calloc(fn->sz_iw + 1, sizeof(long long));
-    z.s.w = (double *)calloc(fn->sz_w + 1 + 4 * n + fn->nx + 2 * n * n, sizeof(double));
-    z.s.piv = (int *)calloc(n, sizeof(int));
     z.arg = (const double **)calloc(fs_sizes[0] > 3 ? fs_sizes[0] : 3, sizeof(double *));
     z.res = (double **)calloc(fs_sizes[1] > 1 ? fs_sizes[1] : 1, sizeof(double *));
     z.iw = (long long *)calloc(fs_sizes[2] + 1, sizeof(long long));
     z.w = (double *)calloc(fs_sizes[3] + 1 + 2 * width + fn->nu, sizeof(double));
-    if (!y || !ones || !z.s.arg || !z.s.res || !z.s.iw || !z.s.w || !z.s.piv || !z.arg ||
-        !z.res || !z.iw || !z.w || (m > 0 && !(yS = N_VCloneVectorArray_Serial(m, y)))) {
+    if (flag || !y || !ones || !z.arg || !z.res || !z.iw || !z.w ||
+        (m > 0 && !(yS = N_VCloneVectorArray_Serial(m, y)))) {
         flag = -100;
         goto done;
     }
     if (count < 2) goto done;
     for (i = 0; i < n; ++i) ones[i] = 1.0;
     z.s.nominal = ones; /* unscaled: the absolute tolerance is in the state's units */
-    z.s.x = z.s.w + fn->sz_w + 1;
-    z.s.xdot = z.s.x + n;
-    z.s.tau = z.s.xdot + n;
-    z.s.ftmp = z.s.tau + fn->nx;
-    z.s.J = z.s.ftmp + n;
-    z.s.LU = z.s.J + n * n;
     z.fs = fs;
     z.m = m;
     z.nu = fn->nu;
@@ -197,11 +185,7 @@ done:
     if (yS) N_VDestroyVectorArray_Serial(yS, m);
     if (y) N_VDestroy(y);
     free(ones);
-    free(z.s.arg);
-    free(z.s.res);
-    free(z.s.iw);
-    free(z.s.w);
-    free(z.s.piv);
+    work_close(&z.s);
     free(z.arg);
     free(z.res);
     free(z.iw);
