@@ -35,6 +35,7 @@ import time
 
 import casadi as ca
 import numpy as np
+from timing import best_of  # benchmarks/timing.py, beside this script
 
 import softcurve as sc
 from softcurve.identification.dynamic import fit_equilibria
@@ -55,15 +56,6 @@ PREVIOUS = {
     "dynamic (here, before, load 9)": "180-250 s",
     "quasi-static 3 / 1 segments (issue report)": "241 s / 8 s = 30x",
 }
-
-
-def best_of(repeat, run):
-    times, result = [], None
-    for _ in range(repeat):
-        start = time.perf_counter()
-        result = run()
-        times.append(time.perf_counter() - start)
-    return min(times), result
 
 
 def dynamic_evaluator(duration: float, hold: str, options=None):

@@ -19,10 +19,10 @@ import argparse
 import contextlib
 import os
 import platform
-import time
 
 import numpy as np
 from scipy.integrate import solve_ivp
+from timing import best_of  # benchmarks/timing.py, beside this script
 
 import softcurve as sc
 from softcurve.simulation import native
@@ -34,15 +34,6 @@ TARGET_MS = 5.0
 
 def error(x, reference, scale) -> float:
     return float(np.max(np.abs(x - reference) / scale))
-
-
-def best_of(repeat, run):
-    times, result = [], None
-    for _ in range(repeat):
-        start = time.perf_counter()
-        result = run()
-        times.append(time.perf_counter() - start)
-    return min(times), result
 
 
 def main() -> None:

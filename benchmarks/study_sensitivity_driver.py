@@ -19,7 +19,6 @@ from __future__ import annotations
 
 import argparse
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
@@ -28,6 +27,7 @@ from softcurve.simulation import native
 
 sys.path.insert(0, str(Path(__file__).parent))
 import bench_identification
+from timing import best_of
 
 
 def main() -> None:
@@ -45,13 +45,8 @@ def main() -> None:
     d_scaled = np.concatenate([d_value, evaluate.scale])
 
     def best(run):
-        run()
-        walls = []
-        for _ in range(args.repeat):
-            begin = time.perf_counter()
-            result = run()
-            walls.append(time.perf_counter() - begin)
-        return min(walls), result
+        run()  # warm-up
+        return best_of(args.repeat, run)
 
     wall, reference = best(
         lambda: np.array(evaluate.integrator(x0=start, p=d_scaled, u=evaluate.u_data)["xf"])
