@@ -35,7 +35,7 @@ import time
 
 import casadi as ca
 import numpy as np
-from timing import best_of  # benchmarks/timing.py, beside this script
+from _timing import best_of  # benchmarks/_timing.py: a helper, not a benchmark
 
 import softcurve as sc
 from softcurve.identification.dynamic import fit_equilibria

@@ -21,8 +21,8 @@ import os
 import platform
 
 import numpy as np
+from _timing import best_of  # benchmarks/_timing.py: a helper, not a benchmark
 from scipy.integrate import solve_ivp
-from timing import best_of  # benchmarks/timing.py, beside this script
 
 import softcurve as sc
 from softcurve.simulation import native

@@ -27,7 +27,7 @@ from softcurve.simulation import native
 
 sys.path.insert(0, str(Path(__file__).parent))
 import bench_identification
-from timing import best_of
+from _timing import best_of  # benchmarks/_timing.py: a helper, not a benchmark
 
 
 def main() -> None:

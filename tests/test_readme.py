@@ -27,6 +27,7 @@ SCRIPTS = sorted(
     str(p.relative_to(README.parent))
     for folder in ("examples", "benchmarks")
     for p in (README.parent / folder).glob("*.py")
+    if not p.name.startswith("_")  # helpers the scripts import, not scripts
 )
 
 
