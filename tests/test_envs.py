@@ -127,6 +127,11 @@ def test_a_failing_member_ends_only_its_own_episode():
     assert np.all(np.isfinite(infos["final_obs"][1]))
     assert rewards[1] == -1.0
     assert list(infos["time"]) == pytest.approx([0.04, 0.0, 0.04])  # member 1 restarted
+    # the restarted member's info is its reset's: no inputs acted on it yet (masked, no NaN)
+    assert list(infos["_inputs"]) == [True, False, True]
+    assert np.all(np.isfinite(infos["inputs"])) and infos["_time"].all()
+    stepper = vector.episodes.setup.stepper  # action 0 is the middle of the bounds
+    assert infos["final_info"]["inputs"][1] == pytest.approx((stepper.lower + stepper.upper) / 2)
     assert np.all(np.isfinite(vector.episodes.x))
     observations, _, _, truncated, infos = vector.step(np.zeros((3, 3)))
     assert not truncated.any() and np.all(np.isfinite(observations))

@@ -22,15 +22,21 @@ from softcurve.envs.setup import env_parameters
 from softcurve.envs.tasks import PressTask, ReachTask, TrackTask
 
 
-def _masked(info: dict, size: int) -> dict:
-    """``info`` with an all-true mask ``_k`` for each key ``k`` (Gymnasium's layout; one
-    read-only array shared by the keys)."""
+def _masked(info: dict, size: int, absent: dict | None = None) -> dict:
+    """``info`` with a mask ``_k`` for each key ``k`` (Gymnasium's layout): all true (one
+    read-only array shared by the keys), except for the keys of ``absent``, whose
+    members given there hold no value (zero, mask false)."""
     every = np.ones(size, dtype=bool)
     every.flags.writeable = False
+    absent = absent or {}
     out = {}
     for key, value in info.items():
         out[key] = value
         out[f"_{key}"] = every
+        if key in absent:
+            value[absent[key]] = 0
+            out[f"_{key}"] = every.copy()
+            out[f"_{key}"][absent[key]] = False
     return out
 
 
@@ -160,8 +166,8 @@ class SoftRobotVectorEnv(VectorEnv):
             observation[done] = new_observation
             for key, value in new_info.items():
                 info[key][done] = value
-            info["inputs"][done] = np.nan  # no input acted on the new episode yet
-            info = _masked(info, self.num_envs)
+            # a reset member's info is its reset's, which has no inputs: none acted yet
+            info = _masked(info, self.num_envs, absent={"inputs": done})
             info.update(final_obs=final_obs, _final_obs=mask, final_info=final_info,
                         _final_info=mask.copy())  # fmt: skip
         else:
