@@ -66,6 +66,15 @@ def test_a_unit_mismatch_with_a_map_is_caught_by_name():
     with pytest.raises(sc.ExperimentError, match=r"input 'p1' is in 'N' but the input map "
                        r"expects 'Pa'; label it with one of \['MPa', 'Pa', 'bar'"):  # fmt: skip
         check_units(newtons, output=curvatures(), input_map=inputs)
+    # a map in millimetres against data labelled mm: the data were converted to metres
+    millimetres = sc.Experiment(T, {"x": T, "y": T, "z": T}, units=dict.fromkeys("xyz", "mm"))
+    frame = sc.SensorFrame("camera", scale=1000.0, unit="mm")
+    model = sc.Model(sc.presets.ifac2020(), compile=False)
+    with pytest.raises(sc.ExperimentError, match=r"signal 'x' is in 'm' \(recorded in 'mm'\), "
+                       r"converted at load, but the output map gives 'mm'.*build the map "
+                       r"in 'm' \(a scale of 1\)"):  # fmt: skip
+        check_units(millimetres, output=sc.tip_position(model, frame=frame))
+    check_units(millimetres, output=sc.tip_position(model, frame=sc.SensorFrame("camera")))
     angles = sc.Experiment(T, {"beta": T}, units={"beta": "rad"})
     with pytest.raises(sc.ExperimentError, match=r"signal 'beta' is in 'rad' but the output "
                        "map expects 'deg'"):  # fmt: skip
