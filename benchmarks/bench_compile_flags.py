@@ -77,6 +77,8 @@ int main(int argc, char** argv) {
 """
 
 FLAG_SETS = {
+    "-O0": ("-O0",),
+    "-O0 -march=native": ("-O0", "-march=native"),
     "-O1": ("-O1",),
     "-O1 -march=native": ("-O1", "-march=native"),
     "-O1 -march=native -ftree-slp-vectorize -fschedule-insns2": (
@@ -87,7 +89,7 @@ FLAG_SETS = {
 }  # fmt: skip
 USED = {
     "rhs": ("-O2", "-march=native"),  # the model library's flags (build._COMPILE_FLAGS)
-    "stepper": generated.FUNCTION_FLAGS + build._NATIVE_FLAGS,
+    "stepper": stepper_scheme.STEPPER_FLAGS + build._NATIVE_FLAGS,
     "sensitivity": generated.FUNCTION_FLAGS + build._NATIVE_FLAGS,
 }
 SLOW = ("-O2 -march=native", "-O3 -march=native")
@@ -188,9 +190,14 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="skip -O2/-O3 of the sensitivity")
     parser.add_argument("--repeat", type=int, default=5)
+    parser.add_argument(
+        "--only", choices=("rhs", "stepper", "sensitivity"), help="one function only"
+    )
     args = parser.parse_args()
     print(f"load average {os.getloadavg()}, {os.cpu_count()} cores, compiler {build._compiler()}")
     for label, function, values in cases():
+        if args.only not in (None, label):
+            continue
         calls = {"rhs": 100_000, "stepper": 2_000, "sensitivity": 10_000}[label]
         print(f"\n{label}: {function.n_instructions()} instructions in CasADi's graph")
         with tempfile.TemporaryDirectory() as directory:

@@ -15,8 +15,9 @@ substeps.
    interface, best of 20,000): the work of one member-period in right-hand sides.
 2. Threads: N = 256 with 1 thread and with all cores (the speed-up shows whether the
    threads run in parallel).
-3. Compiler flags: the stepper compiled with softcurve's flags (``FUNCTION_FLAGS``) against
-   -O2 (``--skip-o1`` skips the extra compile; ``bench_compile_flags.py`` compares more).
+3. Compiler flags: the stepper compiled with softcurve's flags (``STEPPER_FLAGS``) against
+   ``compile_function``'s ``FUNCTION_FLAGS`` (``--skip-o1`` skips the extra compile;
+   ``bench_compile_flags.py`` compares more).
 4. Accuracy: random pressure commands, uniform in the bounds, held 20 ms each over
    ``--accuracy-periods`` periods (2 s), two seeds, against ``simulate(..., rtol=1e-10)``
    with the same piecewise-constant commands: the max tip-position error [mm] and
@@ -49,7 +50,7 @@ import softcurve as sc
 from softcurve.compiled.generated import FUNCTION_FLAGS
 from softcurve.simulation.integrators import ActuatorInput
 from softcurve.simulation.stepper import DEFAULT_METHOD, DEFAULT_SUBSTEPS, Stepper
-from softcurve.simulation.stepper_scheme import METHODS, period_function
+from softcurve.simulation.stepper_scheme import METHODS, STEPPER_FLAGS, period_function
 
 PERIOD = 0.02
 
@@ -143,7 +144,7 @@ def compiler_flags(model, actuator, repeat) -> None:
     x[0] = 0.064
     u = np.full(actuator.n_inputs, 3e4)
     period = np.array([PERIOD])
-    for flags in (FUNCTION_FLAGS, ("-O2",)):
+    for flags in (STEPPER_FLAGS, FUNCTION_FLAGS):
         start = time.perf_counter()
         f = period_function(model, inputs, DEFAULT_SUBSTEPS, DEFAULT_METHOD, True, flags)
         built = time.perf_counter() - start

@@ -1,6 +1,8 @@
 """Robust fits: a trial point the model cannot evaluate is a rejected step; predicting
 from a failed fit raises; multi-start reports the spread of its optima."""
 
+import os
+
 import numpy as np
 import pytest
 
@@ -9,10 +11,12 @@ import softcurve.identification.dynamic as dynamic
 from softcurve.base.status import Status
 from softcurve.identification.dynamic import fit_trajectory, predict_trajectory
 from softcurve.identification.experiments import Experiment
+from softcurve.identification.joint import evaluate_all
 from softcurve.identification.maps import bending_angle
 from softcurve.identification.parameters import Free
 from softcurve.identification.report import FitError, FitWarning
 from softcurve.identification.solve import robust_least_squares, starting_points
+from softcurve.simulation.workers import WorkerDied
 
 SEG = "segments[0]."
 LENGTH = 0.064
@@ -55,6 +59,58 @@ def test_a_model_that_cannot_be_evaluated_at_the_start_reports_the_start():
     assert solution.status is Status.NOT_CONVERGED and solution.residuals is None
     assert "cannot be evaluated at the starting values" in solution.message
     np.testing.assert_array_equal(solution.z, [0.5, 0.5])
+
+
+def test_a_worker_that_dies_ends_the_fit_with_the_best_point_found():
+    """A dead worker process is the machine's fault, not the trial point's: no rejected
+    step and no retry, but the end of the run with the best point so far."""
+    clean, calls = _rosenbrock(())
+
+    def dies_at_the_fifth(z):
+        if len(calls) == 4:
+            raise WorkerDied("a worker process died (forced)")
+        return clean(z)
+
+    bounds = (np.full(2, -5.0), np.full(2, 5.0))
+    solution = robust_least_squares(dies_at_the_fifth, [-1.2, 1.0], *bounds, 200)
+    assert solution.status is Status.INTERRUPTED and solution.rejected == 0
+    assert solution.message.startswith("stopped: a worker process died (forced)")
+    assert solution.n_evaluations == 5 and len(calls) == 4
+    costs = [0.5 * np.sum(clean(z)[0] ** 2) for z in calls]
+    assert solution.cost == pytest.approx(min(costs), rel=1e-12)
+
+
+def test_a_killed_worker_process_is_reported_as_worker_died():
+    """A real worker process that exits while it holds its task (os._exit in the worker)."""
+    with pytest.raises(WorkerDied, match="a worker process died"):
+        evaluate_all([os._exit, os._exit], [3, 3], processes=2)
+
+
+def test_a_fit_whose_worker_died_is_interrupted_and_warns_on_prediction(oscillation, monkeypatch):
+    model, x0, data = oscillation
+    evaluate = dynamic.trajectory_sensitivities
+    calls = []
+
+    def build(*args, **kwargs):
+        inner = evaluate(*args, **kwargs)
+
+        def dying(theta):
+            calls.append(theta)
+            if len(calls) == 3:
+                raise WorkerDied("a worker process died (forced)")
+            return inner(theta)
+
+        return dying
+
+    monkeypatch.setattr(dynamic, "trajectory_sensitivities", build)
+    report = fit_trajectory(model, data, output=bending_angle(), x0=x0, free=FREE, starts=2)
+    assert report.status is Status.INTERRUPTED, report.message
+    assert "stopped: a worker process died" in report.message
+    assert "best point found before" in report.message
+    assert len(calls) == 4  # two evaluated, the third died, the estimate evaluated again
+    monkeypatch.undo()
+    with pytest.warns(FitWarning, match="stopped before it finished"):
+        predict_trajectory(model, data, report, output=bending_angle(), x0=x0)
 
 
 def test_starting_points_are_seeded_and_within_bounds():

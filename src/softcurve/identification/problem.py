@@ -160,10 +160,15 @@ class Problem:
                     on_evaluation=lambda c, o=offset: bar.update(o + c),
                 )
             )
+            if solutions[-1].status is Status.INTERRUPTED:  # no worker left to go on with
+                break
         bar.close()
         if solutions:
             best = min(solutions, key=lambda s: s.cost)
             z, status, message = best.z, best.status, best.message
+            if solutions[-1].status is Status.INTERRUPTED:
+                status = Status.INTERRUPTED
+                message = f"{solutions[-1].message}; the values are the best point found before"
             count = sum(s.n_evaluations for s in solutions)
         else:
             z, status, message, count = np.zeros(0), Status.SUCCESS, "nothing to fit", 0

@@ -338,8 +338,9 @@ def usable_fit(fit: FitReport) -> FitReport:
 
     A fit that failed (NOT_CONVERGED: no point could be evaluated, or the model fails
     at the estimate; INFEASIBLE: the estimate is not an admissible robot) raises; one
-    that ran out of evaluations warns (:class:`FitWarning`): its values are the best
-    point found, not a converged estimate.
+    that ran out of evaluations or was stopped (INTERRUPTED: a worker process died)
+    warns (:class:`FitWarning`): its values are the best point found, not a converged
+    estimate.
 
     Parameters
     ----------
@@ -355,6 +356,13 @@ def usable_fit(fit: FitReport) -> FitReport:
         warnings.warn(
             f"predicting from a fit that ran out of evaluations ({fit.message}): its values "
             "are the best point found; raise max_evaluations or start closer",
+            FitWarning,
+            stacklevel=3,
+        )
+    if fit.status is Status.INTERRUPTED:
+        warnings.warn(
+            f"predicting from a fit that was stopped before it finished ({fit.message}): "
+            "its values are the best point found; run the fit again from them",
             FitWarning,
             stacklevel=3,
         )

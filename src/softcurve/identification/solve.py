@@ -8,7 +8,9 @@ confined to a box around it whose half-width is a quarter of the failed step's l
 (an outer trust region: a run that stops at the box's edge starts again from there with
 a box :data:`GROW` times larger). This repeats until the solver converges inside its
 box, the budget of evaluations runs out, or the half-width falls below
-:data:`SMALLEST_RADIUS`. The result is always the best point evaluated.
+:data:`SMALLEST_RADIUS`. A worker process that dies
+(:class:`~softcurve.simulation.workers.WorkerDied`) is no rejected step but the end of
+the run, with status ``INTERRUPTED``. The result is always the best point evaluated.
 
 :func:`multi_start` runs the same from several seeded starting points (uniform within
 finite bounds, else perturbations of the given start) and keeps every optimum, so the
@@ -23,6 +25,7 @@ import numpy as np
 import scipy.optimize
 
 from softcurve.base.status import Status
+from softcurve.simulation.workers import WorkerDied
 
 EVALUATION_ERRORS = (RuntimeError, FloatingPointError, ArithmeticError, np.linalg.LinAlgError)
 """What a model evaluation raises when the point cannot be evaluated: CasADi's
@@ -51,6 +54,10 @@ PERTURBATION = 0.5
 TOLERANCE = 1e-10
 """SciPy's ``xtol``, ``ftol`` and ``gtol``: tight, so that fits stop on the cost's
 curvature rather than early (the validated fits in ``tests/test_identify.py``)."""
+
+
+class _Stopped(Exception):
+    """The evaluation cannot go on (a worker process died): end the fit, keep the best."""
 
 
 class _Failed(Exception):
@@ -108,7 +115,9 @@ def robust_least_squares(
     ----------
     residual_and_jacobian : callable
         ``f(z) -> (r (N,), J (N, P))``; raises one of :data:`EVALUATION_ERRORS` (or
-        returns non-finite values) where the model cannot be evaluated.
+        returns non-finite values) where the model cannot be evaluated, and
+        :class:`~softcurve.simulation.workers.WorkerDied` where it can no longer be
+        evaluated at all (the run ends, status ``INTERRUPTED``).
     z0 : array_like, shape (P,)
         Starting point (scaled, dimensionless), clipped into the bounds.
     lower, upper : ndarray, shape (P,)
@@ -141,6 +150,8 @@ def robust_least_squares(
             r, jac = residual_and_jacobian(z)
             if not (np.all(np.isfinite(r)) and np.all(np.isfinite(jac))):
                 raise FloatingPointError("the model returned non-finite residuals")
+        except WorkerDied as exc:  # a RuntimeError, but the machine's fault, not the point's
+            raise _Stopped(str(exc)) from None
         except EVALUATION_ERRORS as exc:
             raise _Failed(z.copy(), str(exc).strip().splitlines()[-1][:300]) from None
         finally:
@@ -174,6 +185,9 @@ def robust_least_squares(
                 ftol=TOLERANCE,
                 gtol=TOLERANCE,
             )
+        except _Stopped as stop:
+            status, message = Status.INTERRUPTED, f"stopped: {stop}"
+            break
         except _Failed as failure:
             rejected += 1
             reasons.append(failure.reason)
@@ -208,7 +222,9 @@ def robust_least_squares(
     if best[0] is None:
         if not message:
             message = "no point could be evaluated"
-        return Solution(z0, None, None, Status.NOT_CONVERGED, message, count, rejected)
+        if status is not Status.INTERRUPTED:
+            status = Status.NOT_CONVERGED
+        return Solution(z0, None, None, status, message, count, rejected)
     _, z, r, jac = best[0]
     return Solution(z, r, jac, status, message, count, rejected)
 

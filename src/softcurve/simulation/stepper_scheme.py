@@ -210,6 +210,15 @@ ROS34PW2 = Tableau(
 L-stable and stiffly accurate."""
 
 METHODS = {t.name: t for t in (ROS2, ROS34PW2)}
+
+STEPPER_FLAGS = ("-O3",)
+"""Optimization flags of the compiled period (``-march=native`` is added unless
+``SOFTCURVE_PORTABLE`` is set). The period is small (about 1,000 CasADi instructions
+calling the right-hand side), so ``-O3`` compiles in about 12 s against 6-8 s at
+``-O1`` and pays: one member-period of the paper robot with the bellows took 214-228
+us against 267-323 us at ``-O1 -march=native`` (1.17-1.43x, three runs of
+``benchmarks/bench_compile_flags.py --only stepper`` on 2026-12-01, alternating
+builds)."""
 """The methods by name."""
 
 
@@ -282,8 +291,7 @@ def period_function(
     compiled : bool
         Generate and compile C (default), or evaluate in CasADi's virtual machine.
     flags : tuple of str, optional
-        The compiler's optimization flags (default
-        :data:`~softcurve.compiled.generated.FUNCTION_FLAGS`).
+        The compiler's optimization flags (default :data:`STEPPER_FLAGS`).
     jacobian_every : int, optional
         Steps between fresh Jacobians (default ``substeps``: one per period).
     native : bool
@@ -318,6 +326,7 @@ def period_function(
             "softcurve_stepper", [x, u, p, period], [out], ["x", "u", "p", "period"], ["out"]
         )
 
+    flags = STEPPER_FLAGS if flags is None else tuple(flags)
     inputs_key = None if inputs is None else inputs.key
     key = ("stepper", substeps, method, compiled, every, inputs_key)
     function = model.cached(key, graph)

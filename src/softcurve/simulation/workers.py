@@ -36,6 +36,11 @@ killed parent by about this long, or until the compiled call it is in returns (t
 needs the interpreter)."""
 
 
+class WorkerDied(RuntimeError):
+    """A worker process ended while it held a task (killed, out of memory, a crash in
+    compiled code): a fault of the machine, not of the task's model."""
+
+
 def _worker_start(parent: int) -> None:
     """Initializer of each worker: die when the process ``parent`` is gone."""
     # Not the kernel's parent-death signal (prctl PR_SET_PDEATHSIG): it follows the THREAD
@@ -161,7 +166,7 @@ def run_in_processes(function: Callable, tasks: dict, processes: int) -> Iterato
         raise
     except BrokenProcessPool as exc:
         _POOL.clear()
-        raise RuntimeError(
+        raise WorkerDied(
             f"a worker process died ({exc}). Workers are spawned and import the main "
             "module: in a script, start batches and sweeps under "
             "`if __name__ == '__main__':`"
