@@ -76,7 +76,7 @@ def test_a_worker_that_dies_ends_the_fit_with_the_best_point_found():
     assert solution.status is Status.INTERRUPTED and solution.rejected == 0
     assert solution.message.startswith("stopped: a worker process died (forced)")
     assert solution.n_evaluations == 5 and len(calls) == 4
-    costs = [0.5 * np.sum(clean(z)[0] ** 2) for z in calls]
+    costs = [0.5 * np.sum(clean(z)[0] ** 2) for z in list(calls)]  # clean appends
     assert solution.cost == pytest.approx(min(costs), rel=1e-12)
 
 
@@ -107,7 +107,7 @@ def test_a_fit_whose_worker_died_is_interrupted_and_warns_on_prediction(oscillat
     assert report.status is Status.INTERRUPTED, report.message
     assert "stopped: a worker process died" in report.message
     assert "best point found before" in report.message
-    assert len(calls) == 4  # two evaluated, the third died, the estimate evaluated again
+    assert len(calls) == 3  # two evaluated, the third died; the estimate is the second
     monkeypatch.undo()
     with pytest.warns(FitWarning, match="stopped before it finished"):
         predict_trajectory(model, data, report, output=bending_angle(), x0=x0)

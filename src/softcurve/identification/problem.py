@@ -129,9 +129,13 @@ class Problem:
             thetas = [J.local(theta, e) for e in range(len(experiments))]
             return evaluate_all(evaluators, thetas, processes)
 
+        outputs = {}  # z (bytes) -> the model's outputs there: the estimate is not rerun
+
         def residual_and_jacobian(z):
             rows, columns = [], []
-            for e, (y, jac) in enumerate(evaluate(z * J.scale)):
+            results = evaluate(z * J.scale)
+            outputs[z.tobytes()] = [np.asarray(y).T for y, _ in results]
+            for e, (y, jac) in enumerate(results):
                 rows.append((np.asarray(y).T - measured[e]).ravel() * w[e])
                 full = np.zeros((w[e].size, size))
                 full[:, J.index[e]] = jac * w[e][:, None]
@@ -176,10 +180,13 @@ class Problem:
         try:
             if solutions and best.residuals is None:  # nothing could be evaluated
                 raise RuntimeError("no point could be evaluated")
-            results = evaluate(theta)
-            count += 1
-            predicted = [np.asarray(y).T for y, _ in results]
-            r, jac = residual_and_jacobian(z)
+            if solutions and z.tobytes() in outputs:  # the best point, evaluated in the fit
+                r, jac = best.residuals, best.jacobian
+            else:  # nothing free (a prediction), or the best point's outputs are gone
+                r, jac = residual_and_jacobian(z)
+                count += 1
+            predicted = outputs[z.tobytes()]
+            outputs.clear()
             jac = jac / J.scale
         except (RuntimeError, FloatingPointError) as exc:
             if not (solutions and best.residuals is None):
