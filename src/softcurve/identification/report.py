@@ -127,7 +127,14 @@ class FitReport(Result):
 
     @property
     def intervals(self) -> np.ndarray:
-        """Confidence intervals, shape (P, 2), Student t with ``N - P`` degrees of freedom."""
+        """Confidence intervals, shape (P, 2), Student t with ``N - P`` degrees of freedom.
+
+        They assume independent residuals. The residuals of a dense time series are
+        correlated (a model error lasts longer than a sample), so its intervals are too
+        narrow by about ``sqrt((1 + rho) / (1 - rho))`` for a lag-one correlation
+        ``rho``: read them as a lower bound, or fit samples spaced beyond the
+        correlation time.
+        """
         dof = max(self.measured.size - len(self.names), 1)
         half = scipy.stats.t.ppf(0.5 + self.confidence / 2, dof) * self.standard_errors
         return np.column_stack([self.values - half, self.values + half])
