@@ -210,6 +210,7 @@ ROS34PW2 = Tableau(
 L-stable and stiffly accurate."""
 
 METHODS = {t.name: t for t in (ROS2, ROS34PW2)}
+"""The methods by name."""
 
 STEPPER_FLAGS = ("-O3",)
 """Optimization flags of the compiled period (``-march=native`` is added unless
@@ -219,7 +220,6 @@ calling the right-hand side), so ``-O3`` compiles in about 12 s against 6-8 s at
 us against 267-323 us at ``-O1 -march=native`` (1.17-1.43x, three runs of
 ``benchmarks/bench_compile_flags.py --only stepper`` on 2026-12-01, alternating
 builds)."""
-"""The methods by name."""
 
 
 def rosenbrock_step(f, x, u, p, solve, f0, h, tableau: Tableau):
