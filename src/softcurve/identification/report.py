@@ -2,7 +2,7 @@
 
 Every fit is a bounded nonlinear least-squares problem solved by SciPy's trust-region
 reflective method with an exact Jacobian, where a point the model cannot evaluate is a
-rejected step (:func:`solve_least_squares`, :mod:`softcurve.identification.solve`).
+rejected step (:func:`softcurve.identification.solve.robust_least_squares`).
 At the optimum
 the Jacobian gives the usual asymptotic covariance ``s^2 (J^T J)^-1`` (``s^2`` the
 residual variance), from which the report draws standard errors, confidence intervals
@@ -23,7 +23,6 @@ import scipy.stats
 from softcurve.base.status import Result, Status
 from softcurve.base.validation import ParameterError
 from softcurve.figures import plot_fit
-from softcurve.identification.solve import robust_least_squares
 
 SPREAD_COST = 1.01
 """Optima of a multi-start within this factor of the best cost count as the same
@@ -129,11 +128,8 @@ class FitReport(Result):
     def intervals(self) -> np.ndarray:
         """Confidence intervals, shape (P, 2), Student t with ``N - P`` degrees of freedom.
 
-        They assume independent residuals. The residuals of a dense time series are
-        correlated (a model error lasts longer than a sample), so its intervals are too
-        narrow by about ``sqrt((1 + rho) / (1 - rho))`` for a lag-one correlation
-        ``rho``: read them as a lower bound, or fit samples spaced beyond the
-        correlation time.
+        They assume independent residuals: for a time series, whose residuals are
+        correlated, read them as lower bounds (docs/identify.md).
         """
         dof = max(self.measured.size - len(self.names), 1)
         half = scipy.stats.t.ppf(0.5 + self.confidence / 2, dof) * self.standard_errors
@@ -315,31 +311,6 @@ def correlation_matrix(cov: np.ndarray) -> np.ndarray:
     return c
 
 
-def solve_least_squares(residual_and_jacobian, z0, lower, upper, max_evaluations):
-    """Bounded least squares on scaled variables ``z``, failed points rejected
-    (:func:`softcurve.identification.solve.robust_least_squares`).
-
-    Parameters
-    ----------
-    residual_and_jacobian : callable
-        ``f(z) -> (r (N,), J (N, P))``, evaluated once per point.
-    z0 : array_like, shape (P,)
-        Initial guess (scaled, dimensionless).
-    lower, upper : ndarray, shape (P,)
-        Bounds on ``z``.
-    max_evaluations : int
-        Budget of residual evaluations.
-
-    Returns
-    -------
-    tuple
-        ``(z, r, J, status, message, n_evaluations)`` at the best point evaluated, with
-        ``status`` a :class:`Status`: SUCCESS, EVALUATION_LIMIT or NOT_CONVERGED.
-    """
-    s = robust_least_squares(residual_and_jacobian, z0, lower, upper, max_evaluations)
-    return s.z, s.residuals, s.jacobian, s.status, s.message, s.n_evaluations
-
-
 def usable_fit(fit: FitReport) -> FitReport:
     """``fit`` if its values can be predicted from, else :class:`FitError`.
 
@@ -359,17 +330,18 @@ def usable_fit(fit: FitReport) -> FitReport:
             f"fit: cannot predict from a failed fit (status {fit.status.value}: "
             f"{fit.message}); {fit.status.advice}"
         )
-    if fit.status is Status.EVALUATION_LIMIT:
+    unfinished = {
+        Status.EVALUATION_LIMIT: (
+            "ran out of evaluations",
+            "raise max_evaluations or start closer",
+        ),
+        Status.INTERRUPTED: ("was stopped before it finished", "run the fit again from them"),
+    }
+    if fit.status in unfinished:
+        what, advice = unfinished[fit.status]
         warnings.warn(
-            f"predicting from a fit that ran out of evaluations ({fit.message}): its values "
-            "are the best point found; raise max_evaluations or start closer",
-            FitWarning,
-            stacklevel=3,
-        )
-    if fit.status is Status.INTERRUPTED:
-        warnings.warn(
-            f"predicting from a fit that was stopped before it finished ({fit.message}): "
-            "its values are the best point found; run the fit again from them",
+            f"predicting from a fit that {what} ({fit.message}): its values are the best "
+            f"point found; {advice}",
             FitWarning,
             stacklevel=3,
         )

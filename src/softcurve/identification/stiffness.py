@@ -12,12 +12,8 @@ import numpy as np
 from softcurve.base.status import Status
 from softcurve.base.validation import ParameterError
 from softcurve.description.materials import LinearStiffness, TanhStiffness
-from softcurve.identification.report import (
-    FitReport,
-    check_confidence,
-    solve_least_squares,
-    summarize,
-)
+from softcurve.identification.report import FitReport, check_confidence, summarize
+from softcurve.identification.solve import robust_least_squares
 
 # -- static identification of a stiffness law ---------------------------------------
 
@@ -146,15 +142,14 @@ def fit_stiffness(
 
     lower = np.zeros(len(names))
     upper = np.full(len(names), np.inf)
-    best = None
-    for start in starts:
-        run = solve_least_squares(
-            residual_and_jacobian, start / scale, lower, upper, max_evaluations
-        )
-        if run[1] is not None and (best is None or run[1] @ run[1] < best[1] @ best[1]):
-            best = run
-    z, r, _, status, message, count = best
-    alpha = to_alpha @ (z * scale) + offset
+    runs = [
+        robust_least_squares(residual_and_jacobian, start / scale, lower, upper, max_evaluations)
+        for start in starts
+    ]
+    best = min(runs, key=lambda run: run.cost)
+    r = best.residuals if best.residuals is not None else np.full(f.size, np.nan)
+    status, message, count = best.status, best.message, sum(run.n_evaluations for run in runs)
+    alpha = to_alpha @ (best.z * scale) + offset
     fitted, jac_alpha = _law_force_and_jacobian(kind, alpha, x)
     errors, corr, identifiable, status, message = summarize(
         names, w[:, None] * jac_alpha, r, status, message
