@@ -75,6 +75,10 @@ def test_a_unit_mismatch_with_a_map_is_caught_by_name():
                        r"in 'm' \(a scale of 1\)"):  # fmt: skip
         check_units(millimetres, output=sc.tip_position(model, frame=frame))
     check_units(millimetres, output=sc.tip_position(model, frame=sc.SensorFrame("camera")))
+    metres = sc.Experiment(T, {"x": T, "y": T, "z": T}, units=dict.fromkeys("xyz", "m"))
+    with pytest.raises(sc.ExperimentError, match=r"'x' is in 'm' but the output map expects "
+                       r"'mm'; label it"):  # fmt: skip
+        check_units(metres, output=sc.tip_position(model, frame=frame))
     angles = sc.Experiment(T, {"beta": T}, units={"beta": "rad"})
     with pytest.raises(sc.ExperimentError, match=r"signal 'beta' is in 'rad' but the output "
                        "map expects 'deg'"):  # fmt: skip

@@ -107,10 +107,19 @@ def test_a_fit_whose_worker_died_is_interrupted_and_warns_on_prediction(oscillat
     assert report.status is Status.INTERRUPTED, report.message
     assert "stopped: a worker process died" in report.message
     assert "best point found before" in report.message
-    assert len(calls) == 3  # two evaluated, the third died; the estimate is the second
+    assert len(calls) == 3  # two evaluated, the third died; the estimate not simulated again
     monkeypatch.undo()
     with pytest.warns(FitWarning, match="stopped before it finished"):
         predict_trajectory(model, data, report, output=bending_angle(), x0=x0)
+    # dead at the first evaluation: no point to predict from, and the status says why
+    calls.clear()
+    monkeypatch.setattr(dynamic, "trajectory_sensitivities", build)
+    calls.extend([None, None])  # the next call is the third
+    first = fit_trajectory(model, data, output=bending_angle(), x0=x0, free=FREE)
+    assert first.status is Status.INTERRUPTED and "best point" not in first.message
+    monkeypatch.undo()
+    with pytest.raises(FitError, match="cannot predict from a failed fit"):
+        predict_trajectory(model, data, first, output=bending_angle(), x0=x0)
 
 
 def test_starting_points_are_seeded_and_within_bounds():
@@ -199,5 +208,10 @@ def test_multi_start_reports_the_spread_of_its_optima(oscillation):
     np.testing.assert_allclose(report.values, [0.008, 4e-7], rtol=1e-5)
     assert np.all(report.spread() <= 1e-5 * np.abs(report.values))
     assert "multi-start: 3 starts" in report.table()
+    # the report's outputs are those of the best start's optimum (unit weights), not
+    # those of the last point evaluated
+    cost = 0.5 * np.sum(report.residuals**2)
+    assert cost == pytest.approx(report.optimum_costs.min(), rel=1e-12)
+    assert not np.all(report.optimum_costs == report.optimum_costs.min())
     with pytest.raises(sc.ParameterError, match="starts must be an integer"):
         fit_trajectory(model, data, output=bending_angle(), x0=x0, free=FREE, starts=0)

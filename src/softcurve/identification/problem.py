@@ -24,9 +24,14 @@ from softcurve.identification.joint import (
 )
 from softcurve.identification.parameters import Free, FreeParameters
 from softcurve.identification.report import FitReport, summarize
-from softcurve.identification.solve import robust_least_squares, starting_points
+from softcurve.identification.solve import (
+    EVALUATION_ERRORS,
+    robust_least_squares,
+    starting_points,
+)
 from softcurve.identification.units import check_units
 from softcurve.identification.weights import weight_matrix
+from softcurve.simulation.workers import WorkerDied
 
 AT_BOUND = 1e-8
 """Relative distance to a bound under which an estimate is reported as at the bound."""
@@ -129,18 +134,26 @@ class Problem:
             thetas = [J.local(theta, e) for e in range(len(experiments))]
             return evaluate_all(evaluators, thetas, processes)
 
-        outputs = {}  # z (bytes) -> the model's outputs there: the estimate is not rerun
+        # the outputs at the lowest cost evaluated so far (the estimate, as the solver
+        # keeps it: finite, strictly lower), so that the estimate is not simulated again
+        lowest: dict = {}
+        latest: list = []  # the outputs of the last evaluation
 
         def residual_and_jacobian(z):
             rows, columns = [], []
             results = evaluate(z * J.scale)
-            outputs[z.tobytes()] = [np.asarray(y).T for y, _ in results]
             for e, (y, jac) in enumerate(results):
                 rows.append((np.asarray(y).T - measured[e]).ravel() * w[e])
                 full = np.zeros((w[e].size, size))
                 full[:, J.index[e]] = jac * w[e][:, None]
                 columns.append(full)
-            return np.concatenate(rows), np.vstack(columns) * J.scale
+            r, jac = np.concatenate(rows), np.vstack(columns) * J.scale
+            latest[:] = [np.asarray(y).T for y, _ in results]
+            cost = float(r @ r)
+            finite = np.isfinite(cost) and np.all(np.isfinite(jac))
+            if finite and (not lowest or cost < lowest["cost"]):
+                lowest.update(z=z.tobytes(), cost=cost, y=list(latest))
+            return r, jac
 
         points = starting_points(
             J.theta0 / J.scale, J.lower, J.upper, n_starts, options.get("seed")
@@ -164,15 +177,16 @@ class Problem:
                     on_evaluation=lambda c, o=offset: bar.update(o + c),
                 )
             )
-            if solutions[-1].status is Status.INTERRUPTED:  # no worker left to go on with
+            if solutions[-1].status is Status.INTERRUPTED:  # a fault: do not start again
                 break
         bar.close()
         if solutions:
             best = min(solutions, key=lambda s: s.cost)
             z, status, message = best.z, best.status, best.message
             if solutions[-1].status is Status.INTERRUPTED:
-                status = Status.INTERRUPTED
-                message = f"{solutions[-1].message}; the values are the best point found before"
+                status, message = Status.INTERRUPTED, solutions[-1].message
+                if best.residuals is not None:
+                    message += "; the values are the best point found before"
             count = sum(s.n_evaluations for s in solutions)
         else:
             z, status, message, count = np.zeros(0), Status.SUCCESS, "nothing to fit", 0
@@ -180,18 +194,17 @@ class Problem:
         try:
             if solutions and best.residuals is None:  # nothing could be evaluated
                 raise RuntimeError("no point could be evaluated")
-            if solutions and z.tobytes() in outputs:  # the best point, evaluated in the fit
-                r, jac = best.residuals, best.jacobian
-            else:  # nothing free (a prediction), or the best point's outputs are gone
+            if solutions and lowest.get("z") == z.tobytes():  # evaluated in the fit
+                r, jac, predicted = best.residuals, best.jacobian, lowest["y"]
+            else:  # a prediction (nothing free), or a best point with infinite cost
                 r, jac = residual_and_jacobian(z)
-                count += 1
-            predicted = outputs[z.tobytes()]
-            outputs.clear()
+                count, predicted = count + 1, latest
             jac = jac / J.scale
-        except (RuntimeError, FloatingPointError) as exc:
+        except EVALUATION_ERRORS as exc:
             if not (solutions and best.residuals is None):
                 message += f"; the model could not be evaluated at the estimate: {exc}"
-            status = Status.NOT_CONVERGED
+            interrupted = isinstance(exc, WorkerDied) or status is Status.INTERRUPTED
+            status = Status.INTERRUPTED if interrupted else Status.NOT_CONVERGED
             predicted = [np.full_like(m, np.nan) for m in measured]
             r, jac = np.zeros(0), np.zeros((0, size))
         errors, corr, identifiable, status, message = summarize(J.names, jac, r, status, message)
@@ -210,8 +223,9 @@ class Problem:
         except ParameterError as exc:
             robot, status = None, Status.INFEASIBLE
             message += f"; the estimate is not an admissible robot: {exc}"
-        optima = np.array([s.z * J.scale for s in solutions]) if n_starts > 1 else None
-        costs = np.array([s.cost for s in solutions]) if n_starts > 1 else None
+        finished = [s for s in solutions if s.status is not Status.INTERRUPTED]  # optima
+        optima = np.array([s.z * J.scale for s in finished]) if n_starts > 1 else None
+        costs = np.array([s.cost for s in finished]) if n_starts > 1 else None
         return FitReport(
             status=status,
             message=f"{kind}: {message}",

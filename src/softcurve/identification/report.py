@@ -325,7 +325,8 @@ def usable_fit(fit: FitReport) -> FitReport:
     fit : FitReport
         The fit to predict from.
     """
-    if fit.status in (Status.NOT_CONVERGED, Status.INFEASIBLE):
+    nothing = fit.status is Status.INTERRUPTED and not np.isfinite(fit.predicted).any()
+    if fit.status in (Status.NOT_CONVERGED, Status.INFEASIBLE) or nothing:
         raise FitError(
             f"fit: cannot predict from a failed fit (status {fit.status.value}: "
             f"{fit.message}); {fit.status.advice}"

@@ -93,16 +93,14 @@ def _check(where, kind, name, recorded, stored, expected, hint) -> None:
     if not stored or not expected or stored == expected:
         return
     source = f" (recorded in {recorded!r})" if recorded and recorded != stored else ""
-    if (
-        expected not in KEPT
-        and kind_of(expected) is not None
-        and kind_of(expected) == kind_of(stored)
-    ):
-        # e.g. a SensorFrame(scale=1000, unit="mm") against data labelled "mm": converted
+    converted = source and stored not in KEPT and kind_of(stored) is not None
+    if converted and expected not in KEPT and kind_of(expected) == kind_of(stored):
+        # e.g. a SensorFrame(scale=1000, unit="mm") against data labelled "mm"
+        scale = " (a scale of 1)" if kind == "signal" else ""
         raise UnitError(
             f"{where}: {kind} {name!r} is in {stored!r}{source}, converted at load, but "
             f"the {hint} gives {expected!r}: experiments are SI after loading, so build "
-            f"the map in {stored!r} (a scale of 1)"
+            f"the map in {stored!r}{scale}"
         )
     raise UnitError(
         f"{where}: {kind} {name!r} is in {stored!r}{source} but the {hint} expects "
