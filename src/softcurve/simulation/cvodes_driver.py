@@ -119,6 +119,16 @@ static void work_close(sc_work *s) {
     free(s->piv);
 }
 
+/* CVODES's counters since its last (re)start: steps, right-hand sides, linear-solver
+ * setups, error-test failures, Newton failures. */
+static void read_counters(void *mem, long counters[5]) {
+    CVodeGetNumSteps(mem, &counters[0]);
+    CVodeGetNumRhsEvals(mem, &counters[1]);
+    CVodeGetNumLinSolvSetups(mem, &counters[2]);
+    CVodeGetNumErrTestFails(mem, &counters[3]);
+    CVodeGetNumNonlinSolvConvFails(mem, &counters[4]);
+}
+
 static void quiet(int code, const char *module, const char *function, char *msg, void *data) {
     (void)code; (void)module; (void)function; (void)msg; (void)data;
 }
@@ -236,12 +246,14 @@ static int jtimes(N_Vector vv, N_Vector Jvv, realtype t, N_Vector y, N_Vector fy
     return 0;
 }
 
-static void *create(int lmm, double t0, N_Vector y, sc_work *s, double rtol, double atol,
-                    long max_steps, int max_order) {
+/* CVODES with Newton's method on the Newton matrix of the callbacks above, for x' = f
+ * (f's data starts with the sc_work those callbacks read); max_order 0: CVODES's own. */
+static void *create(int lmm, double t0, N_Vector y, CVRhsFn f, void *data, double rtol,
+                    double atol, long max_steps, int max_order) {
     void *mem = CVodeCreate(lmm, CV_NEWTON);
     if (mem == NULL) return NULL;
-    if (CVodeInit(mem, rhs, t0, y) || CVodeSStolerances(mem, rtol, atol) ||
-        CVodeSetUserData(mem, s) || CVodeSetMaxNumSteps(mem, max_steps) ||
+    if (CVodeInit(mem, f, t0, y) || CVodeSStolerances(mem, rtol, atol) ||
+        CVodeSetUserData(mem, data) || CVodeSetMaxNumSteps(mem, max_steps) ||
         CVodeSetErrHandlerFn(mem, quiet, NULL) || CVSpgmr(mem, PREC_LEFT, GMRES_DIMENSION) ||
         CVSpilsSetPreconditioner(mem, setup, solve) || CVSpilsSetJacTimesVecFn(mem, jtimes) ||
         (max_order > 0 && CVodeSetMaxOrd(mem, lmm == CV_BDF && max_order > 5 ? 5 : max_order))) {
@@ -314,7 +326,8 @@ __attribute__((visibility("default"))) int softcurve_cvodes(
             }
             s.jacobians = s.evaluations = 0;
             if (mem[family] == NULL)
-                mem[family] = create(family, times[first], y, &s, rtol, atol, max_steps, max_order);
+                mem[family] = create(family, times[first], y, rhs, &s, rtol, atol, max_steps,
+                                     max_order);
             else if (CVodeReInit(mem[family], times[first], y))
                 flag[b] = -100;
             if (mem[family] == NULL) flag[b] = -100;
@@ -334,11 +347,7 @@ __attribute__((visibility("default"))) int softcurve_cvodes(
                     break;
                 }
             }
-            CVodeGetNumSteps(mem[family], &counters[0]);
-            CVodeGetNumRhsEvals(mem[family], &counters[1]);
-            CVodeGetNumLinSolvSetups(mem[family], &counters[2]);
-            CVodeGetNumErrTestFails(mem[family], &counters[3]);
-            CVodeGetNumNonlinSolvConvFails(mem[family], &counters[4]);
+            read_counters(mem[family], counters);
             stats[b * STATS + 0] += counters[0];
             stats[b * STATS + 1] += counters[1];
             stats[b * STATS + 2] += s.jacobians;

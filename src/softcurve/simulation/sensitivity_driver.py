@@ -50,11 +50,8 @@ static void inputs_at(sc_sensitivity *z, double t) {
 
 /* Adds CVODES's counters since its last (re)start to stats[0], [1], [3] and [4]. */
 static void add_counters(void *mem, long *stats) {
-    long counters[4] = {0, 0, 0, 0};
-    CVodeGetNumSteps(mem, &counters[0]);
-    CVodeGetNumRhsEvals(mem, &counters[1]);
-    CVodeGetNumLinSolvSetups(mem, &counters[2]);
-    CVodeGetNumErrTestFails(mem, &counters[3]);
+    long counters[5] = {0, 0, 0, 0, 0};
+    read_counters(mem, counters);
     stats[0] += counters[0];
     stats[1] += counters[1];
     stats[3] += counters[2];
@@ -143,12 +140,9 @@ __attribute__((visibility("default"))) int softcurve_sensitivities(
     memcpy(N_VGetArrayPointer(y), out, bytes);
     for (j = 0; j < m; ++j) memcpy(N_VGetArrayPointer(yS[j]), out + n * (1 + j), bytes);
     inputs_at(&z, times[1]);
-    mem = CVodeCreate(lmm == CV_BDF ? CV_BDF : CV_ADAMS, CV_NEWTON);
-    if (!mem || CVodeInit(mem, state_rhs, times[0], y) || CVodeSStolerances(mem, rtol, atol) ||
-        CVodeSetUserData(mem, &z) || CVodeSetMaxNumSteps(mem, max_steps) ||
-        CVodeSetErrHandlerFn(mem, quiet, NULL) || CVSpgmr(mem, PREC_LEFT, GMRES_DIMENSION) ||
-        CVSpilsSetPreconditioner(mem, setup, solve) || CVSpilsSetJacTimesVecFn(mem, jtimes) ||
-        (m > 0 && (CVodeSensInit(mem, m, CV_STAGGERED, sensitivity_rhs, yS) ||
+    mem = create(lmm == CV_BDF ? CV_BDF : CV_ADAMS, times[0], y, state_rhs, &z, rtol, atol,
+                 max_steps, 0);
+    if (!mem || (m > 0 && (CVodeSensInit(mem, m, CV_STAGGERED, sensitivity_rhs, yS) ||
                    CVodeSensEEtolerances(mem) || CVodeSetSensErrCon(mem, 1)))) {
         flag = -100;
         goto done;
