@@ -25,7 +25,7 @@ from softcurve.envs.tasks import PressTask, ReachTask, TrackTask
 def _masked(info: dict, size: int, absent: dict | None = None) -> dict:
     """``info`` with a mask ``_k`` for each key ``k`` (Gymnasium's layout): all true (one
     read-only array shared by the keys), except for the keys of ``absent``, whose
-    members given there hold no value (zero, mask false)."""
+    members given there hold no value (mask false)."""
     every = np.ones(size, dtype=bool)
     every.flags.writeable = False
     absent = absent or {}
@@ -34,7 +34,6 @@ def _masked(info: dict, size: int, absent: dict | None = None) -> dict:
         out[key] = value
         out[f"_{key}"] = every
         if key in absent:
-            value[absent[key]] = 0
             out[f"_{key}"] = every.copy()
             out[f"_{key}"][absent[key]] = False
     return out
@@ -167,6 +166,7 @@ class SoftRobotVectorEnv(VectorEnv):
             for key, value in new_info.items():
                 info[key][done] = value
             # a reset member's info is its reset's, which has no inputs: none acted yet
+            info["inputs"][done] = 0.0
             info = _masked(info, self.num_envs, absent={"inputs": done})
             info.update(final_obs=final_obs, _final_obs=mask, final_info=final_info,
                         _final_info=mask.copy())  # fmt: skip
