@@ -134,10 +134,8 @@ class Problem:
             thetas = [J.local(theta, e) for e in range(len(experiments))]
             return evaluate_all(evaluators, thetas, processes)
 
-        # the outputs at the lowest cost evaluated so far (the estimate, as the solver
-        # keeps it: finite, strictly lower), so that the estimate is not simulated again
-        lowest: dict = {}
         latest: list = []  # the outputs of the last evaluation
+        kept: dict = {}  # start -> the outputs at its best point: the estimate not rerun
 
         def residual_and_jacobian(z):
             rows, columns = [], []
@@ -147,13 +145,8 @@ class Problem:
                 full = np.zeros((w[e].size, size))
                 full[:, J.index[e]] = jac * w[e][:, None]
                 columns.append(full)
-            r, jac = np.concatenate(rows), np.vstack(columns) * J.scale
             latest[:] = [np.asarray(y).T for y, _ in results]
-            cost = float(r @ r)
-            finite = np.isfinite(cost) and np.all(np.isfinite(jac))
-            if finite and (not lowest or cost < lowest["cost"]):
-                lowest.update(z=z.tobytes(), cost=cost, y=list(latest))
-            return r, jac
+            return np.concatenate(rows), np.vstack(columns) * J.scale
 
         points = starting_points(
             J.theta0 / J.scale, J.lower, J.upper, n_starts, options.get("seed")
@@ -175,13 +168,15 @@ class Problem:
                     J.upper,
                     max_evaluations,
                     on_evaluation=lambda c, o=offset: bar.update(o + c),
+                    on_best=lambda k=k: kept.__setitem__(k, list(latest)),
                 )
             )
             if solutions[-1].status is Status.INTERRUPTED:  # a fault: do not start again
                 break
         bar.close()
         if solutions:
-            best = min(solutions, key=lambda s: s.cost)
+            k_best = min(range(len(solutions)), key=lambda k: solutions[k].cost)
+            best = solutions[k_best]
             z, status, message = best.z, best.status, best.message
             if solutions[-1].status is Status.INTERRUPTED:
                 status, message = Status.INTERRUPTED, solutions[-1].message
@@ -194,9 +189,9 @@ class Problem:
         try:
             if solutions and best.residuals is None:  # nothing could be evaluated
                 raise RuntimeError("no point could be evaluated")
-            if solutions and lowest.get("z") == z.tobytes():  # evaluated in the fit
-                r, jac, predicted = best.residuals, best.jacobian, lowest["y"]
-            else:  # a prediction (nothing free), or a best point with infinite cost
+            if solutions:  # the best point, evaluated in the fit
+                r, jac, predicted = best.residuals, best.jacobian, kept[k_best]
+            else:  # a prediction: nothing free
                 r, jac = residual_and_jacobian(z)
                 count, predicted = count + 1, latest
             jac = jac / J.scale

@@ -107,7 +107,7 @@ class Solution:
 
 
 def robust_least_squares(
-    residual_and_jacobian, z0, lower, upper, max_evaluations, on_evaluation=None
+    residual_and_jacobian, z0, lower, upper, max_evaluations, on_evaluation=None, on_best=None
 ) -> Solution:
     """Minimize ``|r(z)|^2 / 2`` within bounds, a failed evaluation being a rejected step.
 
@@ -126,6 +126,9 @@ def robust_least_squares(
         Budget of residual evaluations, failed ones included.
     on_evaluation : callable, optional
         Called with the number of evaluations so far after each one (progress).
+    on_best : callable, optional
+        Called without arguments right after an evaluation that became the best point
+        (to keep what else was computed there).
 
     Returns
     -------
@@ -162,6 +165,8 @@ def robust_least_squares(
         cost = 0.5 * float(r @ r)
         if best[0] is None or cost < best[0][0]:
             best[0] = (cost, z.copy(), r, jac)
+            if on_best is not None:
+                on_best()
         return r, jac
 
     rejected, radius, reasons = 0, None, []
