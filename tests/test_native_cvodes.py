@@ -11,7 +11,7 @@ import softcurve as sc
 from softcurve.base.status import Status
 from softcurve.simulation import native
 from softcurve.simulation.batch import simulate_batch
-from softcurve.simulation.engine import nominal_scale
+from softcurve.simulation.engine import nominal_scale, restart_segments
 
 from .conftest import assert_close
 
@@ -55,6 +55,34 @@ def test_the_driver_reuses_the_jacobian(paper_model):
     assert slow.stats["jacobian_evaluations"] == slow.stats["linear_solver_setups"]
     work = [s.stats["rhs_evaluations"] + 9 * s.stats["jacobian_evaluations"] for s in (fast, slow)]
     assert work[0] < 0.75 * work[1]
+
+
+def test_a_restart_keeps_the_jacobian_while_it_serves(paper_model):
+    """At a restart with the input unchanged the driver offers the previous segment's
+    Jacobian (CVODES asks for a fresh one after every restart): a robot settling for 10 s
+    (ten restart segments) needs fewer Jacobians than segments, and the run still agrees
+    with CasADi's route, which computes one at every setup."""
+    segments = len(restart_segments(np.arange(0.0, 10.0 + 1e-9, 0.01)))
+    q0 = np.array([0.064, 5.0, 0.0])
+    fast, slow = _both(lambda: sc.simulate(paper_model, q0, np.zeros(3), t_final=10.0, dt=0.01))
+    assert segments == 10
+    assert fast.stats["jacobian_evaluations"] < segments
+    assert_close(fast.x, slow.x, rtol=50 * RTOL, scale=_scale(paper_model, slow.x))
+
+
+def test_the_driver_writes_into_a_given_array_or_refuses_it(paper_model):
+    engine = native.problem(paper_model)
+    times = np.linspace(0.0, 0.1, 11)
+    x0 = np.concatenate([Q0, QD0, np.zeros(paper_model.n_creep)])[None]
+    args = ([1], x0, np.zeros((1, 1, 3)), paper_model.parameters[None])
+    rest = (nominal_scale(paper_model, x0[0])[None], times, ([10], [True]), (RTOL, RTOL, 500, 5))
+    fresh = native.integrate(engine, *args, *rest)[0]
+    given = np.full((1, times.size, x0.shape[1]), np.nan)
+    returned = native.integrate(engine, *args, *rest, out=given)[0]
+    assert returned is given
+    np.testing.assert_array_equal(given, fresh)
+    with pytest.raises(ValueError, match="C-contiguous float64 of shape"):
+        native.integrate(engine, *args, *rest, out=np.zeros((1, times.size, 3)))
 
 
 @pytest.mark.parametrize("lag", [None, 0.02])

@@ -15,7 +15,7 @@ from softcurve.simulation import engine as _engines
 from softcurve.simulation import native
 from softcurve.simulation.engine import STIFFNESS_RATIO, linearization_rates, nominal_scale
 from softcurve.simulation.settings import SimulationSettings
-from softcurve.simulation.stepping import Progress
+from softcurve.simulation.stepping import Progress, _input_changes
 
 from .conftest import assert_close
 
@@ -272,6 +272,15 @@ def test_progress_bar_appears_only_after_its_delay():
 def test_restart_segments_cover_the_grid(t_final, dt, interval, expected):
     grid = SimulationSettings(t_final=t_final, dt=dt).output_times()
     assert _engines.restart_segments(grid, interval) == expected
+
+
+def test_input_changes_are_the_rows_that_differ_from_the_one_before():
+    rng = np.random.default_rng(15)
+    inputs = rng.integers(0, 2, size=(400, 3)).astype(np.float64)
+    inputs[100:200] = inputs[100]  # a long constant stretch
+    expected = np.flatnonzero(np.any(inputs[1:-1] != inputs[:-2], axis=1)) + 1
+    np.testing.assert_array_equal(_input_changes(inputs), expected)
+    assert _input_changes(np.zeros((2, 3))).size == _input_changes(np.zeros((9, 3))).size == 0
 
 
 def test_restarts_keep_the_trajectory_within_tolerance(paper_model):

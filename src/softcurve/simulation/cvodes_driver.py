@@ -87,7 +87,8 @@ typedef struct {
     double *w, *x, *xdot, *tau, *J, *LU, *ftmp;
     int n; /* states integrated: nx, plus m lagging inputs */
     int *piv;
-    long jacobians, evaluations;
+    int reuse; /* 1: the J held may serve CVODES's next request for a fresh one */
+    long jacobians;
 } sc_work;
 
 /* Work arrays of f for n states (x, xdot, tau, ftmp, J and LU in one block after f's own
@@ -155,7 +156,6 @@ static int evaluate(sc_work *s, const double *y, double *ydot) {
         command = command > fn->upper[i] ? fn->upper[i] : command;
         s->xdot[fn->nx + i] = (command - s->x[fn->nx + i]) / fn->time_constant;
     }
-    s->evaluations++;
     for (i = 0; i < n; ++i) ydot[i] = s->xdot[i] / s->nominal[i];
     for (i = 0; i < n; ++i)
         if (!isfinite(ydot[i])) return 1;
@@ -168,14 +168,16 @@ static int rhs(realtype t, N_Vector y, N_Vector ydot, void *data) {
 }
 
 /* Forward-difference Jacobian (column-major) when CVODES asks for a fresh one, then the LU
- * factors (partial pivoting) of I - gamma J. */
+ * factors (partial pivoting) of I - gamma J. Once after a restart (s->reuse), the J of
+ * the previous segment is offered instead, marked not current: where it no longer serves,
+ * Newton's method fails to converge and CVODES asks again, and then gets a fresh one. */
 static int setup(realtype t, N_Vector yv, N_Vector fyv, int jok, int *jcur, realtype gamma,
                  void *data, N_Vector t1, N_Vector t2, N_Vector t3) {
     sc_work *s = (sc_work *)data;
     int n = s->n, i, j, k, flag;
     double *y = N_VGetArrayPointer(yv), *fy = N_VGetArrayPointer(fyv), *A = s->LU;
     (void)t; (void)t1; (void)t2; (void)t3;
-    if (!jok) {
+    if (!jok && !s->reuse) {
         for (j = 0; j < n; ++j) {
             double saved = y[j];
             double step = 1.4901161193847656e-08 * (fabs(saved) > 1.0 ? fabs(saved) : 1.0);
@@ -190,6 +192,7 @@ static int setup(realtype t, N_Vector yv, N_Vector fyv, int jok, int *jcur, real
     } else {
         *jcur = 0;
     }
+    s->reuse = 0;
     for (k = 0; k < n * n; ++k) A[k] = -gamma * s->J[k];
     for (i = 0; i < n; ++i) A[i + i * n] += 1.0;
     for (k = 0; k < n; ++k) {
@@ -271,9 +274,13 @@ static int outside(const double *x, int width, const double *longest, int n_seg,
     int i;
     for (i = 0; i < width; ++i)
         if (!isfinite(x[i])) return 1;
+    /* squared, not hypot: this runs at every output (a fifth of the per-output cost with
+     * hypot); finite entries cannot overflow to a wrong answer (an infinite square is
+     * outside, as it should be). A state within rounding of the bound may be judged
+     * otherwise than by Python's test: the caller then stops by Python's. */
     for (i = 0; longest != NULL && i < n_seg; ++i) {
-        double l = x[3 * i];
-        if (!(l > 0.0 && l <= longest[i] && l * hypot(x[3 * i + 1], x[3 * i + 2]) <= max_bend))
+        double l = x[3 * i], kx = x[3 * i + 1], ky = x[3 * i + 2];
+        if (!(l > 0.0 && l <= longest[i] && l * l * (kx * kx + ky * ky) <= max_bend * max_bend))
             return 1;
     }
     return 0;
@@ -305,7 +312,7 @@ __attribute__((visibility("default"))) int softcurve_cvodes(
         goto done;
     }
     for (b = 0; b < count; ++b) {
-        int family = lmm[b] == CV_BDF ? CV_BDF : CV_ADAMS, first = 0;
+        int family = lmm[b] == CV_BDF ? CV_BDF : CV_ADAMS, first = 0, held = 0;
         double *ys = N_VGetArrayPointer(y), *row = out + (long)b * k * n, tret;
         s.p = p + (long)b * fn->np;
         s.nominal = nominal + (long)b * n;
@@ -324,7 +331,8 @@ __attribute__((visibility("default"))) int softcurve_cvodes(
                 family = fastest_state * settled_ratio < fastest[b] ? CV_BDF : lmm[b];
                 used_bdf[b] |= family == CV_BDF;
             }
-            s.jacobians = s.evaluations = 0;
+            /* a restart with the input unchanged: the robot's J is where it was */
+            s.reuse = held && restart[e] && memcmp(s.u, s.u - inputs, inputs * sizeof(double)) == 0;
             if (mem[family] == NULL)
                 mem[family] = create(family, times[first], y, rhs, &s, rtol, atol, max_steps,
                                      max_order);
@@ -351,6 +359,8 @@ __attribute__((visibility("default"))) int softcurve_cvodes(
             stats[b * STATS + 0] += counters[0];
             stats[b * STATS + 1] += counters[1];
             stats[b * STATS + 2] += s.jacobians;
+            held |= s.jacobians > 0;
+            s.jacobians = 0;
             stats[b * STATS + 3] += counters[2];
             stats[b * STATS + 4] += counters[3];
             stats[b * STATS + 5] += counters[4];

@@ -312,14 +312,16 @@ class CvodesEngine(_Engine):
             raise IntegrationFailure(reason, out[0, 1 : reached[0]].copy())
         return out[0, 1:]
 
-    def run_native(self, x0, u, times, ends, restart, fastest=None, longest=None) -> tuple:
+    def run_native(
+        self, x0, u, times, ends, restart, fastest=None, longest=None, out=None
+    ) -> tuple:
         """:func:`softcurve.simulation.native.integrate` of this run (one member: ``x0``
         (1, N), ``u`` (1, S, k); ``fastest`` [1/s], ``longest`` (n_segments,) [m] or None)
         with this engine's family, counted: ``(states (1, T, N), reached, flags)``.
 
         Parameters
         ----------
-        x0, u, times, ends, restart, fastest, longest
+        x0, u, times, ends, restart, fastest, longest, out
             As :func:`softcurve.simulation.native.integrate` takes them, for one member.
         """
         rtol, abstol, max_steps = self._settings
@@ -329,7 +331,7 @@ class CvodesEngine(_Engine):
             times, (ends, restart), (rtol, abstol, max_steps, MAX_ORDER),
             fastest=None if fastest is None else np.array([fastest]),
             settled_ratio=_engine.SETTLED_RATIO,
-            longest=None if longest is None else longest[None],
+            longest=None if longest is None else longest[None], out=out,
         )  # fmt: skip
         for name, value in zip(native.STATISTICS, counts[0], strict=True):
             self.counts[name] += int(value)

@@ -222,7 +222,7 @@ def _compiled_force(force: ca.Function) -> NativeFunction | None:
 
 
 def integrate(problem, lmm, x0, u, p, nominal, times, segments, tolerances, *, fastest=None,
-              settled_ratio=0.0, longest=None, threads=1) -> tuple:  # fmt: skip
+              settled_ratio=0.0, longest=None, threads=1, out=None) -> tuple:  # fmt: skip
     """Integrate members from ``x0`` at ``times[0]`` over the output ``times``, restarting
     CVODES at the end of every segment, with one constant input per member and segment.
 
@@ -260,6 +260,10 @@ def integrate(problem, lmm, x0, u, p, nominal, times, segments, tolerances, *, f
         first output outside the domain (None: no check).
     threads : int
         Threads over the members.
+    out : ndarray, shape (B, T, N), optional
+        Where to write the outputs (C-contiguous float64; row 0 of each member is set
+        to ``x0``): a caller's own array saves the copy of a long run's outputs (default:
+        a new array).
 
     Returns
     -------
@@ -270,7 +274,12 @@ def integrate(problem, lmm, x0, u, p, nominal, times, segments, tolerances, *, f
         :data:`STATISTICS` and whether BDF was used.
     """
     count, width = x0.shape
-    out = np.zeros((count, times.size, width))
+    if out is None:
+        out = np.zeros((count, times.size, width))
+    elif out.shape != (count, times.size, width) or not (
+        out.flags.c_contiguous and out.dtype == np.float64
+    ):
+        raise ValueError(f"out must be C-contiguous float64 of shape {(count, times.size, width)}")
     out[:, 0] = x0
     ends, restart = (np.ascontiguousarray(a, dtype=np.int32) for a in segments)
     fastest = np.zeros(count) if fastest is None else fastest
