@@ -91,6 +91,7 @@ def test_inverse_of_forward_dynamics_is_identity(paper_model, rng):
 def test_forces_are_gradients_of_the_energies(paper_model, rng):
     e = paper_model.expressions
     energy = ca.Function("V", [e.q, e.p], [e.gravity_energy, e.elastic_energy])
+    newton_euler = ca.Function("tau", [e.q, e.qd, e.qdd, e.lam, e.p], [e.inverse_dynamics])
     h = 1e-7
     for _ in range(5):
         q, _ = random_state(rng, paper_model, curvature=60.0)
@@ -104,6 +105,12 @@ def test_forces_are_gradients_of_the_energies(paper_model, rng):
         gravity, elastic = paper_model.gravity_force(q), paper_model.elastic_force(q)
         assert_close(gravity, fd[0], rtol=1e-6, scale=np.abs(gravity).max(), what="gravity")
         assert_close(elastic, fd[1], rtol=1e-6, scale=np.abs(elastic).max(), what="elastic")
+        # the equation of motion's own gravity, from its Newton-Euler pass (at rest)
+        at_rest = newton_euler(q, np.zeros(3), np.zeros(3), np.zeros(3), paper_model.parameters)
+        at_rest = np.array(at_rest).ravel()
+        scale = np.abs(gravity).max()
+        assert_close(at_rest - elastic, fd[0], rtol=1e-6, scale=scale, what="Newton-Euler G")
+        assert_close(at_rest - elastic, gravity, rtol=1e-12, scale=scale, what="G two ways")
 
 
 def test_elastic_force_matches_the_stiffness_laws(paper_model):

@@ -10,6 +10,7 @@ import softcurve as sc
 from softcurve import ParameterError, PneumaticActuator
 from softcurve.analysis.inverse_statics import inverse_statics
 from softcurve.analysis.quasistatic import input_sweep
+from softcurve.analysis.solver import solve_equilibria
 from softcurve.analysis.statics import equilibria, equilibrium, linearize, rotate_about_axis
 from softcurve.base.status import Status
 from softcurve.cli import main
@@ -313,3 +314,47 @@ def test_initial_guesses_outside_the_domain_are_refused(paper_model):
 def test_linearize_refuses_a_configuration_outside_the_domain(paper_model):
     with pytest.raises(ParameterError, match=r"q: lengths l must be in the model's domain"):
         linearize(paper_model, [-0.01, 0.0, 0.0])
+
+
+def _cubic_system(b):
+    """r(q) = A q + q^3 - b per column, with its Jacobian: a batch for the solver."""
+    a = np.array([[3.0, 1.0], [1.0, 2.0]])
+
+    def batch_residual(q):
+        return a @ q + q**3 - b
+
+    def batch_system(q):
+        jacobians = np.stack([a + np.diag(3 * column**2) for column in q.T])
+        return batch_residual(q), jacobians
+
+    return batch_system, batch_residual
+
+
+@pytest.mark.parametrize("quality", ["near", "poor"])
+def test_chord_steps_reach_newtons_solutions(quality):
+    """Chord steps with Jacobians near the solutions' need no Jacobian at all; with poor
+    ones (10 times too stiff: a contraction of 0.9 per step) Newton's method takes over.
+    Either way the solutions are Newton's, to the tolerance."""
+    rng = np.random.default_rng(4)
+    b = rng.normal(size=(2, 50))
+    batch_system, batch_residual = _cubic_system(b)
+    counted = {"jacobians": 0}
+
+    def counting_system(q):
+        counted["jacobians"] += 1
+        return batch_system(q)
+
+    options = dict(scale=np.ones(2), reference=np.ones(2), tol=1e-12, max_evaluations=100)
+    newton = solve_equilibria(batch_system, None, np.zeros((2, 50)), **options)
+    solutions = np.column_stack([root.q for root in newton])
+    start = solutions + 1e-3 * rng.normal(size=solutions.shape)
+    near = batch_system(solutions + 1e-2)[1]
+    jacobians = near if quality == "near" else 10 * near
+    roots = solve_equilibria(
+        counting_system, None, start, jacobians=jacobians, batch_residual=batch_residual,
+        **options,
+    )  # fmt: skip
+    assert all(root.converged for root in roots)
+    found = np.column_stack([root.q for root in roots])
+    np.testing.assert_allclose(found, solutions, rtol=0, atol=1e-11)
+    assert (counted["jacobians"] == 0) == (quality == "near")

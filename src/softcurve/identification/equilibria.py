@@ -67,11 +67,16 @@ class EquilibriumPredictor:
         ds = ca.SX.sym("d", d.shape[0])
         p_s, v_s = ds[:n_p], {k: ds[n_p + i] for i, k in enumerate(keys)}
         tau = ca.SX.zeros(n) if self.input_map is None else self.input_map.function(q, u, v_s)
-        gravity, elastic = model.symbolic["gravity_force"], model.symbolic["elastic_force"]
-        residual = gravity(q, p_s) + elastic(q, p_s) - tau
-        stiffness = ca.jacobian(residual, q)
+        gravity_energy = model.symbolic["potential_energy"](q, p_s)[0]
+        # K from the symmetric Hessian of V_g: half the operations of the Jacobian of G on
+        # three segments (benchmarks/bench_identification.py, section 2)
+        gravity_stiffness, gravity = ca.hessian(gravity_energy, q)
+        elastic = model.symbolic["elastic_force"](q, p_s) - tau
+        residual = gravity + elastic
+        stiffness = gravity_stiffness + ca.jacobian(elastic, q)
         balance = ca.Function("balance", [q, u, ds], [residual, stiffness])
         balance_all = balance.map(experiment.t.size)
+        residual_all = ca.Function("residual", [q, u, ds], [residual]).map(experiment.t.size)
         y = self.output.function(q, ca.SX.zeros(n), v_s, p_s)
         moving = ca.vertcat(*(ds[i] for i in active)) if active else ca.SX(0, 1)
         sensitivities = ca.Function(
@@ -88,12 +93,17 @@ class EquilibriumPredictor:
         inputs = experiment.input_matrix(u_names) if u_names else np.zeros((experiment.t.size, 0))
         samples = experiment.t.size
         last = np.tile(self.q0[:, None], (1, samples))
+        # the stiffness at the last solutions, for the chord steps of the next evaluation
+        last_stiffness = []
 
         def solve(d_value) -> np.ndarray:
             def batch_system(q_all):
                 r, k = balance_all(q_all, inputs.T, d_value)
                 k = np.array(k, dtype=np.float64).reshape(n, samples, n).transpose(1, 0, 2)
                 return np.array(r, dtype=np.float64), k
+
+            def batch_residual(q_all):
+                return np.array(residual_all(q_all, inputs.T, d_value), dtype=np.float64)
 
             def system_of(j):
                 def system(q_value):
@@ -104,7 +114,13 @@ class EquilibriumPredictor:
 
             options = dict(scale=self.scale, reference=self.reference, tol=EQUILIBRIUM_TOLERANCE)
             roots = solve_equilibria(
-                batch_system, system_of, last, max_evaluations=MAX_EVALUATIONS, **options
+                batch_system,
+                system_of,
+                last,
+                max_evaluations=MAX_EVALUATIONS,
+                jacobians=last_stiffness[0] if last_stiffness else None,
+                batch_residual=batch_residual,
+                **options,
             )
             failed = [j for j, root in enumerate(roots) if not root.converged]
             if failed and not np.array_equal(last, np.tile(self.q0[:, None], (1, samples))):
@@ -137,6 +153,7 @@ class EquilibriumPredictor:
             )
             n_d, n_y = len(active), y_all.shape[0]
             k = k.reshape(n, samples, n).transpose(1, 0, 2)
+            last_stiffness[:] = [k]
             r_d = r_d.reshape(n, samples, n_d).transpose(1, 0, 2)
             y_q = y_q.reshape(n_y, samples, n).transpose(1, 0, 2)
             y_d = y_d.reshape(n_y, samples, n_d).transpose(1, 0, 2)
