@@ -2,6 +2,7 @@
 quasi-static fit of one segment against three.
 
 Run:  python benchmarks/bench_identification.py [--repeat N] [--quick] [--joint] [--casadi]
+      [--only {dynamic,quasi-static}]
 
 1. Dynamic: the paper robot (ifac2020, creep included) with three bellows driven by
    random smooth pressures (piecewise linear between knots 5 s apart, 10-20 kPa) for
@@ -58,12 +59,19 @@ PREVIOUS = {
 }
 
 
-def dynamic_evaluator(duration: float, hold: str, options=None):
-    model = sc.Model(sc.presets.ifac2020())
+def random_pressures(duration: float) -> tuple[np.ndarray, dict]:
+    """The trial's sample times (12 Hz) and pressures p0..p2 [Pa]: piecewise linear
+    between knots 5 s apart, 10-20 kPa, seeded."""
     rng = np.random.default_rng(16)
     t = np.arange(0.0, duration + 1e-9, 1 / 12)
     knots = np.arange(0.0, duration + 5.0, 5.0)
     pressures = {f"p{i}": np.interp(t, knots, 1e4 + 1e4 * rng.random(knots.size)) for i in range(3)}
+    return t, pressures
+
+
+def dynamic_evaluator(duration: float, hold: str, options=None):
+    model = sc.Model(sc.presets.ifac2020())
+    t, pressures = random_pressures(duration)
     experiment = Experiment(t, {"kx": 0 * t, "ky": 0 * t}, pressures, name="random")
     free = [
         Free(SEG + "bending_stiffness.a1"),
@@ -171,6 +179,7 @@ def main() -> None:
     parser.add_argument(
         "--casadi", action="store_true", help="also through CasADi's CVODES (no driver)"
     )
+    parser.add_argument("--only", choices=("dynamic", "quasi-static"), help="one section only")
     args = parser.parse_args()
     loose = {"reltol": 1e-6, "abstol": 1e-8}
     args.cases = [("constant", None), ("linear", None), ("linear", loose)]
@@ -178,12 +187,14 @@ def main() -> None:
         args.cases = args.cases[1:]
     print(f"load average {os.getloadavg()}, {os.cpu_count()} cores")
     print("previous: " + "; ".join(f"{k}: {v}" for k, v in PREVIOUS.items()))
-    dynamic(args)
-    if args.casadi:
-        print("\n   the same through CasADi's CVODES (the route without softcurve's driver):")
-        with native.casadi_only():
-            dynamic(args)
-    quasi_static(args)
+    if args.only != "quasi-static":
+        dynamic(args)
+        if args.casadi:
+            print("\n   the same through CasADi's CVODES (the route without softcurve's driver):")
+            with native.casadi_only():
+                dynamic(args)
+    if args.only != "dynamic":
+        quasi_static(args)
 
 
 if __name__ == "__main__":

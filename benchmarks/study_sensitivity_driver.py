@@ -10,9 +10,15 @@ functional iteration (rtol 1e-8, atol 1e-10); the driver (``softcurve_sensitivit
 integrates the state by Newton's method on its own Newton matrix and the sensitivities
 by CVODES's staggered corrector, both in the error test, with the same compiled
 ``[f; f_x S + f_d]``. It prints wall time, steps, right-hand sides and sensitivity
-evaluations per family (Adams, BDF) and tolerance, and the largest difference from
-CasADi's route relative to each row's range. The library's choice (Adams, rtol 1e-8) is
-``softcurve.simulation.sensitivity.NATIVE_FAMILY``.
+evaluations per family (Adams, BDF) and tolerance (rtol 1e-8 down to 1e-4), and the
+largest difference from CasADi's route relative to each row's range. The library's
+choice (Adams, rtol 1e-8) is ``softcurve.simulation.sensitivity.NATIVE_FAMILY``.
+
+First it prints the eigenvalues of the robot linearized at the trial's first state with
+its first pressures, and their angle from the negative real axis: beyond a BDF order's
+stability angle (86.0, 73.4, 51.8 deg for orders 3, 4, 5; Hairer and Wanner, Solving
+Ordinary Differential Equations II, table V.2.1) that order's step is bounded by the
+mode, whatever the tolerance.
 """
 
 from __future__ import annotations
@@ -21,8 +27,12 @@ import argparse
 import sys
 from pathlib import Path
 
+import casadi as ca
 import numpy as np
+from scipy.integrate import solve_ivp
 
+import softcurve as sc
+from softcurve.identification.maps import bellows_input_map
 from softcurve.simulation import native
 
 sys.path.insert(0, str(Path(__file__).parent))
@@ -30,11 +40,54 @@ import bench_identification
 from _timing import best_of  # benchmarks/_timing.py: a helper, not a benchmark
 
 
+def modes() -> None:
+    """The linearized robot's eigenvalues at the trial's start, with their angles."""
+    model = sc.Model(sc.presets.ifac2020())
+    actuator = sc.PneumaticActuator.three_bellows(distance=0.01, area=2e-5, p_max=1e5)
+    q0 = np.array([0.0644, 1.0, 0.0])
+    pressures = np.full(3, 1.5e4)
+    eigenvalues = sc.linearize(model, q0, actuator=actuator, inputs=pressures).eigenvalues
+    print("eigenvalues at the start [1/s], and degrees from the negative real axis:")
+    for value in eigenvalues[eigenvalues.imag >= 0]:
+        angle = np.degrees(np.arctan2(abs(value.imag), -value.real))
+        print(f"  {value.real:9.2f} {value.imag:+9.2f}j  {angle:5.1f} deg")
+
+
+def implicit_runge_kutta(duration: float) -> None:
+    """Steps of SciPy's Radau IIA (order 5, L-stable) and BDF on the state alone (no
+    sensitivities) of the trial, with the exact Jacobian: what a method whose stability
+    is not bounded near the imaginary axis takes."""
+    model = sc.Model(sc.presets.ifac2020())
+    inputs = bellows_input_map(area=2e-5, distance=0.01)
+    x, u = ca.SX.sym("x", model.n_state), ca.SX.sym("u", 3)
+    values = {name: ca.DM(value) for name, value in inputs.parameters.items()}
+    xdot = model.casadi_rhs()(x, inputs.function(x[: model.n], u, values), model.parameters)
+    f = ca.Function("f", [x, u], [xdot, ca.jacobian(xdot, x)])
+    t, pressures = bench_identification.random_pressures(duration)
+    table = np.column_stack(list(pressures.values()))
+
+    def at(time):
+        return [np.interp(time, t, column) for column in table.T]
+
+    x0 = np.zeros(model.n_state)
+    x0[:3] = [0.0644, 1.0, 0.0]
+    for method in ("Radau", "BDF"):
+        for rtol in (1e-4, 1e-6):
+            solution = solve_ivp(
+                lambda time, state: np.array(f(state, at(time))[0]).ravel(),
+                (0.0, duration), x0, method=method, rtol=rtol, atol=rtol * 1e-2,
+                jac=lambda time, state: np.array(f(state, at(time))[1]),
+            )  # fmt: skip
+            print(f"SciPy {method:5s} (state only), rtol {rtol:.0e}: {solution.t.size - 1} steps")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--duration", type=float, default=30.0)
     parser.add_argument("--repeat", type=int, default=2)
     args = parser.parse_args()
+    modes()
+    implicit_runge_kutta(args.duration)
     evaluate, theta = bench_identification.dynamic_evaluator(args.duration, "linear")
     evaluate(theta)  # compiles and loads the driver's functions
     problem, columns = evaluate._route()
@@ -62,7 +115,7 @@ def main() -> None:
     span = np.abs(reference).max(axis=1) + 1e-300
     n_x = evaluate.n_x
     for family, name in ((1, "Adams"), (2, "BDF")):
-        for rtol, atol in ((1e-8, 1e-10), (1e-6, 1e-8)):
+        for rtol, atol in ((1e-8, 1e-10), (1e-6, 1e-8), (1e-4, 1e-6)):
             tolerances = (rtol, atol, max_steps, family)
             wall, (out, _, flag, counts) = best(
                 lambda t=tolerances: native.sensitivities(

@@ -9,6 +9,7 @@ import pytest
 
 import softcurve as sc
 from softcurve.base.status import Status
+from softcurve.description.robot import MAX_BEND, MAX_STRETCH, in_domain
 from softcurve.simulation import native
 from softcurve.simulation.batch import simulate_batch
 from softcurve.simulation.engine import nominal_scale, restart_segments
@@ -70,6 +71,27 @@ def test_a_restart_keeps_the_jacobian_while_it_serves(paper_model):
     assert_close(fast.x, slow.x, rtol=50 * RTOL, scale=_scale(paper_model, slow.x))
 
 
+def test_the_drivers_domain_test_is_pythons_at_the_bend_limit():
+    """The driver compares squares except within rounding of the bound, where it takes
+    Python's hypot: both agree on configurations within a few ulp of the bend limit."""
+    rng = np.random.default_rng(7)
+    length = rng.uniform(0.05, 0.1, 100_000)
+    angle = rng.uniform(0.0, 2 * np.pi, length.size)
+    kappa = MAX_BEND / length * (1 + rng.integers(-4, 5, length.size) * 2.2e-16)
+    q = np.column_stack([length, kappa * np.cos(angle), kappa * np.sin(angle)])
+    inside = in_domain(q, [0.064])
+    assert 0 < inside.sum() < inside.size  # both sides of the bound are sampled
+    np.testing.assert_array_equal(native.outside(q, [MAX_STRETCH * 0.064]), ~inside)
+
+
+def test_the_first_outputs_do_not_depend_on_the_end_time(paper_model):
+    """A restart's first step is sized for the next output, not for the end: a run's
+    first 0.1 s is the same whether it ends there or a second later."""
+    short = sc.simulate(paper_model, Q0, QD0, t_final=0.1, dt=0.01)
+    long = sc.simulate(paper_model, Q0, QD0, t_final=1.0, dt=0.01)
+    assert_close(long.x[:11], short.x, rtol=1e-8, scale=_scale(paper_model, short.x))
+
+
 def test_the_driver_writes_into_a_given_array_or_refuses_it(paper_model):
     engine = native.problem(paper_model)
     times = np.linspace(0.0, 0.1, 11)
@@ -117,6 +139,8 @@ def test_a_failure_reads_the_same(paper_model):
     assert fast.status is slow.status is Status.INTEGRATION_FAILED
     assert fast.message.split(";")[0] == slow.message.split(";")[0]
     assert "CV_TOO_MUCH_WORK" in fast.message and fast.t.size >= 1
+    # a run that stopped early holds its reached rows only, not the whole grid's
+    assert fast.q.base is not None and fast.q.base.shape[0] == fast.t.size
 
 
 def test_a_batch_on_two_threads_equals_its_members_alone(paper_model):

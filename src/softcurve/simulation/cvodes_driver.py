@@ -172,8 +172,10 @@ static int rhs(realtype t, N_Vector y, N_Vector ydot, void *data) {
 
 /* Forward-difference Jacobian (column-major) when CVODES asks for a fresh one, then the LU
  * factors (partial pivoting) of I - gamma J. Once after a restart (s->reuse), the J of
- * the previous segment is offered instead, marked not current: where it no longer serves,
- * Newton's method fails to converge and CVODES asks again, and then gets a fresh one. */
+ * the previous segment is offered instead. CVODES (2.x) marks the Jacobian of its first
+ * step current whatever this returns, so where the old one no longer serves, Newton's
+ * method fails to converge, CVODES counts a Newton failure, cuts the step by 4 and asks
+ * again, and then gets a fresh one: cheap on a first step, which is short anyway. */
 static int setup(realtype t, N_Vector yv, N_Vector fyv, int jok, int *jcur, realtype gamma,
                  void *data, N_Vector t1, N_Vector t2, N_Vector t3) {
     sc_work *s = (sc_work *)data;
@@ -277,16 +279,27 @@ static int outside(const double *x, int width, const double *longest, int n_seg,
     int i;
     for (i = 0; i < width; ++i)
         if (!isfinite(x[i])) return 1;
-    /* squared, not hypot: this runs at every output (a fifth of the per-output cost with
-     * hypot); finite entries cannot overflow to a wrong answer (an infinite square is
-     * outside, as it should be). A state within rounding of the bound may be judged
-     * otherwise than by Python's test: the caller then stops by Python's. */
+    /* Squared, not hypot, at every output (hypot was a fifth of an output's cost); within
+     * rounding of the bound, Python's own test (l hypot(kx, ky) <= max_bend), so that
+     * both always agree. A square that overflows is outside, as it should be. */
     for (i = 0; longest != NULL && i < n_seg; ++i) {
         double l = x[3 * i], kx = x[3 * i + 1], ky = x[3 * i + 2];
-        if (!(l > 0.0 && l <= longest[i] && l * l * (kx * kx + ky * ky) <= max_bend * max_bend))
-            return 1;
+        double bend2 = l * l * (kx * kx + ky * ky), bound2 = max_bend * max_bend;
+        int inside = fabs(bend2 - bound2) > 1e-12 * bound2 ? bend2 < bound2
+                                                           : l * hypot(kx, ky) <= max_bend;
+        if (!(l > 0.0 && l <= longest[i] && inside)) return 1;
     }
     return 0;
+}
+
+/* outside() for `count` configurations q[b, :] (n_seg segments each): flags[b]; the
+ * tests check it against Python's rule. */
+__attribute__((visibility("default"))) void softcurve_outside(const double *q, int count,
+                                                             const double *longest, int n_seg,
+                                                             double max_bend, int *flags) {
+    int b;
+    for (b = 0; b < count; ++b)
+        flags[b] = outside(q + (long)b * 3 * n_seg, 3 * n_seg, longest, n_seg, max_bend);
 }
 
 /* Integrate `count` members over the grid `times[0..k)` from out[b, 0, :] (physical, at
@@ -349,12 +362,13 @@ __attribute__((visibility("default"))) int softcurve_cvodes(
             for (i = first + 1; i <= ends[e]; ++i) {
                 /* One internal step at a time, and every output it passed interpolated:
                  * CVODES's normal mode costs a call per output, a third of the cost of an
-                 * output on a 1 ms grid. The step budget is per output, as in that mode. */
+                 * output on a 1 ms grid. The step budget is per output, as in that mode,
+                 * and tout the next output: CVODES sizes a restart's first step by it. */
                 long taken = 0;
                 while (tret < times[i] && flag[b] == 0) {
                     int status = ++taken > max_steps
                                      ? CV_TOO_MUCH_WORK
-                                     : CVode(mem[family], times[ends[e]], y, &tret, CV_ONE_STEP);
+                                     : CVode(mem[family], times[i], y, &tret, CV_ONE_STEP);
                     if (status < 0) flag[b] = status;
                 }
                 if (flag[b] == 0 && CVodeGetDky(mem[family], times[i], 0, dky)) flag[b] = -100;

@@ -140,6 +140,8 @@ def _load():
         integer, pointer, integer, integer, real, real, ctypes.c_long, pointer, pointer, pointer,
     ]  # fmt: skip
     sensitivity.restype = ctypes.c_int
+    library.softcurve_outside.argtypes = [pointer, integer, pointer, integer, real, pointer]
+    library.softcurve_outside.restype = None
     return function
 
 
@@ -391,6 +393,25 @@ def evaluate(problem, x, u, p) -> np.ndarray:
                 p.ctypes.data, out.ctypes.data):  # fmt: skip
         raise RuntimeError("the compiled right-hand side failed")
     return out
+
+
+def outside(q, longest) -> np.ndarray:
+    """The driver's domain test of configurations ``q`` (K, 3 n_segments): whether each
+    lies outside the model's domain (the rule of
+    :func:`softcurve.description.robot.in_domain`), shape (K,), bool.
+
+    Parameters
+    ----------
+    q : ndarray, shape (K, 3 n_segments)
+        Configurations [m, 1/m, 1/m].
+    longest : ndarray, shape (n_segments,)
+        Longest length of each segment in the domain [m].
+    """
+    q, longest = (np.ascontiguousarray(a, dtype=np.float64) for a in (q, longest))
+    flags = np.zeros(q.shape[0], dtype=np.int32)
+    _entry("softcurve_outside")(q.ctypes.data, q.shape[0], longest.ctypes.data, longest.size,
+                                MAX_BEND, flags.ctypes.data)  # fmt: skip
+    return flags.astype(bool)
 
 
 def reason(flag: int) -> str:

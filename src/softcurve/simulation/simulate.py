@@ -328,7 +328,10 @@ def _result(
 ) -> Trajectory:
     n = model.n
     # views, not copies: states and applied belong to this run alone (copying a long
-    # run's columns cost a quarter of a millisecond per 10,000 outputs)
+    # run's columns cost a quarter of a millisecond per 10,000 outputs); a run that
+    # stopped early is copied, so it does not hold the rows it never reached
+    if reached < grid.size:
+        states, applied = states[:reached].copy(), applied[:reached].copy()
     x = states[:reached]
     q, qd, lam = x[:, :n], x[:, n : 2 * n], x[:, 2 * n : model.n_state]
     if actuated is None:
