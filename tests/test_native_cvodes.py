@@ -12,7 +12,7 @@ from softcurve.base.status import Status
 from softcurve.description.robot import MAX_BEND, MAX_STRETCH, in_domain
 from softcurve.simulation import native
 from softcurve.simulation.batch import simulate_batch
-from softcurve.simulation.engine import nominal_scale, restart_segments
+from softcurve.simulation.engine import nominal_scale
 
 from .conftest import assert_close
 
@@ -56,19 +56,6 @@ def test_the_driver_reuses_the_jacobian(paper_model):
     assert slow.stats["jacobian_evaluations"] == slow.stats["linear_solver_setups"]
     work = [s.stats["rhs_evaluations"] + 9 * s.stats["jacobian_evaluations"] for s in (fast, slow)]
     assert work[0] < 0.75 * work[1]
-
-
-def test_a_restart_keeps_the_jacobian_while_it_serves(paper_model):
-    """At a restart with the input unchanged the driver offers the previous segment's
-    Jacobian (CVODES asks for a fresh one after every restart): a robot settling for 10 s
-    (ten restart segments) needs fewer Jacobians than segments, and the run still agrees
-    with CasADi's route, which computes one at every setup."""
-    segments = len(restart_segments(np.arange(0.0, 10.0 + 1e-9, 0.01)))
-    q0 = np.array([0.064, 5.0, 0.0])
-    fast, slow = _both(lambda: sc.simulate(paper_model, q0, np.zeros(3), t_final=10.0, dt=0.01))
-    assert segments == 10
-    assert fast.stats["jacobian_evaluations"] < segments
-    assert_close(fast.x, slow.x, rtol=50 * RTOL, scale=_scale(paper_model, slow.x))
 
 
 def test_the_drivers_domain_test_is_pythons_at_the_bend_limit():
@@ -116,12 +103,14 @@ def test_actuated_runs_agree_with_casadi(paper_model, lag):
     pressures = np.array([2e4, 0.0, 1e4])
     fast, slow = _both(
         lambda: sc.simulate(
-            paper_model, Q0, QD0, actuator=actuator, inputs=pressures, t_final=1.0, dt=0.01
+            paper_model, Q0, QD0, actuator=actuator, inputs=pressures, t_final=10.0, dt=0.001
         )
     )
     assert fast.success and slow.success
     assert_close(fast.x, slow.x, rtol=50 * RTOL, scale=_scale(paper_model, slow.x))
     np.testing.assert_allclose(fast.inputs, slow.inputs, rtol=1e-3, atol=1e-3 * 6e4)
+    # no more work than CasADi's route (a Jacobian kept across restarts once doubled it)
+    assert fast.stats["steps"] <= 1.2 * slow.stats["steps"]
 
 
 def test_inputs_that_change_on_the_grid_agree_with_casadi(paper_model):
