@@ -33,7 +33,7 @@ from scipy.integrate import solve_ivp
 
 import softcurve as sc
 from softcurve.identification.maps import bellows_input_map
-from softcurve.simulation import native
+from softcurve.simulation.sensitivity import integrate_sensitivities
 
 sys.path.insert(0, str(Path(__file__).parent))
 import bench_identification
@@ -118,7 +118,7 @@ def main() -> None:
         for rtol, atol in ((1e-8, 1e-10), (1e-6, 1e-8), (1e-4, 1e-6)):
             tolerances = (rtol, atol, max_steps, family)
             wall, (out, _, flag, counts) = best(
-                lambda t=tolerances: native.sensitivities(
+                lambda t=tolerances: integrate_sensitivities(
                     problem, columns, start, d_value, d_scaled, times, table, linear, t
                 )
             )

@@ -32,6 +32,7 @@ from softcurve.compiled.native import NativeFunction
 from softcurve.compiled.source import compile_source
 from softcurve.description.robot import MAX_BEND
 from softcurve.simulation.cvodes_driver import DRIVER_SOURCE
+from softcurve.simulation.driver_entries import ENTRIES_SOURCE
 from softcurve.simulation.sensitivity_driver import SENSITIVITY_SOURCE
 
 PLUGIN = "libcasadi_integrator_cvodes.so"
@@ -91,8 +92,14 @@ _BYPASS: list = []
 _LIBRARY: list = []  # the loaded driver library, once built
 
 
-def _entry(name: str):
-    """The driver library's function ``name`` (after :func:`driver` succeeded)."""
+def entry(name: str):
+    """The driver library's function ``name`` (after :func:`driver` succeeded).
+
+    Parameters
+    ----------
+    name : str
+        An exported function of the driver's C source.
+    """
     return getattr(_LIBRARY[0], name)
 
 
@@ -118,7 +125,8 @@ def _load():
     except OSError:
         return None
     link = (f"-L{directory}", f"-l:{PLUGIN}", f"-Wl,-rpath,{directory}")
-    library = compile_source("cvodes_driver", DRIVER_SOURCE + SENSITIVITY_SOURCE, link)
+    source = DRIVER_SOURCE + ENTRIES_SOURCE + SENSITIVITY_SOURCE
+    library = compile_source("cvodes_driver", source, link)
     if library is None:
         return None
     _LIBRARY.append(library)
@@ -315,62 +323,6 @@ def integrate(problem, lmm, x0, u, p, nominal, times, segments, tolerances, *, f
     return out, reached, flags, counts, used.astype(bool)
 
 
-SENSITIVITY_STATISTICS = ("steps", "rhs_evaluations", "jacobian_evaluations",
-                          "linear_solver_setups", "error_test_failures",
-                          "sensitivity_evaluations")  # fmt: skip
-"""The counters :func:`sensitivities` returns, in the driver's order (the right-hand
-sides are CVODES's; those of the finite-difference Jacobians are not among them)."""
-
-
-def sensitivities(problem, columns, start, d, d_scaled, times, table, linear, tolerances):
-    """States and forward sensitivities over ``times`` in one call into the driver.
-
-    Parameters
-    ----------
-    problem : Problem
-        ``f(x, u, d)`` of the state (no actuator).
-    columns : NativeFunction
-        ``fs(x;vec(S), u, d;scale) -> f;vec(S')`` for ``m`` columns.
-    start : ndarray, shape (W,)
-        ``(x0, vec(S0))`` with ``W = nx (1 + m)``, at ``times[0]``.
-    d : ndarray, shape (n_d,)
-        The parameters of ``f``.
-    d_scaled : ndarray, shape (n_d + m,)
-        ``(d, scale)``: the parameters of ``fs`` with its column scales.
-    times : ndarray, shape (T,)
-        Output times [s], increasing.
-    table : ndarray, shape (T, k) or (T, 2 k)
-        Row ``i``: the inputs on ``(times[i-1], times[i]]``, or the line ``(a, b)`` of
-        ``u = a + b t`` there with ``linear``.
-    linear : bool
-        Inputs continuous (integrated through) or held (a restart at every sample).
-    tolerances : tuple
-        ``(rtol, atol, max_steps per output, family)``, family 1 Adams or 2 BDF.
-
-    Returns
-    -------
-    tuple
-        ``(out (T, W), reached, flag, counts)``: the outputs (rows after ``reached`` are
-        zero), how many were computed (``start`` included), 0 or CVODES's negative flag
-        (:data:`FLAGS`) and the counters of :data:`SENSITIVITY_STATISTICS`.
-    """
-    out = np.zeros((times.size, start.size))
-    out[0] = start
-    arrays = [np.ascontiguousarray(a, dtype=np.float64) for a in (d, d_scaled, times, table)]
-    sizes = np.array([columns._sz_arg, columns._sz_res, columns._sz_iw, columns._sz_w], np.int64)
-    counts = np.zeros(len(SENSITIVITY_STATISTICS), dtype=np.int64)
-    reached = ctypes.c_int(0)
-    rtol, atol, max_steps, family = tolerances
-    m = start.size // problem.struct.nx - 1
-    flag = _entry("softcurve_sensitivities")(
-        ctypes.byref(problem.struct), ctypes.cast(columns._function, ctypes.c_void_p).value,
-        sizes.ctypes.data, m, arrays[0].ctypes.data, arrays[1].ctypes.data,
-        arrays[2].ctypes.data, times.size, arrays[3].ctypes.data, int(linear), family, rtol,
-        atol, max_steps, out.ctypes.data, counts.ctypes.data, ctypes.byref(reached),
-    )  # fmt: skip
-    return out, reached.value, flag, dict(zip(SENSITIVITY_STATISTICS, counts.tolist(), strict=True))
-
-
 def evaluate(problem, x, u, p) -> np.ndarray:
     """The right-hand side at many states in one call: ``xdot`` (K, N) at states ``x``
     (K, N) with inputs ``u`` (K, k) and the parameter vector ``p`` (n_p,).
@@ -388,7 +340,7 @@ def evaluate(problem, x, u, p) -> np.ndarray:
     """
     x, u, p = (np.ascontiguousarray(a, dtype=np.float64) for a in (x, u, p))
     out = np.empty_like(x)
-    function = _entry("softcurve_rhs")
+    function = entry("softcurve_rhs")
     if function(ctypes.byref(problem.struct), x.shape[0], x.ctypes.data, u.ctypes.data,
                 p.ctypes.data, out.ctypes.data):  # fmt: skip
         raise RuntimeError("the compiled right-hand side failed")
@@ -409,7 +361,7 @@ def outside(q, longest) -> np.ndarray:
     """
     q, longest = (np.ascontiguousarray(a, dtype=np.float64) for a in (q, longest))
     flags = np.zeros(q.shape[0], dtype=np.int32)
-    _entry("softcurve_outside")(q.ctypes.data, q.shape[0], longest.ctypes.data, longest.size,
+    entry("softcurve_outside")(q.ctypes.data, q.shape[0], longest.ctypes.data, longest.size,
                                 MAX_BEND, flags.ctypes.data)  # fmt: skip
     return flags.astype(bool)
 

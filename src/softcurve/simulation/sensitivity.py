@@ -23,6 +23,7 @@ hold) faster on ``benchmarks/bench_identification.py``'s case
 
 from __future__ import annotations
 
+import ctypes
 import pickle
 import uuid
 from pathlib import Path
@@ -68,7 +69,7 @@ class DriverRoute(NamedTuple):
     times: np.ndarray
     """Output times [s], shape (T,)."""
     table: np.ndarray
-    """The inputs per interval, shape (T, k) or (T, 2 k) (:func:`native.sensitivities`)."""
+    """The inputs per interval, shape (T, k) or (T, 2 k) (:func:`integrate_sensitivities`)."""
     linear: bool
     """The inputs are linear between samples (else held)."""
     tolerances: tuple
@@ -139,7 +140,7 @@ class SensitivityEvaluator:
             return states
         problem, columns = route
         driven = self.driven
-        out, reached, flag, counts = native.sensitivities(
+        out, reached, flag, counts = integrate_sensitivities(
             problem, columns, start, d_value, d_scaled, driven.times, driven.table,
             driven.linear, driven.tolerances,
         )  # fmt: skip
@@ -332,3 +333,60 @@ def _located(path, name: str) -> tuple:
     the path (absolute: a worker may start elsewhere) and name travel to worker processes,
     the loaded function stays here."""
     return (str(Path(path).resolve()), name, load_native(path, name))
+
+
+SENSITIVITY_STATISTICS = ("steps", "rhs_evaluations", "jacobian_evaluations",
+                          "linear_solver_setups", "error_test_failures",
+                          "sensitivity_evaluations")  # fmt: skip
+"""The counters :func:`integrate_sensitivities` returns, in the driver's order (the right-hand
+sides are CVODES's; those of the finite-difference Jacobians are not among them)."""
+
+
+def integrate_sensitivities(problem, columns, start, d, d_scaled, times, table, linear, tolerances):
+    """States and forward sensitivities over ``times`` in one call into the driver.
+
+    Parameters
+    ----------
+    problem : softcurve.simulation.native.Problem
+        ``f(x, u, d)`` of the state (no actuator).
+    columns : NativeFunction
+        ``fs(x;vec(S), u, d;scale) -> f;vec(S')`` for ``m`` columns.
+    start : ndarray, shape (W,)
+        ``(x0, vec(S0))`` with ``W = nx (1 + m)``, at ``times[0]``.
+    d : ndarray, shape (n_d,)
+        The parameters of ``f``.
+    d_scaled : ndarray, shape (n_d + m,)
+        ``(d, scale)``: the parameters of ``fs`` with its column scales.
+    times : ndarray, shape (T,)
+        Output times [s], increasing.
+    table : ndarray, shape (T, k) or (T, 2 k)
+        Row ``i``: the inputs on ``(times[i-1], times[i]]``, or the line ``(a, b)`` of
+        ``u = a + b t`` there with ``linear``.
+    linear : bool
+        Inputs continuous (integrated through) or held (a restart at every sample).
+    tolerances : tuple
+        ``(rtol, atol, max_steps per output, family)``, family 1 Adams or 2 BDF.
+
+    Returns
+    -------
+    tuple
+        ``(out (T, W), reached, flag, counts)``: the outputs (rows after ``reached`` are
+        zero), how many were computed (``start`` included), 0 or CVODES's negative flag
+        (:data:`softcurve.simulation.native.FLAGS`) and the counters of
+        :data:`SENSITIVITY_STATISTICS`.
+    """
+    out = np.zeros((times.size, start.size))
+    out[0] = start
+    arrays = [np.ascontiguousarray(a, dtype=np.float64) for a in (d, d_scaled, times, table)]
+    sizes = np.array([columns._sz_arg, columns._sz_res, columns._sz_iw, columns._sz_w], np.int64)
+    counts = np.zeros(len(SENSITIVITY_STATISTICS), dtype=np.int64)
+    reached = ctypes.c_int(0)
+    rtol, atol, max_steps, family = tolerances
+    m = start.size // problem.struct.nx - 1
+    flag = native.entry("softcurve_sensitivities")(
+        ctypes.byref(problem.struct), ctypes.cast(columns._function, ctypes.c_void_p).value,
+        sizes.ctypes.data, m, arrays[0].ctypes.data, arrays[1].ctypes.data,
+        arrays[2].ctypes.data, times.size, arrays[3].ctypes.data, int(linear), family, rtol,
+        atol, max_steps, out.ctypes.data, counts.ctypes.data, ctypes.byref(reached),
+    )  # fmt: skip
+    return out, reached.value, flag, dict(zip(SENSITIVITY_STATISTICS, counts.tolist(), strict=True))
