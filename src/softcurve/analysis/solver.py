@@ -177,14 +177,13 @@ def solve_equilibria(
     start = np.array(q0, dtype=np.float64)
     q = start.copy()
     if jacobians is not None and batch_residual is not None:
-        met = _chord(batch_residual, jacobians, q, scale / reference, tol)
+        met = _chord(batch_residual, jacobians, q, scale, reference, tol)
         if met is not None:
             return [_accepted(q[:, j], residual, tol) for j, residual in enumerate(met)]
     done = np.zeros(q.shape[1], dtype=bool)
     for step in range(BATCH_NEWTON_STEPS + 1):
         r, k = batch_system(q)
-        with np.errstate(invalid="ignore"):
-            residual = np.max(np.abs(scale[:, None] * r / reference[:, None]), axis=0)
+        residual = _residuals(r, scale, reference)
         done = np.isfinite(residual) & (residual <= tol)
         if done.all() or step == BATCH_NEWTON_STEPS:
             break
@@ -196,8 +195,7 @@ def solve_equilibria(
     roots = []
     for j in range(q.shape[1]):
         if done[j]:
-            message = f"scaled residual {residual[j]:.1e} (<= tol {tol:.0e})"
-            roots.append(Root(q=q[:, j].copy(), status=Status.SUCCESS, message=message))
+            roots.append(_accepted(q[:, j], residual[j], tol))
         else:
             roots.append(
                 solve_equilibrium(
@@ -212,18 +210,19 @@ def solve_equilibria(
     return roots
 
 
-def _residuals(r: np.ndarray, weight: np.ndarray) -> np.ndarray:
+def _residuals(r: np.ndarray, scale: np.ndarray, reference: np.ndarray) -> np.ndarray:
     """Scaled residual per column, ``max_i |S_i r_i / reference_i|`` (NaN stays NaN)."""
     with np.errstate(invalid="ignore"):
-        return np.max(np.abs(weight[:, None] * r), axis=0)
+        return np.max(np.abs(scale[:, None] * r / reference[:, None]), axis=0)
 
 
 def _accepted(q: np.ndarray, residual: float, tol: float) -> Root:
+    """The root at column ``q`` (n,), accepted with its scaled ``residual``."""
     message = f"scaled residual {residual:.1e} (<= tol {tol:.0e})"
     return Root(q=q.copy(), status=Status.SUCCESS, message=message)
 
 
-def _chord(batch_residual, jacobians, q, weight, tol) -> np.ndarray | None:
+def _chord(batch_residual, jacobians, q, scale, reference, tol) -> np.ndarray | None:
     """Chord steps on ``q`` (n, T), in place, with the fixed ``jacobians``: the scaled
     residuals (T,) once every column meets ``tol``, else None. Stops at a step that does
     not contract every unconverged column by :data:`CHORD_CONTRACTION` (or is not
@@ -231,7 +230,7 @@ def _chord(batch_residual, jacobians, q, weight, tol) -> np.ndarray | None:
     previous = None
     for _ in range(CHORD_STEPS + 1):
         r = batch_residual(q)
-        residual = _residuals(r, weight)
+        residual = _residuals(r, scale, reference)
         done = np.isfinite(residual) & (residual <= tol)
         if done.all():
             return residual
