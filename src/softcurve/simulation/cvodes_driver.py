@@ -335,6 +335,7 @@ __attribute__((visibility("default"))) int softcurve_cvodes(
                 family = fastest_state * settled_ratio < fastest[b] ? CV_BDF : lmm[b];
                 used_bdf[b] |= family == CV_BDF;
             }
+            s.jacobians = 0;
             if (mem[family] == NULL)
                 mem[family] = create(family, times[first], y, rhs, &s, rtol, atol, max_steps,
                                      max_order);
@@ -370,7 +371,6 @@ __attribute__((visibility("default"))) int softcurve_cvodes(
             stats[b * STATS + 0] += counters[0];
             stats[b * STATS + 1] += counters[1];
             stats[b * STATS + 2] += s.jacobians;
-            s.jacobians = 0;
             stats[b * STATS + 3] += counters[2];
             stats[b * STATS + 4] += counters[3];
             stats[b * STATS + 5] += counters[4];
