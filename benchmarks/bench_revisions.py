@@ -53,6 +53,13 @@ def main() -> None:
     parser.add_argument("--rounds", type=int, default=3)
     args = parser.parse_args()
     repository = Path(__file__).resolve().parent.parent
+    if args.runs < 1 or args.rounds < 1:
+        parser.error(f"--runs and --rounds must be at least 1, got {args.runs} and {args.rounds}")
+    for name in (args.base, args.head):
+        verify = ["rev-parse", "--verify", "--quiet", f"{name}^{{commit}}"]
+        known = subprocess.run(["git", "-C", str(repository), *verify], capture_output=True)
+        if known.returncode != 0:
+            parser.error(f"revision {name!r} is not a commit of {repository}")
     with tempfile.TemporaryDirectory() as scratch:
         trees = {}
         for name in (args.base, args.head):
