@@ -7,16 +7,21 @@ solution at the previous evaluation of the fit (parameters change little between
 evaluations), at the first evaluation from the given initial guess. The implicit function
 theorem gives the derivative of each solution with respect to the parameters,
 ``dq/dd = -K^-1 dr/dd`` with ``K = dr/dq``, and the chain rule the Jacobian of the
-outputs; the derivatives come from CasADi, evaluated for all samples in one call.
+outputs; the derivatives come from CasADi, evaluated for all samples in one call (split
+over the cores).
 """
 
 from __future__ import annotations
+
+import functools
 
 import casadi as ca
 import numpy as np
 
 from softcurve.analysis.loads import coordinate_scale, residual_reference
 from softcurve.analysis.solver import solve_equilibria
+from softcurve.simulation.along import mapped
+from softcurve.simulation.workers import default_threads
 
 EQUILIBRIUM_TOLERANCE = 1e-10
 """Scaled residual accepted at every sample (as :func:`softcurve.equilibrium`'s default)."""
@@ -63,45 +68,27 @@ class EquilibriumPredictor:
         direct = ca.Function("direct", [theta], [d, ca.densify(jac_d[active, :])])
 
         u_names = list(experiment.inputs)
-        q, u = ca.SX.sym("q", n), ca.SX.sym("u", len(u_names))
-        ds = ca.SX.sym("d", d.shape[0])
-        p_s, v_s = ds[:n_p], {k: ds[n_p + i] for i, k in enumerate(keys)}
-        tau = ca.SX.zeros(n) if self.input_map is None else self.input_map.function(q, u, v_s)
-        gravity_energy = model.symbolic["potential_energy"](q, p_s)[0]
-        # K from the symmetric Hessian of V_g: half the operations of the Jacobian of G on
-        # three segments (benchmarks/bench_identification.py, section 2)
-        gravity_stiffness, gravity = ca.hessian(gravity_energy, q)
-        elastic = model.symbolic["elastic_force"](q, p_s) - tau
-        residual = gravity + elastic
-        stiffness = gravity_stiffness + ca.jacobian(elastic, q)
-        balance = ca.Function("balance", [q, u, ds], [residual, stiffness])
-        balance_all = balance.map(experiment.t.size)
-        residual_all = ca.Function("residual", [q, u, ds], [residual]).map(experiment.t.size)
-        y = self.output.function(q, ca.SX.zeros(n), v_s, p_s)
-        moving = ca.vertcat(*(ds[i] for i in active)) if active else ca.SX(0, 1)
-        sensitivities = ca.Function(
-            "sensitivities",
-            [q, u, ds],
-            [
-                y,
-                stiffness,
-                ca.jacobian(residual, moving),
-                ca.jacobian(y, q),
-                ca.jacobian(y, moving),
-            ],
-        ).map(experiment.t.size)
+        balance, residual_function, sensitivity_function = self._functions(
+            keys, n_p, len(u_names), active
+        )
+        # the samples split over the cores: 1.7x on two for three segments, 1.4x for one
+        # (CasADi's virtual machine; python benchmarks/bench_identification.py)
+        samples, threads = experiment.t.size, default_threads()
+        balance_all, residual_all, sensitivities = (
+            mapped(f, samples, threads) for f in (balance, residual_function, sensitivity_function)
+        )
         inputs = experiment.input_matrix(u_names) if u_names else np.zeros((experiment.t.size, 0))
-        samples = experiment.t.size
         last = np.tile(self.q0[:, None], (1, samples))
-        # the stiffness at the last solutions, for the chord steps of the next evaluation
-        last_stiffness = []
+        # the stiffness at the last solutions, for the chord steps of the next evaluation,
+        # and the solutions' tangent (dq/dd (T, n, n_d) at the active entries of d)
+        last_stiffness, tangent = [], []
+
+        def batch_system(q_all, d_value):
+            r, k = balance_all(q_all, inputs.T, d_value)
+            k = np.array(k, dtype=np.float64).reshape(n, samples, n).transpose(1, 0, 2)
+            return np.array(r, dtype=np.float64), k
 
         def solve(d_value) -> np.ndarray:
-            def batch_system(q_all):
-                r, k = balance_all(q_all, inputs.T, d_value)
-                k = np.array(k, dtype=np.float64).reshape(n, samples, n).transpose(1, 0, 2)
-                return np.array(r, dtype=np.float64), k
-
             def batch_residual(q_all):
                 return np.array(residual_all(q_all, inputs.T, d_value), dtype=np.float64)
 
@@ -113,19 +100,26 @@ class EquilibriumPredictor:
                 return system
 
             options = dict(scale=self.scale, reference=self.reference, tol=EQUILIBRIUM_TOLERANCE)
+            start = last
+            if tangent:  # first-order prediction of the new solutions: the chord steps
+                # start O(|change of d|^2) from them instead of O(|change of d|)
+                previous_d, dq_dd = tangent
+                change = (d_value - previous_d)[active]
+                start = last + (dq_dd @ change).T
+            system_all = functools.partial(batch_system, d_value=d_value)
             roots = solve_equilibria(
-                batch_system,
+                system_all,
                 system_of,
-                last,
+                start,
                 max_evaluations=MAX_EVALUATIONS,
                 jacobians=last_stiffness[0] if last_stiffness else None,
                 batch_residual=batch_residual,
                 **options,
             )
             failed = [j for j, root in enumerate(roots) if not root.converged]
-            if failed and not np.array_equal(last, np.tile(self.q0[:, None], (1, samples))):
+            if failed and not np.array_equal(start, np.tile(self.q0[:, None], (1, samples))):
                 retry = solve_equilibria(
-                    batch_system,
+                    system_all,
                     system_of,
                     np.tile(self.q0[:, None], (1, len(roots))),
                     max_evaluations=MAX_EVALUATIONS,
@@ -148,18 +142,65 @@ class EquilibriumPredictor:
             d_value, d_jacobian = (np.array(v, dtype=np.float64) for v in direct(theta_value))
             d_value = d_value.ravel()
             q_all = solve(d_value)
-            y_all, k, r_d, y_q, y_d = (
+            y_all, r_d, y_q, y_d = (
                 np.array(v, dtype=np.float64) for v in sensitivities(q_all, inputs.T, d_value)
             )
             n_d, n_y = len(active), y_all.shape[0]
-            k = k.reshape(n, samples, n).transpose(1, 0, 2)
+            k = batch_system(q_all, d_value)[1]  # K at the solutions
             last_stiffness[:] = [k]
             r_d = r_d.reshape(n, samples, n_d).transpose(1, 0, 2)
             y_q = y_q.reshape(n_y, samples, n).transpose(1, 0, 2)
             y_d = y_d.reshape(n_y, samples, n_d).transpose(1, 0, 2)
             # implicit function theorem: dq/dd = -K^-1 dr/dd, per sample
-            total = y_d - y_q @ np.linalg.solve(k, r_d)
+            dq_dd = -np.linalg.solve(k, r_d)
+            tangent[:] = [d_value, dq_dd]
+            total = y_d + y_q @ dq_dd
             jacobian = (total @ d_jacobian).reshape(samples * n_y, -1)
             return y_all, jacobian
 
         return evaluate
+
+    def _functions(self, keys, n_p, n_u, active):
+        """``(balance, residual, sensitivities)``: per-sample SX Functions of
+        ``(q, u, d)``, kept with the model for these maps, extra parameters and active
+        entries of ``d`` (the Hessian of a three-segment robot takes 0.1 s to build;
+        a joint fit builds it once for all its experiments)."""
+        model, n = self.model, self.model.n
+        input_function = None if self.input_map is None else self.input_map.function
+        structure = (input_function, tuple(keys), n_p, n_u)
+
+        def balance_functions():
+            q, u, ds = ca.SX.sym("q", n), ca.SX.sym("u", n_u), ca.SX.sym("d", n_p + len(keys))
+            p_s, v_s = ds[:n_p], {k: ds[n_p + i] for i, k in enumerate(keys)}
+            tau = ca.SX.zeros(n) if input_function is None else input_function(q, u, v_s)
+            gravity_energy = model.symbolic["potential_energy"](q, p_s)[0]
+            # K from the symmetric Hessian of V_g: half the operations of the Jacobian of
+            # G on three segments (benchmarks/bench_identification.py, section 2)
+            gravity_stiffness, gravity = ca.hessian(gravity_energy, q)
+            elastic = model.symbolic["elastic_force"](q, p_s) - tau
+            residual = gravity + elastic
+            stiffness = gravity_stiffness + ca.jacobian(elastic, q)
+            return (
+                ca.Function("balance", [q, u, ds], [residual, stiffness]),
+                ca.Function("residual", [q, u, ds], [residual]),
+            )
+
+        balance, residual = model.cached(("equilibrium-fit", *structure), balance_functions)
+
+        def sensitivity_function():
+            # the balance's own expressions, on its symbols
+            q_b, u_b, d_b = balance.sx_in()
+            residual = balance(q_b, u_b, d_b)[0]
+            values = {k: d_b[n_p + i] for i, k in enumerate(keys)}
+            y = self.output.function(q_b, ca.SX.zeros(n), values, d_b[:n_p])
+            moving = ca.vertcat(*(d_b[i] for i in active)) if active else ca.SX(0, 1)
+            outputs = [
+                y,
+                ca.jacobian(residual, moving),
+                ca.jacobian(y, q_b),
+                ca.jacobian(y, moving),
+            ]
+            return ca.Function("sensitivities", [q_b, u_b, d_b], outputs)
+
+        key = ("equilibrium-fit-sensitivities", *structure, self.output.function, tuple(active))
+        return balance, residual, model.cached(key, sensitivity_function)

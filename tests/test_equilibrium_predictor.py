@@ -1,0 +1,113 @@
+"""The quasi-static fit's predictions (``EquilibriumPredictor``): where each evaluation
+starts its equilibria, the samples split over threads, the symbolic functions kept with
+the model."""
+
+import numpy as np
+import pytest
+
+import softcurve as sc
+from softcurve.identification import equilibria
+from softcurve.identification.equilibria import EquilibriumPredictor
+from softcurve.identification.experiments import Experiment
+from softcurve.identification.maps import bellows_input_map, curvatures
+from softcurve.identification.parameters import Free, FreeParameters
+
+
+@pytest.fixture(scope="module")
+def setting():
+    segment = sc.Segment(
+        rest_length=0.064,
+        mass=0.017,
+        radius=0.013,
+        elongation_stiffness=sc.LinearStiffness(1000.0),
+        bending_stiffness=sc.TanhStiffness(0.014, 0.006, 4.0),
+        damping=[0.5, 4e-7, 4e-7],
+    )
+    model = sc.Model(sc.Robot(segments=(segment,)), quadrature_nodes=4)
+    t = np.linspace(0.0, 6.0, 16)
+    phase, amplitude = 4 * np.pi * t / 6.0, 3e3 + 1.4e4 * t / 6.0
+    pressures = {f"p{i}": 2e4 + amplitude * np.sin(phase - 2 * np.pi * i / 3) for i in range(3)}
+    experiment = Experiment(t, {"kx": 0 * t, "ky": 0 * t}, pressures)
+    inputs, output = bellows_input_map(area=2.3e-5, distance=0.01), curvatures()
+    free = [Free("bellows.angle", -np.pi, np.pi), Free("bellows.area", 1e-7, 1e-3)]
+    parameters = FreeParameters(model, free, {**inputs.parameters, **output.parameters}, {})
+    q0 = np.array([0.064, 0.0, 0.0])
+    return model, parameters, output, inputs, q0, experiment
+
+
+def _predictor(setting):
+    model, parameters, output, inputs, q0, experiment = setting
+    return EquilibriumPredictor(model, parameters, output, inputs, q0)(experiment)
+
+
+def test_each_evaluation_starts_from_the_first_order_prediction(setting, monkeypatch):
+    """After an evaluation at ``theta``, the next one's equilibria start at the previous
+    solutions moved along their tangent ``dq/dtheta``: the start's error is of second
+    order in the change of ``theta`` (a quarter for half the change), and far below the
+    error of starting at the previous solutions."""
+    starts = []
+    solve = equilibria.solve_equilibria
+
+    def recording(batch_system, system_of, q0, **options):
+        starts.append(np.array(q0))
+        return solve(batch_system, system_of, q0, **options)
+
+    monkeypatch.setattr(equilibria, "solve_equilibria", recording)
+    theta = np.array([-0.5, 2.3e-5])
+    ratios = []
+    for change in (0.04, 0.02):
+        evaluate = _predictor(setting)
+        evaluate(theta)
+        evaluate(theta * (1 + change))
+        start = starts[-1]
+        solution = _solution(setting, theta * (1 + change))
+        previous = _solution(setting, theta)
+        predicted_error = np.abs(start - solution).max()
+        assert predicted_error < 0.05 * np.abs(previous - solution).max()
+        ratios.append(predicted_error)
+    assert 0.15 < ratios[1] / ratios[0] < 0.35  # order 2: 1/4
+
+
+def _solution(setting, theta):
+    """The equilibria at ``theta`` (n, T), from a fresh predictor."""
+    captured = []
+    solve = equilibria.solve_equilibria
+
+    def capturing(*args, **options):
+        roots = solve(*args, **options)
+        captured.append(np.column_stack([root.q for root in roots]))
+        return roots
+
+    original, equilibria.solve_equilibria = equilibria.solve_equilibria, capturing
+    try:
+        _predictor(setting)(theta)
+    finally:
+        equilibria.solve_equilibria = original
+    return captured[-1]
+
+
+def test_threads_give_the_serial_predictions(setting, monkeypatch):
+    """The samples on two threads give exactly the predictions and Jacobian of one."""
+    theta = np.array([-0.45, 2.2e-5])
+    results = []
+    for threads in (1, 2):
+        monkeypatch.setattr(equilibria, "default_threads", lambda threads=threads: threads)
+        evaluate = _predictor(setting)
+        results.append([evaluate(theta), evaluate(theta * 1.01)])
+    for (y_one, jac_one), (y_two, jac_two) in zip(*results, strict=True):
+        np.testing.assert_array_equal(y_one, y_two)
+        np.testing.assert_array_equal(jac_one, jac_two)
+
+
+def test_symbolic_functions_are_built_once_per_model_and_maps(setting):
+    model, parameters, output, inputs, q0, experiment = setting
+    predictor = EquilibriumPredictor(model, parameters, output, inputs, q0)
+    keys, n_p = sorted(parameters.extra), parameters.p0.size
+    first = predictor._functions(keys, n_p, 3, [n_p, n_p + 1])
+    again = EquilibriumPredictor(model, parameters, output, inputs, q0)._functions(
+        keys, n_p, 3, [n_p, n_p + 1]
+    )
+    assert all(a is b for a, b in zip(first, again, strict=True))
+    # other active parameters: the same balance, other sensitivities
+    other = predictor._functions(keys, n_p, 3, [n_p])
+    assert other[0] is first[0] and other[2] is not first[2]
