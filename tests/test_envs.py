@@ -74,12 +74,15 @@ def test_same_seed_same_episode_and_another_seed_another_target():
     assert len(targets) > 1
 
 
-def test_vector_equals_single_environments_with_autoreset():
+@pytest.mark.parametrize("method", [None, "RK4"])
+def test_vector_equals_single_environments_with_autoreset(method):
     """Member i of the vector environment seeded with s is the single environment seeded
-    with s + i, through an autoreset (episodes of 2 periods, 5 steps)."""
+    with s + i, through an autoreset (episodes of 2 periods, 5 steps), with either kind
+    of stepper method."""
     size, steps, seed = 3, 5, 11
-    vector = envs.ReachVector(size, max_episode_steps=2)
-    singles = [envs.Reach(max_episode_steps=2) for _ in range(size)]
+    vector = envs.ReachVector(size, max_episode_steps=2, method=method)
+    assert vector.episodes.setup.stepper.method == (method or "ROS34PW2")
+    singles = [envs.Reach(max_episode_steps=2, method=method) for _ in range(size)]
     actions = _actions(np.random.default_rng(2), steps, size, 3)
     observations, _ = vector.reset(seed=seed)
     resets = 0

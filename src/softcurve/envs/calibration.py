@@ -53,7 +53,7 @@ def _key(setup, what: str) -> bytes:
     stepper = setup.stepper
     model = stepper.model
     content = (model.robot, model.environment, stepper.actuator, stepper.period,
-               stepper.substeps, setup.x0.tobytes(), what)  # fmt: skip
+               stepper.substeps, stepper.method, setup.x0.tobytes(), what)  # fmt: skip
     return pickle.dumps(content)
 
 

@@ -43,6 +43,7 @@ class SoftRobotEnv(gymnasium.Env):
     %(tolerance)s
     %(substeps)s
     %(threads)s
+    %(method)s
     %(render_mode)s
     """
 
@@ -61,6 +62,7 @@ class SoftRobotEnv(gymnasium.Env):
         tolerance=None,
         substeps=None,
         threads=None,
+        method=None,
         render_mode=None,
     ):
         if render_mode is not None:
@@ -68,7 +70,7 @@ class SoftRobotEnv(gymnasium.Env):
         self.episodes = make_episodes(
             self.task_class, 1, tolerance, robot=robot, actuator=actuator, scenario=scenario,
             environment=environment, period=period, max_episode_steps=max_episode_steps,
-            substeps=substeps, threads=threads,
+            substeps=substeps, threads=threads, method=method,
         )  # fmt: skip
         self.observation_space = self.episodes.observation_space
         self.action_space = self.episodes.action_space

@@ -59,6 +59,7 @@ class SoftRobotVectorEnv(VectorEnv):
     %(tolerance)s
     %(substeps)s
     %(threads)s
+    %(method)s
     %(render_mode)s
     """
 
@@ -78,6 +79,7 @@ class SoftRobotVectorEnv(VectorEnv):
         tolerance=None,
         substeps=None,
         threads=None,
+        method=None,
         render_mode=None,
     ):
         if render_mode is not None:
@@ -85,7 +87,7 @@ class SoftRobotVectorEnv(VectorEnv):
         self.episodes = make_episodes(
             self.task_class, num_envs, tolerance, robot=robot, actuator=actuator,
             scenario=scenario, environment=environment, period=period,
-            max_episode_steps=max_episode_steps, substeps=substeps, threads=threads,
+            max_episode_steps=max_episode_steps, substeps=substeps, threads=threads, method=method,
         )  # fmt: skip
         self.num_envs = self.episodes.size
         self.single_observation_space = self.episodes.observation_space

@@ -2,16 +2,12 @@
 one call into compiled code, for learning environments and other fixed-rate loops.
 
 :class:`Stepper` advances ``N`` members (states ``x`` (N, n_state), inputs (N, m)) by
-``period`` seconds with ``substeps`` steps of the L-stable Rosenbrock-W method ROS2
-(:mod:`softcurve.simulation.stepper_scheme`), the input held over the period. The state
-layout is :func:`~softcurve.simulation.simulate.simulate`'s: ``(q, qd, lam)`` then, with
-an actuator that has a ``time_constant``, its lagging inputs. A member whose new state is
-non-finite or outside the model's domain is flagged in :class:`StepResult` and keeps its
-state; the others are unaffected, and no member's failure raises.
-
-Use :func:`~softcurve.simulation.simulate.simulate` for error-controlled accuracy; the
-stepper's error is fixed by ``substeps`` (``docs/stepping.md`` gives it against a tight
-reference and the throughput).
+``period`` seconds with ``substeps`` fixed steps (:mod:`softcurve.simulation.stepper_scheme`),
+the input held. The state is ``simulate``'s: ``(q, qd, lam)``, then the lagging inputs of
+an actuator with a ``time_constant``. A member whose new state is non-finite or outside
+the model's domain is flagged in :class:`StepResult` and keeps its state; no member's
+failure stops the others. The error is fixed by ``method`` and ``substeps``
+(docs/stepping.md); :func:`~softcurve.simulation.simulate.simulate` controls it.
 """
 
 from __future__ import annotations
@@ -29,9 +25,10 @@ from softcurve.compiled.model import Model
 from softcurve.description.actuator import Actuator
 from softcurve.simulation.integrators import ActuatorInput, BufferedCall
 from softcurve.simulation.simulate import initial_state as checked_state
+from softcurve.simulation.stepper_methods import METHODS, ExplicitTableau
 from softcurve.simulation.stepper_native import ThreadedMembers
 from softcurve.simulation.stepper_observe import observer
-from softcurve.simulation.stepper_scheme import METHODS, period_function
+from softcurve.simulation.stepper_scheme import check_explicit_step, period_function
 from softcurve.simulation.stepping import domain_reason, outside_domain
 
 DEFAULT_METHOD = "ROS34PW2"
@@ -52,6 +49,12 @@ DEFAULT_STEP = 0.02 / DEFAULT_SUBSTEPS
 ceil(period / DEFAULT_STEP)``, 16 at 20 ms. With 16 steps at any period the error grew
 with it: 3.4 mm (6 % of the travel) at 100 ms against 0.13 mm at 20 ms (the same robot
 and inputs, a review's check)."""
+
+DEFAULT_EXPLICIT_STEP = 0.02 / 6
+"""The longest step [s] of the explicit RK4 when ``substeps`` is not given (3.3 ms, 6
+steps per 20 ms), measured as :data:`DEFAULT_SUBSTEPS`: the paper's robot stays within
+0.58 mm (0.6 % of the travel) of ``simulate`` over the 2 s of random pressures (0.21 mm
+with 8 steps, 0.94 with 5; docs/stepping.md)."""
 
 CONTACT_JACOBIAN_EVERY = 1
 """Steps between fresh Jacobians with an environment (default of ``jacobian_every``).
@@ -124,13 +127,15 @@ class Stepper:
         Control period [s] > 0: the inputs are held over it.
     substeps : int, optional
         Steps per period, >= 1 (default: steps of at most :data:`DEFAULT_STEP`, 16 at a
-        20 ms period).
+        20 ms period; :data:`DEFAULT_EXPLICIT_STEP` for RK4, 6 at 20 ms).
     threads : int, optional
         Threads of the batched call, >= 1 (default ``os.cpu_count()``).
     method : str, optional
-        The Rosenbrock-W method, a key of
-        :data:`~softcurve.simulation.stepper_scheme.METHODS` (default
-        :data:`DEFAULT_METHOD`).
+        A key of :data:`~softcurve.simulation.stepper_methods.METHODS` (default
+        :data:`DEFAULT_METHOD`): a Rosenbrock-W method for any robot, or ``"RK4"``,
+        explicit and about three times faster per period, for a robot without an
+        environment whose fastest mode the step resolves (checked here, at rest:
+        :func:`~softcurve.simulation.stepper_scheme.check_explicit_step`).
     compiled : bool
         Generate the whole period as C and compile it (default; cached on disk, one
         library per robot structure, environment, actuator, method and ``substeps``), or
@@ -164,8 +169,13 @@ class Stepper:
             actuator.check_robot(model.robot)
         self._model, self._actuator = model, actuator
         self._period = real_scalar("period", period, positive=True)
+        method = DEFAULT_METHOD if method is None else method
+        if method not in METHODS:
+            raise ParameterError(f"method must be one of {sorted(METHODS)}, got {method!r}")
+        self._method, explicit = method, isinstance(METHODS[method], ExplicitTableau)
         if substeps is None:  # the measured step, whatever the period
-            substeps = max(1, math.ceil(self._period / DEFAULT_STEP - 1e-9))
+            longest = DEFAULT_EXPLICIT_STEP if explicit else DEFAULT_STEP
+            substeps = max(1, math.ceil(self._period / longest - 1e-9))
         self._substeps = whole_count("substeps", substeps)
         self._threads = whole_count(
             "threads", (os.cpu_count() or 1) if threads is None else threads
@@ -177,10 +187,8 @@ class Stepper:
             self._lower, self._upper = np.full(model.n, -np.inf), np.full(model.n, np.inf)
         else:
             self._lower, self._upper = actuator.lower.copy(), actuator.upper.copy()
-        method = DEFAULT_METHOD if method is None else method
-        if method not in METHODS:
-            raise ParameterError(f"method must be one of {sorted(METHODS)}, got {method!r}")
-        self._method = method
+        if explicit:
+            check_explicit_step(model, self._input, self._period, self._substeps, METHODS[method])
         compiled = bool(compiled) and model.compiled_library is not None
         if jacobian_every is None:
             free = model.environment is None
@@ -219,12 +227,12 @@ class Stepper:
 
     @property
     def substeps(self) -> int:
-        """ROS2 steps per period."""
+        """Steps per period."""
         return self._substeps
 
     @property
     def method(self) -> str:
-        """The Rosenbrock-W method."""
+        """The method's name."""
         return self._method
 
     @property

@@ -58,7 +58,7 @@ class ThreadedMembers:
 
     def __call__(self, x, u, p, period, out) -> list:
         """Fill ``out`` (N, n_out) row by row; return the members that failed as
-        ``[(i, message), ...]`` (their rows are left as they were).
+        ``[(i, message), ...]`` (their rows are undefined).
 
         Parameters
         ----------
@@ -71,18 +71,13 @@ class ThreadedMembers:
         period : ndarray, shape (1,)
             The control period [s].
         out : ndarray, shape (N, n_out)
-            Where the outputs go.
+            Where the outputs go (C-contiguous float64).
         """
         count = x.shape[0]
+        arrays = [np.ascontiguousarray(a, dtype=np.float64) for a in (x, u, p, period)]
 
         def run(a: int, b: int) -> list:
-            failed = []
-            for i in range(a, b):
-                try:
-                    out[i] = self._function(x[i], u[i], p, period)[0]
-                except RuntimeError as exc:  # a non-zero status of the generated code
-                    failed.append((i, str(exc)))
-            return failed
+            return self._function.call_rows(arrays, out, a, b)
 
         chunks = min(self._threads, count)
         if chunks <= 1:

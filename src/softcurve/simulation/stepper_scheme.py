@@ -1,11 +1,12 @@
 """The fixed-step scheme of :class:`~softcurve.simulation.stepper.Stepper`: one CasADi
 function per member that advances a state by one control period, generated as C.
 
-The period is split into ``substeps`` steps ``h`` of a Rosenbrock-W method
-(:class:`Tableau`: ROS34PW2 of order 3, or ROS2 of order 2, both L-stable), the inputs
-held. A W-method keeps its order with any matrix ``J``, so one forward-difference
-Jacobian (:func:`newton_matrix`) serves several steps; ``I - gamma h J`` is factorized
-by Householder QR (:class:`Factorization`), no inverse. The state layout is
+The period is split into ``substeps`` steps ``h`` of one of the methods of
+:mod:`~softcurve.simulation.stepper_methods`, the inputs held: a Rosenbrock-W method
+(ROS34PW2 of order 3, or ROS2 of order 2, both L-stable) or the explicit RK4
+(:func:`explicit_step`). A W-method keeps its order with any matrix ``J``, so one
+forward-difference Jacobian (:func:`newton_matrix`) serves several steps; ``I - gamma h
+J`` is factorized by Householder QR (:class:`Factorization`), no inverse. The state layout is
 ``simulate``'s: ``(q, qd, lam)`` then the actuator's lagging inputs
 (:class:`~softcurve.simulation.integrators.ActuatorInput`). docs/stepping.md gives the
 accuracy and the cost.
@@ -14,16 +15,17 @@ accuracy and the cost.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 
 import casadi as ca
 import numpy as np
 
+from softcurve.base.validation import ParameterError
 from softcurve.compiled.generated import compile_function
 from softcurve.compiled.native import NativeFunction
 from softcurve.simulation.actuated import actuated_derivative
 from softcurve.simulation.engine import nominal_scale
 from softcurve.simulation.integrators import ActuatorInput
+from softcurve.simulation.stepper_methods import METHODS, ExplicitTableau, Tableau
 from softcurve.simulation.stepper_native import load_native
 from softcurve.simulation.stepper_observe import observer
 
@@ -139,79 +141,6 @@ class Factorization:
         self.solve = ca.Function("newton_solve", [*factors, b], [x])
 
 
-@dataclass(frozen=True)
-class Tableau:
-    """A Rosenbrock(-W) method in its published form ``(alpha, Gamma, b)`` (Hairer and
-    Wanner, Solving ODEs II, IV.7), for ``x' = f(x)``, with ``gamma = Gamma_ii``:
-
-    - stages: ``(I - gamma h J) k_i = f(x + h sum_j alpha_ij k_j) + h J sum_{j<i}
-      gamma_ij k_j``;
-    - step: ``x_next = x + h sum_i b_i k_i``.
-
-    Parameters
-    ----------
-    name : str
-        Its name.
-    order : int
-        Its order with any matrix ``J`` (a W-method).
-    alpha : tuple of tuple of float
-        Strictly lower triangular (s x s).
-    gamma : tuple of tuple of float
-        Lower triangular with the constant diagonal ``gamma`` (s x s).
-    b : tuple of float
-        Weights (s,).
-    """
-
-    name: str
-    order: int
-    alpha: tuple
-    gamma: tuple
-    b: tuple
-
-    def transformed(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
-        """``(a, c, m, gamma)`` of the form without matrix-vector products, in stage
-        variables ``v_i`` (Hairer and Wanner's ``u_i / (gamma h)``): stages
-        ``(I - gamma h J) v_i = f(x + h sum_j a_ij v_j) + sum_j c_ij v_j``, step
-        ``x_next = x + h sum_i m_i v_i``."""
-        alpha, big, b = (np.array(v, dtype=np.float64) for v in (self.alpha, self.gamma, self.b))
-        gamma = big[0, 0]
-        # a = alpha Gamma^-1, c = 1/gamma - Gamma^-1, m = b Gamma^-1 (solves, no inverse)
-        a = np.linalg.solve(big.T, alpha.T).T
-        inverse_rows = np.linalg.solve(big.T, np.eye(big.shape[0])).T
-        c = np.diag(np.full(big.shape[0], 1 / gamma)) - inverse_rows
-        m = np.linalg.solve(big.T, b)
-        return gamma * np.tril(a, -1), gamma * np.tril(c, -1), gamma * m, gamma
-
-
-_G2 = 1.0 + 1.0 / math.sqrt(2.0)
-ROS2 = Tableau("ROS2", 2, ((0.0, 0.0), (1.0, 0.0)), ((_G2, 0.0), (-2.0 * _G2, _G2)), (0.5, 0.5))
-"""Verwer, Spee, Blom and Hundsdorfer (SIAM J. Sci. Comput. 20(4), 1999): two stages,
-order 2 with any ``J``, L-stable with ``gamma = 1 + 1/sqrt(2)``."""
-
-_G4 = 0.43586652150845900
-ROS34PW2 = Tableau(
-    "ROS34PW2",
-    3,
-    (
-        (0.0, 0.0, 0.0, 0.0),
-        (8.7173304301691801e-01, 0.0, 0.0, 0.0),
-        (8.4457060015369423e-01, -1.1299064236484185e-01, 0.0, 0.0),
-        (0.0, 0.0, 1.0, 0.0),
-    ),
-    (
-        (_G4, 0.0, 0.0, 0.0),
-        (-8.7173304301691801e-01, _G4, 0.0, 0.0),
-        (-9.0338057013044082e-01, 5.4180672388095326e-02, _G4, 0.0),
-        (2.4212380706095346e-01, -1.2232505839045147e00, 5.4526025533510214e-01, _G4),
-    ),
-    (2.4212380706095346e-01, -1.2232505839045147e00, 1.5452602553351020e00, _G4),
-)
-"""Rang and Angermann (BIT 45, 2005): four stages, order 3 with any ``J`` (a W-method),
-L-stable and stiffly accurate."""
-
-METHODS = {t.name: t for t in (ROS2, ROS34PW2)}
-"""The methods by name."""
-
 STEPPER_FLAGS = ("-O3",)
 """Optimization flags of the compiled period (``-march=native`` is added unless
 ``SOFTCURVE_PORTABLE`` is set). The period is small (about 1,000 CasADi instructions
@@ -256,6 +185,98 @@ def rosenbrock_step(f, x, u, p, solve, f0, h, tableau: Tableau):
     return x + h * sum(m[i] * stages[i] for i in range(len(stages)) if m[i])
 
 
+EXPLICIT_MARGIN = 2.0
+"""Factor between the fastest mode of a robot at rest and the fastest it reaches in use,
+allowed for when an explicit method's step is checked (:func:`check_explicit_step`):
+under random pressure commands held 20 ms each over 2 s (docs/stepping.md), the paper's
+robot with the bellows reached 476 and 483 1/s (two seeds) against 283 1/s at rest, 1.7
+times."""
+
+
+def fastest_rate_at_rest(model, inputs: ActuatorInput | None) -> float:
+    """The largest ``|lambda|`` [1/s] of the state derivative's Jacobian at the robot's
+    rest: straight at rest length, no motion, no creep, the lag states at zero inputs
+    clipped to their bounds (forward differences on the compiled right-hand side).
+
+    Parameters
+    ----------
+    model : Model
+        The model.
+    inputs : ActuatorInput or None
+        The actuator's input, or None for generalized forces.
+    """
+    f = state_derivative(model, inputs, symbolic=False)
+    n_u = f.size1_in(1)
+    u = np.zeros(n_u) if inputs is None else np.clip(np.zeros(n_u), inputs.lower, inputs.upper)
+    x = np.zeros(f.size1_in(0))
+    x[: model.n] = [v for s in model.robot.segments for v in (s.rest_length, 0.0, 0.0)]
+    x[model.n_state :] = u[: x.size - model.n_state]
+    steps = DIFFERENCE_STEP * np.maximum(np.abs(x), state_scale(model, inputs))
+    points = np.column_stack([x, x[:, None] + np.diag(steps)])
+    values = np.array(f.map(x.size + 1)(points, u, model.parameters))
+    jacobian = (values[:, 1:] - values[:, :1]) / steps
+    return float(np.abs(np.linalg.eigvals(jacobian)).max())
+
+
+def check_explicit_step(model, inputs: ActuatorInput | None, period, substeps, method) -> None:
+    """Raise :class:`~softcurve.base.validation.ParameterError` where an explicit
+    ``method`` cannot take ``period / substeps`` steps on this robot: with an environment
+    (a penalty contact is stiff), or where the robot's fastest mode at rest
+    (:func:`fastest_rate_at_rest`) times :data:`EXPLICIT_MARGIN` leaves its stability
+    radius.
+
+    Parameters
+    ----------
+    model : Model
+        The model.
+    inputs : ActuatorInput or None
+        The actuator's input, or None for generalized forces.
+    period : float
+        Control period [s].
+    substeps : int
+        Steps per period.
+    method : ExplicitTableau
+        The method.
+    """
+    if model.environment is not None:
+        raise ParameterError(
+            f"method={method.name!r} is explicit and the model has an environment, whose "
+            "penalty contact is far stiffer than the robot: use method='ROS34PW2'"
+        )
+    rate = fastest_rate_at_rest(model, inputs)
+    longest = method.stability_radius / (EXPLICIT_MARGIN * rate)
+    if period / substeps > longest:
+        needed = math.ceil(period / longest)
+        raise ParameterError(
+            f"substeps={substeps} gives {method.name} steps of {period / substeps * 1e3:.3g} "
+            f"ms, beyond its stability on this robot: its fastest mode at rest is "
+            f"{rate:.4g} 1/s, so steps must be <= {longest * 1e3:.3g} ms (stability "
+            f"radius {method.stability_radius} over {EXPLICIT_MARGIN:g} times that rate): "
+            f"substeps >= {needed}, or method='ROS34PW2'"
+        )
+
+
+def explicit_step(f, x, u, p, h, tableau: ExplicitTableau):
+    """One step of the explicit ``tableau`` (MX) from ``x``.
+
+    Parameters
+    ----------
+    f : casadi.Function
+        ``(x, u, p) -> xdot``.
+    x, u, p : casadi.MX
+        State, inputs, robot parameters.
+    h : casadi.MX or float
+        Step [s].
+    tableau : ExplicitTableau
+        The method.
+    """
+    stages = []
+    for row in tableau.a:
+        shift = sum(a * k for a, k in zip(row, stages, strict=False) if a)
+        stages.append(f(x if isinstance(shift, int) else x + h * shift, u, p))
+    return x + h * sum(b * k for b, k in zip(tableau.b, stages, strict=True) if b)
+
+
 def period_function(
     model,
     inputs,
@@ -293,7 +314,8 @@ def period_function(
     flags : tuple of str, optional
         The compiler's optimization flags (default :data:`STEPPER_FLAGS`).
     jacobian_every : int, optional
-        Steps between fresh Jacobians (default ``substeps``: one per period).
+        Steps between fresh Jacobians of a Rosenbrock method (default ``substeps``: one
+        per period).
     native : bool
         With ``compiled``, return the compiled library's function as a
         :class:`~softcurve.compiled.native.NativeFunction` (called through ctypes, which
@@ -302,6 +324,8 @@ def period_function(
     """
     tableau = METHODS[method]
     every = substeps if jacobian_every is None else min(jacobian_every, substeps)
+    if isinstance(tableau, ExplicitTableau):
+        every = None  # no Jacobian
 
     def graph():
         f = state_derivative(model, inputs, compiled)
@@ -310,16 +334,21 @@ def period_function(
         p = ca.MX.sym("p", f.size1_in(2))
         period = ca.MX.sym("period")
         h = period / substeps
-        scale, pattern = state_scale(model, inputs), jacobian_pattern(model, inputs)
-        qr = Factorization(pattern)
         y = x
-        for i in range(substeps):
-            if i % every == 0:
-                matrix, slope = newton_matrix(f, scale, pattern, y, u, p, tableau.gamma[0][0] * h)
-                factors = qr.factor(matrix)
-            else:
-                slope = f(y, u, p)
-            y = rosenbrock_step(f, y, u, p, _solver(qr, factors), slope, h, tableau)
+        if isinstance(tableau, ExplicitTableau):
+            for _ in range(substeps):
+                y = explicit_step(f, y, u, p, h, tableau)
+        else:
+            scale, pattern = state_scale(model, inputs), jacobian_pattern(model, inputs)
+            qr = Factorization(pattern)
+            for i in range(substeps):
+                if i % every == 0:
+                    gamma_h = tableau.gamma[0][0] * h
+                    matrix, slope = newton_matrix(f, scale, pattern, y, u, p, gamma_h)
+                    factors = qr.factor(matrix)
+                else:
+                    slope = f(y, u, p)
+                y = rosenbrock_step(f, y, u, p, _solver(qr, factors), slope, h, tableau)
         observe = observer(model, compiled)
         out = ca.vertcat(y, observe(y[: model.n_state], p))
         return ca.Function(

@@ -1,0 +1,131 @@
+"""The stepper's explicit method RK4: its coefficients, its accuracy against simulate, the
+stability check at construction, energy, and the compiled rows call it runs on."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import softcurve as sc
+from softcurve.base.validation import ParameterError
+from softcurve.simulation.stepper import DEFAULT_EXPLICIT_STEP, Stepper
+from softcurve.simulation.stepper_methods import RK4
+from softcurve.simulation.stepper_scheme import EXPLICIT_MARGIN, fastest_rate_at_rest
+
+PERIOD = 0.02
+
+
+@pytest.fixture(scope="module")
+def actuator():
+    """examples/pneumatic.toml: three bellows, 0..60 kPa, 20 ms pressure lag."""
+    return sc.PneumaticActuator.three_bellows(
+        distance=0.012, area=2e-4, p_max=6e4, time_constant=0.02
+    )
+
+
+def test_rk4_is_of_order_4_and_its_stability_radius_is_tight():
+    z = np.array([1e-2, 1e-2j, -2e-2 + 1e-2j])
+    taylor = 1 + z + z**2 / 2 + z**3 / 6 + z**4 / 24
+    np.testing.assert_allclose(RK4.stability_function(z), taylor, rtol=1e-15)
+    # |R - exp| ~ |z|^5 / 120: order 4
+    assert abs(RK4.stability_function(1e-2) - np.exp(1e-2)) < 1e-12
+    angles = np.linspace(np.pi / 2, 3 * np.pi / 2, 721)
+    inside = RK4.stability_radius * np.exp(1j * angles)
+    assert np.all(np.abs(RK4.stability_function(inside)) <= 1 + 1e-12)
+    beyond = 1.002 * RK4.stability_radius * np.exp(1j * angles)
+    assert np.any(np.abs(RK4.stability_function(beyond)) > 1)
+
+
+def test_rk4_agrees_with_simulate_on_piecewise_constant_commands(paper_model, actuator, rng):
+    """Random pressure commands held 20 ms each, 0.3 s: RK4 at its default step (6 per
+    period) within 1 mm and 2 % of the tip's travel of simulate (rtol 1e-10), as
+    ROS34PW2 at 16 (docs/stepping.md); the default is 6 steps per 20 ms."""
+    periods = 15
+    held = rng.uniform(actuator.lower, actuator.upper, (periods, actuator.n_inputs))
+    q0 = np.array([0.064, 0.0, 0.0])
+    reference = sc.simulate(
+        paper_model,
+        q0,
+        np.zeros(3),
+        actuator=actuator,
+        inputs=np.vstack([held, held[-1:]]),
+        t_final=periods * PERIOD,
+        dt=PERIOD,
+        rtol=1e-10,
+    )
+    assert reference.success, reference.message
+    stepper = Stepper(paper_model, actuator, period=PERIOD, method="RK4")
+    assert stepper.substeps == round(PERIOD / DEFAULT_EXPLICIT_STEP) == 6
+    x = stepper.initial_state(q0)[None, :]
+    tips = [stepper.tip(x)[0]]
+    for k in range(periods):
+        result = stepper.step(x, held[k : k + 1])
+        assert result.ok.all(), result.message
+        x = result.x
+        tips.append(result.tip[0])
+    expected = np.array([paper_model.tip_pose(q).position for q in reference.q])
+    travel = np.ptp(expected, axis=0).max()
+    assert np.abs(np.array(tips) - expected).max() < min(1e-3, 0.02 * travel)
+
+
+def test_the_step_is_checked_against_the_robots_fastest_mode(paper_model, actuator):
+    """At construction: the paper robot's fastest mode at rest (about 280 1/s) allows
+    steps up to 2.615 / (2 x 280) s, 4.6 ms: 5 steps per 20 ms pass, 4 do not, and the
+    message names substeps, its value and the smallest allowed; the stiff axial modes of
+    the tendon robot (about 28,000 rad/s) and an environment's contact are refused."""
+    rate = fastest_rate_at_rest(paper_model, Stepper(paper_model, actuator, period=PERIOD)._input)
+    assert 250 < rate < 320
+    Stepper(paper_model, actuator, period=PERIOD, method="RK4", substeps=5, compiled=False)
+    with pytest.raises(ParameterError, match=r"substeps=4 .* substeps >= 5, or method='ROS34PW2'"):
+        Stepper(paper_model, actuator, period=PERIOD, method="RK4", substeps=4, compiled=False)
+    assert PERIOD / 5 <= RK4.stability_radius / (EXPLICIT_MARGIN * rate) < PERIOD / 4
+    tendon_robot = sc.presets.rao2021()
+    tendon_model = sc.Model(tendon_robot, compile=False)
+    with pytest.raises(ParameterError, match="beyond its stability"):
+        Stepper(tendon_model, sc.presets.rao2021_tendons(), period=PERIOD, method="RK4")
+    ceiling = sc.Plane([0.0, 0.0, 0.062], [0.0, 0.0, -1.0])
+    environment = sc.Environment([ceiling], sc.ContactLaw(stiffness=1e7), contact_radius=[1e-3])
+    contact_model = sc.Model(sc.presets.ifac2020(), environment=environment, compile=False)
+    with pytest.raises(ParameterError, match="environment"):
+        Stepper(contact_model, period=PERIOD, method="RK4")
+
+
+def test_rk4_creates_no_energy(conservative_model):
+    """Undamped robot whose creep exerts no force: RK4's stability function has
+    ``|R(iy)|**2 = 1 - y**6/72 + y**8/576 < 1`` within its radius, so the energy never
+    grows; it damps the fast axial oscillation a little (247 rad/s, ``y = 0.82`` at 3.3
+    ms steps: 0.4 % of that mode's energy per step): 2.6 % of the energy over 0.5 s."""
+    stepper = Stepper(conservative_model, period=PERIOD, method="RK4", compiled=False)
+    n = conservative_model.n
+    x = stepper.initial_state([0.064, 25.0, 0.0], [0.0, 0.0, 1500.0])[None, :]
+    energy = [conservative_model.energy(x[0, :n], x[0, n : 2 * n])]
+    for _ in range(25):
+        result = stepper.step(x, np.zeros((1, n)))
+        assert result.ok[0], result.reasons
+        x = result.x
+        energy.append(conservative_model.energy(x[0, :n], x[0, n : 2 * n]))
+    energy = np.array(energy)
+    assert np.all(energy[1:] <= energy[0] * (1 + 1e-9)), energy
+    assert np.all(np.diff(energy) <= 1e-12 * energy[0]), energy
+    assert energy[-1] > energy[0] * (1 - 0.05), energy
+
+
+def test_compiled_rk4_equals_the_virtual_machine_and_rows_equal_calls(paper_model, actuator, rng):
+    """The generated C and CasADi's virtual machine compute the same RK4 periods; the
+    compiled library's rows call (in place, no copies) equals its one-member call."""
+    stepper = Stepper(paper_model, actuator, period=PERIOD, method="RK4", threads=2)
+    machine = Stepper(paper_model, actuator, period=PERIOD, method="RK4", compiled=False)
+    x = np.tile(stepper.initial_state([0.064, 5.0, -3.0]), (5, 1))
+    x[:, 3:6] += rng.normal(0.0, 1.0, (5, 3)) * [0.01, 10.0, 10.0]
+    u = rng.uniform(actuator.lower, actuator.upper, (5, 3))
+    compiled, virtual = stepper.step(x, u), machine.step(x, u)
+    scale = np.abs(x).max(axis=0) + np.r_[0.064, 1, 1, 0.1, 100, 100, 1, 1, 1, 6e4, 6e4, 6e4]
+    assert (np.abs(compiled.x - virtual.x) / scale).max() < 1e-12
+    native = stepper._members._function
+    out = np.empty((5, stepper.n_state + 6))
+    shared = [paper_model.parameters, np.array([PERIOD])]
+    assert native.call_rows([x, u, *shared], out, 0, 5) == []
+    for i in range(5):
+        np.testing.assert_array_equal(out[i], native(x[i], u[i], *shared)[0])
+    with pytest.raises(ValueError, match="C-contiguous"):
+        native.call_rows([x[:, :5], u, *shared], out, 0, 5)
