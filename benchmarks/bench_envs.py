@@ -2,12 +2,14 @@
 GPU figures, and the accuracy of the stepper behind them.
 
 Run:  python benchmarks/bench_envs.py [--sizes 1,16,256,1024] [--repeat 3] [--seconds 2]
-      [--no-tendons]
+      [--no-tendons] [--methods ROS34PW2,RK4]
 
 Robots: the paper's one-segment robot (preset ifac2020) with three bellows driven by
 pressures (0-6e4 Pa, 20 ms lag; the default of softcurve/Reach-v0), and the two-segment
 tendon robot of Rao et al. 2021 (presets rao2021 and rao2021_tendons: six tensions,
-0-20 N), both at a 20 ms control period. For each number of environments N, the
+0-20 N), both at a 20 ms control period, with each stepper method of ``--methods`` (its
+default number of steps; RK4 is refused for the tendon robot, whose axial modes are
+stiff). For each number of environments N, the
 VectorEnv's ``step`` runs with uniformly random actions in [-1, 1] (drawn inside the
 timed loop), 2 s episodes and the autoreset included; printed: aggregate environment
 steps per second, simulated seconds per second (steps/s times the period) and the
@@ -156,41 +158,57 @@ def _adaptive_floor(vector, rng) -> None:
     )
 
 
+def _rows(label, robot, reference, method, sizes, args, rng) -> None:
+    """The accuracy and the throughput rows of one robot and stepper method."""
+    start = time.perf_counter()
+    try:
+        first = ReachVector(1, period=PERIOD, method=method, **robot)
+    except sc.ParameterError as error:  # RK4 on a robot with stiff modes
+        print(f"\n{label}, {method}: refused at construction: {error}")
+        return
+    stepper = first.episodes.setup.stepper
+    setup_time = time.perf_counter() - start
+    print(f"\n{label}: control period {PERIOD * 1e3:g} ms, {stepper.method} x "
+          f"{stepper.substeps} steps, set-up (compile or load, calibration) "
+          f"{setup_time:.1f} s")  # fmt: skip
+    if reference:
+        error, relative = _accuracy(first)
+        print(f"accuracy: tip within {error * 1e3:.3g} mm of softcurve.simulate at rtol "
+              f"1e-10 over 1 s ({relative:.2g} of the workspace radius)")  # fmt: skip
+    else:
+        print("accuracy: not measured here (docs/stepping.md: the stepper does not follow "
+              "this undamped robot at 20 ms)")  # fmt: skip
+    print(f"{'N':>6} {'env steps/s':>12} {'sim s/s':>10} {'stepper steps/s':>16} "
+          f"{'real-time factor (N=1)':>23}")  # fmt: skip
+    for size in sizes:
+        vector = first if size == 1 else ReachVector(size, period=PERIOD, method=method, **robot)
+        best = max(_throughput(vector, args.seconds, rng) for _ in range(args.repeat))
+        factor = f"{best[0] * PERIOD:.0f}x" if size == 1 else ""
+        print(f"{size:>6} {best[0]:>12,.0f} {best[0] * PERIOD:>10,.0f} {best[1]:>16,.0f} "
+              f"{factor:>23}")  # fmt: skip
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--sizes", default="1,16,256,1024", help="numbers of environments")
     parser.add_argument("--repeat", type=int, default=3, help="runs per row (best kept)")
     parser.add_argument("--seconds", type=float, default=2.0, help="duration of one run [s]")
     parser.add_argument("--no-tendons", action="store_true", help="skip the tendon robot")
+    parser.add_argument(
+        "--methods", default="ROS34PW2,RK4", help="the stepper's methods, one set of rows each"
+    )
     args = parser.parse_args()
     sizes = [int(s) for s in args.sizes.split(",")]
     print(f"softcurve {sc.__version__}, Python {platform.python_version()}, "
           f"{os.cpu_count()} CPUs, load average {os.getloadavg()}")  # fmt: skip
     rng = np.random.default_rng(0)
+    methods = args.methods.split(",")
     for label, robot, reference in _robots(not args.no_tendons):
-        start = time.perf_counter()
-        first = ReachVector(1, period=PERIOD, **robot)
-        stepper = first.episodes.setup.stepper
-        setup_time = time.perf_counter() - start
-        print(f"\n{label}: control period {PERIOD * 1e3:g} ms, substeps {stepper.substeps}, "
-              f"set-up (compile or load, calibration) {setup_time:.1f} s")  # fmt: skip
-        if reference:
-            error, relative = _accuracy(first)
-            print(f"accuracy: tip within {error * 1e3:.3g} mm of softcurve.simulate at rtol "
-                  f"1e-10 over 1 s ({relative:.2g} of the workspace radius)")  # fmt: skip
-        else:
-            print("accuracy: not measured here (docs/stepping.md: the stepper does not follow "
-                  "this undamped robot at 20 ms)")  # fmt: skip
-        if reference:
-            _adaptive_floor(first, rng)
-        print(f"{'N':>6} {'env steps/s':>12} {'sim s/s':>10} {'stepper steps/s':>16} "
-              f"{'real-time factor (N=1)':>23}")  # fmt: skip
-        for size in sizes:
-            vector = first if size == 1 else ReachVector(size, period=PERIOD, **robot)
-            best = max(_throughput(vector, args.seconds, rng) for _ in range(args.repeat))
-            factor = f"{best[0] * PERIOD:.0f}x" if size == 1 else ""
-            print(f"{size:>6} {best[0]:>12,.0f} {best[0] * PERIOD:>10,.0f} {best[1]:>16,.0f} "
-                  f"{factor:>23}")  # fmt: skip
+        for method in methods:
+            _rows(label, robot, reference, method, sizes, args, rng)
+            if reference and method == methods[-1]:
+                first = ReachVector(1, period=PERIOD, method=method, **robot)
+                _adaptive_floor(first, rng)
     print(f"\nload average after the runs: {os.getloadavg()}")
 
 

@@ -17,7 +17,8 @@ Run:  python benchmarks/bench_identification.py [--repeat N] [--quick] [--joint]
    samples of a rotating pressure field, for one ifac2020 segment and three in series
    (compile=False: the equilibrium fit evaluates the symbolic functions), from the same
    perturbed start; best of ``--repeat`` fits (at least 3), after a first fit that builds
-   the derivatives for the free parameters (kept with the model: printed apart).
+   the derivatives for the free parameters (kept with the model: printed apart), and the
+   same with the samples on one thread instead of all cores.
 3. ``--joint``: two copies of the dynamic experiment evaluated one after the other and in
    two worker processes (the speed-up of the parallel joint fit).
 
@@ -40,6 +41,7 @@ import numpy as np
 from _timing import best_of  # benchmarks/_timing.py: a helper, not a benchmark
 
 import softcurve as sc
+from softcurve.identification import equilibria
 from softcurve.identification.dynamic import fit_equilibria
 from softcurve.identification.experiments import Experiment
 from softcurve.identification.joint import evaluate_all
@@ -152,7 +154,13 @@ def quasi_static_fit(segments: int, samples: int, repeat: int):
     fit()
     first = time.perf_counter() - start
     wall, report = best_of(repeat, fit)
-    return wall, first, setup, report
+    cores = equilibria.default_threads
+    equilibria.default_threads = lambda: 1  # the samples on one thread, for comparison
+    try:
+        one_thread, _ = best_of(repeat, fit)
+    finally:
+        equilibria.default_threads = cores
+    return wall, first, one_thread, setup, report
 
 
 def quasi_static(args) -> None:
@@ -163,13 +171,15 @@ def quasi_static(args) -> None:
     )
     walls = {}
     for segments in (1, 3):
-        wall, first, setup, report = quasi_static_fit(segments, samples, max(args.repeat, 3))
+        wall, first, one_thread, setup, report = quasi_static_fit(
+            segments, samples, max(args.repeat, 3)
+        )
         walls[segments] = wall, first
         print(
             f"  {segments} segment(s): fit {wall:7.2f} s ({first:.2f} s the first time, "
-            f"with its derivatives' build), {report.n_evaluations} evaluations, status "
-            f"{report.status.value}; before it, the model's symbolic functions and the "
-            f"first prediction {setup:.1f} s"
+            f"with its derivatives' build; {one_thread:.2f} s with the samples on one "
+            f"thread), {report.n_evaluations} evaluations, status {report.status.value}; "
+            f"before it, the model's symbolic functions and the first prediction {setup:.1f} s"
         )
     ratio, first_ratio = walls[3][0] / walls[1][0], walls[3][1] / walls[1][1]
     print(

@@ -22,9 +22,11 @@ substeps.
    ``--accuracy-periods`` periods (2 s), two seeds, against ``simulate(..., rtol=1e-10)``
    with the same piecewise-constant commands: the max tip-position error [mm] and
    relative to the tip's travel (its largest coordinate range), per method and
-   substeps, with the right-hand sides per period. Run in CasADi's virtual machine on
-   the model's compiled right-hand side (the same scheme as the compiled code to
-   round-off; no compile per row).
+   substeps, with the right-hand sides per period; the explicit RK4 too (rows its
+   stability check refuses at construction are printed so), and the fastest mode of the
+   robot along each reference run against its value at rest (the check's margin). Run
+   in CasADi's virtual machine on the model's compiled right-hand side (the same scheme
+   as the compiled code to round-off; no compile per row).
 5. The same accuracy for the two-segment tendon robot (presets rao2021 with
    rao2021_tendons, tensions 0..8 N) at 20 ms over ``--tendon-periods`` periods (0.4 s;
    the reference, at rtol 1e-8, needs ~8,000 right-hand sides per period), with a
@@ -50,7 +52,13 @@ import softcurve as sc
 from softcurve.compiled.generated import FUNCTION_FLAGS
 from softcurve.simulation.integrators import ActuatorInput
 from softcurve.simulation.stepper import DEFAULT_METHOD, DEFAULT_SUBSTEPS, Stepper
-from softcurve.simulation.stepper_scheme import METHODS, STEPPER_FLAGS, period_function
+from softcurve.simulation.stepper_methods import METHODS, Tableau
+from softcurve.simulation.stepper_scheme import (
+    STEPPER_FLAGS,
+    fastest_rate,
+    fastest_rate_at_rest,
+    period_function,
+)
 
 PERIOD = 0.02
 
@@ -189,6 +197,16 @@ def accuracy(model, actuator, q0, periods, rows, seeds=(1, 2), rtol=1e-10) -> No
             continue
         tips = np.array([model.tip_pose(q).position for q in reference.q])
         cases.append((seed, held, tips))
+        # the fastest mode along the run, against the one at rest that the explicit
+        # method's check reads (docs/stepping.md: EXPLICIT_MARGIN)
+        lag = reference.inputs if actuator.time_constant is not None else reference.x[:, :0]
+        states = np.hstack([reference.x, lag])
+        inputs = ActuatorInput.of(actuator, model.n)
+        rates = [fastest_rate(model, inputs, x, held[min(k, periods - 1)]) for k, x in
+                 enumerate(states)]  # fmt: skip
+        at_rest = fastest_rate_at_rest(model, inputs)
+        print(f"seed {seed}: fastest mode along the reference {max(rates):.0f} 1/s, at rest "
+              f"{at_rest:.0f} 1/s ({max(rates) / at_rest:.2f} times)")  # fmt: skip
     print(
         f"{'method':>9} {'substeps':>8} {'Jacobian every':>14} {'rhs/period':>10}  "
         + "  ".join(f"seed {seed}: error [mm] (% of travel)" for seed, _, _ in cases)
@@ -197,17 +215,22 @@ def accuracy(model, actuator, q0, periods, rows, seeds=(1, 2), rtol=1e-10) -> No
     for row in rows:
         method, substeps, every = (*row, row[1])[:3]
         stages = len(METHODS[method].b)
-        jacobians = -(-substeps // every)
+        jacobians = -(-substeps // every) if isinstance(METHODS[method], Tableau) else 0
         rhs = jacobians * (model.n_state + extra + 1) + stages * substeps - jacobians
-        stepper = Stepper(
-            model,
-            actuator,
-            period=PERIOD,
-            substeps=substeps,
-            method=method,
-            compiled=False,
-            jacobian_every=every,
-        )
+        line = f"{method:>9} {substeps:8d} {every if jacobians else '-':>14} {rhs:10d}  "
+        try:
+            stepper = Stepper(
+                model,
+                actuator,
+                period=PERIOD,
+                substeps=substeps,
+                method=method,
+                compiled=False,
+                jacobian_every=every,
+            )
+        except sc.ParameterError as error:  # an explicit step beyond the robot's stability
+            print(line + f"refused at construction: {str(error)[:90]}...", flush=True)
+            continue
         texts = []
         for _, held, expected in cases:
             x = stepper.initial_state(q0)[None, :]
@@ -226,7 +249,6 @@ def accuracy(model, actuator, q0, periods, rows, seeds=(1, 2), rtol=1e-10) -> No
             error = np.abs(np.array(tips) - expected).max()
             travel = np.ptp(expected, axis=0).max()
             texts.append(f"{error * 1e3:14.3f} mm ({100 * error / travel:5.2f} %)    ")
-        line = f"{method:>9} {substeps:8d} {every:14d} {rhs:10d}  "
         print(line + "  ".join(texts), flush=True)
 
 
@@ -282,6 +304,7 @@ def main() -> None:
         print("\n3. Compiler flags of the stepper (one member)")
         compiler_flags(model, actuator, args.repeat)
     rows = [("ROS2", s) for s in (8, 16, 32, 64)] + [("ROS34PW2", s) for s in (4, 8, 12, 16, 24)]
+    rows += [("RK4", s) for s in (4, 5, 6, 8, 12)]
     print(
         f"\n4. Accuracy: paper robot, random pressures held {PERIOD * 1e3:g} ms, "
         f"{args.accuracy_periods * PERIOD:g} s, against simulate(rtol=1e-10)"

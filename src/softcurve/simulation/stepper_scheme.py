@@ -193,10 +193,33 @@ robot with the bellows reached 476 and 483 1/s (two seeds) against 283 1/s at re
 times."""
 
 
+def fastest_rate(model, inputs: ActuatorInput | None, x, u) -> float:
+    """The largest ``|lambda|`` [1/s] of the Jacobian of the state derivative at state
+    ``x`` and inputs ``u`` (forward differences on the compiled right-hand side).
+
+    Parameters
+    ----------
+    model : Model
+        The model.
+    inputs : ActuatorInput or None
+        The actuator's input, or None for generalized forces.
+    x : array_like, shape (n_state [+ m],)
+        The state (the stepper's layout).
+    u : array_like, shape (m,)
+        The inputs (commands with a lag).
+    """
+    f = state_derivative(model, inputs, symbolic=False)
+    x, u = np.asarray(x, dtype=np.float64), np.asarray(u, dtype=np.float64)
+    steps = DIFFERENCE_STEP * np.maximum(np.abs(x), state_scale(model, inputs))
+    points = np.column_stack([x, x[:, None] + np.diag(steps)])
+    values = np.array(f.map(x.size + 1)(points, u, model.parameters))
+    jacobian = (values[:, 1:] - values[:, :1]) / steps
+    return float(np.abs(np.linalg.eigvals(jacobian)).max())
+
+
 def fastest_rate_at_rest(model, inputs: ActuatorInput | None) -> float:
-    """The largest ``|lambda|`` [1/s] of the state derivative's Jacobian at the robot's
-    rest: straight at rest length, no motion, no creep, the lag states at zero inputs
-    clipped to their bounds (forward differences on the compiled right-hand side).
+    """:func:`fastest_rate` [1/s] at the robot's rest: straight at rest length, no
+    motion, no creep, the inputs and lag states at zero clipped to their bounds.
 
     Parameters
     ----------
@@ -205,17 +228,13 @@ def fastest_rate_at_rest(model, inputs: ActuatorInput | None) -> float:
     inputs : ActuatorInput or None
         The actuator's input, or None for generalized forces.
     """
-    f = state_derivative(model, inputs, symbolic=False)
-    n_u = f.size1_in(1)
+    n_u = model.n if inputs is None else inputs.lower.size
     u = np.zeros(n_u) if inputs is None else np.clip(np.zeros(n_u), inputs.lower, inputs.upper)
-    x = np.zeros(f.size1_in(0))
+    n_lag = 0 if inputs is None else inputs.n_states
+    x = np.zeros(model.n_state + n_lag)
     x[: model.n] = [v for s in model.robot.segments for v in (s.rest_length, 0.0, 0.0)]
-    x[model.n_state :] = u[: x.size - model.n_state]
-    steps = DIFFERENCE_STEP * np.maximum(np.abs(x), state_scale(model, inputs))
-    points = np.column_stack([x, x[:, None] + np.diag(steps)])
-    values = np.array(f.map(x.size + 1)(points, u, model.parameters))
-    jacobian = (values[:, 1:] - values[:, :1]) / steps
-    return float(np.abs(np.linalg.eigvals(jacobian)).max())
+    x[model.n_state :] = u[:n_lag]
+    return fastest_rate(model, inputs, x, u)
 
 
 def check_explicit_step(model, inputs: ActuatorInput | None, period, substeps, method) -> None:
