@@ -18,9 +18,10 @@ gymnasium = pytest.importorskip("gymnasium")
 
 from gymnasium.utils.env_checker import check_env  # noqa: E402
 
+import softcurve as sc  # noqa: E402
 import softcurve.envs as envs  # noqa: E402
 from softcurve.envs.core import NOT_FINITE  # noqa: E402
-from softcurve.envs.setup import build_setup  # noqa: E402
+from softcurve.envs.setup import build_setup, stepper_method  # noqa: E402
 
 STEPS = 3
 """Episode length of most tests (control periods): short, so that autoresets happen."""
@@ -74,14 +75,14 @@ def test_same_seed_same_episode_and_another_seed_another_target():
     assert len(targets) > 1
 
 
-@pytest.mark.parametrize("method", [None, "RK4"])
+@pytest.mark.parametrize("method", [None, "ROS34PW2"])
 def test_vector_equals_single_environments_with_autoreset(method):
     """Member i of the vector environment seeded with s is the single environment seeded
     with s + i, through an autoreset (episodes of 2 periods, 5 steps), with either kind
-    of stepper method."""
+    of stepper method (the default robot's default is the explicit RK4)."""
     size, steps, seed = 3, 5, 11
     vector = envs.ReachVector(size, max_episode_steps=2, method=method)
-    assert vector.episodes.setup.stepper.method == (method or "ROS34PW2")
+    assert vector.episodes.setup.stepper.method == (method or "RK4")
     singles = [envs.Reach(max_episode_steps=2, method=method) for _ in range(size)]
     actions = _actions(np.random.default_rng(2), steps, size, 3)
     observations, _ = vector.reset(seed=seed)
@@ -183,6 +184,23 @@ def test_a_scenario_file_gives_robot_actuator_period_and_episode_length(tmp_path
     without.write_text('[robot]\npreset = "ifac2020"\n')
     with pytest.raises(ValueError, match="actuation"):
         envs.Reach.from_scenario(without)
+
+
+def test_the_default_method_is_the_explicit_one_where_the_robot_allows_it(paper_model):
+    """RK4 for the default robot; the stepper's default (L-stable ROS34PW2) where RK4's
+    check refuses the robot (the tendon robot's stiff axial modes), where obstacles are
+    given, or where ``substeps`` is given; a method given is kept."""
+    assert build_setup(duration=1.0).stepper.method == "RK4"
+    bellows = envs.setup.default_actuator(1)
+    assert stepper_method(paper_model, bellows, 0.02, None, None) == "RK4"
+    assert stepper_method(paper_model, bellows, 0.02, 16, None) is None
+    assert stepper_method(paper_model, bellows, 0.02, None, "ROS2") == "ROS2"
+    tendon_model = sc.Model(sc.presets.rao2021(), compile=False)
+    assert stepper_method(tendon_model, sc.presets.rao2021_tendons(), 0.02, None, None) is None
+    ceiling = sc.Plane([0.0, 0.0, 0.062], [0.0, 0.0, -1.0])
+    obstacle = sc.Environment([ceiling], sc.ContactLaw(stiffness=1e7), contact_radius=[1e-3])
+    walled = sc.Model(sc.presets.ifac2020(), environment=obstacle, compile=False)
+    assert stepper_method(walled, bellows, 0.02, None, None) is None
 
 
 def test_softcurve_imports_without_gymnasium():

@@ -86,6 +86,41 @@ def _solution(setting, theta):
     return captured[-1]
 
 
+def test_far_and_failed_evaluations_leave_no_trace(setting):
+    """Parameters that jump far, or to where some equilibria leave the model's domain:
+    such an evaluation raises (the fit rejects the step) instead of returning roots
+    outside the domain, and every later evaluation equals a fresh predictor's (a first-
+    order start thrown far is not taken)."""
+    evaluate = _predictor(setting)
+    sequence = ([-0.5, 2.3e-5], [2.5, 6e-4], [-0.5, 2.3e-5], [-2.0, 3e-4], [1.0, 1e-4])
+    for theta in map(np.array, sequence):
+        if theta[1] == 6e-4:  # 26 times the area: some samples bend beyond the domain
+            for predictor in (evaluate, _predictor(setting)):
+                with pytest.raises(RuntimeError, match="outside the model's domain"):
+                    predictor(theta)
+            continue
+        (y, jacobian), (y_fresh, jacobian_fresh) = evaluate(theta), _predictor(setting)(theta)
+        np.testing.assert_allclose(y, y_fresh, rtol=1e-8, atol=1e-8)
+        np.testing.assert_allclose(jacobian, jacobian_fresh, rtol=1e-6, atol=1e-9)
+
+
+def test_a_map_reading_a_changed_value_gets_new_functions(setting):
+    """The functions kept with the model are keyed by the maps' expressions: a map whose
+    function reads a value that changed between two fits predicts with the new value."""
+    model, parameters, output, inputs, q0, experiment = setting
+    gain = {"value": 1.0}
+
+    def scaled(q, u, values):
+        return gain["value"] * inputs.function(q, u, values)
+
+    custom = type(inputs)(scaled, inputs.parameters)
+    theta = np.array([-0.5, 2.3e-5])
+    before = EquilibriumPredictor(model, parameters, output, custom, q0)(experiment)(theta)[0]
+    gain["value"] = 2.0
+    after = EquilibriumPredictor(model, parameters, output, custom, q0)(experiment)(theta)[0]
+    assert np.abs(after).max() > 1.5 * np.abs(before).max()
+
+
 def test_threads_give_the_serial_predictions(setting, monkeypatch):
     """The samples on two threads give exactly the predictions and Jacobian of one."""
     theta = np.array([-0.45, 2.2e-5])

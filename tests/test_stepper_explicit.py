@@ -8,8 +8,8 @@ import pytest
 
 import softcurve as sc
 from softcurve.base.validation import ParameterError
-from softcurve.simulation.stepper import DEFAULT_EXPLICIT_STEP, Stepper
-from softcurve.simulation.stepper_methods import RK4
+from softcurve.simulation.stepper import Stepper
+from softcurve.simulation.stepper_methods import DEFAULT_EXPLICIT_STEP, RK4
 from softcurve.simulation.stepper_scheme import EXPLICIT_MARGIN, fastest_rate_at_rest
 
 PERIOD = 0.02
@@ -129,3 +129,10 @@ def test_compiled_rk4_equals_the_virtual_machine_and_rows_equal_calls(paper_mode
         np.testing.assert_array_equal(out[i], native(x[i], u[i], *shared)[0])
     with pytest.raises(ValueError, match="C-contiguous"):
         native.call_rows([x[:, :5], u, *shared], out, 0, 5)
+    with pytest.raises(ValueError, match=r"\(>= 6, 12\)"):  # fewer rows than asked for
+        native.call_rows([x, u, *shared], out, 0, 6)
+    with pytest.raises(ValueError, match="start <= stop"):
+        native.call_rows([x, u, *shared], out, 3, 2)
+    assert stepper.jacobian_every is None
+    with pytest.raises(ParameterError, match="jacobian_every"):
+        Stepper(paper_model, actuator, period=PERIOD, method="RK4", jacobian_every=1)

@@ -141,16 +141,26 @@ class NativeFunction:
         if len(inputs) != self.n_in:
             raise TypeError(f"{self.name} takes {self.n_in} inputs, got {len(inputs)}")
         rows, cols, flat = self._out[0]
+        if flat is not None or cols != 1:
+            raise ValueError(f"{self.name}: the first output must be a dense column")
         arrays = [*inputs, out]
-        sizes = [*self._in_sizes, rows * cols]
+        sizes = [*self._in_sizes, rows]
         for i, (a, size) in enumerate(zip(arrays, sizes, strict=True)):
-            if a.dtype != np.float64 or not a.flags.c_contiguous or a.shape[-1] != size:
+            shared = a.ndim == 1 and i < len(inputs)
+            if (
+                a.dtype != np.float64
+                or not a.flags.c_contiguous
+                or a.shape[-1] != size
+                or not (shared or (a.ndim == 2 and a.shape[0] >= stop))
+            ):
                 raise ValueError(
-                    f"{self.name}: array {i} must be C-contiguous float64 with {size} "
-                    f"numbers per row, got {a.dtype} {a.shape}"
+                    f"{self.name}: array {i} must be C-contiguous float64 of shape ({size},) "
+                    f"or (>= {stop}, {size}), got {a.dtype} {a.shape}"
                 )
-        if flat is not None:
-            raise ValueError(f"{self.name}: the first output is sparse")
+        if not out.flags.writeable or out.ndim != 2:
+            raise ValueError(f"{self.name}: out must be a writeable 2-D array")
+        if not 0 <= start <= stop:
+            raise ValueError(f"{self.name}: rows {start}:{stop} must have 0 <= start <= stop")
         buffers = self._buffers()
         arg, res = buffers.arg, buffers.res
         per_row = []

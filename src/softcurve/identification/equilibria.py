@@ -20,6 +20,7 @@ import numpy as np
 
 from softcurve.analysis.loads import coordinate_scale, residual_reference
 from softcurve.analysis.solver import solve_equilibria
+from softcurve.description.robot import in_domain
 from softcurve.simulation.along import mapped
 from softcurve.simulation.workers import default_threads
 
@@ -28,6 +29,12 @@ EQUILIBRIUM_TOLERANCE = 1e-10
 
 MAX_EVALUATIONS = 400
 """Residual evaluations allowed per sample and start."""
+
+TANGENT_LIMIT = 0.25
+"""Largest move along the solutions' tangent, relative to each coordinate's natural size
+(:func:`~softcurve.analysis.loads.coordinate_scale`), taken as the next evaluation's
+start; beyond it the first-order prediction is not trusted (near a fold it can throw the
+start out of the model's domain) and the previous solution is the start."""
 
 
 class EquilibriumPredictor:
@@ -88,6 +95,27 @@ class EquilibriumPredictor:
             k = np.array(k, dtype=np.float64).reshape(n, samples, n).transpose(1, 0, 2)
             return np.array(r, dtype=np.float64), k
 
+        at_start = np.tile(self.q0[:, None], (1, samples))
+        rest = model.robot.rest_lengths
+
+        def starts(d_value) -> list[np.ndarray]:
+            """Where the equilibria start, in turn for the samples not solved yet: the
+            previous solutions moved along their tangent (first-order prediction: the
+            chord steps start O(|change of d|^2) from the new solutions instead of
+            O(|change of d|)) where that move is small, then the previous solutions, then
+            the initial guess."""
+            found = [last.copy(), at_start]
+            if tangent:
+                previous_d, dq_dd = tangent
+                move = (dq_dd @ (d_value - previous_d)[active]).T  # (n, T)
+                near = np.max(np.abs(move) / self.scale[:, None], axis=0) <= TANGENT_LIMIT
+                found.insert(0, last + np.where(near, move, 0.0))
+            unique = []
+            for start in found:
+                if not any(np.array_equal(start, other) for other in unique):
+                    unique.append(start)
+            return unique
+
         def solve(d_value) -> np.ndarray:
             def batch_residual(q_all):
                 return np.array(residual_all(q_all, inputs.T, d_value), dtype=np.float64)
@@ -100,41 +128,41 @@ class EquilibriumPredictor:
                 return system
 
             options = dict(scale=self.scale, reference=self.reference, tol=EQUILIBRIUM_TOLERANCE)
-            start = last
-            if tangent:  # first-order prediction of the new solutions: the chord steps
-                # start O(|change of d|^2) from them instead of O(|change of d|)
-                previous_d, dq_dd = tangent
-                change = (d_value - previous_d)[active]
-                start = last + (dq_dd @ change).T
             system_all = functools.partial(batch_system, d_value=d_value)
-            roots = solve_equilibria(
-                system_all,
-                system_of,
-                start,
-                max_evaluations=MAX_EVALUATIONS,
-                jacobians=last_stiffness[0] if last_stiffness else None,
-                batch_residual=batch_residual,
-                **options,
-            )
-            failed = [j for j, root in enumerate(roots) if not root.converged]
-            if failed and not np.array_equal(start, np.tile(self.q0[:, None], (1, samples))):
-                retry = solve_equilibria(
+            accepted, roots = [None] * samples, []
+            for start in starts(d_value):
+                near = last_stiffness and start is not at_start  # chord steps pay near
+                roots = solve_equilibria(
                     system_all,
                     system_of,
-                    np.tile(self.q0[:, None], (1, len(roots))),
+                    start,
                     max_evaluations=MAX_EVALUATIONS,
+                    jacobians=last_stiffness[0] if near else None,
+                    batch_residual=batch_residual if near else None,
                     **options,
                 )
-                roots = [retry[j] if j in failed else root for j, root in enumerate(roots)]
-                failed = [j for j, root in enumerate(roots) if not root.converged]
+                # a root outside the model's domain (a start thrown far) is no equilibrium
+                inside = in_domain(np.array([root.q for root in roots]), rest)
+                for j, root in enumerate(roots):
+                    if accepted[j] is None and root.converged and inside[j]:
+                        accepted[j] = root
+                if all(root is not None for root in accepted):
+                    break
+            tangent.clear()  # until evaluate sets this evaluation's
+            failed = [j for j, root in enumerate(accepted) if root is None]
             if failed:
                 j = failed[0]
+                reason = (
+                    roots[j].message
+                    if not roots[j].converged
+                    else "its equilibrium lies outside the model's domain"
+                )
                 raise RuntimeError(
                     f"no equilibrium found at {len(failed)} sample(s), the first {j} "
-                    f"(t = {experiment.t[j]:g} s): {roots[j].message}; the robot may snap "
-                    "through or buckle there"
+                    f"(t = {experiment.t[j]:g} s): {reason}; the robot may snap through or "
+                    "buckle there"
                 )
-            solution = np.column_stack([root.q for root in roots])
+            solution = np.column_stack([root.q for root in accepted])
             last[:] = solution
             return solution
 
@@ -162,17 +190,19 @@ class EquilibriumPredictor:
 
     def _functions(self, keys, n_p, n_u, active):
         """``(balance, residual, sensitivities)``: per-sample SX Functions of
-        ``(q, u, d)``, kept with the model for these maps, extra parameters and active
-        entries of ``d`` (the Hessian of a three-segment robot takes 0.1 s to build;
-        a joint fit builds it once for all its experiments)."""
+        ``(q, u, d)``, kept with the model (the Hessian of a three-segment robot takes
+        0.1 s to build; a joint fit builds it once for all its experiments), keyed by the
+        maps' expressions themselves (serialized), not by their Python functions: a map
+        that reads a value changed since the last fit gets new functions."""
         model, n = self.model, self.model.n
-        input_function = None if self.input_map is None else self.input_map.function
-        structure = (input_function, tuple(keys), n_p, n_u)
+        q, u, ds = ca.SX.sym("q", n), ca.SX.sym("u", n_u), ca.SX.sym("d", n_p + len(keys))
+        p_s, v_s = ds[:n_p], {k: ds[n_p + i] for i, k in enumerate(keys)}
+        tau = ca.SX.zeros(n) if self.input_map is None else self.input_map.function(q, u, v_s)
+        forces = ca.Function("tau", [q, u, ds], [tau])
+        y = self.output.function(q, ca.SX.zeros(n), v_s, p_s)
+        outputs = ca.Function("y", [q, u, ds], [y])
 
         def balance_functions():
-            q, u, ds = ca.SX.sym("q", n), ca.SX.sym("u", n_u), ca.SX.sym("d", n_p + len(keys))
-            p_s, v_s = ds[:n_p], {k: ds[n_p + i] for i, k in enumerate(keys)}
-            tau = ca.SX.zeros(n) if input_function is None else input_function(q, u, v_s)
             gravity_energy = model.symbolic["potential_energy"](q, p_s)[0]
             # K from the symmetric Hessian of V_g: half the operations of the Jacobian of
             # G on three segments (benchmarks/bench_identification.py, section 2)
@@ -185,22 +215,18 @@ class EquilibriumPredictor:
                 ca.Function("residual", [q, u, ds], [residual]),
             )
 
+        structure = (forces.serialize(), n_p)
         balance, residual = model.cached(("equilibrium-fit", *structure), balance_functions)
 
         def sensitivity_function():
             # the balance's own expressions, on its symbols
             q_b, u_b, d_b = balance.sx_in()
-            residual = balance(q_b, u_b, d_b)[0]
-            values = {k: d_b[n_p + i] for i, k in enumerate(keys)}
-            y = self.output.function(q_b, ca.SX.zeros(n), values, d_b[:n_p])
+            r_b = balance(q_b, u_b, d_b)[0]
+            y_b = outputs(q_b, u_b, d_b)
             moving = ca.vertcat(*(d_b[i] for i in active)) if active else ca.SX(0, 1)
-            outputs = [
-                y,
-                ca.jacobian(residual, moving),
-                ca.jacobian(y, q_b),
-                ca.jacobian(y, moving),
-            ]
-            return ca.Function("sensitivities", [q_b, u_b, d_b], outputs)
+            columns = [y_b, ca.jacobian(r_b, moving), ca.jacobian(y_b, q_b)]
+            columns.append(ca.jacobian(y_b, moving))
+            return ca.Function("sensitivities", [q_b, u_b, d_b], columns)
 
-        key = ("equilibrium-fit-sensitivities", *structure, self.output.function, tuple(active))
+        key = ("equilibrium-fit-sensitivities", *structure, outputs.serialize(), tuple(active))
         return balance, residual, model.cached(key, sensitivity_function)

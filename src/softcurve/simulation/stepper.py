@@ -12,7 +12,6 @@ failure stops the others. The error is fixed by ``method`` and ``substeps``
 
 from __future__ import annotations
 
-import math
 import os
 from dataclasses import dataclass
 
@@ -25,36 +24,15 @@ from softcurve.compiled.model import Model
 from softcurve.description.actuator import Actuator
 from softcurve.simulation.integrators import ActuatorInput, BufferedCall
 from softcurve.simulation.simulate import initial_state as checked_state
-from softcurve.simulation.stepper_methods import METHODS, ExplicitTableau
+from softcurve.simulation.stepper_methods import DEFAULT_EXPLICIT_STEP as DEFAULT_EXPLICIT_STEP
+from softcurve.simulation.stepper_methods import DEFAULT_METHOD as DEFAULT_METHOD
+from softcurve.simulation.stepper_methods import DEFAULT_STEP as DEFAULT_STEP
+from softcurve.simulation.stepper_methods import DEFAULT_SUBSTEPS as DEFAULT_SUBSTEPS
+from softcurve.simulation.stepper_methods import METHODS, ExplicitTableau, default_substeps
 from softcurve.simulation.stepper_native import ThreadedMembers
 from softcurve.simulation.stepper_observe import observer
 from softcurve.simulation.stepper_scheme import check_explicit_step, period_function
 from softcurve.simulation.stepping import domain_reason, outside_domain
-
-DEFAULT_METHOD = "ROS34PW2"
-"""The Rosenbrock-W method when ``method`` is not given: order 3 with the Jacobian of the
-period's start; ROS2 (order 2) needs 64 steps per 20 ms for the error ROS34PW2 reaches
-with 16 (docs/stepping.md), twice the right-hand sides."""
-
-DEFAULT_SUBSTEPS = 16
-"""Steps per period when ``substeps`` is not given, measured for a 20 ms period
-(``benchmarks/bench_stepper.py``, docs/stepping.md): the paper's robot under random
-pressure commands held 20 ms each over 2 s (the harshest input a policy gives) stays
-within 1 mm (1 % of the tip's travel) of ``simulate`` at ``rtol = 1e-10``; 12 steps
-give 2.2 mm, 8 give 6 mm (the error falls as ``substeps**-3``). A longer period needs
-proportionally more: the default keeps this step, :data:`DEFAULT_STEP`."""
-
-DEFAULT_STEP = 0.02 / DEFAULT_SUBSTEPS
-"""The longest step [s] when ``substeps`` is not given (1.25 ms): ``substeps =
-ceil(period / DEFAULT_STEP)``, 16 at 20 ms. With 16 steps at any period the error grew
-with it: 3.4 mm (6 % of the travel) at 100 ms against 0.13 mm at 20 ms (the same robot
-and inputs, a review's check)."""
-
-DEFAULT_EXPLICIT_STEP = 0.02 / 6
-"""The longest step [s] of the explicit RK4 when ``substeps`` is not given (3.3 ms, 6
-steps per 20 ms), measured as :data:`DEFAULT_SUBSTEPS`: the paper's robot stays within
-0.58 mm (0.6 % of the travel) of ``simulate`` over the 2 s of random pressures (0.21 mm
-with 8 steps, 0.94 with 5; docs/stepping.md)."""
 
 CONTACT_JACOBIAN_EVERY = 1
 """Steps between fresh Jacobians with an environment (default of ``jacobian_every``).
@@ -126,13 +104,15 @@ class Stepper:
     period : float
         Control period [s] > 0: the inputs are held over it.
     substeps : int, optional
-        Steps per period, >= 1 (default: steps of at most :data:`DEFAULT_STEP`, 16 at a
-        20 ms period; :data:`DEFAULT_EXPLICIT_STEP` for RK4, 6 at 20 ms).
+        Steps per period, >= 1 (default:
+        :func:`~softcurve.simulation.stepper_methods.default_substeps`, 16 at a 20 ms
+        period, 6 for RK4).
     threads : int, optional
         Threads of the batched call, >= 1 (default ``os.cpu_count()``).
     method : str, optional
         A key of :data:`~softcurve.simulation.stepper_methods.METHODS` (default
-        :data:`DEFAULT_METHOD`): a Rosenbrock-W method for any robot, or ``"RK4"``,
+        :data:`~softcurve.simulation.stepper_methods.DEFAULT_METHOD`): a Rosenbrock-W
+        method for any robot, or ``"RK4"``,
         explicit and about three times faster per period, for a robot without an
         environment whose fastest mode the step resolves (checked here, at rest:
         :func:`~softcurve.simulation.stepper_scheme.check_explicit_step`).
@@ -174,8 +154,7 @@ class Stepper:
             raise ParameterError(f"method must be one of {sorted(METHODS)}, got {method!r}")
         self._method, explicit = method, isinstance(METHODS[method], ExplicitTableau)
         if substeps is None:  # the measured step, whatever the period
-            longest = DEFAULT_EXPLICIT_STEP if explicit else DEFAULT_STEP
-            substeps = max(1, math.ceil(self._period / longest - 1e-9))
+            substeps = default_substeps(self._period, method)
         self._substeps = whole_count("substeps", substeps)
         self._threads = whole_count(
             "threads", (os.cpu_count() or 1) if threads is None else threads
@@ -188,6 +167,11 @@ class Stepper:
         else:
             self._lower, self._upper = actuator.lower.copy(), actuator.upper.copy()
         if explicit:
+            if jacobian_every is not None:
+                raise ParameterError(
+                    f"jacobian_every applies to the Rosenbrock methods; {method} takes no "
+                    f"Jacobian, got jacobian_every={jacobian_every!r}"
+                )
             check_explicit_step(model, self._input, self._period, self._substeps, METHODS[method])
         compiled = bool(compiled) and model.compiled_library is not None
         if jacobian_every is None:
@@ -236,9 +220,9 @@ class Stepper:
         return self._method
 
     @property
-    def jacobian_every(self) -> int:
-        """Steps between fresh Jacobians."""
-        return self._every
+    def jacobian_every(self) -> int | None:
+        """Steps between fresh Jacobians (None for an explicit method: it takes none)."""
+        return None if isinstance(METHODS[self._method], ExplicitTableau) else self._every
 
     @property
     def n_state(self) -> int:
