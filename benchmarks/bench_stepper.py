@@ -53,12 +53,8 @@ from softcurve.compiled.generated import FUNCTION_FLAGS
 from softcurve.simulation.integrators import ActuatorInput
 from softcurve.simulation.stepper import DEFAULT_METHOD, DEFAULT_SUBSTEPS, Stepper
 from softcurve.simulation.stepper_methods import METHODS, Tableau
-from softcurve.simulation.stepper_scheme import (
-    STEPPER_FLAGS,
-    fastest_rate,
-    fastest_rate_at_rest,
-    period_function,
-)
+from softcurve.simulation.stepper_scheme import STEPPER_FLAGS, period_function
+from softcurve.simulation.stepper_stability import fastest_rate, fastest_rate_at_rest
 
 PERIOD = 0.02
 

@@ -1,5 +1,6 @@
-"""The stepper's explicit method RK4: its coefficients, its accuracy against simulate, the
-stability check at construction, energy, and the compiled rows call it runs on."""
+"""The stepper's explicit method RK4: its coefficients, its default step, the stability
+check at construction, and the compiled rows call it runs on (its accuracy against
+simulate and its energy: test_stepper.py, beside ROS34PW2's)."""
 
 from __future__ import annotations
 
@@ -10,7 +11,7 @@ import softcurve as sc
 from softcurve.base.validation import ParameterError
 from softcurve.simulation.stepper import Stepper
 from softcurve.simulation.stepper_methods import DEFAULT_EXPLICIT_STEP, RK4
-from softcurve.simulation.stepper_scheme import EXPLICIT_MARGIN, fastest_rate_at_rest
+from softcurve.simulation.stepper_stability import EXPLICIT_MARGIN, fastest_rate_at_rest
 
 PERIOD = 0.02
 
@@ -36,36 +37,11 @@ def test_rk4_is_of_order_4_and_its_stability_radius_is_tight():
     assert np.any(np.abs(RK4.stability_function(beyond)) > 1)
 
 
-def test_rk4_agrees_with_simulate_on_piecewise_constant_commands(paper_model, actuator, rng):
-    """Random pressure commands held 20 ms each, 0.3 s: RK4 at its default step (6 per
-    period) within 1 mm and 2 % of the tip's travel of simulate (rtol 1e-10), as
-    ROS34PW2 at 16 (docs/stepping.md); the default is 6 steps per 20 ms."""
-    periods = 15
-    held = rng.uniform(actuator.lower, actuator.upper, (periods, actuator.n_inputs))
-    q0 = np.array([0.064, 0.0, 0.0])
-    reference = sc.simulate(
-        paper_model,
-        q0,
-        np.zeros(3),
-        actuator=actuator,
-        inputs=np.vstack([held, held[-1:]]),
-        t_final=periods * PERIOD,
-        dt=PERIOD,
-        rtol=1e-10,
-    )
-    assert reference.success, reference.message
-    stepper = Stepper(paper_model, actuator, period=PERIOD, method="RK4")
+def test_rk4_takes_six_steps_per_20_ms_by_default(paper_model, actuator):
+    """The default explicit step (its accuracy: test_stepper.py, with ROS34PW2's)."""
+    stepper = Stepper(paper_model, actuator, period=PERIOD, method="RK4", compiled=False)
     assert stepper.substeps == round(PERIOD / DEFAULT_EXPLICIT_STEP) == 6
-    x = stepper.initial_state(q0)[None, :]
-    tips = [stepper.tip(x)[0]]
-    for k in range(periods):
-        result = stepper.step(x, held[k : k + 1])
-        assert result.ok.all(), result.message
-        x = result.x
-        tips.append(result.tip[0])
-    expected = np.array([paper_model.tip_pose(q).position for q in reference.q])
-    travel = np.ptp(expected, axis=0).max()
-    assert np.abs(np.array(tips) - expected).max() < min(1e-3, 0.02 * travel)
+    assert Stepper(paper_model, actuator, period=0.05, method="RK4", compiled=False).substeps == 15
 
 
 def test_the_step_is_checked_against_the_robots_fastest_mode(paper_model, actuator):
@@ -88,26 +64,6 @@ def test_the_step_is_checked_against_the_robots_fastest_mode(paper_model, actuat
     contact_model = sc.Model(sc.presets.ifac2020(), environment=environment, compile=False)
     with pytest.raises(ParameterError, match="environment"):
         Stepper(contact_model, period=PERIOD, method="RK4")
-
-
-def test_rk4_creates_no_energy(conservative_model):
-    """Undamped robot whose creep exerts no force: RK4's stability function has
-    ``|R(iy)|**2 = 1 - y**6/72 + y**8/576 < 1`` within its radius, so the energy never
-    grows; it damps the fast axial oscillation a little (247 rad/s, ``y = 0.82`` at 3.3
-    ms steps: 0.4 % of that mode's energy per step): 2.6 % of the energy over 0.5 s."""
-    stepper = Stepper(conservative_model, period=PERIOD, method="RK4", compiled=False)
-    n = conservative_model.n
-    x = stepper.initial_state([0.064, 25.0, 0.0], [0.0, 0.0, 1500.0])[None, :]
-    energy = [conservative_model.energy(x[0, :n], x[0, n : 2 * n])]
-    for _ in range(25):
-        result = stepper.step(x, np.zeros((1, n)))
-        assert result.ok[0], result.reasons
-        x = result.x
-        energy.append(conservative_model.energy(x[0, :n], x[0, n : 2 * n]))
-    energy = np.array(energy)
-    assert np.all(energy[1:] <= energy[0] * (1 + 1e-9)), energy
-    assert np.all(np.diff(energy) <= 1e-12 * energy[0]), energy
-    assert energy[-1] > energy[0] * (1 - 0.05), energy
 
 
 def test_compiled_rk4_equals_the_virtual_machine_and_rows_equal_calls(paper_model, actuator, rng):

@@ -29,7 +29,7 @@ from softcurve.simulation.integrators import ActuatorInput
 from softcurve.simulation.settings import SimulationSettings
 from softcurve.simulation.stepper import Stepper
 from softcurve.simulation.stepper_methods import METHODS, default_substeps
-from softcurve.simulation.stepper_scheme import check_explicit_step
+from softcurve.simulation.stepper_stability import check_explicit_step
 
 EXPLICIT_METHOD = "RK4"
 """The stepper's method when neither ``method`` nor ``substeps`` is given and the robot
@@ -156,7 +156,7 @@ def _stepper(robot, environment, actuator, period, substeps, threads, method) ->
 def stepper_method(model, actuator, period, substeps, method) -> str | None:
     """The stepper's method of an environment: ``method`` when given; else
     :data:`EXPLICIT_METHOD` where its default step passes its check on this robot
-    (:func:`~softcurve.simulation.stepper_scheme.check_explicit_step`) and neither
+    (:func:`~softcurve.simulation.stepper_stability.check_explicit_step`) and neither
     ``substeps`` nor obstacles are given; else None (the stepper's default).
 
     Parameters

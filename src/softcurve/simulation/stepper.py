@@ -31,7 +31,8 @@ from softcurve.simulation.stepper_methods import DEFAULT_SUBSTEPS as DEFAULT_SUB
 from softcurve.simulation.stepper_methods import METHODS, ExplicitTableau, default_substeps
 from softcurve.simulation.stepper_native import ThreadedMembers
 from softcurve.simulation.stepper_observe import observer
-from softcurve.simulation.stepper_scheme import check_explicit_step, period_function
+from softcurve.simulation.stepper_scheme import period_function
+from softcurve.simulation.stepper_stability import check_explicit_step
 from softcurve.simulation.stepping import domain_reason, outside_domain
 
 CONTACT_JACOBIAN_EVERY = 1
@@ -115,7 +116,7 @@ class Stepper:
         method for any robot, or ``"RK4"``,
         explicit and about three times faster per period, for a robot without an
         environment whose fastest mode the step resolves (checked here, at rest:
-        :func:`~softcurve.simulation.stepper_scheme.check_explicit_step`).
+        :func:`~softcurve.simulation.stepper_stability.check_explicit_step`).
     compiled : bool
         Generate the whole period as C and compile it (default; cached on disk, one
         library per robot structure, environment, actuator, method and ``substeps``), or

@@ -14,12 +14,10 @@ accuracy and the cost.
 
 from __future__ import annotations
 
-import math
-
 import casadi as ca
 import numpy as np
 
-from softcurve.base.validation import ParameterError
+from softcurve.base.docs import parameters_from
 from softcurve.compiled.generated import compile_function
 from softcurve.compiled.native import NativeFunction
 from softcurve.simulation.actuated import actuated_derivative
@@ -29,17 +27,27 @@ from softcurve.simulation.stepper_methods import METHODS, ExplicitTableau, Table
 from softcurve.simulation.stepper_native import load_native
 from softcurve.simulation.stepper_observe import observer
 
+scheme_parameters = parameters_from(
+    {
+        "model": ("Model", "The model."),
+        "inputs": ("ActuatorInput or None", "The actuator's input, or None for forces."),
+        "f": ("casadi.Function", "``(x, u, p) -> xdot``."),
+        "h": ("casadi.MX or float", "Step [s]."),
+    }
+)
+"""Substitutes the entries ``model``, ``inputs``, ``f`` and ``h`` shared by this module's
+functions."""
 
+
+@scheme_parameters
 def state_derivative(model, inputs: ActuatorInput | None, symbolic: bool) -> ca.Function:
     """``(x, u, p) -> xdot``: the model's ``rhs`` with the actuator's force ``H(q) u`` and
     lag, kept with the model.
 
     Parameters
     ----------
-    model : Model
-        The model.
-    inputs : ActuatorInput or None
-        The actuator's input, or None for generalized forces.
+    %(model)s
+    %(inputs)s
     symbolic : bool
         On the model's symbolic ``rhs`` (to be generated as C with the stepper), else on
         its compiled library (an ``external``) with the rest in CasADi's virtual machine.
@@ -52,6 +60,7 @@ def state_derivative(model, inputs: ActuatorInput | None, symbolic: bool) -> ca.
     return model.cached(("stepper-xdot", symbolic, None if inputs is None else inputs.key), build)
 
 
+@scheme_parameters
 def state_scale(model, inputs: ActuatorInput | None) -> np.ndarray:
     """The natural size of every state (n_state [+ m],): the geometric floors of
     :func:`~softcurve.simulation.engine.nominal_scale`, and the larger bound of each
@@ -59,10 +68,8 @@ def state_scale(model, inputs: ActuatorInput | None) -> np.ndarray:
 
     Parameters
     ----------
-    model : Model
-        The model.
-    inputs : ActuatorInput or None
-        The actuator's input, or None for generalized forces.
+    %(model)s
+    %(inputs)s
     """
     floor = nominal_scale(model, np.zeros(model.n_state))
     if inputs is None or not inputs.n_states:
@@ -77,16 +84,15 @@ round-off errors of a forward difference balance. Any matrix keeps ROS2 of order
 error of the differences (~1e-8 relative) only perturbs its stability function."""
 
 
+@scheme_parameters
 def jacobian_pattern(model, inputs) -> ca.Sparsity:
     """The structural sparsity of the Jacobian of :func:`state_derivative` with its
     diagonal (``q' = qd``, creep rates of ``(qd, lam)`` only, lag states diagonal).
 
     Parameters
     ----------
-    model : Model
-        The model.
-    inputs : ActuatorInput or None
-        The actuator's input, or None for generalized forces.
+    %(model)s
+    %(inputs)s
     """
     pattern = state_derivative(model, inputs, True).sparsity_jac(0, 0)
     return pattern + ca.Sparsity.diag(pattern.size1())
@@ -151,22 +157,21 @@ us against 267-323 us at ``-O1 -march=native`` (1.17-1.43x, three runs of
 builds)."""
 
 
+@scheme_parameters
 def rosenbrock_step(f, x, u, p, solve, f0, h, tableau: Tableau):
     """One step of ``tableau`` (MX) from ``x`` with the Newton systems solved by
     ``solve`` and ``f0 = f(x)``.
 
     Parameters
     ----------
-    f : casadi.Function
-        ``(x, u, p) -> xdot``.
+    %(f)s
     x, u, p : casadi.MX
         State, inputs, robot parameters.
     solve : callable
         ``solve(b)``: ``(I - gamma h J)^-1 b`` by a factorization.
     f0 : casadi.MX
         ``f(x, u, p)``.
-    h : casadi.MX or float
-        Step [s].
+    %(h)s
     tableau : Tableau
         The method.
     """
@@ -185,107 +190,16 @@ def rosenbrock_step(f, x, u, p, solve, f0, h, tableau: Tableau):
     return x + h * sum(m[i] * stages[i] for i in range(len(stages)) if m[i])
 
 
-EXPLICIT_MARGIN = 2.0
-"""Factor between the fastest mode of a robot at rest and the fastest it reaches in use,
-allowed for when an explicit method's step is checked (:func:`check_explicit_step`):
-under random pressure commands held 20 ms each over 2 s (docs/stepping.md), the paper's
-robot with the bellows reached 476 and 483 1/s (two seeds) against 283 1/s at rest, 1.7
-times."""
-
-
-def fastest_rate(model, inputs: ActuatorInput | None, x, u) -> float:
-    """The largest ``|lambda|`` [1/s] of the Jacobian of the state derivative at state
-    ``x`` and inputs ``u`` (forward differences on the compiled right-hand side).
-
-    Parameters
-    ----------
-    model : Model
-        The model.
-    inputs : ActuatorInput or None
-        The actuator's input, or None for generalized forces.
-    x : array_like, shape (n_state [+ m],)
-        The state (the stepper's layout).
-    u : array_like, shape (m,)
-        The inputs (commands with a lag).
-    """
-    f = state_derivative(model, inputs, symbolic=False)
-    x, u = np.asarray(x, dtype=np.float64), np.asarray(u, dtype=np.float64)
-    steps = DIFFERENCE_STEP * np.maximum(np.abs(x), state_scale(model, inputs))
-    points = np.column_stack([x, x[:, None] + np.diag(steps)])
-    values = np.array(f.map(x.size + 1)(points, u, model.parameters))
-    jacobian = (values[:, 1:] - values[:, :1]) / steps
-    return float(np.abs(np.linalg.eigvals(jacobian)).max())
-
-
-def fastest_rate_at_rest(model, inputs: ActuatorInput | None) -> float:
-    """:func:`fastest_rate` [1/s] at the robot's rest: straight at rest length, no
-    motion, no creep, the inputs and lag states at zero clipped to their bounds.
-
-    Parameters
-    ----------
-    model : Model
-        The model.
-    inputs : ActuatorInput or None
-        The actuator's input, or None for generalized forces.
-    """
-    n_u = model.n if inputs is None else inputs.lower.size
-    u = np.zeros(n_u) if inputs is None else np.clip(np.zeros(n_u), inputs.lower, inputs.upper)
-    n_lag = 0 if inputs is None else inputs.n_states
-    x = np.zeros(model.n_state + n_lag)
-    x[: model.n] = [v for s in model.robot.segments for v in (s.rest_length, 0.0, 0.0)]
-    x[model.n_state :] = u[:n_lag]
-    return fastest_rate(model, inputs, x, u)
-
-
-def check_explicit_step(model, inputs: ActuatorInput | None, period, substeps, method) -> None:
-    """Raise :class:`~softcurve.base.validation.ParameterError` where an explicit
-    ``method`` cannot take ``period / substeps`` steps on this robot: with an environment
-    (a penalty contact is stiff), or where the robot's fastest mode at rest
-    (:func:`fastest_rate_at_rest`) times :data:`EXPLICIT_MARGIN` leaves its stability
-    radius.
-
-    Parameters
-    ----------
-    model : Model
-        The model.
-    inputs : ActuatorInput or None
-        The actuator's input, or None for generalized forces.
-    period : float
-        Control period [s].
-    substeps : int
-        Steps per period.
-    method : ExplicitTableau
-        The method.
-    """
-    if model.environment is not None:
-        raise ParameterError(
-            f"method={method.name!r} is explicit and the model has an environment, whose "
-            "penalty contact is far stiffer than the robot: use method='ROS34PW2'"
-        )
-    rate = fastest_rate_at_rest(model, inputs)
-    longest = method.stability_radius / (EXPLICIT_MARGIN * rate)
-    if period / substeps > longest:
-        needed = math.ceil(period / longest)
-        raise ParameterError(
-            f"substeps={substeps} gives {method.name} steps of {period / substeps * 1e3:.3g} "
-            f"ms, beyond its stability on this robot: its fastest mode at rest is "
-            f"{rate:.4g} 1/s, so steps must be <= {longest * 1e3:.3g} ms (stability "
-            f"radius {method.stability_radius} over {EXPLICIT_MARGIN:g} times that rate): "
-            f"substeps >= {needed}, or method='ROS34PW2'"
-        )
-
-
+@scheme_parameters
 def explicit_step(f, x, u, p, h, tableau: ExplicitTableau):
     """One step of the explicit ``tableau`` (MX) from ``x``.
 
     Parameters
     ----------
-    f : casadi.Function
-        ``(x, u, p) -> xdot``.
+    %(f)s
     x, u, p : casadi.MX
         State, inputs, robot parameters.
-    h : casadi.MX or float
-        Step [s].
+    %(h)s
     tableau : ExplicitTableau
         The method.
     """
@@ -296,6 +210,7 @@ def explicit_step(f, x, u, p, h, tableau: ExplicitTableau):
     return x + h * sum(b * k for b, k in zip(tableau.b, stages, strict=True) if b)
 
 
+@scheme_parameters
 def period_function(
     model,
     inputs,
@@ -320,10 +235,8 @@ def period_function(
 
     Parameters
     ----------
-    model : Model
-        The model.
-    inputs : ActuatorInput or None
-        The actuator's input, or None for generalized forces.
+    %(model)s
+    %(inputs)s
     substeps : int
         Steps per period.
     method : str
