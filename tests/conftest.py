@@ -12,6 +12,27 @@ import pytest
 import softcurve as sc
 
 
+LONGEST_FIRST = (
+    "test_validation_data.py",
+    "test_identification_joint.py",
+    "test_identify.py",
+    "test_sensitivity_driver.py",
+    "test_docs_site.py",
+    "test_tendons.py",
+    "test_envs_press.py",
+    "test_validation_goals.py",
+)
+"""The test files that take longest (the 15 slowest tests of a CI run, 2026-12-01), run
+first: pytest-xdist hands out whole files in collection order, and a long file started
+last keeps one worker busy while the other idles."""
+
+
+def pytest_collection_modifyitems(config, items):
+    """Move the files of :data:`LONGEST_FIRST` to the front, in that order (stable)."""
+    rank = {name: i for i, name in enumerate(LONGEST_FIRST)}
+    items.sort(key=lambda item: rank.get(item.path.name, len(rank)))
+
+
 def assert_close(actual, expected, *, rtol=1e-12, atol=0.0, scale=None, what=""):
     """``|actual - expected| <= atol + rtol * scale`` elementwise; ``scale`` defaults to
     ``|expected|``, or a number such as the norm of ``expected`` for quantities whose

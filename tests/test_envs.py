@@ -6,6 +6,7 @@ is in tests/test_envs_press.py."""
 
 from __future__ import annotations
 
+import dataclasses
 import subprocess
 import sys
 import textwrap
@@ -188,15 +189,18 @@ def test_a_scenario_file_gives_robot_actuator_period_and_episode_length(tmp_path
 
 def test_the_default_method_is_the_explicit_one_where_the_robot_allows_it(paper_model):
     """RK4 for the default robot; the stepper's default (L-stable ROS34PW2) where RK4's
-    check refuses the robot (the tendon robot's stiff axial modes), where obstacles are
-    given, or where ``substeps`` is given; a method given is kept."""
+    check refuses the robot (stiff axial modes, as the tendon robot's), where obstacles
+    are given, or where ``substeps`` is given; a method given is kept."""
     assert build_setup(duration=1.0).stepper.method == "RK4"
     bellows = envs.setup.default_actuator(1)
     assert stepper_method(paper_model, bellows, 0.02, None, None) == "RK4"
     assert stepper_method(paper_model, bellows, 0.02, 16, None) is None
     assert stepper_method(paper_model, bellows, 0.02, None, "ROS2") == "ROS2"
-    tendon_model = sc.Model(sc.presets.rao2021(), compile=False)
-    assert stepper_method(tendon_model, sc.presets.rao2021_tendons(), 0.02, None, None) is None
+    robot = sc.presets.ifac2020()  # a thousand times stiffer in elongation
+    segment, law = robot.segments[0], robot.segments[0].elongation_stiffness
+    stiffer = dataclasses.replace(law, a1=1000 * law.a1, a2=1000 * law.a2)
+    stiff = sc.Model(robot.replace(segments=(segment.replace(elongation_stiffness=stiffer),)))
+    assert stepper_method(stiff, bellows, 0.02, None, None) is None
     ceiling = sc.Plane([0.0, 0.0, 0.062], [0.0, 0.0, -1.0])
     obstacle = sc.Environment([ceiling], sc.ContactLaw(stiffness=1e7), contact_radius=[1e-3])
     walled = sc.Model(sc.presets.ifac2020(), environment=obstacle, compile=False)

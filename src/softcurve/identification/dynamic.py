@@ -299,9 +299,7 @@ def fit_equilibria(
     q0 : array_like, shape (n,), optional
         Initial guess of every sample's equilibrium [m, 1/m, 1/m] (default: the
         straight robot at rest length); later evaluations start from the previous
-        solutions moved along their tangent (where that move is small), then from the
-        previous solutions, then from ``q0``; an equilibrium outside the model's domain is
-        not accepted.
+        solutions (moved along their tangent where that move is small), then from ``q0``.
     %(extra)s
     %(bind)s
     %(signals)s
