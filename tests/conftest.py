@@ -11,7 +11,6 @@ import pytest
 
 import softcurve as sc
 
-
 LONGEST_FIRST = (
     "test_validation_data.py",
     "test_identification_joint.py",
