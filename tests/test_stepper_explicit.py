@@ -81,6 +81,8 @@ def test_compiled_rk4_equals_the_virtual_machine_and_rows_equal_calls(paper_mode
     """The generated C and CasADi's virtual machine compute the same RK4 periods; the
     compiled library's rows call (in place, no copies) equals its one-member call."""
     stepper = Stepper(paper_model, actuator, period=PERIOD, method="RK4", threads=2)
+    if stepper._members is None:
+        pytest.skip("no working C compiler: the stepper runs in CasADi's virtual machine")
     machine = Stepper(paper_model, actuator, period=PERIOD, method="RK4", compiled=False)
     x = np.tile(stepper.initial_state([0.064, 5.0, -3.0]), (5, 1))
     x[:, 3:6] += rng.normal(0.0, 1.0, (5, 3)) * [0.01, 10.0, 10.0]
