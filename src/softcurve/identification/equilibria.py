@@ -107,7 +107,7 @@ class EquilibriumPredictor:
             chord steps start O(|change of d|^2) from the new solutions instead of
             O(|change of d|)) where that move is small, then the previous solutions, then
             the initial guess."""
-            found = [last.copy(), at_start]
+            found = [last, at_start]
             if tangent:
                 previous_d, dq_dd = tangent
                 move = (dq_dd @ (d_value - previous_d)[active]).T  # (n, T)

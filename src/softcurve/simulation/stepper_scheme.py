@@ -98,10 +98,32 @@ def jacobian_pattern(model, inputs) -> ca.Sparsity:
     return pattern + ca.Sparsity.diag(pattern.size1())
 
 
+@scheme_parameters
+def difference_jacobian(f, scale, x, u, p):
+    """``(J, f(x))``: the Jacobian of ``f`` at ``x`` by forward differences, one batched
+    call of ``n_state + 1`` evaluations; symbolic (MX) in the generated period, numeric
+    (DM) for :func:`~softcurve.simulation.stepper_stability.fastest_rate`.
+
+    Parameters
+    ----------
+    %(f)s
+    scale : ndarray, shape (n_state [+ m],)
+        :func:`state_scale`.
+    x, u, p : casadi.MX or casadi.DM
+        State, inputs and robot parameters.
+    """
+    size = x.shape[0]
+    steps = DIFFERENCE_STEP * ca.fmax(ca.fabs(x), ca.DM(scale))
+    points = ca.horzcat(x, ca.repmat(x, 1, size) + ca.diag(steps))
+    values = f.map(size + 1)(points, u, p)
+    f0 = values[:, 0]
+    jacobian = (values[:, 1:] - ca.repmat(f0, 1, size)) / ca.repmat(steps.T, size, 1)
+    return jacobian, f0
+
+
 def newton_matrix(f, scale, pattern, x, u, p, gamma_h):
-    """``(I - gamma_h J, f(x))`` (MX): ``J`` the Jacobian of ``f`` at ``x`` by forward
-    differences (one batched call of ``n_state + 1`` evaluations) on its structural
-    ``pattern``.
+    """``(I - gamma_h J, f(x))`` (MX): ``J`` the :func:`difference_jacobian` of ``f`` at
+    ``x`` on its structural ``pattern``.
 
     Parameters
     ----------
@@ -116,13 +138,8 @@ def newton_matrix(f, scale, pattern, x, u, p, gamma_h):
     gamma_h : casadi.MX or float
         ``gamma h`` [s].
     """
-    size = x.shape[0]
-    steps = DIFFERENCE_STEP * ca.fmax(ca.fabs(x), ca.DM(scale))
-    points = ca.horzcat(x, ca.repmat(x, 1, size) + ca.diag(steps))
-    values = f.map(size + 1)(points, u, p)
-    f0 = values[:, 0]
-    jacobian = (values[:, 1:] - ca.repmat(f0, 1, size)) / ca.repmat(steps.T, size, 1)
-    return ca.project(ca.MX.eye(size) - gamma_h * jacobian, pattern), f0
+    jacobian, f0 = difference_jacobian(f, scale, x, u, p)
+    return ca.project(ca.MX.eye(x.shape[0]) - gamma_h * jacobian, pattern), f0
 
 
 class Factorization:

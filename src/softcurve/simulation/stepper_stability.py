@@ -10,12 +10,14 @@ from __future__ import annotations
 
 import math
 
+import casadi as ca
 import numpy as np
 
+from softcurve.analysis.loads import rest_configuration
 from softcurve.base.validation import ParameterError
 from softcurve.simulation.integrators import ActuatorInput
 from softcurve.simulation.stepper_scheme import (
-    DIFFERENCE_STEP,
+    difference_jacobian,
     scheme_parameters,
     state_derivative,
     state_scale,
@@ -32,7 +34,9 @@ times."""
 @scheme_parameters
 def fastest_rate(model, inputs: ActuatorInput | None, x, u) -> float:
     """The largest ``|lambda|`` [1/s] of the Jacobian of the state derivative at state
-    ``x`` and inputs ``u`` (forward differences on the compiled right-hand side).
+    ``x`` and inputs ``u`` (the stepper's own forward differences,
+    :func:`~softcurve.simulation.stepper_scheme.difference_jacobian`, on the compiled
+    right-hand side).
 
     Parameters
     ----------
@@ -43,12 +47,9 @@ def fastest_rate(model, inputs: ActuatorInput | None, x, u) -> float:
     u : array_like, shape (m,)
         The inputs (commands with a lag).
     """
-    f = state_derivative(model, inputs, symbolic=False)
-    x, u = np.asarray(x, dtype=np.float64), np.asarray(u, dtype=np.float64)
-    steps = DIFFERENCE_STEP * np.maximum(np.abs(x), state_scale(model, inputs))
-    points = np.column_stack([x, x[:, None] + np.diag(steps)])
-    values = np.array(f.map(x.size + 1)(points, u, model.parameters))
-    jacobian = (values[:, 1:] - values[:, :1]) / steps
+    f, scale = state_derivative(model, inputs, symbolic=False), state_scale(model, inputs)
+    x, u = (ca.DM(np.asarray(v, dtype=np.float64)) for v in (x, u))
+    jacobian = np.array(difference_jacobian(f, scale, x, u, ca.DM(model.parameters))[0])
     return float(np.abs(np.linalg.eigvals(jacobian)).max())
 
 
@@ -66,7 +67,7 @@ def fastest_rate_at_rest(model, inputs: ActuatorInput | None) -> float:
     u = np.zeros(n_u) if inputs is None else np.clip(np.zeros(n_u), inputs.lower, inputs.upper)
     n_lag = 0 if inputs is None else inputs.n_states
     x = np.zeros(model.n_state + n_lag)
-    x[: model.n] = [v for s in model.robot.segments for v in (s.rest_length, 0.0, 0.0)]
+    x[: model.n] = rest_configuration(model.robot)
     x[model.n_state :] = u[:n_lag]
     return fastest_rate(model, inputs, x, u)
 
