@@ -12,6 +12,7 @@ import pytest
 import softcurve as sc
 from softcurve.base.validation import ParameterError
 from softcurve.simulation.stepper import Stepper
+from softcurve.simulation.stepper_lanes import LanesMembers
 from softcurve.simulation.stepper_methods import DEFAULT_EXPLICIT_STEP, RK4
 from softcurve.simulation.stepper_stability import EXPLICIT_MARGIN, fastest_rate_at_rest
 
@@ -77,12 +78,13 @@ def test_the_step_is_checked_against_the_robots_fastest_mode(paper_model, actuat
         Stepper(contact_model, period=PERIOD, method="RK4")
 
 
-def test_compiled_rk4_equals_the_virtual_machine_and_rows_equal_calls(paper_model, actuator, rng):
-    """The generated C and CasADi's virtual machine compute the same RK4 periods; the
-    compiled library's rows call (in place, no copies) equals its one-member call."""
+def test_compiled_rk4_equals_the_virtual_machine(paper_model, actuator, rng):
+    """The generated lanes (vector C, :mod:`softcurve.simulation.stepper_lanes`) and
+    CasADi's virtual machine compute the same RK4 periods."""
     stepper = Stepper(paper_model, actuator, period=PERIOD, method="RK4", threads=2)
     if stepper._members is None:
         pytest.skip("no working C compiler: the stepper runs in CasADi's virtual machine")
+    assert isinstance(stepper._members, LanesMembers)
     machine = Stepper(paper_model, actuator, period=PERIOD, method="RK4", compiled=False)
     x = np.tile(stepper.initial_state([0.064, 5.0, -3.0]), (5, 1))
     x[:, 3:6] += rng.normal(0.0, 1.0, (5, 3)) * [0.01, 10.0, 10.0]
@@ -90,6 +92,18 @@ def test_compiled_rk4_equals_the_virtual_machine_and_rows_equal_calls(paper_mode
     compiled, virtual = stepper.step(x, u), machine.step(x, u)
     scale = np.abs(x).max(axis=0) + np.r_[0.064, 1, 1, 0.1, 100, 100, 1, 1, 1, 6e4, 6e4, 6e4]
     assert (np.abs(compiled.x - virtual.x) / scale).max() < 1e-12
+    np.testing.assert_allclose(compiled.tip, virtual.tip, rtol=0, atol=1e-14)
+
+
+def test_the_rows_call_equals_one_member_calls(paper_model, actuator, rng):
+    """The compiled library's rows call (in place, no copies; the Rosenbrock methods'
+    threads) equals its one-member call, and refuses arrays of the wrong layout."""
+    stepper = Stepper(paper_model, actuator, period=PERIOD, threads=2)
+    if stepper._members is None:
+        pytest.skip("no working C compiler: the stepper runs in CasADi's virtual machine")
+    x = np.tile(stepper.initial_state([0.064, 5.0, -3.0]), (5, 1))
+    x[:, 3:6] += rng.normal(0.0, 1.0, (5, 3)) * [0.01, 10.0, 10.0]
+    u = rng.uniform(actuator.lower, actuator.upper, (5, 3))
     native = stepper._members._function
     out = np.empty((5, stepper.n_state + 6))
     shared = [paper_model.parameters, np.array([PERIOD])]
@@ -102,6 +116,10 @@ def test_compiled_rk4_equals_the_virtual_machine_and_rows_equal_calls(paper_mode
         native.call_rows([x, u, *shared], out, 0, 6)
     with pytest.raises(ValueError, match="start <= stop"):
         native.call_rows([x, u, *shared], out, 3, 2)
+
+
+def test_rk4_refuses_a_jacobian_interval(paper_model, actuator):
+    stepper = Stepper(paper_model, actuator, period=PERIOD, method="RK4", compiled=False)
     assert stepper.jacobian_every is None
     with pytest.raises(ParameterError, match="jacobian_every"):
         Stepper(paper_model, actuator, period=PERIOD, method="RK4", jacobian_every=1)

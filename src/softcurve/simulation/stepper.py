@@ -24,6 +24,7 @@ from softcurve.compiled.model import Model
 from softcurve.description.actuator import Actuator
 from softcurve.simulation.integrators import ActuatorInput, BufferedCall
 from softcurve.simulation.simulate import initial_state as checked_state
+from softcurve.simulation.stepper_lanes import LanesMembers, lanes_period
 from softcurve.simulation.stepper_methods import DEFAULT_EXPLICIT_STEP as DEFAULT_EXPLICIT_STEP
 from softcurve.simulation.stepper_methods import DEFAULT_METHOD as DEFAULT_METHOD
 from softcurve.simulation.stepper_methods import DEFAULT_STEP as DEFAULT_STEP
@@ -180,13 +181,16 @@ class Stepper:
             jacobian_every = self._substeps if free else CONTACT_JACOBIAN_EVERY
         self._every = min(whole_count("jacobian_every", jacobian_every), self._substeps)
         scheme = (model, self._input, self._substeps, method)
-        native = None
-        if compiled:
+        self._members = None
+        if compiled and explicit:  # members in lock-step: vector lanes
+            lanes = lanes_period(model, self._input, self._substeps, METHODS[method])
+            self._members = None if lanes is None else LanesMembers(lanes, self._threads)
+        if compiled and self._members is None:
             native = period_function(*scheme, True, None, self._every, native=True)
-        self._members = None if native is None else ThreadedMembers(native, self._threads)
+            self._members = None if native is None else ThreadedMembers(native, self._threads)
         # CasADi evaluates the period only where ctypes cannot (no compiled library)
         self._function = None
-        if native is None:
+        if self._members is None:
             self._function = period_function(*scheme, compiled, None, self._every)
         inputs_key = None if self._input is None else self._input.key
         self._key = (self._substeps, method, compiled, self._every, inputs_key)

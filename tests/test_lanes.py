@@ -1,0 +1,171 @@
+"""SX functions as C over lanes of members (:mod:`softcurve.compiled.lanes`) against
+CasADi's own evaluation, and the explicit stepper's lanes period
+(:mod:`softcurve.simulation.stepper_lanes`) against the scalar period per member."""
+
+from __future__ import annotations
+
+import ctypes
+import shutil
+import subprocess
+
+import casadi as ca
+import numpy as np
+import pytest
+
+import softcurve as sc
+from softcurve.compiled.lanes import (
+    LANE_WIDTH,
+    VECTOR_MATH_LIBRARY,
+    lanes_function,
+    lanes_prelude,
+)
+from softcurve.compiled.source import compile_source
+from softcurve.simulation.stepper_lanes import LanesMembers, lanes_period
+from softcurve.simulation.stepper_methods import RK4
+from softcurve.simulation.stepper_scheme import period_function
+
+PERIOD = 0.02
+
+
+def every_operation() -> ca.Function:
+    """``(x (3,) per member, p (2,) shared) -> (y (2,), z (26,))`` with every operation
+    the lanes code writes, both branches of a conditional taken across the lanes, and
+    non-finite constants."""
+    x, p = ca.SX.sym("x", 3), ca.SX.sym("p", 2)
+    a, b, c = x[0], x[1], x[2]
+    z = [
+        a + b, a - p[0], a * b, a / p[1], -a, a**2, 2 * a, 1 / b, ca.exp(a), ca.log(b),
+        ca.sqrt(b), ca.sin(a), ca.cos(a), ca.tan(a), ca.atan(a), ca.tanh(a), ca.fabs(a),
+        ca.floor(a), ca.sinh(a), ca.atan2(a, b), ca.fmin(a, c), ca.fmax(a, c), b**p[0],
+        ca.sign(a) + ca.sign(c - c), ca.if_else(ca.logic_and(a < c, b >= 1), ca.sin(c), c**3),
+        ca.if_else(ca.logic_or(a == c, ca.logic_not(a != 0.5)), np.inf, -np.inf),
+    ]  # fmt: skip
+    return ca.Function("every", [x, p], [ca.vertcat(a * b + p[0], ca.erf(c)), ca.vertcat(*z)])
+
+
+def lanes_library(function, vector_math):
+    """``run(x (n_in0, W), p, y0 (n_out0, W), y1 ...)`` compiled: lane-major arrays."""
+    n_x = function.size1_in(0)
+    sizes = [function.size1_out(i) for i in range(function.n_out())]
+    outputs = ", ".join(f"double* y{i}" for i in range(len(sizes)))
+    body = [
+        f"  sc_v x[{n_x}];",
+        *(f"  sc_v o{i}[{size}];" for i, size in enumerate(sizes)),
+        f"  for (int j = 0; j < {n_x}; j++)",
+        "    for (int l = 0; l < SC_W; l++) x[j][l] = xs[j * SC_W + l];",
+        f"  lanes(x, p, {', '.join(f'o{i}' for i in range(len(sizes)))});",
+        *(
+            f"  for (int j = 0; j < {size}; j++) for (int l = 0; l < SC_W; l++) "
+            f"y{i}[j * SC_W + l] = o{i}[j][l];"
+            for i, size in enumerate(sizes)
+        ),
+    ]
+    source = "\n".join(
+        [
+            lanes_prelude(LANE_WIDTH, vector_math),
+            lanes_function(function, "lanes", (False, True)),
+            '__attribute__((visibility("default"))) void run(const double* xs, '
+            f"const double* p, {outputs}) {{",
+            *body,
+            "}",
+        ]
+    )
+    link = VECTOR_MATH_LIBRARY if vector_math else ()
+    return compile_source("test_lanes", source, link)
+
+
+@pytest.mark.parametrize("vector_math", [False, True])
+def test_lanes_compute_what_casadi_computes(vector_math, rng):
+    """Every lane equals CasADi's evaluation of that member: to the ulp with the C
+    library's functions, within libmvec's 4 ulp with the vector ones."""
+    function = every_operation()
+    library = lanes_library(function, vector_math)
+    if library is None:
+        pytest.skip("no C compiler with vector extensions (or no libmvec) on this machine")
+    x = np.stack(
+        [rng.uniform(-2, 2, LANE_WIDTH), rng.uniform(0.5, 3, LANE_WIDTH), np.zeros(LANE_WIDTH)]
+    )
+    x[2] = [0.5, -1.0, x[0, 2], 3.0][:LANE_WIDTH]  # a == c in lane 2: both branches taken
+    x[0, 1] = 0.5
+    p = np.array([0.7, 1.3])
+    ys = [np.zeros((function.size1_out(i), LANE_WIDTH)) for i in range(function.n_out())]
+    pointer = ctypes.POINTER(ctypes.c_double)
+    library.run(*(a.ctypes.data_as(pointer) for a in (np.ascontiguousarray(x), p, *ys)))
+    for lane in range(LANE_WIDTH):
+        expected = [np.array(y).ravel() for y in function(x[:, lane], p)]
+        for got, want in zip(ys, expected, strict=True):
+            finite = np.isfinite(want)
+            np.testing.assert_array_equal(got[~finite, lane], want[~finite])
+            np.testing.assert_allclose(got[finite, lane], want[finite], rtol=1e-15, atol=1e-15)
+
+
+def test_lanes_refuse_what_they_cannot_write():
+    x, m = ca.SX.sym("x", 2), ca.MX.sym("m")
+    with pytest.raises(ValueError, match="SX function"):
+        lanes_function(ca.Function("m", [m], [m * 2]), "f", (False,))
+    with pytest.raises(ValueError, match="shared needs 1"):
+        lanes_function(ca.Function("f", [x], [x]), "f", (False, True))
+    with pytest.raises(ValueError, match="output 0 must be a dense column"):
+        lanes_function(ca.Function("f", [x], [ca.diag(x)]), "f", (False,))
+    with pytest.raises(NotImplementedError, match="OP_ERFINV"):
+        lanes_function(ca.Function("f", [x], [ca.erfinv(x)]), "f", (False,))
+    with pytest.raises(ValueError, match="width 4"):
+        lanes_prelude(8, vector_math=True)
+
+
+@pytest.mark.parametrize("count", [1, 3, LANE_WIDTH + 1, 9])
+def test_the_lanes_period_equals_the_scalar_period_per_member(count, paper_model, rng):
+    """Whole and partial vectors, on one to three threads: every member's period equals
+    the scalar compiled period's (CasADi's C) to round-off, and the threads' shares do
+    not change a bit."""
+    entry = lanes_period(paper_model, None, 6, RK4)
+    scalar = period_function(paper_model, None, 6, "RK4", True, None, None, native=True)
+    if entry is None or scalar is None:
+        pytest.skip("no working C compiler")
+    x = np.zeros((count, paper_model.n_state))
+    x[:, 0] = 0.064 + rng.normal(0, 1e-3, count)
+    x[:, 1:3] = rng.uniform(-20, 20, (count, 2))
+    x[:, 3:6] = rng.normal(0, 1, (count, 3)) * [0.01, 10, 10]
+    u = rng.normal(0, 1e-3, (count, paper_model.n))
+    shared = [paper_model.parameters, np.array([PERIOD])]
+    expected = np.empty((count, paper_model.n_state + 6))
+    assert scalar.call_rows([x, u, *shared], expected, 0, count) == []
+    outs = []
+    for threads in (1, 2, 3):
+        out = np.full_like(expected, np.nan)
+        assert LanesMembers(entry, threads)(x, u, *shared, out) == []
+        outs.append(out)
+    scale = np.abs(expected).max(axis=0) + 1e-3
+    assert (np.abs(outs[0] - expected) / scale).max() < 1e-13
+    np.testing.assert_array_equal(outs[1], outs[0])
+    np.testing.assert_array_equal(outs[2], outs[0])
+
+
+def test_without_the_vector_math_library_the_lanes_use_the_c_librarys(
+    paper_model, rng, monkeypatch, tmp_path
+):
+    """A compiler that cannot link libmvec still gets the lanes period, with the C
+    library's functions (no vector-math symbol), computing the same periods."""
+    real = shutil.which("cc") or shutil.which("gcc")
+    if real is None:
+        pytest.skip("no C compiler")
+    wrapper = tmp_path / "cc-without-libmvec"
+    wrapper.write_text(
+        f'#!/bin/sh\nfor a in "$@"; do [ "$a" = -lmvec ] && exit 1; done\nexec {real} "$@"\n'
+    )
+    wrapper.chmod(0o755)
+    with_vector_math = lanes_period(paper_model, None, 6, RK4)
+    monkeypatch.setenv("CC", str(wrapper))
+    model = sc.Model(sc.presets.ifac2020(), compile=False)  # the lanes need no library
+    entry = lanes_period(model, None, 6, RK4)
+    assert entry is not None and with_vector_math.vector_math and not entry.vector_math
+    symbols = subprocess.run(["nm", "-D", entry.library], capture_output=True, text=True)
+    assert " tanh@" in symbols.stdout and "ZGV" not in symbols.stdout
+    x = np.tile([0.064, 5.0, -3.0, 0.0, 10.0, -10.0, 0.0, 0.0, 0.0], (5, 1))
+    x[:, 3:6] += rng.normal(0, 1, (5, 3)) * [0.01, 10, 10]
+    u = np.zeros((5, model.n))
+    shared = [model.parameters, np.array([PERIOD])]
+    got, want = np.zeros((5, model.n_state + 6)), np.zeros((5, model.n_state + 6))
+    LanesMembers(entry, 1)(x, u, *shared, got)
+    LanesMembers(with_vector_math, 1)(x, u, *shared, want)
+    assert (np.abs(got - want) / (np.abs(want).max(axis=0) + 1e-3)).max() < 1e-13
