@@ -15,6 +15,9 @@ C relative to the largest value of each output.
 2. The RK4 period (6 steps per 20 ms, 24 right-hand sides and the observation): the
    scalar compiled period per member (``period_function(..., native=True)``, the route
    before lanes) against the lanes period (``stepper_lanes.lanes_period``), one thread.
+3. The same for ROS34PW2 (16 steps per 20 ms, a forward-difference Newton matrix and
+   its QR once per period: 77 right-hand sides, 64 solves); its difference is the
+   round-off of the forward differences (about 1e-8), not of the arithmetic.
 
 The load average is printed: the machine's other work slows every row.
 """
@@ -25,6 +28,7 @@ import argparse
 import ctypes
 import os
 import time
+from functools import partial
 
 import casadi as ca
 import numpy as np
@@ -33,7 +37,6 @@ import softcurve as sc
 from softcurve.compiled.lanes import VECTOR_MATH_LIBRARY, lanes_function, lanes_prelude
 from softcurve.compiled.source import compile_source
 from softcurve.simulation.stepper_lanes import LanesMembers, lanes_period
-from softcurve.simulation.stepper_methods import RK4
 from softcurve.simulation.stepper_scheme import period_function, state_derivative
 
 PERIOD = 0.02
@@ -95,23 +98,28 @@ def casadi_kernel(f):
     return lambda *arrays: run(*(a.ctypes.data for a in arrays), len(arrays[0]))
 
 
-def timed(rounds: int, variants: dict, members: int, call) -> dict:
-    """Best seconds per member of each variant over ``rounds`` alternating rounds."""
-    best = dict.fromkeys(variants, np.inf)
+def timed(rounds: int, calls: dict, members: int) -> dict:
+    """Best seconds per member of each call (name -> callable without arguments) over
+    ``rounds`` alternating rounds of 20 calls."""
+    best = dict.fromkeys(calls, np.inf)
     for _ in range(rounds):
-        for name in variants:
+        for name, call in calls.items():
             start = time.perf_counter()
             for _ in range(20):
-                call(name)
+                call()
             best[name] = min(best[name], (time.perf_counter() - start) / 20 / members)
     return best
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--members", type=int, default=256, help="members per call")
+    parser.add_argument(
+        "--members", type=int, default=256, help="members per call, a multiple of 8"
+    )
     parser.add_argument("--rounds", type=int, default=7, help="alternating rounds (best kept)")
     args = parser.parse_args()
+    if args.members <= 0 or args.members % 8:
+        parser.error(f"--members must be a positive multiple of 8, got {args.members}")
     print(f"softcurve {sc.__version__}, {os.cpu_count()} CPUs, load average {os.getloadavg()}")
     model = sc.Model(sc.presets.ifac2020())
     rng = np.random.default_rng(0)
@@ -130,7 +138,8 @@ def main() -> None:
         variants[f"lanes of {width}"] = lanes_kernel(expanded, width, False)
     variants["lanes of 4, libmvec"] = lanes_kernel(expanded, 4, True)
     outputs = {name: np.zeros_like(x) for name in variants}
-    best = timed(args.rounds, variants, n, lambda name: variants[name](x, u, p, outputs[name]))
+    calls = {name: partial(run, x, u, p, outputs[name]) for name, run in variants.items()}
+    best = timed(args.rounds, calls, n)
     reference = outputs["CasADi's C"]
     scale = np.abs(reference).max(axis=0) + np.finfo(float).tiny
     print(f"\n1. state derivative of the paper robot, {n} members, best of {args.rounds} rounds")
@@ -138,22 +147,24 @@ def main() -> None:
         error = (np.abs(outputs[name] - reference) / scale).max()
         print(f"  {name:26s} {best[name] * 1e6:7.3f} us per member   difference {error:.1e}")
 
-    scalar = period_function(model, None, 6, "RK4", True, None, None, native=True)
-    lanes = LanesMembers(lanes_period(model, None, 6, RK4), threads=1)
     shared = [p, np.array([PERIOD])]
-    before, after = np.zeros((n, model.n_state + 6)), np.zeros((n, model.n_state + 6))
-    outs = {"scalar period per member": before, "lanes period": after}
-    periods = {
-        "scalar period per member": lambda: scalar.call_rows([x, u, *shared], before, 0, n),
-        "lanes period": lambda: lanes(x, u, *shared, after),
-    }
-    best = timed(args.rounds, periods, n, lambda name: periods[name]())
-    print(f"\n2. RK4 x 6 period of {PERIOD * 1e3:.0f} ms, {n} members, one thread")
-    reference = outs["scalar period per member"]
-    scale = np.abs(reference).max(axis=0) + 1e-3
-    for name in periods:
-        error = (np.abs(outs[name] - reference) / scale).max()
-        print(f"  {name:26s} {best[name] * 1e6:7.2f} us per member   difference {error:.1e}")
+    for section, (method, substeps) in enumerate((("RK4", 6), ("ROS34PW2", 16)), start=2):
+        scalar = period_function(model, None, substeps, method, True, None, None, native=True)
+        lanes = LanesMembers(lanes_period(model, None, substeps, method), threads=1)
+        before, after = np.zeros((n, model.n_state + 6)), np.zeros((n, model.n_state + 6))
+        outs = {"scalar period per member": before, "lanes period": after}
+        periods = {
+            "scalar period per member": lambda s=scalar, b=before: s.call_rows(
+                [x, u, *shared], b, 0, n
+            ),
+            "lanes period": lambda s=lanes, a=after: s(x, u, *shared, a),
+        }
+        best = timed(args.rounds, periods, n)
+        print(f"\n{section}. {method} x {substeps} period of {PERIOD * 1e3:.0f} ms, {n} members")
+        scale = np.abs(before).max(axis=0) + 1e-3
+        for name in periods:
+            error = (np.abs(outs[name] - before) / scale).max()
+            print(f"  {name:26s} {best[name] * 1e6:7.2f} us per member   difference {error:.1e}")
     print(f"\nload average after the runs: {os.getloadavg()}")
 
 

@@ -13,15 +13,19 @@ import numpy as np
 import pytest
 
 import softcurve as sc
+from softcurve.compiled import lanes as lanes_module
 from softcurve.compiled.lanes import (
     LANE_WIDTH,
     VECTOR_MATH_LIBRARY,
     lanes_function,
     lanes_prelude,
+    lanes_work,
 )
 from softcurve.compiled.source import compile_source
+from softcurve.simulation import stepper_lanes
+from softcurve.simulation.stepper import Stepper
 from softcurve.simulation.stepper_lanes import LanesMembers, lanes_period
-from softcurve.simulation.stepper_methods import RK4
+from softcurve.simulation.stepper_native import ThreadedMembers
 from softcurve.simulation.stepper_scheme import period_function
 
 PERIOD = 0.02
@@ -53,7 +57,8 @@ def lanes_library(function, vector_math):
         *(f"  sc_v o{i}[{size}];" for i, size in enumerate(sizes)),
         f"  for (int j = 0; j < {n_x}; j++)",
         "    for (int l = 0; l < SC_W; l++) x[j][l] = xs[j * SC_W + l];",
-        f"  lanes(x, p, {', '.join(f'o{i}' for i in range(len(sizes)))});",
+        f"  sc_v w[{lanes_work(function)}];",
+        f"  lanes(x, p, {', '.join(f'o{i}' for i in range(len(sizes)))}, w);",
         *(
             f"  for (int j = 0; j < {size}; j++) for (int l = 0; l < SC_W; l++) "
             f"y{i}[j * SC_W + l] = o{i}[j][l];"
@@ -74,10 +79,12 @@ def lanes_library(function, vector_math):
     return compile_source("test_lanes", source, link)
 
 
-@pytest.mark.parametrize("vector_math", [False, True])
-def test_lanes_compute_what_casadi_computes(vector_math, rng):
+@pytest.mark.parametrize(("vector_math", "stack_work"), [(False, 10**6), (True, 10**6), (True, 0)])
+def test_lanes_compute_what_casadi_computes(vector_math, stack_work, rng, monkeypatch):
     """Every lane equals CasADi's evaluation of that member: to the ulp with the C
-    library's functions, within libmvec's 4 ulp with the vector ones."""
+    library's functions, within libmvec's 4 ulp with the vector ones; with the work in
+    local variables and in the caller's array (``STACK_WORK``)."""
+    monkeypatch.setattr(lanes_module, "STACK_WORK", stack_work)
     function = every_operation()
     library = lanes_library(function, vector_math)
     if library is None:
@@ -115,18 +122,14 @@ def test_lanes_refuse_what_they_cannot_write():
 
 @pytest.mark.parametrize("count", [1, 3, LANE_WIDTH + 1, 9])
 def test_the_lanes_period_equals_the_scalar_period_per_member(count, paper_model, rng):
-    """Whole and partial vectors, on one to three threads: every member's period equals
-    the scalar compiled period's (CasADi's C) to round-off, and the threads' shares do
-    not change a bit."""
-    entry = lanes_period(paper_model, None, 6, RK4)
+    """Whole and partial vectors, on one to three threads: every member's RK4 period
+    equals the scalar compiled period's (CasADi's C) to round-off, and the threads'
+    shares do not change a bit."""
+    entry = lanes_period(paper_model, None, 6, "RK4")
     scalar = period_function(paper_model, None, 6, "RK4", True, None, None, native=True)
     if entry is None or scalar is None:
         pytest.skip("no working C compiler")
-    x = np.zeros((count, paper_model.n_state))
-    x[:, 0] = 0.064 + rng.normal(0, 1e-3, count)
-    x[:, 1:3] = rng.uniform(-20, 20, (count, 2))
-    x[:, 3:6] = rng.normal(0, 1, (count, 3)) * [0.01, 10, 10]
-    u = rng.normal(0, 1e-3, (count, paper_model.n))
+    x, u = members(paper_model, rng, count)
     shared = [paper_model.parameters, np.array([PERIOD])]
     expected = np.empty((count, paper_model.n_state + 6))
     assert scalar.call_rows([x, u, *shared], expected, 0, count) == []
@@ -139,6 +142,41 @@ def test_the_lanes_period_equals_the_scalar_period_per_member(count, paper_model
     assert (np.abs(outs[0] - expected) / scale).max() < 1e-13
     np.testing.assert_array_equal(outs[1], outs[0])
     np.testing.assert_array_equal(outs[2], outs[0])
+
+
+def members(model, rng, count):
+    """``count`` states of the paper robot bent up to 20 1/m and moving, and small forces."""
+    x = np.zeros((count, model.n_state))
+    x[:, 0] = 0.064 + rng.normal(0, 1e-3, count)
+    x[:, 1:3] = rng.uniform(-20, 20, (count, 2))
+    x[:, 3:6] = rng.normal(0, 1, (count, 3)) * [0.01, 10, 10]
+    return x, rng.normal(0, 1e-3, (count, model.n))
+
+
+@pytest.mark.parametrize(
+    ("method", "substeps", "every", "tolerance"),
+    [("ROS34PW2", 16, 16, 1e-8), ("ROS2", 8, 2, 1e-6)],
+)
+def test_the_rosenbrock_lanes_compute_the_scheme_of_the_virtual_machine(
+    method, substeps, every, tolerance, paper_model, rng
+):
+    """The Rosenbrock methods' lanes (forward-difference Newton matrix, its QR, the
+    stages) equal CasADi's virtual machine on the same scheme, to the round-off of the
+    forward differences: ~1e-8 relative in the Jacobian, from round-off differences of
+    ~1e-16 in the right-hand sides over a step of 1.5e-8. A W-method's step depends on
+    its matrix; ROS2's more than ROS34PW2's (8.9e-8 here; CasADi's C and its virtual
+    machine differ by up to 9e-7 on faster states, measured)."""
+    entry = lanes_period(paper_model, None, substeps, method, every)
+    if entry is None:
+        pytest.skip("no working C compiler")
+    machine = period_function(paper_model, None, substeps, method, False, None, every)
+    x, u = members(paper_model, rng, 5)
+    shared = [paper_model.parameters, np.array([PERIOD])]
+    out = np.full((5, paper_model.n_state + 6), np.nan)
+    assert LanesMembers(entry, 2)(x, u, *shared, out) == []
+    expected = np.array([np.array(machine(x[i], u[i], *shared)).ravel() for i in range(5)])
+    scale = np.abs(expected).max(axis=0) + 1e-3
+    assert (np.abs(out - expected) / scale).max() < tolerance
 
 
 def test_without_the_vector_math_library_the_lanes_use_the_c_librarys(
@@ -154,10 +192,10 @@ def test_without_the_vector_math_library_the_lanes_use_the_c_librarys(
         f'#!/bin/sh\nfor a in "$@"; do [ "$a" = -lmvec ] && exit 1; done\nexec {real} "$@"\n'
     )
     wrapper.chmod(0o755)
-    with_vector_math = lanes_period(paper_model, None, 6, RK4)
+    with_vector_math = lanes_period(paper_model, None, 6, "RK4")
     monkeypatch.setenv("CC", str(wrapper))
     model = sc.Model(sc.presets.ifac2020(), compile=False)  # the lanes need no library
-    entry = lanes_period(model, None, 6, RK4)
+    entry = lanes_period(model, None, 6, "RK4")
     assert entry is not None and with_vector_math.vector_math and not entry.vector_math
     symbols = subprocess.run(["nm", "-D", entry.library], capture_output=True, text=True)
     assert " tanh@" in symbols.stdout and "ZGV" not in symbols.stdout
@@ -169,3 +207,40 @@ def test_without_the_vector_math_library_the_lanes_use_the_c_librarys(
     LanesMembers(entry, 1)(x, u, *shared, got)
     LanesMembers(with_vector_math, 1)(x, u, *shared, want)
     assert (np.abs(got - want) / (np.abs(want).max(axis=0) + 1e-3)).max() < 1e-13
+
+
+def test_the_lanes_check_their_arrays(paper_model):
+    """The compiled code reads and writes whole rows: shapes are checked first."""
+    entry = lanes_period(paper_model, None, 6, "RK4")
+    if entry is None:
+        pytest.skip("no working C compiler")
+    members = LanesMembers(entry, 2)
+    x, u = np.zeros((3, paper_model.n_state)), np.zeros((3, paper_model.n))
+    x[:, 0] = 0.064
+    shared = [paper_model.parameters, np.array([PERIOD])]
+    with pytest.raises(ValueError, match=r"out must be float64 of shape \(3, 15\)"):
+        members(x, u, *shared, np.zeros((3, 13)))
+    with pytest.raises(ValueError, match=r"u must have shape \(3, 3\)"):
+        members(x, u[:2], *shared, np.zeros((3, 15)))
+    with pytest.raises(ValueError, match=r"p must have shape"):
+        members(x, u, shared[0][:-1], shared[1], np.zeros((3, 15)))
+    with pytest.raises(ValueError, match="writeable C-contiguous"):
+        members(x, u, *shared, np.zeros((15, 3)).T)
+
+
+def test_a_model_without_lanes_code_steps_on_the_scalar_period(monkeypatch):
+    """Where the lanes cannot be written (an operation without lanes code), the stepper
+    runs the scalar compiled period on each member instead."""
+
+    def refuse(*args, **kwargs):
+        raise NotImplementedError("no lanes code for CasADi's OP_REMAINDER")
+
+    monkeypatch.setattr(stepper_lanes, "period_source", refuse)
+    model = sc.Model(sc.presets.ifac2020())  # a new model: nothing kept with it yet
+    assert lanes_period(model, None, 6, "RK4") is None
+    stepper = Stepper(model, period=PERIOD, method="RK4")
+    if stepper._members is None:
+        pytest.skip("no working C compiler")
+    assert isinstance(stepper._members, ThreadedMembers)
+    result = stepper.step(stepper.initial_state([0.064, 5.0, 0.0])[None, :], np.zeros((1, 3)))
+    assert result.ok.all() and np.all(np.isfinite(result.x))

@@ -11,9 +11,13 @@ import pytest
 
 import softcurve as sc
 from softcurve.base.validation import ParameterError
+from softcurve.compiled.generated import compile_function
+from softcurve.compiled.native import NativeFunction
 from softcurve.simulation.stepper import Stepper
 from softcurve.simulation.stepper_lanes import LanesMembers
 from softcurve.simulation.stepper_methods import DEFAULT_EXPLICIT_STEP, RK4
+from softcurve.simulation.stepper_native import load_native
+from softcurve.simulation.stepper_observe import observer
 from softcurve.simulation.stepper_stability import EXPLICIT_MARGIN, fastest_rate_at_rest
 
 PERIOD = 0.02
@@ -95,27 +99,27 @@ def test_compiled_rk4_equals_the_virtual_machine(paper_model, actuator, rng):
     np.testing.assert_allclose(compiled.tip, virtual.tip, rtol=0, atol=1e-14)
 
 
-def test_the_rows_call_equals_one_member_calls(paper_model, actuator, rng):
-    """The compiled library's rows call (in place, no copies; the Rosenbrock methods'
-    threads) equals its one-member call, and refuses arrays of the wrong layout."""
-    stepper = Stepper(paper_model, actuator, period=PERIOD, threads=2)
-    if stepper._members is None:
-        pytest.skip("no working C compiler: the stepper runs in CasADi's virtual machine")
-    x = np.tile(stepper.initial_state([0.064, 5.0, -3.0]), (5, 1))
-    x[:, 3:6] += rng.normal(0.0, 1.0, (5, 3)) * [0.01, 10.0, 10.0]
-    u = rng.uniform(actuator.lower, actuator.upper, (5, 3))
-    native = stepper._members._function
-    out = np.empty((5, stepper.n_state + 6))
-    shared = [paper_model.parameters, np.array([PERIOD])]
-    assert native.call_rows([x, u, *shared], out, 0, 5) == []
+def test_the_rows_call_equals_one_member_calls(paper_model, rng):
+    """A compiled library's rows call (in place, no copies; the scalar periods' threads
+    where the lanes cannot be built) equals its one-member call, and refuses arrays of
+    the wrong layout. On the observation, a small function."""
+    native = compile_function(observer(paper_model, True), load=load_native)
+    if not isinstance(native, NativeFunction):
+        pytest.skip("no working C compiler")
+    x = np.zeros((5, paper_model.n_state))
+    x[:, 0] = 0.064
+    x[:, 1:3] = rng.uniform(-20, 20, (5, 2))
+    out = np.empty((5, 6))
+    p = paper_model.parameters
+    assert native.call_rows([x, p], out, 0, 5) == []
     for i in range(5):
-        np.testing.assert_array_equal(out[i], native(x[i], u[i], *shared)[0])
+        np.testing.assert_array_equal(out[i], native(x[i], p)[0])
     with pytest.raises(ValueError, match="C-contiguous"):
-        native.call_rows([x[:, :5], u, *shared], out, 0, 5)
-    with pytest.raises(ValueError, match=r"\(>= 6, 12\)"):  # fewer rows than asked for
-        native.call_rows([x, u, *shared], out, 0, 6)
+        native.call_rows([x[:, :5], p], out, 0, 5)
+    with pytest.raises(ValueError, match=r"\(>= 6, 9\)"):  # fewer rows than asked for
+        native.call_rows([x, p], out, 0, 6)
     with pytest.raises(ValueError, match="start <= stop"):
-        native.call_rows([x, u, *shared], out, 3, 2)
+        native.call_rows([x, p], out, 3, 2)
 
 
 def test_rk4_refuses_a_jacobian_interval(paper_model, actuator):

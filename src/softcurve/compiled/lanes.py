@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import math
 import platform
+import re
 from collections.abc import Sequence
 
 import casadi as ca
@@ -28,6 +29,13 @@ library's elementary functions, 1.13 us as lanes of 4 with libmvec's
 (``python benchmarks/bench_lanes.py``, best of 7 alternating rounds, 2026-12-01, on this
 project's AVX2 machine). Four doubles fill one AVX2 register; eight take two and spill.
 """
+
+STACK_WORK = 2048
+"""Work vectors kept in local variables (on the stack, 64 KB at most), beyond which a
+lanes function works in its caller's array (on the heap). Locals are faster: the RK4
+period of the paper robot (963 vectors) took 14.5 us per member against 16.5 us with
+the array (best of 9 alternating rounds, 2026-12-01); a robot of three segments needs
+about 110 KB, more than some threads' stacks (musl's default is 128 KB)."""
 
 VECTOR_MATH_LIBRARY = ("-lmvec",)
 """The link arguments of :data:`VECTOR_MATH`."""
@@ -131,10 +139,10 @@ def _statement(function: ca.Function, k: int, shared: Sequence[bool]) -> str:
     """C for instruction ``k`` of ``function`` on the work variables ``w<i>``."""
     op = _OPERATORS[function.instruction_id(k)]
     args, results = function.instruction_input(k), function.instruction_output(k)
-    w = [f"w{i}" for i in args]
+    w = [f"w[{i}]" for i in args]
     if op == "OUTPUT":
         return f"out{results[0]}[{results[1]}] = {w[0]};"
-    target = f"w{results[0]} = "
+    target = f"w[{results[0]}] = "
     if op == "INPUT":
         i, nz = args
         return target + (f"sc_broadcast(in{i}[{nz}]);" if shared[i] else f"in{i}[{nz}];")
@@ -166,11 +174,13 @@ def _statement(function: ca.Function, k: int, shared: Sequence[bool]) -> str:
 
 
 def lanes_function(function: ca.Function, name: str, shared: Sequence[bool]) -> str:
-    """C of ``static void name(in0, ..., out0, ...)``: ``function`` on
+    """C of ``static void name(in0, ..., out0, ..., w)``: ``function`` on
     :data:`LANE_WIDTH` members at once (the source needs :func:`lanes_prelude` first).
 
     Each input is ``const sc_v*`` (one vector per entry, a lane per member) or, where
-    ``shared``, ``const double*`` read by every lane; each output is ``sc_v*``.
+    ``shared``, ``const double*`` read by every lane; each output is ``sc_v*``; ``w``
+    is the caller's work array of :func:`lanes_work` vectors, used where the function
+    needs more than :data:`STACK_WORK` of them (else the work is in local variables).
 
     Parameters
     ----------
@@ -182,11 +192,19 @@ def lanes_function(function: ca.Function, name: str, shared: Sequence[bool]) -> 
     shared : sequence of bool
         Per input: the same values for every member.
 
+    Returns
+    -------
+    str
+        The C function.
+
     Raises
     ------
     ValueError
         If ``function`` is not an SX function, an input or output is not a dense column,
         or ``shared`` does not have one entry per input.
+    NotImplementedError
+        If ``function`` has an operation without lanes code (CasADi's remainder,
+        inverse error function, print and call instructions).
     """
     if not function.is_a("SXFunction"):
         raise ValueError(f"{function.name()} must be an SX function (call expand())")
@@ -204,15 +222,27 @@ def lanes_function(function: ca.Function, name: str, shared: Sequence[bool]) -> 
         for i, is_shared in enumerate(shared)
     ]
     outputs = [f"sc_v* out{i}" for i in range(function.n_out())]
-    work = ", ".join(f"w{i}" for i in range(function.sz_w()))
     body = [_statement(function, k, shared) for k in range(function.n_instructions())]
-    return (
-        "\n  ".join(
-            [
-                f"static void {name}({', '.join(inputs + outputs)}) {{",
-                f"sc_v {work};" if work else "",
-                *body,
-            ]
-        )
-        + "\n}\n"
-    )
+    signature = ", ".join([*inputs, *outputs, "sc_v* restrict w"])
+    declarations = []
+    if function.sz_w() <= STACK_WORK:
+        body = [re.sub(r"w\[(\d+)\]", r"w\1", line) for line in body]
+        names = ", ".join(f"w{i}" for i in range(function.sz_w()))
+        declarations = ["(void)w;", f"sc_v {names};" if names else ""]
+    return "\n  ".join([f"static void {name}({signature}) {{", *declarations, *body]) + "\n}\n"
+
+
+def lanes_work(function: ca.Function) -> int:
+    """Vectors of work array that the :func:`lanes_function` of ``function`` needs.
+
+    Parameters
+    ----------
+    function : casadi.Function
+        An SX function.
+
+    Returns
+    -------
+    int
+        At least 1.
+    """
+    return max(function.sz_w(), 1)

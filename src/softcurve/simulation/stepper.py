@@ -182,8 +182,8 @@ class Stepper:
         self._every = min(whole_count("jacobian_every", jacobian_every), self._substeps)
         scheme = (model, self._input, self._substeps, method)
         self._members = None
-        if compiled and explicit:  # members in lock-step: vector lanes
-            lanes = lanes_period(model, self._input, self._substeps, METHODS[method])
+        if compiled:  # members in lock-step: vector lanes
+            lanes = lanes_period(model, self._input, self._substeps, method, self._every)
             self._members = None if lanes is None else LanesMembers(lanes, self._threads)
         if compiled and self._members is None:
             native = period_function(*scheme, True, None, self._every, native=True)

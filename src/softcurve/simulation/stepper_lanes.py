@@ -1,11 +1,12 @@
-"""The explicit stepper's period as lanes: :data:`~softcurve.compiled.lanes.LANE_WIDTH`
-members advanced at once in vector instructions, one C call per thread's share.
+"""The stepper's period as lanes: :data:`~softcurve.compiled.lanes.LANE_WIDTH` members
+advanced at once in vector instructions, one C call per thread's share.
 
-The members of a fixed-step explicit method take the same steps, so they run the same
+The members of a fixed-step method take the same steps, so they run the same
 instructions in lock-step; :mod:`softcurve.compiled.lanes` generates the state
-derivative and the observation over lanes of members, and this module writes the
-method's stages around them from the tableau's coefficients. A thread's whole share of
-the members is one call: no Python per member.
+derivative, the observation and the Newton matrix's factorization over lanes of
+members, and :mod:`softcurve.simulation.stepper_lanes_stages` writes the method's steps
+around them from its coefficients. A thread's whole share of the members is one call:
+no Python per member.
 """
 
 from __future__ import annotations
@@ -22,24 +23,21 @@ from softcurve.compiled.lanes import (
     VECTOR_MATH_LIBRARY,
     lanes_function,
     lanes_prelude,
+    lanes_work,
     vector_math_available,
 )
 from softcurve.compiled.source import compile_source
-from softcurve.simulation.stepper_methods import ExplicitTableau
+from softcurve.simulation.stepper_lanes_stages import explicit_step, rosenbrock_step
+from softcurve.simulation.stepper_methods import METHODS, ExplicitTableau
 from softcurve.simulation.stepper_observe import observer
-from softcurve.simulation.stepper_scheme import state_derivative
+from softcurve.simulation.stepper_scheme import jacobian_pattern, state_derivative, state_scale
 
 ENTRY = "softcurve_lanes_period"
 """The C entry point: ``(x, u, p, period, out, start, stop)`` on rows ``start:stop``."""
 
 
-def _combination(terms) -> str:
-    """``c0 * k0[j] + c1 * k1[j] + ...`` over the nonzero coefficients, in order."""
-    return " + ".join(f"{c!r} * k{i}[j]" for i, c in terms)
-
-
-def period_source(model, inputs, substeps: int, tableau: ExplicitTableau, vector_math: bool):
-    """The C source of :data:`ENTRY`: ``substeps`` steps of ``tableau`` over the period,
+def period_source(model, inputs, substeps: int, method: str, vector_math: bool, every=None):
+    """The C source of :data:`ENTRY`: ``substeps`` steps of ``method`` over the period,
     then the observation, for rows ``start:stop`` of ``x`` (N, n_x) and ``u`` (N, m)
     into ``out`` (N, n_x + 6), all row-major float64, with ``p`` and ``period`` shared;
     a last share shorter than a vector repeats its last member in the unused lanes.
@@ -52,37 +50,46 @@ def period_source(model, inputs, substeps: int, tableau: ExplicitTableau, vector
         The actuator's inputs (None: generalized forces).
     substeps : int
         Steps per period.
-    tableau : ExplicitTableau
-        The method.
+    method : str
+        A key of :data:`~softcurve.simulation.stepper_methods.METHODS`.
     vector_math : bool
         Use glibc's vector math library where compiled for AVX2 (see
         :func:`~softcurve.compiled.lanes.lanes_prelude`).
+    every : int, optional
+        Steps between fresh Newton matrices of a Rosenbrock method (default
+        ``substeps``).
     """
     f = state_derivative(model, inputs, True).expand()
     observe = observer(model, True)
     n_x, n_u, n_obs = f.size1_in(0), f.size1_in(1), observe.size1_out(0)
     n_out = n_x + n_obs
-    stages = []
-    for i, row in enumerate(tableau.a):
-        shift = [(j, a) for j, a in enumerate(row[:i]) if a]
-        if shift:
-            stages.append(
-                f"for (int j = 0; j < {n_x}; j++) z[j] = y[j] + h * ({_combination(shift)});"
-            )
-        stages.append(f"sc_xdot({'z' if shift else 'y'}, U, p, k{i});")
-    weights = [(i, b) for i, b in enumerate(tableau.b) if b]
-    count = len(tableau.b)
+    tableau = METHODS[method]
+    if isinstance(tableau, ExplicitTableau):
+        step = explicit_step(tableau, n_x)
+    else:
+        pattern, scale = jacobian_pattern(model, inputs), state_scale(model, inputs)
+        step = rosenbrock_step(tableau, n_x, pattern, scale, every or substeps)
+    functions = [
+        (f, "sc_xdot", (False, False, True)),
+        (observe, "sc_observe", (False, True)),
+        *step.functions,
+    ]
+    work = max(lanes_work(function) for function, _, _ in functions)
     return "\n".join(
         [
+            "#include <stdlib.h>",
             lanes_prelude(LANE_WIDTH, vector_math),
-            lanes_function(f, "sc_xdot", (False, False, True)),
-            lanes_function(observe, "sc_observe", (False, True)),
+            *(lanes_function(*function) for function in functions),
             f'__attribute__((visibility("default"))) int {ENTRY}(',
             "    const double* x, const double* u, const double* p,",
             "    const double* period, double* out, long start, long stop) {",
+            f"  sc_v* w = aligned_alloc(sizeof(sc_v), sizeof(sc_v) * {work + step.scratch});",
+            "  if (w == NULL) return 1;",
+            f"  sc_v* scratch = w + {work};",
             f"  const sc_v h = sc_broadcast(period[0] / {substeps});",
-            f"  sc_v y[{n_x}], U[{max(n_u, 1)}], z[{n_x}], o[{n_obs}];",
-            *(f"  sc_v k{i}[{n_x}];" for i in range(count)),
+            f"  sc_v y[{n_x}], U[{max(n_u, 1)}], o[{n_obs}];",
+            *(f"  {line}" for line in step.declarations),
+            "  (void)scratch;",
             "  for (long i = start; i < stop; i += SC_W) {",
             "    for (int l = 0; l < SC_W; l++) {",
             "      long r = i + l < stop ? i + l : stop - 1;",
@@ -90,16 +97,16 @@ def period_source(model, inputs, substeps: int, tableau: ExplicitTableau, vector
             f"      for (int j = 0; j < {n_u}; j++) U[j][l] = u[r * {n_u} + j];",
             "    }",
             f"    for (int s = 0; s < {substeps}; s++) {{",
-            *(f"      {line}" for line in stages),
-            f"      for (int j = 0; j < {n_x}; j++) y[j] = y[j] + h * ({_combination(weights)});",
+            *(f"      {line}" for line in step.lines),
             "    }",
-            "    sc_observe(y, p, o); /* reads the model's states, the first of y */",
+            "    sc_observe(y, p, o, w); /* reads the model's states, the first of y */",
             "    for (int l = 0; l < SC_W && i + l < stop; l++) {",
             f"      for (int j = 0; j < {n_x}; j++) out[(i + l) * {n_out} + j] = y[j][l];",
             f"      for (int j = 0; j < {n_obs}; j++)",
             f"        out[(i + l) * {n_out} + {n_x} + j] = o[j][l];",
             "    }",
             "  }",
+            "  free(w);",
             "  return 0;",
             "}",
         ]
@@ -117,21 +124,24 @@ class LanesPeriod:
     library : str
         The shared library's path.
     vector_math : bool
-        Whether it was built with glibc's vector math (used where compiled for AVX2).
+        Whether it was linked with glibc's vector math library (whose functions it uses
+        where compiled for AVX2, not with ``SOFTCURVE_PORTABLE``).
+    sizes : tuple of int
+        Entries of a member's state, of its inputs, of the parameter vector and of a
+        member's output row: ``(n_x, n_u, n_p, n_out)``.
     """
 
     entry: object
     library: str
     vector_math: bool
+    sizes: tuple
 
 
-def lanes_period(model, inputs, substeps: int, tableau: ExplicitTableau):
-    """The compiled :func:`period_source` as a :class:`LanesPeriod`, kept with the model: with
-    glibc's vector math where it is available and links
+def lanes_period(model, inputs, substeps: int, method: str, every: int | None = None):
+    """The compiled :func:`period_source`, kept with the model: with glibc's vector math
+    where it is available and links
     (:func:`~softcurve.compiled.lanes.vector_math_available`), else with the C
-    library's scalar functions;
-    None where no C compiler builds it (the caller then calls the scalar period per
-    member).
+    library's scalar functions.
 
     Parameters
     ----------
@@ -141,23 +151,40 @@ def lanes_period(model, inputs, substeps: int, tableau: ExplicitTableau):
         The actuator's inputs.
     substeps : int
         Steps per period.
-    tableau : ExplicitTableau
-        The method.
+    method : str
+        A key of :data:`~softcurve.simulation.stepper_methods.METHODS`.
+    every : int, optional
+        Steps between fresh Newton matrices of a Rosenbrock method (default
+        ``substeps``; ignored by explicit methods).
+
+    Returns
+    -------
+    LanesPeriod or None
+        None where no C compiler builds it, or the model has an operation without lanes
+        code (the caller then calls the scalar period per member).
     """
+    explicit = isinstance(METHODS[method], ExplicitTableau)
+    every = None if explicit else min(every or substeps, substeps)
 
     def build():
+        f = state_derivative(model, inputs, True)
+        n_x = f.size1_in(0)
+        sizes = (n_x, f.size1_in(1), f.size1_in(2), n_x + observer(model, True).size1_out(0))
         attempts = [(True, VECTOR_MATH_LIBRARY)] if vector_math_available() else []
         for vector_math, link in [*attempts, (False, ())]:
-            source = period_source(model, inputs, substeps, tableau, vector_math)
+            try:
+                source = period_source(model, inputs, substeps, method, vector_math, every)
+            except NotImplementedError:
+                return None
             library = compile_source("stepper_lanes", source, link)
             if library is not None:
                 entry = getattr(library, ENTRY)
                 entry.restype = ctypes.c_int
                 entry.argtypes = [ctypes.c_void_p] * 5 + [ctypes.c_long] * 2
-                return LanesPeriod(entry, library._name, vector_math)
+                return LanesPeriod(entry, str(library._name), vector_math, sizes)
         return None
 
-    key = ("stepper-lanes", substeps, tableau.name, None if inputs is None else inputs.key)
+    key = ("stepper-lanes", substeps, method, every, None if inputs is None else inputs.key)
     return model.cached(key, build)
 
 
@@ -174,14 +201,31 @@ class LanesMembers:
     """
 
     def __init__(self, period: LanesPeriod, threads: int):
-        self._entry = period.entry
+        self._period = period
         self._threads = threads
         self._pool: ThreadPoolExecutor | None = None
         self._lock = threading.Lock()
 
+    def _checked(self, x, u, p, period, out) -> list:
+        """The arrays as C-contiguous float64, their shapes checked (the compiled code
+        reads and writes them whole)."""
+        n_x, n_u, n_p, n_out = self._period.sizes
+        count = np.shape(x)[0] if np.ndim(x) == 2 else -1
+        arrays = [np.ascontiguousarray(a, dtype=np.float64) for a in (x, u, p, period)]
+        expected = [(count, n_x), (count, n_u), (n_p,), (1,)]
+        for name, a, shape in zip(("x", "u", "p", "period"), arrays, expected, strict=True):
+            if a.shape != shape:
+                raise ValueError(f"{name} must have shape {shape}, got {a.shape}")
+        if out.shape != (count, n_out) or out.dtype != np.float64:
+            raise ValueError(f"out must be float64 of shape {(count, n_out)}, got {out.shape}")
+        if not (out.flags.c_contiguous and out.flags.writeable):
+            raise ValueError("out must be a writeable C-contiguous array")
+        return arrays
+
     def __call__(self, x, u, p, period, out) -> list:
-        """Fill ``out`` (N, n_x + 6); return ``[]`` (a lanes period cannot fail: a state
-        that leaves the domain shows in ``out``, which the stepper checks).
+        """Fill ``out``; return the members that failed as ``[(i, message), ...]``: none,
+        unless the work array could not be allocated (a state that leaves the domain
+        shows in ``out``, which the stepper checks).
 
         Parameters
         ----------
@@ -196,23 +240,22 @@ class LanesMembers:
         out : ndarray, shape (N, n_x + 6)
             Where the outputs go.
         """
-        arrays = [np.ascontiguousarray(a, dtype=np.float64) for a in (x, u, p, period)]
-        if not (out.flags.c_contiguous and out.flags.writeable and out.dtype == np.float64):
-            raise ValueError("out must be a writeable C-contiguous float64 array")
+        arrays = self._checked(x, u, p, period, out)
         pointers = [a.ctypes.data for a in (*arrays, out)]
-        count = x.shape[0]
+        count = out.shape[0]
 
-        def run(a: int, b: int) -> None:
-            self._entry(*pointers, a, b)
+        def run(a: int, b: int) -> list:
+            if self._period.entry(*pointers, a, b):
+                return [(i, "no memory for the period's work array") for i in range(a, b)]
+            return []
 
         vectors = -(-count // LANE_WIDTH)
         chunks = min(self._threads, vectors)
         if chunks <= 1:
-            run(0, count)
-            return []
+            return run(0, count)
         bounds = np.minimum(np.linspace(0, vectors, chunks + 1).astype(int) * LANE_WIDTH, count)
         with self._lock:
             if self._pool is None:
                 self._pool = ThreadPoolExecutor(self._threads, "softcurve-lanes")
-        list(self._pool.map(run, bounds[:-1], bounds[1:]))
-        return []
+        parts = self._pool.map(run, bounds[:-1], bounds[1:])
+        return [failure for part in parts for failure in part]
