@@ -34,7 +34,12 @@ import casadi as ca
 import numpy as np
 
 import softcurve as sc
-from softcurve.compiled.lanes import VECTOR_MATH_LIBRARY, lanes_function, lanes_prelude
+from softcurve.compiled.lanes import (
+    VECTOR_MATH_LIBRARY,
+    lanes_function,
+    lanes_prelude,
+    lanes_work,
+)
 from softcurve.compiled.source import compile_source
 from softcurve.simulation.stepper_lanes import LanesMembers, lanes_period
 from softcurve.simulation.stepper_scheme import period_function, state_derivative
@@ -47,20 +52,24 @@ def lanes_kernel(f, width: int, vector_math: bool):
     n_x, n_u = f.size1_in(0), f.size1_in(1)
     source = "\n".join(
         [
+            "#include <stdlib.h>",
             lanes_prelude(width, vector_math),
             lanes_function(f, "xdot", (False, False, True)),
             '__attribute__((visibility("default"))) void run(const double* x, '
             "const double* u, const double* p, double* y, long n) {",
             f"  sc_v X[{n_x}], U[{n_u}], Y[{n_x}];",
+            f"  sc_v* w = aligned_alloc(sizeof(sc_v), sizeof(sc_v) * {lanes_work(f)});",
+            "  if (w == NULL) return;",
             "  for (long i = 0; i + SC_W <= n; i += SC_W) {",
             "    for (int l = 0; l < SC_W; l++) {",
             f"      for (int j = 0; j < {n_x}; j++) X[j][l] = x[(i + l) * {n_x} + j];",
             f"      for (int j = 0; j < {n_u}; j++) U[j][l] = u[(i + l) * {n_u} + j];",
             "    }",
-            "    xdot(X, U, p, Y);",
+            "    xdot(X, U, p, Y, w);",
             "    for (int l = 0; l < SC_W; l++)",
             f"      for (int j = 0; j < {n_x}; j++) y[(i + l) * {n_x} + j] = Y[j][l];",
             "  }",
+            "  free(w);",
             "}",
         ]
     )

@@ -23,12 +23,12 @@ from collections.abc import Sequence
 import casadi as ca
 
 LANE_WIDTH = 4
-"""Members per vector. Per member, one right-hand side of the paper's robot took 4.40 us
-as CasADi's C, and 4.91, 2.26, 1.68 and 2.70 us as lanes of 1, 2, 4 and 8 with the C
-library's elementary functions, 1.13 us as lanes of 4 with libmvec's
-(``python benchmarks/bench_lanes.py``, best of 7 alternating rounds, 2026-12-01, on this
-project's AVX2 machine). Four doubles fill one AVX2 register; eight take two and spill.
-"""
+"""Members per vector. Per member, one right-hand side of the paper's robot took 2.13 us
+as CasADi's C, and 2.43, 1.25, 0.90 and 1.14 us as lanes of 1, 2, 4 and 8 with the C
+library's elementary functions, 0.64 us as lanes of 4 with libmvec's
+(``python benchmarks/bench_lanes.py``, best of 7 alternating rounds, 2026-12-01 07:52
+UTC, on this project's AVX2 machine). Four doubles fill one AVX2 register; eight take
+two and spill."""
 
 STACK_WORK = 2048
 """Work vectors kept in local variables (on the stack, 64 KB at most), beyond which a
