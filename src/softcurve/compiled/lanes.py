@@ -48,7 +48,12 @@ the source is compiled with ``__AVX2__`` on x86-64 and ``vector_math`` was asked
 def vector_math_available() -> bool:
     """Whether :data:`VECTOR_MATH` can link here: x86-64 Linux with glibc 2.35 or later
     (the first with the vector ``tanh``). The code still uses them only where compiled
-    for AVX2."""
+    for AVX2.
+
+    Returns
+    -------
+    bool
+    """
     library, version = platform.libc_ver()
     if platform.machine() not in ("x86_64", "AMD64") or library != "glibc":
         return False
@@ -85,6 +90,11 @@ def lanes_prelude(width: int = LANE_WIDTH, vector_math: bool = False) -> str:
     vector_math : bool
         Take :data:`VECTOR_MATH`'s functions where compiled for AVX2 on x86-64 (link
         with :data:`VECTOR_MATH_LIBRARY`); requires ``width == 4``.
+
+    Returns
+    -------
+    str
+        C declarations and inline functions.
     """
     if vector_math and width != 4:
         raise ValueError(f"vector_math needs width 4, got {width}")

@@ -58,6 +58,16 @@ def period_source(model, inputs, substeps: int, method: str, vector_math: bool, 
     every : int, optional
         Steps between fresh Newton matrices of a Rosenbrock method (default
         ``substeps``).
+
+    Returns
+    -------
+    str
+        The C source.
+
+    Raises
+    ------
+    NotImplementedError
+        If the model's expressions have an operation without lanes code.
     """
     f = state_derivative(model, inputs, True).expand()
     observe = observer(model, True)
@@ -210,7 +220,9 @@ class LanesMembers:
         """The arrays as C-contiguous float64, their shapes checked (the compiled code
         reads and writes them whole)."""
         n_x, n_u, n_p, n_out = self._period.sizes
-        count = np.shape(x)[0] if np.ndim(x) == 2 else -1
+        if np.ndim(x) != 2:
+            raise ValueError(f"x must be 2-D (members, {n_x}), got shape {np.shape(x)}")
+        count = np.shape(x)[0]
         arrays = [np.ascontiguousarray(a, dtype=np.float64) for a in (x, u, p, period)]
         expected = [(count, n_x), (count, n_u), (n_p,), (1,)]
         for name, a, shape in zip(("x", "u", "p", "period"), arrays, expected, strict=True):
