@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import os
+import shutil
+from pathlib import Path
 
 os.environ.setdefault("MPLBACKEND", "Agg")  # the tests only: the package never picks a backend
 
@@ -83,3 +85,20 @@ def random_state(rng, model, *, curvature=30.0, rate=(0.5, 200.0)):
         q += [l0 * rng.uniform(0.8, 1.2), *rng.uniform(-curvature, curvature, 2)]
         qd += [rng.uniform(-rate[0], rate[0]), *rng.uniform(-rate[1], rate[1], 2)]
     return np.array(q), np.array(qd)
+
+
+def compiler_refusing(folder, argument: str, log=None):
+    """A C compiler (a shell script in ``folder``, for ``CC``) that fails when given
+    ``argument`` (appending a line to ``log`` if given) and otherwise runs the system's;
+    None where there is no C compiler."""
+    real = shutil.which("cc") or shutil.which("gcc")
+    if real is None:
+        return None
+    note = f" && echo x >> {log}" if log is not None else ""
+    script = Path(folder) / f"cc-without{argument}"
+    script.write_text(
+        f'#!/bin/sh\nfor a in "$@"; do [ "$a" = {argument} ]{note} && exit 1; done\n'
+        f'exec {real} "$@"\n'
+    )
+    script.chmod(0o755)
+    return script

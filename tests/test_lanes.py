@@ -5,7 +5,6 @@ CasADi's own evaluation, and the explicit stepper's lanes period
 from __future__ import annotations
 
 import ctypes
-import shutil
 import subprocess
 
 import casadi as ca
@@ -27,6 +26,8 @@ from softcurve.simulation.stepper import Stepper
 from softcurve.simulation.stepper_lanes import LanesMembers, lanes_period
 from softcurve.simulation.stepper_native import ThreadedMembers
 from softcurve.simulation.stepper_scheme import period_function
+
+from .conftest import compiler_refusing
 
 PERIOD = 0.02
 
@@ -184,14 +185,9 @@ def test_without_the_vector_math_library_the_lanes_use_the_c_librarys(
 ):
     """A compiler that cannot link libmvec still gets the lanes period, with the C
     library's functions (no vector-math symbol), computing the same periods."""
-    real = shutil.which("cc") or shutil.which("gcc")
-    if real is None:
+    wrapper = compiler_refusing(tmp_path, "-lmvec")
+    if wrapper is None:
         pytest.skip("no C compiler")
-    wrapper = tmp_path / "cc-without-libmvec"
-    wrapper.write_text(
-        f'#!/bin/sh\nfor a in "$@"; do [ "$a" = -lmvec ] && exit 1; done\nexec {real} "$@"\n'
-    )
-    wrapper.chmod(0o755)
     with_vector_math = lanes_period(paper_model, None, 6, "RK4")
     monkeypatch.setenv("CC", str(wrapper))
     model = sc.Model(sc.presets.ifac2020(), compile=False)  # the lanes need no library

@@ -14,7 +14,7 @@ import softcurve as sc
 from softcurve.compiled import build as model_module
 from softcurve.compiled import generated
 
-from .conftest import assert_close
+from .conftest import assert_close, compiler_refusing
 
 
 def test_second_model_reuses_the_cached_library(paper_model):
@@ -63,14 +63,9 @@ def test_code_is_built_for_this_cpu_unless_portable_is_asked(monkeypatch):
 
 
 def test_a_compiler_without_march_native_builds_portable_code(monkeypatch, tmp_path):
-    real = shutil.which("cc") or shutil.which("gcc")
-    if real is None:
+    wrapper = compiler_refusing(tmp_path, "-march=native")
+    if wrapper is None:
         pytest.skip("no C compiler")
-    wrapper = tmp_path / "cc-without-native"
-    wrapper.write_text(
-        f'#!/bin/sh\nfor a in "$@"; do [ "$a" = -march=native ] && exit 1; done\nexec {real} "$@"\n'
-    )
-    wrapper.chmod(0o755)
     monkeypatch.delenv("SOFTCURVE_PORTABLE", raising=False)
     monkeypatch.setenv("CC", str(wrapper))
     monkeypatch.setenv("SOFTCURVE_CACHE_DIR", str(tmp_path / "cache"))
@@ -183,13 +178,8 @@ def test_compile_function_builds_for_this_cpu_and_falls_back_without_march_nativ
     assert len(list((tmp_path / "native").glob("function_*.so"))) == 2
     assert log.read_text().splitlines()[-2].split()[:2] == ["-O1", "-fPIC"]
 
-    refusing = tmp_path / "cc-without-native"
     refused = tmp_path / "refused.log"
-    refusing.write_text(
-        f'#!/bin/sh\nfor a in "$@"; do [ "$a" = -march=native ] && echo x >> {refused} && exit 1;'
-        f' done\nexec {real} "$@"\n'
-    )
-    refusing.chmod(0o755)
+    refusing = compiler_refusing(tmp_path, "-march=native", log=refused)
     monkeypatch.delenv("SOFTCURVE_PORTABLE")
     monkeypatch.setenv("CC", str(refusing))
     monkeypatch.setenv("SOFTCURVE_CACHE_DIR", str(tmp_path / "refused"))

@@ -12,8 +12,6 @@ no Python per member.
 from __future__ import annotations
 
 import ctypes
-import threading
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
 import numpy as np
@@ -29,6 +27,7 @@ from softcurve.compiled.lanes import (
 from softcurve.compiled.source import compile_source
 from softcurve.simulation.stepper_lanes_stages import explicit_step, rosenbrock_step
 from softcurve.simulation.stepper_methods import METHODS, ExplicitTableau
+from softcurve.simulation.stepper_native import MemberShares
 from softcurve.simulation.stepper_observe import observer
 from softcurve.simulation.stepper_scheme import jacobian_pattern, state_derivative, state_scale
 
@@ -198,9 +197,12 @@ def lanes_period(model, inputs, substeps: int, method: str, every: int | None = 
     return model.cached(key, build)
 
 
-class LanesMembers:
-    """The compiled lanes period on every member, one C call per thread's share
-    (ctypes releases the GIL during the call).
+class LanesMembers(MemberShares):
+    """The compiled lanes period on every member, one C call per thread's share (shares
+    of whole vectors of :data:`~softcurve.compiled.lanes.LANE_WIDTH` members).
+
+    A lanes period cannot fail but for want of memory for its work array: a state that
+    leaves the domain shows in ``out``, which the stepper checks.
 
     Parameters
     ----------
@@ -210,20 +212,20 @@ class LanesMembers:
         Threads over the members.
     """
 
-    def __init__(self, period: LanesPeriod, threads: int):
-        self._period = period
-        self._threads = threads
-        self._pool: ThreadPoolExecutor | None = None
-        self._lock = threading.Lock()
+    granularity = LANE_WIDTH
 
-    def _checked(self, x, u, p, period, out) -> list:
+    def __init__(self, period: LanesPeriod, threads: int):
+        super().__init__(threads)
+        self._period = period
+
+    def _arrays(self, x, u, p, period, out) -> list:
         """The arrays as C-contiguous float64, their shapes checked (the compiled code
         reads and writes them whole)."""
         n_x, n_u, n_p, n_out = self._period.sizes
         if np.ndim(x) != 2:
             raise ValueError(f"x must be 2-D (members, {n_x}), got shape {np.shape(x)}")
         count = np.shape(x)[0]
-        arrays = [np.ascontiguousarray(a, dtype=np.float64) for a in (x, u, p, period)]
+        arrays = super()._arrays(x, u, p, period, out)
         expected = [(count, n_x), (count, n_u), (n_p,), (1,)]
         for name, a, shape in zip(("x", "u", "p", "period"), arrays, expected, strict=True):
             if a.shape != shape:
@@ -234,40 +236,8 @@ class LanesMembers:
             raise ValueError("out must be a writeable C-contiguous array")
         return arrays
 
-    def __call__(self, x, u, p, period, out) -> list:
-        """Fill ``out``; return the members that failed as ``[(i, message), ...]``: none,
-        unless the work array could not be allocated (a state that leaves the domain
-        shows in ``out``, which the stepper checks).
-
-        Parameters
-        ----------
-        x : ndarray, shape (N, n_x)
-            States.
-        u : ndarray, shape (N, m)
-            Inputs.
-        p : ndarray, shape (n_p,)
-            The robot's parameter vector.
-        period : ndarray, shape (1,)
-            The control period [s].
-        out : ndarray, shape (N, n_x + 6)
-            Where the outputs go.
-        """
-        arrays = self._checked(x, u, p, period, out)
+    def _share(self, arrays, out, start: int, stop: int) -> list:
         pointers = [a.ctypes.data for a in (*arrays, out)]
-        count = out.shape[0]
-
-        def run(a: int, b: int) -> list:
-            if self._period.entry(*pointers, a, b):
-                return [(i, "no memory for the period's work array") for i in range(a, b)]
-            return []
-
-        vectors = -(-count // LANE_WIDTH)
-        chunks = min(self._threads, vectors)
-        if chunks <= 1:
-            return run(0, count)
-        bounds = np.minimum(np.linspace(0, vectors, chunks + 1).astype(int) * LANE_WIDTH, count)
-        with self._lock:
-            if self._pool is None:
-                self._pool = ThreadPoolExecutor(self._threads, "softcurve-lanes")
-        parts = self._pool.map(run, bounds[:-1], bounds[1:])
-        return [failure for part in parts for failure in part]
+        if self._period.entry(*pointers, start, stop):
+            return [(i, "no memory for the period's work array") for i in range(start, stop)]
+        return []

@@ -33,32 +33,37 @@ def load_native(path, name: str) -> NativeFunction:
     return NativeFunction(ctypes.CDLL(str(path)), name)
 
 
-class ThreadedMembers:
-    """``function(x_i, u_i, p, period)`` for every member ``i``, on ``threads`` threads.
+class MemberShares:
+    """A compiled period on every member: the members split into one contiguous share per
+    thread (a multiple of :attr:`granularity` members, but the last), each share one
+    foreign call through ctypes, which releases the GIL. Subclasses say how a share is
+    called (:meth:`_share`) and check the arrays (:meth:`_arrays`).
 
     Parameters
     ----------
-    function : NativeFunction
-        The compiled period function ``(x, u, p, period) -> out``.
     threads : int
-        Threads over the members (contiguous chunks, one per thread).
+        Threads over the members.
     """
 
-    def __init__(self, function: NativeFunction, threads: int):
-        self._function = function
+    granularity = 1
+    """Members per unit of a share."""
+
+    def __init__(self, threads: int):
         self._threads = threads
         self._pool: ThreadPoolExecutor | None = None
         self._lock = threading.Lock()
 
-    def _executor(self) -> ThreadPoolExecutor:
-        with self._lock:
-            if self._pool is None:
-                self._pool = ThreadPoolExecutor(self._threads, "softcurve-stepper")
-            return self._pool
+    def _arrays(self, x, u, p, period, out) -> list:
+        """``(x, u, p, period)`` as C-contiguous float64 arrays."""
+        return [np.ascontiguousarray(a, dtype=np.float64) for a in (x, u, p, period)]
+
+    def _share(self, arrays, out, start: int, stop: int) -> list:
+        """Fill rows ``start:stop`` of ``out``; the failures as ``[(i, message), ...]``."""
+        raise NotImplementedError
 
     def __call__(self, x, u, p, period, out) -> list:
-        """Fill ``out`` (N, n_out) row by row; return the members that failed as
-        ``[(i, message), ...]`` (their rows are undefined).
+        """Fill ``out`` (N, n_out); return the members that failed as ``[(i, message),
+        ...]`` (their rows are undefined).
 
         Parameters
         ----------
@@ -73,16 +78,36 @@ class ThreadedMembers:
         out : ndarray, shape (N, n_out)
             Where the outputs go (C-contiguous float64).
         """
-        count = x.shape[0]
-        arrays = [np.ascontiguousarray(a, dtype=np.float64) for a in (x, u, p, period)]
-
-        def run(a: int, b: int) -> list:
-            return self._function.call_rows(arrays, out, a, b)
-
-        chunks = min(self._threads, count)
+        arrays = self._arrays(x, u, p, period, out)
+        count = out.shape[0]
+        units = -(-count // self.granularity)
+        chunks = min(self._threads, units)
         if chunks <= 1:
-            return run(0, count)
-        bounds = np.linspace(0, count, chunks + 1).astype(int)
-        pool = self._executor()
-        parts = pool.map(run, bounds[:-1], bounds[1:])
+            return self._share(arrays, out, 0, count)
+        bounds = np.linspace(0, units, chunks + 1).astype(int) * self.granularity
+        bounds = np.minimum(bounds, count)
+        with self._lock:
+            if self._pool is None:
+                self._pool = ThreadPoolExecutor(self._threads, "softcurve-stepper")
+        parts = self._pool.map(lambda a, b: self._share(arrays, out, a, b), bounds[:-1], bounds[1:])
         return [failure for part in parts for failure in part]
+
+
+class ThreadedMembers(MemberShares):
+    """``function(x_i, u_i, p, period)`` for every member ``i``, one call per member
+    (:meth:`~softcurve.compiled.native.NativeFunction.call_rows`).
+
+    Parameters
+    ----------
+    function : NativeFunction
+        The compiled period function ``(x, u, p, period) -> out``.
+    threads : int
+        Threads over the members.
+    """
+
+    def __init__(self, function: NativeFunction, threads: int):
+        super().__init__(threads)
+        self._function = function
+
+    def _share(self, arrays, out, start: int, stop: int) -> list:
+        return self._function.call_rows(arrays, out, start, stop)
