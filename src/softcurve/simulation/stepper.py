@@ -119,7 +119,8 @@ class Stepper:
         environment whose fastest mode the step resolves (checked here, at rest:
         :func:`~softcurve.simulation.stepper_stability.check_explicit_step`).
     compiled : bool
-        Generate the whole period as C and compile it (default; cached on disk, one
+        Generate the whole period as C over vector lanes of four members and compile it
+        (default; :mod:`~softcurve.simulation.stepper_lanes`; cached on disk, one
         library per robot structure, environment, actuator, method and ``substeps``), or
         evaluate it in CasADi's virtual machine on the model's right-hand side (no
         compile, slower). A model built with ``compile=False`` is never compiled.
