@@ -41,17 +41,10 @@ class StepSource:
     scratch: int = 0
 
 
-def combination(terms, vectors: str = "k") -> str:
-    """``c0 * k0[j] + c1 * k1[j] + ...`` over ``terms`` ``[(i, c_i), ...]``, in order.
-
-    Parameters
-    ----------
-    terms : sequence of (int, float)
-        Stage index and coefficient, the zero coefficients left out.
-    vectors : str
-        The stage arrays' stem.
-    """
-    return " + ".join(f"{float(c)!r} * {vectors}{i}[j]" for i, c in terms)
+def _combination(terms) -> str:
+    """``c0 * k0[j] + c1 * k1[j] + ...`` over ``terms`` ``[(i, c_i), ...]`` (stage index
+    and nonzero coefficient), in order."""
+    return " + ".join(f"{float(c)!r} * k{i}[j]" for i, c in terms)
 
 
 def _each(n_x: int, statement: str) -> str:
@@ -73,10 +66,10 @@ def explicit_step(tableau: ExplicitTableau, n_x: int) -> StepSource:
     for i, row in enumerate(tableau.a):
         shift = [(j, a) for j, a in enumerate(row[:i]) if a]
         if shift:
-            lines.append(_each(n_x, f"z[j] = y[j] + h * ({combination(shift)});"))
+            lines.append(_each(n_x, f"z[j] = y[j] + h * ({_combination(shift)});"))
         lines.append(f"sc_xdot({'z' if shift else 'y'}, U, p, k{i}, w);")
     weights = [(i, b) for i, b in enumerate(tableau.b) if b]
-    lines.append(_each(n_x, f"y[j] = y[j] + h * ({combination(weights)});"))
+    lines.append(_each(n_x, f"y[j] = y[j] + h * ({_combination(weights)});"))
     declarations = [f"sc_v z[{n_x}];", *(f"sc_v k{i}[{n_x}];" for i in range(len(tableau.b)))]
     return StepSource(tuple(declarations), tuple(lines))
 
@@ -144,14 +137,14 @@ def rosenbrock_step(
         if i == 0 or not shift:
             lines.append(_each(n_x, "slope[j] = f0[j];"))
         else:
-            lines.append(_each(n_x, f"z[j] = y[j] + h * ({combination(shift)});"))
+            lines.append(_each(n_x, f"z[j] = y[j] + h * ({_combination(shift)});"))
             lines.append("sc_xdot(z, U, p, slope, w);")
         for j in range(i):
             if c[i, j]:
                 lines.append(_each(n_x, f"slope[j] = slope[j] + {float(c[i, j])!r} * k{j}[j];"))
         lines.append(f"sc_solve(V, R, B, slope, k{i}, w);")
     weights = [(i, m[i]) for i in range(len(m)) if m[i]]
-    lines.append(_each(n_x, f"y[j] = y[j] + h * ({combination(weights)});"))
+    lines.append(_each(n_x, f"y[j] = y[j] + h * ({_combination(weights)});"))
     declarations = [
         f"static const double sc_scale[{n_x}] = {{{', '.join(repr(float(v)) for v in scale)}}};",
         f"const sc_v gh = sc_broadcast({float(gamma)!r}) * h;",
