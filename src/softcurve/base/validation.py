@@ -83,7 +83,7 @@ def real_array(name: str, value, shape: tuple[int, ...]) -> np.ndarray:
         raise ParameterError(f"{name} must be a real array of shape {shape}: {exc}") from None
     if a.shape != shape:
         raise ParameterError(f"{name} must have shape {shape}, got {a.shape}")
-    if not np.all(np.isfinite(a)):
+    if not np.isfinite(a).all():
         raise ParameterError(f"{name} must be finite, got {a.tolist()}")
     a.setflags(write=False)
     return a

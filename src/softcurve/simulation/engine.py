@@ -47,10 +47,11 @@ def restart_segments(grid: np.ndarray, interval: float = RESTART_INTERVAL) -> li
     interval : float
         Restart interval [s].
     """
-    segments, k0 = [], 0
-    while k0 < grid.size - 1:
-        k1 = int(np.searchsorted(grid, grid[k0] + interval, side="right")) - 1
-        k1 = min(max(k1, k0 + 1), grid.size - 1)
+    segments, k0, last = [], 0, grid.size - 1
+    search = grid.searchsorted  # the method: NumPy's function wrapper costs as much again
+    while k0 < last:
+        k1 = int(search(grid[k0] + interval, "right")) - 1
+        k1 = min(max(k1, k0 + 1), last)
         segments.append((k0, k1))
         k0 = k1
     return segments
@@ -72,16 +73,26 @@ def nominal_scale(model, x0: np.ndarray) -> np.ndarray:
     x0 : ndarray, shape (n_state,)
         The initial state.
     """
+    if not hasattr(model, "cached"):  # a batch's holder of a robot alone
+        return np.maximum(np.abs(x0), _state_floor(model.robot))
+    floor = model.cached("nominal floor", lambda: _state_floor(model.robot))
+    return np.maximum(np.abs(x0), floor)
+
+
+def _state_floor(robot) -> np.ndarray:
+    """The floors of :func:`nominal_scale` (n_state,), read-only: they depend on the robot
+    alone, so a model computes them once."""
     q_floor = np.concatenate(
-        [[s.rest_length, 1 / s.rest_length, 1 / s.rest_length] for s in model.robot.segments]
+        [[s.rest_length, 1 / s.rest_length, 1 / s.rest_length] for s in robot.segments]
     )
     lam_floor = []
-    for k, s in enumerate(model.robot.segments):
+    for k, s in enumerate(robot.segments):
         if s.creep is not None:
             response = np.abs(s.creep.gain) / s.creep.rate * q_floor[3 * k : 3 * k + 3]
             lam_floor.extend(np.where(response > 0, response, 1.0))
     floor = np.concatenate([q_floor, q_floor, lam_floor])
-    return np.maximum(np.abs(x0), floor)
+    floor.setflags(write=False)
+    return floor
 
 
 DIFFERENCE_STEP = 1e-6
@@ -136,9 +147,10 @@ def linear_rates(eigenvalues: np.ndarray) -> tuple:
     eigenvalues : ndarray, shape (..., n_state)
         Eigenvalues of a linearization [1/s].
     """
-    decay = np.max(-eigenvalues.real, axis=-1, initial=0.0)
-    oscillation = np.maximum(1.0, np.max(np.abs(eigenvalues.imag), axis=-1, initial=0.0))
-    return decay / oscillation, np.max(np.abs(eigenvalues), axis=-1, initial=0.0)
+    # the methods rather than NumPy's function wrappers: the same reductions, cheaper
+    decay = (-eigenvalues.real).max(axis=-1, initial=0.0)
+    oscillation = np.maximum(1.0, np.abs(eigenvalues.imag).max(axis=-1, initial=0.0))
+    return decay / oscillation, np.abs(eigenvalues).max(axis=-1, initial=0.0)
 
 
 def linearization_rates(model, x0, tau0=None, nominal=None) -> tuple[float, float]:
@@ -165,7 +177,8 @@ def linearization_rates(model, x0, tau0=None, nominal=None) -> tuple[float, floa
     points, steps = difference_points(x0, nominal)
     problem = native.problem(model) if x0.size == model.n_state else None
     if problem is not None:  # one compiled call rather than 2 n_state calls from Python
-        taus = np.broadcast_to(np.asarray(tau0, dtype=np.float64), (points.shape[0], model.n))
+        taus = np.empty((points.shape[0], model.n))  # contiguous: evaluate copies no input
+        taus[:] = tau0
         values = native.evaluate(problem, points, taus, model.parameters)
     else:
         values = np.array([model.state_derivative(x, tau0) for x in points])
@@ -186,10 +199,13 @@ def multistep_family(ratio, contact: bool = False):
     Parameters
     ----------
     ratio : float or ndarray
-        Stiffness ratio(s), dimensionless.
+        Stiffness ratio(s), dimensionless; for a Python float the family comes back as a
+        str.
     contact : bool
         Whether the model has an environment.
     """
+    if type(ratio) is float:  # one run's ratio: the rule without arrays
+        return "bdf" if ratio > STIFFNESS_RATIO or contact else "adams"
     stiff = (np.asarray(ratio) > STIFFNESS_RATIO) | contact
     return np.where(stiff, "bdf", "adams")
 

@@ -252,7 +252,7 @@ class CvodesEngine(_Engine):
         self.model = model
         self.nominal = nominal
         self.inputs = inputs
-        self._settings = (rtol, float(np.min(atol / nominal)), max_steps)
+        self._settings = (rtol, float((atol / nominal).min()), max_steps)
         self.families = [multistep]
         self.use(multistep)
         self.native = native.problem(model, inputs)
@@ -260,10 +260,14 @@ class CvodesEngine(_Engine):
 
     def use(self, multistep: str) -> None:
         """Integrate from here on with ``multistep`` ("adams" or "bdf")."""
-        self.options = cvodes_options(multistep, *self._settings)
         self.multistep = multistep
         if multistep not in self.families:
             self.families.append(multistep)
+
+    @property
+    def options(self) -> dict:
+        """CasADi's CVODES options of the family in use (the route without the C driver)."""
+        return cvodes_options(self.multistep, *self._settings)
 
     @property
     def method(self) -> str:
@@ -333,8 +337,8 @@ class CvodesEngine(_Engine):
             settled_ratio=_engine.SETTLED_RATIO,
             longest=None if longest is None else longest[None], out=out,
         )  # fmt: skip
-        for name, value in zip(native.STATISTICS, counts[0], strict=True):
-            self.counts[name] += int(value)
+        for name, value in zip(native.STATISTICS, counts[0].tolist(), strict=True):
+            self.counts[name] += value
         if used_bdf[0] and "bdf" not in self.families:
             self.families.append("bdf")
         return out, reached, flags

@@ -98,7 +98,7 @@ class Domain:
             raise Stopped(first, reason)
 
 
-def run_on_grid(engine, grid, states, inputs, bar, domain, fastest=None) -> int:
+def run_on_grid(engine, grid, states, inputs, bar, domain, fastest=None, constant=False) -> int:
     """All outputs in one call per restart segment (see ``RESTART_INTERVAL``), split
     further only to report progress, or with CVODES's C driver the whole grid in one call;
     with ``fastest``, each segment after the first is integrated with BDF once the robot
@@ -121,10 +121,14 @@ def run_on_grid(engine, grid, states, inputs, bar, domain, fastest=None) -> int:
     fastest : float, optional
         Fastest rate of the initial linearization [1/s]: switch to BDF at a restart once
         settled (:func:`~softcurve.simulation.engine.settled`).
+    constant : bool
+        Whether ``inputs`` holds one value on every row, known to the caller: no changes
+        of the input to look for.
     """
     segments = restart_segments(grid, RESTART_INTERVAL)
     if bar is None and getattr(engine, "native", None) is not None:
-        return _run_native(engine, grid, states, inputs, domain, segments, fastest)
+        changes = np.empty(0, dtype=int) if constant else _input_changes(inputs)
+        return _run_native(engine, grid, states, inputs, domain, segments, fastest, changes)
     chunk = grid.size if bar is None else max(1, math.ceil((grid.size - 1) / 50))
     model, nominal = getattr(engine, "model", None), getattr(engine, "nominal", None)
     for k0, k1 in segments:
@@ -141,16 +145,21 @@ def run_on_grid(engine, grid, states, inputs, bar, domain, fastest=None) -> int:
     return grid.size
 
 
-def _run_native(engine, grid, states, inputs, domain, segments, fastest) -> int:
+def _run_native(engine, grid, states, inputs, domain, segments, fastest, changes) -> int:
     """:func:`run_on_grid` in one call of the C driver: segments end at the restarts and
-    wherever the input changes; the driver stops at the first output outside the domain,
-    which :class:`Domain` then words."""
+    at the ``changes`` of the input (:func:`_input_changes`); the driver stops at the first
+    output outside the domain, which :class:`Domain` then words."""
     ends, restart = [], []
-    changes = _input_changes(inputs)
-    for k0, k1 in segments:
-        cuts = changes[np.searchsorted(changes, k0, "right") : np.searchsorted(changes, k1)]
-        ends.extend([*cuts.tolist(), k1])
-        restart.extend([True] + [False] * cuts.size)
+    bounds = np.array(segments).T
+    # the changes strictly inside each segment, found for all segments in two searches
+    first = changes.searchsorted(bounds[0], "right").tolist()
+    stop = changes.searchsorted(bounds[1]).tolist()
+    cuts = changes.tolist()
+    for (_, k1), a, b in zip(segments, first, stop, strict=True):
+        ends.extend(cuts[a:b])
+        ends.append(k1)
+        restart.append(True)
+        restart.extend([False] * (b - a))
     starts = np.array([0, *ends[:-1]], dtype=int)
     longest = MAX_STRETCH * np.asarray(domain.robot.rest_lengths, dtype=np.float64)
     # the driver writes into the run's own array: no copy of the outputs
@@ -169,14 +178,21 @@ def _run_native(engine, grid, states, inputs, domain, segments, fastest) -> int:
 def _input_changes(inputs: np.ndarray) -> np.ndarray:
     """The output indices ``k`` (ascending) where the input of interval ``k`` differs from
     that of interval ``k - 1``, for ``inputs`` (T, width), one row per interval (the last
-    row is unused). Column by column: NumPy's ``any(axis=1)`` over a few columns is about
-    five times slower on a 10,000-row grid, a tenth of a millisecond per run."""
-    if inputs.shape[0] < 3:
+    row is unused). Rows 1..T-2 and rows 0..T-3 are each one contiguous block of a
+    C-ordered array, so one elementwise comparison of the blocks finds the differing
+    entries: about three times faster than column by column on a 10,000-row grid, and
+    NumPy's ``any(axis=1)`` over a few columns is slower still."""
+    rows, width = inputs.shape
+    if rows < 3 or width == 0:
         return np.empty(0, dtype=int)
-    changed = np.zeros(inputs.shape[0] - 2, dtype=bool)
-    for column in inputs.T:
-        changed |= column[1:-1] != column[:-2]
-    return np.flatnonzero(changed) + 1
+    flat = np.ascontiguousarray(inputs).ravel()
+    changed = np.flatnonzero(flat[width:-width] != flat[: -2 * width]) // width + 1
+    if changed.size < 2:
+        return changed
+    first = np.empty(changed.size, dtype=bool)  # the first differing entry of each row
+    first[0] = True
+    np.not_equal(changed[1:], changed[:-1], out=first[1:])
+    return changed[first]
 
 
 def _advance(engine, grid, states, inputs, k, m, domain) -> None:
