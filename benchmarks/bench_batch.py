@@ -1,14 +1,16 @@
 """Throughput of simulate_batch against a Python loop of simulate() calls.
 
 Run:  python benchmarks/bench_batch.py [--size 200] [--loop 20] [--dt 0.01] [--repeat 5]
-      [--nodes 11,6]
+      [--nodes 11,6] [--lanes both|on|off]
 
 The batch is the paper's case (preset ifac2020, one segment, 10 s, rtol 1e-6) with the
 initial curvature kx spread over [20, 30] 1/m and the initial rate dky/dt over
 [1000, 2000] 1/(m s), so that no two members are alike. Rows: a loop of simulate() over
 ``--loop`` members (scaled to the batch size); simulate_batch on 1 thread and on all
 usable cores; ``simulate_batch(..., processes=cores)``, one worker process per core,
-each on one thread (what ``softcurve sweep`` does); for the default model (11 quadrature
+each on one thread (what ``softcurve sweep`` does); each with the members in groups of
+four stacked into one CVODES system in vector lanes ("lanes", the default) and each
+member alone ("alone", ``lanes=False``); for the default model (11 quadrature
 nodes per segment) and for ``Model(robot, quadrature_nodes=6)``; then the previous route
 (CasADi's CVODES integrator instead of softcurve's C driver) on threads and processes.
 
@@ -97,6 +99,12 @@ def main() -> None:
         default=f"{DEFAULT_QUADRATURE_NODES},6",
         help=f"quadrature nodes of the models to time (default {DEFAULT_QUADRATURE_NODES} and 6)",
     )
+    parser.add_argument(
+        "--lanes",
+        choices=("both", "on", "off"),
+        default="both",
+        help="members in groups of four in vector lanes (on), each alone (off), or both",
+    )
     args = parser.parse_args()
 
     model = sc.Model(sc.presets.ifac2020())
@@ -136,7 +144,8 @@ def main() -> None:
     def row(label, wall, cpu, x, best=None):
         rate = args.size * T_FINAL / wall
         best = f"{args.size * T_FINAL / best:>7.0f}" if best else f"{'-':>7}"
-        per_cpu = f"{args.size * T_FINAL / cpu:>10.0f}" if cpu > 0.1 * wall else f"{'-':>10}"
+        in_here = "processes" not in label  # the workers' CPU time is not counted
+        per_cpu = f"{args.size * T_FINAL / cpu:>10.0f}" if in_here else f"{'-':>10}"
         diff = np.max(np.abs(x[:count] - singles) / scale[:count])
         error = np.max(np.abs(x[:count] - reference[:count]) / scale[:count])
         print(
@@ -158,12 +167,18 @@ def main() -> None:
             if nodes == model.quadrature_nodes
             else sc.Model(sc.presets.ifac2020(), quadrature_nodes=nodes)
         )
-        simulate_batch(timed, q0s[:2], qd0s[:2], t_final=T_FINAL, dt=args.dt)  # warm-up
+        simulate_batch(timed, q0s[:4], qd0s[:4], t_final=T_FINAL, dt=args.dt)  # warm-up, lanes
         runs = [(f"{t} thread(s)", {"threads": t}) for t in sorted({1, threads})]
         if threads > 1:
             # warm-up: spawn the workers, load the model, build the integrators
-            simulate_batch(timed, q0s[:4], qd0s[:4], t_final=T_FINAL, dt=args.dt, processes=threads)
+            simulate_batch(timed, q0s[:8], qd0s[:8], t_final=T_FINAL, dt=args.dt, processes=threads)
             runs.append((f"{threads} processes", {"processes": threads}))
+        ways = {"on": [True], "off": [False], "both": [True, False]}[args.lanes]
+        runs = [
+            (f"{'lanes' if lanes else 'alone'}, {label}", {**how, "lanes": lanes})
+            for label, how in runs
+            for lanes in ways
+        ]
         for label, how in runs:
             ((wall, cpu), best), x = best_of(
                 args.repeat,

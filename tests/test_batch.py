@@ -36,7 +36,9 @@ def states(paper_model):
 
 def test_members_equal_single_simulations(paper_model, states):
     q0s, qd0s, lam0s, tau = states
-    batch = simulate_batch(paper_model, q0s, qd0s, lam0s, tau=tau, t_final=T_FINAL, dt=DT)
+    batch = simulate_batch(
+        paper_model, q0s, qd0s, lam0s, tau=tau, t_final=T_FINAL, dt=DT, lanes=False
+    )
     assert batch.q.shape == (4, 41, 3) and batch.tip.shape == (4, 41, 3)
     assert batch.success and np.all(batch.member_success), batch.member_message
     for i in range(4):

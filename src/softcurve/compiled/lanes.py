@@ -22,6 +22,8 @@ from collections.abc import Sequence
 
 import casadi as ca
 
+from softcurve.compiled.source import compile_source
+
 LANE_WIDTH = 4
 """Members per vector. Per member, one right-hand side of the paper's robot took 2.13 us
 as CasADi's C, and 2.43, 1.25, 0.90 and 1.14 us as lanes of 1, 2, 4 and 8 with the C
@@ -256,3 +258,29 @@ def lanes_work(function: ca.Function) -> int:
         At least 1.
     """
     return max(function.sz_w(), 1)
+
+
+def compile_lanes(stem: str, source_for):
+    """A lanes source compiled and loaded: with :data:`VECTOR_MATH` where
+    :func:`vector_math_available` and it links, else with the C library's functions.
+
+    Parameters
+    ----------
+    stem : str
+        Start of the library's file name in the cache.
+    source_for : callable
+        ``source_for(vector_math) -> str``, the C source (with :func:`lanes_prelude` of
+        that ``vector_math``); a ``NotImplementedError`` it raises propagates.
+
+    Returns
+    -------
+    tuple or None
+        ``(library, vector_math)``: the loaded ``ctypes.CDLL`` and whether it uses the
+        vector math library; None where no C compiler builds it.
+    """
+    attempts = [(True, VECTOR_MATH_LIBRARY)] if vector_math_available() else []
+    for vector_math, link in [*attempts, (False, ())]:
+        library = compile_source(stem, source_for(vector_math), link)
+        if library is not None:
+            return library, vector_math
+    return None

@@ -33,8 +33,9 @@ BLOCK_DOUBLES = 1 << 22
 doubles (32 MB): the transient copies CasADi and NumPy make stay small next to the result."""
 
 
-def blocks(size: int, count: int, width: int) -> list[slice]:
-    """Consecutive member ranges of at most ``BLOCK_DOUBLES / (count * width)`` members.
+def blocks(size: int, count: int, width: int, granularity: int = 1) -> list[slice]:
+    """Consecutive member ranges of at most ``BLOCK_DOUBLES / (count * width)`` members,
+    rounded down to a multiple of ``granularity`` (at least one such multiple).
 
     Parameters
     ----------
@@ -44,8 +45,11 @@ def blocks(size: int, count: int, width: int) -> list[slice]:
         Number of time points per member.
     width : int
         Number of doubles per time point.
+    granularity : int
+        Members that must stay in one block together (the driver's groups).
     """
-    step = max(1, min(size, BLOCK_DOUBLES // max(1, count * width)))
+    step = min(size, BLOCK_DOUBLES // max(1, count * width))
+    step = max(granularity, step - step % granularity)
     return [slice(a, min(size, a + step)) for a in range(0, size, step)]
 
 

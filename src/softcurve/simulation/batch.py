@@ -27,6 +27,7 @@ import time
 import numpy as np
 
 from softcurve.base.validation import ParameterError, whole_count
+from softcurve.compiled.lanes import LANE_WIDTH
 from softcurve.compiled.model import Model
 from softcurve.description.actuator import Actuator
 from softcurve.description.robot import Robot, domain_problem, in_domain
@@ -82,6 +83,7 @@ def simulate_batch(
     settings: SimulationSettings | None = None,
     threads: int | None = None,
     processes: int | None = None,
+    lanes: bool = True,
     **options,
 ) -> BatchTrajectory:
     """Integrate ``B`` robots of the structure of ``model`` from their initial states.
@@ -142,6 +144,12 @@ def simulate_batch(
         process contend for that clock (``benchmarks/bench_batch.py``). Results are
         identical either way. Workers are spawned, so a script must call this under
         ``if __name__ == "__main__":``.
+    lanes : bool
+        Integrate consecutive members four at a time as one CVODES system on the state
+        derivative in vector lanes (``docs/performance.md``), where the C compiler
+        builds it (once per model, cached): the members share the group's steps, each
+        within its tolerance. False integrates every member alone, as
+        :func:`~softcurve.simulation.simulate.simulate` does (equal to it bit for bit).
     **options : dict
         Fields of :class:`SimulationSettings` overriding ``settings``: ``t_final`` [s],
         ``dt`` [s], ``method``, ``rtol``, ``atol``, ``max_steps``.
@@ -200,19 +208,22 @@ def simulate_batch(
     else:
         abstol = float(np.min(settings.atol_vector(nominal[0]) / nominal))
     if processes > 1 and size > 1:
-        return _in_processes(model, min(processes, size), threads, arrays, settings, actuator)
+        split = (min(processes, size), threads, lanes)
+        return _in_processes(model, split, arrays, settings, actuator)
     drives = None
     if actuator is not None:
         drives = Drives.of(actuator, n, arrays["inputs"], arrays["actuator_parameters"])
         x0, nominal = drives.extended(x0, nominal, arrays.get("actuator_state"))
         abstol = min(abstol, settings.rtol) if drives.lag else abstol  # as simulate()
     scales = (nominal, rest_lengths)
-    return _integrate(model, x0, arrays, scales, abstol, settings, threads, drives)
+    return _integrate(model, x0, arrays, scales, abstol, settings, (threads, lanes), drives)
 
 
-def _integrate(model, x0, arrays, scales, abstol, settings, threads, drives) -> BatchTrajectory:
+def _integrate(model, x0, arrays, scales, abstol, settings, how, drives) -> BatchTrajectory:
     """The batch in this process (see :func:`simulate_batch`); ``scales`` are the state
-    scales and the rest lengths of every member, ``drives`` the actuator's (or None)."""
+    scales and the rest lengths of every member, ``how`` the threads and lanes,
+    ``drives`` the actuator's (or None)."""
+    threads, lanes = how
     params = arrays["parameters"]
     nominal, rest_lengths = scales
     size, method, n_state = x0.shape[0], settings.method, model.n_state
@@ -237,7 +248,7 @@ def _integrate(model, x0, arrays, scales, abstol, settings, threads, drives) -> 
     groups = [np.arange(size)] if drives is None else [
         np.flatnonzero(drives.group == g) for g in range(len(drives.inputs))]  # fmt: skip
     switch = fastest if method == "cvodes" and drives is None else None  # BDF once settled
-    native_bdf = integrate_native(run, initial, switch)  # the C driver, where it is built
+    native_bdf = integrate_native(run, initial, switch, lanes)  # the C driver, where built
     if native_bdf is not None:
         used_bdf = native_bdf & (initial == "adams")
     for k0, k1 in restart_segments(grid) if native_bdf is None else ():
@@ -320,30 +331,35 @@ def _nominal(model: Model, params: np.ndarray, x0: np.ndarray) -> tuple:
     return nominal, rest_lengths
 
 
-def _chunk(described, arrays, settings, actuator=None) -> tuple:
+def _chunk(described, arrays, settings, actuator=None, lanes=True) -> tuple:
     """One chunk of a batch, in a worker process; the parent keeps the model (a Model
     holds a loaded library): ``described`` are the arguments of :func:`worker_model`."""
     model = worker_model(*described)
     rest = {k: a for k, a in arrays.items() if k not in ("q0", "qd0", "lam0")}
-    chunk = simulate_batch(model, arrays["q0"], arrays["qd0"], arrays["lam0"],
+    chunk = simulate_batch(model, arrays["q0"], arrays["qd0"], arrays["lam0"], lanes=lanes,
                            settings=settings, threads=1, actuator=actuator, **rest)  # fmt: skip
     x = chunk.x if actuator is None else np.concatenate([chunk.x, chunk.inputs], axis=2)
     return chunk.member_status, chunk.member_message, chunk.reached, chunk.stats, x
 
 
-def _in_processes(model, processes, threads, arrays, settings, actuator) -> BatchTrajectory:
-    """:func:`simulate_batch` in chunks over ``processes`` worker processes; ``threads`` is
-    kept for what is later evaluated along the result in this process (tip, energy)."""
+def _in_processes(model, split, arrays, settings, actuator) -> BatchTrajectory:
+    """:func:`simulate_batch` in chunks over ``processes`` worker processes, chunks of whole
+    groups of lanes; ``threads`` is kept for what is later evaluated along the result in
+    this process (tip, energy). ``split`` is ``(processes, threads, lanes)``."""
+    processes, threads, lanes = split
     start = time.perf_counter()
     size = arrays["q0"].shape[0]
-    count = min(size, CHUNKS_PER_PROCESS * processes)
-    bounds = np.linspace(0, size, count + 1).astype(int)
+    group = LANE_WIDTH if lanes else 1
+    units = -(-size // group)
+    count = min(units, CHUNKS_PER_PROCESS * processes)
+    bounds = np.minimum(np.linspace(0, units, count + 1).astype(int) * group, size)
     tasks = {
         lo: (
             model_description(model),
             {k: a[lo:hi] for k, a in arrays.items()},
             settings,
             actuator,
+            lanes,
         )  # fmt: skip
         for lo, hi in zip(bounds[:-1], bounds[1:], strict=True)
     }

@@ -10,6 +10,7 @@ import io
 import numpy as np
 
 from softcurve.base.status import Status
+from softcurve.compiled.lanes import LANE_WIDTH
 from softcurve.compiled.model import Model
 from softcurve.description.robot import MAX_STRETCH
 from softcurve.simulation import engine as _engine
@@ -198,7 +199,7 @@ driver: each needs its ``H(q) u`` compiled once (about 0.3 s, then cached on dis
 batch with more uses CasADi's integrator, which needs no compilation."""
 
 
-def integrate_native(run: MemberRun, initial, fastest) -> np.ndarray | None:
+def integrate_native(run: MemberRun, initial, fastest, lanes=False) -> np.ndarray | None:
     """The whole batch of ``run`` with CVODES's C driver (:mod:`softcurve.simulation.native`):
     one call per group of members that share an actuator, every restart segment inside it,
     members on ``run.threads`` threads. Fills ``run.states`` and the failures as
@@ -214,11 +215,19 @@ def integrate_native(run: MemberRun, initial, fastest) -> np.ndarray | None:
     fastest : ndarray, shape (B,) or None
         Fastest rate of each member's initial linearization [1/s]: members that start with
         Adams switch to BDF at a restart once settled (None: no switch).
+    lanes : bool
+        Integrate consecutive members in groups on the state derivative over lanes
+        (:mod:`softcurve.simulation.cvodes_groups`), where the batch fills one.
     """
     groups = [None] if run.drives is None else list(run.drives.inputs)
     if len(groups) > COMPILED_ACTUATORS:
         return None
-    problems = [native.problem(run.model, drive) for drive in groups]
+    sizes = [run.states.shape[0]] if run.drives is None else np.bincount(
+        run.drives.group, minlength=len(groups))  # fmt: skip
+    problems = [
+        native.problem(run.model, drive, lanes and size >= LANE_WIDTH)
+        for drive, size in zip(groups, sizes, strict=True)
+    ]
     if any(problem is None for problem in problems):
         return None
     grid, states = run.grid, run.states
@@ -233,7 +242,7 @@ def integrate_native(run: MemberRun, initial, fastest) -> np.ndarray | None:
     for g, problem in enumerate(problems):
         group = np.arange(states.shape[0]) if run.drives is None else (
             np.flatnonzero(run.drives.group == g))  # fmt: skip
-        for block in blocks(group.size, grid.size, states.shape[2]):
+        for block in blocks(group.size, grid.size, states.shape[2], problem.width):
             members = group[block]
             u = np.repeat(run.tau[members][:, None, :], len(ends), axis=1)
             out, reached, flags, _, used = native.integrate(

@@ -73,12 +73,21 @@ typedef int (*casadi_fn)(const double **arg, double **res, long long *iw, double
  * optionally an actuator's force(q, v) -> tau = H(q) v with m inputs: the member's input is
  * then v (m) or, with lag, the command of v, whose m states follow x with the rate
  * (clip(command, lower, upper) - v) / time_constant. */
+typedef int (*lanes_fn)(const double *x, const double *u, const double *p, double *xdot,
+                        double *w);
+
+/* ... and optionally the same state derivative (force and lag included) over `width`
+ * members at once (softcurve.simulation.driver_lanes): x, u, p and xdot hold entry j of
+ * member l at [j width + l], aligned to 64 bytes; w has sz_lanes_w such rows. */
 typedef struct {
     casadi_fn f, force;
     int nx, nu, np, m, lag;
     long long sz_arg, sz_res, sz_iw, sz_w;
     const double *lower, *upper;
     double time_constant;
+    lanes_fn lanes;
+    int width;
+    long long sz_lanes_w;
 } sc_function;
 
 typedef struct {
@@ -169,33 +178,17 @@ static int rhs(realtype t, N_Vector y, N_Vector ydot, void *data) {
     return evaluate((sc_work *)data, N_VGetArrayPointer(y), N_VGetArrayPointer(ydot));
 }
 
-/* Forward-difference Jacobian (column-major) when CVODES asks for a fresh one, then the LU
- * factors (partial pivoting) of I - gamma J. (Offering the previous segment's J after a
- * restart instead saved 9 of the paper case's 24 Jacobians but doubled the steps of the
- * actuated case with lag, 2,461 -> 5,555: CVODES takes the Jacobian of a first step for
- * current and keeps it for up to 50 steps.) */
-static int setup(realtype t, N_Vector yv, N_Vector fyv, int jok, int *jcur, realtype gamma,
-                 void *data, N_Vector t1, N_Vector t2, N_Vector t3) {
-    sc_work *s = (sc_work *)data;
-    int n = s->n, i, j, k, flag;
-    double *y = N_VGetArrayPointer(yv), *fy = N_VGetArrayPointer(fyv), *A = s->LU;
-    (void)t; (void)t1; (void)t2; (void)t3;
-    if (!jok) {
-        for (j = 0; j < n; ++j) {
-            double saved = y[j];
-            double step = 1.4901161193847656e-08 * (fabs(saved) > 1.0 ? fabs(saved) : 1.0);
-            y[j] = saved + step;
-            flag = evaluate(s, y, s->ftmp);
-            y[j] = saved;
-            if (flag) return flag;
-            for (i = 0; i < n; ++i) s->J[i + j * n] = (s->ftmp[i] - fy[i]) / step;
-        }
-        s->jacobians++;
-        *jcur = 1;
-    } else {
-        *jcur = 0;
-    }
-    for (k = 0; k < n * n; ++k) A[k] = -gamma * s->J[k];
+/* Forward-difference step of a state entry's value v: the square root of the machine
+ * epsilon, relative where |v| > 1. */
+static double difference_step(double v) {
+    return 1.4901161193847656e-08 * (fabs(v) > 1.0 ? fabs(v) : 1.0);
+}
+
+/* A = I - gamma J (n x n, column-major) as its LU factors (partial pivoting, row swaps in
+ * piv); 1 where singular. */
+static int factor_newton(const double *J, double gamma, int n, double *A, int *piv) {
+    int i, j, k;
+    for (k = 0; k < n * n; ++k) A[k] = -gamma * J[k];
     for (i = 0; i < n; ++i) A[i + i * n] += 1.0;
     for (k = 0; k < n; ++k) {
         int p = k;
@@ -203,7 +196,7 @@ static int setup(realtype t, N_Vector yv, N_Vector fyv, int jok, int *jcur, real
         for (i = k + 1; i < n; ++i)
             if (fabs(A[i + k * n]) > big) big = fabs(A[i + k * n]), p = i;
         if (big == 0.0) return 1;
-        s->piv[k] = p;
+        piv[k] = p;
         if (p != k)
             for (j = 0; j < n; ++j) {
                 double a = A[k + j * n];
@@ -217,18 +210,14 @@ static int setup(realtype t, N_Vector yv, N_Vector fyv, int jok, int *jcur, real
     return 0;
 }
 
-static int solve(realtype t, N_Vector yv, N_Vector fyv, N_Vector rv, N_Vector zv, realtype gamma,
-                 realtype delta, int lr, void *data, N_Vector tmp) {
-    sc_work *s = (sc_work *)data;
-    int n = s->n, i, k;
-    double *r = N_VGetArrayPointer(rv), *z = N_VGetArrayPointer(zv), *A = s->LU;
-    (void)t; (void)yv; (void)fyv; (void)gamma; (void)delta; (void)lr; (void)tmp;
-    if (z != r) memcpy(z, r, n * sizeof(double));
-    for (k = 0; k < n; ++k) /* the row swaps of the factorization, then L, then U */
-        if (s->piv[k] != k) {
+/* z = A^-1 z with the factors of factor_newton: the row swaps, then L, then U. */
+static void solve_newton(const double *A, const int *piv, int n, double *z) {
+    int i, k;
+    for (k = 0; k < n; ++k)
+        if (piv[k] != k) {
             double a = z[k];
-            z[k] = z[s->piv[k]];
-            z[s->piv[k]] = a;
+            z[k] = z[piv[k]];
+            z[piv[k]] = a;
         }
     for (k = 0; k < n; ++k)
         for (i = k + 1; i < n; ++i) z[i] -= A[i + k * n] * z[k];
@@ -236,36 +225,86 @@ static int solve(realtype t, N_Vector yv, N_Vector fyv, N_Vector rv, N_Vector zv
         z[k] /= A[k + k * n];
         for (i = 0; i < k; ++i) z[i] -= A[i + k * n] * z[k];
     }
+}
+
+/* Jv = J v (n x n, column-major). */
+static void times_jacobian(const double *J, const double *v, int n, double *Jv) {
+    int i, j;
+    for (i = 0; i < n; ++i) Jv[i] = 0.0;
+    for (j = 0; j < n; ++j)
+        for (i = 0; i < n; ++i) Jv[i] += J[i + j * n] * v[j];
+}
+
+/* Forward-difference Jacobian (column-major) when CVODES asks for a fresh one, then the LU
+ * factors of I - gamma J. (Offering the previous segment's J after a restart instead saved
+ * 9 of the paper case's 24 Jacobians but doubled the steps of the actuated case with lag,
+ * 2,461 -> 5,555: CVODES takes the Jacobian of a first step for current and keeps it for
+ * up to 50 steps.) */
+static int setup(realtype t, N_Vector yv, N_Vector fyv, int jok, int *jcur, realtype gamma,
+                 void *data, N_Vector t1, N_Vector t2, N_Vector t3) {
+    sc_work *s = (sc_work *)data;
+    int n = s->n, i, j, flag;
+    double *y = N_VGetArrayPointer(yv), *fy = N_VGetArrayPointer(fyv);
+    (void)t; (void)t1; (void)t2; (void)t3;
+    if (!jok) {
+        for (j = 0; j < n; ++j) {
+            double saved = y[j], step = difference_step(saved);
+            y[j] = saved + step;
+            flag = evaluate(s, y, s->ftmp);
+            y[j] = saved;
+            if (flag) return flag;
+            for (i = 0; i < n; ++i) s->J[i + j * n] = (s->ftmp[i] - fy[i]) / step;
+        }
+        s->jacobians++;
+        *jcur = 1;
+    } else {
+        *jcur = 0;
+    }
+    return factor_newton(s->J, gamma, n, s->LU, s->piv);
+}
+
+static int solve(realtype t, N_Vector yv, N_Vector fyv, N_Vector rv, N_Vector zv, realtype gamma,
+                 realtype delta, int lr, void *data, N_Vector tmp) {
+    sc_work *s = (sc_work *)data;
+    double *r = N_VGetArrayPointer(rv), *z = N_VGetArrayPointer(zv);
+    (void)t; (void)yv; (void)fyv; (void)gamma; (void)delta; (void)lr; (void)tmp;
+    if (z != r) memcpy(z, r, s->n * sizeof(double));
+    solve_newton(s->LU, s->piv, s->n, z);
     return 0;
 }
 
 static int jtimes(N_Vector vv, N_Vector Jvv, realtype t, N_Vector y, N_Vector fy, void *data,
                   N_Vector tmp) {
     sc_work *s = (sc_work *)data;
-    int n = s->n, i, j;
-    double *v = N_VGetArrayPointer(vv), *Jv = N_VGetArrayPointer(Jvv);
     (void)t; (void)y; (void)fy; (void)tmp;
-    for (i = 0; i < n; ++i) Jv[i] = 0.0;
-    for (j = 0; j < n; ++j)
-        for (i = 0; i < n; ++i) Jv[i] += s->J[i + j * n] * v[j];
+    times_jacobian(s->J, N_VGetArrayPointer(vv), s->n, N_VGetArrayPointer(Jvv));
     return 0;
 }
 
-/* CVODES with Newton's method on the Newton matrix of the callbacks above, for x' = f
- * (f's data starts with the sc_work those callbacks read); max_order 0: CVODES's own. */
-static void *create(int lmm, double t0, N_Vector y, CVRhsFn f, void *data, double rtol,
-                    double atol, long max_steps, int max_order) {
+/* CVODES with Newton's method on a Newton matrix of callbacks (setup, solve, jtimes) for
+ * x' = f; max_order 0: CVODES's own. */
+static void *create_with(int lmm, double t0, N_Vector y, CVRhsFn f, CVPrecSetupFn setup_fn,
+                         CVPrecSolveFn solve_fn, CVJacTimesFn jtimes_fn, void *data,
+                         double rtol, double atol, long max_steps, int max_order) {
     void *mem = CVodeCreate(lmm, CV_NEWTON);
     if (mem == NULL) return NULL;
     if (CVodeInit(mem, f, t0, y) || CVodeSStolerances(mem, rtol, atol) ||
         CVodeSetUserData(mem, data) || CVodeSetMaxNumSteps(mem, max_steps) ||
         CVodeSetErrHandlerFn(mem, quiet, NULL) || CVSpgmr(mem, PREC_LEFT, GMRES_DIMENSION) ||
-        CVSpilsSetPreconditioner(mem, setup, solve) || CVSpilsSetJacTimesVecFn(mem, jtimes) ||
+        CVSpilsSetPreconditioner(mem, setup_fn, solve_fn) ||
+        CVSpilsSetJacTimesVecFn(mem, jtimes_fn) ||
         (max_order > 0 && CVodeSetMaxOrd(mem, lmm == CV_BDF && max_order > 5 ? 5 : max_order))) {
         CVodeFree(&mem);
         return NULL;
     }
     return mem;
+}
+
+/* The same on the callbacks above (f's data starts with the sc_work they read). */
+static void *create(int lmm, double t0, N_Vector y, CVRhsFn f, void *data, double rtol,
+                    double atol, long max_steps, int max_order) {
+    return create_with(lmm, t0, y, f, setup, solve, jtimes, data, rtol, atol, max_steps,
+                       max_order);
 }
 
 /* Whether the configuration q (n_seg segments of (l, kx, ky)) lies outside the model's
@@ -286,102 +325,6 @@ static int outside(const double *x, int width, const double *longest, int n_seg,
                                                            : l * hypot(kx, ky) <= max_bend;
         if (!(l > 0.0 && l <= longest[i] && inside)) return 1;
     }
-    return 0;
-}
-
-/* Integrate `count` members over the grid `times[0..k)` from out[b, 0, :] (physical, at
- * times[0]), in segments ending at the output indices ends[0..n_ends) (the last is k - 1),
- * each a fresh start of CVODES with the member's input of that segment u[b, s, :]. Member b
- * starts with family lmm[b] (1 Adams, 2 BDF); where restart[s] and fastest[b] > 0, segment s
- * is integrated with BDF if the member has settled (max |xdot / nominal| * settled_ratio <
- * fastest[b]) and with lmm[b] otherwise. A member stops at its first output outside the
- * domain (longest[b, :] per segment, NULL: no check) or at a failure of CVODES. Writes
- * out[b, i, :], reached[b] (outputs filled, the one outside the domain included), flag[b]
- * (0, 1 outside the domain, CVODES's negative flag, -100 when it could not be set up),
- * used_bdf[b], and adds to stats[b, :]: steps, right-hand sides, Jacobians, linear-solver
- * setups, error-test failures, Newton failures. */
-__attribute__((visibility("default"))) int softcurve_cvodes(
-    const sc_function *fn, int count, const int *lmm, const double *fastest,
-    double settled_ratio, const double *u, const double *p, const double *nominal,
-    const double *longest, int n_seg, double max_bend, const double *times, int k,
-    const int *ends, const int *restart, int n_ends, double rtol, double atol, long max_steps,
-    int max_order, double *out, int *reached, int *flag, int *used_bdf, long *stats) {
-    int n = fn->nx + (fn->lag ? fn->m : 0), inputs = fn->force ? fn->m : fn->nu, b, i, j, e;
-    sc_work s;
-    void *mem[3] = {NULL, NULL, NULL};
-    N_Vector y = N_VNew_Serial(n), dky = N_VNew_Serial(n);
-    double *out_y = dky ? N_VGetArrayPointer(dky) : NULL;
-    if (work_open(&s, fn, n) || y == NULL || dky == NULL) {
-        for (b = 0; b < count; ++b) flag[b] = -100, reached[b] = 1;
-        goto done;
-    }
-    for (b = 0; b < count; ++b) {
-        int family = lmm[b] == CV_BDF ? CV_BDF : CV_ADAMS, first = 0;
-        double *ys = N_VGetArrayPointer(y), *row = out + (long)b * k * n, tret;
-        s.p = p + (long)b * fn->np;
-        s.nominal = nominal + (long)b * n;
-        flag[b] = 0;
-        used_bdf[b] = family == CV_BDF;
-        reached[b] = 1;
-        for (e = 0; e < n_ends && flag[b] == 0; first = ends[e], ++e) {
-            long counters[5] = {0, 0, 0, 0, 0};
-            s.u = u + ((long)b * n_ends + e) * inputs;
-            for (j = 0; j < n; ++j) ys[j] = row[(long)first * n + j] / s.nominal[j];
-            if (e > 0 && restart[e] && fastest[b] > 0.0) {
-                double fastest_state = 0.0;
-                if (evaluate(&s, ys, s.ftmp) == 0)
-                    for (j = 0; j < n; ++j)
-                        if (fabs(s.ftmp[j]) > fastest_state) fastest_state = fabs(s.ftmp[j]);
-                family = fastest_state * settled_ratio < fastest[b] ? CV_BDF : lmm[b];
-                used_bdf[b] |= family == CV_BDF;
-            }
-            s.jacobians = 0;
-            if (mem[family] == NULL)
-                mem[family] = create(family, times[first], y, rhs, &s, rtol, atol, max_steps,
-                                     max_order);
-            else if (CVodeReInit(mem[family], times[first], y))
-                flag[b] = -100;
-            if (mem[family] == NULL) flag[b] = -100;
-            if (flag[b]) break;
-            CVodeSetStopTime(mem[family], times[ends[e]]);
-            tret = times[first];
-            for (i = first + 1; i <= ends[e]; ++i) {
-                /* One internal step at a time, and every output it passed interpolated:
-                 * CVODES's normal mode costs a call per output, a third of the cost of an
-                 * output on a 1 ms grid. The step budget is per output, as in that mode,
-                 * and tout the next output: CVODES sizes a restart's first step by it. */
-                long taken = 0;
-                while (tret < times[i] && flag[b] == 0) {
-                    int status = ++taken > max_steps
-                                     ? CV_TOO_MUCH_WORK
-                                     : CVode(mem[family], times[i], y, &tret, CV_ONE_STEP);
-                    if (status < 0) flag[b] = status;
-                }
-                if (flag[b] == 0 && CVodeGetDky(mem[family], times[i], 0, dky)) flag[b] = -100;
-                if (flag[b]) break;
-                for (j = 0; j < n; ++j) row[(long)i * n + j] = out_y[j] * s.nominal[j];
-                reached[b] = i + 1;
-                if (outside(row + (long)i * n, n, longest ? longest + (long)b * n_seg : NULL,
-                            n_seg, max_bend)) {
-                    flag[b] = 1;
-                    break;
-                }
-            }
-            read_counters(mem[family], counters);
-            stats[b * STATS + 0] += counters[0];
-            stats[b * STATS + 1] += counters[1];
-            stats[b * STATS + 2] += s.jacobians;
-            stats[b * STATS + 3] += counters[2];
-            stats[b * STATS + 4] += counters[3];
-            stats[b * STATS + 5] += counters[4];
-        }
-    }
-done:
-    for (i = 1; i < 3; ++i)
-        if (mem[i] != NULL) CVodeFree(&mem[i]);
-    if (y != NULL) N_VDestroy(y);
-    if (dky != NULL) N_VDestroy(dky);
-    work_close(&s);
     return 0;
 }
 """

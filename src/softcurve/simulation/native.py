@@ -32,7 +32,9 @@ from softcurve.compiled.native import NativeFunction
 from softcurve.compiled.source import compile_source
 from softcurve.description.robot import MAX_BEND
 from softcurve.simulation.cvodes_driver import DRIVER_SOURCE
+from softcurve.simulation.cvodes_groups import GROUPS_SOURCE
 from softcurve.simulation.driver_entries import ENTRIES_SOURCE
+from softcurve.simulation.driver_lanes import lanes_derivative
 from softcurve.simulation.sensitivity_driver import SENSITIVITY_SOURCE
 
 PLUGIN = "libcasadi_integrator_cvodes.so"
@@ -72,6 +74,9 @@ class _Function(ctypes.Structure):
         ("lower", ctypes.c_void_p),
         ("upper", ctypes.c_void_p),
         ("time_constant", ctypes.c_double),
+        ("lanes", ctypes.c_void_p),
+        ("width", ctypes.c_int),
+        ("sz_lanes_w", ctypes.c_longlong),
     ]
 
 
@@ -125,7 +130,7 @@ def _load():
     except OSError:
         return None
     link = (f"-L{directory}", f"-l:{PLUGIN}", f"-Wl,-rpath,{directory}")
-    source = DRIVER_SOURCE + ENTRIES_SOURCE + SENSITIVITY_SOURCE
+    source = DRIVER_SOURCE + GROUPS_SOURCE + ENTRIES_SOURCE + SENSITIVITY_SOURCE
     library = compile_source("cvodes_driver", source, link)
     if library is None:
         return None
@@ -166,17 +171,21 @@ class Problem:
         ``H(q) v`` of an actuator, compiled.
     inputs : ActuatorInput, optional
         The actuator's input (bounds, lag), with ``force``.
+    lanes : LanesDerivative, optional
+        The same state derivative over lanes
+        (:func:`~softcurve.simulation.driver_lanes.lanes_derivative`): members are then
+        integrated in groups of its width, ``self.width`` (else 1).
     """
 
-    def __init__(self, rhs, n_state, n, n_parameters, force=None, inputs=None):
+    def __init__(self, rhs, n_state, n, n_parameters, force=None, inputs=None, lanes=None):
         functions = [rhs] if force is None else [rhs, force]
-        self._keep = functions  # the ctypes functions and the bounds must outlive the struct
+        self._keep = [*functions, lanes]  # the functions and bounds outlive the struct
+        self.width = 1 if lanes is None else lanes.width
         lag = inputs is not None and inputs.time_constant is not None
         self.bounds = (
             (np.array(inputs.lower, dtype=np.float64), np.array(inputs.upper, dtype=np.float64))
-            if inputs is not None
-            else (np.zeros(1), np.zeros(1))
-        )
+            if inputs is not None else (np.zeros(1), np.zeros(1))
+        )  # fmt: skip
         self.struct = _Function(
             ctypes.cast(rhs._function, ctypes.c_void_p).value,
             None if force is None else ctypes.cast(force._function, ctypes.c_void_p).value,
@@ -192,10 +201,13 @@ class Problem:
             self.bounds[0].ctypes.data,
             self.bounds[1].ctypes.data,
             inputs.time_constant if lag else 1.0,
+            None if lanes is None else lanes.address,
+            self.width,
+            0 if lanes is None else lanes.work,
         )
 
 
-def problem(model, inputs=None) -> Problem | None:
+def problem(model, inputs=None, lanes: bool = False) -> Problem | None:
     """The :class:`Problem` of ``model`` driven by forces or by ``inputs`` (an
     :class:`~softcurve.simulation.integrators.ActuatorInput`, whose force ``H(q) u`` is
     compiled once per actuator and cached on disk), cached with the model; None where the
@@ -207,6 +219,9 @@ def problem(model, inputs=None) -> Problem | None:
         The model.
     inputs : ActuatorInput, optional
         The actuator's input, or None for forces.
+    lanes : bool
+        Integrate members in groups on the state derivative over lanes (compiled at the
+        first such call); where it cannot be built, the problem integrates them alone.
     """
     if driver() is None or model._native is None or "rhs" not in model._native:
         return None
@@ -218,9 +233,11 @@ def problem(model, inputs=None) -> Problem | None:
             if force is None:
                 return None
         rhs = model._native["rhs"]
-        return Problem(rhs, model.n_state, model.n, model.parameters.size, force, inputs)
+        vectors = lanes_derivative(model, inputs) if lanes else None
+        return Problem(rhs, model.n_state, model.n, model.parameters.size, force, inputs, vectors)
 
-    return model.cached(("native problem", None if inputs is None else inputs.key), build)
+    key = ("native problem", None if inputs is None else inputs.key, lanes)
+    return model.cached(key, build)
 
 
 def _compiled_force(force: ca.Function) -> NativeFunction | None:
@@ -234,7 +251,8 @@ def _compiled_force(force: ca.Function) -> NativeFunction | None:
 def integrate(problem, lmm, x0, u, p, nominal, times, segments, tolerances, *, fastest=None,
               settled_ratio=0.0, longest=None, threads=1, out=None) -> tuple:  # fmt: skip
     """Integrate members from ``x0`` at ``times[0]`` over the output ``times``, restarting
-    CVODES at the end of every segment, with one constant input per member and segment.
+    CVODES at the end of every segment, with one constant input per member and segment;
+    in groups of ``problem.width`` consecutive members (:mod:`~.cvodes_groups`).
 
     Parameters
     ----------
@@ -317,7 +335,10 @@ def integrate(problem, lmm, x0, u, p, nominal, times, segments, tolerances, *, f
     if threads == 1:
         run(0, count)
     else:
-        bounds = np.linspace(0, count, min(count, CHUNKS_PER_THREAD * threads) + 1).astype(int)
+        # shares of whole groups: the grouping, hence every result, is that of one thread
+        units = -(-count // problem.width)
+        bounds = np.linspace(0, units, min(units, CHUNKS_PER_THREAD * threads) + 1).astype(int)
+        bounds = np.minimum(bounds * problem.width, count)
         with ThreadPoolExecutor(threads) as pool:
             list(pool.map(run, bounds[:-1], bounds[1:]))
     return out, reached, flags, counts, used.astype(bool)

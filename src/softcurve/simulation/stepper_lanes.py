@@ -18,13 +18,11 @@ import numpy as np
 
 from softcurve.compiled.lanes import (
     LANE_WIDTH,
-    VECTOR_MATH_LIBRARY,
+    compile_lanes,
     lanes_function,
     lanes_prelude,
     lanes_work,
-    vector_math_available,
 )
-from softcurve.compiled.source import compile_source
 from softcurve.simulation.stepper_lanes_stages import explicit_step, rosenbrock_step
 from softcurve.simulation.stepper_methods import METHODS, ExplicitTableau
 from softcurve.simulation.stepper_native import MemberShares
@@ -179,19 +177,22 @@ def lanes_period(model, inputs, substeps: int, method: str, every: int | None = 
         f = state_derivative(model, inputs, True)
         n_x = f.size1_in(0)
         sizes = (n_x, f.size1_in(1), f.size1_in(2), n_x + observer(model, True).size1_out(0))
-        attempts = [(True, VECTOR_MATH_LIBRARY)] if vector_math_available() else []
-        for vector_math, link in [*attempts, (False, ())]:
-            try:
-                source = period_source(model, inputs, substeps, method, vector_math, every)
-            except NotImplementedError:
-                return None
-            library = compile_source("stepper_lanes", source, link)
-            if library is not None:
-                entry = getattr(library, ENTRY)
-                entry.restype = ctypes.c_int
-                entry.argtypes = [ctypes.c_void_p] * 5 + [ctypes.c_long] * 2
-                return LanesPeriod(entry, str(library._name), vector_math, sizes)
-        return None
+        try:
+            built = compile_lanes(
+                "stepper_lanes",
+                lambda vector_math: period_source(
+                    model, inputs, substeps, method, vector_math, every
+                ),
+            )
+        except NotImplementedError:
+            return None
+        if built is None:
+            return None
+        library, vector_math = built
+        entry = getattr(library, ENTRY)
+        entry.restype = ctypes.c_int
+        entry.argtypes = [ctypes.c_void_p] * 5 + [ctypes.c_long] * 2
+        return LanesPeriod(entry, str(library._name), vector_math, sizes)
 
     key = ("stepper-lanes", substeps, method, every, None if inputs is None else inputs.key)
     return model.cached(key, build)
