@@ -9,6 +9,7 @@ import pytest
 import softcurve as sc
 from softcurve.base.status import Status
 from softcurve.simulation import along as along_module
+from softcurve.simulation import native
 from softcurve.simulation.batch import simulate_batch
 from softcurve.simulation.engine import nominal_scale
 
@@ -118,3 +119,68 @@ def test_without_a_compiler_for_the_lanes_the_members_run_alone(monkeypatch, tmp
     alone = simulate_batch(model, q0s, qd0s, t_final=0.2, dt=0.01, lanes=False)
     np.testing.assert_array_equal(grouped.x, alone.x)
     assert log.read_text().count("x") >= 1  # the lanes were asked for and refused
+
+
+def test_members_of_other_families_are_not_grouped(paper_model):
+    """A heavily damped member starts with BDF, the others with Adams: their four are
+    not a group, so every member is integrated, and labelled, as alone."""
+    layout = paper_model.robot.layout
+    parameters = np.tile(paper_model.parameters, (4, 1))
+    for i in range(3):
+        parameters[1, layout.index(f"segments[0].damping[{i},{i}]")] *= 1e4
+    q0s, qd0s = np.tile([0.064, 20.0, 0.0], (4, 1)), np.zeros((4, 3))
+    run = dict(parameters=parameters, t_final=0.2, dt=0.01)
+    grouped = simulate_batch(paper_model, q0s, qd0s, **run)
+    alone = simulate_batch(paper_model, q0s, qd0s, lanes=False, **run)
+    assert grouped.stats["methods"][:2] == ["cvodes-adams", "cvodes-bdf"]
+    assert grouped.stats["methods"] == alone.stats["methods"]
+    np.testing.assert_array_equal(grouped.x, alone.x)
+
+
+def test_a_failed_group_leaves_its_members_counters_and_outputs_as_alone(paper_model):
+    """Called directly: a group that fails (10 steps per output are too few) is
+    integrated again alone; its members' counters are those of their runs alone (the
+    group's are not added), and rows beyond what a member reaches are the caller's or
+    NaN, never the group's."""
+    grouped, alone = (native.problem(paper_model, None, lanes) for lanes in (True, False))
+    if grouped is None or grouped.width == 1:
+        pytest.skip("no lanes")
+    q0s, qd0s = members(4)
+    x0 = np.column_stack([q0s, qd0s, np.zeros((4, 3))])
+    times = np.linspace(0.0, 0.1, 101)
+    nominal = np.array([nominal_scale(paper_model, x) for x in x0])
+    args = (np.ones(4, np.int32), x0, np.zeros((4, 1, 3)), np.tile(paper_model.parameters, (4, 1)),
+            nominal, times, ([100], [True]), (1e-6, 1e-6, 10, 5))  # fmt: skip
+    outputs = {}
+    for name, problem in (("grouped", grouped), ("alone", alone)):
+        out = np.full((4, times.size, 9), 7.0)
+        result = native.integrate(problem, *args, out=out)
+        outputs[name] = result
+    (x, reached, flags, counts, _), (x1, reached1, flags1, counts1, _) = outputs.values()
+    assert np.all(flags == -1)  # CV_TOO_MUCH_WORK
+    np.testing.assert_array_equal(reached, reached1)
+    np.testing.assert_array_equal(counts, counts1)
+    for b in range(4):
+        np.testing.assert_array_equal(x[b, : reached[b]], x1[b, : reached[b]])
+        assert np.all((x[b, reached[b] :] == 7.0) | np.isnan(x[b, reached[b] :]))
+
+
+def test_worker_chunks_keep_the_groups_of_every_actuator(paper_model):
+    """Two actuators alternate over 16 members: the workers' chunks hold whole groups of
+    each actuator's members, so processes=2 equals the batch in this process."""
+    bellows = sc.PneumaticActuator.three_bellows(
+        distance=0.01, area=2e-5, p_max=1e5, time_constant=0.05
+    )
+    inputs = np.random.default_rng(5).uniform(0, 6e4, (16, 3))
+    parameters = np.tile(bellows.parameter_vector(), (16, 1))
+    parameters[1::2, 2] *= 1.5  # every other member's chambers further out
+    run = dict(actuator=bellows, inputs=inputs, actuator_parameters=parameters, t_final=0.1)
+    q0, qd0 = [0.0644, 0.0, 0.0], np.zeros(3)
+    here = simulate_batch(paper_model, q0, qd0, threads=1, **run)
+    split = simulate_batch(paper_model, q0, qd0, processes=2, **run)
+    alone = simulate_batch(paper_model, q0, qd0, lanes=False, **run)
+    np.testing.assert_array_equal(split.x, here.x)
+    np.testing.assert_array_equal(split.inputs, here.inputs)
+    assert split.member_message == here.member_message
+    assert split.stats["methods"] == here.stats["methods"]
+    assert not np.array_equal(here.x, alone.x)  # the groups ran

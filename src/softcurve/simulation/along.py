@@ -53,6 +53,38 @@ def blocks(size: int, count: int, width: int, granularity: int = 1) -> list[slic
     return [slice(a, min(size, a + step)) for a in range(0, size, step)]
 
 
+def chunks(kinds: np.ndarray, granularity: int, count: int) -> list[np.ndarray]:
+    """The members split into at most ``count`` chunks of whole runs: ``granularity``
+    consecutive members of one kind (actuator), in the order of that kind's members, the
+    last run of a kind shorter. The driver groups each kind's members in such runs, so a
+    chunk integrated alone groups them as the whole batch does.
+
+    Parameters
+    ----------
+    kinds : ndarray of int, shape (B,)
+        Each member's kind: members of one kind are integrated together.
+    granularity : int
+        Members of one kind that stay together (the driver's groups).
+    count : int
+        Chunks wanted (at least 1).
+
+    Returns
+    -------
+    list of ndarray of int
+        Each chunk's member indices, ascending; the chunks are ordered by their first
+        member.
+    """
+    runs = [
+        members[a : a + granularity]
+        for kind in np.unique(kinds)
+        for members in [np.flatnonzero(kinds == kind)]
+        for a in range(0, members.size, granularity)
+    ]
+    runs.sort(key=lambda run: run[0])
+    edges = np.linspace(0, len(runs), min(count, len(runs)) + 1).astype(int)
+    return [np.sort(np.concatenate(runs[a:b])) for a, b in zip(edges[:-1], edges[1:], strict=True)]
+
+
 @shared_parameters
 def along(model, name, build, columns, parameters, threads) -> list[np.ndarray]:
     """Evaluate ``build() -> Function(*per_point_inputs, p)`` at every (member, time):

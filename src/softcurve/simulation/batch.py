@@ -31,7 +31,7 @@ from softcurve.compiled.lanes import LANE_WIDTH
 from softcurve.compiled.model import Model
 from softcurve.description.actuator import Actuator
 from softcurve.description.robot import Robot, domain_problem, in_domain
-from softcurve.simulation.along import blocks, rhs_along
+from softcurve.simulation.along import blocks, chunks, rhs_along
 from softcurve.simulation.batch_actuation import Drives, drive_arrays, member_rows
 from softcurve.simulation.batch_run import MemberRun, integrate_native, member_rates
 from softcurve.simulation.batch_trajectory import BatchTrajectory, batch_status
@@ -142,13 +142,15 @@ def simulate_batch(
         clock); on CasADi's integrator, the fallback, processes are faster: it reads the
         process's CPU clock around every evaluation of the model, and the threads of one
         process contend for that clock (``benchmarks/bench_batch.py``). Results are
-        identical either way. Workers are spawned, so a script must call this under
-        ``if __name__ == "__main__":``.
+        identical either way, but with an ``atol`` given, which each worker applies as
+        the tightest over its own members. Workers are spawned, so a script must call
+        this under ``if __name__ == "__main__":``.
     lanes : bool
-        Integrate consecutive members four at a time as one CVODES system on the state
-        derivative in vector lanes (``docs/performance.md``), where the C compiler
-        builds it (once per model, cached): the members share the group's steps, each
-        within its tolerance. False integrates every member alone, as
+        Integrate consecutive members four at a time (of one actuator and one family,
+        Adams or BDF) as one CVODES system on the state derivative in vector lanes
+        (``docs/performance.md``), where the C compiler builds it (once per model,
+        cached): the members share the group's steps, each within its tolerance.
+        False integrates every member alone, as
         :func:`~softcurve.simulation.simulate.simulate` does (equal to it bit for bit).
     **options : dict
         Fields of :class:`SimulationSettings` overriding ``settings``: ``t_final`` [s],
@@ -344,32 +346,29 @@ def _chunk(described, arrays, settings, actuator=None, lanes=True) -> tuple:
 
 def _in_processes(model, split, arrays, settings, actuator) -> BatchTrajectory:
     """:func:`simulate_batch` in chunks over ``processes`` worker processes, chunks of whole
-    groups of lanes; ``threads`` is kept for what is later evaluated along the result in
-    this process (tip, energy). ``split`` is ``(processes, threads, lanes)``."""
+    groups of each actuator's members (:func:`~softcurve.simulation.along.chunks`);
+    ``threads`` is kept for what is later evaluated along the result in this process
+    (tip, energy). ``split`` is ``(processes, threads, lanes)``."""
     processes, threads, lanes = split
     start = time.perf_counter()
     size = arrays["q0"].shape[0]
-    group = LANE_WIDTH if lanes else 1
-    units = -(-size // group)
-    count = min(units, CHUNKS_PER_PROCESS * processes)
-    bounds = np.minimum(np.linspace(0, units, count + 1).astype(int) * group, size)
-    tasks = {
-        lo: (
-            model_description(model),
-            {k: a[lo:hi] for k, a in arrays.items()},
-            settings,
-            actuator,
-            lanes,
-        )  # fmt: skip
-        for lo, hi in zip(bounds[:-1], bounds[1:], strict=True)
-    }
+    kinds = np.zeros(size, int) if actuator is None else np.unique(
+        arrays["actuator_parameters"], axis=0, return_inverse=True)[1].ravel()  # fmt: skip
+    parts = chunks(kinds, LANE_WIDTH if lanes else 1, CHUNKS_PER_PROCESS * processes)
+    described = model_description(model)
+    rows = [{k: a[part] for k, a in arrays.items()} for part in parts]
+    tasks = {c: (described, rows[c], settings, actuator, lanes) for c in range(len(parts))}
     done = dict(run_in_processes(_chunk, tasks, processes))
-    chunks = [done[lo] for lo in sorted(done)]
-    member_status, messages, reached, stats, x = (list(part) for part in zip(*chunks, strict=True))
-    x = np.concatenate(x)
+    member_status, messages, reached, stats, x = (
+        list(part) for part in zip(*(done[c] for c in range(len(parts))), strict=True))  # fmt: skip
+    order = np.argsort(np.concatenate(parts))  # the members' places among the chunks' rows
+    member_status, reached = (np.concatenate(a)[order] for a in (member_status, reached))
+    x, messages = np.concatenate(x)[order], [m for c in messages for m in c]
+    messages = [messages[i] for i in order]
+    methods = [m for s in stats for m in s["methods"]]
     stats = {
         **stats[0],
-        "methods": [m for s in stats for m in s["methods"]],
+        "methods": [methods[i] for i in order],
         "size": size,
         "threads": threads,
         "processes": processes,
@@ -378,9 +377,8 @@ def _in_processes(model, split, arrays, settings, actuator) -> BatchTrajectory:
     }
     n_state = model.n_state
     return _result(settings.output_times(), x[..., :n_state],
-                   None if actuator is None else x[..., n_state:], arrays,
-                   np.concatenate(member_status), [m for c in messages for m in c],
-                   np.concatenate(reached), stats, model, actuator)  # fmt: skip
+                   None if actuator is None else x[..., n_state:], arrays, member_status,
+                   messages, reached, stats, model, actuator)  # fmt: skip
 
 
 def simulated_seconds_per_second(batch: BatchTrajectory) -> float:

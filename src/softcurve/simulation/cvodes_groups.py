@@ -11,8 +11,10 @@ the group's steps, about 1.3 times the steps of each alone on the paper's batch
 (``benchmarks/study_stacked_batch.py``). Each member keeps its own accuracy: the group's
 tolerances are those of one member divided by the square root of the group's size, so
 that the group's weighted RMS norm is at least every member's own. A group with a member
-that fails or leaves the domain is integrated again member by member, so that failures
-read exactly as they do alone.
+that fails or leaves the domain is integrated again member by member, so that a group's
+failure reads exactly as the members' runs alone (a member that would fail alone may
+succeed in its group, whose steps are smaller). Only members of one family (Adams or
+BDF) form a group.
 
 Kept as a Python string so that it ships with the package like any module.
 """
@@ -154,17 +156,13 @@ typedef struct {
  * Returns 1 where a member of a group failed or left the domain (the caller then
  * integrates them again alone), else 0. */
 static int integrate_members(sc_call *c, int b, int g) {
-    int n = c->n, grouped = g > 1, own = CV_ADAMS, family, first = 0, stop = 0, l, i, j, e;
+    int n = c->n, grouped = g > 1, own, family, first = 0, stop = 0, l, i, j, e;
     double *ys = N_VGetArrayPointer(c->y[grouped]), *out_y = N_VGetArrayPointer(c->dky[grouped]);
     double tret, *ftmp = grouped ? c->G.ftmp : c->s.ftmp;
     const double *nominal = c->nominal + (long)b * n;
     void *data = grouped ? (void *)&c->G : (void *)&c->s;
-    for (l = 0; l < g; ++l) {
-        if (c->lmm[b + l] == CV_BDF) own = CV_BDF; /* the group's own family */
-        c->flag[b + l] = 0;
-        c->reached[b + l] = 1;
-    }
-    family = own;
+    for (l = 0; l < g; ++l) c->flag[b + l] = 0, c->reached[b + l] = 1;
+    own = family = c->lmm[b] == CV_BDF ? CV_BDF : CV_ADAMS; /* a group's members share it */
     for (l = 0; l < g; ++l) c->used_bdf[b + l] = family == CV_BDF;
     if (grouped) {
         c->G.nominal = nominal;
@@ -269,16 +267,19 @@ static int integrate_members(sc_call *c, int b, int g) {
  * out[b, i, :], reached[b] (outputs filled, the one outside the domain included), flag[b]
  * (0, 1 outside the domain, CVODES's negative flag, -100 when it could not be set up),
  * used_bdf[b], and adds to stats[b, :]: steps, right-hand sides, Jacobians, linear-solver
- * setups, error-test failures, Newton failures. Where fn has lanes, consecutive members go
- * in groups of fn->width (the rest alone): a group takes BDF if one of its members does,
- * switches at a restart where all have settled, and its counters are every member's. */
+ * setups, error-test failures, Newton failures. Where fn has lanes, members b .. b + width
+ * - 1 of one family (b a multiple of fn->width) go in a group, the others alone: a group
+ * switches to BDF at a restart where all have settled, and its counters are every
+ * member's; a group that fails is integrated again member by member (outputs beyond
+ * what a member then reaches are NaN). */
 __attribute__((visibility("default"))) int softcurve_cvodes(
     const sc_function *fn, int count, const int *lmm, const double *fastest,
     double settled_ratio, const double *u, const double *p, const double *nominal,
     const double *longest, int n_seg, double max_bend, const double *times, int k,
     const int *ends, const int *restart, int n_ends, double rtol, double atol, long max_steps,
     int max_order, double *out, int *reached, int *flag, int *used_bdf, long *stats) {
-    int width = fn->lanes != NULL && fn->width > 1 ? fn->width : 1, b, l, i, failed;
+    int width = fn->lanes != NULL && fn->width > 1 ? fn->width : 1, b, g, l, i, e, failed;
+    long *kept = (long *)malloc(sizeof(long) * STATS * width); /* counters before a group */
     sc_call c;
     memset(&c, 0, sizeof(c));
     c.fn = fn, c.lmm = lmm, c.ends = ends, c.restart = restart, c.fastest = fastest;
@@ -290,17 +291,26 @@ __attribute__((visibility("default"))) int softcurve_cvodes(
     c.used_bdf = used_bdf, c.stats = stats;
     c.y[0] = N_VNew_Serial(c.n), c.dky[0] = N_VNew_Serial(c.n);
     c.y[1] = N_VNew_Serial((long)width * c.n), c.dky[1] = N_VNew_Serial((long)width * c.n);
-    failed = work_open(&c.s, fn, c.n) || !c.y[0] || !c.dky[0] || !c.y[1] || !c.dky[1];
+    failed = work_open(&c.s, fn, c.n) || !c.y[0] || !c.dky[0] || !c.y[1] || !c.dky[1] || !kept;
     if (width > 1) failed = group_open(&c.G, fn, c.n) || failed;
     for (b = 0; b < count && failed; ++b) flag[b] = -100, reached[b] = 1;
-    for (b = 0; b < count && !failed; b += width > 1 && count - b >= width ? width : 1) {
-        if (!(width > 1 && count - b >= width)) {
-            integrate_members(&c, b, 1);
-        } else if (integrate_members(&c, b, width)) {
-            for (l = 0; l < width; ++l) {
-                for (i = 0; i < STATS; ++i) stats[(long)(b + l) * STATS + i] = 0;
-                integrate_members(&c, b + l, 1);
-            }
+    for (b = 0; b < count && !failed; b += g) {
+        int alike = 1, tried = 0;
+        g = width > 1 && count - b >= width ? width : 1;
+        for (l = 1; l < g; ++l) alike = alike && lmm[b + l] == lmm[b];
+        if (g > 1 && alike) {
+            memcpy(kept, stats + (long)b * STATS, sizeof(long) * STATS * g);
+            if (!integrate_members(&c, b, g)) continue;
+            memcpy(stats + (long)b * STATS, kept, sizeof(long) * STATS * g);
+            tried = 1;
+        }
+        for (l = 0; l < g; ++l) { /* alone: the rest, a group of mixed families, or failed */
+            int before = reached[b + l];
+            double *rows = out + (long)(b + l) * k * c.n;
+            integrate_members(&c, b + l, 1);
+            /* what the group wrote beyond what the member reaches alone is not an output */
+            for (i = reached[b + l]; tried && i < before; ++i)
+                for (e = 0; e < c.n; ++e) rows[(long)i * c.n + e] = NAN;
         }
     }
     for (i = 1; i < 5; ++i)
@@ -311,6 +321,7 @@ __attribute__((visibility("default"))) int softcurve_cvodes(
     }
     work_close(&c.s);
     if (width > 1) group_close(&c.G);
+    free(kept);
     return 0;
 }
 """
