@@ -15,10 +15,12 @@ the other elementary functions, each lane calls the C library's scalar function.
 
 from __future__ import annotations
 
+import ctypes
 import math
 import platform
 import re
 from collections.abc import Sequence
+from typing import NamedTuple
 
 import casadi as ca
 
@@ -260,7 +262,16 @@ def lanes_work(function: ca.Function) -> int:
     return max(function.sz_w(), 1)
 
 
-def compile_lanes(stem: str, source_for):
+class CompiledLanes(NamedTuple):
+    """A compiled lanes source: the loaded ``library`` (``ctypes.CDLL``), its ``entry``
+    (a ctypes function returning int) and whether it uses the vector math library."""
+
+    library: ctypes.CDLL
+    entry: object
+    vector_math: bool
+
+
+def compile_lanes(stem: str, source_for, entry: str, argtypes: list) -> CompiledLanes | None:
     """A lanes source compiled and loaded: with :data:`VECTOR_MATH` where
     :func:`vector_math_available` and it links, else with the C library's functions.
 
@@ -270,17 +281,26 @@ def compile_lanes(stem: str, source_for):
         Start of the library's file name in the cache.
     source_for : callable
         ``source_for(vector_math) -> str``, the C source (with :func:`lanes_prelude` of
-        that ``vector_math``); a ``NotImplementedError`` it raises propagates.
+        that ``vector_math``).
+    entry : str
+        The exported function, which returns an int.
+    argtypes : list
+        Its ctypes argument types.
 
     Returns
     -------
-    tuple or None
-        ``(library, vector_math)``: the loaded ``ctypes.CDLL`` and whether it uses the
-        vector math library; None where no C compiler builds it.
+    CompiledLanes or None
+        None where no C compiler builds it or ``source_for`` raises
+        ``NotImplementedError`` (an operation without lanes code).
     """
     attempts = [(True, VECTOR_MATH_LIBRARY)] if vector_math_available() else []
     for vector_math, link in [*attempts, (False, ())]:
-        library = compile_source(stem, source_for(vector_math), link)
+        try:
+            library = compile_source(stem, source_for(vector_math), link)
+        except NotImplementedError:
+            return None
         if library is not None:
-            return library, vector_math
+            function = getattr(library, entry)
+            function.restype, function.argtypes = ctypes.c_int, argtypes
+            return CompiledLanes(library, function, vector_math)
     return None

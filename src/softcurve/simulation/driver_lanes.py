@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import ctypes
 from dataclasses import dataclass
+from functools import partial
 
 from softcurve.compiled.lanes import (
     LANE_WIDTH,
@@ -108,16 +109,9 @@ def lanes_derivative(model, inputs=None) -> LanesDerivative | None:
 
     def build():
         f = actuated_derivative(model, inputs, model.symbolic["rhs"]).expand()
-        try:
-            built = compile_lanes("driver_lanes", lambda vector_math: xdot_source(f, vector_math))
-        except NotImplementedError:
-            return None
+        built = compile_lanes("driver_lanes", partial(xdot_source, f), ENTRY, [ctypes.c_void_p] * 5)
         if built is None:
             return None
-        library, vector_math = built
-        entry = getattr(library, ENTRY)
-        entry.restype = ctypes.c_int
-        entry.argtypes = [ctypes.c_void_p] * 5
-        return LanesDerivative(entry, LANE_WIDTH, lanes_work(f), vector_math)
+        return LanesDerivative(built.entry, LANE_WIDTH, lanes_work(f), built.vector_math)
 
     return model.cached(("driver-lanes", None if inputs is None else inputs.key), build)

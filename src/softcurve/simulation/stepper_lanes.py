@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import ctypes
 from dataclasses import dataclass
+from functools import partial
 
 import numpy as np
 
@@ -177,22 +178,12 @@ def lanes_period(model, inputs, substeps: int, method: str, every: int | None = 
         f = state_derivative(model, inputs, True)
         n_x = f.size1_in(0)
         sizes = (n_x, f.size1_in(1), f.size1_in(2), n_x + observer(model, True).size1_out(0))
-        try:
-            built = compile_lanes(
-                "stepper_lanes",
-                lambda vector_math: period_source(
-                    model, inputs, substeps, method, vector_math, every
-                ),
-            )
-        except NotImplementedError:
-            return None
+        source = partial(period_source, model, inputs, substeps, method, every=every)
+        argtypes = [ctypes.c_void_p] * 5 + [ctypes.c_long] * 2
+        built = compile_lanes("stepper_lanes", source, ENTRY, argtypes)
         if built is None:
             return None
-        library, vector_math = built
-        entry = getattr(library, ENTRY)
-        entry.restype = ctypes.c_int
-        entry.argtypes = [ctypes.c_void_p] * 5 + [ctypes.c_long] * 2
-        return LanesPeriod(entry, str(library._name), vector_math, sizes)
+        return LanesPeriod(built.entry, str(built.library._name), built.vector_math, sizes)
 
     key = ("stepper-lanes", substeps, method, every, None if inputs is None else inputs.key)
     return model.cached(key, build)
