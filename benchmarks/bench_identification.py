@@ -11,8 +11,9 @@ Run:  python benchmarks/bench_identification.py [--repeat N] [--quick] [--joint]
    forward sensitivities (what every iteration of ``fit_trajectory`` costs), timed after
    a warm-up (compiled, integrator set up), best of ``--repeat``, for inputs held
    constant between samples (the default) and linearly (``input_hold="linear"``), and
-   linearly with looser tolerances (rtol 1e-6, atol 1e-8 instead of 1e-8, 1e-10), with
-   CVODES's step counts.
+   linearly with looser tolerances (rtol 1e-6, atol 1e-8 instead of 1e-8, 1e-10), and
+   linearly with the sensitivity columns in CVODES's error test too (``fsens_err_con``;
+   the state alone is the default), with CVODES's step counts.
 2. Quasi-static: ``fit_equilibria`` of the bellows' area and mounting angle on 120
    samples of a rotating pressure field, for one ifac2020 segment and three in series
    (compile=False: the equilibrium fit evaluates the symbolic functions), from the same
@@ -202,7 +203,8 @@ def main() -> None:
     parser.add_argument("--only", choices=("dynamic", "quasi-static"), help="one section only")
     args = parser.parse_args()
     loose = {"reltol": 1e-6, "abstol": 1e-8}
-    args.cases = [("constant", None), ("linear", None), ("linear", loose)]
+    tested = {"fsens_err_con": True}
+    args.cases = [("constant", None), ("linear", None), ("linear", loose), ("linear", tested)]
     if args.linear_only:
         args.cases = args.cases[1:]
     print(f"load average {os.getloadavg()}, {os.cpu_count()} cores")

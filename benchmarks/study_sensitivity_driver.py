@@ -8,11 +8,12 @@ pressures sampled at 12 Hz and held linearly, five free parameters), over ``--du
 seconds. CasADi's route integrates the augmented system ``(x, S)`` with Adams and
 functional iteration (rtol 1e-8, atol 1e-10); the driver (``softcurve_sensitivities``)
 integrates the state by Newton's method on its own Newton matrix and the sensitivities
-by CVODES's staggered corrector, both in the error test, with the same compiled
-``[f; f_x S + f_d]``. It prints wall time, steps, right-hand sides and sensitivity
-evaluations per family (Adams, BDF) and tolerance (rtol 1e-8 down to 1e-4), and the
-largest difference from CasADi's route relative to each row's range. The library's
-choice (Adams, rtol 1e-8) is ``softcurve.simulation.sensitivity.NATIVE_FAMILY``.
+by CVODES's staggered corrector, with the same compiled ``[f; f_x S + f_d]``. It
+prints wall time, steps, right-hand sides and sensitivity evaluations per family
+(Adams, BDF), tolerance (rtol 1e-8 down to 1e-4) and error test (the state alone, the
+library's default, or the sensitivity columns too, ``fsens_err_con``), and the largest
+difference from CasADi's route relative to each row's range. The library's choice
+(Adams, rtol 1e-8) is ``softcurve.simulation.sensitivity.NATIVE_FAMILY``.
 
 First it prints the eigenvalues of the robot linearized at the trial's first state with
 its first pressures, and their angle from the negative real axis: beyond a BDF order's
@@ -114,23 +115,27 @@ def main() -> None:
     )
     span = np.abs(reference).max(axis=1) + 1e-300
     n_x = evaluate.n_x
-    for family, name in ((1, "Adams"), (2, "BDF")):
-        for rtol, atol in ((1e-8, 1e-10), (1e-6, 1e-8), (1e-4, 1e-6)):
-            tolerances = (rtol, atol, max_steps, family)
-            wall, (out, _, flag, counts) = best(
-                lambda t=tolerances: integrate_sensitivities(
-                    problem, columns, start, d_value, d_scaled, times, table, linear, t
-                )
+    cases = [(family, rtol, atol, tested) for family in (1, 2) for tested in (False, True)
+             for rtol, atol in ((1e-8, 1e-10), (1e-6, 1e-8), (1e-4, 1e-6))]  # fmt: skip
+    for family, rtol, atol, tested in cases:
+        name = {1: "Adams", 2: "BDF"}[family]
+        tested_text = "state and columns" if tested else "state only"
+        tolerances = (rtol, atol, max_steps, family, tested)
+        wall, (out, _, flag, counts) = best(
+            lambda t=tolerances: integrate_sensitivities(
+                problem, columns, start, d_value, d_scaled, times, table, linear, t
             )
-            difference = np.abs(out.T - reference).max(axis=1) / span
-            print(
-                f"driver, {name:5s} Newton, rtol {rtol:.0e}: {wall:.3f} s ({wall * scale:.1f} s), "
-                f"flag {flag}, {counts['steps']} steps, {counts['rhs_evaluations']} right-hand "
-                f"sides, {counts['sensitivity_evaluations']} sensitivity evaluations, "
-                f"{counts['jacobian_evaluations']} Jacobians; difference from CasADi's route: "
-                f"states {difference[:n_x].max():.1e}, sensitivities "
-                f"{difference[n_x:].max():.1e} (of each row's range)"
-            )
+        )
+        difference = np.abs(out.T - reference).max(axis=1) / span
+        print(
+            f"driver, {name:5s} Newton, rtol {rtol:.0e}, error test on {tested_text}: "
+            f"{wall:.3f} s ({wall * scale:.1f} s), "
+            f"flag {flag}, {counts['steps']} steps, {counts['rhs_evaluations']} right-hand "
+            f"sides, {counts['sensitivity_evaluations']} sensitivity evaluations, "
+            f"{counts['jacobian_evaluations']} Jacobians; difference from CasADi's route: "
+            f"states {difference[:n_x].max():.1e}, sensitivities "
+            f"{difference[n_x:].max():.1e} (of each row's range)"
+        )
 
 
 if __name__ == "__main__":
