@@ -12,9 +12,8 @@ the outputs is applied afterwards, sample by sample.
 
 Two routes integrate it. Where softcurve's CVODES driver is available
 (:mod:`softcurve.simulation.native`), the state is integrated by Adams-Newton on its own
-Newton matrix and the sensitivity columns by CVODES's staggered corrector (only the
-state in the error test), all in C and without a restart at the samples of a linear
-input hold; otherwise (no driver, or
+Newton matrix and the sensitivity columns by CVODES's staggered corrector (outside the
+error test), all in C, without a restart at the samples of a linear hold; otherwise (no driver, or
 CVODES options other than :data:`NATIVE_OPTIONS`) CasADi's CVODES integrates the
 augmented system with :data:`SENSITIVITY_CVODES`. Both agree to the tolerances
 (``tests/test_sensitivity_driver.py``); the driver is 1.5x (inputs held) to 2.8x (linear
@@ -49,12 +48,10 @@ takes the same tolerances and step limit."""
 
 NATIVE_OPTIONS = frozenset({"reltol", "abstol", "max_num_steps", "fsens_err_con"})
 """The CVODES options the driver's route understands; others select CasADi's route.
-``fsens_err_con`` (CasADi's name; default False in the driver's route, CVODES's own
-default) puts the sensitivity columns in the error test too: on the 300 s trial of
-``benchmarks/bench_identification.py`` that took 1.6 times the steps for Jacobian
-columns within 3e-9 instead of 3e-7 of a reference at rtol 1e-12, far below what a
-fit's steps and confidence intervals resolve. CasADi's route integrates ``(x, S)`` as
-one system, every column in the error test."""
+``fsens_err_con`` (default False, CVODES's own) puts the sensitivity columns in the
+error test: 1.6 times the steps for Jacobian columns within 3e-9 instead of 3e-7 of
+a reference, which no fit resolves (docs/validation.md). CasADi's route always has
+them in it (it integrates ``(x, S)`` as one system)."""
 
 NATIVE_FAMILY = 1
 """Adams (1), with Newton iteration, in the driver's route: on the 30 s benchmark case
