@@ -150,7 +150,8 @@ def _load():
     sensitivity = library.softcurve_sensitivities
     sensitivity.argtypes = [
         ctypes.POINTER(_Function), pointer, pointer, integer, pointer, pointer, pointer,
-        integer, pointer, integer, integer, real, real, ctypes.c_long, pointer, pointer, pointer,
+        integer, pointer, integer, integer, real, real, ctypes.c_long, integer, pointer,
+        pointer, pointer,
     ]  # fmt: skip
     sensitivity.restype = ctypes.c_int
     library.softcurve_outside.argtypes = [pointer, integer, pointer, integer, real, pointer]

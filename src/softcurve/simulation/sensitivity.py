@@ -16,9 +16,9 @@ Newton matrix and the sensitivity columns by CVODES's staggered corrector (outsi
 error test), all in C, without a restart at the samples of a linear hold; otherwise (no driver, or
 CVODES options other than :data:`NATIVE_OPTIONS`) CasADi's CVODES integrates the
 augmented system with :data:`SENSITIVITY_CVODES`. Both agree to the tolerances
-(``tests/test_sensitivity_driver.py``); the driver is 1.5x (inputs held) to 2.8x (linear
-hold) faster on ``benchmarks/bench_identification.py``'s case
-(``benchmarks/study_sensitivity_driver.py`` compares families and tolerances).
+(``tests/test_sensitivity_driver.py``). With the columns in its error test the driver was
+1.5x (inputs held) to 2.8x (linear hold) faster on ``bench_identification.py``'s case,
+without them 1.34x more (``benchmarks/study_sensitivity_driver.py`` compares).
 """
 
 from __future__ import annotations
