@@ -15,11 +15,7 @@ from softcurve.base.status import Status
 from softcurve.description.robot import MAX_BEND, MAX_STRETCH, in_domain
 from softcurve.simulation import native
 from softcurve.simulation.batch import simulate_batch
-from softcurve.simulation.cvodes_driver import DRIVER_SOURCE
-from softcurve.simulation.cvodes_groups import GROUPS_SOURCE
-from softcurve.simulation.driver_entries import ENTRIES_SOURCE
 from softcurve.simulation.engine import nominal_scale
-from softcurve.simulation.sensitivity_driver import SENSITIVITY_SOURCE
 
 from .conftest import assert_close
 
@@ -172,7 +168,7 @@ def test_every_declared_entry_matches_its_c_signature():
     still calls (x86-64 passes late ints and pointers alike), silently wrong."""
     if native.driver() is None:
         pytest.skip("softcurve's CVODES driver is not available here (no C compiler)")
-    source = DRIVER_SOURCE + GROUPS_SOURCE + ENTRIES_SOURCE + SENSITIVITY_SOURCE
+    source = native.LIBRARY_SOURCE
     names = re.findall(r'visibility\("default"\)\)\)\s+\w+\s+(\w+)\(', source)
     checked = 0
     for name in names:

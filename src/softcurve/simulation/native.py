@@ -40,6 +40,9 @@ from softcurve.simulation.sensitivity_driver import SENSITIVITY_SOURCE
 PLUGIN = "libcasadi_integrator_cvodes.so"
 """CasADi's CVODES plugin, which holds SUNDIALS CVODES (the 2.x interface: ``CVSpgmr``)."""
 
+LIBRARY_SOURCE = DRIVER_SOURCE + GROUPS_SOURCE + ENTRIES_SOURCE + SENSITIVITY_SOURCE
+"""The C source of the driver's library, with every entry that :func:`driver` loads."""
+
 STATISTICS = ("steps", "rhs_evaluations", "jacobian_evaluations", "linear_solver_setups",
               "error_test_failures", "newton_failures")  # fmt: skip
 """The counters the driver returns per member, in its order."""
@@ -123,15 +126,13 @@ def _load():
     if os.environ.get("SOFTCURVE_NATIVE_CVODES", "1") in ("0", ""):
         return None
     directory = Path(ca.__file__).parent
-    plugin = directory / PLUGIN
     try:
-        if not hasattr(ctypes.CDLL(str(plugin)), "CVSpgmr"):  # SUNDIALS >= 3: other API
+        if not hasattr(ctypes.CDLL(str(directory / PLUGIN)), "CVSpgmr"):  # SUNDIALS >= 3: other API
             return None
     except OSError:
         return None
     link = (f"-L{directory}", f"-l:{PLUGIN}", f"-Wl,-rpath,{directory}")
-    source = DRIVER_SOURCE + GROUPS_SOURCE + ENTRIES_SOURCE + SENSITIVITY_SOURCE
-    library = compile_source("cvodes_driver", source, link)
+    library = compile_source("cvodes_driver", LIBRARY_SOURCE, link)
     if library is None:
         return None
     _LIBRARY.append(library)
@@ -139,8 +140,7 @@ def _load():
     evaluate_function.argtypes = [ctypes.POINTER(_Function), ctypes.c_int] + [ctypes.c_void_p] * 4
     evaluate_function.restype = ctypes.c_int
     function = library.softcurve_cvodes
-    pointer = ctypes.c_void_p
-    integer, real = ctypes.c_int, ctypes.c_double
+    pointer, integer, real = ctypes.c_void_p, ctypes.c_int, ctypes.c_double
     function.argtypes = [
         ctypes.POINTER(_Function), integer, pointer, pointer, real, pointer, pointer, pointer,
         pointer, integer, real, pointer, integer, pointer, pointer, integer, real, real,
