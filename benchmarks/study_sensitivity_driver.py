@@ -34,7 +34,7 @@ from scipy.integrate import solve_ivp
 
 import softcurve as sc
 from softcurve.identification.maps import bellows_input_map
-from softcurve.simulation.sensitivity import integrate_sensitivities
+from softcurve.simulation.sensitivity_route import DriverSettings, integrate_sensitivities
 
 sys.path.insert(0, str(Path(__file__).parent))
 import bench_identification
@@ -93,7 +93,8 @@ def main() -> None:
     evaluate(theta)  # compiles and loads the driver's functions
     problem, columns = evaluate._route()
     route = evaluate.driven
-    times, table, linear, max_steps = route.times, route.table, route.linear, route.tolerances[2]
+    times, table, linear = route.times, route.table, route.linear
+    max_steps = route.settings.max_steps
     d_value = np.array(evaluate.direct(theta)[0]).ravel()
     start = np.concatenate([d_value[evaluate.n_p + evaluate.n_v :], evaluate.seed.ravel("F")])
     d_scaled = np.concatenate([d_value, evaluate.scale])
@@ -120,7 +121,7 @@ def main() -> None:
     for family, rtol, atol, tested in cases:
         name = {1: "Adams", 2: "BDF"}[family]
         tested_text = "state and columns" if tested else "state only"
-        tolerances = (rtol, atol, max_steps, family, tested)
+        tolerances = DriverSettings(rtol, atol, max_steps, family, tested)
         wall, (out, _, flag, counts) = best(
             lambda t=tolerances: integrate_sensitivities(
                 problem, columns, start, d_value, d_scaled, times, table, linear, t

@@ -11,7 +11,8 @@ parameters ``theta`` (ties, re-parametrizations, initial states) and from the st
 the outputs is applied afterwards, sample by sample.
 
 Two routes integrate it. Where softcurve's CVODES driver is available
-(:mod:`softcurve.simulation.native`), the state is integrated by Adams-Newton on its own
+(:mod:`softcurve.simulation.native`; the call and its settings are in
+:mod:`softcurve.simulation.sensitivity_route`), the state is integrated by Adams-Newton on its own
 Newton matrix and the sensitivity columns by CVODES's staggered corrector (outside the
 error test), all in C, without a restart at the samples of a linear hold; otherwise (no driver, or
 CVODES options other than :data:`NATIVE_OPTIONS`) CasADi's CVODES integrates the
@@ -23,11 +24,8 @@ without them 1.34x more (``benchmarks/study_sensitivity_driver.py`` compares).
 
 from __future__ import annotations
 
-import ctypes
 import pickle
 import uuid
-from pathlib import Path
-from typing import NamedTuple
 
 import casadi as ca
 import numpy as np
@@ -35,6 +33,12 @@ import numpy as np
 from softcurve.compiled.generated import compile_function
 from softcurve.simulation import native
 from softcurve.simulation.engine import cvodes_options
+from softcurve.simulation.sensitivity_route import (
+    DriverRoute,
+    DriverSettings,
+    integrate_sensitivities,
+    located,
+)
 from softcurve.simulation.stepper_native import load_native
 
 SENSITIVITY_CVODES = cvodes_options(
@@ -60,27 +64,6 @@ NATIVE_FAMILY = 1
 Adams's higher orders)."""
 
 
-class DriverRoute(NamedTuple):
-    """What a :class:`SensitivityEvaluator` needs for the driver's route, and carries into
-    worker processes: the compiled libraries by ``(path, name)``, not their functions."""
-
-    state: tuple[str, str]
-    """``f(x, u, d)``: its library's absolute path and the function's name."""
-    columns: tuple[str, str]
-    """``fs(x;vec(S), u, d;scale) -> f;vec(S')``: path and name."""
-    sizes: tuple[int, int, int]
-    """``(nx, nu, n_d)`` of ``f``."""
-    times: np.ndarray
-    """Output times [s], shape (T,)."""
-    table: np.ndarray
-    """The inputs per interval, shape (T, k) or (T, 2 k) (:func:`integrate_sensitivities`)."""
-    linear: bool
-    """The inputs are linear between samples (else held)."""
-    tolerances: tuple
-    """``(rtol, atol, max_steps per output, family, columns_tested)``
-    (:func:`integrate_sensitivities`)."""
-
-
 class SensitivityEvaluator:
     """``theta -> (Y (k, T), dvec(Y)/dtheta (k T, P))`` for one experiment.
 
@@ -98,6 +81,9 @@ class SensitivityEvaluator:
         self.stats: dict = {}
         """The last evaluation's route and counters (steps, right-hand sides, ...), in the
         process that evaluated it (a worker's, under a parallel fit)."""
+        self.variational: ca.Function | None = None
+        """``fs(x;vec(S), u, d;scale) -> f;vec(S')``, the SX function both routes compile
+        (in the process that built the evaluator; for studies of its cost)."""
 
     def __reduce__(self):
         # Serialized once; a worker that has loaded this evaluator before reuses it
@@ -147,7 +133,7 @@ class SensitivityEvaluator:
         driven = self.driven
         out, reached, flag, counts = integrate_sensitivities(
             problem, columns, start, d_value, d_scaled, driven.times, driven.table,
-            driven.linear, driven.tolerances,
+            driven.linear, driven.settings,
         )  # fmt: skip
         self.stats = {"route": "driver", **counts}
         if flag:
@@ -316,85 +302,22 @@ def trajectory_sensitivities(
         settings = {**SENSITIVITY_CVODES, **(options or {})}
         f_state = augmented(ca.vertcat(xs, ca.SX.zeros(n_x * m)), us, ca.vertcat(ds, np.ones(m)))
         plain = ca.Function("softcurve_state", [xs, us, ds], [ca.densify(f_state[:n_x])])
-        libraries = [compile_function(g, load=_located) for g in (plain, augmented)]
+        libraries = [compile_function(g, load=located) for g in (plain, augmented)]
         if all(isinstance(entry, tuple) for entry in libraries):
-            tolerances = (float(settings["reltol"]), float(settings["abstol"]))
-            tolerances += (int(settings["max_num_steps"]), NATIVE_FAMILY)
-            tolerances += (bool(settings.get("fsens_err_con", False)),)
+            cvodes = DriverSettings(
+                float(settings["reltol"]), float(settings["abstol"]),
+                int(settings["max_num_steps"]), NATIVE_FAMILY,
+                bool(settings.get("fsens_err_con", False)),
+            )  # fmt: skip
             table = np.ascontiguousarray(u_data.T)
             sizes = (n_x, plain.size1_in(1), plain.size1_in(2))
             (state, columns) = (entry[:2] for entry in libraries)
-            driven = DriverRoute(state, columns, sizes, t, table, hold == "linear", tolerances)
+            driven = DriverRoute(state, columns, sizes, t, table, hold == "linear", cvodes)
             (f_loaded, fs_loaded) = (entry[2] for entry in libraries)
             loaded = (native.Problem(f_loaded, *sizes), fs_loaded)
     evaluator = SensitivityEvaluator(
         direct, integrator, out, u_data, seed, scale, active, (n_p, n_v, n_x), driven
     )
     evaluator._native = loaded
+    evaluator.variational = augmented
     return evaluator
-
-
-def _located(path, name: str) -> tuple:
-    """``(path, name, the loaded function)`` of a compiled library, for the driver's route:
-    the path (absolute: a worker may start elsewhere) and name travel to worker processes,
-    the loaded function stays here."""
-    return (str(Path(path).resolve()), name, load_native(path, name))
-
-
-SENSITIVITY_STATISTICS = ("steps", "rhs_evaluations", "jacobian_evaluations",
-                          "linear_solver_setups", "error_test_failures",
-                          "sensitivity_evaluations")  # fmt: skip
-"""The counters :func:`integrate_sensitivities` returns, in the driver's order (the right-hand
-sides are CVODES's; those of the finite-difference Jacobians are not among them)."""
-
-
-def integrate_sensitivities(problem, columns, start, d, d_scaled, times, table, linear, tolerances):
-    """States and forward sensitivities over ``times`` in one call into the driver.
-
-    Parameters
-    ----------
-    problem : softcurve.simulation.native.Problem
-        ``f(x, u, d)`` of the state (no actuator).
-    columns : NativeFunction
-        ``fs(x;vec(S), u, d;scale) -> f;vec(S')`` for ``m`` columns.
-    start : ndarray, shape (W,)
-        ``(x0, vec(S0))`` with ``W = nx (1 + m)``, at ``times[0]``.
-    d : ndarray, shape (n_d,)
-        The parameters of ``f``.
-    d_scaled : ndarray, shape (n_d + m,)
-        ``(d, scale)``: the parameters of ``fs`` with its column scales.
-    times : ndarray, shape (T,)
-        Output times [s], increasing.
-    table : ndarray, shape (T, k) or (T, 2 k)
-        Row ``i``: the inputs on ``(times[i-1], times[i]]``, or the line ``(a, b)`` of
-        ``u = a + b t`` there with ``linear``.
-    linear : bool
-        Inputs continuous (integrated through) or held (a restart at every sample).
-    tolerances : tuple
-        ``(rtol, atol, max_steps per output, family, columns_tested)``: family 1 Adams or
-        2 BDF; ``columns_tested``, the sensitivity columns in the error test too.
-
-    Returns
-    -------
-    tuple
-        ``(out (T, W), reached, flag, counts)``: the outputs (rows after ``reached`` are
-        zero), how many were computed (``start`` included), 0 or CVODES's negative flag
-        (:data:`softcurve.simulation.native.FLAGS`) and the counters of
-        :data:`SENSITIVITY_STATISTICS`.
-    """
-    out = np.zeros((times.size, start.size))
-    out[0] = start
-    arrays = [np.ascontiguousarray(a, dtype=np.float64) for a in (d, d_scaled, times, table)]
-    sizes = np.array([columns._sz_arg, columns._sz_res, columns._sz_iw, columns._sz_w], np.int64)
-    counts = np.zeros(len(SENSITIVITY_STATISTICS), dtype=np.int64)
-    reached = ctypes.c_int(0)
-    rtol, atol, max_steps, family, columns_tested = tolerances
-    m = start.size // problem.struct.nx - 1
-    flag = native.entry("softcurve_sensitivities")(
-        ctypes.byref(problem.struct), ctypes.cast(columns._function, ctypes.c_void_p).value,
-        sizes.ctypes.data, m, arrays[0].ctypes.data, arrays[1].ctypes.data,
-        arrays[2].ctypes.data, times.size, arrays[3].ctypes.data, int(linear), family, rtol,
-        atol, max_steps, int(columns_tested), out.ctypes.data, counts.ctypes.data,
-        ctypes.byref(reached),
-    )  # fmt: skip
-    return out, reached.value, flag, dict(zip(SENSITIVITY_STATISTICS, counts.tolist(), strict=True))

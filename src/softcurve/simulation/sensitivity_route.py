@@ -1,0 +1,133 @@
+"""The driver's route of the identification's forward sensitivities: what an evaluator
+carries into worker processes, and the one call into softcurve's CVODES driver
+(``softcurve_sensitivities``, :mod:`softcurve.simulation.sensitivity_driver`).
+
+The driver integrates the state by Adams-Newton on its own Newton matrix and the
+sensitivity columns ``S' = f_x S + f_d`` by CVODES's staggered corrector, evaluating the
+identification's compiled ``fs(x;vec(S), u, d;scale) -> f;vec(S')``.
+"""
+
+from __future__ import annotations
+
+import ctypes
+from pathlib import Path
+from typing import NamedTuple
+
+import numpy as np
+
+from softcurve.simulation import native
+from softcurve.simulation.stepper_native import load_native
+
+
+class DriverSettings(NamedTuple):
+    """How the driver integrates (CVODES's settings of :func:`integrate_sensitivities`)."""
+
+    rtol: float
+    """Relative tolerance."""
+    atol: float
+    """Absolute tolerance, in the state's units."""
+    max_steps: int
+    """Steps allowed per output interval."""
+    family: int
+    """1 Adams, 2 BDF."""
+    columns_tested: bool
+    """The sensitivity columns in the error test too (``fsens_err_con``)."""
+
+
+class DriverRoute(NamedTuple):
+    """What a sensitivity evaluator needs for the driver's route, and carries into worker
+    processes: the compiled libraries by ``(path, name)``, not their functions."""
+
+    state: tuple[str, str]
+    """``f(x, u, d)``: its library's absolute path and the function's name."""
+    columns: tuple[str, str]
+    """``fs(x;vec(S), u, d;scale) -> f;vec(S')``: path and name."""
+    sizes: tuple[int, int, int]
+    """``(nx, nu, n_d)`` of ``f``."""
+    times: np.ndarray
+    """Output times [s], shape (T,)."""
+    table: np.ndarray
+    """The inputs per interval, shape (T, k) or (T, 2 k) (:func:`integrate_sensitivities`)."""
+    linear: bool
+    """The inputs are linear between samples (else held)."""
+    settings: DriverSettings
+    """CVODES's settings."""
+
+
+def located(path, name: str) -> tuple:
+    """``(path, name, the loaded function)`` of a compiled library, for the driver's route:
+    the path (absolute: a worker may start elsewhere) and name travel to worker processes,
+    the loaded function stays here.
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The compiled library.
+    name : str
+        The function's name in it.
+
+    Returns
+    -------
+    tuple
+        ``(absolute path as str, name, NativeFunction)``.
+    """
+    return (str(Path(path).resolve()), name, load_native(path, name))
+
+
+SENSITIVITY_STATISTICS = ("steps", "rhs_evaluations", "jacobian_evaluations",
+                          "linear_solver_setups", "error_test_failures",
+                          "sensitivity_evaluations")  # fmt: skip
+"""The counters :func:`integrate_sensitivities` returns, in the driver's order: CVODES's
+steps, right-hand sides (not those of the finite-difference Newton matrices), Newton
+matrices, linear-solver setups and error-test failures, and the evaluations of ``fs``."""
+
+
+def integrate_sensitivities(problem, columns, start, d, d_scaled, times, table, linear, settings):
+    """States and forward sensitivities over ``times`` in one call into the driver.
+
+    Parameters
+    ----------
+    problem : softcurve.simulation.native.Problem
+        ``f(x, u, d)`` of the state (no actuator).
+    columns : NativeFunction
+        ``fs(x;vec(S), u, d;scale) -> f;vec(S')`` for ``m`` columns.
+    start : ndarray, shape (W,)
+        ``(x0, vec(S0))`` with ``W = nx (1 + m)``, at ``times[0]``.
+    d : ndarray, shape (n_d,)
+        The parameters of ``f``.
+    d_scaled : ndarray, shape (n_d + m,)
+        ``(d, scale)``: the parameters of ``fs`` with its column scales.
+    times : ndarray, shape (T,)
+        Output times [s], increasing.
+    table : ndarray, shape (T, k) or (T, 2 k)
+        Row ``i``: the inputs on ``(times[i-1], times[i]]``, or the line ``(a, b)`` of
+        ``u = a + b t`` there with ``linear``.
+    linear : bool
+        Inputs continuous (integrated through) or held (a restart at every sample).
+    settings : DriverSettings
+        CVODES's settings.
+
+    Returns
+    -------
+    tuple
+        ``(out (T, W), reached, flag, counts)``: the outputs (rows after ``reached`` are
+        zero), how many were computed (``start`` included), 0 or CVODES's negative flag
+        (:data:`softcurve.simulation.native.FLAGS`) and the counters of
+        :data:`SENSITIVITY_STATISTICS`.
+    """
+    out = np.zeros((times.size, start.size))
+    out[0] = start
+    arrays = [np.ascontiguousarray(a, dtype=np.float64) for a in (d, d_scaled, times, table)]
+    sizes = np.array([columns._sz_arg, columns._sz_res, columns._sz_iw, columns._sz_w], np.int64)
+    counts = np.zeros(len(SENSITIVITY_STATISTICS), dtype=np.int64)
+    reached = ctypes.c_int(0)
+    m = start.size // problem.struct.nx - 1
+    flag = native.entry("softcurve_sensitivities")(
+        ctypes.byref(problem.struct), ctypes.cast(columns._function, ctypes.c_void_p).value,
+        sizes.ctypes.data, m, arrays[0].ctypes.data, arrays[1].ctypes.data,
+        arrays[2].ctypes.data, times.size, arrays[3].ctypes.data, int(linear),
+        settings.family, settings.rtol, settings.atol, settings.max_steps,
+        int(settings.columns_tested), out.ctypes.data, counts.ctypes.data,
+        ctypes.byref(reached),
+    )  # fmt: skip
+    return out, reached.value, flag, dict(zip(SENSITIVITY_STATISTICS, counts.tolist(), strict=True))
