@@ -121,9 +121,9 @@ def main() -> None:
     for family, rtol, atol, tested in cases:
         name = {1: "Adams", 2: "BDF"}[family]
         tested_text = "state and columns" if tested else "state only"
-        tolerances = DriverSettings(rtol, atol, max_steps, family, tested)
+        settings = DriverSettings(rtol, atol, max_steps, family, tested)
         wall, (out, _, flag, counts) = best(
-            lambda t=tolerances: integrate_sensitivities(
+            lambda t=settings: integrate_sensitivities(
                 problem, columns, start, d_value, d_scaled, times, table, linear, t
             )
         )

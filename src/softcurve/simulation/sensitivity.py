@@ -37,7 +37,7 @@ from softcurve.simulation.sensitivity_route import (
     DriverRoute,
     DriverSettings,
     integrate_sensitivities,
-    located,
+    load_with_path,
 )
 from softcurve.simulation.stepper_native import load_native
 
@@ -302,9 +302,9 @@ def trajectory_sensitivities(
         settings = {**SENSITIVITY_CVODES, **(options or {})}
         f_state = augmented(ca.vertcat(xs, ca.SX.zeros(n_x * m)), us, ca.vertcat(ds, np.ones(m)))
         plain = ca.Function("softcurve_state", [xs, us, ds], [ca.densify(f_state[:n_x])])
-        libraries = [compile_function(g, load=located) for g in (plain, augmented)]
+        libraries = [compile_function(g, load=load_with_path) for g in (plain, augmented)]
         if all(isinstance(entry, tuple) for entry in libraries):
-            cvodes = DriverSettings(
+            driver_settings = DriverSettings(
                 float(settings["reltol"]), float(settings["abstol"]),
                 int(settings["max_num_steps"]), NATIVE_FAMILY,
                 bool(settings.get("fsens_err_con", False)),
@@ -312,7 +312,8 @@ def trajectory_sensitivities(
             table = np.ascontiguousarray(u_data.T)
             sizes = (n_x, plain.size1_in(1), plain.size1_in(2))
             (state, columns) = (entry[:2] for entry in libraries)
-            driven = DriverRoute(state, columns, sizes, t, table, hold == "linear", cvodes)
+            linear = hold == "linear"
+            driven = DriverRoute(state, columns, sizes, t, table, linear, driver_settings)
             (f_loaded, fs_loaded) = (entry[2] for entry in libraries)
             loaded = (native.Problem(f_loaded, *sizes), fs_loaded)
     evaluator = SensitivityEvaluator(

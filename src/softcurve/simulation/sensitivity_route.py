@@ -2,9 +2,10 @@
 carries into worker processes, and the one call into softcurve's CVODES driver
 (``softcurve_sensitivities``, :mod:`softcurve.simulation.sensitivity_driver`).
 
-The driver integrates the state by Adams-Newton on its own Newton matrix and the
-sensitivity columns ``S' = f_x S + f_d`` by CVODES's staggered corrector, evaluating the
-identification's compiled ``fs(x;vec(S), u, d;scale) -> f;vec(S')``.
+The driver integrates the state by Adams-Newton (or BDF, :attr:`DriverSettings.family`)
+on its own Newton matrix and the sensitivity columns ``S' = f_x S + f_d`` by CVODES's
+staggered corrector, evaluating the identification's compiled
+``fs(x;vec(S), u, d;scale) -> f;vec(S')``.
 """
 
 from __future__ import annotations
@@ -54,7 +55,7 @@ class DriverRoute(NamedTuple):
     """CVODES's settings."""
 
 
-def located(path, name: str) -> tuple:
+def load_with_path(path, name: str) -> tuple:
     """``(path, name, the loaded function)`` of a compiled library, for the driver's route:
     the path (absolute: a worker may start elsewhere) and name travel to worker processes,
     the loaded function stays here.
