@@ -9,8 +9,8 @@ once or twice per CVODES step, and that is most of a dynamic fit's evaluation. T
 script times, on ``--states`` different states evaluated in turn in a C loop (best of
 ``--rounds`` alternating rounds), in the order it prints them:
 
-1. the driver's own library of ``fs`` (``compile_function``: ``-O1 -march=native``),
-   called through its function pointer;
+1. the driver's own library of ``fs`` (``compile_function``'s ``FUNCTION_FLAGS`` and
+   ``-march=native``), called through its function pointer;
 2. CasADi's C of the same ``fs`` (built here, like every variant below, with the
    model's flags ``-O2 -march=native``);
 3. ``[f; f_x; f_d]`` with the product ``f_x S + f_d`` formed in C (what a driver that
@@ -282,7 +282,7 @@ def main() -> None:
     x += rng.normal(0.0, SPREAD, x.shape) * (np.abs(x) + FLOOR)
     u = np.full(n_u, PRESSURE)
     dsc = np.concatenate([d_value, evaluate.scale])
-    built = {"the driver's library of fs (-O1)": (driver_library(route[1], nx * (1 + m)), fs)}
+    built = {"the driver's library of fs": (driver_library(route[1], nx * (1 + m)), fs)}
     for name, function, library in (
         ("CasADi's C of fs", fs, casadi_c(fs, "study_fs", nx, m, False)),
         ("[f; f_x; f_d], product in C", linearization,
@@ -306,7 +306,7 @@ def main() -> None:
             start = time.perf_counter()
             run(x, u, dsc, outputs[name])
             best[name] = min(best[name], (time.perf_counter() - start) / args.states)
-    reference = outputs["the driver's library of fs (-O1)"]
+    reference = outputs["the driver's library of fs"]
     span = np.abs(reference).max(axis=0) + np.finfo(float).tiny
     print(
         f"{m} columns, {nx} states; operations: f {plain.n_instructions()}, f with its "

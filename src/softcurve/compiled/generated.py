@@ -13,17 +13,19 @@ import casadi as ca
 
 from softcurve.compiled import build
 
-FUNCTION_FLAGS = ("-O1",)
+FUNCTION_FLAGS = ("-O2", "-fno-gcse", "-fno-tree-pre", "-fno-code-hoisting")
 """Optimization flags of :func:`compile_function` (``-march=native`` is added unless
 ``SOFTCURVE_PORTABLE`` is set). Its functions are large (the identification's
-sensitivity equations of the paper robot are 75,000 operations), and GCC 12 compiles
-them at ``-O1`` in seconds where ``-O2`` and ``-O3`` take minutes for little more speed.
-``-march=native`` is the flag that pays: ``benchmarks/bench_compile_flags.py`` prints,
-per function, every flag set's compile time and speed (2026-11-30, best of 3 alternating
-runs on a noisy 2-core machine): ``-march=native`` made the sensitivity function 1.29x,
-the stepper's period 1.10-1.56x and the model's right-hand side 1.18-1.20x faster than
-plain ``-O1``; GCC's straight-line vectorizer and second scheduling pass added nothing
-measurable."""
+sensitivity equations of the paper robot are 75,000 operations of straight-line code).
+Of what ``-O2`` adds to ``-O1``, GCC 12's partial-redundancy elimination and code
+hoisting take minutes on them (72-95 s with either on, against 7-10 s with both off)
+and global common-subexpression elimination makes the code slower (10.2-10.5 us with
+it against 8.9-10.0 us without, in a C loop over 64 states); CasADi has already shared
+the common subexpressions. Without the three, ``-O2`` compiles in 8.4 s against
+``-O1``'s 6.5 s and evaluates the sensitivity function in 9.86 us against 11.77 us
+(``python benchmarks/bench_compile_flags.py --only sensitivity --quick``, 2026-12-02,
+best of 5 alternating runs, ``-march=native`` on both). A two-segment robot's
+401,000-operation function compiled in 76 s against 59 s at ``-O1`` (side by side)."""
 
 
 def compile_function(function: ca.Function, flags: tuple[str, ...] | None = None, load=None):
