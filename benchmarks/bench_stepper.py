@@ -1,7 +1,7 @@
 """Throughput and accuracy of the batched fixed-step stepper (softcurve.simulation.stepper).
 
 Run:  python benchmarks/bench_stepper.py [--repeat 5] [--sizes 1,16,256,1024]
-      [--accuracy-periods 100] [--skip-tendons] [--skip-o1]
+      [--accuracy-periods 100] [--skip-tendons] [--skip-flags]
 
 The case is the paper's robot (preset ifac2020) with the bellows of
 examples/pneumatic.toml (three per segment, 12 mm from the backbone, 2e-4 m^2, 0..60 kPa,
@@ -16,7 +16,7 @@ substeps.
 2. Threads: N = 256 with 1 thread and with all cores (the speed-up shows whether the
    threads run in parallel).
 3. Compiler flags: the stepper compiled with softcurve's flags (``STEPPER_FLAGS``) against
-   ``compile_function``'s ``FUNCTION_FLAGS`` (``--skip-o1`` skips the extra compile;
+   ``compile_function``'s ``FUNCTION_FLAGS`` (``--skip-flags`` skips the extra compile;
    ``bench_compile_flags.py`` compares more).
 4. Accuracy: random pressure commands, uniform in the bounds, held 20 ms each over
    ``--accuracy-periods`` periods (2 s), two seeds, against ``simulate(..., rtol=1e-10)``
@@ -279,7 +279,7 @@ def main() -> None:
     parser.add_argument("--accuracy-periods", type=int, default=100)
     parser.add_argument("--skip-tendons", action="store_true")
     parser.add_argument("--tendon-periods", type=int, default=20)
-    parser.add_argument("--skip-o1", action="store_true")
+    parser.add_argument("--skip-flags", action="store_true")
     parser.add_argument("--skip-contact", action="store_true")
     args = parser.parse_args()
     sizes = [int(s) for s in args.sizes.split(",")]
@@ -296,7 +296,7 @@ def main() -> None:
     throughput(stepper, sizes, args.repeat, rhs_us)
     print("\n2. Threads")
     threads(model, actuator, args.repeat)
-    if not args.skip_o1:
+    if not args.skip_flags:
         print("\n3. Compiler flags of the stepper (one member)")
         compiler_flags(model, actuator, args.repeat)
     rows = [("ROS2", s) for s in (8, 16, 32, 64)] + [("ROS34PW2", s) for s in (4, 8, 12, 16, 24)]

@@ -198,10 +198,36 @@ def test_compile_function_builds_for_this_cpu_and_falls_back_without_march_nativ
 def test_compile_function_without_a_working_compiler_returns_the_function(monkeypatch, tmp_path):
     monkeypatch.setenv("SOFTCURVE_CACHE_DIR", str(tmp_path))
     monkeypatch.setenv("CC", "false")
+    monkeypatch.setattr(generated, "_REFUSING_FLAGS", set())
     function = _small_function()
-    assert generated.compile_function(function) is function
+    with pytest.warns(model_module.CompilerWarning, match="virtual machine"):
+        assert generated.compile_function(function) is function
     monkeypatch.setattr(model_module, "_compiler", lambda: None)
-    assert generated.compile_function(function) is function
+    assert generated.compile_function(function) is function  # no compiler: said elsewhere
+
+
+def test_a_compiler_refusing_the_function_flags_builds_with_the_portable_ones(
+    monkeypatch, tmp_path
+):
+    """clang has no -fno-tree-pre, GCC before 8 no -fno-code-hoisting: the function is
+    still compiled, with PORTABLE_FUNCTION_FLAGS, and the compiler is asked once."""
+    refused = tmp_path / "refused.log"
+    refusing = compiler_refusing(tmp_path, "-fno-code-hoisting", log=refused)
+    if refusing is None:
+        pytest.skip("no C compiler")
+    monkeypatch.setenv("CC", str(refusing))
+    monkeypatch.setenv("SOFTCURVE_CACHE_DIR", str(tmp_path / "cache"))
+    monkeypatch.setattr(generated, "_REFUSING_FLAGS", set())
+    function = _small_function()
+    compiled = generated.compile_function(function)
+    assert compiled.class_name() == "External"
+    x = np.array([0.3, -2.0, 1.5])
+    np.testing.assert_allclose(np.array(compiled(x)), np.array(function(x)), rtol=1e-15)
+    assert generated._REFUSING_FLAGS == {(str(refusing),)}
+    x = ca.SX.sym("x")
+    generated.compile_function(ca.Function("softcurve_test_other", [x], [ca.cos(x)]))
+    # twice for the first function (with and without -march=native), not for the second
+    assert refused.read_text().count("x") == 2
 
 
 def test_the_cached_library_has_a_checksum_beside_it(paper_model):

@@ -8,6 +8,7 @@ from __future__ import annotations
 import hashlib
 import subprocess
 import sys
+import warnings
 
 import casadi as ca
 
@@ -25,7 +26,18 @@ the common subexpressions. Without the three, ``-O2`` compiles in 8.4 s against
 ``-O1``'s 6.5 s and evaluates the sensitivity function in 9.86 us against 11.77 us
 (``python benchmarks/bench_compile_flags.py --only sensitivity --quick``, 2026-12-02,
 best of 5 alternating runs, ``-march=native`` on both). A two-segment robot's
-401,000-operation function compiled in 76 s against 59 s at ``-O1`` (side by side)."""
+401,000-operation function compiled in 76 s against 59 s at ``-O1`` (side by side).
+They are GCC's (8 and later); a compiler that refuses them builds with
+:data:`PORTABLE_FUNCTION_FLAGS`."""
+
+PORTABLE_FUNCTION_FLAGS = ("-O1",)
+"""The flags of :func:`compile_function` for a compiler that refuses
+:data:`FUNCTION_FLAGS` (clang has no ``-fno-tree-pre``, GCC before 8 no
+``-fno-code-hoisting``): every C compiler takes them, and they compile as fast."""
+
+_REFUSING_FLAGS: set[tuple[str, ...]] = set()
+"""Compiler commands that refused :data:`FUNCTION_FLAGS` in this process: later builds
+use :data:`PORTABLE_FUNCTION_FLAGS` at once."""
 
 
 def compile_function(function: ca.Function, flags: tuple[str, ...] | None = None, load=None):
@@ -42,7 +54,8 @@ def compile_function(function: ca.Function, flags: tuple[str, ...] | None = None
     function : casadi.Function
         An SX or MX function without Python callbacks.
     flags : tuple of str, optional
-        The compiler's optimization flags (default :data:`FUNCTION_FLAGS`);
+        The compiler's optimization flags (default :data:`FUNCTION_FLAGS`, or
+        :data:`PORTABLE_FUNCTION_FLAGS` where the compiler refuses those);
         ``-march=native`` is added unless ``SOFTCURVE_PORTABLE`` is set, and dropped again
         if the compiler refuses it.
 
@@ -55,13 +68,18 @@ def compile_function(function: ca.Function, flags: tuple[str, ...] | None = None
     -------
     casadi.Function or object
         The compiled function as a CasADi ``external`` (derivatives by finite
-        differences) or what ``load`` returned, or ``function`` itself when no C compiler
-        works (then it runs in CasADi's virtual machine).
+        differences) or what ``load`` returned, or ``function`` itself when there is no C
+        compiler, or (with a :class:`~softcurve.compiled.build.CompilerWarning`) when the
+        build fails: then it runs in CasADi's virtual machine.
     """
     compiler = build._compiler()
     if compiler is None:
         return function
-    flags = FUNCTION_FLAGS if flags is None else tuple(flags)
+    default = flags is None
+    if default:
+        refusing = tuple(compiler) in _REFUSING_FLAGS
+        flags = PORTABLE_FUNCTION_FLAGS if refusing else FUNCTION_FLAGS
+    flags = tuple(flags)
     digest = hashlib.sha256(function.serialize().encode())
     digest.update(f"{ca.__version__} {sys.platform} {compiler} {flags}".encode())
     if build._native_flags():
@@ -81,5 +99,15 @@ def compile_function(function: ca.Function, flags: tuple[str, ...] | None = None
             else (lambda path: load(path, name)),
             stacklevel=2,
         )
-    except (OSError, subprocess.CalledProcessError):
+    except (OSError, subprocess.CalledProcessError) as exc:
+        if default and flags == FUNCTION_FLAGS:  # refused by this compiler: once more, portable
+            _REFUSING_FLAGS.add(tuple(compiler))
+            return compile_function(function, None, load)
+        detail = str(getattr(exc, "stderr", None) or exc).strip()[:400]
+        warnings.warn(
+            f"compiling {name} with {compiler[0]} failed ({detail}): it runs in CasADi's "
+            "virtual machine",
+            build.CompilerWarning,
+            stacklevel=2,
+        )
         return function
