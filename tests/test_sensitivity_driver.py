@@ -96,27 +96,32 @@ def _assert_agree(y, jacobian, y_ref, jacobian_ref, tolerance):
         assert np.abs(column - expected).max() <= 10 * tolerance * np.abs(expected).max(), j
 
 
+UNCONTROLLED = 1000
+"""Bound on the sensitivity columns' error outside the error test, in rtol: nothing
+controls it, and it follows the build's rounding (with the linear hold on this trial:
+2-7e-8 with the sensitivity function at ``-O1``, 1.6e-8 to 1.8e-7 with
+``FUNCTION_FLAGS`` and NumPy 2.4, 4.4e-7 with NumPy 2.2, whose Gauss weights differ in
+their last bits, and up to 7.9e-7 with weights nudged by a few ulps); a Gauss-Newton
+step resolves none of it."""
+
+
 @pytest.mark.parametrize("hold", ["linear", "constant"])
-def test_the_sensitivities_outside_the_error_test_are_as_accurate_as_a_fit_needs(model, hold):
-    """Only the state is in CVODES's error test: at the default rtol 1e-8 the outputs stay
-    within 2 rtol of a reference at rtol 1e-12 and each Jacobian column within 100 rtol
-    of its largest entry. Nothing controls the columns' error, and it follows the
-    rounding of the build: with the linear hold, 2-7e-8 with the sensitivity function at
-    ``-O1``, 1.6e-8 to 1.8e-7 with ``FUNCTION_FLAGS`` and NumPy 2.4, up to 4.4e-7 with
-    NumPy 2.2 (the Python 3.10 venv's: its Gauss weights differ in their last bits); a
-    Gauss-Newton step resolves none of it. Outputs within 4-10e-9 in all three."""
-    evaluate, theta = _evaluator(model, hold)
-    y, jacobian = evaluate(theta)
-    # the reference's columns are outside its error test too; with them in it, it moves
-    # by 8e-10, a hundredth of the errors bounded here
+def test_the_sensitivities_are_as_accurate_as_the_error_test_says(model, hold):
+    """Against a reference at rtol 1e-12, at the default rtol 1e-8: the outputs within 2
+    rtol, either way; the Jacobian's columns within 5 rtol of each column's largest entry
+    with them in the error test (``fsens_err_con``, measured 0.7-1.4 rtol) and within
+    :data:`UNCONTROLLED` rtol without (the default)."""
     tight = {"reltol": 1e-12, "abstol": 1e-14, "max_num_steps": 10**6}
-    reference, theta_again = _evaluator(model, hold, options=tight)
-    y_ref, jacobian_ref = reference(theta_again)
-    assert evaluate.stats["route"] == reference.stats["route"] == "driver"
+    reference, theta = _evaluator(model, hold, options=tight)
+    y_ref, jacobian_ref = reference(theta)
     rtol = SENSITIVITY_CVODES["reltol"]
-    assert np.abs(y - y_ref).max() <= 2 * rtol * np.abs(y_ref).max()
-    error = np.abs(jacobian - jacobian_ref).max(axis=0) / np.abs(jacobian_ref).max(axis=0)
-    assert error.max() <= 100 * rtol, error
+    for options, bound in ((None, UNCONTROLLED), ({"fsens_err_con": True}, 5)):
+        evaluate, theta = _evaluator(model, hold, options=options)
+        y, jacobian = evaluate(theta)
+        assert evaluate.stats["route"] == reference.stats["route"] == "driver"
+        assert np.abs(y - y_ref).max() <= 2 * rtol * np.abs(y_ref).max()
+        error = np.abs(jacobian - jacobian_ref).max(axis=0) / np.abs(jacobian_ref).max(axis=0)
+        assert error.max() <= bound * rtol, (options, error)
 
 
 def test_fsens_err_con_puts_the_columns_in_the_driver_error_test(model):
@@ -125,9 +130,12 @@ def test_fsens_err_con_puts_the_columns_in_the_driver_error_test(model):
     tested, theta_again = _evaluator(model, "linear", options={"fsens_err_con": True})
     y_tested, jacobian_tested = tested(theta_again)
     assert tested.stats["route"] == "driver"
-    # more error to control, more steps; the same trajectory within the tolerances
+    # more error to control, more steps; the same trajectory within the tolerances, the
+    # columns within what the default leaves uncontrolled
     assert tested.stats["steps"] > evaluate.stats["steps"]
-    _assert_agree(y, jacobian, y_tested, jacobian_tested, 1e-7)
+    assert np.abs(y - y_tested).max() <= 1e-7 * np.abs(y_tested).max()
+    error = np.abs(jacobian - jacobian_tested).max(axis=0) / np.abs(jacobian_tested).max(axis=0)
+    assert error.max() <= UNCONTROLLED * SENSITIVITY_CVODES["reltol"], error
 
 
 def test_the_driver_counts_every_restart_of_a_held_input(model):
