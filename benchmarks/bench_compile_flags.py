@@ -85,8 +85,9 @@ FLAG_SETS = {
         "-O1", "-march=native", "-ftree-slp-vectorize", "-fschedule-insns2",
     ),
     "-O2 -march=native": ("-O2", "-march=native"),
-    "-O2 -march=native without GCSE, PRE, hoisting": (
-        "-O2", "-fno-gcse", "-fno-tree-pre", "-fno-code-hoisting", "-march=native",
+    # softcurve's FUNCTION_FLAGS (-O2 without GCSE, PRE and code hoisting)
+    " ".join(generated.FUNCTION_FLAGS + build._NATIVE_FLAGS): (
+        generated.FUNCTION_FLAGS + build._NATIVE_FLAGS
     ),
     "-O3 -march=native": ("-O3", "-march=native"),
 }  # fmt: skip
