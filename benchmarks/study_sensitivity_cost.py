@@ -266,6 +266,9 @@ def main() -> None:
     parser.add_argument("--states", type=int, default=64, help="states evaluated in turn")
     parser.add_argument("--rounds", type=int, default=7, help="alternating rounds (best kept)")
     args = parser.parse_args()
+    for name in ("states", "rounds"):
+        if getattr(args, name) < 1:
+            parser.error(f"--{name} must be at least 1, got {getattr(args, name)}")
     print(f"{time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}, {os.cpu_count()} CPUs, "
           f"load average {os.getloadavg()}")  # fmt: skip
     evaluate, theta = bench_identification.dynamic_evaluator(TRIAL, "linear")
