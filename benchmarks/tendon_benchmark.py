@@ -54,6 +54,9 @@ AREA = math.pi * BACKBONE_RADIUS**2  # A [m^2]
 BENDING = YOUNG * SECOND_MOMENT  # E I [N m^2]
 AXIAL = YOUNG * AREA  # E A [N]
 TORSION = YOUNG / (2 * (1 + POISSON)) * 2 * SECOND_MOMENT  # G J, J = 2 I [N m^2]
+SHOOTING_RESIDUAL = 1e-12
+"""A shooting whose fixed-point residual is within this fraction of the tip's distance
+is solved, whatever hybr's step test says (the integration's rtol is 1e-11)."""
 
 CASES = (
     # name, tensions [N] (proximal 1-3, distal 4-6), where the case comes from
@@ -190,7 +193,10 @@ def rod_equilibrium(tensions, tip_force, *, extensible: bool = True) -> RodSolut
             method="hybr",
             options={"xtol": 1e-13},
         )
-        tip, success = found.x, bool(found.success)
+        # hybr's step test can fail at xtol 1e-13 once the residual is at rounding
+        # (2.6e-16 m on case C, -z load, with NumPy 2.4.6): the residual decides.
+        solved = np.abs(found.fun).max() <= SHOOTING_RESIDUAL * np.linalg.norm(found.x)
+        tip, success = found.x, bool(found.success) or bool(solved)
     y, lengths, chords = _integrate(tip, tensions, force, extensible, disks=True)
     return RodSolution(y[:3], lengths, chords, float(y[15]), success)
 
