@@ -9,7 +9,10 @@ Run:  python benchmarks/bench_identification.py [--repeat N] [--quick] [--joint]
    300 s sampled at 12 Hz; curvatures measured; five free parameters (bending a1,
    damping, bellows area and angle, creep gain). One evaluation is one simulation with
    forward sensitivities (what every iteration of ``fit_trajectory`` costs), timed after
-   a warm-up (compiled, integrator set up), best of ``--repeat``, for inputs held
+   a warm-up (compiled, integrator set up), best of ``--repeat``, on the threads a
+   one-experiment fit takes here by default (``fit_trajectory(threads=...)``: all usable
+   cores; 2 or more evaluate the sensitivity equations in two parts on two threads) and,
+   for the default tolerances and linear hold, on one thread too, for inputs held
    constant between samples (the default) and linearly (``input_hold="linear"``), and
    linearly with looser tolerances (rtol 1e-6, atol 1e-8 instead of 1e-8, 1e-10), and
    linearly with the sensitivity columns in CVODES's error test too (``fsens_err_con``;
@@ -45,7 +48,7 @@ import softcurve as sc
 from softcurve.identification import equilibria
 from softcurve.identification.dynamic import fit_equilibria
 from softcurve.identification.experiments import Experiment
-from softcurve.identification.joint import evaluate_all
+from softcurve.identification.joint import evaluate_all, parallel_layout
 from softcurve.identification.maps import InputMap, bellows_input_map, curvatures
 from softcurve.identification.parameters import Free, FreeParameters
 from softcurve.simulation import native
@@ -73,7 +76,7 @@ def random_pressures(duration: float) -> tuple[np.ndarray, dict]:
     return t, pressures
 
 
-def dynamic_evaluator(duration: float, hold: str, options=None):
+def dynamic_evaluator(duration: float, hold: str, options=None, threads: int = 1):
     model = sc.Model(sc.presets.ifac2020())
     t, pressures = random_pressures(duration)
     experiment = Experiment(t, {"kx": 0 * t, "ky": 0 * t}, pressures, name="random")
@@ -89,16 +92,17 @@ def dynamic_evaluator(duration: float, hold: str, options=None):
     x0 = np.zeros(model.n_state)
     x0[:3] = [0.0644, 1.0, 0.0]
     evaluate = trajectory_sensitivities(
-        model, parameters, curvatures(), inputs, x0, experiment, options, hold=hold
-    )
+        model, parameters, curvatures(), inputs, x0, experiment, options, hold=hold,
+        threads=threads,
+    )  # fmt: skip
     return evaluate, parameters.theta0
 
 
 def dynamic(args) -> None:
     duration = 30.0 if args.quick else 300.0
     print(f"\n1. dynamic evaluation, {duration:g} s at 12 Hz, 5 free parameters")
-    for hold, options in args.cases:
-        evaluate, theta = dynamic_evaluator(duration, hold, options)
+    for hold, options, threads in args.cases:
+        evaluate, theta = dynamic_evaluator(duration, hold, options, threads)
         evaluate(theta)  # warm-up
         wall, _ = best_of(args.repeat, lambda e=evaluate, th=theta: e(th))
         stats = evaluate.stats
@@ -106,7 +110,8 @@ def dynamic(args) -> None:
         tolerances = "default tolerances" if options is None else str(options)
         sensitivities = stats.get("sensitivity_evaluations")
         print(
-            f"  hold={hold:8s}, {tolerances}, {stats['route']}: {wall:7.2f} s ({scaled:.1f} s "
+            f"  hold={hold:8s}, {tolerances}, {stats['route']}, {threads} thread"
+            f"{'s' if threads > 1 else ''}: {wall:7.2f} s ({scaled:.1f} s "
             f"per 300 s; target {TARGET_DYNAMIC:g} s), {stats['steps']} steps, "
             f"{stats['rhs_evaluations']} right-hand sides"
             + ("" if sensitivities is None else f", {sensitivities} sensitivity evaluations")
@@ -204,9 +209,13 @@ def main() -> None:
     args = parser.parse_args()
     loose = {"reltol": 1e-6, "abstol": 1e-8}
     tested = {"fsens_err_con": True}
-    args.cases = [("constant", None), ("linear", None), ("linear", loose), ("linear", tested)]
+    threads = parallel_layout(1)[1]  # what a one-experiment fit uses here
+    args.cases = [("constant", None, threads), ("linear", None, threads), ("linear", None, 1),
+                  ("linear", loose, threads), ("linear", tested, threads)]  # fmt: skip
     if args.linear_only:
         args.cases = args.cases[1:]
+    if threads == 1:  # one core: the second row would repeat the first
+        args.cases = [case for case in args.cases if case != ("linear", None, 1)]
     print(f"load average {os.getloadavg()}, {os.cpu_count()} cores")
     print("previous: " + "; ".join(f"{k}: {v}" for k, v in PREVIOUS.items()))
     if args.only != "quasi-static":

@@ -285,7 +285,7 @@ def main() -> None:
     x += rng.normal(0.0, SPREAD, x.shape) * (np.abs(x) + FLOOR)
     u = np.full(n_u, PRESSURE)
     dsc = np.concatenate([d_value, evaluate.scale])
-    built = {"the driver's library of fs": (driver_library(route[1], nx * (1 + m)), fs)}
+    built = {"the driver's library of fs": (driver_library(route[1][0], nx * (1 + m)), fs)}
     for name, function, library in (
         ("CasADi's C of fs", fs, casadi_c(fs, "study_fs", nx, m, False)),
         ("[f; f_x; f_d], product in C", linearization,

@@ -124,7 +124,7 @@ def main() -> None:
         settings = DriverSettings(rtol, atol, max_steps, family, tested)
         wall, (out, _, flag, counts) = best(
             lambda t=settings: integrate_sensitivities(
-                problem, columns, start, d_value, d_scaled, times, table, linear, t
+                problem, columns, start, d_value, d_scaled, times, table, linear, t, route.helper
             )
         )
         difference = np.abs(out.T - reference).max(axis=1) / span

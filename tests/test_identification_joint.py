@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 import softcurve as sc
+from softcurve.identification import joint
 from softcurve.identification.dynamic import fit_trajectory, predict_trajectory
 from softcurve.identification.experiments import Experiment
 from softcurve.identification.maps import bending_angle, curvatures
@@ -101,6 +102,34 @@ def test_one_experiment_in_a_list_equals_the_single_fit(recordings):
     assert single.names[2] == "offset" and listed.names[2] == "offset[a]"
     np.testing.assert_array_equal(single.values, listed.values)
     assert single.n_evaluations == listed.n_evaluations
+
+
+def test_threads_split_each_evaluation_and_change_the_estimate_by_rounding_only(recordings):
+    """threads=2 evaluates the sensitivity equations in two parts on two threads."""
+    model, data, bends, _ = recordings
+    output = bending_angle(offset="offset")
+    x0, free = _state(0.9 * bends["a"]), _free()[:3]
+    fits = [
+        fit_trajectory(model, data[0], output=output, x0=x0, free=free, threads=threads)
+        for threads in (1, 2)
+    ]
+    assert all(f.success for f in fits)
+    np.testing.assert_allclose(fits[1].values, fits[0].values, rtol=1e-6)
+    for bad in (0, 1.5):
+        with pytest.raises(sc.ParameterError, match="threads"):
+            fit_trajectory(model, data[0], output=output, x0=x0, free=free, threads=bad)
+
+
+@pytest.mark.parametrize(
+    ("experiments", "processes", "threads", "expected"),
+    [(1, None, None, (1, 4)), (3, None, None, (3, 1)), (8, None, None, (4, 1)),
+     (2, None, None, (2, 2)), (1, 2, None, (2, 2)), (1, None, 1, (1, 1))],
+)  # fmt: skip
+def test_the_cores_go_to_experiments_first_then_to_threads(
+    monkeypatch, experiments, processes, threads, expected
+):
+    monkeypatch.setattr(joint, "default_threads", lambda: 4)
+    assert joint.parallel_layout(experiments, processes, threads) == expected
 
 
 def test_joint_fit_checks_its_arguments(recordings):

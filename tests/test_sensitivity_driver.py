@@ -1,6 +1,7 @@
 """The identification's forward sensitivities through softcurve's CVODES driver against
 CasADi's CVODES on the augmented system (the route without the driver): both inputs
-holds, an input lag, a failure, and the evaluator carried into another process."""
+holds, an input lag, a failure, the evaluator carried into another process, and the
+columns' right-hand side in two parts on two threads."""
 
 from __future__ import annotations
 
@@ -17,6 +18,8 @@ from softcurve.identification.maps import bellows_input_map, curvatures
 from softcurve.identification.parameters import Free, FreeParameters
 from softcurve.simulation import native
 from softcurve.simulation.sensitivity import SENSITIVITY_CVODES, trajectory_sensitivities
+from softcurve.simulation.sensitivity_route import integrate_sensitivities
+from softcurve.simulation.sensitivity_split import split_states
 
 SEG = "segments[0]."
 
@@ -29,7 +32,7 @@ def model():
     return model
 
 
-def _evaluator(model, hold, lag=None, options=None):
+def _evaluator(model, hold, lag=None, options=None, threads=1):
     """Bellows with smooth random pressures for 1.5 s at 12 Hz; four free parameters."""
     rng = np.random.default_rng(16)
     t = np.arange(0.0, 1.5 + 1e-9, 1 / 12)
@@ -54,7 +57,7 @@ def _evaluator(model, hold, lag=None, options=None):
         x0[model.n_state :] = [p[0] for p in pressures.values()]
     evaluate = trajectory_sensitivities(
         model, parameters, curvatures(), inputs, x0, experiment, options,
-        "input_lag" if lag else None, hold,
+        "input_lag" if lag else None, hold, threads,
     )  # fmt: skip
     return evaluate, parameters.theta0
 
@@ -154,10 +157,12 @@ def test_options_the_driver_does_not_know_select_casadis_route(model):
     assert evaluate.stats["route"] == "casadi"
 
 
-def test_a_failure_of_the_driver_is_a_runtime_error_naming_cvodes(model):
-    evaluate, theta = _evaluator(model, "linear", options={"max_num_steps": 2})
+@pytest.mark.parametrize("threads", [1, 2])
+def test_a_failure_of_the_driver_is_a_runtime_error_naming_cvodes(model, threads):
+    evaluate, theta = _evaluator(model, "linear", options={"max_num_steps": 2}, threads=threads)
     with pytest.raises(RuntimeError, match="CVODES failed after t = 0 s: CV_TOO_MUCH_WORK"):
         evaluate(theta)
+    assert evaluate.driven.helper == (threads == 2)
 
 
 def _evaluate_in_this_process(evaluate, theta):
@@ -178,3 +183,104 @@ def test_an_evaluator_carried_to_a_new_process_loads_the_driver_again(model):
     assert route == "driver"
     np.testing.assert_array_equal(y_new, y)
     np.testing.assert_array_equal(jacobian_new, jacobian)
+
+
+# -- the columns' right-hand side in two parts (sensitivity_split, sensitivity_parts) --
+
+
+@pytest.mark.parametrize(("coordinates", "states"), [(1, 3), (3, 9), (6, 18), (9, 30)])
+def test_the_split_covers_every_state_once(coordinates, states):
+    first, second = split_states(coordinates, states)
+    assert sorted(first + second) == list(range(states))
+    assert second and set(second) <= set(range(coordinates))  # the costly columns, shared
+
+
+def test_the_parts_sum_to_the_columns_right_hand_side(model):
+    whole, theta = _evaluator(model, "linear")
+    split, _ = _evaluator(model, "linear", threads=2)
+    _, parts = split._route()
+    fs = whole.variational
+    n_x, m = whole.n_x, len(whole.active)
+    rng = np.random.default_rng(7)
+    d_value = np.array(whole.direct(theta)[0]).ravel()
+    dsc = np.concatenate([d_value, whole.scale])
+    for _ in range(5):
+        x = np.concatenate([d_value[-n_x:], rng.normal(size=n_x * m)])
+        x[:n_x] += rng.normal(0.0, 0.1, n_x) * (np.abs(x[:n_x]) + 1.0)
+        u = 1e4 + 1e4 * rng.random(fs.size1_in(1))
+        expected = np.array(fs(x, u, dsc)).ravel()[n_x:]
+        total = sum(np.asarray(part(x, u, dsc)).ravel() for part in parts)
+        assert np.abs(total - expected).max() <= 1e-12 * np.abs(expected).max()
+
+
+def test_two_threads_give_the_one_threads_trajectory_and_jacobian(model):
+    """The parts are summed in another order than the whole is computed, so the columns
+    (outside the error test) differ by rounding, within what nothing controls."""
+    evaluate, theta = _evaluator(model, "linear")
+    y, jacobian = evaluate(theta)
+    split, _ = _evaluator(model, "linear", threads=2)
+    y_split, jacobian_split = split(theta)
+    assert split.driven.helper and len(split.driven.columns) == 2
+    assert split.stats["route"] == "driver"
+    rtol = SENSITIVITY_CVODES["reltol"]
+    assert np.abs(y_split - y).max() <= 2 * rtol * np.abs(y).max()
+    error = np.abs(jacobian_split - jacobian).max(axis=0) / np.abs(jacobian).max(axis=0)
+    assert error.max() <= UNCONTROLLED * rtol, error
+
+
+def test_the_helper_thread_changes_no_bit(model):
+    """Whichever thread evaluates the second part, the sum is the same: with and without
+    the helper thread, every output and counter is equal, over many evaluations."""
+    evaluate, theta = _evaluator(model, "linear", threads=2)
+    problem, parts = evaluate._route()
+    route = evaluate.driven
+    d_value = np.array(evaluate.direct(theta)[0]).ravel()
+    start = np.concatenate([d_value[-evaluate.n_x :], evaluate.seed.ravel("F")])
+    dsc = np.concatenate([d_value, evaluate.scale])
+    runs = [
+        integrate_sensitivities(
+            problem,
+            parts,
+            start,
+            d_value,
+            dsc,
+            route.times,
+            route.table,
+            route.linear,
+            route.settings,
+            helper,
+        )  # fmt: skip
+        for helper in (False, True, True)
+    ]
+    alone = runs[0][3]
+    assert alone["helper_evaluations"] == 0 and alone["sensitivity_evaluations"] > 100
+    for out, reached, flag, counts in runs[1:]:
+        assert flag == 0 and reached == route.times.size
+        np.testing.assert_array_equal(out, runs[0][0])
+        assert 0 < counts.pop("helper_evaluations") <= counts["sensitivity_evaluations"]
+        assert counts == {k: v for k, v in alone.items() if k != "helper_evaluations"}
+
+
+def test_a_split_evaluator_in_another_process_loads_both_parts(model):
+    evaluate, theta = _evaluator(model, "linear", threads=2)
+    y, jacobian = evaluate(theta)
+    assert len(pickle.dumps(evaluate)) < 1_000_000  # paths, not functions (CasADi's too)
+    spawn = multiprocessing.get_context("spawn")
+    with ProcessPoolExecutor(1, mp_context=spawn) as pool:
+        y_new, jacobian_new, route = pool.submit(
+            _evaluate_in_this_process, evaluate, theta
+        ).result()
+    assert route == "driver"
+    np.testing.assert_array_equal(y_new, y)
+    np.testing.assert_array_equal(jacobian_new, jacobian)
+
+
+def test_a_split_evaluator_without_the_driver_integrates_by_casadi(model):
+    """The fallback of a process that cannot load the parts: CasADi's CVODES on the
+    augmented function, uncompiled, to the same trajectory."""
+    evaluate, theta = _evaluator(model, "linear", threads=2)
+    y, jacobian = evaluate(theta)
+    evaluate._native = False  # as a worker that could not load the libraries
+    y_casadi, jacobian_casadi = evaluate(theta)
+    assert evaluate.stats["route"] == "casadi"
+    _assert_agree(y, jacobian, y_casadi, jacobian_casadi, 1e-6)

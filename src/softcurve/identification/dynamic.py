@@ -42,13 +42,12 @@ from softcurve.base.validation import ParameterError, real_array
 from softcurve.compiled.model import Model
 from softcurve.identification.equilibria import EquilibriumPredictor
 from softcurve.identification.initial import LAG, initial_state, start_values
-from softcurve.identification.joint import experiment_list
+from softcurve.identification.joint import experiment_list, parallel_layout
 from softcurve.identification.maps import InputMap, OutputMap
 from softcurve.identification.problem import Problem
 from softcurve.identification.report import FitReport, usable_fit
 from softcurve.identification.weights import WEIGHTS_DOC
 from softcurve.simulation.sensitivity import trajectory_sensitivities
-from softcurve.simulation.workers import default_threads
 
 PREDICTION_PARAMETERS = {
     "model": ("Model", "The compiled model the fit used."),
@@ -159,6 +158,7 @@ def fit_trajectory(
     seed: int | None = None,
     progress: bool = False,
     processes: int | None = None,
+    threads: int | None = None,
 ) -> FitReport:
     """Trajectory least squares: simulate the experiment(s) and fit the free parameters.
 
@@ -205,6 +205,11 @@ def fit_trajectory(
     processes : int, optional
         Worker processes evaluating the experiments in parallel (default: one per
         experiment, at most the usable cores; 1 evaluates them here in turn).
+    threads : int, optional
+        Threads of each experiment's evaluation (default: the usable cores the processes
+        leave, ``max(1, cores // processes)``); with 2 or more, the sensitivity
+        equations are evaluated in two parts on two threads
+        (:mod:`softcurve.simulation.sensitivity_split`).
 
     Returns
     -------
@@ -232,27 +237,17 @@ def fit_trajectory(
     problem = Problem(
         model, output, input_map, free, extra, bind, parameters, experiment, starts_of
     )
+    processes, threads = parallel_layout(len(experiments), processes, threads)
     evaluators = []
     for e, part, state in zip(experiments, problem.parameters.parts, states, strict=True):
 
         def start(values, state=state, u0=first[e.name]):
             return initial_state(model, state, values, u0, lagged)
 
-        evaluators.append(
-            trajectory_sensitivities(
-                model,
-                part,
-                output,
-                input_map,
-                start,
-                e,
-                integrator_options,
-                LAG if lagged else None,
-                input_hold,
-            )
-        )
-    if processes is None:
-        processes = min(len(experiments), default_threads())
+        evaluators.append(trajectory_sensitivities(
+            model, part, output, input_map, start, e, integrator_options,
+            LAG if lagged else None, input_hold, threads,
+        ))  # fmt: skip
     options = dict(starts=starts, seed=seed, progress=progress, processes=processes)
     return problem.run(
         evaluators, signals, weights, max_evaluations, confidence, "trajectory fit", options=options

@@ -18,9 +18,9 @@ import re
 
 import numpy as np
 
-from softcurve.base.validation import ParameterError
+from softcurve.base.validation import ParameterError, whole_count
 from softcurve.identification.experiments import Experiment
-from softcurve.simulation.workers import run_in_processes
+from softcurve.simulation.workers import default_threads, run_in_processes
 
 _AMBIGUOUS = re.compile(r"^[\d, ]*$")
 
@@ -138,6 +138,27 @@ class JointParameters:
             if e == 0:
                 robot, shared = p, {k: v for k, v in values.items() if k not in own}
         return robot, shared, per
+
+
+def parallel_layout(experiments: int, processes=None, threads=None) -> tuple[int, int]:
+    """``(processes, threads)`` of a fit: worker processes evaluating the experiments and
+    threads of each evaluation, validated.
+
+    Parameters
+    ----------
+    experiments : int
+        Experiments of the fit.
+    processes : int, optional
+        Default: one per experiment, at most the usable cores.
+    threads : int, optional
+        Default: the usable cores the processes leave, ``max(1, cores // processes)``.
+    """
+    cores = default_threads()
+    processes = whole_count(
+        "processes", min(experiments, cores) if processes is None else processes
+    )
+    threads = whole_count("threads", max(1, cores // processes) if threads is None else threads)
+    return processes, threads
 
 
 def _evaluate_task(evaluator, theta):

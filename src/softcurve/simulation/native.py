@@ -131,7 +131,7 @@ def _load():
             return None
     except OSError:
         return None
-    link = (f"-L{directory}", f"-l:{PLUGIN}", f"-Wl,-rpath,{directory}")
+    link = (f"-L{directory}", f"-l:{PLUGIN}", f"-Wl,-rpath,{directory}", "-pthread")
     library = compile_source("cvodes_driver", LIBRARY_SOURCE, link)
     if library is None:
         return None
@@ -149,9 +149,9 @@ def _load():
     function.restype = ctypes.c_int
     sensitivity = library.softcurve_sensitivities
     sensitivity.argtypes = [
-        ctypes.POINTER(_Function), pointer, pointer, integer, pointer, pointer, pointer,
-        integer, pointer, integer, integer, real, real, ctypes.c_long, integer, pointer,
-        pointer, pointer,
+        ctypes.POINTER(_Function), pointer, pointer, integer, integer, integer, integer,
+        pointer, pointer, pointer, integer, pointer, integer, integer, real, real,
+        ctypes.c_long, integer, pointer, pointer, pointer,
     ]  # fmt: skip
     sensitivity.restype = ctypes.c_int
     library.softcurve_outside.argtypes = [pointer, integer, pointer, integer, real, pointer]

@@ -30,7 +30,7 @@ import uuid
 import casadi as ca
 import numpy as np
 
-from softcurve.compiled.generated import compile_function
+from softcurve.compiled.generated import compile_function, compile_functions
 from softcurve.simulation import native
 from softcurve.simulation.engine import cvodes_options
 from softcurve.simulation.sensitivity_route import (
@@ -39,6 +39,7 @@ from softcurve.simulation.sensitivity_route import (
     integrate_sensitivities,
     load_with_path,
 )
+from softcurve.simulation.sensitivity_split import assembled, column_parts
 from softcurve.simulation.stepper_native import load_native
 
 SENSITIVITY_CVODES = cvodes_options(
@@ -82,8 +83,9 @@ class SensitivityEvaluator:
         """The last evaluation's route and counters (steps, right-hand sides, ...), in the
         process that evaluated it (a worker's, under a parallel fit)."""
         self.variational: ca.Function | None = None
-        """``fs(x;vec(S), u, d;scale) -> f;vec(S')``, the SX function both routes compile
-        (in the process that built the evaluator; for studies of its cost)."""
+        """``fs(x;vec(S), u, d;scale) -> f;vec(S')``, the SX function of the sensitivity
+        equations (in the process that built the evaluator; for studies of its cost). Both
+        routes compile it, unless the evaluator splits it in parts for two threads."""
 
     def __reduce__(self):
         # Serialized once; a worker that has loaded this evaluator before reuses it
@@ -133,7 +135,7 @@ class SensitivityEvaluator:
         driven = self.driven
         out, reached, flag, counts = integrate_sensitivities(
             problem, columns, start, d_value, d_scaled, driven.times, driven.table,
-            driven.linear, driven.settings,
+            driven.linear, driven.settings, driven.helper,
         )  # fmt: skip
         self.stats = {"route": "driver", **counts}
         if flag:
@@ -143,14 +145,14 @@ class SensitivityEvaluator:
         return out.T
 
     def _route(self):
-        """(problem, sensitivity function) of the driver, loaded once per process, or None."""
+        """(problem, column functions) of the driver, loaded once per process, or None."""
         if self.driven is None or native.driver() is None:
             return None
         if self._native is None:  # a worker process: load the libraries the parent built
             driven = self.driven
             try:
                 route = (native.Problem(load_native(*driven.state), *driven.sizes),
-                         load_native(*driven.columns))  # fmt: skip
+                         [load_native(*c) for c in driven.columns])  # fmt: skip
             except (OSError, RuntimeError, AttributeError):  # not loadable: CasADi's route
                 route = False
             self._native = route
@@ -205,8 +207,31 @@ def hold_inputs(t: np.ndarray, u: np.ndarray, hold: str) -> np.ndarray:
     return np.vstack([before - slope * start, slope])
 
 
+def _casadi_integrator(rhs, n_u: int, hold: str, t, options) -> ca.Function:
+    """CasADi's CVODES on the augmented system ``rhs(x;vec(S), u, d;scale)`` over the
+    sample times ``t``, the inputs per interval (``hold``) as its controls."""
+    xa, ua, da = (
+        ca.MX.sym("x", rhs.size1_in(0)),
+        ca.MX.sym("u", n_u * (2 if hold == "linear" else 1)),
+        ca.MX.sym("d", rhs.size1_in(2)),
+    )
+    time = ca.MX.sym("t")
+    applied_u = ua[:n_u] + ua[n_u:] * time if hold == "linear" else ua
+    problem = {"x": xa, "u": ua, "p": da, "t": time, "ode": rhs(xa, applied_u, da)}
+    return ca.integrator("sensitivity", "cvodes", problem, float(t[0]), t, options)
+
+
 def trajectory_sensitivities(
-    model, parameters, output, input_map, x0, experiment, options, lag=None, hold="constant"
+    model,
+    parameters,
+    output,
+    input_map,
+    x0,
+    experiment,
+    options,
+    lag=None,
+    hold="constant",
+    threads=1,
 ) -> SensitivityEvaluator:
     """An evaluator ``theta -> (Y (k, T), dvec(Y)/dtheta (k T, P))`` for one experiment.
 
@@ -231,6 +256,10 @@ def trajectory_sensitivities(
         ``u_a' = (u - u_a) / T`` of every input before the input map (None: no lag).
     hold : {"constant", "linear"}
         Inputs between samples (:func:`hold_inputs`).
+    threads : int
+        Threads of an evaluation in the driver's route, >= 1: with 2 or more the
+        columns' right-hand side is evaluated in two parts on two threads
+        (:mod:`softcurve.simulation.sensitivity_split`).
     """
     P = parameters
     u_names = list(experiment.inputs)
@@ -271,24 +300,8 @@ def trajectory_sensitivities(
         [ca.vertcat(xs, ca.vec(sens)), us, ca.vertcat(ds, sc_s)],
         [ca.densify(ca.cse(ca.vertcat(f, ca.vec(s_dot))))],
     )
-    rhs = compile_function(augmented)
-    n_u = len(u_names)
-    xa, ua, da = (
-        ca.MX.sym("x", n_x * (1 + m)),
-        ca.MX.sym("u", n_u * (2 if hold == "linear" else 1)),
-        ca.MX.sym("d", ds.shape[0] + m),
-    )
-    time = ca.MX.sym("t")
-    applied_u = ua[:n_u] + ua[n_u:] * time if hold == "linear" else ua
     t = experiment.t
-    integrator = ca.integrator(
-        "sensitivity",
-        "cvodes",
-        {"x": xa, "u": ua, "p": da, "t": time, "ode": rhs(xa, applied_u, da)},
-        float(t[0]),
-        t,
-        {**SENSITIVITY_CVODES, **(options or {})},
-    )
+    settings = {**SENSITIVITY_CVODES, **(options or {})}
     y = output.function(q, qd, v_s, ds[:n_p])
     out = ca.Function("out", [xs, ds], [y, ca.jacobian(y, xs), ca.jacobian(y, ds)]).map(t.size)
     u_data = experiment.input_matrix(u_names).T if u_names else np.zeros((0, t.size))
@@ -299,10 +312,11 @@ def trajectory_sensitivities(
             seed[i - n_p - n_v, j] = scale[j]
     driven, loaded = None, None
     if set(options or {}) <= NATIVE_OPTIONS and native.driver() is not None:
-        settings = {**SENSITIVITY_CVODES, **(options or {})}
         f_state = augmented(ca.vertcat(xs, ca.SX.zeros(n_x * m)), us, ca.vertcat(ds, np.ones(m)))
         plain = ca.Function("softcurve_state", [xs, us, ds], [ca.densify(f_state[:n_x])])
-        libraries = [compile_function(g, load=load_with_path) for g in (plain, augmented)]
+        split = threads > 1 and m > 0
+        columns = column_parts(f, xs, us, ds, sens, sc_s, f_d, model.n) if split else [augmented]
+        libraries = compile_functions([plain, *columns], load=load_with_path)
         if all(isinstance(entry, tuple) for entry in libraries):
             driver_settings = DriverSettings(
                 float(settings["reltol"]), float(settings["abstol"]),
@@ -311,11 +325,16 @@ def trajectory_sensitivities(
             )  # fmt: skip
             table = np.ascontiguousarray(u_data.T)
             sizes = (n_x, plain.size1_in(1), plain.size1_in(2))
-            (state, columns) = (entry[:2] for entry in libraries)
-            linear = hold == "linear"
-            driven = DriverRoute(state, columns, sizes, t, table, linear, driver_settings)
-            (f_loaded, fs_loaded) = (entry[2] for entry in libraries)
-            loaded = (native.Problem(f_loaded, *sizes), fs_loaded)
+            paths = tuple(entry[:2] for entry in libraries)
+            driven = DriverRoute(paths[0], paths[1:], sizes, t, table, hold == "linear",
+                                 driver_settings, split)  # fmt: skip
+            loaded = (native.Problem(libraries[0][2], *sizes), [e[2] for e in libraries[1:]])
+    if driven is not None and driven.helper:  # CasADi's route on the libraries just built
+        compiled = compile_functions([plain, *columns])
+        rhs = assembled(compiled[0], compiled[1:], ds.shape[0])
+    else:
+        rhs = compile_function(augmented)
+    integrator = _casadi_integrator(rhs, len(u_names), hold, t, settings)
     evaluator = SensitivityEvaluator(
         direct, integrator, out, u_data, seed, scale, active, (n_p, n_v, n_x), driven
     )

@@ -1,20 +1,24 @@
 """The C source of the CVODES driver's forward-sensitivity entry, compiled with
 ``DRIVER_SOURCE`` of ``softcurve.simulation.cvodes_driver`` into one library by
 :mod:`softcurve.simulation.native` (it uses that source's declarations, work struct and
-Newton-matrix callbacks).
+Newton-matrix callbacks), after the parts of the columns' right-hand side
+(:mod:`softcurve.simulation.sensitivity_parts`), which it includes.
 
 Kept as a Python string so that it ships with the package like any module.
 """
 
-SENSITIVITY_SOURCE = r"""
+from softcurve.simulation.sensitivity_parts import PARTS_SOURCE
+
+_ENTRY_SOURCE = r"""
 /* Forward sensitivities of an experiment (softcurve.simulation.sensitivity): the state
  * x' = f(x, u(t), d) by CVODES with Newton's method on its own Newton matrix (the
  * callbacks above), the m sensitivity columns S' = f_x S + f_d by CVODES's staggered
  * corrector. By default only the state is in the error test (CVODES's default): with
  * the columns in it too (columns_tested), the paper robot's 300 s trial takes 1.6 times
  * the steps for columns more accurate than a fit needs (docs/validation.md, "Speed").
- * f_x S + f_d comes from the compiled function fs(x;vec(S), u, d;scale) -> f;vec(S') of
- * the identification. */
+ * f_x S + f_d comes from the identification's compiled function
+ * fs(x;vec(S), u, d;scale) -> f;vec(S'), or from two parts that sum to it, the second on
+ * a helper thread (PARTS_SOURCE). */
 typedef int (*CVSensRhsFn)(int Ns, realtype t, N_Vector y, N_Vector ydot, N_Vector *yS,
                            N_Vector *ySdot, void *data, N_Vector tmp1, N_Vector tmp2);
 extern int CVodeSensInit(void *mem, int Ns, int ism, CVSensRhsFn fS, N_Vector *yS0);
@@ -25,17 +29,14 @@ extern int CVodeGetSens(void *mem, realtype *tret, N_Vector *yS);
 extern N_Vector *N_VCloneVectorArray_Serial(int count, N_Vector w);
 extern void N_VDestroyVectorArray_Serial(N_Vector *vs, int count);
 #define CV_STAGGERED 2
-#define SENSITIVITY_STATS 6
+#define SENSITIVITY_STATS 7
 
 typedef struct {
     sc_work s; /* first member: the Newton-matrix callbacks read the data as an sc_work */
-    casadi_fn fs;
-    const double **arg;
-    double **res;
-    long long *iw;
-    double *w, *xs, *out, *u;
-    const double *dsc, *table, *times;
-    int m, nu, count, linear, row;
+    sc_parts parts;
+    double *xs, *u;
+    const double *table, *times;
+    int m, nu, count, linear, row, leading;
     long sensitivity_evaluations;
 } sc_sensitivity;
 
@@ -70,21 +71,21 @@ static int state_rhs(realtype t, N_Vector y, N_Vector ydot, void *data) {
 static int sensitivity_rhs(int m, realtype t, N_Vector y, N_Vector ydot, N_Vector *yS,
                            N_Vector *ySdot, void *data, N_Vector tmp1, N_Vector tmp2) {
     sc_sensitivity *z = (sc_sensitivity *)data;
-    int n = z->s.n, i, j;
+    int n = z->s.n, i, j, k;
     size_t bytes = n * sizeof(double);
     (void)ydot; (void)tmp1; (void)tmp2;
     if (z->linear) inputs_at(z, t);
     memcpy(z->xs, N_VGetArrayPointer(y), bytes);
     for (j = 0; j < m; ++j) memcpy(z->xs + n * (1 + j), N_VGetArrayPointer(yS[j]), bytes);
-    z->arg[0] = z->xs;
-    z->arg[1] = z->u;
-    z->arg[2] = z->dsc;
-    z->res[0] = z->out;
-    if (z->fs(z->arg, z->res, z->iw, z->w, 0)) return -1;
+    if (evaluate_parts(&z->parts)) return -1;
     z->sensitivity_evaluations++;
     for (j = 0; j < m; ++j) {
         double *column = N_VGetArrayPointer(ySdot[j]);
-        memcpy(column, z->out + n * (1 + j), bytes);
+        memcpy(column, z->parts.part[0].out + z->leading + n * j, bytes);
+        for (k = 1; k < z->parts.count; ++k) {
+            const double *part = z->parts.part[k].out + z->leading + n * j;
+            for (i = 0; i < n; ++i) column[i] += part[i];
+        }
         for (i = 0; i < n; ++i)
             if (!isfinite(column[i])) return 1;
     }
@@ -93,15 +94,20 @@ static int sensitivity_rhs(int m, realtype t, N_Vector y, N_Vector ydot, N_Vecto
 
 /* Integrate from out[0, :] = (x0, vec(S0)) (physical units) over times[0..count) and
  * write out[i, :] = (x, vec(S)) at times[i]. fn describes f(x, u, d) (nx states, nu
- * inputs); fs_sizes are fs's sz_arg, sz_res, sz_iw, sz_w; d feeds f, dsc = (d, scale) fs.
+ * inputs); fs holds `parts` functions (x;vec(S), u, d;scale) whose outputs, after
+ * `leading` entries, sum to vec(f_x S + f_d), with work sizes fs_sizes[4 k..4 k+3]
+ * (sz_arg, sz_res, sz_iw, sz_w); threads > 1: the second part on a helper thread. d
+ * feeds f, dsc = (d, scale) the parts.
  * table (count rows): per interval the inputs (linear = 0: a jump at every sample, where
  * CVODES restarts) or the line (a, b) (linear = 1: integrated through). lmm: 1 Adams,
  * 2 BDF; columns_tested: the sensitivities in the error test too. Returns 0, CVODES's
  * negative flag, or -100 when the solver could not be set up; adds to stats (zeroed by
  * the caller): steps, right-hand sides, Jacobians, linear-solver setups, error-test
- * failures, sensitivity evaluations; *reached: outputs filled (x0 included). */
+ * failures, sensitivity evaluations, second parts the helper thread evaluated;
+ * *reached: outputs filled (x0 included). */
 __attribute__((visibility("default"))) int softcurve_sensitivities(
-    const sc_function *fn, casadi_fn fs, const long long *fs_sizes, int m, const double *d,
+    const sc_function *fn, const casadi_fn *fs, const long long *fs_sizes, int parts,
+    int leading, int threads, int m, const double *d,
     const double *dsc, const double *times, int count, const double *table, int linear,
     int lmm, double rtol, double atol, long max_steps, int columns_tested, double *out,
     long *stats, int *reached) {
@@ -111,15 +117,17 @@ __attribute__((visibility("default"))) int softcurve_sensitivities(
     void *mem = NULL;
     N_Vector y = N_VNew_Serial(n), *yS = NULL;
     double *ones = (double *)malloc(n * sizeof(double)), tret;
+    const double *args[3];
     memset(&z, 0, sizeof(z));
     *reached = 1;
     flag = work_open(&z.s, fn, n) ? -100 : 0;
     z.s.p = d;
-    z.arg = (const double **)calloc(fs_sizes[0] > 3 ? fs_sizes[0] : 3, sizeof(double *));
-    z.res = (double **)calloc(fs_sizes[1] > 1 ? fs_sizes[1] : 1, sizeof(double *));
-    z.iw = (long long *)calloc(fs_sizes[2] + 1, sizeof(long long));
-    z.w = (double *)calloc(fs_sizes[3] + 1 + 2 * width + fn->nu, sizeof(double));
-    if (flag || !y || !ones || !z.arg || !z.res || !z.iw || !z.w ||
+    z.xs = (double *)calloc(width + fn->nu, sizeof(double));
+    args[0] = z.xs;
+    args[1] = z.xs ? z.xs + width : NULL;
+    args[2] = dsc;
+    if (flag || !y || !ones || !z.xs ||
+        parts_open(&z.parts, parts, fs, fs_sizes, args, leading + (long)n * m, threads) ||
         (m > 0 && !(yS = N_VCloneVectorArray_Serial(m, y)))) {
         flag = -100;
         goto done;
@@ -127,18 +135,15 @@ __attribute__((visibility("default"))) int softcurve_sensitivities(
     if (count < 2) goto done;
     for (i = 0; i < n; ++i) ones[i] = 1.0;
     z.s.nominal = ones; /* unscaled: the absolute tolerance is in the state's units */
-    z.fs = fs;
     z.m = m;
+    z.leading = leading;
     z.nu = fn->nu;
     z.count = count;
     z.linear = linear;
     z.row = 1;
-    z.dsc = dsc;
     z.table = table;
     z.times = times;
-    z.xs = z.w + fs_sizes[3] + 1;
-    z.out = z.xs + width;
-    z.u = z.out + width;
+    z.u = z.xs + width;
     z.s.u = z.u;
     memcpy(N_VGetArrayPointer(y), out, bytes);
     for (j = 0; j < m; ++j) memcpy(N_VGetArrayPointer(yS[j]), out + n * (1 + j), bytes);
@@ -182,11 +187,13 @@ done:
     if (yS) N_VDestroyVectorArray_Serial(yS, m);
     if (y) N_VDestroy(y);
     free(ones);
+    parts_close(&z.parts);
+    stats[6] = z.parts.helper_evaluations;
     work_close(&z.s);
-    free(z.arg);
-    free(z.res);
-    free(z.iw);
-    free(z.w);
+    free(z.xs);
     return flag;
 }
 """
+
+SENSITIVITY_SOURCE = PARTS_SOURCE + _ENTRY_SOURCE
+"""The parts and the entry ``softcurve_sensitivities``, in that order."""

@@ -5,7 +5,8 @@ carries into worker processes, and the one call into softcurve's CVODES driver
 The driver integrates the state by Adams-Newton (or BDF, :attr:`DriverSettings.family`)
 on its own Newton matrix and the sensitivity columns ``S' = f_x S + f_d`` by CVODES's
 staggered corrector, evaluating the identification's compiled
-``fs(x;vec(S), u, d;scale) -> f;vec(S')``.
+``fs(x;vec(S), u, d;scale) -> f;vec(S')``, or two compiled parts that sum to ``vec(S')``
+(:mod:`softcurve.simulation.sensitivity_split`), the second on a helper thread.
 """
 
 from __future__ import annotations
@@ -41,8 +42,9 @@ class DriverRoute(NamedTuple):
 
     state: tuple[str, str]
     """``f(x, u, d)``: its library's absolute path and the function's name."""
-    columns: tuple[str, str]
-    """``fs(x;vec(S), u, d;scale) -> f;vec(S')``: path and name."""
+    columns: tuple[tuple[str, str], ...]
+    """The columns' right-hand side by path and name: ``fs(x;vec(S), u, d;scale) ->
+    f;vec(S')``, or its two parts (:func:`integrate_sensitivities`)."""
     sizes: tuple[int, int, int]
     """``(nx, nu, n_d)`` of ``f``."""
     times: np.ndarray
@@ -53,6 +55,8 @@ class DriverRoute(NamedTuple):
     """The inputs are linear between samples (else held)."""
     settings: DriverSettings
     """CVODES's settings."""
+    helper: bool
+    """The second part on a helper thread (with two parts)."""
 
 
 def load_with_path(path, name: str) -> tuple:
@@ -77,21 +81,27 @@ def load_with_path(path, name: str) -> tuple:
 
 SENSITIVITY_STATISTICS = ("steps", "rhs_evaluations", "jacobian_evaluations",
                           "linear_solver_setups", "error_test_failures",
-                          "sensitivity_evaluations")  # fmt: skip
+                          "sensitivity_evaluations", "helper_evaluations")  # fmt: skip
 """The counters :func:`integrate_sensitivities` returns, in the driver's order: CVODES's
 steps, right-hand sides (not those of the finite-difference Newton matrices), Newton
-matrices, linear-solver setups and error-test failures, and the evaluations of ``fs``."""
+matrices, linear-solver setups and error-test failures, the evaluations of the columns'
+right-hand side, and of those the second parts the helper thread evaluated (the driver
+evaluates the others itself)."""
 
 
-def integrate_sensitivities(problem, columns, start, d, d_scaled, times, table, linear, settings):
+def integrate_sensitivities(
+    problem, columns, start, d, d_scaled, times, table, linear, settings, helper=False
+):
     """States and forward sensitivities over ``times`` in one call into the driver.
 
     Parameters
     ----------
     problem : softcurve.simulation.native.Problem
         ``f(x, u, d)`` of the state (no actuator).
-    columns : NativeFunction
-        ``fs(x;vec(S), u, d;scale) -> f;vec(S')`` for ``m`` columns.
+    columns : sequence of NativeFunction
+        ``[fs]``, ``fs(x;vec(S), u, d;scale) -> f;vec(S')`` for ``m`` columns, or two
+        parts of the same arguments whose outputs sum to ``vec(S')``
+        (:func:`~softcurve.simulation.sensitivity_split.column_parts`).
     start : ndarray, shape (W,)
         ``(x0, vec(S0))`` with ``W = nx (1 + m)``, at ``times[0]``.
     d : ndarray, shape (n_d,)
@@ -107,6 +117,8 @@ def integrate_sensitivities(problem, columns, start, d, d_scaled, times, table, 
         Inputs continuous (integrated through) or held (a restart at every sample).
     settings : DriverSettings
         CVODES's settings.
+    helper : bool
+        With two parts, the second on a helper thread (else both on this one).
 
     Returns
     -------
@@ -119,13 +131,18 @@ def integrate_sensitivities(problem, columns, start, d, d_scaled, times, table, 
     out = np.zeros((times.size, start.size))
     out[0] = start
     arrays = [np.ascontiguousarray(a, dtype=np.float64) for a in (d, d_scaled, times, table)]
-    sizes = np.array([columns._sz_arg, columns._sz_res, columns._sz_iw, columns._sz_w], np.int64)
+    sizes = np.array([[c._sz_arg, c._sz_res, c._sz_iw, c._sz_w] for c in columns], np.int64)
+    pointers = (ctypes.c_void_p * len(columns))(
+        *(ctypes.cast(c._function, ctypes.c_void_p).value for c in columns)
+    )
     counts = np.zeros(len(SENSITIVITY_STATISTICS), dtype=np.int64)
     reached = ctypes.c_int(0)
-    m = start.size // problem.struct.nx - 1
+    n_x = problem.struct.nx
+    m = start.size // n_x - 1
+    leading = n_x if len(columns) == 1 else 0  # fs's f before vec(S'); the parts have none
     flag = native.entry("softcurve_sensitivities")(
-        ctypes.byref(problem.struct), ctypes.cast(columns._function, ctypes.c_void_p).value,
-        sizes.ctypes.data, m, arrays[0].ctypes.data, arrays[1].ctypes.data,
+        ctypes.byref(problem.struct), pointers, sizes.ctypes.data, len(columns), leading,
+        2 if helper else 1, m, arrays[0].ctypes.data, arrays[1].ctypes.data,
         arrays[2].ctypes.data, times.size, arrays[3].ctypes.data, int(linear),
         settings.family, settings.rtol, settings.atol, settings.max_steps,
         int(settings.columns_tested), out.ctypes.data, counts.ctypes.data,
