@@ -7,7 +7,7 @@ both recordings with one set of material parameters, cross-predictions where onl
 test recording's initial state is estimated, and a dynamic fit of the open loop with a
 slow creep state (does the hysteresis ask for a slower creep than the oscillations?)::
 
-    python examples/validate_joint.py [--only oscillation|openloop|creep] [--quick]
+    python examples/validate_joint.py [--only oscillation|openloop|creep|rate] [--quick]
 
 Every figure of the tables "real-data goals" in ``docs/validation.md`` is printed by it.
 The joint fits are the library's: :func:`~softcurve.identification.dynamic.fit_trajectory`
@@ -46,6 +46,9 @@ RECORDINGS = ("b17", "b42")
 # lambda ~ 1e-2 is the scale of a pre-stress of the order of the elastic force.
 LAMBDA_SCALE = 1e-2
 GOALS = {"b42 in-sample": 0.20, "cross": 1.0, "joint": 0.4, "openloop": 0.30}
+# |initial bending rate| allowed [1/(m s)]: 12.8 rad/s of tip angle, a third of the
+# fastest swing of b42 (about 36 rad/s, 43 deg at 0.13 s)
+RATE_BOUND = 200.0
 
 
 # -- the material ---------------------------------------------------------------------
@@ -79,7 +82,20 @@ def recording_freedom(experiments: dict, what: tuple[str, ...]) -> list:
                          per_experiment=True))  # fmt: skip
     if "offset" in what:
         free.append(Free("offset", -3.0, 3.0, initial=0.0, scale=0.1, per_experiment=True))
+    if "rate" in what:  # the bending rate at the first sample [1/(m s)]
+        free.append(Free("x0.qd[1]", -RATE_BOUND, RATE_BOUND, initial=0.0, scale=10.0,
+                         per_experiment=True))  # fmt: skip
     return free
+
+
+def start_state(experiment, what=()) -> np.ndarray:
+    """The release state of ``validate_caasenbrood2021`` (at rest, creep relaxed) or, with
+    ``"measured-rate"`` in ``what``, moving at the rate of the first two samples."""
+    state = vc.release_state(experiment)
+    if "measured-rate" in what:
+        beta, t = np.radians(experiment.signals["beta"][:2]), experiment.t[:2]
+        state[4] = (beta[1] - beta[0]) / (t[1] - t[0]) / vc.REST_LENGTH
+    return state
 
 
 def joint_fit(model, experiments: dict, shared, extra, bind, what, max_evaluations=120):
@@ -93,7 +109,7 @@ def joint_fit(model, experiments: dict, shared, extra, bind, what, max_evaluatio
         values["offset"] = 0.0
     report = fit_trajectory(
         model, data, output=bending_angle(offset="offset" if "offset" in what else None),
-        x0={e.name: vc.release_state(e) for e in data},
+        x0={e.name: start_state(e, what) for e in data},
         free=list(shared) + recording_freedom(experiments, what), extra=values, bind=bind,
         max_evaluations=max_evaluations, processes=1,
     )  # fmt: skip
@@ -149,7 +165,7 @@ def cross_predict(model, experiments, fit: dict, train: str, test: str, what):
     values = {**fit["extra"], **fit["extra_values"]}
     values = {k: v for k, v in values.items() if not k.startswith(own)}
     common = {"bind": fit["bind"], "parameters": fit["parameters"]}
-    x0 = vc.release_state(experiment)
+    x0 = start_state(experiment, what)
     relaxed = fit_trajectory(
         model, experiment, output=bending_angle(), x0=x0, free=[], extra=values, **common
     )
@@ -232,6 +248,29 @@ def oscillation_goals(experiments, laws=("tanh", "linear")):
                 f"### {law}, {label}: {test} from {train}, own initial state\n```\n{table}\n```\n"
             )
     return rows
+
+
+def rate_probe(experiments, law="tanh"):
+    """Do the recordings start at rest, as the fits assume? The first samples' rates, and
+    b17 -> b42 with each recording's initial bending rate measured or estimated."""
+    for tag, e in experiments.items():
+        rate = np.diff(e.signals["beta"][:2]) / np.diff(e.t[:2])
+        print(f"{tag}: first angle {e.signals['beta'][0]:.2f} deg, then {rate[0]:.0f} deg/s")
+    model = sc.Model(vc.data_robot(law), quadrature_nodes=vc.QUADRATURE_NODES)
+    head = ("b17 fitted with", "b17 fit", "b17's creep gain", "b42's own start estimated",
+            "b42 predicted", "b42's estimated start")  # fmt: skip
+    print("\n| " + " | ".join(head) + " |\n|" + " --- |" * len(head))
+    trained = (("lam",), ("lam", "measured-rate"), ("lam", "rate"))
+    for what in trained:
+        fit = single_fit(model, experiments, "b17", law, what)
+        for own in [what] + ([] if "rate" in what else [(*what, "rate")]):
+            _, state = cross_predict(model, experiments, fit, "b17", "b42", own)
+            start = ", ".join(
+                f"{n} {v:.4g}" for n, v in zip(state.names, state.values, strict=True)
+            )
+            gain = fit["values"][fit["names"].index(SEG + "creep.gain[1]")]
+            print(f"| {' + '.join(what)} | {fit['rms']['b17']:.2f} | {gain:.2g} | "
+                  f"{' + '.join(own)} | {state.rms[0]:.2f} | {start} |", flush=True)  # fmt: skip
 
 
 # -- open loop with a slow creep state ------------------------------------------------
@@ -447,9 +486,9 @@ def main(argv=None):
     parser.add_argument("--data")
     parser.add_argument(
         "--only",
-        choices=("oscillation", "openloop", "creep"),
+        choices=("oscillation", "openloop", "creep", "rate"),
         help="one part: free oscillations, open-loop maps (quasi-static), open loop with a slow "
-        "creep state (dynamic, slow)",
+        "creep state (dynamic, slow), initial rates of the oscillations",
     )
     parser.add_argument("--laws", default="tanh,linear")
     parser.add_argument("--quick", action="store_true", help="2 ms oscillations, 25 Hz open loop")
@@ -462,6 +501,8 @@ def main(argv=None):
     if args.only in (None, "oscillation"):
         experiments = vc.load_oscillations(directory, 2e-3 if args.quick else 1e-3)
         out["oscillation"] = oscillation_goals(experiments, tuple(args.laws.split(",")))
+    if args.only == "rate":
+        rate_probe(vc.load_oscillations(directory, 2e-3 if args.quick else 1e-3))
     if args.only in (None, "openloop", "creep"):
         openloop, results, b17 = openloop_reference(directory)
         if args.only != "creep":
