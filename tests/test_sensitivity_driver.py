@@ -170,8 +170,10 @@ def _evaluate_in_this_process(evaluate, theta):
     return y, jacobian, evaluate.stats["route"]
 
 
-def test_an_evaluator_carried_to_a_new_process_loads_the_driver_again(model):
-    evaluate, theta = _evaluator(model, "linear")
+@pytest.mark.parametrize("threads", [1, 2])
+def test_an_evaluator_carried_to_a_new_process_loads_the_driver_again(model, threads):
+    """With two threads, both parts (and CasADi's fallback on them) travel by path."""
+    evaluate, theta = _evaluator(model, "linear", threads=threads)
     y, jacobian = evaluate(theta)
     blob = pickle.dumps(evaluate)
     assert len(blob) < 1_000_000  # the libraries' paths travel, not their functions
@@ -261,23 +263,9 @@ def test_the_helper_thread_changes_no_bit(model):
         assert counts == {k: v for k, v in alone.items() if k != "helper_evaluations"}
 
 
-def test_a_split_evaluator_in_another_process_loads_both_parts(model):
-    evaluate, theta = _evaluator(model, "linear", threads=2)
-    y, jacobian = evaluate(theta)
-    assert len(pickle.dumps(evaluate)) < 1_000_000  # paths, not functions (CasADi's too)
-    spawn = multiprocessing.get_context("spawn")
-    with ProcessPoolExecutor(1, mp_context=spawn) as pool:
-        y_new, jacobian_new, route = pool.submit(
-            _evaluate_in_this_process, evaluate, theta
-        ).result()
-    assert route == "driver"
-    np.testing.assert_array_equal(y_new, y)
-    np.testing.assert_array_equal(jacobian_new, jacobian)
-
-
 def test_a_split_evaluator_without_the_driver_integrates_by_casadi(model):
-    """The fallback of a process that cannot load the parts: CasADi's CVODES on the
-    augmented function, uncompiled, to the same trajectory."""
+    """The fallback of a process without the driver: CasADi's CVODES on the augmented
+    system assembled from the compiled parts, to the same trajectory."""
     evaluate, theta = _evaluator(model, "linear", threads=2)
     y, jacobian = evaluate(theta)
     evaluate._native = False  # as a worker that could not load the libraries
