@@ -76,8 +76,8 @@ def random_pressures(duration: float) -> tuple[np.ndarray, dict]:
     return t, pressures
 
 
-def dynamic_evaluator(duration: float, hold: str, options=None, threads: int = 1):
-    model = sc.Model(sc.presets.ifac2020())
+def dynamic_evaluator(duration: float, hold: str, options=None, threads: int = 1, nodes=None):
+    model = sc.Model(sc.presets.ifac2020(), quadrature_nodes=nodes)
     t, pressures = random_pressures(duration)
     experiment = Experiment(t, {"kx": 0 * t, "ky": 0 * t}, pressures, name="random")
     free = [
