@@ -77,7 +77,8 @@ def random_pressures(duration: float) -> tuple[np.ndarray, dict]:
 
 
 def dynamic_evaluator(duration: float, hold: str, options=None, threads: int = 1, nodes=None):
-    model = sc.Model(sc.presets.ifac2020(), quadrature_nodes=nodes)
+    nodes = {} if nodes is None else {"quadrature_nodes": nodes}  # None: the model's default
+    model = sc.Model(sc.presets.ifac2020(), **nodes)
     t, pressures = random_pressures(duration)
     experiment = Experiment(t, {"kx": 0 * t, "ky": 0 * t}, pressures, name="random")
     free = [
