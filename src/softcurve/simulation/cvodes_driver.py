@@ -90,13 +90,40 @@ typedef struct {
     long long sz_lanes_w;
 } sc_function;
 
+/* The arrays of one call of a generated function: arguments, results, integer and real
+ * work. */
 typedef struct {
-    const sc_function *fn;
-    const double *u, *p, *nominal;
     const double **arg;
     double **res;
     long long *iw;
-    double *w, *x, *xdot, *tau, *J, *LU, *ftmp;
+    double *w;
+} sc_arrays;
+
+/* The arrays for a function of work sizes sz_arg, sz_res, sz_iw, sz_w (at least the
+ * three arguments and one result every function here takes), with `extra` doubles after
+ * w's own, from w + sz_w + 1; 0, or 1 when out of memory (arrays_close frees what was
+ * allocated). */
+static int arrays_open(sc_arrays *c, long long sz_arg, long long sz_res, long long sz_iw,
+                     long long sz_w, long extra) {
+    c->arg = (const double **)calloc(sz_arg > 3 ? sz_arg : 3, sizeof(double *));
+    c->res = (double **)calloc(sz_res > 1 ? sz_res : 1, sizeof(double *));
+    c->iw = (long long *)calloc(sz_iw + 1, sizeof(long long));
+    c->w = (double *)calloc(sz_w + 1 + extra, sizeof(double));
+    return !c->arg || !c->res || !c->iw || !c->w;
+}
+
+static void arrays_close(sc_arrays *c) {
+    free(c->arg);
+    free(c->res);
+    free(c->iw);
+    free(c->w);
+}
+
+typedef struct {
+    const sc_function *fn;
+    const double *u, *p, *nominal;
+    sc_arrays c;
+    double *x, *xdot, *tau, *J, *LU, *ftmp;
     int n; /* states integrated: nx, plus m lagging inputs */
     int *piv;
     long jacobians;
@@ -108,13 +135,11 @@ static int work_open(sc_work *s, const sc_function *fn, int n) {
     memset(s, 0, sizeof(*s));
     s->fn = fn;
     s->n = n;
-    s->arg = (const double **)calloc(fn->sz_arg > 3 ? fn->sz_arg : 3, sizeof(double *));
-    s->res = (double **)calloc(fn->sz_res > 1 ? fn->sz_res : 1, sizeof(double *));
-    s->iw = (long long *)calloc(fn->sz_iw + 1, sizeof(long long));
-    s->w = (double *)calloc(fn->sz_w + 1 + 4 * n + fn->nx + 2 * n * n, sizeof(double));
     s->piv = (int *)calloc(n, sizeof(int));
-    if (!s->arg || !s->res || !s->iw || !s->w || !s->piv) return 1;
-    s->x = s->w + fn->sz_w + 1;
+    if (arrays_open(&s->c, fn->sz_arg, fn->sz_res, fn->sz_iw, fn->sz_w,
+                  4 * n + fn->nx + 2 * n * n) || !s->piv)
+        return 1;
+    s->x = s->c.w + fn->sz_w + 1;
     s->xdot = s->x + n;
     s->tau = s->xdot + n;
     s->ftmp = s->tau + fn->nx;
@@ -124,10 +149,7 @@ static int work_open(sc_work *s, const sc_function *fn, int n) {
 }
 
 static void work_close(sc_work *s) {
-    free(s->arg);
-    free(s->res);
-    free(s->iw);
-    free(s->w);
+    arrays_close(&s->c);
     free(s->piv);
 }
 
@@ -150,18 +172,18 @@ static int evaluate(sc_work *s, const double *y, double *ydot) {
     const sc_function *fn = s->fn;
     int i, n = s->n;
     for (i = 0; i < n; ++i) s->x[i] = s->nominal[i] * y[i];
-    s->arg[1] = s->u;
+    s->c.arg[1] = s->u;
     if (fn->force != NULL) {
-        s->arg[0] = s->x;
-        s->arg[1] = fn->lag ? s->x + fn->nx : s->u;
-        s->res[0] = s->tau;
-        if (fn->force(s->arg, s->res, s->iw, s->w, 0)) return -1;
-        s->arg[1] = s->tau;
+        s->c.arg[0] = s->x;
+        s->c.arg[1] = fn->lag ? s->x + fn->nx : s->u;
+        s->c.res[0] = s->tau;
+        if (fn->force(s->c.arg, s->c.res, s->c.iw, s->c.w, 0)) return -1;
+        s->c.arg[1] = s->tau;
     }
-    s->arg[0] = s->x;
-    s->arg[2] = s->p;
-    s->res[0] = s->xdot;
-    if (fn->f(s->arg, s->res, s->iw, s->w, 0)) return -1;
+    s->c.arg[0] = s->x;
+    s->c.arg[2] = s->p;
+    s->c.res[0] = s->xdot;
+    if (fn->f(s->c.arg, s->c.res, s->c.iw, s->c.w, 0)) return -1;
     for (i = 0; fn->lag && i < fn->m; ++i) {
         double command = s->u[i] < fn->lower[i] ? fn->lower[i] : s->u[i];
         command = command > fn->upper[i] ? fn->upper[i] : command;

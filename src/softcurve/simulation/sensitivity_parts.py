@@ -27,10 +27,8 @@ PARTS_SOURCE = r"""
 
 typedef struct {
     casadi_fn fn;
-    const double **arg;
-    double **res;
-    long long *iw;
-    double *w, *out;
+    sc_arrays c;
+    double *out;
     int status;
 } sc_part;
 
@@ -53,7 +51,7 @@ static void relax(long *spins) {
 }
 
 static void run_part(sc_part *p) {
-    p->status = p->fn(p->arg, p->res, p->iw, p->w, 0);
+    p->status = p->fn(p->c.arg, p->c.res, p->c.iw, p->c.w, 0);
 }
 
 /* 1 when the calling thread claimed the second part of generation g. */
@@ -109,22 +107,15 @@ static int part_open(sc_part *p, casadi_fn fn, const long long *sizes, const dou
     int i;
     memset(p, 0, sizeof(*p));
     p->fn = fn;
-    p->arg = (const double **)calloc(sizes[0] > 3 ? sizes[0] : 3, sizeof(double *));
-    p->res = (double **)calloc(sizes[1] > 1 ? sizes[1] : 1, sizeof(double *));
-    p->iw = (long long *)calloc(sizes[2] + 1, sizeof(long long));
-    p->w = (double *)calloc(sizes[3] + 1, sizeof(double));
     p->out = (double *)calloc(outputs, sizeof(double));
-    if (!p->arg || !p->res || !p->iw || !p->w || !p->out) return 1;
-    for (i = 0; i < 3; ++i) p->arg[i] = args[i];
-    p->res[0] = p->out;
+    if (arrays_open(&p->c, sizes[0], sizes[1], sizes[2], sizes[3], 0) || !p->out) return 1;
+    for (i = 0; i < 3; ++i) p->c.arg[i] = args[i];
+    p->c.res[0] = p->out;
     return 0;
 }
 
 static void part_close(sc_part *p) {
-    free(p->arg);
-    free(p->res);
-    free(p->iw);
-    free(p->w);
+    arrays_close(&p->c);
     free(p->out);
 }
 
