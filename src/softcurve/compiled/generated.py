@@ -42,6 +42,20 @@ _REFUSING_FLAGS: set[tuple[str, ...]] = set()
 use :data:`PORTABLE_FUNCTION_FLAGS` at once."""
 
 
+def load_external(path, name: str) -> ca.Function:
+    """The function ``name`` of the compiled library ``path`` as a CasADi ``external``
+    (derivatives by finite differences): :func:`compile_function`'s default loader.
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The compiled library.
+    name : str
+        The function's name in it.
+    """
+    return ca.external(name, str(path), {"enable_fd": True})
+
+
 def compile_function(function: ca.Function, flags: tuple[str, ...] | None = None, load=None):
     """``function`` generated as C, compiled, cached on disk by its content and loaded.
 
@@ -64,7 +78,7 @@ def compile_function(function: ca.Function, flags: tuple[str, ...] | None = None
     load : callable, optional
         ``load(path, name)`` opens the compiled library (e.g. as a
         :class:`~softcurve.compiled.native.NativeFunction`, called without CasADi and
-        without the GIL); default: CasADi's ``external``.
+        without the GIL); default: :func:`load_external`, CasADi's ``external``.
 
     Returns
     -------
@@ -96,9 +110,7 @@ def compile_function(function: ca.Function, flags: tuple[str, ...] | None = None
             lambda path: build._compile_for_this_cpu(
                 {name: function}, compiler, path, flags, ("-fPIC",)
             ),
-            (lambda path: ca.external(name, str(path), {"enable_fd": True}))
-            if load is None
-            else (lambda path: load(path, name)),
+            lambda path: (load or load_external)(path, name),
             stacklevel=2,
         )
     except (OSError, subprocess.CalledProcessError) as exc:

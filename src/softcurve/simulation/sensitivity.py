@@ -30,7 +30,7 @@ import uuid
 import casadi as ca
 import numpy as np
 
-from softcurve.compiled.generated import compile_function, compile_functions
+from softcurve.compiled.generated import compile_function, compile_functions, load_external
 from softcurve.simulation import native
 from softcurve.simulation.engine import cvodes_options
 from softcurve.simulation.sensitivity_route import (
@@ -329,11 +329,14 @@ def trajectory_sensitivities(
             driven = DriverRoute(paths[0], paths[1:], sizes, t, table, hold == "linear",
                                  driver_settings, split)  # fmt: skip
             loaded = (native.Problem(libraries[0][2], *sizes), [e[2] for e in libraries[1:]])
-    if driven is not None and driven.helper:  # CasADi's route on the libraries just built
-        compiled = compile_functions([plain, *columns])
-        rhs = assembled(compiled[0], compiled[1:], ds.shape[0])
-    else:
+    # CasADi's route: on the libraries the driver's route just built, loaded by path
+    if driven is None:
         rhs = compile_function(augmented)
+    elif split:
+        externals = [load_external(*path) for path in paths]
+        rhs = assembled(externals[0], externals[1:], ds.shape[0])
+    else:
+        rhs = load_external(*paths[1])
     integrator = _casadi_integrator(rhs, len(u_names), hold, t, settings)
     evaluator = SensitivityEvaluator(
         direct, integrator, out, u_data, seed, scale, active, (n_p, n_v, n_x), driven

@@ -29,7 +29,6 @@ extern int CVodeGetSens(void *mem, realtype *tret, N_Vector *yS);
 extern N_Vector *N_VCloneVectorArray_Serial(int count, N_Vector w);
 extern void N_VDestroyVectorArray_Serial(N_Vector *vs, int count);
 #define CV_STAGGERED 2
-#define SENSITIVITY_STATS 7
 
 typedef struct {
     sc_work s; /* first member: the Newton-matrix callbacks read the data as an sc_work */
