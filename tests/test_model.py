@@ -2,9 +2,11 @@
 
 from __future__ import annotations
 
+import ctypes
 import os
 import shutil
 import warnings
+from pathlib import Path
 
 import casadi as ca
 import numpy as np
@@ -13,6 +15,7 @@ import pytest
 import softcurve as sc
 from softcurve.compiled import build as model_module
 from softcurve.compiled import generated
+from softcurve.simulation import native
 
 from .conftest import assert_close, compiler_refusing
 
@@ -236,3 +239,22 @@ def test_the_cached_library_has_a_checksum_beside_it(paper_model):
     assert checksum.name == library.name + ".sha256"
     assert checksum.read_text().split()[::2] == ["sha256", "size"]
     assert model_module.library_problem(library) is None
+
+
+def test_the_cvodes_driver_builds_wherever_its_prerequisites_hold():
+    """The driver's tests skip where it cannot be built (no C compiler, a CasADi whose
+    SUNDIALS has another interface); a C source that no longer compiles would make them
+    all skip too, silently: here it fails."""
+    if model_module._compiler() is None:
+        pytest.skip("no C compiler")
+    if os.environ.get("SOFTCURVE_NATIVE_CVODES", "1") in ("0", ""):
+        pytest.skip("the driver is switched off (SOFTCURVE_NATIVE_CVODES)")
+    plugin = Path(ca.__file__).parent / native.PLUGIN
+    try:
+        if not hasattr(ctypes.CDLL(str(plugin)), "CVSpgmr"):
+            pytest.skip("CasADi's SUNDIALS has another interface")
+    except OSError:
+        pytest.skip("CasADi has no CVODES plugin here")
+    assert native.driver() is not None, (
+        "the driver's C source (native.LIBRARY_SOURCE) failed to build"
+    )
