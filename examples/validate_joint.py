@@ -94,6 +94,7 @@ def start_state(experiment, what=()) -> np.ndarray:
     state = vc.release_state(experiment)
     if "measured-rate" in what:
         beta, t = np.radians(experiment.signals["beta"][:2]), experiment.t[:2]
+        # qd[1] of (l, kx, ky, l', kx', ky', lam): the curvature rate of the bend's rate
         state[4] = (beta[1] - beta[0]) / (t[1] - t[0]) / vc.REST_LENGTH
     return state
 
