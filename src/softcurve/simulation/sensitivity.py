@@ -327,7 +327,7 @@ def trajectory_sensitivities(
             sizes = (n_x, plain.size1_in(1), plain.size1_in(2))
             paths = tuple(entry[:2] for entry in libraries)
             driven = DriverRoute(paths[0], paths[1:], sizes, t, table, hold == "linear",
-                                 driver_settings, split)  # fmt: skip
+                                 driver_settings, "shared" if split else "none")  # fmt: skip
             loaded = (native.Problem(libraries[0][2], *sizes), [e[2] for e in libraries[1:]])
     # CasADi's route: on the libraries the driver's route just built, loaded by path
     if driven is None:

@@ -95,7 +95,7 @@ static int sensitivity_rhs(int m, realtype t, N_Vector y, N_Vector ydot, N_Vecto
  * write out[i, :] = (x, vec(S)) at times[i]. fn describes f(x, u, d) (nx states, nu
  * inputs); fs holds `parts` functions (x;vec(S), u, d;scale) whose outputs, after
  * `leading` entries, sum to vec(f_x S + f_d), with work sizes fs_sizes[4 k..4 k+3]
- * (sz_arg, sz_res, sz_iw, sz_w); threads > 1: the second part on a helper thread. d
+ * (sz_arg, sz_res, sz_iw, sz_w); helper (HELPER_*): who evaluates the second part. d
  * feeds f, dsc = (d, scale) the parts.
  * table (count rows): per interval the inputs (linear = 0: a jump at every sample, where
  * CVODES restarts) or the line (a, b) (linear = 1: integrated through). lmm: 1 Adams,
@@ -106,7 +106,7 @@ static int sensitivity_rhs(int m, realtype t, N_Vector y, N_Vector ydot, N_Vecto
  * *reached: outputs filled (x0 included). */
 __attribute__((visibility("default"))) int softcurve_sensitivities(
     const sc_function *fn, const casadi_fn *fs, const long long *fs_sizes, int parts,
-    int leading, int threads, int m, const double *d,
+    int leading, int helper, int m, const double *d,
     const double *dsc, const double *times, int count, const double *table, int linear,
     int lmm, double rtol, double atol, long max_steps, int columns_tested, double *out,
     long *stats, int *reached) {
@@ -126,7 +126,7 @@ __attribute__((visibility("default"))) int softcurve_sensitivities(
     args[1] = z.xs ? z.xs + width : NULL;
     args[2] = dsc;
     if (flag || !y || !ones || !z.xs ||
-        parts_open(&z.parts, parts, fs, fs_sizes, args, leading + (long)n * m, threads) ||
+        parts_open(&z.parts, parts, fs, fs_sizes, args, leading + (long)n * m, helper) ||
         (m > 0 && !(yS = N_VCloneVectorArray_Serial(m, y)))) {
         flag = -100;
         goto done;

@@ -19,11 +19,15 @@ PARTS_SOURCE = r"""
  * itself when it finishes the first part before the helper has started, so a helper that
  * is not scheduled (a busy machine) does not hold the driver up; only a helper preempted
  * after its claim does, until it runs again. Whichever thread evaluates it, the sum is
- * the same (same function, inputs and order of the sum). Waiters spin, then yield. */
+ * the same (same function, inputs and order of the sum). Waiters spin, then yield.
+ * Which thread wins depends on the scheduler; HELPER_ALWAYS leaves every second part to
+ * the helper (the driver waits), so that a test can run the helper's path for certain. */
 #include <pthread.h>
 #include <sched.h>
 
 #define SPINS_BEFORE_YIELD 4096 /* pauses, about 0.1-0.5 ms, before the waiter yields */
+
+enum { HELPER_NONE = 0, HELPER_SHARED = 1, HELPER_ALWAYS = 2 }; /* who takes part 2 */
 
 typedef struct {
     casadi_fn fn;
@@ -36,6 +40,7 @@ typedef struct {
     sc_part part[2];
     int count;          /* parts: 1 or 2 */
     int helped;         /* a helper thread runs */
+    int always;         /* HELPER_ALWAYS: the driver never claims the second part */
     pthread_t helper;
     unsigned posted, claimed, done; /* generations (atomics; wrap around by definition) */
     int stop;                       /* the helper's stop request (atomic) */
@@ -93,7 +98,7 @@ static int evaluate_parts(sc_parts *z) {
     }
     if (z->helped) __atomic_store_n(&z->posted, g, __ATOMIC_RELEASE);
     run_part(&z->part[0]);
-    if (claim(z, g))
+    if (!(z->helped && z->always) && claim(z, g))
         run_part(&z->part[1]);
     else
         while (__atomic_load_n(&z->done, __ATOMIC_ACQUIRE) != g) relax(&spins);
@@ -120,18 +125,19 @@ static void part_close(sc_part *p) {
 }
 
 /* count parts, 1 or 2 (functions fns, work sizes sizes[4 k..4 k+3], each writing
- * `outputs` doubles) on the arguments args; a helper thread for the second part when
- * threads > 1 (without one where it cannot be started). 0, or 1 when out of memory or
- * given another count. */
+ * `outputs` doubles) on the arguments args; a helper thread for the second part unless
+ * helper is HELPER_NONE (without one where it cannot be started). 0, or 1 when out of
+ * memory or given another count. */
 static int parts_open(sc_parts *z, int count, const casadi_fn *fns, const long long *sizes,
-                      const double **args, long outputs, int threads) {
+                      const double **args, long outputs, int helper) {
     int k;
     memset(z, 0, sizeof(*z));
     if (count < 1 || count > 2) return 1;
     z->count = count;
     for (k = 0; k < count; ++k)
         if (part_open(&z->part[k], fns[k], sizes + 4 * k, args, outputs)) return 1;
-    if (count == 2 && threads > 1)
+    z->always = helper == HELPER_ALWAYS;
+    if (count == 2 && helper != HELPER_NONE)
         z->helped = pthread_create(&z->helper, NULL, help, z) == 0;
     return 0;
 }

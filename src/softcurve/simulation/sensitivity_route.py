@@ -36,6 +36,15 @@ class DriverSettings(NamedTuple):
     """The sensitivity columns in the error test too (``fsens_err_con``)."""
 
 
+HELPER_MODES = ("none", "shared", "always")
+"""Who evaluates the second of two parts (:func:`integrate_sensitivities`), in the
+driver's numbering: ``"none"`` the driver's own thread; ``"shared"`` whichever of the
+driver and a helper thread claims it first (the driver never waits for a helper that has
+not started); ``"always"`` the helper, the driver waiting for it. Which thread wins under
+``"shared"`` is the scheduler's choice; ``"always"`` runs the helper's path for certain,
+for tests."""
+
+
 class DriverRoute(NamedTuple):
     """What a sensitivity evaluator needs for the driver's route, and carries into worker
     processes: the compiled libraries by ``(path, name)``, not their functions."""
@@ -55,8 +64,8 @@ class DriverRoute(NamedTuple):
     """The inputs are linear between samples (else held)."""
     settings: DriverSettings
     """CVODES's settings."""
-    helper: bool
-    """The second part on a helper thread (with two parts)."""
+    helper: str
+    """Who evaluates the second of two parts, one of :data:`HELPER_MODES`."""
 
 
 def load_with_path(path, name: str) -> tuple:
@@ -90,7 +99,7 @@ evaluates the others itself)."""
 
 
 def integrate_sensitivities(
-    problem, columns, start, d, d_scaled, times, table, linear, settings, helper=False
+    problem, columns, start, d, d_scaled, times, table, linear, settings, helper="none"
 ):
     """States and forward sensitivities over ``times`` in one call into the driver.
 
@@ -117,8 +126,8 @@ def integrate_sensitivities(
         Inputs continuous (integrated through) or held (a restart at every sample).
     settings : DriverSettings
         CVODES's settings.
-    helper : bool
-        With two parts, the second on a helper thread (else both on this one).
+    helper : {"none", "shared", "always"}
+        With two parts, who evaluates the second (:data:`HELPER_MODES`).
 
     Returns
     -------
@@ -128,6 +137,8 @@ def integrate_sensitivities(
         (:data:`softcurve.simulation.native.FLAGS`) and the counters of
         :data:`SENSITIVITY_STATISTICS`.
     """
+    if helper not in HELPER_MODES:
+        raise ValueError(f"helper must be one of {HELPER_MODES}, got {helper!r}")
     out = np.zeros((times.size, start.size))
     out[0] = start
     arrays = [np.ascontiguousarray(a, dtype=np.float64) for a in (d, d_scaled, times, table)]
@@ -142,7 +153,7 @@ def integrate_sensitivities(
     leading = n_x if len(columns) == 1 else 0  # fs's f before vec(S'); the parts have none
     flag = native.entry("softcurve_sensitivities")(
         ctypes.byref(problem.struct), pointers, sizes.ctypes.data, len(columns), leading,
-        2 if helper else 1, m, arrays[0].ctypes.data, arrays[1].ctypes.data,
+        HELPER_MODES.index(helper), m, arrays[0].ctypes.data, arrays[1].ctypes.data,
         arrays[2].ctypes.data, times.size, arrays[3].ctypes.data, int(linear),
         settings.family, settings.rtol, settings.atol, settings.max_steps,
         int(settings.columns_tested), out.ctypes.data, counts.ctypes.data,
