@@ -274,10 +274,12 @@ def test_an_unknown_helper_mode_is_refused_by_name(model):
         integrate_sensitivities(problem, parts, *[None] * 7, True)
 
 
-def test_a_split_evaluator_without_the_driver_integrates_by_casadi(model):
-    """The fallback of a process without the driver: CasADi's CVODES on the augmented
-    system assembled from the compiled parts, to the same trajectory."""
-    evaluate, theta = _evaluator(model, "linear", threads=2)
+@pytest.mark.parametrize("threads", [1, 2])
+def test_an_evaluator_without_the_driver_integrates_by_casadi(model, threads):
+    """The fallback of a process without the driver: CasADi's CVODES on the driver's
+    compiled function of the augmented system, or on that system assembled from the
+    compiled parts, to the same trajectory."""
+    evaluate, theta = _evaluator(model, "linear", threads=threads)
     y, jacobian = evaluate(theta)
     evaluate._native = False  # as a worker that could not load the libraries
     y_casadi, jacobian_casadi = evaluate(theta)

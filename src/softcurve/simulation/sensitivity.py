@@ -332,11 +332,11 @@ def trajectory_sensitivities(
     # CasADi's route: on the libraries the driver's route just built, loaded by path
     if driven is None:
         rhs = compile_function(augmented)
-    elif split:
-        externals = [load_external(*path) for path in paths]
-        rhs = assembled(externals[0], externals[1:], ds.shape[0])
+    elif len(driven.columns) > 1:
+        externals = [load_external(*path) for path in driven.columns]
+        rhs = assembled(load_external(*driven.state), externals, ds.shape[0])
     else:
-        rhs = load_external(*paths[1])
+        rhs = load_external(*driven.columns[0])
     integrator = _casadi_integrator(rhs, len(u_names), hold, t, settings)
     evaluator = SensitivityEvaluator(
         direct, integrator, out, u_data, seed, scale, active, (n_p, n_v, n_x), driven
