@@ -5,6 +5,7 @@ identification's sensitivity equations, the stepper's period, an actuator's forc
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import os
 import subprocess
@@ -151,7 +152,8 @@ def compile_functions(functions, flags: tuple[str, ...] | None = None, load=None
     workers = min(len(functions), os.cpu_count() or 1)
     if "CASADI_WITH_THREADSAFE_SYMBOLICS" not in ca.CasadiMeta.compiler_flags():
         workers = 1  # serializing and generating shares CasADi's symbolic objects
+    build_one = functools.partial(compile_function, flags=flags, load=load)
     if workers <= 1:
-        return [compile_function(f, flags, load) for f in functions]
+        return [build_one(f) for f in functions]
     with ThreadPoolExecutor(max_workers=workers) as pool:
-        return list(pool.map(lambda f: compile_function(f, flags, load), functions))
+        return list(pool.map(build_one, functions))
