@@ -88,14 +88,19 @@ def recording_freedom(experiments: dict, what: tuple[str, ...]) -> list:
     return free
 
 
+def first_rate(experiment) -> float:
+    """The bending angle's rate over the first two samples [deg/s]."""
+    beta, t = experiment.signals["beta"][:2], experiment.t[:2]
+    return (beta[1] - beta[0]) / (t[1] - t[0])
+
+
 def start_state(experiment, what=()) -> np.ndarray:
     """The release state of ``validate_caasenbrood2021`` (at rest, creep relaxed) or, with
     ``"measured-rate"`` in ``what``, moving at the rate of the first two samples."""
     state = vc.release_state(experiment)
     if "measured-rate" in what:
-        beta, t = np.radians(experiment.signals["beta"][:2]), experiment.t[:2]
         # qd[1] of (l, kx, ky, l', kx', ky', lam): the curvature rate of the bend's rate
-        state[4] = (beta[1] - beta[0]) / (t[1] - t[0]) / vc.REST_LENGTH
+        state[4] = np.radians(first_rate(experiment)) / vc.REST_LENGTH
     return state
 
 
@@ -255,8 +260,7 @@ def rate_probe(experiments, law="tanh"):
     """Do the recordings start at rest, as the fits assume? The first samples' rates, and
     b17 -> b42 with each recording's initial bending rate measured or estimated."""
     for tag, e in experiments.items():
-        rate = np.diff(e.signals["beta"][:2]) / np.diff(e.t[:2])
-        print(f"{tag}: first angle {e.signals['beta'][0]:.2f} deg, then {rate[0]:.0f} deg/s")
+        print(f"{tag}: first angle {e.signals['beta'][0]:.2f} deg, then {first_rate(e):.0f} deg/s")
     model = sc.Model(vc.data_robot(law), quadrature_nodes=vc.QUADRATURE_NODES)
     head = ("b17 fitted with", "b17 fit", "b17's creep gain", "b42's own start estimated",
             "b42 predicted", "b42's estimated start")  # fmt: skip
@@ -264,12 +268,12 @@ def rate_probe(experiments, law="tanh"):
     trained = (("lam",), ("lam", "measured-rate"), ("lam", "rate"))
     for what in trained:
         fit = single_fit(model, experiments, "b17", law, what)
+        gain = fit["values"][fit["names"].index(SEG + "creep.gain[1]")]
         for own in [what] + ([] if "rate" in what else [(*what, "rate")]):
             _, state = cross_predict(model, experiments, fit, "b17", "b42", own)
             start = ", ".join(
                 f"{n} {v:.4g}" for n, v in zip(state.names, state.values, strict=True)
             )
-            gain = fit["values"][fit["names"].index(SEG + "creep.gain[1]")]
             print(f"| {' + '.join(what)} | {fit['rms']['b17']:.2f} | {gain:.2g} | "
                   f"{' + '.join(own)} | {state.rms[0]:.2f} | {start} |", flush=True)  # fmt: skip
 
