@@ -23,11 +23,14 @@ import casadi as ca
 import numpy as np
 from scipy.integrate import RK45
 
+from softcurve.description.robot import in_domain
 from softcurve.simulation import engine as _engine
 from softcurve.simulation import native
 from softcurve.simulation.actuated import actuated_derivative
 from softcurve.simulation.engine import (
+    LEFT_DOMAIN,
     MAX_ORDER,
+    TOO_MUCH_WORK,
     IntegrationFailure,
     cvodes_options,
     cvodes_reason,
@@ -370,27 +373,37 @@ class ScipyEngine(_Engine):
         return out
 
     def _run(self, f, x, t0, times, out) -> np.ndarray:
+        """Step RK45 from ``x`` at ``t0`` through ``times``, filling ``out``; at most
+        ``max_steps`` steps between two outputs (the step that passes an output counts
+        for its interval, as in CVODES's C driver), and a stop at the first output
+        outside the model's domain (the C driver's rule): outside it the motion can need
+        steps a million times shorter, and the run would go on for hours."""
         solver = RK45(f, t0, x, times[-1], rtol=self.rtol, atol=self.atol)
-        i, steps = 0, 0
-        while i < times.size:
-            if solver.status != "running":
-                break
+        n, rest_lengths = self.model.n, self.model.robot.rest_lengths
+        i, taken = 0, 0
+        while i < times.size and solver.status == "running":
+            if taken == self.max_steps:
+                self.counts["rhs_evaluations"] += solver.nfev
+                raise IntegrationFailure(
+                    f"RK45: {TOO_MUCH_WORK}: {self.max_steps} steps reached t = "
+                    f"{solver.t:.6g} s, short of the output at {times[i]:.6g} s",
+                    out[:i].copy(),
+                )
             message = solver.step()
             self.counts["steps"] += 1
-            steps += 1
+            taken += 1
             if solver.status == "failed" or not np.all(np.isfinite(solver.y)):
                 self.counts["rhs_evaluations"] += solver.nfev
                 reason = f"RK45: {message or 'non-finite state'} at t = {solver.t:.6g} s"
                 raise IntegrationFailure(reason, out[:i].copy())
-            if steps > self.max_steps * times.size:
-                self.counts["rhs_evaluations"] += solver.nfev
-                raise IntegrationFailure(
-                    "RK45: too many steps (max_steps per output interval)", out[:i].copy()
-                )
-            if i < times.size and solver.t >= times[i]:
+            if solver.t >= times[i]:
                 dense = solver.dense_output()
                 while i < times.size and solver.t >= times[i]:
                     out[i] = solver.y if times[i] == solver.t else dense(times[i])
                     i += 1
+                    if not in_domain(out[i - 1, :n], rest_lengths):
+                        self.counts["rhs_evaluations"] += solver.nfev
+                        raise IntegrationFailure(LEFT_DOMAIN, out[:i].copy())
+                taken = 0
         self.counts["rhs_evaluations"] += solver.nfev
         return out[-1].copy()
