@@ -7,12 +7,14 @@ physically sane numbers; budgets are asserted on counts, never on time.
 
 from __future__ import annotations
 
+import casadi as ca
 import numpy as np
 import pytest
 
 import softcurve as sc
 from softcurve.base.status import Status
 from softcurve.simulation import integrators
+from softcurve.symbolic.contact import signed_distance
 
 Q0 = np.array([0.064, 0.0, 0.0])
 STIFF_LOAD = [0.0, 1e4, 0.0]
@@ -56,3 +58,50 @@ def test_rk45_under_a_stiff_load_stops_at_the_first_output_outside_the_domain(pa
     assert run.status is Status.LEFT_DOMAIN, run.message
     assert "l of segment 1" in run.message and run.t.size == 1
     assert run.stats["steps"] < 1000
+
+
+# -- item 4: obstacles' directions of any finite nonzero length --------------------------
+
+
+@pytest.mark.parametrize(
+    ("normal", "unit"),
+    [
+        ([1e200, 1e200, 0.0], [2**-0.5, 2**-0.5, 0.0]),  # before: stored as [0, 0, 0]
+        ([1e-200, 0.0, 0.0], [1.0, 0.0, 0.0]),  # before: refused as zero
+        ([0.0, -5e-324, 0.0], [0.0, -1.0, 0.0]),
+        ([1.7e308, -1.7e308, 1.7e308], [3**-0.5, -(3**-0.5), 3**-0.5]),
+    ],
+)
+def test_a_plane_normal_of_any_finite_nonzero_length_is_its_direction(normal, unit):
+    plane = sc.Plane(point=[0.0, 0.0, 0.0], normal=normal)
+    np.testing.assert_allclose(plane.normal, unit, rtol=1e-15, atol=0)
+    assert np.linalg.norm(plane.normal) == pytest.approx(1.0, abs=1e-15)
+
+
+@pytest.mark.parametrize(
+    ("normal", "words"),
+    [([0.0, 0.0, 0.0], "[0.0, 0.0, 0.0]"), ([np.inf, 0, 0], "finite")],
+)
+def test_only_a_zero_or_non_finite_normal_is_refused_with_its_value(normal, words):
+    """A guard of what stays refused (as before)."""
+    with pytest.raises(sc.ParameterError, match="Plane.normal") as error:
+        sc.Plane(point=[0.0, 0.0, 0.0], normal=normal)
+    assert words in str(error.value)
+
+
+def test_a_short_capsule_axis_is_kept_and_its_distance_is_exact():
+    """b - a = [1e-170, 1e-170, 0]: distinct ends, whose squared distance underflows.
+    Before, it was refused with "got a = b = [0.0, 0.0, 0.0]", false of b."""
+    capsule = sc.Capsule(a=[0.0, 0.0, 0.0], b=[1e-170, 1e-170, 0.0], radius=0.1)
+    np.testing.assert_allclose(capsule.axis, [2**-0.5, 2**-0.5, 0.0], rtol=1e-15)
+    assert capsule.length == pytest.approx(2**0.5 * 1e-170, rel=1e-15)
+    distance = float(ca.evalf(signed_distance(capsule, ca.DM([0.0, 0.0, 1.0]))))
+    assert distance == pytest.approx(0.9, rel=1e-12)
+
+
+def test_the_capsule_message_says_a_equals_b_only_when_it_does():
+    with pytest.raises(sc.ParameterError, match=r"got a = b = \[1.0, 2.0, 3.0\]"):
+        sc.Capsule(a=[1.0, 2.0, 3.0], b=[1.0, 2.0, 3.0], radius=0.1)
+    with pytest.raises(sc.ParameterError, match="Capsule axis b - a") as error:
+        sc.Capsule(a=[1.7e308, 0.0, 0.0], b=[-1.7e308, 0.0, 0.0], radius=0.1)
+    assert "a = b" not in str(error.value) and "must be finite" in str(error.value)
