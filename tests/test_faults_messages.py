@@ -7,6 +7,8 @@ physically sane numbers; budgets are asserted on counts, never on time.
 
 from __future__ import annotations
 
+import dataclasses
+
 import casadi as ca
 import numpy as np
 import pytest
@@ -14,6 +16,7 @@ import pytest
 import softcurve as sc
 from softcurve.base.status import Status
 from softcurve.simulation import integrators
+from softcurve.simulation.settings import SimulationSettings
 from softcurve.symbolic.contact import signed_distance
 
 Q0 = np.array([0.064, 0.0, 0.0])
@@ -105,3 +108,30 @@ def test_the_capsule_message_says_a_equals_b_only_when_it_does():
     with pytest.raises(sc.ParameterError, match="Capsule axis b - a") as error:
         sc.Capsule(a=[1.7e308, 0.0, 0.0], b=[-1.7e308, 0.0, 0.0], radius=0.1)
     assert "a = b" not in str(error.value) and "must be finite" in str(error.value)
+
+
+# -- item 9: a Python int beyond the float range given to a float field -----------------
+
+HUGE = 10**400
+
+
+@pytest.mark.parametrize(
+    ("build", "field"),
+    [
+        (lambda: dataclasses.replace(sc.presets.ifac2020().segments[0], mass=HUGE), "mass"),
+        (lambda: sc.Sphere([0.0, 0.0, 0.0], -HUGE), "Sphere.radius"),
+        (lambda: sc.Plane([HUGE, 0.0, 0.0], [0.0, 0.0, 1.0]), "Plane.point"),
+        (lambda: sc.ContactLaw(stiffness=HUGE), "ContactLaw.stiffness"),
+        (lambda: SimulationSettings(t_final=HUGE), "t_final"),
+    ],
+)
+def test_an_int_beyond_the_float_range_is_refused_naming_the_field(build, field):
+    """Before: OverflowError "int too large to convert to float"."""
+    with pytest.raises(sc.ParameterError, match=rf"^{field} must be finite") as error:
+        build()
+    assert "1.8e+308" in str(error.value)
+
+
+def test_a_huge_int_in_tau_is_refused_naming_tau(paper_model):
+    with pytest.raises(sc.ParameterError, match="^tau must be finite"):
+        sc.simulate(paper_model, Q0, np.zeros(3), t_final=0.01, tau=[HUGE, 0.0, 0.0])
