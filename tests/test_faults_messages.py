@@ -135,3 +135,60 @@ def test_an_int_beyond_the_float_range_is_refused_naming_the_field(build, field)
 def test_a_huge_int_in_tau_is_refused_naming_tau(paper_model):
     with pytest.raises(sc.ParameterError, match="^tau must be finite"):
         sc.simulate(paper_model, Q0, np.zeros(3), t_final=0.01, tau=[HUGE, 0.0, 0.0])
+
+
+# -- item 9: Gymnasium actions of the wrong shape or dtype --------------------------------
+
+
+@pytest.fixture(scope="module")
+def reach():
+    """A single and a vector Reach environment (the paper robot's compiled stepper)."""
+    pytest.importorskip("gymnasium")
+    from softcurve import envs
+
+    single, vector = envs.Reach(max_episode_steps=3), envs.ReachVector(2, max_episode_steps=3)
+    single.reset(seed=0)
+    vector.reset(seed=0)
+    return single, vector
+
+
+@pytest.mark.parametrize(
+    ("action", "given"),
+    [
+        (0.5, "got shape ()"),  # before: IndexError "too many indices"
+        ([0.5, 0.5], "got shape (2,)"),
+        ([[0.5, 0.5, 0.5]], "got shape (1, 3)"),
+        (["a", "b", "c"], "got dtype <U1"),
+        ([0.5, None, 0.5], "got dtype object"),
+        ([0.5, np.nan, 0.5], "non-finite"),
+    ],
+)
+def test_a_wrong_single_action_names_the_action_space(reach, action, given):
+    single, _ = reach
+    with pytest.raises(
+        sc.ParameterError, match=r"^action must be real numbers of shape \(3,\)"
+    ) as error:
+        single.step(action)
+    assert given in str(error.value) and "[-1, 1]" in str(error.value)
+
+
+@pytest.mark.parametrize(
+    ("actions", "given"),
+    [
+        (np.zeros(6), "got shape (6,)"),  # before: reshaped silently
+        (np.zeros(3), "got shape (3,)"),  # before: NumPy's reshape error
+        (np.zeros((3, 3)), "got shape (3, 3)"),
+        ([[0.1, 0.2, 0.3], [0.1, 0.2]], "got [["),  # ragged
+    ],
+)
+def test_wrong_vector_actions_name_the_batched_action_space(reach, actions, given):
+    _, vector = reach
+    with pytest.raises(sc.ParameterError, match=r"^actions .* shape \(2, 3\)") as error:
+        vector.step(actions)
+    assert given in str(error.value)
+
+
+def test_integer_actions_of_the_right_shape_are_accepted(reach):
+    single, vector = reach
+    assert np.isfinite(single.step(np.array([1, 0, -1]))[0]).all()
+    assert np.isfinite(vector.step(np.array([[1, 0, -1], [0, 0, 0]]))[0]).all()
