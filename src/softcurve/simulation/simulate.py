@@ -78,7 +78,8 @@ from softcurve.simulation.engine import (
     nominal_scale,
     success_message,
 )
-from softcurve.simulation.integrators import ActuatorInput, CvodesEngine, ScipyEngine
+from softcurve.simulation.integrators import ActuatorInput, CvodesEngine
+from softcurve.simulation.rk45 import ScipyEngine
 from softcurve.simulation.settings import SimulationSettings, settings_with
 from softcurve.simulation.stepping import Domain, Progress, Stopped, run_on_grid, run_sampled
 from softcurve.simulation.trajectory import Trajectory
