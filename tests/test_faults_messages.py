@@ -15,6 +15,7 @@ import pytest
 
 import softcurve as sc
 from softcurve.base.status import Status
+from softcurve.cli import main
 from softcurve.simulation import integrators
 from softcurve.simulation.settings import SimulationSettings
 from softcurve.symbolic.contact import signed_distance
@@ -192,3 +193,63 @@ def test_integer_actions_of_the_right_shape_are_accepted(reach):
     single, vector = reach
     assert np.isfinite(single.step(np.array([1, 0, -1]))[0]).all()
     assert np.isfinite(vector.step(np.array([[1, 0, -1], [0, 0, 0]]))[0]).all()
+
+
+# -- item 9: the tanh fit of clean data, in any units -----------------------------------
+
+GENTLE = sc.TanhStiffness(2230.0, 1115.0, -0.03)
+"""A law that bends little over strains in [-1, 1] (|a3| x <= 0.03): before, its clean
+fit ran out of SciPy's evaluations (2400) with SciPy's words."""
+
+
+def _fit_cli(tmp_path, capsys, law, strain):
+    path = tmp_path / "data.csv"
+    np.savetxt(path, np.c_[strain, law.force(strain)], delimiter=",", header="x,f", comments="")
+    code = main(["fit", str(path), "--strain", "x", "--force", "f"])
+    out, err = capsys.readouterr()
+    assert "Traceback" not in err, err
+    return code, out, err
+
+
+def test_a_clean_tanh_fit_of_a_gently_bending_law_succeeds(tmp_path, capsys):
+    strain = np.linspace(-1.0, 1.0, 60)
+    report = sc.fit_stiffness(strain, GENTLE.force(strain))
+    assert report.success, report.message
+    np.testing.assert_allclose(report.values, [2230.0, 1115.0, 0.03], rtol=1e-6)
+    code, out, _ = _fit_cli(tmp_path, capsys, GENTLE, strain)
+    assert code == 0 and "status: success" in out
+
+
+@pytest.mark.parametrize(
+    ("strain_unit", "force_unit"), [(1.0, 1e-6), (1.0, 1e6), (1e150, 1e150), (1e-150, 1.0)]
+)
+def test_the_tanh_fit_is_the_same_in_any_units(strain_unit, force_unit):
+    """The fit runs in units of the data's largest strain and force. Before, SciPy's
+    absolute gradient tolerance made it depend on them: the paper's law with forces in
+    micronewtons came back "success" with a2 off by 35 %, scaled by 1e150 "not
+    identifiable" with overflows on the way."""
+    paper = sc.TanhStiffness(2.23e3, 1.74e3, -4.55e2)
+    strain = np.linspace(-4e-3, 8e-3, 80)
+    report = sc.fit_stiffness(strain * strain_unit, paper.force(strain) * force_unit)
+    assert report.success, report.message
+    stiffness = force_unit / strain_unit
+    expected = [paper.a1 * stiffness, paper.a2 * stiffness, abs(paper.a3) / strain_unit]
+    np.testing.assert_allclose(report.values, expected, rtol=1e-6)
+
+
+def test_data_whose_stiffness_has_no_float_is_refused_naming_their_range():
+    strain = np.linspace(-1.0, 1.0, 20) * 1e200
+    with pytest.raises(sc.ParameterError, match="the data's range") as error:
+        sc.fit_stiffness(strain, 1e-200 * np.linspace(-1.0, 1.0, 20))
+    assert "1e+200" in str(error.value) and "other units" in str(error.value)
+
+
+def test_a_tanh_fit_the_data_cannot_settle_says_so_in_the_librarys_words(tmp_path, capsys):
+    """The bend at |a3| = 300 over strains 0..1 sampled every 0.017: only the first point
+    sees it, and a2, a3 are determined only together. Exit 1 with what to try, never
+    SciPy's words."""
+    law = sc.TanhStiffness(2230.0, 1115.0, -300.0)
+    code, out, err = _fit_cli(tmp_path, capsys, law, np.linspace(0.0, 1.0, 60))
+    assert code == 1
+    assert "maximum number of function evaluations" not in out + err
+    assert "a2 and a3 only together" in err and "--law linear" in err
