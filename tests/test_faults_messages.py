@@ -49,6 +49,18 @@ def test_the_step_budget_is_max_steps_per_output_interval(paper_model, method, m
         assert 1 <= run.stats["steps"] <= max_steps + 1
 
 
+def test_the_batch_step_budget_is_per_output_interval_too(paper_model):
+    """simulate_batch (CVODES's C driver): the stiff member stops at its first output
+    interval naming max_steps, the other runs on (a guard: it held before)."""
+    batch = sc.simulate_batch(
+        paper_model, np.array([Q0, Q0]), np.zeros(3), tau=np.array([STIFF_LOAD, np.zeros(3)]),
+        t_final=0.01, max_steps=10, threads=1,
+    )  # fmt: skip
+    assert batch.member_status[0] is Status.INTEGRATION_FAILED
+    assert "max_steps" in batch.member_message[0] and batch.reached[0] == 1
+    assert batch.member_status[1] is Status.SUCCESS
+
+
 def test_rk45_under_a_stiff_load_stops_at_the_first_output_outside_the_domain(paper_model):
     """Issue 29's case (paper robot, tau = [0, 1e4, 0]) with RK45: the first output is
     outside the domain (l = 3.6 m); RK45 stops there, as CVODES's driver does, after the
