@@ -87,9 +87,10 @@ def _tanh_starts(x: np.ndarray, f: np.ndarray, w: np.ndarray) -> list[np.ndarray
     return [np.array(rows[i][1:]) for i in best]
 
 
-def _failure(kind, names, status, corr, count, budget, starts, message) -> str:
+def _failure(kind, names, status, corr, count, budget, starts, message, given) -> str:
     """The message of a fit that did not succeed, in the library's words: what happened,
-    which estimates the data determine only together, and what to try."""
+    which estimates the data determine only together, and what to try (``given``: the
+    start was the user's law, not the library's search)."""
     what = {
         Status.EVALUATION_LIMIT: "ran out of evaluations",
         Status.NOT_CONVERGED: "did not converge",
@@ -100,17 +101,20 @@ def _failure(kind, names, status, corr, count, budget, starts, message) -> str:
     )
     if "not identifiable" in message:
         text += "; " + message[message.index("not identifiable") :]
-    together = np.abs(np.where(np.eye(len(names), dtype=bool), 0.0, np.nan_to_num(corr)))
+    # not the diagonal, nor the inf or NaN of a parameter the data do not determine
+    off = ~np.eye(len(names), dtype=bool) & np.isfinite(corr)
+    together = np.abs(np.where(off, corr, 0.0))
     if together.size > 1 and together.max() > TOGETHER:
         i, j = np.unravel_index(np.argmax(together), together.shape)
         text += (
             f"; the data determine {names[i]} and {names[j]} only together (correlation "
             f"{corr[i, j]:+.4f})"
         )
+    search = f"law='{kind}' (a search from the data) instead of the law given, " if given else ""
     return text + (
-        ": the data hardly show where the stiffness changes. What to try: more data over "
-        "the strains where it changes, the linear law (law='linear', the CLI's --law "
-        "linear), or a larger max_evaluations"
+        ": the data hardly show where the stiffness changes. What to try: "
+        f"{search}more data over the strains where it changes, the linear law "
+        "(law='linear', the CLI's --law linear), or a larger max_evaluations"
     )
 
 
@@ -242,7 +246,10 @@ def fit_stiffness(
         names, w[:, None] * jac_alpha, r, status, best.message
     )
     if status is not Status.SUCCESS:
-        message = _failure(kind, names, status, corr, count, max_evaluations, len(starts), message)
+        message = _failure(
+            kind, names, status, corr, count, max_evaluations, len(starts), message,
+            given=not isinstance(law, str),
+        )  # fmt: skip
     alpha, errors = alpha_s * unit, errors * unit
     try:
         fitted_law = LinearStiffness(*alpha) if kind == "linear" else TanhStiffness(*alpha)
