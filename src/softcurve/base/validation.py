@@ -12,6 +12,31 @@ class ParameterError(ValueError):
     """
 
 
+FLOAT_MAX = float(np.finfo(np.float64).max)
+"""The largest finite float64 (about 1.8e308): a Python int beyond it has no float."""
+
+
+def beyond_float(value) -> str:
+    """Why ``value``, whose conversion to float overflowed (a Python int, or a sequence
+    holding one, beyond :data:`FLOAT_MAX`), is refused: the reason, after the field's name.
+
+    Parameters
+    ----------
+    value : object
+        What the user gave.
+
+    Examples
+    --------
+    >>> beyond_float(10**400)
+    'must be finite (at most 1.8e+308 in magnitude), got an integer of 401 digits'
+    """
+    if isinstance(value, int | np.integer):
+        given = f"an integer of {len(str(abs(int(value))))} digits"
+    else:
+        given = "an integer entry too large for a float"
+    return f"must be finite (at most {FLOAT_MAX:.2g} in magnitude), got {given}"
+
+
 def whole_count(name: str, value, minimum: int = 1) -> int:
     """Return ``value`` as an int of at least ``minimum``, or raise :class:`ParameterError`
     (a bool is not a count; NumPy integers are).
@@ -55,7 +80,10 @@ def real_scalar(name: str, value, *, positive: bool = False, nonzero: bool = Fal
     """
     if isinstance(value, bool | str | bytes) or not np.isscalar(value) or not np.isrealobj(value):
         raise ParameterError(f"{name} must be a real number, got {value!r}")
-    x = float(value)
+    try:
+        x = float(value)
+    except OverflowError:
+        raise ParameterError(f"{name} {beyond_float(value)}") from None
     if not np.isfinite(x):
         raise ParameterError(f"{name} must be finite, got {x!r}")
     if positive and not x > 0:
@@ -63,6 +91,27 @@ def real_scalar(name: str, value, *, positive: bool = False, nonzero: bool = Fal
     if nonzero and x == 0:
         raise ParameterError(f"{name} must be nonzero, got {x!r}")
     return x
+
+
+def float_array(name: str, value, expected: str) -> np.ndarray:
+    """``value`` as a new float64 array of any shape, or :class:`ParameterError` (for
+    what is not numbers, and for a Python int beyond the float range).
+
+    Parameters
+    ----------
+    name : str
+        The field's name, for the message.
+    value : array_like
+        What the user gave.
+    expected : str
+        What the field must be, for the message (e.g. "a real array of shape (3,)").
+    """
+    try:
+        return np.array(value, dtype=np.float64)
+    except OverflowError:
+        raise ParameterError(f"{name} {beyond_float(value)}") from None
+    except (TypeError, ValueError) as exc:
+        raise ParameterError(f"{name} must be {expected}: {exc}") from None
 
 
 def real_array(name: str, value, shape: tuple[int, ...]) -> np.ndarray:
@@ -77,10 +126,7 @@ def real_array(name: str, value, shape: tuple[int, ...]) -> np.ndarray:
     shape : tuple of int
         The required shape.
     """
-    try:
-        a = np.array(value, dtype=np.float64)
-    except (TypeError, ValueError) as exc:
-        raise ParameterError(f"{name} must be a real array of shape {shape}: {exc}") from None
+    a = float_array(name, value, f"a real array of shape {shape}")
     if a.shape != shape:
         raise ParameterError(f"{name} must have shape {shape}, got {a.shape}")
     if not np.isfinite(a).all():
@@ -101,9 +147,8 @@ def positive_definite(name: str, value, size: int) -> np.ndarray:
     size : int
         Number of rows and columns.
     """
-    a = np.asarray(value, dtype=np.float64) if not np.isscalar(value) else None
-    if a is not None and a.shape == (size,):
-        value = np.diag(a)
+    if not np.isscalar(value) and np.shape(value) == (size,):
+        value = np.diag(real_array(name, value, (size,)))
     m = real_array(name, value, (size, size))
     if not np.allclose(m, m.T, rtol=1e-12, atol=0.0):
         raise ParameterError(f"{name} must be symmetric, got {m.tolist()}")

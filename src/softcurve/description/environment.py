@@ -21,7 +21,7 @@ object is built; nothing numeric happens here (the geometry is in
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -34,6 +34,39 @@ def _point(name: str, value) -> np.ndarray:
 
 def _positive(name: str, value) -> float:
     return real_scalar(name, value, positive=True)
+
+
+def unit_direction(name: str, vector: np.ndarray) -> tuple[np.ndarray, float]:
+    """``vector`` normalized, and its length, for every obstacle that takes a direction.
+
+    The vector is first divided by its largest component, so that its squares neither
+    overflow (``[1e200, 1e200, 0]``) nor underflow (``[1e-200, 0, 0]``) on the way to
+    the norm: only the zero vector and a non-finite one are refused.
+
+    Parameters
+    ----------
+    name : str
+        The field's name, for the message.
+    vector : ndarray, shape (3,)
+        The direction, any length [m or -].
+
+    Returns
+    -------
+    unit : ndarray, shape (3,)
+        Read-only, of length 1 [-].
+    length : float
+        ``|vector|`` (inf where it exceeds the largest float) [m or -].
+    """
+    largest = float(np.max(np.abs(vector)))
+    if not np.isfinite(largest):
+        raise ParameterError(f"{name} must be finite, got {vector.tolist()}")
+    if not largest > 0:
+        raise ParameterError(f"{name} must be a nonzero vector, got {vector.tolist()}")
+    scaled = vector / largest  # largest component +-1: the norm is in [1, sqrt(3)]
+    norm = float(np.linalg.norm(scaled))
+    unit = scaled / norm
+    unit.setflags(write=False)
+    return unit, largest * norm
 
 
 @dataclass(frozen=True, eq=False)
@@ -55,15 +88,7 @@ class Plane:
     def __post_init__(self):
         set_ = object.__setattr__  # frozen dataclass: normalize fields once here
         set_(self, "point", _point("Plane.point", self.point))
-        normal = _point("Plane.normal", self.normal)
-        length = float(np.linalg.norm(normal))
-        if not length > 0:
-            raise ParameterError(
-                f"Plane.normal must be a nonzero vector (length > 0), got {normal.tolist()}"
-            )
-        unit = normal / length
-        unit.setflags(write=False)
-        set_(self, "normal", unit)
+        set_(self, "normal", unit_direction("Plane.normal", _point("Plane.normal", self.normal))[0])
 
     def key(self) -> tuple:
         """The obstacle as a tuple of plain numbers (part of the compiled model's cache key)."""
@@ -104,23 +129,38 @@ class Capsule:
         End points of its axis [m], base frame; distinct (a point is a :class:`Sphere`).
     radius : float
         Its radius [m], > 0.
+
+    Attributes
+    ----------
+    axis : ndarray, shape (3,)
+        The unit vector from ``a`` to ``b`` [-].
+    length : float
+        ``|b - a|`` [m], > 0.
     """
 
     a: np.ndarray
     b: np.ndarray
     radius: float
+    axis: np.ndarray = field(init=False, repr=False)
+    length: float = field(init=False, repr=False)
 
     def __post_init__(self):
         set_ = object.__setattr__
         set_(self, "a", _point("Capsule.a", self.a))
         set_(self, "b", _point("Capsule.b", self.b))
         set_(self, "radius", _positive("Capsule.radius", self.radius))
-        length = float(np.linalg.norm(self.b - self.a))
-        if not length > 0:
+        # with gradual underflow, b - a is zero only where b equals a
+        if np.array_equal(self.a, self.b):
             raise ParameterError(
                 f"Capsule.b must differ from Capsule.a (axis length > 0), got a = b = "
                 f"{self.a.tolist()}; use a Sphere for a ball"
             )
+        with np.errstate(over="ignore"):
+            axis = self.b - self.a
+        name = f"Capsule axis b - a (a = {self.a.tolist()}, b = {self.b.tolist()})"
+        unit, length = unit_direction(name, axis)
+        set_(self, "axis", unit)
+        set_(self, "length", length)
 
     def key(self) -> tuple:
         """The obstacle as a tuple of plain numbers (part of the compiled model's cache key)."""

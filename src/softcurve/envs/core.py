@@ -76,19 +76,40 @@ class Episodes:
         self.action_space = spaces.Box(-1.0, 1.0, (self.lower.size,), np.float32)
 
     # -- actions and observations ---------------------------------------------------
-    def inputs(self, actions) -> np.ndarray:
+    def inputs(self, actions, single: bool = False) -> np.ndarray:
         """Actuator inputs (N, m), in the actuator's unit, of actions in [-1, 1] (clipped
-        there first): -1 is the lower bound, 1 the upper.
+        there first): -1 is the lower bound, 1 the upper. The actions are checked here,
+        for the single and the vector environments: real numbers (any integer or float
+        dtype), finite, of the action space's shape, else :class:`ParameterError` naming
+        the shape, the dtype and the bounds expected and what was given.
 
         Parameters
         ----------
-        actions : array_like, shape (N, m)
+        actions : array_like, shape (N, m), or (m,) with ``single``
             The actions, dimensionless.
+        single : bool
+            The action of a single environment (one member), shape (m,).
         """
-        a = np.asarray(actions, dtype=np.float64).reshape(self.size, self.lower.size)
+        m = self.lower.size
+        shape, name = ((m,), "action") if single else ((self.size, m), "actions")
+        expected = (
+            f"{name} must be real numbers of shape {shape} in [-1, 1] (the action_space; "
+            "outside it they are clipped)"
+        )
+        try:
+            a = np.asarray(actions)
+        except ValueError:  # ragged nested sequences
+            raise ParameterError(f"{expected}, got {actions!r}") from None
+        if a.dtype.kind not in "iuf":
+            raise ParameterError(f"{expected}, got dtype {a.dtype} ({actions!r})")
+        if a.shape != shape:
+            raise ParameterError(f"{expected}, got shape {a.shape}")
+        a = a.astype(np.float64).reshape(self.size, m)
         if not np.isfinite(a).all():
             bad = int(np.argmax(~np.all(np.isfinite(a), axis=1)))
-            raise ParameterError(f"actions of member {bad} are not finite: {a[bad].tolist()}")
+            raise ParameterError(
+                f"{expected}, got non-finite ones for member {bad}: {a[bad].tolist()}"
+            )
         return self.lower + (np.clip(a, -1.0, 1.0) + 1.0) / 2.0 * (self.upper - self.lower)
 
     def observe(self, x, tip, goal) -> np.ndarray:
@@ -170,16 +191,18 @@ class Episodes:
         )
         return observation, info
 
-    def step(self, actions) -> tuple:
+    def step(self, actions, single: bool = False) -> tuple:
         """Advance every member by one control period: ``(observation, reward,
         terminated, truncated, info)`` as arrays over the members (no reset here).
 
         Parameters
         ----------
-        actions : array_like, shape (N, m)
+        actions : array_like, shape (N, m), or (m,) with ``single``
             The actions in [-1, 1] (clipped), dimensionless.
+        single : bool
+            The action of a single environment, shape (m,) (:meth:`inputs`).
         """
-        inputs = self.inputs(actions)
+        inputs = self.inputs(actions, single)
         finite = np.isfinite(self.x).all(axis=1)
         start = self.x if finite.all() else np.where(finite[:, None], self.x, self.setup.x0)
         result = self.setup.stepper.step(start, inputs)

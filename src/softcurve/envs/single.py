@@ -119,9 +119,7 @@ class SoftRobotEnv(gymnasium.Env):
         action : array_like, shape (m,)
             Actuator inputs scaled to [-1, 1], dimensionless.
         """
-        observation, reward, terminated, truncated, info = self.episodes.step(
-            np.asarray(action)[None, :]
-        )
+        observation, reward, terminated, truncated, info = self.episodes.step(action, single=True)
         return (observation[0], float(reward[0]), bool(terminated[0]), bool(truncated[0]),
                 _row(info, 0))  # fmt: skip
 

@@ -54,8 +54,7 @@ def obstacle_surfaces(obstacle, extent: float) -> list[tuple[np.ndarray, ...]]:
         return [tuple(grid)]
     if hasattr(obstacle, "center"):  # a sphere
         return [tuple(obstacle.center[:, None, None] + obstacle.radius * _ball(np.eye(3), 0, 1))]
-    axis = obstacle.b - obstacle.a  # a capsule: a tube and a half ball at each end
-    w = axis / np.linalg.norm(axis)
+    w = obstacle.axis  # a capsule: a tube and a half ball at each end
     u, v = _tangents(w)
     ring = obstacle.radius * (np.outer(u, np.cos(angle)) + np.outer(v, np.sin(angle)))
     tube = np.stack([obstacle.a[:, None] + ring, obstacle.b[:, None] + ring], axis=2)

@@ -107,7 +107,14 @@ class Solution:
 
 
 def robust_least_squares(
-    residual_and_jacobian, z0, lower, upper, max_evaluations, on_evaluation=None, on_best=None
+    residual_and_jacobian,
+    z0,
+    lower,
+    upper,
+    max_evaluations,
+    on_evaluation=None,
+    on_best=None,
+    gtol: float | None = TOLERANCE,
 ) -> Solution:
     """Minimize ``|r(z)|^2 / 2`` within bounds, a failed evaluation being a rejected step.
 
@@ -129,6 +136,11 @@ def robust_least_squares(
     on_best : callable, optional
         Called without arguments right after an evaluation that became the best point
         (to keep what else was computed there).
+    gtol : float or None
+        SciPy's ``gtol``, a bound on the gradient ``J^T r`` in the residuals' own units
+        (absolute, unlike ``xtol`` and ``ftol``); None stops on the step and the cost
+        only, for residuals whose size says nothing about convergence (residuals of
+        clean data are small everywhere near the solution).
 
     Returns
     -------
@@ -188,7 +200,7 @@ def robust_least_squares(
                 x_scale=1.0,
                 xtol=TOLERANCE,
                 ftol=TOLERANCE,
-                gtol=TOLERANCE,
+                gtol=gtol,
             )
         except _Stopped as stop:
             status, message = Status.INTERRUPTED, f"stopped: {stop}"

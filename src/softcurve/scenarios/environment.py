@@ -31,11 +31,13 @@ _KEYS = {"law", "obstacles", "contact_radius"}
 
 
 def _keys(cls) -> list[str]:
-    return [f.name for f in fields(cls)]
+    """The keys a table of ``cls`` takes: its constructor's (not fields it derives, such
+    as a capsule's unit ``axis``)."""
+    return [f.name for f in fields(cls) if f.init]
 
 
 def _required(cls) -> list[str]:
-    return [f.name for f in fields(cls) if f.default is MISSING]
+    return [f.name for f in fields(cls) if f.init and f.default is MISSING]
 
 
 def _table(where: str, value, what: str) -> Mapping:

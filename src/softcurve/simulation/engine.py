@@ -300,6 +300,11 @@ def cvodes_options(
     return options
 
 
+TOO_MUCH_WORK = "too many internal steps between two output times (max_steps)"
+"""Why an integrator stopped at its step budget: ``max_steps`` internal steps between two
+output times, the one meaning of the budget for every method (``SimulationSettings``)."""
+
+
 def cvodes_reason(text: str) -> str:
     """What a CVODES error ``text`` means, in a sentence.
 
@@ -309,7 +314,7 @@ def cvodes_reason(text: str) -> str:
         CasADi's error text.
     """
     for flag, meaning in (
-        ("CV_TOO_MUCH_WORK", "too many internal steps between two output times (max_steps)"),
+        ("CV_TOO_MUCH_WORK", TOO_MUCH_WORK),
         ("CV_TOO_CLOSE", "the output interval is too short for the step size"),
         ("CV_ERR_FAILURE", "the error test failed repeatedly (step size became too small)"),
         ("CV_CONV_FAILURE", "the Newton iteration failed repeatedly"),

@@ -1,5 +1,5 @@
-"""The integrators of the one engine: CVODES on the model's compiled right-hand side, and
-SciPy's RK45 stepped from Python.
+"""The integrators of the one engine: CVODES on the model's compiled right-hand side here,
+and SciPy's RK45 stepped from Python (:mod:`softcurve.simulation.rk45`).
 
 Both answer one question: starting from state ``x`` at time ``t0``, integrate over
 ``[t0, t0 + h]`` with a piecewise-constant input ``u`` (one value per output interval)
@@ -21,7 +21,6 @@ from functools import cached_property
 
 import casadi as ca
 import numpy as np
-from scipy.integrate import RK45
 
 from softcurve.simulation import engine as _engine
 from softcurve.simulation import native
@@ -342,55 +341,3 @@ class CvodesEngine(_Engine):
         if used_bdf[0] and "bdf" not in self.families:
             self.families.append("bdf")
         return out, reached, flags
-
-
-class ScipyEngine(_Engine):
-    """SciPy's explicit Runge-Kutta 4(5) (Dormand-Prince, like MATLAB's ode45), stepped
-    from Python over the model's compiled right-hand side."""
-
-    name = "rk45"
-    method = "rk45"
-
-    def __init__(self, model, rtol, atol, max_steps, inputs=None):
-        self.model = model
-        self.inputs = inputs
-        self.rtol = rtol
-        self.atol = atol
-        self.max_steps = int(max_steps)
-        self.counts = {"steps": 0, "rhs_evaluations": 0, "jacobian_evaluations": 0}
-
-    def _constant(self, x, h, tout, tau) -> np.ndarray:
-        out = np.empty((tout.size, x.size))
-        if self.inputs is None:
-            rhs = self.model.rhs(tau)
-        else:
-            rhs = lambda t, y: self.inputs.state_derivative(self.model, y, tau)  # noqa: E731
-        # RK45 keeps references to earlier derivatives: give it arrays of its own
-        self._run(lambda t, y: np.array(rhs(t, y)), x, 0.0, h * tout, out)
-        return out
-
-    def _run(self, f, x, t0, times, out) -> np.ndarray:
-        solver = RK45(f, t0, x, times[-1], rtol=self.rtol, atol=self.atol)
-        i, steps = 0, 0
-        while i < times.size:
-            if solver.status != "running":
-                break
-            message = solver.step()
-            self.counts["steps"] += 1
-            steps += 1
-            if solver.status == "failed" or not np.all(np.isfinite(solver.y)):
-                self.counts["rhs_evaluations"] += solver.nfev
-                reason = f"RK45: {message or 'non-finite state'} at t = {solver.t:.6g} s"
-                raise IntegrationFailure(reason, out[:i].copy())
-            if steps > self.max_steps * times.size:
-                self.counts["rhs_evaluations"] += solver.nfev
-                raise IntegrationFailure(
-                    "RK45: too many steps (max_steps per output interval)", out[:i].copy()
-                )
-            if i < times.size and solver.t >= times[i]:
-                dense = solver.dense_output()
-                while i < times.size and solver.t >= times[i]:
-                    out[i] = solver.y if times[i] == solver.t else dense(times[i])
-                    i += 1
-        self.counts["rhs_evaluations"] += solver.nfev
-        return out[-1].copy()

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from softcurve.base.validation import ParameterError
+from softcurve.base.validation import ParameterError, beyond_float
 
 METHODS = ("cvodes", "adams", "bdf", "rk45")
 """Integrators: ``"cvodes"`` chooses Adams or BDF per problem, ``"adams"`` and ``"bdf"``
@@ -55,7 +55,10 @@ def _number(field: str, value, *, unit: str) -> float:
         isinstance(value, bool | str | bytes) or not np.isscalar(value) or not np.isrealobj(value)
     ):
         raise SettingsError(field, f"must be a real number > 0{unit}, got {value!r}")
-    x = float(value)
+    try:
+        x = float(value)
+    except OverflowError:
+        raise SettingsError(field, beyond_float(value)) from None
     if not (math.isfinite(x) and x > 0):
         raise SettingsError(field, f"must be a finite number > 0{unit}, got {x!r}")
     return x

@@ -67,7 +67,7 @@ import time
 import numpy as np
 
 from softcurve.base.status import Status
-from softcurve.base.validation import ParameterError, real_array, real_scalar
+from softcurve.base.validation import ParameterError, float_array, real_array, real_scalar
 from softcurve.compiled.model import Model
 from softcurve.description.actuator import Actuator
 from softcurve.simulation.engine import (
@@ -78,7 +78,8 @@ from softcurve.simulation.engine import (
     nominal_scale,
     success_message,
 )
-from softcurve.simulation.integrators import ActuatorInput, CvodesEngine, ScipyEngine
+from softcurve.simulation.integrators import ActuatorInput, CvodesEngine
+from softcurve.simulation.rk45 import ScipyEngine
 from softcurve.simulation.settings import SimulationSettings, settings_with
 from softcurve.simulation.stepping import Domain, Progress, Stopped, run_on_grid, run_sampled
 from softcurve.simulation.trajectory import Trajectory
@@ -120,7 +121,8 @@ def _input_grid(name: str, value, n: int, grid: np.ndarray):
         return np.zeros((grid.size, n))
     if callable(value):
         return value
-    a = np.asarray(value, dtype=np.float64) if not isinstance(value, str) else None
+    expected = f"shape ({n},) or ({grid.size}, {n}) (one row per output time)"
+    a = float_array(name, value, expected) if not isinstance(value, str) else None
     if a is not None and a.shape == (n,):
         a = np.broadcast_to(a, (grid.size, n))
     if a is None or a.shape != (grid.size, n):

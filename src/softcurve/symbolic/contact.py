@@ -59,9 +59,9 @@ def signed_distance(obstacle, x):
         d = x - ca.DM(obstacle.center)
         return ca.sqrt(ca.dot(d, d) + EPS**2) - obstacle.radius
     if isinstance(obstacle, Capsule):
-        a, axis = ca.DM(obstacle.a), ca.DM(obstacle.b - obstacle.a)
-        t = ca.fmin(ca.fmax(ca.dot(x - a, axis) / float(axis.T @ axis), 0.0), 1.0)
-        d = x - a - t * axis
+        a, axis = ca.DM(obstacle.a), ca.DM(obstacle.axis)
+        along = ca.fmin(ca.fmax(ca.dot(x - a, axis), 0.0), obstacle.length)  # [m]
+        d = x - a - along * axis
         return ca.sqrt(ca.dot(d, d) + EPS**2) - obstacle.radius
     raise TypeError(f"not an obstacle: {type(obstacle).__name__}")
 
