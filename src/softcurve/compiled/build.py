@@ -122,9 +122,19 @@ _SYMBOLIC_SOURCES = (
 
 
 def require_compiler(compiler: list[str] | None) -> list[str]:
-    """``compiler`` (a command of :func:`_compiler`), or :class:`NoCompiler` when None:
-    what every build calls first, so only a build needs a compiler, a cached library
-    none."""
+    """``compiler``, or :class:`NoCompiler` when None: what every build calls first, so
+    only a build needs a compiler, a cached library none.
+
+    Parameters
+    ----------
+    compiler : list of str or None
+        The command of :func:`_compiler`.
+
+    Returns
+    -------
+    list of str
+        ``compiler``.
+    """
     if compiler is None:
         raise NoCompiler("no C compiler found (set CC, or install gcc or clang)")
     return compiler
