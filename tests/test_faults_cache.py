@@ -278,13 +278,18 @@ def _below_a_file(tmp_path):
     return tmp_path / "file" / "cache", "cannot be written"
 
 
-def _immutable(tmp_path):
-    """An empty folder even root cannot write: the immutable attribute (``chattr +i``)."""
-    folder = tmp_path / "read-only"
-    folder.mkdir()
+def _make_immutable(folder):
+    """``folder`` made read-only even for root: the immutable attribute (``chattr +i``);
+    the test is skipped where it cannot be set."""
     chattr = shutil.which("chattr")
     if chattr is None or subprocess.run([chattr, "+i", str(folder)]).returncode != 0:
         pytest.skip("no chattr +i here: no read-only folder that root cannot write")
+
+
+def _immutable(tmp_path):
+    folder = tmp_path / "read-only"
+    folder.mkdir()
+    _make_immutable(folder)
     return folder, "cannot be written"
 
 
@@ -326,6 +331,33 @@ def test_an_unwritable_cache_folder_keeps_the_build_for_the_process(
     finally:
         if case == "read_only":
             subprocess.run(["chattr", "-i", str(folder)], check=True)
+
+
+def test_a_damaged_library_in_a_read_only_cache_is_replaced_once(
+    built, rebuilds, tmp_path, monkeypatch
+):
+    """A read-only shared cache holding a truncated library: rebuilt once into the
+    process's folder, which later models use without a further warning."""
+    folder = tmp_path / "shared"
+    folder.mkdir()
+    library = _copy(built["own"].compiled_library, folder)
+    os.truncate(library, library.stat().st_size // 2)
+    _make_immutable(folder)
+    try:
+        monkeypatch.setenv("SOFTCURVE_CACHE_DIR", str(folder))
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            models = [sc.Model(robot()) for _ in range(3)]
+        messages = [str(w.message) for w in caught]
+        assert len(messages) == 2 and "partial copy" in messages[0], messages
+        assert "cannot be written" in messages[1] and len(rebuilds) == 1, messages
+        assert len({m.compiled_library for m in models}) == 1
+        assert models[0].compiled_library.parent != folder
+        assert_close(
+            models[2].forward_dynamics(Q, QD), built["own"].forward_dynamics(Q, QD), rtol=0
+        )
+    finally:
+        subprocess.run(["chattr", "-i", str(folder)], check=True)
 
 
 def test_the_command_line_with_a_cache_folder_that_is_a_file(filled, tmp_path):

@@ -218,9 +218,10 @@ def load_or_build(kind: str, key: str, build: Callable[[], bytes], load: Callabl
     first when missing; one that fails :func:`library_problem` or fails to load is
     replaced by a fresh build once, with a :class:`CacheWarning`.
 
-    It is looked for in the cache folder, then in this process's stand-in for it (when
-    the cache cannot be written). ``build`` is called only when nothing usable is found,
-    after the folder it will go to is known (the cache, else the stand-in).
+    It is looked for in this process's stand-in for the cache folder (when the cache
+    cannot be written), then in the cache folder. ``build`` is called only when nothing
+    usable is found, after the folder it will go to is known (the cache, else the
+    stand-in).
 
     Parameters
     ----------
@@ -250,8 +251,8 @@ def load_or_build(kind: str, key: str, build: Callable[[], bytes], load: Callabl
     folder = cache_directory()
     name = f"{kind}_{key[:24]}.so"
     candidates = [folder / name]
-    if folder in _PROCESS_FOLDERS:
-        candidates.append(_PROCESS_FOLDERS[folder] / name)
+    if folder in _PROCESS_FOLDERS:  # first: a library it holds replaced one of the cache
+        candidates.insert(0, _PROCESS_FOLDERS[folder] / name)
     for library in candidates:
         identity = _identity(library)
         if identity is None and not library.exists():
