@@ -209,6 +209,16 @@ def _process_folder(folder: Path, problem: str, stacklevel: int) -> Path:
     return _PROCESS_FOLDERS[folder]
 
 
+def _build_folder(folder: Path, stacklevel: int) -> Path:
+    """Where a fresh build for the cache ``folder`` goes: the folder itself when it can be
+    written (checked before building, so no build is lost), else the process's
+    stand-in."""
+    if folder in _PROCESS_FOLDERS:
+        return _PROCESS_FOLDERS[folder]
+    problem = _unwritable(folder)
+    return folder if problem is None else _process_folder(folder, problem, stacklevel + 1)
+
+
 class UnusableLibrary(OSError):
     """A freshly built library failed to load."""
 
@@ -274,11 +284,7 @@ def load_or_build(kind: str, key: str, build: Callable[[], bytes], load: Callabl
             stacklevel=stacklevel + 1,
         )
         break
-    problem = None if folder in _PROCESS_FOLDERS else _unwritable(folder)
-    if problem is not None or folder in _PROCESS_FOLDERS:
-        target = _process_folder(folder, problem, stacklevel + 1) / name
-    else:
-        target = folder / name
+    target = _build_folder(folder, stacklevel + 1) / name
     data = build()
     try:
         install(target, data, key)

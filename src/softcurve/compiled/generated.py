@@ -105,9 +105,8 @@ def compile_function(function: ca.Function, flags: tuple[str, ...] | None = None
         try:
             return compile_with(FUNCTION_FLAGS)
         except subprocess.CalledProcessError:  # refused by this compiler: once more, portable
-            data = compile_with(PORTABLE_FUNCTION_FLAGS)
             _REFUSING_FLAGS.add(tuple(compiler))
-            return data
+            return compile_with(PORTABLE_FUNCTION_FLAGS)
 
     # the flags asked for, not those a compiler accepted: the key holds no compiler
     key = build.cache_key("function", function.serialize(), asked)
