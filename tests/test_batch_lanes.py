@@ -114,6 +114,8 @@ def test_without_a_compiler_for_the_lanes_the_members_run_alone(monkeypatch, tmp
         pytest.skip("no C compiler")
     model = sc.Model(sc.presets.ifac2020())  # its own cache, the library from disk
     monkeypatch.setenv("CC", str(wrapper))
+    # the cache key holds no compiler: lanes cached by another test would be loaded
+    monkeypatch.setenv("SOFTCURVE_CACHE_DIR", str(tmp_path / "lanes-cache"))
     q0s, qd0s = members(4)
     grouped = simulate_batch(model, q0s, qd0s, t_final=0.2, dt=0.01)
     alone = simulate_batch(model, q0s, qd0s, t_final=0.2, dt=0.01, lanes=False)

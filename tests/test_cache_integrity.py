@@ -6,9 +6,9 @@ is detected before it is loaded, replaced by a fresh build with a ``CacheWarning
 the file, and the model gives the same numbers as an undamaged one.
 
 One library is compiled per session (in a private cache) and copied into a fresh cache
-folder per case. The in-process cases rebuild by installing the known-good bytes through
-the cache's own writer (:func:`build._install`), which keeps them fast; the subprocess
-case rebuilds with the real compiler.
+folder per case. The in-process cases rebuild by returning the known-good bytes from the
+compile step (the cache installs them with its own writer), which keeps them fast; the
+subprocess case rebuilds with the real compiler.
 """
 
 from __future__ import annotations
@@ -27,7 +27,8 @@ import pytest
 
 import softcurve as sc
 from softcurve.compiled import build, generated
-from softcurve.compiled.build import CacheWarning, checksum_file, library_problem
+from softcurve.compiled import cache as cache_module
+from softcurve.compiled.cache import CacheWarning, checksum_file, library_problem
 
 from .conftest import assert_close
 
@@ -75,16 +76,23 @@ def cache(intact, tmp_path, monkeypatch):
 
 @pytest.fixture
 def rebuilds(intact, monkeypatch):
-    """Every rebuild in this test, made fast: the known-good bytes, written by the cache's
-    own writer."""
+    """Every rebuild in this test, made fast: the known-good bytes (the cache installs
+    them with its own writer); the list holds each rebuild's cache folder."""
     built = []
 
-    def fake_compile(functions, compiler, library, flags=build._COMPILE_FLAGS):
-        built.append(library)
-        build._install(library, intact[1])
+    def fake_compile(functions, compiler, flags=build._COMPILE_FLAGS):
+        built.append(cache_module.cache_directory())
+        return intact[1]
 
     monkeypatch.setattr(build, "_compile", fake_compile)
     return built
+
+
+def _reinstall(library, data):
+    """``data`` installed as ``library`` by the cache's writer, under the key its checksum
+    file records: a file with a right checksum."""
+    key = checksum_file(library).read_text().split()[5]
+    cache_module.install(library, data, key)
 
 
 def _zero(library):
@@ -113,7 +121,7 @@ def test_a_damaged_library_is_rebuilt_with_a_warning(intact, cache, rebuilds, da
     assert library_problem(cache) is not None
     with pytest.warns(CacheWarning, match=re.escape(str(cache)) + ".*replacing it"):
         model = sc.Model(robot())
-    assert model.compiled_library == cache and rebuilds == [cache]
+    assert model.compiled_library == cache and rebuilds == [cache.parent]
     assert library_problem(cache) is None and cache.read_bytes() == intact[1]
     expected = intact[0].forward_dynamics(Q, QD)
     assert_close(model.forward_dynamics(Q, QD), expected, rtol=1e-12, what=damage)
@@ -142,27 +150,27 @@ def test_an_intact_library_is_loaded_without_a_rebuild(cache, rebuilds):
 
 def test_a_library_is_verified_once_per_process_while_unchanged(cache, rebuilds, monkeypatch):
     checked = []
-    monkeypatch.setattr(build, "library_problem", lambda path: checked.append(path))
+    monkeypatch.setattr(cache_module, "library_problem", lambda path, key: checked.append(path))
     sc.Model(robot())
     sc.Model(robot())
     assert checked == [cache]  # the second model skips the read
-    build._install(cache, cache.read_bytes())  # replaced (a new file, same bytes)
+    _reinstall(cache, cache.read_bytes())  # replaced (a new file, same bytes)
     sc.Model(robot())
     assert checked == [cache, cache] and rebuilds == []
 
 
 def test_a_library_that_fails_to_load_is_rebuilt(intact, cache, rebuilds):
     """Right checksum, wrong content (not a library): the loader's OSError triggers it."""
-    build._install(cache, b"not an ELF file" * 100)
+    _reinstall(cache, b"not an ELF file" * 100)
     assert library_problem(cache) is None
     with pytest.warns(CacheWarning, match=re.escape(str(cache)) + " failed to load"):
         model = sc.Model(robot())
-    assert rebuilds == [cache] and cache.read_bytes() == intact[1]
+    assert rebuilds == [cache.parent] and cache.read_bytes() == intact[1]
     assert_close(model.forward_dynamics(Q, QD), intact[0].forward_dynamics(Q, QD), rtol=1e-12)
 
 
 def test_a_failing_rebuild_falls_back_to_the_virtual_machine(intact, cache, monkeypatch):
-    def failing_compile(functions, compiler, library, flags=build._COMPILE_FLAGS):
+    def failing_compile(functions, compiler, flags=build._COMPILE_FLAGS):
         raise subprocess.CalledProcessError(1, compiler, stderr="cc: out of disk space")
 
     monkeypatch.setattr(build, "_compile", failing_compile)

@@ -190,6 +190,8 @@ def test_without_the_vector_math_library_the_lanes_use_the_c_librarys(
         pytest.skip("no C compiler")
     with_vector_math = lanes_period(paper_model, None, 6, "RK4")
     monkeypatch.setenv("CC", str(wrapper))
+    # the cache key holds no compiler: the library above would be loaded from the cache
+    monkeypatch.setenv("SOFTCURVE_CACHE_DIR", str(tmp_path / "cache"))
     model = sc.Model(sc.presets.ifac2020(), compile=False)  # the lanes need no library
     entry = lanes_period(model, None, 6, "RK4")
     assert entry is not None and with_vector_math.vector_math and not entry.vector_math

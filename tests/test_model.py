@@ -58,11 +58,11 @@ def test_a_failing_compiler_falls_back_with_its_message(monkeypatch, tmp_path):
 def test_code_is_built_for_this_cpu_unless_portable_is_asked(monkeypatch):
     monkeypatch.delenv("SOFTCURVE_PORTABLE", raising=False)
     structure = sc.presets.ifac2020().structure()
-    native = model_module._cache_key(structure, 11, ["cc"])
+    native = model_module._cache_key(structure, 11)
     assert "-march=native" in model_module._compile_flags()
     monkeypatch.setenv("SOFTCURVE_PORTABLE", "1")
     assert model_module._compile_flags() == model_module._COMPILE_FLAGS
-    assert model_module._cache_key(structure, 11, ["cc"]) != native  # one library each
+    assert model_module._cache_key(structure, 11) != native  # one library each
 
 
 def test_a_compiler_without_march_native_builds_portable_code(monkeypatch, tmp_path):
@@ -237,8 +237,10 @@ def test_the_cached_library_has_a_checksum_beside_it(paper_model):
     library = paper_model.compiled_library
     checksum = model_module.checksum_file(library)
     assert checksum.name == library.name + ".sha256"
-    assert checksum.read_text().split()[::2] == ["sha256", "size"]
-    assert model_module.library_problem(library) is None
+    assert checksum.read_text().split()[::2] == ["sha256", "size", "key"]
+    key = model_module._cache_key(paper_model._cache_structure(), paper_model.quadrature_nodes)
+    assert checksum.read_text().split()[5] == key
+    assert model_module.library_problem(library, key) is None
 
 
 def test_the_cvodes_driver_builds_wherever_its_prerequisites_hold():

@@ -27,7 +27,8 @@ from softcurve.analysis.quasistatic import InputSweep, input_sweep
 from softcurve.analysis.statics import equilibria, equilibrium, linearize
 from softcurve.base.status import Result, Status
 from softcurve.base.validation import ParameterError
-from softcurve.compiled.build import CacheWarning, CompilerWarning
+from softcurve.compiled.build import CompilerWarning
+from softcurve.compiled.cache import CacheWarning
 from softcurve.compiled.codegen import ExportedC, export_c
 from softcurve.compiled.model import DynamicsTerms, Model, Pose
 from softcurve.control.controllers import (

@@ -1,15 +1,11 @@
-"""Compiling CasADi functions to C and keeping the libraries on disk.
+"""Compiling CasADi functions to C: the compiler, its flags, the cache keys.
 
-The one place that knows about code generation, compilers and the on-disk cache: the
-library of a model is cached under a key made of its structure, the sources of the
-symbolic layer, CasADi's version and the compiler command, so a second process with a
-robot of the same structure (any parameter values) starts without compiling.
-
-Every library has a checksum file beside it (``<library>.sha256``: its SHA-256 and size).
-A cached library is verified before it is loaded, so a damaged or partly copied file
-never reaches the dynamic loader (a truncated library would crash the process with
-SIGBUS); one that fails its checksum, has none or fails to load is rebuilt once, with a
-:class:`CacheWarning` naming the file and the reason.
+The one place that knows about code generation and compilers: the library of a model is
+cached (:mod:`softcurve.compiled.cache`) under a key made of its structure, the sources
+of the symbolic layer, CasADi's version, the flags and (for code built for this CPU) the
+CPU, so a second process with a robot of the same structure (any parameter values)
+starts without compiling. The key does not hold the compiler: a library is what it
+computes, whichever compiler built it, and a filled cache needs no compiler at all.
 """
 
 from __future__ import annotations
@@ -23,32 +19,30 @@ import subprocess
 import sys
 import tempfile
 import warnings
-from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import casadi as ca
 
-from softcurve.base.docs import parameters_from
-from softcurve.base.files import atomic_write
+from softcurve.compiled.cache import CacheWarning as CacheWarning
+from softcurve.compiled.cache import cache_directory as cache_directory
+from softcurve.compiled.cache import checksum_file as checksum_file
+from softcurve.compiled.cache import library_problem as library_problem
+from softcurve.compiled.cache import load_or_build
 
 
 class CompilerWarning(UserWarning):
     """No C compiler was found or it failed: the model runs in CasADi's virtual machine."""
 
 
-class CacheWarning(UserWarning):
-    """A cached compiled library was damaged (checksum, size) or failed to load, and was
-    replaced by a fresh build."""
+class NoCompiler(OSError):
+    """A library must be built and no C compiler was found (``CC``, ``cc``, ``gcc``,
+    ``clang`` on ``PATH``)."""
 
 
-_CHECKSUM_SUFFIX = ".sha256"
-_LOAD_ERRORS = (OSError, RuntimeError)
-"""What loading a library raises: ``ctypes.CDLL`` an OSError, CasADi's ``external`` a
-RuntimeError."""
-_FUNCTION_CACHE_FORMAT = "checksummed-1"
-"""Part of :func:`compile_function`'s cache key, so libraries cached before checksum
-files existed are not taken for damaged ones."""
+_CACHE_FORMAT = "keyed-2"
+"""Part of every cache key: libraries cached before checksum files recorded their key
+are not looked up (nor taken for damaged ones)."""
 
 
 _COMPILE_FLAGS = ("-O2", "-fPIC", "-fvisibility=hidden", "-DGCC_HASCLASSVISIBILITY")
@@ -61,16 +55,9 @@ between CPU types at round-off (as NumPy's, whose BLAS also picks kernels per CP
 ``SOFTCURVE_PORTABLE=1`` builds portable, bitwise reproducible code instead."""
 
 
-def cache_directory() -> Path:
-    """Where compiled models are kept: ``$SOFTCURVE_CACHE_DIR``, else the user cache."""
-    env = os.environ.get("SOFTCURVE_CACHE_DIR")
-    if env:
-        return Path(env)
-    base = os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache"
-    return Path(base) / "softcurve"
-
-
 def _compiler() -> list[str] | None:
+    """The C compiler's command: ``$CC`` (split as a shell would), else the first of
+    ``cc``, ``gcc``, ``clang`` on ``PATH``; None when there is none."""
     env = os.environ.get("CC")
     if env:
         return shlex.split(env)
@@ -134,135 +121,67 @@ _SYMBOLIC_SOURCES = (
 """The sources the generated code depends on, relative to the package folder."""
 
 
-def _cache_key(structure: tuple, quadrature_nodes: int, command: list[str]) -> str:
-    """Everything the generated code depends on: structure, node count, the source of the
-    symbolic layer, CasADi's version, the compiler command and flags, and the CPU when the
-    code is built for it."""
+def require_compiler(compiler: list[str] | None) -> list[str]:
+    """``compiler``, or :class:`NoCompiler` when None: what every build calls first, so
+    only a build needs a compiler, a cached library none.
+
+    Parameters
+    ----------
+    compiler : list of str or None
+        The command of :func:`_compiler`.
+
+    Returns
+    -------
+    list of str
+        ``compiler``.
+    """
+    if compiler is None:
+        raise NoCompiler("no C compiler found (set CC, or install gcc or clang)")
+    return compiler
+
+
+def cache_key(kind: str, *parts) -> str:
+    """The full cache key (64 hex digits) of a library of ``kind`` built from ``parts``.
+
+    What every cached library's code depends on besides ``parts`` (what it is generated
+    from and the flags asked for): CasADi's version, the platform and Python, whether the
+    code is built for this CPU and then the CPU. Not the compiler: any C compiler with
+    these flags builds the same functions, so a cache filled on one machine serves a
+    worker without a compiler.
+
+    Parameters
+    ----------
+    kind : str
+        ``"model"``, ``"function"`` or a C source's stem.
+    *parts
+        Their ``repr`` is hashed (strings, bytes, tuples of them).
+
+    Returns
+    -------
+    str
+    """
     digest = hashlib.sha256()
-    flags = _compile_flags()
-    digest.update(repr((structure, quadrature_nodes, command, flags)).encode())
-    if _NATIVE_FLAGS[0] in flags:
+    native = _native_flags()
+    digest.update(repr((kind, parts, native, _CACHE_FORMAT)).encode())
+    if native:
         digest.update(_cpu_identity().encode())
     digest.update(f"{ca.__version__} {sys.platform} {sys.implementation.cache_tag}".encode())
+    return digest.hexdigest()
+
+
+def _cache_key(structure: tuple, quadrature_nodes: int) -> str:
+    """The model library's :func:`cache_key`: structure, node count, the flags and the
+    source of the symbolic layer."""
     package = Path(__file__).parent.parent
+    sources = hashlib.sha256()
     for name in _SYMBOLIC_SOURCES:
-        digest.update((package / name).read_bytes())
-    return digest.hexdigest()[:24]
-
-
-_library_docs = parameters_from(
-    {"library": ("str or os.PathLike", "A compiled library in the cache (a ``.so`` file).")}
-)
-
-
-@_library_docs
-def checksum_file(library) -> Path:
-    """The checksum file beside a cached library: ``<library>.sha256``.
-
-    Parameters
-    ----------
-    %(library)s
-
-    Returns
-    -------
-    pathlib.Path
-        Its checksum file, one line ``sha256 <hex digest> size <bytes>``.
-    """
-    library = Path(library)
-    return library.with_name(library.name + _CHECKSUM_SUFFIX)
-
-
-def _checksum_line(data: bytes) -> str:
-    return f"sha256 {hashlib.sha256(data).hexdigest()} size {len(data)}\n"
-
-
-@_library_docs
-def library_problem(library) -> str | None:
-    """Why a cached library must not be loaded, or None when it matches its checksum file.
-
-    The size is compared first (a partial copy fails without being read), then the
-    SHA-256 of the content: one read of the file (about 0.1-0.5 MB).
-
-    Parameters
-    ----------
-    %(library)s
-
-    Returns
-    -------
-    str or None
-        The reason in words ("has no checksum file ...", "has 0 bytes ..."), or None.
-    """
-    library, checksum = Path(library), checksum_file(library)
-    try:
-        fields = checksum.read_text(encoding="ascii").split()
-    except FileNotFoundError:
-        return f"has no checksum file ({checksum.name})"
-    except (OSError, UnicodeDecodeError) as exc:
-        return f"has an unreadable checksum file ({checksum.name}: {exc})"
-    if len(fields) != 4 or fields[0] != "sha256" or fields[2] != "size" or not fields[3].isdigit():
-        return f"has a malformed checksum file ({checksum.name})"
-    try:
-        size = library.stat().st_size
-        if size != int(fields[3]):
-            return f"has {size} bytes where its checksum file records {fields[3]} (partial copy?)"
-        data = library.read_bytes()
-    except OSError as exc:
-        return f"cannot be read ({exc})"
-    if hashlib.sha256(data).hexdigest() != fields[1]:
-        return "does not match its checksum (damaged)"
-    return None
-
-
-_VERIFIED: dict[Path, tuple[int, int, int, int]] = {}
-"""The libraries this process verified and loaded, with the (device, inode, size,
-modification time) they had: a later model of the same structure skips the read while
-the file is unchanged (a replaced or rewritten file is verified again)."""
-
-
-def _identity(path: Path) -> tuple[int, int, int, int] | None:
-    try:
-        stat = path.stat()
-    except FileNotFoundError:
-        return None
-    return stat.st_dev, stat.st_ino, stat.st_size, stat.st_mtime_ns
-
-
-class _UnusableLibrary(OSError):
-    """A freshly built library failed to load."""
-
-
-def _load_or_build(library: Path, build: Callable[[Path], None], load: Callable, stacklevel: int):
-    """``load(library)``, building the library first when it is missing; a cached one that
-    fails :func:`library_problem` or fails to load is replaced by a fresh build once,
-    with a :class:`CacheWarning`. Raises what ``build`` raises, or :class:`_UnusableLibrary`
-    when the fresh build fails to load too."""
-    identity = _identity(library)
-    if identity is not None:
-        problem = None if _VERIFIED.get(library) == identity else library_problem(library)
-        if problem is None:  # checked before dlopen: a truncated file would SIGBUS in it
-            try:
-                loaded = load(library)
-            except _LOAD_ERRORS as exc:
-                problem = f"failed to load ({str(exc).strip()[:300]})"
-            else:
-                _VERIFIED[library] = identity
-                return loaded
-        warnings.warn(
-            f"softcurve cache: the compiled library {library} {problem}; replacing it with a "
-            "fresh build (a shared cache needs atomic renames: see docs/sweeps.md)",
-            CacheWarning,
-            stacklevel=stacklevel + 1,
-        )
-    build(library)
-    try:
-        return load(library)
-    except _LOAD_ERRORS as exc:
-        raise _UnusableLibrary(f"{library} failed to load after a fresh build: {exc}") from exc
+        sources.update((package / name).read_bytes())
+    return cache_key("model", structure, quadrature_nodes, _COMPILE_FLAGS, sources.hexdigest())
 
 
 def compiled_library(structure, quadrature_nodes, symbolic, load=None):
-    """The cached library for this structure, verified and loaded, compiling it first if
-    needed (or if the cached one is damaged); None on failure.
+    """The cached library for this structure, checked and loaded, compiling it first if
+    needed (or if the cached one is damaged or another's); None on failure.
 
     Parameters
     ----------
@@ -280,47 +199,38 @@ def compiled_library(structure, quadrature_nodes, symbolic, load=None):
     -------
     tuple of (pathlib.Path, object) or None
         The library's path and what ``load`` returned; None (with a
-        :class:`CompilerWarning`) when no compiler works: the model then runs in CasADi's
-        virtual machine.
+        :class:`CompilerWarning`) when it is not cached and no compiler works: the model
+        then runs in CasADi's virtual machine.
     """
     compiler = _compiler()
-    if compiler is None:
-        warnings.warn(
-            "no C compiler found (set CC, or install gcc or clang): softcurve runs in "
-            "CasADi's virtual machine, about 10x slower to simulate",
-            CompilerWarning,
-            stacklevel=3,
-        )
-        return None
-    library = cache_directory() / f"model_{_cache_key(structure, quadrature_nodes, compiler)}.so"
 
-    def build(path: Path) -> None:
+    def build() -> bytes:
         functions = symbolic()
         selected = {name: functions[name] for name in COMPILED_FUNCTIONS}
-        _compile_for_this_cpu(selected, compiler, path, _COMPILE_FLAGS)
+        return _compile_for_this_cpu(selected, require_compiler(compiler), _COMPILE_FLAGS)
 
+    key = _cache_key(structure, quadrature_nodes)
     try:
-        loaded = _load_or_build(library, build, load or (lambda path: path), stacklevel=3)
+        return load_or_build("model", key, build, load or (lambda path: path), stacklevel=3)
+    except NoCompiler as exc:
+        message = f"{exc}: softcurve runs in CasADi's virtual machine, about 10x slower to simulate"
     except (OSError, subprocess.CalledProcessError) as exc:
-        detail = getattr(exc, "stderr", None) or str(exc)
-        warnings.warn(
-            f"compiling the model with {compiler[0]} failed ({str(detail).strip()[:400]}): "
-            "softcurve runs in CasADi's virtual machine",
-            CompilerWarning,
-            stacklevel=3,
+        detail = str(getattr(exc, "stderr", None) or exc).strip()[:400]
+        message = (
+            f"compiling the model with {compiler[0]} failed ({detail}): softcurve runs in "
+            "CasADi's virtual machine"
         )
-        return None
-    return library, loaded
+    warnings.warn(message, CompilerWarning, stacklevel=3)
+    return None
 
 
 def _compile(
     functions: dict[str, ca.Function],
     compiler: list[str],
-    library: Path,
     flags: tuple[str, ...] = _COMPILE_FLAGS,
-) -> None:
-    """One C file per function, compiled in parallel, linked, then written by :func:`_install`."""
-    library.parent.mkdir(parents=True, exist_ok=True)
+) -> bytes:
+    """The shared library of ``functions``: one C file per function, compiled in
+    parallel, linked in a temporary folder."""
     with tempfile.TemporaryDirectory() as tmp:
         jobs = []
         for name, f in functions.items():
@@ -333,7 +243,7 @@ def _compile(
         partial = Path(tmp, "model.so")
         objects = [f"{name}.o" for name in functions]
         _run([*compiler, "-shared", "-o", str(partial), *objects, "-lm"], tmp)
-        _install(library, partial.read_bytes())
+        return partial.read_bytes()
 
 
 _REFUSING_NATIVE: set[tuple[str, ...]] = set()
@@ -342,28 +252,19 @@ without them at once, instead of failing first (a failed compile of a large gene
 file costs as much as a good one)."""
 
 
-def _compile_for_this_cpu(functions, compiler, library, flags, tail=()) -> None:
+def _compile_for_this_cpu(functions, compiler, flags, tail=()) -> bytes:
     """:func:`_compile` with ``(*flags, *native, *tail)``, ``native`` from
     :func:`_native_flags`; again without them where the compiler refuses them (remembered
     in :data:`_REFUSING_NATIVE`)."""
     wanted = () if tuple(compiler) in _REFUSING_NATIVE else _native_flags()
     try:
-        _compile(functions, compiler, library, (*flags, *wanted, *tail))
+        return _compile(functions, compiler, (*flags, *wanted, *tail))
     except subprocess.CalledProcessError:
         if not wanted:
             raise
-        _compile(functions, compiler, library, (*flags, *tail))
+        data = _compile(functions, compiler, (*flags, *tail))
         _REFUSING_NATIVE.add(tuple(compiler))  # built without them: they were refused
-
-
-def _install(library: Path, data: bytes) -> None:
-    """Write ``data`` as ``library`` with its checksum file, each renamed into place whole.
-
-    The checksum file comes first, so a reader never finds the new library without it; a
-    checksum file without its library only means the library is built again. Two
-    processes installing at once write the same bytes (the build is deterministic)."""
-    atomic_write(checksum_file(library), _checksum_line(data).encode("ascii"))
-    atomic_write(library, data)
+        return data
 
 
 def _run(command: list[str], directory: str) -> None:

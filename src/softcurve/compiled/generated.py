@@ -6,16 +6,14 @@ identification's sensitivity equations, the stepper's period, an actuator's forc
 from __future__ import annotations
 
 import functools
-import hashlib
 import os
 import subprocess
-import sys
 import warnings
 from concurrent.futures import ThreadPoolExecutor
 
 import casadi as ca
 
-from softcurve.compiled import build
+from softcurve.compiled import build, cache
 
 FUNCTION_FLAGS = ("-O2", "-fno-gcse", "-fno-tree-pre", "-fno-code-hoisting")
 """Optimization flags of :func:`compile_function` (``-march=native`` is added unless
@@ -62,9 +60,10 @@ def compile_function(function: ca.Function, flags: tuple[str, ...] | None = None
 
     For CasADi functions built on a model's expressions (the identification's
     sensitivity equations, say) that are evaluated often: the same compiler and cache as
-    :class:`~softcurve.compiled.model.Model`, keyed by the serialized function, so a
-    second process loads it. A cached library is verified and, if damaged, rebuilt once
-    as the model's (with a :class:`~softcurve.compiled.build.CacheWarning`).
+    :class:`~softcurve.compiled.model.Model`, keyed by the serialized function and the
+    flags asked for, so a second process loads it, with or without a compiler. A cached
+    library is checked and, if damaged or another's, rebuilt once as the model's (with
+    a :class:`~softcurve.compiled.cache.CacheWarning`).
 
     Parameters
     ----------
@@ -85,39 +84,39 @@ def compile_function(function: ca.Function, flags: tuple[str, ...] | None = None
     -------
     casadi.Function or object
         The compiled function as a CasADi ``external`` (derivatives by finite
-        differences) or what ``load`` returned, or ``function`` itself when there is no C
-        compiler, or (with a :class:`~softcurve.compiled.build.CompilerWarning`) when the
-        build fails: then it runs in CasADi's virtual machine.
+        differences) or what ``load`` returned, or ``function`` itself when it is not
+        cached and there is no C compiler, or (with a
+        :class:`~softcurve.compiled.build.CompilerWarning`) when the build fails: then it
+        runs in CasADi's virtual machine.
     """
     compiler = build._compiler()
-    if compiler is None:
-        return function
-    default = flags is None
-    if default:
-        refusing = tuple(compiler) in _REFUSING_FLAGS
-        flags = PORTABLE_FUNCTION_FLAGS if refusing else FUNCTION_FLAGS
-    flags = tuple(flags)
-    digest = hashlib.sha256(function.serialize().encode())
-    digest.update(f"{ca.__version__} {sys.platform} {compiler} {flags}".encode())
-    if build._native_flags():
-        digest.update(build._cpu_identity().encode())
-    digest.update(build._FUNCTION_CACHE_FORMAT.encode())
-    library = build.cache_directory() / f"function_{digest.hexdigest()[:24]}.so"
     name = function.name()
+    asked = None if flags is None else tuple(flags)
 
-    try:
-        return build._load_or_build(
-            library,
-            lambda path: build._compile_for_this_cpu(
-                {name: function}, compiler, path, flags, ("-fPIC",)
-            ),
-            lambda path: (load or load_external)(path, name),
-            stacklevel=2,
-        )
-    except (OSError, subprocess.CalledProcessError) as exc:
-        if default and flags == FUNCTION_FLAGS:  # refused by this compiler: once more, portable
+    def compile_with(chosen: tuple[str, ...]) -> bytes:
+        return build._compile_for_this_cpu({name: function}, compiler, chosen, ("-fPIC",))
+
+    def make() -> bytes:
+        build.require_compiler(compiler)
+        if asked is not None:
+            return compile_with(asked)
+        if tuple(compiler) in _REFUSING_FLAGS:
+            return compile_with(PORTABLE_FUNCTION_FLAGS)
+        try:
+            return compile_with(FUNCTION_FLAGS)
+        except subprocess.CalledProcessError:  # refused by this compiler: once more, portable
             _REFUSING_FLAGS.add(tuple(compiler))
-            return compile_function(function, None, load)
+            return compile_with(PORTABLE_FUNCTION_FLAGS)
+
+    # the flags asked for, not those a compiler accepted: the key holds no compiler
+    key = build.cache_key("function", function.serialize(), asked)
+    try:
+        _, loaded = cache.load_or_build(
+            "function", key, make, lambda path: (load or load_external)(path, name), stacklevel=2
+        )
+    except build.NoCompiler:
+        return function
+    except (OSError, subprocess.CalledProcessError) as exc:
         detail = str(getattr(exc, "stderr", None) or exc).strip()[:400]
         warnings.warn(
             f"compiling {name} with {compiler[0]} failed ({detail}): it runs in CasADi's "
@@ -126,6 +125,7 @@ def compile_function(function: ca.Function, flags: tuple[str, ...] | None = None
             stacklevel=2,
         )
         return function
+    return loaded
 
 
 def compile_functions(functions, flags: tuple[str, ...] | None = None, load=None) -> list:
