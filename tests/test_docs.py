@@ -35,7 +35,9 @@ A result class that is a dataclass (``Equilibrium``, ``Trajectory``, ``FitReport
 is built by the library, not by its users, and numpy convention documents its fields
 under ``Attributes``; for a dataclass, rules 1 to 4 therefore accept a constructor
 parameter documented in either ``Parameters`` or ``Attributes``, and an entry found in
-``Attributes`` must satisfy rules 2 to 4 like one in ``Parameters``.
+``Attributes`` must satisfy rules 2 to 4 like one in ``Parameters``. A field computed at
+construction (``field(init=False)``, e.g. ``Capsule.axis``) is no parameter: documented
+under ``Attributes``, it must satisfy rules 3 and 4.
 
 Run ``python -m pytest -q tests/test_docs.py``; a failure lists every offender as
 ``module.qualname: parameter 'x' ...``, so all can be fixed in one pass.
@@ -119,9 +121,11 @@ def parameter_offenses(
     signature: inspect.Signature,
     *docstrings,
     sections: tuple[str, ...] = PARAMETER_SECTIONS,
+    derived: tuple[str, ...] = (),
 ) -> list[str]:
     """Every broken rule of one callable, as ``label: parameter 'x' ...`` lines, reading
-    the parameters from the docstrings' ``sections``."""
+    the parameters from the docstrings' ``sections``; ``derived`` names documented
+    attributes that are no parameter (a dataclass's fields computed at construction)."""
     names = _signature_names(signature)
     documented = _documented(*docstrings, sections=sections)
     stars = {inspect.Parameter.VAR_POSITIONAL: "*", inspect.Parameter.VAR_KEYWORD: "**"}
@@ -131,6 +135,11 @@ def parameter_offenses(
             star = stars.get(signature.parameters[name].kind, "")
             found.append(f"{label}: parameter '{star}{name}' is not documented")
     for name, (type_line, description) in documented.items():
+        if name in derived:
+            problem = _unit_problem(type_line, description)
+            if problem:
+                found.append(f"{label}: attribute '{name}' {problem}")
+            continue
         if name not in names:
             found.append(f"{label}: parameter '{name}' is documented but not in the signature")
             continue
@@ -178,9 +187,18 @@ def class_offenses(cls) -> list[str]:
     if defines_init and not issubclass(cls, enum.Enum):
         init = cls.__init__
         own_init_doc = init.__doc__ if "__init__" in vars(cls) and init.__doc__ else None
-        sections = DATACLASS_SECTIONS if dataclasses.is_dataclass(cls) else PARAMETER_SECTIONS
+        is_dataclass = dataclasses.is_dataclass(cls)
+        sections = DATACLASS_SECTIONS if is_dataclass else PARAMETER_SECTIONS
+        derived = (
+            tuple(f.name for f in dataclasses.fields(cls) if not f.init) if is_dataclass else ()
+        )
         found += parameter_offenses(
-            _label(cls), inspect.signature(cls), cls.__doc__, own_init_doc, sections=sections
+            _label(cls),
+            inspect.signature(cls),
+            cls.__doc__,
+            own_init_doc,
+            sections=sections,
+            derived=derived,
         )
     for name, method in _public_methods(cls):
         # an implementation of a documented interface method inherits its docstring, as

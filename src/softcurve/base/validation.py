@@ -101,8 +101,8 @@ def float_array(name: str, value, expected: str) -> np.ndarray:
     ----------
     name : str
         The field's name, for the message.
-    value : array_like
-        What the user gave.
+    value : array_like, any shape
+        What the user gave, in any unit.
     expected : str
         What the field must be, for the message (e.g. "a real array of shape (3,)").
     """
