@@ -6,6 +6,8 @@ returns the exit code. Add a module's name to ``COMMANDS`` to expose it. Errors 
 user can fix (bad files, bad values, an output folder that cannot be written) are
 printed on stderr as one line without a traceback and give exit code 2; a solver that
 fails, or an unexpected error, gives exit code 1 (``--debug`` shows the traceback).
+Ctrl-C stops a command with exit code 130 and one line saying what was kept
+(:class:`Interrupted`).
 """
 
 from __future__ import annotations
@@ -16,6 +18,7 @@ import functools
 import importlib
 import os
 import re
+import signal
 import sys
 import traceback
 import warnings
@@ -54,6 +57,28 @@ class Command:
     description: str
     add_arguments: Callable[[argparse.ArgumentParser], None]
     run: Callable[[argparse.Namespace], int]
+
+
+class Interrupted(KeyboardInterrupt):
+    """Ctrl-C, carrying what the command kept (its files are written whole or not at all).
+
+    Parameters
+    ----------
+    kept : str
+        What was kept and how to go on, e.g. ``"the chunks written are kept: run the
+        same command to resume"``.
+    """
+
+    def __init__(self, kept: str):
+        super().__init__(kept)
+        self.kept = kept
+
+
+NOTHING_HALF_WRITTEN = (
+    "nothing was half-written (files are written whole or not at all); run the same "
+    "command again to start over"
+)
+"""What an interrupted command kept when it does not say more."""
 
 
 class Parser(argparse.ArgumentParser):
@@ -153,6 +178,12 @@ def main(argv: list[str] | None = None) -> int:
             if not args.debug:  # one line per warning, without the source line
                 warnings.showwarning = functools.partial(_show_warning, args.command)
             return int(args.handler(args))
+    except KeyboardInterrupt as exc:  # Ctrl-C: one line, exit 130 (128 + SIGINT)
+        if args.debug:
+            traceback.print_exc()
+        kept = exc.kept if isinstance(exc, Interrupted) else NOTHING_HALF_WRITTEN
+        print(f"softcurve {args.command}: interrupted: {kept}", file=sys.stderr)
+        return 128 + signal.SIGINT
     except BrokenPipeError:  # the reader went away (softcurve info | head): not an error
         sys.stdout = open(os.devnull, "w")
         return 0

@@ -24,7 +24,7 @@ from softcurve.base.validation import ParameterError
 from softcurve.simulation.settings import CSV_BYTES_PER_VALUE, SettingsError, format_bytes
 from softcurve.simulation.trajectory_files import save_trajectory
 
-from . import Command, add_progress_options, write_figure
+from . import Command, Interrupted, add_progress_options, write_figure
 
 
 def _add_arguments(parser) -> None:
@@ -145,12 +145,27 @@ def as_flags(text: str) -> str:
 
 def _run(args) -> int:
     """Run ``softcurve simulate``; returns the exit code."""
+    scenario = _scenario(args)
+    output = writable_folder(args.output, "--output")  # before any work
+    written: list = []  # the files complete so far
+    try:
+        return _simulate(args, scenario, output, written)
+    except KeyboardInterrupt:
+        if not written:
+            raise Interrupted(f"nothing written to {output}") from None
+        files = ", ".join(str(p) for p in written)
+        raise Interrupted(
+            f"kept {files} (complete; nothing half-written); run the same command again "
+            "for the rest"
+        ) from None
+
+
+def _simulate(args, scenario, output, written: list) -> int:
+    """Simulate and write into ``output``, appending each file to ``written`` once whole."""
     from softcurve.compiled.model import Model
     from softcurve.simulation.simulate import simulate
 
-    scenario = _scenario(args)
     say = (lambda *a: None) if args.quiet else print
-    output = writable_folder(args.output, "--output")  # before any work
     start = time.perf_counter()
     model = Model(scenario.robot, environment=scenario.environment)
     built = time.perf_counter() - start
@@ -177,7 +192,7 @@ def _run(args) -> int:
             f"softcurve simulate: writing about {format_bytes(csv_size)} of CSV ...",
             file=sys.stderr,
         )
-    written = [save_trajectory(trajectory, output / "trajectory.csv", progress=show_progress)]
+    written.append(save_trajectory(trajectory, output / "trajectory.csv", progress=show_progress))
     if args.npz:
         written.append(trajectory.save(output / "trajectory.npz"))
     looks = {"figsize": args.figsize, "dpi": args.dpi}

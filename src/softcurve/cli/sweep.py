@@ -16,7 +16,7 @@ import matplotlib.figure
 
 from softcurve.base.validation import ParameterError
 
-from . import Command, add_progress_options, write_figure
+from . import Command, Interrupted, add_progress_options, write_figure
 
 FIGURE = "sweep.png"
 """The figure's file in the output folder when ``--figure`` names none."""
@@ -136,6 +136,10 @@ def _terminated(signum, frame):
     raise SystemExit(128 + signum)
 
 
+RESUME = "the chunks written are kept: run the same command to resume"
+"""What an interrupted or terminated sweep kept."""
+
+
 def _run_until_signal(function, *args, **kwargs):
     """``function(*args, **kwargs)``; on SIGTERM or an interrupt the worker processes are
     killed before the exception goes on (the chunks written so far are kept)."""
@@ -145,14 +149,13 @@ def _run_until_signal(function, *args, **kwargs):
     previous = signal.signal(signal.SIGTERM, _terminated) if main_thread else None
     try:
         return function(*args, **kwargs)
+    except KeyboardInterrupt:
+        stop_workers()
+        raise Interrupted(RESUME) from None
     except BaseException as exc:
         stop_workers()
-        if isinstance(exc, KeyboardInterrupt | SystemExit):
-            print(
-                "softcurve sweep: stopped; the chunks written are kept: run the same command "
-                "to resume",
-                file=sys.stderr,
-            )
+        if isinstance(exc, SystemExit):
+            print(f"softcurve sweep: stopped by SIGTERM; {RESUME}", file=sys.stderr)
         raise
     finally:
         if main_thread:

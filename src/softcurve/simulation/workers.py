@@ -17,6 +17,7 @@ that clock. The C driver reads no clock, so a batch on threads is as fast.
 from __future__ import annotations
 
 import os
+import signal
 import threading
 import time
 from collections.abc import Callable, Iterator
@@ -49,6 +50,9 @@ def _worker_start(parent: int) -> None:
     # portable and follows the process.
     if os.getppid() != parent:  # the parent died while this worker started
         os._exit(1)
+    # Ctrl-C reaches the whole process group: the parent decides (it kills the workers
+    # and says what was kept); a worker's own KeyboardInterrupt would print a traceback
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
     threading.Thread(target=_watch_parent, args=(parent,), daemon=True).start()
 
 
