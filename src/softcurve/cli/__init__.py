@@ -135,6 +135,24 @@ def add_progress_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("-q", "--quiet", action="store_true", help="print nothing on success")
 
 
+def in_cli_terms(text: str, options: dict[str, str]) -> str:
+    """``text``, a message or advice of the library, in the words of a command: each
+    pattern of ``options`` (a regular expression of the library's words, e.g. a Python
+    argument ``\\bmax_steps\\b``, not preceded by a letter, ``-`` or ``.``) replaced by
+    what the user of the command types or can do (``--max-steps``).
+
+    Parameters
+    ----------
+    text : str
+        The library's message.
+    options : dict of str to str
+        Pattern -> replacement (``re.sub`` syntax).
+    """
+    for pattern, option in options.items():
+        text = re.sub(r"(?<![-\w.])" + pattern, option, text)
+    return text
+
+
 def write_figure(draw, path, *, figsize=None, **options):
     """Draw a figure, save it and close it; returns the path written.
 

@@ -12,7 +12,6 @@ figures are still written), 2 for usage or configuration errors.
 from __future__ import annotations
 
 import dataclasses
-import re
 import shutil
 import sys
 import time
@@ -24,7 +23,7 @@ from softcurve.base.validation import ParameterError
 from softcurve.simulation.settings import CSV_BYTES_PER_VALUE, SettingsError, format_bytes
 from softcurve.simulation.trajectory_files import save_trajectory
 
-from . import Command, Interrupted, add_progress_options, write_figure
+from . import Command, Interrupted, add_progress_options, in_cli_terms, write_figure
 
 
 def _add_arguments(parser) -> None:
@@ -125,7 +124,8 @@ FLAGS = {
     r"\bmax_steps\b": "--max-steps",
     r"\bmax_outputs\b": "--max-outputs",
 }
-"""The Python names of settings, as the command line spells them."""
+"""The Python names of settings, as the command line spells them (patterns of
+:func:`~softcurve.cli.in_cli_terms`)."""
 
 
 def as_flags(text: str) -> str:
@@ -138,9 +138,7 @@ def as_flags(text: str) -> str:
     text : str
         A message that names settings as Python arguments.
     """
-    for pattern, flag in FLAGS.items():
-        text = re.sub(r"(?<![-\w.])" + pattern, flag, text)
-    return text
+    return in_cli_terms(text, FLAGS)
 
 
 def _run(args) -> int:

@@ -12,11 +12,10 @@ import sys
 import threading
 from pathlib import Path
 
-import matplotlib.figure
-
 from softcurve.base.validation import ParameterError
+from softcurve.figures.drawing import figure_format
 
-from . import Command, Interrupted, add_progress_options, write_figure
+from . import Command, Interrupted, _options, add_progress_options, write_figure
 
 FIGURE = "sweep.png"
 """The figure's file in the output folder when ``--figure`` names none."""
@@ -69,8 +68,8 @@ def _run(args) -> int:
         raise ParameterError(
             "softcurve sweep writes Parquet with pyarrow: pip install 'softcurve[sweep]'"
         ) from None
-    if args.workers is not None and args.workers < 0:
-        raise ParameterError(f"--workers must be >= 0, got {args.workers}")
+    if args.workers is not None:
+        _options.count(args.workers, "--workers", 0)
     config = load_sweep(args.config)
     figure = _figure_path(args.figure, args.output)
     show = args.progress if args.progress is not None else sys.stderr.isatty()
@@ -120,12 +119,7 @@ def _figure_path(figure, output):
     path = Path(figure)
     if path.parent == Path():
         path = Path(output) / path
-    suffix = path.suffix.lstrip(".").lower() or "png"
-    supported = matplotlib.figure.Figure().canvas.get_supported_filetypes()
-    if suffix not in supported:
-        raise ParameterError(
-            f"--figure {figure}: the suffix must be one of {sorted('.' + s for s in supported)}"
-        )
+    _options.as_option(f"--figure {figure}", figure_format, path)
     if path.parent != Path(output) and not path.parent.is_dir():
         raise ParameterError(f"--figure {figure}: the folder {path.parent} does not exist")
     return path
