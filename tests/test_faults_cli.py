@@ -23,6 +23,7 @@ import pytest
 
 import softcurve as sc
 from softcurve.base.validation import ParameterError
+from softcurve.cli import main
 from tests.test_faults import SWEEP_TOML, alive, descendants, leftovers, run, working
 
 ENV = {**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[1] / "src")}
@@ -156,3 +157,170 @@ def test_evaluations_along_a_trajectory_are_short_calls(compiled, monkeypatch):
     assert tip.shape == (2500, 3) and rotation.shape == (2500, 9)
     for k in (0, 1023, 1024, 2499):
         np.testing.assert_allclose(tip[k], compiled.tip_pose(q[k]).position, rtol=1e-12)
+
+
+# -- item 8: exit codes and the order of checks ---------------------------------------------
+@pytest.fixture
+def data_csv(tmp_path) -> Path:
+    path = tmp_path / "data.csv"
+    path.write_text("x,f\n" + "".join(f"{x},{2 * x}\n" for x in np.linspace(-1, 1, 9)))
+    return path
+
+
+@pytest.fixture
+def symlink_loop(tmp_path) -> Path:
+    (tmp_path / "loop1").symlink_to(tmp_path / "loop2")
+    (tmp_path / "loop2").symlink_to(tmp_path / "loop1")
+    return tmp_path / "loop1"
+
+
+@pytest.mark.parametrize("command", ["simulate", "sweep", "equilibria", "codegen"])
+def test_symlink_loop_as_input_is_bad_input(symlink_loop, tmp_path, capsys, command):
+    output = [] if command == "equilibria" else ["-o", tmp_path / "out"]
+    code, out, err = run([command, symlink_loop, *output], capsys)
+    assert code == 2 and "loop of symbolic links" in err and str(symlink_loop) in err
+    assert "free space" not in err and out == ""
+    assert not (tmp_path / "out").exists() or leftovers(tmp_path / "out") == []
+
+
+@pytest.mark.parametrize("seed", ["-1", "x"])
+def test_equilibria_seed_is_checked_before_work(capsys, seed):
+    if seed == "x":  # argparse's own check of an integer: exit 2 naming --seed
+        with pytest.raises(SystemExit) as caught:
+            main(["equilibria", "--seed", seed])
+        assert caught.value.code == 2 and "--seed" in capsys.readouterr().err
+        return
+    code, out, err = run(["equilibria", "--seed", seed], capsys)
+    assert code == 2 and "--seed" in err and "integer >= 0" in err and "got -1" in err
+    assert out == "" and "ValueError" not in err
+
+
+@pytest.mark.parametrize("seed", ["x", -1, 1.5, True])
+def test_equilibria_seed_is_a_parameter_error_in_the_library(seed):
+    model = sc.Model(sc.presets.ifac2020(), compile=False)
+    with pytest.raises(ParameterError, match=r"seed must be an integer >= 0"):
+        sc.equilibria(model, starts=2, seed=seed)
+
+
+@pytest.mark.parametrize(
+    "argv, option",
+    [
+        (["fit", "{csv}", "--strain", "x", "--force", "f", "--figure", "{dir}/f.xyz"], "--figure"),
+        (["equilibria", "--plot", "{dir}/x.xyz"], "--plot"),
+        (["sweep", "{sweep}", "-o", "{dir}/out", "--figure", "s.xyz"], "--figure"),
+    ],
+)
+def test_unsupported_figure_format_is_refused_before_work(data_csv, tmp_path, capsys, argv, option):
+    sweep = tmp_path / "sweep.toml"
+    sweep.write_text(SWEEP_TOML.format(t_final=0.1, points=2))
+    argv = [a.format(csv=data_csv, dir=tmp_path, sweep=sweep) for a in argv]
+    code, out, err = run(argv, capsys)
+    assert code == 2 and option in err and ".xyz" in err and "'.png'" in err
+    assert out == ""  # no table: nothing was computed
+    assert not (tmp_path / "out").exists()
+
+
+def test_codegen_prefix_is_checked_before_the_folder_is_made(tmp_path, capsys):
+    out = tmp_path / "c"
+    code, _, err = run(["codegen", "--prefix", "1bad", "-o", out], capsys)
+    assert code == 2 and "--prefix" in err and "C identifier" in err and "'1bad'" in err
+    assert not out.exists()
+
+
+@pytest.mark.parametrize("option", [["--starts", "0"], ["--starts", "-3"]])
+def test_equilibria_starts_is_named_as_the_option(capsys, option):
+    code, out, err = run(["equilibria", *option], capsys)
+    assert code == 2 and "--starts" in err and "integer >= 1" in err and out == ""
+
+
+# -- item 9: files and messages --------------------------------------------------------------
+def test_csv_with_a_byte_order_mark_is_read(tmp_path, capsys):
+    path = tmp_path / "excel.csv"
+    rows = "".join(f"{x},{2 * x}\r\n" for x in np.linspace(0.1, 1, 9))
+    path.write_bytes("x,f\r\n".encode("utf-8-sig") + rows.encode())
+    code, out, err = run(["fit", path, "--strain", "x", "--force", "f", "--law", "linear"], capsys)
+    assert code == 0, err
+    assert "LinearStiffness(k0=2)" in out
+
+
+@pytest.mark.parametrize(
+    "make, words",
+    [
+        (lambda tmp: Path("/dev/null"), "is a device, not a file"),
+        (lambda tmp: tmp, "is a folder, not a file"),
+        (lambda tmp: tmp / "missing.csv", "does not exist"),
+    ],
+)
+@pytest.mark.parametrize("command", ["fit", "simulate"])
+def test_input_that_is_not_a_file_is_named(tmp_path, capsys, make, words, command):
+    path = make(tmp_path)
+    argv = [command, path] + (["--strain", "x", "--force", "f"] if command == "fit" else [])
+    code, out, err = run(
+        [*argv, *(["-o", tmp_path / "o"] if command == "simulate" else [])], capsys
+    )
+    assert code == 2 and words in err and str(path) in err and out == ""
+    if words != "does not exist":
+        assert "does not exist" not in err
+
+
+def test_a_full_disk_names_the_file(compiled, tmp_path, capsys, monkeypatch):
+    from softcurve.simulation import trajectory_files
+
+    def full(out, table, name, progress):
+        out.write("0,1,2\n")
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+
+    monkeypatch.setattr(trajectory_files, "_write_rows", full)
+    out = tmp_path / "out"
+    code, _, err = run(["simulate", "-o", out, "--t-final", "0.01", "--no-figures"], capsys)
+    assert code == 1 and str(out / "trajectory.csv") in err and "No space left" in err
+    assert "free space" in err
+    assert leftovers(out) == [] and not (out / "trajectory.csv").exists()
+
+
+def test_equilibria_advice_names_options_that_exist(capsys):
+    code, out, err = run(["equilibria", "--tip-force", "0", "0", "100", "--starts", "8"], capsys)
+    assert code == 1, out + err
+    assert "none inside the searched box" in out and "--starts" in out and "--tip-force" in out
+    assert "widen" not in out + err
+
+
+@pytest.fixture
+def finished_sweep(compiled, tmp_path, capsys):
+    pytest.importorskip("pyarrow")
+    config = tmp_path / "sweep.toml"
+    config.write_text(SWEEP_TOML.format(t_final=0.1, points=2))
+    out = tmp_path / "out"
+    argv = ["sweep", config, "-o", out, "--workers", "0", "--no-progress", "-q"]
+    code, _, err = run(argv, capsys)
+    assert code == 0, err
+    return argv, out
+
+
+@pytest.mark.parametrize(
+    "damage",
+    [
+        lambda text: "{}",
+        lambda text: "[1, 2]",
+        lambda text: text[: len(text) // 2],
+        lambda text: json.dumps({**json.loads(text), "fingerprint": None}),
+        lambda text: "\0" * len(text),
+    ],
+)
+def test_damaged_sweep_manifest_is_named_damaged(finished_sweep, capsys, damage):
+    argv, out = finished_sweep
+    manifest = out / "manifest.json"
+    manifest.write_text(damage(manifest.read_text()))
+    code, _, err = run(argv, capsys)
+    assert code == 2 and "damaged sweep manifest" in err and str(manifest) in err
+    assert "--restart" in err and "another sweep" not in err
+    code, _, err = run([*argv, "--restart"], capsys)  # what the message says works
+    assert code == 0, err
+
+
+def test_sweep_manifest_of_another_configuration_is_another_sweep(finished_sweep, capsys):
+    argv, out = finished_sweep
+    manifest = out / "manifest.json"
+    manifest.write_text(json.dumps({**json.loads(manifest.read_text()), "fingerprint": "0" * 16}))
+    code, _, err = run(argv, capsys)
+    assert code == 2 and "another sweep" in err and "damaged" not in err
