@@ -46,7 +46,7 @@ def figure_file(path, option: str) -> Path:
     """
     from softcurve.figures.drawing import figure_format
 
-    as_option(f"{option} {path}", figure_format, path)
+    figure_format(path, f"{option} {path}")
     return writable_file(path, option)
 
 

@@ -119,7 +119,7 @@ def _figure_path(figure, output):
     path = Path(figure)
     if path.parent == Path():
         path = Path(output) / path
-    _options.as_option(f"--figure {figure}", figure_format, path)
+    figure_format(path, f"--figure {figure}")
     if path.parent != Path(output) and not path.parent.is_dir():
         raise ParameterError(f"--figure {figure}: the folder {path.parent} does not exist")
     return path

@@ -112,7 +112,7 @@ def whole_number(name: str, value, minimum: int) -> int:
     return number
 
 
-def figure_format(path) -> str:
+def figure_format(path, what: str | None = None) -> str:
     """The format Matplotlib writes ``path`` in, from its suffix (none: ``"png"``);
     :class:`~softcurve.ParameterError` listing the supported suffixes otherwise. Cheap:
     commands check their figure paths with it before any work.
@@ -121,6 +121,8 @@ def figure_format(path) -> str:
     ----------
     path : str or pathlib.Path
         The figure's file.
+    what : str, optional
+        How the user gave it, for the message (e.g. ``"--plot x.xyz"``).
 
     Returns
     -------
@@ -133,9 +135,9 @@ def figure_format(path) -> str:
     file_format = path.suffix.lstrip(".").lower() or "png"
     supported = FigureCanvasBase.get_supported_filetypes()
     if file_format not in supported:
+        what = what or f"cannot write a figure as {path.name!r}"
         raise ParameterError(
-            f"cannot write a figure as {path.name!r}: the suffix must be one of "
-            f"{sorted('.' + s for s in supported)}"
+            f"{what}: the suffix must be one of {sorted('.' + s for s in supported)}"
         )
     return file_format
 
