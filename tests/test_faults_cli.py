@@ -324,3 +324,15 @@ def test_sweep_manifest_of_another_configuration_is_another_sweep(finished_sweep
     manifest.write_text(json.dumps({**json.loads(manifest.read_text()), "fingerprint": "0" * 16}))
     code, _, err = run(argv, capsys)
     assert code == 2 and "another sweep" in err and "damaged" not in err
+
+
+@pytest.mark.parametrize("argv", [["simulate", "--html"], ["equilibria", "--html", "{dir}/v.html"]])
+def test_viewer_without_plotly_is_refused_before_work(tmp_path, capsys, monkeypatch, argv):
+    from softcurve.cli import _options
+
+    monkeypatch.setattr(_options, "_installed", lambda module: module != "plotly")
+    out = tmp_path / "out"
+    argv = [a.format(dir=tmp_path) for a in argv]
+    code, printed, err = run([*argv, *(["-o", out] if argv[0] == "simulate" else [])], capsys)
+    assert code == 2 and "--html" in err and "softcurve[viewer]" in err and printed == ""
+    assert not out.exists() and not (tmp_path / "v.html").exists()

@@ -89,3 +89,26 @@ def count(value, option: str, minimum: int = 1) -> int:
         Its smallest allowed value.
     """
     return as_option(option, whole_count, option.lstrip("-"), value, minimum)
+
+
+def _installed(module: str) -> bool:
+    """Whether ``module`` can be imported (found, not imported: cheap)."""
+    import importlib.util
+
+    return importlib.util.find_spec(module) is not None
+
+
+def viewer(option: str = "--html") -> None:
+    """An option that writes the 3-D viewer: Plotly, of the extra ``viewer``, is there
+    (else the run would fail at its end, after the work).
+
+    Parameters
+    ----------
+    option : str
+        The option.
+    """
+    if not _installed("plotly"):
+        raise ParameterError(
+            f"{option} needs Plotly, of the extra viewer: pip install 'softcurve[viewer]' "
+            "(or leave out the option)"
+        )

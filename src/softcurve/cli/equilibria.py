@@ -61,6 +61,7 @@ def _run(args) -> int:
     if args.plot:
         _options.figure_file(args.plot, "--plot")
     if args.html:
+        _options.viewer("--html")
         _options.output_file(args.html, "--html")
     robot, actuator, environment = _robots.robot_and_actuator(args)
     model = Model(

@@ -23,7 +23,7 @@ from softcurve.base.validation import ParameterError
 from softcurve.simulation.settings import CSV_BYTES_PER_VALUE, SettingsError, format_bytes
 from softcurve.simulation.trajectory_files import save_trajectory
 
-from . import Command, Interrupted, add_progress_options, in_cli_terms, write_figure
+from . import Command, Interrupted, _options, add_progress_options, in_cli_terms, write_figure
 
 
 def _add_arguments(parser) -> None:
@@ -96,8 +96,7 @@ def _scenario(args):
         "max_outputs": args.max_outputs,
     }
     overrides = {k: v for k, v in overrides.items() if v is not None}
-    if args.fps < 1:
-        raise ParameterError(f"--fps must be >= 1, got {args.fps}")
+    _options.count(args.fps, "--fps")
     if args.figsize is not None and not all(0 < v < 1000 for v in args.figsize):
         raise ParameterError(f"--figsize must be two sizes in (0, 1000) inches, got {args.figsize}")
     if args.dpi is not None and not 0 < args.dpi <= 2000:
@@ -144,6 +143,8 @@ def as_flags(text: str) -> str:
 def _run(args) -> int:
     """Run ``softcurve simulate``; returns the exit code."""
     scenario = _scenario(args)
+    if args.html:
+        _options.viewer("--html")
     output = writable_folder(args.output, "--output")  # before any work
     written: list = []  # the files complete so far
     try:
