@@ -157,6 +157,7 @@ def test_evaluations_along_a_trajectory_are_short_calls(compiled, monkeypatch):
     assert tip.shape == (2500, 3) and rotation.shape == (2500, 9)
     for k in (0, 1023, 1024, 2499):
         np.testing.assert_allclose(tip[k], compiled.tip_pose(q[k]).position, rtol=1e-12)
+    assert [a.shape for a in compiled.evaluate_along("pose", q[:0], 1.0)] == [(0, 9), (0, 3)]
 
 
 # -- item 8: exit codes and the order of checks ---------------------------------------------

@@ -228,7 +228,8 @@ class CompiledFunctions:
         for i in range(function.n_out()):
             rows, cols = function.size1_out(i), function.size2_out(i)
             # (rows, cols * width) per call, column blocks; the last call padded
-            dense = np.hstack([np.asarray(b[i], dtype=np.float64) for b in blocks])
+            parts = [np.asarray(b[i], dtype=np.float64) for b in blocks]
+            dense = np.hstack(parts) if parts else np.empty((rows, 0))
             per_point = dense.reshape(rows, -1, cols)[:, :count]
             result.append(per_point.transpose(1, 0, 2).reshape(count, rows * cols))
         return result
