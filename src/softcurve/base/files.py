@@ -56,8 +56,9 @@ def atomic_path(path):
     except BaseException as exc:
         with contextlib.suppress(FileNotFoundError):
             os.unlink(tmp)
-        if isinstance(exc, OSError) and exc.errno is not None and exc.filename != str(path):
-            # a failed write names no file (a full disk): name the one that was not written
+        if isinstance(exc, OSError) and exc.filename in (None, str(tmp)):
+            # a failed write names no file (a full disk), or the temporary one: name the
+            # file that was not written
             raise OSError(exc.errno, exc.strerror or str(exc), str(path)) from exc
         raise
 
