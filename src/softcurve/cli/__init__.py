@@ -186,8 +186,12 @@ def main(argv: list[str] | None = None) -> int:
         The arguments (default: ``sys.argv[1:]``).
     """
     matplotlib.use("Agg")  # the command writes figures to files and never opens a window
-    parser = build_parser()
-    args = parser.parse_args(argv)
+    try:  # the commands' modules are imported here: seconds in which Ctrl-C may come
+        parser = build_parser()
+        args = parser.parse_args(argv)
+    except KeyboardInterrupt:
+        print("softcurve: interrupted before starting: nothing was done", file=sys.stderr)
+        return 128 + signal.SIGINT
     if getattr(args, "handler", None) is None:
         parser.print_help()
         return 2
