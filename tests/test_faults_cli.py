@@ -22,6 +22,7 @@ import numpy as np
 import pytest
 
 import softcurve as sc
+from softcurve import cli
 from softcurve.base.validation import ParameterError
 from softcurve.cli import main
 from tests.test_faults import SWEEP_TOML, alive, descendants, leftovers, run, working
@@ -337,3 +338,22 @@ def test_viewer_without_plotly_is_refused_before_work(tmp_path, capsys, monkeypa
     code, printed, err = run([*argv, *(["-o", out] if argv[0] == "simulate" else [])], capsys)
     assert code == 2 and "--html" in err and "softcurve[viewer]" in err and printed == ""
     assert not out.exists() and not (tmp_path / "v.html").exists()
+
+
+def interrupt(*args, **kwargs):
+    raise KeyboardInterrupt
+
+
+def test_ctrl_c_in_any_command_is_one_line_and_130(capsys, monkeypatch):
+    from softcurve.analysis import statics
+
+    monkeypatch.setattr(statics, "equilibria", interrupt)
+    code, out, err = run(["equilibria", "--starts", "2"], capsys)
+    assert code == 130 and out == ""
+    assert err.strip() == f"softcurve equilibria: interrupted: {cli.NOTHING_HALF_WRITTEN}"
+
+
+def test_ctrl_c_while_the_commands_are_imported(capsys, monkeypatch):
+    monkeypatch.setattr(cli, "build_parser", interrupt)
+    code, _, err = run(["simulate"], capsys)
+    assert code == 130 and err.strip() == "softcurve: interrupted before starting: nothing was done"
