@@ -27,8 +27,6 @@ from softcurve.base.validation import ParameterError
 from softcurve.cli import main
 from tests.test_faults import SWEEP_TOML, alive, descendants, leftovers, run, working
 
-ENV = {**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[1] / "src")}
-
 
 @pytest.fixture
 def compiled(paper_model):
@@ -47,7 +45,6 @@ class Command:
             stdout=subprocess.DEVNULL,
             stderr=subprocess.PIPE,
             start_new_session=True,
-            env=ENV,
         )
         self.err = bytearray()
         self.reader = threading.Thread(target=self._read, daemon=True)
