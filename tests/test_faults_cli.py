@@ -354,3 +354,10 @@ def test_ctrl_c_while_the_commands_are_imported(capsys, monkeypatch):
     monkeypatch.setattr(cli, "build_parser", interrupt)
     code, _, err = run(["simulate"], capsys)
     assert code == 130 and err.strip() == "softcurve: interrupted before starting: nothing was done"
+
+
+@pytest.mark.parametrize("under", ["", "sub"])
+def test_symlink_loop_as_output_folder_is_named(symlink_loop, capsys, under):
+    out = symlink_loop / under if under else symlink_loop
+    code, _, err = run(["simulate", "-o", out, "--t-final", "0.01"], capsys)
+    assert code == 2 and "--output" in err and "loop of symbolic links" in err

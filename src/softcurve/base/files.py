@@ -167,6 +167,17 @@ def writable_folder(folder, option: str = "--output") -> Path:
         ``folder``.
     """
     folder = Path(folder)
+    try:
+        os.stat(folder)
+    except FileNotFoundError:  # to be created, unless it is a link to nothing
+        if folder.is_symlink():
+            raise ParameterError(
+                f"{option} {folder}: a symbolic link to nothing; choose another folder"
+            ) from None
+    except OSError as exc:  # a loop of symbolic links, no permission
+        raise ParameterError(
+            f"{option} {folder}: cannot write there ({_cause(exc)}); choose another folder"
+        ) from None
     if folder.exists() and not folder.is_dir():
         raise ParameterError(f"{option} {folder}: exists and is not a folder; choose a folder")
     probe = folder / f".softcurve-probe.pid{os.getpid()}.{secrets.token_hex(4)}"
