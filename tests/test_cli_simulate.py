@@ -124,7 +124,7 @@ def test_bad_options_exit_2(tmp_path, capsys):
     assert main(["simulate", "-o", str(tmp_path), "--dt", "-1"]) == 2
     assert "dt" in capsys.readouterr().err
     assert main(["simulate", str(tmp_path / "missing.toml")]) == 2
-    assert "no such file" in capsys.readouterr().err
+    assert "does not exist" in capsys.readouterr().err
     with pytest.raises(SystemExit) as exit_info:
         main(["simulate", "--method", "euler"])
     assert exit_info.value.code == 2

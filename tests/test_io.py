@@ -241,7 +241,7 @@ def test_bad_files_name_file_key_and_reason(tmp_path, text, expected):
 
 
 def test_missing_file_is_a_config_error(tmp_path):
-    with pytest.raises(ConfigError, match="no such file"):
+    with pytest.raises(ConfigError, match="does not exist"):
         load_config(tmp_path / "nothing.toml")
 
 

@@ -47,7 +47,7 @@ from softcurve.analysis.loads import (
 )
 from softcurve.analysis.solver import Root, solve_equilibrium
 from softcurve.base.status import Status
-from softcurve.base.validation import ParameterError, real_array
+from softcurve.base.validation import ParameterError, random_seed, real_array
 
 __all__ = [
     "Equilibrium",
@@ -324,6 +324,7 @@ def equilibria(
     >>> table.success, len(table), table[0].stability
     (True, 1, 'stable')
     """
+    seed = random_seed("seed", seed)
     load = StaticLoad(model, **loads)
     problem = _Problem(load)
     bounds = default_bounds(model.robot) if bounds is None else bounds

@@ -1,5 +1,6 @@
 """Files written whole or not at all: a temporary file in the target's folder, renamed
-over the target when complete, so readers see the old file or the new one, never a part.
+over the target when complete, so readers see the old file or the new one, never a part;
+and the one check of the files a user gives to read (:func:`read_input`).
 """
 
 from __future__ import annotations
@@ -10,6 +11,7 @@ import os
 import re
 import secrets
 import socket
+import stat
 from pathlib import Path
 
 from softcurve.base.validation import ParameterError
@@ -51,9 +53,13 @@ def atomic_path(path):
         yield Path(tmp)
         os.chmod(tmp, 0o666 & ~_UMASK)
         os.replace(tmp, path)
-    except BaseException:
+    except BaseException as exc:
         with contextlib.suppress(FileNotFoundError):
             os.unlink(tmp)
+        if isinstance(exc, OSError) and exc.filename in (None, str(tmp)):
+            # a failed write names no file (a full disk), or the temporary one: name the
+            # file that was not written
+            raise OSError(exc.errno, exc.strerror or str(exc), str(path)) from exc
         raise
 
 
@@ -161,6 +167,17 @@ def writable_folder(folder, option: str = "--output") -> Path:
         ``folder``.
     """
     folder = Path(folder)
+    try:
+        os.stat(folder)
+    except FileNotFoundError:  # to be created, unless it is a link to nothing
+        if folder.is_symlink():
+            raise ParameterError(
+                f"{option} {folder}: a symbolic link to nothing; choose another folder"
+            ) from None
+    except OSError as exc:  # a loop of symbolic links, no permission
+        raise ParameterError(
+            f"{option} {folder}: cannot write there ({_cause(exc)}); choose another folder"
+        ) from None
     if folder.exists() and not folder.is_dir():
         raise ParameterError(f"{option} {folder}: exists and is not a folder; choose a folder")
     probe = folder / f".softcurve-probe.pid{os.getpid()}.{secrets.token_hex(4)}"
@@ -207,8 +224,80 @@ def _cause(exc: OSError) -> str:
         errno.EPERM: "operation not permitted",
         errno.EROFS: "read-only filesystem",
         errno.ENOSPC: "no space left on the device",
+        errno.ELOOP: "a loop of symbolic links",
     }
     return reasons.get(exc.errno, exc.strerror or str(exc))
+
+
+class InputFileError(ParameterError):
+    """A file given to read cannot be read: a folder, a device, a loop of symbolic links,
+    no permission (:func:`input_file`)."""
+
+
+class InputFileNotFound(InputFileError, FileNotFoundError):
+    """A file given to read does not exist (also a :class:`FileNotFoundError`)."""
+
+
+def input_file(path, what: str = "") -> Path:
+    """Check, before reading, that ``path`` is a file that can be read:
+    :class:`InputFileNotFound` if it does not exist, :class:`InputFileError` naming the
+    cause if it is a folder, a device (``/dev/null``), a loop of symbolic links or
+    forbidden. Pipes are files here (``softcurve fit <(...)``).
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The file.
+    what : str
+        What it is, for the message (e.g. ``"experiment file"``); default: nothing.
+
+    Returns
+    -------
+    pathlib.Path
+        ``path``.
+    """
+    path = Path(path)
+    name = f"{what} {path}" if what else str(path)
+    try:
+        mode = path.stat().st_mode
+    except FileNotFoundError:
+        broken = " (a broken symbolic link)" if path.is_symlink() else ""
+        raise InputFileNotFound(f"{name}: does not exist{broken}") from None
+    except OSError as exc:
+        raise InputFileError(f"{name}: cannot be read ({_cause(exc)})") from None
+    if stat.S_ISDIR(mode):
+        raise InputFileError(f"{name}: is a folder, not a file; give a file")
+    if stat.S_ISCHR(mode) or stat.S_ISBLK(mode) or stat.S_ISSOCK(mode):
+        raise InputFileError(f"{name}: is a device, not a file; give a file")
+    return path
+
+
+def read_input(path, what: str = "") -> str:
+    """The text of the file ``path``, checked by :func:`input_file`, read as UTF-8 with or
+    without a byte-order mark (as spreadsheets and Windows editors save it).
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The file.
+    what : str
+        What it is, for the message (e.g. ``"experiment file"``).
+
+    Returns
+    -------
+    str
+        Its text, without the byte-order mark.
+    """
+    path = input_file(path, what)
+    name = f"{what} {path}" if what else str(path)
+    try:
+        return path.read_bytes().decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        raise InputFileError(
+            f"{name}: not a UTF-8 text file (byte {exc.start}); save it as UTF-8"
+        ) from None
+    except OSError as exc:
+        raise InputFileError(f"{name}: cannot be read ({_cause(exc)})") from None
 
 
 class FolderLocked(ParameterError):

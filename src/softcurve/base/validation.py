@@ -55,6 +55,27 @@ def whole_count(name: str, value, minimum: int = 1) -> int:
     return int(value)
 
 
+def random_seed(name: str, value):
+    """Return ``value`` as a seed of NumPy's and SciPy's generators: an integer >= 0 (a
+    bool is not one) or a :class:`numpy.random.Generator`; :class:`ParameterError`
+    otherwise.
+
+    Parameters
+    ----------
+    name : str
+        The field's name, for the message.
+    value : int or numpy.random.Generator
+        The seed to check.
+    """
+    if isinstance(value, np.random.Generator):
+        return value
+    if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < 0:
+        raise ParameterError(
+            f"{name} must be an integer >= 0 (or a numpy.random.Generator), got {value!r}"
+        )
+    return int(value)
+
+
 def real_scalar(name: str, value, *, positive: bool = False, nonzero: bool = False) -> float:
     """Return ``value`` as a finite float, or raise :class:`ParameterError`.
 

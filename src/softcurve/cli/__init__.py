@@ -6,6 +6,8 @@ returns the exit code. Add a module's name to ``COMMANDS`` to expose it. Errors 
 user can fix (bad files, bad values, an output folder that cannot be written) are
 printed on stderr as one line without a traceback and give exit code 2; a solver that
 fails, or an unexpected error, gives exit code 1 (``--debug`` shows the traceback).
+Ctrl-C stops a command with exit code 130 and one line saying what was kept
+(:class:`Interrupted`).
 """
 
 from __future__ import annotations
@@ -16,6 +18,7 @@ import functools
 import importlib
 import os
 import re
+import signal
 import sys
 import traceback
 import warnings
@@ -54,6 +57,28 @@ class Command:
     description: str
     add_arguments: Callable[[argparse.ArgumentParser], None]
     run: Callable[[argparse.Namespace], int]
+
+
+class Interrupted(KeyboardInterrupt):
+    """Ctrl-C, carrying what the command kept (its files are written whole or not at all).
+
+    Parameters
+    ----------
+    kept : str
+        What was kept and how to go on, e.g. ``"the chunks written are kept: run the
+        same command to resume"``.
+    """
+
+    def __init__(self, kept: str):
+        super().__init__(kept)
+        self.kept = kept
+
+
+NOTHING_HALF_WRITTEN = (
+    "nothing was half-written (files are written whole or not at all); run the same "
+    "command again to start over"
+)
+"""What an interrupted command kept when it does not say more."""
 
 
 class Parser(argparse.ArgumentParser):
@@ -110,6 +135,24 @@ def add_progress_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("-q", "--quiet", action="store_true", help="print nothing on success")
 
 
+def in_cli_terms(text: str, options: dict[str, str]) -> str:
+    """``text``, a message or advice of the library, in the words of a command: each
+    pattern of ``options`` (a regular expression of the library's words, e.g. a Python
+    argument ``\\bmax_steps\\b``, not preceded by a letter, ``-`` or ``.``) replaced by
+    what the user of the command types or can do (``--max-steps``).
+
+    Parameters
+    ----------
+    text : str
+        The library's message.
+    options : dict of str to str
+        Pattern -> replacement (``re.sub`` syntax).
+    """
+    for pattern, option in options.items():
+        text = re.sub(r"(?<![-\w.])" + pattern, option, text)
+    return text
+
+
 def write_figure(draw, path, *, figsize=None, **options):
     """Draw a figure, save it and close it; returns the path written.
 
@@ -143,8 +186,12 @@ def main(argv: list[str] | None = None) -> int:
         The arguments (default: ``sys.argv[1:]``).
     """
     matplotlib.use("Agg")  # the command writes figures to files and never opens a window
-    parser = build_parser()
-    args = parser.parse_args(argv)
+    try:  # the commands' modules are imported here: seconds in which Ctrl-C may come
+        parser = build_parser()
+        args = parser.parse_args(argv)
+    except KeyboardInterrupt:
+        print("softcurve: interrupted before starting: nothing was done", file=sys.stderr)
+        return 128 + signal.SIGINT
     if getattr(args, "handler", None) is None:
         parser.print_help()
         return 2
@@ -153,6 +200,12 @@ def main(argv: list[str] | None = None) -> int:
             if not args.debug:  # one line per warning, without the source line
                 warnings.showwarning = functools.partial(_show_warning, args.command)
             return int(args.handler(args))
+    except KeyboardInterrupt as exc:  # Ctrl-C: one line, exit 130 (128 + SIGINT)
+        if args.debug:
+            traceback.print_exc()
+        kept = exc.kept if isinstance(exc, Interrupted) else NOTHING_HALF_WRITTEN
+        print(f"softcurve {args.command}: interrupted: {kept}", file=sys.stderr)
+        return 128 + signal.SIGINT
     except BrokenPipeError:  # the reader went away (softcurve info | head): not an error
         sys.stdout = open(os.devnull, "w")
         return 0

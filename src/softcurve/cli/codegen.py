@@ -5,7 +5,7 @@ from __future__ import annotations
 import subprocess
 import sys
 
-from . import Command, _robots
+from . import Command, _options, _robots
 
 
 def _add_arguments(parser) -> None:
@@ -27,9 +27,10 @@ def _add_arguments(parser) -> None:
 def _run(args) -> int:
     """Run ``softcurve codegen``; returns the exit code."""
     from softcurve.base.files import writable_folder
-    from softcurve.compiled.codegen import build_and_run_test, export_c
+    from softcurve.compiled.codegen import build_and_run_test, c_identifier, export_c
     from softcurve.compiled.model import Model
 
+    _options.as_option("--prefix", c_identifier, "prefix", args.prefix)
     robot, actuator, environment = _robots.robot_and_actuator(args)  # a bad file: no folder
     writable_folder(args.output, "--output")  # before any work
     exported = export_c(

@@ -4,9 +4,16 @@ from __future__ import annotations
 
 import numpy as np
 
-from softcurve.base.validation import ParameterError
+from . import Command, _options, _robots, in_cli_terms, write_figure
 
-from . import Command, _robots, write_figure
+ADVICE = {
+    r"none inside the bounds: widen them, add starts or change the loads": (
+        "none inside the searched box (per segment l in [0.5, 1.5] l0, |kx|, |ky| <= pi / l0): "
+        "try more --starts, another --seed, or other loads (--tip-force, --inputs, --gravity)"
+    ),
+}
+"""The library's advice, in the options of ``softcurve equilibria`` (it has none for the
+box searched, ``bounds`` of :func:`~softcurve.equilibria`)."""
 
 
 def _add_arguments(parser) -> None:
@@ -47,13 +54,15 @@ def _add_arguments(parser) -> None:
 def _run(args) -> int:
     """Run ``softcurve equilibria``; returns the exit code."""
     from softcurve.analysis.statics import equilibria, linearize
-    from softcurve.base.files import writable_file
     from softcurve.compiled.model import Model
 
-    for option in ("plot", "html"):
-        if getattr(args, option):
-            writable_file(getattr(args, option), f"--{option}")  # before any work
-
+    # every option before any work
+    seed, starts = _options.seed(args.seed), _options.count(args.starts, "--starts")
+    if args.plot:
+        _options.figure_file(args.plot, "--plot")
+    if args.html:
+        _options.viewer("--html")
+        _options.output_file(args.html, "--html")
     robot, actuator, environment = _robots.robot_and_actuator(args)
     model = Model(
         robot, environment=environment, compile=False
@@ -64,14 +73,12 @@ def _run(args) -> int:
     elif args.gravity is not None:
         loads["gravity"] = args.gravity
     if args.inputs is not None:
-        try:  # named as the actuator names them: "tensions[0] = 12.0 N is outside ..."
-            inputs = actuator.check_inputs(args.inputs)
-        except ParameterError as exc:
-            raise ParameterError(f"--inputs: {exc}") from None
+        # named as the actuator names them: "tensions[0] = 12.0 N is outside ..."
+        inputs = _options.as_option("--inputs", actuator.check_inputs, args.inputs)
         loads.update(actuator=actuator, inputs=inputs)
     if args.tip_force is not None:
         loads["tip_force"] = args.tip_force
-    table = equilibria(model, starts=args.starts, seed=args.seed, **loads)
+    table = equilibria(model, starts=starts, seed=seed, **loads)
     gravity = np.asarray(loads.get("gravity", robot.gravity), dtype=float) + 0.0  # no -0.0
     print(
         f"softcurve equilibria: {robot.n_segments} segment(s), "
@@ -80,7 +87,7 @@ def _run(args) -> int:
     if args.inputs is not None:
         unit = f" {actuator.input_unit}" if actuator.input_unit else ""
         print(f"  {actuator.input_name} {args.inputs}{unit}")
-    print(f"  {table.message}; {table.evaluations} residual evaluations")
+    print(f"  {in_cli_terms(table.message, ADVICE)}; {table.evaluations} residual evaluations")
     print(table.table())
     if args.modes:
         for k, e in enumerate(table):

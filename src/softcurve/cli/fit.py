@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import sys
 
-from . import Command, write_figure
+from . import Command, _options, write_figure
 
 
 def _add_arguments(parser) -> None:
@@ -29,18 +29,14 @@ def _add_arguments(parser) -> None:
 
 def _run(args) -> int:
     """Run ``softcurve fit``; returns the exit code."""
-    from softcurve.base.files import writable_file
-    from softcurve.base.validation import ParameterError
     from softcurve.identification.experiments import load_csv
     from softcurve.identification.report import check_confidence
     from softcurve.identification.stiffness import fit_stiffness
 
-    try:  # the library's one check, before any work, named as the option
-        check_confidence(args.confidence)
-    except ParameterError as exc:
-        raise ParameterError(f"--{exc}") from None
+    # every option before any work, by the library's own checks
+    _options.as_option("--confidence", check_confidence, args.confidence)
     if args.figure:
-        writable_file(args.figure, "--figure")  # before any work
+        _options.figure_file(args.figure, "--figure")
 
     signals = [args.strain, args.force] + ([args.weights] if args.weights else [])
     # rows are data points, in any order: number them instead of reading a time column

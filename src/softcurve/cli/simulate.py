@@ -12,7 +12,6 @@ figures are still written), 2 for usage or configuration errors.
 from __future__ import annotations
 
 import dataclasses
-import re
 import shutil
 import sys
 import time
@@ -24,7 +23,7 @@ from softcurve.base.validation import ParameterError
 from softcurve.simulation.settings import CSV_BYTES_PER_VALUE, SettingsError, format_bytes
 from softcurve.simulation.trajectory_files import save_trajectory
 
-from . import Command, add_progress_options, write_figure
+from . import Command, Interrupted, _options, add_progress_options, in_cli_terms, write_figure
 
 
 def _add_arguments(parser) -> None:
@@ -97,8 +96,7 @@ def _scenario(args):
         "max_outputs": args.max_outputs,
     }
     overrides = {k: v for k, v in overrides.items() if v is not None}
-    if args.fps < 1:
-        raise ParameterError(f"--fps must be >= 1, got {args.fps}")
+    _options.count(args.fps, "--fps")
     if args.figsize is not None and not all(0 < v < 1000 for v in args.figsize):
         raise ParameterError(f"--figsize must be two sizes in (0, 1000) inches, got {args.figsize}")
     if args.dpi is not None and not 0 < args.dpi <= 2000:
@@ -125,7 +123,8 @@ FLAGS = {
     r"\bmax_steps\b": "--max-steps",
     r"\bmax_outputs\b": "--max-outputs",
 }
-"""The Python names of settings, as the command line spells them."""
+"""The Python names of settings, as the command line spells them (patterns of
+:func:`~softcurve.cli.in_cli_terms`)."""
 
 
 def as_flags(text: str) -> str:
@@ -138,19 +137,34 @@ def as_flags(text: str) -> str:
     text : str
         A message that names settings as Python arguments.
     """
-    for pattern, flag in FLAGS.items():
-        text = re.sub(r"(?<![-\w.])" + pattern, flag, text)
-    return text
+    return in_cli_terms(text, FLAGS)
 
 
 def _run(args) -> int:
     """Run ``softcurve simulate``; returns the exit code."""
+    scenario = _scenario(args)
+    if args.html:
+        _options.viewer("--html")
+    output = writable_folder(args.output, "--output")  # before any work
+    written: list = []  # the files complete so far
+    try:
+        return _simulate(args, scenario, output, written)
+    except KeyboardInterrupt:
+        if not written:
+            raise Interrupted(f"nothing written to {output}") from None
+        files = ", ".join(str(p) for p in written)
+        raise Interrupted(
+            f"kept {files} (complete; nothing half-written); run the same command again "
+            "for the rest"
+        ) from None
+
+
+def _simulate(args, scenario, output, written: list) -> int:
+    """Simulate and write into ``output``, appending each file to ``written`` once whole."""
     from softcurve.compiled.model import Model
     from softcurve.simulation.simulate import simulate
 
-    scenario = _scenario(args)
     say = (lambda *a: None) if args.quiet else print
-    output = writable_folder(args.output, "--output")  # before any work
     start = time.perf_counter()
     model = Model(scenario.robot, environment=scenario.environment)
     built = time.perf_counter() - start
@@ -177,7 +191,7 @@ def _run(args) -> int:
             f"softcurve simulate: writing about {format_bytes(csv_size)} of CSV ...",
             file=sys.stderr,
         )
-    written = [save_trajectory(trajectory, output / "trajectory.csv", progress=show_progress)]
+    written.append(save_trajectory(trajectory, output / "trajectory.csv", progress=show_progress))
     if args.npz:
         written.append(trajectory.save(output / "trajectory.npz"))
     looks = {"figsize": args.figsize, "dpi": args.dpi}

@@ -12,11 +12,10 @@ import sys
 import threading
 from pathlib import Path
 
-import matplotlib.figure
-
 from softcurve.base.validation import ParameterError
+from softcurve.figures.drawing import figure_format
 
-from . import Command, add_progress_options, write_figure
+from . import Command, Interrupted, _options, add_progress_options, write_figure
 
 FIGURE = "sweep.png"
 """The figure's file in the output folder when ``--figure`` names none."""
@@ -69,8 +68,8 @@ def _run(args) -> int:
         raise ParameterError(
             "softcurve sweep writes Parquet with pyarrow: pip install 'softcurve[sweep]'"
         ) from None
-    if args.workers is not None and args.workers < 0:
-        raise ParameterError(f"--workers must be >= 0, got {args.workers}")
+    if args.workers is not None:
+        _options.count(args.workers, "--workers", 0)
     config = load_sweep(args.config)
     figure = _figure_path(args.figure, args.output)
     show = args.progress if args.progress is not None else sys.stderr.isatty()
@@ -120,12 +119,7 @@ def _figure_path(figure, output):
     path = Path(figure)
     if path.parent == Path():
         path = Path(output) / path
-    suffix = path.suffix.lstrip(".").lower() or "png"
-    supported = matplotlib.figure.Figure().canvas.get_supported_filetypes()
-    if suffix not in supported:
-        raise ParameterError(
-            f"--figure {figure}: the suffix must be one of {sorted('.' + s for s in supported)}"
-        )
+    figure_format(path, f"--figure {figure}")
     if path.parent != Path(output) and not path.parent.is_dir():
         raise ParameterError(f"--figure {figure}: the folder {path.parent} does not exist")
     return path
@@ -134,6 +128,10 @@ def _figure_path(figure, output):
 def _terminated(signum, frame):
     """SIGTERM: end like an interrupt, so that the workers are stopped on the way out."""
     raise SystemExit(128 + signum)
+
+
+RESUME = "the chunks written are kept: run the same command to resume"
+"""What an interrupted or terminated sweep kept."""
 
 
 def _run_until_signal(function, *args, **kwargs):
@@ -145,14 +143,13 @@ def _run_until_signal(function, *args, **kwargs):
     previous = signal.signal(signal.SIGTERM, _terminated) if main_thread else None
     try:
         return function(*args, **kwargs)
+    except KeyboardInterrupt:
+        stop_workers()
+        raise Interrupted(RESUME) from None
     except BaseException as exc:
         stop_workers()
-        if isinstance(exc, KeyboardInterrupt | SystemExit):
-            print(
-                "softcurve sweep: stopped; the chunks written are kept: run the same command "
-                "to resume",
-                file=sys.stderr,
-            )
+        if isinstance(exc, SystemExit):
+            print(f"softcurve sweep: stopped by SIGTERM; {RESUME}", file=sys.stderr)
         raise
     finally:
         if main_thread:

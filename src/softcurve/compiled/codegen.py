@@ -190,6 +190,25 @@ def _test_program(prefix: str, functions, samples, expected) -> str:
     return "\n".join([*lines, "", *main, ""])
 
 
+def c_identifier(name: str, value: str) -> str:
+    """``value``, checked to be a C identifier (ASCII letters, digits and ``_``, not
+    starting with a digit); :class:`~softcurve.ParameterError` naming ``name`` otherwise.
+
+    Parameters
+    ----------
+    name : str
+        The field, for the message.
+    value : str
+        The identifier.
+    """
+    if not (isinstance(value, str) and value.isidentifier() and value.isascii()):
+        raise ParameterError(
+            f"{name} must be a C identifier (letters, digits and _, not starting with a "
+            f"digit), got {value!r}"
+        )
+    return value
+
+
 def export_c(
     model,
     directory,
@@ -218,8 +237,7 @@ def export_c(
     seed : int
         Seed of the test program's sample state.
     """
-    if not (prefix.isidentifier() and prefix.isascii()):
-        raise ParameterError(f"prefix must be a C identifier, got {prefix!r}")
+    c_identifier("prefix", prefix)
     directory = Path(directory).resolve()  # once: the test is built and run inside it
     directory.mkdir(parents=True, exist_ok=True)
     functions = _functions(model, actuator, prefix, embed_parameters)

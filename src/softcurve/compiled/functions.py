@@ -36,6 +36,21 @@ CACHED_PER_MODEL = 64
 """Entries of :meth:`CompiledFunctions.cached` per model; a batch or identification builds
 a few integrators and maps per output grid, so 64 covers every study in the docs."""
 
+POINTS_PER_CALL = 1024
+"""Points of one compiled call of :meth:`CompiledFunctions.evaluate_along`: the fastest
+width of CasADi's map of the pose (building a map costs more than linear in its width;
+300 000 points cost 4 s in one map, 0.5 s in maps of 1024), and short enough that a
+Ctrl-C, which Python sees only between two calls, acts within milliseconds."""
+
+
+def _block(column: np.ndarray, start: int, width: int) -> np.ndarray:
+    """Rows ``start .. start + width`` of ``column`` (T, k) as CasADi's map takes them,
+    (k, width); past the end the last row is repeated (those outputs are dropped)."""
+    part = column[start : start + width]
+    if part.shape[0] < width:
+        part = np.concatenate([part, np.repeat(part[-1:], width - part.shape[0], axis=0)])
+    return part.T
+
 
 def _load(library: Path) -> dict[str, NativeFunction]:
     """The compiled functions of a verified library (ctypes raises OSError if it cannot be
@@ -179,7 +194,8 @@ class CompiledFunctions:
         return self.symbolic[name]
 
     def evaluate_along(self, name: str, *columns) -> list[np.ndarray]:
-        """Evaluate the function ``name`` at many points in one compiled call.
+        """Evaluate the function ``name`` at many points, :data:`POINTS_PER_CALL` per
+        compiled call.
 
         Parameters
         ----------
@@ -195,21 +211,26 @@ class CompiledFunctions:
             One array per output of the function, flattened per point (column major).
         """
         count = next(np.shape(c)[0] for c in columns if np.ndim(c) == 2)
+        width = max(1, min(count, POINTS_PER_CALL))
 
         def build():
             function = self.function(name)
-            return function, function.map(count)
+            return function, function.map(width)
 
-        function, mapped = self.cached(("map", name, count), build)
-        inputs = [np.asarray(c, dtype=np.float64).T if np.ndim(c) == 2 else c for c in columns]
-        outputs = mapped(*inputs, self.parameters)
-        if not isinstance(outputs, tuple | list):
-            outputs = (outputs,)
+        function, mapped = self.cached(("map", name, width), build)
+        columns = [np.asarray(c, dtype=np.float64) if np.ndim(c) == 2 else c for c in columns]
+        blocks = []
+        for start in range(0, count, width):  # between two calls an interrupt is seen
+            inputs = [_block(c, start, width) if np.ndim(c) == 2 else c for c in columns]
+            outputs = mapped(*inputs, self.parameters)
+            blocks.append(outputs if isinstance(outputs, tuple | list) else (outputs,))
         result = []
-        for i, o in enumerate(outputs):
+        for i in range(function.n_out()):
             rows, cols = function.size1_out(i), function.size2_out(i)
-            dense = np.asarray(o, dtype=np.float64)  # (rows, cols * count), column blocks
-            per_point = dense.reshape(rows, count, cols)
+            # (rows, cols * width) per call, column blocks; the last call padded
+            parts = [np.asarray(b[i], dtype=np.float64) for b in blocks]
+            dense = np.hstack(parts) if parts else np.empty((rows, 0))
+            per_point = dense.reshape(rows, -1, cols)[:, :count]
             result.append(per_point.transpose(1, 0, 2).reshape(count, rows * cols))
         return result
 

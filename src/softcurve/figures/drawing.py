@@ -112,6 +112,36 @@ def whole_number(name: str, value, minimum: int) -> int:
     return number
 
 
+def figure_format(path, what: str | None = None) -> str:
+    """The format Matplotlib writes ``path`` in, from its suffix (none: ``"png"``);
+    :class:`~softcurve.ParameterError` listing the supported suffixes otherwise. Cheap:
+    commands check their figure paths with it before any work.
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The figure's file.
+    what : str, optional
+        How the user gave it, for the message (e.g. ``"--plot x.xyz"``).
+
+    Returns
+    -------
+    str
+        E.g. ``"png"``, ``"pdf"``, ``"svg"``.
+    """
+    from matplotlib.backend_bases import FigureCanvasBase
+
+    path = Path(path)
+    file_format = path.suffix.lstrip(".").lower() or "png"
+    supported = FigureCanvasBase.get_supported_filetypes()
+    if file_format not in supported:
+        what = what or f"cannot write a figure as {path.name!r}"
+        raise ParameterError(
+            f"{what}: the suffix must be one of {sorted('.' + s for s in supported)}"
+        )
+    return file_format
+
+
 def save_figure(figure, path, *, dpi: float = 110) -> Path:
     """Write ``figure`` to ``path``, whole or not at all.
 
@@ -151,14 +181,7 @@ def save_figure(figure, path, *, dpi: float = 110) -> Path:
             f"got {type(figure).__name__}"
         )
     dpi = real_scalar("dpi", dpi, positive=True)
-    path = Path(path)
-    file_format = path.suffix.lstrip(".").lower() or "png"
-    supported = figure.canvas.get_supported_filetypes()
-    if file_format not in supported:
-        raise ParameterError(
-            f"cannot write a figure as {path.name!r}: the suffix must be one of "
-            f"{sorted('.' + s for s in supported)}"
-        )
+    file_format = figure_format(path)
     with atomic_path(path) as tmp:
         figure.savefig(tmp, dpi=dpi, format=file_format)
     return path

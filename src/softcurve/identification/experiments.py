@@ -15,11 +15,13 @@ about the robot model.
 from __future__ import annotations
 
 import csv
+import io
 from pathlib import Path
 
 import numpy as np
 
 from softcurve.base.docs import parameters_from
+from softcurve.base.files import InputFileError, InputFileNotFound, input_file, read_input
 from softcurve.identification.errors import ExperimentError, ExperimentFileNotFound
 from softcurve.identification.mat_files import count_elements, numeric, read_mat, select
 from softcurve.identification.recordings import Experiment
@@ -74,10 +76,14 @@ def _build(source, table, time, sample_rate, signals, inputs, units, name) -> Ex
 
 
 def _existing(path) -> Path:
-    path = Path(path)
-    if not path.is_file():
-        raise ExperimentFileNotFound(f"experiment file {str(path)!r} does not exist")
-    return path
+    """``path``, checked by :func:`~softcurve.base.files.input_file`, its error an
+    :class:`ExperimentError`."""
+    try:
+        return input_file(path, "experiment file")
+    except InputFileNotFound as exc:
+        raise ExperimentFileNotFound(str(exc)) from None
+    except InputFileError as exc:
+        raise ExperimentError(str(exc)) from None
 
 
 _mat_options = parameters_from(
@@ -219,14 +225,9 @@ def load_csv(
     """
     path = _existing(path)
     try:
-        with path.open(newline="", encoding="utf-8") as handle:
-            rows = list(csv.reader(handle))
-    except UnicodeDecodeError as exc:
-        raise ExperimentError(
-            f"{path}: not a UTF-8 text file (byte {exc.start}); save it as UTF-8 CSV"
-        ) from None
-    except OSError as exc:
-        raise ExperimentError(f"{path}: cannot be read ({exc.strerror or exc})") from None
+        rows = list(csv.reader(io.StringIO(read_input(path, "experiment file"), newline="")))
+    except InputFileError as exc:
+        raise ExperimentError(str(exc)) from None
     if len(rows) < 2:
         raise ExperimentError(f"{path}: needs a header row and at least one data row")
     header = [h.strip() for h in rows[0]]

@@ -303,17 +303,37 @@ def _sweep(config, output, workers, scheduler, restart, progress, on_chunk) -> S
     )
 
 
+def _read_manifest(path: Path) -> dict:
+    """The manifest of a sweep's folder; :class:`ConfigError` saying it is damaged (not
+    JSON, or without the fields every manifest has), naming it and what to do."""
+    try:
+        old = json.loads(path.read_bytes().decode("utf-8"))
+        reason = None
+    except (OSError, ValueError) as exc:
+        old, reason = None, " ".join(str(exc).split())
+    if reason is None and not (
+        isinstance(old, dict)
+        and old.get("format") == FORMAT
+        and isinstance(old.get("fingerprint"), str)
+        and all(isinstance(old.get(k), int) for k in ("version", "size", "chunk_size"))
+    ):
+        reason = "not the fields of a softcurve sweep manifest"
+    if reason is not None:
+        raise ConfigError(
+            f"{path}: damaged sweep manifest ({reason}); the results beside it cannot be "
+            "matched to a configuration: run again with --restart to discard them, or "
+            "choose a new output folder"
+        )
+    return old
+
+
 def _prepare(output: Path, parts: Path, manifest: dict, restart: bool) -> None:
     """Create the folder, or check that it holds this same sweep."""
     path = output / "manifest.json"
     if output.exists() and not output.is_dir():
         raise ConfigError(f"{output}: exists and is not a folder")
     if path.exists() and not restart:
-        try:
-            old = json.loads(path.read_text())
-        except (OSError, ValueError) as exc:
-            raise ConfigError(f"{path}: unreadable manifest ({exc}); use --restart") from None
-        if old.get("format") != FORMAT or old.get("fingerprint") != manifest["fingerprint"]:
+        if _read_manifest(path)["fingerprint"] != manifest["fingerprint"]:
             raise ConfigError(
                 f"{output} holds another sweep (its configuration differs): "
                 "choose a new output folder, or --restart to discard it"

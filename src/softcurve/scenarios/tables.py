@@ -6,11 +6,11 @@ from __future__ import annotations
 
 import difflib
 import sys
-from pathlib import Path
 
 import numpy as np
 
 from softcurve.base.docs import parameters_from
+from softcurve.base.files import InputFileError, read_input
 from softcurve.base.validation import ParameterError
 
 if sys.version_info >= (3, 11):
@@ -47,14 +47,11 @@ def read_toml(path) -> tuple[dict, str]:
     path : str or Path
         The TOML file.
     """
-    path = Path(path)
     file = str(path)
     try:
-        text = path.read_bytes().decode("utf-8")
-    except FileNotFoundError:
-        raise ConfigError(f"{file}: no such file") from None
-    except (IsADirectoryError, PermissionError, UnicodeDecodeError) as exc:
-        raise ConfigError(f"{file}: cannot read: {exc}") from None
+        text = read_input(path)
+    except InputFileError as exc:
+        raise ConfigError(str(exc)) from None
     try:
         return tomllib.loads(text), file
     except tomllib.TOMLDecodeError as exc:

@@ -16,7 +16,9 @@ that clock. The C driver reads no clock, so a batch on threads is as fast.
 
 from __future__ import annotations
 
+import contextlib
 import os
+import signal
 import threading
 import time
 from collections.abc import Callable, Iterator
@@ -49,7 +51,25 @@ def _worker_start(parent: int) -> None:
     # portable and follows the process.
     if os.getppid() != parent:  # the parent died while this worker started
         os._exit(1)
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # see _interrupts_blocked
     threading.Thread(target=_watch_parent, args=(parent,), daemon=True).start()
+
+
+@contextlib.contextmanager
+def _interrupts_blocked():
+    """SIGINT blocked in this thread for the block: a worker process started in it
+    inherits the mask, so a Ctrl-C (sent to the whole process group) never interrupts a
+    worker, even while it imports softcurve; the parent alone decides (it kills the
+    workers and says what was kept). An interrupt of the parent meanwhile waits until the
+    block ends (a few milliseconds)."""
+    if not hasattr(signal, "pthread_sigmask"):  # pragma: no cover - Windows
+        yield
+        return
+    previous = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, previous)
 
 
 def _watch_parent(parent: int) -> None:
@@ -157,7 +177,8 @@ def run_in_processes(function: Callable, tasks: dict, processes: int) -> Iterato
     pool = _pool(processes)
     futures = {}
     try:
-        futures = {pool.submit(function, *arguments): key for key, arguments in tasks.items()}
+        with _interrupts_blocked():  # the workers start here, as they are needed
+            futures = {pool.submit(function, *arguments): key for key, arguments in tasks.items()}
         for future in as_completed(futures):
             yield futures[future], future.result()
     except (KeyboardInterrupt, SystemExit):  # the running tasks would go on: kill them
