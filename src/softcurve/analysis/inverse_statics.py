@@ -265,6 +265,8 @@ def inverse_statics(
     )
     if status is Status.INFEASIBLE:
         message += "; the target is out of reach within the input bounds"
+    if status is Status.LEFT_DOMAIN:  # the equilibrium's own domain check says where
+        message += f"; {e.message}"
     return InverseStatics(
         inputs=u_opt,
         q=e.q,

@@ -48,6 +48,7 @@ from softcurve.analysis.loads import (
 from softcurve.analysis.solver import Root, solve_equilibrium
 from softcurve.base.status import Status
 from softcurve.base.validation import ParameterError, real_array
+from softcurve.description.domain import checked_status
 
 __all__ = [
     "Equilibrium",
@@ -185,9 +186,11 @@ def _result(problem: _Problem, root: Root, tol, zero_tolerance, distinct) -> Equ
         message += f"; {what} is not conservative: classification by static divergence only"
         if not np.any(problem.load.tip_moment):
             message += " (the potential counts the frictionless tendon work)"
+    load = problem.load
+    status, message = checked_status(load.model.robot, q, load.actuator, root.status, message)
     return Equilibrium(
         q=q,
-        status=root.status,
+        status=status,
         message=message,
         stability=stability,
         continuum="ring" if ring else None,
@@ -235,7 +238,10 @@ def equilibrium(
     Returns
     -------
     Equilibrium
-        ``status`` SUCCESS when the residual met ``tol``.
+        ``status`` SUCCESS when the residual met ``tol`` at a state inside the model's
+        domain and the actuator's (:mod:`softcurve.description.domain`); a root outside
+        it is ``LEFT_DOMAIN``, the message naming the coordinate or the actuator element,
+        its value and the allowed range.
 
     Examples
     --------
@@ -313,8 +319,10 @@ def equilibria(
     Returns
     -------
     EquilibriumTable
-        Ordered by total potential, lowest first; ``status`` NOT_CONVERGED when no start
-        converged inside ``bounds``.
+        Ordered by total potential, lowest first; roots outside the model's or the
+        actuator's domain are dropped (the message counts them and names the first
+        reason); ``status`` NOT_CONVERGED when no start converged inside ``bounds``,
+        LEFT_DOMAIN when the only roots found there lie outside the domain.
 
     Examples
     --------
@@ -341,7 +349,7 @@ def equilibria(
         unit = scipy.stats.qmc.Halton(d=model.n, scramble=True, seed=seed).random(starts - 1)
         points += list(bounds[:, 0] + unit * (bounds[:, 1] - bounds[:, 0]))
     found: list[Equilibrium] = []
-    converged_starts = 0
+    converged_starts, outside = 0, []
     for start in points:
         root = problem.solve(start, tol, max_evaluations)
         if not root.converged:
@@ -350,6 +358,9 @@ def equilibria(
         if np.any(root.q < bounds[:, 0]) or np.any(root.q > bounds[:, 1]):
             continue
         candidate = _result(problem, root, tol, zero_tolerance, distinct)
+        if candidate.status is Status.LEFT_DOMAIN:  # a root, but no state of the robot
+            outside.append(candidate.message)
+            continue
         z = candidate.q / problem.scale
         if all(np.max(np.abs(z - e.q / problem.scale)) > distinct for e in found):
             found.append(candidate)
@@ -358,11 +369,14 @@ def equilibria(
         f"{len(found)} distinct equilibria ({sum(e.continuum is not None for e in found)} "
         f"rings) from {converged_starts}/{len(points)} converged starts"
     )
+    if outside:
+        message += f"; {len(outside)} roots dropped as {outside[0]}"
+    status = Status.SUCCESS if found else Status.LEFT_DOMAIN if outside else Status.NOT_CONVERGED
     if not found:
         message += "; none inside the bounds: widen them, add starts or change the loads"
     return EquilibriumTable(
         equilibria=tuple(found),
-        status=Status.SUCCESS if found else Status.NOT_CONVERGED,
+        status=status,
         message=message,
         starts=len(points),
         converged_starts=converged_starts,
