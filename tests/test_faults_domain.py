@@ -146,6 +146,19 @@ def test_simulation_stops_where_a_chamber_volume_crosses_zero(paper_model):
     assert all(_inside(paper_model.robot, q, actuator) for q in run.q)
 
 
+def test_batch_members_stop_where_a_tendon_length_crosses_zero(paper_model):
+    actuator = sc.TendonActuator.three_per_segment(distance=0.015, t_max=20.0)
+    batch = sc.simulate_batch(paper_model, [[0.0644, 0, 0]] * 2, np.zeros((2, 3)),
+                              actuator=actuator, inputs=[[1.0, 0, 0], [20.0, 0, 0]],
+                              t_final=0.3, dt=0.01, threads=1)  # fmt: skip
+    assert batch.member_status[0] is sc.Status.SUCCESS
+    assert batch.member_status[1] is sc.Status.LEFT_DOMAIN and not batch.success
+    assert "tendons[0] in segment 1: tendon length" in batch.member_message[1]
+    kept = batch.q[1, : batch.reached[1]]
+    assert batch.reached[1] < batch.t.size and np.all(np.isnan(batch.q[1, batch.reached[1] :]))
+    assert all(np.all(_fiber_lengths(actuator, q) > 0) for q in kept)
+
+
 def test_initial_state_outside_the_actuator_domain_is_refused(paper_model):
     actuator = sc.TendonActuator.three_per_segment(distance=0.015, t_max=20.0)
     with pytest.raises(sc.ParameterError, match=r"q0: tendons\[0\] in segment 1"):
