@@ -249,3 +249,19 @@ def test_property_no_success_outside_the_domain(paper_model):
                 _assert_honest(inverse, robot, actuator, f"inverse_statics, {what}")
                 outcomes.append(inverse.status)
     assert sc.Status.SUCCESS in outcomes and sc.Status.LEFT_DOMAIN in outcomes
+
+
+def test_scenario_with_a_routing_outside_the_body_exits_2(tmp_path, capsys):
+    from softcurve.cli import main
+
+    config = tmp_path / "far.toml"
+    config.write_text(
+        '[robot]\npreset = "ifac2020"\n\n[actuation]\nkind = "tendons"\n'
+        "distance = 0.05\nt_max = 10.0\n\n[simulation]\nt_final = 0.1\ninputs = [1.0, 0.0, 0.0]\n"
+    )
+    out = tmp_path / "out"
+    assert main(["equilibria", str(config), "--inputs", "1", "0", "0"]) == 2
+    assert main(["simulate", str(config), "-o", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert "tendons[0].distance = 0.05 m" in err and "outside the body" in err
+    assert "Traceback" not in err and not out.exists()
