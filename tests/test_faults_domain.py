@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 import softcurve as sc
+from softcurve.cli import main
 from softcurve.description.robot import MAX_BEND, MAX_STRETCH
 
 PAPER_RADIUS = 0.0235
@@ -54,6 +55,16 @@ def test_compressive_tip_load_is_not_a_successful_equilibrium(paper_model):
     assert e.status is sc.Status.LEFT_DOMAIN
     assert e.q[0] < 0  # the root the solver found: l = -3 mm
     assert "l of segment 1" in e.message and "0 < l" in e.message
+
+
+def test_equilibria_under_a_compressive_tip_load_name_the_coordinate(paper_model, capsys):
+    table = sc.equilibria(paper_model, starts=8, tip_force=[0.0, 0.0, -150.0])
+    assert table.status is sc.Status.LEFT_DOMAIN and len(table) == 0
+    assert "outside the model's domain" in table.message and "l of segment 1" in table.message
+    assert main(["equilibria", "--tip-force", "0", "0", "-150", "--starts", "8"]) == 1
+    captured = capsys.readouterr()
+    assert "l of segment 1" in captured.out + captured.err
+    assert "Traceback" not in captured.err
 
 
 def test_bellows_far_out_is_not_a_successful_equilibrium(paper_model):
@@ -252,8 +263,6 @@ def test_property_no_success_outside_the_domain(paper_model):
 
 
 def test_scenario_with_a_routing_outside_the_body_exits_2(tmp_path, capsys):
-    from softcurve.cli import main
-
     config = tmp_path / "far.toml"
     config.write_text(
         '[robot]\npreset = "ifac2020"\n\n[actuation]\nkind = "tendons"\n'

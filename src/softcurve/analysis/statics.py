@@ -48,7 +48,7 @@ from softcurve.analysis.loads import (
 from softcurve.analysis.solver import Root, solve_equilibrium
 from softcurve.base.status import Status
 from softcurve.base.validation import ParameterError, real_array
-from softcurve.description.domain import checked_status
+from softcurve.description.domain import checked_status, state_problem
 
 __all__ = [
     "Equilibrium",
@@ -355,10 +355,14 @@ def equilibria(
         if not root.converged:
             continue
         converged_starts += 1
+        reason = state_problem(model.robot, root.q, load.actuator)  # a root, but no state
+        if reason is not None:
+            outside.append(reason)
+            continue
         if np.any(root.q < bounds[:, 0]) or np.any(root.q > bounds[:, 1]):
             continue
         candidate = _result(problem, root, tol, zero_tolerance, distinct)
-        if candidate.status is Status.LEFT_DOMAIN:  # a root, but no state of the robot
+        if candidate.status is Status.LEFT_DOMAIN:  # its ring's representative
             outside.append(candidate.message)
             continue
         z = candidate.q / problem.scale
@@ -370,9 +374,13 @@ def equilibria(
         f"rings) from {converged_starts}/{len(points)} converged starts"
     )
     if outside:
-        message += f"; {len(outside)} roots dropped as {outside[0]}"
+        message += (
+            f"; {len(outside)} roots outside the model's domain dropped (first: {outside[0]})"
+        )
     status = Status.SUCCESS if found else Status.LEFT_DOMAIN if outside else Status.NOT_CONVERGED
-    if not found:
+    if not found and outside:
+        message += "; the loads may be too large for the robot: reduce them or stiffen it"
+    elif not found:
         message += "; none inside the bounds: widen them, add starts or change the loads"
     return EquilibriumTable(
         equilibria=tuple(found),
