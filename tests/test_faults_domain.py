@@ -274,3 +274,29 @@ def test_scenario_with_a_routing_outside_the_body_exits_2(tmp_path, capsys):
     err = capsys.readouterr().err
     assert "tendons[0].distance = 0.05 m" in err and "outside the body" in err
     assert "Traceback" not in err and not out.exists()
+
+
+def test_fit_of_equilibria_accepts_no_root_outside_the_actuator_domain(paper_model):
+    """A fit's prediction whose equilibria put a chamber past the centre of curvature
+    fails naming it, as one outside the robot's domain does."""
+    from softcurve.identification.equilibria import EquilibriumPredictor
+    from softcurve.identification.experiments import Experiment
+    from softcurve.identification.input_maps import actuator_input_map
+    from softcurve.identification.maps import curvatures
+    from softcurve.identification.parameters import Free, FreeParameters
+
+    actuator = sc.PneumaticActuator.three_bellows(
+        distance=PAPER_RADIUS, area=2e-4, p_max=6e4, azimuths=TWO_BELLOWS
+    )
+    t = np.linspace(0.0, 1.0, 3)
+    experiment = Experiment(t, {"kx": 0 * t, "ky": 0 * t}, {"p0": [1e4, 3e4, 6e4], "p1": 0 * t})
+    inputs, output = actuator_input_map(actuator), curvatures()
+    names = ("segments[0].bending_stiffness.a1", "segments[0].bending_stiffness.a2")
+    free = [Free(name, 1e-3, 10.0) for name in names]
+    parameters = FreeParameters(paper_model, free, {**inputs.parameters, **output.parameters}, {})
+    q0 = np.array([0.0644, 0.0, 0.0])
+    evaluate = EquilibriumPredictor(paper_model, parameters, output, inputs, q0)(experiment)
+    bending = paper_model.robot.segments[0].bending_stiffness
+    evaluate(np.array([bending.a1, bending.a2]))  # the paper's stiffness: inside
+    with pytest.raises(RuntimeError, match=r"bellows\[1\] in segment 1: chamber volume"):
+        evaluate(0.3 * np.array([bending.a1, bending.a2]))  # softer: a chamber crosses
