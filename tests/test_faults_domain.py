@@ -213,7 +213,7 @@ def _random_actuator(rng, robot):
     n_segments = robot.n_segments
     if rng.random() < 0.5:
         return sc.TendonActuator.three_per_segment(
-            distance=distance, t_max=float(rng.uniform(5, 40)), n_segments=n_segments
+            distance=distance, t_max=float(rng.uniform(5, 60)), n_segments=n_segments
         )
     return sc.PneumaticActuator.three_bellows(
         distance=distance, area=float(rng.uniform(1e-4, 4e-4)), p_max=float(rng.uniform(3e4, 1e5)),
@@ -231,7 +231,8 @@ def test_property_no_success_outside_the_domain(paper_model):
     """Random robots (1-3 segments), actuators (tendons, bellows) and loads (tip force,
     inputs at up to their bounds, gravity) through equilibrium, simulate and
     inverse_statics: no SUCCESS ever carries a state outside the model's or the
-    actuator's domain. Some cases must end outside (else the test shows nothing)."""
+    actuator's domain. Some equilibria and simulations must end outside (else the test
+    shows nothing): with this seed 10 of 24 equilibria and 2 of 8 simulations do."""
     rng = np.random.default_rng(29)
     outcomes = []
     for segments in (1, 2, 3):
@@ -248,18 +249,19 @@ def test_property_no_success_outside_the_domain(paper_model):
             e = sc.equilibrium(model, rest, actuator=actuator, inputs=inputs, tip_force=force,
                                gravity=gravity, max_evaluations=100)  # fmt: skip
             _assert_honest(e, robot, actuator, f"equilibrium, {what}")
-            outcomes.append(e.status)
-            if segments == 1 and case % 2 == 0:
+            outcomes.append(("equilibrium", e.status))
+            if segments == 1:  # the step response overshoots the equilibrium: full inputs
                 run = sc.simulate(model, rest, np.zeros(robot.n), actuator=actuator,
-                                  inputs=inputs, t_final=0.1, dt=0.01)  # fmt: skip
+                                  inputs=actuator.upper, t_final=0.2, dt=0.01)  # fmt: skip
                 _assert_honest(run, robot, actuator, f"simulate, {what}")
-                outcomes.append(run.status)
+                outcomes.append(("simulate", run.status))
             if segments == 1 and case % 4 == 1:
                 target = np.array([0.0, 0.0, robot.rest_length]) + rng.normal(0, 0.02, 3)
                 inverse = sc.inverse_statics(model, actuator, target, starts=1)
                 _assert_honest(inverse, robot, actuator, f"inverse_statics, {what}")
-                outcomes.append(inverse.status)
-    assert sc.Status.SUCCESS in outcomes and sc.Status.LEFT_DOMAIN in outcomes
+                outcomes.append(("inverse_statics", inverse.status))
+    for kind in ("equilibrium", "simulate"):  # the cases reach both sides of the boundary
+        assert {(kind, sc.Status.SUCCESS), (kind, sc.Status.LEFT_DOMAIN)} <= set(outcomes)
 
 
 def test_scenario_with_a_routing_outside_the_body_exits_2(tmp_path, capsys):
