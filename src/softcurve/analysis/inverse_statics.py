@@ -57,7 +57,8 @@ class InverseStatics(Result):
     status : Status
         SUCCESS when the tip reaches the target; INFEASIBLE when the input bounds keep
         it away (the closest point is returned); NOT_CONVERGED or EVALUATION_LIMIT when
-        IPOPT or the equilibrium check failed.
+        IPOPT or the equilibrium check failed; LEFT_DOMAIN when the equilibrium lies
+        outside the model's or the actuator's domain (the message says where).
     message : str
         IPOPT's status, the distance, the stability, the saturated inputs and the rule.
     """

@@ -38,12 +38,13 @@ class InputSweep(Result):
     tip : ndarray, shape (k, 3)
         World tip positions [m].
     converged : ndarray, shape (k,), bool
-        Whether each point met the solver's tolerance.
+        Whether each point met the solver's tolerance inside the model's and the
+        actuator's domain (its equilibrium's ``success``).
     stability : tuple of str
         Classification of each point (see :mod:`softcurve.analysis.statics`).
     status : Status
-        SUCCESS when every point converged, PARTIAL when some did not, NOT_CONVERGED
-        when none did.
+        SUCCESS when every point converged, PARTIAL when some did not, else the first
+        point's status (NOT_CONVERGED, or LEFT_DOMAIN when it lies outside the domain).
     message : str
         How many points failed, and the first.
     input_name, input_unit : str
