@@ -25,8 +25,9 @@ class Equilibrium(Result):
     q : ndarray, shape (n,)
         Configuration; for a ring, the member bending toward +x (first bent segment).
     status : Status
-        SUCCESS when the solver met the tolerance, else NOT_CONVERGED or
-        EVALUATION_LIMIT.
+        SUCCESS when the solver met the tolerance at a state inside the model's and the
+        actuator's domain; LEFT_DOMAIN outside it (the message names the coordinate or
+        the actuator element); else NOT_CONVERGED or EVALUATION_LIMIT.
     message : str
         The scaled residual reached, and notes (ring, non-conservative loads).
     stability : str

@@ -57,7 +57,8 @@ class InverseStatics(Result):
     status : Status
         SUCCESS when the tip reaches the target; INFEASIBLE when the input bounds keep
         it away (the closest point is returned); NOT_CONVERGED or EVALUATION_LIMIT when
-        IPOPT or the equilibrium check failed.
+        IPOPT or the equilibrium check failed; LEFT_DOMAIN when the equilibrium lies
+        outside the model's or the actuator's domain (the message says where).
     message : str
         IPOPT's status, the distance, the stability, the saturated inputs and the rule.
     """
@@ -265,6 +266,8 @@ def inverse_statics(
     )
     if status is Status.INFEASIBLE:
         message += "; the target is out of reach within the input bounds"
+    if status is Status.LEFT_DOMAIN:  # the equilibrium's own domain check says where
+        message += f"; {e.message}"
     return InverseStatics(
         inputs=u_opt,
         q=e.q,

@@ -38,12 +38,13 @@ class InputSweep(Result):
     tip : ndarray, shape (k, 3)
         World tip positions [m].
     converged : ndarray, shape (k,), bool
-        Whether each point met the solver's tolerance.
+        Whether each point met the solver's tolerance inside the model's and the
+        actuator's domain (its equilibrium's ``success``).
     stability : tuple of str
         Classification of each point (see :mod:`softcurve.analysis.statics`).
     status : Status
-        SUCCESS when every point converged, PARTIAL when some did not, NOT_CONVERGED
-        when none did.
+        SUCCESS when every point converged, PARTIAL when some did not, else the first
+        point's status (NOT_CONVERGED, or LEFT_DOMAIN when it lies outside the domain).
     message : str
         How many points failed, and the first.
     input_name, input_unit : str
@@ -108,7 +109,7 @@ def input_sweep(model, actuator: Actuator, inputs, *, q0=None, **loads) -> Input
     if path.ndim != 2 or path.shape[1] != actuator.n_inputs:
         raise ParameterError(f"inputs must have shape (k, {actuator.n_inputs}), got {path.shape}")
     q = rest_configuration(model.robot) if q0 is None else real_array("q0", q0, (model.n,))
-    qs, tips, converged, stability = [], [], [], []
+    qs, tips, converged, stability, failures = [], [], [], [], []
     for u in path:
         e = equilibrium(model, q, actuator=actuator, inputs=u, **loads)
         if e.success:
@@ -117,13 +118,21 @@ def input_sweep(model, actuator: Actuator, inputs, *, q0=None, **loads) -> Input
         tips.append(e.tip_position)
         converged.append(e.success)
         stability.append(e.stability)
+        if not e.success:
+            failures.append(e)
     converged = np.array(converged)
     failed = np.flatnonzero(~converged)
     if not failed.size:
         status, message = Status.SUCCESS, f"{len(path)} equilibria followed"
     else:
-        status = Status.PARTIAL if failed.size < len(path) else Status.NOT_CONVERGED
-        message = f"{failed.size} of {len(path)} points did not converge (first: {failed[0]})"
+        # every point's state went through the domain check of equilibrium()
+        left = all(e.status is Status.LEFT_DOMAIN for e in failures)
+        status = Status.PARTIAL if failed.size < len(path) else failures[0].status
+        what = "left the model's domain" if left else "failed"
+        message = (
+            f"{failed.size} of {len(path)} points {what} (first: point {failed[0]}, "
+            f"{failures[0].status.value}: {failures[0].message})"
+        )
     return InputSweep(
         inputs=path,
         q=np.array(qs),

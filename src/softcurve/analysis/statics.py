@@ -48,6 +48,7 @@ from softcurve.analysis.loads import (
 from softcurve.analysis.solver import Root, solve_equilibrium
 from softcurve.base.status import Status
 from softcurve.base.validation import ParameterError, random_seed, real_array
+from softcurve.description.domain import checked_status, state_problem
 
 __all__ = [
     "Equilibrium",
@@ -185,9 +186,11 @@ def _result(problem: _Problem, root: Root, tol, zero_tolerance, distinct) -> Equ
         message += f"; {what} is not conservative: classification by static divergence only"
         if not np.any(problem.load.tip_moment):
             message += " (the potential counts the frictionless tendon work)"
+    load = problem.load
+    status, message = checked_status(load.model.robot, q, load.actuator, root.status, message)
     return Equilibrium(
         q=q,
-        status=root.status,
+        status=status,
         message=message,
         stability=stability,
         continuum="ring" if ring else None,
@@ -235,7 +238,10 @@ def equilibrium(
     Returns
     -------
     Equilibrium
-        ``status`` SUCCESS when the residual met ``tol``.
+        ``status`` SUCCESS when the residual met ``tol`` at a state inside the model's
+        domain and the actuator's (:mod:`softcurve.description.domain`); a root outside
+        it is ``LEFT_DOMAIN``, the message naming the coordinate or the actuator element,
+        its value and the allowed range.
 
     Examples
     --------
@@ -313,8 +319,10 @@ def equilibria(
     Returns
     -------
     EquilibriumTable
-        Ordered by total potential, lowest first; ``status`` NOT_CONVERGED when no start
-        converged inside ``bounds``.
+        Ordered by total potential, lowest first; roots outside the model's or the
+        actuator's domain are dropped (the message counts them and names the first
+        reason); ``status`` NOT_CONVERGED when no start converged inside ``bounds``,
+        LEFT_DOMAIN when the only roots found there lie outside the domain.
 
     Examples
     --------
@@ -342,15 +350,22 @@ def equilibria(
         unit = scipy.stats.qmc.Halton(d=model.n, scramble=True, seed=seed).random(starts - 1)
         points += list(bounds[:, 0] + unit * (bounds[:, 1] - bounds[:, 0]))
     found: list[Equilibrium] = []
-    converged_starts = 0
+    converged_starts, outside = 0, []
     for start in points:
         root = problem.solve(start, tol, max_evaluations)
         if not root.converged:
             continue
         converged_starts += 1
+        reason = state_problem(model.robot, root.q, load.actuator)  # a root, but no state
+        if reason is not None:
+            outside.append(reason)
+            continue
         if np.any(root.q < bounds[:, 0]) or np.any(root.q > bounds[:, 1]):
             continue
         candidate = _result(problem, root, tol, zero_tolerance, distinct)
+        if candidate.status is Status.LEFT_DOMAIN:  # its ring's representative
+            outside.append(candidate.message)
+            continue
         z = candidate.q / problem.scale
         if all(np.max(np.abs(z - e.q / problem.scale)) > distinct for e in found):
             found.append(candidate)
@@ -359,11 +374,18 @@ def equilibria(
         f"{len(found)} distinct equilibria ({sum(e.continuum is not None for e in found)} "
         f"rings) from {converged_starts}/{len(points)} converged starts"
     )
-    if not found:
+    if outside:
+        message += (
+            f"; {len(outside)} roots outside the model's domain dropped (first: {outside[0]})"
+        )
+    status = Status.SUCCESS if found else Status.LEFT_DOMAIN if outside else Status.NOT_CONVERGED
+    if not found and outside:
+        message += "; the loads may be too large for the robot: reduce them or stiffen it"
+    elif not found:
         message += "; none inside the bounds: widen them, add starts or change the loads"
     return EquilibriumTable(
         equilibria=tuple(found),
-        status=Status.SUCCESS if found else Status.NOT_CONVERGED,
+        status=status,
         message=message,
         starts=len(points),
         converged_starts=converged_starts,

@@ -27,8 +27,9 @@ class Status(str, enum.Enum):
     INTEGRATION_FAILED
         The integrator stopped before the end time.
     LEFT_DOMAIN
-        The state left the model's domain (a segment length reached zero, or a value
-        became non-finite).
+        The state left the model's domain (a segment length reached zero, a bend beyond
+        a full turn, a value became non-finite) or its actuator's (a tendon length or a
+        chamber volume reached zero).
     NOT_CONVERGED
         An iterative solver did not reach its tolerance.
     EVALUATION_LIMIT
@@ -61,8 +62,9 @@ class Status(str, enum.Enum):
     LEFT_DOMAIN = (
         "left_domain",
         "the state left the model's domain (0 < l <= 10 rest lengths, a bend of at most "
-        "one turn, finite values; docs/model.md); check the initial state, the inputs and "
-        "the stiffness, which may be too soft for the loads",
+        "one turn, finite values) or its actuator's (tendon lengths and chamber volumes > 0; "
+        "docs/model.md); check the initial state, the inputs and the stiffness, which may "
+        "be too soft for the loads",
     )
     NOT_CONVERGED = (
         "not_converged",

@@ -20,6 +20,7 @@ import casadi as ca
 import numpy as np
 
 from softcurve.base.validation import ParameterError, real_array, real_scalar, whole_count
+from softcurve.description.fibers import fiber_problem, fibers_inside, routing_problem
 
 
 def optional_time_constant(value) -> float | None:
@@ -31,51 +32,6 @@ def optional_time_constant(value) -> float | None:
         The lag [s], checked.
     """
     return None if value is None else real_scalar("time_constant", value, positive=True)
-
-
-def offset_fiber_length(q, segment: int, azimuth, distance):
-    """Length [m] of the fiber at ``distance`` ``rho`` and ``azimuth`` ``phi`` from the
-    backbone of one constant-curvature segment: ``l (1 - rho (kx cos phi + ky sin phi))``
-    (CasADi; exact, and a polynomial in ``q``).
-
-    Parameters
-    ----------
-    q : casadi.SX or casadi.MX, shape (n,)
-        Generalized coordinates [m, 1/m, 1/m].
-    segment : int
-        Index ``j`` of the segment (coordinates ``q[3j : 3j + 3]``).
-    azimuth : float or casadi.SX or casadi.MX
-        ``phi`` [rad], from +x toward +y in the segment's cross-section.
-    distance : float or casadi.SX or casadi.MX
-        ``rho`` [m].
-    """
-    length, kx, ky = q[3 * segment], q[3 * segment + 1], q[3 * segment + 2]
-    return length * (1 - distance * (kx * ca.cos(azimuth) + ky * ca.sin(azimuth)))
-
-
-def offset_fiber_gradient(q, segment: int, azimuth, distance) -> list:
-    """``dL/dq`` of :func:`offset_fiber_length` as a list of n CasADi entries, in closed
-    form (``1 - rho k_phi``, ``-l rho cos phi``, ``-l rho sin phi`` at the segment's
-    coordinates, zero elsewhere), so ``q`` may be any expression, not only a symbol.
-
-    Parameters
-    ----------
-    q : casadi.SX or casadi.MX, shape (n,)
-        Generalized coordinates [m, 1/m, 1/m].
-    segment : int
-        Index ``j`` of the segment.
-    azimuth : float or casadi.SX or casadi.MX
-        ``phi`` [rad].
-    distance : float or casadi.SX or casadi.MX
-        ``rho`` [m].
-    """
-    gradient = [0] * q.shape[0]
-    length, kx, ky = q[3 * segment], q[3 * segment + 1], q[3 * segment + 2]
-    c, s = ca.cos(azimuth), ca.sin(azimuth)
-    gradient[3 * segment] = 1 - distance * (kx * c + ky * s)
-    gradient[3 * segment + 1] = -length * distance * c
-    gradient[3 * segment + 2] = -length * distance * s
-    return gradient
 
 
 class Actuator:
@@ -360,9 +316,43 @@ class Actuator:
         u = np.asarray(inputs, dtype=np.float64)
         return c + (u - c) * math.exp(-dt / self.time_constant)
 
+    # -- the domain (softcurve.description.domain) ------------------------------------
+    def fibers(self) -> tuple:
+        """The actuator's elements as offset fibers, one
+        :class:`~softcurve.description.domain.Fiber` per element and segment it runs
+        through; none for an actuator without geometry (a constant map)."""
+        return ()
+
+    def in_domain(self, q) -> np.ndarray:
+        """Whether every tendon length and chamber volume is > 0 at ``q``, vectorized.
+
+        Parameters
+        ----------
+        q : array_like, shape (..., n)
+            Configurations [m, 1/m, 1/m].
+
+        Returns
+        -------
+        ndarray of bool, shape (...)
+        """
+        return fibers_inside(self.fibers(), q)
+
+    def domain_problem(self, q) -> str | None:
+        """What puts ``q`` outside the actuator's domain (the element, segment, value and
+        allowed range), or None.
+
+        Parameters
+        ----------
+        q : array_like, shape (n,)
+            One configuration [m, 1/m, 1/m].
+        """
+        return fiber_problem(self.fibers(), self._coordinates(q))
+
     # -- helpers ---------------------------------------------------------------------
     def check_robot(self, robot) -> None:
-        """Raise :class:`ParameterError` unless the actuator fits ``robot``'s coordinates.
+        """Raise :class:`ParameterError` unless the actuator fits ``robot``'s coordinates
+        and its routing lies inside the body (every distance ``rho`` at most the radius of
+        each segment it runs through; :func:`~softcurve.description.domain.routing_problem`).
 
         Parameters
         ----------
@@ -374,6 +364,9 @@ class Actuator:
                 f"the actuator acts on n = {self.n} coordinates but the robot has "
                 f"n = {robot.n} ({robot.n_segments} segments)"
             )
+        problem = routing_problem(self.fibers(), robot)
+        if problem is not None:
+            raise ParameterError(problem)
 
     def _coordinates(self, q) -> np.ndarray:
         q = np.asarray(q, dtype=np.float64)

@@ -36,10 +36,9 @@ import numpy as np
 from softcurve.base.validation import ParameterError, real_array, real_scalar
 from softcurve.description.actuator import (
     Actuator,
-    offset_fiber_gradient,
-    offset_fiber_length,
     optional_time_constant,
 )
+from softcurve.description.fibers import Fiber, offset_fiber_gradient, offset_fiber_length
 
 ATMOSPHERIC_PRESSURE = 101325.0
 """Standard atmosphere [Pa]: no gauge pressure can be below ``-ATMOSPHERIC_PRESSURE``."""
@@ -187,6 +186,13 @@ class PneumaticActuator(Actuator):
             for phi in azimuths
         )
         return cls(bellows, n_segments=n_segments, time_constant=time_constant)
+
+    def fibers(self) -> tuple[Fiber, ...]:
+        return tuple(
+            Fiber(f"bellows[{i}]", "chamber", j, b.azimuth, b.distance, b.area)
+            for i, b in enumerate(self.bellows)
+            for j in b.segments
+        )
 
     def parameter_vector(self) -> np.ndarray:
         return self._parts_vector()

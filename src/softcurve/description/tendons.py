@@ -48,9 +48,8 @@ import numpy as np
 from softcurve.base.validation import ParameterError, real_scalar, whole_count
 from softcurve.description.actuator import (
     Actuator,
-    offset_fiber_gradient,
-    offset_fiber_length,
 )
+from softcurve.description.fibers import Fiber, offset_fiber_gradient, offset_fiber_length
 
 DEFAULT_AZIMUTHS = (0.0, 2.0 * math.pi / 3.0, 4.0 * math.pi / 3.0)
 """Three tendons evenly spaced, measured from +x toward +y [rad]."""
@@ -222,6 +221,13 @@ class TendonActuator(Actuator):
     def conservative(self) -> bool:
         """True without friction: the tensions' work is ``-T . L(q)``."""
         return all(t.friction == 0 for t in self.tendons)
+
+    def fibers(self) -> tuple[Fiber, ...]:
+        return tuple(
+            Fiber(f"tendons[{i}]", "tendon", j, t.azimuth, t.distance)
+            for i, t in enumerate(self.tendons)
+            for j in range(t.anchor + 1)
+        )
 
     def parameter_vector(self) -> np.ndarray:
         return self._parts_vector()

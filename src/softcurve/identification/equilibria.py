@@ -20,7 +20,7 @@ import numpy as np
 
 from softcurve.analysis.loads import coordinate_scale, residual_reference
 from softcurve.analysis.solver import solve_equilibria
-from softcurve.description.robot import in_domain
+from softcurve.description.domain import state_problem, states_inside
 from softcurve.simulation.along import mapped
 from softcurve.simulation.workers import default_threads
 
@@ -100,6 +100,7 @@ class EquilibriumPredictor:
 
         at_start = np.tile(self.q0[:, None], (1, samples))
         rest = model.robot.rest_lengths
+        actuator = None if self.input_map is None else self.input_map.actuator
 
         def starts(d_value) -> list[np.ndarray]:
             """Where the equilibria start, in turn for the samples not solved yet: the
@@ -144,8 +145,9 @@ class EquilibriumPredictor:
                     batch_residual=batch_residual if near else None,
                     **options,
                 )
-                # a root outside the model's domain (a start thrown far) is no equilibrium
-                inside = in_domain(np.array([root.q for root in roots]), rest)
+                # a root outside the model's or the actuator's domain (a start thrown
+                # far) is no equilibrium
+                inside = states_inside(rest, np.array([root.q for root in roots]), actuator)
                 for j, root in enumerate(roots):
                     if accepted[j] is None and root.converged and inside[j]:
                         accepted[j] = root
@@ -158,7 +160,8 @@ class EquilibriumPredictor:
                 reason = (
                     roots[j].message
                     if not roots[j].converged
-                    else "its equilibrium lies outside the model's domain"
+                    else "its equilibrium lies outside the model's domain: "
+                    + str(state_problem(model.robot, roots[j].q, actuator))
                 )
                 raise RuntimeError(
                     f"no equilibrium found at {len(failed)} sample(s), the first {j} "

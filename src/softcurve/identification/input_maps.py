@@ -304,7 +304,7 @@ def actuator_input_map(actuator: Actuator, *, prefix: str | None = None) -> Inpu
         def fixed(q, u, values):
             return actuator.input_matrix_symbolic(q) @ u
 
-        return InputMap(fixed, {}, units)
+        return InputMap(fixed, {}, units, actuator)
     names = [prefix + name for name in actuator.parameter_names()]
     nominal = dict(zip(names, actuator.parameter_vector().tolist(), strict=True))
 

@@ -72,8 +72,14 @@ class InputMap:
         The unit each input must be in (e.g. ``("Pa", "Pa", "Pa")``), checked against
         the experiment's units by
         :func:`~softcurve.identification.units.check_units`; empty when unspecified.
+    actuator : Actuator or None
+        The actuator of fixed geometry the inputs act through, whose domain (tendon
+        lengths, chamber volumes > 0) every fitted equilibrium must lie in
+        (:func:`~softcurve.description.domain.states_inside`); None when unknown or
+        when its geometry is identified (then only the robot's domain is checked).
     """
 
     function: Callable
     parameters: dict
     units: tuple[str, ...] = field(default=())
+    actuator: object = None

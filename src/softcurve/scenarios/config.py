@@ -17,9 +17,10 @@ import numpy as np
 from softcurve.base.validation import ParameterError
 from softcurve.description import presets
 from softcurve.description.actuator import Actuator
+from softcurve.description.domain import state_problem
 from softcurve.description.environment import Environment
 from softcurve.description.materials import Creep, LinearStiffness, TanhStiffness
-from softcurve.description.robot import Robot, Segment, domain_problem
+from softcurve.description.robot import Robot, Segment
 from softcurve.scenarios.actuation import from_mapping
 from softcurve.scenarios.environment import environment_from_mapping
 from softcurve.scenarios.tables import ConfigError, Reader, read_toml, toml_parameters
@@ -94,13 +95,6 @@ class Scenario:
         n, set_ = self.robot.n, object.__setattr__
         for field, size in (("q0", n), ("qd0", n), ("lam0", self.robot.n_creep), ("tau", n)):
             set_(self, field, _entries(field, getattr(self, field), size))
-        problem = (
-            None
-            if self.q0 is None
-            else domain_problem(self.q0, self.robot.rest_lengths, entry="q0")
-        )
-        if problem is not None:  # the one check of Robot.check_configuration
-            raise SettingsError("q0", problem)
         actuator = None
         if self.actuation is not None:  # built and checked once, here
             where = f"{self.source}: actuation"
@@ -110,6 +104,16 @@ class Scenario:
                 )
             except ParameterError as exc:
                 raise ConfigError(str(exc)) from None
+            try:
+                actuator.check_robot(self.robot)  # its routing inside the body
+            except ParameterError as exc:
+                raise ConfigError(f"{where}: {exc}") from None
+        # the one check of a state's domain, the robot's and the actuator's
+        problem = (
+            None if self.q0 is None else state_problem(self.robot, self.q0, actuator, entry="q0")
+        )
+        if problem is not None:
+            raise SettingsError("q0", problem)
         set_(self, "_actuator", actuator)
         self._check_environment()
         if self.inputs is not None:

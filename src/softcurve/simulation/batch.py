@@ -34,7 +34,11 @@ from softcurve.description.robot import Robot, domain_problem, in_domain
 from softcurve.simulation.along import blocks, chunks, rhs_along
 from softcurve.simulation.batch_actuation import Drives, drive_arrays, member_rows
 from softcurve.simulation.batch_run import MemberRun, integrate_native, member_rates
-from softcurve.simulation.batch_trajectory import BatchTrajectory, batch_status
+from softcurve.simulation.batch_trajectory import (
+    BatchTrajectory,
+    batch_status,
+    stop_at_actuator_domain,
+)
 from softcurve.simulation.engine import (
     multistep_family,
     nominal_scale,
@@ -292,7 +296,10 @@ def _integrate(model, x0, arrays, scales, abstol, settings, how, drives) -> Batc
 
 def _result(t, x, inputs, arrays, member_status, messages, reached, stats, model, actuator):
     """The :class:`BatchTrajectory` of states ``x`` (B, T, n_state) and, with an actuator,
-    its inputs (B, T, m)."""
+    its inputs (B, T, m), each member stopped where it left the actuator's domain."""
+    outcome = (member_status, messages, reached)
+    parameters = arrays.get("actuator_parameters")
+    stop_at_actuator_domain(t, x, inputs, outcome, stats["methods"], actuator, parameters)
     status, message = batch_status(np.asarray(member_status, dtype=object))
     n = model.n
     return BatchTrajectory(

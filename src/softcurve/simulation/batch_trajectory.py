@@ -13,7 +13,9 @@ from softcurve.description.actuator import Actuator
 from softcurve.figures import plot_batch_tips
 from softcurve.figures.trajectories import figure_options
 from softcurve.simulation.along import energy_along, tip_along
+from softcurve.simulation.engine import failure_message, failure_status
 from softcurve.simulation.integrators import ActuatorInput
+from softcurve.simulation.stepping import actuator_exit
 from softcurve.simulation.trajectory import Trajectory
 
 
@@ -36,6 +38,46 @@ def batch_status(member_status: np.ndarray) -> tuple[Status, str]:
         f"{failed.size} of {size} members failed (members {listed}): see member_status "
         "and member_message"
     )
+
+
+def stop_at_actuator_domain(t, x, inputs, outcome, methods, actuator, parameters) -> None:
+    """Stop every member at its first output outside the actuator's domain (a tendon
+    length or chamber volume <= 0; :func:`~softcurve.simulation.stepping.actuator_exit`),
+    in place, before the result is assembled: its later outputs become NaN, its status
+    ``LEFT_DOMAIN`` and its message names the actuator element and the time.
+
+    Parameters
+    ----------
+    t : ndarray, shape (T,)
+        Output times [s].
+    x : ndarray, shape (B, T, n_state)
+        The members' states (NaN after a failure).
+    inputs : ndarray, shape (B, T, m) or None
+        The members' actuator inputs.
+    outcome : tuple
+        ``(member_status, messages, reached)`` of the members, changed in place.
+    methods : sequence of str
+        Each member's integrator family, for the message.
+    actuator : Actuator or None
+        The actuator (None: nothing to check).
+    parameters : ndarray, shape (B, k) or None
+        Each member's actuator parameter vector.
+    """
+    if actuator is None:
+        return
+    member_status, messages, reached = outcome
+    n = actuator.n
+    for b in range(x.shape[0]):
+        own = actuator if parameters is None else actuator.with_parameter_vector(parameters[b])
+        left = actuator_exit(own, t[: reached[b]], x[b, : reached[b], :n])
+        if left is None:
+            continue
+        k, reason = left
+        reached[b], member_status[b] = k, failure_status(reason)
+        messages[b] = failure_message(reason, t, k, methods[b]) if k else reason
+        x[b, k:] = np.nan
+        if inputs is not None:
+            inputs[b, k:] = np.nan
 
 
 @dataclass(frozen=True, eq=False)

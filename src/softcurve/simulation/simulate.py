@@ -81,7 +81,14 @@ from softcurve.simulation.engine import (
 from softcurve.simulation.integrators import ActuatorInput, CvodesEngine
 from softcurve.simulation.rk45 import ScipyEngine
 from softcurve.simulation.settings import SimulationSettings, settings_with
-from softcurve.simulation.stepping import Domain, Progress, Stopped, run_on_grid, run_sampled
+from softcurve.simulation.stepping import (
+    Domain,
+    Progress,
+    Stopped,
+    actuator_exit,
+    run_on_grid,
+    run_sampled,
+)
 from softcurve.simulation.trajectory import Trajectory
 from softcurve.symbolic.gaps import check_start
 
@@ -254,7 +261,11 @@ def simulate(
         rest lengths, a bend beyond ``MAX_BEND``, a non-finite value; see
         :meth:`~softcurve.Robot.check_configuration`) or became non-finite, with a message
         naming the time, the coordinate and the likely cause; the trajectory is kept up to
-        the last output inside the domain.
+        the last output inside the domain. With an actuator, its domain (every tendon
+        length and chamber volume > 0, :meth:`Actuator.in_domain
+        <softcurve.description.actuator.Actuator.in_domain>`) is checked at the output
+        times: the trajectory stops before the first output outside it, ``LEFT_DOMAIN``
+        naming the actuator element; ``q0`` outside it is refused.
 
     Examples
     --------
@@ -278,6 +289,9 @@ def simulate(
         raise ParameterError("actuator_state is an actuator's initial state: give actuator= too")
     if actuator is not None:
         start = actuator.lag_start(actuator_state)
+        problem = actuator.domain_problem(model_x0[: model.n])
+        if problem is not None:
+            raise ParameterError(f"q0: {problem}")
     if actuated is not None and actuated.n_states:
         scale = np.maximum(np.abs(actuated.lower), np.abs(actuated.upper))
         x0 = np.concatenate([x0, start])
@@ -341,6 +355,9 @@ def _result(
     model, grid, states, applied, reached, failure, stats, actuated, actuator
 ) -> Trajectory:
     n = model.n
+    left = actuator_exit(actuator, grid[:reached], states[:reached, :n])
+    if left is not None:  # the recorded outputs left the actuator's domain first
+        reached, failure = left
     # views, not copies: states, applied and the grid belong to this run alone (copying a
     # long run's columns cost a quarter of a millisecond per 10,000 outputs); a run that
     # stopped early is copied, so it does not hold the rows it never reached

@@ -73,6 +73,32 @@ def domain_reason(x: np.ndarray, n: int, rest_lengths, t: float) -> str:
     return f"{LEFT_DOMAIN} at t = {t:.6g} s: {problem}"
 
 
+def actuator_exit(actuator, t: np.ndarray, q: np.ndarray) -> tuple[int, str] | None:
+    """The first output at which the recorded configurations leave the actuator's domain
+    (a tendon length or chamber volume <= 0, :meth:`Actuator.in_domain
+    <softcurve.description.actuator.Actuator.in_domain>`), as ``(index, reason)``, the
+    reason starting with :data:`LEFT_DOMAIN` and naming the actuator element; None when
+    every output lies inside. The actuator's domain is checked at the output times, once
+    per run, where its result is assembled (every integration route).
+
+    Parameters
+    ----------
+    actuator : Actuator or None
+        The actuator driving the run (None: nothing to check).
+    t : ndarray, shape (T,)
+        Output times [s].
+    q : ndarray, shape (T, n)
+        Configurations at them [m, 1/m, 1/m].
+    """
+    if actuator is None or not len(q):
+        return None
+    outside = ~actuator.in_domain(q) & np.all(np.isfinite(q), axis=-1)
+    if not outside.any():
+        return None
+    k = int(np.argmax(outside))
+    return k, f"{LEFT_DOMAIN} at t = {t[k]:.6g} s: {actuator.domain_problem(q[k])}"
+
+
 class Domain:
     """The check of a run's outputs against the model's domain
     (:func:`outside_domain`), vectorized over the outputs
