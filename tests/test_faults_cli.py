@@ -280,7 +280,7 @@ def test_a_full_disk_names_the_file(compiled, tmp_path, capsys, monkeypatch):
 def test_equilibria_advice_names_options_that_exist(capsys):
     code, out, err = run(["equilibria", "--tip-force", "0", "0", "100", "--starts", "8"], capsys)
     assert code == 1, out + err
-    assert "none inside the searched box" in out and "--starts" in out and "--tip-force" in out
+    assert "none inside the box searched" in out and "--starts" in out and "--tip-force" in out
     assert "widen" not in out + err
 
 

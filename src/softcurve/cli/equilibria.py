@@ -8,8 +8,8 @@ from . import Command, _options, _robots, in_cli_terms, write_figure
 
 ADVICE = {
     r"none inside the bounds: widen them, add starts or change the loads": (
-        "none inside the searched box (per segment l in [0.5, 1.5] l0, |kx|, |ky| <= pi / l0): "
-        "try more --starts, another --seed, or other loads (--tip-force, --inputs, --gravity)"
+        "none inside the box searched (sc.equilibria's default_bounds, docs/statics.md): try "
+        "more --starts, another --seed, or other loads (--tip-force, --inputs, --gravity)"
     ),
 }
 """The library's advice, in the options of ``softcurve equilibria`` (it has none for the

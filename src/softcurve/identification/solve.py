@@ -137,9 +137,9 @@ def robust_least_squares(
         Called without arguments right after an evaluation that became the best point
         (to keep what else was computed there).
     gtol : float or None
-        SciPy's ``gtol``, a tolerance (dimensionless) on the scaled gradient ``J^T r``
-        (absolute in the residuals' own units, unlike ``xtol`` and ``ftol``); None stops on the step and the cost
-        only, for residuals whose size says nothing about convergence (residuals of
+        SciPy's ``gtol``, a tolerance on the gradient ``J^T r`` (dimensionless: absolute
+        in the residuals' own units, unlike ``xtol`` and ``ftol``); None stops on the step
+        and the cost only, for residuals whose size says nothing about convergence (residuals of
         clean data are small everywhere near the solution).
 
     Returns
