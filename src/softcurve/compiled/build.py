@@ -128,7 +128,8 @@ def require_compiler(compiler: list[str] | None) -> list[str]:
     Parameters
     ----------
     compiler : list of str or None
-        The command of :func:`_compiler`.
+        The command of the compiler found (``CC``, else ``cc``, ``gcc`` or ``clang``
+        on ``PATH``).
 
     Returns
     -------

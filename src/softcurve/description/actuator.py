@@ -319,7 +319,7 @@ class Actuator:
     # -- the domain (softcurve.description.domain) ------------------------------------
     def fibers(self) -> tuple:
         """The actuator's elements as offset fibers, one
-        :class:`~softcurve.description.domain.Fiber` per element and segment it runs
+        :class:`~softcurve.description.fibers.Fiber` per element and segment it runs
         through; none for an actuator without geometry (a constant map)."""
         return ()
 
@@ -352,7 +352,7 @@ class Actuator:
     def check_robot(self, robot) -> None:
         """Raise :class:`ParameterError` unless the actuator fits ``robot``'s coordinates
         and its routing lies inside the body (every distance ``rho`` at most the radius of
-        each segment it runs through; :func:`~softcurve.description.domain.routing_problem`).
+        each segment it runs through; :func:`~softcurve.description.fibers.routing_problem`).
 
         Parameters
         ----------

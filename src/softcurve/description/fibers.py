@@ -10,8 +10,8 @@ The domain: ``L`` must stay > 0 in every segment (a tendon or a chamber of lengt
 a chamber of volume ``A L <= 0``, is no geometry: the fiber has crossed the centre of
 curvature, ``rho kappa_phi >= 1``): :func:`fibers_inside`, :func:`fiber_problem`.
 
-A routing is inside the body when ``rho <= r``, ``r`` the segment's
-:attr:`~softcurve.description.robot.Segment.radius` (the radius of the body's
+A routing is inside the body when ``rho <= r``, ``r`` the ``radius`` of
+the :class:`~softcurve.description.robot.Segment` (the radius of the body's
 cross-section, which also gives its rotary inertia and its drawn and contact radius):
 a tendon may run on the surface, not beyond it, and a chamber lies in the body.
 :func:`routing_problem` refuses the rest.
