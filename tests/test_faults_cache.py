@@ -24,7 +24,6 @@ import os
 import re
 import shutil
 import subprocess
-import sys
 import warnings
 
 import casadi as ca
@@ -35,6 +34,7 @@ import softcurve as sc
 from softcurve.compiled import build, generated
 from softcurve.compiled.cache import CacheWarning, checksum_file, library_problem
 from softcurve.compiled.source import compile_source
+from tests.test_faults import softcurve_process
 
 from .conftest import assert_close
 
@@ -177,19 +177,6 @@ def test_every_kind_of_cached_library_checks_its_key(tmp_path, monkeypatch, kind
         assert compiled(3) == 3
 
 
-def _softcurve(*argv, **env):
-    """``softcurve argv`` in a new process: ``(exit code, stdout, stderr)``."""
-    done = subprocess.run(
-        [sys.executable, "-m", "softcurve", *map(str, argv)],
-        capture_output=True,
-        text=True,
-        env={**os.environ, **env},
-        timeout=600,
-    )
-    assert "Traceback" not in done.stderr, done.stderr
-    return done.returncode, done.stdout, done.stderr
-
-
 def _table(folder):
     with open(folder / "trajectory.csv", newline="") as table:
         return [row for row in csv.reader(table) if row and not row[0].startswith("#")]
@@ -205,7 +192,9 @@ def filled(built, tmp_path_factory):
     _copy(built["own"].compiled_library, cache)
     scenario = folder / "small.toml"
     scenario.write_text(SCENARIO)
-    code, _, err = _softcurve(*RUN, scenario, "-o", folder / "run", SOFTCURVE_CACHE_DIR=cache)
+    code, _, err = softcurve_process(
+        *RUN, scenario, "-o", folder / "run", SOFTCURVE_CACHE_DIR=cache
+    )
     assert code == 0 and "warning" not in err, err
     return cache, scenario, _table(folder / "run")
 
@@ -218,7 +207,7 @@ def test_the_command_line_rebuilds_another_models_library(built, filled, tmp_pat
     own = built["own"].compiled_library
     library = _copy(built["other"].compiled_library, tmp_path / "cache", own.name)
     env = {"SOFTCURVE_CACHE_DIR": tmp_path / "cache"}
-    code, _, err = _softcurve(*RUN, scenario, "-o", tmp_path / "run", **env)
+    code, _, err = softcurve_process(*RUN, scenario, "-o", tmp_path / "run", **env)
     assert code == 0 and err.count("\n") == 1, err  # one warning line
     assert "warning: " in err and str(library) in err and "built for another key" in err, err
     assert _table(tmp_path / "run") == expected
@@ -260,10 +249,10 @@ def test_the_command_line_runs_compiled_without_a_compiler(filled, paper_model, 
     _copy(paper_model.compiled_library, tmp_path / "cache")
     (tmp_path / "empty-path").mkdir()
     env = {"SOFTCURVE_CACHE_DIR": tmp_path / "cache", "PATH": tmp_path / "empty-path", "CC": ""}
-    code, _, err = _softcurve(*RUN, scenario, "-o", tmp_path / "run", **env)
+    code, _, err = softcurve_process(*RUN, scenario, "-o", tmp_path / "run", **env)
     assert code == 0 and "warning" not in err, err
     assert _table(tmp_path / "run") == expected
-    code, out, err = _softcurve("info", **env)
+    code, out, err = softcurve_process("info", **env)
     assert code == 0 and "warning" not in err, err
     assert f"compiled library: {tmp_path / 'cache' / paper_model.compiled_library.name}" in out
 
@@ -367,7 +356,7 @@ def test_the_command_line_with_a_cache_folder_that_is_a_file(filled, tmp_path):
     _, scenario, expected = filled
     (tmp_path / "cache").write_text("not a folder")
     env = {"SOFTCURVE_CACHE_DIR": tmp_path / "cache"}
-    code, _, err = _softcurve(*RUN, scenario, "-o", tmp_path / "run", **env)
+    code, _, err = softcurve_process(*RUN, scenario, "-o", tmp_path / "run", **env)
     assert code == 0 and err.count("\n") == 1, err
     assert str(tmp_path / "cache") in err and "SOFTCURVE_CACHE_DIR" in err, err
     assert "virtual machine" not in err and "failed" not in err, err

@@ -50,19 +50,6 @@ def figure_file(path, option: str) -> Path:
     return writable_file(path, option)
 
 
-def output_file(path, option: str) -> Path:
-    """A file to be written (not a figure): a folder where files can be written.
-
-    Parameters
-    ----------
-    path : str or Path
-        The file.
-    option : str
-        The option that gave it, e.g. ``"--html"``.
-    """
-    return writable_file(path, option)
-
-
 def seed(value, option: str = "--seed") -> int:
     """A seed of the random starts: an integer >= 0.
 

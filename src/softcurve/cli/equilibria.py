@@ -54,6 +54,7 @@ def _add_arguments(parser) -> None:
 def _run(args) -> int:
     """Run ``softcurve equilibria``; returns the exit code."""
     from softcurve.analysis.statics import equilibria, linearize
+    from softcurve.base.files import writable_file
     from softcurve.compiled.model import Model
 
     # every option before any work
@@ -62,7 +63,7 @@ def _run(args) -> int:
         _options.figure_file(args.plot, "--plot")
     if args.html:
         _options.viewer("--html")
-        _options.output_file(args.html, "--html")
+        writable_file(args.html, "--html")
     robot, actuator, environment = _robots.robot_and_actuator(args)
     model = Model(
         robot, environment=environment, compile=False
