@@ -36,10 +36,10 @@ import time
 import numpy as np
 
 import softcurve as sc
-from softcurve.simulation import native
-from softcurve.simulation.batch import default_threads, simulate_batch
-from softcurve.simulation.engine import nominal_scale
-from softcurve.simulation.workers import stop_workers
+from softcurve.simulation.batch._batch import default_threads, simulate_batch
+from softcurve.simulation.batch._workers import stop_workers
+from softcurve.simulation.solvers import _driver as native
+from softcurve.simulation.solvers._policy import nominal_scale
 from softcurve.symbolic.dynamics import DEFAULT_QUADRATURE_NODES
 
 T_FINAL = 10.0

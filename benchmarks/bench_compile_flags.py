@@ -11,7 +11,7 @@ minute of the machine hits them alike):
 1. ``rhs``: the model's right-hand side ``(x, tau, p) -> xdot`` (what the model library
    holds, compiled with ``-O2 -march=native``);
 2. ``stepper``: one 20 ms control period of the environments' stepper (ROS34PW2 x 16,
-   actuator lag; compiled by :func:`softcurve.compiled.generated.compile_function`);
+   actuator lag; compiled by :func:`softcurve.compiled.compile_function`);
 3. ``sensitivity``: the identification's augmented right-hand side (state and five
    sensitivity columns, ``benchmarks/bench_identification.py``'s case; compiled by
    ``compile_function``).
@@ -33,11 +33,13 @@ from pathlib import Path
 import numpy as np
 
 import softcurve as sc
-from softcurve.compiled import build, generated
-from softcurve.simulation import sensitivity, stepper_scheme
-from softcurve.simulation.integrators import ActuatorInput
-from softcurve.simulation.stepper import DEFAULT_METHOD, DEFAULT_SUBSTEPS
-from softcurve.simulation.stepper_scheme import period_function
+from softcurve.compiled import _build as build
+from softcurve.compiled import _generated as generated
+from softcurve.simulation.sensitivity import _sensitivity as sensitivity
+from softcurve.simulation.solvers._cvodes import ActuatorInput
+from softcurve.simulation.stepper import _scheme as stepper_scheme
+from softcurve.simulation.stepper._scheme import period_function
+from softcurve.simulation.stepper._stepper import DEFAULT_METHOD, DEFAULT_SUBSTEPS
 
 sys.path.insert(0, str(Path(__file__).parent))
 import bench_identification

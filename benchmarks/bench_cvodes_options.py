@@ -4,12 +4,12 @@ Run:  python benchmarks/bench_cvodes_options.py [--size 60]
 
 Prints, for a batch of paper-case robots (10 s, rtol 1e-6, one thread):
 1. simulated seconds per CPU second against the restart interval of the multistep method
-   (``softcurve.simulation.engine.RESTART_INTERVAL`` is 1 s);
+   (``softcurve.simulation.solvers._policy.RESTART_INTERVAL`` is 1 s);
 2. the same for other CVODES options on CasADi's integrator (the route before
    softcurve's C driver, whose rate is printed first): ``max_order`` (softcurve's default
-   is 5, CasADi's 12; ``softcurve.simulation.engine.MAX_ORDER``) and the linear solver,
+   is 5, CasADi's 12; ``softcurve.simulation.solvers.MAX_ORDER``) and the linear solver,
    and without the switch to BDF once a member has settled
-   (``softcurve.simulation.engine.SETTLED_RATIO``);
+   (``softcurve.simulation.solvers.SETTLED_RATIO``);
 3. the size of the compiled right-hand side against its exact state Jacobian (the
    integrator uses finite differences: 10 right-hand sides per Jacobian);
 4. the CPU time of one worker process integrating 100 members alone and while a second
@@ -30,8 +30,10 @@ import casadi as ca
 import numpy as np
 
 import softcurve as sc
-from softcurve.simulation import batch, batch_run, native
-from softcurve.simulation import engine as _engines
+from softcurve.simulation.batch import _batch as batch
+from softcurve.simulation.batch import _members as batch_run
+from softcurve.simulation.solvers import _driver as native
+from softcurve.simulation.solvers import _policy as _engines
 
 T_FINAL = 10.0
 

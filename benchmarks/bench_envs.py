@@ -23,7 +23,7 @@ inputs (max distance over members and periods, in mm and relative to the workspa
 radius).
 
 Floor: the same 256 robots integrated over one period by the adaptive CVODES of
-``softcurve.simulate`` (softcurve's C driver, ``softcurve.simulation.native``), from
+``softcurve.simulate`` (softcurve's C driver, ``softcurve.simulation.solvers._driver``), from
 states reached under random pressures, at rtol 1e-6 and 1e-4: the steps and right-hand
 sides one period of this robot needs under a new random input at every period, the
 member-periods per second on 2 threads, and the cost of one right-hand side (with the
@@ -48,9 +48,9 @@ import numpy as np
 
 import softcurve as sc
 from softcurve.envs import ReachVector
-from softcurve.simulation import native
-from softcurve.simulation.integrators import ActuatorInput
-from softcurve.simulation.stepper_scheme import state_scale as stepper_scale
+from softcurve.simulation.solvers import _driver as native
+from softcurve.simulation.solvers._cvodes import ActuatorInput
+from softcurve.simulation.stepper._scheme import state_scale as stepper_scale
 
 PERIOD = 0.02
 """Control period [s] of every row."""

@@ -27,7 +27,7 @@ Run:  python benchmarks/bench_identification.py [--repeat N] [--quick] [--joint]
    two worker processes (the speed-up of the parallel joint fit).
 
 ``--casadi`` repeats 1. through CasADi's CVODES integrator (the route without softcurve's
-CVODES driver, ``softcurve.simulation.native.casadi_only``), in the same minutes.
+CVODES driver, ``softcurve.simulation.solvers.casadi_only``), in the same minutes.
 
 The targets are issue 16's; "previous" are the figures reported in the issue (the
 machine of that report) and measured here before this work (ae209f2^, load average
@@ -45,14 +45,14 @@ import numpy as np
 from _timing import best_of  # benchmarks/_timing.py: a helper, not a benchmark
 
 import softcurve as sc
-from softcurve.identification import equilibria
-from softcurve.identification.dynamic import fit_equilibria
-from softcurve.identification.experiments import Experiment
-from softcurve.identification.joint import evaluate_all, parallel_layout
-from softcurve.identification.maps import InputMap, bellows_input_map, curvatures
-from softcurve.identification.parameters import Free, FreeParameters
-from softcurve.simulation import native
-from softcurve.simulation.sensitivity import trajectory_sensitivities
+from softcurve.identification.experiments._loading import Experiment
+from softcurve.identification.fits import _equilibria as equilibria
+from softcurve.identification.fits._dynamic import fit_equilibria
+from softcurve.identification.fits._joint import evaluate_all, parallel_layout
+from softcurve.identification.fits._parameters import Free, FreeParameters
+from softcurve.identification.maps._builders import InputMap, bellows_input_map, curvatures
+from softcurve.simulation.sensitivity._sensitivity import trajectory_sensitivities
+from softcurve.simulation.solvers import _driver as native
 
 SEG = "segments[0]."
 TARGET_DYNAMIC = 2.0

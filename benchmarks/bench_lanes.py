@@ -1,4 +1,4 @@
-"""One right-hand side per member as lanes of members (softcurve.compiled.lanes) against
+"""One right-hand side per member as lanes of members (softcurve.compiled._lanes) against
 CasADi's scalar C, and the explicit stepper's period both ways.
 
 Run:  python benchmarks/bench_lanes.py [--members 256] [--rounds 7]
@@ -34,15 +34,10 @@ import casadi as ca
 import numpy as np
 
 import softcurve as sc
-from softcurve.compiled.lanes import (
-    VECTOR_MATH_LIBRARY,
-    lanes_function,
-    lanes_prelude,
-    lanes_work,
-)
-from softcurve.compiled.source import compile_source
-from softcurve.simulation.stepper_lanes import LanesMembers, lanes_period
-from softcurve.simulation.stepper_scheme import period_function, state_derivative
+from softcurve.compiled._lanes import VECTOR_MATH_LIBRARY, lanes_function, lanes_prelude, lanes_work
+from softcurve.compiled._source import compile_source
+from softcurve.simulation.stepper._lanes import LanesMembers, lanes_period
+from softcurve.simulation.stepper._scheme import period_function, state_derivative
 
 PERIOD = 0.02
 

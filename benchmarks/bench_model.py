@@ -25,7 +25,7 @@ import casadi as ca
 import numpy as np
 
 import softcurve as sc
-from softcurve.compiled.build import _COMPILE_FLAGS, _compile_flags, _compiler
+from softcurve.compiled._build import _COMPILE_FLAGS, _compile_flags, _compiler
 
 HARNESS = r"""
 #include <stdio.h>

@@ -1,4 +1,4 @@
-"""Wall time of the paper's 10 s case: softcurve.simulation.simulate against SciPy's RK45.
+"""Wall time of the paper's 10 s case: softcurve.simulation._simulate against SciPy's RK45.
 
 Run:  python benchmarks/bench_simulate.py [--repeat N] [--quick]
 
@@ -25,8 +25,8 @@ from _timing import best_of  # benchmarks/_timing.py: a helper, not a benchmark
 from scipy.integrate import solve_ivp
 
 import softcurve as sc
-from softcurve.simulation import native
-from softcurve.simulation.engine import nominal_scale
+from softcurve.simulation.solvers import _driver as native
+from softcurve.simulation.solvers._policy import nominal_scale
 
 Q0, QD0, T_FINAL = np.array([0.064, 25.0, 0.0]), np.array([0.0, 0.0, 1500.0]), 10.0
 TARGET_MS = 5.0

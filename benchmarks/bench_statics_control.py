@@ -23,7 +23,7 @@ import numpy as np
 import softcurve as sc
 from softcurve.analysis.inverse_statics import inverse_statics
 from softcurve.analysis.statics import equilibria
-from softcurve.compiled.codegen import build_and_run_test, export_c
+from softcurve.compiled._export import build_and_run_test, export_c
 from softcurve.control.controllers import ComputedTorque
 from softcurve.control.mpc import ActuatorMPC
 from softcurve.control.references import tip_circle

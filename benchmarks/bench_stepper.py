@@ -1,4 +1,4 @@
-"""Throughput and accuracy of the batched fixed-step stepper (softcurve.simulation.stepper).
+"""Throughput and accuracy of the batched fixed-step stepper (softcurve.simulation.stepper._stepper).
 
 Run:  python benchmarks/bench_stepper.py [--repeat 5] [--sizes 1,16,256,1024]
       [--accuracy-periods 100] [--skip-tendons] [--skip-flags]
@@ -49,12 +49,12 @@ import time
 import numpy as np
 
 import softcurve as sc
-from softcurve.compiled.generated import FUNCTION_FLAGS
-from softcurve.simulation.integrators import ActuatorInput
-from softcurve.simulation.stepper import DEFAULT_METHOD, DEFAULT_SUBSTEPS, Stepper
-from softcurve.simulation.stepper_methods import METHODS, Tableau
-from softcurve.simulation.stepper_scheme import STEPPER_FLAGS, period_function
-from softcurve.simulation.stepper_stability import fastest_rate, fastest_rate_at_rest
+from softcurve.compiled._generated import FUNCTION_FLAGS
+from softcurve.simulation.solvers._cvodes import ActuatorInput
+from softcurve.simulation.stepper._methods import METHODS, Tableau
+from softcurve.simulation.stepper._scheme import STEPPER_FLAGS, period_function
+from softcurve.simulation.stepper._stability import fastest_rate, fastest_rate_at_rest
+from softcurve.simulation.stepper._stepper import DEFAULT_METHOD, DEFAULT_SUBSTEPS, Stepper
 
 PERIOD = 0.02
 

@@ -37,7 +37,7 @@ import casadi as ca
 import numpy as np
 
 import softcurve as sc
-from softcurve.simulation.integrators import ActuatorInput, scaled_dae
+from softcurve.simulation.solvers._cvodes import ActuatorInput, scaled_dae
 
 DISTANCE, AREA, P_MAX = 0.012, 2e-4, 6e4  # [m], [m^2], [Pa]
 PRESSURES = np.array([25e3, 0.0, 10e3])  # [Pa]

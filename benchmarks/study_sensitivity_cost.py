@@ -16,7 +16,7 @@ script times, on ``--states`` different states evaluated in turn in a C loop (be
 3. ``[f; f_x; f_d]`` with the product ``f_x S + f_d`` formed in C (what a driver that
    reuses the Jacobian while the corrector iterates at one state calls once per step);
 4. the columns as forward-mode directional derivatives of ``f`` along
-   ``(S_j, scale_j e_j)``, one column per lane (``softcurve.compiled.lanes``): two calls
+   ``(S_j, scale_j e_j)``, one column per lane (``softcurve.compiled._lanes``): two calls
    of 4 lanes with glibc's vector math, or one call of 8 lanes, each lane also
    recomputing ``f``.
 
@@ -37,14 +37,14 @@ from pathlib import Path
 import casadi as ca
 import numpy as np
 
-from softcurve.compiled.lanes import (
+from softcurve.compiled._lanes import (
     VECTOR_MATH_LIBRARY,
     lanes_function,
     lanes_prelude,
     lanes_work,
     vector_math_available,
 )
-from softcurve.compiled.source import compile_source
+from softcurve.compiled._source import compile_source
 
 sys.path.insert(0, str(Path(__file__).parent))
 import bench_identification
@@ -117,7 +117,7 @@ def driver_library(columns, width: int):
 
     Parameters
     ----------
-    columns : softcurve.compiled.native.NativeFunction
+    columns : softcurve.compiled.NativeFunction
         The loaded ``fs`` of the evaluator's driver route.
     width : int
         ``nx (1 + m)``.

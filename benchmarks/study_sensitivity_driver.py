@@ -13,7 +13,7 @@ prints wall time, steps, right-hand sides and sensitivity evaluations per family
 (Adams, BDF), tolerance (rtol 1e-8 down to 1e-4) and error test (the state alone, the
 library's default, or the sensitivity columns too, ``fsens_err_con``), and the largest
 difference from CasADi's route relative to each row's range. The library's choice
-(Adams, rtol 1e-8) is ``softcurve.simulation.sensitivity.NATIVE_FAMILY``.
+(Adams, rtol 1e-8) is ``softcurve.simulation.sensitivity._sensitivity.NATIVE_FAMILY``.
 
 First it prints the eigenvalues of the robot linearized at the trial's first state with
 its first pressures, and their angle from the negative real axis: beyond a BDF order's
@@ -33,8 +33,8 @@ import numpy as np
 from scipy.integrate import solve_ivp
 
 import softcurve as sc
-from softcurve.identification.maps import bellows_input_map
-from softcurve.simulation.sensitivity_route import DriverSettings, integrate_sensitivities
+from softcurve.identification.maps._builders import bellows_input_map
+from softcurve.simulation.sensitivity._route import DriverSettings, integrate_sensitivities
 
 sys.path.insert(0, str(Path(__file__).parent))
 import bench_identification

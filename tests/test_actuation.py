@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from softcurve import Bellows, ConstantPressureMap, ParameterError, PneumaticActuator
-from softcurve.description.pneumatic import ATMOSPHERIC_PRESSURE
+from softcurve.description.bellows import ATMOSPHERIC_PRESSURE
 from softcurve.scenarios.actuation import from_mapping
 
 from .conftest import assert_close

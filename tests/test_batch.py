@@ -9,10 +9,10 @@ import numpy as np
 import pytest
 
 import softcurve as sc
-import softcurve.simulation.along as along_module
+import softcurve.simulation.solvers._along as along_module
 from softcurve.base.status import Status
-from softcurve.simulation.batch import simulate_batch
-from softcurve.simulation.engine import nominal_scale
+from softcurve.simulation.batch._batch import simulate_batch
+from softcurve.simulation.solvers._policy import nominal_scale
 from tests.conftest import assert_close, random_state
 
 T_FINAL, DT = 0.4, 0.01

@@ -8,10 +8,10 @@ import pytest
 
 import softcurve as sc
 from softcurve.base.status import Status
-from softcurve.simulation import along as along_module
-from softcurve.simulation import native
-from softcurve.simulation.batch import simulate_batch
-from softcurve.simulation.engine import nominal_scale
+from softcurve.simulation.batch._batch import simulate_batch
+from softcurve.simulation.solvers import _along as along_module
+from softcurve.simulation.solvers import _driver as native
+from softcurve.simulation.solvers._policy import nominal_scale
 
 from .conftest import compiler_refusing
 

@@ -26,9 +26,10 @@ import numpy as np
 import pytest
 
 import softcurve as sc
-from softcurve.compiled import build, generated
-from softcurve.compiled import cache as cache_module
-from softcurve.compiled.cache import CacheWarning, checksum_file, library_problem
+from softcurve.compiled import _build as build
+from softcurve.compiled import _cache as cache_module
+from softcurve.compiled import _generated as generated
+from softcurve.compiled._cache import CacheWarning, checksum_file, library_problem
 
 from .conftest import assert_close
 

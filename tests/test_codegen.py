@@ -9,7 +9,7 @@ import pytest
 
 from softcurve import ParameterError, PneumaticActuator
 from softcurve.cli import main
-from softcurve.compiled.codegen import build_and_run_test, export_c
+from softcurve.compiled._export import build_and_run_test, export_c
 
 from .conftest import assert_close
 

@@ -210,8 +210,8 @@ def test_a_model_with_obstacles_is_integrated_with_the_stiff_family():
 def test_batch_in_worker_processes_keeps_the_environment(model):
     """Workers rebuild the model WITH its environment (and uncompiled, as the parent's):
     a chunk run as a worker runs it, from the pickled description, equals simulate."""
-    from softcurve.simulation.batch import _chunk
-    from softcurve.simulation.workers import model_description
+    from softcurve.simulation.batch._batch import _chunk
+    from softcurve.simulation.batch._workers import model_description
 
     description = pickle.loads(pickle.dumps(model_description(model)))
     assert description[2].key() == model.environment.key() and description[3] is False
@@ -232,7 +232,7 @@ def test_batch_in_worker_processes_keeps_the_environment(model):
 
 
 def test_c_export_includes_the_contact(tmp_path):
-    from softcurve.compiled.codegen import _functions, build_and_run_test
+    from softcurve.compiled._export import _functions, build_and_run_test
 
     robot = sc.presets.ifac2020()
     law = sc.ContactLaw(1e7, damping=1.0, friction=0.5, points_per_segment=2)  # small code

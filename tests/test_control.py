@@ -18,7 +18,7 @@ from softcurve.control.controllers import (
 )
 from softcurve.control.mpc import ActuatorMPC
 from softcurve.control.references import Reference, tip_circle, tip_to_coordinates
-from softcurve.simulation.simulate import simulate
+from softcurve.simulation._simulate import simulate
 
 from .conftest import assert_close
 

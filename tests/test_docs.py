@@ -258,14 +258,14 @@ def test_public_api_documents_every_parameter_with_unit_or_shape():
 def test_the_walk_reaches_the_entry_points():
     labels = {_label(obj) for obj in public_api()}
     for expected in (
-        "softcurve.compiled.model.Model",
+        "softcurve.compiled.Model",
         "softcurve.description.presets.ifac2020",
-        "softcurve.simulation.simulate.simulate",
+        "softcurve.simulation.simulate",
         "softcurve.description.robot.Robot",
     ):
         assert expected in labels
     methods = {_label(m) for _, m in _public_methods(softcurve.Model)}
-    assert "softcurve.compiled.model.Model.forward_dynamics" in methods
+    assert "softcurve.compiled.Model.forward_dynamics" in methods
 
 
 def _badly_documented(q, speed, length, count: int, *columns, **options):

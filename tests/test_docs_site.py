@@ -50,12 +50,12 @@ def test_the_site_builds_strictly_with_every_part(site):
 
 def test_the_api_reference_renders_the_docstrings(site):
     out, _ = site
-    model = (out / "api" / "softcurve.compiled.model.html").read_text(encoding="utf-8")
-    assert 'id="softcurve.compiled.model.Model.forward_dynamics"' in model
+    model = (out / "api" / "softcurve.compiled._model.html").read_text(encoding="utf-8")
+    assert 'id="softcurve.compiled.Model.forward_dynamics"' in model
     assert "%(" not in model  # the shared parameter texts are substituted
     assert "Generalized coordinates" in model  # ... with the text of softcurve.base.docs
     facade = (out / "api" / "softcurve.html").read_text(encoding="utf-8")
-    assert 'href="softcurve.compiled.model.html#softcurve.compiled.model.Model"' in facade
+    assert 'href="softcurve.compiled._model.html#softcurve.compiled.Model"' in facade
 
 
 def test_a_page_per_command_from_its_help(site):

@@ -6,11 +6,11 @@ import numpy as np
 import pytest
 
 import softcurve as sc
-from softcurve.identification import equilibria
-from softcurve.identification.equilibria import EquilibriumPredictor
-from softcurve.identification.experiments import Experiment
-from softcurve.identification.maps import bellows_input_map, curvatures
-from softcurve.identification.parameters import Free, FreeParameters
+from softcurve.identification.experiments._loading import Experiment
+from softcurve.identification.fits import _equilibria as equilibria
+from softcurve.identification.fits._equilibria import EquilibriumPredictor
+from softcurve.identification.fits._parameters import Free, FreeParameters
+from softcurve.identification.maps._builders import bellows_input_map, curvatures
 
 
 @pytest.fixture(scope="module")

@@ -4,7 +4,12 @@ import numpy as np
 import pytest
 import scipy.io
 
-from softcurve.identification.experiments import Experiment, ExperimentError, load_csv, load_mat
+from softcurve.identification.experiments._loading import (
+    Experiment,
+    ExperimentError,
+    load_csv,
+    load_mat,
+)
 
 
 def _write_csv(path, text):

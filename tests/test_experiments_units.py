@@ -8,9 +8,9 @@ import pytest
 import scipy.io
 
 import softcurve as sc
-from softcurve.identification.experiments import load_csv, load_mat, load_mat_trials
-from softcurve.identification.maps import bellows_input_map, bending_angle, curvatures
-from softcurve.identification.units import POUND_FORCE_PER_SQUARE_INCH, check_units
+from softcurve.identification.experiments._loading import load_csv, load_mat, load_mat_trials
+from softcurve.identification.experiments._units import POUND_FORCE_PER_SQUARE_INCH, check_units
+from softcurve.identification.maps._builders import bellows_input_map, bending_angle, curvatures
 
 T = np.linspace(0.0, 1.0, 6)
 

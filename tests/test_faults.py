@@ -24,8 +24,8 @@ import softcurve as sc
 from softcurve.base import files
 from softcurve.base.validation import ParameterError
 from softcurve.cli import build_parser, main
-from softcurve.compiled.build import checksum_file
-from softcurve.simulation.settings import SimulationSettings
+from softcurve.compiled._build import checksum_file
+from softcurve.simulation._settings import SimulationSettings
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -130,7 +130,7 @@ def test_max_outputs_is_a_setting_the_user_can_raise():
 
 
 def test_long_csv_writes_show_progress(compiled, tmp_path, capsys, monkeypatch):
-    from softcurve.simulation import trajectory_files
+    from softcurve.simulation.results import _files as trajectory_files
 
     monkeypatch.setattr(trajectory_files, "ROWS_PER_BLOCK", 20)
     trajectory = sc.simulate(compiled, [0.064, 5.0, 0.0], np.zeros(3), t_final=0.1, dt=1e-3)
@@ -507,7 +507,7 @@ def test_worker_pool_survives_the_end_of_the_thread_that_started_it(tmp_path):
     script = tmp_path / "pool_from_thread.py"
     script.write_text(
         "import threading\n"
-        "from softcurve.simulation.workers import run_in_processes\n"
+        "from softcurve.simulation.batch._workers import run_in_processes\n"
         "def square(x):\n    return x * x\n"
         "def run():\n    return dict(run_in_processes(square, {i: (i,) for i in range(4)}, 2))\n"
         "if __name__ == '__main__':\n"

@@ -31,9 +31,10 @@ import numpy as np
 import pytest
 
 import softcurve as sc
-from softcurve.compiled import build, generated
-from softcurve.compiled.cache import CacheWarning, checksum_file, library_problem
-from softcurve.compiled.source import compile_source
+from softcurve.compiled import _build as build
+from softcurve.compiled import _generated as generated
+from softcurve.compiled._cache import CacheWarning, checksum_file, library_problem
+from softcurve.compiled._source import compile_source
 from tests.test_faults import softcurve_process
 
 from .conftest import assert_close

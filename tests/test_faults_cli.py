@@ -131,7 +131,7 @@ def test_evaluations_along_a_trajectory_are_short_calls(compiled, monkeypatch):
     """A Ctrl-C is seen between two compiled calls: the tip of a long trajectory is
     computed in calls of at most POINTS_PER_CALL points, not in one (a minute for 1e7
     points), with the same values."""
-    from softcurve.compiled import functions
+    from softcurve.compiled import _functions as functions
 
     q = np.c_[np.linspace(0.05, 0.08, 2500), np.linspace(-30, 30, 2500), np.zeros(2500)]
     widths = []
@@ -263,7 +263,7 @@ def test_input_that_is_not_a_file_is_named(tmp_path, capsys, make, words, comman
 
 
 def test_a_full_disk_names_the_file(compiled, tmp_path, capsys, monkeypatch):
-    from softcurve.simulation import trajectory_files
+    from softcurve.simulation.results import _files as trajectory_files
 
     def full(out, table, name, progress):
         out.write("0,1,2\n")

@@ -281,11 +281,11 @@ def test_scenario_with_a_routing_outside_the_body_exits_2(tmp_path, capsys):
 def test_fit_of_equilibria_accepts_no_root_outside_the_actuator_domain(paper_model):
     """A fit's prediction whose equilibria put a chamber past the centre of curvature
     fails naming it, as one outside the robot's domain does."""
-    from softcurve.identification.equilibria import EquilibriumPredictor
-    from softcurve.identification.experiments import Experiment
-    from softcurve.identification.input_maps import actuator_input_map
-    from softcurve.identification.maps import curvatures
-    from softcurve.identification.parameters import Free, FreeParameters
+    from softcurve.identification.experiments._loading import Experiment
+    from softcurve.identification.fits._equilibria import EquilibriumPredictor
+    from softcurve.identification.fits._parameters import Free, FreeParameters
+    from softcurve.identification.maps._builders import curvatures
+    from softcurve.identification.maps._inputs import actuator_input_map
 
     actuator = sc.PneumaticActuator.three_bellows(
         distance=PAPER_RADIUS, area=2e-4, p_max=6e4, azimuths=TWO_BELLOWS

@@ -16,8 +16,8 @@ import pytest
 import softcurve as sc
 from softcurve.base.status import Status
 from softcurve.cli import main
-from softcurve.simulation import integrators
-from softcurve.simulation.settings import SimulationSettings
+from softcurve.simulation._settings import SimulationSettings
+from softcurve.simulation.solvers import _cvodes as integrators
 from softcurve.symbolic.contact import signed_distance
 
 Q0 = np.array([0.064, 0.0, 0.0])

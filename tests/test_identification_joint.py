@@ -9,12 +9,12 @@ import numpy as np
 import pytest
 
 import softcurve as sc
-from softcurve.identification import joint
-from softcurve.identification.dynamic import fit_trajectory, predict_trajectory
-from softcurve.identification.experiments import Experiment
-from softcurve.identification.maps import bending_angle, curvatures
-from softcurve.identification.parameters import Free
-from softcurve.identification.weights import weight_matrix
+from softcurve.identification.experiments._loading import Experiment
+from softcurve.identification.fits import _joint as joint
+from softcurve.identification.fits._dynamic import fit_trajectory, predict_trajectory
+from softcurve.identification.fits._parameters import Free
+from softcurve.identification.fits._weights import weight_matrix
+from softcurve.identification.maps._builders import bending_angle, curvatures
 
 SEG = "segments[0]."
 LENGTH = 0.064
@@ -187,7 +187,7 @@ def test_a_discounted_settling_period_removes_its_bias(recordings):
 
 
 def test_the_input_lag_time_constant_is_recovered(recordings):
-    from softcurve.identification.maps import bellows_input_map, curvatures
+    from softcurve.identification.maps._builders import bellows_input_map, curvatures
 
     model = recordings[0]
     t = np.arange(0.0, 0.3 + 1e-12, 2e-3)

@@ -9,7 +9,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 import softcurve as sc
-from softcurve.identification.maps import (
+from softcurve.identification.maps._builders import (
     SensorFrame,
     actuator_input_map,
     bellows_input_map,

@@ -7,16 +7,16 @@ import numpy as np
 import pytest
 
 import softcurve as sc
-import softcurve.identification.dynamic as dynamic
+import softcurve.identification.fits._dynamic as dynamic
 from softcurve.base.status import Status
-from softcurve.identification.dynamic import fit_trajectory, predict_trajectory
-from softcurve.identification.experiments import Experiment
-from softcurve.identification.joint import evaluate_all
-from softcurve.identification.maps import bending_angle
-from softcurve.identification.parameters import Free
-from softcurve.identification.report import FitError, FitWarning
-from softcurve.identification.solve import robust_least_squares, starting_points
-from softcurve.simulation.workers import WorkerDied
+from softcurve.identification.experiments._loading import Experiment
+from softcurve.identification.fits._dynamic import fit_trajectory, predict_trajectory
+from softcurve.identification.fits._joint import evaluate_all
+from softcurve.identification.fits._parameters import Free
+from softcurve.identification.fits._report import FitError, FitWarning
+from softcurve.identification.fits._solve import robust_least_squares, starting_points
+from softcurve.identification.maps._builders import bending_angle
+from softcurve.simulation.batch._workers import WorkerDied
 
 SEG = "segments[0]."
 LENGTH = 0.064

@@ -11,12 +11,16 @@ import pytest
 
 import softcurve as sc
 from softcurve.base.status import Status
-from softcurve.identification.dynamic import fit_equilibria, fit_trajectory, predict_trajectory
-from softcurve.identification.experiments import Experiment
-from softcurve.identification.maps import bellows_input_map, bending_angle, curvatures
-from softcurve.identification.parameters import Free, FreeParameters, tanh_parameters
-from softcurve.identification.report import covariance, summarize
-from softcurve.identification.stiffness import fit_stiffness
+from softcurve.identification.experiments._loading import Experiment
+from softcurve.identification.fits._dynamic import (
+    fit_equilibria,
+    fit_trajectory,
+    predict_trajectory,
+)
+from softcurve.identification.fits._parameters import Free, FreeParameters, tanh_parameters
+from softcurve.identification.fits._report import covariance, summarize
+from softcurve.identification.fits._stiffness import fit_stiffness
+from softcurve.identification.maps._builders import bellows_input_map, bending_angle, curvatures
 
 SEG = "segments[0]."
 
@@ -109,7 +113,7 @@ def oscillation():
 
 
 def test_trajectory_jacobian_is_exact(oscillation):
-    from softcurve.simulation.sensitivity import trajectory_sensitivities
+    from softcurve.simulation.sensitivity._sensitivity import trajectory_sensitivities
 
     model, _, data = oscillation
     free = [Free(SEG + "bending_stiffness.k0"), Free(SEG + "damping[1,1]"), Free("lam0")]

@@ -11,7 +11,7 @@ import softcurve as sc
 from softcurve.base.files import atomic_write
 from softcurve.base.status import Status
 from softcurve.scenarios.config import ConfigError, load_config, paper_scenario
-from softcurve.simulation.settings import SimulationSettings
+from softcurve.simulation._settings import SimulationSettings
 
 EXAMPLES = Path(__file__).resolve().parent.parent / "examples"
 

@@ -1,6 +1,6 @@
-"""SX functions as C over lanes of members (:mod:`softcurve.compiled.lanes`) against
+"""SX functions as C over lanes of members (:mod:`softcurve.compiled._lanes`) against
 CasADi's own evaluation, and the explicit stepper's lanes period
-(:mod:`softcurve.simulation.stepper_lanes`) against the scalar period per member."""
+(:mod:`softcurve.simulation.stepper._lanes`) against the scalar period per member."""
 
 from __future__ import annotations
 
@@ -12,20 +12,20 @@ import numpy as np
 import pytest
 
 import softcurve as sc
-from softcurve.compiled import lanes as lanes_module
-from softcurve.compiled.lanes import (
+from softcurve.compiled import _lanes as lanes_module
+from softcurve.compiled._lanes import (
     LANE_WIDTH,
     VECTOR_MATH_LIBRARY,
     lanes_function,
     lanes_prelude,
     lanes_work,
 )
-from softcurve.compiled.source import compile_source
-from softcurve.simulation import stepper_lanes
-from softcurve.simulation.stepper import Stepper
-from softcurve.simulation.stepper_lanes import LanesMembers, lanes_period
-from softcurve.simulation.stepper_native import ThreadedMembers
-from softcurve.simulation.stepper_scheme import period_function
+from softcurve.compiled._source import compile_source
+from softcurve.simulation.stepper import _lanes as stepper_lanes
+from softcurve.simulation.stepper._lanes import LanesMembers, lanes_period
+from softcurve.simulation.stepper._scheme import period_function
+from softcurve.simulation.stepper._stepper import Stepper
+from softcurve.simulation.stepper._threads import ThreadedMembers
 
 from .conftest import compiler_refusing
 

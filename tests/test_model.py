@@ -13,9 +13,9 @@ import numpy as np
 import pytest
 
 import softcurve as sc
-from softcurve.compiled import build as model_module
-from softcurve.compiled import generated
-from softcurve.simulation import native
+from softcurve.compiled import _build as model_module
+from softcurve.compiled import _generated as generated
+from softcurve.simulation.solvers import _driver as native
 
 from .conftest import assert_close, compiler_refusing
 

@@ -1,4 +1,4 @@
-"""softcurve's C driver of CVODES (softcurve.simulation.native) against CasADi's CVODES
+"""softcurve's C driver of CVODES (softcurve.simulation.solvers._driver) against CasADi's CVODES
 integrator, the route it replaces: same results to tolerance, same statuses and messages,
 less work (budgets on evaluation counts, never on wall time)."""
 
@@ -13,9 +13,9 @@ import pytest
 import softcurve as sc
 from softcurve.base.status import Status
 from softcurve.description.robot import MAX_BEND, MAX_STRETCH, in_domain
-from softcurve.simulation import native
-from softcurve.simulation.batch import simulate_batch
-from softcurve.simulation.engine import nominal_scale
+from softcurve.simulation.batch._batch import simulate_batch
+from softcurve.simulation.solvers import _driver as native
+from softcurve.simulation.solvers._policy import nominal_scale
 
 from .conftest import assert_close
 

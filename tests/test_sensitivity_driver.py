@@ -13,13 +13,16 @@ import numpy as np
 import pytest
 
 import softcurve as sc
-from softcurve.identification.experiments import Experiment
-from softcurve.identification.maps import bellows_input_map, curvatures
-from softcurve.identification.parameters import Free, FreeParameters
-from softcurve.simulation import native
-from softcurve.simulation.sensitivity import SENSITIVITY_CVODES, trajectory_sensitivities
-from softcurve.simulation.sensitivity_route import integrate_sensitivities
-from softcurve.simulation.sensitivity_split import split_states
+from softcurve.identification.experiments._loading import Experiment
+from softcurve.identification.fits._parameters import Free, FreeParameters
+from softcurve.identification.maps._builders import bellows_input_map, curvatures
+from softcurve.simulation.sensitivity._route import integrate_sensitivities
+from softcurve.simulation.sensitivity._sensitivity import (
+    SENSITIVITY_CVODES,
+    trajectory_sensitivities,
+)
+from softcurve.simulation.sensitivity._split import split_states
+from softcurve.simulation.solvers import _driver as native
 
 SEG = "segments[0]."
 

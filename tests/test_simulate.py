@@ -11,11 +11,11 @@ from scipy.integrate import cumulative_simpson
 import softcurve as sc
 from softcurve.analysis.statics import equilibrium
 from softcurve.base.status import Status
-from softcurve.simulation import engine as _engines
-from softcurve.simulation import native
-from softcurve.simulation.engine import STIFFNESS_RATIO, linearization_rates, nominal_scale
-from softcurve.simulation.settings import SimulationSettings
-from softcurve.simulation.stepping import Progress, _input_changes
+from softcurve.simulation._settings import SimulationSettings
+from softcurve.simulation.solvers import _driver as native
+from softcurve.simulation.solvers import _policy as _engines
+from softcurve.simulation.solvers._grid import Progress, _input_changes
+from softcurve.simulation.solvers._policy import STIFFNESS_RATIO, linearization_rates, nominal_scale
 
 from .conftest import assert_close
 

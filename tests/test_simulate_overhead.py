@@ -7,8 +7,10 @@ import numpy as np
 import pytest
 
 import softcurve as sc
-from softcurve.simulation import engine, native, stepping
-from softcurve.simulation.settings import SimulationSettings, settings_with
+from softcurve.simulation._settings import SimulationSettings, settings_with
+from softcurve.simulation.solvers import _driver as native
+from softcurve.simulation.solvers import _grid as stepping
+from softcurve.simulation.solvers import _policy as engine
 
 Q0, QD0 = np.array([0.064, 25.0, 0.0]), np.array([0.0, 0.0, 1500.0])
 

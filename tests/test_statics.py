@@ -14,7 +14,7 @@ from softcurve.analysis.solver import solve_equilibria
 from softcurve.analysis.statics import equilibria, equilibrium, linearize, rotate_about_axis
 from softcurve.base.status import Status
 from softcurve.cli import main
-from softcurve.simulation.simulate import simulate
+from softcurve.simulation._simulate import simulate
 
 from .conftest import assert_close
 

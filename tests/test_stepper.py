@@ -9,7 +9,7 @@ import pytest
 import softcurve as sc
 from softcurve.base.status import Status
 from softcurve.base.validation import ParameterError
-from softcurve.simulation.stepper import Stepper
+from softcurve.simulation.stepper._stepper import Stepper
 
 PERIOD = 0.02  # the learning environments' control period [s]
 

@@ -11,14 +11,14 @@ import pytest
 
 import softcurve as sc
 from softcurve.base.validation import ParameterError
-from softcurve.compiled.generated import compile_function
-from softcurve.compiled.native import NativeFunction
-from softcurve.simulation.stepper import Stepper
-from softcurve.simulation.stepper_lanes import LanesMembers
-from softcurve.simulation.stepper_methods import DEFAULT_EXPLICIT_STEP, RK4
-from softcurve.simulation.stepper_native import load_native
-from softcurve.simulation.stepper_observe import observer
-from softcurve.simulation.stepper_stability import EXPLICIT_MARGIN, fastest_rate_at_rest
+from softcurve.compiled._generated import compile_function
+from softcurve.compiled._native import NativeFunction
+from softcurve.simulation.stepper._lanes import LanesMembers
+from softcurve.simulation.stepper._methods import DEFAULT_EXPLICIT_STEP, RK4
+from softcurve.simulation.stepper._observe import observer
+from softcurve.simulation.stepper._stability import EXPLICIT_MARGIN, fastest_rate_at_rest
+from softcurve.simulation.stepper._stepper import Stepper
+from softcurve.simulation.stepper._threads import load_native
 
 PERIOD = 0.02
 
@@ -83,7 +83,7 @@ def test_the_step_is_checked_against_the_robots_fastest_mode(paper_model, actuat
 
 
 def test_compiled_rk4_equals_the_virtual_machine(paper_model, actuator, rng):
-    """The generated lanes (vector C, :mod:`softcurve.simulation.stepper_lanes`) and
+    """The generated lanes (vector C, :mod:`softcurve.simulation.stepper._lanes`) and
     CasADi's virtual machine compute the same RK4 periods."""
     stepper = Stepper(paper_model, actuator, period=PERIOD, method="RK4", threads=2)
     if stepper._members is None:

@@ -16,7 +16,7 @@ from softcurve.cli import main  # noqa: E402
 from softcurve.scenarios.config import ConfigError  # noqa: E402
 from softcurve.scenarios.sweep import run_sweep, settling_time, summarize  # noqa: E402
 from softcurve.scenarios.sweep_config import load_sweep, sweep_from_dict  # noqa: E402
-from softcurve.simulation.batch import simulate_batch  # noqa: E402
+from softcurve.simulation.batch._batch import simulate_batch  # noqa: E402
 
 BASE = {
     "robot": {"preset": "ifac2020"},

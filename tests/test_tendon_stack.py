@@ -14,14 +14,14 @@ import softcurve as sc
 from softcurve.base.status import Status
 from softcurve.base.validation import ParameterError
 from softcurve.cli import main
-from softcurve.identification.dynamic import fit_equilibria
-from softcurve.identification.experiments import Experiment
-from softcurve.identification.maps import curvatures, tendon_input_map
-from softcurve.identification.parameters import Free
+from softcurve.identification.experiments._loading import Experiment
+from softcurve.identification.fits._dynamic import fit_equilibria
+from softcurve.identification.fits._parameters import Free
+from softcurve.identification.maps._builders import curvatures, tendon_input_map
 from softcurve.scenarios.actuation import from_mapping
 from softcurve.scenarios.config import ConfigError, load_config, scenario_from_dict
 from softcurve.scenarios.sweep_config import sweep_from_dict
-from softcurve.simulation.batch import simulate_batch
+from softcurve.simulation.batch._batch import simulate_batch
 
 from .conftest import assert_close
 
@@ -304,7 +304,7 @@ def test_actuator_with_parameter_vector_rebuilds_and_checks():
 def test_exported_c_input_matrix_agrees_with_the_actuator(two_segment_model, tmp_path):
     """Six tendons on two segments, the distal ones through both, with capstan friction:
     the compiled H(q) equals ``input_matrix(q)`` to 1e-12."""
-    from softcurve.compiled.codegen import build_and_run_test, export_c
+    from softcurve.compiled._export import build_and_run_test, export_c
 
     from .test_codegen import parse
 

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from softcurve.base.status import Status
-from softcurve.identification.experiments import load_mat
+from softcurve.identification.experiments._loading import load_mat
 
 REPO = Path(__file__).resolve().parents[1]
 SCRIPT = REPO / "examples" / "validate_caasenbrood2021.py"
@@ -20,7 +20,7 @@ pytestmark = [
     pytest.mark.data,
     # the script's --quick fits stop at their evaluation limit by design, and predicting
     # from such a fit warns (softcurve.FitWarning); the figures are checked loosely below
-    pytest.mark.filterwarnings("ignore::softcurve.identification.report.FitWarning"),
+    pytest.mark.filterwarnings("ignore::softcurve.identification.fits.FitWarning"),
 ]
 
 

@@ -15,7 +15,7 @@ belongs (a module removed) is deleted, so a build always shows the current packa
 
 During the build (``missing-reference``) it resolves cross-references through the
 names users write: ``softcurve.Model`` is documented where it is defined,
-``softcurve.compiled.model.Model``, and a reference to the facade's name is sent there.
+``softcurve.compiled._model.Model``, and a reference to the facade's name is sent there.
 References to other projects (NumPy, Matplotlib, CasADi ...) are shown as plain text,
 because the build is offline; a reference to a softcurve object that does not exist is
 left to Sphinx, which reports it and, in strict mode, fails the build.

@@ -20,17 +20,22 @@ array([0.0412, 0.    , 0.04  ])
 """
 
 from softcurve._version import __version__ as __version__
-from softcurve.analysis.equilibrium import Equilibrium, EquilibriumTable
+from softcurve.analysis.equilibrium_results import Equilibrium, EquilibriumTable
 from softcurve.analysis.inverse_statics import InverseStatics, inverse_statics
 from softcurve.analysis.linear import Linearization
 from softcurve.analysis.quasistatic import InputSweep, input_sweep
 from softcurve.analysis.statics import equilibria, equilibrium, linearize
 from softcurve.base.status import Result, Status
 from softcurve.base.validation import ParameterError
-from softcurve.compiled.build import CompilerWarning
-from softcurve.compiled.cache import CacheWarning
-from softcurve.compiled.codegen import ExportedC, export_c
-from softcurve.compiled.model import DynamicsTerms, Model, Pose
+from softcurve.compiled import (
+    CacheWarning,
+    CompilerWarning,
+    DynamicsTerms,
+    ExportedC,
+    Model,
+    Pose,
+    export_c,
+)
 from softcurve.control.controllers import (
     ActuatorDriven,
     Allocation,
@@ -44,27 +49,35 @@ from softcurve.control.mpc import ActuatorMPC
 from softcurve.control.references import Reference, tip_circle
 from softcurve.description import presets
 from softcurve.description.actuator import Actuator
+from softcurve.description.bellows import Bellows, ConstantPressureMap, PneumaticActuator
 from softcurve.description.environment import Capsule, ContactLaw, Environment, Plane, Sphere
 from softcurve.description.layout import ParameterLayout
 from softcurve.description.materials import Creep, LinearStiffness, TanhStiffness
-from softcurve.description.pneumatic import Bellows, ConstantPressureMap, PneumaticActuator
 from softcurve.description.robot import Robot, Segment
 from softcurve.description.tendons import Tendon, TendonActuator
 from softcurve.figures import save_figure
-from softcurve.identification.dynamic import (
-    fit_equilibria,
-    fit_trajectory,
-    predict_equilibria,
-    predict_trajectory,
-)
 from softcurve.identification.experiments import (
     Experiment,
     ExperimentError,
+    check_units,
     load_csv,
     load_mat,
     load_mat_trials,
 )
-from softcurve.identification.initial_equilibrium import InitialState, initial_equilibrium
+from softcurve.identification.fits import (
+    FitError,
+    FitReport,
+    FitWarning,
+    Free,
+    InitialState,
+    fit_equilibria,
+    fit_stiffness,
+    fit_trajectory,
+    initial_equilibrium,
+    predict_equilibria,
+    predict_trajectory,
+    tanh_parameters,
+)
 from softcurve.identification.maps import (
     InputMap,
     OutputMap,
@@ -79,19 +92,19 @@ from softcurve.identification.maps import (
     tendon_input_map,
     tip_position,
 )
-from softcurve.identification.parameters import Free, tanh_parameters
-from softcurve.identification.report import FitError, FitReport, FitWarning
-from softcurve.identification.stiffness import fit_stiffness
-from softcurve.identification.units import check_units
 from softcurve.scenarios.config import Scenario, load_config
 from softcurve.scenarios.sweep import SweepResult, run_sweep
 from softcurve.scenarios.sweep_config import SweepConfig, load_sweep
-from softcurve.simulation.batch import simulate_batch
-from softcurve.simulation.batch_trajectory import BatchTrajectory
-from softcurve.simulation.contact_history import ContactHistory
-from softcurve.simulation.settings import SimulationSettings
-from softcurve.simulation.simulate import simulate
-from softcurve.simulation.trajectory import State, Trajectory, load_trajectory
+from softcurve.simulation import (
+    BatchTrajectory,
+    ContactHistory,
+    SimulationSettings,
+    State,
+    Trajectory,
+    load_trajectory,
+    simulate,
+    simulate_batch,
+)
 
 __all__ = [
     # description

@@ -36,7 +36,7 @@ import numpy as np
 import scipy.linalg
 import scipy.stats
 
-from softcurve.analysis.equilibrium import Equilibrium, EquilibriumTable
+from softcurve.analysis.equilibrium_results import Equilibrium, EquilibriumTable
 from softcurve.analysis.linear import Linearization, linearize
 from softcurve.analysis.loads import (
     StaticLoad,

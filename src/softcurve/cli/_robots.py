@@ -33,7 +33,7 @@ def robot_and_actuator(args):
     """``(robot, actuator, environment)`` from the parsed arguments (the environment of
     the file's ``[environment]`` table, or None)."""
     from softcurve.description import presets
-    from softcurve.description.pneumatic import PneumaticActuator
+    from softcurve.description.bellows import PneumaticActuator
 
     robot, actuator, environment = presets.ifac2020(), None, None
     if args.config is not None:

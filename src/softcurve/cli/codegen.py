@@ -27,8 +27,7 @@ def _add_arguments(parser) -> None:
 def _run(args) -> int:
     """Run ``softcurve codegen``; returns the exit code."""
     from softcurve.base.files import writable_folder
-    from softcurve.compiled.codegen import build_and_run_test, c_identifier, export_c
-    from softcurve.compiled.model import Model
+    from softcurve.compiled import Model, build_and_run_test, c_identifier, export_c
 
     _options.as_option("--prefix", c_identifier, "prefix", args.prefix)
     robot, actuator, environment = _robots.robot_and_actuator(args)  # a bad file: no folder

@@ -55,7 +55,7 @@ def _run(args) -> int:
     """Run ``softcurve equilibria``; returns the exit code."""
     from softcurve.analysis.statics import equilibria, linearize
     from softcurve.base.files import writable_file
-    from softcurve.compiled.model import Model
+    from softcurve.compiled import Model
 
     # every option before any work
     seed, starts = _options.seed(args.seed), _options.count(args.starts, "--starts")

@@ -4,7 +4,7 @@ The regression of the paper's Fig. 3: generalized force against strain (elongati
 [m] or bending angle [rad]) with the hyper-elastic tanh law or a linear law; prints the
 estimates with confidence intervals and correlations, optionally writes the figure.
 Trajectory fits need a robot and output maps and are a Python API
-(:mod:`softcurve.identification.dynamic`); ``examples/validate_caasenbrood2021.py`` shows them.
+(:mod:`softcurve.identification.fits._dynamic`); ``examples/validate_caasenbrood2021.py`` shows them.
 """
 
 from __future__ import annotations
@@ -30,8 +30,7 @@ def _add_arguments(parser) -> None:
 def _run(args) -> int:
     """Run ``softcurve fit``; returns the exit code."""
     from softcurve.identification.experiments import load_csv
-    from softcurve.identification.report import check_confidence
-    from softcurve.identification.stiffness import fit_stiffness
+    from softcurve.identification.fits import check_confidence, fit_stiffness
 
     # every option before any work, by the library's own checks
     _options.as_option("--confidence", check_confidence, args.confidence)

@@ -15,7 +15,7 @@ def _add_arguments(parser) -> None:
 
 def _run(args) -> int:
     """Run ``softcurve info``; returns the exit code."""
-    from softcurve.compiled.model import Model
+    from softcurve.compiled import Model
     from softcurve.description import presets
 
     robot = presets.ifac2020()

@@ -20,8 +20,8 @@ import numpy as np
 
 from softcurve.base.files import writable_folder
 from softcurve.base.validation import ParameterError
-from softcurve.simulation.settings import CSV_BYTES_PER_VALUE, SettingsError, format_bytes
-from softcurve.simulation.trajectory_files import save_trajectory
+from softcurve.simulation import CSV_BYTES_PER_VALUE, SettingsError, format_bytes
+from softcurve.simulation.results import save_trajectory
 
 from . import Command, Interrupted, _options, add_progress_options, in_cli_terms, write_figure
 
@@ -161,8 +161,8 @@ def _run(args) -> int:
 
 def _simulate(args, scenario, output, written: list) -> int:
     """Simulate and write into ``output``, appending each file to ``written`` once whole."""
-    from softcurve.compiled.model import Model
-    from softcurve.simulation.simulate import simulate
+    from softcurve.compiled import Model
+    from softcurve.simulation import simulate
 
     say = (lambda *a: None) if args.quiet else print
     start = time.perf_counter()

@@ -6,7 +6,7 @@ actuator says what its inputs are (``input_name``, ``input_unit``), gives ``H(q)
 symbolically (:meth:`Actuator.input_matrix_symbolic`) and the work ``W(q)`` of constant
 inputs (:meth:`Actuator.input_work_symbolic`, whose gradient is ``H(q) u``), and holds
 its bounds ``lower <= u <= upper`` and an optional first-order lag of the inputs behind
-their commands. Pneumatic chambers (:mod:`softcurve.description.pneumatic`, pressures
+their commands. Pneumatic chambers (:mod:`softcurve.description.bellows`, pressures
 [Pa]) implement it; tendons (``tau = -J_L(q)^T T``, tensions ``T >= 0`` [N], work
 ``-L(q) . T``) fit the same methods.
 """

@@ -18,18 +18,16 @@ import numpy as np
 
 from softcurve.base.docs import parameters_from
 from softcurve.base.validation import ParameterError, real_scalar, whole_count
-from softcurve.compiled.model import Model
+from softcurve.compiled import Model
 from softcurve.description import presets
 from softcurve.description.actuator import Actuator
-from softcurve.description.pneumatic import PneumaticActuator
+from softcurve.description.bellows import PneumaticActuator
 from softcurve.description.robot import Robot
 from softcurve.scenarios.config import Scenario, scenario_from_dict
 from softcurve.scenarios.tables import read_toml
-from softcurve.simulation.integrators import ActuatorInput
-from softcurve.simulation.settings import SimulationSettings
-from softcurve.simulation.stepper import Stepper
-from softcurve.simulation.stepper_methods import METHODS, default_substeps
-from softcurve.simulation.stepper_stability import check_explicit_step
+from softcurve.simulation import SimulationSettings
+from softcurve.simulation.solvers import ActuatorInput
+from softcurve.simulation.stepper import METHODS, Stepper, check_explicit_step, default_substeps
 
 EXPLICIT_METHOD = "RK4"
 """The stepper's method when neither ``method`` nor ``substeps`` is given and the robot
@@ -156,7 +154,7 @@ def _stepper(robot, environment, actuator, period, substeps, threads, method) ->
 def stepper_method(model, actuator, period, substeps, method) -> str | None:
     """The stepper's method of an environment: ``method`` when given; else
     :data:`EXPLICIT_METHOD` where its default step passes its check on this robot
-    (:func:`~softcurve.simulation.stepper_stability.check_explicit_step`) and neither
+    (:func:`~softcurve.simulation.stepper.check_explicit_step`) and neither
     ``substeps`` nor obstacles are given; else None (the stepper's default).
 
     Parameters

@@ -1,7 +1,7 @@
 """Actuators from configuration tables: the ``[actuation]`` table of a scenario file.
 
 Translates a table (keys and values as TOML gives them) into a description of
-:mod:`softcurve.description.pneumatic` or :mod:`softcurve.description.tendons`; no
+:mod:`softcurve.description.bellows` or :mod:`softcurve.description.tendons`; no
 physics here.
 """
 
@@ -12,7 +12,7 @@ from dataclasses import MISSING, fields
 
 from softcurve.base.validation import ParameterError, real_scalar
 from softcurve.description.actuator import Actuator
-from softcurve.description.pneumatic import Bellows, ConstantPressureMap, PneumaticActuator
+from softcurve.description.bellows import Bellows, ConstantPressureMap, PneumaticActuator
 from softcurve.description.tendons import Tendon, TendonActuator
 
 _ENTRY_KEYS = {

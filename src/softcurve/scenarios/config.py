@@ -3,7 +3,7 @@
 The schema is in ``docs/configuration.md`` and examples are in ``examples/``. Every key
 is checked: unknown keys, wrong types and values out of range raise :class:`ConfigError`
 whose message is ``"<file>: <key path>: <reason>"``. The simulation's settings are
-checked by :class:`~softcurve.simulation.settings.SimulationSettings`, the rest by
+checked by :class:`~softcurve.simulation.SimulationSettings`, the rest by
 :class:`Scenario` itself, so a scenario built or changed in Python is checked alike.
 """
 
@@ -24,7 +24,7 @@ from softcurve.description.robot import Robot, Segment
 from softcurve.scenarios.actuation import from_mapping
 from softcurve.scenarios.environment import environment_from_mapping
 from softcurve.scenarios.tables import ConfigError, Reader, read_toml, toml_parameters
-from softcurve.simulation.settings import SettingsError, SimulationSettings
+from softcurve.simulation import SettingsError, SimulationSettings
 from softcurve.symbolic.gaps import start_problem
 
 

@@ -13,7 +13,7 @@ the same folder, a sweep skips the chunks already written, so a killed sweep los
 the chunks in flight. When all chunks are in, ``<out>/results.parquet`` holds the table,
 one row per design point, sorted by ``index``.
 
-Chunks run in the worker pool of :mod:`softcurve.simulation.workers` (default), in this
+Chunks run in the worker pool of :mod:`softcurve.simulation.batch._workers` (default), in this
 process (``workers=0``) or on a Dask distributed cluster (``scheduler="tcp://host:8786"``
 or a ``distributed.Client``).
 """
@@ -35,9 +35,13 @@ from softcurve.figures import plot_sweep
 from softcurve.scenarios.config import ConfigError
 from softcurve.scenarios.sweep_config import SweepConfig, load_sweep
 from softcurve.scenarios.sweep_parts import intact, part_path, read_part
-from softcurve.simulation.batch import simulate_batch
-from softcurve.simulation.trajectory_files import column_names
-from softcurve.simulation.workers import default_threads, run_in_processes, worker_model
+from softcurve.simulation.batch import (
+    default_threads,
+    run_in_processes,
+    simulate_batch,
+    worker_model,
+)
+from softcurve.simulation.results import column_names
 
 FORMAT = "softcurve-sweep"
 """The ``format`` of a sweep folder's ``manifest.json``."""

@@ -21,7 +21,7 @@ from softcurve.scenarios.sweep_variables import (
     variable_target,
 )
 from softcurve.scenarios.tables import ConfigError, Reader, read_toml, toml_parameters
-from softcurve.simulation.settings import SimulationSettings
+from softcurve.simulation import SimulationSettings
 from softcurve.symbolic.dynamics import DEFAULT_QUADRATURE_NODES
 
 DESIGNS = ("grid", "random", "sobol")

@@ -1,0 +1,272 @@
+"""Compiling CasADi functions to C: the compiler, its flags, the cache keys.
+
+The one place that knows about code generation and compilers: the library of a model is
+cached (:mod:`softcurve.compiled._cache`) under a key made of its structure, the sources
+of the symbolic layer, CasADi's version, the flags and (for code built for this CPU) the
+CPU, so a second process with a robot of the same structure (any parameter values)
+starts without compiling. The key does not hold the compiler: a library is what it
+computes, whichever compiler built it, and a filled cache needs no compiler at all.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+import platform
+import shlex
+import shutil
+import subprocess
+import sys
+import tempfile
+import warnings
+from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
+
+import casadi as ca
+
+from softcurve.compiled._cache import CacheWarning as CacheWarning
+from softcurve.compiled._cache import cache_directory as cache_directory
+from softcurve.compiled._cache import checksum_file as checksum_file
+from softcurve.compiled._cache import library_problem as library_problem
+from softcurve.compiled._cache import load_or_build
+
+
+class CompilerWarning(UserWarning):
+    """No C compiler was found or it failed: the model runs in CasADi's virtual machine."""
+
+
+class NoCompiler(OSError):
+    """A library must be built and no C compiler was found (``CC``, ``cc``, ``gcc``,
+    ``clang`` on ``PATH``)."""
+
+
+_CACHE_FORMAT = "keyed-2"
+"""Part of every cache key: libraries cached before checksum files recorded their key
+are not looked up (nor taken for damaged ones)."""
+
+
+_COMPILE_FLAGS = ("-O2", "-fPIC", "-fvisibility=hidden", "-DGCC_HASCLASSVISIBILITY")
+_NATIVE_FLAGS = ("-march=native",)
+"""Added when the compiler accepts them and ``SOFTCURVE_PORTABLE`` is not set: the code
+then uses this CPU's vector and fused multiply-add instructions, 9-16 % faster
+(``benchmarks/bench_model.py``). The cache key holds the CPU's identity, so a cache
+shared by different machines keeps one library per CPU type. Results then differ
+between CPU types at round-off (as NumPy's, whose BLAS also picks kernels per CPU);
+``SOFTCURVE_PORTABLE=1`` builds portable, bitwise reproducible code instead."""
+
+
+def _compiler() -> list[str] | None:
+    """The C compiler's command: ``$CC`` (split as a shell would), else the first of
+    ``cc``, ``gcc``, ``clang`` on ``PATH``; None when there is none."""
+    env = os.environ.get("CC")
+    if env:
+        return shlex.split(env)
+    for name in ("cc", "gcc", "clang"):
+        path = shutil.which(name)
+        if path:
+            return [path]
+    return None
+
+
+def _cpu_identity() -> str:
+    """The CPU model and instruction-set flags (Linux), else what the platform reports."""
+    try:
+        with open("/proc/cpuinfo", encoding="utf-8", errors="replace") as cpuinfo:
+            first = cpuinfo.read().split("\n\n")[0]
+    except OSError:
+        return f"{platform.machine()} {platform.processor()}"
+    fields = {}
+    for line in first.splitlines():
+        key, _, value = line.partition(":")
+        fields[key.strip()] = value.strip()
+    keys = ("vendor_id", "model name", "flags", "Features", "CPU part")
+    return f"{platform.machine()} " + " ".join(fields.get(k, "") for k in keys)
+
+
+def _native_flags() -> tuple[str, ...]:
+    """:data:`_NATIVE_FLAGS`, or none where ``SOFTCURVE_PORTABLE`` is set (to anything but
+    "0")."""
+    if os.environ.get("SOFTCURVE_PORTABLE", "0") not in ("", "0"):
+        return ()
+    return _NATIVE_FLAGS
+
+
+def _compile_flags() -> tuple[str, ...]:
+    """The model's compiler flags: :data:`_COMPILE_FLAGS` and :func:`_native_flags`."""
+    return _COMPILE_FLAGS + _native_flags()
+
+
+COMPILED_FUNCTIONS = (
+    "dynamics_terms",
+    "potential_energy",
+    "creep_rate",
+    "rhs",
+    "pose",
+    "jacobian",
+)
+"""Compiled to C: every term of the equation of motion comes from ``dynamics_terms`` and
+the accelerations from ``rhs``, so the large expressions are compiled twice, not once per
+method; ``coriolis_matrix`` (for analysis, several times larger than ``C qd``) runs in
+CasADi's virtual machine. The other entries of ``symbolic`` are for users who build on
+CasADi (optimal control, code generation)."""
+_SYMBOLIC_SOURCES = (
+    "base/smooth.py",
+    "description/materials.py",
+    "description/layout.py",
+    "symbolic/kinematics.py",
+    "symbolic/dynamics.py",
+    "symbolic/functions.py",
+    "compiled/build.py",
+)
+"""The sources the generated code depends on, relative to the package folder."""
+
+
+def require_compiler(compiler: list[str] | None) -> list[str]:
+    """``compiler``, or :class:`NoCompiler` when None: what every build calls first, so
+    only a build needs a compiler, a cached library none.
+
+    Parameters
+    ----------
+    compiler : list of str or None
+        The command of the compiler found (``CC``, else ``cc``, ``gcc`` or ``clang``
+        on ``PATH``).
+
+    Returns
+    -------
+    list of str
+        ``compiler``.
+    """
+    if compiler is None:
+        raise NoCompiler("no C compiler found (set CC, or install gcc or clang)")
+    return compiler
+
+
+def cache_key(kind: str, *parts) -> str:
+    """The full cache key (64 hex digits) of a library of ``kind`` built from ``parts``.
+
+    What every cached library's code depends on besides ``parts`` (what it is generated
+    from and the flags asked for): CasADi's version, the platform and Python, whether the
+    code is built for this CPU and then the CPU. Not the compiler: any C compiler with
+    these flags builds the same functions, so a cache filled on one machine serves a
+    worker without a compiler.
+
+    Parameters
+    ----------
+    kind : str
+        ``"model"``, ``"function"`` or a C source's stem.
+    *parts
+        Their ``repr`` is hashed (strings, bytes, tuples of them).
+
+    Returns
+    -------
+    str
+    """
+    digest = hashlib.sha256()
+    native = _native_flags()
+    digest.update(repr((kind, parts, native, _CACHE_FORMAT)).encode())
+    if native:
+        digest.update(_cpu_identity().encode())
+    digest.update(f"{ca.__version__} {sys.platform} {sys.implementation.cache_tag}".encode())
+    return digest.hexdigest()
+
+
+def _cache_key(structure: tuple, quadrature_nodes: int) -> str:
+    """The model library's :func:`cache_key`: structure, node count, the flags and the
+    source of the symbolic layer."""
+    package = Path(__file__).parent.parent
+    sources = hashlib.sha256()
+    for name in _SYMBOLIC_SOURCES:
+        sources.update((package / name).read_bytes())
+    return cache_key("model", structure, quadrature_nodes, _COMPILE_FLAGS, sources.hexdigest())
+
+
+def compiled_library(structure, quadrature_nodes, symbolic, load=None):
+    """The cached library for this structure, checked and loaded, compiling it first if
+    needed (or if the cached one is damaged or another's); None on failure.
+
+    Parameters
+    ----------
+    structure : tuple
+        :meth:`Robot.structure`.
+    quadrature_nodes : int
+        Gauss-Legendre nodes per segment, part of the cache key.
+    symbolic : callable
+        Returns the structure's functions by name (called only when compiling).
+    load : callable, optional
+        ``load(path)`` opens the library (``ctypes.CDLL``, say) and raises OSError or
+        RuntimeError when it cannot; default: return the path unchanged.
+
+    Returns
+    -------
+    tuple of (pathlib.Path, object) or None
+        The library's path and what ``load`` returned; None (with a
+        :class:`CompilerWarning`) when it is not cached and no compiler works: the model
+        then runs in CasADi's virtual machine.
+    """
+    compiler = _compiler()
+
+    def build() -> bytes:
+        functions = symbolic()
+        selected = {name: functions[name] for name in COMPILED_FUNCTIONS}
+        return _compile_for_this_cpu(selected, require_compiler(compiler), _COMPILE_FLAGS)
+
+    key = _cache_key(structure, quadrature_nodes)
+    try:
+        return load_or_build("model", key, build, load or (lambda path: path), stacklevel=3)
+    except NoCompiler as exc:
+        message = f"{exc}: softcurve runs in CasADi's virtual machine, about 10x slower to simulate"
+    except (OSError, subprocess.CalledProcessError) as exc:
+        detail = str(getattr(exc, "stderr", None) or exc).strip()[:400]
+        message = (
+            f"compiling the model with {compiler[0]} failed ({detail}): softcurve runs in "
+            "CasADi's virtual machine"
+        )
+    warnings.warn(message, CompilerWarning, stacklevel=3)
+    return None
+
+
+def _compile(
+    functions: dict[str, ca.Function],
+    compiler: list[str],
+    flags: tuple[str, ...] = _COMPILE_FLAGS,
+) -> bytes:
+    """The shared library of ``functions``: one C file per function, compiled in
+    parallel, linked in a temporary folder."""
+    with tempfile.TemporaryDirectory() as tmp:
+        jobs = []
+        for name, f in functions.items():
+            generator = ca.CodeGenerator(f"{name}.c", {"with_header": False})
+            generator.add(f)
+            generator.generate(tmp + os.sep)
+            jobs.append([*compiler, *flags, "-c", f"{name}.c", "-o", f"{name}.o"])
+        with ThreadPoolExecutor(max_workers=os.cpu_count() or 1) as pool:
+            list(pool.map(lambda job: _run(job, tmp), jobs))
+        partial = Path(tmp, "model.so")
+        objects = [f"{name}.o" for name in functions]
+        _run([*compiler, "-shared", "-o", str(partial), *objects, "-lm"], tmp)
+        return partial.read_bytes()
+
+
+_REFUSING_NATIVE: set[tuple[str, ...]] = set()
+"""Compiler commands that refused :data:`_NATIVE_FLAGS` in this process: later builds go
+without them at once, instead of failing first (a failed compile of a large generated
+file costs as much as a good one)."""
+
+
+def _compile_for_this_cpu(functions, compiler, flags, tail=()) -> bytes:
+    """:func:`_compile` with ``(*flags, *native, *tail)``, ``native`` from
+    :func:`_native_flags`; again without them where the compiler refuses them (remembered
+    in :data:`_REFUSING_NATIVE`)."""
+    wanted = () if tuple(compiler) in _REFUSING_NATIVE else _native_flags()
+    try:
+        return _compile(functions, compiler, (*flags, *wanted, *tail))
+    except subprocess.CalledProcessError:
+        if not wanted:
+            raise
+        data = _compile(functions, compiler, (*flags, *tail))
+        _REFUSING_NATIVE.add(tuple(compiler))  # built without them: they were refused
+        return data
+
+
+def _run(command: list[str], directory: str) -> None:
+    subprocess.run(command, cwd=directory, check=True, capture_output=True, text=True)

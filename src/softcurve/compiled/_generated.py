@@ -1,0 +1,160 @@
+"""CasADi functions other than the model's, generated as C, compiled and cached on disk
+with the model's compiler and cache (:mod:`softcurve.compiled._build`): the
+identification's sensitivity equations, the stepper's period, an actuator's force.
+"""
+
+from __future__ import annotations
+
+import functools
+import os
+import subprocess
+import warnings
+from concurrent.futures import ThreadPoolExecutor
+
+import casadi as ca
+
+from softcurve.compiled import _build as build
+from softcurve.compiled import _cache as cache
+
+FUNCTION_FLAGS = ("-O2", "-fno-gcse", "-fno-tree-pre", "-fno-code-hoisting")
+"""Optimization flags of :func:`compile_function` (``-march=native`` is added unless
+``SOFTCURVE_PORTABLE`` is set). Its functions are large (the identification's
+sensitivity equations of the paper robot are 75,000 operations of straight-line code).
+Of what ``-O2`` adds to ``-O1``, GCC 12's partial-redundancy elimination and code
+hoisting take minutes on them (72-95 s with either on, against 7-10 s with both off)
+and global common-subexpression elimination makes the code slower (10.2-10.5 us with
+it against 8.9-10.0 us without, in a C loop over 64 states); CasADi has already shared
+the common subexpressions. Without the three, ``-O2`` compiles in 8.4 s against
+``-O1``'s 6.5 s and evaluates the sensitivity function in 9.86 us against 11.77 us
+(``python benchmarks/bench_compile_flags.py --only sensitivity --quick``, 2026-12-02,
+best of 5 alternating runs, ``-march=native`` on both). A two-segment robot's
+401,000-operation function compiled in 76 s against 59 s at ``-O1`` (side by side).
+They are GCC's (8 and later); a compiler that refuses them builds with
+:data:`PORTABLE_FUNCTION_FLAGS`."""
+
+PORTABLE_FUNCTION_FLAGS = ("-O1",)
+"""The flags of :func:`compile_function` for a compiler that refuses
+:data:`FUNCTION_FLAGS` (clang has no ``-fno-tree-pre``, GCC before 8 no
+``-fno-code-hoisting``): every C compiler takes them, and they compile as fast."""
+
+_REFUSING_FLAGS: set[tuple[str, ...]] = set()
+"""Compiler commands that refused :data:`FUNCTION_FLAGS` in this process: later builds
+use :data:`PORTABLE_FUNCTION_FLAGS` at once."""
+
+
+def load_external(path, name: str) -> ca.Function:
+    """The function ``name`` of the compiled library ``path`` as a CasADi ``external``
+    (derivatives by finite differences): :func:`compile_function`'s default loader.
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The compiled library.
+    name : str
+        The function's name in it.
+    """
+    return ca.external(name, str(path), {"enable_fd": True})
+
+
+def compile_function(function: ca.Function, flags: tuple[str, ...] | None = None, load=None):
+    """``function`` generated as C, compiled, cached on disk by its content and loaded.
+
+    For CasADi functions built on a model's expressions (the identification's
+    sensitivity equations, say) that are evaluated often: the same compiler and cache as
+    :class:`~softcurve.compiled.Model`, keyed by the serialized function and the
+    flags asked for, so a second process loads it, with or without a compiler. A cached
+    library is checked and, if damaged or another's, rebuilt once as the model's (with
+    a :class:`~softcurve.compiled.CacheWarning`).
+
+    Parameters
+    ----------
+    function : casadi.Function
+        An SX or MX function without Python callbacks.
+    flags : tuple of str, optional
+        The compiler's optimization flags (default :data:`FUNCTION_FLAGS`, or
+        :data:`PORTABLE_FUNCTION_FLAGS` where the compiler refuses those);
+        ``-march=native`` is added unless ``SOFTCURVE_PORTABLE`` is set, and dropped again
+        if the compiler refuses it.
+
+    load : callable, optional
+        ``load(path, name)`` opens the compiled library (e.g. as a
+        :class:`~softcurve.compiled.NativeFunction`, called without CasADi and
+        without the GIL); default: :func:`load_external`, CasADi's ``external``.
+
+    Returns
+    -------
+    casadi.Function or object
+        The compiled function as a CasADi ``external`` (derivatives by finite
+        differences) or what ``load`` returned, or ``function`` itself when it is not
+        cached and there is no C compiler, or (with a
+        :class:`~softcurve.compiled.CompilerWarning`) when the build fails: then it
+        runs in CasADi's virtual machine.
+    """
+    compiler = build._compiler()
+    name = function.name()
+    asked = None if flags is None else tuple(flags)
+
+    def compile_with(chosen: tuple[str, ...]) -> bytes:
+        return build._compile_for_this_cpu({name: function}, compiler, chosen, ("-fPIC",))
+
+    def make() -> bytes:
+        build.require_compiler(compiler)
+        if asked is not None:
+            return compile_with(asked)
+        if tuple(compiler) in _REFUSING_FLAGS:
+            return compile_with(PORTABLE_FUNCTION_FLAGS)
+        try:
+            return compile_with(FUNCTION_FLAGS)
+        except subprocess.CalledProcessError:  # refused by this compiler: once more, portable
+            _REFUSING_FLAGS.add(tuple(compiler))
+            return compile_with(PORTABLE_FUNCTION_FLAGS)
+
+    # the flags asked for, not those a compiler accepted: the key holds no compiler
+    key = build.cache_key("function", function.serialize(), asked)
+    try:
+        _, loaded = cache.load_or_build(
+            "function", key, make, lambda path: (load or load_external)(path, name), stacklevel=2
+        )
+    except build.NoCompiler:
+        return function
+    except (OSError, subprocess.CalledProcessError) as exc:
+        detail = str(getattr(exc, "stderr", None) or exc).strip()[:400]
+        warnings.warn(
+            f"compiling {name} with {compiler[0]} failed ({detail}): it runs in CasADi's "
+            "virtual machine",
+            build.CompilerWarning,
+            stacklevel=2,
+        )
+        return function
+    return loaded
+
+
+def compile_functions(functions, flags: tuple[str, ...] | None = None, load=None) -> list:
+    """:func:`compile_function` of each function, the builds in parallel (one compiler
+    process per function, at most one per core) where CasADi's symbolic objects are
+    thread-safe (built with ``CASADI_WITH_THREADSAFE_SYMBOLICS``, as the 3.8.2 wheel
+    is), else one after another.
+
+    Parameters
+    ----------
+    functions : sequence of casadi.Function
+        As :func:`compile_function`'s ``function``.
+    flags : tuple of str, optional
+        As :func:`compile_function`'s.
+    load : callable, optional
+        As :func:`compile_function`'s.
+
+    Returns
+    -------
+    list
+        What :func:`compile_function` returns for each, in order.
+    """
+    functions = list(functions)
+    workers = min(len(functions), os.cpu_count() or 1)
+    if "CASADI_WITH_THREADSAFE_SYMBOLICS" not in ca.CasadiMeta.compiler_flags():
+        workers = 1  # serializing and generating shares CasADi's symbolic objects
+    build_one = functools.partial(compile_function, flags=flags, load=load)
+    if workers <= 1:
+        return [build_one(f) for f in functions]
+    with ThreadPoolExecutor(max_workers=workers) as pool:
+        return list(pool.map(build_one, functions))

@@ -1,0 +1,306 @@
+"""SX functions generated as C that evaluates :data:`LANE_WIDTH` members at once.
+
+CasADi generates scalar C: one member per call. A batch of members that run the same
+code in lock-step (the fixed-step stepper's members) can instead keep every scalar of
+the function as a short vector, one lane per member, and let the C compiler's vector
+extensions (GCC and Clang: ``__attribute__((vector_size))``) turn each instruction into
+one vector instruction. :func:`lanes_function` writes such a function from the
+instruction list of a CasADi SX function, so it is generated from the same expressions
+as the scalar code and computes the same arithmetic lane by lane.
+
+Sine, cosine and hyperbolic tangent come from glibc's vector math library (libmvec,
+accurate to 4 ulp) where the code is built for x86-64 with AVX2; elsewhere, and for
+the other elementary functions, each lane calls the C library's scalar function.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import math
+import platform
+import re
+from collections.abc import Sequence
+from typing import NamedTuple
+
+import casadi as ca
+
+from softcurve.compiled._source import compile_source
+
+LANE_WIDTH = 4
+"""Members per vector. Per member, one right-hand side of the paper's robot took 2.13 us
+as CasADi's C, and 2.43, 1.25, 0.90 and 1.14 us as lanes of 1, 2, 4 and 8 with the C
+library's elementary functions, 0.64 us as lanes of 4 with libmvec's
+(``python benchmarks/bench_lanes.py``, best of 7 alternating rounds, 2026-12-01 07:52
+UTC, on this project's AVX2 machine). Four doubles fill one AVX2 register; eight take
+two and spill."""
+
+STACK_WORK = 2048
+"""Work vectors kept in local variables (on the stack, 64 KB at most), beyond which a
+lanes function works in its caller's array (on the heap). Locals are faster: the RK4
+period of the paper robot (963 vectors) took 14.5 us per member against 16.5 us with
+the array (best of 9 alternating rounds, 2026-12-01); a robot of three segments needs
+about 110 KB, more than some threads' stacks (musl's default is 128 KB)."""
+
+VECTOR_MATH_LIBRARY = ("-lmvec",)
+"""The link arguments of :data:`VECTOR_MATH`."""
+
+VECTOR_MATH = {"sin": "_ZGVdN4v_sin", "cos": "_ZGVdN4v_cos", "tanh": "_ZGVdN4v_tanh"}
+"""glibc's AVX2 vector functions of four doubles (``tanh`` since glibc 2.35), used where
+the source is compiled with ``__AVX2__`` on x86-64 and ``vector_math`` was asked for."""
+
+
+def vector_math_available() -> bool:
+    """Whether :data:`VECTOR_MATH` can link here: x86-64 Linux with glibc 2.35 or later
+    (the first with the vector ``tanh``). The code still uses them only where compiled
+    for AVX2.
+
+    Returns
+    -------
+    bool
+    """
+    library, version = platform.libc_ver()
+    if platform.machine() not in ("x86_64", "AMD64") or library != "glibc":
+        return False
+    return tuple(int(part) for part in version.split(".")[:2]) >= (2, 35)
+
+
+_OPERATORS = {getattr(ca, name): name[3:] for name in dir(ca) if name.startswith("OP_")}
+_BINARY = {"ADD": "({0}+{1})", "SUB": "({0}-{1})", "MUL": "({0}*{1})", "DIV": "({0}/{1})"}
+_UNARY = {"ASSIGN": "{0}", "NEG": "(-{0})", "SQ": "({0}*{0})", "TWICE": "({0}+{0})"}
+_UNARY["INV"] = "(sc_broadcast(1.0)/{0})"
+_COMPARISONS = {"LT": "<", "LE": "<=", "EQ": "==", "NE": "!="}
+_ELEMENTARY = {
+    "EXP": "exp", "LOG": "log", "SQRT": "sqrt", "SIN": "sin", "COS": "cos", "TAN": "tan",
+    "ASIN": "asin", "ACOS": "acos", "ATAN": "atan", "FLOOR": "floor", "CEIL": "ceil",
+    "FABS": "fabs", "ERF": "erf", "SINH": "sinh", "COSH": "cosh", "TANH": "tanh",
+    "ASINH": "asinh", "ACOSH": "acosh", "ATANH": "atanh", "LOG1P": "log1p",
+    "EXPM1": "expm1",
+}  # fmt: skip
+_ELEMENTARY2 = {
+    "POW": "pow", "CONSTPOW": "pow", "FMOD": "fmod", "COPYSIGN": "copysign",
+    "FMIN": "fmin", "FMAX": "fmax", "ATAN2": "atan2", "HYPOT": "hypot",
+}  # fmt: skip
+
+
+def lanes_prelude(width: int = LANE_WIDTH, vector_math: bool = False) -> str:
+    """The C that every lanes function needs, once per source: the vector type ``sc_v``
+    (``width`` doubles) and its mask type, broadcast, select, and every elementary
+    function lane by lane (``sc_sin``, ...).
+
+    Parameters
+    ----------
+    width : int
+        Lanes per vector.
+    vector_math : bool
+        Take :data:`VECTOR_MATH`'s functions where compiled for AVX2 on x86-64 (link
+        with :data:`VECTOR_MATH_LIBRARY`); requires ``width == 4``.
+
+    Returns
+    -------
+    str
+        C declarations and inline functions.
+    """
+    if vector_math and width != 4:
+        raise ValueError(f"vector_math needs width 4, got {width}")
+    lines = [
+        "#include <math.h>",
+        f"#define SC_W {width}",
+        "typedef double sc_v __attribute__((vector_size(8 * SC_W)));",
+        "typedef long long sc_m __attribute__((vector_size(8 * SC_W)));",
+        "static inline sc_v sc_broadcast(double s) {",
+        "  sc_v r; for (int l = 0; l < SC_W; l++) r[l] = s; return r;",
+        "}",
+        "static inline sc_v sc_select(sc_m m, sc_v a, sc_v b) {",
+        "  return (sc_v)(((sc_m)a & m) | ((sc_m)b & ~m));",
+        "}",
+    ]
+    vectorized = set(VECTOR_MATH) if vector_math else set()
+    for name in sorted(set(_ELEMENTARY.values())):
+        if name in vectorized:
+            continue
+        lines.append(
+            f"static inline sc_v sc_{name}(sc_v x) {{ sc_v r; "
+            f"for (int l = 0; l < SC_W; l++) r[l] = {name}(x[l]); return r; }}"
+        )
+    if vectorized:
+        lines.append("#if defined(__AVX2__) && defined(__x86_64__)")
+        for name, symbol in VECTOR_MATH.items():
+            lines += [f"sc_v {symbol}(sc_v);", f"#define sc_{name} {symbol}"]
+        lines.append("#else")
+        for name in VECTOR_MATH:
+            lines.append(
+                f"static inline sc_v sc_{name}(sc_v x) {{ sc_v r; "
+                f"for (int l = 0; l < SC_W; l++) r[l] = {name}(x[l]); return r; }}"
+            )
+        lines.append("#endif")
+    for name in sorted(set(_ELEMENTARY2.values())):
+        lines.append(
+            f"static inline sc_v sc_{name}(sc_v x, sc_v y) {{ sc_v r; "
+            f"for (int l = 0; l < SC_W; l++) r[l] = {name}(x[l], y[l]); return r; }}"
+        )
+    return "\n".join(lines) + "\n"
+
+
+def _constant(value: float) -> str:
+    if math.isnan(value):
+        return "sc_broadcast(NAN)"
+    if math.isinf(value):
+        return f"sc_broadcast({'-' if value < 0 else ''}INFINITY)"
+    return f"sc_broadcast({value!r})"
+
+
+def _statement(function: ca.Function, k: int, shared: Sequence[bool]) -> str:
+    """C for instruction ``k`` of ``function`` on the work variables ``w<i>``."""
+    op = _OPERATORS[function.instruction_id(k)]
+    args, results = function.instruction_input(k), function.instruction_output(k)
+    w = [f"w[{i}]" for i in args]
+    if op == "OUTPUT":
+        return f"out{results[0]}[{results[1]}] = {w[0]};"
+    target = f"w[{results[0]}] = "
+    if op == "INPUT":
+        i, nz = args
+        return target + (f"sc_broadcast(in{i}[{nz}]);" if shared[i] else f"in{i}[{nz}];")
+    if op == "CONST":
+        return target + _constant(function.instruction_constant(k)) + ";"
+    if op in _BINARY:
+        return target + _BINARY[op].format(*w) + ";"
+    if op in _UNARY:
+        return target + _UNARY[op].format(*w) + ";"
+    if op in _ELEMENTARY:
+        return target + f"sc_{_ELEMENTARY[op]}({w[0]});"
+    if op in _ELEMENTARY2:
+        return target + f"sc_{_ELEMENTARY2[op]}({w[0]}, {w[1]});"
+    one, zero = "sc_broadcast(1.0)", "sc_broadcast(0.0)"
+    if op in _COMPARISONS:
+        return target + f"sc_select({w[0]} {_COMPARISONS[op]} {w[1]}, {one}, {zero});"
+    if op == "NOT":
+        return target + f"sc_select({w[0]} == {zero}, {one}, {zero});"
+    if op in ("AND", "OR"):
+        joined = " & " if op == "AND" else " | "
+        mask = joined.join(f"({x} != {zero})" for x in w)
+        return target + f"sc_select({mask}, {one}, {zero});"
+    if op == "IF_ELSE_ZERO":
+        return target + f"sc_select({w[0]} != {zero}, {w[1]}, {zero});"
+    if op == "SIGN":
+        positive = f"sc_select({w[0]} > {zero}, {one}, {w[0]})"
+        return target + f"sc_select({w[0]} < {zero}, -{one}, {positive});"
+    raise NotImplementedError(f"{function.name()}: no lanes code for CasADi's OP_{op}")
+
+
+def lanes_function(function: ca.Function, name: str, shared: Sequence[bool]) -> str:
+    """C of ``static void name(in0, ..., out0, ..., w)``: ``function`` on
+    :data:`LANE_WIDTH` members at once (the source needs :func:`lanes_prelude` first).
+
+    Each input is ``const sc_v*`` (one vector per entry, a lane per member) or, where
+    ``shared``, ``const double*`` read by every lane; each output is ``sc_v*``; ``w``
+    is the caller's work array of :func:`lanes_work` vectors, used where the function
+    needs more than :data:`STACK_WORK` of them (else the work is in local variables).
+
+    Parameters
+    ----------
+    function : casadi.Function
+        An SX function (``expand()`` an MX one of SX parts) with dense column inputs and
+        outputs.
+    name : str
+        The C function's name.
+    shared : sequence of bool
+        Per input: the same values for every member.
+
+    Returns
+    -------
+    str
+        The C function.
+
+    Raises
+    ------
+    ValueError
+        If ``function`` is not an SX function, an input or output is not a dense column,
+        or ``shared`` does not have one entry per input.
+    NotImplementedError
+        If ``function`` has an operation without lanes code (CasADi's remainder,
+        inverse error function, print and call instructions).
+    """
+    if not function.is_a("SXFunction"):
+        raise ValueError(f"{function.name()} must be an SX function (call expand())")
+    if len(shared) != function.n_in():
+        raise ValueError(f"shared needs {function.n_in()} entries, got {len(shared)}")
+    for kind, count, sparsity in (
+        ("input", function.n_in(), function.sparsity_in),
+        ("output", function.n_out(), function.sparsity_out),
+    ):
+        for i in range(count):
+            if not (sparsity(i).is_dense() and sparsity(i).is_column()):
+                raise ValueError(f"{function.name()}: {kind} {i} must be a dense column")
+    inputs = [
+        f"const double* in{i}" if is_shared else f"const sc_v* in{i}"
+        for i, is_shared in enumerate(shared)
+    ]
+    outputs = [f"sc_v* out{i}" for i in range(function.n_out())]
+    body = [_statement(function, k, shared) for k in range(function.n_instructions())]
+    signature = ", ".join([*inputs, *outputs, "sc_v* restrict w"])
+    declarations = []
+    if function.sz_w() <= STACK_WORK:
+        body = [re.sub(r"w\[(\d+)\]", r"w\1", line) for line in body]
+        names = ", ".join(f"w{i}" for i in range(function.sz_w()))
+        declarations = ["(void)w;", f"sc_v {names};" if names else ""]
+    return "\n  ".join([f"static void {name}({signature}) {{", *declarations, *body]) + "\n}\n"
+
+
+def lanes_work(function: ca.Function) -> int:
+    """Vectors of work array that the :func:`lanes_function` of ``function`` needs.
+
+    Parameters
+    ----------
+    function : casadi.Function
+        An SX function.
+
+    Returns
+    -------
+    int
+        At least 1.
+    """
+    return max(function.sz_w(), 1)
+
+
+class CompiledLanes(NamedTuple):
+    """A compiled lanes source: the loaded ``library`` (``ctypes.CDLL``), its ``entry``
+    (a ctypes function returning int) and whether it uses the vector math library."""
+
+    library: ctypes.CDLL
+    entry: object
+    vector_math: bool
+
+
+def compile_lanes(stem: str, source_for, entry: str, argtypes: list) -> CompiledLanes | None:
+    """A lanes source compiled and loaded: with :data:`VECTOR_MATH` where
+    :func:`vector_math_available` and it links, else with the C library's functions.
+
+    Parameters
+    ----------
+    stem : str
+        Start of the library's file name in the cache.
+    source_for : callable
+        ``source_for(vector_math) -> str``, the C source (with :func:`lanes_prelude` of
+        that ``vector_math``).
+    entry : str
+        The exported function, which returns an int.
+    argtypes : list
+        Its ctypes argument types.
+
+    Returns
+    -------
+    CompiledLanes or None
+        None where no C compiler builds it or ``source_for`` raises
+        ``NotImplementedError`` (an operation without lanes code).
+    """
+    attempts = [(True, VECTOR_MATH_LIBRARY)] if vector_math_available() else []
+    for vector_math, link in [*attempts, (False, ())]:
+        try:
+            library = compile_source(stem, source_for(vector_math), link)
+        except NotImplementedError:
+            return None
+        if library is not None:
+            function = getattr(library, entry)
+            function.restype, function.argtypes = ctypes.c_int, argtypes
+            return CompiledLanes(library, function, vector_math)
+    return None

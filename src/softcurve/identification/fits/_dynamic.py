@@ -1,0 +1,395 @@
+"""Identification of a whole robot from measured time series, with exact gradients.
+
+Two fits share one description of what is free
+(:mod:`softcurve.identification.fits._parameters`):
+
+- :func:`fit_trajectory` simulates the equation of motion (16) with the creep
+  states (19) and matches its outputs to the data; CVODES integrates the state
+  together with its forward-sensitivity (variational) equations, compiled to C
+  (:mod:`softcurve.simulation.sensitivity._sensitivity`), which gives the exact Jacobian of every
+  output sample with respect to the free parameters and the initial state.
+- :func:`fit_equilibria` treats each sample as a static equilibrium
+  ``N(q) = tau(q, u)`` (inputs much slower than the robot), solved by the package's
+  equilibrium solver; the implicit function theorem gives the exact Jacobian
+  (:mod:`softcurve.identification.fits._equilibria`).
+
+What can be estimated: any entry of ``robot.layout`` (a *robot* parameter), and any
+*named extra* parameter used by an output map, an input map, the initial state or a
+``bind`` rule that writes robot parameters as expressions of extra ones (e.g. a
+well-posed re-parametrization of the tanh law, see
+:func:`~softcurve.identification.fits.tanh_parameters`). Sensor offsets, a
+bellows' mounting angle and pressure-map gains are extra parameters of the output and
+input maps (:mod:`softcurve.identification.maps._builders`); entries of the initial state are
+``x0.q[i]``, ``x0.qd[i]``, ``x0.lam[i]`` and, with an input lag, ``x0.u[i]``
+(:mod:`softcurve.identification.fits._initial`).
+
+Both fits take one experiment or a list of them: parameters are shared by all unless
+declared ``Free(..., per_experiment=True)`` (:mod:`softcurve.identification.fits._joint`);
+each experiment is simulated on its own, with its own sensitivities, in worker
+processes. A trial point the model cannot evaluate is a rejected step, ``starts=K``
+runs a seeded multi-start, ``progress=True`` shows a progress line
+(:mod:`softcurve.identification.fits._problem`). Predicting from a failed fit raises
+:class:`~softcurve.identification.fits.FitError`.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from softcurve.analysis.loads import rest_configuration
+from softcurve.base.docs import parameters_from
+from softcurve.base.validation import ParameterError, real_array
+from softcurve.compiled import Model
+from softcurve.identification.fits._equilibria import EquilibriumPredictor
+from softcurve.identification.fits._initial import LAG, initial_state, start_values
+from softcurve.identification.fits._joint import experiment_list, parallel_layout
+from softcurve.identification.fits._problem import Problem
+from softcurve.identification.fits._report import FitReport, usable_fit
+from softcurve.identification.fits._weights import WEIGHTS_DOC
+from softcurve.identification.maps import InputMap, OutputMap
+from softcurve.simulation.sensitivity import trajectory_sensitivities
+
+PREDICTION_PARAMETERS = {
+    "model": ("Model", "The compiled model the fit used."),
+    "experiment": (
+        "Experiment or list of Experiment",
+        "The experiment(s) to predict (time grid, measured signals, inputs); one that "
+        "the fit had gets its per-experiment values, another the nominal ones.",
+    ),
+    "fit": (
+        "FitReport",
+        "A report of :func:`fit_trajectory` or :func:`fit_equilibria`; its "
+        "``extra['parameters']``, ``extra['values']`` and ``extra['per_experiment']`` "
+        "give the estimate. A failed fit raises :class:`FitError`, one that ran out of "
+        "evaluations warns (:class:`FitWarning`).",
+    ),
+}
+"""The parameters ``predict_trajectory`` and ``predict_equilibria`` share."""
+
+FIT_OPTIONS = {
+    "experiment": (
+        "Experiment or list of Experiment",
+        "Time grid, measured signals and inputs (held constant between samples); a list "
+        "is fitted jointly, each experiment simulated on its own.",
+    ),
+    "free": (
+        "list of Free or str",
+        "What to estimate; a bare string is ``Free(name)`` without bounds; "
+        "``Free(..., per_experiment=True)`` gives one value per experiment.",
+    ),
+    "extra": (
+        "dict, optional",
+        "Named extra parameters and their values; a key ``name[experiment]`` sets the "
+        "value for one experiment.",
+    ),
+    "bind": (
+        "dict, optional",
+        "Robot parameter name -> ``rule(values)`` expression of extra parameters.",
+    ),
+    "signals": (
+        "list of str, optional",
+        "Experiment signals matched to the outputs, in order (default: output names).",
+    ),
+    "weights": WEIGHTS_DOC,
+    "parameters": (
+        "array_like, shape (P,), optional",
+        "Robot parameter vector to start from (default ``model.parameters``).",
+    ),
+    "confidence": (
+        "float",
+        "Confidence level of the report's intervals, a probability in (0, 1).",
+    ),
+    "starts": (
+        "int",
+        "Starting points of a multi-start (1: only the given start); the report keeps "
+        "every optimum (``optima``) and its table their spread.",
+    ),
+    "seed": ("int, optional", "Seed of the multi-start's random starting points."),
+    "progress": ("bool", "A progress line of the evaluations on stderr."),
+}
+"""The options ``fit_trajectory`` and ``fit_equilibria`` share, documented once."""
+
+_fit_options = parameters_from(FIT_OPTIONS)
+
+
+def _per_experiment(name, value, experiments, is_one):
+    """``value`` for each experiment: one shared, a list in order or a dict by name."""
+    if isinstance(value, dict):
+        missing = [e.name for e in experiments if e.name not in value]
+        if missing:
+            raise ParameterError(f"{name}: no entry for experiments {missing}")
+        return [value[e.name] for e in experiments]
+    if is_one(value):
+        return [value] * len(experiments)
+    values = list(value)
+    if len(values) != len(experiments):
+        raise ParameterError(
+            f"{name}: one for all, or one per experiment ({len(experiments)}), got {len(values)}"
+        )
+    return values
+
+
+def _one_state(value) -> bool:
+    if isinstance(value, list | tuple) and value:  # a list of states or of callables?
+        return not (callable(value[0]) or np.ndim(value[0]) == 1)
+    return callable(value) or np.ndim(value) == 1
+
+
+@_fit_options
+def fit_trajectory(
+    model: Model,
+    experiment,
+    *,
+    output: OutputMap,
+    x0,
+    free,
+    input_map: InputMap | None = None,
+    extra: dict | None = None,
+    bind: dict | None = None,
+    signals=None,
+    weights=None,
+    parameters=None,
+    max_evaluations: int = 60,
+    confidence: float = 0.95,
+    integrator_options: dict | None = None,
+    input_lag: float | None = None,
+    input_hold: str = "constant",
+    starts: int = 1,
+    seed: int | None = None,
+    progress: bool = False,
+    processes: int | None = None,
+    threads: int | None = None,
+) -> FitReport:
+    """Trajectory least squares: simulate the experiment(s) and fit the free parameters.
+
+    Parameters
+    ----------
+    model : Model
+        The compiled model; its robot gives the values of everything not free.
+    %(experiment)s
+    output : OutputMap
+        Model outputs matched to the signals (:func:`bending_angle`, :func:`curvatures`,
+        :func:`tip_position`).
+    x0 : array_like, shape (n_state,), or callable, or a list or dict of them
+        Initial state ``(q, qd, lam)``; a callable receives the dict of extra
+        parameters (CasADi expressions) and returns the state. One for all
+        experiments, a list (in order) or a dict by experiment name. Its entries can be
+        estimated by name (``"x0.lam[1]"``, :mod:`softcurve.identification.fits._initial`).
+    %(free)s
+    input_map : InputMap, optional
+        Generalized forces from the experiment's inputs (all of them, in order).
+    %(extra)s
+    %(bind)s
+    %(signals)s
+    %(weights)s
+    %(parameters)s
+    max_evaluations : int
+        Budget of residual evaluations per start (each is one simulation with
+        sensitivities of every experiment).
+    %(confidence)s
+    integrator_options : dict, optional
+        Extra CVODES options of the sensitivity integration.
+    input_lag : float, optional
+        Nominal time constant [s] of a first-order lag of every input before the input
+        map (the extra parameter ``"input_lag"``, free like any other); the lagged
+        inputs start at each experiment's first input sample (``"x0.u[i]"`` to fit
+        them). None: no lag.
+    input_hold : {"constant", "linear"}
+        The inputs between two samples: the later sample (``"constant"``, a jump at
+        every sample) or the line through both (``"linear"``: continuous inputs, which
+        the integrator crosses without restarting: 4.9 times fewer steps and 4.9 times
+        less time on the benchmark of ``benchmarks/bench_identification.py``).
+    %(starts)s
+    %(seed)s
+    %(progress)s
+    processes : int, optional
+        Worker processes evaluating the experiments in parallel (default: one per
+        experiment, at most the usable cores; 1 evaluates them here in turn).
+    threads : int, optional
+        Threads of each experiment's evaluation (default: the usable cores the processes
+        leave, ``max(1, cores // processes)``); with 2 or more, the sensitivity
+        equations are evaluated in two parts on two threads
+        (:mod:`softcurve.simulation.sensitivity._split`).
+
+    Returns
+    -------
+    FitReport
+        With ``extra["robot"]`` the fitted robot, ``extra["parameters"]`` its vector,
+        ``extra["values"]`` the shared extra parameters and ``extra["per_experiment"]``
+        each experiment's own; ``parts`` and :meth:`FitReport.part` give each
+        experiment's rows.
+    """
+    experiments, _ = experiment_list(experiment)
+    states = _per_experiment("x0", x0, experiments, _one_state)
+    lagged = input_lag is not None
+    if lagged:
+        if input_map is None or not (np.isfinite(input_lag) and input_lag > 0):
+            raise ParameterError(
+                f"input_lag must be a time constant > 0 [s] with an input_map, got {input_lag!r}"
+            )
+        extra = {LAG: float(input_lag), **(extra or {})}
+    first = {e.name: e.input_matrix()[0] for e in experiments}
+    index = {e.name: i for i, e in enumerate(experiments)}
+
+    def starts_of(e, names):
+        return start_values(model, states[index[e.name]], first[e.name], names, lagged)
+
+    problem = Problem(
+        model, output, input_map, free, extra, bind, parameters, experiment, starts_of
+    )
+    processes, threads = parallel_layout(len(experiments), processes, threads)
+    evaluators = []
+    for e, part, state in zip(experiments, problem.parameters.parts, states, strict=True):
+
+        def start(values, state=state, u0=first[e.name]):
+            return initial_state(model, state, values, u0, lagged)
+
+        evaluators.append(trajectory_sensitivities(
+            model, part, output, input_map, start, e, integrator_options,
+            LAG if lagged else None, input_hold, threads,
+        ))  # fmt: skip
+    options = dict(starts=starts, seed=seed, progress=progress, processes=processes)
+    return problem.run(
+        evaluators, signals, weights, max_evaluations, confidence, "trajectory fit", options=options
+    )
+
+
+@_fit_options
+def fit_equilibria(
+    model: Model,
+    experiment,
+    *,
+    output: OutputMap,
+    input_map: InputMap,
+    free,
+    q0=None,
+    extra: dict | None = None,
+    bind: dict | None = None,
+    signals=None,
+    weights=None,
+    parameters=None,
+    max_evaluations: int = 100,
+    confidence: float = 0.95,
+    starts: int = 1,
+    seed: int | None = None,
+    progress: bool = False,
+) -> FitReport:
+    """Quasi-static least squares: each sample is an equilibrium ``N(q) = tau(q, u)``.
+
+    Valid when the inputs change much more slowly than the robot's lowest natural
+    period (damping and creep then play no role). With no free parameters this is a
+    prediction. The experiments are solved in this process, one after another (their
+    samples are solved together, in compiled code).
+
+    Parameters
+    ----------
+    model : Model
+        The compiled model; its robot gives the values of everything not free.
+    %(experiment)s
+    output : OutputMap
+        Model outputs matched to the signals.
+    input_map : InputMap
+        Generalized forces from the experiment's inputs (all of them, in order).
+    %(free)s
+    q0 : array_like, shape (n,), optional
+        Initial guess of every sample's equilibrium [m, 1/m, 1/m] (default: the
+        straight robot at rest length); later evaluations start from the previous
+        solutions (moved along their tangent where that move is small), then from ``q0``.
+    %(extra)s
+    %(bind)s
+    %(signals)s
+    %(weights)s
+    %(parameters)s
+    max_evaluations : int
+        Budget of residual evaluations per start.
+    %(confidence)s
+    %(starts)s
+    %(seed)s
+    %(progress)s
+
+    Returns
+    -------
+    FitReport
+        As :func:`fit_trajectory`'s.
+    """
+    q0 = rest_configuration(model.robot) if q0 is None else real_array("q0", q0, (model.n,))
+    problem = Problem(model, output, input_map, free, extra, bind, parameters, experiment)
+    evaluators = [
+        EquilibriumPredictor(model, part, output, input_map, q0)(e)
+        for e, part in zip(problem.experiments, problem.parameters.parts, strict=True)
+    ]
+    options = dict(starts=starts, seed=seed, progress=progress, processes=1)
+    return problem.run(
+        evaluators,
+        signals,
+        weights,
+        max_evaluations,
+        confidence,
+        "equilibrium fit",
+        options=options,
+    )
+
+
+def _fitted_values(fit: FitReport, experiment, given: dict) -> dict:
+    """``fit``'s shared extra values, plus their own (``name[experiment]``) for the
+    experiments it had; others keep the nominal per-experiment values, never another's."""
+    usable_fit(fit)
+    per = fit.extra.get("per_experiment", {})
+    own = {name for values in per.values() for name in values}
+    values = {**given, **{k: v for k, v in fit.extra["values"].items() if k not in own}}
+    for e in experiment_list(experiment)[0]:
+        for name, value in per.get(e.name, {}).items():
+            values[f"{name}[{e.name}]"] = value
+    return values
+
+
+@parameters_from(PREDICTION_PARAMETERS)
+def predict_trajectory(model: Model, experiment, fit: FitReport, **problem):
+    """Simulate ``experiment`` with the estimate of ``fit``, without refitting.
+
+    Parameters
+    ----------
+    %(model)s
+    %(experiment)s
+    %(fit)s
+    **problem
+        The fit's keyword arguments ``output``, ``x0``, ``input_map``, ``bind``,
+        ``input_lag`` (and optionally ``signals``, ``weights``, ``extra``), passed on
+        to :func:`fit_trajectory` with no free parameters.
+
+    Returns
+    -------
+    FitReport
+        With no free parameters; its ``rms`` and ``max_error`` are the prediction errors.
+    """
+    values = _fitted_values(fit, experiment, problem.pop("extra", {}))
+    return fit_trajectory(
+        model, experiment, free=[], extra=values, parameters=fit.extra["parameters"], **problem
+    )
+
+
+@parameters_from(PREDICTION_PARAMETERS)
+def predict_equilibria(model: Model, experiment, fit: FitReport, **problem):
+    """Quasi-static prediction of ``experiment`` with the estimate of ``fit``, without
+    refitting (see :func:`predict_trajectory`).
+
+    Parameters
+    ----------
+    %(model)s
+    %(experiment)s
+    %(fit)s
+    **problem
+        The fit's keyword arguments ``output``, ``input_map``, ``bind`` (and optionally
+        ``q0``, ``signals``, ``weights``, ``extra``), passed on to :func:`fit_equilibria`
+        with no free parameters.
+
+    Returns
+    -------
+    FitReport
+        With no free parameters; its ``rms`` and ``max_error`` are the prediction errors.
+    """
+    values = _fitted_values(fit, experiment, problem.pop("extra", {}))
+    values.pop(LAG, None)
+    return fit_equilibria(
+        model, experiment, free=[], extra=values, parameters=fit.extra["parameters"], **problem
+    )

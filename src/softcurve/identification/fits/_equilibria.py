@@ -1,0 +1,238 @@
+"""Quasi-static predictions for the equilibrium fit, with their exact Jacobian.
+
+Each sample of an experiment is a static equilibrium ``N(q; p) = tau(q, u; values)``,
+solved by the package's one equilibrium solver for many equilibria at once
+(:func:`softcurve.analysis.solver.solve_equilibria`), each sample starting from its
+solution at the previous evaluation of the fit (parameters change little between two
+evaluations), at the first evaluation from the given initial guess. The implicit function
+theorem gives the derivative of each solution with respect to the parameters,
+``dq/dd = -K^-1 dr/dd`` with ``K = dr/dq``, and the chain rule the Jacobian of the
+outputs; the derivatives come from CasADi, evaluated for all samples in one call (split
+over the cores).
+"""
+
+from __future__ import annotations
+
+import functools
+
+import casadi as ca
+import numpy as np
+
+from softcurve.analysis.loads import coordinate_scale, residual_reference
+from softcurve.analysis.solver import solve_equilibria
+from softcurve.description.domain import state_problem, states_inside
+from softcurve.simulation.batch import default_threads
+from softcurve.simulation.solvers import mapped
+
+EQUILIBRIUM_TOLERANCE = 1e-10
+"""Scaled residual accepted at every sample (as :func:`softcurve.equilibrium`'s default)."""
+
+MAX_EVALUATIONS = 400
+"""Residual evaluations allowed per sample and start."""
+
+TANGENT_LIMIT = 0.25
+"""Largest move along the solutions' tangent, relative to each coordinate's natural size
+(:func:`~softcurve.analysis.loads.coordinate_scale`), taken as the next evaluation's
+start; beyond it the first-order prediction is not trusted (near a fold, or after a far
+jump of the parameters as a multi-start makes, it can throw the start out of the model's
+domain) and the previous solution is the start. The fits of
+``benchmarks/bench_identification.py`` move at most 0.02 (their first step, from a start
+10 % off), so the bound leaves them twelve times the room."""
+
+
+class EquilibriumPredictor:
+    """``experiment -> evaluate(theta) -> (Y (k, T), dvec(Y)/dtheta (k T, P))``.
+
+    Parameters
+    ----------
+    model : Model
+        The compiled model.
+    parameters : FreeParameters
+        The free parameters and how they enter ``p`` and the extra values.
+    output : OutputMap
+        The measured signals.
+    input_map : InputMap or None
+        Generalized forces from the experiment's inputs.
+    q0 : array_like, shape (n,)
+        Initial guess of every sample at the first evaluation [m, 1/m, 1/m].
+    """
+
+    def __init__(self, model, parameters, output, input_map, q0):
+        self.model, self.parameters = model, parameters
+        self.output, self.input_map = output, input_map
+        self.q0 = np.asarray(q0, dtype=np.float64)
+        self.scale = coordinate_scale(model.robot)
+        self.reference = residual_reference(model)
+
+    def __call__(self, experiment):
+        model, P = self.model, self.parameters
+        n, n_p = model.n, P.p0.size
+        keys = sorted(P.extra)
+        theta = ca.MX.sym("theta", len(P.free))
+        p, values = P.expressions(theta)
+        d = ca.vertcat(p, *(ca.MX(values[k]) for k in keys))
+        jac_d = ca.jacobian(d, theta)
+        # only the entries of d that depend on the free parameters: a robot of several
+        # segments has several times the parameters, most of them fixed
+        active = sorted(set(jac_d.sparsity().get_triplet()[0]))
+        direct = ca.Function("direct", [theta], [d, ca.densify(jac_d[active, :])])
+
+        u_names = list(experiment.inputs)
+        balance, residual_function, sensitivity_function = self._functions(
+            keys, n_p, len(u_names), active
+        )
+        # the samples split over the cores: 1.7x on two for three segments, 1.4x for one
+        # (CasADi's virtual machine; python benchmarks/bench_identification.py)
+        samples, threads = experiment.t.size, default_threads()
+        balance_all, residual_all, sensitivities = (
+            mapped(f, samples, threads) for f in (balance, residual_function, sensitivity_function)
+        )
+        inputs = experiment.input_matrix(u_names) if u_names else np.zeros((experiment.t.size, 0))
+        last = np.tile(self.q0[:, None], (1, samples))
+        # the stiffness at the last solutions, for the chord steps of the next evaluation,
+        # and the solutions' tangent (dq/dd (T, n, n_d) at the active entries of d)
+        last_stiffness, tangent = [], []
+
+        def batch_system(q_all, d_value):
+            r, k = balance_all(q_all, inputs.T, d_value)
+            k = np.array(k, dtype=np.float64).reshape(n, samples, n).transpose(1, 0, 2)
+            return np.array(r, dtype=np.float64), k
+
+        at_start = np.tile(self.q0[:, None], (1, samples))
+        rest = model.robot.rest_lengths
+        actuator = None if self.input_map is None else self.input_map.actuator
+
+        def starts(d_value) -> list[np.ndarray]:
+            """Where the equilibria start, in turn for the samples not solved yet: the
+            previous solutions moved along their tangent (first-order prediction: the
+            chord steps start O(|change of d|^2) from the new solutions instead of
+            O(|change of d|)) where that move is small, then the previous solutions, then
+            the initial guess."""
+            found = [last, at_start]
+            if tangent:
+                previous_d, dq_dd = tangent
+                move = (dq_dd @ (d_value - previous_d)[active]).T  # (n, T)
+                near = np.max(np.abs(move) / self.scale[:, None], axis=0) <= TANGENT_LIMIT
+                found.insert(0, last + np.where(near, move, 0.0))
+            unique = []
+            for start in found:
+                if not any(np.array_equal(start, other) for other in unique):
+                    unique.append(start)
+            return unique
+
+        def solve(d_value) -> np.ndarray:
+            def batch_residual(q_all):
+                return np.array(residual_all(q_all, inputs.T, d_value), dtype=np.float64)
+
+            def system_of(j):
+                def system(q_value):
+                    r, k = balance(q_value, inputs[j], d_value)
+                    return np.array(r, dtype=np.float64).ravel(), np.array(k, dtype=np.float64)
+
+                return system
+
+            options = dict(scale=self.scale, reference=self.reference, tol=EQUILIBRIUM_TOLERANCE)
+            system_all = functools.partial(batch_system, d_value=d_value)
+            accepted, roots = [None] * samples, []
+            for start in starts(d_value):
+                near = last_stiffness and start is not at_start  # chord steps pay near
+                roots = solve_equilibria(
+                    system_all,
+                    system_of,
+                    start,
+                    max_evaluations=MAX_EVALUATIONS,
+                    jacobians=last_stiffness[0] if near else None,
+                    batch_residual=batch_residual if near else None,
+                    **options,
+                )
+                # a root outside the model's or the actuator's domain (a start thrown
+                # far) is no equilibrium
+                inside = states_inside(rest, np.array([root.q for root in roots]), actuator)
+                for j, root in enumerate(roots):
+                    if accepted[j] is None and root.converged and inside[j]:
+                        accepted[j] = root
+                if all(root is not None for root in accepted):
+                    break
+            tangent.clear()  # until evaluate sets this evaluation's
+            failed = [j for j, root in enumerate(accepted) if root is None]
+            if failed:
+                j = failed[0]
+                reason = (
+                    roots[j].message
+                    if not roots[j].converged
+                    else "its equilibrium lies outside the model's domain: "
+                    + str(state_problem(model.robot, roots[j].q, actuator))
+                )
+                raise RuntimeError(
+                    f"no equilibrium found at {len(failed)} sample(s), the first {j} "
+                    f"(t = {experiment.t[j]:g} s): {reason}; the robot may snap through or "
+                    "buckle there"
+                )
+            solution = np.column_stack([root.q for root in accepted])
+            last[:] = solution
+            return solution
+
+        def evaluate(theta_value):
+            d_value, d_jacobian = (np.array(v, dtype=np.float64) for v in direct(theta_value))
+            d_value = d_value.ravel()
+            q_all = solve(d_value)
+            y_all, r_d, y_q, y_d = (
+                np.array(v, dtype=np.float64) for v in sensitivities(q_all, inputs.T, d_value)
+            )
+            n_d, n_y = len(active), y_all.shape[0]
+            k = batch_system(q_all, d_value)[1]  # K at the solutions
+            last_stiffness[:] = [k]
+            r_d = r_d.reshape(n, samples, n_d).transpose(1, 0, 2)
+            y_q = y_q.reshape(n_y, samples, n).transpose(1, 0, 2)
+            y_d = y_d.reshape(n_y, samples, n_d).transpose(1, 0, 2)
+            # implicit function theorem: dq/dd = -K^-1 dr/dd, per sample
+            dq_dd = -np.linalg.solve(k, r_d)
+            tangent[:] = [d_value, dq_dd]
+            total = y_d + y_q @ dq_dd
+            jacobian = (total @ d_jacobian).reshape(samples * n_y, -1)
+            return y_all, jacobian
+
+        return evaluate
+
+    def _functions(self, keys, n_p, n_u, active):
+        """``(balance, residual, sensitivities)``: per-sample SX Functions of
+        ``(q, u, d)``, kept with the model (the Hessian of a three-segment robot takes
+        0.1 s to build; a joint fit builds it once for all its experiments), keyed by the
+        maps' expressions themselves (serialized), not by their Python functions: a map
+        that reads a value changed since the last fit gets new functions."""
+        model, n = self.model, self.model.n
+        q, u, ds = ca.SX.sym("q", n), ca.SX.sym("u", n_u), ca.SX.sym("d", n_p + len(keys))
+        p_s, v_s = ds[:n_p], {k: ds[n_p + i] for i, k in enumerate(keys)}
+        tau = ca.SX.zeros(n) if self.input_map is None else self.input_map.function(q, u, v_s)
+        forces = ca.Function("tau", [q, u, ds], [tau])
+        y = self.output.function(q, ca.SX.zeros(n), v_s, p_s)
+        outputs = ca.Function("y", [q, u, ds], [y])
+
+        def balance_functions():
+            gravity_energy = model.symbolic["potential_energy"](q, p_s)[0]
+            # K from the symmetric Hessian of V_g: half the operations of the Jacobian of
+            # G on three segments (benchmarks/bench_identification.py, section 2)
+            gravity_stiffness, gravity = ca.hessian(gravity_energy, q)
+            elastic = model.symbolic["elastic_force"](q, p_s) - tau
+            residual = gravity + elastic
+            stiffness = gravity_stiffness + ca.jacobian(elastic, q)
+            return (
+                ca.Function("balance", [q, u, ds], [residual, stiffness]),
+                ca.Function("residual", [q, u, ds], [residual]),
+            )
+
+        structure = (forces.serialize(), n_p)
+        balance, residual = model.cached(("equilibrium-fit", *structure), balance_functions)
+
+        def sensitivity_function():
+            # the balance's own expressions, on its symbols
+            q_b, u_b, d_b = balance.sx_in()
+            r_b = balance(q_b, u_b, d_b)[0]
+            y_b = outputs(q_b, u_b, d_b)
+            moving = ca.vertcat(*(d_b[i] for i in active)) if active else ca.SX(0, 1)
+            columns = [y_b, ca.jacobian(r_b, moving), ca.jacobian(y_b, q_b)]
+            columns.append(ca.jacobian(y_b, moving))
+            return ca.Function("sensitivities", [q_b, u_b, d_b], columns)
+
+        key = ("equilibrium-fit-sensitivities", *structure, outputs.serialize(), tuple(active))
+        return balance, residual, model.cached(key, sensitivity_function)

@@ -1,0 +1,268 @@
+"""The integration of a batch: one CVODES integrator on the compiled right-hand side,
+mapped over members in compiled code (:class:`MemberRun`), failures isolated to their
+members; and the per-member linearization that chooses Adams or BDF."""
+
+from __future__ import annotations
+
+import contextlib
+import io
+
+import numpy as np
+
+from softcurve.base.status import Status
+from softcurve.compiled import LANE_WIDTH, Model
+from softcurve.description.robot import MAX_STRETCH
+from softcurve.simulation.solvers import (
+    MAX_ORDER,
+    SETTLED_RATIO,
+    BufferedCall,
+    blocks,
+    cvodes_integrator,
+    cvodes_options,
+    cvodes_reason,
+    difference_eigenvalues,
+    difference_points,
+    domain_reason,
+    driver_integrate,
+    driver_problem,
+    driver_reason,
+    failure_message,
+    failure_status,
+    linear_rates,
+    mapped,
+    outside_domain,
+    restart_segments,
+    rhs_along,
+)
+
+
+def member_rates(model, x0, tau, parameters, nominal, threads) -> tuple:
+    """:func:`~softcurve.simulation.solvers.linear_rates` of every member at once: the
+    central-difference linearization of the right-hand side at the initial states ``x0``
+    (B, n_state) under ``tau`` (B, n), all points in one compiled map.
+
+    Parameters
+    ----------
+    model : Model
+        The compiled model.
+    x0 : ndarray, shape (B, n_state)
+        Initial states.
+    tau : ndarray, shape (B, n)
+        Input forces [N, N m^2, N m^2].
+    parameters : ndarray, shape (B, n_p)
+        Parameter vector per member.
+    nominal : ndarray, shape (B, n_state)
+        State scales.
+    threads : int
+        Threads of the compiled map.
+    """
+    points, steps = difference_points(x0, nominal)  # (B, 2 n_state, n_state), (B, n_state)
+    taus = np.broadcast_to(tau[:, None, :], (*points.shape[:2], model.n))
+    values = rhs_along(model, points, taus, parameters, threads)
+    return linear_rates(difference_eigenvalues(values, steps))
+
+
+class MemberRun:
+    """One batch integration: the compiled map over members, with failures isolated.
+
+    Parameters
+    ----------
+    model : Model
+        The compiled model (its parameters are replaced per member).
+    grid : ndarray, shape (T,)
+        Output times [s].
+    options : tuple
+        ``(rtol, abstol of the scaled state, max_steps)`` for :func:`cvodes_options`.
+    threads : int
+        Threads of the compiled map.
+    tau : ndarray, shape (B, n) or (B, m)
+        Constant input per member: the force [N, N m^2, N m^2], or with ``drives`` the
+        actuator's inputs (commands when they lag) [their unit].
+    params : ndarray, shape (B, n_p)
+        Parameter vector per member.
+    nominal : ndarray, shape (B, n_state [+ m])
+        State scale per member (with lagging inputs: theirs after ``(q, qd, lam)``).
+    states : ndarray, shape (B, T, n_state [+ m])
+        Filled in place (NaN after a member's failure).
+    rest_lengths : ndarray, shape (B, N)
+        Rest length of each member's segments [m], for the domain check of the outputs.
+    drives : Drives, optional
+        The actuator of each member (:mod:`softcurve.simulation.batch._inputs`); the
+        members integrated in one call must share one.
+    """
+
+    def __init__(
+        self,
+        model: Model,
+        grid,
+        options,
+        threads,
+        tau,
+        params,
+        nominal,
+        states,
+        rest_lengths,
+        drives=None,
+    ):
+        self.model, self.grid, self.options, self.threads = model, grid, options, threads
+        self.tau, self.params, self.nominal, self.states = tau, params, nominal, states
+        self.rest_lengths, self.drives = rest_lengths, drives
+        size = states.shape[0]
+        self.reached = np.full(size, grid.size)
+        self.status = np.full(size, Status.SUCCESS, dtype=object)
+        self.messages = [""] * size
+
+    def _p(self, members, h) -> np.ndarray:
+        count = len(members)
+        return np.hstack([self.params[members], np.full((count, 1), h), self.nominal[members]]).T
+
+    def _drive(self, member: int):
+        """The :class:`ActuatorInput` of ``member``, or None when forces drive it."""
+        return None if self.drives is None else self.drives.inputs[self.drives.group[member]]
+
+    def _mapped_integrator(self, multistep, tout, count, drive):
+        """The integrator mapped over ``count`` members driven by ``drive`` (an
+        :class:`ActuatorInput` or None), cached with the model."""
+        threads = min(self.threads, count)
+        options = cvodes_options(multistep, *self.options)
+        key = ("batch", tuple(sorted(options.items())), tout.tobytes(), count, threads,
+               None if drive is None else drive.key)  # fmt: skip
+
+        def build():
+            integrator = cvodes_integrator(self.model, tout, options, drive)
+            return BufferedCall(mapped(integrator, count, threads))
+
+        return self.model.cached(key, build)
+
+    def integrate(self, multistep, members, k0, k1) -> None:
+        """Fill ``states[members, k0+1 : k1+1]`` from ``states[members, k0]``; a failing map
+        is split in halves until the failing members are found, which are then integrated
+        output by output."""
+        grid, states = self.grid[k0 : k1 + 1], self.states
+        h = grid[-1] - grid[0]
+        tout = (grid[1:] - grid[0]) / h
+        count, outputs, drive = len(members), tout.size, self._drive(int(members[0]))
+        # column-major CasADi matrices: one member's (or one output's) column after another
+        x0 = np.ascontiguousarray(states[members, k0] / self.nominal[members])
+        p = np.ascontiguousarray(self._p(members, h).T)
+        u = np.repeat(self.tau[members], outputs, axis=0)
+        xf = np.zeros((count, outputs, states.shape[2]))
+        # on a failure, CasADi's map prints every input of the batch to sys.stderr; the
+        # reason is kept from the member integrated alone (below)
+        with contextlib.redirect_stderr(io.StringIO()):
+            integrator = self._mapped_integrator(multistep, tout, count, drive)
+            failure, _ = integrator({0: x0, 2: p, 3: u}, xf)
+        if failure is not None:
+            if count > 1:
+                half = count // 2
+                for part in (members[:half], members[half:]):
+                    self.integrate(multistep, part, k0, k1)
+            else:
+                self._one_by_one(multistep, int(members[0]), k0, k1)
+            return
+        states[members, k0 + 1 : k1 + 1] = xf * self.nominal[members, None, :]
+        n, rest = self.model.n, self.rest_lengths[members]
+        bad = outside_domain(states[members, k0 + 1 : k1 + 1], n, rest[:, None, :])
+        for j in np.flatnonzero(np.any(bad, axis=1)):
+            self._outside(int(members[j]), k0 + 1 + int(np.argmax(bad[j])), multistep)
+
+    def _one_by_one(self, multistep, b, k0, k1) -> None:
+        """Output interval by output interval, to keep every output reached before a failure."""
+        integrator = self._mapped_integrator(multistep, np.ones(1), 1, self._drive(b))
+        nominal, states = self.nominal[b], self.states
+        for k in range(k0 + 1, k1 + 1):
+            h = self.grid[k] - self.grid[k - 1]
+            x0 = np.ascontiguousarray(states[b, k - 1] / nominal)
+            p = np.ascontiguousarray(self._p([b], h).T)
+            xf = np.zeros(states.shape[2])
+            u = np.ascontiguousarray(self.tau[b])
+            failure, _ = integrator({0: x0, 2: p, 3: u}, xf)
+            if failure is not None:
+                self._fail(b, k, cvodes_reason(failure), multistep)
+                return
+            states[b, k] = xf * nominal
+            if outside_domain(states[b, k], self.model.n, self.rest_lengths[b]):
+                self._outside(b, k, multistep)
+                return
+
+    def _outside(self, b, k, multistep) -> None:
+        """Member ``b`` left the model's domain at output ``k``."""
+        reason = domain_reason(self.states[b, k], self.model.n, self.rest_lengths[b], self.grid[k])
+        self._fail(b, k, reason, multistep)
+
+    def _fail(self, b, k, reason, multistep) -> None:
+        """Member ``b`` failed reaching output ``k``: keep outputs ``0 .. k-1``."""
+        self.states[b, k:] = np.nan
+        self.reached[b] = k
+        self.status[b] = failure_status(reason)
+        self.messages[b] = failure_message(reason, self.grid, k, f"cvodes-{multistep}")
+
+
+COMPILED_ACTUATORS = 8
+"""Largest number of distinct actuators (parameter vectors) in a batch integrated by the C
+driver: each needs its ``H(q) u`` compiled once (about 0.3 s, then cached on disk); a
+batch with more uses CasADi's integrator, which needs no compilation."""
+
+
+def integrate_native(run: MemberRun, initial, fastest, lanes=False) -> np.ndarray | None:
+    """The whole batch of ``run`` with CVODES's C driver (:mod:`softcurve.simulation.solvers._driver`):
+    one call per group of members that share an actuator, every restart segment inside it,
+    members on ``run.threads`` threads. Fills ``run.states`` and the failures as
+    :meth:`MemberRun.integrate` does; returns which members used BDF, or None (nothing
+    done) where the driver is not available.
+
+    Parameters
+    ----------
+    run : MemberRun
+        The batch (its states hold the initial states).
+    initial : ndarray of str, shape (B,)
+        Each member's family, "adams" or "bdf".
+    fastest : ndarray, shape (B,) or None
+        Fastest rate of each member's initial linearization [1/s]: members that start with
+        Adams switch to BDF at a restart once settled (None: no switch).
+    lanes : bool
+        Integrate consecutive members in groups on the state derivative over lanes
+        (:mod:`softcurve.simulation.solvers._groups_source`), where the batch fills one.
+    """
+    groups = [None] if run.drives is None else list(run.drives.inputs)
+    if len(groups) > COMPILED_ACTUATORS:
+        return None
+    sizes = [run.states.shape[0]] if run.drives is None else np.bincount(
+        run.drives.group, minlength=len(groups))  # fmt: skip
+    problems = [
+        driver_problem(run.model, drive, lanes and size >= LANE_WIDTH)
+        for drive, size in zip(groups, sizes, strict=True)
+    ]
+    if any(problem is None for problem in problems):
+        return None
+    grid, states = run.grid, run.states
+    segments = restart_segments(grid)
+    ends = [k1 for _, k1 in segments]
+    restart = [True] * len(ends)
+    used_bdf = np.zeros(states.shape[0], bool)
+    longest = MAX_STRETCH * run.rest_lengths
+    lmm = np.where(np.asarray(initial) == "adams", 1, 2)
+    settle = np.zeros(states.shape[0]) if fastest is None else np.where(lmm == 1, fastest, 0.0)
+    tolerances = (*run.options, MAX_ORDER)
+    for g, problem in enumerate(problems):
+        group = np.arange(states.shape[0]) if run.drives is None else (
+            np.flatnonzero(run.drives.group == g))  # fmt: skip
+        for block in blocks(group.size, grid.size, states.shape[2], problem.width):
+            members = group[block]
+            u = np.repeat(run.tau[members][:, None, :], len(ends), axis=1)
+            out, reached, flags, _, used = driver_integrate(
+                problem, lmm[members], states[members, 0], u, run.params[members],
+                run.nominal[members], grid, (ends, restart), tolerances,
+                fastest=settle[members], settled_ratio=SETTLED_RATIO,
+                longest=longest[members], threads=run.threads,
+            )  # fmt: skip
+            used_bdf[members] = used
+            states[members, 1:] = out[:, 1:]
+            for j in np.flatnonzero(flags):
+                b, done = int(members[j]), int(reached[j])
+                if flags[j] == 1:
+                    run._outside(b, done - 1, "adams+bdf" if used[j] else initial[b])
+                else:
+                    reason = cvodes_reason(driver_reason(flags[j]))
+                    run._fail(b, done, reason, "adams+bdf" if used[j] else initial[b])
+    return used_bdf

@@ -1,0 +1,10 @@
+"""Forward sensitivities of a trajectory to parameters, for the identification:
+:func:`trajectory_sensitivities`."""
+
+from softcurve.simulation.sensitivity._sensitivity import (
+    trajectory_sensitivities as trajectory_sensitivities,
+)
+
+__all__ = [
+    "trajectory_sensitivities",
+]

@@ -1,0 +1,350 @@
+"""Forward sensitivities of a simulated experiment, compiled, for trajectory least squares.
+
+The equation of motion ``x' = f(x, tau(q, u, v), p)`` is augmented with the
+variational equations ``S' = f_x S + f_d`` for the columns of ``d = (p, v, x0)``
+that depend on the free parameters (``S(0)`` selects the free entries of ``x0``).
+The augmented right-hand side is generated as C by CasADi, compiled once by
+:func:`softcurve.compiled.compile_function` (same compiler and cache as the model),
+loaded as an ``external`` and integrated by CVODES, so an evaluation of the residuals
+and their exact Jacobian never returns to Python. The chain rule from ``d`` to the free
+parameters ``theta`` (ties, re-parametrizations, initial states) and from the state to
+the outputs is applied afterwards, sample by sample.
+
+Two routes integrate it. Where softcurve's CVODES driver is available
+(:mod:`softcurve.simulation.solvers._driver`; the call and its settings are in
+:mod:`softcurve.simulation.sensitivity._route`), the state is integrated by Adams-Newton on its own
+Newton matrix and the sensitivity columns by CVODES's staggered corrector (outside the
+error test), all in C, without a restart at the samples of a linear hold; otherwise (no driver, or
+CVODES options other than :data:`NATIVE_OPTIONS`) CasADi's CVODES integrates the
+augmented system with :data:`SENSITIVITY_CVODES`. Both agree to the tolerances
+(``tests/test_sensitivity_driver.py``). With the columns in its error test the driver was
+1.5x (inputs held) to 2.8x (linear hold) faster on ``bench_identification.py``'s case,
+without them 1.34x more (``benchmarks/study_sensitivity_driver.py`` compares).
+"""
+
+from __future__ import annotations
+
+import pickle
+import uuid
+
+import casadi as ca
+import numpy as np
+
+from softcurve.compiled import compile_function, compile_functions, load_external
+from softcurve.simulation.sensitivity._route import (
+    DriverRoute,
+    DriverSettings,
+    integrate_sensitivities,
+    load_with_path,
+)
+from softcurve.simulation.sensitivity._split import assembled, column_parts
+from softcurve.simulation.solvers import (
+    DriverProblem,
+    cvodes_options,
+    driver,
+    driver_reason,
+)
+from softcurve.simulation.stepper import load_native
+
+SENSITIVITY_CVODES = cvodes_options(
+    "adams", 1e-8, 1e-10, 100_000, max_order=None, nonlinear_solver_iteration="functional"
+)
+"""CVODES on the augmented, unscaled system, as the trajectory fits were validated with
+(``tests/test_identify.py``): tolerances tighter than a simulation's, Adams with
+functional iteration (no Newton matrix of the augmented system) at CVODES's own order
+cap; ``options`` of :func:`trajectory_sensitivities` override them. The driver's route
+takes the same tolerances and step limit."""
+
+NATIVE_OPTIONS = frozenset({"reltol", "abstol", "max_num_steps", "fsens_err_con"})
+"""The CVODES options the driver's route understands; others select CasADi's route.
+``fsens_err_con`` (default False, CVODES's own) puts the sensitivity columns in the
+error test: 1.6 times the steps for Jacobian columns within 4e-9 instead of 6e-8 to
+3e-7 of a reference, which no fit resolves (docs/validation.md). CasADi's route always has
+them in it (it integrates ``(x, S)`` as one system)."""
+
+NATIVE_FAMILY = 1
+"""Adams (1), with Newton iteration, in the driver's route: on the 30 s benchmark case
+(``benchmarks/study_sensitivity_driver.py``, 2026-11-30) 13,142 steps in 0.62 s at rtol
+1e-8 against BDF's 17,936 steps in 1.01 s (the paper robot's lightly damped modes favour
+Adams's higher orders)."""
+
+
+class SensitivityEvaluator:
+    """``theta -> (Y (k, T), dvec(Y)/dtheta (k T, P))`` for one experiment.
+
+    Holds only CasADi functions and arrays, so it can be pickled into a worker process
+    (CasADi serializes its functions; a compiled ``external`` is reloaded from its
+    library on disk, and so are the driver's functions, at the first call in a process).
+    """
+
+    def __init__(self, direct, integrator, out, u_data, seed, scale, active, sizes, driven):
+        self.direct, self.integrator, self.out = direct, integrator, out
+        self.u_data, self.seed, self.scale, self.active = u_data, seed, scale, active
+        self.n_p, self.n_v, self.n_x = sizes
+        self.driven: DriverRoute | None = driven
+        self.token, self._blob, self._native = uuid.uuid4().hex, None, None
+        self.stats: dict = {}
+        """The last evaluation's route and counters (steps, right-hand sides, ...), in the
+        process that evaluated it (a worker's, under a parallel fit)."""
+        self.variational: ca.Function | None = None
+        """``fs(x;vec(S), u, d;scale) -> f;vec(S')``, the SX function of the sensitivity
+        equations (in the process that built the evaluator; for studies of its cost). Both
+        routes compile it, unless the evaluator splits it in parts for two threads."""
+
+    def __reduce__(self):
+        # Serialized once; a worker that has loaded this evaluator before reuses it
+        # (deserializing builds the CVODES memory again).
+        if self._blob is None:
+            state = (self.direct, self.integrator, self.out, self.u_data, self.seed)
+            state += (self.scale, self.active, (self.n_p, self.n_v, self.n_x), self.driven)
+            self._blob = pickle.dumps(state)
+        return (_restore, (self.token, self._blob))
+
+    def __call__(self, theta_value):
+        """Outputs and their Jacobian at ``theta_value``.
+
+        Parameters
+        ----------
+        theta_value : array_like, shape (P,)
+            The free parameters, in the units of each.
+        """
+        n_x, start = self.n_x, self.n_p + self.n_v
+        d_value, jac = (np.array(a) for a in self.direct(theta_value))
+        d_value = d_value.ravel()
+        x_start = np.concatenate([d_value[start:], self.seed.ravel(order="F")])
+        parameters = np.concatenate([d_value, self.scale])
+        states = self._integrate(x_start, d_value, parameters)
+        size = states.shape[1]
+        y_value, y_x, y_d = (
+            np.array(a) for a in self.out(states[:n_x], np.tile(d_value[:, None], size))
+        )
+        k, m = y_value.shape[0], len(self.active)
+        s_all = states[n_x:].reshape(m, n_x, size).transpose(2, 1, 0) / self.scale
+        y_x = y_x.reshape(k, size, n_x).transpose(1, 0, 2)  # (T, k, n_x)
+        y_d = y_d.reshape(k, size, -1).transpose(1, 0, 2)  # (T, k, n_d)
+        total = np.einsum("tkx,txm,mp->tkp", y_x, s_all, jac[self.active]) + y_d @ jac
+        return y_value, total.reshape(size * k, -1)
+
+    def _integrate(self, start, d_value, d_scaled) -> np.ndarray:
+        """``(x, vec(S))`` at every sample, (W, T), by the driver or CasADi's CVODES."""
+        route = self._route()
+        if route is None:
+            states = np.array(self.integrator(x0=start, p=d_scaled, u=self.u_data)["xf"])
+            counts = self.integrator.stats()
+            self.stats = {"route": "casadi", "steps": counts.get("nsteps"),
+                          "rhs_evaluations": counts.get("nfevals"),
+                          "error_test_failures": counts.get("netfails")}  # fmt: skip
+            return states
+        problem, columns = route
+        driven = self.driven
+        out, reached, flag, counts = integrate_sensitivities(
+            problem, columns, start, d_value, d_scaled, driven.times, driven.table,
+            driven.linear, driven.settings, driven.helper,
+        )  # fmt: skip
+        self.stats = {"route": "driver", **counts}
+        if flag:
+            raise RuntimeError(
+                f"CVODES failed after t = {driven.times[reached - 1]:g} s: {driver_reason(flag)}"
+            )
+        return out.T
+
+    def _route(self):
+        """(problem, column functions) of the driver, loaded once per process, or None."""
+        if self.driven is None or driver() is None:
+            return None
+        if self._native is None:  # a worker process: load the libraries the parent built
+            driven = self.driven
+            try:
+                route = (DriverProblem(load_native(*driven.state), *driven.sizes),
+                         [load_native(*c) for c in driven.columns])  # fmt: skip
+            except (OSError, RuntimeError, AttributeError):  # not loadable: CasADi's route
+                route = False
+            self._native = route
+        return self._native or None
+
+
+_LOADED: dict = {}
+LOADED_KEPT = 16
+"""Evaluators a worker process keeps loaded (the experiments of the current fits)."""
+
+
+def _restore(token: str, blob: bytes) -> SensitivityEvaluator:
+    """The evaluator ``token``, loaded from ``blob`` unless this process has it."""
+    if token not in _LOADED:
+        if len(_LOADED) >= LOADED_KEPT:
+            _LOADED.pop(next(iter(_LOADED)))
+        evaluator = SensitivityEvaluator(*pickle.loads(blob))
+        evaluator.token, evaluator._blob = token, blob
+        _LOADED[token] = evaluator
+    return _LOADED[token]
+
+
+def hold_inputs(t: np.ndarray, u: np.ndarray, hold: str) -> np.ndarray:
+    """The integrator's input columns for inputs sampled at ``t``.
+
+    CasADi applies column ``k`` on ``(t[k-1], t[k]]``. ``"constant"``: the sample at the
+    start of each interval, ``u_(k-1)``, held until the next one (a zero-order hold, as
+    :func:`~softcurve.simulation.simulate` applies a grid of inputs: an input
+    never acts before it was sampled). ``"linear"``: the line through both samples,
+    ``a_k + b_k t`` with rows ``(a, b)``, so the inputs are continuous in time (no jump
+    for the integrator to restart at).
+
+    Parameters
+    ----------
+    t : ndarray, shape (T,)
+        Sample times [s].
+    u : ndarray, shape (m, T)
+        Input samples [unit of each input].
+    hold : {"constant", "linear"}
+        How the inputs go between samples.
+    """
+    if u.shape[0] == 0:
+        return u
+    before = np.concatenate([u[:, :1], u[:, :-1]], axis=1)
+    if hold == "constant":
+        return before
+    if hold != "linear":
+        raise ValueError(f"hold must be 'constant' or 'linear', got {hold!r}")
+    slope = np.zeros_like(u)
+    slope[:, 1:] = np.diff(u, axis=1) / np.diff(t)
+    start = np.concatenate([t[:1], t[:-1]])
+    return np.vstack([before - slope * start, slope])
+
+
+def _casadi_integrator(rhs, n_u: int, hold: str, t, options) -> ca.Function:
+    """CasADi's CVODES on the augmented system ``rhs(x;vec(S), u, d;scale)`` over the
+    sample times ``t``, the inputs per interval (``hold``) as its controls."""
+    xa, ua, da = (
+        ca.MX.sym("x", rhs.size1_in(0)),
+        ca.MX.sym("u", n_u * (2 if hold == "linear" else 1)),
+        ca.MX.sym("d", rhs.size1_in(2)),
+    )
+    time = ca.MX.sym("t")
+    applied_u = ua[:n_u] + ua[n_u:] * time if hold == "linear" else ua
+    problem = {"x": xa, "u": ua, "p": da, "t": time, "ode": rhs(xa, applied_u, da)}
+    return ca.integrator("sensitivity", "cvodes", problem, float(t[0]), t, options)
+
+
+def trajectory_sensitivities(
+    model,
+    parameters,
+    output,
+    input_map,
+    x0,
+    experiment,
+    options,
+    lag=None,
+    hold="constant",
+    threads=1,
+) -> SensitivityEvaluator:
+    """An evaluator ``theta -> (Y (k, T), dvec(Y)/dtheta (k T, P))`` for one experiment.
+
+    Parameters
+    ----------
+    model : Model
+        The compiled model.
+    parameters : softcurve.identification.fits._parameters.FreeParameters
+        The free parameters and how they enter ``p`` and the extra values.
+    output : OutputMap
+        The measured signals as functions of the state.
+    input_map : InputMap or None
+        Generalized forces from the inputs.
+    x0 : array_like (n_state [+ m],) or callable(values) -> initial state
+        With ``lag``, the state ends with the ``m`` lagged inputs.
+    experiment : Experiment
+        Time grid and inputs.
+    options : dict or None
+        Extra CVODES options.
+    lag : str, optional
+        Name of the extra parameter holding the time constant [s] of a first-order lag
+        ``u_a' = (u - u_a) / T`` of every input before the input map (None: no lag).
+    hold : {"constant", "linear"}
+        Inputs between samples (:func:`hold_inputs`).
+    threads : int
+        Threads of an evaluation in the driver's route, >= 1: with 2 or more the
+        columns' right-hand side is evaluated in two parts on two threads
+        (:mod:`softcurve.simulation.sensitivity._split`).
+    """
+    P = parameters
+    u_names = list(experiment.inputs)
+    n_model, n_p = model.n_state, P.p0.size
+    n_x = n_model + (len(u_names) if lag else 0)
+    keys = sorted(P.extra)
+    n_v = len(keys)
+    theta = ca.MX.sym("theta", len(P.free))
+    p, values = P.expressions(theta)
+    start = x0(values) if callable(x0) else ca.DM(np.asarray(x0, dtype=np.float64))
+    start = ca.MX(start) if not isinstance(start, ca.MX) else start
+    if start.shape != (n_x, 1):
+        raise ValueError(f"x0 must have {n_x} entries (q, qd, lam[, u]), got {start.shape}")
+    d = ca.vertcat(p, *(ca.MX(values[k]) for k in keys), start)
+    jac_d = ca.jacobian(d, theta)
+    active = sorted(set(jac_d.sparsity().get_triplet()[0]))
+    direct = ca.Function("direct", [theta], [d, ca.densify(jac_d)])
+
+    xs, us = ca.SX.sym("x", n_x), ca.SX.sym("u", len(u_names))
+    ds = ca.SX.sym("d", n_p + n_v + n_x)
+    v_s = {k: ds[n_p + i] for i, k in enumerate(keys)}
+    q, qd = xs[: model.n], xs[model.n : 2 * model.n]
+    applied = xs[n_model:] if lag else us
+    tau = input_map.function(q, applied, v_s) if input_map is not None else ca.SX.zeros(model.n)
+    f = model.casadi_rhs()(xs[:n_model], tau, ds[:n_p])
+    if lag:
+        f = ca.vertcat(f, (us - applied) / v_s[lag])
+    d0 = np.array(direct(P.theta0)[0]).ravel()
+    scale = np.array([abs(d0[i]) if d0[i] != 0 else 1.0 for i in active])
+    m = len(active)
+    # The column scales are an input (not constants of the code), so that experiments
+    # and fits of one structure share one compiled library.
+    sens, sc_s = ca.SX.sym("S", n_x, m), ca.SX.sym("scale", m)
+    f_d = ca.jacobian(f, ds)[:, active] @ ca.diag(sc_s) if m else ca.SX(n_x, 0)
+    s_dot = ca.jacobian(f, xs) @ sens + f_d
+    augmented = ca.Function(
+        "softcurve_sensitivity",
+        [ca.vertcat(xs, ca.vec(sens)), us, ca.vertcat(ds, sc_s)],
+        [ca.densify(ca.cse(ca.vertcat(f, ca.vec(s_dot))))],
+    )
+    t = experiment.t
+    settings = {**SENSITIVITY_CVODES, **(options or {})}
+    y = output.function(q, qd, v_s, ds[:n_p])
+    out = ca.Function("out", [xs, ds], [y, ca.jacobian(y, xs), ca.jacobian(y, ds)]).map(t.size)
+    u_data = experiment.input_matrix(u_names).T if u_names else np.zeros((0, t.size))
+    u_data = hold_inputs(t, u_data, hold)
+    seed = np.zeros((n_x, m))
+    for j, i in enumerate(active):
+        if i >= n_p + n_v:
+            seed[i - n_p - n_v, j] = scale[j]
+    driven, loaded = None, None
+    if set(options or {}) <= NATIVE_OPTIONS and driver() is not None:
+        f_state = augmented(ca.vertcat(xs, ca.SX.zeros(n_x * m)), us, ca.vertcat(ds, np.ones(m)))
+        plain = ca.Function("softcurve_state", [xs, us, ds], [ca.densify(f_state[:n_x])])
+        split = threads > 1 and m > 0
+        columns = column_parts(f, xs, us, ds, sens, sc_s, f_d, model.n) if split else [augmented]
+        libraries = compile_functions([plain, *columns], load=load_with_path)
+        if all(isinstance(entry, tuple) for entry in libraries):
+            driver_settings = DriverSettings(
+                float(settings["reltol"]), float(settings["abstol"]),
+                int(settings["max_num_steps"]), NATIVE_FAMILY,
+                bool(settings.get("fsens_err_con", False)),
+            )  # fmt: skip
+            table = np.ascontiguousarray(u_data.T)
+            sizes = (n_x, plain.size1_in(1), plain.size1_in(2))
+            paths = tuple(entry[:2] for entry in libraries)
+            driven = DriverRoute(paths[0], paths[1:], sizes, t, table, hold == "linear",
+                                 driver_settings, "shared" if split else "none")  # fmt: skip
+            loaded = (DriverProblem(libraries[0][2], *sizes), [e[2] for e in libraries[1:]])
+    # CasADi's route: on the libraries the driver's route just built, loaded by path
+    if driven is None:
+        rhs = compile_function(augmented)
+    elif len(driven.columns) > 1:
+        externals = [load_external(*path) for path in driven.columns]
+        rhs = assembled(load_external(*driven.state), externals, ds.shape[0])
+    else:
+        rhs = load_external(*driven.columns[0])
+    integrator = _casadi_integrator(rhs, len(u_names), hold, t, settings)
+    evaluator = SensitivityEvaluator(
+        direct, integrator, out, u_data, seed, scale, active, (n_p, n_v, n_x), driven
+    )
+    evaluator._native = loaded
+    evaluator.variational = augmented
+    return evaluator

@@ -1,0 +1,96 @@
+"""The integration methods behind :func:`softcurve.simulate` and the batches.
+
+The problem (the model's state derivative with an actuator's force and lag, state scales,
+the domain), the method policy (Adams or BDF, the settled switch, restarts, failure
+advice), CasADi's CVODES, SciPy's RK45, and softcurve's CVODES driver in C (``c/``).
+"""
+
+from softcurve.simulation.solvers._actuated import actuated_derivative as actuated_derivative
+from softcurve.simulation.solvers._along import blocks as blocks
+from softcurve.simulation.solvers._along import chunks as chunks
+from softcurve.simulation.solvers._along import energy_along as energy_along
+from softcurve.simulation.solvers._along import mapped as mapped
+from softcurve.simulation.solvers._along import rhs_along as rhs_along
+from softcurve.simulation.solvers._along import tip_along as tip_along
+from softcurve.simulation.solvers._cvodes import ActuatorInput as ActuatorInput
+from softcurve.simulation.solvers._cvodes import BufferedCall as BufferedCall
+from softcurve.simulation.solvers._cvodes import CvodesEngine as CvodesEngine
+from softcurve.simulation.solvers._cvodes import cvodes_integrator as cvodes_integrator
+from softcurve.simulation.solvers._driver import Problem as DriverProblem
+from softcurve.simulation.solvers._driver import casadi_only as casadi_only
+from softcurve.simulation.solvers._driver import driver as driver
+from softcurve.simulation.solvers._driver import entry as driver_entry
+from softcurve.simulation.solvers._driver import integrate as driver_integrate
+from softcurve.simulation.solvers._driver import problem as driver_problem
+from softcurve.simulation.solvers._driver import reason as driver_reason
+from softcurve.simulation.solvers._grid import Domain as Domain
+from softcurve.simulation.solvers._grid import Progress as Progress
+from softcurve.simulation.solvers._grid import State as State
+from softcurve.simulation.solvers._grid import Stopped as Stopped
+from softcurve.simulation.solvers._grid import actuator_exit as actuator_exit
+from softcurve.simulation.solvers._grid import domain_reason as domain_reason
+from softcurve.simulation.solvers._grid import outside_domain as outside_domain
+from softcurve.simulation.solvers._grid import run_on_grid as run_on_grid
+from softcurve.simulation.solvers._grid import run_sampled as run_sampled
+from softcurve.simulation.solvers._policy import MAX_ORDER as MAX_ORDER
+from softcurve.simulation.solvers._policy import SETTLED_RATIO as SETTLED_RATIO
+from softcurve.simulation.solvers._policy import cvodes_options as cvodes_options
+from softcurve.simulation.solvers._policy import cvodes_reason as cvodes_reason
+from softcurve.simulation.solvers._policy import difference_eigenvalues as difference_eigenvalues
+from softcurve.simulation.solvers._policy import difference_points as difference_points
+from softcurve.simulation.solvers._policy import failure_message as failure_message
+from softcurve.simulation.solvers._policy import failure_status as failure_status
+from softcurve.simulation.solvers._policy import linear_rates as linear_rates
+from softcurve.simulation.solvers._policy import linearization_rates as linearization_rates
+from softcurve.simulation.solvers._policy import multistep_family as multistep_family
+from softcurve.simulation.solvers._policy import nominal_scale as nominal_scale
+from softcurve.simulation.solvers._policy import restart_segments as restart_segments
+from softcurve.simulation.solvers._policy import settled as settled
+from softcurve.simulation.solvers._policy import success_message as success_message
+from softcurve.simulation.solvers._rk45 import ScipyEngine as ScipyEngine
+
+__all__ = [
+    "actuated_derivative",
+    "blocks",
+    "chunks",
+    "energy_along",
+    "mapped",
+    "rhs_along",
+    "tip_along",
+    "ActuatorInput",
+    "BufferedCall",
+    "CvodesEngine",
+    "cvodes_integrator",
+    "DriverProblem",
+    "casadi_only",
+    "driver",
+    "driver_entry",
+    "driver_integrate",
+    "driver_problem",
+    "driver_reason",
+    "Domain",
+    "Progress",
+    "State",
+    "Stopped",
+    "actuator_exit",
+    "domain_reason",
+    "outside_domain",
+    "run_on_grid",
+    "run_sampled",
+    "MAX_ORDER",
+    "SETTLED_RATIO",
+    "cvodes_options",
+    "cvodes_reason",
+    "difference_eigenvalues",
+    "difference_points",
+    "failure_message",
+    "failure_status",
+    "linear_rates",
+    "linearization_rates",
+    "multistep_family",
+    "nominal_scale",
+    "restart_segments",
+    "settled",
+    "success_message",
+    "ScipyEngine",
+]

@@ -1,0 +1,399 @@
+"""CVODES driven from C: softcurve's own driver (:mod:`softcurve.simulation.solvers._driver_source`)
+of the SUNDIALS CVODES that ships inside CasADi, on the model's compiled right-hand side.
+
+Why not CasADi's ``integrator``: on the paper's 10 s case it spends more time around the
+right-hand side than in it (``docs/performance.md``): every evaluation goes through
+CasADi's virtual machine (the scaled DAE is an MX graph around the compiled ``rhs``) and
+reads the process CPU clock (a system call; threads of one process contend for it), and
+the Newton matrix's Jacobian is recomputed by finite differences at every linear-solver
+setup. The driver calls the compiled function directly, keeps the Jacobian while CVODES
+allows (``jok``), factors the Newton matrix itself and integrates every member of a batch
+in one call, on threads that do not contend.
+
+:func:`problem` describes a model (and optionally an actuator's force) to the driver;
+:func:`integrate` runs it. Both return None / are unused where the driver cannot be built
+(no C compiler, an uncompiled model, a CasADi whose SUNDIALS has another interface) or
+``SOFTCURVE_NATIVE_CVODES=0`` is set: the engines then use CasADi's integrator.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import ctypes
+import os
+import threading
+from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
+
+import casadi as ca
+import numpy as np
+
+from softcurve.compiled import NativeFunction, compile_source
+from softcurve.description.robot import MAX_BEND
+from softcurve.simulation.solvers._driver_source import DRIVER_SOURCE
+from softcurve.simulation.solvers._entries_source import ENTRIES_SOURCE
+from softcurve.simulation.solvers._groups_source import GROUPS_SOURCE
+from softcurve.simulation.solvers._lanes import lanes_derivative
+from softcurve.simulation.solvers._sensitivity_source import SENSITIVITY_SOURCE
+
+PLUGIN = "libcasadi_integrator_cvodes.so"
+"""CasADi's CVODES plugin, which holds SUNDIALS CVODES (the 2.x interface: ``CVSpgmr``)."""
+
+LIBRARY_SOURCE = DRIVER_SOURCE + GROUPS_SOURCE + ENTRIES_SOURCE + SENSITIVITY_SOURCE
+"""The C source of the driver's library, with every entry that :func:`driver` loads."""
+
+STATISTICS = ("steps", "rhs_evaluations", "jacobian_evaluations", "linear_solver_setups",
+              "error_test_failures", "newton_failures")  # fmt: skip
+"""The counters the driver returns per member, in its order."""
+
+FLAGS = {
+    -1: "CV_TOO_MUCH_WORK", -2: "CV_TOO_MUCH_ACC", -3: "CV_ERR_FAILURE",
+    -4: "CV_CONV_FAILURE", -5: "CV_LINIT_FAIL", -6: "CV_LSETUP_FAIL", -7: "CV_LSOLVE_FAIL",
+    -8: "CV_RHSFUNC_FAIL", -9: "CV_FIRST_RHSFUNC_ERR", -10: "CV_REPTD_RHSFUNC_ERR",
+    -11: "CV_UNREC_RHSFUNC_ERR", -20: "CV_MEM_FAIL", -22: "CV_ILL_INPUT",
+    -27: "CV_TOO_CLOSE", -100: "the solver could not be set up",
+}  # fmt: skip
+"""CVODES's return flags (SUNDIALS 2.x ``cvodes.h``) by value."""
+
+CHUNKS_PER_THREAD = 4
+"""Members of a batch are handed to the threads in this many chunks per thread, taken as
+threads finish: members differ in cost (a violent transient takes more steps)."""
+
+
+class _Function(ctypes.Structure):
+    _fields_ = [
+        ("f", ctypes.c_void_p),
+        ("force", ctypes.c_void_p),
+        ("nx", ctypes.c_int),
+        ("nu", ctypes.c_int),
+        ("np", ctypes.c_int),
+        ("m", ctypes.c_int),
+        ("lag", ctypes.c_int),
+        ("sz_arg", ctypes.c_longlong),
+        ("sz_res", ctypes.c_longlong),
+        ("sz_iw", ctypes.c_longlong),
+        ("sz_w", ctypes.c_longlong),
+        ("lower", ctypes.c_void_p),
+        ("upper", ctypes.c_void_p),
+        ("time_constant", ctypes.c_double),
+        ("lanes", ctypes.c_void_p),
+        ("width", ctypes.c_int),
+        ("sz_lanes_w", ctypes.c_longlong),
+    ]
+
+
+_DRIVER: list = []  # [the loaded driver or None], once per process
+_LOCK = threading.Lock()
+
+
+def driver():
+    """The driver's entry point ``softcurve_cvodes`` (ctypes), built and loaded once per
+    process; None where it cannot be (see the module notes) or inside :func:`casadi_only`."""
+    with _LOCK:
+        if not _DRIVER:
+            _DRIVER.append(_load())
+        return None if _BYPASS else _DRIVER[0]
+
+
+_BYPASS: list = []
+_LIBRARY: list = []  # the loaded driver library, once built
+
+
+def entry(name: str):
+    """The driver library's function ``name`` (after :func:`driver` succeeded).
+
+    Parameters
+    ----------
+    name : str
+        An exported function of the driver's C source.
+    """
+    return getattr(_LIBRARY[0], name)
+
+
+@contextlib.contextmanager
+def casadi_only():
+    """Within this context, new engines and batches use CasADi's integrator (the previous
+    route, for comparisons: ``benchmarks/bench_simulate.py``, the tests)."""
+    _BYPASS.append(True)
+    try:
+        yield
+    finally:
+        _BYPASS.pop()
+
+
+def _load():
+    if os.environ.get("SOFTCURVE_NATIVE_CVODES", "1") in ("0", ""):
+        return None
+    directory = Path(ca.__file__).parent
+    try:
+        if not hasattr(ctypes.CDLL(str(directory / PLUGIN)), "CVSpgmr"):  # SUNDIALS >= 3: other API
+            return None
+    except OSError:
+        return None
+    link = (f"-L{directory}", f"-l:{PLUGIN}", f"-Wl,-rpath,{directory}", "-pthread")
+    library = compile_source("cvodes_driver", LIBRARY_SOURCE, link)
+    if library is None:
+        return None
+    _LIBRARY.append(library)
+    evaluate_function = library.softcurve_rhs
+    evaluate_function.argtypes = [ctypes.POINTER(_Function), ctypes.c_int] + [ctypes.c_void_p] * 4
+    evaluate_function.restype = ctypes.c_int
+    function = library.softcurve_cvodes
+    pointer, integer, real = ctypes.c_void_p, ctypes.c_int, ctypes.c_double
+    function.argtypes = [
+        ctypes.POINTER(_Function), integer, pointer, pointer, real, pointer, pointer, pointer,
+        pointer, integer, real, pointer, integer, pointer, pointer, integer, real, real,
+        ctypes.c_long, integer, pointer, pointer, pointer, pointer, pointer,
+    ]  # fmt: skip
+    function.restype = ctypes.c_int
+    sensitivity = library.softcurve_sensitivities
+    sensitivity.argtypes = [
+        ctypes.POINTER(_Function), pointer, pointer, integer, integer, integer, integer,
+        pointer, pointer, pointer, integer, pointer, integer, integer, real, real,
+        ctypes.c_long, integer, pointer, pointer, pointer,
+    ]  # fmt: skip
+    sensitivity.restype = ctypes.c_int
+    library.softcurve_outside.argtypes = [pointer, integer, pointer, integer, real, pointer]
+    library.softcurve_outside.restype = None
+    return function
+
+
+class Problem:
+    """A model's right-hand side (and an actuator's force) described to the driver.
+
+    Parameters
+    ----------
+    rhs : NativeFunction
+        The model's compiled ``rhs(x, tau, p)``.
+    n_state, n, n_parameters : int
+        Sizes of ``x``, ``tau`` and ``p``.
+    force : NativeFunction, optional
+        ``H(q) v`` of an actuator, compiled.
+    inputs : ActuatorInput, optional
+        The actuator's input (bounds, lag), with ``force``.
+    lanes : LanesDerivative, optional
+        The same state derivative over lanes
+        (:func:`~softcurve.simulation.solvers._lanes.lanes_derivative`): members are then
+        integrated in groups of its width, ``self.width`` (else 1).
+    """
+
+    def __init__(self, rhs, n_state, n, n_parameters, force=None, inputs=None, lanes=None):
+        functions = [rhs] if force is None else [rhs, force]
+        self._keep = [*functions, lanes]  # the functions and bounds outlive the struct
+        self.width = 1 if lanes is None else lanes.width
+        lag = inputs is not None and inputs.time_constant is not None
+        self.bounds = (
+            (np.array(inputs.lower, dtype=np.float64), np.array(inputs.upper, dtype=np.float64))
+            if inputs is not None else (np.zeros(1), np.zeros(1))
+        )  # fmt: skip
+        self.struct = _Function(
+            ctypes.cast(rhs._function, ctypes.c_void_p).value,
+            None if force is None else ctypes.cast(force._function, ctypes.c_void_p).value,
+            n_state,
+            n,
+            n_parameters,
+            0 if inputs is None else inputs.n_inputs,
+            int(lag),
+            max(f._sz_arg for f in functions),
+            max(f._sz_res for f in functions),
+            max(f._sz_iw for f in functions),
+            max(f._sz_w for f in functions),
+            self.bounds[0].ctypes.data,
+            self.bounds[1].ctypes.data,
+            inputs.time_constant if lag else 1.0,
+            None if lanes is None else lanes.address,
+            self.width,
+            0 if lanes is None else lanes.work,
+        )
+
+
+def problem(model, inputs=None, lanes: bool = False) -> Problem | None:
+    """The :class:`Problem` of ``model`` driven by forces or by ``inputs`` (an
+    :class:`~softcurve.simulation.solvers.ActuatorInput`, whose force ``H(q) u`` is
+    compiled once per actuator and cached on disk), cached with the model; None where the
+    driver is not available.
+
+    Parameters
+    ----------
+    model : Model
+        The model.
+    inputs : ActuatorInput, optional
+        The actuator's input, or None for forces.
+    lanes : bool
+        Integrate members in groups on the state derivative over lanes (compiled at the
+        first such call); where it cannot be built, the problem integrates them alone.
+    """
+    if driver() is None or model._native is None or "rhs" not in model._native:
+        return None
+
+    def build():
+        force = None
+        if inputs is not None:
+            force = _compiled_force(inputs.force)
+            if force is None:
+                return None
+        rhs = model._native["rhs"]
+        vectors = lanes_derivative(model, inputs) if lanes else None
+        return Problem(rhs, model.n_state, model.n, model.parameters.size, force, inputs, vectors)
+
+    key = ("native problem", None if inputs is None else inputs.key, lanes)
+    return model.cached(key, build)
+
+
+def _compiled_force(force: ca.Function) -> NativeFunction | None:
+    """``force`` generated as C, compiled (cached on disk by its code) and loaded, or None."""
+    generator = ca.CodeGenerator("force.c", {"with_header": False})
+    generator.add(force)
+    library = compile_source("actuator_force", generator.dump())
+    return None if library is None else NativeFunction(library, force.name())
+
+
+def integrate(problem, lmm, x0, u, p, nominal, times, segments, tolerances, *, fastest=None,
+              settled_ratio=0.0, longest=None, threads=1, out=None) -> tuple:  # fmt: skip
+    """Integrate members from ``x0`` at ``times[0]`` over the output ``times``, restarting
+    CVODES at the end of every segment, with one constant input per member and segment;
+    in groups of ``problem.width`` consecutive members (:mod:`~.cvodes_groups`).
+
+    Parameters
+    ----------
+    problem : Problem
+        What to integrate.
+    lmm : array_like of int, shape (B,)
+        Family per member: 1 Adams, 2 BDF.
+    x0 : ndarray, shape (B, N)
+        Initial states (``N`` = n_state, plus the lagging inputs).
+    u : ndarray, shape (B, S, k)
+        Input per member and segment: forces [N, N m^2, N m^2] or the actuator's inputs
+        (commands).
+    p : ndarray, shape (B, n_p)
+        Parameter vector per member.
+    nominal : ndarray, shape (B, N)
+        State scales (> 0).
+    times : ndarray, shape (T,)
+        Output times [s], increasing; ``x0`` is at ``times[0]``.
+    segments : tuple
+        ``(ends (S,), restart (S,))``: the output index where each segment ends (the last
+        is ``T - 1``), and whether it begins a restart interval, where a member with
+        ``fastest`` switches to BDF once settled
+        (:data:`~softcurve.simulation.solvers.SETTLED_RATIO`) and back to its own family.
+    tolerances : tuple
+        ``(rtol, abstol of the scaled state, max_steps per output, max_order)``.
+    fastest : ndarray, shape (B,), optional
+        Fastest rate of each member's initial linearization [1/s] (0 or None: no switch).
+    settled_ratio : float
+        :data:`~softcurve.simulation.solvers.SETTLED_RATIO` (a ratio, dimensionless), with
+        ``fastest``.
+    longest : ndarray, shape (B, n_segments), optional
+        Longest length of each segment in the model's domain [m]: a member stops at its
+        first output outside the domain (None: no check).
+    threads : int
+        Threads over the members.
+    out : ndarray, shape (B, T, N), optional
+        Where to write the outputs (C-contiguous float64; row 0 of each member is set
+        to ``x0``): a caller's own array saves the copy of a long run's outputs (default:
+        a new array).
+
+    Returns
+    -------
+    tuple
+        ``(states (B, T, N), reached (B,), flags (B,), counts (B, 6), used_bdf (B,))``:
+        outputs, how many were computed (the first outside the domain included), the flag
+        (0: success, 1: outside the domain, else CVODES's, :data:`FLAGS`), the counters of
+        :data:`STATISTICS` and whether BDF was used.
+    """
+    count, width = x0.shape
+    if out is None:
+        out = np.zeros((count, times.size, width))
+    elif out.shape != (count, times.size, width) or not (
+        out.flags.c_contiguous and out.dtype == np.float64
+    ):
+        raise ValueError(f"out must be C-contiguous float64 of shape {(count, times.size, width)}")
+    out[:, 0] = x0
+    ends, restart = (np.ascontiguousarray(a, dtype=np.int32) for a in segments)
+    fastest = np.zeros(count) if fastest is None else fastest
+    arrays = [np.ascontiguousarray(a, dtype=np.float64) for a in (fastest, u, p, nominal)]
+    lmm = np.ascontiguousarray(lmm, dtype=np.int32)
+    if longest is not None:
+        longest = np.ascontiguousarray(longest, dtype=np.float64)
+    times = np.ascontiguousarray(times, dtype=np.float64)
+    reached, flags, used = (np.zeros(count, dtype=np.int32) for _ in range(3))
+    counts = np.zeros((count, len(STATISTICS)), dtype=np.int64)
+    call = driver()
+    rtol, abstol, max_steps, max_order = tolerances
+    n_seg = 0 if longest is None else longest.shape[1]
+
+    def run(a: int, b: int) -> None:
+        fast, uu, pp, nom = (arr[a:b].ctypes.data for arr in arrays)
+        call(ctypes.byref(problem.struct), b - a, lmm[a:].ctypes.data, fast, settled_ratio,
+             uu, pp, nom, None if longest is None else longest[a:].ctypes.data, n_seg,
+             MAX_BEND, times.ctypes.data, times.size, ends.ctypes.data, restart.ctypes.data,
+             ends.size, rtol, abstol, max_steps, max_order or 0, out[a:b].ctypes.data,
+             reached[a:].ctypes.data, flags[a:].ctypes.data, used[a:].ctypes.data,
+             counts[a:b].ctypes.data)  # fmt: skip
+
+    threads = max(1, min(threads, count))
+    if threads == 1:
+        run(0, count)
+    else:
+        # shares of whole groups: the grouping, hence every result, is that of one thread
+        units = -(-count // problem.width)
+        bounds = np.linspace(0, units, min(units, CHUNKS_PER_THREAD * threads) + 1).astype(int)
+        bounds = np.minimum(bounds * problem.width, count)
+        with ThreadPoolExecutor(threads) as pool:
+            list(pool.map(run, bounds[:-1], bounds[1:]))
+    return out, reached, flags, counts, used.astype(bool)
+
+
+def evaluate(problem, x, u, p) -> np.ndarray:
+    """The right-hand side at many states in one call: ``xdot`` (K, N) at states ``x``
+    (K, N) with inputs ``u`` (K, k) and the parameter vector ``p`` (n_p,).
+
+    Parameters
+    ----------
+    problem : Problem
+        What to evaluate.
+    x : ndarray, shape (K, N)
+        States.
+    u : ndarray, shape (K, k)
+        Inputs: forces [N, N m^2, N m^2] or the actuator's inputs.
+    p : ndarray, shape (n_p,)
+        Parameter vector.
+    """
+    x, u, p = (np.ascontiguousarray(a, dtype=np.float64) for a in (x, u, p))
+    out = np.empty_like(x)
+    function = entry("softcurve_rhs")
+    if function(ctypes.byref(problem.struct), x.shape[0], x.ctypes.data, u.ctypes.data,
+                p.ctypes.data, out.ctypes.data):  # fmt: skip
+        raise RuntimeError("the compiled right-hand side failed")
+    return out
+
+
+def outside(q, longest) -> np.ndarray:
+    """The driver's domain test of configurations ``q`` (K, 3 n_segments): whether each
+    lies outside the model's domain (the rule of
+    :func:`softcurve.description.robot.in_domain`), shape (K,), bool.
+
+    Parameters
+    ----------
+    q : ndarray, shape (K, 3 n_segments)
+        Configurations [m, 1/m, 1/m].
+    longest : ndarray, shape (n_segments,)
+        Longest length of each segment in the domain [m].
+    """
+    q, longest = (np.ascontiguousarray(a, dtype=np.float64) for a in (q, longest))
+    flags = np.zeros(q.shape[0], dtype=np.int32)
+    entry("softcurve_outside")(q.ctypes.data, q.shape[0], longest.ctypes.data, longest.size,
+                                MAX_BEND, flags.ctypes.data)  # fmt: skip
+    return flags.astype(bool)
+
+
+def reason(flag: int) -> str:
+    """CVODES's ``flag`` as the name :func:`~softcurve.simulation.solvers.cvodes_reason`
+    explains.
+
+    Parameters
+    ----------
+    flag : int
+        A negative return flag of CVODES.
+    """
+    return FLAGS.get(int(flag), f"CVODES flag {int(flag)}")

@@ -1,0 +1,352 @@
+"""The C source of softcurve's CVODES driver, compiled by :mod:`softcurve.simulation.solvers._driver`.
+
+Kept as a Python string so that it ships with the package like any module.
+"""
+
+DRIVER_SOURCE = r"""
+/* softcurve's driver of SUNDIALS CVODES: integrate members of a batch (or one run) on
+ * a CasADi-generated right-hand side f(x, u, p) -> xdot, all in C.
+ *
+ * CVODES is the copy inside CasADi (SUNDIALS 2.x interface, libcasadi_integrator_cvodes),
+ * declared here because CasADi ships no headers for it. The Newton systems are solved by
+ * CVSPGMR preconditioned with the exact LU factors of the Newton matrix I - gamma J, whose
+ * Jacobian J comes from forward differences of f; with the same J in the Jacobian-vector
+ * product, GMRES converges in one iteration, so this is a direct dense solve. CVODES says
+ * when J may be reused (jok): only then is it recomputed.
+ *
+ * The state is integrated scaled, xs = x / nominal, with one absolute tolerance.
+ */
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+typedef double realtype;
+typedef struct _generic_N_Vector *N_Vector;
+typedef int (*CVRhsFn)(realtype t, N_Vector y, N_Vector ydot, void *data);
+typedef int (*CVPrecSetupFn)(realtype t, N_Vector y, N_Vector fy, int jok, int *jcur,
+                             realtype gamma, void *data, N_Vector t1, N_Vector t2, N_Vector t3);
+typedef int (*CVPrecSolveFn)(realtype t, N_Vector y, N_Vector fy, N_Vector r, N_Vector z,
+                             realtype gamma, realtype delta, int lr, void *data, N_Vector tmp);
+typedef int (*CVJacTimesFn)(N_Vector v, N_Vector Jv, realtype t, N_Vector y, N_Vector fy,
+                            void *data, N_Vector tmp);
+typedef void (*CVErrHandlerFn)(int code, const char *module, const char *function, char *msg,
+                               void *data);
+
+extern N_Vector N_VNew_Serial(long int length);
+extern realtype *N_VGetArrayPointer(N_Vector v);
+extern void N_VDestroy(N_Vector v);
+extern void *CVodeCreate(int lmm, int iter);
+extern int CVodeInit(void *mem, CVRhsFn f, realtype t0, N_Vector y0);
+extern int CVodeReInit(void *mem, realtype t0, N_Vector y0);
+extern int CVodeSStolerances(void *mem, realtype rtol, realtype atol);
+extern int CVodeSetUserData(void *mem, void *data);
+extern int CVodeSetMaxNumSteps(void *mem, long int mxsteps);
+extern int CVodeSetMaxOrd(void *mem, int maxord);
+extern int CVodeSetStopTime(void *mem, realtype tstop);
+extern int CVodeGetDky(void *mem, realtype t, int k, N_Vector dky);
+extern int CVodeSetErrHandlerFn(void *mem, CVErrHandlerFn f, void *data);
+extern int CVode(void *mem, realtype tout, N_Vector yout, realtype *tret, int itask);
+extern int CVodeGetNumSteps(void *mem, long int *n);
+extern int CVodeGetNumRhsEvals(void *mem, long int *n);
+extern int CVodeGetNumLinSolvSetups(void *mem, long int *n);
+extern int CVodeGetNumErrTestFails(void *mem, long int *n);
+extern int CVodeGetNumNonlinSolvConvFails(void *mem, long int *n);
+extern void CVodeFree(void **mem);
+extern int CVSpgmr(void *mem, int pretype, int maxl);
+extern int CVSpilsSetPreconditioner(void *mem, CVPrecSetupFn setup, CVPrecSolveFn solve);
+extern int CVSpilsSetJacTimesVecFn(void *mem, CVJacTimesFn jtimes);
+
+#define CV_ADAMS 1
+#define CV_BDF 2
+#define CV_NEWTON 2
+#define CV_NORMAL 1
+#define CV_ONE_STEP 2
+#define CV_TOO_MUCH_WORK -1
+#define PREC_LEFT 1
+#define GMRES_DIMENSION 2 /* one iteration converges (exact preconditioner); one spare */
+#define STATS 6
+
+typedef int (*casadi_fn)(const double **arg, double **res, long long *iw, double *w, int mem);
+
+/* What the Python side passes: the model's generated right-hand side f(x, tau, p) (nx
+ * states, nu forces, np parameters) with its work sizes (the largest over f and force), and
+ * optionally an actuator's force(q, v) -> tau = H(q) v with m inputs: the member's input is
+ * then v (m) or, with lag, the command of v, whose m states follow x with the rate
+ * (clip(command, lower, upper) - v) / time_constant. */
+typedef int (*lanes_fn)(const double *x, const double *u, const double *p, double *xdot,
+                        double *w);
+
+/* ... and optionally the same state derivative (force and lag included) over `width`
+ * members at once (softcurve.simulation.solvers._lanes): x, u, p and xdot hold entry j of
+ * member l at [j width + l], aligned to 64 bytes; w has sz_lanes_w such rows. */
+typedef struct {
+    casadi_fn f, force;
+    int nx, nu, np, m, lag;
+    long long sz_arg, sz_res, sz_iw, sz_w;
+    const double *lower, *upper;
+    double time_constant;
+    lanes_fn lanes;
+    int width;
+    long long sz_lanes_w;
+} sc_function;
+
+/* The arrays of one call of a generated function: arguments, results, integer and real
+ * work. */
+typedef struct {
+    const double **arg;
+    double **res;
+    long long *iw;
+    double *w;
+} sc_arrays;
+
+/* The arrays for a function of work sizes sz_arg, sz_res, sz_iw, sz_w (at least the
+ * three arguments and one result every function here takes), with `extra` doubles after
+ * w's own, from w + sz_w + 1; 0, or 1 when out of memory (arrays_close frees what was
+ * allocated). */
+static int arrays_open(sc_arrays *c, long long sz_arg, long long sz_res, long long sz_iw,
+                     long long sz_w, long extra) {
+    c->arg = (const double **)calloc(sz_arg > 3 ? sz_arg : 3, sizeof(double *));
+    c->res = (double **)calloc(sz_res > 1 ? sz_res : 1, sizeof(double *));
+    c->iw = (long long *)calloc(sz_iw + 1, sizeof(long long));
+    c->w = (double *)calloc(sz_w + 1 + extra, sizeof(double));
+    return !c->arg || !c->res || !c->iw || !c->w;
+}
+
+static void arrays_close(sc_arrays *c) {
+    free(c->arg);
+    free(c->res);
+    free(c->iw);
+    free(c->w);
+}
+
+typedef struct {
+    const sc_function *fn;
+    const double *u, *p, *nominal;
+    sc_arrays c;
+    double *x, *xdot, *tau, *J, *LU, *ftmp;
+    int n; /* states integrated: nx, plus m lagging inputs */
+    int *piv;
+    long jacobians;
+} sc_work;
+
+/* Work arrays of f for n states (x, xdot, tau, ftmp, J and LU in one block after f's own
+ * work); 0, or 1 when out of memory (work_close frees what was allocated). */
+static int work_open(sc_work *s, const sc_function *fn, int n) {
+    memset(s, 0, sizeof(*s));
+    s->fn = fn;
+    s->n = n;
+    s->piv = (int *)calloc(n, sizeof(int));
+    if (arrays_open(&s->c, fn->sz_arg, fn->sz_res, fn->sz_iw, fn->sz_w,
+                  4 * n + fn->nx + 2 * n * n) || !s->piv)
+        return 1;
+    s->x = s->c.w + fn->sz_w + 1;
+    s->xdot = s->x + n;
+    s->tau = s->xdot + n;
+    s->ftmp = s->tau + fn->nx;
+    s->J = s->ftmp + n;
+    s->LU = s->J + n * n;
+    return 0;
+}
+
+static void work_close(sc_work *s) {
+    arrays_close(&s->c);
+    free(s->piv);
+}
+
+/* CVODES's counters since its last (re)start: steps, right-hand sides, linear-solver
+ * setups, error-test failures, Newton failures. */
+static void read_counters(void *mem, long counters[5]) {
+    CVodeGetNumSteps(mem, &counters[0]);
+    CVodeGetNumRhsEvals(mem, &counters[1]);
+    CVodeGetNumLinSolvSetups(mem, &counters[2]);
+    CVodeGetNumErrTestFails(mem, &counters[3]);
+    CVodeGetNumNonlinSolvConvFails(mem, &counters[4]);
+}
+
+static void quiet(int code, const char *module, const char *function, char *msg, void *data) {
+    (void)code; (void)module; (void)function; (void)msg; (void)data;
+}
+
+/* ydot = f(nominal * y, u, p) / nominal; 1 (recoverable) on a non-finite value */
+static int evaluate(sc_work *s, const double *y, double *ydot) {
+    const sc_function *fn = s->fn;
+    int i, n = s->n;
+    for (i = 0; i < n; ++i) s->x[i] = s->nominal[i] * y[i];
+    s->c.arg[1] = s->u;
+    if (fn->force != NULL) {
+        s->c.arg[0] = s->x;
+        s->c.arg[1] = fn->lag ? s->x + fn->nx : s->u;
+        s->c.res[0] = s->tau;
+        if (fn->force(s->c.arg, s->c.res, s->c.iw, s->c.w, 0)) return -1;
+        s->c.arg[1] = s->tau;
+    }
+    s->c.arg[0] = s->x;
+    s->c.arg[2] = s->p;
+    s->c.res[0] = s->xdot;
+    if (fn->f(s->c.arg, s->c.res, s->c.iw, s->c.w, 0)) return -1;
+    for (i = 0; fn->lag && i < fn->m; ++i) {
+        double command = s->u[i] < fn->lower[i] ? fn->lower[i] : s->u[i];
+        command = command > fn->upper[i] ? fn->upper[i] : command;
+        s->xdot[fn->nx + i] = (command - s->x[fn->nx + i]) / fn->time_constant;
+    }
+    for (i = 0; i < n; ++i) ydot[i] = s->xdot[i] / s->nominal[i];
+    for (i = 0; i < n; ++i)
+        if (!isfinite(ydot[i])) return 1;
+    return 0;
+}
+
+static int rhs(realtype t, N_Vector y, N_Vector ydot, void *data) {
+    (void)t;
+    return evaluate((sc_work *)data, N_VGetArrayPointer(y), N_VGetArrayPointer(ydot));
+}
+
+/* Forward-difference step of a state entry's value v: the square root of the machine
+ * epsilon, relative where |v| > 1. */
+static double difference_step(double v) {
+    return 1.4901161193847656e-08 * (fabs(v) > 1.0 ? fabs(v) : 1.0);
+}
+
+/* A = I - gamma J (n x n, column-major) as its LU factors (partial pivoting, row swaps in
+ * piv); 1 where singular. */
+static int factor_newton(const double *J, double gamma, int n, double *A, int *piv) {
+    int i, j, k;
+    for (k = 0; k < n * n; ++k) A[k] = -gamma * J[k];
+    for (i = 0; i < n; ++i) A[i + i * n] += 1.0;
+    for (k = 0; k < n; ++k) {
+        int p = k;
+        double big = fabs(A[k + k * n]);
+        for (i = k + 1; i < n; ++i)
+            if (fabs(A[i + k * n]) > big) big = fabs(A[i + k * n]), p = i;
+        if (big == 0.0) return 1;
+        piv[k] = p;
+        if (p != k)
+            for (j = 0; j < n; ++j) {
+                double a = A[k + j * n];
+                A[k + j * n] = A[p + j * n];
+                A[p + j * n] = a;
+            }
+        for (i = k + 1; i < n; ++i) A[i + k * n] /= A[k + k * n];
+        for (j = k + 1; j < n; ++j)
+            for (i = k + 1; i < n; ++i) A[i + j * n] -= A[i + k * n] * A[k + j * n];
+    }
+    return 0;
+}
+
+/* z = A^-1 z with the factors of factor_newton: the row swaps, then L, then U. */
+static void solve_newton(const double *A, const int *piv, int n, double *z) {
+    int i, k;
+    for (k = 0; k < n; ++k)
+        if (piv[k] != k) {
+            double a = z[k];
+            z[k] = z[piv[k]];
+            z[piv[k]] = a;
+        }
+    for (k = 0; k < n; ++k)
+        for (i = k + 1; i < n; ++i) z[i] -= A[i + k * n] * z[k];
+    for (k = n - 1; k >= 0; --k) {
+        z[k] /= A[k + k * n];
+        for (i = 0; i < k; ++i) z[i] -= A[i + k * n] * z[k];
+    }
+}
+
+/* Jv = J v (n x n, column-major). */
+static void times_jacobian(const double *J, const double *v, int n, double *Jv) {
+    int i, j;
+    for (i = 0; i < n; ++i) Jv[i] = 0.0;
+    for (j = 0; j < n; ++j)
+        for (i = 0; i < n; ++i) Jv[i] += J[i + j * n] * v[j];
+}
+
+/* Forward-difference Jacobian (column-major) when CVODES asks for a fresh one, then the LU
+ * factors of I - gamma J. (Offering the previous segment's J after a restart instead saved
+ * 9 of the paper case's 24 Jacobians but doubled the steps of the actuated case with lag,
+ * 2,461 -> 5,555: CVODES takes the Jacobian of a first step for current and keeps it for
+ * up to 50 steps.) */
+static int setup(realtype t, N_Vector yv, N_Vector fyv, int jok, int *jcur, realtype gamma,
+                 void *data, N_Vector t1, N_Vector t2, N_Vector t3) {
+    sc_work *s = (sc_work *)data;
+    int n = s->n, i, j, flag;
+    double *y = N_VGetArrayPointer(yv), *fy = N_VGetArrayPointer(fyv);
+    (void)t; (void)t1; (void)t2; (void)t3;
+    if (!jok) {
+        for (j = 0; j < n; ++j) {
+            double saved = y[j], step = difference_step(saved);
+            y[j] = saved + step;
+            flag = evaluate(s, y, s->ftmp);
+            y[j] = saved;
+            if (flag) return flag;
+            for (i = 0; i < n; ++i) s->J[i + j * n] = (s->ftmp[i] - fy[i]) / step;
+        }
+        s->jacobians++;
+        *jcur = 1;
+    } else {
+        *jcur = 0;
+    }
+    return factor_newton(s->J, gamma, n, s->LU, s->piv);
+}
+
+static int solve(realtype t, N_Vector yv, N_Vector fyv, N_Vector rv, N_Vector zv, realtype gamma,
+                 realtype delta, int lr, void *data, N_Vector tmp) {
+    sc_work *s = (sc_work *)data;
+    double *r = N_VGetArrayPointer(rv), *z = N_VGetArrayPointer(zv);
+    (void)t; (void)yv; (void)fyv; (void)gamma; (void)delta; (void)lr; (void)tmp;
+    if (z != r) memcpy(z, r, s->n * sizeof(double));
+    solve_newton(s->LU, s->piv, s->n, z);
+    return 0;
+}
+
+static int jtimes(N_Vector vv, N_Vector Jvv, realtype t, N_Vector y, N_Vector fy, void *data,
+                  N_Vector tmp) {
+    sc_work *s = (sc_work *)data;
+    (void)t; (void)y; (void)fy; (void)tmp;
+    times_jacobian(s->J, N_VGetArrayPointer(vv), s->n, N_VGetArrayPointer(Jvv));
+    return 0;
+}
+
+/* CVODES with Newton's method on a Newton matrix of callbacks (setup, solve, jtimes) for
+ * x' = f; max_order 0: CVODES's own. */
+static void *create_with(int lmm, double t0, N_Vector y, CVRhsFn f, CVPrecSetupFn setup_fn,
+                         CVPrecSolveFn solve_fn, CVJacTimesFn jtimes_fn, void *data,
+                         double rtol, double atol, long max_steps, int max_order) {
+    void *mem = CVodeCreate(lmm, CV_NEWTON);
+    if (mem == NULL) return NULL;
+    if (CVodeInit(mem, f, t0, y) || CVodeSStolerances(mem, rtol, atol) ||
+        CVodeSetUserData(mem, data) || CVodeSetMaxNumSteps(mem, max_steps) ||
+        CVodeSetErrHandlerFn(mem, quiet, NULL) || CVSpgmr(mem, PREC_LEFT, GMRES_DIMENSION) ||
+        CVSpilsSetPreconditioner(mem, setup_fn, solve_fn) ||
+        CVSpilsSetJacTimesVecFn(mem, jtimes_fn) ||
+        (max_order > 0 && CVodeSetMaxOrd(mem, lmm == CV_BDF && max_order > 5 ? 5 : max_order))) {
+        CVodeFree(&mem);
+        return NULL;
+    }
+    return mem;
+}
+
+/* The same on the callbacks above (f's data starts with the sc_work they read). */
+static void *create(int lmm, double t0, N_Vector y, CVRhsFn f, void *data, double rtol,
+                    double atol, long max_steps, int max_order) {
+    return create_with(lmm, t0, y, f, setup, solve, jtimes, data, rtol, atol, max_steps,
+                       max_order);
+}
+
+/* Whether the configuration q (n_seg segments of (l, kx, ky)) lies outside the model's
+ * domain: l in (0, longest], bending angle l |kappa| <= max_bend, finite (the rule of
+ * softcurve.description.robot.in_domain, which words the message). */
+static int outside(const double *x, int width, const double *longest, int n_seg,
+                   double max_bend) {
+    int i;
+    for (i = 0; i < width; ++i)
+        if (!isfinite(x[i])) return 1;
+    /* Squared, not hypot, at every output (hypot was a fifth of an output's cost); within
+     * rounding of the bound, Python's own test (l hypot(kx, ky) <= max_bend), so that
+     * both always agree. A square that overflows is outside, as it should be. */
+    for (i = 0; longest != NULL && i < n_seg; ++i) {
+        double l = x[3 * i], kx = x[3 * i + 1], ky = x[3 * i + 2];
+        double bend2 = l * l * (kx * kx + ky * ky), bound2 = max_bend * max_bend;
+        int inside = fabs(bend2 - bound2) > 1e-12 * bound2 ? bend2 < bound2
+                                                           : l * hypot(kx, ky) <= max_bend;
+        if (!(l > 0.0 && l <= longest[i] && inside)) return 1;
+    }
+    return 0;
+}
+"""

@@ -1,0 +1,75 @@
+"""SciPy's RK45 as an engine of :func:`~softcurve.simulation.simulate`: the
+integrator's question (:mod:`softcurve.simulation.solvers._cvodes`) answered by stepping
+SciPy's explicit Runge-Kutta 4(5) from Python, with the step budget and the domain stop
+of CVODES's C driver."""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.integrate import RK45
+
+from softcurve.description.robot import in_domain
+from softcurve.simulation.solvers._cvodes import _Engine
+from softcurve.simulation.solvers._policy import LEFT_DOMAIN, TOO_MUCH_WORK, IntegrationFailure
+
+
+class ScipyEngine(_Engine):
+    """SciPy's explicit Runge-Kutta 4(5) (Dormand-Prince, like MATLAB's ode45), stepped
+    from Python over the model's compiled right-hand side."""
+
+    name = "rk45"
+    method = "rk45"
+
+    def __init__(self, model, rtol, atol, max_steps, inputs=None):
+        self.model = model
+        self.inputs = inputs
+        self.rtol = rtol
+        self.atol = atol
+        self.max_steps = int(max_steps)
+        self.counts = {"steps": 0, "rhs_evaluations": 0, "jacobian_evaluations": 0}
+
+    def _constant(self, x, h, tout, tau) -> np.ndarray:
+        out = np.empty((tout.size, x.size))
+        if self.inputs is None:
+            rhs = self.model.rhs(tau)
+        else:
+            rhs = lambda t, y: self.inputs.state_derivative(self.model, y, tau)  # noqa: E731
+        # RK45 keeps references to earlier derivatives: give it arrays of its own
+        self._run(lambda t, y: np.array(rhs(t, y)), x, 0.0, h * tout, out)
+        return out
+
+    def _run(self, f, x, t0, times, out) -> np.ndarray:
+        """Step RK45 from ``x`` at ``t0`` through ``times``, filling ``out``; at most
+        ``max_steps`` steps between two outputs (the step that passes an output counts
+        for its interval, as in CVODES's C driver), and a stop at the first output
+        outside the model's domain (the C driver's rule): outside it the motion can need
+        steps a million times shorter, and the run would go on for hours."""
+        solver = RK45(f, t0, x, times[-1], rtol=self.rtol, atol=self.atol)
+        n, rest_lengths = self.model.n, self.model.robot.rest_lengths
+        i, taken = 0, 0
+        while i < times.size and solver.status == "running":
+            if taken == self.max_steps:
+                self.counts["rhs_evaluations"] += solver.nfev
+                raise IntegrationFailure(
+                    f"RK45: {TOO_MUCH_WORK}: {self.max_steps} steps reached t = "
+                    f"{solver.t:.6g} s, short of the output at {times[i]:.6g} s",
+                    out[:i].copy(),
+                )
+            message = solver.step()
+            self.counts["steps"] += 1
+            taken += 1
+            if solver.status == "failed" or not np.all(np.isfinite(solver.y)):
+                self.counts["rhs_evaluations"] += solver.nfev
+                reason = f"RK45: {message or 'non-finite state'} at t = {solver.t:.6g} s"
+                raise IntegrationFailure(reason, out[:i].copy())
+            if solver.t >= times[i]:
+                dense = solver.dense_output()
+                while i < times.size and solver.t >= times[i]:
+                    out[i] = solver.y if times[i] == solver.t else dense(times[i])
+                    i += 1
+                    if not in_domain(out[i - 1, :n], rest_lengths):
+                        self.counts["rhs_evaluations"] += solver.nfev
+                        raise IntegrationFailure(LEFT_DOMAIN, out[:i].copy())
+                taken = 0
+        self.counts["rhs_evaluations"] += solver.nfev
+        return out[-1].copy()
