@@ -131,11 +131,11 @@ def test_evaluations_along_a_trajectory_are_short_calls(compiled, monkeypatch):
     """A Ctrl-C is seen between two compiled calls: the tip of a long trajectory is
     computed in calls of at most POINTS_PER_CALL points, not in one (a minute for 1e7
     points), with the same values."""
-    from softcurve.compiled import _functions as functions
+    from softcurve.compiled import _model as functions
 
     q = np.c_[np.linspace(0.05, 0.08, 2500), np.linspace(-30, 30, 2500), np.zeros(2500)]
     widths = []
-    real = functions.CompiledFunctions.cached
+    real = functions.Model.cached
 
     def counting(self, key, build):
         value = real(self, key, build)
@@ -149,7 +149,7 @@ def test_evaluations_along_a_trajectory_are_short_calls(compiled, monkeypatch):
             return function, call
         return value
 
-    monkeypatch.setattr(functions.CompiledFunctions, "cached", counting)
+    monkeypatch.setattr(functions.Model, "cached", counting)
     rotation, tip = compiled.evaluate_along("pose", q, 1.0)
     assert len(widths) >= 3 and max(widths) <= functions.POINTS_PER_CALL
     assert tip.shape == (2500, 3) and rotation.shape == (2500, 9)

@@ -116,7 +116,7 @@ _SYMBOLIC_SOURCES = (
     "symbolic/kinematics.py",
     "symbolic/dynamics.py",
     "symbolic/functions.py",
-    "compiled/build.py",
+    "compiled/_build.py",
 )
 """The sources the generated code depends on, relative to the package folder."""
 
