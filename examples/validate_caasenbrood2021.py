@@ -30,7 +30,7 @@ import numpy as np
 
 import softcurve as sc
 from softcurve.base.status import Status
-from softcurve.identification.dynamic import (
+from softcurve.identification.fits import (
     fit_equilibria,
     fit_trajectory,
     predict_equilibria,
@@ -43,8 +43,8 @@ from softcurve.identification.maps import (
     constant_input_map,
     curvatures,
 )
-from softcurve.identification.parameters import Free, tanh_parameters
-from softcurve.identification.stiffness import fit_stiffness
+from softcurve.identification.fits import Free, tanh_parameters
+from softcurve.identification.fits import fit_stiffness
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt

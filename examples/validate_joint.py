@@ -29,10 +29,10 @@ import numpy as np
 import scipy.optimize
 
 import softcurve as sc
-from softcurve.description.pneumatic import PneumaticActuator
-from softcurve.identification.dynamic import fit_trajectory, predict_trajectory
+from softcurve.description.bellows import PneumaticActuator
+from softcurve.identification.fits import fit_trajectory, predict_trajectory
 from softcurve.identification.maps import InputMap, bending_angle
-from softcurve.identification.parameters import Free
+from softcurve.identification.fits import Free
 
 HERE = Path(__file__).resolve().parent
 _spec = importlib.util.spec_from_file_location("vc", HERE / "validate_caasenbrood2021.py")
