@@ -5,6 +5,8 @@ tips of a batch's members after one step."""
 
 from __future__ import annotations
 
+import textwrap
+
 import numpy as np
 
 from softcurve.base.docs import parameters_from
@@ -22,6 +24,8 @@ RANGE_STYLE = {"color": "0.6", "lw": 6.0, "alpha": 0.5}
 """The admissible range of an input: a thick grey bar from its lower to its upper bound."""
 STABLE_SHADE = {"color": "tab:green", "alpha": 0.08}
 """The stable half-plane ``Re(s) < 0`` of the eigenvalue figure."""
+TITLE_WIDTH = 60
+"""Characters per line of a title made of a result's message, wrapped to fit a panel."""
 MARGIN = 0.15
 """The eigenvalue figure's limits reach this fraction of the eigenvalues' spread beyond
 them, so the points sit inside the frame."""
@@ -131,7 +135,7 @@ def plot_input_bounds(inputs, actuator, ax=None, *, saturated=None, title: str |
     ax.grid(True, axis="y", alpha=0.3)
     ax.legend(fontsize="small")
     if title:
-        ax.set_title(title)
+        ax.set_title(_wrapped(title), fontsize="small")
     return figure
 
 
@@ -247,8 +251,8 @@ def plot_eigenvalues(linearization, ax=None):
         ylim=(im.min() - MARGIN * spread, im.max() + MARGIN * spread),
         xlabel="real part Re(s) [1/s]",
         ylabel="imaginary part Im(s) [rad/s]",
-        title=linearization.message,
     )
+    ax.set_title(_wrapped(linearization.message), fontsize="small")
     ax.grid(True, alpha=0.3)
     ax.legend(fontsize="small", loc="upper left")
     return figure
@@ -278,5 +282,9 @@ def plot_member_tips(step, ax=None):
         )
     finish_views(views)
     views[0].legend(fontsize="small")
-    views[0].set_title(f"side view: {step.message}", fontsize="small")
+    views[0].set_title(_wrapped(f"side view: {step.message}"), fontsize="small")
     return figure
+
+
+def _wrapped(text: str) -> str:
+    return "\n".join(textwrap.wrap(text, TITLE_WIDTH))
