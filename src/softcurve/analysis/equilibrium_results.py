@@ -9,7 +9,7 @@ import numpy as np
 
 from softcurve.analysis.loads import StaticLoad
 from softcurve.base.status import Result, Status
-from softcurve.figures import plot_equilibria
+from softcurve.figures import plot_configuration, plot_equilibria, result_figure_options
 from softcurve.figures.viewer import equilibria_viewer, viewer_options
 
 STABILITY_KINDS = ("stable", "unstable", "saddle", "degenerate")
@@ -88,6 +88,32 @@ class Equilibrium(Result):
         return equilibria_viewer(
             [self], path, model, actuator=actuator, obstacles=obstacles, rings=rings
         )
+
+    @result_figure_options
+    def plot(self, ax=None, *, model, actuator=None, inputs=None):
+        """The backbone at the equilibrium from the side (x-z) and from above (x-y), its
+        tip marked, titled by its stability; with the actuator's inputs, a third panel of
+        them against their bounds.
+
+        Parameters
+        ----------
+        ax : None or sequence of matplotlib.axes.Axes, shape (2,) or (3,)
+            Panels for the side view, the top view and, with ``inputs``, the inputs;
+            None draws a new figure.
+        %(model)s
+        actuator : Actuator, optional
+            The actuator the equilibrium was found with; given with ``inputs``.
+        inputs : array_like, shape (m,), optional
+            Its inputs there [the actuator's ``input_unit``].
+
+        Returns
+        -------
+        matplotlib.figure.Figure
+            Write it with :func:`softcurve.figures.save_figure`.
+        """
+        kind = f"{self.stability} equilibrium" + (" (ring)" if self.continuum else "")
+        title = kind if self.success else f"{kind}, {self.status.value}"
+        return plot_configuration(model, self.q, ax, actuator=actuator, inputs=inputs, title=title)
 
 
 @dataclass(frozen=True, eq=False)

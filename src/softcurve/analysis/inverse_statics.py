@@ -22,6 +22,7 @@ from softcurve.analysis.statics import default_bounds, equilibrium
 from softcurve.base.status import Result, Status
 from softcurve.base.validation import ParameterError, real_array, real_scalar
 from softcurve.description.actuator import Actuator
+from softcurve.figures import plot_configuration, result_figure_options
 
 IPOPT_SOLVED = ("Solve_Succeeded", "Solved_To_Acceptable_Level")
 IPOPT_ITERATION_LIMIT = "Maximum_Iterations_Exceeded"
@@ -74,6 +75,37 @@ class InverseStatics(Result):
     total: float
     status: Status
     message: str
+
+    @result_figure_options
+    def plot(self, ax=None, *, model, actuator=None):
+        """The backbone at the equilibrium reached, from the side (x-z) and from above
+        (x-y), with its tip and the target marked; with the actuator, a third panel of the
+        inputs against their bounds, those at a bound crossed.
+
+        Parameters
+        ----------
+        ax : None or sequence of matplotlib.axes.Axes, shape (2,) or (3,)
+            Panels for the side view, the top view and, with ``actuator``, the inputs;
+            None draws a new figure.
+        %(model)s
+        actuator : Actuator, optional
+            The actuator whose inputs were chosen.
+
+        Returns
+        -------
+        matplotlib.figure.Figure
+            Write it with :func:`softcurve.figures.save_figure`.
+        """
+        return plot_configuration(
+            model,
+            self.q,
+            ax,
+            marks={"target": self.target},
+            actuator=actuator,
+            inputs=None if actuator is None else self.inputs,
+            saturated=self.saturated,
+            title=f"tip {1e3 * self.distance:.3g} mm from the target ({self.status.value})",
+        )
 
 
 REDUNDANCY_RULES = ("minimum_total", "none")

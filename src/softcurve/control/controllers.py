@@ -39,6 +39,7 @@ from softcurve.base.status import Result, Status
 from softcurve.base.validation import ParameterError, real_array, real_scalar
 from softcurve.control.references import Reference
 from softcurve.description.actuator import Actuator
+from softcurve.figures import plot_input_bounds
 
 
 # -- controllers ------------------------------------------------------------------------
@@ -190,6 +191,26 @@ class Allocation(Result):
     residual: float
     status: Status
     message: str
+
+    def plot(self, ax=None, *, actuator):
+        """The allocated inputs against the actuator's bounds, those at a bound crossed,
+        titled by the residual.
+
+        Parameters
+        ----------
+        ax : None or matplotlib.axes.Axes, shape (1,)
+            Where to draw; None draws a new figure.
+        actuator : Actuator
+            The actuator allocated for (its bounds, input name and unit).
+
+        Returns
+        -------
+        matplotlib.figure.Figure
+            Write it with :func:`softcurve.figures.save_figure`.
+        """
+        return plot_input_bounds(
+            self.inputs, actuator, ax, saturated=self.saturated, title=self.message
+        )
 
 
 class InputAllocator:

@@ -12,6 +12,13 @@ from softcurve.figures.actuation import plot_backbones, plot_inputs
 from softcurve.figures.drawing import save_figure
 from softcurve.figures.fits import plot_fit
 from softcurve.figures.obstacles import draw_obstacles, plot_contact_forces
+from softcurve.figures.shapes import (
+    plot_configuration,
+    plot_eigenvalues,
+    plot_input_bounds,
+    plot_member_tips,
+    result_figure_options,
+)
 from softcurve.figures.statics import plot_equilibria, plot_input_sweep
 from softcurve.figures.sweeps import plot_sweep
 from softcurve.figures.trajectories import animate, plot_batch_tips, plot_states, plot_tip
@@ -21,13 +28,18 @@ __all__ = [
     "draw_obstacles",
     "plot_backbones",
     "plot_batch_tips",
+    "plot_configuration",
     "plot_contact_forces",
+    "plot_eigenvalues",
     "plot_equilibria",
     "plot_fit",
+    "plot_input_bounds",
     "plot_input_sweep",
     "plot_inputs",
+    "plot_member_tips",
     "plot_states",
     "plot_sweep",
     "plot_tip",
+    "result_figure_options",
     "save_figure",
 ]

@@ -7,7 +7,7 @@ import numpy as np
 
 from softcurve.base.validation import ParameterError, real_array
 from softcurve.figures.drawing import backbones, panels, whole_number
-from softcurve.figures.statics import DISPLAY_UNITS
+from softcurve.figures.shapes import draw_views, finish_views, input_label
 
 MM_PER_M = 1e3
 BOUND_STYLE = {"color": "0.35", "lw": 0.9, "ls": "--"}
@@ -50,7 +50,7 @@ def plot_inputs(trajectory, actuator, ax=None, *, labels=None):
     labels = [str(i + 1) for i in range(m)] if labels is None else [str(a) for a in labels]
     if len(labels) != m:
         raise ParameterError(f"labels must name the {m} inputs, got {len(labels)}")
-    unit, factor = DISPLAY_UNITS.get(actuator.input_unit, (actuator.input_unit, 1.0))
+    label, factor = input_label(actuator)
     figure, (ax,) = panels(ax, 1, "the inputs figure", figsize=(7.0, 3.8))
     for i in range(m):
         ax.plot(trajectory.t, factor * inputs[:, i], lw=1.0, label=labels[i])
@@ -58,7 +58,7 @@ def plot_inputs(trajectory, actuator, ax=None, *, labels=None):
     for k, value in enumerate(bounds):
         ax.axhline(factor * value, **BOUND_STYLE, label="bounds" if k == 0 else None)
     ax.set_xlabel("time t [s]")
-    ax.set_ylabel(f"{actuator.input_name} [{unit}]" if unit else actuator.input_name)
+    ax.set_ylabel(label)
     ax.legend(
         title=actuator.input_name,
         fontsize="small",
@@ -105,24 +105,16 @@ def plot_backbones(trajectory, times, ax=None, *, model=None, path=None, points:
         raise ParameterError("the trajectory has no samples: nothing to draw")
     index = np.abs(trajectory.t[None, :] - times[:, None]).argmin(axis=1)
     shapes = backbones(model, trajectory.q[index], points) * MM_PER_M
-    figure, (side, top) = panels(ax, 2, "the backbones figure", rows=1, figsize=(9.0, 4.2))
+    figure, views = panels(ax, 2, "the backbones figure", rows=1, figsize=(9.0, 4.2))
     colors = _colors(len(index))
     if path is not None:
         path = real_array("path", path, (np.asarray(path).shape[0], 3)) * MM_PER_M
-        side.plot(path[:, 0], path[:, 2], "k--", lw=0.9, label="reference path")
-        top.plot(path[:, 0], path[:, 1], "k--", lw=0.9, label="reference path")
+        draw_views(views, path, "k--", lw=0.9, label="reference path")
     for shape, k, color in zip(shapes, index, colors, strict=True):
-        label = f"t = {trajectory.t[k]:.2f} s"
-        side.plot(shape[:, 0], shape[:, 2], color=color, lw=2.0, label=label)
-        side.plot(shape[-1, 0], shape[-1, 2], "o", color=color, ms=4)
-        top.plot(shape[:, 0], shape[:, 1], color=color, lw=2.0)
-        top.plot(shape[-1, 0], shape[-1, 1], "o", color=color, ms=4)
-    side.set(xlabel="x [mm]", ylabel="z [mm]", title="side view")
-    top.set(xlabel="x [mm]", ylabel="y [mm]", title="top view")
-    for view in (side, top):
-        view.set_aspect("equal", adjustable="datalim")  # true shapes, panels filled
-        view.grid(True, alpha=0.3)
-    side.legend(fontsize="small", loc="lower right")
+        draw_views(views, shape, color=color, lw=2.0, label=f"t = {trajectory.t[k]:.2f} s")
+        draw_views(views, shape[-1:], "o", color=color, ms=4)
+    finish_views(views)
+    views[0].legend(fontsize="small", loc="lower right")
     return figure
 
 

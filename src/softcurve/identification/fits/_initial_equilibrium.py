@@ -22,6 +22,7 @@ from softcurve.base.status import Result, Status
 from softcurve.base.validation import ParameterError, real_array
 from softcurve.compiled import Model
 from softcurve.description.actuator import Actuator
+from softcurve.figures import plot_configuration, result_figure_options
 from softcurve.identification.experiments import Experiment, check_units
 from softcurve.identification.fits._equilibria import EQUILIBRIUM_TOLERANCE, MAX_EVALUATIONS
 from softcurve.identification.maps import InputMap, actuator_input_map
@@ -58,6 +59,32 @@ class InitialState(Result):
     time: float
     status: Status
     message: str
+
+    @result_figure_options
+    def plot(self, ax=None, *, model, measured=None):
+        """The backbone of the initial state, from the side (x-z) and from above (x-y),
+        its tip marked, and the point measured at that sample where one is given.
+
+        Parameters
+        ----------
+        ax : None or sequence of matplotlib.axes.Axes, shape (2,)
+            Panels for the side and the top view; None draws a new figure.
+        %(model)s
+        measured : array_like, shape (3,), optional
+            A world point measured at the sample (e.g. the tip from a tracker) [m].
+
+        Returns
+        -------
+        matplotlib.figure.Figure
+            Write it with :func:`softcurve.figures.save_figure`.
+        """
+        return plot_configuration(
+            model,
+            self.q,
+            ax,
+            marks=None if measured is None else {"measured": measured},
+            title=f"initial state at t = {self.time:g} s ({self.status.value})",
+        )
 
 
 def initial_equilibrium(

@@ -22,6 +22,7 @@ from softcurve.base.status import Result, Status
 from softcurve.base.validation import ParameterError, real_scalar, whole_count
 from softcurve.compiled import Model
 from softcurve.description.actuator import Actuator
+from softcurve.figures import plot_member_tips
 from softcurve.simulation._simulate import initial_state as checked_state
 from softcurve.simulation.solvers import ActuatorInput, BufferedCall, domain_reason, outside_domain
 from softcurve.simulation.stepper._lanes import LanesMembers, lanes_period
@@ -88,6 +89,22 @@ class StepResult(Result):
         if failed.size:
             text += f"; member {failed[0]}: {self.reasons[failed[0]]}"
         return text
+
+    def plot(self, ax=None):
+        """The tip of every member at the end of the period, from the side (x-z) and from
+        above (x-y), the members that failed crossed in red.
+
+        Parameters
+        ----------
+        ax : None or sequence of matplotlib.axes.Axes, shape (2,)
+            Panels for the side and the top view; None draws a new figure.
+
+        Returns
+        -------
+        matplotlib.figure.Figure
+            Write it with :func:`softcurve.figures.save_figure`.
+        """
+        return plot_member_tips(self, ax)
 
 
 class Stepper:
