@@ -16,7 +16,7 @@ from softcurve.simulation.solvers._policy import nominal_scale
 from .conftest import compiler_refusing
 
 pytestmark = pytest.mark.skipif(
-    sc.simulation.native.driver() is None, reason="softcurve's C driver is not available"
+    sc.simulation.solvers.driver() is None, reason="softcurve's C driver is not available"
 )
 
 
