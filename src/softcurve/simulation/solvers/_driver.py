@@ -82,7 +82,7 @@ class _Function(ctypes.Structure):
     ]
 
 
-_DRIVER: list = []  # [the loaded driver or None], once per process
+_DRIVER: list = []  # [the loaded driver, or why not (str)], once per process
 _LOCK = threading.Lock()
 
 
@@ -92,7 +92,24 @@ def driver():
     with _LOCK:
         if not _DRIVER:
             _DRIVER.append(_load())
-        return None if _BYPASS else _DRIVER[0]
+        return None if _BYPASS or isinstance(_DRIVER[0], str) else _DRIVER[0]
+
+
+def unavailable() -> str | None:
+    """Why :func:`driver` is None, in a phrase (None where the driver is loaded): inside
+    :func:`casadi_only`, ``SOFTCURVE_NATIVE_CVODES=0``, CasADi's plugin without the
+    SUNDIALS 2.x interface, or a build that failed (the reason :func:`_load` returned)."""
+    loaded = driver()
+    if loaded is not None:
+        return None
+    return CASADI_ONLY if _BYPASS else _DRIVER[0]
+
+
+CASADI_ONLY = "casadi_only() was asked"
+"""Why the driver is unused inside :func:`casadi_only`."""
+
+SWITCHED_OFF = "SOFTCURVE_NATIVE_CVODES=0 is set"
+"""Why the driver is unused under ``SOFTCURVE_NATIVE_CVODES=0``."""
 
 
 _BYPASS: list = []
@@ -122,18 +139,19 @@ def casadi_only():
 
 
 def _load():
+    """The loaded entry point, or why it cannot be loaded (a str)."""
     if os.environ.get("SOFTCURVE_NATIVE_CVODES", "1") in ("0", ""):
-        return None
+        return SWITCHED_OFF
     directory = Path(ca.__file__).parent
     try:
         if not hasattr(ctypes.CDLL(str(directory / PLUGIN)), "CVSpgmr"):  # SUNDIALS >= 3: other API
-            return None
-    except OSError:
-        return None
+            return f"CasADi's {PLUGIN} lacks the SUNDIALS 2.x interface (CVSpgmr)"
+    except OSError as exc:
+        return f"CasADi's {PLUGIN} cannot be loaded ({exc})"
     link = (f"-L{directory}", f"-l:{PLUGIN}", f"-Wl,-rpath,{directory}", "-pthread")
     library = compile_source("cvodes_driver", LIBRARY_SOURCE, link)
     if library is None:
-        return None
+        return "the driver's C source did not compile (no C compiler, or the build failed)"
     _LIBRARY.append(library)
     evaluate_function = library.softcurve_rhs
     evaluate_function.argtypes = [ctypes.POINTER(_Function), ctypes.c_int] + [ctypes.c_void_p] * 4

@@ -79,6 +79,37 @@ def nominal_scale(model, x0: np.ndarray) -> np.ndarray:
     return np.maximum(np.abs(x0), floor)
 
 
+def lag_scale(inputs) -> np.ndarray:
+    """The scale of lagging inputs (m,): the larger bound of each, ``max(|lower|, |upper|)``
+    (in the inputs' unit).
+
+    Parameters
+    ----------
+    inputs : ActuatorInput or Actuator
+        What has the bounds ``lower`` and ``upper`` (m,).
+    """
+    return np.maximum(np.abs(inputs.lower), np.abs(inputs.upper))
+
+
+def state_scale(model, x0: np.ndarray, inputs=None) -> np.ndarray:
+    """The one state scale of an integration (N,): :func:`nominal_scale` of ``(q, qd, lam)``
+    and, where the actuator's inputs lag their commands, :func:`lag_scale` of them.
+
+    Parameters
+    ----------
+    model : Model
+        A model (only its robot is read).
+    x0 : ndarray, shape (n_state,)
+        The initial state ``(q, qd, lam)``.
+    inputs : ActuatorInput, optional
+        The actuator's input (None: forces, no extra states).
+    """
+    nominal = nominal_scale(model, x0[: model.n_state])
+    if inputs is None or not inputs.n_states:
+        return nominal
+    return np.concatenate([nominal, lag_scale(inputs)])
+
+
 def _state_floor(robot) -> np.ndarray:
     """The floors of :func:`nominal_scale` (n_state,), read-only: they depend on the robot
     alone, so a model computes them once."""
