@@ -98,6 +98,7 @@ from softcurve.scenarios.sweep_config import SweepConfig, load_sweep
 from softcurve.simulation import (
     BatchTrajectory,
     ContactHistory,
+    RouteWarning,
     SimulationSettings,
     State,
     Trajectory,
@@ -159,6 +160,7 @@ __all__ = [
     "ContactHistory",
     "BatchTrajectory",
     "load_trajectory",
+    "RouteWarning",
     # control
     "SampledController",
     "ComputedTorque",

@@ -10,7 +10,7 @@ import io
 import numpy as np
 
 from softcurve.base.status import Status
-from softcurve.compiled import LANE_WIDTH, Model
+from softcurve.compiled import Model
 from softcurve.description.robot import MAX_STRETCH
 from softcurve.simulation.solvers import (
     MAX_ORDER,
@@ -24,7 +24,6 @@ from softcurve.simulation.solvers import (
     difference_points,
     domain_reason,
     driver_integrate,
-    driver_problem,
     driver_reason,
     failure_message,
     failure_status,
@@ -198,18 +197,11 @@ class MemberRun:
         self.messages[b] = failure_message(reason, self.grid, k, f"cvodes-{multistep}")
 
 
-COMPILED_ACTUATORS = 8
-"""Largest number of distinct actuators (parameter vectors) in a batch integrated by the C
-driver: each needs its ``H(q) u`` compiled once (about 0.3 s, then cached on disk); a
-batch with more uses CasADi's integrator, which needs no compilation."""
-
-
-def integrate_native(run: MemberRun, initial, fastest, lanes=False) -> np.ndarray | None:
+def integrate_native(run: MemberRun, initial, fastest, problems) -> np.ndarray:
     """The whole batch of ``run`` with CVODES's C driver (:mod:`softcurve.simulation.solvers._driver`):
     one call per group of members that share an actuator, every restart segment inside it,
     members on ``run.threads`` threads. Fills ``run.states`` and the failures as
-    :meth:`MemberRun.integrate` does; returns which members used BDF, or None (nothing
-    done) where the driver is not available.
+    :meth:`MemberRun.integrate` does; returns which members used BDF.
 
     Parameters
     ----------
@@ -220,21 +212,12 @@ def integrate_native(run: MemberRun, initial, fastest, lanes=False) -> np.ndarra
     fastest : ndarray, shape (B,) or None
         Fastest rate of each member's initial linearization [1/s]: members that start with
         Adams switch to BDF at a restart once settled (None: no switch).
-    lanes : bool
-        Integrate consecutive members in groups on the state derivative over lanes
-        (:mod:`softcurve.simulation.solvers._groups_source`), where the batch fills one.
+    problems : list
+        The driver's problem of each actuator group (the ``built`` of its route,
+        :func:`~softcurve.simulation.solvers.choose_route`): with lanes, consecutive
+        members are integrated in groups on the state derivative over lanes
+        (:mod:`softcurve.simulation.solvers._groups_source`).
     """
-    groups = [None] if run.drives is None else list(run.drives.inputs)
-    if len(groups) > COMPILED_ACTUATORS:
-        return None
-    sizes = [run.states.shape[0]] if run.drives is None else np.bincount(
-        run.drives.group, minlength=len(groups))  # fmt: skip
-    problems = [
-        driver_problem(run.model, drive, lanes and size >= LANE_WIDTH)
-        for drive, size in zip(groups, sizes, strict=True)
-    ]
-    if any(problem is None for problem in problems):
-        return None
     grid, states = run.grid, run.states
     segments = restart_segments(grid)
     ends = [k1 for _, k1 in segments]
