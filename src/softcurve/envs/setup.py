@@ -16,8 +16,8 @@ from pathlib import Path
 
 import numpy as np
 
-from softcurve.base.docs import parameters_from
 from softcurve.analysis.loads import rest_configuration
+from softcurve.base.docs import parameters_from
 from softcurve.base.validation import ParameterError, real_scalar, whole_count
 from softcurve.compiled import Model
 from softcurve.description import presets

@@ -66,24 +66,24 @@ import time
 
 import numpy as np
 
+from softcurve.base.progress import ProgressLine
 from softcurve.base.status import Status
 from softcurve.base.validation import ParameterError, float_array, real_array, real_scalar
 from softcurve.compiled import Model
 from softcurve.description.actuator import Actuator
 from softcurve.simulation._settings import SimulationSettings, settings_with
 from softcurve.simulation.results import Trajectory
-from softcurve.base.progress import ProgressLine
 from softcurve.simulation.solvers import (
     ActuatorInput,
     Domain,
     Problem,
     Stopped,
     actuator_exit,
+    choose_route,
     failure_message,
     failure_status,
-    linearization_rates,
-    choose_route,
     lag_scale,
+    linearization_rates,
     multistep_family,
     run_on_grid,
     run_sampled,

@@ -311,8 +311,15 @@ def _routes(model, method, drives, sizes, lanes) -> list:
     ``sizes`` members each (:func:`~softcurve.simulation.solvers.choose_route`)."""
     kinds = [None] if drives is None else list(drives.inputs)
     return [
-        choose_route("batch", method, model=model, inputs=inputs, members=size, lanes=lanes,
-                     actuators=len(kinds))  # fmt: skip
+        choose_route(
+            "batch",
+            method,
+            model=model,
+            inputs=inputs,
+            members=size,
+            lanes=lanes,
+            actuators=len(kinds),
+        )
         for inputs, size in zip(kinds, sizes, strict=True)
     ]
 

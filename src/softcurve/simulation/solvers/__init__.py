@@ -2,8 +2,8 @@
 
 One problem (:class:`Problem`: the model's state derivative with an actuator's force and
 lag, state scales, the domain), one solver interface (:class:`Solver`, :data:`METHODS`),
-the route chosen in one function (:func:`choose_route`, :data:`ROUTES`), the method policy (Adams or BDF, the settled switch, restarts, failure
-advice), CasADi's CVODES, SciPy's RK45, and softcurve's CVODES driver in C (``c/``).
+the route chosen in one function (:func:`choose_route`, :data:`ROUTES`), the method policy
+(Adams or BDF, the settled switch, restarts, failure advice), CasADi's CVODES, SciPy's RK45, and softcurve's CVODES driver in C (``c/``).
 """
 
 from softcurve.simulation.solvers._actuated import actuated_derivative as actuated_derivative
@@ -40,14 +40,14 @@ from softcurve.simulation.solvers._policy import difference_eigenvalues as diffe
 from softcurve.simulation.solvers._policy import difference_points as difference_points
 from softcurve.simulation.solvers._policy import failure_message as failure_message
 from softcurve.simulation.solvers._policy import failure_status as failure_status
+from softcurve.simulation.solvers._policy import lag_scale as lag_scale
 from softcurve.simulation.solvers._policy import linear_rates as linear_rates
 from softcurve.simulation.solvers._policy import linearization_rates as linearization_rates
 from softcurve.simulation.solvers._policy import multistep_family as multistep_family
-from softcurve.simulation.solvers._policy import lag_scale as lag_scale
 from softcurve.simulation.solvers._policy import nominal_scale as nominal_scale
-from softcurve.simulation.solvers._policy import state_scale as state_scale
 from softcurve.simulation.solvers._policy import restart_segments as restart_segments
 from softcurve.simulation.solvers._policy import settled as settled
+from softcurve.simulation.solvers._policy import state_scale as state_scale
 from softcurve.simulation.solvers._policy import success_message as success_message
 from softcurve.simulation.solvers._problem import METHODS as METHODS
 from softcurve.simulation.solvers._problem import Problem as Problem

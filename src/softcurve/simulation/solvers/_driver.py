@@ -22,12 +22,12 @@ import contextlib
 import ctypes
 import os
 import threading
-from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import casadi as ca
 import numpy as np
 
+from softcurve.base.shares import run_shares, share_bounds
 from softcurve.compiled import NativeFunction, compile_source
 from softcurve.description.robot import MAX_BEND
 from softcurve.simulation.solvers._driver_source import DRIVER_SOURCE
@@ -350,15 +350,9 @@ def integrate(problem, lmm, x0, u, p, nominal, times, segments, tolerances, *, f
              counts[a:b].ctypes.data)  # fmt: skip
 
     threads = max(1, min(threads, count))
-    if threads == 1:
-        run(0, count)
-    else:
-        # shares of whole groups: the grouping, hence every result, is that of one thread
-        units = -(-count // problem.width)
-        bounds = np.linspace(0, units, min(units, CHUNKS_PER_THREAD * threads) + 1).astype(int)
-        bounds = np.minimum(bounds * problem.width, count)
-        with ThreadPoolExecutor(threads) as pool:
-            list(pool.map(run, bounds[:-1], bounds[1:]))
+    # shares of whole groups: the grouping, hence every result, is that of one thread
+    shares = 1 if threads == 1 else CHUNKS_PER_THREAD * threads
+    run_shares(run, share_bounds(count, shares, problem.width), threads)
     return out, reached, flags, counts, used.astype(bool)
 
 

@@ -35,8 +35,7 @@ ROUTES = {
     "stepper-threads": "the stepper's compiled period called per member through ctypes, "
     "shares of members on threads",
     "stepper-casadi": "the stepper's period in CasADi, mapped over the members",
-    "mixed": "a batch whose members took different routes (each member's in "
-    'stats["routes"])',
+    "mixed": 'a batch whose members took different routes (each member\'s in stats["routes"])',
 }
 """Every route name a result can carry in ``stats["route"]``, with what runs."""
 
