@@ -199,8 +199,9 @@ class MemberRun:
 
 def integrate_native(run: MemberRun, initial, fastest, problems) -> np.ndarray:
     """The whole batch of ``run`` with CVODES's C driver
-    (:mod:`softcurve.simulation.solvers._driver`): one call per group of members that share an actuator, every restart segment inside it,
-    members on ``run.threads`` threads. Fills ``run.states`` and the failures as
+    (:mod:`softcurve.simulation.solvers._driver`): one call per group of members that
+    share an actuator, every restart segment inside it, members on ``run.threads``
+    threads. Fills ``run.states`` and the failures as
     :meth:`MemberRun.integrate` does; returns which members used BDF.
 
     Parameters

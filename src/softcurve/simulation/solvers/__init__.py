@@ -3,7 +3,8 @@
 One problem (:class:`Problem`: the model's state derivative with an actuator's force and
 lag, state scales, the domain), one solver interface (:class:`Solver`, :data:`METHODS`),
 the route chosen in one function (:func:`choose_route`, :data:`ROUTES`), the method policy
-(Adams or BDF, the settled switch, restarts, failure advice), CasADi's CVODES, SciPy's RK45, and softcurve's CVODES driver in C (``c/``).
+(Adams or BDF, the settled switch, restarts, failure advice), CasADi's CVODES, SciPy's
+RK45, and softcurve's CVODES driver in C (``c/``).
 """
 
 from softcurve.simulation.solvers._actuated import actuated_derivative as actuated_derivative
