@@ -194,8 +194,9 @@ class BufferedCall:
             return failure, self.buffer.stats()
 
 
-class _Engine:
-    """Shared by the engines: split the input into runs where it is constant, because an
+class PiecewiseSolver:
+    """The ``advance`` of every :class:`~softcurve.simulation.solvers.Solver`, written
+    once: split the input into runs where it is constant, because an
     error-controlled integrator must not step across a jump of the input."""
 
     def advance(self, x, h, tout, taus) -> np.ndarray:
@@ -220,7 +221,7 @@ class _Engine:
         return out
 
 
-class CvodesEngine(_Engine):
+class CvodesEngine(PiecewiseSolver):
     """SUNDIALS CVODES (variable order, variable step) with ``multistep`` = "adams" or "bdf".
 
     Parameters
