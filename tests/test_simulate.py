@@ -10,11 +10,11 @@ from scipy.integrate import cumulative_simpson
 
 import softcurve as sc
 from softcurve.analysis.statics import equilibrium
+from softcurve.base.progress import ProgressLine
 from softcurve.base.status import Status
 from softcurve.simulation._settings import SimulationSettings
 from softcurve.simulation.solvers import _driver as native
 from softcurve.simulation.solvers import _policy as _engines
-from softcurve.base.progress import ProgressLine
 from softcurve.simulation.solvers._grid import _input_changes
 from softcurve.simulation.solvers._policy import STIFFNESS_RATIO, linearization_rates, nominal_scale
 
