@@ -260,6 +260,7 @@ class CvodesEngine(PiecewiseSolver):
         self.families = [multistep]
         self.use(multistep)
         self.native = native
+        self.route = "casadi-cvodes" if native is None else "driver"
         self.counts = dict.fromkeys(c_driver.STATISTICS, 0)
 
     def use(self, multistep: str) -> None:

@@ -178,7 +178,7 @@ def run_on_grid(engine, grid, states, inputs, bar, domain, fastest=None, constan
         of the input to look for.
     """
     segments = restart_segments(grid, RESTART_INTERVAL)
-    on_driver = getattr(engine, "native", None) is not None
+    on_driver = engine.route == "driver"
     if on_driver:
         changes = np.empty(0, dtype=int) if constant else _input_changes(inputs)
         if bar is None:

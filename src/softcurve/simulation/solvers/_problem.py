@@ -56,6 +56,8 @@ class Solver(Protocol):
 
     name: str
     """The algorithm's family: "cvodes" or "rk45"."""
+    route: str
+    """The route it runs (a key of :data:`~softcurve.simulation.solvers.ROUTES`)."""
     counts: dict
     """Counters of the work done (steps, right-hand sides, ...)."""
 

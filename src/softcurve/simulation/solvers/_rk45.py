@@ -19,6 +19,7 @@ class ScipyEngine(PiecewiseSolver):
 
     name = "rk45"
     method = "rk45"
+    route = "rk45"
 
     def __init__(self, model, rtol, atol, max_steps, inputs=None):
         self.model = model
