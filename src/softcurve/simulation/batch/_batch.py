@@ -32,7 +32,7 @@ from softcurve.description.actuator import Actuator
 from softcurve.description.robot import Robot, domain_problem, in_domain
 from softcurve.simulation._settings import SimulationSettings, settings_with
 from softcurve.simulation.batch._inputs import Drives, drive_arrays, member_rows
-from softcurve.simulation.batch._members import MemberRun, integrate_native, member_rates
+from softcurve.simulation.batch._members import MemberRun, integrate_native
 from softcurve.simulation.batch._workers import (
     default_threads,
     model_description,
@@ -46,6 +46,7 @@ from softcurve.simulation.solvers import (
     blocks,
     choose_route,
     chunks,
+    linearization_rates,
     multistep_family,
     nominal_scale,
     restart_segments,
@@ -239,8 +240,8 @@ def _integrate(model, x0, arrays, scales, abstol, settings, how, drives) -> Batc
     else:  # the force at the start chooses the family, as in simulate()
         u, tau = arrays["inputs"], drives.initial_forces(x0[:, : model.n], x0, arrays["inputs"])
     if method == "cvodes":
-        rates = member_rates(model, x0[:, :n_state], tau, params, nominal[:, :n_state], threads)
-        ratios, fastest = rates
+        state, scale = x0[:, :n_state], nominal[:, :n_state]
+        ratios, fastest = linearization_rates(model, state, tau, scale, params, threads)
         initial = multistep_family(ratios, model.environment is not None)
     else:
         initial, fastest = np.full(size, method), None

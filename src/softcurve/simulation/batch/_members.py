@@ -20,45 +20,15 @@ from softcurve.simulation.solvers import (
     cvodes_integrator,
     cvodes_options,
     cvodes_reason,
-    difference_eigenvalues,
-    difference_points,
     domain_reason,
     driver_integrate,
     driver_reason,
     failure_message,
     failure_status,
-    linear_rates,
     mapped,
     outside_domain,
     restart_segments,
-    rhs_along,
 )
-
-
-def member_rates(model, x0, tau, parameters, nominal, threads) -> tuple:
-    """:func:`~softcurve.simulation.solvers.linear_rates` of every member at once: the
-    central-difference linearization of the right-hand side at the initial states ``x0``
-    (B, n_state) under ``tau`` (B, n), all points in one compiled map.
-
-    Parameters
-    ----------
-    model : Model
-        The compiled model.
-    x0 : ndarray, shape (B, n_state)
-        Initial states.
-    tau : ndarray, shape (B, n)
-        Input forces [N, N m^2, N m^2].
-    parameters : ndarray, shape (B, n_p)
-        Parameter vector per member.
-    nominal : ndarray, shape (B, n_state)
-        State scales.
-    threads : int
-        Threads of the compiled map.
-    """
-    points, steps = difference_points(x0, nominal)  # (B, 2 n_state, n_state), (B, n_state)
-    taus = np.broadcast_to(tau[:, None, :], (*points.shape[:2], model.n))
-    values = rhs_along(model, points, taus, parameters, threads)
-    return linear_rates(difference_eigenvalues(values, steps))
 
 
 class MemberRun:
