@@ -3,10 +3,18 @@ contiguous shares (:func:`share_bounds`), each share one call of the serial algo
 (:func:`run_shares`), on threads. The calls are foreign calls into compiled code that
 release the GIL (ctypes), so threads run them at the same time.
 
-Worker processes are the one other way, for CasADi's integrator, which reads the process
-CPU clock around every evaluation (threads of one process contend for it):
-:func:`softcurve.simulation.batch.run_in_processes` keeps spawned workers between calls and
-pickles each share's arguments, which a thread needs neither of.
+The other ways, each where a loop of shares around the serial algorithm does not fit:
+
+- worker processes, for CasADi's integrator, which reads the process CPU clock around
+  every evaluation (threads of one process contend for it):
+  :func:`softcurve.simulation.batch.run_in_processes` keeps spawned workers between calls
+  and pickles each share's arguments, which a thread needs neither of;
+- the sensitivities' helper thread, inside the C driver: it evaluates the second part of
+  one right-hand side while the driver evaluates the first, within one integration,
+  so there are no members to share out
+  (:mod:`softcurve.simulation.sensitivity._split`);
+- CasADi's map over threads, for CasADi Functions evaluated inside CasADi
+  (:func:`softcurve.simulation.solvers.mapped`).
 """
 
 from __future__ import annotations
