@@ -98,7 +98,6 @@ from softcurve.scenarios.sweep_config import SweepConfig, load_sweep
 from softcurve.simulation import (
     BatchTrajectory,
     ContactHistory,
-    RouteWarning,
     SimulationSettings,
     State,
     Trajectory,
@@ -106,6 +105,7 @@ from softcurve.simulation import (
     simulate,
     simulate_batch,
 )
+from softcurve.simulation.solvers import RouteWarning
 
 __all__ = [
     # description

@@ -12,7 +12,7 @@ The other ways, each where a loop of shares around the serial algorithm does not
 - the sensitivities' helper thread, inside the C driver: it evaluates the second part of
   one right-hand side while the driver evaluates the first, within one integration,
   so there are no members to share out
-  (:mod:`softcurve.simulation.sensitivity._split`);
+  (the sensitivities' split in two parts);
 - CasADi's map over threads, for CasADi Functions evaluated inside CasADi
   (:func:`softcurve.simulation.solvers.mapped`).
 """

@@ -19,8 +19,6 @@ from softcurve.simulation.results import ContactHistory as ContactHistory
 from softcurve.simulation.results import Trajectory as Trajectory
 from softcurve.simulation.results import load_trajectory as load_trajectory
 from softcurve.simulation.sensitivity import trajectory_sensitivities as trajectory_sensitivities
-from softcurve.simulation.solvers import ROUTES as ROUTES
-from softcurve.simulation.solvers import RouteWarning as RouteWarning
 from softcurve.simulation.solvers import State as State
 from softcurve.simulation.stepper import Stepper as Stepper
 
@@ -36,8 +34,6 @@ __all__ = [
     "Trajectory",
     "load_trajectory",
     "trajectory_sensitivities",
-    "ROUTES",
-    "RouteWarning",
     "State",
     "Stepper",
 ]

@@ -57,7 +57,7 @@ class Solver(Protocol):
     name: str
     """The algorithm's family: "cvodes" or "rk45"."""
     route: str
-    """The route it runs (a key of :data:`~softcurve.simulation.solvers.ROUTES`)."""
+    """The route it runs (a key of ``ROUTES`` of :mod:`softcurve.simulation.solvers`)."""
     counts: dict
     """Counters of the work done (steps, right-hand sides, ...)."""
 

@@ -230,7 +230,7 @@ class Stepper:
     # -- properties ---------------------------------------------------------------
     @property
     def route(self) -> Route:
-        """The route that steps the members (:data:`~softcurve.simulation.solvers.ROUTES`:
+        """The route that steps the members (``ROUTES`` of :mod:`softcurve.simulation.solvers`:
         "stepper-lanes", "stepper-threads" or "stepper-casadi"), with its reason."""
         return self._route
 
