@@ -61,6 +61,8 @@ def test_a_batch_names_its_route_and_each_members(paper_model):
     assert grouped.stats["routes"] == ["driver-lanes"] * 5
     assert alone.stats["route"] == "driver" and alone.stats["routes"] == ["driver"] * 5
     assert mapped.stats["route"] == "casadi-cvodes"
+    assert grouped.member(3).stats["route"] == "driver-lanes"
+    assert alone.member(3).stats["route"] == "driver"
     # a batch too small for a group of lanes takes the driver member by member
     small = sc.simulate_batch(paper_model, q0[:2], QD0, t_final=0.1, dt=0.01, threads=1)
     assert small.stats["route"] == "driver"
