@@ -120,6 +120,19 @@ def test_the_progress_bar_changes_neither_route_nor_trajectory(paper_model, only
         assert _exact(getattr(shown, name), getattr(quiet, name)), name
 
 
+def test_the_progress_bar_keeps_the_restarts_at_changes_of_the_input(paper_model, capsys):
+    """A force that steps inside a restart segment: the driver restarts there, with the bar
+    as without."""
+    tau = np.zeros((251, 3))
+    tau[101:, 0] = -0.5
+    quiet = sc.simulate(paper_model, Q0, QD0, tau=tau, t_final=2.5, dt=0.01)
+    shown = sc.simulate(paper_model, Q0, QD0, tau=tau, t_final=2.5, dt=0.01, progress=True)
+    capsys.readouterr()
+    assert shown.stats["route"] == quiet.stats["route"]
+    assert shown.stats["steps"] == quiet.stats["steps"]
+    assert _exact(shown.x, quiet.x)
+
+
 def _run_without_compiler(paper_model, tmp_path, **env) -> dict:
     """Two runs in a new process whose cache holds the session's model library but not
     the driver's, and whose C compiler does not exist: the driver's build fails there."""
