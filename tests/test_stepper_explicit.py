@@ -13,10 +13,10 @@ import softcurve as sc
 from softcurve.base.validation import ParameterError
 from softcurve.compiled.generated import compile_function
 from softcurve.compiled.native import NativeFunction
+from softcurve.compiled.source import load_function
 from softcurve.simulation.stepper import Stepper
 from softcurve.simulation.stepper_lanes import LanesMembers
 from softcurve.simulation.stepper_methods import DEFAULT_EXPLICIT_STEP, RK4
-from softcurve.simulation.stepper_native import load_native
 from softcurve.simulation.stepper_observe import observer
 from softcurve.simulation.stepper_stability import EXPLICIT_MARGIN, fastest_rate_at_rest
 
@@ -103,7 +103,7 @@ def test_the_rows_call_equals_one_member_calls(paper_model, rng):
     """A compiled library's rows call (in place, no copies; the scalar periods' threads
     where the lanes cannot be built) equals its one-member call, and refuses arrays of
     the wrong layout. On the observation, a small function."""
-    native = compile_function(observer(paper_model, True), load=load_native)
+    native = compile_function(observer(paper_model, True), load=load_function)
     if not isinstance(native, NativeFunction):
         pytest.skip("no working C compiler")
     x = np.zeros((5, paper_model.n_state))

@@ -1,5 +1,6 @@
-"""CVODES driven from C: softcurve's own driver (:mod:`softcurve.simulation.cvodes_driver`)
-of the SUNDIALS CVODES that ships inside CasADi, on the model's compiled right-hand side.
+"""CVODES driven from C: softcurve's own driver (the C files of
+``softcurve/simulation/solvers/c``, declared to Python by ``softcurve_driver.h``) of the
+SUNDIALS CVODES that ships inside CasADi, on the model's compiled right-hand side.
 
 Why not CasADi's ``integrator``: on the paper's 10 s case it spends more time around the
 right-hand side than in it (``docs/performance.md``): every evaluation goes through
@@ -11,9 +12,12 @@ allows (``jok``), factors the Newton matrix itself and integrates every member o
 in one call, on threads that do not contend.
 
 :func:`problem` describes a model (and optionally an actuator's force) to the driver;
-:func:`integrate` runs it. Both return None / are unused where the driver cannot be built
-(no C compiler, an uncompiled model, a CasADi whose SUNDIALS has another interface) or
-``SOFTCURVE_NATIVE_CVODES=0`` is set: the engines then use CasADi's integrator.
+:func:`integrate` runs it, with the settings of :func:`options`, the one place that fills
+the header's ``sc_options``. The ctypes declarations (:data:`DECLARATIONS`) are read from
+the header, not kept by hand. Both return None / are unused where the driver cannot be
+built (no C compiler, an uncompiled model, a CasADi outside :data:`CASADI_VERIFIED` or
+whose SUNDIALS has another interface) or ``SOFTCURVE_NATIVE_CVODES=0`` is set: the
+engines then use CasADi's integrator.
 """
 
 from __future__ import annotations
@@ -21,6 +25,7 @@ from __future__ import annotations
 import contextlib
 import ctypes
 import os
+import re
 import threading
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
@@ -28,20 +33,36 @@ from pathlib import Path
 import casadi as ca
 import numpy as np
 
+import softcurve.simulation
+from softcurve.compiled.declarations import read_header
 from softcurve.compiled.native import NativeFunction
-from softcurve.compiled.source import compile_source
+from softcurve.compiled.source import compile_files, compile_source, load_library
 from softcurve.description.robot import MAX_BEND
-from softcurve.simulation.cvodes_driver import DRIVER_SOURCE
-from softcurve.simulation.cvodes_groups import GROUPS_SOURCE
-from softcurve.simulation.driver_entries import ENTRIES_SOURCE
 from softcurve.simulation.driver_lanes import lanes_derivative
-from softcurve.simulation.sensitivity_driver import SENSITIVITY_SOURCE
 
 PLUGIN = "libcasadi_integrator_cvodes.so"
 """CasADi's CVODES plugin, which holds SUNDIALS CVODES (the 2.x interface: ``CVSpgmr``)."""
 
-LIBRARY_SOURCE = DRIVER_SOURCE + GROUPS_SOURCE + ENTRIES_SOURCE + SENSITIVITY_SOURCE
-"""The C source of the driver's library, with every entry that :func:`driver` loads."""
+C_FOLDER = Path(softcurve.simulation.__file__).parent / "solvers" / "c"
+"""The driver's C files (package data): every ``.c`` there is compiled into its library."""
+
+HEADER = C_FOLDER / "softcurve_driver.h"
+"""The header that declares the driver's structs and exported functions."""
+
+DECLARATIONS = read_header(HEADER)
+"""The ctypes declarations of :data:`HEADER`
+(:class:`~softcurve.compiled.declarations.Declarations`)."""
+
+Function = DECLARATIONS.structs["sc_function"]
+"""The header's ``sc_function``: a model described to the driver."""
+
+Options = DECLARATIONS.structs["sc_options"]
+"""The header's ``sc_options``: the settings of a call (:func:`options`)."""
+
+CASADI_VERIFIED = ">=3.8,<3.9"
+"""The CasADi versions whose private CVODES plugin the driver was verified with (the
+requirement of ``pyproject.toml``, which a test checks equal): the driver declares the
+plugin's SUNDIALS by hand (``sundials2.h``) and refuses to load with another CasADi."""
 
 STATISTICS = ("steps", "rhs_evaluations", "jacobian_evaluations", "linear_solver_setups",
               "error_test_failures", "newton_failures")  # fmt: skip
@@ -61,43 +82,86 @@ CHUNKS_PER_THREAD = 4
 threads finish: members differ in cost (a violent transient takes more steps)."""
 
 
-class _Function(ctypes.Structure):
-    _fields_ = [
-        ("f", ctypes.c_void_p),
-        ("force", ctypes.c_void_p),
-        ("nx", ctypes.c_int),
-        ("nu", ctypes.c_int),
-        ("np", ctypes.c_int),
-        ("m", ctypes.c_int),
-        ("lag", ctypes.c_int),
-        ("sz_arg", ctypes.c_longlong),
-        ("sz_res", ctypes.c_longlong),
-        ("sz_iw", ctypes.c_longlong),
-        ("sz_w", ctypes.c_longlong),
-        ("lower", ctypes.c_void_p),
-        ("upper", ctypes.c_void_p),
-        ("time_constant", ctypes.c_double),
-        ("lanes", ctypes.c_void_p),
-        ("width", ctypes.c_int),
-        ("sz_lanes_w", ctypes.c_longlong),
-    ]
+def _release(version: str) -> tuple[int, ...]:
+    """The numeric release of a version string: ``"3.8.2"`` -> ``(3, 8, 2)``."""
+    numbers = []
+    for part in version.split("."):
+        digits = re.match(r"\d*", part).group()
+        if digits:
+            numbers.append(int(digits))
+        if not digits or digits != part:  # "3.8.2rc1" -> (3, 8, 2)
+            break
+    return tuple(numbers)
 
 
-_DRIVER: list = []  # [the loaded driver or None], once per process
+def version_verified(version: str, requirement: str = CASADI_VERIFIED) -> bool:
+    """Whether the CasADi ``version`` meets ``requirement`` (comma-separated ``>=``,
+    ``>``, ``<=``, ``<``, ``==``, ``!=`` clauses on release numbers).
+
+    Parameters
+    ----------
+    version : str
+        A CasADi version, e.g. ``casadi.__version__``.
+    requirement : str
+        The versions allowed (default :data:`CASADI_VERIFIED`).
+
+    Returns
+    -------
+    bool
+
+    Examples
+    --------
+    >>> version_verified("3.8.2"), version_verified("3.9.0"), version_verified("3.7.1")
+    (True, False, False)
+    """
+    have = _release(version)
+    compare = {
+        ">=": lambda a, b: a >= b, "<=": lambda a, b: a <= b, "==": lambda a, b: a == b,
+        "!=": lambda a, b: a != b, ">": lambda a, b: a > b, "<": lambda a, b: a < b,
+    }  # fmt: skip
+    for clause in requirement.split(","):
+        clause = clause.strip()
+        operator = clause[:2] if clause[:2] in compare else clause[:1]
+        wanted = _release(clause[len(operator) :].strip())
+        width = max(len(have), len(wanted))
+        padded = [v + (0,) * (width - len(v)) for v in (have, wanted)]
+        if not compare[operator](*padded):
+            return False
+    return True
+
+
+_LIBRARIES: dict = {}  # the driver's library by its defines (None: not buildable), per process
 _LOCK = threading.Lock()
+
+
+def library(defines: tuple[str, ...] = ()):
+    """The driver's library built from :data:`C_FOLDER` with the macros ``defines``, its
+    functions declared from :data:`HEADER`; built and loaded once per process and
+    ``defines``; None where it cannot be (see the module notes).
+
+    Parameters
+    ----------
+    defines : tuple of str
+        Macros defined for the build (tests build variants; the product defines none).
+
+    Returns
+    -------
+    ctypes.CDLL or None
+    """
+    with _LOCK:
+        if defines not in _LIBRARIES:
+            _LIBRARIES[defines] = _load(defines)
+        return _LIBRARIES[defines]
 
 
 def driver():
     """The driver's entry point ``softcurve_cvodes`` (ctypes), built and loaded once per
     process; None where it cannot be (see the module notes) or inside :func:`casadi_only`."""
-    with _LOCK:
-        if not _DRIVER:
-            _DRIVER.append(_load())
-        return None if _BYPASS else _DRIVER[0]
+    loaded = library()
+    return None if loaded is None or _BYPASS else loaded.softcurve_cvodes
 
 
 _BYPASS: list = []
-_LIBRARY: list = []  # the loaded driver library, once built
 
 
 def entry(name: str):
@@ -106,9 +170,9 @@ def entry(name: str):
     Parameters
     ----------
     name : str
-        An exported function of the driver's C source.
+        An exported function of :data:`HEADER`.
     """
-    return getattr(_LIBRARY[0], name)
+    return getattr(library(), name)
 
 
 @contextlib.contextmanager
@@ -122,41 +186,64 @@ def casadi_only():
         _BYPASS.pop()
 
 
-def _load():
+def _load(defines: tuple[str, ...]):
     if os.environ.get("SOFTCURVE_NATIVE_CVODES", "1") in ("0", ""):
+        return None
+    if not version_verified(ca.__version__):
         return None
     directory = Path(ca.__file__).parent
     try:
-        if not hasattr(ctypes.CDLL(str(directory / PLUGIN)), "CVSpgmr"):  # SUNDIALS >= 3: other API
+        if not hasattr(load_library(directory / PLUGIN), "CVSpgmr"):  # SUNDIALS >= 3: other API
             return None
     except OSError:
         return None
     link = (f"-L{directory}", f"-l:{PLUGIN}", f"-Wl,-rpath,{directory}", "-pthread")
-    library = compile_source("cvodes_driver", LIBRARY_SOURCE, link)
-    if library is None:
-        return None
-    _LIBRARY.append(library)
-    evaluate_function = library.softcurve_rhs
-    evaluate_function.argtypes = [ctypes.POINTER(_Function), ctypes.c_int] + [ctypes.c_void_p] * 4
-    evaluate_function.restype = ctypes.c_int
-    function = library.softcurve_cvodes
-    pointer, integer, real = ctypes.c_void_p, ctypes.c_int, ctypes.c_double
-    function.argtypes = [
-        ctypes.POINTER(_Function), integer, pointer, pointer, real, pointer, pointer, pointer,
-        pointer, integer, real, pointer, integer, pointer, pointer, integer, real, real,
-        ctypes.c_long, integer, pointer, pointer, pointer, pointer, pointer,
-    ]  # fmt: skip
-    function.restype = ctypes.c_int
-    sensitivity = library.softcurve_sensitivities
-    sensitivity.argtypes = [
-        ctypes.POINTER(_Function), pointer, pointer, integer, integer, integer, integer,
-        pointer, pointer, pointer, integer, pointer, integer, integer, real, real,
-        ctypes.c_long, integer, pointer, pointer, pointer,
-    ]  # fmt: skip
-    sensitivity.restype = ctypes.c_int
-    library.softcurve_outside.argtypes = [pointer, integer, pointer, integer, real, pointer]
-    library.softcurve_outside.restype = None
-    return function
+    loaded = compile_files("cvodes_driver", C_FOLDER, link, defines)
+    return None if loaded is None else DECLARATIONS.bind(loaded)
+
+
+def options(rtol, atol, max_steps, *, max_order=0, family=1, settled_ratio=0.0,
+            columns_tested=False, helper=False):  # fmt: skip
+    """The settings of a call of the driver, as the header's ``sc_options``: the one place
+    that fills it.
+
+    Parameters
+    ----------
+    rtol : float
+        Relative tolerance.
+    atol : float
+        Absolute tolerance of the integrated state (the scaled state of
+        :func:`integrate`, the state's units of the sensitivities).
+    max_steps : int
+        CVODES's steps allowed per output.
+    max_order : int, optional
+        The method's largest order (0 or None: CVODES's own).
+    family : int
+        1 Adams, 2 BDF (the sensitivities; :func:`integrate` takes one per member).
+    settled_ratio : float
+        :data:`~softcurve.simulation.engine.SETTLED_RATIO` (dimensionless), with a
+        member's fastest rate.
+    columns_tested : bool
+        The sensitivity columns in the error test too.
+    helper : bool
+        With two parts of the columns' right-hand side, a helper thread shares the second.
+
+    Returns
+    -------
+    Options
+    """
+    constants = DECLARATIONS.constants
+    return Options(
+        rtol=rtol,
+        atol=atol,
+        max_steps=max_steps,
+        max_order=max_order or 0,
+        family=family,
+        settled_ratio=settled_ratio,
+        max_bend=MAX_BEND,
+        columns_tested=int(columns_tested),
+        helper=constants["HELPER_SHARED"] if helper else constants["HELPER_NONE"],
+    )
 
 
 class Problem:
@@ -187,24 +274,24 @@ class Problem:
             (np.array(inputs.lower, dtype=np.float64), np.array(inputs.upper, dtype=np.float64))
             if inputs is not None else (np.zeros(1), np.zeros(1))
         )  # fmt: skip
-        self.struct = _Function(
-            ctypes.cast(rhs._function, ctypes.c_void_p).value,
-            None if force is None else ctypes.cast(force._function, ctypes.c_void_p).value,
-            n_state,
-            n,
-            n_parameters,
-            0 if inputs is None else inputs.n_inputs,
-            int(lag),
-            max(f._sz_arg for f in functions),
-            max(f._sz_res for f in functions),
-            max(f._sz_iw for f in functions),
-            max(f._sz_w for f in functions),
-            self.bounds[0].ctypes.data,
-            self.bounds[1].ctypes.data,
-            inputs.time_constant if lag else 1.0,
-            None if lanes is None else lanes.address,
-            self.width,
-            0 if lanes is None else lanes.work,
+        self.struct = Function(
+            f=ctypes.cast(rhs._function, ctypes.c_void_p).value,
+            force=None if force is None else ctypes.cast(force._function, ctypes.c_void_p).value,
+            nx=n_state,
+            nu=n,
+            np=n_parameters,
+            m=0 if inputs is None else inputs.n_inputs,
+            lag=int(lag),
+            sz_arg=max(f._sz_arg for f in functions),
+            sz_res=max(f._sz_res for f in functions),
+            sz_iw=max(f._sz_iw for f in functions),
+            sz_w=max(f._sz_w for f in functions),
+            lower=self.bounds[0].ctypes.data,
+            upper=self.bounds[1].ctypes.data,
+            time_constant=inputs.time_constant if lag else 1.0,
+            lanes=None if lanes is None else lanes.address,
+            width=self.width,
+            sz_lanes_w=0 if lanes is None else lanes.work,
         )
 
 
@@ -253,7 +340,7 @@ def integrate(problem, lmm, x0, u, p, nominal, times, segments, tolerances, *, f
               settled_ratio=0.0, longest=None, threads=1, out=None) -> tuple:  # fmt: skip
     """Integrate members from ``x0`` at ``times[0]`` over the output ``times``, restarting
     CVODES at the end of every segment, with one constant input per member and segment;
-    in groups of ``problem.width`` consecutive members (:mod:`~.cvodes_groups`).
+    in groups of ``problem.width`` consecutive members (``groups.c``).
 
     Parameters
     ----------
@@ -321,16 +408,16 @@ def integrate(problem, lmm, x0, u, p, nominal, times, segments, tolerances, *, f
     counts = np.zeros((count, len(STATISTICS)), dtype=np.int64)
     call = driver()
     rtol, abstol, max_steps, max_order = tolerances
+    settings = options(rtol, abstol, max_steps, max_order=max_order, settled_ratio=settled_ratio)
     n_seg = 0 if longest is None else longest.shape[1]
 
     def run(a: int, b: int) -> None:
         fast, uu, pp, nom = (arr[a:b].ctypes.data for arr in arrays)
-        call(ctypes.byref(problem.struct), b - a, lmm[a:].ctypes.data, fast, settled_ratio,
-             uu, pp, nom, None if longest is None else longest[a:].ctypes.data, n_seg,
-             MAX_BEND, times.ctypes.data, times.size, ends.ctypes.data, restart.ctypes.data,
-             ends.size, rtol, abstol, max_steps, max_order or 0, out[a:b].ctypes.data,
-             reached[a:].ctypes.data, flags[a:].ctypes.data, used[a:].ctypes.data,
-             counts[a:b].ctypes.data)  # fmt: skip
+        call(ctypes.byref(problem.struct), ctypes.byref(settings), b - a, lmm[a:].ctypes.data,
+             fast, uu, pp, nom, None if longest is None else longest[a:].ctypes.data, n_seg,
+             times.ctypes.data, times.size, ends.ctypes.data, restart.ctypes.data, ends.size,
+             out[a:b].ctypes.data, reached[a:].ctypes.data, flags[a:].ctypes.data,
+             used[a:].ctypes.data, counts[a:b].ctypes.data)  # fmt: skip
 
     threads = max(1, min(threads, count))
     if threads == 1:

@@ -31,16 +31,15 @@ import casadi as ca
 import numpy as np
 
 from softcurve.compiled.generated import compile_function, compile_functions, load_external
+from softcurve.compiled.source import load_function, load_with_path
 from softcurve.simulation import native
 from softcurve.simulation.engine import cvodes_options
 from softcurve.simulation.sensitivity_route import (
     DriverRoute,
     DriverSettings,
     integrate_sensitivities,
-    load_with_path,
 )
 from softcurve.simulation.sensitivity_split import assembled, column_parts
-from softcurve.simulation.stepper_native import load_native
 
 SENSITIVITY_CVODES = cvodes_options(
     "adams", 1e-8, 1e-10, 100_000, max_order=None, nonlinear_solver_iteration="functional"
@@ -151,8 +150,8 @@ class SensitivityEvaluator:
         if self._native is None:  # a worker process: load the libraries the parent built
             driven = self.driven
             try:
-                route = (native.Problem(load_native(*driven.state), *driven.sizes),
-                         [load_native(*c) for c in driven.columns])  # fmt: skip
+                route = (native.Problem(load_function(*driven.state), *driven.sizes),
+                         [load_function(*c) for c in driven.columns])  # fmt: skip
             except (OSError, RuntimeError, AttributeError):  # not loadable: CasADi's route
                 route = False
             self._native = route

@@ -1,6 +1,6 @@
 """The driver's route of the identification's forward sensitivities: what an evaluator
 carries into worker processes, and the one call into softcurve's CVODES driver
-(``softcurve_sensitivities``, :mod:`softcurve.simulation.sensitivity_driver`).
+(``softcurve_sensitivities``, ``sensitivity.c`` of :data:`softcurve.simulation.native.C_FOLDER`).
 
 The driver integrates the state by Adams-Newton (or BDF, :attr:`DriverSettings.family`)
 on its own Newton matrix and the sensitivity columns ``S' = f_x S + f_d`` by CVODES's
@@ -12,13 +12,11 @@ staggered corrector, evaluating the identification's compiled
 from __future__ import annotations
 
 import ctypes
-from pathlib import Path
 from typing import NamedTuple
 
 import numpy as np
 
 from softcurve.simulation import native
-from softcurve.simulation.stepper_native import load_native
 
 
 class DriverSettings(NamedTuple):
@@ -36,13 +34,11 @@ class DriverSettings(NamedTuple):
     """The sensitivity columns in the error test too (``fsens_err_con``)."""
 
 
-HELPER_MODES = ("none", "shared", "always")
-"""Who evaluates the second of two parts (:func:`integrate_sensitivities`), in the
-driver's numbering: ``"none"`` the driver's own thread; ``"shared"`` whichever of the
-driver and a helper thread claims it first (the driver never waits for a helper that has
-not started); ``"always"`` the helper, the driver waiting for it. Which thread wins under
-``"shared"`` is the scheduler's choice; ``"always"`` runs the helper's path for certain,
-for tests."""
+HELPER_MODES = ("none", "shared")
+"""Who evaluates the second of two parts (:func:`integrate_sensitivities`): ``"none"``
+the driver's own thread; ``"shared"`` whichever of the driver and a helper thread claims
+it first (the driver never waits for a helper that has not started). Which thread wins
+is the scheduler's choice."""
 
 
 class DriverRoute(NamedTuple):
@@ -68,26 +64,6 @@ class DriverRoute(NamedTuple):
     """Who evaluates the second of two parts, one of :data:`HELPER_MODES`."""
 
 
-def load_with_path(path, name: str) -> tuple:
-    """``(path, name, the loaded function)`` of a compiled library, for the driver's route:
-    the path (absolute: a worker may start elsewhere) and name travel to worker processes,
-    the loaded function stays here.
-
-    Parameters
-    ----------
-    path : str or pathlib.Path
-        The compiled library.
-    name : str
-        The function's name in it.
-
-    Returns
-    -------
-    tuple
-        ``(absolute path as str, name, NativeFunction)``.
-    """
-    return (str(Path(path).resolve()), name, load_native(path, name))
-
-
 SENSITIVITY_STATISTICS = ("steps", "rhs_evaluations", "jacobian_evaluations",
                           "linear_solver_setups", "error_test_failures",
                           "sensitivity_evaluations", "helper_evaluations")  # fmt: skip
@@ -99,7 +75,8 @@ evaluates the others itself)."""
 
 
 def integrate_sensitivities(
-    problem, columns, start, d, d_scaled, times, table, linear, settings, helper="none"
+    problem, columns, start, d, d_scaled, times, table, linear, settings, helper="none",
+    library=None,
 ):
     """States and forward sensitivities over ``times`` in one call into the driver.
 
@@ -126,8 +103,11 @@ def integrate_sensitivities(
         Inputs continuous (integrated through) or held (a restart at every sample).
     settings : DriverSettings
         CVODES's settings.
-    helper : {"none", "shared", "always"}
+    helper : {"none", "shared"}
         With two parts, who evaluates the second (:data:`HELPER_MODES`).
+    library : ctypes.CDLL, optional
+        A build of the driver (:func:`softcurve.simulation.native.library`; default the
+        product's, without defines).
 
     Returns
     -------
@@ -151,12 +131,15 @@ def integrate_sensitivities(
     n_x = problem.struct.nx
     m = start.size // n_x - 1
     leading = n_x if len(columns) == 1 else 0  # fs's f before vec(S'); the parts have none
-    flag = native.entry("softcurve_sensitivities")(
-        ctypes.byref(problem.struct), pointers, sizes.ctypes.data, len(columns), leading,
-        HELPER_MODES.index(helper), m, arrays[0].ctypes.data, arrays[1].ctypes.data,
-        arrays[2].ctypes.data, times.size, arrays[3].ctypes.data, int(linear),
-        settings.family, settings.rtol, settings.atol, settings.max_steps,
-        int(settings.columns_tested), out.ctypes.data, counts.ctypes.data,
-        ctypes.byref(reached),
+    call = (library or native.library()).softcurve_sensitivities
+    driver_options = native.options(
+        settings.rtol, settings.atol, settings.max_steps, family=settings.family,
+        columns_tested=settings.columns_tested, helper=helper == "shared",
+    )  # fmt: skip
+    flag = call(
+        ctypes.byref(problem.struct), ctypes.byref(driver_options), pointers, sizes.ctypes.data,
+        len(columns), leading, m, arrays[0].ctypes.data, arrays[1].ctypes.data,
+        arrays[2].ctypes.data, times.size, arrays[3].ctypes.data, int(linear), out.ctypes.data,
+        counts.ctypes.data, ctypes.byref(reached),
     )  # fmt: skip
     return out, reached.value, flag, dict(zip(SENSITIVITY_STATISTICS, counts.tolist(), strict=True))

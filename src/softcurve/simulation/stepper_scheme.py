@@ -20,11 +20,11 @@ import numpy as np
 from softcurve.base.docs import parameters_from
 from softcurve.compiled.generated import compile_function
 from softcurve.compiled.native import NativeFunction
+from softcurve.compiled.source import load_function
 from softcurve.simulation.actuated import actuated_derivative
 from softcurve.simulation.engine import nominal_scale
 from softcurve.simulation.integrators import ActuatorInput
 from softcurve.simulation.stepper_methods import METHODS, ExplicitTableau, Tableau
-from softcurve.simulation.stepper_native import load_native
 from softcurve.simulation.stepper_observe import observer
 
 scheme_parameters = parameters_from(
@@ -314,7 +314,7 @@ def period_function(
     def build():
         if not native:
             return compile_function(function, flags)
-        loaded = compile_function(function, flags, load=load_native)
+        loaded = compile_function(function, flags, load=load_function)
         return loaded if isinstance(loaded, NativeFunction) else None
 
     return model.cached((*key, flags, native), build)
