@@ -258,5 +258,5 @@ def test_the_cvodes_driver_builds_wherever_its_prerequisites_hold():
     except OSError:
         pytest.skip("CasADi has no CVODES plugin here")
     assert native.driver() is not None, (
-        "the driver's C source (native.LIBRARY_SOURCE) failed to build"
+        "the driver's C files (native.C_FOLDER) failed to build"
     )
