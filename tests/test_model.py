@@ -257,6 +257,4 @@ def test_the_cvodes_driver_builds_wherever_its_prerequisites_hold():
             pytest.skip("CasADi's SUNDIALS has another interface")
     except OSError:
         pytest.skip("CasADi has no CVODES plugin here")
-    assert native.driver() is not None, (
-        "the driver's C files (native.C_FOLDER) failed to build"
-    )
+    assert native.driver() is not None, "the driver's C files (native.C_FOLDER) failed to build"

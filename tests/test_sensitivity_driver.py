@@ -263,8 +263,12 @@ def test_the_helper_thread_changes_no_bit(model):
             helper,
             library,
         )  # fmt: skip
-        for helper, library in [("none", None), ("shared", helper_only), ("shared", None),
-                                ("shared", None)]
+        for helper, library in [
+            ("none", None),
+            ("shared", helper_only),
+            ("shared", None),
+            ("shared", None),
+        ]
     ]
     alone = runs[0][3]
     assert alone["helper_evaluations"] == 0 and alone["sensitivity_evaluations"] > 100

@@ -126,9 +126,7 @@ def compile_source(stem: str, source: str, link: tuple[str, ...] = ()):
     )
 
 
-def compile_files(
-    stem: str, folder, link: tuple[str, ...] = (), defines: tuple[str, ...] = ()
-):
+def compile_files(stem: str, folder, link: tuple[str, ...] = (), defines: tuple[str, ...] = ()):
     """Every ``.c`` file of ``folder`` compiled into one shared library (its headers found
     in ``folder``), cached on disk by the content of every ``.c`` and ``.h`` file there,
     loaded.

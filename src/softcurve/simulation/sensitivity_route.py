@@ -75,7 +75,16 @@ evaluates the others itself)."""
 
 
 def integrate_sensitivities(
-    problem, columns, start, d, d_scaled, times, table, linear, settings, helper="none",
+    problem,
+    columns,
+    start,
+    d,
+    d_scaled,
+    times,
+    table,
+    linear,
+    settings,
+    helper="none",
     library=None,
 ):
     """States and forward sensitivities over ``times`` in one call into the driver.
