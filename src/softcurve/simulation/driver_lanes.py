@@ -1,5 +1,5 @@
 """The state derivative over lanes for CVODES's driver: the members of a batch
-integrated in groups (:mod:`softcurve.simulation.cvodes_groups`) evaluate it
+integrated in groups (``groups.c`` of :data:`softcurve.simulation.native.C_FOLDER`) evaluate it
 :data:`~softcurve.compiled.lanes.LANE_WIDTH` at a time.
 
 The function is the one the scalar driver evaluates (the model's ``rhs`` with the
@@ -16,6 +16,7 @@ from functools import partial
 
 from softcurve.compiled.lanes import (
     LANE_WIDTH,
+    c_template,
     compile_lanes,
     lanes_function,
     lanes_prelude,
@@ -54,11 +55,7 @@ def xdot_source(f, vector_math: bool) -> str:
         [
             lanes_prelude(LANE_WIDTH, vector_math),
             lanes_function(f, "sc_xdot", (False, False, False)),
-            f'__attribute__((visibility("default"))) int {ENTRY}(',
-            "    const double* x, const double* u, const double* p, double* xdot, double* w) {",
-            "  sc_xdot((const sc_v*)x, (const sc_v*)u, (const sc_v*)p, (sc_v*)xdot, (sc_v*)w);",
-            "  return 0;",
-            "}",
+            c_template("lanes_xdot.c", {"SC_ENTRY": ENTRY}),
         ]
     )
 
