@@ -17,6 +17,7 @@ import pytest
 
 import softcurve
 from softcurve.compiled.declarations import read_header
+from softcurve.compiled.lanes import LANE_WIDTH, lanes_function, lanes_prelude
 from softcurve.compiled.source import compile_files
 from softcurve.simulation import native
 
@@ -176,3 +177,26 @@ def test_package_data_covers_every_c_file():
     patterns = tomllib.loads(PYPROJECT.read_text())["tool"]["setuptools"]["package-data"]
     covered = {p for pattern in patterns["softcurve"] for p in PACKAGE.glob(pattern)}
     assert set(C_FILES) <= covered
+
+
+def test_the_lanes_prelude_has_every_function_the_lanes_code_calls(tmp_path):
+    """A lanes function of every elementary operation compiles on the shipped prelude:
+    Python names the functions (CasADi's operations), the prelude defines them."""
+    x, y = ca.SX.sym("x"), ca.SX.sym("y")
+    unary = ["exp", "log", "sqrt", "sin", "cos", "tan", "asin", "acos", "atan", "floor",
+             "ceil", "fabs", "erf", "sinh", "cosh", "tanh", "asinh", "acosh", "atanh",
+             "log1p", "expm1"]  # fmt: skip
+    binary = ["fmod", "copysign", "fmin", "fmax", "atan2", "hypot"]
+    outputs = [getattr(ca, name)(x) for name in unary if hasattr(ca, name)]
+    outputs += [getattr(ca, name)(x, y) for name in binary if hasattr(ca, name)]
+    outputs += [x**y, x**2.5]
+    function = ca.Function("every", [x, y], [ca.vertcat(*outputs)])
+    for vector_math in (False, True):
+        source = tmp_path / "every.c"
+        source.write_text(
+            lanes_prelude(LANE_WIDTH, vector_math) + lanes_function(function, "f", (False, True))
+        )
+        command = [_gcc(), *STRICT, "-Wno-unused-function", "-c", str(source), "-o",
+                   str(tmp_path / "every.o")]  # fmt: skip
+        result = subprocess.run(command, capture_output=True, text=True)
+        assert result.returncode == 0, result.stderr
