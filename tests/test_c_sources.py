@@ -19,7 +19,7 @@ import softcurve
 from softcurve.compiled.declarations import read_header
 from softcurve.compiled.lanes import LANE_WIDTH, lanes_function, lanes_prelude
 from softcurve.compiled.source import compile_files
-from softcurve.simulation import native
+from softcurve.simulation import driver_library
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -55,9 +55,9 @@ def test_every_shipped_c_file_compiles_as_strict_c99(path, tmp_path):
 def test_every_exported_definition_is_declared_in_the_header():
     """Python reads the header only: an entry defined in a C file but not declared there
     would be called undeclared."""
-    declared = set(native.DECLARATIONS.functions)
+    declared = set(driver_library.DECLARATIONS.functions)
     defined = set()
-    for path in native.C_FOLDER.glob("*.c"):
+    for path in driver_library.C_FOLDER.glob("*.c"):
         defined |= set(re.findall(r"^SC_EXPORT\s+[\w\s*]+?\b(\w+)\(", path.read_text(), re.M))
     assert defined == declared
 
@@ -65,23 +65,23 @@ def test_every_exported_definition_is_declared_in_the_header():
 def test_the_declarations_match_the_library_built():
     """Every function of the header is in the library (binding it would raise otherwise)
     and every struct has the library's size, by its ``softcurve_sizeof_`` export."""
-    library = native.library()
+    library = driver_library.library()
     if library is None:
         pytest.skip("softcurve's CVODES driver is not available here")
-    for name, struct in native.DECLARATIONS.structs.items():
+    for name, struct in driver_library.DECLARATIONS.structs.items():
         assert getattr(library, f"softcurve_sizeof_{name}")() == ctypes.sizeof(struct), name
-    for name, signature in native.DECLARATIONS.functions.items():
+    for name, signature in driver_library.DECLARATIONS.functions.items():
         function = getattr(library, name)
         assert function.argtypes == list(signature.argtypes), name
         assert function.restype == signature.restype, name
-    assert native.Options(rtol=1e-6).rtol == 1e-6  # a field by name, not position
+    assert driver_library.Options(rtol=1e-6).rtol == 1e-6  # a field by name, not position
 
 
 def test_the_options_struct_carries_every_setting_the_driver_reads():
     """softcurve_cvodes and softcurve_sensitivities take their settings from one struct."""
-    sensitivities = native.DECLARATIONS.functions["softcurve_sensitivities"].names
-    cvodes = native.DECLARATIONS.functions["softcurve_cvodes"].names
-    fields = {name for name, _ in native.Options._fields_}
+    sensitivities = driver_library.DECLARATIONS.functions["softcurve_sensitivities"].names
+    cvodes = driver_library.DECLARATIONS.functions["softcurve_cvodes"].names
+    fields = {name for name, _ in driver_library.Options._fields_}
     assert {"rtol", "atol", "max_steps", "max_order", "settled_ratio", "max_bend"} <= fields
     assert not fields & (set(cvodes) | set(sensitivities))
     assert "options" in cvodes and "options" in sensitivities
@@ -152,13 +152,16 @@ def _casadi_requirement() -> str:
 def test_the_runtime_pin_of_casadi_is_pyprojects():
     if not PYPROJECT.exists():
         pytest.skip("not a source checkout")
-    assert _casadi_requirement() == native.CASADI_VERIFIED
+    assert _casadi_requirement() == driver_library.CASADI_VERIFIED
 
 
 def test_the_installed_casadi_is_one_the_driver_was_verified_with():
     """Fails where the environment holds a CasADi outside the pin: the driver then
     refuses to load (and its tests would all skip)."""
-    assert native.version_verified(ca.__version__), (ca.__version__, native.CASADI_VERIFIED)
+    assert driver_library.version_verified(ca.__version__), (
+        ca.__version__,
+        driver_library.CASADI_VERIFIED,
+    )
 
 
 @pytest.mark.parametrize(
@@ -167,7 +170,7 @@ def test_the_installed_casadi_is_one_the_driver_was_verified_with():
      ("4.0", False), ("3.8.2rc1", True), ("3.8", True)],
 )  # fmt: skip
 def test_the_pin_reads_release_numbers(version, verified):
-    assert native.version_verified(version) is verified
+    assert driver_library.version_verified(version) is verified
 
 
 def test_package_data_covers_every_c_file():

@@ -15,7 +15,7 @@ import pytest
 import softcurve as sc
 from softcurve.compiled import build as model_module
 from softcurve.compiled import generated
-from softcurve.simulation import native
+from softcurve.simulation import driver_library, native
 
 from .conftest import assert_close, compiler_refusing
 
@@ -251,10 +251,12 @@ def test_the_cvodes_driver_builds_wherever_its_prerequisites_hold():
         pytest.skip("no C compiler")
     if os.environ.get("SOFTCURVE_NATIVE_CVODES", "1") in ("0", ""):
         pytest.skip("the driver is switched off (SOFTCURVE_NATIVE_CVODES)")
-    plugin = Path(ca.__file__).parent / native.PLUGIN
+    plugin = Path(ca.__file__).parent / driver_library.PLUGIN
     try:
         if not hasattr(ctypes.CDLL(str(plugin)), "CVSpgmr"):
             pytest.skip("CasADi's SUNDIALS has another interface")
     except OSError:
         pytest.skip("CasADi has no CVODES plugin here")
-    assert native.driver() is not None, "the driver's C files (native.C_FOLDER) failed to build"
+    assert native.driver() is not None, (
+        "the driver's C files (driver_library.C_FOLDER) failed to build"
+    )

@@ -16,7 +16,7 @@ import softcurve as sc
 from softcurve.identification.experiments import Experiment
 from softcurve.identification.maps import bellows_input_map, curvatures
 from softcurve.identification.parameters import Free, FreeParameters
-from softcurve.simulation import native
+from softcurve.simulation import driver_library, native
 from softcurve.simulation.sensitivity import SENSITIVITY_CVODES, trajectory_sensitivities
 from softcurve.simulation.sensitivity_route import integrate_sensitivities
 from softcurve.simulation.sensitivity_split import split_states
@@ -241,8 +241,8 @@ def test_the_helper_thread_changes_no_bit(model):
     test's own build of the driver (:data:`HELPER_TAKES_ALL`) runs the helper's path for
     certain; under the product's ``"shared"`` the scheduler decides (on a busy machine the
     helper may never win a claim)."""
-    helper_only = native.library(HELPER_TAKES_ALL)
-    assert helper_only is not None and helper_only is not native.library()
+    helper_only = driver_library.library(HELPER_TAKES_ALL)
+    assert helper_only is not None and helper_only is not driver_library.library()
     evaluate, theta = _evaluator(model, "linear", threads=2)
     problem, parts = evaluate._route()
     route = evaluate.driven

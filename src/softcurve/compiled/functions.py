@@ -11,7 +11,6 @@ The physical quantities (dynamics, energies, poses) are the methods of its subcl
 
 from __future__ import annotations
 
-import ctypes
 import hashlib
 import threading
 from pathlib import Path
@@ -22,6 +21,7 @@ import numpy as np
 from softcurve.base.validation import ParameterError
 from softcurve.compiled.build import COMPILED_FUNCTIONS, compiled_library
 from softcurve.compiled.native import NativeFunction
+from softcurve.compiled.source import load_library
 from softcurve.description.environment import Environment
 from softcurve.description.robot import Robot
 from softcurve.symbolic.contact import contact_functions, with_contact
@@ -55,7 +55,7 @@ def _block(column: np.ndarray, start: int, width: int) -> np.ndarray:
 def _load(library: Path) -> dict[str, NativeFunction]:
     """The compiled functions of a verified library (ctypes raises OSError if it cannot be
     loaded; :func:`~softcurve.compiled.build.compiled_library` then rebuilds it once)."""
-    handle = ctypes.CDLL(str(library))
+    handle = load_library(library)
     return {name: NativeFunction(handle, name) for name in COMPILED_FUNCTIONS}
 
 

@@ -1,5 +1,6 @@
 """The state derivative over lanes for CVODES's driver: the members of a batch
-integrated in groups (``groups.c`` of :data:`softcurve.simulation.native.C_FOLDER`) evaluate it
+integrated in groups (``groups.c`` of
+:data:`softcurve.simulation.driver_library.C_FOLDER`) evaluate it
 :data:`~softcurve.compiled.lanes.LANE_WIDTH` at a time.
 
 The function is the one the scalar driver evaluates (the model's ``rhs`` with the

@@ -13,56 +13,28 @@ in one call, on threads that do not contend.
 
 :func:`problem` describes a model (and optionally an actuator's force) to the driver;
 :func:`integrate` runs it, with the settings of :func:`options`, the one place that fills
-the header's ``sc_options``. The ctypes declarations (:data:`DECLARATIONS`) are read from
-the header, not kept by hand. Both return None / are unused where the driver cannot be
-built (no C compiler, an uncompiled model, a CasADi outside :data:`CASADI_VERIFIED` or
-whose SUNDIALS has another interface) or ``SOFTCURVE_NATIVE_CVODES=0`` is set: the
-engines then use CasADi's integrator.
+the header's ``sc_options``. The library and its declarations, read from the header, are
+:mod:`softcurve.simulation.driver_library`'s. Both return None / are unused where the
+driver cannot be built (no C compiler, an uncompiled model, a CasADi outside
+:data:`~softcurve.simulation.driver_library.CASADI_VERIFIED` or whose SUNDIALS has
+another interface) or ``SOFTCURVE_NATIVE_CVODES=0`` is set: the engines then use
+CasADi's integrator.
 """
 
 from __future__ import annotations
 
 import contextlib
 import ctypes
-import os
-import re
-import threading
 from concurrent.futures import ThreadPoolExecutor
-from pathlib import Path
 
 import casadi as ca
 import numpy as np
 
-import softcurve.simulation
-from softcurve.compiled.declarations import read_header
 from softcurve.compiled.native import NativeFunction
-from softcurve.compiled.source import compile_files, compile_source, load_library
+from softcurve.compiled.source import compile_source
 from softcurve.description.robot import MAX_BEND
 from softcurve.simulation.driver_lanes import lanes_derivative
-
-PLUGIN = "libcasadi_integrator_cvodes.so"
-"""CasADi's CVODES plugin, which holds SUNDIALS CVODES (the 2.x interface: ``CVSpgmr``)."""
-
-C_FOLDER = Path(softcurve.simulation.__file__).parent / "solvers" / "c"
-"""The driver's C files (package data): every ``.c`` there is compiled into its library."""
-
-HEADER = C_FOLDER / "softcurve_driver.h"
-"""The header that declares the driver's structs and exported functions."""
-
-DECLARATIONS = read_header(HEADER)
-"""The ctypes declarations of :data:`HEADER`
-(:class:`~softcurve.compiled.declarations.Declarations`)."""
-
-Function = DECLARATIONS.structs["sc_function"]
-"""The header's ``sc_function``: a model described to the driver."""
-
-Options = DECLARATIONS.structs["sc_options"]
-"""The header's ``sc_options``: the settings of a call (:func:`options`)."""
-
-CASADI_VERIFIED = ">=3.8,<3.9"
-"""The CasADi versions whose private CVODES plugin the driver was verified with (the
-requirement of ``pyproject.toml``, which a test checks equal): the driver declares the
-plugin's SUNDIALS by hand (``sundials2.h``) and refuses to load with another CasADi."""
+from softcurve.simulation.driver_library import DECLARATIONS, Options, ProblemStruct, library
 
 STATISTICS = ("steps", "rhs_evaluations", "jacobian_evaluations", "linear_solver_setups",
               "error_test_failures", "newton_failures")  # fmt: skip
@@ -80,78 +52,6 @@ FLAGS = {
 CHUNKS_PER_THREAD = 4
 """Members of a batch are handed to the threads in this many chunks per thread, taken as
 threads finish: members differ in cost (a violent transient takes more steps)."""
-
-
-def _release(version: str) -> tuple[int, ...]:
-    """The numeric release of a version string: ``"3.8.2"`` -> ``(3, 8, 2)``."""
-    numbers = []
-    for part in version.split("."):
-        digits = re.match(r"\d*", part).group()
-        if digits:
-            numbers.append(int(digits))
-        if not digits or digits != part:  # "3.8.2rc1" -> (3, 8, 2)
-            break
-    return tuple(numbers)
-
-
-def version_verified(version: str, requirement: str = CASADI_VERIFIED) -> bool:
-    """Whether the CasADi ``version`` meets ``requirement`` (comma-separated ``>=``,
-    ``>``, ``<=``, ``<``, ``==``, ``!=`` clauses on release numbers).
-
-    Parameters
-    ----------
-    version : str
-        A CasADi version, e.g. ``casadi.__version__``.
-    requirement : str
-        The versions allowed (default :data:`CASADI_VERIFIED`).
-
-    Returns
-    -------
-    bool
-
-    Examples
-    --------
-    >>> version_verified("3.8.2"), version_verified("3.9.0"), version_verified("3.7.1")
-    (True, False, False)
-    """
-    have = _release(version)
-    compare = {
-        ">=": lambda a, b: a >= b, "<=": lambda a, b: a <= b, "==": lambda a, b: a == b,
-        "!=": lambda a, b: a != b, ">": lambda a, b: a > b, "<": lambda a, b: a < b,
-    }  # fmt: skip
-    for clause in requirement.split(","):
-        clause = clause.strip()
-        operator = clause[:2] if clause[:2] in compare else clause[:1]
-        wanted = _release(clause[len(operator) :].strip())
-        width = max(len(have), len(wanted))
-        padded = [v + (0,) * (width - len(v)) for v in (have, wanted)]
-        if not compare[operator](*padded):
-            return False
-    return True
-
-
-_LIBRARIES: dict = {}  # the driver's library by its defines (None: not buildable), per process
-_LOCK = threading.Lock()
-
-
-def library(defines: tuple[str, ...] = ()):
-    """The driver's library built from :data:`C_FOLDER` with the macros ``defines``, its
-    functions declared from :data:`HEADER`; built and loaded once per process and
-    ``defines``; None where it cannot be (see the module notes).
-
-    Parameters
-    ----------
-    defines : tuple of str
-        Macros defined for the build (tests build variants; the product defines none).
-
-    Returns
-    -------
-    ctypes.CDLL or None
-    """
-    with _LOCK:
-        if defines not in _LIBRARIES:
-            _LIBRARIES[defines] = _load(defines)
-        return _LIBRARIES[defines]
 
 
 def driver():
@@ -184,22 +84,6 @@ def casadi_only():
         yield
     finally:
         _BYPASS.pop()
-
-
-def _load(defines: tuple[str, ...]):
-    if os.environ.get("SOFTCURVE_NATIVE_CVODES", "1") in ("0", ""):
-        return None
-    if not version_verified(ca.__version__):
-        return None
-    directory = Path(ca.__file__).parent
-    try:
-        if not hasattr(load_library(directory / PLUGIN), "CVSpgmr"):  # SUNDIALS >= 3: other API
-            return None
-    except OSError:
-        return None
-    link = (f"-L{directory}", f"-l:{PLUGIN}", f"-Wl,-rpath,{directory}", "-pthread")
-    loaded = compile_files("cvodes_driver", C_FOLDER, link, defines)
-    return None if loaded is None else DECLARATIONS.bind(loaded)
 
 
 def options(rtol, atol, max_steps, *, max_order=0, family=1, settled_ratio=0.0,
@@ -274,18 +158,16 @@ class Problem:
             (np.array(inputs.lower, dtype=np.float64), np.array(inputs.upper, dtype=np.float64))
             if inputs is not None else (np.zeros(1), np.zeros(1))
         )  # fmt: skip
-        self.struct = Function(
-            f=ctypes.cast(rhs._function, ctypes.c_void_p).value,
-            force=None if force is None else ctypes.cast(force._function, ctypes.c_void_p).value,
+        sizes = np.max([f.work_sizes for f in functions], axis=0).tolist()
+        self.struct = ProblemStruct(
+            f=rhs.address,
+            force=None if force is None else force.address,
             nx=n_state,
             nu=n,
             np=n_parameters,
             m=0 if inputs is None else inputs.n_inputs,
             lag=int(lag),
-            sz_arg=max(f._sz_arg for f in functions),
-            sz_res=max(f._sz_res for f in functions),
-            sz_iw=max(f._sz_iw for f in functions),
-            sz_w=max(f._sz_w for f in functions),
+            **dict(zip(("sz_arg", "sz_res", "sz_iw", "sz_w"), sizes, strict=True)),
             lower=self.bounds[0].ctypes.data,
             upper=self.bounds[1].ctypes.data,
             time_constant=inputs.time_constant if lag else 1.0,
@@ -332,8 +214,8 @@ def _compiled_force(force: ca.Function) -> NativeFunction | None:
     """``force`` generated as C, compiled (cached on disk by its code) and loaded, or None."""
     generator = ca.CodeGenerator("force.c", {"with_header": False})
     generator.add(force)
-    library = compile_source("actuator_force", generator.dump())
-    return None if library is None else NativeFunction(library, force.name())
+    built = compile_source("actuator_force", generator.dump())
+    return None if built is None else NativeFunction(built, force.name())
 
 
 def integrate(problem, lmm, x0, u, p, nominal, times, segments, tolerances, *, fastest=None,

@@ -1,6 +1,7 @@
 """The driver's route of the identification's forward sensitivities: what an evaluator
 carries into worker processes, and the one call into softcurve's CVODES driver
-(``softcurve_sensitivities``, ``sensitivity.c`` of :data:`softcurve.simulation.native.C_FOLDER`).
+(``softcurve_sensitivities``, ``sensitivity.c`` of
+:data:`softcurve.simulation.driver_library.C_FOLDER`).
 
 The driver integrates the state by Adams-Newton (or BDF, :attr:`DriverSettings.family`)
 on its own Newton matrix and the sensitivity columns ``S' = f_x S + f_d`` by CVODES's
@@ -16,7 +17,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from softcurve.simulation import native
+from softcurve.simulation import driver_library, native
 
 
 class DriverSettings(NamedTuple):
@@ -115,7 +116,7 @@ def integrate_sensitivities(
     helper : {"none", "shared"}
         With two parts, who evaluates the second (:data:`HELPER_MODES`).
     library : ctypes.CDLL, optional
-        A build of the driver (:func:`softcurve.simulation.native.library`; default the
+        A build of the driver (:func:`softcurve.simulation.driver_library.library`; default the
         product's, without defines).
 
     Returns
@@ -131,16 +132,14 @@ def integrate_sensitivities(
     out = np.zeros((times.size, start.size))
     out[0] = start
     arrays = [np.ascontiguousarray(a, dtype=np.float64) for a in (d, d_scaled, times, table)]
-    sizes = np.array([[c._sz_arg, c._sz_res, c._sz_iw, c._sz_w] for c in columns], np.int64)
-    pointers = (ctypes.c_void_p * len(columns))(
-        *(ctypes.cast(c._function, ctypes.c_void_p).value for c in columns)
-    )
+    sizes = np.array([c.work_sizes for c in columns], np.int64)
+    pointers = (ctypes.c_void_p * len(columns))(*(c.address for c in columns))
     counts = np.zeros(len(SENSITIVITY_STATISTICS), dtype=np.int64)
     reached = ctypes.c_int(0)
     n_x = problem.struct.nx
     m = start.size // n_x - 1
     leading = n_x if len(columns) == 1 else 0  # fs's f before vec(S'); the parts have none
-    call = (library or native.library()).softcurve_sensitivities
+    call = (library or driver_library.library()).softcurve_sensitivities
     driver_options = native.options(
         settings.rtol, settings.atol, settings.max_steps, family=settings.family,
         columns_tested=settings.columns_tested, helper=helper == "shared",
