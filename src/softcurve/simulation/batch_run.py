@@ -217,7 +217,7 @@ def integrate_native(run: MemberRun, initial, fastest, lanes=False) -> np.ndarra
         Adams switch to BDF at a restart once settled (None: no switch).
     lanes : bool
         Integrate consecutive members in groups on the state derivative over lanes
-        (:mod:`softcurve.simulation.cvodes_groups`), where the batch fills one.
+        (the driver's ``groups.c``), where the batch fills one.
     """
     groups = [None] if run.drives is None else list(run.drives.inputs)
     if len(groups) > COMPILED_ACTUATORS:
