@@ -90,12 +90,12 @@ def compile_function(function: ca.Function, flags: tuple[str, ...] | None = None
         :class:`~softcurve.compiled.CompilerWarning`) when the build fails: then it
         runs in CasADi's virtual machine.
     """
-    compiler = build._compiler()
+    compiler = build.find_compiler()
     name = function.name()
     asked = None if flags is None else tuple(flags)
 
     def compile_with(chosen: tuple[str, ...]) -> bytes:
-        return build._compile_for_this_cpu({name: function}, compiler, chosen, ("-fPIC",))
+        return build.compile_for_this_cpu({name: function}, compiler, chosen, ("-fPIC",))
 
     def make() -> bytes:
         build.require_compiler(compiler)

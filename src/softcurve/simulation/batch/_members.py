@@ -37,7 +37,7 @@ from softcurve.simulation.solvers import (
 
 
 def member_rates(model, x0, tau, parameters, nominal, threads) -> tuple:
-    """:func:`~softcurve.simulation.solvers.linear_rates` of every member at once: the
+    """:func:`~softcurve.simulation.solvers._policy.linear_rates` of every member at once: the
     central-difference linearization of the right-hand side at the initial states ``x0``
     (B, n_state) under ``tau`` (B, n), all points in one compiled map.
 
@@ -222,7 +222,7 @@ def integrate_native(run: MemberRun, initial, fastest, lanes=False) -> np.ndarra
         Adams switch to BDF at a restart once settled (None: no switch).
     lanes : bool
         Integrate consecutive members in groups on the state derivative over lanes
-        (:mod:`softcurve.simulation.solvers._groups_source`), where the batch fills one.
+        (the driver's ``groups.c``), where the batch fills one.
     """
     groups = [None] if run.drives is None else list(run.drives.inputs)
     if len(groups) > COMPILED_ACTUATORS:

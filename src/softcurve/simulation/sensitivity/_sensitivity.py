@@ -4,7 +4,7 @@ The equation of motion ``x' = f(x, tau(q, u, v), p)`` is augmented with the
 variational equations ``S' = f_x S + f_d`` for the columns of ``d = (p, v, x0)``
 that depend on the free parameters (``S(0)`` selects the free entries of ``x0``).
 The augmented right-hand side is generated as C by CasADi, compiled once by
-:func:`softcurve.compiled.compile_function` (same compiler and cache as the model),
+:func:`softcurve.compiled._generated.compile_function` (same compiler and cache as the model),
 loaded as an ``external`` and integrated by CVODES, so an evaluation of the residuals
 and their exact Jacobian never returns to Python. The chain rule from ``d`` to the free
 parameters ``theta`` (ties, re-parametrizations, initial states) and from the state to
@@ -30,12 +30,17 @@ import uuid
 import casadi as ca
 import numpy as np
 
-from softcurve.compiled import compile_function, compile_functions, load_external
+from softcurve.compiled import (
+    compile_function,
+    compile_functions,
+    load_external,
+    load_function,
+    load_with_path,
+)
 from softcurve.simulation.sensitivity._route import (
     DriverRoute,
     DriverSettings,
     integrate_sensitivities,
-    load_with_path,
 )
 from softcurve.simulation.sensitivity._split import assembled, column_parts
 from softcurve.simulation.solvers import (
@@ -44,7 +49,6 @@ from softcurve.simulation.solvers import (
     driver,
     driver_reason,
 )
-from softcurve.simulation.stepper import load_native
 
 SENSITIVITY_CVODES = cvodes_options(
     "adams", 1e-8, 1e-10, 100_000, max_order=None, nonlinear_solver_iteration="functional"
@@ -155,8 +159,8 @@ class SensitivityEvaluator:
         if self._native is None:  # a worker process: load the libraries the parent built
             driven = self.driven
             try:
-                route = (DriverProblem(load_native(*driven.state), *driven.sizes),
-                         [load_native(*c) for c in driven.columns])  # fmt: skip
+                route = (DriverProblem(load_function(*driven.state), *driven.sizes),
+                         [load_function(*c) for c in driven.columns])  # fmt: skip
             except (OSError, RuntimeError, AttributeError):  # not loadable: CasADi's route
                 route = False
             self._native = route
@@ -184,7 +188,7 @@ def hold_inputs(t: np.ndarray, u: np.ndarray, hold: str) -> np.ndarray:
 
     CasADi applies column ``k`` on ``(t[k-1], t[k]]``. ``"constant"``: the sample at the
     start of each interval, ``u_(k-1)``, held until the next one (a zero-order hold, as
-    :func:`~softcurve.simulation.simulate` applies a grid of inputs: an input
+    :func:`~softcurve.simulation._simulate.simulate` applies a grid of inputs: an input
     never acts before it was sampled). ``"linear"``: the line through both samples,
     ``a_k + b_k t`` with rows ``(a, b)``, so the inputs are continuous in time (no jump
     for the integrator to restart at).

@@ -8,7 +8,7 @@ The period is split into ``substeps`` steps ``h`` of one of the methods of
 forward-difference Jacobian (:func:`newton_matrix`) serves several steps; ``I - gamma h
 J`` is factorized by Householder QR (:class:`Factorization`), no inverse. The state layout is
 ``simulate``'s: ``(q, qd, lam)`` then the actuator's lagging inputs
-(:class:`~softcurve.simulation.solvers.ActuatorInput`). docs/stepping.md gives the
+(:class:`~softcurve.simulation.solvers._cvodes.ActuatorInput`). docs/stepping.md gives the
 accuracy and the cost.
 """
 
@@ -18,11 +18,10 @@ import casadi as ca
 import numpy as np
 
 from softcurve.base.docs import parameters_from
-from softcurve.compiled import NativeFunction, compile_function
+from softcurve.compiled import NativeFunction, compile_function, load_function
 from softcurve.simulation.solvers import ActuatorInput, actuated_derivative, nominal_scale
 from softcurve.simulation.stepper._methods import METHODS, ExplicitTableau, Tableau
 from softcurve.simulation.stepper._observe import observer
-from softcurve.simulation.stepper._threads import load_native
 
 scheme_parameters = parameters_from(
     {
@@ -60,7 +59,7 @@ def state_derivative(model, inputs: ActuatorInput | None, symbolic: bool) -> ca.
 @scheme_parameters
 def state_scale(model, inputs: ActuatorInput | None) -> np.ndarray:
     """The natural size of every state (n_state [+ m],): the geometric floors of
-    :func:`~softcurve.simulation.solvers.nominal_scale`, and the larger bound of each
+    :func:`~softcurve.simulation.solvers._policy.nominal_scale`, and the larger bound of each
     lagging input (as ``simulate`` scales them).
 
     Parameters
@@ -242,7 +241,7 @@ def period_function(
 
     With ``compiled``, the whole period is generated as one C function (the model's
     symbolic right-hand side called in a loop) and compiled with
-    :func:`~softcurve.compiled.compile_function` (cached on disk by content: one
+    :func:`~softcurve.compiled._generated.compile_function` (cached on disk by content: one
     library per robot structure, environment, actuator, method and ``substeps``; any
     period and parameter values); else it runs in CasADi's virtual machine on the
     model's compiled ``rhs``.
@@ -264,7 +263,7 @@ def period_function(
         per period).
     native : bool
         With ``compiled``, return the compiled library's function as a
-        :class:`~softcurve.compiled.NativeFunction` (called through ctypes, which
+        :class:`~softcurve.compiled._native.NativeFunction` (called through ctypes, which
         releases the GIL: threads of Python run members in parallel) instead of a
         CasADi ``external``; None where no compiler works.
     """
@@ -311,7 +310,7 @@ def period_function(
     def build():
         if not native:
             return compile_function(function, flags)
-        loaded = compile_function(function, flags, load=load_native)
+        loaded = compile_function(function, flags, load=load_function)
         return loaded if isinstance(loaded, NativeFunction) else None
 
     return model.cached((*key, flags, native), build)
