@@ -1,9 +1,9 @@
 """Hand-written C compiled next to the generated code: :func:`compile_source`.
 
 For small C sources that are not CasADi-generated (the driver of the SUNDIALS library
-that ships with CasADi, :mod:`softcurve.simulation.solvers._driver`): the compiler, flags,
-checksum files and on-disk cache of :mod:`softcurve.compiled._build` and
-:mod:`softcurve.compiled._cache`, keyed by the source's content.
+that ships with CasADi, ``softcurve.simulation.solvers._driver``): the compiler, flags,
+checksum files and on-disk cache of ``softcurve.compiled._build`` and
+``softcurve.compiled._cache``, keyed by the source's content.
 """
 
 from __future__ import annotations

@@ -6,13 +6,13 @@ with sensor offsets; an :class:`InputMap` turns measured inputs into generalized
 (chamber pressures through a geometric or a constant pressure map, tendon tensions
 through their routing, with per-part gains and azimuths and a mounting angle). Both may
 read named *extra* parameters, which the fits of
-:mod:`softcurve.identification.fits._dynamic` can estimate. The functions build CasADi
+:mod:`softcurve.identification.fits` can estimate. The functions build CasADi
 expressions and work with SX or MX arguments.
 
 This module gathers them (``from softcurve.identification.maps._builders import ...``); they are
-defined in :mod:`~softcurve.identification.maps._types`,
-:mod:`~softcurve.identification.maps._outputs` and
-:mod:`~softcurve.identification.maps._inputs`. ``docs/identify.md`` builds one by hand.
+defined in ``softcurve.identification.maps._types``,
+:mod:`softcurve.identification.maps` and
+:mod:`softcurve.identification.maps`. ``docs/identify.md`` builds one by hand.
 """
 
 from __future__ import annotations

@@ -87,7 +87,7 @@ class MemberRun:
     rest_lengths : ndarray, shape (B, N)
         Rest length of each member's segments [m], for the domain check of the outputs.
     drives : Drives, optional
-        The actuator of each member (:mod:`softcurve.simulation.batch._inputs`); the
+        The actuator of each member (``softcurve.simulation.batch._inputs``); the
         members integrated in one call must share one.
     """
 
@@ -205,7 +205,7 @@ batch with more uses CasADi's integrator, which needs no compilation."""
 
 
 def integrate_native(run: MemberRun, initial, fastest, lanes=False) -> np.ndarray | None:
-    """The whole batch of ``run`` with CVODES's C driver (:mod:`softcurve.simulation.solvers._driver`):
+    """The whole batch of ``run`` with CVODES's C driver (``softcurve.simulation.solvers._driver``):
     one call per group of members that share an actuator, every restart segment inside it,
     members on ``run.threads`` threads. Fills ``run.states`` and the failures as
     :meth:`MemberRun.integrate` does; returns which members used BDF, or None (nothing
@@ -222,7 +222,7 @@ def integrate_native(run: MemberRun, initial, fastest, lanes=False) -> np.ndarra
         Adams switch to BDF at a restart once settled (None: no switch).
     lanes : bool
         Integrate consecutive members in groups on the state derivative over lanes
-        (:mod:`softcurve.simulation.solvers._groups_source`), where the batch fills one.
+        (``softcurve.simulation.solvers._groups_source``), where the batch fills one.
     """
     groups = [None] if run.drives is None else list(run.drives.inputs)
     if len(groups) > COMPILED_ACTUATORS:

@@ -11,8 +11,8 @@ parameters ``theta`` (ties, re-parametrizations, initial states) and from the st
 the outputs is applied afterwards, sample by sample.
 
 Two routes integrate it. Where softcurve's CVODES driver is available
-(:mod:`softcurve.simulation.solvers._driver`; the call and its settings are in
-:mod:`softcurve.simulation.sensitivity._route`), the state is integrated by Adams-Newton on its own
+(``softcurve.simulation.solvers._driver``; the call and its settings are in
+``softcurve.simulation.sensitivity._route``), the state is integrated by Adams-Newton on its own
 Newton matrix and the sensitivity columns by CVODES's staggered corrector (outside the
 error test), all in C, without a restart at the samples of a linear hold; otherwise (no driver, or
 CVODES options other than :data:`NATIVE_OPTIONS`) CasADi's CVODES integrates the
@@ -263,7 +263,7 @@ def trajectory_sensitivities(
     threads : int
         Threads of an evaluation in the driver's route, >= 1: with 2 or more the
         columns' right-hand side is evaluated in two parts on two threads
-        (:mod:`softcurve.simulation.sensitivity._split`).
+        (``softcurve.simulation.sensitivity._split``).
     """
     P = parameters
     u_names = list(experiment.inputs)

@@ -1,4 +1,4 @@
-"""CVODES driven from C: softcurve's own driver (:mod:`softcurve.simulation.solvers._driver_source`)
+"""CVODES driven from C: softcurve's own driver (``softcurve.simulation.solvers._driver_source``)
 of the SUNDIALS CVODES that ships inside CasADi, on the model's compiled right-hand side.
 
 Why not CasADi's ``integrator``: on the paper's 10 s case it spends more time around the
@@ -173,7 +173,7 @@ class Problem:
         The actuator's input (bounds, lag), with ``force``.
     lanes : LanesDerivative, optional
         The same state derivative over lanes
-        (:func:`~softcurve.simulation.solvers._lanes.lanes_derivative`): members are then
+        (``softcurve.simulation.solvers._lanes.lanes_derivative``): members are then
         integrated in groups of its width, ``self.width`` (else 1).
     """
 

@@ -1,4 +1,4 @@
-"""The C source of softcurve's CVODES driver, compiled by :mod:`softcurve.simulation.solvers._driver`.
+"""The C source of softcurve's CVODES driver, compiled by ``softcurve.simulation.solvers._driver``.
 
 Kept as a Python string so that it ships with the package like any module.
 """

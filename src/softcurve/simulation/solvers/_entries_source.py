@@ -1,6 +1,6 @@
 """The C source of the CVODES driver's two small entries, compiled after
-``DRIVER_SOURCE`` of :mod:`softcurve.simulation.solvers._driver_source` into one library by
-:mod:`softcurve.simulation.solvers._driver` (they use its work struct, ``evaluate`` and
+``DRIVER_SOURCE`` of ``softcurve.simulation.solvers._driver_source`` into one library by
+``softcurve.simulation.solvers._driver`` (they use its work struct, ``evaluate`` and
 ``outside``): the right-hand side at many states in one call (the linearization that
 picks the integrator family), and the domain test, which the tests check against
 Python's rule.

@@ -1,7 +1,7 @@
 """The C source of the CVODES driver's entry ``softcurve_cvodes``, compiled after
-``DRIVER_SOURCE`` of :mod:`softcurve.simulation.solvers._driver_source` into one library by
-:mod:`softcurve.simulation.solvers._driver`: members integrated one by one, or, where the problem
-has the state derivative over lanes (:mod:`softcurve.simulation.solvers._lanes`), in
+``DRIVER_SOURCE`` of ``softcurve.simulation.solvers._driver_source`` into one library by
+``softcurve.simulation.solvers._driver``: members integrated one by one, or, where the problem
+has the state derivative over lanes (``softcurve.simulation.solvers._lanes``), in
 groups whose members are stacked into one CVODES system and evaluated together.
 
 Why groups: one lanes evaluation of four members costs about one scalar evaluation

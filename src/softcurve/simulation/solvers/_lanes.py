@@ -1,10 +1,10 @@
 """The state derivative over lanes for CVODES's driver: the members of a batch
-integrated in groups (:mod:`softcurve.simulation.solvers._groups_source`) evaluate it
+integrated in groups (``softcurve.simulation.solvers._groups_source``) evaluate it
 :data:`~softcurve.compiled.LANE_WIDTH` at a time.
 
 The function is the one the scalar driver evaluates (the model's ``rhs`` with the
 actuator's force and lag, :func:`~softcurve.simulation.solvers.actuated_derivative`),
-generated over lanes by :mod:`softcurve.compiled._lanes` with every input per member
+generated over lanes by ``softcurve.compiled._lanes`` with every input per member
 (members of a batch may have their own parameters).
 """
 

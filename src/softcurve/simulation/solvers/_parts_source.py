@@ -1,11 +1,11 @@
 """The C source of the sensitivity right-hand side in parts, one of them on a helper
 thread, compiled before ``SENSITIVITY_SOURCE`` of
-:mod:`softcurve.simulation.solvers._sensitivity_source` into one library by
-:mod:`softcurve.simulation.solvers._driver`.
+``softcurve.simulation.solvers._sensitivity_source`` into one library by
+``softcurve.simulation.solvers._driver``.
 
 The columns' right-hand side ``f_x S + f_d`` is the sum of the Jacobian's column
 blocks, ``f_x[:, A] S[A, :] + f_d`` and ``f_x[:, B] S[B, :]`` (the split is chosen in
-:mod:`softcurve.simulation.sensitivity._split`); the driver evaluates the first part on
+``softcurve.simulation.sensitivity._split``); the driver evaluates the first part on
 its own thread while a helper thread evaluates the second.
 
 Kept as a Python string so that it ships with the package like any module.

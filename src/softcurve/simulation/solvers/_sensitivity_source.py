@@ -1,8 +1,8 @@
 """The C source of the CVODES driver's forward-sensitivity entry, compiled with
 ``DRIVER_SOURCE`` of ``softcurve.simulation.solvers._driver_source`` into one library by
-:mod:`softcurve.simulation.solvers._driver` (it uses that source's declarations, work struct and
+``softcurve.simulation.solvers._driver`` (it uses that source's declarations, work struct and
 Newton-matrix callbacks), after the parts of the columns' right-hand side
-(:mod:`softcurve.simulation.solvers._parts_source`), which it includes.
+(``softcurve.simulation.solvers._parts_source``), which it includes.
 
 Kept as a Python string so that it ships with the package like any module.
 """

@@ -2,9 +2,9 @@
 advanced at once in vector instructions, one C call per thread's share.
 
 The members of a fixed-step method take the same steps, so they run the same
-instructions in lock-step; :mod:`softcurve.compiled._lanes` generates the state
+instructions in lock-step; ``softcurve.compiled._lanes`` generates the state
 derivative, the observation and the Newton matrix's factorization over lanes of
-members, and :mod:`softcurve.simulation.stepper._lane_stages` writes the method's steps
+members, and ``softcurve.simulation.stepper._lane_stages`` writes the method's steps
 around them from its coefficients. A thread's whole share of the members is one call:
 no Python per member.
 """
@@ -142,7 +142,7 @@ class LanesPeriod:
 def lanes_period(model, inputs, substeps: int, method: str, every: int | None = None):
     """The compiled :func:`period_source`, kept with the model: with glibc's vector math
     where it is available and links
-    (:func:`~softcurve.compiled._lanes.vector_math_available`), else with the C
+    (``softcurve.compiled._lanes.vector_math_available``), else with the C
     library's scalar functions.
 
     Parameters

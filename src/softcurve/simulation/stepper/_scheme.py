@@ -2,7 +2,7 @@
 function per member that advances a state by one control period, generated as C.
 
 The period is split into ``substeps`` steps ``h`` of one of the methods of
-:mod:`~softcurve.simulation.stepper._methods`, the inputs held: a Rosenbrock-W method
+``softcurve.simulation.stepper._methods``, the inputs held: a Rosenbrock-W method
 (ROS34PW2 of order 3, or ROS2 of order 2, both L-stable) or the explicit RK4
 (:func:`explicit_step`). A W-method keeps its order with any matrix ``J``, so one
 forward-difference Jacobian (:func:`newton_matrix`) serves several steps; ``I - gamma h
@@ -99,7 +99,7 @@ def jacobian_pattern(model, inputs) -> ca.Sparsity:
 def difference_jacobian(f, scale, x, u, p):
     """``(J, f(x))``: the Jacobian of ``f`` at ``x`` by forward differences, one batched
     call of ``n_state + 1`` evaluations; symbolic (MX) in the generated period, numeric
-    (DM) for :func:`~softcurve.simulation.stepper._stability.fastest_rate`.
+    (DM) for ``softcurve.simulation.stepper._stability.fastest_rate``.
 
     Parameters
     ----------
