@@ -20,7 +20,7 @@ from scipy.signal import butter, find_peaks, sosfiltfilt
 
 import softcurve as sc
 from softcurve.figures import save_figure
-from softcurve.simulation.engine import linearization_rates
+from softcurve.simulation.solvers import linearization_rates
 
 Q0, QD0 = [0.064, 25.0, 0.0], [0.0, 0.0, 1500.0]
 

@@ -29,7 +29,7 @@ import softcurve as sc
 from softcurve.control.controllers import ActuatorDriven, ComputedTorque
 from softcurve.control.mpc import ActuatorMPC
 from softcurve.control.references import tip_circle
-from softcurve.simulation.simulate import simulate
+from softcurve.simulation import simulate
 
 CIRCLE = dict(center=(0.02, 0.0, 0.065), radius=0.01, period=2.0)
 OMEGA = 2 * np.pi * 20.0  # error dynamics: 20 Hz, damping ratio 0.9

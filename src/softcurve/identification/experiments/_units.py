@@ -30,7 +30,7 @@ UNITS = {
 }  # fmt: skip
 """Kind -> (SI unit, {unit: factor to SI}); an SI unit None keeps the unit recorded.
 ``"g"`` (standard gravities, as an accelerometer reports) is kept as recorded too, since
-:func:`~softcurve.identification.maps.imu_orientation` gives it."""
+:func:`~softcurve.identification.maps.imu_orientation_map` gives it."""
 
 KEPT = {"rad", "deg", "g"}
 """Units that stay as recorded (no conversion)."""

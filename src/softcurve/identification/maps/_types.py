@@ -20,11 +20,11 @@ from dataclasses import dataclass, field
 class OutputMap:
     """Measured signals as a function of the state: ``y = function(q, qd, values, p)``.
 
-    Built by :func:`~softcurve.identification.maps.bending_angle`,
-    :func:`~softcurve.identification.maps.curvatures`,
-    :func:`~softcurve.identification.maps.marker_position`,
-    :func:`~softcurve.identification.maps.tip_position` and
-    :func:`~softcurve.identification.maps.imu_orientation`, or by hand for
+    Built by :func:`~softcurve.identification.maps.bending_angle_map`,
+    :func:`~softcurve.identification.maps.curvature_map`,
+    :func:`~softcurve.identification.maps.marker_position_map`,
+    :func:`~softcurve.identification.maps.tip_position_map` and
+    :func:`~softcurve.identification.maps.imu_orientation_map`, or by hand for
     another sensor.
 
     Parameters
