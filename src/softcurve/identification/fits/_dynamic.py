@@ -168,8 +168,10 @@ def fit_trajectory(
         The compiled model; its robot gives the values of everything not free.
     %(experiment)s
     output : OutputMap
-        Model outputs matched to the signals (:func:`bending_angle`, :func:`curvatures`,
-        :func:`tip_position`).
+        Model outputs matched to the signals
+        (:func:`~softcurve.identification.maps.bending_angle_map`,
+        :func:`~softcurve.identification.maps.curvature_map`,
+        :func:`~softcurve.identification.maps.tip_position_map`).
     x0 : array_like, shape (n_state,), or callable, or a list or dict of them
         Initial state ``(q, qd, lam)``; a callable receives the dict of extra
         parameters (CasADi expressions) and returns the state. One for all
