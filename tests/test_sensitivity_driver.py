@@ -16,8 +16,11 @@ import softcurve as sc
 from softcurve.identification.experiments import Experiment
 from softcurve.identification.fits._parameters import Free, FreeParameters
 from softcurve.identification.maps import bellows_input_map, curvatures
-from softcurve.simulation.sensitivity._sensitivity import SENSITIVITY_CVODES, trajectory_sensitivities
 from softcurve.simulation.sensitivity._route import integrate_sensitivities
+from softcurve.simulation.sensitivity._sensitivity import (
+    SENSITIVITY_CVODES,
+    trajectory_sensitivities,
+)
 from softcurve.simulation.sensitivity._split import split_states
 from softcurve.simulation.solvers import _driver as native
 from softcurve.simulation.solvers import _library as driver_library

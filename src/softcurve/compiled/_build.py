@@ -1,7 +1,7 @@
 """Compiling CasADi functions to C: the compiler, its flags, the cache keys.
 
 The one place that knows about code generation and compilers: the library of a model is
-cached (:mod:`softcurve.compiled._cache`) under a key made of its structure, the sources
+cached (``softcurve.compiled._cache``) under a key made of its structure, the sources
 of the symbolic layer, CasADi's version, the flags and (for code built for this CPU) the
 CPU, so a second process with a robot of the same structure (any parameter values)
 starts without compiling. The key does not hold the compiler: a library is what it

@@ -1,5 +1,5 @@
 """CasADi functions other than the model's, generated as C, compiled and cached on disk
-with the model's compiler and cache (:mod:`softcurve.compiled._build`): the
+with the model's compiler and cache (``softcurve.compiled._build``): the
 identification's sensitivity equations, the stepper's period, an actuator's force.
 """
 

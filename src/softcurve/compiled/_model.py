@@ -58,7 +58,7 @@ def _block(column: np.ndarray, start: int, width: int) -> np.ndarray:
 
 def _load(library: Path) -> dict[str, NativeFunction]:
     """The compiled functions of a verified library (ctypes raises OSError if it cannot be
-    loaded; :func:`~softcurve.compiled._build.compiled_library` then rebuilds it once)."""
+    loaded; ``softcurve.compiled._build.compiled_library`` then rebuilds it once)."""
     handle = load_library(library)
     return {name: NativeFunction(handle, name) for name in COMPILED_FUNCTIONS}
 

@@ -3,7 +3,7 @@ libraries: :func:`compile_source` (a source that Python fills in), :func:`compil
 (C files shipped with the package), :func:`load_library` and :func:`load_function`.
 
 The compiler, flags, checksum files and on-disk cache are those of
-:mod:`softcurve.compiled._build` and :mod:`softcurve.compiled._cache`; a library's cache
+``softcurve.compiled._build`` and ``softcurve.compiled._cache``; a library's cache
 key holds the content of every source it is built from, so a library built from a
 source that has since changed is never loaded.
 """

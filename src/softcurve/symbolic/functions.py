@@ -1,7 +1,7 @@
 """The numeric entry points of a model as CasADi Functions of ``(inputs..., p)``.
 
 Built from :class:`~softcurve.symbolic.dynamics.DynamicsExpressions`; the compiled model
-generates C for some of them (:data:`softcurve.compiled._build.COMPILED_FUNCTIONS`) and
+generates C for some of them (``softcurve.compiled._build.COMPILED_FUNCTIONS``) and
 keeps the rest for users who build on CasADi.
 """
 

@@ -37,7 +37,7 @@ from softcurve.simulation.solvers import (
 
 
 def member_rates(model, x0, tau, parameters, nominal, threads) -> tuple:
-    """:func:`~softcurve.simulation.solvers._policy.linear_rates` of every member at once: the
+    """:func:`~softcurve.simulation.solvers.linear_rates` of every member at once: the
     central-difference linearization of the right-hand side at the initial states ``x0``
     (B, n_state) under ``tau`` (B, n), all points in one compiled map.
 
@@ -87,7 +87,7 @@ class MemberRun:
     rest_lengths : ndarray, shape (B, N)
         Rest length of each member's segments [m], for the domain check of the outputs.
     drives : Drives, optional
-        The actuator of each member (:mod:`softcurve.simulation.batch._inputs`); the
+        The actuator of each member (``softcurve.simulation.batch._inputs``); the
         members integrated in one call must share one.
     """
 
@@ -205,7 +205,7 @@ batch with more uses CasADi's integrator, which needs no compilation."""
 
 
 def integrate_native(run: MemberRun, initial, fastest, lanes=False) -> np.ndarray | None:
-    """The whole batch of ``run`` with CVODES's C driver (:mod:`softcurve.simulation.solvers._driver`):
+    """The whole batch of ``run`` with CVODES's C driver (``softcurve.simulation.solvers._driver``):
     one call per group of members that share an actuator, every restart segment inside it,
     members on ``run.threads`` threads. Fills ``run.states`` and the failures as
     :meth:`MemberRun.integrate` does; returns which members used BDF, or None (nothing

@@ -1,13 +1,13 @@
 """The driver's route of the identification's forward sensitivities: what an evaluator
 carries into worker processes, and the one call into softcurve's CVODES driver
 (``softcurve_sensitivities``, ``sensitivity.c`` of
-:data:`softcurve.simulation.solvers._library.C_FOLDER`).
+``softcurve.simulation.solvers._library.C_FOLDER``).
 
 The driver integrates the state by Adams-Newton (or BDF, :attr:`DriverSettings.family`)
 on its own Newton matrix and the sensitivity columns ``S' = f_x S + f_d`` by CVODES's
 staggered corrector, evaluating the identification's compiled
 ``fs(x;vec(S), u, d;scale) -> f;vec(S')``, or two compiled parts that sum to ``vec(S')``
-(:mod:`softcurve.simulation.sensitivity._split`), the second on a helper thread.
+(``softcurve.simulation.sensitivity._split``), the second on a helper thread.
 """
 
 from __future__ import annotations
@@ -100,7 +100,7 @@ def integrate_sensitivities(
     columns : sequence of NativeFunction
         ``[fs]``, ``fs(x;vec(S), u, d;scale) -> f;vec(S')`` for ``m`` columns, or two
         parts of the same arguments whose outputs sum to ``vec(S')``
-        (:func:`~softcurve.simulation.sensitivity._split.column_parts`).
+        (``softcurve.simulation.sensitivity._split.column_parts``).
     start : ndarray, shape (W,)
         ``(x0, vec(S0))`` with ``W = nx (1 + m)``, at ``times[0]``.
     d : ndarray, shape (n_d,)
@@ -119,7 +119,7 @@ def integrate_sensitivities(
     helper : {"none", "shared"}
         With two parts, who evaluates the second (:data:`HELPER_MODES`).
     library : ctypes.CDLL, optional
-        A build of the driver (:func:`softcurve.simulation.solvers._library.library`; default the
+        A build of the driver (:func:`softcurve.simulation.solvers.driver_library`; default the
         product's, without defines).
 
     Returns
@@ -127,7 +127,7 @@ def integrate_sensitivities(
     tuple
         ``(out (T, W), reached, flag, counts)``: the outputs (rows after ``reached`` are
         zero), how many were computed (``start`` included), 0 or CVODES's negative flag
-        (:data:`softcurve.simulation.solvers._driver.FLAGS`) and the counters of
+        (``softcurve.simulation.solvers._driver.FLAGS``) and the counters of
         :data:`SENSITIVITY_STATISTICS`.
     """
     if helper not in HELPER_MODES:

@@ -4,15 +4,15 @@ The equation of motion ``x' = f(x, tau(q, u, v), p)`` is augmented with the
 variational equations ``S' = f_x S + f_d`` for the columns of ``d = (p, v, x0)``
 that depend on the free parameters (``S(0)`` selects the free entries of ``x0``).
 The augmented right-hand side is generated as C by CasADi, compiled once by
-:func:`softcurve.compiled._generated.compile_function` (same compiler and cache as the model),
+:func:`softcurve.compiled.compile_function` (same compiler and cache as the model),
 loaded as an ``external`` and integrated by CVODES, so an evaluation of the residuals
 and their exact Jacobian never returns to Python. The chain rule from ``d`` to the free
 parameters ``theta`` (ties, re-parametrizations, initial states) and from the state to
 the outputs is applied afterwards, sample by sample.
 
 Two routes integrate it. Where softcurve's CVODES driver is available
-(:mod:`softcurve.simulation.solvers._driver`; the call and its settings are in
-:mod:`softcurve.simulation.sensitivity._route`), the state is integrated by Adams-Newton on its own
+(``softcurve.simulation.solvers._driver``; the call and its settings are in
+``softcurve.simulation.sensitivity._route``), the state is integrated by Adams-Newton on its own
 Newton matrix and the sensitivity columns by CVODES's staggered corrector (outside the
 error test), all in C, without a restart at the samples of a linear hold; otherwise (no driver, or
 CVODES options other than :data:`NATIVE_OPTIONS`) CasADi's CVODES integrates the
@@ -188,7 +188,7 @@ def hold_inputs(t: np.ndarray, u: np.ndarray, hold: str) -> np.ndarray:
 
     CasADi applies column ``k`` on ``(t[k-1], t[k]]``. ``"constant"``: the sample at the
     start of each interval, ``u_(k-1)``, held until the next one (a zero-order hold, as
-    :func:`~softcurve.simulation._simulate.simulate` applies a grid of inputs: an input
+    :func:`~softcurve.simulation.simulate` applies a grid of inputs: an input
     never acts before it was sampled). ``"linear"``: the line through both samples,
     ``a_k + b_k t`` with rows ``(a, b)``, so the inputs are continuous in time (no jump
     for the integrator to restart at).
@@ -267,7 +267,7 @@ def trajectory_sensitivities(
     threads : int
         Threads of an evaluation in the driver's route, >= 1: with 2 or more the
         columns' right-hand side is evaluated in two parts on two threads
-        (:mod:`softcurve.simulation.sensitivity._split`).
+        (``softcurve.simulation.sensitivity._split``).
     """
     P = parameters
     u_names = list(experiment.inputs)

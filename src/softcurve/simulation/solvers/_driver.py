@@ -14,9 +14,9 @@ in one call, on threads that do not contend.
 :func:`problem` describes a model (and optionally an actuator's force) to the driver;
 :func:`integrate` runs it, with the settings of :func:`options`, the one place that fills
 the header's ``sc_options``. The library and its declarations, read from the header, are
-:mod:`softcurve.simulation.solvers._library`'s. Both return None / are unused where the
+``softcurve.simulation.solvers._library``'s. Both return None / are unused where the
 driver cannot be built (no C compiler, an uncompiled model, a CasADi outside
-:data:`~softcurve.simulation.solvers._library.CASADI_VERIFIED` or whose SUNDIALS has
+``softcurve.simulation.solvers._library.CASADI_VERIFIED`` or whose SUNDIALS has
 another interface) or ``SOFTCURVE_NATIVE_CVODES=0`` is set: the engines then use
 CasADi's integrator.
 """
@@ -104,7 +104,7 @@ def options(rtol, atol, max_steps, *, max_order=0, family=1, settled_ratio=0.0,
     family : int
         1 Adams, 2 BDF (the sensitivities; :func:`integrate` takes one per member).
     settled_ratio : float
-        :data:`~softcurve.simulation.solvers._policy.SETTLED_RATIO` (dimensionless), with a
+        ``softcurve.simulation.solvers._policy.SETTLED_RATIO`` (dimensionless), with a
         member's fastest rate.
     columns_tested : bool
         The sensitivity columns in the error test too.
@@ -144,7 +144,7 @@ class Problem:
         The actuator's input (bounds, lag), with ``force``.
     lanes : LanesDerivative, optional
         The same state derivative over lanes
-        (:func:`~softcurve.simulation.solvers._lanes.lanes_derivative`): members are then
+        (``softcurve.simulation.solvers._lanes.lanes_derivative``): members are then
         integrated in groups of its width, ``self.width`` (else 1).
     """
 
@@ -178,7 +178,7 @@ class Problem:
 
 def problem(model, inputs=None, lanes: bool = False) -> Problem | None:
     """The :class:`Problem` of ``model`` driven by forces or by ``inputs`` (an
-    :class:`~softcurve.simulation.solvers._cvodes.ActuatorInput`, whose force ``H(q) u`` is
+    :class:`~softcurve.simulation.solvers.ActuatorInput`, whose force ``H(q) u`` is
     compiled once per actuator and cached on disk), cached with the model; None where the
     driver is not available.
 
@@ -244,13 +244,13 @@ def integrate(problem, lmm, x0, u, p, nominal, times, segments, tolerances, *, f
         ``(ends (S,), restart (S,))``: the output index where each segment ends (the last
         is ``T - 1``), and whether it begins a restart interval, where a member with
         ``fastest`` switches to BDF once settled
-        (:data:`~softcurve.simulation.solvers._policy.SETTLED_RATIO`) and back to its own family.
+        (``softcurve.simulation.solvers._policy.SETTLED_RATIO``) and back to its own family.
     tolerances : tuple
         ``(rtol, abstol of the scaled state, max_steps per output, max_order)``.
     fastest : ndarray, shape (B,), optional
         Fastest rate of each member's initial linearization [1/s] (0 or None: no switch).
     settled_ratio : float
-        :data:`~softcurve.simulation.solvers._policy.SETTLED_RATIO` (a ratio, dimensionless), with
+        ``softcurve.simulation.solvers._policy.SETTLED_RATIO`` (a ratio, dimensionless), with
         ``fastest``.
     longest : ndarray, shape (B, n_segments), optional
         Longest length of each segment in the model's domain [m]: a member stops at its
@@ -357,7 +357,7 @@ def outside(q, longest) -> np.ndarray:
 
 
 def reason(flag: int) -> str:
-    """CVODES's ``flag`` as the name :func:`~softcurve.simulation.solvers._policy.cvodes_reason`
+    """CVODES's ``flag`` as the name :func:`~softcurve.simulation.solvers.cvodes_reason`
     explains.
 
     Parameters

@@ -1,11 +1,11 @@
 """The state derivative over lanes for CVODES's driver: the members of a batch
 integrated in groups (``groups.c`` of
-:data:`softcurve.simulation.solvers._library.C_FOLDER`) evaluate it
-:data:`~softcurve.compiled._lanes.LANE_WIDTH` at a time.
+``softcurve.simulation.solvers._library.C_FOLDER``) evaluate it
+``softcurve.compiled._lanes.LANE_WIDTH`` at a time.
 
 The function is the one the scalar driver evaluates (the model's ``rhs`` with the
-actuator's force and lag, :func:`~softcurve.simulation.solvers._actuated.actuated_derivative`),
-generated over lanes by :mod:`softcurve.compiled._lanes` with every input per member
+actuator's force and lag, :func:`~softcurve.simulation.solvers.actuated_derivative`),
+generated over lanes by ``softcurve.compiled._lanes`` with every input per member
 (members of a batch may have their own parameters).
 """
 
@@ -37,10 +37,10 @@ def xdot_source(f, vector_math: bool) -> str:
     ----------
     f : casadi.Function
         ``(x, u, p) -> xdot`` as an SX function
-        (:func:`~softcurve.simulation.solvers._actuated.actuated_derivative`, expanded).
+        (:func:`~softcurve.simulation.solvers.actuated_derivative`, expanded).
     vector_math : bool
         Use glibc's vector math library where compiled for AVX2
-        (:func:`~softcurve.compiled._lanes.lanes_prelude`).
+        (:func:`~softcurve.compiled.lanes_prelude`).
 
     Returns
     -------

@@ -4,9 +4,9 @@ library, built and loaded once per process (:func:`library`).
 
 The C is in ``softcurve/simulation/solvers/c``: ``softcurve_driver.h`` declares what
 Python calls (the structs ``sc_function`` and ``sc_options`` and the exported functions,
-in the restricted form of :mod:`softcurve.compiled._declarations`), ``sundials2.h`` the
+in the restricted form of ``softcurve.compiled._declarations``), ``sundials2.h`` the
 SUNDIALS 2.x of CasADi's private CVODES plugin, which ships no headers.
-:mod:`softcurve.simulation.solvers._driver` calls the library.
+``softcurve.simulation.solvers._driver`` calls the library.
 """
 
 from __future__ import annotations
@@ -31,14 +31,14 @@ HEADER = C_FOLDER / "softcurve_driver.h"
 
 DECLARATIONS = read_header(HEADER)
 """The ctypes declarations of :data:`HEADER`
-(:class:`~softcurve.compiled._declarations.Declarations`)."""
+(``softcurve.compiled._declarations.Declarations``)."""
 
 ProblemStruct = DECLARATIONS.structs["sc_function"]
 """The header's ``sc_function``: a model described to the driver."""
 
 Options = DECLARATIONS.structs["sc_options"]
 """The header's ``sc_options``: the settings of a call
-(:func:`softcurve.simulation.solvers._driver.options`)."""
+(:func:`softcurve.simulation.solvers.driver_options`)."""
 
 CASADI_VERIFIED = ">=3.8,<3.9"
 """The CasADi versions whose private CVODES plugin the driver was verified with (the

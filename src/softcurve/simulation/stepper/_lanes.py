@@ -1,10 +1,10 @@
-"""The stepper's period as lanes: :data:`~softcurve.compiled._lanes.LANE_WIDTH` members
+"""The stepper's period as lanes: ``softcurve.compiled._lanes.LANE_WIDTH`` members
 advanced at once in vector instructions, one C call per thread's share.
 
 The members of a fixed-step method take the same steps, so they run the same
-instructions in lock-step; :mod:`softcurve.compiled._lanes` generates the state
+instructions in lock-step; ``softcurve.compiled._lanes`` generates the state
 derivative, the observation and the Newton matrix's factorization over lanes of
-members, and :mod:`softcurve.simulation.stepper._lane_stages` writes the method's steps
+members, and ``softcurve.simulation.stepper._lane_stages`` writes the method's steps
 around them from its coefficients. A thread's whole share of the members is one call:
 no Python per member.
 """
@@ -40,7 +40,7 @@ def period_source(model, inputs, substeps: int, method: str, vector_math: bool, 
     then the observation, for rows ``start:stop`` of ``x`` (N, n_x) and ``u`` (N, m)
     into ``out`` (N, n_x + 6), all row-major float64, with ``p`` and ``period`` shared;
     a last share shorter than a vector repeats its last member in the unused lanes. The
-    entry is the template ``stepper_period.c`` (:func:`~softcurve.compiled._lanes.c_template`)
+    entry is the template ``stepper_period.c`` (:func:`~softcurve.compiled.c_template`)
     filled in with the sizes, the lanes functions and the method's step.
 
     Parameters
@@ -52,10 +52,10 @@ def period_source(model, inputs, substeps: int, method: str, vector_math: bool, 
     substeps : int
         Steps per period.
     method : str
-        A key of :data:`~softcurve.simulation.stepper._methods.METHODS`.
+        A key of ``softcurve.simulation.stepper._methods.METHODS``.
     vector_math : bool
         Use glibc's vector math library where compiled for AVX2 (see
-        :func:`~softcurve.compiled._lanes.lanes_prelude`).
+        :func:`~softcurve.compiled.lanes_prelude`).
     every : int, optional
         Steps between fresh Newton matrices of a Rosenbrock method (default
         ``substeps``).
@@ -132,7 +132,7 @@ class LanesPeriod:
 def lanes_period(model, inputs, substeps: int, method: str, every: int | None = None):
     """The compiled :func:`period_source`, kept with the model: with glibc's vector math
     where it is available and links
-    (:func:`~softcurve.compiled._lanes.vector_math_available`), else with the C
+    (``softcurve.compiled._lanes.vector_math_available``), else with the C
     library's scalar functions.
 
     Parameters
@@ -144,7 +144,7 @@ def lanes_period(model, inputs, substeps: int, method: str, every: int | None = 
     substeps : int
         Steps per period.
     method : str
-        A key of :data:`~softcurve.simulation.stepper._methods.METHODS`.
+        A key of ``softcurve.simulation.stepper._methods.METHODS``.
     every : int, optional
         Steps between fresh Newton matrices of a Rosenbrock method (default
         ``substeps``; ignored by explicit methods).
@@ -175,7 +175,7 @@ def lanes_period(model, inputs, substeps: int, method: str, every: int | None = 
 
 class LanesMembers(MemberShares):
     """The compiled lanes period on every member, one C call per thread's share (shares
-    of whole vectors of :data:`~softcurve.compiled._lanes.LANE_WIDTH` members).
+    of whole vectors of ``softcurve.compiled._lanes.LANE_WIDTH`` members).
 
     A lanes period cannot fail but for want of memory for its work array: a state that
     leaves the domain shows in ``out``, which the stepper checks.

@@ -2,13 +2,13 @@
 function per member that advances a state by one control period, generated as C.
 
 The period is split into ``substeps`` steps ``h`` of one of the methods of
-:mod:`~softcurve.simulation.stepper._methods`, the inputs held: a Rosenbrock-W method
+``softcurve.simulation.stepper._methods``, the inputs held: a Rosenbrock-W method
 (ROS34PW2 of order 3, or ROS2 of order 2, both L-stable) or the explicit RK4
 (:func:`explicit_step`). A W-method keeps its order with any matrix ``J``, so one
 forward-difference Jacobian (:func:`newton_matrix`) serves several steps; ``I - gamma h
 J`` is factorized by Householder QR (:class:`Factorization`), no inverse. The state layout is
 ``simulate``'s: ``(q, qd, lam)`` then the actuator's lagging inputs
-(:class:`~softcurve.simulation.solvers._cvodes.ActuatorInput`). docs/stepping.md gives the
+(:class:`~softcurve.simulation.solvers.ActuatorInput`). docs/stepping.md gives the
 accuracy and the cost.
 """
 
@@ -59,7 +59,7 @@ def state_derivative(model, inputs: ActuatorInput | None, symbolic: bool) -> ca.
 @scheme_parameters
 def state_scale(model, inputs: ActuatorInput | None) -> np.ndarray:
     """The natural size of every state (n_state [+ m],): the geometric floors of
-    :func:`~softcurve.simulation.solvers._policy.nominal_scale`, and the larger bound of each
+    :func:`~softcurve.simulation.solvers.nominal_scale`, and the larger bound of each
     lagging input (as ``simulate`` scales them).
 
     Parameters
@@ -98,7 +98,7 @@ def jacobian_pattern(model, inputs) -> ca.Sparsity:
 def difference_jacobian(f, scale, x, u, p):
     """``(J, f(x))``: the Jacobian of ``f`` at ``x`` by forward differences, one batched
     call of ``n_state + 1`` evaluations; symbolic (MX) in the generated period, numeric
-    (DM) for :func:`~softcurve.simulation.stepper._stability.fastest_rate`.
+    (DM) for ``softcurve.simulation.stepper._stability.fastest_rate``.
 
     Parameters
     ----------
@@ -241,7 +241,7 @@ def period_function(
 
     With ``compiled``, the whole period is generated as one C function (the model's
     symbolic right-hand side called in a loop) and compiled with
-    :func:`~softcurve.compiled._generated.compile_function` (cached on disk by content: one
+    :func:`~softcurve.compiled.compile_function` (cached on disk by content: one
     library per robot structure, environment, actuator, method and ``substeps``; any
     period and parameter values); else it runs in CasADi's virtual machine on the
     model's compiled ``rhs``.
@@ -263,7 +263,7 @@ def period_function(
         per period).
     native : bool
         With ``compiled``, return the compiled library's function as a
-        :class:`~softcurve.compiled._native.NativeFunction` (called through ctypes, which
+        :class:`~softcurve.compiled.NativeFunction` (called through ctypes, which
         releases the GIL: threads of Python run members in parallel) instead of a
         CasADi ``external``; None where no compiler works.
     """
