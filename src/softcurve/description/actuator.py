@@ -19,6 +19,7 @@ import math
 import casadi as ca
 import numpy as np
 
+from softcurve.base.docs import parameters_from
 from softcurve.base.validation import ParameterError, real_array, real_scalar, whole_count
 from softcurve.description.fibers import (
     fiber_problem,
@@ -40,6 +41,18 @@ def optional_time_constant(value) -> float | None:
     return None if value is None else real_scalar("time_constant", value, positive=True)
 
 
+_symbolic_parameters = parameters_from(
+    {
+        "q": ("casadi.SX or casadi.MX, shape (n,)", "Generalized coordinates [m, 1/m, 1/m]."),
+        "theta": (
+            "casadi.SX or casadi.MX, shape (k,), optional",
+            "Symbols replacing :meth:`parameter_vector` (e.g. to identify areas).",
+        ),
+    }
+)
+
+
+@_symbolic_parameters
 class Actuator:
     """An actuator: bounded inputs ``u`` (m,) acting on the robot as ``tau = H(q) u``.
 
@@ -83,10 +96,8 @@ class Actuator:
 
         Parameters
         ----------
-        q : casadi.SX or casadi.MX, shape (n,)
-            Generalized coordinates [m, 1/m, 1/m].
-        theta : casadi.SX or casadi.MX, shape (k,), optional
-            Symbols replacing :meth:`parameter_vector` (e.g. to identify areas).
+        %(q)s
+        %(theta)s
         """
         raise NotImplementedError
 
@@ -98,8 +109,7 @@ class Actuator:
 
         Parameters
         ----------
-        q : casadi.SX or casadi.MX, shape (n,)
-            Generalized coordinates [m, 1/m, 1/m].
+        %(q)s
         inputs : casadi.SX or casadi.MX, shape (m,)
             Constant inputs [``input_unit``].
         """
@@ -201,10 +211,8 @@ class Actuator:
 
         Parameters
         ----------
-        q : casadi.SX or casadi.MX, shape (n,)
-            Generalized coordinates [m, 1/m, 1/m].
-        theta : casadi.SX or casadi.MX, shape (k,), optional
-            Symbols replacing :meth:`parameter_vector`.
+        %(q)s
+        %(theta)s
         """
         lengths = []
         for i, part in enumerate(self._parts()):
@@ -217,10 +225,8 @@ class Actuator:
 
         Parameters
         ----------
-        q : casadi.SX or casadi.MX, shape (n,)
-            Generalized coordinates [m, 1/m, 1/m].
-        theta : casadi.SX or casadi.MX, shape (k,), optional
-            Symbols replacing :meth:`parameter_vector`.
+        %(q)s
+        %(theta)s
         """
         return ca.vertcat(*[sum(parts) for parts in self.segment_lengths_symbolic(q, theta)])
 

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from softcurve.base.docs import parameters_from
 from softcurve.base.validation import ParameterError, real_scalar
 from softcurve.description.environment import ContactLaw, Environment, Plane
 from softcurve.envs.calibration import calibrate, track_path
@@ -33,6 +34,15 @@ def _tolerance(value, default: float, unit: str) -> float:
     return real_scalar(f"tolerance [{unit}]", value, positive=True)
 
 
+_member_parameters = parameters_from(
+    {
+        "parameters": ("ndarray, shape (N, n_parameters)", "What each member's episode drew."),
+        "steps": ("ndarray, shape (N,)", "Control periods since each member's start (a count)."),
+    }
+)
+
+
+@_member_parameters
 class Task:
     """The base of the tasks: the goal features, reward and success of every member.
 
@@ -84,10 +94,8 @@ class Task:
 
         Parameters
         ----------
-        parameters : ndarray, shape (N, n_parameters)
-            What each member's episode drew.
-        steps : ndarray, shape (N,)
-            Control periods since each member's start (a count).
+        %(parameters)s
+        %(steps)s
         tip : ndarray, shape (N, 3)
             Tip positions [m].
         force : ndarray, shape (N, 3)
@@ -99,6 +107,7 @@ class Task:
         return (point - self.calibration.center) / self.calibration.radius
 
 
+@_member_parameters
 class DistanceTask(Task):
     """The base of the tasks that bring the tip to a target (:class:`ReachTask`,
     :class:`TrackTask`): reward ``-min(|tip - target| / D, 1)`` with ``D`` the
@@ -121,10 +130,8 @@ class DistanceTask(Task):
 
         Parameters
         ----------
-        parameters : ndarray, shape (N, n_parameters)
-            What each member's episode drew.
-        steps : ndarray, shape (N,)
-            Control periods since each member's start (a count).
+        %(parameters)s
+        %(steps)s
         """
         raise NotImplementedError
 
