@@ -172,7 +172,7 @@ def compile_and_time(function, values, flags, calls, directory):
             "\n".join(" ".join(repr(float(a)) for a in v) for v in padded)
         )
     binary = Path(directory, "run_" + "".join(f.strip("-=") for f in flags))
-    compiler = build._compiler()
+    compiler = build.find_compiler()
     start = time.perf_counter()
     subprocess.run(
         [*compiler, *flags, str(source), str(Path(directory, "harness.c"))]
@@ -200,7 +200,8 @@ def main() -> None:
         "--only", choices=("rhs", "stepper", "sensitivity"), help="one function only"
     )
     args = parser.parse_args()
-    print(f"load average {os.getloadavg()}, {os.cpu_count()} cores, compiler {build._compiler()}")
+    compiler = build.find_compiler()
+    print(f"load average {os.getloadavg()}, {os.cpu_count()} cores, compiler {compiler}")
     for label, function, values in cases():
         if args.only not in (None, label):
             continue

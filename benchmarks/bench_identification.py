@@ -50,7 +50,7 @@ from softcurve.identification.fits import _equilibria as equilibria
 from softcurve.identification.fits._dynamic import fit_equilibria
 from softcurve.identification.fits._joint import evaluate_all, parallel_layout
 from softcurve.identification.fits._parameters import Free, FreeParameters
-from softcurve.identification.maps._builders import InputMap, bellows_input_map, curvatures
+from softcurve.identification.maps import InputMap, bellows_input_map, curvature_map
 from softcurve.simulation.sensitivity._sensitivity import trajectory_sensitivities
 from softcurve.simulation.solvers import _driver as native
 
@@ -93,7 +93,7 @@ def dynamic_evaluator(duration: float, hold: str, options=None, threads: int = 1
     x0 = np.zeros(model.n_state)
     x0[:3] = [0.0644, 1.0, 0.0]
     evaluate = trajectory_sensitivities(
-        model, parameters, curvatures(), inputs, x0, experiment, options, hold=hold,
+        model, parameters, curvature_map(), inputs, x0, experiment, options, hold=hold,
         threads=threads,
     )  # fmt: skip
     return evaluate, parameters.theta0
@@ -143,7 +143,7 @@ def quasi_static_fit(segments: int, samples: int, repeat: int):
 
     inputs = InputMap(every_segment, one.parameters)
     # curvatures of the last segment: all segments bend under the same pressure here
-    output = curvatures(segment=segments - 1)
+    output = curvature_map(segment=segments - 1)
     truth = {"bellows.angle": -0.5, "bellows.area": 2.3e-5}
     start = time.perf_counter()  # the first call builds the model's symbolic functions
     clean = fit_equilibria(model, template, output=output, input_map=inputs, free=[], extra=truth)

@@ -33,7 +33,7 @@ import numpy as np
 from scipy.integrate import solve_ivp
 
 import softcurve as sc
-from softcurve.identification.maps._builders import bellows_input_map
+from softcurve.identification.maps import bellows_input_map
 from softcurve.simulation.sensitivity._route import DriverSettings, integrate_sensitivities
 
 sys.path.insert(0, str(Path(__file__).parent))

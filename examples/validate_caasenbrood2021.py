@@ -30,21 +30,22 @@ import numpy as np
 
 import softcurve as sc
 from softcurve.base.status import Status
+from softcurve.identification.experiments import load_mat
 from softcurve.identification.fits import (
+    Free,
     fit_equilibria,
+    fit_stiffness,
     fit_trajectory,
     predict_equilibria,
     predict_trajectory,
+    tanh_parameters,
 )
-from softcurve.identification.experiments import load_mat
 from softcurve.identification.maps import (
     bellows_input_map,
-    bending_angle,
+    bending_angle_map,
     constant_input_map,
-    curvatures,
+    curvature_map,
 )
-from softcurve.identification.fits import Free, tanh_parameters
-from softcurve.identification.fits import fit_stiffness
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
@@ -134,7 +135,7 @@ def oscillation_study(experiments, law: str, evaluations: int = 120):
     ]
     rows = {}
     for train, test in (("b17", "b42"), ("b42", "b17")):
-        common = {"output": bending_angle(), "bind": bind}
+        common = {"output": bending_angle_map(), "bind": bind}
         fit = fit_trajectory(
             model, experiments[train], x0=release_state(experiments[train]), free=free,
             extra=values, max_evaluations=evaluations, **common,
@@ -185,7 +186,7 @@ def openloop_fit(model, robot, data, law, kind, numbering, angle, k_zero):
     free = map_freedom(kind, angle) + free
     free += [Free(o, -3.0, 3.0, initial=0.0, scale=0.1) for o in OFFSETS]
     problem = {
-        "output": curvatures(offsets=OFFSETS),
+        "output": curvature_map(offsets=OFFSETS),
         "input_map": pressure_map(kind, numbering),
         "bind": bind,
     }
@@ -334,7 +335,7 @@ def static_figure(results, data, path: Path):
     The moment ``k_b(beta) beta`` on each sample of 0-20 s follows from the identified
     geometric pressure map and gravity at the measured curvature (offsets removed,
     rotated into the bellows' frame); both laws are then fitted to it by
-    :func:`softcurve.identification.stiffness.fit_stiffness`.
+    :func:`softcurve.identification.fits.fit_stiffness`.
     """
     entry = results[("tanh", "geometric")]
     fit, model = entry["fit"], entry["model"]

@@ -10,7 +10,7 @@ slow creep state (does the hysteresis ask for a slower creep than the oscillatio
     python examples/validate_joint.py [--only oscillation|openloop|creep|rate] [--quick]
 
 Every figure of the tables "real-data goals" in ``docs/validation.md`` is printed by it.
-The joint fits are the library's: :func:`~softcurve.identification.dynamic.fit_trajectory`
+The joint fits are the library's: :func:`~softcurve.identification.fits.fit_trajectory`
 of a list of recordings, with the per-recording initial state and IMU zero as
 ``Free(..., per_experiment=True)`` entries ``x0.lam[1]``, ``x0.q[1]`` and ``offset``.
 """
@@ -30,9 +30,8 @@ import scipy.optimize
 
 import softcurve as sc
 from softcurve.description.bellows import PneumaticActuator
-from softcurve.identification.fits import fit_trajectory, predict_trajectory
-from softcurve.identification.maps import InputMap, bending_angle
-from softcurve.identification.fits import Free
+from softcurve.identification.fits import Free, fit_trajectory, predict_trajectory
+from softcurve.identification.maps import InputMap, bending_angle_map
 
 HERE = Path(__file__).resolve().parent
 _spec = importlib.util.spec_from_file_location("vc", HERE / "validate_caasenbrood2021.py")
@@ -114,7 +113,7 @@ def joint_fit(model, experiments: dict, shared, extra, bind, what, max_evaluatio
     if "offset" in what:
         values["offset"] = 0.0
     report = fit_trajectory(
-        model, data, output=bending_angle(offset="offset" if "offset" in what else None),
+        model, data, output=bending_angle_map(offset="offset" if "offset" in what else None),
         x0={e.name: start_state(e, what) for e in data},
         free=list(shared) + recording_freedom(experiments, what), extra=values, bind=bind,
         max_evaluations=max_evaluations, processes=1,
@@ -173,11 +172,11 @@ def cross_predict(model, experiments, fit: dict, train: str, test: str, what):
     common = {"bind": fit["bind"], "parameters": fit["parameters"]}
     x0 = start_state(experiment, what)
     relaxed = fit_trajectory(
-        model, experiment, output=bending_angle(), x0=x0, free=[], extra=values, **common
+        model, experiment, output=bending_angle_map(), x0=x0, free=[], extra=values, **common
     )
     offset = "offset" if "offset" in what else None
     state = fit_trajectory(
-        model, experiment, output=bending_angle(offset=offset), x0=x0,
+        model, experiment, output=bending_angle_map(offset=offset), x0=x0,
         free=recording_freedom({test: experiment}, what),
         extra={**values, **({offset: 0.0} if offset else {})}, max_evaluations=60, **common,
     )  # fmt: skip

@@ -315,10 +315,14 @@ def test_the_checker_sees_private_reads():
     )
     found = private_reads("softcurve.control.mpc", ast.parse(source))
     assert len(found) == 4, found
-    assert not private_reads("softcurve.simulation.solvers._cvodes", ast.parse(source.splitlines()[0]))
+    assert not private_reads(
+        "softcurve.simulation.solvers._cvodes", ast.parse(source.splitlines()[0])
+    )
 
 
 def test_the_checker_sees_c_in_a_string():
     source = 'CODE = """\n#include <math.h>\nint f(int x) {\n    x += 1;\n    return x;\n}\n"""\n'
     assert c_strings(ast.parse(source)) == [1]
-    assert not c_strings(ast.parse('TEXT = """A docstring.\n\nWith lines; a few.\nAnd more.\n"""\n'))
+    assert not c_strings(
+        ast.parse('TEXT = """A docstring.\n\nWith lines; a few.\nAnd more.\n"""\n')
+    )

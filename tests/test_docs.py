@@ -9,7 +9,8 @@ Which objects are checked (the public API):
   and are skipped); modules (``presets``) with their public functions;
 - the public functions of every public module of the package (no part of the dotted
   name starts with ``_``): the names not starting with ``_`` that the module defines
-  itself (imports excluded).
+  itself (imports excluded) and, for a package, the functions of its private modules
+  that it exports in ``__all__``.
 
 What each one must satisfy, from its numpy-style docstring parsed by numpydoc:
 
@@ -218,7 +219,15 @@ def public_modules() -> list:
 
 
 def _module_functions(module) -> list:
-    return [
+    """The public functions a module defines, and for a package the functions of its
+    private implementation modules that it exports in ``__all__`` (it is their face)."""
+    exported = [getattr(module, name) for name in getattr(module, "__all__", ())]
+    faced = [
+        obj
+        for obj in exported
+        if inspect.isfunction(obj) and obj.__module__.startswith(f"{module.__name__}._")
+    ]
+    return faced + [
         obj
         for name, obj in vars(module).items()
         if not name.startswith("_")
@@ -258,14 +267,15 @@ def test_public_api_documents_every_parameter_with_unit_or_shape():
 def test_the_walk_reaches_the_entry_points():
     labels = {_label(obj) for obj in public_api()}
     for expected in (
-        "softcurve.compiled.Model",
+        "softcurve.compiled._model.Model",
         "softcurve.description.presets.ifac2020",
-        "softcurve.simulation.simulate",
+        "softcurve.simulation._simulate.simulate",
+        "softcurve.simulation.solvers._policy.cvodes_options",  # through its face's __all__
         "softcurve.description.robot.Robot",
     ):
         assert expected in labels
     methods = {_label(m) for _, m in _public_methods(softcurve.Model)}
-    assert "softcurve.compiled.Model.forward_dynamics" in methods
+    assert "softcurve.compiled._model.Model.forward_dynamics" in methods
 
 
 def _badly_documented(q, speed, length, count: int, *columns, **options):

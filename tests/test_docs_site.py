@@ -50,12 +50,20 @@ def test_the_site_builds_strictly_with_every_part(site):
 
 def test_the_api_reference_renders_the_docstrings(site):
     out, _ = site
-    model = (out / "api" / "softcurve.compiled._model.html").read_text(encoding="utf-8")
+    model = (out / "api" / "softcurve.compiled.html").read_text(encoding="utf-8")
     assert 'id="softcurve.compiled.Model.forward_dynamics"' in model
     assert "%(" not in model  # the shared parameter texts are substituted
     assert "Generalized coordinates" in model  # ... with the text of softcurve.base.docs
     facade = (out / "api" / "softcurve.html").read_text(encoding="utf-8")
-    assert 'href="softcurve.compiled._model.html#softcurve.compiled.Model"' in facade
+    assert 'href="softcurve.compiled.html#softcurve.compiled.Model"' in facade
+    assert not (out / "api" / "softcurve.compiled._model.html").exists()  # private: no page
+    results = (out / "api" / "softcurve.simulation.results.html").read_text(encoding="utf-8")
+    assert 'id="softcurve.simulation.results.Trajectory"' in results  # its face ...
+    simulation = (out / "api" / "softcurve.simulation.html").read_text(encoding="utf-8")
+    assert 'id="softcurve.simulation.Trajectory"' not in simulation  # ... documents it once
+    assert 'href="softcurve.simulation.results.html#softcurve.simulation.results.Trajectory"' in (
+        simulation
+    )
 
 
 def test_a_page_per_command_from_its_help(site):

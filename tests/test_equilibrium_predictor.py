@@ -10,7 +10,7 @@ from softcurve.identification.experiments._loading import Experiment
 from softcurve.identification.fits import _equilibria as equilibria
 from softcurve.identification.fits._equilibria import EquilibriumPredictor
 from softcurve.identification.fits._parameters import Free, FreeParameters
-from softcurve.identification.maps._builders import bellows_input_map, curvatures
+from softcurve.identification.maps import bellows_input_map, curvature_map
 
 
 @pytest.fixture(scope="module")
@@ -28,7 +28,7 @@ def setting():
     phase, amplitude = 4 * np.pi * t / 6.0, 3e3 + 1.4e4 * t / 6.0
     pressures = {f"p{i}": 2e4 + amplitude * np.sin(phase - 2 * np.pi * i / 3) for i in range(3)}
     experiment = Experiment(t, {"kx": 0 * t, "ky": 0 * t}, pressures)
-    inputs, output = bellows_input_map(area=2.3e-5, distance=0.01), curvatures()
+    inputs, output = bellows_input_map(area=2.3e-5, distance=0.01), curvature_map()
     free = [Free("bellows.angle", -np.pi, np.pi), Free("bellows.area", 1e-7, 1e-3)]
     parameters = FreeParameters(model, free, {**inputs.parameters, **output.parameters}, {})
     q0 = np.array([0.064, 0.0, 0.0])

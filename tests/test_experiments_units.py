@@ -10,7 +10,7 @@ import scipy.io
 import softcurve as sc
 from softcurve.identification.experiments._loading import load_csv, load_mat, load_mat_trials
 from softcurve.identification.experiments._units import POUND_FORCE_PER_SQUARE_INCH, check_units
-from softcurve.identification.maps._builders import bellows_input_map, bending_angle, curvatures
+from softcurve.identification.maps import bellows_input_map, bending_angle_map, curvature_map
 
 T = np.linspace(0.0, 1.0, 6)
 
@@ -61,11 +61,11 @@ def test_a_unit_mismatch_with_a_map_is_caught_by_name():
     pressures = {f"p{i}": 1e4 + T for i in range(3)}
     psi = sc.Experiment(T, {"kx": T, "ky": T}, pressures, dict.fromkeys(pressures, "psi"))
     inputs = bellows_input_map(area=2e-5, distance=0.01)
-    check_units(psi, output=curvatures(), input_map=inputs)  # psi became Pa at load
+    check_units(psi, output=curvature_map(), input_map=inputs)  # psi became Pa at load
     newtons = sc.Experiment(T, {"kx": T, "ky": T}, pressures, {"p1": "N", "kx": "1/cm"})
     with pytest.raises(sc.ExperimentError, match=r"input 'p1' is in 'N' but the input map "
                        r"expects 'Pa'; label it with one of \['MPa', 'Pa', 'bar'"):  # fmt: skip
-        check_units(newtons, output=curvatures(), input_map=inputs)
+        check_units(newtons, output=curvature_map(), input_map=inputs)
     # a map in millimetres against data labelled mm: the data were converted to metres
     millimetres = sc.Experiment(T, {"x": T, "y": T, "z": T}, units=dict.fromkeys("xyz", "mm"))
     frame = sc.SensorFrame("camera", scale=1000.0, unit="mm")
@@ -73,19 +73,19 @@ def test_a_unit_mismatch_with_a_map_is_caught_by_name():
     with pytest.raises(sc.ExperimentError, match=r"signal 'x' is in 'm' \(recorded in 'mm'\), "
                        r"converted at load, but the output map gives 'mm'.*build the map "
                        r"in 'm' \(a scale of 1\)"):  # fmt: skip
-        check_units(millimetres, output=sc.tip_position(model, frame=frame))
-    check_units(millimetres, output=sc.tip_position(model, frame=sc.SensorFrame("camera")))
+        check_units(millimetres, output=sc.tip_position_map(model, frame=frame))
+    check_units(millimetres, output=sc.tip_position_map(model, frame=sc.SensorFrame("camera")))
     metres = sc.Experiment(T, {"x": T, "y": T, "z": T}, units=dict.fromkeys("xyz", "m"))
     with pytest.raises(sc.ExperimentError, match=r"'x' is in 'm' but the output map expects "
                        r"'mm'; label it"):  # fmt: skip
-        check_units(metres, output=sc.tip_position(model, frame=frame))
+        check_units(metres, output=sc.tip_position_map(model, frame=frame))
     angles = sc.Experiment(T, {"beta": T}, units={"beta": "rad"})
     with pytest.raises(sc.ExperimentError, match=r"signal 'beta' is in 'rad' but the output "
                        "map expects 'deg'"):  # fmt: skip
-        check_units(angles, output=bending_angle())
-    check_units(angles, output=bending_angle(degrees=False))
+        check_units(angles, output=bending_angle_map())
+    check_units(angles, output=bending_angle_map(degrees=False))
     unlabelled = sc.Experiment(T, {"beta": T}, {"p0": T})
-    check_units(unlabelled, output=bending_angle())  # nothing to check
+    check_units(unlabelled, output=bending_angle_map())  # nothing to check
     with pytest.raises(sc.ExperimentError, match="reads 3 inputs"):
         check_units(unlabelled, input_map=inputs)
 

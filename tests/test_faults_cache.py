@@ -228,7 +228,7 @@ def test_a_filled_cache_needs_no_compiler(built, tmp_path, monkeypatch):
     empty.mkdir()
     monkeypatch.delenv("CC", raising=False)
     monkeypatch.setenv("PATH", str(empty))
-    assert build._compiler() is None
+    assert build.find_compiler() is None
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         model = sc.Model(robot())

@@ -284,7 +284,7 @@ def test_fit_of_equilibria_accepts_no_root_outside_the_actuator_domain(paper_mod
     from softcurve.identification.experiments._loading import Experiment
     from softcurve.identification.fits._equilibria import EquilibriumPredictor
     from softcurve.identification.fits._parameters import Free, FreeParameters
-    from softcurve.identification.maps._builders import curvatures
+    from softcurve.identification.maps import curvature_map
     from softcurve.identification.maps._inputs import actuator_input_map
 
     actuator = sc.PneumaticActuator.three_bellows(
@@ -292,7 +292,7 @@ def test_fit_of_equilibria_accepts_no_root_outside_the_actuator_domain(paper_mod
     )
     t = np.linspace(0.0, 1.0, 3)
     experiment = Experiment(t, {"kx": 0 * t, "ky": 0 * t}, {"p0": [1e4, 3e4, 6e4], "p1": 0 * t})
-    inputs, output = actuator_input_map(actuator), curvatures()
+    inputs, output = actuator_input_map(actuator), curvature_map()
     names = ("segments[0].bending_stiffness.a1", "segments[0].bending_stiffness.a2")
     free = [Free(name, 1e-3, 10.0) for name in names]
     parameters = FreeParameters(paper_model, free, {**inputs.parameters, **output.parameters}, {})

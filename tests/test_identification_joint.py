@@ -14,7 +14,7 @@ from softcurve.identification.fits import _joint as joint
 from softcurve.identification.fits._dynamic import fit_trajectory, predict_trajectory
 from softcurve.identification.fits._parameters import Free
 from softcurve.identification.fits._weights import weight_matrix
-from softcurve.identification.maps._builders import bending_angle, curvatures
+from softcurve.identification.maps import bending_angle_map, curvature_map
 
 SEG = "segments[0]."
 LENGTH = 0.064
@@ -48,7 +48,7 @@ def recordings():
     for name, beta in bends.items():
         template = Experiment(t, {"beta": np.zeros_like(t)}, units={"beta": "deg"}, name=name)
         clean = fit_trajectory(
-            model, template, output=bending_angle(), x0=_state(beta), free=[], processes=1
+            model, template, output=bending_angle_map(), x0=_state(beta), free=[], processes=1
         )
         data.append(template.with_signals(beta=clean.predicted[:, 0] + offsets[name]))
     return model, data, bends, offsets
@@ -65,7 +65,7 @@ def _free():
 
 def test_joint_fit_recovers_shared_and_per_experiment_parameters(recordings):
     model, data, bends, offsets = recordings
-    output = bending_angle(offset="offset")
+    output = bending_angle_map(offset="offset")
     # Each experiment starts 10 % off its true bend: the bends are fitted per experiment.
     x0 = {e.name: _state(0.9 * bends[e.name]) for e in data}
     report = fit_trajectory(model, data, output=output, x0=x0, free=_free(), processes=1)
@@ -94,7 +94,7 @@ def test_joint_fit_recovers_shared_and_per_experiment_parameters(recordings):
 
 def test_one_experiment_in_a_list_equals_the_single_fit(recordings):
     model, data, bends, _ = recordings
-    output = bending_angle(offset="offset")
+    output = bending_angle_map(offset="offset")
     x0 = _state(bends["a"])
     free = _free()[:3]
     single = fit_trajectory(model, data[0], output=output, x0=x0, free=free)
@@ -107,7 +107,7 @@ def test_one_experiment_in_a_list_equals_the_single_fit(recordings):
 def test_threads_split_each_evaluation_and_change_the_estimate_by_rounding_only(recordings):
     """threads=2 evaluates the sensitivity equations in two parts on two threads."""
     model, data, bends, _ = recordings
-    output = bending_angle(offset="offset")
+    output = bending_angle_map(offset="offset")
     x0, free = _state(0.9 * bends["a"]), _free()[:3]
     fits = [
         fit_trajectory(model, data[0], output=output, x0=x0, free=free, threads=threads)
@@ -134,7 +134,7 @@ def test_the_cores_go_to_experiments_first_then_to_threads(
 
 def test_joint_fit_checks_its_arguments(recordings):
     model, data, bends, _ = recordings
-    output = bending_angle(offset="offset")
+    output = bending_angle_map(offset="offset")
     twice = [data[0], data[0]]
     with pytest.raises(sc.ParameterError, match="names must differ"):
         fit_trajectory(model, twice, output=output, x0=_state(10.0), free=[])
@@ -149,7 +149,7 @@ def test_joint_fit_checks_its_arguments(recordings):
         fit_trajectory(model, data, output=output, x0=_state(10.0), free=["x0.lam[5]"])
     # one callable initial state per experiment, in a list
     starts = [lambda v, b=bends[e.name]: _state(b) for e in data]
-    both = fit_trajectory(model, data, output=bending_angle(), x0=starts, free=[], processes=1)
+    both = fit_trajectory(model, data, output=bending_angle_map(), x0=starts, free=[], processes=1)
     assert both.success and [p[0] for p in both.parts] == ["a", "b"]
 
 
@@ -170,7 +170,7 @@ def test_weights_per_sample_and_time_window():
 
 def test_a_discounted_settling_period_removes_its_bias(recordings):
     model, data, bends, offsets = recordings
-    output = bending_angle(offset="offset")
+    output = bending_angle_map(offset="offset")
     # a settling artefact: the first 40 ms read 3 deg too high
     recording = data[0]
     beta = recording.signals["beta"] + 3.0 * (recording.t <= 0.04)
@@ -187,7 +187,7 @@ def test_a_discounted_settling_period_removes_its_bias(recordings):
 
 
 def test_the_input_lag_time_constant_is_recovered(recordings):
-    from softcurve.identification.maps._builders import bellows_input_map, curvatures
+    from softcurve.identification.maps import bellows_input_map, curvature_map
 
     model = recordings[0]
     t = np.arange(0.0, 0.3 + 1e-12, 2e-3)
@@ -198,18 +198,18 @@ def test_the_input_lag_time_constant_is_recovered(recordings):
     x0 = _state(2.0)  # not exactly straight: the bellows' map is singular there
     truth = 0.03
     clean = fit_trajectory(
-        model, template, output=curvatures(), input_map=inputs, x0=x0, free=[], input_lag=truth
+        model, template, output=curvature_map(), input_map=inputs, x0=x0, free=[], input_lag=truth
     )
     data = template.with_signals(kx=clean.predicted[:, 0], ky=clean.predicted[:, 1])
     free = [Free("input_lag", 1e-3, 1.0, initial=0.08), Free("bellows.area", 1e-6, 1e-4)]
     report = fit_trajectory(
-        model, data, output=curvatures(), input_map=inputs, x0=x0, free=free, input_lag=0.08
+        model, data, output=curvature_map(), input_map=inputs, x0=x0, free=free, input_lag=0.08
     )
     assert report.success, report.message
     np.testing.assert_allclose(report.values, [truth, 2.3e-5], rtol=1e-5)
     # the lagged inputs start at the first sample unless set: bellow 0 already inflated
     inflated = fit_trajectory(
-        model, template, output=curvatures(), input_map=inputs, x0=x0, free=[],
+        model, template, output=curvature_map(), input_map=inputs, x0=x0, free=[],
         input_lag=truth, extra={"x0.u[0][steps]": 2e4},
     )  # fmt: skip
     difference = np.abs(inflated.predicted - clean.predicted)
@@ -222,7 +222,7 @@ def test_predictions_never_take_another_experiments_own_values(recordings):
     with it: predicting each experiment reproduces the joint evaluation, and an
     experiment the fit did not have gets the nominal value, not a fitted one's."""
     model, (a, b), bends, _ = recordings
-    out = bending_angle(offset="offset")
+    out = bending_angle_map(offset="offset")
     x0 = {"a": _state(bends["a"]), "b": _state(bends["b"])}
     joint = fit_trajectory(model, [a, b], output=out, x0=x0, free=[],
                            extra={"offset[a]": 0.5}, processes=1)  # fmt: skip
@@ -234,7 +234,9 @@ def test_predictions_never_take_another_experiments_own_values(recordings):
     single = fit_trajectory(model, a, output=out, x0=x0["a"], free=own_offset, processes=1,
                             max_evaluations=10)  # fmt: skip
     other = predict_trajectory(model, b, single, output=out, x0=x0["b"], processes=1)
-    nominal = predict_trajectory(model, b, joint, output=bending_angle(), x0=x0["b"], processes=1)
+    nominal = predict_trajectory(
+        model, b, joint, output=bending_angle_map(), x0=x0["b"], processes=1
+    )
     assert np.max(np.abs(other.predicted[:, 0] - nominal.predicted[:, 0])) <= 1e-9
 
 
@@ -250,7 +252,7 @@ def test_held_inputs_act_when_sampled_as_in_simulate(recordings):
                       rtol=1e-10)  # fmt: skip
     passthrough = sc.InputMap(lambda q, u, values: ca.vertcat(0, u[0], 0), {})
     data = Experiment(t, {"kx": run.q[:, 1], "ky": run.q[:, 2]}, {"m": moment}, name="step")
-    fit = fit_trajectory(model, data, output=curvatures(), input_map=passthrough,
+    fit = fit_trajectory(model, data, output=curvature_map(), input_map=passthrough,
                          x0=_state(0.0), free=[], processes=1)  # fmt: skip
     span = np.ptp(run.q[:, 1])
     assert np.max(np.abs(fit.predicted[:, 0] - run.q[:, 1])) <= 1e-5 * span

@@ -9,16 +9,16 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 import softcurve as sc
-from softcurve.identification.maps._builders import (
+from softcurve.identification.maps import (
     SensorFrame,
     actuator_input_map,
     bellows_input_map,
-    bending_angle,
-    curvatures,
-    imu_orientation,
-    marker_position,
+    bending_angle_map,
+    curvature_map,
+    imu_orientation_map,
+    marker_position_map,
     tendon_input_map,
-    tip_position,
+    tip_position_map,
 )
 
 from .conftest import assert_close
@@ -53,10 +53,10 @@ def test_marker_position_is_the_pose_at_that_material_point(two_segment_model, s
     model, offset = two_segment_model, np.array([0.02, -0.01, 0.005])
     point = ((segment % 2) + s) / 2  # the whole robot's material coordinate
     rotation, position = model.pose(Q2, point)
-    on_backbone = evaluate_output(marker_position(model, segment, s), model, Q2)
+    on_backbone = evaluate_output(marker_position_map(model, segment, s), model, Q2)
     assert_close(on_backbone, position, rtol=1e-12, scale=np.linalg.norm(position))
-    fixed = evaluate_output(marker_position(model, segment, s, offset=offset), model, Q2)
-    named = marker_position(model, segment, s, offset="marker")
+    fixed = evaluate_output(marker_position_map(model, segment, s, offset=offset), model, Q2)
+    named = marker_position_map(model, segment, s, offset="marker")
     assert set(named.parameters) == {"marker.x", "marker.y", "marker.z"}
     values = dict(zip(["marker.x", "marker.y", "marker.z"], offset, strict=True))
     expected = position + rotation @ offset
@@ -67,10 +67,10 @@ def test_marker_position_is_the_pose_at_that_material_point(two_segment_model, s
 def test_tip_position_keeps_its_old_form_and_projects_onto_chosen_axes(two_segment_model):
     model = two_segment_model
     tip = model.tip_pose(Q2).position
-    old = tip_position(model)
+    old = tip_position_map(model)
     assert (old.names, old.units, old.parameters) == (("x", "y", "z"), ("m",) * 3, {})
     assert_close(evaluate_output(old, model, Q2), tip, scale=np.linalg.norm(tip))
-    projected = tip_position(model, axes="zx", names=("height", "reach"))
+    projected = tip_position_map(model, axes="zx", names=("height", "reach"))
     assert projected.names == ("height", "reach")
     assert_close(evaluate_output(projected, model, Q2), tip[[2, 0]], scale=np.linalg.norm(tip))
 
@@ -81,7 +81,7 @@ def test_sensor_frame_is_the_identity_at_zero_and_a_rotation_and_shift_otherwise
     model = two_segment_model
     tip = model.tip_pose(Q2).position
     frame = SensorFrame("mocap", scale=1000.0, unit="mm")
-    output = tip_position(model, frame=frame)
+    output = tip_position_map(model, frame=frame)
     assert output.units == ("mm",) * 3 and set(output.parameters) == set(frame.names)
     assert_close(evaluate_output(output, model, Q2), 1000.0 * tip, scale=1000 * 0.2)
     angles, origin = np.array([0.1, -0.2, 0.7]), np.array([0.01, -0.02, 0.03])
@@ -95,36 +95,38 @@ def test_sensor_frame_is_the_identity_at_zero_and_a_rotation_and_shift_otherwise
 def test_imu_reports_gravity_and_tilt_in_its_own_axes(two_segment_model):
     model = two_segment_model
     straight = np.array([0.0644, 0.0, 0.0] * 2)
-    assert_close(evaluate_output(imu_orientation(model), model, straight), [0.0, 0.0], atol=1e-12)
+    assert_close(
+        evaluate_output(imu_orientation_map(model), model, straight), [0.0, 0.0], atol=1e-12
+    )
     rotation = model.tip_pose(Q2).rotation
     gravity = model.robot.gravity
     up = rotation.T @ (-gravity / np.linalg.norm(gravity))
-    reading = evaluate_output(imu_orientation(model, output="gravity"), model, Q2)
+    reading = evaluate_output(imu_orientation_map(model, output="gravity"), model, Q2)
     assert_close(reading, up, atol=1e-12)
     roll, pitch = np.arctan2(up[1], up[2]), np.arctan2(-up[0], np.hypot(up[1], up[2]))
-    tilt = evaluate_output(imu_orientation(model, degrees=False), model, Q2)
+    tilt = evaluate_output(imu_orientation_map(model, degrees=False), model, Q2)
     assert_close(tilt, [roll, pitch], rtol=1e-12)
     # an IMU mounted turned by yaw about the tangent sees the same vector turned back
-    mounted = imu_orientation(model, output="gravity", mounting="imu")
+    mounted = imu_orientation_map(model, output="gravity", mounting="imu")
     turned = evaluate_output(mounted, model, Q2, {"imu.yaw": np.pi / 2})
     assert_close(turned, [up[1], -up[0], up[2]], atol=1e-12)
 
 
 def test_coordinate_maps_keep_their_behaviour(two_segment_model):
     model = two_segment_model
-    assert_close(evaluate_output(bending_angle(1), model, Q2), [np.degrees(Q2[3] * Q2[4])])
-    kx = evaluate_output(curvatures(1, offsets=("a", "b")), model, Q2, {"a": 0.5, "b": -1.0})
+    assert_close(evaluate_output(bending_angle_map(1), model, Q2), [np.degrees(Q2[3] * Q2[4])])
+    kx = evaluate_output(curvature_map(1, offsets=("a", "b")), model, Q2, {"a": 0.5, "b": -1.0})
     assert_close(kx, [Q2[4] + 0.5, Q2[5] - 1.0])
 
 
 @pytest.mark.parametrize(
     ("build", "match"),
     [
-        (lambda m: marker_position(m, 2), "segment must be an index in"),
-        (lambda m: marker_position(m, 0, 1.5), "s must be in"),
-        (lambda m: tip_position(m, axes="xw"), "axes must be distinct letters"),
-        (lambda m: tip_position(m, axes="xx"), "axes must be distinct letters"),
-        (lambda m: imu_orientation(m, output="quaternion"), "output must be one of"),
+        (lambda m: marker_position_map(m, 2), "segment must be an index in"),
+        (lambda m: marker_position_map(m, 0, 1.5), "s must be in"),
+        (lambda m: tip_position_map(m, axes="xw"), "axes must be distinct letters"),
+        (lambda m: tip_position_map(m, axes="xx"), "axes must be distinct letters"),
+        (lambda m: imu_orientation_map(m, output="quaternion"), "output must be one of"),
         (lambda m: SensorFrame(scale=-1.0), "scale"),
         (lambda m: bellows_input_map(area=1e-4, distance=0.01, numbering=2), "numbering"),
         (
@@ -228,7 +230,7 @@ def test_equilibrium_fit_recovers_per_chamber_gains_and_azimuths(paper_model):
     units = dict.fromkeys(pressures, "Pa")
     template = sc.Experiment(t, {"kx": 0 * t, "ky": 0 * t}, pressures, units)
     clean = sc.fit_equilibria(
-        model, template, output=curvatures(), input_map=inputs, free=[], extra=truth
+        model, template, output=curvature_map(), input_map=inputs, free=[], extra=truth
     )
     assert clean.success, clean.message
     rng = np.random.default_rng(11)
@@ -241,7 +243,7 @@ def test_equilibrium_fit_recovers_per_chamber_gains_and_azimuths(paper_model):
         sc.Free("bellows[2].azimuth", 3.0, 5.5, initial=4 * np.pi / 3, scale=1.0),
     ]
     report = sc.fit_equilibria(
-        model, data, output=curvatures(), input_map=inputs, free=free, confidence=0.99
+        model, data, output=curvature_map(), input_map=inputs, free=free, confidence=0.99
     )
     assert report.success, report.message
     lo, hi = report.intervals.T

@@ -15,7 +15,7 @@ from softcurve.identification.fits._joint import evaluate_all
 from softcurve.identification.fits._parameters import Free
 from softcurve.identification.fits._report import FitError, FitWarning
 from softcurve.identification.fits._solve import robust_least_squares, starting_points
-from softcurve.identification.maps._builders import bending_angle
+from softcurve.identification.maps import bending_angle_map
 from softcurve.simulation.batch._workers import WorkerDied
 
 SEG = "segments[0]."
@@ -103,23 +103,23 @@ def test_a_fit_whose_worker_died_is_interrupted_and_warns_on_prediction(oscillat
         return dying
 
     monkeypatch.setattr(dynamic, "trajectory_sensitivities", build)
-    report = fit_trajectory(model, data, output=bending_angle(), x0=x0, free=FREE, starts=2)
+    report = fit_trajectory(model, data, output=bending_angle_map(), x0=x0, free=FREE, starts=2)
     assert report.status is Status.INTERRUPTED, report.message
     assert "stopped: a worker process died" in report.message
     assert "best point found before" in report.message
     assert len(calls) == 3  # two evaluated, the third died; the estimate not simulated again
     monkeypatch.undo()
     with pytest.warns(FitWarning, match="stopped before it finished"):
-        predict_trajectory(model, data, report, output=bending_angle(), x0=x0)
+        predict_trajectory(model, data, report, output=bending_angle_map(), x0=x0)
     # dead at the first evaluation: no point to predict from, and the status says why
     calls.clear()
     monkeypatch.setattr(dynamic, "trajectory_sensitivities", build)
     calls.extend([None, None])  # the next call is the third
-    first = fit_trajectory(model, data, output=bending_angle(), x0=x0, free=FREE)
+    first = fit_trajectory(model, data, output=bending_angle_map(), x0=x0, free=FREE)
     assert first.status is Status.INTERRUPTED and "best point" not in first.message
     monkeypatch.undo()
     with pytest.raises(FitError, match="cannot predict from a failed fit"):
-        predict_trajectory(model, data, first, output=bending_angle(), x0=x0)
+        predict_trajectory(model, data, first, output=bending_angle_map(), x0=x0)
 
 
 def test_starting_points_are_seeded_and_within_bounds():
@@ -146,7 +146,7 @@ def oscillation():
     x0 = np.array([LENGTH, np.radians(20.0) / LENGTH, 0.0, 0.0, 0.0, 0.0])
     t = np.arange(0.0, 0.3 + 1e-12, 2e-3)
     template = Experiment(t, {"beta": np.zeros_like(t)}, units={"beta": "deg"})
-    clean = fit_trajectory(model, template, output=bending_angle(), x0=x0, free=[])
+    clean = fit_trajectory(model, template, output=bending_angle_map(), x0=x0, free=[])
     return model, x0, template.with_signals(beta=clean.predicted[:, 0])
 
 
@@ -177,7 +177,7 @@ def _failing(fail_at):
 def test_a_fit_survives_a_trial_point_where_the_integrator_fails(oscillation, monkeypatch):
     model, x0, data = oscillation
     monkeypatch.setattr(dynamic, "trajectory_sensitivities", _failing({2}))
-    report = fit_trajectory(model, data, output=bending_angle(), x0=x0, free=FREE)
+    report = fit_trajectory(model, data, output=bending_angle_map(), x0=x0, free=FREE)
     assert report.success, report.message
     assert "1 trial point(s) could not be evaluated and were rejected" in report.message
     np.testing.assert_allclose(report.values, [0.008, 4e-7], rtol=1e-5)
@@ -187,21 +187,25 @@ def test_predicting_from_a_failed_fit_raises(oscillation, monkeypatch):
     model, x0, data = oscillation
     with monkeypatch.context() as patch:
         patch.setattr(dynamic, "trajectory_sensitivities", _failing(set(range(1, 99))))
-        failed = fit_trajectory(model, data, output=bending_angle(), x0=x0, free=FREE)
+        failed = fit_trajectory(model, data, output=bending_angle_map(), x0=x0, free=FREE)
     assert failed.status is Status.NOT_CONVERGED
     assert "cannot be evaluated at the starting values" in failed.message
     np.testing.assert_array_equal(failed.values, [0.012, 1e-6])
     with pytest.raises(FitError, match="cannot predict from a failed fit"):
-        predict_trajectory(model, data, failed, output=bending_angle(), x0=x0)
-    early = fit_trajectory(model, data, output=bending_angle(), x0=x0, free=FREE, max_evaluations=2)
+        predict_trajectory(model, data, failed, output=bending_angle_map(), x0=x0)
+    early = fit_trajectory(
+        model, data, output=bending_angle_map(), x0=x0, free=FREE, max_evaluations=2
+    )
     assert early.status is Status.EVALUATION_LIMIT
     with pytest.warns(FitWarning, match="ran out of evaluations"):
-        predict_trajectory(model, data, early, output=bending_angle(), x0=x0)
+        predict_trajectory(model, data, early, output=bending_angle_map(), x0=x0)
 
 
 def test_multi_start_reports_the_spread_of_its_optima(oscillation):
     model, x0, data = oscillation
-    report = fit_trajectory(model, data, output=bending_angle(), x0=x0, free=FREE, starts=3, seed=2)
+    report = fit_trajectory(
+        model, data, output=bending_angle_map(), x0=x0, free=FREE, starts=3, seed=2
+    )
     assert report.success, report.message
     assert report.optima.shape == (3, 2) and report.optimum_costs.shape == (3,)
     # the starts differ (uniform within the bounds) but reach the same minimum
@@ -214,4 +218,4 @@ def test_multi_start_reports_the_spread_of_its_optima(oscillation):
     assert cost == pytest.approx(report.optimum_costs.min(), rel=1e-12)
     assert not np.all(report.optimum_costs == report.optimum_costs.min())
     with pytest.raises(sc.ParameterError, match="starts must be an integer"):
-        fit_trajectory(model, data, output=bending_angle(), x0=x0, free=FREE, starts=0)
+        fit_trajectory(model, data, output=bending_angle_map(), x0=x0, free=FREE, starts=0)

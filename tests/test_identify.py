@@ -20,7 +20,7 @@ from softcurve.identification.fits._dynamic import (
 from softcurve.identification.fits._parameters import Free, FreeParameters, tanh_parameters
 from softcurve.identification.fits._report import covariance, summarize
 from softcurve.identification.fits._stiffness import fit_stiffness
-from softcurve.identification.maps._builders import bellows_input_map, bending_angle, curvatures
+from softcurve.identification.maps import bellows_input_map, bending_angle_map, curvature_map
 
 SEG = "segments[0]."
 
@@ -108,7 +108,7 @@ def oscillation():
     x0 = np.array([0.064, beta0 / 0.064, 0.0, 0.0, 0.0, 0.0])
     t = np.arange(0.0, 0.3 + 1e-12, 2e-3)
     template = Experiment(t, {"beta": np.zeros_like(t)}, units={"beta": "deg"})
-    clean = fit_trajectory(model, template, output=bending_angle(), x0=x0, free=[])
+    clean = fit_trajectory(model, template, output=bending_angle_map(), x0=x0, free=[])
     return model, x0, template.with_signals(beta=clean.predicted[:, 0])
 
 
@@ -122,7 +122,7 @@ def test_trajectory_jacobian_is_exact(oscillation):
     def x0(v):  # the initial bend is a free parameter too
         return ca.vertcat(0.064, v["lam0"] / 0.064, 0, 0, 0, 0)
 
-    evaluate = trajectory_sensitivities(model, params, bending_angle(), None, x0, data, None)
+    evaluate = trajectory_sensitivities(model, params, bending_angle_map(), None, x0, data, None)
     theta = np.array([0.008, 4e-7, 0.3])
     _, jac = evaluate(theta)
     for j in range(3):
@@ -144,7 +144,7 @@ def test_trajectory_fit_recovers_stiffness_and_damping(oscillation, noise_deg):
         Free(SEG + "bending_stiffness.k0", 1e-4, 1.0, initial=0.012),
         Free(SEG + "damping[1,1]", 1e-9, 1e-4, initial=1e-6),
     ]
-    report = fit_trajectory(model, noisy, output=bending_angle(), x0=x0, free=free)
+    report = fit_trajectory(model, noisy, output=bending_angle_map(), x0=x0, free=free)
     assert report.success, report.message
     truth = np.array([0.008, 4e-7])
     if noise_deg == 0.0:
@@ -156,7 +156,7 @@ def test_trajectory_fit_recovers_stiffness_and_damping(oscillation, noise_deg):
     assert report.n_evaluations < 40
     fitted = report.extra["robot"]
     assert fitted.segments[0].bending_stiffness.k0 == pytest.approx(report.values[0])
-    again = predict_trajectory(model, data, report, output=bending_angle(), x0=x0)
+    again = predict_trajectory(model, data, report, output=bending_angle_map(), x0=x0)
     assert again.rms[0] < 2 * noise_deg + 1e-6
     fig = report.plot(title="oscillation")
     assert fig.axes[0].get_ylabel() == "beta [deg]"
@@ -178,10 +178,10 @@ def test_free_names_are_checked():
     model = sc.Model(_robot(), quadrature_nodes=4)
     data = Experiment([0.0, 0.1], {"beta": [0.0, 0.0]})
     with pytest.raises(sc.ParameterError, match="neither a robot parameter"):
-        fit_trajectory(model, data, output=bending_angle(), x0=np.zeros(6), free=["stiffness"])
+        fit_trajectory(model, data, output=bending_angle_map(), x0=np.zeros(6), free=["stiffness"])
     with pytest.raises(sc.ParameterError, match="outside their bounds"):
         fit_trajectory(
-            model, data, output=bending_angle(), x0=np.zeros(6),
+            model, data, output=bending_angle_map(), x0=np.zeros(6),
             free=[Free(SEG + "damping[1,1]", 1.0, 2.0)],
         )  # fmt: skip
 
@@ -200,7 +200,7 @@ def test_equilibrium_fit_recovers_mounting_angle_area_and_sensor_zero():
     phase, amplitude = 4 * np.pi * t / 6.0, 3e3 + 1.4e4 * t / 6.0
     pressures = {f"p{i}": 2e4 + amplitude * np.sin(phase - 2 * np.pi * i / 3) for i in range(3)}
     template = Experiment(t, {"kx": 0 * t, "ky": 0 * t}, pressures)
-    output = curvatures(offsets=("offset.kx", "offset.ky"))
+    output = curvature_map(offsets=("offset.kx", "offset.ky"))
     inputs = bellows_input_map(area=2.3e-5, distance=0.01)
     clean = fit_equilibria(
         model, template, output=output, input_map=inputs, free=[], extra={**values, **truth},

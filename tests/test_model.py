@@ -16,6 +16,7 @@ import softcurve as sc
 from softcurve.compiled import _build as model_module
 from softcurve.compiled import _generated as generated
 from softcurve.simulation.solvers import _driver as native
+from softcurve.simulation.solvers import _library as driver_library
 
 from .conftest import assert_close, compiler_refusing
 
@@ -37,7 +38,7 @@ def test_parameters_are_bound_at_run_time(paper_model):
 
 def test_without_a_compiler_the_model_warns_once_and_still_works(monkeypatch, tmp_path):
     monkeypatch.setenv("SOFTCURVE_CACHE_DIR", str(tmp_path))
-    monkeypatch.setattr(model_module, "_compiler", lambda: None)
+    monkeypatch.setattr(model_module, "find_compiler", lambda: None)
     with pytest.warns(sc.CompilerWarning, match="no C compiler found"):
         model = sc.Model(sc.presets.ifac2020())
     assert model.compiled_library is None
@@ -59,9 +60,9 @@ def test_code_is_built_for_this_cpu_unless_portable_is_asked(monkeypatch):
     monkeypatch.delenv("SOFTCURVE_PORTABLE", raising=False)
     structure = sc.presets.ifac2020().structure()
     native = model_module._cache_key(structure, 11)
-    assert "-march=native" in model_module._compile_flags()
+    assert "-march=native" in model_module.compile_flags()
     monkeypatch.setenv("SOFTCURVE_PORTABLE", "1")
-    assert model_module._compile_flags() == model_module._COMPILE_FLAGS
+    assert model_module.compile_flags() == model_module._COMPILE_FLAGS
     assert model_module._cache_key(structure, 11) != native  # one library each
 
 
@@ -205,7 +206,7 @@ def test_compile_function_without_a_working_compiler_returns_the_function(monkey
     function = _small_function()
     with pytest.warns(model_module.CompilerWarning, match="virtual machine"):
         assert generated.compile_function(function) is function
-    monkeypatch.setattr(model_module, "_compiler", lambda: None)
+    monkeypatch.setattr(model_module, "find_compiler", lambda: None)
     assert generated.compile_function(function) is function  # no compiler: said elsewhere
 
 
@@ -247,16 +248,16 @@ def test_the_cvodes_driver_builds_wherever_its_prerequisites_hold():
     """The driver's tests skip where it cannot be built (no C compiler, a CasADi whose
     SUNDIALS has another interface); a C source that no longer compiles would make them
     all skip too, silently: here it fails."""
-    if model_module._compiler() is None:
+    if model_module.find_compiler() is None:
         pytest.skip("no C compiler")
     if os.environ.get("SOFTCURVE_NATIVE_CVODES", "1") in ("0", ""):
         pytest.skip("the driver is switched off (SOFTCURVE_NATIVE_CVODES)")
-    plugin = Path(ca.__file__).parent / native.PLUGIN
+    plugin = Path(ca.__file__).parent / driver_library.PLUGIN
     try:
         if not hasattr(ctypes.CDLL(str(plugin)), "CVSpgmr"):
             pytest.skip("CasADi's SUNDIALS has another interface")
     except OSError:
         pytest.skip("CasADi has no CVODES plugin here")
     assert native.driver() is not None, (
-        "the driver's C source (native.LIBRARY_SOURCE) failed to build"
+        "the driver's C files (driver_library.C_FOLDER) failed to build"
     )

@@ -13,9 +13,9 @@ import numpy as np
 import pytest
 
 import softcurve as sc
-from softcurve.identification.experiments._loading import Experiment
+from softcurve.identification.experiments import Experiment
 from softcurve.identification.fits._parameters import Free, FreeParameters
-from softcurve.identification.maps._builders import bellows_input_map, curvatures
+from softcurve.identification.maps import bellows_input_map, curvatures
 from softcurve.simulation.sensitivity._route import integrate_sensitivities
 from softcurve.simulation.sensitivity._sensitivity import (
     SENSITIVITY_CVODES,
@@ -23,6 +23,7 @@ from softcurve.simulation.sensitivity._sensitivity import (
 )
 from softcurve.simulation.sensitivity._split import split_states
 from softcurve.simulation.solvers import _driver as native
+from softcurve.simulation.solvers import _library as driver_library
 
 SEG = "segments[0]."
 
@@ -234,11 +235,19 @@ def test_two_threads_give_the_one_threads_trajectory_and_jacobian(model):
     assert error.max() <= UNCONTROLLED * rtol, error
 
 
+HELPER_TAKES_ALL = ("SOFTCURVE_TEST_HELPER_TAKES_ALL",)
+"""The define of a build of the driver where the helper thread evaluates every second
+part (the driver never claims one; ``parts.c``): the helper's path for certain."""
+
+
 def test_the_helper_thread_changes_no_bit(model):
     """Whichever thread evaluates the second part, the sum is the same: with and without
-    the helper thread, every output and counter is equal, over many evaluations.
-    ``"always"`` runs the helper's path for certain; under ``"shared"`` the scheduler
-    decides (on a busy machine the helper may never win a claim)."""
+    the helper thread, every output and counter is equal, over many evaluations. The
+    test's own build of the driver (:data:`HELPER_TAKES_ALL`) runs the helper's path for
+    certain; under the product's ``"shared"`` the scheduler decides (on a busy machine the
+    helper may never win a claim)."""
+    helper_only = driver_library.library(HELPER_TAKES_ALL)
+    assert helper_only is not None and helper_only is not driver_library.library()
     evaluate, theta = _evaluator(model, "linear", threads=2)
     problem, parts = evaluate._route()
     route = evaluate.driven
@@ -257,13 +266,19 @@ def test_the_helper_thread_changes_no_bit(model):
             route.linear,
             route.settings,
             helper,
+            library,
         )  # fmt: skip
-        for helper in ("none", "always", "shared", "shared")
+        for helper, library in [
+            ("none", None),
+            ("shared", helper_only),
+            ("shared", None),
+            ("shared", None),
+        ]
     ]
     alone = runs[0][3]
     assert alone["helper_evaluations"] == 0 and alone["sensitivity_evaluations"] > 100
-    always = runs[1][3]
-    assert always["helper_evaluations"] == always["sensitivity_evaluations"]
+    helper_path = runs[1][3]
+    assert helper_path["helper_evaluations"] == helper_path["sensitivity_evaluations"]
     for out, reached, flag, counts in runs[1:]:
         assert flag == 0 and reached == route.times.size
         np.testing.assert_array_equal(out, runs[0][0])

@@ -13,12 +13,12 @@ import softcurve as sc
 from softcurve.base.validation import ParameterError
 from softcurve.compiled._generated import compile_function
 from softcurve.compiled._native import NativeFunction
+from softcurve.compiled._source import load_function
+from softcurve.simulation.stepper import Stepper
 from softcurve.simulation.stepper._lanes import LanesMembers
 from softcurve.simulation.stepper._methods import DEFAULT_EXPLICIT_STEP, RK4
 from softcurve.simulation.stepper._observe import observer
 from softcurve.simulation.stepper._stability import EXPLICIT_MARGIN, fastest_rate_at_rest
-from softcurve.simulation.stepper._stepper import Stepper
-from softcurve.simulation.stepper._threads import load_native
 
 PERIOD = 0.02
 
@@ -103,7 +103,7 @@ def test_the_rows_call_equals_one_member_calls(paper_model, rng):
     """A compiled library's rows call (in place, no copies; the scalar periods' threads
     where the lanes cannot be built) equals its one-member call, and refuses arrays of
     the wrong layout. On the observation, a small function."""
-    native = compile_function(observer(paper_model, True), load=load_native)
+    native = compile_function(observer(paper_model, True), load=load_function)
     if not isinstance(native, NativeFunction):
         pytest.skip("no working C compiler")
     x = np.zeros((5, paper_model.n_state))

@@ -17,7 +17,7 @@ from softcurve.cli import main
 from softcurve.identification.experiments._loading import Experiment
 from softcurve.identification.fits._dynamic import fit_equilibria
 from softcurve.identification.fits._parameters import Free
-from softcurve.identification.maps._builders import curvatures, tendon_input_map
+from softcurve.identification.maps import curvature_map, tendon_input_map
 from softcurve.scenarios.actuation import from_mapping
 from softcurve.scenarios.config import ConfigError, load_config, scenario_from_dict
 from softcurve.scenarios.sweep_config import sweep_from_dict
@@ -343,7 +343,7 @@ def tendon_data(gravity, friction=None):
     template = Experiment(t, {"kx": 0 * t, "ky": 0 * t}, tensions)
     inputs = tendon_input_map(distance=0.01, friction=friction)
     truth = TRUTH if friction is None else {**TRUTH, "tendons.friction": friction}
-    clean = fit_equilibria(model, template, output=curvatures(), input_map=inputs, free=[],
+    clean = fit_equilibria(model, template, output=curvature_map(), input_map=inputs, free=[],
                            extra=truth)  # fmt: skip
     assert clean.success, clean.message
     noisy = clean.predicted + 0.05 * np.random.default_rng(3).standard_normal((t.size, 2))
@@ -358,7 +358,7 @@ START = {"tendons.distance": 0.01, "tendons.angle": 0.0}
 
 
 def fit(model, data, inputs, free, extra=START):
-    report = fit_equilibria(model, data, output=curvatures(), input_map=inputs, free=free,
+    report = fit_equilibria(model, data, output=curvature_map(), input_map=inputs, free=free,
                             extra=extra, confidence=0.99)  # fmt: skip
     print(report.table())  # pytest -s shows the tables quoted in docs/validation.md
     return report

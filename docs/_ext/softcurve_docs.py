@@ -13,9 +13,15 @@ the source tree, which hold nothing else (they are listed in ``.gitignore``):
 A file is rewritten only when its text changes, and a generated file that no longer
 belongs (a module removed) is deleted, so a build always shows the current package.
 
+Each object is documented once, on the page of its face: the module it is defined in
+when that module is public, else the nearest public package above its private module
+that exports it in ``__all__`` (``softcurve.compiled._model.Model`` is documented as
+``softcurve.compiled.Model``). A package's page documents the names it is the face of and
+lists, with links, the names it re-exports from other faces.
+
 During the build (``missing-reference``) it resolves cross-references through the
-names users write: ``softcurve.Model`` is documented where it is defined,
-``softcurve.compiled._model.Model``, and a reference to the facade's name is sent there.
+names users write: ``softcurve.Model`` and ``softcurve.compiled._model.Model`` are both
+sent to ``softcurve.compiled.Model``.
 References to other projects (NumPy, Matplotlib, CasADi ...) are shown as plain text,
 because the build is offline; a reference to a softcurve object that does not exist is
 left to Sphinx, which reports it and, in strict mode, fails the build.
@@ -23,7 +29,9 @@ left to Sphinx, which reports it and, in strict mode, fails the build.
 
 from __future__ import annotations
 
+import ast
 import contextlib
+import functools
 import importlib
 import inspect
 import io
@@ -109,6 +117,129 @@ def public_modules() -> list[str]:
     )
 
 
+# -- faces: where each object is documented --------------------------------------------------
+def public_part(module: str) -> str:
+    """The module's name up to its first private part: the package whose ``__init__`` is
+    the face of a private implementation module (``softcurve.compiled._model`` gives
+    ``softcurve.compiled``)."""
+    parts = module.split(".")
+    end = next((i for i, part in enumerate(parts) if part.startswith("_")), len(parts))
+    return ".".join(parts[:end])
+
+
+def _exports(module: str) -> tuple[str, ...]:
+    return tuple(getattr(importlib.import_module(module), "__all__", ()))
+
+
+def face(obj) -> str | None:
+    """The documented name of a softcurve class or function: ``module.qualname`` where the
+    module is public, else ``package.name`` for the nearest public package above the
+    private module that exports it; None for an object that no public name shows."""
+    module, qualname = getattr(obj, "__module__", None), getattr(obj, "__qualname__", None)
+    if not module or not qualname or module.split(".")[0] != "softcurve":
+        return None
+    package = public_part(module)
+    if package == module:
+        return f"{module}.{qualname}"
+    while package.count("."):  # the facade, softcurve itself, is a table of links
+        namespace = importlib.import_module(package)
+        for name in _exports(package):
+            if getattr(namespace, name, None) is obj:
+                return f"{package}.{name}"
+        package = package.rpartition(".")[0]
+    return None
+
+
+@functools.cache
+def _imports(module: str) -> dict[str, tuple[str, str]]:
+    """``{bound name: (source module, its name there)}`` of the module's absolute
+    ``from X import y`` statements, read from its source."""
+    source = inspect.getsource(importlib.import_module(module))
+    found = {}
+    for node in ast.walk(ast.parse(source)):
+        if isinstance(node, ast.ImportFrom) and node.module and not node.level:
+            for alias in node.names:
+                found[alias.asname or alias.name] = (node.module, alias.name)
+    return found
+
+
+def data_face(module: str, name: str) -> tuple[str, str, str, str]:
+    """Where a module-level value (a constant, a table) that ``module`` exports is
+    documented and where it is defined: ``(face, name there, definer, name there)``.
+    Values carry no ``__module__``; the import statements say where they come from."""
+    source, original = _imports(module).get(name, (None, None))
+    if source is None or source.split(".")[0] != "softcurve":
+        return module, name, module, name
+    if public_part(source) == source:
+        return data_face(source, original)
+    package = public_part(source)
+    while package.count("."):
+        for exported in _exports(package):
+            if _imports(package).get(exported) == (source, original):
+                return package, exported, source, original
+        package = package.rpartition(".")[0]
+    return module, name, source, original
+
+
+def _documented_name(module: str, name: str) -> str | None:
+    """The documented dotted name of ``module.name``, a name the module exports."""
+    obj = getattr(importlib.import_module(module), name)
+    if inspect.ismodule(obj):
+        return obj.__name__
+    if inspect.isclass(obj) or inspect.isfunction(obj):
+        return face(obj)
+    where, exported, _, _ = data_face(module, name)
+    return f"{where}.{exported}"
+
+
+def module_page(name: str) -> str:
+    """The reST page of one public module: autodoc for the names it is the face of, the
+    values it exports from its private modules with their doc comments, and links to the
+    names it re-exports from other faces."""
+    text = heading(f"``{name}``") + f"\n.. automodule:: {name}\n"
+    exports = _exports(name)
+    if not exports:  # no __all__: autodoc documents what the module defines
+        return text + "   :members:\n   :member-order: bysource\n"
+    namespace = importlib.import_module(name)
+    own, values, elsewhere = [], [], []
+    for exported in exports:
+        obj = getattr(namespace, exported)
+        documented = _documented_name(name, exported)
+        if documented != f"{name}.{exported}":
+            elsewhere.append((exported, documented, obj))
+        elif inspect.isclass(obj) or inspect.isfunction(obj):
+            own.append(exported)
+        elif data_face(name, exported)[2] == name:  # defined here: autodoc reads its comment
+            own.append(exported)
+        else:
+            values.append(exported)
+    if own:
+        text += f"   :members: {', '.join(own)}\n   :member-order: bysource\n"
+    text += "".join(_value_directive(name, value) for value in values)
+    if elsewhere:
+        text += "\n.. rubric:: Also exported here\n\n"
+        for exported, documented, obj in elsewhere:
+            summary = f": {_summary(obj)}" if inspect.ismodule(obj) or callable(obj) else ""
+            text += f"- ``{exported}``: :py:obj:`{documented}`{summary}\n"
+    return text
+
+
+def _value_directive(module: str, name: str) -> str:
+    """A ``py:data`` entry for a value defined in a private module, with the doc comment
+    found there (autodoc reads doc comments only in the module it documents)."""
+    from sphinx.pycode import ModuleAnalyzer
+    from sphinx.util.inspect import object_description
+
+    _, _, definer, original = data_face(module, name)
+    comments = ModuleAnalyzer.for_module(definer).find_attr_docs().get(("", original))
+    if not comments:
+        return ""  # like autodoc: an undocumented value is left out
+    value = object_description(getattr(importlib.import_module(module), name))
+    value = value if len(value) < 80 and "\n" not in value else "..."
+    body = "".join(f"   {line}".rstrip() + "\n" for line in comments)
+    return f"\n.. py:data:: {name}\n   :module: {module}\n   :value: {value}\n\n{body}"
+
+
 def heading(text: str, underline: str = "=") -> str:
     return f"{text}\n{underline * len(text)}\n"
 
@@ -120,11 +251,7 @@ def write_api(folder: Path) -> int:
     pages = Pages(folder)
     modules = public_modules()
     for name in modules:
-        pages.write(
-            f"{name}.rst",
-            heading(f"``{name}``")
-            + f"\n.. automodule:: {name}\n   :members:\n   :member-order: bysource\n",
-        )
+        pages.write(f"{name}.rst", module_page(name))
     rows = []
     for name in softcurve.__all__:
         obj = getattr(softcurve, name)
@@ -132,7 +259,7 @@ def write_api(folder: Path) -> int:
             rows.append(f"   * - :mod:`{obj.__name__}`\n     - {_summary(obj)}")
         else:
             role = "class" if inspect.isclass(obj) else "func"
-            rows.append(f"   * - :{role}:`~{obj.__module__}.{obj.__qualname__}`\n"
+            rows.append(f"   * - :{role}:`~{face(obj)}`\n"
                         f"     - {_summary(obj)}")  # fmt: skip
     top = (
         heading("``softcurve``: the facade")
@@ -313,8 +440,9 @@ def generate(app) -> None:
 # -- resolving references --------------------------------------------------------------------
 def _names(path: str) -> list[str]:
     """The dotted names under which the object ``path`` names may be documented, best
-    first: where a function, class or module is defined; for an attribute, property,
-    field or enum member, its name under its class's canonical name, then the class."""
+    first: a module's name; a function's or class's :func:`face`; a value's face
+    (:func:`data_face`); for an attribute, property, field or enum member, its name under
+    its class's face, then the class."""
     parts = path.split(".")
     for split in range(len(parts), 0, -1):
         try:
@@ -329,14 +457,15 @@ def _names(path: str) -> list[str]:
             return []
         if inspect.ismodule(obj):
             return [obj.__name__]
+        if isinstance(parent, type):  # a method, property, field or member of a class
+            owner = face(parent) or f"{parent.__module__}.{parent.__qualname__}"
+            return [f"{owner}.{last}", owner]
         if isinstance(obj, type) or inspect.isfunction(obj):
-            return [f"{obj.__module__}.{obj.__qualname__}"]
-        if isinstance(obj, staticmethod | classmethod):
-            return [f"{obj.__func__.__module__}.{obj.__func__.__qualname__}"]
-        if parent is None or not isinstance(parent, type):
-            return [f"{parent.__name__}.{last}"] if inspect.ismodule(parent) else []
-        owner = f"{parent.__module__}.{parent.__qualname__}"
-        return [f"{owner}.{last}", owner]
+            return [face(obj) or f"{obj.__module__}.{obj.__qualname__}"]
+        if inspect.ismodule(parent):  # a value of a module
+            where, exported, _, _ = data_face(parent.__name__, last)
+            return [f"{where}.{exported}"]
+        return []
     return []
 
 

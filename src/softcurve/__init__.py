@@ -84,14 +84,19 @@ from softcurve.identification.maps import (
     SensorFrame,
     actuator_input_map,
     bellows_input_map,
-    bending_angle,
+    bending_angle_map,
     constant_input_map,
-    curvatures,
-    imu_orientation,
-    marker_position,
+    curvature_map,
+    imu_orientation_map,
+    marker_position_map,
     tendon_input_map,
-    tip_position,
+    tip_position_map,
 )
+from softcurve.identification.maps import bending_angle as bending_angle  # deprecated names
+from softcurve.identification.maps import curvatures as curvatures
+from softcurve.identification.maps import imu_orientation as imu_orientation
+from softcurve.identification.maps import marker_position as marker_position
+from softcurve.identification.maps import tip_position as tip_position
 from softcurve.scenarios.config import Scenario, load_config
 from softcurve.scenarios.sweep import SweepResult, run_sweep
 from softcurve.scenarios.sweep_config import SweepConfig, load_sweep
@@ -189,15 +194,15 @@ __all__ = [
     "tanh_parameters",
     "OutputMap",
     "InputMap",
-    "tip_position",
-    "bending_angle",
-    "curvatures",
+    "tip_position_map",
+    "bending_angle_map",
+    "curvature_map",
     "bellows_input_map",
     "constant_input_map",
     "tendon_input_map",
     "actuator_input_map",
-    "marker_position",
-    "imu_orientation",
+    "marker_position_map",
+    "imu_orientation_map",
     "SensorFrame",
     "load_mat_trials",
     "check_units",

@@ -124,6 +124,14 @@ def _static_residual(e, sym):
     return residual if sym["contact"] is None else residual - sym["contact"]
 
 
+def _load_function(model, actuator, name: str, build) -> ca.Function:
+    """The function ``build(expressions, load symbols)`` makes, cached in ``model`` under
+    ``name`` and the actuator."""
+    return model.cached(
+        ("loads", name, actuator), lambda: build(model.expressions, _load_symbols(model, actuator))
+    )
+
+
 @shared_parameters
 def static_function(model, actuator: Actuator | None) -> ca.Function:
     """``F(q, p, tau, u, f, m) -> (r, K, W, tip)``: the residual ``r = N - loads``,
@@ -135,8 +143,7 @@ def static_function(model, actuator: Actuator | None) -> ca.Function:
     %(actuator)s
     """
 
-    def build():
-        e, sym = model.expressions, _load_symbols(model, actuator)
+    def build(e, sym):
         residual = _static_residual(e, sym)
         return ca.Function(
             "static",
@@ -146,7 +153,7 @@ def static_function(model, actuator: Actuator | None) -> ca.Function:
             ["r", "K", "W", "tip"],
         )
 
-    return model.cached(("loads", "static", actuator), build)
+    return _load_function(model, actuator, "static", build)
 
 
 @shared_parameters
@@ -160,8 +167,7 @@ def linear_function(model, actuator: Actuator | None) -> ca.Function:
     %(actuator)s
     """
 
-    def build():
-        e, sym = model.expressions, _load_symbols(model, actuator)
+    def build(e, sym):
         x = ca.vertcat(e.q, e.qd, e.lam)
         qdd = ca.substitute(e.forward_dynamics, e.tau, sym["load"])
         xdot = ca.vertcat(e.qd, qdd, e.creep_rate)
@@ -180,7 +186,7 @@ def linear_function(model, actuator: Actuator | None) -> ca.Function:
             ["A", "B", "D", "K"],
         )
 
-    return model.cached(("loads", "linear", actuator), build)
+    return _load_function(model, actuator, "linear", build)
 
 
 def elastic_stiffness_function(model) -> ca.Function:

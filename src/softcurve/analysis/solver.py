@@ -17,6 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.optimize
 
+from softcurve.base.docs import parameters_from
 from softcurve.base.status import Status
 
 POLISH_STEPS = 2
@@ -65,6 +66,18 @@ class Root:
         return self.status is Status.SUCCESS
 
 
+_scaling_parameters = parameters_from(
+    {
+        "scale": ("ndarray, shape (n,)", "``S``: ``q / S`` is dimensionless."),
+        "reference": (
+            "ndarray, shape (n,)",
+            "Unit of the scaled residual ``S r`` [J], per coordinate.",
+        ),
+    }
+)
+
+
+@_scaling_parameters
 def solve_equilibrium(
     system: Callable,
     q0,
@@ -84,10 +97,8 @@ def solve_equilibrium(
         ``K = dr/dq`` (n, n).
     q0 : array_like, shape (n,)
         Initial guess [m, 1/m, 1/m].
-    scale : ndarray, shape (n,)
-        ``S``: ``q / S`` is dimensionless.
-    reference : ndarray, shape (n,)
-        Unit of the scaled residual ``S r`` [J], per coordinate.
+    %(scale)s
+    %(reference)s
     tol : float
         Acceptance: ``max |S r / reference| <= tol`` (dimensionless).
     max_evaluations : int
@@ -126,6 +137,7 @@ def solve_equilibrium(
     return Root(q=q, status=status, message=message)
 
 
+@_scaling_parameters
 def solve_equilibria(
     batch_system: Callable,
     system_of: Callable,
@@ -161,10 +173,8 @@ def solve_equilibria(
         ``system_of(j)`` is column ``j``'s ``system(q) -> (r, K)``.
     q0 : array_like, shape (n, T)
         Initial guesses [m, 1/m, 1/m].
-    scale : ndarray, shape (n,)
-        ``S``: ``q / S`` is dimensionless.
-    reference : ndarray, shape (n,)
-        Unit of the scaled residual ``S r`` [J], per coordinate.
+    %(scale)s
+    %(reference)s
     tol : float
         Acceptance: ``max |S r / reference| <= tol`` per column (dimensionless).
     max_evaluations : int

@@ -236,12 +236,3 @@ def _error_line(exc: Exception) -> tuple[int, str]:
         where = f"{exc.filename}: " if exc.filename else ""
         return 1, f"{where}{exc.strerror or text} (check the folder and the free space)"
     return 1, f"{type(exc).__name__}: {text}"
-
-
-__all__ = [
-    "annotations",
-    "Callable",
-    "__version__",
-    "ParameterError",
-    "save_figure",
-]

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from softcurve.base.docs import parameters_from
 from softcurve.base.files import writable_file
 from softcurve.base.validation import ParameterError, random_seed, whole_count
 
@@ -50,32 +51,41 @@ def figure_file(path, option: str) -> Path:
     return writable_file(path, option)
 
 
+_number_parameters = parameters_from(
+    {"value": ("int", "As parsed."), "option": ("str", "The option.")}
+)
+
+
+def _number(option: str, check, value, *args) -> int:
+    """``check(name, value, *args)`` of the library, the name the option's without its
+    dashes, its error prefixed with ``option``."""
+    return as_option(option, check, option.lstrip("-"), value, *args)
+
+
+@_number_parameters
 def seed(value, option: str = "--seed") -> int:
     """A seed of the random starts: an integer >= 0.
 
     Parameters
     ----------
-    value : int
-        As parsed.
-    option : str
-        The option.
+    %(value)s
+    %(option)s
     """
-    return as_option(option, random_seed, option.lstrip("-"), value)
+    return _number(option, random_seed, value)
 
 
+@_number_parameters
 def count(value, option: str, minimum: int = 1) -> int:
     """A number of things (starts, workers): an integer >= ``minimum``.
 
     Parameters
     ----------
-    value : int
-        As parsed.
-    option : str
-        The option.
+    %(value)s
+    %(option)s
     minimum : int
         Its smallest allowed value.
     """
-    return as_option(option, whole_count, option.lstrip("-"), value, minimum)
+    return _number(option, whole_count, value, minimum)
 
 
 def _installed(module: str) -> bool:

@@ -4,7 +4,7 @@ The regression of the paper's Fig. 3: generalized force against strain (elongati
 [m] or bending angle [rad]) with the hyper-elastic tanh law or a linear law; prints the
 estimates with confidence intervals and correlations, optionally writes the figure.
 Trajectory fits need a robot and output maps and are a Python API
-(:mod:`softcurve.identification.fits._dynamic`); ``examples/validate_caasenbrood2021.py`` shows them.
+(:mod:`softcurve.identification.fits`); ``examples/validate_caasenbrood2021.py`` shows them.
 """
 
 from __future__ import annotations

@@ -1,7 +1,7 @@
 """Compiling CasADi functions to C: the compiler, its flags, the cache keys.
 
 The one place that knows about code generation and compilers: the library of a model is
-cached (:mod:`softcurve.compiled._cache`) under a key made of its structure, the sources
+cached (``softcurve.compiled._cache``) under a key made of its structure, the sources
 of the symbolic layer, CasADi's version, the flags and (for code built for this CPU) the
 CPU, so a second process with a robot of the same structure (any parameter values)
 starts without compiling. The key does not hold the compiler: a library is what it
@@ -55,9 +55,15 @@ between CPU types at round-off (as NumPy's, whose BLAS also picks kernels per CP
 ``SOFTCURVE_PORTABLE=1`` builds portable, bitwise reproducible code instead."""
 
 
-def _compiler() -> list[str] | None:
+def find_compiler() -> list[str] | None:
     """The C compiler's command: ``$CC`` (split as a shell would), else the first of
-    ``cc``, ``gcc``, ``clang`` on ``PATH``; None when there is none."""
+    ``cc``, ``gcc``, ``clang`` on ``PATH``.
+
+    Returns
+    -------
+    list of str or None
+        The command; None when there is none.
+    """
     env = os.environ.get("CC")
     if env:
         return shlex.split(env)
@@ -91,8 +97,14 @@ def _native_flags() -> tuple[str, ...]:
     return _NATIVE_FLAGS
 
 
-def _compile_flags() -> tuple[str, ...]:
-    """The model's compiler flags: :data:`_COMPILE_FLAGS` and :func:`_native_flags`."""
+def compile_flags() -> tuple[str, ...]:
+    """The compiler flags of every library softcurve builds: :data:`_COMPILE_FLAGS` and
+    :func:`_native_flags`.
+
+    Returns
+    -------
+    tuple of str
+    """
     return _COMPILE_FLAGS + _native_flags()
 
 
@@ -203,12 +215,12 @@ def compiled_library(structure, quadrature_nodes, symbolic, load=None):
         :class:`CompilerWarning`) when it is not cached and no compiler works: the model
         then runs in CasADi's virtual machine.
     """
-    compiler = _compiler()
+    compiler = find_compiler()
 
     def build() -> bytes:
         functions = symbolic()
         selected = {name: functions[name] for name in COMPILED_FUNCTIONS}
-        return _compile_for_this_cpu(selected, require_compiler(compiler), _COMPILE_FLAGS)
+        return compile_for_this_cpu(selected, require_compiler(compiler), _COMPILE_FLAGS)
 
     key = _cache_key(structure, quadrature_nodes)
     try:
@@ -240,10 +252,10 @@ def _compile(
             generator.generate(tmp + os.sep)
             jobs.append([*compiler, *flags, "-c", f"{name}.c", "-o", f"{name}.o"])
         with ThreadPoolExecutor(max_workers=os.cpu_count() or 1) as pool:
-            list(pool.map(lambda job: _run(job, tmp), jobs))
+            list(pool.map(lambda job: run_compiler(job, tmp), jobs))
         partial = Path(tmp, "model.so")
         objects = [f"{name}.o" for name in functions]
-        _run([*compiler, "-shared", "-o", str(partial), *objects, "-lm"], tmp)
+        run_compiler([*compiler, "-shared", "-o", str(partial), *objects, "-lm"], tmp)
         return partial.read_bytes()
 
 
@@ -253,10 +265,27 @@ without them at once, instead of failing first (a failed compile of a large gene
 file costs as much as a good one)."""
 
 
-def _compile_for_this_cpu(functions, compiler, flags, tail=()) -> bytes:
-    """:func:`_compile` with ``(*flags, *native, *tail)``, ``native`` from
-    :func:`_native_flags`; again without them where the compiler refuses them (remembered
-    in :data:`_REFUSING_NATIVE`)."""
+def compile_for_this_cpu(functions, compiler, flags, tail=()) -> bytes:
+    """The shared library of ``functions`` (:func:`_compile`) with ``(*flags, *native,
+    *tail)``, ``native`` from :func:`_native_flags`; again without them where the compiler
+    refuses them (remembered in :data:`_REFUSING_NATIVE`).
+
+    Parameters
+    ----------
+    functions : dict of str to casadi.Function
+        The functions, by name.
+    compiler : list of str
+        The compiler's command (:func:`find_compiler`).
+    flags : tuple of str
+        The flags asked for.
+    tail : tuple of str
+        Flags after the native ones.
+
+    Returns
+    -------
+    bytes
+        The library's content.
+    """
     wanted = () if tuple(compiler) in _REFUSING_NATIVE else _native_flags()
     try:
         return _compile(functions, compiler, (*flags, *wanted, *tail))
@@ -268,5 +297,19 @@ def _compile_for_this_cpu(functions, compiler, flags, tail=()) -> bytes:
         return data
 
 
-def _run(command: list[str], directory: str) -> None:
+def run_compiler(command: list[str], directory: str) -> None:
+    """Run a compiler's ``command`` in ``directory``, its output captured.
+
+    Parameters
+    ----------
+    command : list of str
+        The command and its arguments.
+    directory : str
+        The working directory.
+
+    Raises
+    ------
+    subprocess.CalledProcessError
+        If the command fails (its ``stderr`` says why).
+    """
     subprocess.run(command, cwd=directory, check=True, capture_output=True, text=True)

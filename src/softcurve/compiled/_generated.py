@@ -1,5 +1,5 @@
 """CasADi functions other than the model's, generated as C, compiled and cached on disk
-with the model's compiler and cache (:mod:`softcurve.compiled._build`): the
+with the model's compiler and cache (``softcurve.compiled._build``): the
 identification's sensitivity equations, the stepper's period, an actuator's force.
 """
 
@@ -90,12 +90,12 @@ def compile_function(function: ca.Function, flags: tuple[str, ...] | None = None
         :class:`~softcurve.compiled.CompilerWarning`) when the build fails: then it
         runs in CasADi's virtual machine.
     """
-    compiler = build._compiler()
+    compiler = build.find_compiler()
     name = function.name()
     asked = None if flags is None else tuple(flags)
 
     def compile_with(chosen: tuple[str, ...]) -> bytes:
-        return build._compile_for_this_cpu({name: function}, compiler, chosen, ("-fPIC",))
+        return build.compile_for_this_cpu({name: function}, compiler, chosen, ("-fPIC",))
 
     def make() -> bytes:
         build.require_compiler(compiler)

@@ -10,7 +10,9 @@ as the scalar code and computes the same arithmetic lane by lane.
 
 Sine, cosine and hyperbolic tangent come from glibc's vector math library (libmvec,
 accurate to 4 ulp) where the code is built for x86-64 with AVX2; elsewhere, and for
-the other elementary functions, each lane calls the C library's scalar function.
+the other elementary functions, each lane calls the C library's scalar function. That
+fixed C (the vector type and the elementary functions) is ``c/lanes_prelude.h`` beside
+this module (:data:`PRELUDE`); Python writes what it computes from the expressions.
 """
 
 from __future__ import annotations
@@ -20,6 +22,7 @@ import math
 import platform
 import re
 from collections.abc import Sequence
+from pathlib import Path
 from typing import NamedTuple
 
 import casadi as ca
@@ -41,16 +44,23 @@ period of the paper robot (963 vectors) took 14.5 us per member against 16.5 us 
 the array (best of 9 alternating rounds, 2026-12-01); a robot of three segments needs
 about 110 KB, more than some threads' stacks (musl's default is 128 KB)."""
 
-VECTOR_MATH_LIBRARY = ("-lmvec",)
-"""The link arguments of :data:`VECTOR_MATH`."""
+C_FOLDER = Path(__file__).parent / "c"
+"""The fixed C of the generators (package data): the lanes prelude, the templates that
+generated sources fill in (:func:`c_template`)."""
 
-VECTOR_MATH = {"sin": "_ZGVdN4v_sin", "cos": "_ZGVdN4v_cos", "tanh": "_ZGVdN4v_tanh"}
-"""glibc's AVX2 vector functions of four doubles (``tanh`` since glibc 2.35), used where
-the source is compiled with ``__AVX2__`` on x86-64 and ``vector_math`` was asked for."""
+PRELUDE = C_FOLDER / "lanes_prelude.h"
+"""The C of :func:`lanes_prelude` (package data): the vector type and every elementary
+function lane by lane, with glibc's AVX2 vector functions of four doubles (``sin``,
+``cos``, ``tanh``; ``tanh`` since glibc 2.35), used where the source is compiled with
+``__AVX2__`` on x86-64 and ``vector_math`` was asked for."""
+
+VECTOR_MATH_LIBRARY = ("-lmvec",)
+"""The link arguments of the vector math library (:data:`PRELUDE`)."""
 
 
 def vector_math_available() -> bool:
-    """Whether :data:`VECTOR_MATH` can link here: x86-64 Linux with glibc 2.35 or later
+    """Whether the vector math library (:data:`PRELUDE`) can link here: x86-64 Linux with
+    glibc 2.35 or later
     (the first with the vector ``tanh``). The code still uses them only where compiled
     for AVX2.
 
@@ -83,17 +93,17 @@ _ELEMENTARY2 = {
 
 
 def lanes_prelude(width: int = LANE_WIDTH, vector_math: bool = False) -> str:
-    """The C that every lanes function needs, once per source: the vector type ``sc_v``
-    (``width`` doubles) and its mask type, broadcast, select, and every elementary
-    function lane by lane (``sc_sin``, ...).
+    """The C that every lanes function needs, once per source: :data:`PRELUDE` for
+    vectors of ``width`` doubles (the vector type ``sc_v`` and its mask type, broadcast,
+    select, and every elementary function lane by lane, ``sc_sin``, ...).
 
     Parameters
     ----------
     width : int
         Lanes per vector.
     vector_math : bool
-        Take :data:`VECTOR_MATH`'s functions where compiled for AVX2 on x86-64 (link
-        with :data:`VECTOR_MATH_LIBRARY`); requires ``width == 4``.
+        Take glibc's vector functions where compiled for AVX2 on x86-64 (link with
+        :data:`VECTOR_MATH_LIBRARY`); requires ``width == 4``.
 
     Returns
     -------
@@ -102,43 +112,34 @@ def lanes_prelude(width: int = LANE_WIDTH, vector_math: bool = False) -> str:
     """
     if vector_math and width != 4:
         raise ValueError(f"vector_math needs width 4, got {width}")
-    lines = [
-        "#include <math.h>",
-        f"#define SC_W {width}",
-        "typedef double sc_v __attribute__((vector_size(8 * SC_W)));",
-        "typedef long long sc_m __attribute__((vector_size(8 * SC_W)));",
-        "static inline sc_v sc_broadcast(double s) {",
-        "  sc_v r; for (int l = 0; l < SC_W; l++) r[l] = s; return r;",
-        "}",
-        "static inline sc_v sc_select(sc_m m, sc_v a, sc_v b) {",
-        "  return (sc_v)(((sc_m)a & m) | ((sc_m)b & ~m));",
-        "}",
-    ]
-    vectorized = set(VECTOR_MATH) if vector_math else set()
-    for name in sorted(set(_ELEMENTARY.values())):
-        if name in vectorized:
-            continue
-        lines.append(
-            f"static inline sc_v sc_{name}(sc_v x) {{ sc_v r; "
-            f"for (int l = 0; l < SC_W; l++) r[l] = {name}(x[l]); return r; }}"
-        )
-    if vectorized:
-        lines.append("#if defined(__AVX2__) && defined(__x86_64__)")
-        for name, symbol in VECTOR_MATH.items():
-            lines += [f"sc_v {symbol}(sc_v);", f"#define sc_{name} {symbol}"]
-        lines.append("#else")
-        for name in VECTOR_MATH:
-            lines.append(
-                f"static inline sc_v sc_{name}(sc_v x) {{ sc_v r; "
-                f"for (int l = 0; l < SC_W; l++) r[l] = {name}(x[l]); return r; }}"
-            )
-        lines.append("#endif")
-    for name in sorted(set(_ELEMENTARY2.values())):
-        lines.append(
-            f"static inline sc_v sc_{name}(sc_v x, sc_v y) {{ sc_v r; "
-            f"for (int l = 0; l < SC_W; l++) r[l] = {name}(x[l], y[l]); return r; }}"
-        )
-    return "\n".join(lines) + "\n"
+    defines = [f"#define SC_W {width}", *(["#define SC_VECTOR_MATH 1"] if vector_math else [])]
+    return "\n".join(defines) + "\n" + PRELUDE.read_text(encoding="utf-8")
+
+
+def c_template(name: str, defines: dict) -> str:
+    """The C file ``name`` of :data:`C_FOLDER` after ``#define`` lines of ``defines`` and
+    ``SC_GENERATED``: a template whose macros the generator fills in with what it computes
+    (each template says which; a template compiles alone on stand-ins without them).
+
+    Parameters
+    ----------
+    name : str
+        The file's name, e.g. ``"stepper_period.c"``.
+    defines : dict of str to object
+        Macro name to its value; a list or tuple of strings is a block of statements
+        (one macro over several lines).
+
+    Returns
+    -------
+    str
+        C source.
+    """
+    lines = ["#define SC_GENERATED 1"]
+    for macro, value in defines.items():
+        if isinstance(value, (list, tuple)):
+            value = " \\\n  ".join(value)
+        lines.append(f"#define {macro} {value}")
+    return "\n".join(lines) + "\n" + (C_FOLDER / name).read_text(encoding="utf-8")
 
 
 def _constant(value: float) -> str:
@@ -272,7 +273,7 @@ class CompiledLanes(NamedTuple):
 
 
 def compile_lanes(stem: str, source_for, entry: str, argtypes: list) -> CompiledLanes | None:
-    """A lanes source compiled and loaded: with :data:`VECTOR_MATH` where
+    """A lanes source compiled and loaded: with the vector math library where
     :func:`vector_math_available` and it links, else with the C library's functions.
 
     Parameters

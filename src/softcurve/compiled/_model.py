@@ -13,7 +13,6 @@ generalized forces ``tau`` [N, N m^2, N m^2] (their products with ``qd`` are pow
 
 from __future__ import annotations
 
-import ctypes
 import hashlib
 import threading
 from dataclasses import dataclass
@@ -26,6 +25,7 @@ from softcurve.base.docs import shared_parameters
 from softcurve.base.validation import ParameterError
 from softcurve.compiled._build import COMPILED_FUNCTIONS, compiled_library
 from softcurve.compiled._native import NativeFunction
+from softcurve.compiled._source import load_library
 from softcurve.description.environment import Environment
 from softcurve.description.robot import Robot
 from softcurve.symbolic.contact import contact_functions, with_contact
@@ -58,8 +58,8 @@ def _block(column: np.ndarray, start: int, width: int) -> np.ndarray:
 
 def _load(library: Path) -> dict[str, NativeFunction]:
     """The compiled functions of a verified library (ctypes raises OSError if it cannot be
-    loaded; :func:`~softcurve.compiled._build.compiled_library` then rebuilds it once)."""
-    handle = ctypes.CDLL(str(library))
+    loaded; ``softcurve.compiled._build.compiled_library`` then rebuilds it once)."""
+    handle = load_library(library)
     return {name: NativeFunction(handle, name) for name in COMPILED_FUNCTIONS}
 
 
@@ -254,6 +254,18 @@ class Model:
         return self._symbolic
 
     # -- the per-model cache -------------------------------------------------------
+    def compiled_function(self, name: str) -> NativeFunction | None:
+        """The compiled C function ``name`` of the model's library (for code that calls C
+        directly, such as the CVODES driver), or None where the model runs in CasADi's
+        virtual machine.
+
+        Parameters
+        ----------
+        name : str
+            One of the compiled entry points (``"rhs"``, ``"dynamics_terms"``, ...).
+        """
+        return None if self._native is None else self._native.get(name)
+
     def cached(self, key, build):
         """``build()`` once per ``key`` for this model, kept while the model lives.
 

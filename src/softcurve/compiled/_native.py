@@ -74,6 +74,16 @@ class NativeFunction:
             if flat is not None:
                 raise RuntimeError(f"{name}: input {i} is sparse; only dense inputs are supported")
 
+    @property
+    def address(self) -> int:
+        """The generated function's address (what C calls it by: ``casadi_fn``)."""
+        return ctypes.cast(self._function, ctypes.c_void_p).value
+
+    @property
+    def work_sizes(self) -> tuple[int, int, int, int]:
+        """``(sz_arg, sz_res, sz_iw, sz_w)``: the sizes of its work arrays."""
+        return (self._sz_arg, self._sz_res, self._sz_iw, self._sz_w)
+
     def _count(self, library, what: str) -> int:
         f = getattr(library, f"{self.name}_{what}")
         f.restype = _int

@@ -1,9 +1,11 @@
-"""Hand-written C compiled next to the generated code: :func:`compile_source`.
+"""Hand-written C compiled next to the generated code, and the one loader of compiled
+libraries: :func:`compile_source` (a source that Python fills in), :func:`compile_files`
+(C files shipped with the package), :func:`load_library` and :func:`load_function`.
 
-For small C sources that are not CasADi-generated (the driver of the SUNDIALS library
-that ships with CasADi, :mod:`softcurve.simulation.solvers._driver`): the compiler, flags,
-checksum files and on-disk cache of :mod:`softcurve.compiled._build` and
-:mod:`softcurve.compiled._cache`, keyed by the source's content.
+The compiler, flags, checksum files and on-disk cache are those of
+``softcurve.compiled._build`` and ``softcurve.compiled._cache``; a library's cache
+key holds the content of every source it is built from, so a library built from a
+source that has since changed is never loaded.
 """
 
 from __future__ import annotations
@@ -11,22 +13,103 @@ from __future__ import annotations
 import ctypes
 import subprocess
 import tempfile
+from collections.abc import Sequence
 from pathlib import Path
 
-from softcurve.compiled._build import (
-    NoCompiler,
-    _compile_flags,
-    _compiler,
-    _run,
-    cache_key,
-    require_compiler,
-)
+from softcurve.compiled import _build as build
 from softcurve.compiled._cache import load_or_build
+from softcurve.compiled._native import NativeFunction
+
+
+class Library(ctypes.CDLL):
+    """A loaded shared library that knows its file, ``path`` (worker processes load the
+    same file again)."""
+
+    def __init__(self, path):
+        super().__init__(str(path))
+        self.path = Path(path).resolve()
+
+
+def load_library(path) -> Library:
+    """The shared library at ``path``, loaded.
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The library.
+
+    Returns
+    -------
+    Library
+
+    Raises
+    ------
+    OSError
+        If it cannot be loaded.
+    """
+    return Library(path)
+
+
+def load_function(path, name: str) -> NativeFunction:
+    """The CasADi-generated function ``name`` of the library at ``path``, called through
+    ctypes.
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The shared library.
+    name : str
+        The generated function's name.
+
+    Returns
+    -------
+    NativeFunction
+    """
+    return NativeFunction(load_library(path), name)
+
+
+def load_with_path(path, name: str) -> tuple:
+    """``(path, name, the loaded function)``: the path (absolute: a worker process may
+    start elsewhere) and name travel to worker processes, the loaded function stays.
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The compiled library.
+    name : str
+        The function's name in it.
+
+    Returns
+    -------
+    tuple
+        ``(absolute path as str, name, NativeFunction)``.
+    """
+    return (str(Path(path).resolve()), name, load_function(path, name))
+
+
+def _compiled(stem: str, key_parts: tuple, write, arguments: Sequence[str]):
+    """The library ``stem`` built by the compiler with ``arguments`` in a folder where
+    ``write(folder)`` put its sources, cached under the key of ``key_parts`` and the
+    flags; loaded, or None when it is not cached and cannot be built."""
+    compiler = build.find_compiler()
+    flags = build.compile_flags()
+
+    def compile_() -> bytes:
+        command = [*build.require_compiler(compiler), *flags, "-shared"]
+        with tempfile.TemporaryDirectory() as tmp:
+            write(Path(tmp))
+            build.run_compiler([*command, *arguments, "-o", f"{stem}.so", "-lm"], tmp)
+            return Path(tmp, f"{stem}.so").read_bytes()
+
+    key = build.cache_key(stem, *key_parts, flags)
+    try:
+        return load_or_build(stem, key, compile_, load_library, stacklevel=3)[1]
+    except (build.NoCompiler, OSError, subprocess.CalledProcessError):
+        return None
 
 
 def compile_source(stem: str, source: str, link: tuple[str, ...] = ()):
-    """A C ``source`` compiled to a shared library, cached on disk by its content, loaded
-    with ``ctypes.CDLL``.
+    """A C ``source`` compiled to a shared library, cached on disk by its content, loaded.
 
     Parameters
     ----------
@@ -44,18 +127,39 @@ def compile_source(stem: str, source: str, link: tuple[str, ...] = ()):
         The loaded library; None when it is not cached and no C compiler works, or the
         build fails (the caller then falls back to CasADi's own functions).
     """
-    compiler = _compiler()
-    flags = _compile_flags()
+    return _compiled(
+        stem,
+        (source, tuple(link)),
+        lambda folder: (folder / f"{stem}.c").write_text(source),
+        [f"{stem}.c", *link],
+    )
 
-    def build() -> bytes:
-        command = [*require_compiler(compiler), *flags, "-shared", f"{stem}.c", "-o", f"{stem}.so"]
-        with tempfile.TemporaryDirectory() as tmp:
-            Path(tmp, f"{stem}.c").write_text(source)
-            _run([*command, *link, "-lm"], tmp)
-            return Path(tmp, f"{stem}.so").read_bytes()
 
-    key = cache_key(stem, source, flags, tuple(link))
-    try:
-        return load_or_build(stem, key, build, ctypes.CDLL, stacklevel=2)[1]
-    except (NoCompiler, OSError, subprocess.CalledProcessError):
-        return None
+def compile_files(stem: str, folder, link: tuple[str, ...] = (), defines: tuple[str, ...] = ()):
+    """Every ``.c`` file of ``folder`` compiled into one shared library (its headers found
+    in ``folder``), cached on disk by the content of every ``.c`` and ``.h`` file there,
+    loaded.
+
+    Parameters
+    ----------
+    stem : str
+        Start of the library's file name in the cache.
+    folder : str or pathlib.Path
+        The folder of the C files (the package's data).
+    link : tuple of str
+        Further arguments of the link step, part of the cache key.
+    defines : tuple of str
+        Macros defined on the command line (``-D``), part of the cache key.
+
+    Returns
+    -------
+    ctypes.CDLL or None
+        As :func:`compile_source`.
+    """
+    folder = Path(folder).resolve()
+    sources = sorted(folder.glob("*.c"))
+    contents = tuple(
+        (path.name, path.read_bytes()) for path in sorted([*sources, *folder.glob("*.h")])
+    )
+    arguments = [f"-I{folder}", *(f"-D{name}" for name in defines), *map(str, sources), *link]
+    return _compiled(stem, (contents, tuple(link), tuple(defines)), lambda _: None, arguments)

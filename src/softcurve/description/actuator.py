@@ -19,8 +19,15 @@ import math
 import casadi as ca
 import numpy as np
 
+from softcurve.base.docs import parameters_from
 from softcurve.base.validation import ParameterError, real_array, real_scalar, whole_count
-from softcurve.description.fibers import fiber_problem, fibers_inside, routing_problem
+from softcurve.description.fibers import (
+    fiber_problem,
+    fibers_inside,
+    offset_fiber_gradient,
+    offset_fiber_length,
+    routing_problem,
+)
 
 
 def optional_time_constant(value) -> float | None:
@@ -34,12 +41,25 @@ def optional_time_constant(value) -> float | None:
     return None if value is None else real_scalar("time_constant", value, positive=True)
 
 
+_symbolic_parameters = parameters_from(
+    {
+        "q": ("casadi.SX or casadi.MX, shape (n,)", "Generalized coordinates [m, 1/m, 1/m]."),
+        "theta": (
+            "casadi.SX or casadi.MX, shape (k,), optional",
+            "Symbols replacing :meth:`parameter_vector` (e.g. to identify areas).",
+        ),
+    }
+)
+
+
+@_symbolic_parameters
 class Actuator:
     """An actuator: bounded inputs ``u`` (m,) acting on the robot as ``tau = H(q) u``.
 
     Subclasses set the attributes below (in ``__post_init__`` of a frozen dataclass) and
     implement :meth:`input_matrix_symbolic`, :meth:`input_work_symbolic`,
-    :meth:`parameter_vector` and :meth:`parameter_names`.
+    :meth:`parameter_vector` and :meth:`parameter_names` (the last two come from the
+    parts for an actuator made of parts, ``_parts_field``).
 
     Attributes
     ----------
@@ -76,10 +96,8 @@ class Actuator:
 
         Parameters
         ----------
-        q : casadi.SX or casadi.MX, shape (n,)
-            Generalized coordinates [m, 1/m, 1/m].
-        theta : casadi.SX or casadi.MX, shape (k,), optional
-            Symbols replacing :meth:`parameter_vector` (e.g. to identify areas).
+        %(q)s
+        %(theta)s
         """
         raise NotImplementedError
 
@@ -91,20 +109,31 @@ class Actuator:
 
         Parameters
         ----------
-        q : casadi.SX or casadi.MX, shape (n,)
-            Generalized coordinates [m, 1/m, 1/m].
+        %(q)s
         inputs : casadi.SX or casadi.MX, shape (m,)
             Constant inputs [``input_unit``].
         """
         raise NotImplementedError
 
     def parameter_vector(self) -> np.ndarray:
-        """The numbers ``H`` depends on, named by :meth:`parameter_names`."""
-        raise NotImplementedError
+        """The numbers ``H`` depends on, named by :meth:`parameter_names`; of an actuator
+        made of parts, each part's ``_part_parameters`` in turn."""
+        if not self._parts_field:
+            raise NotImplementedError
+        return np.array(
+            [getattr(p, name) for p in self._parts() for name in self._part_parameters],
+            dtype=np.float64,
+        )
 
     def parameter_names(self) -> list[str]:
         """Names of the entries of :meth:`parameter_vector`."""
-        raise NotImplementedError
+        if not self._parts_field:
+            raise NotImplementedError
+        return [
+            f"{self._parts_field}[{i}].{n}"
+            for i in range(len(self._parts()))
+            for n in self._part_parameters
+        ]
 
     def with_parameter_vector(self, vector) -> Actuator:
         """This actuator with its :meth:`parameter_vector` replaced by ``vector``,
@@ -162,17 +191,58 @@ class Actuator:
             values = [getattr(part, attribute) for part in parts]
             set_(self, name, real_array(attribute, values, (len(parts),)))
 
-    def _parts_vector(self) -> np.ndarray:
-        parts = getattr(self, self._parts_field)
-        return np.array(
-            [getattr(p, name) for p in parts for name in self._part_parameters], dtype=np.float64
-        )
+    def _parts(self) -> tuple:
+        return getattr(self, self._parts_field)
 
-    def _parts_names(self) -> list[str]:
-        count = len(getattr(self, self._parts_field))
-        return [
-            f"{self._parts_field}[{i}].{n}" for i in range(count) for n in self._part_parameters
-        ]
+    def _part_values(self, i: int, theta) -> tuple:
+        """The ``_part_parameters`` of part ``i``: its fields, or with ``theta`` (the
+        symbols replacing :meth:`parameter_vector`) the entries standing for them."""
+        if theta is None:
+            part = self._parts()[i]
+            return tuple(getattr(part, name) for name in self._part_parameters)
+        k = len(self._part_parameters)
+        return tuple(theta[k * i + c] for c in range(k))
+
+    # Parts that are offset fibers (bellows, tendons) have the fields ``azimuth`` and
+    # ``distance`` first among their parameters and run through ``part.segments``.
+    def segment_lengths_symbolic(self, q, theta=None) -> list[list]:
+        """Lengths ``L_ij(q)`` [m] of part ``i`` in each segment ``j`` of its
+        ``segments`` (CasADi), one list per part.
+
+        Parameters
+        ----------
+        %(q)s
+        %(theta)s
+        """
+        lengths = []
+        for i, part in enumerate(self._parts()):
+            phi, rho = self._part_values(i, theta)[:2]
+            lengths.append([offset_fiber_length(q, j, phi, rho) for j in part.segments])
+        return lengths
+
+    def fiber_lengths_symbolic(self, q, theta=None):
+        """Lengths ``L_i(q)`` (m,) [m] of the parts, summed over their segments (CasADi).
+
+        Parameters
+        ----------
+        %(q)s
+        %(theta)s
+        """
+        return ca.vertcat(*[sum(parts) for parts in self.segment_lengths_symbolic(q, theta)])
+
+    def _fiber_matrix_symbolic(self, q, theta, weights):
+        """``H(q)`` whose column ``i`` is ``sum_j w_ij dL_ij/dq``, ``weights[i][k]`` the
+        generalized force per unit input of part ``i`` along the ``k``-th of its
+        ``segments`` (its area, minus its tension factor)."""
+        columns = []
+        for i, (part, row) in enumerate(zip(self._parts(), weights, strict=True)):
+            phi, rho = self._part_values(i, theta)[:2]
+            column = [0] * self.n
+            for j, weight in zip(part.segments, row, strict=True):
+                gradient = offset_fiber_gradient(q, j, phi, rho)
+                column[3 * j : 3 * j + 3] = [weight * g for g in gradient[3 * j : 3 * j + 3]]
+            columns.append(ca.vertcat(*column))
+        return ca.horzcat(*columns)
 
     def _rebuilt(self, vector: np.ndarray) -> Actuator:
         """A new actuator of this kind with parameter vector ``vector`` (checked shape):

@@ -38,7 +38,7 @@ from softcurve.description.actuator import (
     Actuator,
     optional_time_constant,
 )
-from softcurve.description.fibers import Fiber, offset_fiber_gradient, offset_fiber_length
+from softcurve.description.fibers import Fiber
 
 ATMOSPHERIC_PRESSURE = 101325.0
 """Standard atmosphere [Pa]: no gauge pressure can be below ``-ATMOSPHERIC_PRESSURE``."""
@@ -194,28 +194,6 @@ class PneumaticActuator(Actuator):
             for j in b.segments
         )
 
-    def parameter_vector(self) -> np.ndarray:
-        return self._parts_vector()
-
-    def parameter_names(self) -> list[str]:
-        return self._parts_names()
-
-    def fiber_lengths_symbolic(self, q, theta=None):
-        """Lengths ``L_i(q)`` (m,) [m] of the chambers' center lines (CasADi).
-
-        Parameters
-        ----------
-        q : casadi.SX or casadi.MX, shape (n,)
-            Generalized coordinates [m, 1/m, 1/m].
-        theta : casadi.SX or casadi.MX, shape (3 m,), optional
-            ``(azimuth, distance, area)`` of each bellow, replacing their values.
-        """
-        lengths = []
-        for i, b in enumerate(self.bellows):
-            phi, rho, _ = self._geometry(i, theta)
-            lengths.append(sum(offset_fiber_length(q, j, phi, rho) for j in b.segments))
-        return ca.vertcat(*lengths)
-
     def input_work_symbolic(self, q, inputs):
         areas = ca.DM([b.area for b in self.bellows])
         return ca.dot(inputs * areas, self.fiber_lengths_symbolic(q))
@@ -233,21 +211,9 @@ class PneumaticActuator(Actuator):
         return np.array([b.area for b in self.bellows]) * lengths
 
     def input_matrix_symbolic(self, q, theta=None):
-        columns = []
-        for i, b in enumerate(self.bellows):
-            phi, rho, area = self._geometry(i, theta)
-            column = [0] * self.n
-            for j in b.segments:
-                gradient = offset_fiber_gradient(q, j, phi, rho)
-                column[3 * j : 3 * j + 3] = [area * g for g in gradient[3 * j : 3 * j + 3]]
-            columns.append(ca.vertcat(*column))
-        return ca.horzcat(*columns)
-
-    def _geometry(self, i: int, theta):
-        if theta is None:
-            b = self.bellows[i]
-            return b.azimuth, b.distance, b.area
-        return theta[3 * i], theta[3 * i + 1], theta[3 * i + 2]
+        areas = [self._part_values(i, theta)[2] for i in range(self.n_inputs)]
+        weights = [[area] * len(b.segments) for area, b in zip(areas, self.bellows, strict=True)]
+        return self._fiber_matrix_symbolic(q, theta, weights)
 
 
 @dataclass(frozen=True, eq=False)

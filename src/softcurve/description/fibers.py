@@ -24,6 +24,14 @@ from typing import NamedTuple
 import casadi as ca
 import numpy as np
 
+from softcurve.base.docs import parameters_from
+
+
+def _offset_length(length, kx, ky, azimuth, distance, xp):
+    """``l (1 - rho (kx cos phi + ky sin phi))`` with the ``cos`` and ``sin`` of the array
+    module ``xp`` (``numpy`` or ``casadi``): the one statement of the offset fiber's length."""
+    return length * (1 - distance * (kx * xp.cos(azimuth) + ky * xp.sin(azimuth)))
+
 
 def offset_fiber_length(q, segment: int, azimuth, distance):
     """Length [m] of the fiber at ``distance`` ``rho`` and ``azimuth`` ``phi`` from the
@@ -42,7 +50,7 @@ def offset_fiber_length(q, segment: int, azimuth, distance):
         ``rho`` [m].
     """
     length, kx, ky = q[3 * segment], q[3 * segment + 1], q[3 * segment + 2]
-    return length * (1 - distance * (kx * ca.cos(azimuth) + ky * ca.sin(azimuth)))
+    return _offset_length(length, kx, ky, azimuth, distance, ca)
 
 
 def offset_fiber_gradient(q, segment: int, azimuth, distance) -> list:
@@ -97,15 +105,22 @@ class Fiber(NamedTuple):
     area: float | None = None
 
 
+_fiber_parameters = parameters_from(
+    {
+        "fibers": ("sequence of Fiber", "The pieces."),
+        "q": ("array_like, shape (..., n)", "Configurations [m, 1/m, 1/m]."),
+    }
+)
+
+
+@_fiber_parameters
 def fiber_lengths(fibers, q) -> np.ndarray:
     """Lengths [m] of the fibers' pieces, shape (..., len(fibers)).
 
     Parameters
     ----------
-    fibers : sequence of Fiber
-        The pieces.
-    q : array_like, shape (..., n)
-        Configurations [m, 1/m, 1/m].
+    %(fibers)s
+    %(q)s
     """
     q = np.asarray(q, dtype=np.float64)
     if not fibers:
@@ -114,31 +129,29 @@ def fiber_lengths(fibers, q) -> np.ndarray:
     phi = np.array([f.azimuth for f in fibers])
     rho = np.array([f.distance for f in fibers])
     with np.errstate(invalid="ignore", over="ignore"):
-        bend = q[..., j + 1] * np.cos(phi) + q[..., j + 2] * np.sin(phi)
-        return q[..., j] * (1.0 - rho * bend)
+        return _offset_length(q[..., j], q[..., j + 1], q[..., j + 2], phi, rho, np)
 
 
+@_fiber_parameters
 def fibers_inside(fibers, q) -> np.ndarray:
     """Whether every piece has positive length (NaN fails), shape (...).
 
     Parameters
     ----------
-    fibers : sequence of Fiber
-        The pieces.
-    q : array_like, shape (..., n)
-        Configurations [m, 1/m, 1/m].
+    %(fibers)s
+    %(q)s
     """
     return np.all(fiber_lengths(fibers, q) > 0, axis=-1)
 
 
+@_fiber_parameters
 def fiber_problem(fibers, q) -> str | None:
     """What puts ``q`` (n,) outside the fibers' domain, naming the element, the segment,
     the value and the allowed range; None inside.
 
     Parameters
     ----------
-    fibers : sequence of Fiber
-        The pieces.
+    %(fibers)s
     q : array_like, shape (n,)
         One configuration [m, 1/m, 1/m].
     """
@@ -159,14 +172,14 @@ def fiber_problem(fibers, q) -> str | None:
     return None
 
 
+@_fiber_parameters
 def routing_problem(fibers, robot) -> str | None:
     """What of the routing lies outside the body (``rho > r`` of a segment it runs
     through), naming the field, its value and the allowed range; None if all inside.
 
     Parameters
     ----------
-    fibers : sequence of Fiber
-        The pieces.
+    %(fibers)s
     robot : Robot
         Supplies each segment's radius ``r`` [m].
     """

@@ -49,7 +49,7 @@ from softcurve.base.validation import ParameterError, real_scalar, whole_count
 from softcurve.description.actuator import (
     Actuator,
 )
-from softcurve.description.fibers import Fiber, offset_fiber_gradient, offset_fiber_length
+from softcurve.description.fibers import Fiber
 
 DEFAULT_AZIMUTHS = (0.0, 2.0 * math.pi / 3.0, 4.0 * math.pi / 3.0)
 """Three tendons evenly spaced, measured from +x toward +y [rad]."""
@@ -129,6 +129,11 @@ class Tendon:
             "wrap_smoothing",
             real_scalar("Tendon.wrap_smoothing", self.wrap_smoothing, positive=True),
         )
+
+    @property
+    def segments(self) -> tuple[int, ...]:
+        """Indices of the segments the tendon runs through, ``0 .. anchor``."""
+        return tuple(range(self.anchor + 1))
 
 
 @dataclass(frozen=True, eq=False)
@@ -226,44 +231,10 @@ class TendonActuator(Actuator):
         return tuple(
             Fiber(f"tendons[{i}]", "tendon", j, t.azimuth, t.distance)
             for i, t in enumerate(self.tendons)
-            for j in range(t.anchor + 1)
+            for j in t.segments
         )
 
-    def parameter_vector(self) -> np.ndarray:
-        return self._parts_vector()
-
-    def parameter_names(self) -> list[str]:
-        return self._parts_names()
-
     # -- symbolic --------------------------------------------------------------------
-    def segment_lengths_symbolic(self, q, theta=None) -> list[list]:
-        """Lengths ``L_ij(q)`` [m] of tendon ``i`` in segment ``j <= anchor_i`` (CasADi).
-
-        Parameters
-        ----------
-        q : casadi.SX or casadi.MX, shape (n,)
-            Generalized coordinates [m, 1/m, 1/m].
-        theta : casadi.SX or casadi.MX, shape (3 m,), optional
-            ``(azimuth, distance, friction)`` of each tendon, replacing their values.
-        """
-        lengths = []
-        for i, tendon in enumerate(self.tendons):
-            phi, rho, _ = self._geometry(i, theta)
-            lengths.append([offset_fiber_length(q, j, phi, rho) for j in range(tendon.anchor + 1)])
-        return lengths
-
-    def tendon_lengths_symbolic(self, q, theta=None):
-        """Lengths ``L_i(q)`` (m,) [m] of the tendons from the base to their anchors.
-
-        Parameters
-        ----------
-        q : casadi.SX or casadi.MX, shape (n,)
-            Generalized coordinates [m, 1/m, 1/m].
-        theta : casadi.SX or casadi.MX, shape (3 m,), optional
-            ``(azimuth, distance, friction)`` of each tendon, replacing their values.
-        """
-        return ca.vertcat(*[sum(parts) for parts in self.segment_lengths_symbolic(q, theta)])
-
     def tension_factors_symbolic(self, q, theta=None) -> list[list]:
         """Mean tension in segment ``j`` per unit tension at the base (capstan law, module
         docstring); exactly 1 for a tendon without friction.
@@ -277,12 +248,12 @@ class TendonActuator(Actuator):
         """
         factors = []
         for i, tendon in enumerate(self.tendons):
-            mu = self._geometry(i, theta)[2]
+            mu = self._part_values(i, theta)[2]
             if theta is None and tendon.friction == 0:
-                factors.append([1] * (tendon.anchor + 1))
+                factors.append([1] * len(tendon.segments))
                 continue
             eps, turned, row = tendon.wrap_smoothing, 0, []
-            for j in range(tendon.anchor + 1):
+            for j in tendon.segments:
                 length, kx, ky = q[3 * j], q[3 * j + 1], q[3 * j + 2]
                 beta = ca.sqrt(length**2 * (kx**2 + ky**2) + eps**2) - eps
                 # (1 - exp(-x)) / x, written with expm1 so that it stays exact as x -> 0
@@ -293,20 +264,13 @@ class TendonActuator(Actuator):
 
     def input_matrix_symbolic(self, q, theta=None):
         factors = self.tension_factors_symbolic(q, theta)
-        columns = []
-        for i, weights in enumerate(factors):
-            phi, rho, _ = self._geometry(i, theta)
-            column = [0] * self.n
-            for j, weight in enumerate(weights):
-                gradient = offset_fiber_gradient(q, j, phi, rho)
-                column[3 * j : 3 * j + 3] = [-weight * g for g in gradient[3 * j : 3 * j + 3]]
-            columns.append(ca.vertcat(*column))
-        return ca.horzcat(*columns)
+        weights = [[-factor for factor in row] for row in factors]
+        return self._fiber_matrix_symbolic(q, theta, weights)
 
     def input_work_symbolic(self, q, inputs):
         # Without friction exact: dW/dq = H(q) T. With friction there is no potential;
         # this is the frictionless work, used only to order equilibria.
-        return -ca.dot(inputs, self.tendon_lengths_symbolic(q))
+        return -ca.dot(inputs, self.fiber_lengths_symbolic(q))
 
     # -- numeric ---------------------------------------------------------------------
     def tendon_lengths(self, q) -> np.ndarray:
@@ -318,10 +282,4 @@ class TendonActuator(Actuator):
             Generalized coordinates [m, 1/m, 1/m].
         """
         q = self._coordinates(q)
-        return np.array(ca.DM(self.tendon_lengths_symbolic(ca.DM(q)))).ravel()
-
-    def _geometry(self, i: int, theta):
-        if theta is None:
-            t = self.tendons[i]
-            return t.azimuth, t.distance, t.friction
-        return theta[3 * i], theta[3 * i + 1], theta[3 * i + 2]
+        return np.array(ca.DM(self.fiber_lengths_symbolic(ca.DM(q)))).ravel()

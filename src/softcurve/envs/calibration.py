@@ -16,6 +16,7 @@ The results are cached per process by the setup's content, so environments built
 
 from __future__ import annotations
 
+import functools
 import math
 import pickle
 from dataclasses import dataclass
@@ -57,11 +58,21 @@ def _key(setup, what: str) -> bytes:
     return pickle.dumps(content)
 
 
-def _cached(setup, what: str, build):
-    key = _key(setup, what)
-    if key not in _CACHE:
-        _CACHE[key] = build()
-    return _CACHE[key]
+def _cached(what: str):
+    """Decorator: the result of ``measure(setup)`` kept per process under ``what`` and
+    the setup's content (:func:`_key`), measured once."""
+
+    def decorate(measure):
+        @functools.wraps(measure)
+        def cached(setup):
+            key = _key(setup, what)
+            if key not in _CACHE:
+                _CACHE[key] = measure(setup)
+            return _CACHE[key]
+
+        return cached
+
+    return decorate
 
 
 @dataclass(frozen=True)
@@ -91,6 +102,7 @@ class Calibration:
     state_scale: np.ndarray
 
 
+@_cached("calibration")
 def calibrate(setup) -> Calibration:
     """Hold :data:`CALIBRATION_MEMBERS` random admissible inputs, and each input alone at
     its upper bound (the others at their lower), for :data:`SETTLE_TIME` from the start
@@ -101,43 +113,39 @@ def calibrate(setup) -> Calibration:
     setup : Setup
         The robot, actuator and period.
     """
-
-    def build():
-        stepper = setup.stepper
-        rng = np.random.default_rng(CALIBRATION_SEED)
-        lower, upper = stepper.lower, stepper.upper
-        random = lower + rng.random((CALIBRATION_MEMBERS, lower.size)) * (upper - lower)
-        corners = np.where(np.eye(lower.size, dtype=bool), upper, lower)  # one input full
-        inputs = np.vstack([random, corners])
-        x = np.tile(setup.x0, (inputs.shape[0], 1))
-        ok = np.ones(inputs.shape[0], dtype=bool)
-        states = [x]
-        for _ in range(max(1, math.ceil(SETTLE_TIME / stepper.period - 1e-9))):
-            result = stepper.step(x, inputs)
-            x = result.x
-            ok &= result.ok & np.all(np.isfinite(x), axis=1)
-            states.append(x)
-        if not np.any(ok):
-            raise ParameterError(
-                f"{setup.source}: every calibration run failed ({result.reasons[0]}): the "
-                "robot cannot be simulated with these inputs and period"
-            )
-        states = np.concatenate([s[ok] for s in states])
-        tips, forces = result.tip[ok], result.contact_force[ok]
-        center = tips.mean(axis=0)
-        radius = float(np.max(np.linalg.norm(tips - center, axis=1)))
-        scale = states.std(axis=0)
-        floor = 1e-9 * np.maximum(np.abs(states).max(axis=0), 1e-300)
-        return Calibration(
-            tips=tips,
-            forces=forces,
-            center=center,
-            radius=radius if radius > 0 else 1.0,
-            state_mean=states.mean(axis=0),
-            state_scale=np.where(scale > floor, scale, 1.0),
+    stepper = setup.stepper
+    rng = np.random.default_rng(CALIBRATION_SEED)
+    lower, upper = stepper.lower, stepper.upper
+    random = lower + rng.random((CALIBRATION_MEMBERS, lower.size)) * (upper - lower)
+    corners = np.where(np.eye(lower.size, dtype=bool), upper, lower)  # one input full
+    inputs = np.vstack([random, corners])
+    x = np.tile(setup.x0, (inputs.shape[0], 1))
+    ok = np.ones(inputs.shape[0], dtype=bool)
+    states = [x]
+    for _ in range(max(1, math.ceil(SETTLE_TIME / stepper.period - 1e-9))):
+        result = stepper.step(x, inputs)
+        x = result.x
+        ok &= result.ok & np.all(np.isfinite(x), axis=1)
+        states.append(x)
+    if not np.any(ok):
+        raise ParameterError(
+            f"{setup.source}: every calibration run failed ({result.reasons[0]}): the "
+            "robot cannot be simulated with these inputs and period"
         )
-
-    return _cached(setup, "calibration", build)
+    states = np.concatenate([s[ok] for s in states])
+    tips, forces = result.tip[ok], result.contact_force[ok]
+    center = tips.mean(axis=0)
+    radius = float(np.max(np.linalg.norm(tips - center, axis=1)))
+    scale = states.std(axis=0)
+    floor = 1e-9 * np.maximum(np.abs(states).max(axis=0), 1e-300)
+    return Calibration(
+        tips=tips,
+        forces=forces,
+        center=center,
+        radius=radius if radius > 0 else 1.0,
+        state_mean=states.mean(axis=0),
+        state_scale=np.where(scale > floor, scale, 1.0),
+    )
 
 
 def rotating_inputs(stepper, phase):
@@ -163,6 +171,7 @@ def rotating_inputs(stepper, phase):
     return middle + TRACK_AMPLITUDE * half * swing
 
 
+@_cached("track")
 def track_path(setup) -> np.ndarray:
     """The tip [m] over one turn of the rotating command (:func:`rotating_inputs`), one
     point per control period after :data:`TRACK_WARMUP` turns, shape (P, 3) (cached).
@@ -172,21 +181,17 @@ def track_path(setup) -> np.ndarray:
     setup : Setup
         The robot, actuator and period.
     """
-
-    def build():
-        stepper = setup.stepper
-        per_turn = max(8, round(TRACK_CYCLE / stepper.period))
-        steps = (TRACK_WARMUP + 1) * per_turn
-        phases = 2 * np.pi * np.arange(1, steps + 1) / per_turn
-        commands = rotating_inputs(stepper, phases)
-        x, tips = setup.x0[None, :].copy(), []
-        for k in range(steps):
-            result = stepper.step(x, commands[k : k + 1])
-            if not result.ok[0]:
-                reason = result.reasons[0]
-                raise ParameterError(f"{setup.source}: the path of Track failed: {reason}")
-            x = result.x
-            tips.append(result.tip[0])
-        return np.array(tips[-per_turn:])
-
-    return _cached(setup, "track", build)
+    stepper = setup.stepper
+    per_turn = max(8, round(TRACK_CYCLE / stepper.period))
+    steps = (TRACK_WARMUP + 1) * per_turn
+    phases = 2 * np.pi * np.arange(1, steps + 1) / per_turn
+    commands = rotating_inputs(stepper, phases)
+    x, tips = setup.x0[None, :].copy(), []
+    for k in range(steps):
+        result = stepper.step(x, commands[k : k + 1])
+        if not result.ok[0]:
+            reason = result.reasons[0]
+            raise ParameterError(f"{setup.source}: the path of Track failed: {reason}")
+        x = result.x
+        tips.append(result.tip[0])
+    return np.array(tips[-per_turn:])

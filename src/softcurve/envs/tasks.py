@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from softcurve.base.docs import parameters_from
 from softcurve.base.validation import ParameterError, real_scalar
 from softcurve.description.environment import ContactLaw, Environment, Plane
 from softcurve.envs.calibration import calibrate, track_path
@@ -33,6 +34,15 @@ def _tolerance(value, default: float, unit: str) -> float:
     return real_scalar(f"tolerance [{unit}]", value, positive=True)
 
 
+_member_parameters = parameters_from(
+    {
+        "parameters": ("ndarray, shape (N, n_parameters)", "What each member's episode drew."),
+        "steps": ("ndarray, shape (N,)", "Control periods since each member's start (a count)."),
+    }
+)
+
+
+@_member_parameters
 class Task:
     """The base of the tasks: the goal features, reward and success of every member.
 
@@ -84,10 +94,8 @@ class Task:
 
         Parameters
         ----------
-        parameters : ndarray, shape (N, n_parameters)
-            What each member's episode drew.
-        steps : ndarray, shape (N,)
-            Control periods since each member's start (a count).
+        %(parameters)s
+        %(steps)s
         tip : ndarray, shape (N, 3)
             Tip positions [m].
         force : ndarray, shape (N, 3)
@@ -95,20 +103,15 @@ class Task:
         """
         raise NotImplementedError
 
-    def _distance_reward(self, tip, target) -> tuple:
-        distance = np.linalg.norm(tip - target, axis=1)
-        reward = -np.minimum(distance / self.diameter, 1.0)
-        return distance, reward
-
     def _scaled(self, point) -> np.ndarray:
         return (point - self.calibration.center) / self.calibration.radius
 
 
-class ReachTask(Task):
-    """Bring the tip to a target drawn from the reachable workspace (a tip of the
-    calibration) and hold it there. Goal: the target (scaled like the tip). Reward
-    ``-min(|tip - target| / D, 1)`` with ``D`` the workspace's diameter; success:
-    ``|tip - target| < tolerance``.
+@_member_parameters
+class DistanceTask(Task):
+    """The base of the tasks that bring the tip to a target (:class:`ReachTask`,
+    :class:`TrackTask`): reward ``-min(|tip - target| / D, 1)`` with ``D`` the
+    workspace's diameter; success: ``|tip - target| < tolerance``.
 
     Parameters
     ----------
@@ -118,40 +121,55 @@ class ReachTask(Task):
         Success distance [m] (default 5 % of the workspace's diameter).
     """
 
+    def __init__(self, setup, tolerance=None):
+        super().__init__(setup, tolerance)
+        self.tolerance = _tolerance(tolerance, DEFAULT_TOLERANCE * self.diameter, "m")
+
+    def aim(self, parameters, steps) -> tuple[np.ndarray, np.ndarray]:
+        """``(target (N, 3) [m], goal (N, n_goal))`` of each member.
+
+        Parameters
+        ----------
+        %(parameters)s
+        %(steps)s
+        """
+        raise NotImplementedError
+
+    def evaluate(self, parameters, steps, tip, force):
+        target, goal = self.aim(parameters, steps)
+        distance = np.linalg.norm(tip - target, axis=1)
+        reward = -np.minimum(distance / self.diameter, 1.0)
+        info = {"target": target, "distance": distance}
+        return goal, reward, distance < self.tolerance, info
+
+
+class ReachTask(DistanceTask):
+    """Bring the tip to a target drawn from the reachable workspace (a tip of the
+    calibration) and hold it there. Goal: the target (scaled like the tip). Reward and
+    success and the constructor's parameters: :class:`DistanceTask`.
+    """
+
     name = "Reach"
     duration = 2.0
     n_parameters = 3
     n_goal = 3
 
-    def __init__(self, setup, tolerance=None):
-        super().__init__(setup, tolerance)
-        self.tolerance = _tolerance(tolerance, DEFAULT_TOLERANCE * self.diameter, "m")
-
     def draw(self, rng):
         tips = self.calibration.tips
         return tips[rng.integers(tips.shape[0])].copy()
 
-    def evaluate(self, parameters, steps, tip, force):
-        target = parameters
-        distance, reward = self._distance_reward(tip, target)
-        info = {"target": target, "distance": distance}
-        return self._scaled(target), reward, distance < self.tolerance, info
+    def aim(self, parameters, steps):
+        return parameters, self._scaled(parameters)
 
 
-class TrackTask(Task):
+class TrackTask(DistanceTask):
     """Follow a target moving along a closed reachable path (the tip under a command
     rotating through the actuators, one turn in
     :data:`~softcurve.envs.calibration.TRACK_CYCLE` = 2 s rounded to whole control
     periods, at least 8), starting at a random phase. Goal: the target and its velocity
     over the turn's angular rate (both scaled like the tip). Reward and success as
-    *Reach*, against the moving target.
-
-    Parameters
-    ----------
-    setup : Setup
-        The robot, actuator, period and start.
-    tolerance : float, optional
-        Success distance [m] (default 5 % of the workspace's diameter).
+    *Reach*, against the moving target; the constructor's parameters:
+    :class:`DistanceTask`.
     """
 
     name = "Track"
@@ -161,7 +179,6 @@ class TrackTask(Task):
 
     def __init__(self, setup, tolerance=None):
         super().__init__(setup, tolerance)
-        self.tolerance = _tolerance(tolerance, DEFAULT_TOLERANCE * self.diameter, "m")
         self.path = track_path(setup)
         # the rate the path was recorded at: one point per period, a whole number of
         # periods per turn (TRACK_CYCLE rounded), so the target moves as the robot did
@@ -190,12 +207,10 @@ class TrackTask(Task):
         velocity = (self.path[after] - self.path[j]) * count * self.rate / (2 * np.pi)
         return position, velocity
 
-    def evaluate(self, parameters, steps, tip, force):
+    def aim(self, parameters, steps):
         target, velocity = self.target(parameters, steps)
-        distance, reward = self._distance_reward(tip, target)
         goal = np.hstack([self._scaled(target), velocity / (self.rate * self.calibration.radius)])
-        info = {"target": target, "distance": distance}
-        return goal, reward, distance < self.tolerance, info
+        return target, goal
 
 
 DEFAULT_WALL = Plane(point=[-0.045, 0.0, 0.0], normal=[1.0, 0.0, 0.0])

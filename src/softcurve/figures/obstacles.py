@@ -11,6 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from softcurve.base.docs import parameters_from
 from softcurve.figures.drawing import panels
 
 MM_PER_M = 1e3
@@ -66,6 +67,20 @@ def obstacle_surfaces(obstacle, extent: float) -> list[tuple[np.ndarray, ...]]:
     return [tuple(tube), *ends]
 
 
+_mesh_parameters = parameters_from(
+    {
+        "obstacle": ("Plane, Sphere or Capsule", "The obstacle."),
+        "extent": ("float", "Half-width [m] of the square drawn for a plane."),
+        "rotation": (
+            "array_like, shape (3, 3)",
+            "The robot's base rotation: obstacles are given in the base frame, the robot "
+            "is drawn in the world frame.",
+        ),
+    }
+)
+
+
+@_mesh_parameters
 @dataclass(frozen=True)
 class ObstacleMesh:
     """An obstacle of the environment as a triangle mesh, for the 3-D viewer
@@ -73,13 +88,9 @@ class ObstacleMesh:
 
     Parameters
     ----------
-    obstacle : Plane, Sphere or Capsule
-        The obstacle.
-    extent : float
-        Half-width [m] of the square drawn for a plane.
-    rotation : ndarray, shape (3, 3)
-        The robot's base rotation: obstacles are given in the base frame, the robot is
-        drawn in the world frame.
+    %(obstacle)s
+    %(extent)s
+    %(rotation)s
     """
 
     obstacle: object
@@ -102,6 +113,7 @@ class ObstacleMesh:
         return np.concatenate(vertices), np.concatenate(triangles)
 
 
+@_mesh_parameters
 def environment_meshes(model, extent: float) -> tuple[ObstacleMesh, ...]:
     """The obstacles of ``model.environment`` as meshes (none without an environment).
 
@@ -109,8 +121,7 @@ def environment_meshes(model, extent: float) -> tuple[ObstacleMesh, ...]:
     ----------
     model : Model
         The model; its ``environment`` may be None.
-    extent : float
-        Half-width [m] of the square drawn for a plane.
+    %(extent)s
     """
     environment = getattr(model, "environment", None)
     if environment is None:
@@ -119,6 +130,7 @@ def environment_meshes(model, extent: float) -> tuple[ObstacleMesh, ...]:
     return tuple(ObstacleMesh(o, extent, rotation) for o in environment.obstacles)
 
 
+@_mesh_parameters
 def world_surfaces(obstacle, extent: float, rotation) -> list[np.ndarray]:
     """The grids of :func:`obstacle_surfaces` in the world frame [m], each (3, rows,
     columns): the one place where obstacles (given in the base frame) are turned into the
@@ -126,12 +138,9 @@ def world_surfaces(obstacle, extent: float, rotation) -> list[np.ndarray]:
 
     Parameters
     ----------
-    obstacle : Plane, Sphere or Capsule
-        The obstacle.
-    extent : float
-        Half-width [m] of the square drawn for a plane.
-    rotation : array_like, shape (3, 3)
-        The robot's base rotation.
+    %(obstacle)s
+    %(extent)s
+    %(rotation)s
     """
     rotation = np.asarray(rotation, dtype=float)
     return [

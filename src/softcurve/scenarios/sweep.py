@@ -13,7 +13,7 @@ the same folder, a sweep skips the chunks already written, so a killed sweep los
 the chunks in flight. When all chunks are in, ``<out>/results.parquet`` holds the table,
 one row per design point, sorted by ``index``.
 
-Chunks run in the worker pool of :mod:`softcurve.simulation.batch._workers` (default), in this
+Chunks run in the worker pool of ``softcurve.simulation.batch._workers`` (default), in this
 process (``workers=0``) or on a Dask distributed cluster (``scheduler="tcp://host:8786"``
 or a ``distributed.Client``).
 """

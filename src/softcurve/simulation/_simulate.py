@@ -28,7 +28,7 @@ Integrators (``method``)
     comparison and for robots where an explicit method is wanted.
 
 How CVODES runs, measured on the paper's case (``benchmarks/bench_simulate.py``,
-``docs/performance.md``): softcurve's C driver (:mod:`softcurve.simulation.solvers._driver`)
+``docs/performance.md``): softcurve's C driver (``softcurve.simulation.solvers._driver``)
 calls the library that :class:`~softcurve.Model` has already compiled, keeps the Newton
 matrix's Jacobian while CVODES allows and integrates the whole output grid in one call:
 about 3x faster than CasADi's CVODES integrator on the same library, which remains the

@@ -36,7 +36,7 @@ import casadi as ca
 from softcurve.description.environment import Capsule, Environment, Plane, Sphere
 from softcurve.description.layout import ParameterLayout
 from softcurve.symbolic.dynamics import DynamicsExpressions, unpack_parameters
-from softcurve.symbolic.functions import symbolic_functions
+from softcurve.symbolic.functions import build_functions, dynamics_terms_spec, symbolic_functions
 from softcurve.symbolic.kinematics import segment_frames
 
 EPS = 1e-9
@@ -253,23 +253,9 @@ def contact_functions(e: ContactExpressions) -> dict[str, ca.Function]:
         By name, the entries of ``symbolic_functions`` with the changes above.
     """
     functions = symbolic_functions(e)
-    q, qd, lam, p = e.q, e.qd, e.lam, e.p
-    terms = [
-        e.mass_matrix,
-        e.coriolis_force,
-        e.gravity_force,
-        e.elastic_force,
-        e.damping_force,
-        e.creep_force,
-        e.contact_force,
-    ]
+    q, qd, p = e.q, e.qd, e.p
     spec = {
-        "dynamics_terms": (
-            [q, qd, lam],
-            ["q", "qd", "lam"],
-            terms,
-            ["D", "Cqd", "G", "K", "Rqd", "KcT_lam", "Fc"],
-        ),
+        "dynamics_terms": dynamics_terms_spec(e, ("Fc", "contact_force")),
         "potential_energy": (
             [q],
             ["q"],
@@ -283,8 +269,5 @@ def contact_functions(e: ContactExpressions) -> dict[str, ca.Function]:
             ["Fc", "Vc", "forces", "points"],
         ),
     }
-    for name, (inputs, in_names, outputs, out_names) in spec.items():
-        functions[name] = ca.Function(
-            name, [*inputs, p], [ca.cse(o) for o in outputs], [*in_names, "p"], out_names
-        )
+    functions.update(build_functions(spec, p))
     return functions

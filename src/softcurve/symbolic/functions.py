@@ -1,7 +1,7 @@
 """The numeric entry points of a model as CasADi Functions of ``(inputs..., p)``.
 
 Built from :class:`~softcurve.symbolic.dynamics.DynamicsExpressions`; the compiled model
-generates C for some of them (:data:`softcurve.compiled._build.COMPILED_FUNCTIONS`) and
+generates C for some of them (``softcurve.compiled._build.COMPILED_FUNCTIONS``) and
 keeps the rest for users who build on CasADi.
 """
 
@@ -10,6 +10,56 @@ from __future__ import annotations
 import casadi as ca
 
 from softcurve.symbolic.kinematics import frame_at
+
+DYNAMICS_TERMS = (
+    ("D", "mass_matrix"),
+    ("Cqd", "coriolis_force"),
+    ("G", "gravity_force"),
+    ("K", "elastic_force"),
+    ("Rqd", "damping_force"),
+    ("KcT_lam", "creep_force"),
+)
+"""The outputs of ``dynamics_terms``: each output's name and the expression (attribute
+of the expressions) it returns."""
+
+
+def dynamics_terms_spec(e, *more) -> tuple:
+    """The ``dynamics_terms`` entry of a spec of :func:`build_functions`: inputs ``(q,
+    qd, lam)``, outputs :data:`DYNAMICS_TERMS` followed by ``more``.
+
+    Parameters
+    ----------
+    e : DynamicsExpressions
+        The symbolic equation of motion (or an extension of it).
+    *more : tuple of (str, str)
+        Further ``(output name, attribute)`` pairs.
+    """
+    terms = (*DYNAMICS_TERMS, *more)
+    return (
+        [e.q, e.qd, e.lam],
+        ["q", "qd", "lam"],
+        [getattr(e, attribute) for _, attribute in terms],
+        [name for name, _ in terms],
+    )
+
+
+def build_functions(spec: dict, p) -> dict[str, ca.Function]:
+    """One SX Function per entry of ``spec``, ``p`` appended to its inputs, each output
+    with its common subexpressions eliminated.
+
+    Parameters
+    ----------
+    spec : dict
+        Name -> ``(inputs, input names, outputs, output names)``.
+    p : casadi.SX
+        The parameter vector, the last input of every Function.
+    """
+    functions = {}
+    for name, (inputs, in_names, outputs, out_names) in spec.items():
+        functions[name] = ca.Function(
+            name, [*inputs, p], [ca.cse(o) for o in outputs], [*in_names, "p"], out_names
+        )
+    return functions
 
 
 def symbolic_functions(e) -> dict[str, ca.Function]:
@@ -34,19 +84,7 @@ def symbolic_functions(e) -> dict[str, ca.Function]:
     frame = frame_at(q, e.n_segments, e.base_rotation, s)
     jacobian = ca.vertcat(ca.jacobian(frame.position, q), frame.rotation @ frame.angular_jacobian)
     spec = {
-        "dynamics_terms": (
-            [q, qd, lam],
-            ["q", "qd", "lam"],
-            [
-                e.mass_matrix,
-                e.coriolis_force,
-                e.gravity_force,
-                e.elastic_force,
-                e.damping_force,
-                e.creep_force,
-            ],
-            ["D", "Cqd", "G", "K", "Rqd", "KcT_lam"],
-        ),
+        "dynamics_terms": dynamics_terms_spec(e),
         "mass_matrix": ([q], ["q"], [e.mass_matrix], ["D"]),
         "coriolis_matrix": ([q, qd], ["q", "qd"], [e.coriolis_matrix], ["C"]),
         "coriolis_force": ([q, qd], ["q", "qd"], [e.coriolis_force], ["Cqd"]),
@@ -71,9 +109,4 @@ def symbolic_functions(e) -> dict[str, ca.Function]:
         "pose": ([q, s], ["q", "s"], [frame.rotation, frame.position], ["rotation", "position"]),
         "jacobian": ([q, s], ["q", "s"], [jacobian], ["J"]),
     }
-    functions = {}
-    for name, (inputs, in_names, outputs, out_names) in spec.items():
-        functions[name] = ca.Function(
-            name, [*inputs, p], [ca.cse(o) for o in outputs], [*in_names, "p"], out_names
-        )
-    return functions
+    return build_functions(spec, p)

@@ -17,6 +17,7 @@ from functools import lru_cache
 import casadi as ca
 import numpy as np
 
+from softcurve.base.docs import parameters_from
 from softcurve.base.validation import ParameterError
 from softcurve.symbolic.contact import contact_points, signed_distance
 from softcurve.symbolic.kinematics import segment_frames
@@ -42,19 +43,26 @@ def _allowed_depths(environment, robot, points) -> np.ndarray:
     return np.array([[min(radii[i], half) for half in halves] for i, _ in points])
 
 
+_start_parameters = parameters_from(
+    {
+        "environment": ("Environment or None", "The obstacles (None: nothing to check)."),
+        "robot": ("Robot", "The robot."),
+        "q": ("array_like, shape (n,)", "Coordinates [m, 1/m, 1/m], in the robot's domain."),
+        "name": ("str", "How ``q`` is called in the message."),
+    }
+)
+
+
+@_start_parameters
 def start_problem(environment, robot, q, name: str = "q0") -> str | None:
     """Why the configuration ``q`` puts the robot inside an obstacle, or None.
 
     Parameters
     ----------
-    environment : Environment or None
-        The obstacles (None: nothing to check).
-    robot : Robot
-        The robot.
-    q : array_like, shape (n,)
-        Coordinates [m, 1/m, 1/m], in the robot's domain.
-    name : str
-        How ``q`` is called in the message.
+    %(environment)s
+    %(robot)s
+    %(q)s
+    %(name)s
 
     Returns
     -------
@@ -118,20 +126,17 @@ def _force_problem(environment, robot, points, depths, name) -> str | None:
     )
 
 
+@_start_parameters
 def check_start(environment, robot, q, name: str = "q0") -> None:
     """Raise :class:`ParameterError` when ``q`` puts the robot inside an obstacle
     (:func:`start_problem`).
 
     Parameters
     ----------
-    environment : Environment or None
-        The obstacles (None: nothing to check).
-    robot : Robot
-        The robot.
-    q : array_like, shape (n,)
-        Coordinates [m, 1/m, 1/m], in the robot's domain.
-    name : str
-        How ``q`` is called in the message.
+    %(environment)s
+    %(robot)s
+    %(q)s
+    %(name)s
     """
     problem = start_problem(environment, robot, q, name)
     if problem is not None:

@@ -38,9 +38,12 @@ def rotation_vector(q_i, s):
     return s * length * ca.vertcat(-ky, kx, 0)
 
 
-def _so3_terms(w):
+def _so3_terms(q_i, s):
+    """``(w, [w]x, |w|^2)`` of the rotation vector of point ``s``
+    (:func:`rotation_vector`), the arguments of the SO(3) series."""
+    w = rotation_vector(q_i, s)
     z = ca.dot(w, w)
-    return ca.skew(w), z
+    return w, ca.skew(w), z
 
 
 @shared_parameters
@@ -53,8 +56,7 @@ def segment_pose(q_i, s):
     %(q_i)s
     %(s)s
     """
-    w = rotation_vector(q_i, s)
-    wx, z = _so3_terms(w)
+    _, wx, z = _so3_terms(q_i, s)
     wx2 = wx @ wx
     rotation = ca.SX.eye(3) + _smooth.sinc(z) * wx + _smooth.cosc(z) * wx2
     left_jacobian = ca.SX.eye(3) + _smooth.cosc(z) * wx + _smooth.sinc3(z) * wx2
@@ -73,8 +75,7 @@ def segment_angular_jacobian(q_i, s):
     %(q_i)s
     %(s)s
     """
-    w = rotation_vector(q_i, s)
-    wx, z = _so3_terms(w)
+    w, wx, z = _so3_terms(q_i, s)
     right_jacobian = ca.SX.eye(3) - _smooth.cosc(z) * wx + _smooth.sinc3(z) * (wx @ wx)
     return right_jacobian @ ca.jacobian(w, q_i)
 

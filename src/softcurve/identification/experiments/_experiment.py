@@ -1,8 +1,8 @@
 """The :class:`Experiment`: a time grid with named signals and inputs, in SI units.
 
 Built directly from arrays or by the loaders of
-:mod:`softcurve.identification.experiments._loading`; every check and the unit conversion
-(:mod:`softcurve.identification.experiments._units`) happen once, when it is built.
+:mod:`softcurve.identification.experiments`; every check and the unit conversion
+(``softcurve.identification.experiments._units``) happen once, when it is built.
 """
 
 from __future__ import annotations
@@ -62,7 +62,7 @@ class Experiment:
         map onto the actuators.
     units : dict of str to str
         Unit each signal and input is recorded in (e.g. ``"psi"``, ``"mm"``, ``"deg"``;
-        known units: :data:`softcurve.identification.experiments._units.UNITS`); missing entries are
+        known units: ``softcurve.identification.experiments._units.UNITS``); missing entries are
         ``""`` (unspecified). The values are converted once to SI, and ``units`` then
         holds the SI unit (angles stay in deg or rad).
     name : str

@@ -4,9 +4,9 @@ An :class:`Experiment` is a time grid with named measured signals (outputs of th
 robot, e.g. a tip bending angle or curvatures) and named inputs (e.g. chamber
 pressures), each with a unit. Units are converted once, when the experiment is built,
 to SI (pressures to Pa, lengths to m, curvatures to 1/m; angles stay in deg or rad), the
-unit recorded kept in ``source_units`` (:mod:`softcurve.identification.experiments._units`). Files
+unit recorded kept in ``source_units`` (``softcurve.identification.experiments._units``). Files
 are read by :func:`load_mat` (MATLAB files via SciPy, with struct arrays of trials:
-:mod:`softcurve.identification.experiments._mat`), :func:`load_mat_trials` and
+``softcurve.identification.experiments._mat``), :func:`load_mat_trials` and
 :func:`load_csv`; every check happens once, when the experiment is built, and a bad
 file raises :class:`ExperimentError` naming the file and the field. Nothing here knows
 about the robot model.
@@ -55,7 +55,7 @@ def _time(source, table, time, sample_rate, length) -> np.ndarray:
 def _lookup(source: str, table: dict, key: str) -> np.ndarray:
     """The numbers a column name or selector names (``"U_:1"``, ``"train[0].y"``):
     a CSV header is matched verbatim first, then as a selector
-    (:mod:`~softcurve.identification.experiments._mat`)."""
+    (``softcurve.identification.experiments._mat``)."""
     if not isinstance(key, str):
         raise ExperimentError(f"{source}: a column is named by a str, got {key!r}")
     value = table[key] if key in table else select(source, table, key)
@@ -93,7 +93,7 @@ _mat_options = parameters_from(
             'Experiment name -> selector in the file: a variable (``"y"``), a column of a '
             'matrix (``"U_:1"``), a field of a struct or of a trial of a struct array '
             '(``"train[0].y"``, ``"meta.rig.p:0"``); grammar in '
-            ":mod:`~softcurve.identification.experiments._mat`. Row and column vectors are both "
+            "``softcurve.identification.experiments._mat``. Row and column vectors are both "
             "accepted.",
         ),
         "inputs": ("dict of str to str, optional", "Input selectors, as ``signals``."),

@@ -4,7 +4,7 @@ An :class:`~softcurve.identification.experiments.Experiment` converts each colum
 when it is built, from the unit it was recorded in to the SI unit of its kind (pressure
 to Pa, length to m, curvature to 1/m, force to N), and records the original unit.
 Angles are the exception: they stay in the unit recorded, ``"deg"`` or ``"rad"``,
-because output maps give either (``bending_angle(degrees=...)``); the maps' units are
+because output maps give either (``bending_angle_map(degrees=...)``); the maps' units are
 then compared by :func:`check_units`, which catches a signal or input whose unit is not
 the one a map expects (psi data labelled as such are converted to Pa at load; an
 unlabelled column, unit ``""``, cannot be checked).
@@ -30,7 +30,7 @@ UNITS = {
 }  # fmt: skip
 """Kind -> (SI unit, {unit: factor to SI}); an SI unit None keeps the unit recorded.
 ``"g"`` (standard gravities, as an accelerometer reports) is kept as recorded too, since
-:func:`~softcurve.identification.maps.imu_orientation` gives it."""
+:func:`~softcurve.identification.maps.imu_orientation_map` gives it."""
 
 KEPT = {"rad", "deg", "g"}
 """Units that stay as recorded (no conversion)."""

@@ -1,17 +1,17 @@
 """Identification of a whole robot from measured time series, with exact gradients.
 
 Two fits share one description of what is free
-(:mod:`softcurve.identification.fits._parameters`):
+(``softcurve.identification.fits._parameters``):
 
 - :func:`fit_trajectory` simulates the equation of motion (16) with the creep
   states (19) and matches its outputs to the data; CVODES integrates the state
   together with its forward-sensitivity (variational) equations, compiled to C
-  (:mod:`softcurve.simulation.sensitivity._sensitivity`), which gives the exact Jacobian of every
+  (``softcurve.simulation.sensitivity._sensitivity``), which gives the exact Jacobian of every
   output sample with respect to the free parameters and the initial state.
 - :func:`fit_equilibria` treats each sample as a static equilibrium
   ``N(q) = tau(q, u)`` (inputs much slower than the robot), solved by the package's
   equilibrium solver; the implicit function theorem gives the exact Jacobian
-  (:mod:`softcurve.identification.fits._equilibria`).
+  (``softcurve.identification.fits._equilibria``).
 
 What can be estimated: any entry of ``robot.layout`` (a *robot* parameter), and any
 *named extra* parameter used by an output map, an input map, the initial state or a
@@ -19,16 +19,16 @@ What can be estimated: any entry of ``robot.layout`` (a *robot* parameter), and 
 well-posed re-parametrization of the tanh law, see
 :func:`~softcurve.identification.fits.tanh_parameters`). Sensor offsets, a
 bellows' mounting angle and pressure-map gains are extra parameters of the output and
-input maps (:mod:`softcurve.identification.maps._builders`); entries of the initial state are
+input maps (:mod:`softcurve.identification.maps`); entries of the initial state are
 ``x0.q[i]``, ``x0.qd[i]``, ``x0.lam[i]`` and, with an input lag, ``x0.u[i]``
-(:mod:`softcurve.identification.fits._initial`).
+(``softcurve.identification.fits._initial``).
 
 Both fits take one experiment or a list of them: parameters are shared by all unless
-declared ``Free(..., per_experiment=True)`` (:mod:`softcurve.identification.fits._joint`);
+declared ``Free(..., per_experiment=True)`` (``softcurve.identification.fits._joint``);
 each experiment is simulated on its own, with its own sensitivities, in worker
 processes. A trial point the model cannot evaluate is a rejected step, ``starts=K``
 runs a seeded multi-start, ``progress=True`` shows a progress line
-(:mod:`softcurve.identification.fits._problem`). Predicting from a failed fit raises
+(``softcurve.identification.fits._problem``). Predicting from a failed fit raises
 :class:`~softcurve.identification.fits.FitError`.
 """
 
@@ -168,13 +168,15 @@ def fit_trajectory(
         The compiled model; its robot gives the values of everything not free.
     %(experiment)s
     output : OutputMap
-        Model outputs matched to the signals (:func:`bending_angle`, :func:`curvatures`,
-        :func:`tip_position`).
+        Model outputs matched to the signals
+        (:func:`~softcurve.identification.maps.bending_angle_map`,
+        :func:`~softcurve.identification.maps.curvature_map`,
+        :func:`~softcurve.identification.maps.tip_position_map`).
     x0 : array_like, shape (n_state,), or callable, or a list or dict of them
         Initial state ``(q, qd, lam)``; a callable receives the dict of extra
         parameters (CasADi expressions) and returns the state. One for all
         experiments, a list (in order) or a dict by experiment name. Its entries can be
-        estimated by name (``"x0.lam[1]"``, :mod:`softcurve.identification.fits._initial`).
+        estimated by name (``"x0.lam[1]"``, ``softcurve.identification.fits._initial``).
     %(free)s
     input_map : InputMap, optional
         Generalized forces from the experiment's inputs (all of them, in order).
@@ -209,7 +211,7 @@ def fit_trajectory(
         Threads of each experiment's evaluation (default: the usable cores the processes
         leave, ``max(1, cores // processes)``); with 2 or more, the sensitivity
         equations are evaluated in two parts on two threads
-        (:mod:`softcurve.simulation.sensitivity._split`).
+        (``softcurve.simulation.sensitivity._split``).
 
     Returns
     -------

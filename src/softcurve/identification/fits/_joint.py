@@ -3,7 +3,7 @@
 A fit of ``E`` experiments estimates the parameters shared by all (material, maps) once
 and each parameter declared ``Free(..., per_experiment=True)`` once per experiment,
 named ``name[experiment]`` (e.g. ``offset[b17]``, ``x0.lam[1][b42]``). Each experiment
-has its own :class:`~softcurve.identification.fits._parameters.FreeParameters` (its own extra
+has its own ``softcurve.identification.fits._parameters.FreeParameters`` (its own extra
 values: its initial state, its per-experiment starting values) over the same list of
 free parameters; :class:`JointParameters` maps the joint vector to each experiment's.
 

@@ -38,7 +38,7 @@ class Free:
     per_experiment : bool
         In a fit of several experiments, one value per experiment (reported as
         ``name[experiment]``) instead of one shared by all: sensor offsets, initial
-        states (``"x0.lam[1]"``, :mod:`softcurve.identification.fits._initial`), initial
+        states (``"x0.lam[1]"``, ``softcurve.identification.fits._initial``), initial
         actuator states. Only extra parameters and initial-state entries can be per
         experiment (the robot is one).
     """

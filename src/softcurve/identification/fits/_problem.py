@@ -1,10 +1,10 @@
-"""The least-squares problem every fit of :mod:`softcurve.identification.fits._dynamic` solves.
+"""The least-squares problem every fit of :mod:`softcurve.identification.fits` solves.
 
 :class:`Problem` gathers the experiments, the free parameters (shared and per
-experiment, :mod:`softcurve.identification.fits._joint`), the weights
-(:mod:`softcurve.identification.fits._weights`) and one evaluator per experiment
+experiment, ``softcurve.identification.fits._joint``), the weights
+(``softcurve.identification.fits._weights``) and one evaluator per experiment
 (``theta_e -> (Y_e (k, T_e), dvec(Y_e)/dtheta_e)``), and solves with the robust solver
-(:mod:`softcurve.identification.fits._solve`), optionally from several starts, showing
+(``softcurve.identification.fits._solve``), optionally from several starts, showing
 progress on request. The report stacks the experiments' samples one after another
 (:attr:`FitReport.parts` says where each begins).
 """
@@ -100,7 +100,7 @@ class Problem:
             One per experiment: ``theta_e -> (Y (k, T), dvec(Y)/dtheta_e (k T, P_e))``.
         signals : list of str or None
             Signals matched to the outputs.
-        weights : see :mod:`softcurve.identification.fits._weights`
+        weights : see ``softcurve.identification.fits._weights``
             Residual weights.
         max_evaluations : int
             Budget of residual evaluations per start.

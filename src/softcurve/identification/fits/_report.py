@@ -2,7 +2,7 @@
 
 Every fit is a bounded nonlinear least-squares problem solved by SciPy's trust-region
 reflective method with an exact Jacobian, where a point the model cannot evaluate is a
-rejected step (:func:`softcurve.identification.fits._solve.robust_least_squares`).
+rejected step (``softcurve.identification.fits._solve.robust_least_squares``).
 At the optimum
 the Jacobian gives the usual asymptotic covariance ``s^2 (J^T J)^-1`` (``s^2`` the
 residual variance), from which the report draws standard errors, confidence intervals

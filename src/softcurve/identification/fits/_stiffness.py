@@ -1,8 +1,8 @@
 """Static fit of a stiffness law to quasi-static data (paper, section 3.1).
 
-The fit is a bounded least-squares problem of :mod:`softcurve.identification.fits._report`
+The fit is a bounded least-squares problem of ``softcurve.identification.fits._report``
 and returns its :class:`~softcurve.identification.fits.FitReport`; trajectory and
-equilibrium fits of a whole robot are in :mod:`softcurve.identification.fits._dynamic`.
+equilibrium fits of a whole robot are in :mod:`softcurve.identification.fits`.
 """
 
 from __future__ import annotations

@@ -28,7 +28,7 @@ WEIGHTS_DOC = (
     "Residual weights [1/signal unit]: per signal, per sample, a callable ``w(t)`` of "
     "the sample times [s], or windows ``(t0, t1, weight)`` (other samples 1); a dict "
     "``{experiment name: weights}`` per experiment "
-    "(:mod:`softcurve.identification.fits._weights`).",
+    "(``softcurve.identification.fits._weights``).",
 )
 """The documentation of the fits' ``weights`` argument."""
 

@@ -6,13 +6,12 @@ with sensor offsets; an :class:`InputMap` turns measured inputs into generalized
 (chamber pressures through a geometric or a constant pressure map, tendon tensions
 through their routing, with per-part gains and azimuths and a mounting angle). Both may
 read named *extra* parameters, which the fits of
-:mod:`softcurve.identification.fits._dynamic` can estimate. The functions build CasADi
+:mod:`softcurve.identification.fits` can estimate. The functions build CasADi
 expressions and work with SX or MX arguments.
 
-This module gathers them (``from softcurve.identification.maps._builders import ...``); they are
-defined in :mod:`~softcurve.identification.maps._types`,
-:mod:`~softcurve.identification.maps._outputs` and
-:mod:`~softcurve.identification.maps._inputs`. ``docs/identify.md`` builds one by hand.
+This module gathers them for the face, :mod:`softcurve.identification.maps`; they are
+defined in the private modules ``_types`` (the two types), ``_outputs`` and ``_inputs``.
+``docs/identify.md`` builds one by hand.
 """
 
 from __future__ import annotations
@@ -25,12 +24,12 @@ from softcurve.identification.maps._inputs import (
 )
 from softcurve.identification.maps._outputs import (
     SensorFrame,
-    bending_angle,
-    curvatures,
-    imu_orientation,
-    marker_position,
+    bending_angle_map,
+    curvature_map,
+    imu_orientation_map,
+    marker_position_map,
     rotation_from_angles,
-    tip_position,
+    tip_position_map,
 )
 from softcurve.identification.maps._types import InputMap, OutputMap
 
@@ -40,12 +39,12 @@ __all__ = [
     "SensorFrame",
     "actuator_input_map",
     "bellows_input_map",
-    "bending_angle",
+    "bending_angle_map",
     "constant_input_map",
-    "curvatures",
-    "imu_orientation",
-    "marker_position",
+    "curvature_map",
+    "imu_orientation_map",
+    "marker_position_map",
     "rotation_from_angles",
     "tendon_input_map",
-    "tip_position",
+    "tip_position_map",
 ]

@@ -5,13 +5,13 @@ sensor offsets, marker offsets and the pose of a sensor's frame are *named extra
 parameters* that a fit can estimate (their names are given here, their nominal values
 are zero unless the fit's ``extra`` says otherwise).
 
-- :func:`bending_angle` and :func:`curvatures`: read from the coordinates.
-- :func:`marker_position` (a marker at any material point, optionally off the
-  backbone) and :func:`tip_position`: from the robot's kinematics,
+- :func:`bending_angle_map` and :func:`curvature_map`: read from the coordinates.
+- :func:`marker_position_map` (a marker at any material point, optionally off the
+  backbone) and :func:`tip_position_map`: from the robot's kinematics,
   ``model.symbolic["pose"]``, seen from a :class:`SensorFrame` (a motion-capture
   system's frame, rotated and shifted from the world frame, in its own length unit),
   projected onto some of its axes.
-- :func:`imu_orientation`: the gravity direction an accelerometer fixed to the robot
+- :func:`imu_orientation_map`: the gravity direction an accelerometer fixed to the robot
   reports, or the tilt angles an IMU computes from it.
 """
 
@@ -22,6 +22,7 @@ from dataclasses import dataclass
 import casadi as ca
 import numpy as np
 
+from softcurve.base.deprecation import renamed
 from softcurve.base.validation import ParameterError, real_array, real_scalar
 from softcurve.compiled import Model
 from softcurve.identification.maps._types import OutputMap
@@ -30,7 +31,7 @@ AXES = "xyz"
 """The axes a position can be projected onto."""
 
 
-def bending_angle(segment: int = 0, *, degrees: bool = True, offset: str | None = None):
+def bending_angle_map(segment: int = 0, *, degrees: bool = True, offset: str | None = None):
     """Signed bending angle ``beta = kx * l`` of one segment, for motion in the x-z plane.
 
     That is what an IMU at the tip of a single segment measures.
@@ -56,7 +57,7 @@ def bending_angle(segment: int = 0, *, degrees: bool = True, offset: str | None 
     )
 
 
-def curvatures(segment: int = 0, *, offsets: tuple[str, str] | None = None):
+def curvature_map(segment: int = 0, *, offsets: tuple[str, str] | None = None):
     """``(kx, ky)`` of one segment [1/m], plus optional sensor offsets.
 
     Parameters
@@ -206,7 +207,7 @@ def _names(names, default: tuple[str, ...]) -> tuple[str, ...]:
     return names
 
 
-def marker_position(
+def marker_position_map(
     model: Model,
     segment: int = -1,
     s: float = 1.0,
@@ -258,10 +259,10 @@ def marker_position(
     return OutputMap(function, _names(names, tuple(axes)), (unit,) * len(pick), parameters)
 
 
-def tip_position(
+def tip_position_map(
     model: Model, *, offset=None, frame: SensorFrame | None = None, axes: str = "xyz", names=None
 ) -> OutputMap:
-    """Tip position, in the world frame [m] by default: :func:`marker_position` at the
+    """Tip position, in the world frame [m] by default: :func:`marker_position_map` at the
     last segment's tip.
 
     Parameters
@@ -270,7 +271,7 @@ def tip_position(
         The model whose kinematics gives the tip pose.
     offset : None, str or array_like, shape (3,)
         The marker's offset from the tip [m] in the tip's material frame (see
-        :func:`marker_position`).
+        :func:`marker_position_map`).
     frame : SensorFrame, optional
         The frame the positions are reported in (default: the world frame, in m).
     axes : str
@@ -278,17 +279,17 @@ def tip_position(
     names : sequence of str, optional
         Labels of the outputs (default: the axes' letters).
     """
-    return marker_position(model, -1, 1.0, offset=offset, frame=frame, axes=axes, names=names)
+    return marker_position_map(model, -1, 1.0, offset=offset, frame=frame, axes=axes, names=names)
 
 
 IMU_OUTPUTS = {
     "gravity": (("ax", "ay", "az"), "g"),
     "tilt": (("roll", "pitch"), None),
 }
-"""What :func:`imu_orientation` reports: names and unit (None: the angle unit)."""
+"""What :func:`imu_orientation_map` reports: names and unit (None: the angle unit)."""
 
 
-def imu_orientation(
+def imu_orientation_map(
     model: Model,
     segment: int = -1,
     s: float = 1.0,
@@ -354,3 +355,11 @@ def imu_orientation(
     return OutputMap(
         function, _names(names, labels), (unit,) * len(labels), dict.fromkeys(angles, 0.0)
     )
+
+
+# the builders' old names, which read as if they returned values rather than maps
+tip_position = renamed(tip_position_map, "tip_position")
+curvatures = renamed(curvature_map, "curvatures")
+bending_angle = renamed(bending_angle_map, "bending_angle")
+marker_position = renamed(marker_position_map, "marker_position")
+imu_orientation = renamed(imu_orientation_map, "imu_orientation")

@@ -3,11 +3,11 @@
 
 Both are plain containers of a CasADi-building function, the names and units of what it
 gives or reads, and the named *extra* parameters it reads with their nominal values.
-The fits of :mod:`softcurve.identification.fits._dynamic` estimate any extra parameter that
+The fits of :mod:`softcurve.identification.fits` estimate any extra parameter that
 is listed in their ``free`` argument and hold the others at their nominal values (or at
 the values given in their ``extra`` argument). The built-in maps are in
-:mod:`softcurve.identification.maps._outputs` and
-:mod:`softcurve.identification.maps._inputs`; ``docs/identify.md`` writes one by hand.
+:mod:`softcurve.identification.maps` and
+:mod:`softcurve.identification.maps`; ``docs/identify.md`` writes one by hand.
 """
 
 from __future__ import annotations
@@ -20,11 +20,11 @@ from dataclasses import dataclass, field
 class OutputMap:
     """Measured signals as a function of the state: ``y = function(q, qd, values, p)``.
 
-    Built by :func:`~softcurve.identification.maps.bending_angle`,
-    :func:`~softcurve.identification.maps.curvatures`,
-    :func:`~softcurve.identification.maps.marker_position`,
-    :func:`~softcurve.identification.maps.tip_position` and
-    :func:`~softcurve.identification.maps.imu_orientation`, or by hand for
+    Built by :func:`~softcurve.identification.maps.bending_angle_map`,
+    :func:`~softcurve.identification.maps.curvature_map`,
+    :func:`~softcurve.identification.maps.marker_position_map`,
+    :func:`~softcurve.identification.maps.tip_position_map` and
+    :func:`~softcurve.identification.maps.imu_orientation_map`, or by hand for
     another sensor.
 
     Parameters

@@ -3,9 +3,9 @@
 
 A batch is ``B`` robots of one structure (one compiled model) that differ in their
 initial states, constant inputs (forces, or an actuator's inputs and parameters:
-:mod:`softcurve.simulation.batch._inputs`) and parameter values. The robot's parameter
+``softcurve.simulation.batch._inputs``) and parameter values. The robot's parameter
 vector is a run-time input of the compiled functions, so the whole batch is integrated by
-one call of softcurve's C driver of CVODES (:mod:`softcurve.simulation.solvers._driver`) on the
+one call of softcurve's C driver of CVODES (``softcurve.simulation.solvers._driver``) on the
 compiled right-hand side (as :func:`~softcurve.simulation.simulate` does), the
 members split over threads: the integration never returns to Python between members
 (members driven by an actuator: one call per distinct set of actuator parameters). Where

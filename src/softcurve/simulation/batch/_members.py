@@ -56,7 +56,7 @@ class MemberRun:
     rest_lengths : ndarray, shape (B, N)
         Rest length of each member's segments [m], for the domain check of the outputs.
     drives : Drives, optional
-        The actuator of each member (:mod:`softcurve.simulation.batch._inputs`); the
+        The actuator of each member (``softcurve.simulation.batch._inputs``); the
         members integrated in one call must share one.
     """
 
@@ -169,7 +169,7 @@ class MemberRun:
 
 def integrate_native(run: MemberRun, initial, fastest, problems) -> np.ndarray:
     """The whole batch of ``run`` with CVODES's C driver
-    (:mod:`softcurve.simulation.solvers._driver`): one call per group of members that
+    (``softcurve.simulation.solvers._driver``): one call per group of members that
     share an actuator, every restart segment inside it, members on ``run.threads``
     threads. Fills ``run.states`` and the failures as
     :meth:`MemberRun.integrate` does; returns which members used BDF.
@@ -187,7 +187,7 @@ def integrate_native(run: MemberRun, initial, fastest, problems) -> np.ndarray:
         The driver's problem of each actuator group (the ``built`` of its route,
         :func:`~softcurve.simulation.solvers.choose_route`): with lanes, consecutive
         members are integrated in groups on the state derivative over lanes
-        (:mod:`softcurve.simulation.solvers._groups_source`).
+        (the driver's ``groups.c``).
     """
     grid, states = run.grid, run.states
     segments = restart_segments(grid)

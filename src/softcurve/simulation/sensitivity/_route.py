@@ -1,26 +1,26 @@
 """The driver's route of the identification's forward sensitivities: what an evaluator
 carries into worker processes, and the one call into softcurve's CVODES driver
-(``softcurve_sensitivities``, :mod:`softcurve.simulation.solvers._sensitivity_source`).
+(``softcurve_sensitivities``, ``sensitivity.c`` of
+``softcurve.simulation.solvers._library.C_FOLDER``).
 
 The driver integrates the state by Adams-Newton (or BDF, :attr:`DriverSettings.family`)
 on its own Newton matrix and the sensitivity columns ``S' = f_x S + f_d`` by CVODES's
 staggered corrector, evaluating the identification's compiled
 ``fs(x;vec(S), u, d;scale) -> f;vec(S')``, or two compiled parts that sum to ``vec(S')``
-(:mod:`softcurve.simulation.sensitivity._split`), the second on a helper thread.
+(``softcurve.simulation.sensitivity._split``), the second on a helper thread.
 """
 
 from __future__ import annotations
 
 import ctypes
-from pathlib import Path
 from typing import NamedTuple
 
 import numpy as np
 
 from softcurve.simulation.solvers import (
-    driver_entry,
+    driver_library,
+    driver_options,
 )
-from softcurve.simulation.stepper import load_native
 
 
 class DriverSettings(NamedTuple):
@@ -38,13 +38,11 @@ class DriverSettings(NamedTuple):
     """The sensitivity columns in the error test too (``fsens_err_con``)."""
 
 
-HELPER_MODES = ("none", "shared", "always")
-"""Who evaluates the second of two parts (:func:`integrate_sensitivities`), in the
-driver's numbering: ``"none"`` the driver's own thread; ``"shared"`` whichever of the
-driver and a helper thread claims it first (the driver never waits for a helper that has
-not started); ``"always"`` the helper, the driver waiting for it. Which thread wins under
-``"shared"`` is the scheduler's choice; ``"always"`` runs the helper's path for certain,
-for tests."""
+HELPER_MODES = ("none", "shared")
+"""Who evaluates the second of two parts (:func:`integrate_sensitivities`): ``"none"``
+the driver's own thread; ``"shared"`` whichever of the driver and a helper thread claims
+it first (the driver never waits for a helper that has not started). Which thread wins
+is the scheduler's choice."""
 
 
 class DriverRoute(NamedTuple):
@@ -70,26 +68,6 @@ class DriverRoute(NamedTuple):
     """Who evaluates the second of two parts, one of :data:`HELPER_MODES`."""
 
 
-def load_with_path(path, name: str) -> tuple:
-    """``(path, name, the loaded function)`` of a compiled library, for the driver's route:
-    the path (absolute: a worker may start elsewhere) and name travel to worker processes,
-    the loaded function stays here.
-
-    Parameters
-    ----------
-    path : str or pathlib.Path
-        The compiled library.
-    name : str
-        The function's name in it.
-
-    Returns
-    -------
-    tuple
-        ``(absolute path as str, name, NativeFunction)``.
-    """
-    return (str(Path(path).resolve()), name, load_native(path, name))
-
-
 SENSITIVITY_STATISTICS = ("steps", "rhs_evaluations", "jacobian_evaluations",
                           "linear_solver_setups", "error_test_failures",
                           "sensitivity_evaluations", "helper_evaluations")  # fmt: skip
@@ -101,18 +79,28 @@ evaluates the others itself)."""
 
 
 def integrate_sensitivities(
-    problem, columns, start, d, d_scaled, times, table, linear, settings, helper="none"
+    problem,
+    columns,
+    start,
+    d,
+    d_scaled,
+    times,
+    table,
+    linear,
+    settings,
+    helper="none",
+    library=None,
 ):
     """States and forward sensitivities over ``times`` in one call into the driver.
 
     Parameters
     ----------
-    problem : softcurve.simulation.solvers._driver.Problem
+    problem : softcurve.simulation.DriverProblem
         ``f(x, u, d)`` of the state (no actuator).
     columns : sequence of NativeFunction
         ``[fs]``, ``fs(x;vec(S), u, d;scale) -> f;vec(S')`` for ``m`` columns, or two
         parts of the same arguments whose outputs sum to ``vec(S')``
-        (:func:`~softcurve.simulation.sensitivity._split.column_parts`).
+        (``softcurve.simulation.sensitivity._split.column_parts``).
     start : ndarray, shape (W,)
         ``(x0, vec(S0))`` with ``W = nx (1 + m)``, at ``times[0]``.
     d : ndarray, shape (n_d,)
@@ -128,15 +116,18 @@ def integrate_sensitivities(
         Inputs continuous (integrated through) or held (a restart at every sample).
     settings : DriverSettings
         CVODES's settings.
-    helper : {"none", "shared", "always"}
+    helper : {"none", "shared"}
         With two parts, who evaluates the second (:data:`HELPER_MODES`).
+    library : ctypes.CDLL, optional
+        A build of the driver (:func:`softcurve.simulation.solvers.driver_library`; default the
+        product's, without defines).
 
     Returns
     -------
     tuple
         ``(out (T, W), reached, flag, counts)``: the outputs (rows after ``reached`` are
         zero), how many were computed (``start`` included), 0 or CVODES's negative flag
-        (:data:`softcurve.simulation.solvers._driver.FLAGS`) and the counters of
+        (``softcurve.simulation.solvers._driver.FLAGS``) and the counters of
         :data:`SENSITIVITY_STATISTICS`.
     """
     if helper not in HELPER_MODES:
@@ -144,21 +135,22 @@ def integrate_sensitivities(
     out = np.zeros((times.size, start.size))
     out[0] = start
     arrays = [np.ascontiguousarray(a, dtype=np.float64) for a in (d, d_scaled, times, table)]
-    sizes = np.array([[c._sz_arg, c._sz_res, c._sz_iw, c._sz_w] for c in columns], np.int64)
-    pointers = (ctypes.c_void_p * len(columns))(
-        *(ctypes.cast(c._function, ctypes.c_void_p).value for c in columns)
-    )
+    sizes = np.array([c.work_sizes for c in columns], np.int64)
+    pointers = (ctypes.c_void_p * len(columns))(*(c.address for c in columns))
     counts = np.zeros(len(SENSITIVITY_STATISTICS), dtype=np.int64)
     reached = ctypes.c_int(0)
     n_x = problem.struct.nx
     m = start.size // n_x - 1
     leading = n_x if len(columns) == 1 else 0  # fs's f before vec(S'); the parts have none
-    flag = driver_entry("softcurve_sensitivities")(
-        ctypes.byref(problem.struct), pointers, sizes.ctypes.data, len(columns), leading,
-        HELPER_MODES.index(helper), m, arrays[0].ctypes.data, arrays[1].ctypes.data,
-        arrays[2].ctypes.data, times.size, arrays[3].ctypes.data, int(linear),
-        settings.family, settings.rtol, settings.atol, settings.max_steps,
-        int(settings.columns_tested), out.ctypes.data, counts.ctypes.data,
-        ctypes.byref(reached),
+    call = (library or driver_library()).softcurve_sensitivities
+    chosen = driver_options(
+        settings.rtol, settings.atol, settings.max_steps, family=settings.family,
+        columns_tested=settings.columns_tested, helper=helper == "shared",
+    )  # fmt: skip
+    flag = call(
+        ctypes.byref(problem.struct), ctypes.byref(chosen), pointers, sizes.ctypes.data,
+        len(columns), leading, m, arrays[0].ctypes.data, arrays[1].ctypes.data,
+        arrays[2].ctypes.data, times.size, arrays[3].ctypes.data, int(linear), out.ctypes.data,
+        counts.ctypes.data, ctypes.byref(reached),
     )  # fmt: skip
     return out, reached.value, flag, dict(zip(SENSITIVITY_STATISTICS, counts.tolist(), strict=True))

@@ -11,8 +11,8 @@ parameters ``theta`` (ties, re-parametrizations, initial states) and from the st
 the outputs is applied afterwards, sample by sample.
 
 Two routes integrate it. Where softcurve's CVODES driver is available
-(:mod:`softcurve.simulation.solvers._driver`; the call and its settings are in
-:mod:`softcurve.simulation.sensitivity._route`), the state is integrated by Adams-Newton on its own
+(``softcurve.simulation.solvers._driver``; the call and its settings are in
+``softcurve.simulation.sensitivity._route``), the state is integrated by Adams-Newton on its own
 Newton matrix and the sensitivity columns by CVODES's staggered corrector (outside the
 error test), all in C, without a restart at the samples of a linear hold; otherwise (no driver, or
 CVODES options other than :data:`NATIVE_OPTIONS`) CasADi's CVODES integrates the
@@ -30,12 +30,17 @@ import uuid
 import casadi as ca
 import numpy as np
 
-from softcurve.compiled import compile_function, compile_functions, load_external
+from softcurve.compiled import (
+    compile_function,
+    compile_functions,
+    load_external,
+    load_function,
+    load_with_path,
+)
 from softcurve.simulation.sensitivity._route import (
     DriverRoute,
     DriverSettings,
     integrate_sensitivities,
-    load_with_path,
 )
 from softcurve.simulation.sensitivity._split import assembled, column_parts
 from softcurve.simulation.solvers import (
@@ -45,7 +50,6 @@ from softcurve.simulation.solvers import (
     driver,
     driver_reason,
 )
-from softcurve.simulation.stepper import load_native
 
 SENSITIVITY_CVODES = cvodes_options(
     "adams", 1e-8, 1e-10, 100_000, max_order=None, nonlinear_solver_iteration="functional"
@@ -158,8 +162,8 @@ class SensitivityEvaluator:
         if self._native is None:  # a worker process: load the libraries the parent built
             driven = self.driven
             try:
-                route = (DriverProblem(load_native(*driven.state), *driven.sizes),
-                         [load_native(*c) for c in driven.columns])  # fmt: skip
+                route = (DriverProblem(load_function(*driven.state), *driven.sizes),
+                         [load_function(*c) for c in driven.columns])  # fmt: skip
             except (OSError, RuntimeError, AttributeError):  # not loadable: CasADi's route
                 route = False
             self._native = route
@@ -266,7 +270,7 @@ def trajectory_sensitivities(
     threads : int
         Threads of an evaluation in the driver's route, >= 1: with 2 or more the
         columns' right-hand side is evaluated in two parts on two threads
-        (:mod:`softcurve.simulation.sensitivity._split`).
+        (``softcurve.simulation.sensitivity._split``).
     """
     P = parameters
     u_names = list(experiment.inputs)

@@ -4,7 +4,7 @@
 ``f_x[:, A] S[A, :] + f_d`` and ``f_x[:, B] S[B, :]`` for any split of the states into
 ``A`` and ``B``. Each part is compiled on its own; softcurve's CVODES driver evaluates the
 first on its own thread and the second on a helper thread
-(:mod:`softcurve.simulation.solvers._parts_source`), so that an evaluation takes about as long
+(the driver's ``parts.c``), so that an evaluation takes about as long
 as the larger part instead of the whole.
 
 :func:`assembled` joins the compiled parts into the augmented system of CasADi's CVODES,

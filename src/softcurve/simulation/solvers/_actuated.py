@@ -1,7 +1,7 @@
 """The state derivative of a robot driven by forces or by an actuator, as a CasADi
 function: the one definition behind CVODES's scaled DAE
-(:func:`~softcurve.simulation.solvers._cvodes.scaled_dae`) and the fixed-step stepper
-(:func:`~softcurve.simulation.stepper._scheme.state_derivative`).
+(``softcurve.simulation.solvers._cvodes.scaled_dae``) and the fixed-step stepper
+(``softcurve.simulation.stepper._scheme.state_derivative``).
 """
 
 from __future__ import annotations

@@ -1,5 +1,5 @@
 """The integrators of the one engine: CVODES on the model's compiled right-hand side here,
-and SciPy's RK45 stepped from Python (:mod:`softcurve.simulation.solvers._rk45`).
+and SciPy's RK45 stepped from Python (``softcurve.simulation.solvers._rk45``).
 
 Both answer one question: starting from state ``x`` at time ``t0``, integrate over
 ``[t0, t0 + h]`` with a piecewise-constant input ``u`` (one value per output interval)
@@ -8,7 +8,7 @@ is the generalized force ``tau`` or, with an :class:`ActuatorInput`, the actuato
 whose force ``H(q) u`` is evaluated inside the integrator.
 
 CVODES runs in compiled code and never returns to Python during an integration: through
-softcurve's C driver (:mod:`softcurve.simulation.solvers._driver`; Jacobian by forward
+softcurve's C driver (``softcurve.simulation.solvers._driver``; Jacobian by forward
 differences, kept while CVODES allows) where it builds, else inside CasADi's
 ``integrator`` on :func:`scaled_dae`. Measurements of both in ``docs/performance.md``.
 """
@@ -245,7 +245,7 @@ class CvodesEngine(PiecewiseSolver):
 
     Notes
     -----
-    Integrates with softcurve's C driver of CVODES (:mod:`softcurve.simulation.solvers._driver`)
+    Integrates with softcurve's C driver of CVODES (``softcurve.simulation.solvers._driver``)
     on the route "driver", else with CasADi's CVODES integrator on :func:`scaled_dae`.
     """
 
@@ -324,14 +324,14 @@ class CvodesEngine(PiecewiseSolver):
     def run_native(
         self, x0, u, times, ends, restart, fastest=None, longest=None, out=None
     ) -> tuple:
-        """:func:`softcurve.simulation.solvers._driver.integrate` of this run (one member: ``x0``
+        """:func:`softcurve.simulation.solvers.driver_integrate` of this run (one member: ``x0``
         (1, N), ``u`` (1, S, k); ``fastest`` [1/s], ``longest`` (n_segments,) [m] or None)
         with this engine's family, counted: ``(states (1, T, N), reached, flags)``.
 
         Parameters
         ----------
         x0, u, times, ends, restart, fastest, longest, out
-            As :func:`softcurve.simulation.solvers._driver.integrate` takes them, for one member.
+            As :func:`softcurve.simulation.solvers.driver_integrate` takes them, for one member.
         """
         rtol, abstol, max_steps = self._settings
         family = 1 if self.multistep == "adams" else 2

@@ -1,5 +1,6 @@
-"""CVODES driven from C: softcurve's own driver (:mod:`softcurve.simulation.solvers._driver_source`)
-of the SUNDIALS CVODES that ships inside CasADi, on the model's compiled right-hand side.
+"""CVODES driven from C: softcurve's own driver (the C files of
+``softcurve/simulation/solvers/c``, declared to Python by ``softcurve_driver.h``) of the
+SUNDIALS CVODES that ships inside CasADi, on the model's compiled right-hand side.
 
 Why not CasADi's ``integrator``: on the paper's 10 s case it spends more time around the
 right-hand side than in it (``docs/performance.md``): every evaluation goes through
@@ -11,18 +12,19 @@ allows (``jok``), factors the Newton matrix itself and integrates every member o
 in one call, on threads that do not contend.
 
 :func:`problem` describes a model (and optionally an actuator's force) to the driver;
-:func:`integrate` runs it. Both return None / are unused where the driver cannot be built
-(no C compiler, an uncompiled model, a CasADi whose SUNDIALS has another interface) or
-``SOFTCURVE_NATIVE_CVODES=0`` is set: the engines then use CasADi's integrator.
+:func:`integrate` runs it, with the settings of :func:`options`, the one place that fills
+the header's ``sc_options``. The library and its declarations, read from the header, are
+``softcurve.simulation.solvers._library``'s. Both return None / are unused where the
+driver cannot be built (no C compiler, an uncompiled model, a CasADi outside
+``softcurve.simulation.solvers._library.CASADI_VERIFIED`` or whose SUNDIALS has
+another interface) or ``SOFTCURVE_NATIVE_CVODES=0`` is set: the engines then use
+CasADi's integrator.
 """
 
 from __future__ import annotations
 
 import contextlib
 import ctypes
-import os
-import threading
-from pathlib import Path
 
 import casadi as ca
 import numpy as np
@@ -30,17 +32,9 @@ import numpy as np
 from softcurve.base.shares import run_shares, share_bounds
 from softcurve.compiled import NativeFunction, compile_source
 from softcurve.description.robot import MAX_BEND
-from softcurve.simulation.solvers._driver_source import DRIVER_SOURCE
-from softcurve.simulation.solvers._entries_source import ENTRIES_SOURCE
-from softcurve.simulation.solvers._groups_source import GROUPS_SOURCE
 from softcurve.simulation.solvers._lanes import lanes_derivative
-from softcurve.simulation.solvers._sensitivity_source import SENSITIVITY_SOURCE
-
-PLUGIN = "libcasadi_integrator_cvodes.so"
-"""CasADi's CVODES plugin, which holds SUNDIALS CVODES (the 2.x interface: ``CVSpgmr``)."""
-
-LIBRARY_SOURCE = DRIVER_SOURCE + GROUPS_SOURCE + ENTRIES_SOURCE + SENSITIVITY_SOURCE
-"""The C source of the driver's library, with every entry that :func:`driver` loads."""
+from softcurve.simulation.solvers._library import DECLARATIONS, Options, ProblemStruct, library
+from softcurve.simulation.solvers._library import unavailable as library_unavailable
 
 STATISTICS = ("steps", "rhs_evaluations", "jacobian_evaluations", "linear_solver_setups",
               "error_test_failures", "newton_failures")  # fmt: skip
@@ -60,60 +54,27 @@ CHUNKS_PER_THREAD = 4
 threads finish: members differ in cost (a violent transient takes more steps)."""
 
 
-class _Function(ctypes.Structure):
-    _fields_ = [
-        ("f", ctypes.c_void_p),
-        ("force", ctypes.c_void_p),
-        ("nx", ctypes.c_int),
-        ("nu", ctypes.c_int),
-        ("np", ctypes.c_int),
-        ("m", ctypes.c_int),
-        ("lag", ctypes.c_int),
-        ("sz_arg", ctypes.c_longlong),
-        ("sz_res", ctypes.c_longlong),
-        ("sz_iw", ctypes.c_longlong),
-        ("sz_w", ctypes.c_longlong),
-        ("lower", ctypes.c_void_p),
-        ("upper", ctypes.c_void_p),
-        ("time_constant", ctypes.c_double),
-        ("lanes", ctypes.c_void_p),
-        ("width", ctypes.c_int),
-        ("sz_lanes_w", ctypes.c_longlong),
-    ]
-
-
-_DRIVER: list = []  # [the loaded driver, or why not (str)], once per process
-_LOCK = threading.Lock()
-
-
 def driver():
     """The driver's entry point ``softcurve_cvodes`` (ctypes), built and loaded once per
     process; None where it cannot be (see the module notes) or inside :func:`casadi_only`."""
-    with _LOCK:
-        if not _DRIVER:
-            _DRIVER.append(_load())
-        return None if _BYPASS or isinstance(_DRIVER[0], str) else _DRIVER[0]
+    loaded = library()
+    return None if loaded is None or _BYPASS else loaded.softcurve_cvodes
 
 
 def unavailable() -> str | None:
     """Why :func:`driver` is None, in a phrase (None where the driver is loaded): inside
-    :func:`casadi_only`, ``SOFTCURVE_NATIVE_CVODES=0``, CasADi's plugin without the
-    SUNDIALS 2.x interface, or a build that failed (the reason :func:`_load` returned)."""
-    loaded = driver()
-    if loaded is not None:
+    :func:`casadi_only` (:data:`CASADI_ONLY`), ``SOFTCURVE_NATIVE_CVODES=0``
+    (``SWITCHED_OFF``), or why the library does not load."""
+    if driver() is not None:
         return None
-    return CASADI_ONLY if _BYPASS else _DRIVER[0]
+    return CASADI_ONLY if _BYPASS else library_unavailable()
 
 
 CASADI_ONLY = "casadi_only() was asked"
-"""Why the driver is unused inside :func:`casadi_only`."""
-
-SWITCHED_OFF = "SOFTCURVE_NATIVE_CVODES=0 is set"
-"""Why the driver is unused under ``SOFTCURVE_NATIVE_CVODES=0``."""
+"""Why the driver is unused inside :func:`casadi_only` (the user's choice)."""
 
 
 _BYPASS: list = []
-_LIBRARY: list = []  # the loaded driver library, once built
 
 
 def entry(name: str):
@@ -122,9 +83,9 @@ def entry(name: str):
     Parameters
     ----------
     name : str
-        An exported function of the driver's C source.
+        An exported function of :data:`HEADER`.
     """
-    return getattr(_LIBRARY[0], name)
+    return getattr(library(), name)
 
 
 @contextlib.contextmanager
@@ -138,42 +99,48 @@ def casadi_only():
         _BYPASS.pop()
 
 
-def _load():
-    """The loaded entry point, or why it cannot be loaded (a str)."""
-    if os.environ.get("SOFTCURVE_NATIVE_CVODES", "1") in ("0", ""):
-        return SWITCHED_OFF
-    directory = Path(ca.__file__).parent
-    try:
-        if not hasattr(ctypes.CDLL(str(directory / PLUGIN)), "CVSpgmr"):  # SUNDIALS >= 3: other API
-            return f"CasADi's {PLUGIN} lacks the SUNDIALS 2.x interface (CVSpgmr)"
-    except OSError as exc:
-        return f"CasADi's {PLUGIN} cannot be loaded ({exc})"
-    link = (f"-L{directory}", f"-l:{PLUGIN}", f"-Wl,-rpath,{directory}", "-pthread")
-    library = compile_source("cvodes_driver", LIBRARY_SOURCE, link)
-    if library is None:
-        return "the driver's C source did not compile (no C compiler, or the build failed)"
-    _LIBRARY.append(library)
-    evaluate_function = library.softcurve_rhs
-    evaluate_function.argtypes = [ctypes.POINTER(_Function), ctypes.c_int] + [ctypes.c_void_p] * 4
-    evaluate_function.restype = ctypes.c_int
-    function = library.softcurve_cvodes
-    pointer, integer, real = ctypes.c_void_p, ctypes.c_int, ctypes.c_double
-    function.argtypes = [
-        ctypes.POINTER(_Function), integer, pointer, pointer, real, pointer, pointer, pointer,
-        pointer, integer, real, pointer, integer, pointer, pointer, integer, real, real,
-        ctypes.c_long, integer, pointer, pointer, pointer, pointer, pointer,
-    ]  # fmt: skip
-    function.restype = ctypes.c_int
-    sensitivity = library.softcurve_sensitivities
-    sensitivity.argtypes = [
-        ctypes.POINTER(_Function), pointer, pointer, integer, integer, integer, integer,
-        pointer, pointer, pointer, integer, pointer, integer, integer, real, real,
-        ctypes.c_long, integer, pointer, pointer, pointer,
-    ]  # fmt: skip
-    sensitivity.restype = ctypes.c_int
-    library.softcurve_outside.argtypes = [pointer, integer, pointer, integer, real, pointer]
-    library.softcurve_outside.restype = None
-    return function
+def options(rtol, atol, max_steps, *, max_order=0, family=1, settled_ratio=0.0,
+            columns_tested=False, helper=False):  # fmt: skip
+    """The settings of a call of the driver, as the header's ``sc_options``: the one place
+    that fills it.
+
+    Parameters
+    ----------
+    rtol : float
+        Relative tolerance.
+    atol : float
+        Absolute tolerance of the integrated state (the scaled state of
+        :func:`integrate`, the state's units of the sensitivities).
+    max_steps : int
+        CVODES's steps allowed per output.
+    max_order : int, optional
+        The method's largest order (0 or None: CVODES's own).
+    family : int
+        1 Adams, 2 BDF (the sensitivities; :func:`integrate` takes one per member).
+    settled_ratio : float
+        ``softcurve.simulation.solvers._policy.SETTLED_RATIO`` (dimensionless), with a
+        member's fastest rate.
+    columns_tested : bool
+        The sensitivity columns in the error test too.
+    helper : bool
+        With two parts of the columns' right-hand side, a helper thread shares the second.
+
+    Returns
+    -------
+    Options
+    """
+    constants = DECLARATIONS.constants
+    return Options(
+        rtol=rtol,
+        atol=atol,
+        max_steps=max_steps,
+        max_order=max_order or 0,
+        family=family,
+        settled_ratio=settled_ratio,
+        max_bend=MAX_BEND,
+        columns_tested=int(columns_tested),
+        helper=constants["HELPER_SHARED"] if helper else constants["HELPER_NONE"],
+    )
 
 
 class Problem:
@@ -191,7 +158,7 @@ class Problem:
         The actuator's input (bounds, lag), with ``force``.
     lanes : LanesDerivative, optional
         The same state derivative over lanes
-        (:func:`~softcurve.simulation.solvers._lanes.lanes_derivative`): members are then
+        (``softcurve.simulation.solvers._lanes.lanes_derivative``): members are then
         integrated in groups of its width, ``self.width`` (else 1).
     """
 
@@ -204,24 +171,22 @@ class Problem:
             (np.array(inputs.lower, dtype=np.float64), np.array(inputs.upper, dtype=np.float64))
             if inputs is not None else (np.zeros(1), np.zeros(1))
         )  # fmt: skip
-        self.struct = _Function(
-            ctypes.cast(rhs._function, ctypes.c_void_p).value,
-            None if force is None else ctypes.cast(force._function, ctypes.c_void_p).value,
-            n_state,
-            n,
-            n_parameters,
-            0 if inputs is None else inputs.n_inputs,
-            int(lag),
-            max(f._sz_arg for f in functions),
-            max(f._sz_res for f in functions),
-            max(f._sz_iw for f in functions),
-            max(f._sz_w for f in functions),
-            self.bounds[0].ctypes.data,
-            self.bounds[1].ctypes.data,
-            inputs.time_constant if lag else 1.0,
-            None if lanes is None else lanes.address,
-            self.width,
-            0 if lanes is None else lanes.work,
+        sizes = np.max([f.work_sizes for f in functions], axis=0).tolist()
+        self.struct = ProblemStruct(
+            f=rhs.address,
+            force=None if force is None else force.address,
+            nx=n_state,
+            nu=n,
+            np=n_parameters,
+            m=0 if inputs is None else inputs.n_inputs,
+            lag=int(lag),
+            **dict(zip(("sz_arg", "sz_res", "sz_iw", "sz_w"), sizes, strict=True)),
+            lower=self.bounds[0].ctypes.data,
+            upper=self.bounds[1].ctypes.data,
+            time_constant=inputs.time_constant if lag else 1.0,
+            lanes=None if lanes is None else lanes.address,
+            width=self.width,
+            sz_lanes_w=0 if lanes is None else lanes.work,
         )
 
 
@@ -241,7 +206,8 @@ def problem(model, inputs=None, lanes: bool = False) -> Problem | None:
         Integrate members in groups on the state derivative over lanes (compiled at the
         first such call); where it cannot be built, the problem integrates them alone.
     """
-    if driver() is None or model._native is None or "rhs" not in model._native:
+    rhs = model.compiled_function("rhs")
+    if driver() is None or rhs is None:
         return None
 
     def build():
@@ -250,7 +216,6 @@ def problem(model, inputs=None, lanes: bool = False) -> Problem | None:
             force = _compiled_force(inputs.force)
             if force is None:
                 return None
-        rhs = model._native["rhs"]
         vectors = lanes_derivative(model, inputs) if lanes else None
         return Problem(rhs, model.n_state, model.n, model.parameters.size, force, inputs, vectors)
 
@@ -262,15 +227,15 @@ def _compiled_force(force: ca.Function) -> NativeFunction | None:
     """``force`` generated as C, compiled (cached on disk by its code) and loaded, or None."""
     generator = ca.CodeGenerator("force.c", {"with_header": False})
     generator.add(force)
-    library = compile_source("actuator_force", generator.dump())
-    return None if library is None else NativeFunction(library, force.name())
+    built = compile_source("actuator_force", generator.dump())
+    return None if built is None else NativeFunction(built, force.name())
 
 
 def integrate(problem, lmm, x0, u, p, nominal, times, segments, tolerances, *, fastest=None,
               settled_ratio=0.0, longest=None, threads=1, out=None) -> tuple:  # fmt: skip
     """Integrate members from ``x0`` at ``times[0]`` over the output ``times``, restarting
     CVODES at the end of every segment, with one constant input per member and segment;
-    in groups of ``problem.width`` consecutive members (:mod:`~.cvodes_groups`).
+    in groups of ``problem.width`` consecutive members (``groups.c``).
 
     Parameters
     ----------
@@ -293,13 +258,13 @@ def integrate(problem, lmm, x0, u, p, nominal, times, segments, tolerances, *, f
         ``(ends (S,), restart (S,))``: the output index where each segment ends (the last
         is ``T - 1``), and whether it begins a restart interval, where a member with
         ``fastest`` switches to BDF once settled
-        (:data:`~softcurve.simulation.solvers.SETTLED_RATIO`) and back to its own family.
+        (``softcurve.simulation.solvers._policy.SETTLED_RATIO``) and back to its own family.
     tolerances : tuple
         ``(rtol, abstol of the scaled state, max_steps per output, max_order)``.
     fastest : ndarray, shape (B,), optional
         Fastest rate of each member's initial linearization [1/s] (0 or None: no switch).
     settled_ratio : float
-        :data:`~softcurve.simulation.solvers.SETTLED_RATIO` (a ratio, dimensionless), with
+        ``softcurve.simulation.solvers._policy.SETTLED_RATIO`` (a ratio, dimensionless), with
         ``fastest``.
     longest : ndarray, shape (B, n_segments), optional
         Longest length of each segment in the model's domain [m]: a member stops at its
@@ -338,16 +303,16 @@ def integrate(problem, lmm, x0, u, p, nominal, times, segments, tolerances, *, f
     counts = np.zeros((count, len(STATISTICS)), dtype=np.int64)
     call = driver()
     rtol, abstol, max_steps, max_order = tolerances
+    settings = options(rtol, abstol, max_steps, max_order=max_order, settled_ratio=settled_ratio)
     n_seg = 0 if longest is None else longest.shape[1]
 
     def run(a: int, b: int) -> None:
         fast, uu, pp, nom = (arr[a:b].ctypes.data for arr in arrays)
-        call(ctypes.byref(problem.struct), b - a, lmm[a:].ctypes.data, fast, settled_ratio,
-             uu, pp, nom, None if longest is None else longest[a:].ctypes.data, n_seg,
-             MAX_BEND, times.ctypes.data, times.size, ends.ctypes.data, restart.ctypes.data,
-             ends.size, rtol, abstol, max_steps, max_order or 0, out[a:b].ctypes.data,
-             reached[a:].ctypes.data, flags[a:].ctypes.data, used[a:].ctypes.data,
-             counts[a:b].ctypes.data)  # fmt: skip
+        call(ctypes.byref(problem.struct), ctypes.byref(settings), b - a, lmm[a:].ctypes.data,
+             fast, uu, pp, nom, None if longest is None else longest[a:].ctypes.data, n_seg,
+             times.ctypes.data, times.size, ends.ctypes.data, restart.ctypes.data, ends.size,
+             out[a:b].ctypes.data, reached[a:].ctypes.data, flags[a:].ctypes.data,
+             used[a:].ctypes.data, counts[a:b].ctypes.data)  # fmt: skip
 
     threads = max(1, min(threads, count))
     # shares of whole groups: the grouping, hence every result, is that of one thread

@@ -1,10 +1,11 @@
 """The state derivative over lanes for CVODES's driver: the members of a batch
-integrated in groups (:mod:`softcurve.simulation.solvers._groups_source`) evaluate it
-:data:`~softcurve.compiled.LANE_WIDTH` at a time.
+integrated in groups (``groups.c`` of
+``softcurve.simulation.solvers._library.C_FOLDER``) evaluate it
+``softcurve.compiled._lanes.LANE_WIDTH`` at a time.
 
 The function is the one the scalar driver evaluates (the model's ``rhs`` with the
 actuator's force and lag, :func:`~softcurve.simulation.solvers.actuated_derivative`),
-generated over lanes by :mod:`softcurve.compiled._lanes` with every input per member
+generated over lanes by ``softcurve.compiled._lanes`` with every input per member
 (members of a batch may have their own parameters).
 """
 
@@ -14,7 +15,14 @@ import ctypes
 from dataclasses import dataclass
 from functools import partial
 
-from softcurve.compiled import LANE_WIDTH, compile_lanes, lanes_function, lanes_prelude, lanes_work
+from softcurve.compiled import (
+    LANE_WIDTH,
+    c_template,
+    compile_lanes,
+    lanes_function,
+    lanes_prelude,
+    lanes_work,
+)
 from softcurve.simulation.solvers._actuated import actuated_derivative
 
 ENTRY = "softcurve_lanes_xdot"
@@ -48,11 +56,7 @@ def xdot_source(f, vector_math: bool) -> str:
         [
             lanes_prelude(LANE_WIDTH, vector_math),
             lanes_function(f, "sc_xdot", (False, False, False)),
-            f'__attribute__((visibility("default"))) int {ENTRY}(',
-            "    const double* x, const double* u, const double* p, double* xdot, double* w) {",
-            "  sc_xdot((const sc_v*)x, (const sc_v*)u, (const sc_v*)p, (sc_v*)xdot, (sc_v*)w);",
-            "  return 0;",
-            "}",
+            c_template("lanes_xdot.c", {"SC_ENTRY": ENTRY}),
         ]
     )
 

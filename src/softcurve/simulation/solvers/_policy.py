@@ -1,10 +1,10 @@
 """The one integration engine's shared pieces, used by
 :func:`~softcurve.simulation.simulate`,
 :func:`~softcurve.simulation.batch.simulate_batch` and the sensitivities of
-:mod:`softcurve.simulation.sensitivity._sensitivity`: the state scales, the finite-difference
+``softcurve.simulation.sensitivity._sensitivity``: the state scales, the finite-difference
 linearization and the choice of Adams or BDF made from it, the restarts, CasADi's CVODES
 options and the text of a failure. The integrators themselves (CVODES on the compiled
-right-hand side, SciPy's RK45) are in :mod:`softcurve.simulation.solvers._cvodes`.
+right-hand side, SciPy's RK45) are in ``softcurve.simulation.solvers._cvodes``.
 
 The state is integrated scaled, ``x = nominal * xs`` (:func:`nominal_scale`), so that
 every scaled state is of order one: finite-difference steps are then well sized and one
@@ -302,7 +302,7 @@ rtol 1e-6 (``benchmarks/bench_cvodes_options.py``, section 2, 2026-11-29): 1300 
 1069 simulated seconds per CPU second for order 12, the same error against rtol 1e-10
 (1.1e-5 against 1.2e-5); orders 4 and 8 in between. That was before the switch to BDF
 once settled (``SETTLED_RATIO``); with it, 1321 against 1217 (CasADi's integrator; the C
-driver of :mod:`softcurve.simulation.solvers._driver` takes the same cap)."""
+driver of ``softcurve.simulation.solvers._driver`` takes the same cap)."""
 
 
 def cvodes_options(

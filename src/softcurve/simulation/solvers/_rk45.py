@@ -1,5 +1,5 @@
 """SciPy's RK45 as an engine of :func:`~softcurve.simulation.simulate`: the
-integrator's question (:mod:`softcurve.simulation.solvers._cvodes`) answered by stepping
+integrator's question (``softcurve.simulation.solvers._cvodes``) answered by stepping
 SciPy's explicit Runge-Kutta 4(5) from Python, with the step budget and the domain stop
 of CVODES's C driver."""
 

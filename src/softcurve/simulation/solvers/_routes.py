@@ -16,6 +16,7 @@ from dataclasses import dataclass, field
 
 from softcurve.compiled import LANE_WIDTH
 from softcurve.simulation.solvers import _driver as native
+from softcurve.simulation.solvers._library import SWITCHED_OFF
 
 ROUTES = {
     "driver": "CVODES in softcurve's C driver, one member per system, the whole output "
@@ -77,7 +78,7 @@ class Route:
 
 _WARNED: set = set()
 _WARNED_LOCK = threading.Lock()
-_ASKED = (native.CASADI_ONLY, native.SWITCHED_OFF)  # the user chose these: no warning
+_ASKED = (native.CASADI_ONLY, SWITCHED_OFF)  # the user chose these: no warning
 
 
 def warn_once(reason: str, route: str) -> None:

@@ -5,12 +5,10 @@ from softcurve.simulation.stepper._methods import METHODS as METHODS
 from softcurve.simulation.stepper._methods import default_substeps as default_substeps
 from softcurve.simulation.stepper._stability import check_explicit_step as check_explicit_step
 from softcurve.simulation.stepper._stepper import Stepper as Stepper
-from softcurve.simulation.stepper._threads import load_native as load_native
 
 __all__ = [
     "METHODS",
     "default_substeps",
     "check_explicit_step",
     "Stepper",
-    "load_native",
 ]

@@ -1,6 +1,6 @@
 """The C of one step of each stepper method over lanes of members, for
-:func:`~softcurve.simulation.stepper._lanes.period_source`: the same operations, in the
-same order, as the scalar scheme of :mod:`softcurve.simulation.stepper._scheme`.
+``softcurve.simulation.stepper._lanes.period_source``: the same operations, in the
+same order, as the scalar scheme of ``softcurve.simulation.stepper._scheme``.
 
 Each function returns :class:`StepSource`: declarations, the lines of one step (inside
 the loop over the steps ``s``, on the state ``y``, inputs ``U``, parameters ``p`` and
@@ -53,7 +53,7 @@ def _each(n_x: int, statement: str) -> str:
 
 def explicit_step(tableau: ExplicitTableau, n_x: int) -> StepSource:
     """One step of an explicit Runge-Kutta method (as
-    :func:`~softcurve.simulation.stepper._scheme.explicit_step`).
+    ``softcurve.simulation.stepper._scheme.explicit_step``).
 
     Parameters
     ----------
@@ -86,9 +86,9 @@ def rosenbrock_step(
     tableau: Tableau, n_x: int, pattern: ca.Sparsity, scale: np.ndarray, every: int
 ) -> StepSource:
     """One step of a Rosenbrock method with a fresh Newton matrix at every ``every``-th
-    step (as :func:`~softcurve.simulation.stepper._scheme.newton_matrix`, the QR of
-    :class:`~softcurve.simulation.stepper._scheme.Factorization` and
-    :func:`~softcurve.simulation.stepper._scheme.rosenbrock_step`).
+    step (as ``softcurve.simulation.stepper._scheme.newton_matrix``, the QR of
+    ``softcurve.simulation.stepper._scheme.Factorization`` and
+    ``softcurve.simulation.stepper._scheme.rosenbrock_step``).
 
     Parameters
     ----------
@@ -98,10 +98,10 @@ def rosenbrock_step(
         States.
     pattern : casadi.Sparsity
         The Newton matrix's structure
-        (:func:`~softcurve.simulation.stepper._scheme.jacobian_pattern`).
+        (``softcurve.simulation.stepper._scheme.jacobian_pattern``).
     scale : ndarray, shape (n_x,)
         The states' natural sizes
-        (:func:`~softcurve.simulation.stepper._scheme.state_scale`).
+        (``softcurve.simulation.stepper._scheme.state_scale``).
     every : int
         Steps between fresh Newton matrices.
     """

@@ -1,10 +1,10 @@
-"""The stepper's period as lanes: :data:`~softcurve.compiled.LANE_WIDTH` members
+"""The stepper's period as lanes: ``softcurve.compiled._lanes.LANE_WIDTH`` members
 advanced at once in vector instructions, one C call per thread's share.
 
 The members of a fixed-step method take the same steps, so they run the same
-instructions in lock-step; :mod:`softcurve.compiled._lanes` generates the state
+instructions in lock-step; ``softcurve.compiled._lanes`` generates the state
 derivative, the observation and the Newton matrix's factorization over lanes of
-members, and :mod:`softcurve.simulation.stepper._lane_stages` writes the method's steps
+members, and ``softcurve.simulation.stepper._lane_stages`` writes the method's steps
 around them from its coefficients. A thread's whole share of the members is one call:
 no Python per member.
 """
@@ -17,7 +17,14 @@ from functools import partial
 
 import numpy as np
 
-from softcurve.compiled import LANE_WIDTH, compile_lanes, lanes_function, lanes_prelude, lanes_work
+from softcurve.compiled import (
+    LANE_WIDTH,
+    c_template,
+    compile_lanes,
+    lanes_function,
+    lanes_prelude,
+    lanes_work,
+)
 from softcurve.simulation.stepper._lane_stages import explicit_step, rosenbrock_step
 from softcurve.simulation.stepper._methods import METHODS, ExplicitTableau
 from softcurve.simulation.stepper._observe import observer
@@ -32,7 +39,9 @@ def period_source(model, inputs, substeps: int, method: str, vector_math: bool, 
     """The C source of :data:`ENTRY`: ``substeps`` steps of ``method`` over the period,
     then the observation, for rows ``start:stop`` of ``x`` (N, n_x) and ``u`` (N, m)
     into ``out`` (N, n_x + 6), all row-major float64, with ``p`` and ``period`` shared;
-    a last share shorter than a vector repeats its last member in the unused lanes.
+    a last share shorter than a vector repeats its last member in the unused lanes. The
+    entry is the template ``stepper_period.c`` (:func:`~softcurve.compiled.c_template`)
+    filled in with the sizes, the lanes functions and the method's step.
 
     Parameters
     ----------
@@ -43,7 +52,7 @@ def period_source(model, inputs, substeps: int, method: str, vector_math: bool, 
     substeps : int
         Steps per period.
     method : str
-        A key of :data:`~softcurve.simulation.stepper.METHODS`.
+        A key of ``softcurve.simulation.stepper._methods.METHODS``.
     vector_math : bool
         Use glibc's vector math library where compiled for AVX2 (see
         :func:`~softcurve.compiled.lanes_prelude`).
@@ -64,7 +73,6 @@ def period_source(model, inputs, substeps: int, method: str, vector_math: bool, 
     f = state_derivative(model, inputs, True).expand()
     observe = observer(model, True)
     n_x, n_u, n_obs = f.size1_in(0), f.size1_in(1), observe.size1_out(0)
-    n_out = n_x + n_obs
     tableau = METHODS[method]
     if isinstance(tableau, ExplicitTableau):
         step = explicit_step(tableau, n_x)
@@ -77,40 +85,22 @@ def period_source(model, inputs, substeps: int, method: str, vector_math: bool, 
         *step.functions,
     ]
     work = max(lanes_work(function) for function, _, _ in functions)
+    sizes = {"SC_NX": n_x, "SC_NU": n_u, "SC_NOBS": n_obs, "SC_SUBSTEPS": substeps}
     return "\n".join(
         [
-            "#include <stdlib.h>",
             lanes_prelude(LANE_WIDTH, vector_math),
             *(lanes_function(*function) for function in functions),
-            f'__attribute__((visibility("default"))) int {ENTRY}(',
-            "    const double* x, const double* u, const double* p,",
-            "    const double* period, double* out, long start, long stop) {",
-            f"  sc_v* w = aligned_alloc(sizeof(sc_v), sizeof(sc_v) * {work + step.scratch});",
-            "  if (w == NULL) return 1;",
-            f"  sc_v* scratch = w + {work};",
-            f"  const sc_v h = sc_broadcast(period[0] / {substeps});",
-            f"  sc_v y[{n_x}], U[{max(n_u, 1)}], o[{n_obs}];",
-            *(f"  {line}" for line in step.declarations),
-            "  (void)scratch;",
-            "  for (long i = start; i < stop; i += SC_W) {",
-            "    for (int l = 0; l < SC_W; l++) {",
-            "      long r = i + l < stop ? i + l : stop - 1;",
-            f"      for (int j = 0; j < {n_x}; j++) y[j][l] = x[r * {n_x} + j];",
-            f"      for (int j = 0; j < {n_u}; j++) U[j][l] = u[r * {n_u} + j];",
-            "    }",
-            f"    for (int s = 0; s < {substeps}; s++) {{",
-            *(f"      {line}" for line in step.lines),
-            "    }",
-            "    sc_observe(y, p, o, w); /* reads the model's states, the first of y */",
-            "    for (int l = 0; l < SC_W && i + l < stop; l++) {",
-            f"      for (int j = 0; j < {n_x}; j++) out[(i + l) * {n_out} + j] = y[j][l];",
-            f"      for (int j = 0; j < {n_obs}; j++)",
-            f"        out[(i + l) * {n_out} + {n_x} + j] = o[j][l];",
-            "    }",
-            "  }",
-            "  free(w);",
-            "  return 0;",
-            "}",
+            c_template(
+                "stepper_period.c",
+                {
+                    "SC_ENTRY": ENTRY,
+                    **sizes,
+                    "SC_WORK": work,
+                    "SC_SCRATCH": step.scratch,
+                    "SC_STEP_DECLARATIONS": step.declarations,
+                    "SC_STEP_LINES": step.lines,
+                },
+            ),  # fmt: skip
         ]
     )
 
@@ -142,7 +132,7 @@ class LanesPeriod:
 def lanes_period(model, inputs, substeps: int, method: str, every: int | None = None):
     """The compiled :func:`period_source`, kept with the model: with glibc's vector math
     where it is available and links
-    (:func:`~softcurve.compiled._lanes.vector_math_available`), else with the C
+    (``softcurve.compiled._lanes.vector_math_available``), else with the C
     library's scalar functions.
 
     Parameters
@@ -154,7 +144,7 @@ def lanes_period(model, inputs, substeps: int, method: str, every: int | None = 
     substeps : int
         Steps per period.
     method : str
-        A key of :data:`~softcurve.simulation.stepper.METHODS`.
+        A key of ``softcurve.simulation.stepper._methods.METHODS``.
     every : int, optional
         Steps between fresh Newton matrices of a Rosenbrock method (default
         ``substeps``; ignored by explicit methods).
@@ -177,7 +167,7 @@ def lanes_period(model, inputs, substeps: int, method: str, every: int | None = 
         built = compile_lanes("stepper_lanes", source, ENTRY, argtypes)
         if built is None:
             return None
-        return LanesPeriod(built.entry, str(built.library._name), built.vector_math, sizes)
+        return LanesPeriod(built.entry, str(built.library.path), built.vector_math, sizes)
 
     key = ("stepper-lanes", substeps, method, every, None if inputs is None else inputs.key)
     return model.cached(key, build)
@@ -185,7 +175,7 @@ def lanes_period(model, inputs, substeps: int, method: str, every: int | None = 
 
 class LanesMembers(MemberShares):
     """The compiled lanes period on every member, one C call per thread's share (shares
-    of whole vectors of :data:`~softcurve.compiled.LANE_WIDTH` members).
+    of whole vectors of ``softcurve.compiled._lanes.LANE_WIDTH`` members).
 
     A lanes period cannot fail but for want of memory for its work array: a state that
     leaves the domain shows in ``out``, which the stepper checks.

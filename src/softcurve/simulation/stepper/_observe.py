@@ -1,6 +1,6 @@
 """What the stepper reports besides the state: the tip position and the total contact
 force of the environment, generated with the period function
-(:mod:`softcurve.simulation.stepper._scheme`) or evaluated on their own.
+(``softcurve.simulation.stepper._scheme``) or evaluated on their own.
 """
 
 from __future__ import annotations

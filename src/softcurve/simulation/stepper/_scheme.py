@@ -2,7 +2,7 @@
 function per member that advances a state by one control period, generated as C.
 
 The period is split into ``substeps`` steps ``h`` of one of the methods of
-:mod:`~softcurve.simulation.stepper._methods`, the inputs held: a Rosenbrock-W method
+``softcurve.simulation.stepper._methods``, the inputs held: a Rosenbrock-W method
 (ROS34PW2 of order 3, or ROS2 of order 2, both L-stable) or the explicit RK4
 (:func:`explicit_step`). A W-method keeps its order with any matrix ``J``, so one
 forward-difference Jacobian (:func:`newton_matrix`) serves several steps; ``I - gamma h
@@ -18,12 +18,11 @@ import casadi as ca
 import numpy as np
 
 from softcurve.base.docs import parameters_from
-from softcurve.compiled import NativeFunction, compile_function
+from softcurve.compiled import NativeFunction, compile_function, load_function
 from softcurve.simulation.solvers import ActuatorInput, actuated_derivative
 from softcurve.simulation.solvers import state_scale as integration_scale
 from softcurve.simulation.stepper._methods import METHODS, ExplicitTableau, Tableau
 from softcurve.simulation.stepper._observe import observer
-from softcurve.simulation.stepper._threads import load_native
 
 scheme_parameters = parameters_from(
     {
@@ -97,7 +96,7 @@ def jacobian_pattern(model, inputs) -> ca.Sparsity:
 def difference_jacobian(f, scale, x, u, p):
     """``(J, f(x))``: the Jacobian of ``f`` at ``x`` by forward differences, one batched
     call of ``n_state + 1`` evaluations; symbolic (MX) in the generated period, numeric
-    (DM) for :func:`~softcurve.simulation.stepper._stability.fastest_rate`.
+    (DM) for ``softcurve.simulation.stepper._stability.fastest_rate``.
 
     Parameters
     ----------
@@ -309,7 +308,7 @@ def period_function(
     def build():
         if not native:
             return compile_function(function, flags)
-        loaded = compile_function(function, flags, load=load_native)
+        loaded = compile_function(function, flags, load=load_function)
         return loaded if isinstance(loaded, NativeFunction) else None
 
     return model.cached((*key, flags, native), build)

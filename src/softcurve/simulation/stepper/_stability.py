@@ -35,7 +35,7 @@ times."""
 def fastest_rate(model, inputs: ActuatorInput | None, x, u) -> float:
     """The largest ``|lambda|`` [1/s] of the Jacobian of the state derivative at state
     ``x`` and inputs ``u`` (the stepper's own forward differences,
-    :func:`~softcurve.simulation.stepper._scheme.difference_jacobian`, on the compiled
+    ``softcurve.simulation.stepper._scheme.difference_jacobian``, on the compiled
     right-hand side).
 
     Parameters

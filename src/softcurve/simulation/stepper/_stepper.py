@@ -2,7 +2,7 @@
 one call into compiled code, for learning environments and other fixed-rate loops.
 
 :class:`Stepper` advances ``N`` members (states ``x`` (N, n_state), inputs (N, m)) by
-``period`` seconds with ``substeps`` fixed steps (:mod:`softcurve.simulation.stepper._scheme`),
+``period`` seconds with ``substeps`` fixed steps (``softcurve.simulation.stepper._scheme``),
 the input held. The state is ``simulate``'s: ``(q, qd, lam)``, then the lagging inputs of
 an actuator with a ``time_constant``. A member whose new state is non-finite or outside
 the model's domain is flagged in :class:`StepResult` and keeps its state; no member's
@@ -136,14 +136,14 @@ class Stepper:
         Threads of the batched call, >= 1 (default ``os.cpu_count()``).
     method : str, optional
         A key of :data:`~softcurve.simulation.stepper.METHODS` (default
-        :data:`~softcurve.simulation.stepper._methods.DEFAULT_METHOD`): a Rosenbrock-W
+        ``softcurve.simulation.stepper._methods.DEFAULT_METHOD``): a Rosenbrock-W
         method for any robot, or ``"RK4"``,
         explicit and about three times faster per period, for a robot without an
         environment whose fastest mode the step resolves (checked here, at rest:
         :func:`~softcurve.simulation.stepper.check_explicit_step`).
     compiled : bool
         Generate the whole period as C over vector lanes of four members and compile it
-        (default; :mod:`~softcurve.simulation.stepper._lanes`; cached on disk, one
+        (default; ``softcurve.simulation.stepper._lanes``; cached on disk, one
         library per robot structure, environment, actuator, method and ``substeps``), or
         evaluate it in CasADi's virtual machine on the model's right-hand side (no
         compile, slower). A model built with ``compile=False`` is never compiled.

@@ -11,7 +11,6 @@ thread loops over a contiguous chunk of members.
 
 from __future__ import annotations
 
-import ctypes
 import threading
 from concurrent.futures import ThreadPoolExecutor
 
@@ -19,19 +18,6 @@ import numpy as np
 
 from softcurve.base.shares import run_shares, share_bounds
 from softcurve.compiled import NativeFunction
-
-
-def load_native(path, name: str) -> NativeFunction:
-    """The function ``name`` of the compiled library at ``path``, called through ctypes.
-
-    Parameters
-    ----------
-    path : str or pathlib.Path
-        The shared library.
-    name : str
-        The generated function's name.
-    """
-    return NativeFunction(ctypes.CDLL(str(path)), name)
 
 
 class MemberShares:

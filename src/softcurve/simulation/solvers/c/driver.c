@@ -1,14 +1,7 @@
-"""The C source of softcurve's CVODES driver, compiled by :mod:`softcurve.simulation.solvers._driver`.
-
-Kept as a Python string so that it ships with the package like any module.
-"""
-
-DRIVER_SOURCE = r"""
 /* softcurve's driver of SUNDIALS CVODES: integrate members of a batch (or one run) on
  * a CasADi-generated right-hand side f(x, u, p) -> xdot, all in C.
  *
- * CVODES is the copy inside CasADi (SUNDIALS 2.x interface, libcasadi_integrator_cvodes),
- * declared here because CasADi ships no headers for it. The Newton systems are solved by
+ * CVODES is the copy inside CasADi (sundials2.h). The Newton systems are solved by
  * CVSPGMR preconditioned with the exact LU factors of the Newton matrix I - gamma J, whose
  * Jacobian J comes from forward differences of f; with the same J in the Jacobian-vector
  * product, GMRES converges in one iteration, so this is a direct dense solve. CVODES says
@@ -20,90 +13,13 @@ DRIVER_SOURCE = r"""
 #include <stdlib.h>
 #include <string.h>
 
-typedef double realtype;
-typedef struct _generic_N_Vector *N_Vector;
-typedef int (*CVRhsFn)(realtype t, N_Vector y, N_Vector ydot, void *data);
-typedef int (*CVPrecSetupFn)(realtype t, N_Vector y, N_Vector fy, int jok, int *jcur,
-                             realtype gamma, void *data, N_Vector t1, N_Vector t2, N_Vector t3);
-typedef int (*CVPrecSolveFn)(realtype t, N_Vector y, N_Vector fy, N_Vector r, N_Vector z,
-                             realtype gamma, realtype delta, int lr, void *data, N_Vector tmp);
-typedef int (*CVJacTimesFn)(N_Vector v, N_Vector Jv, realtype t, N_Vector y, N_Vector fy,
-                            void *data, N_Vector tmp);
-typedef void (*CVErrHandlerFn)(int code, const char *module, const char *function, char *msg,
-                               void *data);
-
-extern N_Vector N_VNew_Serial(long int length);
-extern realtype *N_VGetArrayPointer(N_Vector v);
-extern void N_VDestroy(N_Vector v);
-extern void *CVodeCreate(int lmm, int iter);
-extern int CVodeInit(void *mem, CVRhsFn f, realtype t0, N_Vector y0);
-extern int CVodeReInit(void *mem, realtype t0, N_Vector y0);
-extern int CVodeSStolerances(void *mem, realtype rtol, realtype atol);
-extern int CVodeSetUserData(void *mem, void *data);
-extern int CVodeSetMaxNumSteps(void *mem, long int mxsteps);
-extern int CVodeSetMaxOrd(void *mem, int maxord);
-extern int CVodeSetStopTime(void *mem, realtype tstop);
-extern int CVodeGetDky(void *mem, realtype t, int k, N_Vector dky);
-extern int CVodeSetErrHandlerFn(void *mem, CVErrHandlerFn f, void *data);
-extern int CVode(void *mem, realtype tout, N_Vector yout, realtype *tret, int itask);
-extern int CVodeGetNumSteps(void *mem, long int *n);
-extern int CVodeGetNumRhsEvals(void *mem, long int *n);
-extern int CVodeGetNumLinSolvSetups(void *mem, long int *n);
-extern int CVodeGetNumErrTestFails(void *mem, long int *n);
-extern int CVodeGetNumNonlinSolvConvFails(void *mem, long int *n);
-extern void CVodeFree(void **mem);
-extern int CVSpgmr(void *mem, int pretype, int maxl);
-extern int CVSpilsSetPreconditioner(void *mem, CVPrecSetupFn setup, CVPrecSolveFn solve);
-extern int CVSpilsSetJacTimesVecFn(void *mem, CVJacTimesFn jtimes);
-
-#define CV_ADAMS 1
-#define CV_BDF 2
-#define CV_NEWTON 2
-#define CV_NORMAL 1
-#define CV_ONE_STEP 2
-#define CV_TOO_MUCH_WORK -1
-#define PREC_LEFT 1
-#define GMRES_DIMENSION 2 /* one iteration converges (exact preconditioner); one spare */
-#define STATS 6
-
-typedef int (*casadi_fn)(const double **arg, double **res, long long *iw, double *w, int mem);
-
-/* What the Python side passes: the model's generated right-hand side f(x, tau, p) (nx
- * states, nu forces, np parameters) with its work sizes (the largest over f and force), and
- * optionally an actuator's force(q, v) -> tau = H(q) v with m inputs: the member's input is
- * then v (m) or, with lag, the command of v, whose m states follow x with the rate
- * (clip(command, lower, upper) - v) / time_constant. */
-typedef int (*lanes_fn)(const double *x, const double *u, const double *p, double *xdot,
-                        double *w);
-
-/* ... and optionally the same state derivative (force and lag included) over `width`
- * members at once (softcurve.simulation.solvers._lanes): x, u, p and xdot hold entry j of
- * member l at [j width + l], aligned to 64 bytes; w has sz_lanes_w such rows. */
-typedef struct {
-    casadi_fn f, force;
-    int nx, nu, np, m, lag;
-    long long sz_arg, sz_res, sz_iw, sz_w;
-    const double *lower, *upper;
-    double time_constant;
-    lanes_fn lanes;
-    int width;
-    long long sz_lanes_w;
-} sc_function;
-
-/* The arrays of one call of a generated function: arguments, results, integer and real
- * work. */
-typedef struct {
-    const double **arg;
-    double **res;
-    long long *iw;
-    double *w;
-} sc_arrays;
+#include "driver_internal.h"
 
 /* The arrays for a function of work sizes sz_arg, sz_res, sz_iw, sz_w (at least the
  * three arguments and one result every function here takes), with `extra` doubles after
  * w's own, from w + sz_w + 1; 0, or 1 when out of memory (arrays_close frees what was
  * allocated). */
-static int arrays_open(sc_arrays *c, long long sz_arg, long long sz_res, long long sz_iw,
+int arrays_open(sc_arrays *c, long long sz_arg, long long sz_res, long long sz_iw,
                      long long sz_w, long extra) {
     c->arg = (const double **)calloc(sz_arg > 3 ? sz_arg : 3, sizeof(double *));
     c->res = (double **)calloc(sz_res > 1 ? sz_res : 1, sizeof(double *));
@@ -112,26 +28,16 @@ static int arrays_open(sc_arrays *c, long long sz_arg, long long sz_res, long lo
     return !c->arg || !c->res || !c->iw || !c->w;
 }
 
-static void arrays_close(sc_arrays *c) {
+void arrays_close(sc_arrays *c) {
     free(c->arg);
     free(c->res);
     free(c->iw);
     free(c->w);
 }
 
-typedef struct {
-    const sc_function *fn;
-    const double *u, *p, *nominal;
-    sc_arrays c;
-    double *x, *xdot, *tau, *J, *LU, *ftmp;
-    int n; /* states integrated: nx, plus m lagging inputs */
-    int *piv;
-    long jacobians;
-} sc_work;
-
 /* Work arrays of f for n states (x, xdot, tau, ftmp, J and LU in one block after f's own
  * work); 0, or 1 when out of memory (work_close frees what was allocated). */
-static int work_open(sc_work *s, const sc_function *fn, int n) {
+int work_open(sc_work *s, const sc_function *fn, int n) {
     memset(s, 0, sizeof(*s));
     s->fn = fn;
     s->n = n;
@@ -148,14 +54,14 @@ static int work_open(sc_work *s, const sc_function *fn, int n) {
     return 0;
 }
 
-static void work_close(sc_work *s) {
+void work_close(sc_work *s) {
     arrays_close(&s->c);
     free(s->piv);
 }
 
 /* CVODES's counters since its last (re)start: steps, right-hand sides, linear-solver
  * setups, error-test failures, Newton failures. */
-static void read_counters(void *mem, long counters[5]) {
+void read_counters(void *mem, long counters[5]) {
     CVodeGetNumSteps(mem, &counters[0]);
     CVodeGetNumRhsEvals(mem, &counters[1]);
     CVodeGetNumLinSolvSetups(mem, &counters[2]);
@@ -168,7 +74,7 @@ static void quiet(int code, const char *module, const char *function, char *msg,
 }
 
 /* ydot = f(nominal * y, u, p) / nominal; 1 (recoverable) on a non-finite value */
-static int evaluate(sc_work *s, const double *y, double *ydot) {
+int evaluate(sc_work *s, const double *y, double *ydot) {
     const sc_function *fn = s->fn;
     int i, n = s->n;
     for (i = 0; i < n; ++i) s->x[i] = s->nominal[i] * y[i];
@@ -195,20 +101,20 @@ static int evaluate(sc_work *s, const double *y, double *ydot) {
     return 0;
 }
 
-static int rhs(realtype t, N_Vector y, N_Vector ydot, void *data) {
+int rhs(realtype t, N_Vector y, N_Vector ydot, void *data) {
     (void)t;
     return evaluate((sc_work *)data, N_VGetArrayPointer(y), N_VGetArrayPointer(ydot));
 }
 
 /* Forward-difference step of a state entry's value v: the square root of the machine
  * epsilon, relative where |v| > 1. */
-static double difference_step(double v) {
+double difference_step(double v) {
     return 1.4901161193847656e-08 * (fabs(v) > 1.0 ? fabs(v) : 1.0);
 }
 
 /* A = I - gamma J (n x n, column-major) as its LU factors (partial pivoting, row swaps in
  * piv); 1 where singular. */
-static int factor_newton(const double *J, double gamma, int n, double *A, int *piv) {
+int factor_newton(const double *J, double gamma, int n, double *A, int *piv) {
     int i, j, k;
     for (k = 0; k < n * n; ++k) A[k] = -gamma * J[k];
     for (i = 0; i < n; ++i) A[i + i * n] += 1.0;
@@ -233,7 +139,7 @@ static int factor_newton(const double *J, double gamma, int n, double *A, int *p
 }
 
 /* z = A^-1 z with the factors of factor_newton: the row swaps, then L, then U. */
-static void solve_newton(const double *A, const int *piv, int n, double *z) {
+void solve_newton(const double *A, const int *piv, int n, double *z) {
     int i, k;
     for (k = 0; k < n; ++k)
         if (piv[k] != k) {
@@ -250,7 +156,7 @@ static void solve_newton(const double *A, const int *piv, int n, double *z) {
 }
 
 /* Jv = J v (n x n, column-major). */
-static void times_jacobian(const double *J, const double *v, int n, double *Jv) {
+void times_jacobian(const double *J, const double *v, int n, double *Jv) {
     int i, j;
     for (i = 0; i < n; ++i) Jv[i] = 0.0;
     for (j = 0; j < n; ++j)
@@ -305,7 +211,7 @@ static int jtimes(N_Vector vv, N_Vector Jvv, realtype t, N_Vector y, N_Vector fy
 
 /* CVODES with Newton's method on a Newton matrix of callbacks (setup, solve, jtimes) for
  * x' = f; max_order 0: CVODES's own. */
-static void *create_with(int lmm, double t0, N_Vector y, CVRhsFn f, CVPrecSetupFn setup_fn,
+void *create_with(int lmm, double t0, N_Vector y, CVRhsFn f, CVPrecSetupFn setup_fn,
                          CVPrecSolveFn solve_fn, CVJacTimesFn jtimes_fn, void *data,
                          double rtol, double atol, long max_steps, int max_order) {
     void *mem = CVodeCreate(lmm, CV_NEWTON);
@@ -323,7 +229,7 @@ static void *create_with(int lmm, double t0, N_Vector y, CVRhsFn f, CVPrecSetupF
 }
 
 /* The same on the callbacks above (f's data starts with the sc_work they read). */
-static void *create(int lmm, double t0, N_Vector y, CVRhsFn f, void *data, double rtol,
+void *create(int lmm, double t0, N_Vector y, CVRhsFn f, void *data, double rtol,
                     double atol, long max_steps, int max_order) {
     return create_with(lmm, t0, y, f, setup, solve, jtimes, data, rtol, atol, max_steps,
                        max_order);
@@ -332,7 +238,7 @@ static void *create(int lmm, double t0, N_Vector y, CVRhsFn f, void *data, doubl
 /* Whether the configuration q (n_seg segments of (l, kx, ky)) lies outside the model's
  * domain: l in (0, longest], bending angle l |kappa| <= max_bend, finite (the rule of
  * softcurve.description.robot.in_domain, which words the message). */
-static int outside(const double *x, int width, const double *longest, int n_seg,
+int outside(const double *x, int width, const double *longest, int n_seg,
                    double max_bend) {
     int i;
     for (i = 0; i < width; ++i)
@@ -349,4 +255,3 @@ static int outside(const double *x, int width, const double *longest, int n_seg,
     }
     return 0;
 }
-"""

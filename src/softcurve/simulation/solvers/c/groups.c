@@ -1,25 +1,25 @@
-"""The C source of the CVODES driver's entry ``softcurve_cvodes``, compiled after
-``DRIVER_SOURCE`` of :mod:`softcurve.simulation.solvers._driver_source` into one library by
-:mod:`softcurve.simulation.solvers._driver`: members integrated one by one, or, where the problem
-has the state derivative over lanes (:mod:`softcurve.simulation.solvers._lanes`), in
-groups whose members are stacked into one CVODES system and evaluated together.
+/* softcurve_cvodes (softcurve_driver.h): members integrated one by one, or, where the
+ * problem has the state derivative over lanes (softcurve.simulation.driver_lanes), in
+ * groups whose members are stacked into one CVODES system and evaluated together.
+ *
+ * Why groups: one lanes evaluation of four members costs about one scalar evaluation
+ * (softcurve.compiled.lanes.LANE_WIDTH), and CVODES's own work per step (vector
+ * operations, error test, interpolation) is shared by the group. The members then share
+ * the group's steps, about 1.3 times the steps of each alone on the paper's batch
+ * (benchmarks/study_stacked_batch.py). Each member keeps its own accuracy: the group's
+ * tolerances are those of one member divided by the square root of the group's size, so
+ * that the group's weighted RMS norm is at least every member's own. A group with a member
+ * that fails or leaves the domain is integrated again member by member, so that a group's
+ * failure reads exactly as the members' runs alone (a member that would fail alone may
+ * succeed in its group, whose steps are smaller). Only members of one family (Adams or
+ * BDF) form a group. */
+#define _ISOC11_SOURCE /* aligned_alloc under -std=c99 */
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
 
-Why groups: one lanes evaluation of four members costs about one scalar evaluation
-(:data:`~softcurve.compiled.LANE_WIDTH`), and CVODES's own work per step (vector
-operations, error test, interpolation) is shared by the group. The members then share
-the group's steps, about 1.3 times the steps of each alone on the paper's batch
-(``benchmarks/study_stacked_batch.py``). Each member keeps its own accuracy: the group's
-tolerances are those of one member divided by the square root of the group's size, so
-that the group's weighted RMS norm is at least every member's own. A group with a member
-that fails or leaves the domain is integrated again member by member, so that a group's
-failure reads exactly as the members' runs alone (a member that would fail alone may
-succeed in its group, whose steps are smaller). Only members of one family (Adams or
-BDF) form a group.
+#include "driver_internal.h"
 
-Kept as a Python string so that it ships with the package like any module.
-"""
-
-GROUPS_SOURCE = r"""
 /* A group of g members stacked member-major (member l's scaled states at y[l n, l n + n))
  * with the lanes state derivative; the Newton matrix is block-diagonal, one block per
  * member, each from forward differences of all members at once. */
@@ -139,10 +139,9 @@ static int group_jtimes(N_Vector vv, N_Vector Jvv, realtype t, N_Vector y, N_Vec
 typedef struct {
     const sc_function *fn;
     const int *lmm, *ends, *restart;
+    const sc_options *o;
     const double *fastest, *u, *p, *nominal, *longest, *times;
-    double settled_ratio, max_bend, rtol, atol;
-    int n, inputs, n_seg, k, n_ends, max_order;
-    long max_steps;
+    int n, inputs, n_seg, k, n_ends;
     double *out;
     int *reached, *flag, *used_bdf;
     long *stats;
@@ -191,7 +190,7 @@ static int integrate_members(sc_call *c, int b, int g) {
                 double fastest_state = 0.0;
                 for (j = 0; ok && j < n; ++j)
                     fastest_state = fmax(fastest_state, fabs(ftmp[l * n + j]));
-                settled = settled && fastest_state * c->settled_ratio < c->fastest[b + l];
+                settled = settled && fastest_state * c->o->settled_ratio < c->fastest[b + l];
             }
             family = settled ? CV_BDF : own;
             for (l = 0; l < g; ++l) c->used_bdf[b + l] |= family == CV_BDF;
@@ -202,10 +201,10 @@ static int integrate_members(sc_call *c, int b, int g) {
             double shrink = sqrt((double)g); /* the group's norm bounds every member's */
             c->mem[slot] = grouped ? create_with(family, c->times[first], c->y[1], group_rhs,
                                                  group_setup, group_solve, group_jtimes, data,
-                                                 c->rtol / shrink, c->atol / shrink,
-                                                 c->max_steps, c->max_order)
+                                                 c->o->rtol / shrink, c->o->atol / shrink,
+                                                 c->o->max_steps, c->o->max_order)
                                    : create(family, c->times[first], c->y[0], rhs, data,
-                                            c->rtol, c->atol, c->max_steps, c->max_order);
+                                            c->o->rtol, c->o->atol, c->o->max_steps, c->o->max_order);
             stop = c->mem[slot] == NULL ? -100 : 0;
         } else if (CVodeReInit(c->mem[slot], c->times[first], c->y[grouped])) {
             stop = -100;
@@ -223,7 +222,7 @@ static int integrate_members(sc_call *c, int b, int g) {
              * tout the next output: CVODES sizes a restart's first step by it. */
             long taken = 0;
             while (tret < c->times[i] && !stop) {
-                int status = ++taken > c->max_steps
+                int status = ++taken > c->o->max_steps
                                  ? CV_TOO_MUCH_WORK
                                  : CVode(c->mem[slot], c->times[i], c->y[grouped], &tret,
                                          CV_ONE_STEP);
@@ -239,7 +238,7 @@ static int integrate_members(sc_call *c, int b, int g) {
                 for (j = 0; j < n; ++j) row[j] = out_y[l * n + j] * nominal[l * n + j];
                 c->reached[b + l] = i + 1;
                 if (outside(row, n, c->longest ? c->longest + (long)(b + l) * c->n_seg : NULL,
-                            c->n_seg, c->max_bend))
+                            c->n_seg, c->o->max_bend))
                     c->flag[b + l] = stop = 1;
             }
         }
@@ -257,37 +256,21 @@ static int integrate_members(sc_call *c, int b, int g) {
     return grouped && stop != 0;
 }
 
-/* Integrate `count` members over the grid `times[0..k)` from out[b, 0, :] (physical, at
- * times[0]), in segments ending at the output indices ends[0..n_ends) (the last is k - 1),
- * each a fresh start of CVODES with the member's input of that segment u[b, s, :]. Member b
- * starts with family lmm[b] (1 Adams, 2 BDF); where restart[s] and fastest[b] > 0, segment s
- * is integrated with BDF if the member has settled (max |xdot / nominal| * settled_ratio <
- * fastest[b]) and with lmm[b] otherwise. A member stops at its first output outside the
- * domain (longest[b, :] per segment, NULL: no check) or at a failure of CVODES. Writes
- * out[b, i, :], reached[b] (outputs filled, the one outside the domain included), flag[b]
- * (0, 1 outside the domain, CVODES's negative flag, -100 when it could not be set up),
- * used_bdf[b], and adds to stats[b, :]: steps, right-hand sides, Jacobians, linear-solver
- * setups, error-test failures, Newton failures. Where fn has lanes, members b .. b + width
- * - 1 of one family (b a multiple of fn->width) go in a group, the others alone: a group
- * switches to BDF at a restart where all have settled, and its counters are every
- * member's; a group that fails is integrated again member by member (outputs beyond
- * what a member then reaches are NaN). */
-__attribute__((visibility("default"))) int softcurve_cvodes(
-    const sc_function *fn, int count, const int *lmm, const double *fastest,
-    double settled_ratio, const double *u, const double *p, const double *nominal,
-    const double *longest, int n_seg, double max_bend, const double *times, int k,
-    const int *ends, const int *restart, int n_ends, double rtol, double atol, long max_steps,
-    int max_order, double *out, int *reached, int *flag, int *used_bdf, long *stats) {
+/* softcurve_driver.h */
+SC_EXPORT int softcurve_cvodes(const sc_function *fn, const sc_options *options, int count,
+                               const int *lmm, const double *fastest, const double *u,
+                               const double *p, const double *nominal, const double *longest,
+                               int n_seg, const double *times, int k, const int *ends,
+                               const int *restart, int n_ends, double *out, int *reached,
+                               int *flag, int *used_bdf, long *stats) {
     int width = fn->lanes != NULL && fn->width > 1 ? fn->width : 1, b, g, l, i, e, failed;
     long *kept = (long *)malloc(sizeof(long) * STATS * width); /* counters before a group */
     sc_call c;
     memset(&c, 0, sizeof(c));
-    c.fn = fn, c.lmm = lmm, c.ends = ends, c.restart = restart, c.fastest = fastest;
-    c.u = u, c.p = p, c.nominal = nominal, c.longest = longest, c.times = times;
-    c.settled_ratio = settled_ratio, c.max_bend = max_bend, c.rtol = rtol, c.atol = atol;
-    c.n = fn->nx + (fn->lag ? fn->m : 0), c.inputs = fn->force ? fn->m : fn->nu;
-    c.n_seg = n_seg, c.k = k, c.n_ends = n_ends, c.max_order = max_order;
-    c.max_steps = max_steps, c.out = out, c.reached = reached, c.flag = flag;
+    c.fn = fn, c.o = options, c.lmm = lmm, c.ends = ends, c.restart = restart;
+    c.fastest = fastest, c.u = u, c.p = p, c.nominal = nominal, c.longest = longest;
+    c.times = times, c.n = fn->nx + (fn->lag ? fn->m : 0), c.inputs = fn->force ? fn->m : fn->nu;
+    c.n_seg = n_seg, c.k = k, c.n_ends = n_ends, c.out = out, c.reached = reached, c.flag = flag;
     c.used_bdf = used_bdf, c.stats = stats;
     c.y[0] = N_VNew_Serial(c.n), c.dky[0] = N_VNew_Serial(c.n);
     c.y[1] = N_VNew_Serial((long)width * c.n), c.dky[1] = N_VNew_Serial((long)width * c.n);
@@ -324,4 +307,3 @@ __attribute__((visibility("default"))) int softcurve_cvodes(
     free(kept);
     return 0;
 }
-"""

@@ -1,52 +1,30 @@
-"""The C source of the sensitivity right-hand side in parts, one of them on a helper
-thread, compiled before ``SENSITIVITY_SOURCE`` of
-:mod:`softcurve.simulation.solvers._sensitivity_source` into one library by
-:mod:`softcurve.simulation.solvers._driver`.
 
-The columns' right-hand side ``f_x S + f_d`` is the sum of the Jacobian's column
-blocks, ``f_x[:, A] S[A, :] + f_d`` and ``f_x[:, B] S[B, :]`` (the split is chosen in
-:mod:`softcurve.simulation.sensitivity._split`); the driver evaluates the first part on
-its own thread while a helper thread evaluates the second.
-
-Kept as a Python string so that it ships with the package like any module.
-"""
-
-PARTS_SOURCE = r"""
-/* The parts of the columns' right-hand side, evaluated by compiled functions of the same
- * arguments (x;vec(S), u, d;scale). With two parts and a helper thread, the driver posts
+/* The parts of the columns' right-hand side (driver_internal.h), evaluated by compiled
+ * functions of the same arguments (x;vec(S), u, d;scale). With two parts and a helper thread, the driver posts
  * each evaluation as a generation number; whichever thread claims the second part first
  * (an atomic exchange from the previous generation) evaluates it. The driver claims it
  * itself when it finishes the first part before the helper has started, so a helper that
  * is not scheduled (a busy machine) does not hold the driver up; only a helper preempted
  * after its claim does, until it runs again. Whichever thread evaluates it, the sum is
  * the same (same function, inputs and order of the sum). Waiters spin, then yield.
- * Which thread wins depends on the scheduler; HELPER_ALWAYS leaves every second part to
- * the helper (the driver waits), so that a test can run the helper's path for certain. */
+ * Which thread wins depends on the scheduler: a test that must run the helper's path
+ * builds its own library with SOFTCURVE_TEST_HELPER_TAKES_ALL defined, where the driver
+ * never claims the second part (it waits); the product's library never has it. */
+#define _POSIX_C_SOURCE 200809L /* pthreads and sched_yield under -std=c99 */
 #include <pthread.h>
 #include <sched.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "driver_internal.h"
 
 #define SPINS_BEFORE_YIELD 4096 /* pauses, about 0.1-0.5 ms, before the waiter yields */
 
-enum { HELPER_NONE = 0, HELPER_SHARED = 1, HELPER_ALWAYS = 2 }; /* who takes part 2 */
-
-typedef struct {
-    casadi_fn fn;
-    sc_arrays c;
-    double *out;
-    int status;
-} sc_part;
-
-typedef struct {
-    sc_part part[2];
-    int count;          /* parts: 1 or 2 */
-    int helped;         /* a helper thread runs */
-    int always;         /* HELPER_ALWAYS: the driver never claims the second part */
-    pthread_t helper;
-    unsigned posted, claimed, done; /* generations (atomics; wrap around by definition) */
-    int stop;                       /* the helper's stop request (atomic) */
-    unsigned generation;
-    long helper_evaluations; /* second parts the helper evaluated (read after the join) */
-} sc_parts;
+#ifdef SOFTCURVE_TEST_HELPER_TAKES_ALL
+#define DRIVER_CLAIMS 0
+#else
+#define DRIVER_CLAIMS 1 /* the driver claims a second part the helper has not started */
+#endif
 
 static void relax(long *spins) {
 #if defined(__x86_64__) || defined(__i386__)
@@ -89,7 +67,7 @@ static void *help(void *data) {
 
 /* Every part at the arguments already in place (set before this call: the helper reads
  * them after the post); 0, or the first nonzero status of a part. */
-static int evaluate_parts(sc_parts *z) {
+int evaluate_parts(sc_parts *z) {
     unsigned g = ++z->generation;
     long spins = 0;
     if (z->count == 1) {
@@ -98,7 +76,7 @@ static int evaluate_parts(sc_parts *z) {
     }
     if (z->helped) __atomic_store_n(&z->posted, g, __ATOMIC_RELEASE);
     run_part(&z->part[0]);
-    if (!(z->helped && z->always) && claim(z, g))
+    if ((DRIVER_CLAIMS || !z->helped) && claim(z, g))
         run_part(&z->part[1]);
     else
         while (__atomic_load_n(&z->done, __ATOMIC_ACQUIRE) != g) relax(&spins);
@@ -128,7 +106,7 @@ static void part_close(sc_part *p) {
  * `outputs` doubles) on the arguments args; a helper thread for the second part unless
  * helper is HELPER_NONE (without one where it cannot be started). 0, or 1 when out of
  * memory or given another count. */
-static int parts_open(sc_parts *z, int count, const casadi_fn *fns, const long long *sizes,
+int parts_open(sc_parts *z, int count, const casadi_fn *fns, const long long *sizes,
                       const double **args, long outputs, int helper) {
     int k;
     memset(z, 0, sizeof(*z));
@@ -136,13 +114,12 @@ static int parts_open(sc_parts *z, int count, const casadi_fn *fns, const long l
     z->count = count;
     for (k = 0; k < count; ++k)
         if (part_open(&z->part[k], fns[k], sizes + 4 * k, args, outputs)) return 1;
-    z->always = helper == HELPER_ALWAYS;
     if (count == 2 && helper != HELPER_NONE)
         z->helped = pthread_create(&z->helper, NULL, help, z) == 0;
     return 0;
 }
 
-static void parts_close(sc_parts *z) {
+void parts_close(sc_parts *z) {
     int k;
     if (z->helped) {
         __atomic_store_n(&z->stop, 1, __ATOMIC_RELEASE);
@@ -150,4 +127,3 @@ static void parts_close(sc_parts *z) {
     }
     for (k = 0; k < z->count; ++k) part_close(&z->part[k]);
 }
-"""

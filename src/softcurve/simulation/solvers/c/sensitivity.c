@@ -1,16 +1,4 @@
-"""The C source of the CVODES driver's forward-sensitivity entry, compiled with
-``DRIVER_SOURCE`` of ``softcurve.simulation.solvers._driver_source`` into one library by
-:mod:`softcurve.simulation.solvers._driver` (it uses that source's declarations, work struct and
-Newton-matrix callbacks), after the parts of the columns' right-hand side
-(:mod:`softcurve.simulation.solvers._parts_source`), which it includes.
-
-Kept as a Python string so that it ships with the package like any module.
-"""
-
-from softcurve.simulation.solvers._parts_source import PARTS_SOURCE
-
-_ENTRY_SOURCE = r"""
-/* Forward sensitivities of an experiment (softcurve.simulation.sensitivity._sensitivity): the state
+/* softcurve_sensitivities (softcurve_driver.h): forward sensitivities of an experiment (softcurve.simulation.sensitivity): the state
  * x' = f(x, u(t), d) by CVODES with Newton's method on its own Newton matrix (the
  * callbacks above), the m sensitivity columns S' = f_x S + f_d by CVODES's staggered
  * corrector. By default only the state is in the error test (CVODES's default): with
@@ -18,17 +6,12 @@ _ENTRY_SOURCE = r"""
  * the steps for columns more accurate than a fit needs (docs/validation.md, "Speed").
  * f_x S + f_d comes from the identification's compiled function
  * fs(x;vec(S), u, d;scale) -> f;vec(S'), or from two parts that sum to it, the second on
- * a helper thread (PARTS_SOURCE). */
-typedef int (*CVSensRhsFn)(int Ns, realtype t, N_Vector y, N_Vector ydot, N_Vector *yS,
-                           N_Vector *ySdot, void *data, N_Vector tmp1, N_Vector tmp2);
-extern int CVodeSensInit(void *mem, int Ns, int ism, CVSensRhsFn fS, N_Vector *yS0);
-extern int CVodeSensReInit(void *mem, int ism, N_Vector *yS0);
-extern int CVodeSensEEtolerances(void *mem);
-extern int CVodeSetSensErrCon(void *mem, int errconS);
-extern int CVodeGetSens(void *mem, realtype *tret, N_Vector *yS);
-extern N_Vector *N_VCloneVectorArray_Serial(int count, N_Vector w);
-extern void N_VDestroyVectorArray_Serial(N_Vector *vs, int count);
-#define CV_STAGGERED 2
+ * a helper thread (parts.c). */
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "driver_internal.h"
 
 typedef struct {
     sc_work s; /* first member: the Newton-matrix callbacks read the data as an sc_work */
@@ -91,25 +74,12 @@ static int sensitivity_rhs(int m, realtype t, N_Vector y, N_Vector ydot, N_Vecto
     return 0;
 }
 
-/* Integrate from out[0, :] = (x0, vec(S0)) (physical units) over times[0..count) and
- * write out[i, :] = (x, vec(S)) at times[i]. fn describes f(x, u, d) (nx states, nu
- * inputs); fs holds `parts` functions (x;vec(S), u, d;scale) whose outputs, after
- * `leading` entries, sum to vec(f_x S + f_d), with work sizes fs_sizes[4 k..4 k+3]
- * (sz_arg, sz_res, sz_iw, sz_w); helper (HELPER_*): who evaluates the second part. d
- * feeds f, dsc = (d, scale) the parts.
- * table (count rows): per interval the inputs (linear = 0: a jump at every sample, where
- * CVODES restarts) or the line (a, b) (linear = 1: integrated through). lmm: 1 Adams,
- * 2 BDF; columns_tested: the sensitivities in the error test too. Returns 0, CVODES's
- * negative flag, or -100 when the solver could not be set up; adds to stats (zeroed by
- * the caller): steps, right-hand sides, Jacobians, linear-solver setups, error-test
- * failures, sensitivity evaluations, second parts the helper thread evaluated;
- * *reached: outputs filled (x0 included). */
-__attribute__((visibility("default"))) int softcurve_sensitivities(
-    const sc_function *fn, const casadi_fn *fs, const long long *fs_sizes, int parts,
-    int leading, int helper, int m, const double *d,
-    const double *dsc, const double *times, int count, const double *table, int linear,
-    int lmm, double rtol, double atol, long max_steps, int columns_tested, double *out,
-    long *stats, int *reached) {
+/* softcurve_driver.h */
+SC_EXPORT int softcurve_sensitivities(const sc_function *fn, const sc_options *options,
+                                      const casadi_fn *fs, const long long *fs_sizes, int parts,
+                                      int leading, int m, const double *d, const double *dsc,
+                                      const double *times, int count, const double *table,
+                                      int linear, double *out, long *stats, int *reached) {
     int n = fn->nx, width = fn->nx * (1 + m), i, j, flag = 0, counted = 0;
     size_t bytes = n * sizeof(double);
     sc_sensitivity z;
@@ -126,7 +96,8 @@ __attribute__((visibility("default"))) int softcurve_sensitivities(
     args[1] = z.xs ? z.xs + width : NULL;
     args[2] = dsc;
     if (flag || !y || !ones || !z.xs ||
-        parts_open(&z.parts, parts, fs, fs_sizes, args, leading + (long)n * m, helper) ||
+        parts_open(&z.parts, parts, fs, fs_sizes, args, leading + (long)n * m,
+                   options->helper) ||
         (m > 0 && !(yS = N_VCloneVectorArray_Serial(m, y)))) {
         flag = -100;
         goto done;
@@ -147,10 +118,11 @@ __attribute__((visibility("default"))) int softcurve_sensitivities(
     memcpy(N_VGetArrayPointer(y), out, bytes);
     for (j = 0; j < m; ++j) memcpy(N_VGetArrayPointer(yS[j]), out + n * (1 + j), bytes);
     inputs_at(&z, times[1]);
-    mem = create(lmm == CV_BDF ? CV_BDF : CV_ADAMS, times[0], y, state_rhs, &z, rtol, atol,
-                 max_steps, 0);
+    mem = create(options->family == CV_BDF ? CV_BDF : CV_ADAMS, times[0], y, state_rhs, &z,
+                 options->rtol, options->atol, options->max_steps, options->max_order);
     if (!mem || (m > 0 && (CVodeSensInit(mem, m, CV_STAGGERED, sensitivity_rhs, yS) ||
-                   CVodeSensEEtolerances(mem) || CVodeSetSensErrCon(mem, columns_tested != 0)))) {
+                   CVodeSensEEtolerances(mem) ||
+                   CVodeSetSensErrCon(mem, options->columns_tested != 0)))) {
         flag = -100;
         goto done;
     }
@@ -192,7 +164,3 @@ done:
     free(z.xs);
     return flag;
 }
-"""
-
-SENSITIVITY_SOURCE = PARTS_SOURCE + _ENTRY_SOURCE
-"""The parts and the entry ``softcurve_sensitivities``, in that order."""

@@ -1,0 +1,107 @@
+/* The driver's own declarations, shared by its C files (not seen by Python): the work of
+ * one member, the Newton-matrix callbacks' helpers and the domain test (driver.c), the
+ * parts of the columns' right-hand side (parts.c). */
+#ifndef SOFTCURVE_DRIVER_INTERNAL_H
+#define SOFTCURVE_DRIVER_INTERNAL_H
+
+#include <pthread.h>
+
+#include "softcurve_driver.h"
+#include "sundials2.h"
+
+#define GMRES_DIMENSION 2 /* one iteration converges (exact preconditioner); one spare */
+#define STATS 6
+
+/* The arrays of one call of a generated function: arguments, results, integer and real
+ * work. */
+typedef struct {
+    const double **arg;
+    double **res;
+    long long *iw;
+    double *w;
+} sc_arrays;
+
+/* One member's work: its inputs, parameters and scales, the arrays of f, the state and its
+ * derivative, the Jacobian and the Newton matrix's factors. */
+typedef struct {
+    const sc_function *fn;
+    const double *u, *p, *nominal;
+    sc_arrays c;
+    double *x, *xdot, *tau, *J, *LU, *ftmp;
+    int n; /* states integrated: nx, plus m lagging inputs */
+    int *piv;
+    long jacobians;
+} sc_work;
+
+/* The arrays for a function of work sizes sz_arg, sz_res, sz_iw, sz_w (at least the
+ * three arguments and one result every function here takes), with `extra` doubles after
+ * w's own, from w + sz_w + 1; 0, or 1 when out of memory (arrays_close frees what was
+ * allocated). */
+int arrays_open(sc_arrays *c, long long sz_arg, long long sz_res, long long sz_iw,
+                long long sz_w, long extra);
+void arrays_close(sc_arrays *c);
+/* Work arrays of f for n states (x, xdot, tau, ftmp, J and LU in one block after f's own
+ * work); 0, or 1 when out of memory (work_close frees what was allocated). */
+int work_open(sc_work *s, const sc_function *fn, int n);
+void work_close(sc_work *s);
+/* CVODES's counters since its last (re)start: steps, right-hand sides, linear-solver
+ * setups, error-test failures, Newton failures. */
+void read_counters(void *mem, long counters[5]);
+/* ydot = f(nominal * y, u, p) / nominal; 1 (recoverable) on a non-finite value */
+int evaluate(sc_work *s, const double *y, double *ydot);
+/* evaluate() as CVODES's right-hand side (data: an sc_work). */
+int rhs(realtype t, N_Vector y, N_Vector ydot, void *data);
+/* Forward-difference step of a state entry's value v: the square root of the machine
+ * epsilon, relative where |v| > 1. */
+double difference_step(double v);
+/* A = I - gamma J (n x n, column-major) as its LU factors (partial pivoting, row swaps in
+ * piv); 1 where singular. */
+int factor_newton(const double *J, double gamma, int n, double *A, int *piv);
+/* z = A^-1 z with the factors of factor_newton: the row swaps, then L, then U. */
+void solve_newton(const double *A, const int *piv, int n, double *z);
+/* Jv = J v (n x n, column-major). */
+void times_jacobian(const double *J, const double *v, int n, double *Jv);
+/* CVODES with Newton's method on a Newton matrix of callbacks (setup, solve, jtimes) for
+ * x' = f; max_order 0: CVODES's own. */
+void *create_with(int lmm, double t0, N_Vector y, CVRhsFn f, CVPrecSetupFn setup_fn,
+                  CVPrecSolveFn solve_fn, CVJacTimesFn jtimes_fn, void *data, double rtol,
+                  double atol, long max_steps, int max_order);
+/* The same on the callbacks above (f's data starts with the sc_work they read). */
+void *create(int lmm, double t0, N_Vector y, CVRhsFn f, void *data, double rtol, double atol,
+             long max_steps, int max_order);
+/* Whether the configuration q (n_seg segments of (l, kx, ky)) lies outside the model's
+ * domain: l in (0, longest], bending angle l |kappa| <= max_bend, finite (the rule of
+ * softcurve.description.robot.in_domain, which words the message). */
+int outside(const double *x, int width, const double *longest, int n_seg, double max_bend);
+
+/* One part of the columns' right-hand side: its function, arrays and output. */
+typedef struct {
+    casadi_fn fn;
+    sc_arrays c;
+    double *out;
+    int status;
+} sc_part;
+
+typedef struct {
+    sc_part part[2];
+    int count;          /* parts: 1 or 2 */
+    int helped;         /* a helper thread runs */
+    pthread_t helper;
+    unsigned posted, claimed, done; /* generations (atomics; wrap around by definition) */
+    int stop;                       /* the helper's stop request (atomic) */
+    unsigned generation;
+    long helper_evaluations; /* second parts the helper evaluated (read after the join) */
+} sc_parts;
+
+/* count parts, 1 or 2 (functions fns, work sizes sizes[4 k..4 k+3], each writing
+ * `outputs` doubles) on the arguments args; a helper thread for the second part unless
+ * helper is HELPER_NONE (without one where it cannot be started). 0, or 1 when out of
+ * memory or given another count. */
+int parts_open(sc_parts *z, int count, const casadi_fn *fns, const long long *sizes,
+               const double **args, long outputs, int helper);
+/* Every part at the arguments already in place (set before this call: the helper reads
+ * them after the post); 0, or the first nonzero status of a part. */
+int evaluate_parts(sc_parts *z);
+void parts_close(sc_parts *z);
+
+#endif

@@ -1,0 +1,126 @@
+/* softcurve's driver of SUNDIALS CVODES: what Python sees of it. Python derives its ctypes
+ * declarations from this file (softcurve.compiled.declarations), so the header is written
+ * in the restricted form that parser reads:
+ *   - comments are C block comments; preprocessor lines are ignored;
+ *   - constants are `enum { NAME = INTEGER, ... };`;
+ *   - a function-pointer type is `typedef RET (*NAME)(...);` on its own (a pointer);
+ *   - a struct is `typedef struct { ... } NAME;`, one `TYPE NAME;` field per line;
+ *   - an exported function is `SC_EXPORT RET NAME(TYPE NAME, ...);` (lines may wrap);
+ *   - TYPE is `int`, `long`, `long long` or `double`, optionally `const`, or any of them,
+ *     `void`, a struct or a function-pointer type followed by one `*` (a pointer; to a
+ *     struct of this header: a pointer to its ctypes Structure), or a function-pointer
+ *     type alone. */
+#ifndef SOFTCURVE_DRIVER_H
+#define SOFTCURVE_DRIVER_H
+
+#define SC_EXPORT __attribute__((visibility("default")))
+
+/* CasADi's generated function: f(arg, res, iw, w, mem). */
+typedef int (*casadi_fn)(const double **arg, double **res, long long *iw, double *w, int mem);
+
+/* The state derivative over `width` members at once (softcurve.simulation.driver_lanes):
+ * x, u, p and xdot hold entry j of member l at [j width + l], aligned to 64 bytes; w has
+ * sz_lanes_w such rows. */
+typedef int (*lanes_fn)(const double *x, const double *u, const double *p, double *xdot,
+                        double *w);
+
+/* A model described to the driver: its generated right-hand side f(x, tau, p) (nx states,
+ * nu forces, np parameters) with its work sizes (the largest over f and force), and
+ * optionally an actuator's force(q, v) -> tau = H(q) v with m inputs: the member's input
+ * is then v (m) or, with lag, the command of v, whose m states follow x with the rate
+ * (clip(command, lower, upper) - v) / time_constant; and optionally the same state
+ * derivative over lanes. */
+typedef struct {
+    casadi_fn f;
+    casadi_fn force;
+    int nx;
+    int nu;
+    int np;
+    int m;
+    int lag;
+    long long sz_arg;
+    long long sz_res;
+    long long sz_iw;
+    long long sz_w;
+    const double *lower;
+    const double *upper;
+    double time_constant;
+    lanes_fn lanes;
+    int width;
+    long long sz_lanes_w;
+} sc_function;
+
+/* The settings of a call (not its arrays), filled by Python in one place
+ * (softcurve.simulation.native.options). */
+typedef struct {
+    double rtol;          /* relative tolerance */
+    double atol;          /* absolute tolerance of the integrated state */
+    long max_steps;       /* CVODES's steps allowed per output */
+    int max_order;        /* the largest order of the method; 0: CVODES's own */
+    int family;           /* softcurve_sensitivities: 1 Adams, 2 BDF */
+    double settled_ratio; /* softcurve_cvodes: settled when max |xdot| ratio < fastest */
+    double max_bend;      /* the domain's largest bending angle of a segment [rad] */
+    int columns_tested;   /* softcurve_sensitivities: the columns in the error test too */
+    int helper;           /* softcurve_sensitivities: HELPER_NONE or HELPER_SHARED */
+} sc_options;
+
+/* Who evaluates the second of two parts of the columns' right-hand side: the driver's
+ * own thread, or whichever of it and a helper thread claims it first. */
+enum { HELPER_NONE = 0, HELPER_SHARED = 1 };
+
+/* Integrate `count` members over the grid `times[0..k)` from out[b, 0, :] (physical, at
+ * times[0]), in segments ending at the output indices ends[0..n_ends) (the last is k - 1),
+ * each a fresh start of CVODES with the member's input of that segment u[b, s, :]. Member b
+ * starts with family lmm[b] (1 Adams, 2 BDF); where restart[s] and fastest[b] > 0, segment s
+ * is integrated with BDF if the member has settled (max |xdot / nominal| * settled_ratio <
+ * fastest[b]) and with lmm[b] otherwise. A member stops at its first output outside the
+ * domain (longest[b, :] per segment, NULL: no check) or at a failure of CVODES. Writes
+ * out[b, i, :], reached[b] (outputs filled, the one outside the domain included), flag[b]
+ * (0, 1 outside the domain, CVODES's negative flag, -100 when it could not be set up),
+ * used_bdf[b], and adds to stats[b, :]: steps, right-hand sides, Jacobians, linear-solver
+ * setups, error-test failures, Newton failures. Where fn has lanes, members b .. b + width
+ * - 1 of one family (b a multiple of fn->width) go in a group, the others alone: a group
+ * switches to BDF at a restart where all have settled, and its counters are every
+ * member's; a group that fails is integrated again member by member (outputs beyond
+ * what a member then reaches are NaN). Returns 0. */
+SC_EXPORT int softcurve_cvodes(const sc_function *fn, const sc_options *options, int count,
+                               const int *lmm, const double *fastest, const double *u,
+                               const double *p, const double *nominal, const double *longest,
+                               int n_seg, const double *times, int k, const int *ends,
+                               const int *restart, int n_ends, double *out, int *reached,
+                               int *flag, int *used_bdf, long *stats);
+
+/* Integrate from out[0, :] = (x0, vec(S0)) (physical units) over times[0..count) and
+ * write out[i, :] = (x, vec(S)) at times[i]. fn describes f(x, u, d) (nx states, nu
+ * inputs); fs holds `parts` functions (x;vec(S), u, d;scale) whose outputs, after
+ * `leading` entries, sum to vec(f_x S + f_d), with work sizes fs_sizes[4 k..4 k+3]
+ * (sz_arg, sz_res, sz_iw, sz_w); options->helper: who evaluates the second part. d
+ * feeds f, dsc = (d, scale) the parts.
+ * table (count rows): per interval the inputs (linear = 0: a jump at every sample, where
+ * CVODES restarts) or the line (a, b) (linear = 1: integrated through). options->family:
+ * 1 Adams, 2 BDF; options->columns_tested: the sensitivities in the error test too.
+ * Returns 0, CVODES's negative flag, or -100 when the solver could not be set up; adds to
+ * stats (zeroed by the caller): steps, right-hand sides, Jacobians, linear-solver setups,
+ * error-test failures, sensitivity evaluations, second parts the helper thread
+ * evaluated; *reached: outputs filled (x0 included). */
+SC_EXPORT int softcurve_sensitivities(const sc_function *fn, const sc_options *options,
+                                      const casadi_fn *fs, const long long *fs_sizes, int parts,
+                                      int leading, int m, const double *d, const double *dsc,
+                                      const double *times, int count, const double *table,
+                                      int linear, double *out, long *stats, int *reached);
+
+/* f at `count` states x[b, :] (physical, nx + lagging inputs) with inputs u[b, :] and
+ * parameters p (shared): xdot[b, :]. Returns 0, or -100 when out of memory. */
+SC_EXPORT int softcurve_rhs(const sc_function *fn, int count, const double *x, const double *u,
+                            const double *p, double *xdot);
+
+/* Whether each of `count` configurations q[b, :] (n_seg segments of (l, kx, ky)) lies
+ * outside the model's domain: flags[b]; the tests check it against Python's rule. */
+SC_EXPORT void softcurve_outside(const double *q, int count, const double *longest, int n_seg,
+                                 double max_bend, int *flags);
+
+/* sizeof of the structs above, for the check that Python's declarations match. */
+SC_EXPORT long softcurve_sizeof_sc_function(void);
+SC_EXPORT long softcurve_sizeof_sc_options(void);
+
+#endif
