@@ -15,7 +15,7 @@ import pytest
 import softcurve as sc
 from softcurve.identification.experiments import Experiment
 from softcurve.identification.fits._parameters import Free, FreeParameters
-from softcurve.identification.maps import bellows_input_map, curvatures
+from softcurve.identification.maps import bellows_input_map, curvature_map
 from softcurve.simulation.sensitivity._route import integrate_sensitivities
 from softcurve.simulation.sensitivity._sensitivity import (
     SENSITIVITY_CVODES,
@@ -60,7 +60,7 @@ def _evaluator(model, hold, lag=None, options=None, threads=1):
     if lag:
         x0[model.n_state :] = [p[0] for p in pressures.values()]
     evaluate = trajectory_sensitivities(
-        model, parameters, curvatures(), inputs, x0, experiment, options,
+        model, parameters, curvature_map(), inputs, x0, experiment, options,
         "input_lag" if lag else None, hold, threads,
     )  # fmt: skip
     return evaluate, parameters.theta0
