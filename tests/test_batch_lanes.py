@@ -117,9 +117,11 @@ def test_without_a_compiler_for_the_lanes_the_members_run_alone(monkeypatch, tmp
     # the cache key holds no compiler: lanes cached by another test would be loaded
     monkeypatch.setenv("SOFTCURVE_CACHE_DIR", str(tmp_path / "lanes-cache"))
     q0s, qd0s = members(4)
-    grouped = simulate_batch(model, q0s, qd0s, t_final=0.2, dt=0.01)
+    with pytest.warns(sc.RouteWarning, match="over lanes did not compile"):
+        grouped = simulate_batch(model, q0s, qd0s, t_final=0.2, dt=0.01)
     alone = simulate_batch(model, q0s, qd0s, t_final=0.2, dt=0.01, lanes=False)
     np.testing.assert_array_equal(grouped.x, alone.x)
+    assert grouped.stats["route"] == alone.stats["route"] == "driver"
     assert log.read_text().count("x") >= 1  # the lanes were asked for and refused
 
 

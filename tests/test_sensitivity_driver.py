@@ -15,7 +15,7 @@ import pytest
 import softcurve as sc
 from softcurve.identification.experiments import Experiment
 from softcurve.identification.fits._parameters import Free, FreeParameters
-from softcurve.identification.maps import bellows_input_map, curvatures
+from softcurve.identification.maps import bellows_input_map, curvature_map
 from softcurve.simulation.sensitivity._route import integrate_sensitivities
 from softcurve.simulation.sensitivity._sensitivity import (
     SENSITIVITY_CVODES,
@@ -60,7 +60,7 @@ def _evaluator(model, hold, lag=None, options=None, threads=1):
     if lag:
         x0[model.n_state :] = [p[0] for p in pressures.values()]
     evaluate = trajectory_sensitivities(
-        model, parameters, curvatures(), inputs, x0, experiment, options,
+        model, parameters, curvature_map(), inputs, x0, experiment, options,
         "input_lag" if lag else None, hold, threads,
     )  # fmt: skip
     return evaluate, parameters.theta0
@@ -70,12 +70,12 @@ def _evaluator(model, hold, lag=None, options=None, threads=1):
 def test_the_driver_agrees_with_casadis_cvodes(model, lag):
     evaluate, theta = _evaluator(model, "linear", lag)
     y, jacobian = evaluate(theta)
-    assert evaluate.stats["route"] == "driver"
+    assert evaluate.stats["route"] == "sensitivity-driver"
     assert evaluate.stats["sensitivity_evaluations"] > 0
     with native.casadi_only():
         reference, theta_again = _evaluator(model, "linear", lag)
         y_ref, jacobian_ref = reference(theta_again)
-    assert reference.stats["route"] == "casadi"
+    assert reference.stats["route"] == "sensitivity-casadi"
     _assert_agree(y, jacobian, y_ref, jacobian_ref, 1e-6)
 
 
@@ -85,12 +85,12 @@ def test_the_driver_restarts_at_every_held_input(model):
     a reference at 1e-12; CasADi's Adams with functional iteration fails at 1e-12)."""
     evaluate, theta = _evaluator(model, "constant")
     y, jacobian = evaluate(theta)
-    assert evaluate.stats["route"] == "driver"
+    assert evaluate.stats["route"] == "sensitivity-driver"
     with native.casadi_only():
         tight = {"reltol": 1e-10, "abstol": 1e-12, "max_num_steps": 10**6}
         reference, theta_again = _evaluator(model, "constant", options=tight)
         y_ref, jacobian_ref = reference(theta_again)
-    assert reference.stats["route"] == "casadi"
+    assert reference.stats["route"] == "sensitivity-casadi"
     _assert_agree(y, jacobian, y_ref, jacobian_ref, 1e-7)
 
 
@@ -125,7 +125,7 @@ def test_the_sensitivities_are_as_accurate_as_the_error_test_says(model, hold):
     for options, bound in ((None, UNCONTROLLED), ({"fsens_err_con": True}, 5)):
         evaluate, theta = _evaluator(model, hold, options=options)
         y, jacobian = evaluate(theta)
-        assert evaluate.stats["route"] == reference.stats["route"] == "driver"
+        assert evaluate.stats["route"] == reference.stats["route"] == "sensitivity-driver"
         assert np.abs(y - y_ref).max() <= 2 * rtol * np.abs(y_ref).max()
         error = np.abs(jacobian - jacobian_ref).max(axis=0) / np.abs(jacobian_ref).max(axis=0)
         assert error.max() <= bound * rtol, (options, error)
@@ -136,7 +136,7 @@ def test_fsens_err_con_puts_the_columns_in_the_driver_error_test(model):
     y, jacobian = evaluate(theta)
     tested, theta_again = _evaluator(model, "linear", options={"fsens_err_con": True})
     y_tested, jacobian_tested = tested(theta_again)
-    assert tested.stats["route"] == "driver"
+    assert tested.stats["route"] == "sensitivity-driver"
     # more error to control, more steps; the same trajectory within the tolerances, the
     # columns within what the default leaves uncontrolled
     assert tested.stats["steps"] > evaluate.stats["steps"]
@@ -158,7 +158,7 @@ def test_the_driver_counts_every_restart_of_a_held_input(model):
 def test_options_the_driver_does_not_know_select_casadis_route(model):
     evaluate, theta = _evaluator(model, "linear", options={"max_order": 3})
     evaluate(theta)
-    assert evaluate.stats["route"] == "casadi"
+    assert evaluate.stats["route"] == "sensitivity-casadi"
 
 
 @pytest.mark.parametrize("threads", [1, 2])
@@ -186,7 +186,8 @@ def test_an_evaluator_carried_to_a_new_process_loads_the_driver_again(model, thr
         y_new, jacobian_new, route = pool.submit(
             _evaluate_in_this_process, evaluate, theta
         ).result()
-    assert route == "driver"
+    assert route == evaluate.stats["route"]
+    assert route == {1: "sensitivity-driver", 2: "sensitivity-driver-split"}[threads]
     np.testing.assert_array_equal(y_new, y)
     np.testing.assert_array_equal(jacobian_new, jacobian)
 
@@ -227,7 +228,7 @@ def test_two_threads_give_the_one_threads_trajectory_and_jacobian(model):
     split, _ = _evaluator(model, "linear", threads=2)
     y_split, jacobian_split = split(theta)
     assert split.driven.helper == "shared" and len(split.driven.columns) == 2
-    assert split.stats["route"] == "driver"
+    assert split.stats["route"] == "sensitivity-driver-split"
     rtol = SENSITIVITY_CVODES["reltol"]
     assert np.abs(y_split - y).max() <= 2 * rtol * np.abs(y).max()
     error = np.abs(jacobian_split - jacobian).max(axis=0) / np.abs(jacobian).max(axis=0)
@@ -301,5 +302,5 @@ def test_an_evaluator_without_the_driver_integrates_by_casadi(model, threads):
     y, jacobian = evaluate(theta)
     evaluate._native = False  # as a worker that could not load the libraries
     y_casadi, jacobian_casadi = evaluate(theta)
-    assert evaluate.stats["route"] == "casadi"
+    assert evaluate.stats["route"] == "sensitivity-casadi"
     _assert_agree(y, jacobian, y_casadi, jacobian_casadi, 1e-6)

@@ -10,11 +10,12 @@ from scipy.integrate import cumulative_simpson
 
 import softcurve as sc
 from softcurve.analysis.statics import equilibrium
+from softcurve.base.progress import ProgressLine
 from softcurve.base.status import Status
 from softcurve.simulation._settings import SimulationSettings
 from softcurve.simulation.solvers import _driver as native
 from softcurve.simulation.solvers import _policy as _engines
-from softcurve.simulation.solvers._grid import Progress, _input_changes
+from softcurve.simulation.solvers._grid import _input_changes
 from softcurve.simulation.solvers._policy import STIFFNESS_RATIO, linearization_rates, nominal_scale
 
 from .conftest import assert_close
@@ -246,13 +247,13 @@ def test_bad_arguments_are_named(paper_model, kwargs, named):
 
 def test_progress_bar_appears_only_after_its_delay():
     stream = io.StringIO()
-    bar = Progress(10.0, delay=0.0, stream=stream)
+    bar = ProgressLine(10.0, unit="s simulated", delay=0.0, stream=stream)
     bar.update(2.5)
     bar.close()
     text = stream.getvalue()
-    assert "25.0%" in text and "t = 2.5 s" in text and text.endswith("\n")
+    assert "2.5/10 s simulated" in text and "#" * 7 + "." in text and text.endswith("\n")
     quiet = io.StringIO()
-    bar = Progress(10.0, delay=3600.0, stream=quiet)
+    bar = ProgressLine(10.0, unit="s simulated", delay=3600.0, stream=quiet)
     bar.update(5.0)
     bar.close()
     assert quiet.getvalue() == ""

@@ -110,6 +110,7 @@ from softcurve.simulation import (
     simulate,
     simulate_batch,
 )
+from softcurve.simulation.solvers import RouteWarning
 
 __all__ = [
     # description
@@ -164,6 +165,7 @@ __all__ = [
     "ContactHistory",
     "BatchTrajectory",
     "load_trajectory",
+    "RouteWarning",
     # control
     "SampledController",
     "ComputedTorque",

@@ -1,4 +1,5 @@
-"""A one-line progress bar on stderr for long work counted in units (chunks, rows)."""
+"""The one progress bar: a line on stderr for long work counted in units (chunks, rows,
+simulated seconds)."""
 
 from __future__ import annotations
 
@@ -24,11 +25,17 @@ class ProgressLine:
         What is counted, e.g. ``"chunks"``.
     label : str
         Text before the bar, e.g. ``"writing trajectory.csv"``.
+    delay : float
+        Seconds of work before the bar appears (a short run shows none) [s].
+    stream : file, optional
+        Where to draw (default ``sys.stderr`` at each draw).
     """
 
-    def __init__(self, total: int, done: int = 0, show: bool = True, unit: str = "", label=""):
+    def __init__(self, total: float, done: float = 0, show: bool = True, unit: str = "",
+                 label="", delay: float = 0.0, stream=None):  # fmt: skip
         self.total, self.first, self.show = total, done, show
         self.unit, self.label = unit, f"{label} " if label else ""
+        self.delay, self.stream, self.shown = delay, stream, False
         self.start = time.perf_counter()
         self.update(done)
 
@@ -37,23 +44,26 @@ class ProgressLine:
 
         Parameters
         ----------
-        done : int
+        done : float
             Units finished so far.
         """
-        if not self.show:
-            return
         elapsed = time.perf_counter() - self.start
+        if not self.show or elapsed < self.delay:
+            return
         rate = (done - self.first) / elapsed if elapsed > 0 else 0.0
         left = f", ~{(self.total - done) / rate:.0f} s left" if rate > 0 else ""
-        filled = int(WIDTH * done / max(self.total, 1))
-        sys.stderr.write(
-            f"\r{self.label}[{'#' * filled}{'.' * (WIDTH - filled)}] {done}/{self.total} "
+        filled = int(WIDTH * min(done / self.total, 1.0)) if self.total > 0 else WIDTH
+        stream = self.stream or sys.stderr
+        stream.write(
+            f"\r{self.label}[{'#' * filled}{'.' * (WIDTH - filled)}] {done:.6g}/{self.total:.6g} "
             f"{self.unit}, {elapsed:.1f} s{left}   "
         )
-        sys.stderr.flush()
+        stream.flush()
+        self.shown = True
 
     def close(self) -> None:
-        """End the line."""
-        if self.show:
-            sys.stderr.write("\n")
-            sys.stderr.flush()
+        """End the line (where it was drawn)."""
+        if self.shown:
+            stream = self.stream or sys.stderr
+            stream.write("\n")
+            stream.flush()

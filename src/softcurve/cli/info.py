@@ -15,6 +15,7 @@ def _add_arguments(parser) -> None:
 
 def _run(args) -> int:
     """Run ``softcurve info``; returns the exit code."""
+    from softcurve.analysis.loads import rest_configuration
     from softcurve.compiled import Model
     from softcurve.description import presets
 
@@ -25,7 +26,7 @@ def _run(args) -> int:
     segment = robot.segments[0]
     q0 = np.array([0.064, 25.0, 0.0])
     qd0 = np.array([0.0, 0.0, 1500.0])
-    straight = np.array([segment.rest_length, 0.0, 0.0])
+    straight = rest_configuration(robot)
     print("softcurve: preset ifac2020 (Caasenbrood et al., IFAC 2020)")
     print(f"  segments {robot.n_segments}, coordinates n = {model.n}, creep states {model.n_creep}")
     print(f"  m = {segment.mass} kg, l0 = {segment.rest_length} m, r = {segment.radius} m")

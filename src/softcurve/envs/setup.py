@@ -16,6 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
+from softcurve.analysis.loads import rest_configuration
 from softcurve.base.docs import parameters_from
 from softcurve.base.validation import ParameterError, real_scalar, whole_count
 from softcurve.compiled import Model
@@ -261,7 +262,7 @@ def build_setup(
         environment.check_robot(robot)
     stepper = _stepper(robot, environment, actuator, period, substeps, threads, method)
     if q0 is None:
-        q0 = np.concatenate([[s.rest_length, 0.0, 0.0] for s in robot.segments])
+        q0 = rest_configuration(robot)
     x0 = np.array(stepper.initial_state(q0, qd0), dtype=np.float64)
     if lam0 is not None and robot.n_creep:
         x0[2 * robot.n : 2 * robot.n + robot.n_creep] = lam0  # (q, qd, lam, inputs)

@@ -14,6 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from softcurve.analysis.loads import rest_configuration
 from softcurve.base.validation import ParameterError
 from softcurve.description import presets
 from softcurve.description.actuator import Actuator
@@ -160,7 +161,7 @@ class Scenario:
     def initial_state(self):
         """``(q0, qd0, lam0)`` as arrays, with the defaults filled in."""
         n, n_creep = self.robot.n, self.robot.n_creep
-        rest = np.concatenate([[s.rest_length, 0.0, 0.0] for s in self.robot.segments])
+        rest = rest_configuration(self.robot)
         q0 = rest if self.q0 is None else np.array(self.q0, dtype=float)
         qd0 = np.zeros(n) if self.qd0 is None else np.array(self.qd0, dtype=float)
         lam0 = np.zeros(n_creep) if self.lam0 is None else np.array(self.lam0, dtype=float)

@@ -66,6 +66,7 @@ import time
 
 import numpy as np
 
+from softcurve.base.progress import ProgressLine
 from softcurve.base.status import Status
 from softcurve.base.validation import ParameterError, float_array, real_array, real_scalar
 from softcurve.compiled import Model
@@ -74,19 +75,20 @@ from softcurve.simulation._settings import SimulationSettings, settings_with
 from softcurve.simulation.results import Trajectory
 from softcurve.simulation.solvers import (
     ActuatorInput,
-    CvodesEngine,
     Domain,
-    Progress,
-    ScipyEngine,
+    Problem,
     Stopped,
     actuator_exit,
+    choose_route,
     failure_message,
     failure_status,
+    lag_scale,
     linearization_rates,
     multistep_family,
-    nominal_scale,
     run_on_grid,
     run_sampled,
+    solver,
+    state_scale,
     success_message,
 )
 from softcurve.symbolic.gaps import check_start
@@ -281,8 +283,6 @@ def simulate(
     grid = settings.output_times()
     sample_time = _sample_time(controller)
     values, actuated, check = _drive(model, grid, tau, controller, actuator, inputs)
-    nominal = nominal_scale(model, x0)
-    atol = settings.atol_vector(nominal)
     model_x0 = x0
     if actuator_state is not None and actuator is None:
         raise ParameterError("actuator_state is an actuator's initial state: give actuator= too")
@@ -291,35 +291,35 @@ def simulate(
         problem = actuator.domain_problem(model_x0[: model.n])
         if problem is not None:
             raise ParameterError(f"q0: {problem}")
+    nominal = state_scale(model, x0, actuated)
+    atol = settings.atol_vector(nominal[: model.n_state])
     if actuated is not None and actuated.n_states:
-        scale = np.maximum(np.abs(actuated.lower), np.abs(actuated.upper))
         x0 = np.concatenate([x0, start])
-        nominal = np.concatenate([nominal, scale])
-        atol = np.concatenate([atol, settings.rtol * scale])
+        atol = np.concatenate([atol, settings.rtol * lag_scale(actuated)])
 
     method, rtol = settings.method, settings.rtol
-    stats = {"method": method, "rtol": rtol, "atol": atol.tolist(), "dt": settings.dt}
+    on_grid = controller is None and not callable(values)
+    route = choose_route("simulate", method, model=model, inputs=actuated)
+    stats = {"method": method, "route": route.name, "route_reason": route.reason,
+             "rtol": rtol, "atol": atol.tolist(), "dt": settings.dt}  # fmt: skip
     fastest = None  # at a restart: BDF once the robot moves slower than this allows
-    if method == "rk45":
-        engine = ScipyEngine(model, rtol, atol, settings.max_steps, actuated)
-    else:
-        multistep = method
-        if method == "cvodes":
-            tau0 = _initial_force(model, model_x0, x0, values, actuated)
-            ratio, fastest = linearization_rates(model, model_x0, tau0, nominal[: model.n_state])
-            stats["stiffness_ratio"] = ratio
-            multistep = multistep_family(ratio, model.environment is not None)
-            if multistep != "adams" or actuated is not None:
-                fastest = None
-        engine = CvodesEngine(model, multistep, rtol, atol, nominal, settings.max_steps, actuated)
+    multistep = method
+    if method == "cvodes":
+        tau0 = _initial_force(model, model_x0, x0, values, actuated)
+        ratio, fastest = linearization_rates(model, model_x0, tau0, nominal[: model.n_state])
+        stats["stiffness_ratio"] = ratio
+        multistep = multistep_family(ratio, model.environment is not None)
+        if multistep != "adams" or actuated is not None:
+            fastest = None
+    described = Problem(model, actuated, nominal, atol, rtol, settings.max_steps, grid)
+    engine = solver(route, described, multistep)
 
     states = np.empty((grid.size, x0.size))
     states[0] = x0
-    on_grid = controller is None and not callable(values)
     # on the grid, the inputs applied are the values (an array of this run's own)
     width = model.n if actuated is None else actuated.n_inputs
     applied = values if on_grid else np.zeros((grid.size, width))
-    bar = Progress(settings.t_final) if progress else None
+    bar = ProgressLine(settings.t_final, unit="s simulated", delay=1.0) if progress else None
     start_time = time.perf_counter()
     try:
         if on_grid:

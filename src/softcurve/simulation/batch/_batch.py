@@ -32,7 +32,7 @@ from softcurve.description.actuator import Actuator
 from softcurve.description.robot import Robot, domain_problem, in_domain
 from softcurve.simulation._settings import SimulationSettings, settings_with
 from softcurve.simulation.batch._inputs import Drives, drive_arrays, member_rows
-from softcurve.simulation.batch._members import MemberRun, integrate_native, member_rates
+from softcurve.simulation.batch._members import MemberRun, integrate_native
 from softcurve.simulation.batch._workers import (
     default_threads,
     model_description,
@@ -41,8 +41,12 @@ from softcurve.simulation.batch._workers import (
 )
 from softcurve.simulation.results import BatchTrajectory, batch_status, stop_at_actuator_domain
 from softcurve.simulation.solvers import (
+    Route,
+    batch_route,
     blocks,
+    choose_route,
     chunks,
+    linearization_rates,
     multistep_family,
     nominal_scale,
     restart_segments,
@@ -236,8 +240,8 @@ def _integrate(model, x0, arrays, scales, abstol, settings, how, drives) -> Batc
     else:  # the force at the start chooses the family, as in simulate()
         u, tau = arrays["inputs"], drives.initial_forces(x0[:, : model.n], x0, arrays["inputs"])
     if method == "cvodes":
-        rates = member_rates(model, x0[:, :n_state], tau, params, nominal[:, :n_state], threads)
-        ratios, fastest = rates
+        state, scale = x0[:, :n_state], nominal[:, :n_state]
+        ratios, fastest = linearization_rates(model, state, tau, scale, params, threads)
         initial = multistep_family(ratios, model.environment is not None)
     else:
         initial, fastest = np.full(size, method), None
@@ -251,10 +255,19 @@ def _integrate(model, x0, arrays, scales, abstol, settings, how, drives) -> Batc
     groups = [np.arange(size)] if drives is None else [
         np.flatnonzero(drives.group == g) for g in range(len(drives.inputs))]  # fmt: skip
     switch = fastest if method == "cvodes" and drives is None else None  # BDF once settled
-    native_bdf = integrate_native(run, initial, switch, lanes)  # the C driver, where built
-    if native_bdf is not None:
+    routes = _routes(model, method, drives, [g.size for g in groups], lanes)
+    on_driver = all(route.built is not None for route in routes)
+    if on_driver:
+        native_bdf = integrate_native(run, initial, switch, [r.built for r in routes])
         used_bdf = native_bdf & (initial == "adams")
-    for k0, k1 in restart_segments(grid) if native_bdf is None else ():
+    else:  # every member on CasADi's integrator where one group cannot take the driver
+        why = next(route.reason for route in routes if route.built is None)
+        routes = [Route("casadi-cvodes", why)] * len(groups)
+    member_routes = [""] * size
+    for group, route in zip(groups, routes, strict=True):
+        for b in group.tolist():
+            member_routes[b] = route.name
+    for k0, k1 in () if on_driver else restart_segments(grid):
         if method == "cvodes" and k0 > 0 and drives is None:  # as simulate(): BDF if settled
             xdot = rhs_along(model, np.nan_to_num(states[:, k0 : k0 + 1]), tau[:, None, :],
                              params, threads)[:, 0]  # fmt: skip
@@ -278,6 +291,9 @@ def _integrate(model, x0, arrays, scales, abstol, settings, how, drives) -> Batc
         inputs = np.where(np.isnan(states[..., :1]), np.nan, inputs)  # NaN after a failure
     stats = {
         "methods": families,
+        "route": batch_route(member_routes),
+        "routes": member_routes,
+        "route_reason": "; ".join(sorted({route.reason for route in routes})),
         "rtol": settings.rtol,
         "abstol_scaled": abstol,
         "dt": settings.dt,
@@ -289,6 +305,24 @@ def _integrate(model, x0, arrays, scales, abstol, settings, how, drives) -> Batc
     x = states[..., :n_state]
     return _result(grid, x, inputs, arrays, run.status, messages, run.reached, stats, model,
                    None if drives is None else drives.actuator)  # fmt: skip
+
+
+def _routes(model, method, drives, sizes, lanes) -> list:
+    """The route of each actuator group of a batch (one group without an actuator), of
+    ``sizes`` members each (:func:`~softcurve.simulation.solvers.choose_route`)."""
+    kinds = [None] if drives is None else list(drives.inputs)
+    return [
+        choose_route(
+            "batch",
+            method,
+            model=model,
+            inputs=inputs,
+            members=size,
+            lanes=lanes,
+            actuators=len(kinds),
+        )
+        for inputs, size in zip(kinds, sizes, strict=True)
+    ]
 
 
 def _result(t, x, inputs, arrays, member_status, messages, reached, stats, model, actuator):
@@ -370,9 +404,14 @@ def _in_processes(model, split, arrays, settings, actuator) -> BatchTrajectory:
     x, messages = np.concatenate(x)[order], [m for c in messages for m in c]
     messages = [messages[i] for i in order]
     methods = [m for s in stats for m in s["methods"]]
+    member_routes = [r for s in stats for r in s["routes"]]
+    member_routes = [member_routes[i] for i in order]
     stats = {
         **stats[0],
         "methods": [methods[i] for i in order],
+        "route": batch_route(member_routes),
+        "routes": member_routes,
+        "route_reason": "; ".join(sorted({s["route_reason"] for s in stats})),
         "size": size,
         "threads": threads,
         "processes": processes,

@@ -20,7 +20,7 @@ import numpy as np
 
 from softcurve.base.validation import ParameterError
 from softcurve.description.actuator import Actuator
-from softcurve.simulation.solvers import ActuatorInput
+from softcurve.simulation.solvers import ActuatorInput, lag_scale
 
 
 def member_rows(name: str, value, width: int, default=None) -> np.ndarray | None:
@@ -188,7 +188,7 @@ class Drives:
         if not self.lag:
             return x0, nominal
         a, size = self.actuator, x0.shape[0]
-        scale = np.broadcast_to(np.maximum(np.abs(a.lower), np.abs(a.upper)), (size, a.n_inputs))
+        scale = np.broadcast_to(lag_scale(a), (size, a.n_inputs))
         return np.hstack([x0, start]), np.hstack([nominal, scale])
 
     def initial_forces(self, q0: np.ndarray, x0: np.ndarray, inputs: np.ndarray) -> np.ndarray:

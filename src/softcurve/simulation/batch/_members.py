@@ -10,7 +10,7 @@ import io
 import numpy as np
 
 from softcurve.base.status import Status
-from softcurve.compiled import LANE_WIDTH, Model
+from softcurve.compiled import Model
 from softcurve.description.robot import MAX_STRETCH
 from softcurve.simulation.solvers import (
     MAX_ORDER,
@@ -20,46 +20,15 @@ from softcurve.simulation.solvers import (
     cvodes_integrator,
     cvodes_options,
     cvodes_reason,
-    difference_eigenvalues,
-    difference_points,
     domain_reason,
     driver_integrate,
-    driver_problem,
     driver_reason,
     failure_message,
     failure_status,
-    linear_rates,
     mapped,
     outside_domain,
     restart_segments,
-    rhs_along,
 )
-
-
-def member_rates(model, x0, tau, parameters, nominal, threads) -> tuple:
-    """:func:`~softcurve.simulation.solvers.linear_rates` of every member at once: the
-    central-difference linearization of the right-hand side at the initial states ``x0``
-    (B, n_state) under ``tau`` (B, n), all points in one compiled map.
-
-    Parameters
-    ----------
-    model : Model
-        The compiled model.
-    x0 : ndarray, shape (B, n_state)
-        Initial states.
-    tau : ndarray, shape (B, n)
-        Input forces [N, N m^2, N m^2].
-    parameters : ndarray, shape (B, n_p)
-        Parameter vector per member.
-    nominal : ndarray, shape (B, n_state)
-        State scales.
-    threads : int
-        Threads of the compiled map.
-    """
-    points, steps = difference_points(x0, nominal)  # (B, 2 n_state, n_state), (B, n_state)
-    taus = np.broadcast_to(tau[:, None, :], (*points.shape[:2], model.n))
-    values = rhs_along(model, points, taus, parameters, threads)
-    return linear_rates(difference_eigenvalues(values, steps))
 
 
 class MemberRun:
@@ -198,18 +167,12 @@ class MemberRun:
         self.messages[b] = failure_message(reason, self.grid, k, f"cvodes-{multistep}")
 
 
-COMPILED_ACTUATORS = 8
-"""Largest number of distinct actuators (parameter vectors) in a batch integrated by the C
-driver: each needs its ``H(q) u`` compiled once (about 0.3 s, then cached on disk); a
-batch with more uses CasADi's integrator, which needs no compilation."""
-
-
-def integrate_native(run: MemberRun, initial, fastest, lanes=False) -> np.ndarray | None:
-    """The whole batch of ``run`` with CVODES's C driver (``softcurve.simulation.solvers._driver``):
-    one call per group of members that share an actuator, every restart segment inside it,
-    members on ``run.threads`` threads. Fills ``run.states`` and the failures as
-    :meth:`MemberRun.integrate` does; returns which members used BDF, or None (nothing
-    done) where the driver is not available.
+def integrate_native(run: MemberRun, initial, fastest, problems) -> np.ndarray:
+    """The whole batch of ``run`` with CVODES's C driver
+    (``softcurve.simulation.solvers._driver``): one call per group of members that
+    share an actuator, every restart segment inside it, members on ``run.threads``
+    threads. Fills ``run.states`` and the failures as
+    :meth:`MemberRun.integrate` does; returns which members used BDF.
 
     Parameters
     ----------
@@ -220,21 +183,12 @@ def integrate_native(run: MemberRun, initial, fastest, lanes=False) -> np.ndarra
     fastest : ndarray, shape (B,) or None
         Fastest rate of each member's initial linearization [1/s]: members that start with
         Adams switch to BDF at a restart once settled (None: no switch).
-    lanes : bool
-        Integrate consecutive members in groups on the state derivative over lanes
-        (the driver's ``groups.c``), where the batch fills one.
+    problems : list
+        The driver's problem of each actuator group (the ``built`` of its route,
+        :func:`~softcurve.simulation.solvers.choose_route`): with lanes, consecutive
+        members are integrated in groups on the state derivative over lanes
+        (the driver's ``groups.c``).
     """
-    groups = [None] if run.drives is None else list(run.drives.inputs)
-    if len(groups) > COMPILED_ACTUATORS:
-        return None
-    sizes = [run.states.shape[0]] if run.drives is None else np.bincount(
-        run.drives.group, minlength=len(groups))  # fmt: skip
-    problems = [
-        driver_problem(run.model, drive, lanes and size >= LANE_WIDTH)
-        for drive, size in zip(groups, sizes, strict=True)
-    ]
-    if any(problem is None for problem in problems):
-        return None
     grid, states = run.grid, run.states
     segments = restart_segments(grid)
     ends = [k1 for _, k1 in segments]

@@ -223,8 +223,8 @@ class BatchTrajectory(Result):
             raise IndexError(f"member index {i} out of range for a batch of {self.size}")
         i %= self.size
         k = int(self.reached[i])
-        stats = {key: value for key, value in self.stats.items() if key != "methods"}
-        stats["method"] = self.stats["methods"][i]
+        stats = {key: v for key, v in self.stats.items() if key not in ("methods", "routes")}
+        stats["method"], stats["route"] = self.stats["methods"][i], self.stats["routes"][i]
         inputs = None
         if self.actuator is None:
             tau = np.repeat(self.tau[i][None, :], k, axis=0)

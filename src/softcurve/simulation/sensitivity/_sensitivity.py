@@ -45,6 +45,7 @@ from softcurve.simulation.sensitivity._route import (
 from softcurve.simulation.sensitivity._split import assembled, column_parts
 from softcurve.simulation.solvers import (
     DriverProblem,
+    choose_route,
     cvodes_options,
     driver,
     driver_reason,
@@ -135,7 +136,7 @@ class SensitivityEvaluator:
         if route is None:
             states = np.array(self.integrator(x0=start, p=d_scaled, u=self.u_data)["xf"])
             counts = self.integrator.stats()
-            self.stats = {"route": "casadi", "steps": counts.get("nsteps"),
+            self.stats = {"route": "sensitivity-casadi", "steps": counts.get("nsteps"),
                           "rhs_evaluations": counts.get("nfevals"),
                           "error_test_failures": counts.get("netfails")}  # fmt: skip
             return states
@@ -145,7 +146,9 @@ class SensitivityEvaluator:
             problem, columns, start, d_value, d_scaled, driven.times, driven.table,
             driven.linear, driven.settings, driven.helper,
         )  # fmt: skip
-        self.stats = {"route": "driver", **counts}
+        split = len(driven.columns) > 1
+        self.stats = {"route": "sensitivity-driver-split" if split else "sensitivity-driver",
+                      **counts}  # fmt: skip
         if flag:
             raise RuntimeError(
                 f"CVODES failed after t = {driven.times[reached - 1]:g} s: {driver_reason(flag)}"
@@ -318,25 +321,32 @@ def trajectory_sensitivities(
     for j, i in enumerate(active):
         if i >= n_p + n_v:
             seed[i - n_p - n_v, j] = scale[j]
-    driven, loaded = None, None
-    if set(options or {}) <= NATIVE_OPTIONS and driver() is not None:
+    split = threads > 1 and m > 0
+
+    def build_driver():
+        """The driver's route of this evaluator, ``(DriverRoute, loaded)``, or None."""
         f_state = augmented(ca.vertcat(xs, ca.SX.zeros(n_x * m)), us, ca.vertcat(ds, np.ones(m)))
         plain = ca.Function("softcurve_state", [xs, us, ds], [ca.densify(f_state[:n_x])])
-        split = threads > 1 and m > 0
         columns = column_parts(f, xs, us, ds, sens, sc_s, f_d, model.n) if split else [augmented]
         libraries = compile_functions([plain, *columns], load=load_with_path)
-        if all(isinstance(entry, tuple) for entry in libraries):
-            driver_settings = DriverSettings(
-                float(settings["reltol"]), float(settings["abstol"]),
-                int(settings["max_num_steps"]), NATIVE_FAMILY,
-                bool(settings.get("fsens_err_con", False)),
-            )  # fmt: skip
-            table = np.ascontiguousarray(u_data.T)
-            sizes = (n_x, plain.size1_in(1), plain.size1_in(2))
-            paths = tuple(entry[:2] for entry in libraries)
-            driven = DriverRoute(paths[0], paths[1:], sizes, t, table, hold == "linear",
-                                 driver_settings, "shared" if split else "none")  # fmt: skip
-            loaded = (DriverProblem(libraries[0][2], *sizes), [e[2] for e in libraries[1:]])
+        if not all(isinstance(entry, tuple) for entry in libraries):
+            return None
+        driver_settings = DriverSettings(
+            float(settings["reltol"]), float(settings["abstol"]),
+            int(settings["max_num_steps"]), NATIVE_FAMILY,
+            bool(settings.get("fsens_err_con", False)),
+        )  # fmt: skip
+        table = np.ascontiguousarray(u_data.T)
+        sizes = (n_x, plain.size1_in(1), plain.size1_in(2))
+        paths = tuple(entry[:2] for entry in libraries)
+        route = DriverRoute(paths[0], paths[1:], sizes, t, table, hold == "linear",
+                            driver_settings, "shared" if split else "none")  # fmt: skip
+        return route, (DriverProblem(libraries[0][2], *sizes), [e[2] for e in libraries[1:]])
+
+    chosen = choose_route("sensitivity", options_known=set(options or {}) <= NATIVE_OPTIONS,
+                          threads=2 if split else 1,
+                          builders={"sensitivity-driver": build_driver})  # fmt: skip
+    driven, loaded = chosen.built or (None, None)
     # CasADi's route: on the libraries the driver's route just built, loaded by path
     if driven is None:
         rhs = compile_function(augmented)

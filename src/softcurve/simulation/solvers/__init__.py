@@ -1,8 +1,10 @@
 """The integration methods behind :func:`softcurve.simulate` and the batches.
 
-The problem (the model's state derivative with an actuator's force and lag, state scales,
-the domain), the method policy (Adams or BDF, the settled switch, restarts, failure
-advice), CasADi's CVODES, SciPy's RK45, and softcurve's CVODES driver in C (``c/``).
+One problem (:class:`Problem`: the model's state derivative with an actuator's force and
+lag, state scales, the domain), one solver interface (:class:`Solver`, :data:`METHODS`),
+the route chosen in one function (:func:`choose_route`, :data:`ROUTES`), the method policy
+(Adams or BDF, the settled switch, restarts, failure advice), CasADi's CVODES, SciPy's
+RK45, and softcurve's CVODES driver in C (``c/``).
 """
 
 from softcurve.simulation.solvers._actuated import actuated_derivative as actuated_derivative
@@ -26,7 +28,6 @@ from softcurve.simulation.solvers._driver import options as driver_options
 from softcurve.simulation.solvers._driver import problem as driver_problem
 from softcurve.simulation.solvers._driver import reason as driver_reason
 from softcurve.simulation.solvers._grid import Domain as Domain
-from softcurve.simulation.solvers._grid import Progress as Progress
 from softcurve.simulation.solvers._grid import State as State
 from softcurve.simulation.solvers._grid import Stopped as Stopped
 from softcurve.simulation.solvers._grid import actuator_exit as actuator_exit
@@ -43,14 +44,26 @@ from softcurve.simulation.solvers._policy import difference_eigenvalues as diffe
 from softcurve.simulation.solvers._policy import difference_points as difference_points
 from softcurve.simulation.solvers._policy import failure_message as failure_message
 from softcurve.simulation.solvers._policy import failure_status as failure_status
+from softcurve.simulation.solvers._policy import lag_scale as lag_scale
 from softcurve.simulation.solvers._policy import linear_rates as linear_rates
 from softcurve.simulation.solvers._policy import linearization_rates as linearization_rates
 from softcurve.simulation.solvers._policy import multistep_family as multistep_family
 from softcurve.simulation.solvers._policy import nominal_scale as nominal_scale
 from softcurve.simulation.solvers._policy import restart_segments as restart_segments
 from softcurve.simulation.solvers._policy import settled as settled
+from softcurve.simulation.solvers._policy import state_scale as state_scale
 from softcurve.simulation.solvers._policy import success_message as success_message
+from softcurve.simulation.solvers._problem import METHODS as METHODS
+from softcurve.simulation.solvers._problem import Problem as Problem
+from softcurve.simulation.solvers._problem import Solver as Solver
+from softcurve.simulation.solvers._problem import solver as solver
 from softcurve.simulation.solvers._rk45 import ScipyEngine as ScipyEngine
+from softcurve.simulation.solvers._routes import COMPILED_ACTUATORS as COMPILED_ACTUATORS
+from softcurve.simulation.solvers._routes import ROUTES as ROUTES
+from softcurve.simulation.solvers._routes import Route as Route
+from softcurve.simulation.solvers._routes import RouteWarning as RouteWarning
+from softcurve.simulation.solvers._routes import batch_route as batch_route
+from softcurve.simulation.solvers._routes import choose_route as choose_route
 
 __all__ = [
     "actuated_derivative",
@@ -72,7 +85,6 @@ __all__ = [
     "driver_problem",
     "driver_reason",
     "Domain",
-    "Progress",
     "State",
     "Stopped",
     "actuator_exit",
@@ -91,20 +103,24 @@ __all__ = [
     "linear_rates",
     "linearization_rates",
     "multistep_family",
+    "lag_scale",
     "nominal_scale",
+    "state_scale",
     "restart_segments",
     "settled",
     "success_message",
+    "METHODS",
+    "Problem",
+    "Solver",
+    "solver",
     "ScipyEngine",
+    "COMPILED_ACTUATORS",
+    "ROUTES",
+    "Route",
+    "RouteWarning",
+    "batch_route",
+    "choose_route",
     "DRIVER_FLAGS",
-    "DriverProblem",
-    "casadi_only",
-    "driver",
-    "driver_entry",
-    "driver_integrate",
     "driver_options",
-    "driver_problem",
-    "driver_reason",
     "driver_library",
-    "SETTLED_RATIO",
 ]

@@ -15,6 +15,13 @@ from softcurve.base.docs import shared_parameters
 def mapped(function: ca.Function, size: int, threads: int) -> ca.Function:
     """``function`` mapped over ``size`` calls, on ``threads`` threads.
 
+    CasADi's own map over threads rather than :func:`softcurve.base.shares.run_shares`:
+    the functions mapped here (CasADi's integrator of a batch on the route
+    "casadi-cvodes", the tip, energy and right-hand side along a batch) are CasADi
+    Functions, evaluated inside CasADi, not foreign calls through ctypes; what threads of
+    Python calls into CasADi would gain is not measured (``run_shares`` serves the
+    ctypes calls of the C driver and the stepper).
+
     Parameters
     ----------
     function : casadi.Function

@@ -22,7 +22,7 @@ from functools import cached_property
 import casadi as ca
 import numpy as np
 
-from softcurve.simulation.solvers import _driver as native
+from softcurve.simulation.solvers import _driver as c_driver
 from softcurve.simulation.solvers import _policy as _engine
 from softcurve.simulation.solvers._actuated import actuated_derivative
 from softcurve.simulation.solvers._policy import (
@@ -194,8 +194,9 @@ class BufferedCall:
             return failure, self.buffer.stats()
 
 
-class _Engine:
-    """Shared by the engines: split the input into runs where it is constant, because an
+class PiecewiseSolver:
+    """The ``advance`` of every :class:`~softcurve.simulation.solvers.Solver`, written
+    once: split the input into runs where it is constant, because an
     error-controlled integrator must not step across a jump of the input."""
 
     def advance(self, x, h, tout, taus) -> np.ndarray:
@@ -220,7 +221,7 @@ class _Engine:
         return out
 
 
-class CvodesEngine(_Engine):
+class CvodesEngine(PiecewiseSolver):
     """SUNDIALS CVODES (variable order, variable step) with ``multistep`` = "adams" or "bdf".
 
     Parameters
@@ -238,24 +239,29 @@ class CvodesEngine(_Engine):
         Internal steps allowed between two output times.
     inputs : ActuatorInput, optional
         When the inputs are an actuator's rather than forces.
+    native : softcurve.simulation.solvers._driver.Problem, optional
+        The driver's problem of the route "driver"
+        (:func:`~softcurve.simulation.solvers.choose_route`); None: CasADi's integrator.
 
     Notes
     -----
     Integrates with softcurve's C driver of CVODES (``softcurve.simulation.solvers._driver``)
-    where it is available, else with CasADi's CVODES integrator on :func:`scaled_dae`.
+    on the route "driver", else with CasADi's CVODES integrator on :func:`scaled_dae`.
     """
 
     name = "cvodes"
 
-    def __init__(self, model, multistep, rtol, atol, nominal, max_steps, inputs=None):
+    def __init__(self, model, multistep, rtol, atol, nominal, max_steps, inputs=None,
+                 native=None):  # fmt: skip
         self.model = model
         self.nominal = nominal
         self.inputs = inputs
         self._settings = (rtol, float((atol / nominal).min()), max_steps)
         self.families = [multistep]
         self.use(multistep)
-        self.native = native.problem(model, inputs)
-        self.counts = dict.fromkeys(native.STATISTICS, 0)
+        self.native = native
+        self.route = "casadi-cvodes" if native is None else "driver"
+        self.counts = dict.fromkeys(c_driver.STATISTICS, 0)
 
     def use(self, multistep: str) -> None:
         """Integrate from here on with ``multistep`` ("adams" or "bdf")."""
@@ -311,7 +317,7 @@ class CvodesEngine(_Engine):
             x[None], np.atleast_2d(tau)[:, None, :], np.r_[0.0, h * tout], [tout.size], [False]
         )
         if flags[0]:
-            reason = cvodes_reason(native.reason(flags[0]))
+            reason = cvodes_reason(c_driver.reason(flags[0]))
             raise IntegrationFailure(reason, out[0, 1 : reached[0]].copy())
         return out[0, 1:]
 
@@ -329,14 +335,14 @@ class CvodesEngine(_Engine):
         """
         rtol, abstol, max_steps = self._settings
         family = 1 if self.multistep == "adams" else 2
-        out, reached, flags, counts, used_bdf = native.integrate(
+        out, reached, flags, counts, used_bdf = c_driver.integrate(
             self.native, [family], x0, u, self.model.parameters[None], self.nominal[None],
             times, (ends, restart), (rtol, abstol, max_steps, MAX_ORDER),
             fastest=None if fastest is None else np.array([fastest]),
             settled_ratio=_engine.SETTLED_RATIO,
             longest=None if longest is None else longest[None], out=out,
         )  # fmt: skip
-        for name, value in zip(native.STATISTICS, counts[0].tolist(), strict=True):
+        for name, value in zip(c_driver.STATISTICS, counts[0].tolist(), strict=True):
             self.counts[name] += value
         if used_bdf[0] and "bdf" not in self.families:
             self.families.append("bdf")

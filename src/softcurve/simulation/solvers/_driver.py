@@ -25,15 +25,16 @@ from __future__ import annotations
 
 import contextlib
 import ctypes
-from concurrent.futures import ThreadPoolExecutor
 
 import casadi as ca
 import numpy as np
 
+from softcurve.base.shares import run_shares, share_bounds
 from softcurve.compiled import NativeFunction, compile_source
 from softcurve.description.robot import MAX_BEND
 from softcurve.simulation.solvers._lanes import lanes_derivative
 from softcurve.simulation.solvers._library import DECLARATIONS, Options, ProblemStruct, library
+from softcurve.simulation.solvers._library import unavailable as library_unavailable
 
 STATISTICS = ("steps", "rhs_evaluations", "jacobian_evaluations", "linear_solver_setups",
               "error_test_failures", "newton_failures")  # fmt: skip
@@ -58,6 +59,19 @@ def driver():
     process; None where it cannot be (see the module notes) or inside :func:`casadi_only`."""
     loaded = library()
     return None if loaded is None or _BYPASS else loaded.softcurve_cvodes
+
+
+def unavailable() -> str | None:
+    """Why :func:`driver` is None, in a phrase (None where the driver is loaded): inside
+    :func:`casadi_only` (:data:`CASADI_ONLY`), ``SOFTCURVE_NATIVE_CVODES=0``
+    (``SWITCHED_OFF``), or why the library does not load."""
+    if driver() is not None:
+        return None
+    return CASADI_ONLY if _BYPASS else library_unavailable()
+
+
+CASADI_ONLY = "casadi_only() was asked"
+"""Why the driver is unused inside :func:`casadi_only` (the user's choice)."""
 
 
 _BYPASS: list = []
@@ -301,15 +315,9 @@ def integrate(problem, lmm, x0, u, p, nominal, times, segments, tolerances, *, f
              used[a:].ctypes.data, counts[a:b].ctypes.data)  # fmt: skip
 
     threads = max(1, min(threads, count))
-    if threads == 1:
-        run(0, count)
-    else:
-        # shares of whole groups: the grouping, hence every result, is that of one thread
-        units = -(-count // problem.width)
-        bounds = np.linspace(0, units, min(units, CHUNKS_PER_THREAD * threads) + 1).astype(int)
-        bounds = np.minimum(bounds * problem.width, count)
-        with ThreadPoolExecutor(threads) as pool:
-            list(pool.map(run, bounds[:-1], bounds[1:]))
+    # shares of whole groups: the grouping, hence every result, is that of one thread
+    shares = 1 if threads == 1 else CHUNKS_PER_THREAD * threads
+    run_shares(run, share_bounds(count, shares, problem.width), threads)
     return out, reached, flags, counts, used.astype(bool)
 
 

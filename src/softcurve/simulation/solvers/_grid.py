@@ -1,13 +1,10 @@
-"""Stepping a simulation along its output grid: the fast route (whole restart segments in
-compiled code) and the sampled route (inputs computed in Python at output times or
+"""Stepping a simulation along its output grid: on the grid (whole restart segments in
+compiled code) and sampled (inputs computed in Python at output times or
 controller samples, held in between), with the progress bar of long runs; both stop at
 the first output outside the model's domain (:func:`outside_domain`)."""
 
 from __future__ import annotations
 
-import math
-import sys
-import time
 from dataclasses import dataclass
 
 import numpy as np
@@ -148,23 +145,29 @@ class Domain:
 
 
 def run_on_grid(engine, grid, states, inputs, bar, domain, fastest=None, constant=False) -> int:
-    """All outputs in one call per restart segment (see ``RESTART_INTERVAL``), split
-    further only to report progress, or with CVODES's C driver the whole grid in one call;
-    with ``fastest``, each segment after the first is integrated with BDF once the robot
-    has settled, else Adams (``SETTLED_RATIO``).
+    """All outputs in one call per restart segment (see ``RESTART_INTERVAL``), or with
+    CVODES's C driver the whole grid in one call; with ``fastest``, each segment after the
+    first is integrated with BDF once the robot has settled, else Adams
+    (``SETTLED_RATIO``).
+
+    A progress bar is drawn between restart segments: the C driver then runs one call per
+    segment, choosing the family of each in Python by the rule the driver applies inside
+    its one call (:func:`~softcurve.simulation.solvers.settled`), so the route and the
+    trajectory are those without the bar, bit for bit (``tests/test_routes.py``); the
+    driver reports no progress from inside a call.
 
     Parameters
     ----------
-    engine : CvodesEngine or ScipyEngine
-        The integrator.
+    engine : Solver
+        The integrator (:class:`~softcurve.simulation.solvers.Solver`).
     grid : ndarray, shape (T,)
         Output times [s].
     states : ndarray, shape (T, n_state [+ m])
         Filled in place from row 0.
     inputs : ndarray, shape (T, width)
         Input per output interval.
-    bar : Progress or None
-        The progress bar.
+    bar : ProgressLine or None
+        The progress bar, counting simulated seconds.
     domain : Domain
         The check of every output against the model's domain.
     fastest : float, optional
@@ -175,29 +178,30 @@ def run_on_grid(engine, grid, states, inputs, bar, domain, fastest=None, constan
         of the input to look for.
     """
     segments = restart_segments(grid, RESTART_INTERVAL)
-    if bar is None and getattr(engine, "native", None) is not None:
+    on_driver = engine.route == "driver"
+    if on_driver:
         changes = np.empty(0, dtype=int) if constant else _input_changes(inputs)
-        return _run_native(engine, grid, states, inputs, domain, segments, fastest, changes)
-    chunk = grid.size if bar is None else max(1, math.ceil((grid.size - 1) / 50))
+        if bar is None:
+            return _run_native(engine, grid, states, inputs, domain, segments, fastest, changes)
     model, nominal = getattr(engine, "model", None), getattr(engine, "nominal", None)
     for k0, k1 in segments:
         if fastest is not None and k0 > 0:
             rates = model.state_derivative(states[k0], inputs[k0])
             engine.use("bdf" if settled(rates, nominal, fastest) else "adams")
-        k = k0
-        while k < k1:
-            m = min(chunk, k1 - k)
-            _advance(engine, grid, states, inputs, k, m, domain)
-            k += m
-            if bar is not None:
-                bar.update(grid[k])
+        if on_driver:
+            _run_native(engine, grid, states, inputs, domain, [(k0, k1)], None, changes)
+        else:
+            _advance(engine, grid, states, inputs, k0, k1 - k0, domain)
+        if bar is not None:
+            bar.update(grid[k1])
     return grid.size
 
 
 def _run_native(engine, grid, states, inputs, domain, segments, fastest, changes) -> int:
-    """:func:`run_on_grid` in one call of the C driver: segments end at the restarts and
-    at the ``changes`` of the input (:func:`_input_changes`); the driver stops at the first
-    output outside the domain, which :class:`Domain` then words."""
+    """Outputs ``segments[0][0]`` to ``segments[-1][1]`` of :func:`run_on_grid` in one call
+    of the C driver: segments end at the restarts and at the ``changes`` of the input
+    (:func:`_input_changes`); the driver stops at the first output outside the domain,
+    which :class:`Domain` then words."""
     ends, restart = [], []
     bounds = np.array(segments).T
     # the changes strictly inside each segment, found for all segments in two searches
@@ -209,16 +213,19 @@ def _run_native(engine, grid, states, inputs, domain, segments, fastest, changes
         ends.append(k1)
         restart.append(True)
         restart.extend([False] * (b - a))
-    starts = np.array([0, *ends[:-1]], dtype=int)
+    start, last = segments[0][0], segments[-1][1]
+    starts = np.array([start, *ends[:-1]], dtype=int)
     longest = MAX_STRETCH * np.asarray(domain.robot.rest_lengths, dtype=np.float64)
     # the driver writes into the run's own array: no copy of the outputs
+    span = states[start : last + 1]
     _, reached, flags = engine.run_native(
-        states[:1], inputs[starts][None], grid, ends, restart, fastest, longest, states[None]
-    )
-    done = int(reached[0])
+        span[:1], inputs[starts][None], grid[start : last + 1], np.array(ends) - start,
+        restart, fastest, longest, span[None],
+    )  # fmt: skip
+    done = start + int(reached[0])
     if flags[0] == 0:
-        return grid.size
-    domain.check(states, 1, done)
+        return last + 1
+    domain.check(states, start + 1, done)
     if flags[0] == 1:  # outside by the driver's test, inside by Python's: stop there
         raise Stopped(done - 1, f"{LEFT_DOMAIN} at t = {grid[done - 1]:.6g} s")
     raise Stopped(done, cvodes_reason(native.reason(flags[0])))
@@ -290,8 +297,8 @@ def run_sampled(engine, model, grid, states, applied, inputs, controller, sample
         The controller.
     sample_time : float or None
         The controller's sample time [s].
-    bar : Progress or None
-        The progress bar.
+    bar : ProgressLine or None
+        The progress bar, counting simulated seconds.
     check : callable
         ``check(value, source) -> ndarray``, ``source`` "controller" or "callable" (for
         the message).
@@ -344,32 +351,3 @@ def run_sampled(engine, model, grid, states, applied, inputs, controller, sample
                 bar.update(times[i + 1])
     applied[output:] = current
     return grid.size
-
-
-class Progress:
-    """A one-line progress bar on stderr that appears once a run has taken a second."""
-
-    def __init__(self, total: float, delay: float = 1.0, stream=None):
-        self.total, self.delay = total, delay
-        self.stream = stream or sys.stderr
-        self.start = time.perf_counter()
-        self.shown = False
-
-    def update(self, t: float) -> None:
-        elapsed = time.perf_counter() - self.start
-        if elapsed < self.delay:
-            return
-        fraction = min(1.0, t / self.total)
-        filled = int(30 * fraction)
-        eta = elapsed * (1 - fraction) / max(fraction, 1e-12)
-        self.stream.write(
-            f"\r[{'#' * filled}{'.' * (30 - filled)}] {100 * fraction:5.1f}% "
-            f"t = {t:.3g} s, {elapsed:.1f} s elapsed, ~{eta:.0f} s left "
-        )
-        self.stream.flush()
-        self.shown = True
-
-    def close(self) -> None:
-        if self.shown:
-            self.stream.write("\n")
-            self.stream.flush()

@@ -95,7 +95,7 @@ def version_verified(version: str, requirement: str = CASADI_VERIFIED) -> bool:
     return True
 
 
-_LIBRARIES: dict = {}  # the driver's library by its defines (None: not buildable), per process
+_LIBRARIES: dict = {}  # the driver's library by its defines (or why not, a str), per process
 _LOCK = threading.Lock()
 
 
@@ -115,6 +115,28 @@ def library(defines: tuple[str, ...] = ()):
     -------
     ctypes.CDLL or None
     """
+    loaded = _loaded(defines)
+    return None if isinstance(loaded, str) else loaded
+
+
+def unavailable(defines: tuple[str, ...] = ()) -> str | None:
+    """Why :func:`library` is None, in a phrase (None where it loads).
+
+    Parameters
+    ----------
+    defines : tuple of str
+        Macros defined for the build, as :func:`library` takes them.
+    """
+    loaded = _loaded(defines)
+    return loaded if isinstance(loaded, str) else None
+
+
+SWITCHED_OFF = "SOFTCURVE_NATIVE_CVODES=0 is set"
+"""Why the driver is unused under ``SOFTCURVE_NATIVE_CVODES=0`` (the user's choice)."""
+
+
+def _loaded(defines: tuple[str, ...]):
+    """The library of ``defines`` or why not (a str), loaded once per process."""
     with _LOCK:
         if defines not in _LIBRARIES:
             _LIBRARIES[defines] = _load(defines)
@@ -122,16 +144,19 @@ def library(defines: tuple[str, ...] = ()):
 
 
 def _load(defines: tuple[str, ...]):
+    """The loaded library, or why it cannot be loaded (a str)."""
     if os.environ.get("SOFTCURVE_NATIVE_CVODES", "1") in ("0", ""):
-        return None
+        return SWITCHED_OFF
     if not version_verified(ca.__version__):
-        return None
+        return f"CasADi {ca.__version__} is outside the verified {CASADI_VERIFIED}"
     directory = Path(ca.__file__).parent
     try:
         if not hasattr(load_library(directory / PLUGIN), "CVSpgmr"):  # SUNDIALS >= 3: other API
-            return None
-    except OSError:
-        return None
+            return f"CasADi's {PLUGIN} lacks the SUNDIALS 2.x interface (CVSpgmr)"
+    except OSError as exc:
+        return f"CasADi's {PLUGIN} cannot be loaded ({exc})"
     link = (f"-L{directory}", f"-l:{PLUGIN}", f"-Wl,-rpath,{directory}", "-pthread")
     loaded = compile_files("cvodes_driver", C_FOLDER, link, defines)
-    return None if loaded is None else DECLARATIONS.bind(loaded)
+    if loaded is None:
+        return "the driver's C source did not compile (no C compiler, or the build failed)"
+    return DECLARATIONS.bind(loaded)

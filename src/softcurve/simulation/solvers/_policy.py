@@ -17,6 +17,7 @@ import numpy as np
 
 from softcurve.base.status import Status
 from softcurve.simulation.solvers import _driver as native
+from softcurve.simulation.solvers._along import rhs_along
 
 STIFFNESS_RATIO = 10.0
 """``"cvodes"`` uses BDF when max decay rate > STIFFNESS_RATIO * max oscillation frequency."""
@@ -77,6 +78,37 @@ def nominal_scale(model, x0: np.ndarray) -> np.ndarray:
         return np.maximum(np.abs(x0), _state_floor(model.robot))
     floor = model.cached("nominal floor", lambda: _state_floor(model.robot))
     return np.maximum(np.abs(x0), floor)
+
+
+def lag_scale(inputs) -> np.ndarray:
+    """The scale of lagging inputs (m,): the larger bound of each, ``max(|lower|, |upper|)``
+    (in the inputs' unit).
+
+    Parameters
+    ----------
+    inputs : ActuatorInput or Actuator
+        What has the bounds ``lower`` and ``upper`` (m,).
+    """
+    return np.maximum(np.abs(inputs.lower), np.abs(inputs.upper))
+
+
+def state_scale(model, x0: np.ndarray, inputs=None) -> np.ndarray:
+    """The one state scale of an integration (N,): :func:`nominal_scale` of ``(q, qd, lam)``
+    and, where the actuator's inputs lag their commands, :func:`lag_scale` of them.
+
+    Parameters
+    ----------
+    model : Model
+        A model (only its robot is read).
+    x0 : ndarray, shape (n_state,)
+        The initial state ``(q, qd, lam)``.
+    inputs : ActuatorInput, optional
+        The actuator's input (None: forces, no extra states).
+    """
+    nominal = nominal_scale(model, x0[: model.n_state])
+    if inputs is None or not inputs.n_states:
+        return nominal
+    return np.concatenate([nominal, lag_scale(inputs)])
 
 
 def _state_floor(robot) -> np.ndarray:
@@ -153,28 +185,40 @@ def linear_rates(eigenvalues: np.ndarray) -> tuple:
     return decay / oscillation, np.abs(eigenvalues).max(axis=-1, initial=0.0)
 
 
-def linearization_rates(model, x0, tau0=None, nominal=None) -> tuple[float, float]:
+def linearization_rates(model, x0, tau0=None, nominal=None, parameters=None, threads=1):
     """:func:`linear_rates` of the eigenvalues of the central-difference linearization of
     ``model``'s right-hand side at ``x0``: ``(stiffness ratio, fastest rate [1/s])``. The
     stiffness ratio, the fastest decay rate over the fastest oscillation frequency (at
-    least ``1 rad/s``), is large for stiff problems.
+    least ``1 rad/s``), is large for stiff problems. The one rule of the fastest mode at a
+    state: for one run (floats) or for every member of a batch at once (arrays (B,), all
+    points in one compiled map over the members' own parameters).
 
     Parameters
     ----------
     model : Model
         The compiled model.
-    x0 : array_like, shape (n_state,)
-        The state.
-    tau0 : array_like, shape (n,), optional
+    x0 : array_like, shape (n_state,) or (B, n_state)
+        The state, or each member's.
+    tau0 : array_like, shape (n,) or (B, n), optional
         Input force [N, N m^2, N m^2] (default zero).
-    nominal : ndarray, shape (n_state,), optional
+    nominal : ndarray, shape (n_state,) or (B, n_state), optional
         State scales, relative to which the steps are taken (default
-        :func:`nominal_scale`).
+        :func:`nominal_scale`, one state only).
+    parameters : ndarray, shape (B, n_p), optional
+        Each member's parameter vector (with ``x0`` (B, n_state); default the model's).
+    threads : int
+        Threads of the members' compiled map.
     """
     x0 = np.asarray(x0, dtype=np.float64)
-    tau0 = np.zeros(model.n) if tau0 is None else tau0
+    tau0 = np.zeros(x0.shape[:-1] + (model.n,)) if tau0 is None else np.asarray(tau0)
     nominal = nominal_scale(model, x0) if nominal is None else nominal
     points, steps = difference_points(x0, nominal)
+    if x0.ndim == 2:  # members: (B, 2 n_state, n_state) points
+        if parameters is None:
+            parameters = np.tile(model.parameters, (x0.shape[0], 1))
+        taus = np.broadcast_to(tau0[:, None, :], (*points.shape[:2], model.n))
+        values = rhs_along(model, points, taus, parameters, threads)
+        return linear_rates(difference_eigenvalues(values, steps))
     problem = native.problem(model) if x0.size == model.n_state else None
     if problem is not None:  # one compiled call rather than 2 n_state calls from Python
         taus = np.empty((points.shape[0], model.n))  # contiguous: evaluate copies no input

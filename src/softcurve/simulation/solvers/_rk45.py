@@ -9,16 +9,17 @@ import numpy as np
 from scipy.integrate import RK45
 
 from softcurve.description.robot import in_domain
-from softcurve.simulation.solvers._cvodes import _Engine
+from softcurve.simulation.solvers._cvodes import PiecewiseSolver
 from softcurve.simulation.solvers._policy import LEFT_DOMAIN, TOO_MUCH_WORK, IntegrationFailure
 
 
-class ScipyEngine(_Engine):
+class ScipyEngine(PiecewiseSolver):
     """SciPy's explicit Runge-Kutta 4(5) (Dormand-Prince, like MATLAB's ode45), stepped
     from Python over the model's compiled right-hand side."""
 
     name = "rk45"
     method = "rk45"
+    route = "rk45"
 
     def __init__(self, model, rtol, atol, max_steps, inputs=None):
         self.model = model

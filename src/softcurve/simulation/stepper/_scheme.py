@@ -19,7 +19,8 @@ import numpy as np
 
 from softcurve.base.docs import parameters_from
 from softcurve.compiled import NativeFunction, compile_function, load_function
-from softcurve.simulation.solvers import ActuatorInput, actuated_derivative, nominal_scale
+from softcurve.simulation.solvers import ActuatorInput, actuated_derivative
+from softcurve.simulation.solvers import state_scale as integration_scale
 from softcurve.simulation.stepper._methods import METHODS, ExplicitTableau, Tableau
 from softcurve.simulation.stepper._observe import observer
 
@@ -58,19 +59,16 @@ def state_derivative(model, inputs: ActuatorInput | None, symbolic: bool) -> ca.
 
 @scheme_parameters
 def state_scale(model, inputs: ActuatorInput | None) -> np.ndarray:
-    """The natural size of every state (n_state [+ m],): the geometric floors of
-    :func:`~softcurve.simulation.solvers.nominal_scale`, and the larger bound of each
-    lagging input (as ``simulate`` scales them).
+    """The natural size of every state (n_state [+ m],): the integrators' state scale
+    (:func:`~softcurve.simulation.solvers.state_scale`) at the rest state, the geometric
+    floors and the larger bound of each lagging input.
 
     Parameters
     ----------
     %(model)s
     %(inputs)s
     """
-    floor = nominal_scale(model, np.zeros(model.n_state))
-    if inputs is None or not inputs.n_states:
-        return floor
-    return np.concatenate([floor, np.maximum(np.abs(inputs.lower), np.abs(inputs.upper))])
+    return integration_scale(model, np.zeros(model.n_state), inputs)
 
 
 DIFFERENCE_STEP = 1.5e-8

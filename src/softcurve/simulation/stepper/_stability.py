@@ -15,7 +15,7 @@ import numpy as np
 
 from softcurve.analysis.loads import rest_configuration
 from softcurve.base.validation import ParameterError
-from softcurve.simulation.solvers import ActuatorInput
+from softcurve.simulation.solvers import ActuatorInput, linear_rates
 from softcurve.simulation.stepper._scheme import (
     difference_jacobian,
     scheme_parameters,
@@ -50,7 +50,7 @@ def fastest_rate(model, inputs: ActuatorInput | None, x, u) -> float:
     f, scale = state_derivative(model, inputs, symbolic=False), state_scale(model, inputs)
     x, u = (ca.DM(np.asarray(v, dtype=np.float64)) for v in (x, u))
     jacobian = np.array(difference_jacobian(f, scale, x, u, ca.DM(model.parameters))[0])
-    return float(np.abs(np.linalg.eigvals(jacobian)).max())
+    return float(linear_rates(np.linalg.eigvals(jacobian))[1])
 
 
 @scheme_parameters

@@ -24,7 +24,14 @@ from softcurve.compiled import Model
 from softcurve.description.actuator import Actuator
 from softcurve.figures import plot_member_tips
 from softcurve.simulation._simulate import initial_state as checked_state
-from softcurve.simulation.solvers import ActuatorInput, BufferedCall, domain_reason, outside_domain
+from softcurve.simulation.solvers import (
+    ActuatorInput,
+    BufferedCall,
+    Route,
+    choose_route,
+    domain_reason,
+    outside_domain,
+)
 from softcurve.simulation.stepper._lanes import LanesMembers, lanes_period
 from softcurve.simulation.stepper._methods import DEFAULT_EXPLICIT_STEP as DEFAULT_EXPLICIT_STEP
 from softcurve.simulation.stepper._methods import DEFAULT_METHOD as DEFAULT_METHOD
@@ -198,13 +205,18 @@ class Stepper:
             jacobian_every = self._substeps if free else CONTACT_JACOBIAN_EVERY
         self._every = min(whole_count("jacobian_every", jacobian_every), self._substeps)
         scheme = (model, self._input, self._substeps, method)
-        self._members = None
-        if compiled:  # members in lock-step: vector lanes
+
+        def lane_members():  # members in lock-step: vector lanes
             lanes = lanes_period(model, self._input, self._substeps, method, self._every)
-            self._members = None if lanes is None else LanesMembers(lanes, self._threads)
-        if compiled and self._members is None:
+            return None if lanes is None else LanesMembers(lanes, self._threads)
+
+        def threaded_members():
             native = period_function(*scheme, True, None, self._every, native=True)
-            self._members = None if native is None else ThreadedMembers(native, self._threads)
+            return None if native is None else ThreadedMembers(native, self._threads)
+
+        builders = {"stepper-lanes": lane_members, "stepper-threads": threaded_members}
+        self._route = choose_route("stepper", builders=builders if compiled else {})
+        self._members = self._route.built
         # CasADi evaluates the period only where ctypes cannot (no compiled library)
         self._function = None
         if self._members is None:
@@ -216,6 +228,19 @@ class Stepper:
         self._calls: dict[int, BufferedCall] = {}
 
     # -- properties ---------------------------------------------------------------
+    @property
+    def route(self) -> Route:
+        """The route that steps the members (``ROUTES`` of :mod:`softcurve.simulation.solvers`:
+        "stepper-lanes", "stepper-threads" or "stepper-casadi"), with its reason."""
+        return self._route
+
+    @property
+    def stats(self) -> dict:
+        """``{"route": name, "route_reason": why, "method": method, "substeps": k}``, as
+        the integrators' results record them."""
+        return {"route": self._route.name, "route_reason": self._route.reason,
+                "method": self._method, "substeps": self._substeps}  # fmt: skip
+
     @property
     def model(self) -> Model:
         """The model."""

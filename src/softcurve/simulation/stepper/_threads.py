@@ -16,14 +16,17 @@ from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 
+from softcurve.base.shares import run_shares, share_bounds
 from softcurve.compiled import NativeFunction
 
 
 class MemberShares:
     """A compiled period on every member: the members split into one contiguous share per
     thread (a multiple of :attr:`granularity` members, but the last), each share one
-    foreign call through ctypes, which releases the GIL. Subclasses say how a share is
-    called (:meth:`_share`) and check the arrays (:meth:`_arrays`).
+    foreign call through ctypes, which releases the GIL
+    (:func:`softcurve.base.shares.run_shares`, on a pool kept between periods).
+    Subclasses say how a share is called (:meth:`_share`) and check the arrays
+    (:meth:`_arrays`).
 
     Parameters
     ----------
@@ -65,17 +68,13 @@ class MemberShares:
             Where the outputs go (C-contiguous float64).
         """
         arrays = self._arrays(x, u, p, period, out)
-        count = out.shape[0]
-        units = -(-count // self.granularity)
-        chunks = min(self._threads, units)
-        if chunks <= 1:
-            return self._share(arrays, out, 0, count)
-        bounds = np.linspace(0, units, chunks + 1).astype(int) * self.granularity
-        bounds = np.minimum(bounds, count)
-        with self._lock:
-            if self._pool is None:
-                self._pool = ThreadPoolExecutor(self._threads, "softcurve-stepper")
-        parts = self._pool.map(lambda a, b: self._share(arrays, out, a, b), bounds[:-1], bounds[1:])
+        bounds = share_bounds(out.shape[0], self._threads, self.granularity)
+        if bounds.size > 2:
+            with self._lock:
+                if self._pool is None:
+                    self._pool = ThreadPoolExecutor(self._threads, "softcurve-stepper")
+        parts = run_shares(lambda a, b: self._share(arrays, out, a, b), bounds, self._threads,
+                           self._pool)  # fmt: skip
         return [failure for part in parts for failure in part]
 
 

@@ -1,0 +1,96 @@
+"""One description of an integration (:class:`Problem`) and the one interface of its
+solvers (:class:`Solver`), with the table :data:`METHODS` of the solver behind each route
+of one member (like SciPy's ``solve_ivp`` ``METHODS``).
+
+A problem is the model's right-hand side with its parameters, the actuator's input (its
+force ``H(q) u`` and lag), the state scale, the tolerances and step budget, and the output
+grid with the model's domain; a solver answers the one question of
+:mod:`softcurve.simulation.solvers._cvodes` on it (``advance``), and the route's
+:class:`~softcurve.simulation.solvers._routes.Route` says which solver runs.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Protocol
+
+import numpy as np
+
+from softcurve.simulation.solvers._cvodes import ActuatorInput, CvodesEngine
+from softcurve.simulation.solvers._rk45 import ScipyEngine
+
+
+@dataclass(frozen=True)
+class Problem:
+    """What one member's integration is, whatever integrates it.
+
+    Parameters
+    ----------
+    model : Model
+        The compiled model: the right-hand side and its parameter vector.
+    inputs : ActuatorInput or None
+        The actuator's input (force ``H(q) u``, bounds, lag), or None for forces.
+    nominal : ndarray, shape (N,)
+        State scale (> 0), :func:`~softcurve.simulation.solvers.state_scale`.
+    atol : ndarray, shape (N,)
+        Absolute tolerance per state, in the state's units.
+    rtol : float
+        Relative tolerance.
+    max_steps : int
+        Internal steps allowed between two output times.
+    grid : ndarray, shape (T,)
+        Output times [s].
+    """
+
+    model: object
+    inputs: ActuatorInput | None
+    nominal: np.ndarray
+    atol: np.ndarray
+    rtol: float
+    max_steps: int
+    grid: np.ndarray
+
+
+class Solver(Protocol):
+    """What every solver of one member implements once (:data:`METHODS`)."""
+
+    name: str
+    """The algorithm's family: "cvodes" or "rk45"."""
+    route: str
+    """The route it runs (a key of ``ROUTES`` of :mod:`softcurve.simulation.solvers`)."""
+    counts: dict
+    """Counters of the work done (steps, right-hand sides, ...)."""
+
+    @property
+    def method(self) -> str:
+        """The integrator as results name it, e.g. "cvodes-adams+bdf"."""
+
+    def advance(self, x, h, tout, taus) -> np.ndarray:
+        """States (len(tout), N) at ``t0 + h * tout`` from ``x`` at ``t0``, with
+        ``taus[k]`` applied on ``(tout[k-1], tout[k]]``."""
+
+
+METHODS = {"driver": CvodesEngine, "casadi-cvodes": CvodesEngine, "rk45": ScipyEngine}
+"""The solver class behind each route of one member."""
+
+
+def solver(route, problem: Problem, multistep: str = "adams") -> Solver:
+    """The solver of ``route`` on ``problem`` (:data:`METHODS`).
+
+    Parameters
+    ----------
+    route : Route
+        The route (:func:`~softcurve.simulation.solvers.choose_route`); for "driver" its
+        ``built`` is the driver's problem.
+    problem : Problem
+        The integration.
+    multistep : {"adams", "bdf"}
+        CVODES's family at the start (unused by RK45).
+    """
+    p = problem
+    if route.name == "rk45":
+        return ScipyEngine(p.model, p.rtol, p.atol, p.max_steps, p.inputs)
+    native = route.built if route.name == "driver" else None
+    return METHODS[route.name](
+        p.model, multistep, p.rtol, p.atol, p.nominal, p.max_steps, p.inputs, native
+    )
