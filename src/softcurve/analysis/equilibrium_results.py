@@ -9,7 +9,8 @@ import numpy as np
 
 from softcurve.analysis.loads import StaticLoad
 from softcurve.base.status import Result, Status
-from softcurve.figures import plot_configuration, plot_equilibria, result_figure_options
+from softcurve.figures import plot_configuration, plot_equilibria
+from softcurve.figures.shapes import result_figure_options
 from softcurve.figures.viewer import equilibria_viewer, viewer_options
 
 STABILITY_KINDS = ("stable", "unstable", "saddle", "degenerate")

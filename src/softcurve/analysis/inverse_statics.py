@@ -22,7 +22,8 @@ from softcurve.analysis.statics import default_bounds, equilibrium
 from softcurve.base.status import Result, Status
 from softcurve.base.validation import ParameterError, real_array, real_scalar
 from softcurve.description.actuator import Actuator
-from softcurve.figures import plot_configuration, result_figure_options
+from softcurve.figures import plot_configuration
+from softcurve.figures.shapes import result_figure_options
 
 IPOPT_SOLVED = ("Solve_Succeeded", "Solved_To_Acceptable_Level")
 IPOPT_ITERATION_LIMIT = "Maximum_Iterations_Exceeded"

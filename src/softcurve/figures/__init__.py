@@ -17,7 +17,6 @@ from softcurve.figures.shapes import (
     plot_eigenvalues,
     plot_input_bounds,
     plot_member_tips,
-    result_figure_options,
 )
 from softcurve.figures.statics import plot_equilibria, plot_input_sweep
 from softcurve.figures.sweeps import plot_sweep
@@ -40,6 +39,5 @@ __all__ = [
     "plot_states",
     "plot_sweep",
     "plot_tip",
-    "result_figure_options",
     "save_figure",
 ]

@@ -22,7 +22,8 @@ from softcurve.base.status import Result, Status
 from softcurve.base.validation import ParameterError, real_array
 from softcurve.compiled import Model
 from softcurve.description.actuator import Actuator
-from softcurve.figures import plot_configuration, result_figure_options
+from softcurve.figures import plot_configuration
+from softcurve.figures.shapes import result_figure_options
 from softcurve.identification.experiments import Experiment, check_units
 from softcurve.identification.fits._equilibria import EQUILIBRIUM_TOLERANCE, MAX_EVALUATIONS
 from softcurve.identification.maps import InputMap, actuator_input_map
