@@ -34,7 +34,7 @@ from scipy.integrate import solve_ivp
 
 import softcurve as sc
 from softcurve.identification.maps import bellows_input_map
-from softcurve.simulation.sensitivity._route import DriverSettings, integrate_sensitivities
+from softcurve.simulation.sensitivity._sensitivity import DriverSettings, integrate_sensitivities
 
 sys.path.insert(0, str(Path(__file__).parent))
 import bench_identification

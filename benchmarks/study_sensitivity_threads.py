@@ -8,7 +8,7 @@ The trial of ``bench_identification.py`` (the paper robot, three bellows, 12 Hz,
 free parameters, linear hold), shortened to ``--duration`` seconds, on models with 4, 6,
 8 and 11 (the default) quadrature nodes: the operations of the sensitivity equations'
 right-hand side, and one evaluation on one thread and on two (the right-hand side in two
-parts, ``softcurve.simulation.sensitivity._split``), best of ``--repeat``, the two
+parts, ``softcurve.simulation.sensitivity._sensitivity``), best of ``--repeat``, the two
 alternating twice.
 
 ``--side-by-side`` instead times the default model on a busy machine: two processes

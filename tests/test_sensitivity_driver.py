@@ -16,12 +16,12 @@ import softcurve as sc
 from softcurve.identification.experiments import Experiment
 from softcurve.identification.fits._parameters import Free, FreeParameters
 from softcurve.identification.maps import bellows_input_map, curvature_map
-from softcurve.simulation.sensitivity._route import integrate_sensitivities
 from softcurve.simulation.sensitivity._sensitivity import (
     SENSITIVITY_CVODES,
+    integrate_sensitivities,
+    split_states,
     trajectory_sensitivities,
 )
-from softcurve.simulation.sensitivity._split import split_states
 from softcurve.simulation.solvers import _driver as native
 from softcurve.simulation.solvers import _library as driver_library
 

@@ -211,7 +211,7 @@ def fit_trajectory(
         Threads of each experiment's evaluation (default: the usable cores the processes
         leave, ``max(1, cores // processes)``); with 2 or more, the sensitivity
         equations are evaluated in two parts on two threads
-        (``softcurve.simulation.sensitivity._split``).
+        (``softcurve.simulation.sensitivity._sensitivity``).
 
     Returns
     -------

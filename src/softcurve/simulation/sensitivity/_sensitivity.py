@@ -5,27 +5,53 @@ variational equations ``S' = f_x S + f_d`` for the columns of ``d = (p, v, x0)``
 that depend on the free parameters (``S(0)`` selects the free entries of ``x0``).
 The augmented right-hand side is generated as C by CasADi, compiled once by
 :func:`softcurve.compiled.compile_function` (same compiler and cache as the model),
-loaded as an ``external`` and integrated by CVODES, so an evaluation of the residuals
-and their exact Jacobian never returns to Python. The chain rule from ``d`` to the free
-parameters ``theta`` (ties, re-parametrizations, initial states) and from the state to
-the outputs is applied afterwards, sample by sample.
+loaded and integrated by CVODES, so an evaluation of the residuals and their exact
+Jacobian never returns to Python. The chain rule from ``d`` to the free parameters
+``theta`` (ties, re-parametrizations, initial states) and from the state to the outputs
+is applied afterwards, sample by sample.
 
-Two routes integrate it. Where softcurve's CVODES driver is available
-(``softcurve.simulation.solvers._driver``; the call and its settings are in
-``softcurve.simulation.sensitivity._route``), the state is integrated by Adams-Newton on its own
-Newton matrix and the sensitivity columns by CVODES's staggered corrector (outside the
-error test), all in C, without a restart at the samples of a linear hold; otherwise (no driver, or
-CVODES options other than :data:`NATIVE_OPTIONS`) CasADi's CVODES integrates the
-augmented system with :data:`SENSITIVITY_CVODES`. Both agree to the tolerances
+Two routes integrate it (the route is chosen by the solvers' ``choose_route`` and
+recorded in the statistics). Where softcurve's CVODES driver is available, the state is
+integrated by Adams-Newton (or BDF, :attr:`DriverSettings.family`) on its own Newton
+matrix and the sensitivity columns by CVODES's staggered corrector (outside the error
+test), all in C (``softcurve_sensitivities`` of the driver's ``sensitivity.c``), without
+a restart at the samples of a linear hold; what an evaluator carries into worker
+processes for that route is a :class:`DriverRoute`. Otherwise (no driver, or CVODES
+options other than :data:`NATIVE_OPTIONS`) CasADi's CVODES integrates the augmented
+system with :data:`SENSITIVITY_CVODES`. Both agree to the tolerances
 (``tests/test_sensitivity_driver.py``). With the columns in its error test the driver was
 1.5x (inputs held) to 2.8x (linear hold) faster on ``bench_identification.py``'s case,
 without them 1.34x more (``benchmarks/study_sensitivity_driver.py`` compares).
+
+With two threads, the sensitivity columns' right-hand side is split in two parts.
+
+``S' = f_x S + f_d`` is, by the Jacobian's column blocks, the sum of
+``f_x[:, A] S[A, :] + f_d`` and ``f_x[:, B] S[B, :]`` for any split of the states into
+``A`` and ``B``. Each part is compiled on its own; softcurve's CVODES driver evaluates the
+first on its own thread and the second on a helper thread
+(the driver's ``parts.c``), so that an evaluation takes about as long
+as the larger part instead of the whole.
+
+:func:`assembled` joins the compiled parts into the augmented system of CasADi's CVODES,
+the route of a process without the driver.
+
+Almost all of the work is the Jacobian's columns of the coordinates ``q`` (the
+kinematics' higher derivatives at every quadrature node): on the paper robot
+(``benchmarks/bench_identification.py``'s case, 75,024 operations in all) the columns of
+``q`` take 64,801 operations with ``f``, those of the rates and creep states with
+``f_d`` 20,973, and a single coordinate's column about 29,000-30,600. The split gives
+``B`` the last two thirds of the coordinates and ``A`` the rest with every other state
+and ``f_d``: 42,480 and 45,912 operations there (the rest of the operations shared by
+both parts, computed twice). Other splits of that robot are less even (``A`` = the first
+two coordinates and ``f_d``: 48,095 and 40,723).
 """
 
 from __future__ import annotations
 
+import ctypes
 import pickle
 import uuid
+from typing import NamedTuple
 
 import casadi as ca
 import numpy as np
@@ -37,17 +63,13 @@ from softcurve.compiled import (
     load_function,
     load_with_path,
 )
-from softcurve.simulation.sensitivity._route import (
-    DriverRoute,
-    DriverSettings,
-    integrate_sensitivities,
-)
-from softcurve.simulation.sensitivity._split import assembled, column_parts
 from softcurve.simulation.solvers import (
     DriverProblem,
     choose_route,
     cvodes_options,
     driver,
+    driver_library,
+    driver_options,
     driver_reason,
 )
 
@@ -270,7 +292,7 @@ def trajectory_sensitivities(
     threads : int
         Threads of an evaluation in the driver's route, >= 1: with 2 or more the
         columns' right-hand side is evaluated in two parts on two threads
-        (``softcurve.simulation.sensitivity._split``).
+        (``softcurve.simulation.sensitivity._sensitivity``).
     """
     P = parameters
     u_names = list(experiment.inputs)
@@ -362,3 +384,216 @@ def trajectory_sensitivities(
     evaluator._native = loaded
     evaluator.variational = augmented
     return evaluator
+
+
+class DriverSettings(NamedTuple):
+    """How the driver integrates (CVODES's settings of :func:`integrate_sensitivities`)."""
+
+    rtol: float
+    """Relative tolerance."""
+    atol: float
+    """Absolute tolerance, in the state's units."""
+    max_steps: int
+    """Steps allowed per output interval."""
+    family: int
+    """1 Adams, 2 BDF."""
+    columns_tested: bool
+    """The sensitivity columns in the error test too (``fsens_err_con``)."""
+
+
+HELPER_MODES = ("none", "shared")
+"""Who evaluates the second of two parts (:func:`integrate_sensitivities`): ``"none"``
+the driver's own thread; ``"shared"`` whichever of the driver and a helper thread claims
+it first (the driver never waits for a helper that has not started). Which thread wins
+is the scheduler's choice."""
+
+
+class DriverRoute(NamedTuple):
+    """What a sensitivity evaluator needs for the driver's route, and carries into worker
+    processes: the compiled libraries by ``(path, name)``, not their functions."""
+
+    state: tuple[str, str]
+    """``f(x, u, d)``: its library's absolute path and the function's name."""
+    columns: tuple[tuple[str, str], ...]
+    """The columns' right-hand side by path and name: ``fs(x;vec(S), u, d;scale) ->
+    f;vec(S')``, or its two parts (:func:`integrate_sensitivities`)."""
+    sizes: tuple[int, int, int]
+    """``(nx, nu, n_d)`` of ``f``."""
+    times: np.ndarray
+    """Output times [s], shape (T,)."""
+    table: np.ndarray
+    """The inputs per interval, shape (T, k) or (T, 2 k) (:func:`integrate_sensitivities`)."""
+    linear: bool
+    """The inputs are linear between samples (else held)."""
+    settings: DriverSettings
+    """CVODES's settings."""
+    helper: str
+    """Who evaluates the second of two parts, one of :data:`HELPER_MODES`."""
+
+
+SENSITIVITY_STATISTICS = ("steps", "rhs_evaluations", "jacobian_evaluations",
+                          "linear_solver_setups", "error_test_failures",
+                          "sensitivity_evaluations", "helper_evaluations")  # fmt: skip
+"""The counters :func:`integrate_sensitivities` returns, in the driver's order: CVODES's
+steps, right-hand sides (not those of the finite-difference Newton matrices), Newton
+matrices, linear-solver setups and error-test failures, the evaluations of the columns'
+right-hand side, and of those the second parts the helper thread evaluated (the driver
+evaluates the others itself)."""
+
+
+def integrate_sensitivities(
+    problem,
+    columns,
+    start,
+    d,
+    d_scaled,
+    times,
+    table,
+    linear,
+    settings,
+    helper="none",
+    library=None,
+):
+    """States and forward sensitivities over ``times`` in one call into the driver.
+
+    Parameters
+    ----------
+    problem : softcurve.simulation.DriverProblem
+        ``f(x, u, d)`` of the state (no actuator).
+    columns : sequence of NativeFunction
+        ``[fs]``, ``fs(x;vec(S), u, d;scale) -> f;vec(S')`` for ``m`` columns, or two
+        parts of the same arguments whose outputs sum to ``vec(S')``
+        (``softcurve.simulation.sensitivity._sensitivity.column_parts``).
+    start : ndarray, shape (W,)
+        ``(x0, vec(S0))`` with ``W = nx (1 + m)``, at ``times[0]``.
+    d : ndarray, shape (n_d,)
+        The parameters of ``f``.
+    d_scaled : ndarray, shape (n_d + m,)
+        ``(d, scale)``: the parameters of ``fs`` with its column scales.
+    times : ndarray, shape (T,)
+        Output times [s], increasing.
+    table : ndarray, shape (T, k) or (T, 2 k)
+        Row ``i``: the inputs on ``(times[i-1], times[i]]``, or the line ``(a, b)`` of
+        ``u = a + b t`` there with ``linear``.
+    linear : bool
+        Inputs continuous (integrated through) or held (a restart at every sample).
+    settings : DriverSettings
+        CVODES's settings.
+    helper : {"none", "shared"}
+        With two parts, who evaluates the second (:data:`HELPER_MODES`).
+    library : ctypes.CDLL, optional
+        A build of the driver (:func:`softcurve.simulation.solvers.driver_library`; default the
+        product's, without defines).
+
+    Returns
+    -------
+    tuple
+        ``(out (T, W), reached, flag, counts)``: the outputs (rows after ``reached`` are
+        zero), how many were computed (``start`` included), 0 or CVODES's negative flag
+        (``softcurve.simulation.solvers._driver.FLAGS``) and the counters of
+        :data:`SENSITIVITY_STATISTICS`.
+    """
+    if helper not in HELPER_MODES:
+        raise ValueError(f"helper must be one of {HELPER_MODES}, got {helper!r}")
+    out = np.zeros((times.size, start.size))
+    out[0] = start
+    arrays = [np.ascontiguousarray(a, dtype=np.float64) for a in (d, d_scaled, times, table)]
+    sizes = np.array([c.work_sizes for c in columns], np.int64)
+    pointers = (ctypes.c_void_p * len(columns))(*(c.address for c in columns))
+    counts = np.zeros(len(SENSITIVITY_STATISTICS), dtype=np.int64)
+    reached = ctypes.c_int(0)
+    n_x = problem.struct.nx
+    m = start.size // n_x - 1
+    leading = n_x if len(columns) == 1 else 0  # fs's f before vec(S'); the parts have none
+    call = (library or driver_library()).softcurve_sensitivities
+    chosen = driver_options(
+        settings.rtol, settings.atol, settings.max_steps, family=settings.family,
+        columns_tested=settings.columns_tested, helper=helper == "shared",
+    )  # fmt: skip
+    flag = call(
+        ctypes.byref(problem.struct), ctypes.byref(chosen), pointers, sizes.ctypes.data,
+        len(columns), leading, m, arrays[0].ctypes.data, arrays[1].ctypes.data,
+        arrays[2].ctypes.data, times.size, arrays[3].ctypes.data, int(linear), out.ctypes.data,
+        counts.ctypes.data, ctypes.byref(reached),
+    )  # fmt: skip
+    return out, reached.value, flag, dict(zip(SENSITIVITY_STATISTICS, counts.tolist(), strict=True))
+
+
+SPLIT_OF_COORDINATES = 3
+"""``B`` holds the coordinates from ``n // SPLIT_OF_COORDINATES`` on (at least the last
+one): the paper robot's two bending curvatures, ``A`` its length and the rest."""
+
+
+def split_states(n_coordinates: int, n_states: int) -> tuple[list[int], list[int]]:
+    """``(A, B)``: the states of the two parts (``A`` gets ``f_d`` too).
+
+    Parameters
+    ----------
+    n_coordinates : int
+        Coordinates ``q`` (the first states), >= 1.
+    n_states : int
+        All states (``q``, rates, creep states, lagged inputs).
+    """
+    first = max(1, n_coordinates // SPLIT_OF_COORDINATES) if n_coordinates > 1 else 0
+    second = list(range(first, n_coordinates))
+    return [i for i in range(n_states) if i not in second], second
+
+
+def column_parts(f, xs, us, ds, sens, scales, f_d, n_coordinates: int) -> list[ca.Function]:
+    """The two parts ``(x;vec(S), u, d;scale) -> vec(part)`` that sum to ``vec(f_x S + f_d)``.
+
+    Parameters
+    ----------
+    f : casadi.SX, shape (n_x, 1)
+        The state's right-hand side in ``xs``, ``us`` and ``ds``.
+    xs, us, ds : casadi.SX
+        Symbols of the state, the inputs and the parameters ``d``.
+    sens : casadi.SX, shape (n_x, m)
+        Symbols of the sensitivity columns.
+    scales : casadi.SX, shape (m, 1)
+        Symbols of the column scales.
+    f_d : casadi.SX, shape (n_x, m)
+        ``f``'s derivative along the columns' parameters, scaled.
+    n_coordinates : int
+        Coordinates ``q`` among the states.
+
+    Returns
+    -------
+    list of casadi.Function
+        The parts ``A`` (with ``f_d``) and ``B``, dense outputs of ``n_x m`` entries.
+    """
+    inputs = [ca.vertcat(xs, ca.vec(sens)), us, ca.vertcat(ds, scales)]
+    parts = []
+    for k, states in enumerate(split_states(n_coordinates, xs.shape[0])):
+        product = ca.jacobian(f, xs[states]) @ sens[states, :]
+        part = product + f_d if k == 0 else product
+        parts.append(
+            ca.Function(
+                f"softcurve_sensitivity_part{k}", inputs, [ca.densify(ca.cse(ca.vec(part)))]
+            )
+        )
+    return parts
+
+
+def assembled(state: ca.Function, parts, n_parameters: int) -> ca.Function:
+    """``(x;vec(S), u, d;scale) -> f;vec(S')`` from the compiled state function
+    ``f(x, u, d)`` and the parts: the augmented system for CasADi's CVODES, referring to
+    the compiled libraries by path (so it pickles small), for a process that evaluates
+    a split evaluator without softcurve's driver.
+
+    Parameters
+    ----------
+    state : casadi.Function
+        ``f(x, u, d)``, compiled (an ``external``).
+    parts : sequence of casadi.Function
+        The parts of :func:`column_parts`, compiled.
+    n_parameters : int
+        Entries of ``d`` (the scales follow them in the third argument).
+    """
+    n_x = state.size1_in(0)
+    width = parts[0].size1_in(0)
+    x, u = ca.MX.sym("x", width), ca.MX.sym("u", state.size1_in(1))
+    d = ca.MX.sym("d", parts[0].size1_in(2))
+    columns = sum(part(x, u, d) for part in parts)
+    rhs = ca.vertcat(state(x[:n_x], u, d[:n_parameters]), columns)
+    return ca.Function("softcurve_sensitivity_assembled", [x, u, d], [rhs])
