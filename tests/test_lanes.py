@@ -23,9 +23,8 @@ from softcurve.compiled._lanes import (
 from softcurve.compiled._source import compile_source
 from softcurve.simulation.stepper import _lanes as stepper_lanes
 from softcurve.simulation.stepper._lanes import LanesMembers, lanes_period
-from softcurve.simulation.stepper._scheme import period_function
+from softcurve.simulation.stepper._scheme import ThreadedMembers, period_function
 from softcurve.simulation.stepper._stepper import Stepper
-from softcurve.simulation.stepper._threads import ThreadedMembers
 
 from .conftest import compiler_refusing
 

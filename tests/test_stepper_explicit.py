@@ -17,7 +17,7 @@ from softcurve.compiled._source import load_function
 from softcurve.simulation.stepper import Stepper
 from softcurve.simulation.stepper._lanes import LanesMembers
 from softcurve.simulation.stepper._methods import DEFAULT_EXPLICIT_STEP, RK4
-from softcurve.simulation.stepper._observe import observer
+from softcurve.simulation.stepper._scheme import observer
 from softcurve.simulation.stepper._stability import EXPLICIT_MARGIN, fastest_rate_at_rest
 
 PERIOD = 0.02

@@ -38,10 +38,8 @@ from softcurve.simulation.stepper._methods import DEFAULT_METHOD as DEFAULT_METH
 from softcurve.simulation.stepper._methods import DEFAULT_STEP as DEFAULT_STEP
 from softcurve.simulation.stepper._methods import DEFAULT_SUBSTEPS as DEFAULT_SUBSTEPS
 from softcurve.simulation.stepper._methods import METHODS, ExplicitTableau, default_substeps
-from softcurve.simulation.stepper._observe import observer
-from softcurve.simulation.stepper._scheme import period_function
+from softcurve.simulation.stepper._scheme import ThreadedMembers, observer, period_function
 from softcurve.simulation.stepper._stability import check_explicit_step
-from softcurve.simulation.stepper._threads import ThreadedMembers
 
 CONTACT_JACOBIAN_EVERY = 1
 """Steps between fresh Jacobians with an environment (default of ``jacobian_every``).
