@@ -19,7 +19,7 @@ import softcurve
 from softcurve.compiled._declarations import read_header
 from softcurve.compiled._lanes import LANE_WIDTH, lanes_function, lanes_prelude
 from softcurve.compiled._source import compile_files
-from softcurve.simulation.solvers import _library as driver_library
+from softcurve.simulation.solvers import _driver as driver_library
 
 if sys.version_info >= (3, 11):
     import tomllib

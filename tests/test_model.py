@@ -15,8 +15,8 @@ import pytest
 import softcurve as sc
 from softcurve.compiled import _build as model_module
 from softcurve.compiled import _generated as generated
+from softcurve.simulation.solvers import _driver as driver_library
 from softcurve.simulation.solvers import _driver as native
-from softcurve.simulation.solvers import _library as driver_library
 
 from .conftest import assert_close, compiler_refusing
 

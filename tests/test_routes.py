@@ -20,7 +20,7 @@ import softcurve as sc
 from softcurve.compiled._build import checksum_file
 from softcurve.simulation.solvers import ROUTES, Route, casadi_only, choose_route
 from softcurve.simulation.solvers import _driver as native
-from softcurve.simulation.solvers._library import SWITCHED_OFF
+from softcurve.simulation.solvers._driver import SWITCHED_OFF
 from softcurve.simulation.stepper import Stepper
 from tests.test_sensitivity_driver import _evaluator
 

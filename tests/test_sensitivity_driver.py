@@ -22,8 +22,8 @@ from softcurve.simulation.sensitivity._sensitivity import (
     split_states,
     trajectory_sensitivities,
 )
+from softcurve.simulation.solvers import _driver as driver_library
 from softcurve.simulation.solvers import _driver as native
-from softcurve.simulation.solvers import _library as driver_library
 
 SEG = "segments[0]."
 

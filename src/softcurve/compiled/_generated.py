@@ -26,7 +26,7 @@ and global common-subexpression elimination makes the code slower (10.2-10.5 us 
 it against 8.9-10.0 us without, in a C loop over 64 states); CasADi has already shared
 the common subexpressions. Without the three, ``-O2`` compiles in 8.4 s against
 ``-O1``'s 6.5 s and evaluates the sensitivity function in 9.86 us against 11.77 us
-(``python benchmarks/bench_compile_flags.py --only sensitivity --quick``, 2026-12-02,
+(``python benchmarks/bench_compile_flags.py --only sensitivity --quick``,
 best of 5 alternating runs, ``-march=native`` on both). A two-segment robot's
 401,000-operation function compiled in 76 s against 59 s at ``-O1`` (side by side).
 They are GCC's (8 and later); a compiler that refuses them builds with

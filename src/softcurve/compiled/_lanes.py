@@ -33,15 +33,15 @@ LANE_WIDTH = 4
 """Members per vector. Per member, one right-hand side of the paper's robot took 2.13 us
 as CasADi's C, and 2.43, 1.25, 0.90 and 1.14 us as lanes of 1, 2, 4 and 8 with the C
 library's elementary functions, 0.64 us as lanes of 4 with libmvec's
-(``python benchmarks/bench_lanes.py``, best of 7 alternating rounds, 2026-12-01 07:52
-UTC, on this project's AVX2 machine). Four doubles fill one AVX2 register; eight take
+(``python benchmarks/bench_lanes.py``, best of 7 alternating rounds,
+on this project's AVX2 machine). Four doubles fill one AVX2 register; eight take
 two and spill."""
 
 STACK_WORK = 2048
 """Work vectors kept in local variables (on the stack, 64 KB at most), beyond which a
 lanes function works in its caller's array (on the heap). Locals are faster: the RK4
 period of the paper robot (963 vectors) took 14.5 us per member against 16.5 us with
-the array (best of 9 alternating rounds, 2026-12-01); a robot of three segments needs
+the array (best of 9 alternating rounds); a robot of three segments needs
 about 110 KB, more than some threads' stacks (musl's default is 128 KB)."""
 
 C_FOLDER = Path(__file__).parent / "c"

@@ -91,7 +91,7 @@ them in it (it integrates ``(x, S)`` as one system)."""
 
 NATIVE_FAMILY = 1
 """Adams (1), with Newton iteration, in the driver's route: on the 30 s benchmark case
-(``benchmarks/study_sensitivity_driver.py``, 2026-11-30) 13,142 steps in 0.62 s at rtol
+(``benchmarks/study_sensitivity_driver.py``) 13,142 steps in 0.62 s at rtol
 1e-8 against BDF's 17,936 steps in 1.01 s (the paper robot's lightly damped modes favour
 Adams's higher orders)."""
 

@@ -19,11 +19,12 @@ from softcurve.simulation.solvers._cvodes import BufferedCall as BufferedCall
 from softcurve.simulation.solvers._cvodes import CvodesEngine as CvodesEngine
 from softcurve.simulation.solvers._cvodes import cvodes_integrator as cvodes_integrator
 from softcurve.simulation.solvers._driver import FLAGS as DRIVER_FLAGS
-from softcurve.simulation.solvers._driver import Problem as DriverProblem
+from softcurve.simulation.solvers._driver import DriverProblem as DriverProblem
 from softcurve.simulation.solvers._driver import casadi_only as casadi_only
 from softcurve.simulation.solvers._driver import driver as driver
 from softcurve.simulation.solvers._driver import entry as driver_entry
 from softcurve.simulation.solvers._driver import integrate as driver_integrate
+from softcurve.simulation.solvers._driver import library as driver_library
 from softcurve.simulation.solvers._driver import options as driver_options
 from softcurve.simulation.solvers._driver import problem as driver_problem
 from softcurve.simulation.solvers._driver import reason as driver_reason
@@ -35,7 +36,6 @@ from softcurve.simulation.solvers._grid import domain_reason as domain_reason
 from softcurve.simulation.solvers._grid import outside_domain as outside_domain
 from softcurve.simulation.solvers._grid import run_on_grid as run_on_grid
 from softcurve.simulation.solvers._grid import run_sampled as run_sampled
-from softcurve.simulation.solvers._library import library as driver_library
 from softcurve.simulation.solvers._policy import MAX_ORDER as MAX_ORDER
 from softcurve.simulation.solvers._policy import SETTLED_RATIO as SETTLED_RATIO
 from softcurve.simulation.solvers._policy import cvodes_options as cvodes_options

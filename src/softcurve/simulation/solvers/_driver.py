@@ -13,28 +13,56 @@ in one call, on threads that do not contend.
 
 :func:`problem` describes a model (and optionally an actuator's force) to the driver;
 :func:`integrate` runs it, with the settings of :func:`options`, the one place that fills
-the header's ``sc_options``. The library and its declarations, read from the header, are
-``softcurve.simulation.solvers._library``'s. Both return None / are unused where the
-driver cannot be built (no C compiler, an uncompiled model, a CasADi outside
-``softcurve.simulation.solvers._library.CASADI_VERIFIED`` or whose SUNDIALS has
-another interface) or ``SOFTCURVE_NATIVE_CVODES=0`` is set: the engines then use
-CasADi's integrator.
+the header's ``sc_options``. Both return None / are unused where the driver cannot be
+built (no C compiler, an uncompiled model, a CasADi outside :data:`CASADI_VERIFIED` or
+whose SUNDIALS has another interface) or ``SOFTCURVE_NATIVE_CVODES=0`` is set; the
+engines then use CasADi's integrator, and :func:`unavailable` says why.
+
+The C is in ``softcurve/simulation/solvers/c`` (package data, :data:`C_FOLDER`):
+``softcurve_driver.h`` declares what Python calls (the structs ``sc_function`` and
+``sc_options`` and the exported functions, in the restricted form that
+:func:`softcurve.compiled.read_header` reads into the ctypes declarations),
+``sundials2.h`` the SUNDIALS 2.x of CasADi's private CVODES plugin, which ships no
+headers. :func:`library` builds and loads it once per process.
+
+The members of a batch are integrated in groups (``groups.c``) on the state derivative
+over lanes (:func:`lanes_derivative`): the function the scalar driver evaluates (the
+model's ``rhs`` with the actuator's force and lag,
+:func:`~softcurve.simulation.solvers.actuated_derivative`), generated over lanes of
+``softcurve.compiled.LANE_WIDTH`` members with every input per member (members of a
+batch may have their own parameters).
 """
 
 from __future__ import annotations
 
 import contextlib
 import ctypes
+import os
+import re
+import threading
+from dataclasses import dataclass
+from functools import partial
+from pathlib import Path
 
 import casadi as ca
 import numpy as np
 
 from softcurve.base.shares import run_shares, share_bounds
-from softcurve.compiled import NativeFunction, compile_source
+from softcurve.compiled import (
+    LANE_WIDTH,
+    NativeFunction,
+    c_template,
+    compile_files,
+    compile_lanes,
+    compile_source,
+    lanes_function,
+    lanes_prelude,
+    lanes_work,
+    load_library,
+    read_header,
+)
 from softcurve.description.robot import MAX_BEND
-from softcurve.simulation.solvers._lanes import lanes_derivative
-from softcurve.simulation.solvers._library import DECLARATIONS, Options, ProblemStruct, library
-from softcurve.simulation.solvers._library import unavailable as library_unavailable
+from softcurve.simulation.solvers._actuated import actuated_derivative
 
 STATISTICS = ("steps", "rhs_evaluations", "jacobian_evaluations", "linear_solver_setups",
               "error_test_failures", "newton_failures")  # fmt: skip
@@ -143,7 +171,7 @@ def options(rtol, atol, max_steps, *, max_order=0, family=1, settled_ratio=0.0,
     )
 
 
-class Problem:
+class DriverProblem:
     """A model's right-hand side (and an actuator's force) described to the driver.
 
     Parameters
@@ -158,7 +186,7 @@ class Problem:
         The actuator's input (bounds, lag), with ``force``.
     lanes : LanesDerivative, optional
         The same state derivative over lanes
-        (``softcurve.simulation.solvers._lanes.lanes_derivative``): members are then
+        (``softcurve.simulation.solvers._driver.lanes_derivative``): members are then
         integrated in groups of its width, ``self.width`` (else 1).
     """
 
@@ -190,8 +218,8 @@ class Problem:
         )
 
 
-def problem(model, inputs=None, lanes: bool = False) -> Problem | None:
-    """The :class:`Problem` of ``model`` driven by forces or by ``inputs`` (an
+def problem(model, inputs=None, lanes: bool = False) -> DriverProblem | None:
+    """The :class:`DriverProblem` of ``model`` driven by forces or by ``inputs`` (an
     :class:`~softcurve.simulation.solvers.ActuatorInput`, whose force ``H(q) u`` is
     compiled once per actuator and cached on disk), cached with the model; None where the
     driver is not available.
@@ -217,7 +245,9 @@ def problem(model, inputs=None, lanes: bool = False) -> Problem | None:
             if force is None:
                 return None
         vectors = lanes_derivative(model, inputs) if lanes else None
-        return Problem(rhs, model.n_state, model.n, model.parameters.size, force, inputs, vectors)
+        return DriverProblem(
+            rhs, model.n_state, model.n, model.parameters.size, force, inputs, vectors
+        )
 
     key = ("native problem", None if inputs is None else inputs.key, lanes)
     return model.cached(key, build)
@@ -239,7 +269,7 @@ def integrate(problem, lmm, x0, u, p, nominal, times, segments, tolerances, *, f
 
     Parameters
     ----------
-    problem : Problem
+    problem : DriverProblem
         What to integrate.
     lmm : array_like of int, shape (B,)
         Family per member: 1 Adams, 2 BDF.
@@ -327,7 +357,7 @@ def evaluate(problem, x, u, p) -> np.ndarray:
 
     Parameters
     ----------
-    problem : Problem
+    problem : DriverProblem
         What to evaluate.
     x : ndarray, shape (K, N)
         States.
@@ -374,3 +404,235 @@ def reason(flag: int) -> str:
         A negative return flag of CVODES.
     """
     return FLAGS.get(int(flag), f"CVODES flag {int(flag)}")
+
+
+PLUGIN = "libcasadi_integrator_cvodes.so"
+"""CasADi's CVODES plugin, which holds SUNDIALS CVODES (the 2.x interface: ``CVSpgmr``)."""
+
+C_FOLDER = Path(__file__).resolve().parent / "c"
+"""The driver's C files (package data): every ``.c`` there is compiled into its library."""
+
+HEADER = C_FOLDER / "softcurve_driver.h"
+"""The header that declares the driver's structs and exported functions."""
+
+DECLARATIONS = read_header(HEADER)
+"""The ctypes declarations of :data:`HEADER`
+(``softcurve.compiled._declarations.Declarations``)."""
+
+ProblemStruct = DECLARATIONS.structs["sc_function"]
+"""The header's ``sc_function``: a model described to the driver."""
+
+Options = DECLARATIONS.structs["sc_options"]
+"""The header's ``sc_options``: the settings of a call
+(:func:`softcurve.simulation.solvers.driver_options`)."""
+
+CASADI_VERIFIED = ">=3.8,<3.9"
+"""The CasADi versions whose private CVODES plugin the driver was verified with (the
+requirement of ``pyproject.toml``, which a test checks equal): the driver declares the
+plugin's SUNDIALS by hand (``sundials2.h``) and refuses to load with another CasADi
+(:func:`version_verified`)."""
+
+
+def _release(version: str) -> tuple[int, ...]:
+    """The numeric release of a version string: ``"3.8.2"`` -> ``(3, 8, 2)``."""
+    numbers = []
+    for part in version.split("."):
+        digits = re.match(r"\d*", part).group()
+        if digits:
+            numbers.append(int(digits))
+        if not digits or digits != part:  # "3.8.2rc1" -> (3, 8, 2)
+            break
+    return tuple(numbers)
+
+
+def version_verified(version: str, requirement: str = CASADI_VERIFIED) -> bool:
+    """Whether the CasADi ``version`` meets ``requirement`` (comma-separated ``>=``,
+    ``>``, ``<=``, ``<``, ``==``, ``!=`` clauses on release numbers).
+
+    Parameters
+    ----------
+    version : str
+        A CasADi version, e.g. ``casadi.__version__``.
+    requirement : str
+        The versions allowed (default :data:`CASADI_VERIFIED`).
+
+    Returns
+    -------
+    bool
+
+    Examples
+    --------
+    >>> version_verified("3.8.2"), version_verified("3.9.0"), version_verified("3.7.1")
+    (True, False, False)
+    """
+    have = _release(version)
+    compare = {
+        ">=": lambda a, b: a >= b, "<=": lambda a, b: a <= b, "==": lambda a, b: a == b,
+        "!=": lambda a, b: a != b, ">": lambda a, b: a > b, "<": lambda a, b: a < b,
+    }  # fmt: skip
+    for clause in requirement.split(","):
+        clause = clause.strip()
+        operator = clause[:2] if clause[:2] in compare else clause[:1]
+        wanted = _release(clause[len(operator) :].strip())
+        width = max(len(have), len(wanted))
+        padded = [v + (0,) * (width - len(v)) for v in (have, wanted)]
+        if not compare[operator](*padded):
+            return False
+    return True
+
+
+_LIBRARIES: dict = {}  # the driver's library by its defines (or why not, a str), per process
+_LOCK = threading.Lock()
+
+
+def library(defines: tuple[str, ...] = ()):
+    """The driver's library built from :data:`C_FOLDER` with the macros ``defines``, its
+    functions declared from :data:`HEADER`; built and loaded once per process and
+    ``defines``; None where it cannot be: no C compiler, a CasADi outside
+    :data:`CASADI_VERIFIED` or whose SUNDIALS has another interface, or
+    ``SOFTCURVE_NATIVE_CVODES=0``.
+
+    Parameters
+    ----------
+    defines : tuple of str
+        Macros defined for the build (tests build variants; the product defines none).
+
+    Returns
+    -------
+    ctypes.CDLL or None
+    """
+    loaded = _loaded(defines)
+    return None if isinstance(loaded, str) else loaded
+
+
+def library_unavailable(defines: tuple[str, ...] = ()) -> str | None:
+    """Why :func:`library` is None, in a phrase (None where it loads).
+
+    Parameters
+    ----------
+    defines : tuple of str
+        Macros defined for the build, as :func:`library` takes them.
+    """
+    loaded = _loaded(defines)
+    return loaded if isinstance(loaded, str) else None
+
+
+SWITCHED_OFF = "SOFTCURVE_NATIVE_CVODES=0 is set"
+"""Why the driver is unused under ``SOFTCURVE_NATIVE_CVODES=0`` (the user's choice)."""
+
+
+def _loaded(defines: tuple[str, ...]):
+    """The library of ``defines`` or why not (a str), loaded once per process."""
+    with _LOCK:
+        if defines not in _LIBRARIES:
+            _LIBRARIES[defines] = _load(defines)
+        return _LIBRARIES[defines]
+
+
+def _load(defines: tuple[str, ...]):
+    """The loaded library, or why it cannot be loaded (a str)."""
+    if os.environ.get("SOFTCURVE_NATIVE_CVODES", "1") in ("0", ""):
+        return SWITCHED_OFF
+    if not version_verified(ca.__version__):
+        return f"CasADi {ca.__version__} is outside the verified {CASADI_VERIFIED}"
+    directory = Path(ca.__file__).parent
+    try:
+        if not hasattr(load_library(directory / PLUGIN), "CVSpgmr"):  # SUNDIALS >= 3: other API
+            return f"CasADi's {PLUGIN} lacks the SUNDIALS 2.x interface (CVSpgmr)"
+    except OSError as exc:
+        return f"CasADi's {PLUGIN} cannot be loaded ({exc})"
+    link = (f"-L{directory}", f"-l:{PLUGIN}", f"-Wl,-rpath,{directory}", "-pthread")
+    loaded = compile_files("cvodes_driver", C_FOLDER, link, defines)
+    if loaded is None:
+        return "the driver's C source did not compile (no C compiler, or the build failed)"
+    return DECLARATIONS.bind(loaded)
+
+
+ENTRY = "softcurve_lanes_xdot"
+"""The C entry point: ``(x, u, p, xdot, w) -> 0``, every array lanes-interleaved (entry
+``j`` of member ``l`` at ``[j * width + l]``) and aligned to 64 bytes."""
+
+
+def xdot_source(f, vector_math: bool) -> str:
+    """The C source of :data:`ENTRY`: the state derivative ``f`` over lanes.
+
+    Parameters
+    ----------
+    f : casadi.Function
+        ``(x, u, p) -> xdot`` as an SX function
+        (:func:`~softcurve.simulation.solvers.actuated_derivative`, expanded).
+    vector_math : bool
+        Use glibc's vector math library where compiled for AVX2
+        (:func:`~softcurve.compiled.lanes_prelude`).
+
+    Returns
+    -------
+    str
+        The C source.
+
+    Raises
+    ------
+    NotImplementedError
+        If ``f`` has an operation without lanes code.
+    """
+    return "\n".join(
+        [
+            lanes_prelude(LANE_WIDTH, vector_math),
+            lanes_function(f, "sc_xdot", (False, False, False)),
+            c_template("lanes_xdot.c", {"SC_ENTRY": ENTRY}),
+        ]
+    )
+
+
+@dataclass(frozen=True)
+class LanesDerivative:
+    """A compiled :func:`xdot_source`.
+
+    Parameters
+    ----------
+    entry : ctypes function
+        :data:`ENTRY` (kept so that its library stays loaded).
+    width : int
+        Members per call.
+    work : int
+        Rows of ``width`` doubles of the work array ``w``.
+    vector_math : bool
+        Whether it was linked with glibc's vector math library.
+    """
+
+    entry: object
+    width: int
+    work: int
+    vector_math: bool
+
+    @property
+    def address(self) -> int:
+        """The entry's address, for the driver's function table."""
+        return ctypes.cast(self.entry, ctypes.c_void_p).value
+
+
+def lanes_derivative(model, inputs=None) -> LanesDerivative | None:
+    """The compiled state derivative over lanes, kept with the model (and cached on disk).
+
+    Parameters
+    ----------
+    model : Model
+        The compiled model.
+    inputs : ActuatorInput, optional
+        The actuator's inputs (None: generalized forces).
+
+    Returns
+    -------
+    LanesDerivative or None
+        None where no C compiler builds it or the model has an operation without lanes
+        code (the driver then integrates every member alone).
+    """
+
+    def build():
+        f = actuated_derivative(model, inputs, model.symbolic["rhs"]).expand()
+        built = compile_lanes("driver_lanes", partial(xdot_source, f), ENTRY, [ctypes.c_void_p] * 5)
+        if built is None:
+            return None
+        return LanesDerivative(built.entry, LANE_WIDTH, lanes_work(f), built.vector_math)
+
+    return model.cached(("driver-lanes", None if inputs is None else inputs.key), build)

@@ -264,7 +264,7 @@ stability rather than accuracy. Both families are error-controlled, so the choic
 the work, not the accuracy. Measured (``benchmarks/bench_cvodes_options.py``, section 5):
 five paper-case members after 2 s take 619 BDF steps against 1060 Adams steps for the
 remaining 8 s, and after 1 s (still moving) no fewer; section 2 prints the batch's rate
-without the switch (1020 against 1321 simulated s per CPU s on 2026-11-29, CasADi's
+without the switch (1020 against 1321 simulated s per CPU s, CasADi's
 integrator; the C driver applies the same rule inside its one call)."""
 
 
@@ -298,7 +298,7 @@ MAX_ORDER = 5
 Why: the stability region of Adams-Moulton shrinks as the order rises; on the paper's
 robot the lightly damped elongation and creep modes then bound the step of orders above
 five, and the error test fails more often. Measured on 60 paper-case members, 10 s,
-rtol 1e-6 (``benchmarks/bench_cvodes_options.py``, section 2, 2026-11-29): 1300 against
+rtol 1e-6 (``benchmarks/bench_cvodes_options.py``, section 2): 1300 against
 1069 simulated seconds per CPU second for order 12, the same error against rtol 1e-10
 (1.1e-5 against 1.2e-5); orders 4 and 8 in between. That was before the switch to BDF
 once settled (``SETTLED_RATIO``); with it, 1321 against 1217 (CasADi's integrator; the C

@@ -16,7 +16,7 @@ from dataclasses import dataclass, field
 
 from softcurve.compiled import LANE_WIDTH
 from softcurve.simulation.solvers import _driver as native
-from softcurve.simulation.solvers._library import SWITCHED_OFF
+from softcurve.simulation.solvers._driver import SWITCHED_OFF
 
 ROUTES = {
     "driver": "CVODES in softcurve's C driver, one member per system, the whole output "

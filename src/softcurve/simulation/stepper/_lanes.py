@@ -9,11 +9,11 @@ the same operations, in the same order, as the scalar scheme of
 ``softcurve.simulation.stepper._scheme``. A thread's whole share of the members is one
 call: no Python per member.
 
-The step writers (:func:`explicit_step`, :func:`rosenbrock_step`) return :class:`StepSource`: declarations, the lines of one step (inside
-the loop over the steps ``s``, on the state ``y``, inputs ``U``, parameters ``p`` and
-step ``h``, with the functions' work array ``w``), the SX functions it calls besides the
-state derivative ``sc_xdot``, and the heap it needs (``scratch``).
-"""
+The step writers (:func:`explicit_step`, :func:`rosenbrock_step`) return
+:class:`StepSource`: declarations, the lines of one step (inside the loop over the steps
+``s``, on the state ``y``, inputs ``U``, parameters ``p`` and step ``h``, with the
+functions' work array ``w``), the SX functions it calls besides the state derivative
+``sc_xdot``, and the heap it needs (``scratch``)."""
 
 from __future__ import annotations
 

@@ -16,14 +16,14 @@ the environment (:func:`observer`), generated with the period function or evalua
 their own.
 
 The compiled period function is called on many members from Python threads
-(:class:`ThreadedMembers`). Why not CasADi's ``map(N, "thread")``: mapped over 256 members of the paper's robot it
-ran 1.08x faster on two threads than on one on this project's 2-core machine with
-nothing else running (``benchmarks/bench_stepper.py``, section 2, 2026-11-30), the
-threads apparently not running the compiled code at the same time. Here the generated
-library is opened with ctypes (:class:`~softcurve.compiled.NativeFunction`, one
-set of work arrays per thread), which releases the GIL during the foreign call, and each
-thread loops over a contiguous chunk of members.
-"""
+(:class:`ThreadedMembers`). Why not CasADi's ``map(N, "thread")``: mapped over 256
+members of the paper's robot it ran 1.08x faster on two threads than on one on this
+project's 2-core machine with nothing else running (``benchmarks/bench_stepper.py``,
+section 2), the threads apparently not running the compiled code at the same time. Here
+the generated library is opened with ctypes
+(:class:`~softcurve.compiled.NativeFunction`, one set of work arrays per thread), which
+releases the GIL during the foreign call, and each thread loops over a contiguous chunk
+of members."""
 
 from __future__ import annotations
 
@@ -180,7 +180,7 @@ STEPPER_FLAGS = ("-O3",)
 calling the right-hand side), so ``-O3`` compiles in about 12 s against 6-8 s at
 ``-O1`` and pays: one member-period of the paper robot with the bellows took 214-228
 us against 267-323 us at ``-O1 -march=native`` (1.17-1.43x, three runs of
-``benchmarks/bench_compile_flags.py --only stepper`` on 2026-12-01, alternating
+``benchmarks/bench_compile_flags.py --only stepper``, alternating
 builds)."""
 
 
