@@ -10,7 +10,6 @@ from softcurve.compiled._export import c_identifier as c_identifier
 from softcurve.compiled._export import export_c as export_c
 from softcurve.compiled._generated import compile_function as compile_function
 from softcurve.compiled._generated import compile_functions as compile_functions
-from softcurve.compiled._generated import load_external as load_external
 from softcurve.compiled._lanes import LANE_WIDTH as LANE_WIDTH
 from softcurve.compiled._lanes import c_template as c_template
 from softcurve.compiled._lanes import compile_lanes as compile_lanes
@@ -23,6 +22,7 @@ from softcurve.compiled._model import Pose as Pose
 from softcurve.compiled._native import NativeFunction as NativeFunction
 from softcurve.compiled._source import compile_files as compile_files
 from softcurve.compiled._source import compile_source as compile_source
+from softcurve.compiled._source import load_external as load_external
 from softcurve.compiled._source import load_function as load_function
 from softcurve.compiled._source import load_library as load_library
 from softcurve.compiled._source import load_with_path as load_with_path

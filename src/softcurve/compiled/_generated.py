@@ -15,6 +15,7 @@ import casadi as ca
 
 from softcurve.compiled import _build as build
 from softcurve.compiled import _cache as cache
+from softcurve.compiled._source import load_external
 
 FUNCTION_FLAGS = ("-O2", "-fno-gcse", "-fno-tree-pre", "-fno-code-hoisting")
 """Optimization flags of :func:`compile_function` (``-march=native`` is added unless
@@ -40,20 +41,6 @@ PORTABLE_FUNCTION_FLAGS = ("-O1",)
 _REFUSING_FLAGS: set[tuple[str, ...]] = set()
 """Compiler commands that refused :data:`FUNCTION_FLAGS` in this process: later builds
 use :data:`PORTABLE_FUNCTION_FLAGS` at once."""
-
-
-def load_external(path, name: str) -> ca.Function:
-    """The function ``name`` of the compiled library ``path`` as a CasADi ``external``
-    (derivatives by finite differences): :func:`compile_function`'s default loader.
-
-    Parameters
-    ----------
-    path : str or pathlib.Path
-        The compiled library.
-    name : str
-        The function's name in it.
-    """
-    return ca.external(name, str(path), {"enable_fd": True})
 
 
 def compile_function(function: ca.Function, flags: tuple[str, ...] | None = None, load=None):

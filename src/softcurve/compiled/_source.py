@@ -1,6 +1,7 @@
 """Hand-written C compiled next to the generated code, and the one loader of compiled
 libraries: :func:`compile_source` (a source that Python fills in), :func:`compile_files`
-(C files shipped with the package), :func:`load_library` and :func:`load_function`.
+(C files shipped with the package), :func:`load_library`, :func:`load_function` and
+:func:`load_external`.
 
 The compiler, flags, checksum files and on-disk cache are those of
 ``softcurve.compiled._build`` and ``softcurve.compiled._cache``; a library's cache
@@ -16,9 +17,19 @@ import tempfile
 from collections.abc import Sequence
 from pathlib import Path
 
+import casadi as ca
+
+from softcurve.base.docs import parameters_from
 from softcurve.compiled import _build as build
 from softcurve.compiled._cache import load_or_build
 from softcurve.compiled._native import NativeFunction
+
+_loaded = parameters_from(
+    {
+        "path": ("str or pathlib.Path", "The compiled library."),
+        "name": ("str", "The function's name in it."),
+    }
+)
 
 
 class Library(ctypes.CDLL):
@@ -50,16 +61,15 @@ def load_library(path) -> Library:
     return Library(path)
 
 
+@_loaded
 def load_function(path, name: str) -> NativeFunction:
     """The CasADi-generated function ``name`` of the library at ``path``, called through
     ctypes.
 
     Parameters
     ----------
-    path : str or pathlib.Path
-        The shared library.
-    name : str
-        The generated function's name.
+    %(path)s
+    %(name)s
 
     Returns
     -------
@@ -68,16 +78,15 @@ def load_function(path, name: str) -> NativeFunction:
     return NativeFunction(load_library(path), name)
 
 
+@_loaded
 def load_with_path(path, name: str) -> tuple:
     """``(path, name, the loaded function)``: the path (absolute: a worker process may
     start elsewhere) and name travel to worker processes, the loaded function stays.
 
     Parameters
     ----------
-    path : str or pathlib.Path
-        The compiled library.
-    name : str
-        The function's name in it.
+    %(path)s
+    %(name)s
 
     Returns
     -------
@@ -85,6 +94,20 @@ def load_with_path(path, name: str) -> tuple:
         ``(absolute path as str, name, NativeFunction)``.
     """
     return (str(Path(path).resolve()), name, load_function(path, name))
+
+
+@_loaded
+def load_external(path, name: str) -> ca.Function:
+    """The function ``name`` of the compiled library ``path`` as a CasADi ``external``
+    (derivatives by finite differences): :func:`~softcurve.compiled.compile_function`'s
+    default loader.
+
+    Parameters
+    ----------
+    %(path)s
+    %(name)s
+    """
+    return ca.external(name, str(path), {"enable_fd": True})
 
 
 def _compiled(stem: str, key_parts: tuple, write, arguments: Sequence[str]):
