@@ -142,7 +142,7 @@ def _adaptive_floor(vector, rng) -> None:
             start = time.perf_counter()
             _, _, _, counts, _ = native.integrate(
                 problem, np.ones(size, dtype=int), x, u, p, nominal, times, segments,
-                (rtol, rtol, 100_000, 0), threads=os.cpu_count() or 1,
+                native.options(rtol, rtol, 100_000), threads=os.cpu_count() or 1,
             )  # fmt: skip
             best = min(best, time.perf_counter() - start)
         steps, rhs, jacobians = counts[:, :3].mean(axis=0)

@@ -1,4 +1,4 @@
-"""Throughput and accuracy of the batched fixed-step stepper (softcurve.simulation.stepper._stepper).
+"""Throughput and accuracy of the batched fixed-step stepper (softcurve.simulation.stepper).
 
 Run:  python benchmarks/bench_stepper.py [--repeat 5] [--sizes 1,16,256,1024]
       [--accuracy-periods 100] [--skip-tendons] [--skip-flags]

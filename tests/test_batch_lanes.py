@@ -154,7 +154,8 @@ def test_a_failed_group_leaves_its_members_counters_and_outputs_as_alone(paper_m
     times = np.linspace(0.0, 0.1, 101)
     nominal = np.array([nominal_scale(paper_model, x) for x in x0])
     args = (np.ones(4, np.int32), x0, np.zeros((4, 1, 3)), np.tile(paper_model.parameters, (4, 1)),
-            nominal, times, ([100], [True]), (1e-6, 1e-6, 10, 5))  # fmt: skip
+            nominal, times, ([100], [True]),
+            native.options(1e-6, 1e-6, 10, max_order=5))  # fmt: skip
     outputs = {}
     for name, problem in (("grouped", grouped), ("alone", alone)):
         out = np.full((4, times.size, 9), 7.0)

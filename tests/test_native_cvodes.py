@@ -84,7 +84,12 @@ def test_the_driver_writes_into_a_given_array_or_refuses_it(paper_model):
     times = np.linspace(0.0, 0.1, 11)
     x0 = np.concatenate([Q0, QD0, np.zeros(paper_model.n_creep)])[None]
     args = ([1], x0, np.zeros((1, 1, 3)), paper_model.parameters[None])
-    rest = (nominal_scale(paper_model, x0[0])[None], times, ([10], [True]), (RTOL, RTOL, 500, 5))
+    rest = (
+        nominal_scale(paper_model, x0[0])[None],
+        times,
+        ([10], [True]),
+        native.options(RTOL, RTOL, 500, max_order=5),
+    )
     fresh = native.integrate(engine, *args, *rest)[0]
     given = np.full((1, times.size, x0.shape[1]), np.nan)
     returned = native.integrate(engine, *args, *rest, out=given)[0]

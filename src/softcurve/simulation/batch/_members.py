@@ -22,6 +22,7 @@ from softcurve.simulation.solvers import (
     cvodes_reason,
     domain_reason,
     driver_integrate,
+    driver_options,
     driver_reason,
     failure_message,
     failure_status,
@@ -197,7 +198,10 @@ def integrate_native(run: MemberRun, initial, fastest, problems) -> np.ndarray:
     longest = MAX_STRETCH * run.rest_lengths
     lmm = np.where(np.asarray(initial) == "adams", 1, 2)
     settle = np.zeros(states.shape[0]) if fastest is None else np.where(lmm == 1, fastest, 0.0)
-    tolerances = (*run.options, MAX_ORDER)
+    rtol, abstol, max_steps = run.options
+    settings = driver_options(
+        rtol, abstol, max_steps, max_order=MAX_ORDER, settled_ratio=SETTLED_RATIO
+    )
     for g, problem in enumerate(problems):
         group = np.arange(states.shape[0]) if run.drives is None else (
             np.flatnonzero(run.drives.group == g))  # fmt: skip
@@ -206,8 +210,7 @@ def integrate_native(run: MemberRun, initial, fastest, problems) -> np.ndarray:
             u = np.repeat(run.tau[members][:, None, :], len(ends), axis=1)
             out, reached, flags, _, used = driver_integrate(
                 problem, lmm[members], states[members, 0], u, run.params[members],
-                run.nominal[members], grid, (ends, restart), tolerances,
-                fastest=settle[members], settled_ratio=SETTLED_RATIO,
+                run.nominal[members], grid, (ends, restart), settings, fastest=settle[members],
                 longest=longest[members], threads=run.threads,
             )  # fmt: skip
             used_bdf[members] = used

@@ -23,7 +23,7 @@ import casadi as ca
 import numpy as np
 
 from softcurve.simulation.solvers import _driver as c_driver
-from softcurve.simulation.solvers import _policy as _engine
+from softcurve.simulation.solvers import _policy
 from softcurve.simulation.solvers._actuated import actuated_derivative
 from softcurve.simulation.solvers._policy import (
     MAX_ORDER,
@@ -226,19 +226,12 @@ class CvodesEngine(PiecewiseSolver):
 
     Parameters
     ----------
-    model : Model
+    problem : Problem
+        The integration (:class:`~softcurve.simulation.solvers.Problem`): model, actuator
+        input, state scale, tolerances (CVODES takes one absolute tolerance for the scaled
+        state, ``Problem.scaled_atol``), step budget.
     multistep : {"adams", "bdf"}
-    rtol : float
-        Relative tolerance.
-    atol : ndarray, shape (n_state,)
-        Absolute tolerance per state; CVODES takes one number for the scaled state, so the
-        tightest ``atol / nominal`` is used and every state meets its own tolerance.
-    nominal : ndarray, shape (n_state,)
-        Scale of each state (> 0).
-    max_steps : int
-        Internal steps allowed between two output times.
-    inputs : ActuatorInput, optional
-        When the inputs are an actuator's rather than forces.
+        The family at the start.
     native : softcurve.simulation.solvers._driver.Problem, optional
         The driver's problem of the route "driver"
         (:func:`~softcurve.simulation.solvers.choose_route`); None: CasADi's integrator.
@@ -251,12 +244,11 @@ class CvodesEngine(PiecewiseSolver):
 
     name = "cvodes"
 
-    def __init__(self, model, multistep, rtol, atol, nominal, max_steps, inputs=None,
-                 native=None):  # fmt: skip
-        self.model = model
-        self.nominal = nominal
-        self.inputs = inputs
-        self._settings = (rtol, float((atol / nominal).min()), max_steps)
+    def __init__(self, problem, multistep="adams", native=None):
+        self.problem = problem
+        self.model = problem.model
+        self.nominal = problem.nominal
+        self.inputs = problem.inputs
         self.families = [multistep]
         self.use(multistep)
         self.native = native
@@ -272,7 +264,8 @@ class CvodesEngine(PiecewiseSolver):
     @property
     def options(self) -> dict:
         """CasADi's CVODES options of the family in use (the route without the C driver)."""
-        return cvodes_options(self.multistep, *self._settings)
+        p = self.problem
+        return cvodes_options(self.multistep, p.rtol, p.scaled_atol, p.max_steps)
 
     @property
     def method(self) -> str:
@@ -333,13 +326,14 @@ class CvodesEngine(PiecewiseSolver):
         x0, u, times, ends, restart, fastest, longest, out
             As :func:`softcurve.simulation.solvers.driver_integrate` takes them, for one member.
         """
-        rtol, abstol, max_steps = self._settings
         family = 1 if self.multistep == "adams" else 2
+        settings = self.problem.driver_options(
+            max_order=MAX_ORDER, settled_ratio=_policy.SETTLED_RATIO
+        )
         out, reached, flags, counts, used_bdf = c_driver.integrate(
             self.native, [family], x0, u, self.model.parameters[None], self.nominal[None],
-            times, (ends, restart), (rtol, abstol, max_steps, MAX_ORDER),
+            times, (ends, restart), settings,
             fastest=None if fastest is None else np.array([fastest]),
-            settled_ratio=_engine.SETTLED_RATIO,
             longest=None if longest is None else longest[None], out=out,
         )  # fmt: skip
         for name, value in zip(c_driver.STATISTICS, counts[0].tolist(), strict=True):

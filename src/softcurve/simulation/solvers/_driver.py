@@ -261,8 +261,8 @@ def _compiled_force(force: ca.Function) -> NativeFunction | None:
     return None if built is None else NativeFunction(built, force.name())
 
 
-def integrate(problem, lmm, x0, u, p, nominal, times, segments, tolerances, *, fastest=None,
-              settled_ratio=0.0, longest=None, threads=1, out=None) -> tuple:  # fmt: skip
+def integrate(problem, lmm, x0, u, p, nominal, times, segments, settings, *, fastest=None,
+              longest=None, threads=1, out=None) -> tuple:  # fmt: skip
     """Integrate members from ``x0`` at ``times[0]`` over the output ``times``, restarting
     CVODES at the end of every segment, with one constant input per member and segment;
     in groups of ``problem.width`` consecutive members (``groups.c``).
@@ -289,13 +289,11 @@ def integrate(problem, lmm, x0, u, p, nominal, times, segments, tolerances, *, f
         is ``T - 1``), and whether it begins a restart interval, where a member with
         ``fastest`` switches to BDF once settled
         (``softcurve.simulation.solvers._policy.SETTLED_RATIO``) and back to its own family.
-    tolerances : tuple
-        ``(rtol, abstol of the scaled state, max_steps per output, max_order)``.
+    settings : Options
+        The call's settings, :func:`options` (rtol, the absolute tolerance of the scaled
+        state, steps per output, largest order, the settled switch's ratio).
     fastest : ndarray, shape (B,), optional
         Fastest rate of each member's initial linearization [1/s] (0 or None: no switch).
-    settled_ratio : float
-        ``softcurve.simulation.solvers._policy.SETTLED_RATIO`` (a ratio, dimensionless), with
-        ``fastest``.
     longest : ndarray, shape (B, n_segments), optional
         Longest length of each segment in the model's domain [m]: a member stops at its
         first output outside the domain (None: no check).
@@ -332,8 +330,6 @@ def integrate(problem, lmm, x0, u, p, nominal, times, segments, tolerances, *, f
     reached, flags, used = (np.zeros(count, dtype=np.int32) for _ in range(3))
     counts = np.zeros((count, len(STATISTICS)), dtype=np.int64)
     call = driver()
-    rtol, abstol, max_steps, max_order = tolerances
-    settings = options(rtol, abstol, max_steps, max_order=max_order, settled_ratio=settled_ratio)
     n_seg = 0 if longest is None else longest.shape[1]
 
     def run(a: int, b: int) -> None:

@@ -17,6 +17,7 @@ from typing import Protocol
 import numpy as np
 
 from softcurve.simulation.solvers._cvodes import ActuatorInput, CvodesEngine
+from softcurve.simulation.solvers._driver import options as driver_options
 from softcurve.simulation.solvers._rk45 import ScipyEngine
 
 
@@ -49,6 +50,30 @@ class Problem:
     rtol: float
     max_steps: int
     grid: np.ndarray
+
+    @property
+    def scaled_atol(self) -> float:
+        """The one absolute tolerance of the scaled state ``x / nominal`` that CVODES takes:
+        the tightest ``atol / nominal``, so every state meets its own tolerance."""
+        return float((self.atol / self.nominal).min())
+
+    def driver_options(self, family: int = 1, max_order: int = 0, settled_ratio: float = 0.0):
+        """The C driver's settings (the header's ``sc_options``) of this problem.
+
+        Parameters
+        ----------
+        family : int
+            1 Adams, 2 BDF.
+        max_order : int
+            The method's largest order (0: CVODES's own).
+        settled_ratio : float
+            The settled switch's ratio (dimensionless,
+            :data:`~softcurve.simulation.solvers.SETTLED_RATIO`; 0: no switch).
+        """
+        return driver_options(
+            self.rtol, self.scaled_atol, self.max_steps, family=family, max_order=max_order,
+            settled_ratio=settled_ratio,
+        )  # fmt: skip
 
 
 class Solver(Protocol):
@@ -87,10 +112,6 @@ def solver(route, problem: Problem, multistep: str = "adams") -> Solver:
     multistep : {"adams", "bdf"}
         CVODES's family at the start (unused by RK45).
     """
-    p = problem
     if route.name == "rk45":
-        return ScipyEngine(p.model, p.rtol, p.atol, p.max_steps, p.inputs)
-    native = route.built if route.name == "driver" else None
-    return METHODS[route.name](
-        p.model, multistep, p.rtol, p.atol, p.nominal, p.max_steps, p.inputs, native
-    )
+        return ScipyEngine(problem)
+    return METHODS[route.name](problem, multistep, route.built if route.name == "driver" else None)

@@ -15,18 +15,24 @@ from softcurve.simulation.solvers._policy import LEFT_DOMAIN, TOO_MUCH_WORK, Int
 
 class ScipyEngine(PiecewiseSolver):
     """SciPy's explicit Runge-Kutta 4(5) (Dormand-Prince, like MATLAB's ode45), stepped
-    from Python over the model's compiled right-hand side."""
+    from Python over the model's compiled right-hand side.
+
+    Parameters
+    ----------
+    problem : Problem
+        The integration (:class:`~softcurve.simulation.solvers.Problem`).
+    """
 
     name = "rk45"
     method = "rk45"
     route = "rk45"
 
-    def __init__(self, model, rtol, atol, max_steps, inputs=None):
-        self.model = model
-        self.inputs = inputs
-        self.rtol = rtol
-        self.atol = atol
-        self.max_steps = int(max_steps)
+    def __init__(self, problem):
+        self.model = problem.model
+        self.inputs = problem.inputs
+        self.rtol = problem.rtol
+        self.atol = problem.atol
+        self.max_steps = int(problem.max_steps)
         self.counts = {"steps": 0, "rhs_evaluations": 0, "jacobian_evaluations": 0}
 
     def _constant(self, x, h, tout, tau) -> np.ndarray:
