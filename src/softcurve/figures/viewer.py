@@ -42,7 +42,9 @@ VIEWER_OPTIONS = {
 """Options of the viewer, documented once for the functions and the result methods
 (:func:`softcurve.base.docs.parameters_from`)."""
 
-viewer_options = parameters_from(VIEWER_OPTIONS)
+viewer_options = parameters_from(VIEWER_OPTIONS, returns=("pathlib.Path", "``path``."))
+"""Decorator of the viewer's functions and the results' ``to_html`` methods: the entries
+of :data:`VIEWER_OPTIONS`, and the Returns section (the path written)."""
 
 
 def plotly_bundle() -> str:
@@ -127,10 +129,6 @@ def trajectory_viewer(
     %(fps)s
     %(rings)s
 
-    Returns
-    -------
-    pathlib.Path
-        ``path``.
     """
     frames = frame_indices(trajectory.t, fps)
     times = trajectory.t[frames]
@@ -168,10 +166,6 @@ def equilibria_viewer(
     %(obstacles)s
     %(rings)s
 
-    Returns
-    -------
-    pathlib.Path
-        ``path``.
     """
     equilibria = list(equilibria)
     if not equilibria:

@@ -240,10 +240,6 @@ class Trajectory(Result):
         %(fps)s
         %(rings)s
 
-        Returns
-        -------
-        Path
-            ``path``.
         """
         return trajectory_viewer(
             self,
