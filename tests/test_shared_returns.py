@@ -11,7 +11,7 @@ from numpydoc.docscrape import NumpyDocString
 from softcurve.analysis.equilibrium_results import Equilibrium, EquilibriumTable
 from softcurve.analysis.linear import Linearization
 from softcurve.base.docs import parameters_from
-from softcurve.figures import plot_configuration
+from softcurve.figures import animate, plot_configuration
 from softcurve.figures.viewer import equilibria_viewer, trajectory_viewer
 from softcurve.simulation import Trajectory
 
@@ -69,7 +69,13 @@ def test_a_class_is_refused():
 
 @pytest.mark.parametrize(
     "function",
-    [Equilibrium.plot, EquilibriumTable.plot, Linearization.plot, plot_configuration],
+    [
+        Equilibrium.plot,
+        EquilibriumTable.plot,
+        Linearization.plot,
+        Trajectory.plot,
+        plot_configuration,
+    ],
 )
 def test_result_figures_return_the_figure(function):
     (entry,) = _returns(function)
@@ -85,7 +91,9 @@ def test_result_figures_return_the_figure(function):
         Trajectory.to_html,
         trajectory_viewer,
         equilibria_viewer,
+        Trajectory.animate,
+        animate,
     ],
 )
-def test_viewers_return_the_path(function):
+def test_viewers_and_animations_return_the_path(function):
     assert _returns(function) == [("pathlib.Path", "``path``.")]

@@ -52,6 +52,9 @@ the figure functions and the result methods that call them
 (:func:`softcurve.base.docs.parameters_from`)."""
 
 figure_options = parameters_from(FIGURE_OPTIONS)
+animation_options = parameters_from(FIGURE_OPTIONS, returns=("pathlib.Path", "``path``."))
+"""Decorator of :func:`animate` and ``Trajectory.animate``: the entries of
+:data:`FIGURE_OPTIONS`, and the Returns section (the file written)."""
 
 
 @figure_options
@@ -224,7 +227,7 @@ def animation_axes(figsize, limits):
     return figure, ax
 
 
-@figure_options
+@animation_options
 def animate(
     trajectory,
     path,
@@ -252,11 +255,6 @@ def animate(
     %(points)s
     %(dpi)s
     %(figsize)s
-
-    Returns
-    -------
-    pathlib.Path
-        ``path``.
     """
     from matplotlib import animation  # on first use, like drawing.pyplot
 
