@@ -37,14 +37,13 @@ RESULT_FIGURE_OPTIONS = {
     ),
 }
 """Options that the shape figures and the results' ``plot`` methods share
-(:func:`softcurve.base.docs.parameters_from`)."""
+(:func:`softcurve.base.docs.parameters_from`); ``result_figure_options`` also writes their
+Returns section, the figure drawn."""
 
 result_figure_options = parameters_from(
     RESULT_FIGURE_OPTIONS,
     returns=("matplotlib.figure.Figure", "Write it with :func:`softcurve.figures.save_figure`."),
 )
-"""Decorator of the shape figures and the results' ``plot`` methods: the entries of
-:data:`RESULT_FIGURE_OPTIONS`, and the Returns section (the figure drawn)."""
 
 
 def draw_views(views, positions, *style, **options) -> None:

@@ -49,12 +49,11 @@ FIGURE_OPTIONS = {
 }
 """Options of the animation and the batch figure (``ax``: its panels), documented once for
 the figure functions and the result methods that call them
-(:func:`softcurve.base.docs.parameters_from`)."""
+(:func:`softcurve.base.docs.parameters_from`); ``animation_options`` also writes the
+Returns section of the animations, the file written."""
 
 figure_options = parameters_from(FIGURE_OPTIONS)
 animation_options = parameters_from(FIGURE_OPTIONS, returns=("pathlib.Path", "``path``."))
-"""Decorator of :func:`animate` and ``Trajectory.animate``: the entries of
-:data:`FIGURE_OPTIONS`, and the Returns section (the file written)."""
 
 
 @figure_options

@@ -40,11 +40,10 @@ VIEWER_OPTIONS = {
     ),
 }
 """Options of the viewer, documented once for the functions and the result methods
-(:func:`softcurve.base.docs.parameters_from`)."""
+(:func:`softcurve.base.docs.parameters_from`); ``viewer_options`` also writes their
+Returns section, the path written."""
 
 viewer_options = parameters_from(VIEWER_OPTIONS, returns=("pathlib.Path", "``path``."))
-"""Decorator of the viewer's functions and the results' ``to_html`` methods: the entries
-of :data:`VIEWER_OPTIONS`, and the Returns section (the path written)."""
 
 
 def plotly_bundle() -> str:
