@@ -15,7 +15,8 @@ import scipy.linalg
 from softcurve.analysis.loads import StaticLoad, linear_function
 from softcurve.base.status import Result, Status
 from softcurve.base.validation import ParameterError, real_array
-from softcurve.figures import plot_eigenvalues, result_figure_options
+from softcurve.figures import plot_eigenvalues
+from softcurve.figures.shapes import result_figure_options
 
 WITH_RESPECT_TO = ("tau", "actuator")
 """What ``B`` maps: generalized forces, or the actuator's inputs through ``H(q)``."""

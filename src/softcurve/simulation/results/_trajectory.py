@@ -11,7 +11,8 @@ import numpy as np
 from softcurve.base.status import Result, Status
 from softcurve.compiled import Model
 from softcurve.description.actuator import Actuator
-from softcurve.figures import animate, plot_states, plot_tip, result_figure_options
+from softcurve.figures import animate, plot_states, plot_tip
+from softcurve.figures.shapes import result_figure_options
 from softcurve.figures.trajectories import animation_options, figure_options
 from softcurve.figures.viewer import trajectory_viewer, viewer_options
 from softcurve.simulation.results._contact import ContactHistory, contact_along
