@@ -81,10 +81,6 @@ class Equilibrium(Result):
         %(obstacles)s
         %(rings)s
 
-        Returns
-        -------
-        pathlib.Path
-            ``path``.
         """
         return equilibria_viewer(
             [self], path, model, actuator=actuator, obstacles=obstacles, rings=rings
@@ -107,10 +103,6 @@ class Equilibrium(Result):
         inputs : array_like, shape (m,), optional
             Its inputs there [the actuator's ``input_unit``].
 
-        Returns
-        -------
-        matplotlib.figure.Figure
-            Write it with :func:`softcurve.figures.save_figure`.
         """
         kind = f"{self.stability} equilibrium" + (" (ring)" if self.continuum else "")
         title = kind if self.success else f"{kind}, {self.status.value}"
@@ -197,10 +189,6 @@ class EquilibriumTable(Result):
         %(obstacles)s
         %(rings)s
 
-        Returns
-        -------
-        pathlib.Path
-            ``path``.
         """
         return equilibria_viewer(
             self.equilibria,
@@ -211,6 +199,7 @@ class EquilibriumTable(Result):
             rings=rings,
         )
 
+    @result_figure_options
     def plot(self, ax=None):
         """Backbones of every equilibrium in the x-z plane, styled by stability (rings
         drawn by their representative).
@@ -220,9 +209,5 @@ class EquilibriumTable(Result):
         ax : None or matplotlib.axes.Axes, shape (1,)
             Where to draw; None draws a new figure.
 
-        Returns
-        -------
-        matplotlib.figure.Figure
-            Write it with :func:`softcurve.figures.save_figure`.
         """
         return plot_equilibria(self, ax)

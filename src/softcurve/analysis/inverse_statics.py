@@ -92,10 +92,6 @@ class InverseStatics(Result):
         actuator : Actuator, optional
             The actuator whose inputs were chosen.
 
-        Returns
-        -------
-        matplotlib.figure.Figure
-            Write it with :func:`softcurve.figures.save_figure`.
         """
         return plot_configuration(
             model,

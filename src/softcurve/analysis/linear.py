@@ -16,6 +16,7 @@ from softcurve.analysis.loads import StaticLoad, linear_function
 from softcurve.base.status import Result, Status
 from softcurve.base.validation import ParameterError, real_array
 from softcurve.figures import plot_eigenvalues
+from softcurve.figures.shapes import result_figure_options
 
 WITH_RESPECT_TO = ("tau", "actuator")
 """What ``B`` maps: generalized forces, or the actuator's inputs through ``H(q)``."""
@@ -82,6 +83,7 @@ class Linearization(Result):
         ratio[nonzero] = -self.eigenvalues.real[nonzero] / magnitude[nonzero]
         return ratio
 
+    @result_figure_options
     def plot(self, ax=None):
         """The eigenvalues of ``A`` in the complex plane [1/s], the stable half-plane
         ``Re(s) < 0`` shaded, those not in it in red.
@@ -91,10 +93,6 @@ class Linearization(Result):
         ax : None or matplotlib.axes.Axes, shape (1,)
             Where to draw; None draws a new figure.
 
-        Returns
-        -------
-        matplotlib.figure.Figure
-            Write it with :func:`softcurve.figures.save_figure`.
         """
         return plot_eigenvalues(self, ax)
 

@@ -59,9 +59,13 @@ PARAMETERS: dict[str, tuple[str, str]] = {
 """Shared parameter: ``(type line, description)``."""
 
 _MARKER = re.compile(r"^(?P<indent>[ \t]*)%\((?P<name>\w+)\)s[ \t]*$", re.MULTILINE)
+_RETURNS = re.compile(r"^[ \t]*Returns\n[ \t]*-+[ \t]*$", re.MULTILINE)
+_INDENT = re.compile(r"^(?P<indent>[ \t]*)\S", re.MULTILINE)
+"""The indentation of a line that holds text; a docstring's body is indented by the least
+of its lines after the first (which follows the quotes), as :func:`inspect.cleandoc` reads it."""
 
 
-def parameters_from(table: dict[str, tuple[str, str]]):
+def parameters_from(table: dict[str, tuple[str, str]], returns: tuple[str, str] | None = None):
     """A decorator like :func:`shared_parameters` that reads its entries from ``table``
     (for parameters shared within one layer, e.g. the options of the fits).
 
@@ -69,6 +73,11 @@ def parameters_from(table: dict[str, tuple[str, str]]):
     ----------
     table : dict
         Parameter name -> ``(type line, description)``.
+    returns : tuple of str, optional
+        ``(type line, description)`` of what every function it decorates returns: their
+        docstrings leave out the ``Returns`` section, and the decorator writes it as
+        their last (a ValueError at import names a docstring that has one already, a
+        TypeError a class decorated).
     """
 
     def entry(match: re.Match) -> str:
@@ -76,9 +85,21 @@ def parameters_from(table: dict[str, tuple[str, str]]):
         indent = match["indent"]
         return f"{indent}{match['name']} : {kind}\n{indent}    {description}"
 
+    def returns_section(function, doc: str) -> str:
+        if _RETURNS.search(doc):
+            raise ValueError(
+                f"{function.__qualname__}: its Returns section is written by the decorator"
+            )
+        kind, description = returns
+        indent = min((m["indent"] for m in _INDENT.finditer(doc.partition("\n")[2])), default="")
+        lines = ("Returns", "-------", kind, f"    {description}")
+        return doc.rstrip() + "\n\n" + "".join(f"{indent}{line}\n" for line in lines) + indent
+
     def substitute(function):
         if getattr(function, "__doc__", None):
             function.__doc__ = _MARKER.sub(entry, function.__doc__)
+            if returns is not None:
+                function.__doc__ = returns_section(function, function.__doc__)
 
     def decorate(function):
         """Substitute the shared entries into ``function.__doc__``; for a class, into the
@@ -89,6 +110,8 @@ def parameters_from(table: dict[str, tuple[str, str]]):
         function : callable or type
             A function, method or class whose docstrings name shared parameters.
         """
+        if returns is not None and isinstance(function, type):
+            raise TypeError(f"{function.__qualname__}: a class returns nothing to document")
         substitute(function)
         if isinstance(function, type):
             for attribute in vars(function).values():

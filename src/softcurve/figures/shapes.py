@@ -37,9 +37,13 @@ RESULT_FIGURE_OPTIONS = {
     ),
 }
 """Options that the shape figures and the results' ``plot`` methods share
-(:func:`softcurve.base.docs.parameters_from`)."""
+(:func:`softcurve.base.docs.parameters_from`); ``result_figure_options`` also writes their
+Returns section, the figure drawn."""
 
-result_figure_options = parameters_from(RESULT_FIGURE_OPTIONS)
+result_figure_options = parameters_from(
+    RESULT_FIGURE_OPTIONS,
+    returns=("matplotlib.figure.Figure", "Write it with :func:`softcurve.figures.save_figure`."),
+)
 
 
 def draw_views(views, positions, *style, **options) -> None:
@@ -177,9 +181,6 @@ def plot_configuration(
     points : int, optional
         Points along the backbone [count].
 
-    Returns
-    -------
-    matplotlib.figure.Figure
     """
     if (actuator is None) != (inputs is None):
         raise ParameterError("the inputs figure needs both actuator= and inputs=, or neither")

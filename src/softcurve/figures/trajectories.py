@@ -49,9 +49,11 @@ FIGURE_OPTIONS = {
 }
 """Options of the animation and the batch figure (``ax``: its panels), documented once for
 the figure functions and the result methods that call them
-(:func:`softcurve.base.docs.parameters_from`)."""
+(:func:`softcurve.base.docs.parameters_from`); ``animation_options`` also writes the
+Returns section of the animations, the file written."""
 
 figure_options = parameters_from(FIGURE_OPTIONS)
+animation_options = parameters_from(FIGURE_OPTIONS, returns=("pathlib.Path", "``path``."))
 
 
 @figure_options
@@ -224,7 +226,7 @@ def animation_axes(figsize, limits):
     return figure, ax
 
 
-@figure_options
+@animation_options
 def animate(
     trajectory,
     path,
@@ -252,11 +254,6 @@ def animate(
     %(points)s
     %(dpi)s
     %(figsize)s
-
-    Returns
-    -------
-    pathlib.Path
-        ``path``.
     """
     from matplotlib import animation  # on first use, like drawing.pyplot
 

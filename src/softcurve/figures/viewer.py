@@ -40,9 +40,10 @@ VIEWER_OPTIONS = {
     ),
 }
 """Options of the viewer, documented once for the functions and the result methods
-(:func:`softcurve.base.docs.parameters_from`)."""
+(:func:`softcurve.base.docs.parameters_from`); ``viewer_options`` also writes their
+Returns section, the path written."""
 
-viewer_options = parameters_from(VIEWER_OPTIONS)
+viewer_options = parameters_from(VIEWER_OPTIONS, returns=("pathlib.Path", "``path``."))
 
 
 def plotly_bundle() -> str:
@@ -127,10 +128,6 @@ def trajectory_viewer(
     %(fps)s
     %(rings)s
 
-    Returns
-    -------
-    pathlib.Path
-        ``path``.
     """
     frames = frame_indices(trajectory.t, fps)
     times = trajectory.t[frames]
@@ -168,10 +165,6 @@ def equilibria_viewer(
     %(obstacles)s
     %(rings)s
 
-    Returns
-    -------
-    pathlib.Path
-        ``path``.
     """
     equilibria = list(equilibria)
     if not equilibria:

@@ -74,10 +74,6 @@ class InitialState(Result):
         measured : array_like, shape (3,), optional
             A world point measured at the sample (e.g. the tip from a tracker) [m].
 
-        Returns
-        -------
-        matplotlib.figure.Figure
-            Write it with :func:`softcurve.figures.save_figure`.
         """
         return plot_configuration(
             model,

@@ -12,7 +12,8 @@ from softcurve.base.status import Result, Status
 from softcurve.compiled import Model
 from softcurve.description.actuator import Actuator
 from softcurve.figures import animate, plot_states, plot_tip
-from softcurve.figures.trajectories import figure_options
+from softcurve.figures.shapes import result_figure_options
+from softcurve.figures.trajectories import animation_options, figure_options
 from softcurve.figures.viewer import trajectory_viewer, viewer_options
 from softcurve.simulation.results._contact import ContactHistory, contact_along
 from softcurve.simulation.results._files import read_trajectory, save_trajectory
@@ -139,6 +140,7 @@ class Trajectory(Result):
         """
         return save_trajectory(self, path)
 
+    @result_figure_options
     @figure_options
     def plot(self, ax=None, *, window="auto"):
         """The states figure (paper Fig. 4): ``l``, ``kx``, ``ky`` of each segment against
@@ -149,11 +151,6 @@ class Trajectory(Result):
         ax : None or sequence of matplotlib.axes.Axes, shape (3,)
             Panels for ``l``, ``kx`` and ``ky``; None draws a new figure.
         %(window)s
-
-        Returns
-        -------
-        matplotlib.figure.Figure
-            Write it with :func:`softcurve.figures.save_figure`.
         """
         return plot_states(self, ax, window=window)
 
@@ -171,7 +168,7 @@ class Trajectory(Result):
         """
         return plot_tip(self, ax)
 
-    @figure_options
+    @animation_options
     def animate(
         self,
         path,
@@ -196,11 +193,6 @@ class Trajectory(Result):
         %(points)s
         %(dpi)s
         %(figsize)s
-
-        Returns
-        -------
-        Path
-            ``path``.
         """
         return animate(
             self,
@@ -240,10 +232,6 @@ class Trajectory(Result):
         %(fps)s
         %(rings)s
 
-        Returns
-        -------
-        Path
-            ``path``.
         """
         return trajectory_viewer(
             self,
