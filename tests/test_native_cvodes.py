@@ -43,7 +43,9 @@ def test_the_driver_agrees_with_casadi_within_the_tolerance(paper_model, method)
         lambda: sc.simulate(paper_model, Q0, QD0, t_final=3.0, dt=0.01, method=method)
     )
     assert fast.success and slow.success
+    # the same algorithm on two routes, and each result says which ran
     assert fast.stats["method"] == slow.stats["method"]
+    assert (fast.stats["route"], slow.stats["route"]) == ("driver", "casadi-cvodes")
     # both are within ~10 rtol of the exact solution (docs/performance.md): so of each other
     assert_close(fast.x, slow.x, rtol=50 * RTOL, scale=_scale(paper_model, slow.x))
 
