@@ -236,7 +236,8 @@ def _summary(scenario, model, trajectory, built, total, written) -> str:
         f"  final tip   {fmt(trajectory.tip[-1] * 1e3)} mm" if trajectory.t.size else "",
         f"  energy      {energy[0]:.6g} J -> {energy[-1]:.6g} J",
         _contact_line(model, trajectory),
-        f"  integrator  {stats['method']}, rtol {stats['rtol']:g}: {stats['steps']} steps, "
+        f"  integrator  {stats['method']} on route {stats['route']}, rtol {stats['rtol']:g}: "
+        f"{stats['steps']} steps, "
         f"{stats['rhs_evaluations']} rhs and {stats['jacobian_evaluations']} Jacobian evaluations",
         f"  wall time   {1e3 * wall:.1f} ms integrating"
         + (f" ({simulated / wall:.0f}x real time)" if wall > 0 and simulated > 0 else "")
