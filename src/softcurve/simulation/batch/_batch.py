@@ -41,6 +41,7 @@ from softcurve.simulation.batch._workers import (
 )
 from softcurve.simulation.results import BatchTrajectory, batch_status, stop_at_actuator_domain
 from softcurve.simulation.solvers import (
+    Problem,
     Route,
     batch_route,
     blocks,
@@ -210,10 +211,7 @@ def simulate_batch(
     if model.environment is not None:  # no member starts inside an obstacle
         for b in np.unique(arrays["q0"], axis=0, return_index=True)[1]:
             check_start(model.environment, model.robot, arrays["q0"][b], f"q0[{b}] (member {b})")
-    if settings.atol is None:
-        abstol = settings.rtol
-    else:
-        abstol = float(np.min(settings.atol_vector(nominal[0]) / nominal))
+    atol = None if settings.atol is None else settings.atol_vector(nominal[0])  # (n_state,)
     if processes > 1 and size > 1:
         split = (min(processes, size), threads, lanes)
         return _in_processes(model, split, arrays, settings, actuator)
@@ -221,20 +219,23 @@ def simulate_batch(
     if actuator is not None:
         drives = Drives.of(actuator, n, arrays["inputs"], arrays["actuator_parameters"])
         x0, nominal = drives.extended(x0, nominal, arrays.get("actuator_state"))
-        abstol = min(abstol, settings.rtol) if drives.lag else abstol  # as simulate()
-    scales = (nominal, rest_lengths)
-    return _integrate(model, x0, arrays, scales, abstol, settings, (threads, lanes), drives)
+    scales = (nominal, atol, rest_lengths)
+    return _integrate(model, x0, arrays, scales, settings, (threads, lanes), drives)
 
 
-def _integrate(model, x0, arrays, scales, abstol, settings, how, drives) -> BatchTrajectory:
+def _integrate(model, x0, arrays, scales, settings, how, drives) -> BatchTrajectory:
     """The batch in this process (see :func:`simulate_batch`); ``scales`` are the state
-    scales and the rest lengths of every member, ``how`` the threads and lanes,
-    ``drives`` the actuator's (or None)."""
+    scales of every member (B, N), the absolute tolerance of the model's states
+    (n_state,) or None, and the rest lengths of every member (B, n_segments), ``how`` the
+    threads and lanes, ``drives`` the actuator's (or None)."""
     threads, lanes = how
     params = arrays["parameters"]
-    nominal, rest_lengths = scales
+    nominal, atol, rest_lengths = scales
     size, method, n_state = x0.shape[0], settings.method, model.n_state
     grid = settings.output_times()
+    # one problem of every member; the lagging inputs (after n_state) are held relative
+    problem = Problem(model, None, nominal, atol, settings.rtol, settings.max_steps, grid,
+                      params)  # fmt: skip
     if drives is None:
         u = tau = arrays["tau"]
     else:  # the force at the start chooses the family, as in simulate()
@@ -249,9 +250,7 @@ def _integrate(model, x0, arrays, scales, abstol, settings, how, drives) -> Batc
     states = np.full((size, grid.size, x0.shape[1]), np.nan)
     states[:, 0] = x0
     start = time.perf_counter()
-    options = (settings.rtol, abstol, settings.max_steps)
-    run = MemberRun(model, grid, options, threads, u, params, nominal, states, rest_lengths,
-                    drives)  # fmt: skip
+    run = MemberRun(problem, threads, u, states, rest_lengths, drives)
     groups = [np.arange(size)] if drives is None else [
         np.flatnonzero(drives.group == g) for g in range(len(drives.inputs))]  # fmt: skip
     switch = fastest if method == "cvodes" and drives is None else None  # BDF once settled
@@ -295,7 +294,7 @@ def _integrate(model, x0, arrays, scales, abstol, settings, how, drives) -> Batc
         "routes": member_routes,
         "route_reason": "; ".join(sorted({route.reason for route in routes})),
         "rtol": settings.rtol,
-        "abstol_scaled": abstol,
+        "abstol_scaled": problem.scaled_atol,
         "dt": settings.dt,
         "size": size,
         "threads": threads,

@@ -6,11 +6,11 @@ from __future__ import annotations
 
 import contextlib
 import io
+from dataclasses import replace
 
 import numpy as np
 
 from softcurve.base.status import Status
-from softcurve.compiled import Model
 from softcurve.description.robot import MAX_STRETCH
 from softcurve.simulation.solvers import (
     MAX_ORDER,
@@ -18,11 +18,9 @@ from softcurve.simulation.solvers import (
     BufferedCall,
     blocks,
     cvodes_integrator,
-    cvodes_options,
     cvodes_reason,
     domain_reason,
     driver_integrate,
-    driver_options,
     driver_reason,
     failure_message,
     failure_status,
@@ -37,48 +35,51 @@ class MemberRun:
 
     Parameters
     ----------
-    model : Model
-        The compiled model (its parameters are replaced per member).
-    grid : ndarray, shape (T,)
-        Output times [s].
-    options : tuple
-        ``(rtol, abstol of the scaled state, max_steps)`` for :func:`cvodes_options`.
+    problem : Problem
+        The batch's integration (:class:`~softcurve.simulation.solvers.Problem`, forces:
+        ``inputs`` None): model, grid, tolerances and step budget, and each member's state
+        scale ``nominal`` (B, n_state [+ m]; with lagging inputs theirs after
+        ``(q, qd, lam)``) and ``parameters`` (B, n_p). CasADi's options
+        (:meth:`Problem.cvodes_options`) and the C driver's settings
+        (:meth:`Problem.driver_options`) are both its own.
     threads : int
         Threads of the compiled map.
     tau : ndarray, shape (B, n) or (B, m)
         Constant input per member: the force [N, N m^2, N m^2], or with ``drives`` the
         actuator's inputs (commands when they lag) [their unit].
-    params : ndarray, shape (B, n_p)
-        Parameter vector per member.
-    nominal : ndarray, shape (B, n_state [+ m])
-        State scale per member (with lagging inputs: theirs after ``(q, qd, lam)``).
     states : ndarray, shape (B, T, n_state [+ m])
         Filled in place (NaN after a member's failure).
     rest_lengths : ndarray, shape (B, N)
         Rest length of each member's segments [m], for the domain check of the outputs.
     drives : Drives, optional
-        The actuator of each member (``softcurve.simulation.batch._inputs``); the
-        members integrated in one call must share one.
+        The actuator of each member (``softcurve.simulation.batch._inputs``): each group's
+        problem is ``problem`` with the group's ``inputs``; the members integrated in one
+        call share one.
+
+    Notes
+    -----
+    Every member is a row of the one problem, but the batch is no loop around one
+    member's solver (:func:`~softcurve.simulation.solvers.solver` per member): on the C
+    route (:func:`integrate_native`) all members go to the driver in one call, on
+    threads that do not contend (it reads no clock), in groups of four on the state
+    derivative over vector lanes, which share CVODES's work per step. Measured by
+    ``python benchmarks/bench_batch.py --size 64 --loop 8 --repeat 2`` (paper case, 10 s,
+    2 cores), simulated s per wall s: a loop of ``simulate()`` 2,808; the members alone
+    in one call 3,282 on 1 thread (the loop without Python between members) and 5,680 on
+    2; in groups of four 7,076 on 1 thread and 10,544 on 2 (3.8x the loop); CasADi's
+    mapped integrator (:meth:`integrate`, the route without the driver) 1,891 on 2.
+    ``docs/performance.md`` has the 200-member batch (groups 2.3-2.4x the members alone).
     """
 
-    def __init__(
-        self,
-        model: Model,
-        grid,
-        options,
-        threads,
-        tau,
-        params,
-        nominal,
-        states,
-        rest_lengths,
-        drives=None,
-    ):
-        self.model, self.grid, self.options, self.threads = model, grid, options, threads
-        self.tau, self.params, self.nominal, self.states = tau, params, nominal, states
+    def __init__(self, problem, threads, tau, states, rest_lengths, drives=None):
+        self.problem, self.threads, self.tau, self.states = problem, threads, tau, states
         self.rest_lengths, self.drives = rest_lengths, drives
+        self.model, self.grid = problem.model, problem.grid
+        self.params, self.nominal = problem.member_parameters, problem.member_nominal
+        self.problems = [problem] if drives is None else [
+            replace(problem, inputs=inputs) for inputs in drives.inputs]  # fmt: skip
         size = states.shape[0]
-        self.reached = np.full(size, grid.size)
+        self.reached = np.full(size, self.grid.size)
         self.status = np.full(size, Status.SUCCESS, dtype=object)
         self.messages = [""] * size
 
@@ -86,15 +87,22 @@ class MemberRun:
         count = len(members)
         return np.hstack([self.params[members], np.full((count, 1), h), self.nominal[members]]).T
 
-    def _drive(self, member: int):
-        """The :class:`ActuatorInput` of ``member``, or None when forces drive it."""
-        return None if self.drives is None else self.drives.inputs[self.drives.group[member]]
+    def group_problem(self, member: int):
+        """The :class:`~softcurve.simulation.solvers.Problem` of ``member``'s actuator group
+        (the batch's own when forces drive it).
 
-    def _mapped_integrator(self, multistep, tout, count, drive):
-        """The integrator mapped over ``count`` members driven by ``drive`` (an
-        :class:`ActuatorInput` or None), cached with the model."""
+        Parameters
+        ----------
+        member : int
+            The member's index in the batch.
+        """
+        return self.problems[0 if self.drives is None else self.drives.group[member]]
+
+    def _mapped_integrator(self, multistep, tout, count, problem):
+        """The integrator of ``problem`` (a group's) mapped over ``count`` members, cached
+        with the model."""
         threads = min(self.threads, count)
-        options = cvodes_options(multistep, *self.options)
+        options, drive = problem.cvodes_options(multistep), problem.inputs
         key = ("batch", tuple(sorted(options.items())), tout.tobytes(), count, threads,
                None if drive is None else drive.key)  # fmt: skip
 
@@ -111,7 +119,8 @@ class MemberRun:
         grid, states = self.grid[k0 : k1 + 1], self.states
         h = grid[-1] - grid[0]
         tout = (grid[1:] - grid[0]) / h
-        count, outputs, drive = len(members), tout.size, self._drive(int(members[0]))
+        count, outputs = len(members), tout.size
+        problem = self.group_problem(int(members[0]))
         # column-major CasADi matrices: one member's (or one output's) column after another
         x0 = np.ascontiguousarray(states[members, k0] / self.nominal[members])
         p = np.ascontiguousarray(self._p(members, h).T)
@@ -120,7 +129,7 @@ class MemberRun:
         # on a failure, CasADi's map prints every input of the batch to sys.stderr; the
         # reason is kept from the member integrated alone (below)
         with contextlib.redirect_stderr(io.StringIO()):
-            integrator = self._mapped_integrator(multistep, tout, count, drive)
+            integrator = self._mapped_integrator(multistep, tout, count, problem)
             failure, _ = integrator({0: x0, 2: p, 3: u}, xf)
         if failure is not None:
             if count > 1:
@@ -138,7 +147,7 @@ class MemberRun:
 
     def _one_by_one(self, multistep, b, k0, k1) -> None:
         """Output interval by output interval, to keep every output reached before a failure."""
-        integrator = self._mapped_integrator(multistep, np.ones(1), 1, self._drive(b))
+        integrator = self._mapped_integrator(multistep, np.ones(1), 1, self.group_problem(b))
         nominal, states = self.nominal[b], self.states
         for k in range(k0 + 1, k1 + 1):
             h = self.grid[k] - self.grid[k - 1]
@@ -198,10 +207,7 @@ def integrate_native(run: MemberRun, initial, fastest, problems) -> np.ndarray:
     longest = MAX_STRETCH * run.rest_lengths
     lmm = np.where(np.asarray(initial) == "adams", 1, 2)
     settle = np.zeros(states.shape[0]) if fastest is None else np.where(lmm == 1, fastest, 0.0)
-    rtol, abstol, max_steps = run.options
-    settings = driver_options(
-        rtol, abstol, max_steps, max_order=MAX_ORDER, settled_ratio=SETTLED_RATIO
-    )
+    settings = run.problem.driver_options(max_order=MAX_ORDER, settled_ratio=SETTLED_RATIO)
     for g, problem in enumerate(problems):
         group = np.arange(states.shape[0]) if run.drives is None else (
             np.flatnonzero(run.drives.group == g))  # fmt: skip

@@ -28,7 +28,6 @@ from softcurve.simulation.solvers._actuated import actuated_derivative
 from softcurve.simulation.solvers._policy import (
     MAX_ORDER,
     IntegrationFailure,
-    cvodes_options,
     cvodes_reason,
 )
 
@@ -154,7 +153,7 @@ def cvodes_integrator(
     tout : ndarray, shape (k,)
         Normalized output times in (0, 1], dimensionless.
     options : dict
-        CasADi's CVODES options (:func:`cvodes_options`).
+        CasADi's CVODES options (:func:`~softcurve.simulation.solvers.cvodes_options`).
     inputs : ActuatorInput, optional
         The actuator's input, or None for forces.
     """
@@ -264,8 +263,7 @@ class CvodesEngine(PiecewiseSolver):
     @property
     def options(self) -> dict:
         """CasADi's CVODES options of the family in use (the route without the C driver)."""
-        p = self.problem
-        return cvodes_options(self.multistep, p.rtol, p.scaled_atol, p.max_steps)
+        return self.problem.cvodes_options(self.multistep)
 
     @property
     def method(self) -> str:

@@ -6,56 +6,101 @@ A problem is the model's right-hand side with its parameters, the actuator's inp
 force ``H(q) u`` and lag), the state scale, the tolerances and step budget, and the output
 grid with the model's domain; a solver answers the one question of
 :mod:`softcurve.simulation.solvers._cvodes` on it (``advance``), and the route's
-:class:`~softcurve.simulation.solvers._routes.Route` says which solver runs.
+:class:`~softcurve.simulation.solvers._routes.Route` says which solver runs. A batch
+(:func:`~softcurve.simulation.simulate_batch`) is one problem whose state scales and
+parameters are per member; a single member is the batch of one.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 from typing import Protocol
 
 import numpy as np
 
 from softcurve.simulation.solvers._cvodes import ActuatorInput, CvodesEngine
 from softcurve.simulation.solvers._driver import options as driver_options
+from softcurve.simulation.solvers._policy import cvodes_options
 from softcurve.simulation.solvers._rk45 import ScipyEngine
 
 
 @dataclass(frozen=True)
 class Problem:
-    """What one member's integration is, whatever integrates it.
+    """What one integration is, whatever integrates it: one member, or the members of a
+    batch (one robot structure; per-member state scales and parameters).
 
     Parameters
     ----------
     model : Model
-        The compiled model: the right-hand side and its parameter vector.
+        The compiled model: the right-hand side and its default parameter vector.
     inputs : ActuatorInput or None
         The actuator's input (force ``H(q) u``, bounds, lag), or None for forces.
-    nominal : ndarray, shape (N,)
-        State scale (> 0), :func:`~softcurve.simulation.solvers.state_scale`.
-    atol : ndarray, shape (N,)
-        Absolute tolerance per state, in the state's units.
+    nominal : ndarray, shape (N,) or (B, N)
+        State scale (> 0), :func:`~softcurve.simulation.solvers.state_scale`; per member
+        in a batch of ``B``.
+    atol : ndarray, shape (k,), k <= N, or None
+        Absolute tolerance of the first ``k`` states, in the states' units. The states
+        after them (all of them with None) are held relative, ``rtol * nominal``: their
+        scaled state's tolerance is ``rtol`` itself. RK45 takes it per state (k = N).
     rtol : float
         Relative tolerance.
     max_steps : int
         Internal steps allowed between two output times.
     grid : ndarray, shape (T,)
         Output times [s].
+    parameters : ndarray, shape (n_p,) or (B, n_p), optional
+        Parameter vector (per member in a batch), in the order of
+        ``model.robot.layout.names``; default the model's.
     """
 
     model: object
     inputs: ActuatorInput | None
     nominal: np.ndarray
-    atol: np.ndarray
+    atol: np.ndarray | None
     rtol: float
     max_steps: int
     grid: np.ndarray
+    parameters: np.ndarray | None = None
+
+    @property
+    def members(self) -> int:
+        """How many members the problem integrates, ``B`` (1 for one robot)."""
+        return 1 if np.ndim(self.nominal) == 1 else len(self.nominal)
+
+    @cached_property
+    def member_nominal(self) -> np.ndarray:
+        """The state scale of every member, shape (B, N)."""
+        return np.atleast_2d(self.nominal)
+
+    @cached_property
+    def member_parameters(self) -> np.ndarray:
+        """The parameter vector of every member, shape (B, n_p)."""
+        vector = self.model.parameters if self.parameters is None else self.parameters
+        return np.broadcast_to(vector, (self.members, np.shape(vector)[-1]))
 
     @property
     def scaled_atol(self) -> float:
         """The one absolute tolerance of the scaled state ``x / nominal`` that CVODES takes:
-        the tightest ``atol / nominal``, so every state meets its own tolerance."""
-        return float((self.atol / self.nominal).min())
+        the tightest ``atol / nominal`` over the states and members, so every state meets
+        its own tolerance (``rtol`` for the states held relative, :attr:`atol`)."""
+        if self.atol is None:
+            return float(self.rtol)
+        tightest = float((self.atol / self.member_nominal[:, : self.atol.size]).min())
+        held_relative = self.atol.size < self.member_nominal.shape[1]
+        return min(tightest, self.rtol) if held_relative else tightest
+
+    def cvodes_options(self, multistep: str) -> dict:
+        """CasADi's CVODES options of this problem
+        (:func:`~softcurve.simulation.solvers.cvodes_options`, order cap
+        :data:`~softcurve.simulation.solvers.MAX_ORDER`).
+
+        Parameters
+        ----------
+        multistep : {"adams", "bdf"}
+            The family.
+        """
+        return cvodes_options(multistep, self.rtol, self.scaled_atol, self.max_steps)
 
     def driver_options(self, family: int = 1, max_order: int = 0, settled_ratio: float = 0.0):
         """The C driver's settings (the header's ``sc_options``) of this problem.
@@ -65,7 +110,8 @@ class Problem:
         family : int
             1 Adams, 2 BDF.
         max_order : int
-            The method's largest order (0: CVODES's own).
+            The method's largest order (0: CVODES's own;
+            :data:`~softcurve.simulation.solvers.MAX_ORDER` as CasADi's route).
         settled_ratio : float
             The settled switch's ratio (dimensionless,
             :data:`~softcurve.simulation.solvers.SETTLED_RATIO`; 0: no switch).
