@@ -25,10 +25,11 @@ from concurrent.futures import Executor, ThreadPoolExecutor
 import numpy as np
 
 
-def share_bounds(count: int, shares: int, granularity: int = 1) -> np.ndarray:
-    """Bounds ``b`` (k + 1,) of at most ``shares`` contiguous shares of ``count`` members,
-    share ``i`` being ``b[i]:b[i + 1]``: whole units of ``granularity`` members (members
-    that must stay together, e.g. a group over lanes), the last share shorter.
+def share_bounds(count: int, shares: int, granularity: int = 1) -> list[int]:
+    """Bounds ``b`` (k + 1 ints) of at most ``shares`` contiguous shares of ``count``
+    members, share ``i`` being ``b[i]:b[i + 1]``: whole units of ``granularity`` members
+    (members that must stay together, e.g. a group over lanes), the last share shorter.
+    One share costs no NumPy call: a stepper of one environment asks every period.
 
     Parameters
     ----------
@@ -40,8 +41,10 @@ def share_bounds(count: int, shares: int, granularity: int = 1) -> np.ndarray:
         Members per unit.
     """
     units = -(-count // granularity)
-    bounds = np.linspace(0, units, max(1, min(units, shares)) + 1).astype(int)
-    return np.minimum(bounds * granularity, count)
+    if min(units, shares) <= 1:
+        return [0, count]
+    bounds = np.linspace(0, units, min(units, shares) + 1).astype(int)
+    return np.minimum(bounds * granularity, count).tolist()
 
 
 def run_shares(function: Callable, bounds, threads: int, pool: Executor | None = None) -> list:
@@ -59,7 +62,7 @@ def run_shares(function: Callable, bounds, threads: int, pool: Executor | None =
     pool : Executor, optional
         A pool kept by the caller between calls (default: one for this call).
     """
-    starts, stops = list(bounds[:-1]), list(bounds[1:])
+    starts, stops = bounds[:-1], bounds[1:]
     if threads <= 1 or len(starts) <= 1:
         return [function(a, b) for a, b in zip(starts, stops, strict=True)]
     if pool is not None:

@@ -435,7 +435,7 @@ class MemberShares:
         """
         arrays = self._arrays(x, u, p, period, out)
         bounds = share_bounds(out.shape[0], self._threads, self.granularity)
-        if bounds.size > 2:
+        if len(bounds) > 2:
             with self._lock:
                 if self._pool is None:
                     self._pool = ThreadPoolExecutor(self._threads, "softcurve-stepper")
