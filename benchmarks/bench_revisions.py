@@ -1,6 +1,7 @@
 """One 10 s run of the paper case at two git revisions, alternating, in the same minutes.
 
 Run:  python benchmarks/bench_revisions.py BASE [HEAD] [--runs 150] [--rounds 3]
+      python benchmarks/bench_revisions.py BASE [HEAD] --script "bench_batch.py --repeat 3"
 
 On a shared machine the speed of the minute swings by up to two times, so a change of
 10 % shows only when the code before and after it run in turns. Each revision is
@@ -9,6 +10,10 @@ revision in a fresh process pinned to one core (``taskset -c 0`` where it exists
 BLAS thread) and prints the best and the median wall time of ``sc.simulate`` and of its
 integration (``stats["wall_time"]``). Both revisions share this machine's compiled-model
 cache; a driver whose C source differs is compiled at its first run, before the timing.
+
+With ``--script``, each round runs that benchmark of ``benchmarks/`` instead, each
+revision its own copy of it on its own code, and prints what it prints under a heading
+naming the revision and the round: any benchmark before and after a change, in turns.
 """
 
 from __future__ import annotations
@@ -45,12 +50,24 @@ def measure(source: Path, runs: int) -> list[float]:
     return [float(value) for value in result.stdout.split()]
 
 
+def run_script(source: Path, script: str) -> str:
+    """The output of ``benchmarks/<script>`` (with its arguments) of the tree ``source``."""
+    env = {**os.environ, "PYTHONPATH": str(source / "src")}
+    name, *arguments = script.split()
+    command = [sys.executable, str(source / "benchmarks" / name), *arguments]
+    result = subprocess.run(command, env=env, capture_output=True, text=True, cwd=source)
+    return result.stdout + result.stderr
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("base", help="the revision before (e.g. a commit)")
     parser.add_argument("head", nargs="?", default="HEAD", help="the revision after")
     parser.add_argument("--runs", type=int, default=150)
     parser.add_argument("--rounds", type=int, default=3)
+    parser.add_argument(
+        "--script", help='a benchmark of benchmarks/ with its arguments, e.g. "bench_batch.py"'
+    )
     args = parser.parse_args()
     repository = Path(__file__).resolve().parent.parent
     if args.runs < 1 or args.rounds < 1:
@@ -69,6 +86,12 @@ def main() -> None:
                  name], check=True)  # fmt: skip
             trees[name] = tree
         try:
+            if args.script:
+                for k in range(args.rounds):
+                    for name, tree in trees.items():
+                        print(f"== {args.script}: {name}, round {k + 1}", flush=True)
+                        print(run_script(tree, args.script), flush=True)
+                return
             print(f"{'round':>5}  {'revision':<12}{'best':>8}{'median':>9}"
                   f"{'integration best':>18}{'median':>9}   [ms]")  # fmt: skip
             for tree in trees.values():
