@@ -435,10 +435,11 @@ class MemberShares:
         """
         arrays = self._arrays(x, u, p, period, out)
         bounds = share_bounds(out.shape[0], self._threads, self.granularity)
-        if len(bounds) > 2:
-            with self._lock:
-                if self._pool is None:
-                    self._pool = ThreadPoolExecutor(self._threads, "softcurve-stepper")
+        if len(bounds) == 2:  # one share, on this thread: the one-environment case
+            return self._share(arrays, out, 0, out.shape[0])
+        with self._lock:
+            if self._pool is None:
+                self._pool = ThreadPoolExecutor(self._threads, "softcurve-stepper")
         parts = run_shares(lambda a, b: self._share(arrays, out, a, b), bounds, self._threads,
                            self._pool)  # fmt: skip
         return [failure for part in parts for failure in part]
