@@ -31,9 +31,9 @@ import numpy as np
 
 import softcurve as sc
 from softcurve.simulation.batch import _batch as batch
-from softcurve.simulation.batch import _members as batch_run
 from softcurve.simulation.solvers import _driver as native
 from softcurve.simulation.solvers import _policy as _engines
+from softcurve.simulation.solvers import _problem
 
 T_FINAL = 10.0
 
@@ -65,7 +65,7 @@ def with_options(extra: dict):
             options["max_order"] = min(options["max_order"], 5)
         return options
 
-    batch_run.cvodes_options = patched if extra else original
+    _problem.cvodes_options = patched if extra else original  # Problem.cvodes_options reads it
 
 
 def _worker(args) -> tuple[float, float]:

@@ -11,7 +11,7 @@ and initial rate over [1000, 2000] 1/(m s)); each group of ``g`` consecutive mem
 one system of ``9 g`` states (each member scaled by its nominal scale, as softcurve's
 driver scales them) integrated by CasADi's CVODES at rtol 1e-6 (absolute tolerance 1e-6
 on the scaled states) divided by the square root of ``g``, as softcurve's driver sets a
-group's tolerances (``softcurve.simulation.solvers._groups_source``: the group's norm then bounds
+group's tolerances (``groups.c`` of ``softcurve/simulation/solvers/c``: the group's norm then bounds
 every member's own), with Adams and with BDF. Printed per group size: the mean over
 the groups of CVODES's steps, the mean over the same members of their steps alone, and
 the ratio (steps per member and group against alone: a group's step costs one

@@ -7,6 +7,7 @@ from __future__ import annotations
 import importlib
 import warnings
 
+import casadi as ca
 import numpy as np
 import pytest
 
@@ -69,3 +70,31 @@ def test_a_moved_module_warns_and_gives_the_new_modules_names(old, new, name):
     with pytest.raises(AttributeError):
         shim.no_such_name  # noqa: B018
     assert not hasattr(shim, "__all__")  # dunders are the shim's own, not forwarded
+
+
+def test_the_tendon_lengths_keep_their_old_method_name():
+    """``tendon_lengths_symbolic`` became the actuators' shared ``fiber_lengths_symbolic``;
+    the old name warns and gives the same expression."""
+    actuator = sc.presets.rao2021_tendons()
+    q = ca.SX.sym("q", actuator.n)
+    with pytest.warns(DeprecationWarning, match="use fiber_lengths_symbolic"):
+        old = actuator.tendon_lengths_symbolic(q)
+    new = actuator.fiber_lengths_symbolic(q)
+    assert ca.Function("d", [q], [old - new]).expand()(ca.DM.rand(actuator.n)).full().max() == 0
+
+
+@pytest.mark.parametrize(
+    ("face", "name"),
+    [
+        ("softcurve.simulation.stepper", "StepResult"),
+        ("softcurve.simulation.sensitivity", "SensitivityEvaluator"),
+        ("softcurve.identification.maps", "rotation_from_angles"),
+        ("softcurve.identification.experiments", "UnitError"),
+        ("softcurve.identification.experiments", "ExperimentFileNotFound"),
+    ],
+)
+def test_names_users_meet_are_on_a_face(face, name):
+    """Types a public function returns or raises, and helpers the old modules listed,
+    are importable from the face that documents them."""
+    module = importlib.import_module(face)
+    assert name in module.__all__ and getattr(module, name).__name__ == name

@@ -45,6 +45,7 @@ from dataclasses import dataclass
 import casadi as ca
 import numpy as np
 
+from softcurve.base.deprecation import renamed
 from softcurve.base.validation import ParameterError, real_scalar, whole_count
 from softcurve.description.actuator import (
     Actuator,
@@ -273,6 +274,8 @@ class TendonActuator(Actuator):
         return -ca.dot(inputs, self.fiber_lengths_symbolic(q))
 
     # -- numeric ---------------------------------------------------------------------
+    tendon_lengths_symbolic = renamed(Actuator.fiber_lengths_symbolic, "tendon_lengths_symbolic")
+
     def tendon_lengths(self, q) -> np.ndarray:
         """Lengths ``L_i(q)`` (m,) [m] of the tendons from the base to their anchors.
 

@@ -108,7 +108,7 @@ class SimulationSettings:
 
     Examples
     --------
-    >>> from softcurve.simulation._settings import SimulationSettings
+    >>> from softcurve.simulation import SimulationSettings
     >>> settings = SimulationSettings(t_final=2.0, dt=0.01)
     >>> settings.replace(rtol=1e-8).rtol
     1e-08

@@ -38,7 +38,7 @@ Multistep histories cannot cross a jump of the input, so the integrator restarts
 wherever the input changes, and also every ``RESTART_INTERVAL`` (1 s) of simulated time:
 after a transient, a method left at high order is stability-bound on the fast damped
 modes of a robot at rest; a restart halves the steps of the paper's case (see
-``softcurve.simulation.solvers._policy.RESTART_INTERVAL``).
+:data:`~softcurve.simulation.solvers.RESTART_INTERVAL`).
 
 Inputs
 ------
@@ -82,6 +82,7 @@ from softcurve.simulation.solvers import (
     choose_route,
     failure_message,
     failure_status,
+    initial_state,
     lag_scale,
     linearization_rates,
     multistep_family,
@@ -91,38 +92,9 @@ from softcurve.simulation.solvers import (
     state_scale,
     success_message,
 )
-from softcurve.symbolic.gaps import check_start
 
 
 # -- argument checks -----------------------------------------------------------------------
-def initial_state(model: Model, q0, qd0, lam0=None) -> np.ndarray:
-    """``(q0, qd0, lam0)`` checked and stacked into the state ``x0`` (n_state,); ``lam0``
-    None is zero.
-
-    Parameters
-    ----------
-    model : Model
-        The compiled model.
-    q0 : array_like, shape (n,)
-        Coordinates [m, 1/m, 1/m], in the model's domain
-        (:meth:`~softcurve.Robot.check_configuration`).
-    qd0 : array_like, shape (n,)
-        Rates [m/s, 1/(m s), 1/(m s)].
-    lam0 : array_like, shape (n_creep,), optional
-        Creep states (default zero).
-    """
-    n = model.n
-    q0 = model.robot.check_configuration(real_array("q0", q0, (n,)), "q0")
-    if model.environment is not None:
-        check_start(model.environment, model.robot, q0)  # not inside an obstacle
-    x0 = np.zeros(model.n_state)
-    x0[:n] = q0
-    x0[n : 2 * n] = real_array("qd0", qd0, (n,))
-    if lam0 is not None:
-        x0[2 * n :] = real_array("lam0", lam0, (model.n_creep,))
-    return x0
-
-
 def _input_grid(name: str, value, n: int, grid: np.ndarray):
     """Constant / on-grid inputs as a (T, n) array; callables come back unchanged."""
     if value is None:

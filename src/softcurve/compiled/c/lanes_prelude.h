@@ -1,4 +1,4 @@
-/* What every lanes function needs, once per source (softcurve.compiled.lanes): the vector
+/* What every lanes function needs, once per source (softcurve.compiled.lanes_prelude): the vector
  * type sc_v of SC_W doubles and its mask type, broadcast, select, and every elementary
  * function lane by lane (sc_sin, ...). Python defines SC_W (lanes per vector) and, for
  * glibc's vector math library (libmvec: sine, cosine and hyperbolic tangent of four

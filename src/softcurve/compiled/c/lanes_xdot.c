@@ -1,4 +1,4 @@
-/* The state derivative over lanes for CVODES's driver (softcurve.simulation.driver_lanes):
+/* The state derivative over lanes for CVODES's driver (lanes_derivative of softcurve.simulation.solvers):
  * SC_ENTRY(x, u, p, xdot, w) -> 0, every array lanes-interleaved (entry j of member l at
  * [j * SC_W + l]) and aligned to 64 bytes. Python writes before this file the lanes
  * prelude, the lanes function sc_xdot of the model's expressions, SC_ENTRY and

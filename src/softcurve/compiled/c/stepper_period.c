@@ -1,4 +1,4 @@
-/* The stepper's period over lanes (softcurve.simulation.stepper_lanes.period_source):
+/* The stepper's period over lanes (period_source of softcurve.simulation.stepper):
  * SC_SUBSTEPS steps of the method, then the observation, for rows start:stop of x
  * (N, SC_NX) and u (N, SC_NU) into out (N, SC_NX + SC_NOBS), all row-major float64, with p
  * and period shared; a last share shorter than a vector repeats its last member in the
@@ -8,7 +8,7 @@
  * lanes prelude and functions (sc_xdot, sc_observe and the step's), the entry's name
  * SC_ENTRY, the sizes (SC_NX, SC_NU, SC_NOBS, SC_SUBSTEPS; SC_WORK vectors of work of the
  * lanes functions, SC_SCRATCH of the step), the step's declarations and statements
- * (SC_STEP_DECLARATIONS, SC_STEP_LINES, from softcurve.simulation.stepper_lanes_stages)
+ * (SC_STEP_DECLARATIONS, SC_STEP_LINES, from the stepper's step writers)
  * and SC_GENERATED. Without them the file compiles alone, on stand-ins (the test of the
  * shipped C files). */
 #ifndef _ISOC11_SOURCE

@@ -1,5 +1,9 @@
 """Measured experiments: :class:`Experiment`, loading CSV and MATLAB files, units."""
 
+from softcurve.identification.experiments._errors import (
+    ExperimentFileNotFound as ExperimentFileNotFound,
+)
+from softcurve.identification.experiments._errors import UnitError as UnitError
 from softcurve.identification.experiments._experiment import Experiment as Experiment
 from softcurve.identification.experiments._loading import ExperimentError as ExperimentError
 from softcurve.identification.experiments._loading import load_csv as load_csv
@@ -14,4 +18,6 @@ __all__ = [
     "load_mat",
     "load_mat_trials",
     "check_units",
+    "ExperimentFileNotFound",
+    "UnitError",
 ]

@@ -4,9 +4,9 @@ An :class:`Experiment` is a time grid with named measured signals (outputs of th
 robot, e.g. a tip bending angle or curvatures) and named inputs (e.g. chamber
 pressures), each with a unit. Units are converted once, when the experiment is built,
 to SI (pressures to Pa, lengths to m, curvatures to 1/m; angles stay in deg or rad), the
-unit recorded kept in ``source_units`` (``softcurve.identification.experiments._units``). Files
-are read by :func:`load_mat` (MATLAB files via SciPy, with struct arrays of trials:
-``softcurve.identification.experiments._mat``), :func:`load_mat_trials` and
+unit recorded kept in ``source_units`` (the units :func:`check_units` knows). Files
+are read by :func:`load_mat` (MATLAB files via SciPy, with struct arrays of trials),
+:func:`load_mat_trials` and
 :func:`load_csv`; every check happens once, when the experiment is built, and a bad
 file raises :class:`ExperimentError` naming the file and the field. Nothing here knows
 about the robot model.

@@ -27,8 +27,7 @@ WEIGHTS_DOC = (
     "None, array_like (k,), (T,) or (T, k), callable, list of (t0, t1, w), or dict",
     "Residual weights [1/signal unit]: per signal, per sample, a callable ``w(t)`` of "
     "the sample times [s], or windows ``(t0, t1, weight)`` (other samples 1); a dict "
-    "``{experiment name: weights}`` per experiment "
-    "(``softcurve.identification.fits._weights``).",
+    "``{experiment name: weights}`` per experiment (docs/identify.md).",
 )
 """The documentation of the fits' ``weights`` argument."""
 

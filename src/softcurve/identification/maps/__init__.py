@@ -26,6 +26,7 @@ from softcurve.identification.maps._outputs import imu_orientation as imu_orient
 from softcurve.identification.maps._outputs import imu_orientation_map as imu_orientation_map
 from softcurve.identification.maps._outputs import marker_position as marker_position
 from softcurve.identification.maps._outputs import marker_position_map as marker_position_map
+from softcurve.identification.maps._outputs import rotation_from_angles as rotation_from_angles
 from softcurve.identification.maps._outputs import tip_position as tip_position
 from softcurve.identification.maps._outputs import tip_position_map as tip_position_map
 from softcurve.identification.maps._types import InputMap as InputMap
@@ -45,6 +46,7 @@ __all__ = [
     "curvature_map",
     "imu_orientation_map",
     "marker_position_map",
+    "rotation_from_angles",
     "tendon_input_map",
     "tip_position_map",
 ]

@@ -16,7 +16,9 @@ Each member is integrated exactly as :func:`~softcurve.simulation.simulate`
 would integrate it: the same scaled state (``nominal_scale`` of the member's own robot
 and initial state), the same tolerances and, for ``method="cvodes"``, the same choice
 between Adams and BDF per member. Results therefore agree with single simulations to
-round-off (see ``tests/test_batch.py``).
+round-off (see ``tests/test_batch.py``). One difference: with an explicit ``atol``,
+CVODES's one absolute tolerance of the scaled state is the tightest over the members
+integrated together, so each member meets at least its own tolerance.
 """
 
 from __future__ import annotations
@@ -290,9 +292,7 @@ def _integrate(model, x0, arrays, scales, settings, how, drives) -> BatchTraject
         inputs = np.where(np.isnan(states[..., :1]), np.nan, inputs)  # NaN after a failure
     stats = {
         "methods": families,
-        "route": batch_route(member_routes),
-        "routes": member_routes,
-        "route_reason": "; ".join(sorted({route.reason for route in routes})),
+        **_route_stats(member_routes, [route.reason for route in routes]),
         "rtol": settings.rtol,
         "abstol_scaled": problem.scaled_atol,
         "dt": settings.dt,
@@ -408,9 +408,7 @@ def _in_processes(model, split, arrays, settings, actuator) -> BatchTrajectory:
     stats = {
         **stats[0],
         "methods": [methods[i] for i in order],
-        "route": batch_route(member_routes),
-        "routes": member_routes,
-        "route_reason": "; ".join(sorted({s["route_reason"] for s in stats})),
+        **_route_stats(member_routes, [s["route_reason"] for s in stats]),
         "size": size,
         "threads": threads,
         "processes": processes,
@@ -421,6 +419,16 @@ def _in_processes(model, split, arrays, settings, actuator) -> BatchTrajectory:
     return _result(settings.output_times(), x[..., :n_state],
                    None if actuator is None else x[..., n_state:], arrays, member_status,
                    messages, reached, stats, model, actuator)  # fmt: skip
+
+
+def _route_stats(member_routes: list, reasons: list) -> dict:
+    """A batch's route entries of its ``stats``: one name (``batch_route``), each member's,
+    and the reasons, each once."""
+    return {
+        "route": batch_route(member_routes),
+        "routes": member_routes,
+        "route_reason": "; ".join(sorted(set(reasons))),
+    }
 
 
 def simulated_seconds_per_second(batch: BatchTrajectory) -> float:

@@ -13,8 +13,6 @@ import numpy as np
 from softcurve.base.status import Status
 from softcurve.description.robot import MAX_STRETCH
 from softcurve.simulation.solvers import (
-    MAX_ORDER,
-    SETTLED_RATIO,
     BufferedCall,
     blocks,
     cvodes_integrator,
@@ -207,7 +205,7 @@ def integrate_native(run: MemberRun, initial, fastest, problems) -> np.ndarray:
     longest = MAX_STRETCH * run.rest_lengths
     lmm = np.where(np.asarray(initial) == "adams", 1, 2)
     settle = np.zeros(states.shape[0]) if fastest is None else np.where(lmm == 1, fastest, 0.0)
-    settings = run.problem.driver_options(max_order=MAX_ORDER, settled_ratio=SETTLED_RATIO)
+    settings = run.problem.driver_options()
     for g, problem in enumerate(problems):
         group = np.arange(states.shape[0]) if run.drives is None else (
             np.flatnonzero(run.drives.group == g))  # fmt: skip

@@ -2,9 +2,13 @@
 :func:`trajectory_sensitivities`."""
 
 from softcurve.simulation.sensitivity._sensitivity import (
+    SensitivityEvaluator as SensitivityEvaluator,
+)
+from softcurve.simulation.sensitivity._sensitivity import (
     trajectory_sensitivities as trajectory_sensitivities,
 )
 
 __all__ = [
     "trajectory_sensitivities",
+    "SensitivityEvaluator",
 ]

@@ -458,7 +458,7 @@ def integrate_sensitivities(
 
     Parameters
     ----------
-    problem : softcurve.simulation.DriverProblem
+    problem : softcurve.simulation.solvers.DriverProblem
         ``f(x, u, d)`` of the state (no actuator).
     columns : sequence of NativeFunction
         ``[fs]``, ``fs(x;vec(S), u, d;scale) -> f;vec(S')`` for ``m`` columns, or two

@@ -37,7 +37,9 @@ from softcurve.simulation.solvers._grid import outside_domain as outside_domain
 from softcurve.simulation.solvers._grid import run_on_grid as run_on_grid
 from softcurve.simulation.solvers._grid import run_sampled as run_sampled
 from softcurve.simulation.solvers._policy import MAX_ORDER as MAX_ORDER
+from softcurve.simulation.solvers._policy import RESTART_INTERVAL as RESTART_INTERVAL
 from softcurve.simulation.solvers._policy import SETTLED_RATIO as SETTLED_RATIO
+from softcurve.simulation.solvers._policy import STIFFNESS_RATIO as STIFFNESS_RATIO
 from softcurve.simulation.solvers._policy import cvodes_options as cvodes_options
 from softcurve.simulation.solvers._policy import cvodes_reason as cvodes_reason
 from softcurve.simulation.solvers._policy import difference_eigenvalues as difference_eigenvalues
@@ -56,6 +58,7 @@ from softcurve.simulation.solvers._policy import success_message as success_mess
 from softcurve.simulation.solvers._problem import METHODS as METHODS
 from softcurve.simulation.solvers._problem import Problem as Problem
 from softcurve.simulation.solvers._problem import Solver as Solver
+from softcurve.simulation.solvers._problem import initial_state as initial_state
 from softcurve.simulation.solvers._problem import solver as solver
 from softcurve.simulation.solvers._rk45 import ScipyEngine as ScipyEngine
 from softcurve.simulation.solvers._routes import COMPILED_ACTUATORS as COMPILED_ACTUATORS
@@ -123,4 +126,7 @@ __all__ = [
     "DRIVER_FLAGS",
     "driver_options",
     "driver_library",
+    "initial_state",
+    "RESTART_INTERVAL",
+    "STIFFNESS_RATIO",
 ]

@@ -23,10 +23,8 @@ import casadi as ca
 import numpy as np
 
 from softcurve.simulation.solvers import _driver as c_driver
-from softcurve.simulation.solvers import _policy
 from softcurve.simulation.solvers._actuated import actuated_derivative
 from softcurve.simulation.solvers._policy import (
-    MAX_ORDER,
     IntegrationFailure,
     cvodes_reason,
 )
@@ -231,14 +229,15 @@ class CvodesEngine(PiecewiseSolver):
         state, ``Problem.scaled_atol``), step budget.
     multistep : {"adams", "bdf"}
         The family at the start.
-    native : softcurve.simulation.solvers._driver.Problem, optional
+    native : DriverProblem, optional
         The driver's problem of the route "driver"
         (:func:`~softcurve.simulation.solvers.choose_route`); None: CasADi's integrator.
 
     Notes
     -----
-    Integrates with softcurve's C driver of CVODES (``softcurve.simulation.solvers._driver``)
-    on the route "driver", else with CasADi's CVODES integrator on :func:`scaled_dae`.
+    Integrates with softcurve's C driver of CVODES
+    (:func:`~softcurve.simulation.solvers.driver_integrate`) on the route "driver", else
+    with CasADi's CVODES integrator on :func:`scaled_dae`.
     """
 
     name = "cvodes"
@@ -325,9 +324,7 @@ class CvodesEngine(PiecewiseSolver):
             As :func:`softcurve.simulation.solvers.driver_integrate` takes them, for one member.
         """
         family = 1 if self.multistep == "adams" else 2
-        settings = self.problem.driver_options(
-            max_order=MAX_ORDER, settled_ratio=_policy.SETTLED_RATIO
-        )
+        settings = self.problem.driver_options()
         out, reached, flags, counts, used_bdf = c_driver.integrate(
             self.native, [family], x0, u, self.model.parameters[None], self.nominal[None],
             times, (ends, restart), settings,

@@ -19,13 +19,44 @@ from typing import Protocol
 
 import numpy as np
 
+from softcurve.base.validation import real_array
+from softcurve.simulation.solvers import _policy
 from softcurve.simulation.solvers._cvodes import ActuatorInput, CvodesEngine
 from softcurve.simulation.solvers._driver import options as driver_options
-from softcurve.simulation.solvers._policy import cvodes_options
+from softcurve.simulation.solvers._policy import MAX_ORDER, cvodes_options
 from softcurve.simulation.solvers._rk45 import ScipyEngine
+from softcurve.symbolic.gaps import check_start
 
 
-@dataclass(frozen=True)
+def initial_state(model, q0, qd0, lam0=None) -> np.ndarray:
+    """``(q0, qd0, lam0)`` checked and stacked into the state ``x0`` (n_state,); ``lam0``
+    None is zero.
+
+    Parameters
+    ----------
+    model : Model
+        The compiled model.
+    q0 : array_like, shape (n,)
+        Coordinates [m, 1/m, 1/m], in the model's domain
+        (:meth:`~softcurve.Robot.check_configuration`).
+    qd0 : array_like, shape (n,)
+        Rates [m/s, 1/(m s), 1/(m s)].
+    lam0 : array_like, shape (n_creep,), optional
+        Creep states (default zero).
+    """
+    n = model.n
+    q0 = model.robot.check_configuration(real_array("q0", q0, (n,)), "q0")
+    if model.environment is not None:
+        check_start(model.environment, model.robot, q0)  # not inside an obstacle
+    x0 = np.zeros(model.n_state)
+    x0[:n] = q0
+    x0[n : 2 * n] = real_array("qd0", qd0, (n,))
+    if lam0 is not None:
+        x0[2 * n :] = real_array("lam0", lam0, (model.n_creep,))
+    return x0
+
+
+@dataclass(frozen=True, eq=False)
 class Problem:
     """What one integration is, whatever integrates it: one member, or the members of a
     batch (one robot structure; per-member state scales and parameters).
@@ -102,23 +133,26 @@ class Problem:
         """
         return cvodes_options(multistep, self.rtol, self.scaled_atol, self.max_steps)
 
-    def driver_options(self, family: int = 1, max_order: int = 0, settled_ratio: float = 0.0):
-        """The C driver's settings (the header's ``sc_options``) of this problem.
+    def driver_options(self, family: int = 1, max_order: int = MAX_ORDER, settled_ratio=None):
+        """The C driver's settings (the header's ``sc_options``) of this problem: by
+        default those of CasADi's route (:meth:`cvodes_options`), the same order cap, and
+        the settled switch.
 
         Parameters
         ----------
         family : int
             1 Adams, 2 BDF.
         max_order : int
-            The method's largest order (0: CVODES's own;
-            :data:`~softcurve.simulation.solvers.MAX_ORDER` as CasADi's route).
-        settled_ratio : float
-            The settled switch's ratio (dimensionless,
+            The method's largest order (default
+            :data:`~softcurve.simulation.solvers.MAX_ORDER`; 0: CVODES's own).
+        settled_ratio : float, optional
+            The settled switch's ratio (dimensionless; default
             :data:`~softcurve.simulation.solvers.SETTLED_RATIO`; 0: no switch).
         """
+        ratio = _policy.SETTLED_RATIO if settled_ratio is None else settled_ratio
         return driver_options(
             self.rtol, self.scaled_atol, self.max_steps, family=family, max_order=max_order,
-            settled_ratio=settled_ratio,
+            settled_ratio=ratio,
         )  # fmt: skip
 
 
@@ -151,13 +185,11 @@ def solver(route, problem: Problem, multistep: str = "adams") -> Solver:
     Parameters
     ----------
     route : Route
-        The route (:func:`~softcurve.simulation.solvers.choose_route`); for "driver" its
-        ``built`` is the driver's problem.
+        The route (:func:`~softcurve.simulation.solvers.choose_route`); its ``built`` (the
+        driver's problem on "driver", else None) goes to the solver.
     problem : Problem
         The integration.
     multistep : {"adams", "bdf"}
         CVODES's family at the start (unused by RK45).
     """
-    if route.name == "rk45":
-        return ScipyEngine(problem)
-    return METHODS[route.name](problem, multistep, route.built if route.name == "driver" else None)
+    return METHODS[route.name](problem, multistep, route.built)

@@ -21,13 +21,15 @@ class ScipyEngine(PiecewiseSolver):
     ----------
     problem : Problem
         The integration (:class:`~softcurve.simulation.solvers.Problem`).
+    multistep, native : None
+        Unused: the arguments every solver of ``METHODS`` takes.
     """
 
     name = "rk45"
     method = "rk45"
     route = "rk45"
 
-    def __init__(self, problem):
+    def __init__(self, problem, multistep=None, native=None):
         self.model = problem.model
         self.inputs = problem.inputs
         self.rtol = problem.rtol

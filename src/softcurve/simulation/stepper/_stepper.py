@@ -23,7 +23,6 @@ from softcurve.base.validation import ParameterError, real_scalar, whole_count
 from softcurve.compiled import Model
 from softcurve.description.actuator import Actuator
 from softcurve.figures import plot_member_tips
-from softcurve.simulation._simulate import initial_state as checked_state
 from softcurve.simulation.solvers import (
     ActuatorInput,
     BufferedCall,
@@ -31,6 +30,9 @@ from softcurve.simulation.solvers import (
     choose_route,
     domain_reason,
     outside_domain,
+)
+from softcurve.simulation.solvers import (
+    initial_state as checked_state,
 )
 from softcurve.simulation.stepper._lanes import LanesMembers, lanes_period
 from softcurve.simulation.stepper._methods import DEFAULT_EXPLICIT_STEP as DEFAULT_EXPLICIT_STEP

@@ -1,9 +1,9 @@
 /* softcurve_cvodes (softcurve_driver.h): members integrated one by one, or, where the
- * problem has the state derivative over lanes (softcurve.simulation.driver_lanes), in
+ * problem has the state derivative over lanes (lanes_derivative of softcurve.simulation.solvers), in
  * groups whose members are stacked into one CVODES system and evaluated together.
  *
  * Why groups: one lanes evaluation of four members costs about one scalar evaluation
- * (softcurve.compiled.lanes.LANE_WIDTH), and CVODES's own work per step (vector
+ * (softcurve.compiled.LANE_WIDTH), and CVODES's own work per step (vector
  * operations, error test, interpolation) is shared by the group. The members then share
  * the group's steps, about 1.3 times the steps of each alone on the paper's batch
  * (benchmarks/study_stacked_batch.py). Each member keeps its own accuracy: the group's

@@ -1,5 +1,5 @@
 /* softcurve's driver of SUNDIALS CVODES: what Python sees of it. Python derives its ctypes
- * declarations from this file (softcurve.compiled.declarations), so the header is written
+ * declarations from this file (softcurve.compiled.read_header), so the header is written
  * in the restricted form that parser reads:
  *   - comments are C block comments; preprocessor lines are ignored;
  *   - constants are `enum { NAME = INTEGER, ... };`;
@@ -18,7 +18,7 @@
 /* CasADi's generated function: f(arg, res, iw, w, mem). */
 typedef int (*casadi_fn)(const double **arg, double **res, long long *iw, double *w, int mem);
 
-/* The state derivative over `width` members at once (softcurve.simulation.driver_lanes):
+/* The state derivative over `width` members at once (lanes_derivative of softcurve.simulation.solvers):
  * x, u, p and xdot hold entry j of member l at [j width + l], aligned to 64 bytes; w has
  * sz_lanes_w such rows. */
 typedef int (*lanes_fn)(const double *x, const double *u, const double *p, double *xdot,
@@ -51,7 +51,7 @@ typedef struct {
 } sc_function;
 
 /* The settings of a call (not its arrays), filled by Python in one place
- * (softcurve.simulation.native.options). */
+ * (softcurve.simulation.solvers.driver_options). */
 typedef struct {
     double rtol;          /* relative tolerance */
     double atol;          /* absolute tolerance of the integrated state */
