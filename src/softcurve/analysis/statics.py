@@ -34,7 +34,6 @@ from __future__ import annotations
 
 import numpy as np
 import scipy.linalg
-import scipy.stats
 
 from softcurve.analysis.equilibrium_results import Equilibrium, EquilibriumTable
 from softcurve.analysis.linear import Linearization, linearize
@@ -347,7 +346,9 @@ def equilibria(
         raise ParameterError(f"starts must be an integer >= 1, got {starts!r}")
     points = [rest_configuration(model.robot)]
     if starts > 1:
-        unit = scipy.stats.qmc.Halton(d=model.n, scramble=True, seed=seed).random(starts - 1)
+        from scipy.stats import qmc  # half a second to import: only here
+
+        unit = qmc.Halton(d=model.n, scramble=True, seed=seed).random(starts - 1)
         points += list(bounds[:, 0] + unit * (bounds[:, 1] - bounds[:, 0]))
     found: list[Equilibrium] = []
     converged_starts, outside = 0, []

@@ -18,7 +18,6 @@ import warnings
 from dataclasses import dataclass, field, replace
 
 import numpy as np
-import scipy.stats
 
 from softcurve.base.status import Result, Status
 from softcurve.base.validation import ParameterError
@@ -131,8 +130,10 @@ class FitReport(Result):
         They assume independent residuals: for a time series, whose residuals are
         correlated, read them as lower bounds (docs/identify.md).
         """
+        from scipy.stats import t  # half a second to import: only here
+
         dof = max(self.measured.size - len(self.names), 1)
-        half = scipy.stats.t.ppf(0.5 + self.confidence / 2, dof) * self.standard_errors
+        half = t.ppf(0.5 + self.confidence / 2, dof) * self.standard_errors
         return np.column_stack([self.values - half, self.values + half])
 
     def value(self, name: str) -> float:
