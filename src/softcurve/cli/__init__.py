@@ -165,7 +165,7 @@ def rate_text(value: float) -> str:
     Parameters
     ----------
     value : float
-        The rate (any unit; the caller names it).
+        The rate [the caller's unit, e.g. simulated s per s].
     """
     if abs(value) >= 10**RATE_DIGITS:
         return f"{value:.0f}"
