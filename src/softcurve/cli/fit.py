@@ -13,7 +13,6 @@ import sys
 
 from . import Command, _options, write_figure
 
-
 SAMPLE = "examples/bending_moment.csv"
 """Sample data of the repository: bending angle [rad] and tip moment [N m] of the paper's
 robot at equilibrium (docs/identify.md says how it was computed)."""
