@@ -9,7 +9,8 @@ vector environment, and write what it learned into an output folder:
 
 Set-up (CPU only)::
 
-    pip install torch==2.13.0   # first: plain `torch` pulls a several-GB CUDA build
+    # first, the CPU build from PyTorch's index (plain `torch` pulls a several-GB CUDA build)
+    pip install torch --index-url https://download.pytorch.org/whl/cpu
     pip install "softcurve[rl]"  # gymnasium and stable-baselines3
 
 Run ``python examples/train_reach.py --help`` for the options; docs/envs.md quotes the

@@ -27,6 +27,9 @@ def test_quickstart_notebook_runs(tmp_path):
         ).execute()
     outputs = [o for cell in notebook.cells if cell.cell_type == "code" for o in cell.outputs]
     assert not [o for o in outputs if o.output_type == "error"]
+    # no Python warning in a cell's output (the kernel's own "WARNING |" lines are not)
+    printed = [o.text for o in outputs if o.output_type == "stream" and o.name == "stderr"]
+    assert not [text for text in printed if "Warning:" in text], printed
     shown = [o["data"].get("text/html", "") for o in outputs if "data" in o]
     assert any("<iframe srcdoc=" in text and "Plotly" in text for text in shown)
     assert any("image/png" in o.get("data", {}) for o in outputs)  # the figures

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import copy
 import json
+import re
 
 import numpy as np
 import pytest
@@ -211,6 +212,8 @@ def test_cli_sweep_and_bad_file(tmp_path, capsys):
     assert main(["sweep", str(good), "-o", str(out), "--workers", "0", "--figure"]) == 0
     printed = capsys.readouterr().out
     assert "6 simulations" in printed and f"figure      {out / 'sweep.png'}" in printed
+    rate = re.search(r"\((\S+) simulated s per s\)", printed)
+    assert rate is not None and float(rate.group(1)) > 0  # significant digits, never "0"
     assert pq.read_table(out / "results.parquet").num_rows == 6
     assert (out / "sweep.png").read_bytes().startswith(b"\x89PNG\r\n\x1a\n")
     never = str(tmp_path / "never")

@@ -16,6 +16,10 @@ from softcurve.figures.viewer import equilibria_viewer, viewer_options
 STABILITY_KINDS = ("stable", "unstable", "saddle", "degenerate")
 """The classification of an equilibrium (see :mod:`softcurve.analysis.statics`)."""
 
+EIGENVALUE_HEADING = "min eig SKS [J]"
+"""The heading of :meth:`EquilibriumTable.table`'s smallest eigenvalue: of ``S K S``,
+the Hessian of the potential in the dimensionless coordinates ``q / S``, an energy."""
+
 
 @dataclass(frozen=True, eq=False)
 class Equilibrium(Result):
@@ -155,14 +159,17 @@ class EquilibriumTable(Result):
         return tuple(e for e in self.equilibria if e.stability == "stable")
 
     def table(self) -> str:
-        """A plain-text table, one row per equilibrium or ring."""
+        """A plain-text table, one row per equilibrium or ring: the coordinates, the net
+        curvatures, the potential ``V`` [J] and the smallest eigenvalue of ``S K S`` [J],
+        the potential's Hessian in the dimensionless coordinates ``q / S`` (the Hessian
+        in ``q`` itself has mixed units, J per product of two coordinates' units)."""
         n_seg = self.load.model.robot.n_segments
         head = f"{'#':>2}  {'stability':<10} {'set':<6} "
         head += " ".join(
             f"{f'l({i}) [m]':>10} {f'kx({i}) [1/m]':>11} {f'ky({i}) [1/m]':>11}"
             for i in range(n_seg)
         )
-        head += f" {'|kappa| [1/m]':>13} {'V [J]':>12} {'min eig [J]':>12}"
+        head += f" {'|kappa| [1/m]':>13} {'V [J]':>12} {EIGENVALUE_HEADING:>15}"
         rows = [head]
         for k, e in enumerate(self.equilibria):
             coords = " ".join(
@@ -172,7 +179,7 @@ class EquilibriumTable(Result):
             kappa = ",".join(f"{c:.5f}" for c in e.curvature)
             rows.append(
                 f"{k:>2}  {e.stability:<10} {e.continuum or 'point':<6} {coords} {kappa:>13} "
-                f"{e.potential:12.5e} {e.eigenvalues[0]:12.4e}"
+                f"{e.potential:12.5e} {e.eigenvalues[0]:15.4e}"
             )
         return "\n".join(rows)
 

@@ -153,6 +153,25 @@ def in_cli_terms(text: str, options: dict[str, str]) -> str:
     return text
 
 
+RATE_DIGITS = 3
+"""Significant digits of a printed rate: enough to tell 0.38 from 0.4, few enough to read."""
+
+
+def rate_text(value: float) -> str:
+    """A rate for a command's summary (e.g. simulated seconds per wall-clock second), to
+    :data:`RATE_DIGITS` significant digits and without an exponent from 1e-4 up to any
+    size: 0.38 is ``"0.38"`` (not ``"0"``), 12.34 ``"12.3"``, 123456.7 ``"123457"``.
+
+    Parameters
+    ----------
+    value : float
+        The rate [the caller's unit, e.g. simulated s per s].
+    """
+    if abs(value) >= 10**RATE_DIGITS:
+        return f"{value:.0f}"
+    return f"{value:.{RATE_DIGITS}g}"
+
+
 def write_figure(draw, path, *, figsize=None, **options):
     """Draw a figure, save it and close it; returns the path written.
 

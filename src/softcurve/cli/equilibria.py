@@ -53,6 +53,7 @@ def _add_arguments(parser) -> None:
 
 def _run(args) -> int:
     """Run ``softcurve equilibria``; returns the exit code."""
+    from softcurve.analysis.equilibrium_results import EIGENVALUE_HEADING
     from softcurve.analysis.statics import equilibria, linearize
     from softcurve.base.files import writable_file
     from softcurve.compiled import Model
@@ -90,6 +91,12 @@ def _run(args) -> int:
         print(f"  {actuator.input_name} {args.inputs}{unit}")
     print(f"  {in_cli_terms(table.message, ADVICE)}; {table.evaluations} residual evaluations")
     print(table.table())
+    if len(table):  # the Hessian in q has mixed units (J per product of two coordinates')
+        print(
+            f"  {EIGENVALUE_HEADING}: the smallest eigenvalue of S K S, the potential's "
+            "Hessian in the\n  dimensionless coordinates (l/l0, kx l0, ky l0) per segment "
+            "(docs/statics.md)"
+        )
     if args.modes:
         for k, e in enumerate(table):
             lin = linearize(model, e.q, **loads)

@@ -13,6 +13,10 @@ import sys
 
 from . import Command, _options, write_figure
 
+SAMPLE = "examples/bending_moment.csv"
+"""Sample data of the repository: bending angle [rad] and tip moment [N m] of the paper's
+robot at equilibrium (docs/identify.md says how it was computed)."""
+
 
 def _add_arguments(parser) -> None:
     """The options of ``softcurve fit``."""
@@ -70,7 +74,9 @@ COMMAND = Command(
     description="Fit k(x) x = force to quasi-static data (the paper's Fig. 3) and print "
     "a report: estimates, confidence intervals, correlations, residuals. Exit code 1 if "
     "the fit fails or a parameter is not identifiable from the data; 2 for bad input "
-    "(e.g. fewer points than the law's parameters plus one).",
+    "(e.g. fewer points than the law's parameters plus one). Data to try it on, from a "
+    f"checkout of the repository: softcurve fit {SAMPLE} --strain angle --force moment "
+    "(the paper's robot bent by tip moments; docs/identify.md).",
     add_arguments=_add_arguments,
     run=_run,
 )

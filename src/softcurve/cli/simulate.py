@@ -23,7 +23,15 @@ from softcurve.base.validation import ParameterError
 from softcurve.simulation import CSV_BYTES_PER_VALUE, SettingsError, format_bytes
 from softcurve.simulation.results import save_trajectory
 
-from . import Command, Interrupted, _options, add_progress_options, in_cli_terms, write_figure
+from . import (
+    Command,
+    Interrupted,
+    _options,
+    add_progress_options,
+    in_cli_terms,
+    rate_text,
+    write_figure,
+)
 
 
 def _add_arguments(parser) -> None:
@@ -240,7 +248,7 @@ def _summary(scenario, model, trajectory, built, total, written) -> str:
         f"{stats['steps']} steps, "
         f"{stats['rhs_evaluations']} rhs and {stats['jacobian_evaluations']} Jacobian evaluations",
         f"  wall time   {1e3 * wall:.1f} ms integrating"
-        + (f" ({simulated / wall:.0f}x real time)" if wall > 0 and simulated > 0 else "")
+        + (f" ({rate_text(simulated / wall)}x real time)" if wall > 0 and simulated > 0 else "")
         + f" with the integrator's set-up, {built:.2f} s model setup, {total:.2f} s in total",
         "  wrote       " + ", ".join(str(p) for p in written),
     ]

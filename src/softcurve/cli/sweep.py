@@ -15,7 +15,7 @@ from pathlib import Path
 from softcurve.base.validation import ParameterError
 from softcurve.figures.drawing import figure_format
 
-from . import Command, Interrupted, _options, add_progress_options, write_figure
+from . import Command, Interrupted, _options, add_progress_options, rate_text, write_figure
 
 FIGURE = "sweep.png"
 """The figure's file in the output folder when ``--figure`` names none."""
@@ -90,7 +90,7 @@ def _run(args) -> int:
         f"  failed      {result.failed} of {config.size}\n"
         f"  wall time   {result.wall_time:.2f} s"
         + (
-            f" ({simulated / result.wall_time:.0f} simulated s per s)"
+            f" ({rate_text(simulated / result.wall_time)} simulated s per s)"
             if result.chunks_skipped == 0 and result.wall_time > 0
             else ""
         )
