@@ -4,7 +4,7 @@ Both implement :class:`~softcurve.description.actuator.Actuator` (the inputs ``u
 the gauge pressures ``p``):
 
 - :class:`PneumaticActuator`, a set of :class:`Bellows`, derives ``H(q)`` from the
-  virtual work of the chamber pressures (MODEL.md, "Pneumatic actuation"). A bellow
+  virtual work of the chamber pressures (docs/control.md, "Pneumatic actuation"). A bellow
   at azimuth ``phi`` (from +x toward +y in the segment's cross-section) and distance
   ``rho`` from the backbone is an offset fiber of the constant-curvature arc, of length
   ``L = l (1 - rho (kx cos phi + ky sin phi))``; its volume is ``V = A L`` and a gauge

@@ -1,4 +1,4 @@
-"""Rigid obstacles around the robot and the law of the contact with them (MODEL.md, "Contact").
+"""Rigid obstacles around the robot and the law of the contact with them (docs/contact.md).
 
 Obstacles are fixed and given in the robot's base frame (origin at the base of the first
 segment, z along the undeformed backbone; the world frame when ``Robot.base_rotation``

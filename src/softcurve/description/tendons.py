@@ -2,8 +2,8 @@
 
 A :class:`Tendon` runs parallel to the backbone at distance ``rho`` and azimuth ``phi``
 (in each segment's base frame, from +x toward +y, like the bellows) through the segments
-``0 .. anchor`` and is tied to the tip of segment ``anchor`` (MODEL.md, "Tendon
-actuation"). In segment ``j`` it is an offset fiber of the constant-curvature arc::
+``0 .. anchor`` and is tied to the tip of segment ``anchor`` (docs/tendons.md, "The
+model"). In segment ``j`` it is an offset fiber of the constant-curvature arc::
 
     L_j = l_j (1 - rho (kx_j cos phi + ky_j sin phi))
 

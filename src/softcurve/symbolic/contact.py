@@ -1,4 +1,4 @@
-"""Contact with rigid obstacles as generalized forces (MODEL.md, "Contact"), symbolic.
+"""Contact with rigid obstacles as generalized forces (docs/contact.md, "The law"), symbolic.
 
 The contact is integrated along every segment by the trapezoidal rule on ``K + 1``
 equally spaced material points (``K = ContactLaw.points_per_segment``), weights

@@ -5,7 +5,7 @@ a segment the frame is the rotation ``exp([w]x)`` with rotation vector
 ``w = s l (-ky, kx, 0)`` (eq. 3), and the position is ``s l Jl(w) e_z`` (eq. 4) with
 ``Jl`` the left Jacobian of SO(3), since ``int_0^1 exp(t [w]x) dt = Jl(w)``. The body
 angular velocity is ``Jr(w) dw/dt``, ``Jr`` the right Jacobian: that is the exact
-time derivative of the pose at fixed material point (MODEL.md), not the paper's
+time derivative of the pose at fixed material point (docs/model.md, "Kinematics"), not the paper's
 eq. (10). All trigonometric factors are smooth functions of ``|w|^2`` from
 :mod:`softcurve.base.smooth`, exact at zero curvature.
 
