@@ -9,11 +9,13 @@ model (the fastest to compile, seconds) is compiled in it once.
 from __future__ import annotations
 
 import sys
+import time
+import warnings
 
 import pytest
 
 import softcurve as sc
-from softcurve.cli import main
+from softcurve.cli import _models, main
 from tests.test_faults import SWEEP_TOML
 
 BUILDING = "building the compiled model of 1 segment (C, cached in"
@@ -111,3 +113,47 @@ def test_sweep_compiles_once_before_its_workers(empty_cache, tmp_path, monkeypat
     assert code == 0, err
     assert err.count("softcurve sweep: " + BUILDING) == 1 and err.count(BUILT) == 1
     assert "softcurve sweep:" in out
+
+
+def _lines(err: str) -> list[str]:
+    """The lines of ``err`` as a terminal shows them: of each, what follows its last
+    carriage return (what was redrawn over is gone)."""
+    return [line.rpartition("\r")[2] for line in err.split("\n")]
+
+
+def test_progress_redraws_the_seconds_then_erases_them(empty_cache, tmp_path, monkeypatch):
+    monkeypatch.setattr(_models, "TICK", 1e-3)  # a redraw within the seconds of the build
+    argv = [*SIMULATE[:-1], "-o", tmp_path / "out", "--progress"]  # not --no-progress
+    code, out, err, _ = _run(argv, monkeypatch)
+    assert code == 0, err
+    assert "\rsoftcurve simulate: compiling, " in err  # redrawn in place
+    lines = _lines(err)
+    built = next(i for i, line in enumerate(lines) if BUILT in line)
+    assert BUILDING in lines[built - 1] and lines[built].startswith("softcurve simulate: " + BUILT)
+    assert "compiling," not in "".join(lines)  # erased: nothing of it is left on screen
+
+
+def test_a_warning_while_compiling_comes_after_the_redrawn_line(monkeypatch):
+    """A warning given during the build (a failed compiler's) is shown on a line of its own,
+    after the redrawn seconds are erased, through the command's way of showing warnings."""
+    monkeypatch.setattr(_models, "TICK", 1e-3)
+    log: list = []
+    err = Recorder("err", log)
+    monkeypatch.setattr(sys, "stderr", err)
+    shown = []
+
+    def show(message, *args, **kwargs):  # what was written to stderr before it, and it
+        shown.append((len(log), str(message)))
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("always")
+        monkeypatch.setattr(warnings, "showwarning", show)
+        with _models._ticking("simulate", True):
+            deadline = time.monotonic() + 60  # a bound on a stuck ticker, not a timing
+            while "compiling," not in err.text():
+                assert time.monotonic() < deadline, "the ticker drew nothing"
+                time.sleep(1e-3)
+            warnings.warn("the compiler failed", UserWarning, stacklevel=1)
+            assert shown == []  # held back while the line is redrawn
+    assert shown == [(len(log), "the compiler failed")]  # after the last write: the erasure
+    assert _lines(err.text()) == [""]  # nothing left of the redrawn line

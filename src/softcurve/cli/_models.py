@@ -3,15 +3,59 @@
 Compiling a robot's model to C takes seconds for one segment and minutes for several (or
 with obstacles); the library is then cached, and later runs load it in milliseconds.
 Before a command compiles one it says so on stderr, with where it is cached, and after it
-how long it took; a model whose library is already cached, one that is not compiled
-(``compile=False``: nothing is built before its first use, nothing cached) and
+how long it took, with the seconds so far redrawn below the first line while it builds
+when a progress bar is shown; a model whose library is already cached, one that is not
+compiled (``compile=False``: nothing is built before its first use, nothing cached) and
 ``--quiet`` print nothing.
 """
 
 from __future__ import annotations
 
+import contextlib
 import sys
+import threading
 import time
+import warnings
+
+TICK = 1.0
+"""Seconds between two redraws of the time a build has taken so far [s]: the build takes
+seconds to minutes, so finer would only redraw the same number."""
+
+
+@contextlib.contextmanager
+def _ticking(command: str, show: bool):
+    """While the block runs, ``softcurve COMMAND: compiling, N s`` redrawn in place on
+    stderr every :data:`TICK` seconds (when ``show``), erased after it; the warnings the
+    block gives are shown after the erasure, so that none lands inside the redrawn line."""
+    if not show:
+        yield
+        return
+    stop = threading.Event()
+    start = time.perf_counter()
+    drawn = [""]
+
+    def tick():
+        while not stop.wait(TICK):
+            drawn[0] = f"softcurve {command}: compiling, {time.perf_counter() - start:.0f} s"
+            sys.stderr.write("\r" + drawn[0])
+            sys.stderr.flush()
+
+    ticker = threading.Thread(target=tick, daemon=True)
+    try:
+        with warnings.catch_warnings(record=True) as caught:
+            ticker.start()
+            try:
+                yield
+            finally:
+                stop.set()
+                ticker.join()
+    finally:
+        if drawn[0]:
+            sys.stderr.write("\r" + " " * len(drawn[0]) + "\r")
+        for warning in caught:
+            warnings.showwarning(
+                warning.message, warning.category, warning.filename, warning.lineno
+            )
 
 
 def build_model(
@@ -22,6 +66,7 @@ def build_model(
     quadrature_nodes: int | None = None,
     compile: bool = True,
     quiet: bool = False,
+    progress: bool = False,
 ):
     """``Model(robot, ...)``, with a line on stderr before and after compiling it.
 
@@ -39,6 +84,8 @@ def build_model(
         Compile to C (default); with False nothing is compiled and nothing printed.
     quiet : bool
         Print nothing (``--quiet``).
+    progress : bool
+        Redraw the seconds so far while it compiles (``--progress``; default no).
 
     Returns
     -------
@@ -61,7 +108,8 @@ def build_model(
         flush=True,
     )
     start = time.perf_counter()
-    model = Model(robot, **options)
+    with _ticking(command, progress):
+        model = Model(robot, **options)
     took = time.perf_counter() - start
     if model.compiled_library is None:  # the CompilerWarning above says why
         done = "not compiled: it runs in CasADi's virtual machine"

@@ -173,13 +173,17 @@ def _simulate(args, scenario, output, written: list) -> int:
     from softcurve.simulation import simulate
 
     say = (lambda *a: None) if args.quiet else print
+    show_progress = args.progress if args.progress is not None else sys.stderr.isatty()
     start = time.perf_counter()
     model = build_model(
-        "simulate", scenario.robot, environment=scenario.environment, quiet=args.quiet
+        "simulate",
+        scenario.robot,
+        environment=scenario.environment,
+        quiet=args.quiet,
+        progress=show_progress,
     )
     built = time.perf_counter() - start
     q0, qd0, lam0 = scenario.initial_state()
-    show_progress = args.progress if args.progress is not None else sys.stderr.isatty()
     trajectory = simulate(
         model,
         q0,

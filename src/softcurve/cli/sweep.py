@@ -74,6 +74,7 @@ def _run(args) -> int:
         _options.count(args.workers, "--workers", 0)
     config = load_sweep(args.config)
     figure = _figure_path(args.figure, args.output)
+    show = args.progress if args.progress is not None else sys.stderr.isatty()
     if args.scheduler is None:  # the local workers share this cache: compile once, here
         writable_folder(args.output, "--output")  # before any work
         build_model(
@@ -82,8 +83,8 @@ def _run(args) -> int:
             environment=config.scenario.environment,
             quadrature_nodes=config.quadrature_nodes,
             quiet=args.quiet,
+            progress=show,
         )
-    show = args.progress if args.progress is not None else sys.stderr.isatty()
     result = _run_until_signal(
         run_sweep,
         config,
