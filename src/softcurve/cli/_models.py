@@ -111,9 +111,12 @@ def build_model(
     with _ticking(command, progress):
         model = Model(robot, **options)
     took = time.perf_counter() - start
-    if model.compiled_library is None:  # the CompilerWarning above says why
+    library = model.compiled_library
+    if library is None:  # the CompilerWarning above says why
         done = "not compiled: it runs in CasADi's virtual machine"
+    elif library.parent != Model.cache_folder():  # the CacheWarning above says why
+        done = f"kept as {library} for this process only (see the warning)"
     else:
-        done = f"cached as {model.compiled_library}"
+        done = f"cached as {library}"
     print(f"softcurve {command}: model built in {took:.1f} s, {done}", file=sys.stderr)
     return model
