@@ -6,6 +6,7 @@ import subprocess
 import sys
 
 from . import Command, _options, _robots
+from ._models import build_model
 
 
 def _add_arguments(parser) -> None:
@@ -27,13 +28,13 @@ def _add_arguments(parser) -> None:
 def _run(args) -> int:
     """Run ``softcurve codegen``; returns the exit code."""
     from softcurve.base.files import writable_folder
-    from softcurve.compiled import Model, build_and_run_test, c_identifier, export_c
+    from softcurve.compiled import build_and_run_test, c_identifier, export_c
 
     _options.as_option("--prefix", c_identifier, "prefix", args.prefix)
     robot, actuator, environment = _robots.robot_and_actuator(args)  # a bad file: no folder
     writable_folder(args.output, "--output")  # before any work
     exported = export_c(
-        Model(robot, environment=environment, compile=False),
+        build_model("codegen", robot, environment=environment, compile=False),
         args.output,
         actuator=None if args.no_actuator else actuator,
         prefix=args.prefix,

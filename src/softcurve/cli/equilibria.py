@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from . import Command, _options, _robots, in_cli_terms, write_figure
+from ._models import build_model
 
 ADVICE = {
     r"none inside the bounds: widen them, add starts or change the loads": (
@@ -56,7 +57,6 @@ def _run(args) -> int:
     from softcurve.analysis.equilibrium_results import EIGENVALUE_HEADING
     from softcurve.analysis.statics import equilibria, linearize
     from softcurve.base.files import writable_file
-    from softcurve.compiled import Model
 
     # every option before any work
     seed, starts = _options.seed(args.seed), _options.count(args.starts, "--starts")
@@ -66,9 +66,8 @@ def _run(args) -> int:
         _options.viewer("--html")
         writable_file(args.html, "--html")
     robot, actuator, environment = _robots.robot_and_actuator(args)
-    model = Model(
-        robot, environment=environment, compile=False
-    )  # the analysis is symbolic: no need to compile
+    # the analysis is symbolic: no need to compile
+    model = build_model("equilibria", robot, environment=environment, compile=False)
     loads = {}
     if args.hanging:
         loads["gravity"] = -robot.gravity

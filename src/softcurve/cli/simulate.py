@@ -32,6 +32,7 @@ from . import (
     rate_text,
     write_figure,
 )
+from ._models import build_model
 
 
 def _add_arguments(parser) -> None:
@@ -169,15 +170,20 @@ def _run(args) -> int:
 
 def _simulate(args, scenario, output, written: list) -> int:
     """Simulate and write into ``output``, appending each file to ``written`` once whole."""
-    from softcurve.compiled import Model
     from softcurve.simulation import simulate
 
     say = (lambda *a: None) if args.quiet else print
+    show_progress = args.progress if args.progress is not None else sys.stderr.isatty()
     start = time.perf_counter()
-    model = Model(scenario.robot, environment=scenario.environment)
+    model = build_model(
+        "simulate",
+        scenario.robot,
+        environment=scenario.environment,
+        quiet=args.quiet,
+        progress=show_progress,
+    )
     built = time.perf_counter() - start
     q0, qd0, lam0 = scenario.initial_state()
-    show_progress = args.progress if args.progress is not None else sys.stderr.isatty()
     trajectory = simulate(
         model,
         q0,

@@ -12,10 +12,12 @@ import sys
 import threading
 from pathlib import Path
 
+from softcurve.base.files import writable_folder
 from softcurve.base.validation import ParameterError
 from softcurve.figures.drawing import figure_format
 
 from . import Command, Interrupted, _options, add_progress_options, rate_text, write_figure
+from ._models import build_model
 
 FIGURE = "sweep.png"
 """The figure's file in the output folder when ``--figure`` names none."""
@@ -73,6 +75,16 @@ def _run(args) -> int:
     config = load_sweep(args.config)
     figure = _figure_path(args.figure, args.output)
     show = args.progress if args.progress is not None else sys.stderr.isatty()
+    if args.scheduler is None:  # the local workers share this cache: compile once, here
+        writable_folder(args.output, "--output")  # before any work
+        build_model(
+            "sweep",
+            config.scenario.robot,
+            environment=config.scenario.environment,
+            quadrature_nodes=config.quadrature_nodes,
+            quiet=args.quiet,
+            progress=show,
+        )
     result = _run_until_signal(
         run_sweep,
         config,

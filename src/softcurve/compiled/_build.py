@@ -26,9 +26,9 @@ import casadi as ca
 
 from softcurve.compiled._cache import CacheWarning as CacheWarning
 from softcurve.compiled._cache import cache_directory as cache_directory
+from softcurve.compiled._cache import cached_library, load_or_build
 from softcurve.compiled._cache import checksum_file as checksum_file
 from softcurve.compiled._cache import library_problem as library_problem
-from softcurve.compiled._cache import load_or_build
 
 
 class CompilerWarning(UserWarning):
@@ -190,6 +190,26 @@ def _cache_key(structure: tuple, quadrature_nodes: int) -> str:
     for name in _SYMBOLIC_SOURCES:
         sources.update((package / name).read_bytes())
     return cache_key("model", structure, quadrature_nodes, _COMPILE_FLAGS, sources.hexdigest())
+
+
+def cached_model_library(structure, quadrature_nodes) -> Path | None:
+    """The cached library :func:`compiled_library` would load for this structure without
+    compiling, or None when it would compile; nothing is built, loaded or compiled.
+
+    Parameters
+    ----------
+    structure : tuple
+        :meth:`Robot.structure` (with the environment's part, as for
+        :func:`compiled_library`).
+    quadrature_nodes : int
+        Gauss-Legendre nodes per segment, part of the cache key.
+
+    Returns
+    -------
+    pathlib.Path or None
+        The intact library recording this structure's key, or None.
+    """
+    return cached_library("model", _cache_key(structure, quadrature_nodes))
 
 
 def compiled_library(structure, quadrature_nodes, symbolic, load=None):

@@ -219,6 +219,55 @@ def _build_folder(folder: Path, stacklevel: int) -> Path:
     return folder if problem is None else _process_folder(folder, problem, stacklevel + 1)
 
 
+def _library_name(kind: str, key: str) -> str:
+    return f"{kind}_{key[:24]}.so"
+
+
+def _candidates(folder: Path, name: str) -> list[Path]:
+    """Where the library ``name`` of the cache ``folder`` is looked for, in order: this
+    process's stand-in first (a library it holds replaced one of the cache), then the
+    folder."""
+    candidates = [folder / name]
+    if folder in _PROCESS_FOLDERS:
+        candidates.insert(0, _PROCESS_FOLDERS[folder] / name)
+    return candidates
+
+
+def _found(folder: Path, name: str, key: str) -> tuple[Path, tuple | None, str | None] | None:
+    """The first of :func:`_candidates` that exists, with its identity (before the check,
+    so a file changed after it is checked again) and :func:`library_problem` (None when
+    this process verified it unchanged); None when none exists."""
+    for library in _candidates(folder, name):
+        identity = _identity(library)
+        if identity is None and not library.exists():
+            continue
+        verified = identity is not None and _VERIFIED.get((library, key)) == identity
+        return library, identity, None if verified else library_problem(library, key)
+    return None
+
+
+def cached_library(kind: str, key: str) -> Path | None:
+    """The library :func:`load_or_build` would load for ``kind`` and ``key`` without
+    building, or None when it would build (nothing cached, or what is cached fails
+    :func:`library_problem`); nothing is built, loaded or warned about.
+
+    Parameters
+    ----------
+    kind : str
+        Start of the file name: ``"model"``, ``"function"``, a C source's stem.
+    key : str
+        The full cache key (hex digits).
+
+    Returns
+    -------
+    pathlib.Path or None
+        The library, intact and recording ``key`` (loading it fails only if the dynamic
+        loader refuses it), or None.
+    """
+    found = _found(cache_directory(), _library_name(kind, key), key)
+    return found[0] if found is not None and found[2] is None else None
+
+
 class UnusableLibrary(OSError):
     """A freshly built library failed to load."""
 
@@ -259,16 +308,10 @@ def load_or_build(kind: str, key: str, build: Callable[[], bytes], load: Callabl
         When the fresh build fails to load too; else what ``build`` raises.
     """
     folder = cache_directory()
-    name = f"{kind}_{key[:24]}.so"
-    candidates = [folder / name]
-    if folder in _PROCESS_FOLDERS:  # first: a library it holds replaced one of the cache
-        candidates.insert(0, _PROCESS_FOLDERS[folder] / name)
-    for library in candidates:
-        identity = _identity(library)
-        if identity is None and not library.exists():
-            continue
-        verified = identity is not None and _VERIFIED.get((library, key)) == identity
-        problem = None if verified else library_problem(library, key)
+    name = _library_name(kind, key)
+    found = _found(folder, name, key)
+    if found is not None:
+        library, identity, problem = found
         if problem is None:  # checked before dlopen: a truncated file would SIGBUS in it
             try:
                 loaded = load(library)
@@ -283,7 +326,6 @@ def load_or_build(kind: str, key: str, build: Callable[[], bytes], load: Callabl
             CacheWarning,
             stacklevel=stacklevel + 1,
         )
-        break
     target = _build_folder(folder, stacklevel + 1) / name
     data = build()
     try:

@@ -23,7 +23,12 @@ import numpy as np
 
 from softcurve.base.docs import shared_parameters
 from softcurve.base.validation import ParameterError
-from softcurve.compiled._build import COMPILED_FUNCTIONS, compiled_library
+from softcurve.compiled._build import (
+    COMPILED_FUNCTIONS,
+    cache_directory,
+    cached_model_library,
+    compiled_library,
+)
 from softcurve.compiled._native import NativeFunction
 from softcurve.compiled._source import load_library
 from softcurve.description.environment import Environment
@@ -61,6 +66,20 @@ def _load(library: Path) -> dict[str, NativeFunction]:
     loaded; ``softcurve.compiled._build.compiled_library`` then rebuilds it once)."""
     handle = load_library(library)
     return {name: NativeFunction(handle, name) for name in COMPILED_FUNCTIONS}
+
+
+def _library_structure(structure: tuple, environment: Environment | None) -> tuple:
+    """What the compiled library depends on besides the symbolic layer's sources: the
+    robot's structure alone without environment (the free model's key is the same as
+    before environments existed), else also the environment's numbers (compiled in as
+    constants) and the sources of the contact modules."""
+    if environment is None:
+        return structure
+    digest = hashlib.sha256()
+    package = Path(__file__).parent.parent
+    for name in ("description/environment.py", "symbolic/contact.py"):
+        digest.update((package / name).read_bytes())
+    return (structure, "environment", environment.key(), digest.hexdigest())
 
 
 @dataclass(frozen=True)
@@ -218,17 +237,52 @@ class Model:
                 self.compiled_library, self._native = loaded
 
     def _cache_structure(self) -> tuple:
-        """What the compiled library depends on besides the symbolic layer's sources:
-        the robot's structure alone without environment (the free model's key is the same
-        as before environments existed), else also the environment's numbers (compiled in
-        as constants) and the sources of the contact modules."""
-        if self.environment is None:
-            return self._structure
-        digest = hashlib.sha256()
-        package = Path(__file__).parent.parent
-        for name in ("description/environment.py", "symbolic/contact.py"):
-            digest.update((package / name).read_bytes())
-        return (self._structure, "environment", self.environment.key(), digest.hexdigest())
+        """What the compiled library depends on besides the symbolic layer's sources
+        (:func:`_library_structure`)."""
+        return _library_structure(self._structure, self.environment)
+
+    @staticmethod
+    def is_cached(
+        robot: Robot,
+        *,
+        environment: Environment | None = None,
+        quadrature_nodes: int = DEFAULT_QUADRATURE_NODES,
+    ) -> bool:
+        """Whether ``Model(robot, environment=..., quadrature_nodes=...)`` finds its compiled
+        library in the cache (:meth:`cache_folder`), intact and built for this structure,
+        so that it loads it in milliseconds instead of compiling it (seconds to minutes,
+        more with more segments or obstacles). Nothing is built, loaded or compiled; the
+        library's bytes are read once to check their checksum.
+
+        Parameters
+        ----------
+        robot : Robot
+            The robot; its structure (segments, creep, materials' laws), not its numbers,
+            selects the library.
+        environment : Environment, optional
+            Obstacles and contact law, compiled in (default: the free robot).
+        quadrature_nodes : int, optional
+            Gauss-Legendre nodes per segment (default 11).
+
+        Returns
+        -------
+        bool
+            True when the library is cached; False when constructing the model compiles
+            it (or, without a C compiler, runs in CasADi's virtual machine).
+        """
+        structure = _library_structure(robot.structure(), environment)
+        return cached_model_library(structure, quadrature_nodes) is not None
+
+    @staticmethod
+    def cache_folder() -> Path:
+        """The folder of the compiled libraries: ``$SOFTCURVE_CACHE_DIR``, else
+        ``$XDG_CACHE_HOME/softcurve`` or ``~/.cache/softcurve``.
+
+        Returns
+        -------
+        pathlib.Path
+        """
+        return cache_directory()
 
     @property
     def expressions(self) -> DynamicsExpressions:
