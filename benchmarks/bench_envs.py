@@ -50,7 +50,7 @@ import softcurve as sc
 from softcurve.envs import ReachVector
 from softcurve.simulation.solvers import _driver as native
 from softcurve.simulation.solvers._cvodes import ActuatorInput
-from softcurve.simulation.stepper._scheme import state_scale as stepper_scale
+from softcurve.simulation.stepper._scheme import rest_scale as stepper_scale
 
 PERIOD = 0.02
 """Control period [s] of every row."""

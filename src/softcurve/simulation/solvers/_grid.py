@@ -11,7 +11,7 @@ import numpy as np
 
 from softcurve.base.validation import ParameterError
 from softcurve.description.robot import MAX_STRETCH, domain_problem, in_domain
-from softcurve.simulation.solvers import _driver as native
+from softcurve.simulation.solvers import _driver as c_driver
 from softcurve.simulation.solvers._policy import (
     LEFT_DOMAIN,
     RESTART_INTERVAL,
@@ -228,7 +228,7 @@ def _run_native(engine, grid, states, inputs, domain, segments, fastest, changes
     domain.check(states, start + 1, done)
     if flags[0] == 1:  # outside by the driver's test, inside by Python's: stop there
         raise Stopped(done - 1, f"{LEFT_DOMAIN} at t = {grid[done - 1]:.6g} s")
-    raise Stopped(done, cvodes_reason(native.reason(flags[0])))
+    raise Stopped(done, cvodes_reason(c_driver.reason(flags[0])))
 
 
 def _input_changes(inputs: np.ndarray) -> np.ndarray:

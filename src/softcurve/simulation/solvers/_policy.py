@@ -16,7 +16,7 @@ from __future__ import annotations
 import numpy as np
 
 from softcurve.base.status import Status
-from softcurve.simulation.solvers import _driver as native
+from softcurve.simulation.solvers import _driver as c_driver
 from softcurve.simulation.solvers._along import rhs_along
 
 STIFFNESS_RATIO = 10.0
@@ -219,11 +219,11 @@ def linearization_rates(model, x0, tau0=None, nominal=None, parameters=None, thr
         taus = np.broadcast_to(tau0[:, None, :], (*points.shape[:2], model.n))
         values = rhs_along(model, points, taus, parameters, threads)
         return linear_rates(difference_eigenvalues(values, steps))
-    problem = native.problem(model) if x0.size == model.n_state else None
+    problem = c_driver.problem(model) if x0.size == model.n_state else None
     if problem is not None:  # one compiled call rather than 2 n_state calls from Python
         taus = np.empty((points.shape[0], model.n))  # contiguous: evaluate copies no input
         taus[:] = tau0
-        values = native.evaluate(problem, points, taus, model.parameters)
+        values = c_driver.evaluate(problem, points, taus, model.parameters)
     else:
         values = np.array([model.state_derivative(x, tau0) for x in points])
     ratio, fastest = linear_rates(difference_eigenvalues(values, steps))

@@ -15,7 +15,7 @@ import warnings
 from dataclasses import dataclass, field
 
 from softcurve.compiled import LANE_WIDTH
-from softcurve.simulation.solvers import _driver as native
+from softcurve.simulation.solvers import _driver as c_driver
 from softcurve.simulation.solvers._driver import SWITCHED_OFF
 
 ROUTES = {
@@ -78,7 +78,7 @@ class Route:
 
 _WARNED: set = set()
 _WARNED_LOCK = threading.Lock()
-_ASKED = (native.CASADI_ONLY, SWITCHED_OFF)  # the user chose these: no warning
+_ASKED = (c_driver.CASADI_ONLY, SWITCHED_OFF)  # the user chose these: no warning
 
 
 def warn_once(reason: str, route: str) -> None:
@@ -107,7 +107,7 @@ def warn_once(reason: str, route: str) -> None:
 def _driver_missing(model) -> tuple[str | None, bool]:
     """``(why the C driver cannot integrate model, whether the user asked for that)``;
     ``(None, False)`` where it can."""
-    why = native.unavailable()
+    why = c_driver.unavailable()
     if why is not None:
         return why, why in _ASKED
     if model.compiled_library is None:
@@ -168,7 +168,7 @@ def choose_route(task: str, method: str = "cvodes", *, model=None, inputs=None, 
                 return Route(name, "compiled code over the members", built)
         return Route("stepper-casadi", "the model is not compiled, or compiled=False")
     if task == "sensitivity":
-        why = native.unavailable() or (None if options_known else "a CVODES option only "
+        why = c_driver.unavailable() or (None if options_known else "a CVODES option only "
                                        "CasADi's integrator knows")  # fmt: skip
         built = None if why else builders["sensitivity-driver"]()
         if built is None:
@@ -184,7 +184,7 @@ def choose_route(task: str, method: str = "cvodes", *, model=None, inputs=None, 
     if why is None and actuators > COMPILED_ACTUATORS:
         why, asked = f"{actuators} actuators, more than {COMPILED_ACTUATORS} to compile", True
     grouped = task == "batch" and lanes and members >= LANE_WIDTH
-    problem = None if why else native.problem(model, inputs, grouped)
+    problem = None if why else c_driver.problem(model, inputs, grouped)
     if why is None and problem is None:
         why, asked = "the actuator's force H(q) u did not compile", False
     if why is not None:

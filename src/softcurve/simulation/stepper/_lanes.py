@@ -39,8 +39,8 @@ from softcurve.simulation.stepper._scheme import (
     MemberShares,
     jacobian_pattern,
     observer,
+    rest_scale,
     state_derivative,
-    state_scale,
 )
 
 ENTRY = "softcurve_lanes_period"
@@ -89,7 +89,7 @@ def period_source(model, inputs, substeps: int, method: str, vector_math: bool, 
     if isinstance(tableau, ExplicitTableau):
         step = explicit_step(tableau, n_x)
     else:
-        pattern, scale = jacobian_pattern(model, inputs), state_scale(model, inputs)
+        pattern, scale = jacobian_pattern(model, inputs), rest_scale(model, inputs)
         step = rosenbrock_step(tableau, n_x, pattern, scale, every or substeps)
     functions = [
         (f, "sc_xdot", (False, False, True)),
@@ -313,7 +313,7 @@ def rosenbrock_step(
         (``softcurve.simulation.stepper._scheme.jacobian_pattern``).
     scale : ndarray, shape (n_x,)
         The states' natural sizes
-        (``softcurve.simulation.stepper._scheme.state_scale``).
+        (``softcurve.simulation.stepper._scheme.rest_scale``).
     every : int
         Steps between fresh Newton matrices.
     """

@@ -74,7 +74,7 @@ def state_derivative(model, inputs: ActuatorInput | None, symbolic: bool) -> ca.
 
 
 @scheme_parameters
-def state_scale(model, inputs: ActuatorInput | None) -> np.ndarray:
+def rest_scale(model, inputs: ActuatorInput | None) -> np.ndarray:
     """The natural size of every state (n_state [+ m],): the integrators' state scale
     (:func:`~softcurve.simulation.solvers.state_scale`) at the rest state, the geometric
     floors and the larger bound of each lagging input.
@@ -89,7 +89,7 @@ def state_scale(model, inputs: ActuatorInput | None) -> np.ndarray:
 
 DIFFERENCE_STEP = 1.5e-8
 """Forward-difference step of the Jacobian relative to ``max(|x_j|, scale_j)``
-(:func:`state_scale`): the square root of the machine epsilon, where truncation and
+(:func:`rest_scale`): the square root of the machine epsilon, where truncation and
 round-off errors of a forward difference balance. Any matrix keeps ROS2 of order 2; the
 error of the differences (~1e-8 relative) only perturbs its stability function."""
 
@@ -118,7 +118,7 @@ def difference_jacobian(f, scale, x, u, p):
     ----------
     %(f)s
     scale : ndarray, shape (n_state [+ m],)
-        :func:`state_scale`.
+        :func:`rest_scale`.
     x, u, p : casadi.MX or casadi.DM
         State, inputs and robot parameters.
     """
@@ -140,7 +140,7 @@ def newton_matrix(f, scale, pattern, x, u, p, gamma_h):
     f : casadi.Function
         ``(x, u, p) -> xdot`` (:func:`state_derivative`).
     scale : ndarray, shape (n_state [+ m],)
-        :func:`state_scale`.
+        :func:`rest_scale`.
     pattern : casadi.Sparsity
         :func:`jacobian_pattern`.
     x, u, p : casadi.MX
@@ -298,7 +298,7 @@ def period_function(
             for _ in range(substeps):
                 y = explicit_step(f, y, u, p, h, tableau)
         else:
-            scale, pattern = state_scale(model, inputs), jacobian_pattern(model, inputs)
+            scale, pattern = rest_scale(model, inputs), jacobian_pattern(model, inputs)
             qr = Factorization(pattern)
             for i in range(substeps):
                 if i % every == 0:

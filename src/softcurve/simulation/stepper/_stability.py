@@ -18,9 +18,9 @@ from softcurve.base.validation import ParameterError
 from softcurve.simulation.solvers import ActuatorInput, linear_rates
 from softcurve.simulation.stepper._scheme import (
     difference_jacobian,
+    rest_scale,
     scheme_parameters,
     state_derivative,
-    state_scale,
 )
 
 EXPLICIT_MARGIN = 2.0
@@ -47,7 +47,7 @@ def fastest_rate(model, inputs: ActuatorInput | None, x, u) -> float:
     u : array_like, shape (m,)
         The inputs (commands with a lag).
     """
-    f, scale = state_derivative(model, inputs, symbolic=False), state_scale(model, inputs)
+    f, scale = state_derivative(model, inputs, symbolic=False), rest_scale(model, inputs)
     x, u = (ca.DM(np.asarray(v, dtype=np.float64)) for v in (x, u))
     jacobian = np.array(difference_jacobian(f, scale, x, u, ca.DM(model.parameters))[0])
     return float(linear_rates(np.linalg.eigvals(jacobian))[1])
