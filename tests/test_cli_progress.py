@@ -157,3 +157,17 @@ def test_a_warning_while_compiling_comes_after_the_redrawn_line(monkeypatch):
             assert shown == []  # held back while the line is redrawn
     assert shown == [(len(log), "the compiler failed")]  # after the last write: the erasure
     assert _lines(err.text()) == [""]  # nothing left of the redrawn line
+
+
+@pytest.mark.parametrize(
+    ("arguments", "named"),
+    [({"robot": 3}, "robot"), ({"quadrature_nodes": 0}, "quadrature_nodes"),
+     ({"environment": "wall"}, "environment")],
+)  # fmt: skip
+def test_is_cached_rejects_what_the_model_rejects(arguments, named):
+    """The query checks its arguments as the constructor does, naming the one at fault."""
+    given = {"robot": sc.presets.ifac2020(), **arguments}
+    robot = given.pop("robot")
+    for call in (sc.Model.is_cached, sc.Model):
+        with pytest.raises(sc.ParameterError, match=named):
+            call(robot, **given)

@@ -68,6 +68,23 @@ def _load(library: Path) -> dict[str, NativeFunction]:
     return {name: NativeFunction(handle, name) for name in COMPILED_FUNCTIONS}
 
 
+def _check_arguments(robot, environment, quadrature_nodes) -> None:
+    """What :class:`Model` and :meth:`Model.is_cached` accept, each argument named in the
+    :class:`ParameterError`."""
+    if not isinstance(robot, Robot):
+        raise ParameterError(f"robot must be a Robot, got {type(robot).__name__}")
+    if not (isinstance(quadrature_nodes, int) and 1 <= quadrature_nodes <= 64):
+        raise ParameterError(
+            f"quadrature_nodes must be an integer in [1, 64], got {quadrature_nodes!r}"
+        )
+    if environment is not None:
+        if not isinstance(environment, Environment):
+            raise ParameterError(
+                f"environment must be an Environment or None, got {type(environment).__name__}"
+            )
+        environment.check_robot(robot)
+
+
 def _library_structure(structure: tuple, environment: Environment | None) -> tuple:
     """What the compiled library depends on besides the symbolic layer's sources: the
     robot's structure alone without environment (the free model's key is the same as
@@ -204,18 +221,7 @@ class Model:
         quadrature_nodes: int = DEFAULT_QUADRATURE_NODES,
         compile: bool = True,
     ):
-        if not isinstance(robot, Robot):
-            raise ParameterError(f"robot must be a Robot, got {type(robot).__name__}")
-        if not (isinstance(quadrature_nodes, int) and 1 <= quadrature_nodes <= 64):
-            raise ParameterError(
-                f"quadrature_nodes must be an integer in [1, 64], got {quadrature_nodes!r}"
-            )
-        if environment is not None:
-            if not isinstance(environment, Environment):
-                raise ParameterError(
-                    f"environment must be an Environment or None, got {type(environment).__name__}"
-                )
-            environment.check_robot(robot)
+        _check_arguments(robot, environment, quadrature_nodes)
         self.robot = robot
         self.environment = environment
         self.n = robot.n
@@ -270,6 +276,7 @@ class Model:
             True when the library is cached; False when constructing the model compiles
             it (or, without a C compiler, runs in CasADi's virtual machine).
         """
+        _check_arguments(robot, environment, quadrature_nodes)
         structure = _library_structure(robot.structure(), environment)
         return cached_model_library(structure, quadrature_nodes) is not None
 
