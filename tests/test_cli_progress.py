@@ -15,7 +15,8 @@ import warnings
 import pytest
 
 import softcurve as sc
-from softcurve.cli import _models, main
+from softcurve.base import progress
+from softcurve.cli import main
 from tests.test_faults import SWEEP_TOML
 
 BUILDING = "building the compiled model of 1 segment (C, cached in"
@@ -122,7 +123,7 @@ def _lines(err: str) -> list[str]:
 
 
 def test_progress_redraws_the_seconds_then_erases_them(empty_cache, tmp_path, monkeypatch):
-    monkeypatch.setattr(_models, "TICK", 1e-3)  # a redraw within the seconds of the build
+    monkeypatch.setattr(progress, "TICK", 1e-3)  # a redraw within the seconds of the build
     argv = [*SIMULATE[:-1], "-o", tmp_path / "out", "--progress"]  # not --no-progress
     code, out, err, _ = _run(argv, monkeypatch)
     assert code == 0, err
@@ -136,7 +137,7 @@ def test_progress_redraws_the_seconds_then_erases_them(empty_cache, tmp_path, mo
 def test_a_warning_while_compiling_comes_after_the_redrawn_line(monkeypatch):
     """A warning given during the build (a failed compiler's) is shown on a line of its own,
     after the redrawn seconds are erased, through the command's way of showing warnings."""
-    monkeypatch.setattr(_models, "TICK", 1e-3)
+    monkeypatch.setattr(progress, "TICK", 1e-3)
     log: list = []
     err = Recorder("err", log)
     monkeypatch.setattr(sys, "stderr", err)
@@ -148,7 +149,7 @@ def test_a_warning_while_compiling_comes_after_the_redrawn_line(monkeypatch):
     with warnings.catch_warnings():
         warnings.simplefilter("always")
         monkeypatch.setattr(warnings, "showwarning", show)
-        with _models._ticking("simulate", True):
+        with progress.elapsed_line("softcurve simulate: compiling", True):
             deadline = time.monotonic() + 60  # a bound on a stuck ticker, not a timing
             while "compiling," not in err.text():
                 assert time.monotonic() < deadline, "the ticker drew nothing"

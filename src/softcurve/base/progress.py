@@ -1,10 +1,14 @@
 """The one progress bar: a line on stderr for long work counted in units (chunks, rows,
-simulated seconds)."""
+simulated seconds), or, for work of unknown length (a model's compile), the seconds so
+far (:func:`elapsed_line`)."""
 
 from __future__ import annotations
 
+import contextlib
 import sys
+import threading
 import time
+import warnings
 
 WIDTH = 30
 """Characters of the bar."""
@@ -67,3 +71,52 @@ class ProgressLine:
             stream = self.stream or sys.stderr
             stream.write("\n")
             stream.flush()
+
+
+TICK = 1.0
+"""Seconds between two redraws of :func:`elapsed_line` [s]: the work takes seconds to
+minutes, so finer would only redraw the same number."""
+
+
+@contextlib.contextmanager
+def elapsed_line(label: str, show: bool = True):
+    """While the block runs, ``label, N s`` redrawn in place on stderr every :data:`TICK`
+    seconds (when ``show``), erased after it; the warnings the block gives are shown after
+    the erasure, so that none lands inside the redrawn line.
+
+    Parameters
+    ----------
+    label : str
+        What runs, e.g. ``"softcurve simulate: compiling"``.
+    show : bool
+        Whether to draw at all.
+    """
+    if not show:
+        yield
+        return
+    stop = threading.Event()
+    start = time.perf_counter()
+    drawn = [""]
+
+    def tick():
+        while not stop.wait(TICK):
+            drawn[0] = f"{label}, {time.perf_counter() - start:.0f} s"
+            sys.stderr.write("\r" + drawn[0])
+            sys.stderr.flush()
+
+    ticker = threading.Thread(target=tick, daemon=True)
+    try:
+        with warnings.catch_warnings(record=True) as caught:
+            ticker.start()
+            try:
+                yield
+            finally:
+                stop.set()
+                ticker.join()
+    finally:
+        if drawn[0]:
+            sys.stderr.write("\r" + " " * len(drawn[0]) + "\r")
+        for warning in caught:
+            warnings.showwarning(
+                warning.message, warning.category, warning.filename, warning.lineno
+            )

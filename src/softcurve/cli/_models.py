@@ -11,51 +11,10 @@ compiled (``compile=False``: nothing is built before its first use, nothing cach
 
 from __future__ import annotations
 
-import contextlib
 import sys
-import threading
 import time
-import warnings
 
-TICK = 1.0
-"""Seconds between two redraws of the time a build has taken so far [s]: the build takes
-seconds to minutes, so finer would only redraw the same number."""
-
-
-@contextlib.contextmanager
-def _ticking(command: str, show: bool):
-    """While the block runs, ``softcurve COMMAND: compiling, N s`` redrawn in place on
-    stderr every :data:`TICK` seconds (when ``show``), erased after it; the warnings the
-    block gives are shown after the erasure, so that none lands inside the redrawn line."""
-    if not show:
-        yield
-        return
-    stop = threading.Event()
-    start = time.perf_counter()
-    drawn = [""]
-
-    def tick():
-        while not stop.wait(TICK):
-            drawn[0] = f"softcurve {command}: compiling, {time.perf_counter() - start:.0f} s"
-            sys.stderr.write("\r" + drawn[0])
-            sys.stderr.flush()
-
-    ticker = threading.Thread(target=tick, daemon=True)
-    try:
-        with warnings.catch_warnings(record=True) as caught:
-            ticker.start()
-            try:
-                yield
-            finally:
-                stop.set()
-                ticker.join()
-    finally:
-        if drawn[0]:
-            sys.stderr.write("\r" + " " * len(drawn[0]) + "\r")
-        for warning in caught:
-            warnings.showwarning(
-                warning.message, warning.category, warning.filename, warning.lineno
-            )
+from softcurve.base.progress import elapsed_line
 
 
 def build_model(
@@ -108,7 +67,7 @@ def build_model(
         flush=True,
     )
     start = time.perf_counter()
-    with _ticking(command, progress):
+    with elapsed_line(f"softcurve {command}: compiling", progress):
         model = Model(robot, **options)
     took = time.perf_counter() - start
     library = model.compiled_library
