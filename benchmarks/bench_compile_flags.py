@@ -1,15 +1,18 @@
 """Compiler flags for the generated C: compile time against speed of one evaluation.
 
 Run:  python benchmarks/bench_compile_flags.py [--quick] [--repeat 5]
+      [--only rhs,dynamics_terms,stepper,sensitivity] [--robot paper|two-segment]
 
-Three functions of the paper robot (preset ifac2020) with the bellows of
+Functions of the paper robot (preset ifac2020) with the bellows of
 examples/pneumatic.toml, each generated once by CasADi and compiled by the C compiler
 softcurve uses, with every flag set below; one evaluation is timed inside C (a loop of
-``--calls`` calls, best of ``--repeat`` runs, alternating the builds so that a slow
-minute of the machine hits them alike):
+calls, best of ``--repeat`` runs, alternating the builds so that a slow minute of the
+machine hits them alike):
 
-1. ``rhs``: the model's right-hand side ``(x, tau, p) -> xdot`` (what the model library
-   holds, compiled with ``-O2 -march=native``);
+1. ``rhs`` and ``dynamics_terms``: the model's right-hand side ``(x, tau, p) -> xdot``
+   and its terms ``D, C qd, N, R qd`` (the model library's two large functions, compiled
+   with ``FUNCTION_FLAGS -march=native``); ``--robot two-segment`` takes them from the
+   robot of examples/two-segment.toml instead (its build is what a new robot waits for);
 2. ``stepper``: one 20 ms control period of the environments' stepper (ROS34PW2 x 16,
    actuator lag; compiled by :func:`softcurve.compiled.compile_function`);
 3. ``sensitivity``: the identification's augmented right-hand side (state and five
@@ -34,7 +37,6 @@ import numpy as np
 
 import softcurve as sc
 from softcurve.compiled import _build as build
-from softcurve.compiled import _generated as generated
 from softcurve.simulation.sensitivity import _sensitivity as sensitivity
 from softcurve.simulation.solvers._cvodes import ActuatorInput
 from softcurve.simulation.stepper import _scheme as stepper_scheme
@@ -88,15 +90,16 @@ FLAG_SETS = {
     ),
     "-O2 -march=native": ("-O2", "-march=native"),
     # softcurve's FUNCTION_FLAGS (-O2 without GCSE, PRE and code hoisting)
-    " ".join(generated.FUNCTION_FLAGS + build._NATIVE_FLAGS): (
-        generated.FUNCTION_FLAGS + build._NATIVE_FLAGS
+    " ".join(build.FUNCTION_FLAGS + build._NATIVE_FLAGS): (
+        build.FUNCTION_FLAGS + build._NATIVE_FLAGS
     ),
     "-O3 -march=native": ("-O3", "-march=native"),
 }  # fmt: skip
 USED = {
-    "rhs": ("-O2", "-march=native"),  # the model library's flags (build._COMPILE_FLAGS)
+    "rhs": build.FUNCTION_FLAGS + build._NATIVE_FLAGS,  # the model library's
+    "dynamics_terms": build.FUNCTION_FLAGS + build._NATIVE_FLAGS,
     "stepper": stepper_scheme.STEPPER_FLAGS + build._NATIVE_FLAGS,
-    "sensitivity": generated.FUNCTION_FLAGS + build._NATIVE_FLAGS,
+    "sensitivity": build.FUNCTION_FLAGS + build._NATIVE_FLAGS,
 }
 SLOW = ("-O2 -march=native", "-O3 -march=native")
 
@@ -123,13 +126,32 @@ def captured_function(module, run):
     return captured["f"]
 
 
-def cases():
-    """(label, SX/MX Function, input values) of the three functions."""
+def _model_functions(model, q):
+    """The model library's two large functions, with a moving state inside the domain."""
+    x = np.zeros(model.n_state)
+    x[: model.n] = q
+    x[model.n : 2 * model.n] = np.resize([0.01, 3.0, -2.0], model.n)
+    yield "rhs", model.symbolic["rhs"], [x, np.zeros(model.n), model.parameters]
+    terms = model.symbolic["dynamics_terms"]
+    values = [x[: model.n], x[model.n : 2 * model.n], model.parameters]
+    if terms.n_in() > len(values):  # the creep states
+        values.insert(2, np.zeros(terms.size1_in(2)))
+    yield "dynamics_terms", terms, values
+
+
+def cases(robot: str):
+    """(label, SX/MX Function, input values) of the functions."""
+    if robot == "two-segment":
+        config = sc.load_config(Path(__file__).parents[1] / "examples" / "two-segment.toml")
+        model = sc.Model(config.robot, environment=config.environment)
+        q = np.resize([0.064, 25.0, -10.0], model.n)
+        yield from _model_functions(model, q)
+        return
     model, inputs = paper_model_and_inputs()
     x = np.zeros(model.n_state)
     x[:3] = [0.064, 25.0, -10.0]
     x[3:6] = [0.01, 3.0, -2.0]
-    yield "rhs", model.symbolic["rhs"], [x, np.zeros(model.n), model.parameters]
+    yield from _model_functions(model, x[:3])
     stepper = captured_function(
         stepper_scheme, lambda: period_function(model, inputs, DEFAULT_SUBSTEPS, DEFAULT_METHOD)
     )
@@ -197,15 +219,17 @@ def main() -> None:
     parser.add_argument("--quick", action="store_true", help="skip -O2/-O3 of the sensitivity")
     parser.add_argument("--repeat", type=int, default=5)
     parser.add_argument(
-        "--only", choices=("rhs", "stepper", "sensitivity"), help="one function only"
+        "--only", type=lambda text: text.split(","), help="these functions only (comma list)"
     )
+    parser.add_argument("--robot", choices=("paper", "two-segment"), default="paper")
     args = parser.parse_args()
     compiler = build.find_compiler()
     print(f"load average {os.getloadavg()}, {os.cpu_count()} cores, compiler {compiler}")
-    for label, function, values in cases():
-        if args.only not in (None, label):
+    calls_of = {"rhs": 100_000, "dynamics_terms": 100_000, "stepper": 2_000}
+    for label, function, values in cases(args.robot):
+        if args.only is not None and label not in args.only:
             continue
-        calls = {"rhs": 100_000, "stepper": 2_000, "sensitivity": 10_000}[label]
+        calls = calls_of.get(label, 10_000) // (10 if args.robot == "two-segment" else 1)
         print(f"\n{label}: {function.n_instructions()} instructions in CasADi's graph")
         with tempfile.TemporaryDirectory() as directory:
             runs = {}

@@ -49,7 +49,7 @@ import time
 import numpy as np
 
 import softcurve as sc
-from softcurve.compiled._generated import FUNCTION_FLAGS
+from softcurve.compiled._build import FUNCTION_FLAGS
 from softcurve.simulation.solvers._cvodes import ActuatorInput
 from softcurve.simulation.stepper._methods import METHODS, Tableau
 from softcurve.simulation.stepper._scheme import STEPPER_FLAGS, period_function

@@ -176,7 +176,7 @@ def test_compile_function_builds_for_this_cpu_and_falls_back_without_march_nativ
     monkeypatch.setenv("SOFTCURVE_CACHE_DIR", str(tmp_path / "native"))
     function = _small_function()
     generated.compile_function(function)
-    flags = list(generated.FUNCTION_FLAGS)
+    flags = list(model_module.FUNCTION_FLAGS)
     assert " ".join([*flags, "-march=native"]) in log.read_text()
     monkeypatch.setenv("SOFTCURVE_PORTABLE", "1")
     generated.compile_function(function)  # another cache entry: built again, portable
@@ -202,12 +202,52 @@ def test_compile_function_builds_for_this_cpu_and_falls_back_without_march_nativ
 def test_compile_function_without_a_working_compiler_returns_the_function(monkeypatch, tmp_path):
     monkeypatch.setenv("SOFTCURVE_CACHE_DIR", str(tmp_path))
     monkeypatch.setenv("CC", "false")
-    monkeypatch.setattr(generated, "_REFUSING_FLAGS", set())
+    monkeypatch.setattr(model_module, "_REFUSING_FLAGS", set())
     function = _small_function()
     with pytest.warns(model_module.CompilerWarning, match="virtual machine"):
         assert generated.compile_function(function) is function
     monkeypatch.setattr(model_module, "find_compiler", lambda: None)
     assert generated.compile_function(function) is function  # no compiler: said elsewhere
+
+
+def test_the_model_library_is_compiled_with_the_function_flags(monkeypatch, tmp_path, paper_model):
+    """The model's generated C takes the flags of every generated function (-O2 without
+    the passes that cost seconds on straight-line code), and the portable ones where the
+    compiler refuses them, asked once."""
+    import subprocess
+
+    if model_module.find_compiler() is None:
+        pytest.skip("no C compiler")
+    built = paper_model.compiled_library.read_bytes()
+    asked = []
+
+    def fake_compile(functions, compiler, flags=model_module._COMPILE_FLAGS):
+        asked.append((sorted(functions), flags))
+        if refuse and "-fno-code-hoisting" in flags:
+            raise subprocess.CalledProcessError(1, compiler, stderr="unknown flag")
+        return built
+
+    monkeypatch.setattr(model_module, "_compile", fake_compile)
+    monkeypatch.setattr(model_module, "_REFUSING_FLAGS", set())
+    monkeypatch.delenv("SOFTCURVE_PORTABLE", raising=False)
+    monkeypatch.setenv("SOFTCURVE_CACHE_DIR", str(tmp_path / "good"))
+    refuse = False
+    sc.Model(sc.presets.ifac2020())
+    ((names, flags),) = asked
+    assert names == sorted(model_module.COMPILED_FUNCTIONS)
+    expected = (*model_module.FUNCTION_FLAGS, *model_module._native_flags())
+    assert flags == (*expected, *model_module._LIBRARY_FLAGS)
+
+    asked.clear()
+    refuse = True
+    monkeypatch.setenv("SOFTCURVE_CACHE_DIR", str(tmp_path / "refusing"))
+    model = sc.Model(sc.presets.ifac2020())
+    assert [f[: len(model_module.PORTABLE_FUNCTION_FLAGS)] for _, f in asked][-1] == (
+        model_module.PORTABLE_FUNCTION_FLAGS
+    )
+    assert "-fno-code-hoisting" not in asked[-1][1]
+    assert model.compiled_library is not None
+    assert model_module._REFUSING_FLAGS == {tuple(model_module.find_compiler())}
 
 
 def test_a_compiler_refusing_the_function_flags_builds_with_the_portable_ones(
@@ -221,13 +261,13 @@ def test_a_compiler_refusing_the_function_flags_builds_with_the_portable_ones(
         pytest.skip("no C compiler")
     monkeypatch.setenv("CC", str(refusing))
     monkeypatch.setenv("SOFTCURVE_CACHE_DIR", str(tmp_path / "cache"))
-    monkeypatch.setattr(generated, "_REFUSING_FLAGS", set())
+    monkeypatch.setattr(model_module, "_REFUSING_FLAGS", set())
     function = _small_function()
     compiled = generated.compile_function(function)
     assert compiled.class_name() == "External"
     x = np.array([0.3, -2.0, 1.5])
     np.testing.assert_allclose(np.array(compiled(x)), np.array(function(x)), rtol=1e-15)
-    assert generated._REFUSING_FLAGS == {(str(refusing),)}
+    assert model_module._REFUSING_FLAGS == {(str(refusing),)}
     x = ca.SX.sym("x")
     generated.compile_function(ca.Function("softcurve_test_other", [x], [ca.cos(x)]))
     # twice for the first function (with and without -march=native), not for the second

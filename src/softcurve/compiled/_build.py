@@ -46,6 +46,42 @@ are not looked up (nor taken for damaged ones)."""
 
 
 _COMPILE_FLAGS = ("-O2", "-fPIC", "-fvisibility=hidden", "-DGCC_HASCLASSVISIBILITY")
+"""The flags of hand-written C (``softcurve.compiled.compile_source``): small files, for
+which GCC's ``-O2`` costs nothing to speak of."""
+
+_LIBRARY_FLAGS = ("-fPIC", "-fvisibility=hidden", "-DGCC_HASCLASSVISIBILITY")
+"""Beside :data:`FUNCTION_FLAGS`, the model library's: position-independent code that
+exports CasADi's entry points alone."""
+
+FUNCTION_FLAGS = ("-O2", "-fno-gcse", "-fno-tree-pre", "-fno-code-hoisting")
+"""Optimization flags of the C that CasADi generates: the model library and
+:func:`softcurve.compiled.compile_function` (``-march=native`` is added unless
+``SOFTCURVE_PORTABLE`` is set). Generated functions are large straight-line code (the
+two-segment model's right-hand side is 29,700 operations, the identification's
+sensitivity equations of the paper robot 75,000), on which three passes that ``-O2``
+adds to ``-O1`` cost much and give nothing: GCC 12's partial-redundancy elimination and
+code hoisting take minutes on the largest (72-95 s with either on, against 7-10 s with
+both off), and global common-subexpression elimination makes the code slower (10.2-10.5
+us with it against 8.9-10.0 us without, in a C loop over 64 states); CasADi has already
+shared the common subexpressions. The sensitivity function then compiles in 8.4 s
+against ``-O1``'s 6.5 s and evaluates in 9.86 us against 11.77 us (``python
+benchmarks/bench_compile_flags.py --only sensitivity --quick``, best of 5 alternating
+runs, ``-march=native`` on both). The two-segment model's right-hand side compiles in
+6.9 s against 10.7 s at plain ``-O2`` (1.8 s at ``-O1``) and evaluates in 4.07 us
+against 3.99 us (4.97 us at ``-O1``), its ``dynamics_terms`` in 3.3 s against 7.2 s at
+the same speed (``python benchmarks/bench_compile_flags.py --robot two-segment``). They
+are GCC's (8 and later); a compiler that refuses them builds with
+:data:`PORTABLE_FUNCTION_FLAGS`."""
+
+PORTABLE_FUNCTION_FLAGS = ("-O1",)
+"""The flags of generated C for a compiler that refuses :data:`FUNCTION_FLAGS` (clang has
+no ``-fno-tree-pre``, GCC before 8 no ``-fno-code-hoisting``): every C compiler takes
+them, and they compile as fast."""
+
+_REFUSING_FLAGS: set[tuple[str, ...]] = set()
+"""Compiler commands that refused :data:`FUNCTION_FLAGS` in this process: later builds
+use :data:`PORTABLE_FUNCTION_FLAGS` at once."""
+
 _NATIVE_FLAGS = ("-march=native",)
 """Added when the compiler accepts them and ``SOFTCURVE_PORTABLE`` is not set: the code
 then uses this CPU's vector and fused multiply-add instructions, 9-16 % faster
@@ -189,7 +225,8 @@ def _cache_key(structure: tuple, quadrature_nodes: int) -> str:
     sources = hashlib.sha256()
     for name in _SYMBOLIC_SOURCES:
         sources.update((package / name).read_bytes())
-    return cache_key("model", structure, quadrature_nodes, _COMPILE_FLAGS, sources.hexdigest())
+    flags = (*FUNCTION_FLAGS, *_LIBRARY_FLAGS)
+    return cache_key("model", structure, quadrature_nodes, flags, sources.hexdigest())
 
 
 def cached_model_library(structure, quadrature_nodes) -> Path | None:
@@ -240,7 +277,7 @@ def compiled_library(structure, quadrature_nodes, symbolic, load=None):
     def build() -> bytes:
         functions = symbolic()
         selected = {name: functions[name] for name in COMPILED_FUNCTIONS}
-        return compile_for_this_cpu(selected, require_compiler(compiler), _COMPILE_FLAGS)
+        return compile_generated(selected, require_compiler(compiler), tail=_LIBRARY_FLAGS)
 
     key = _cache_key(structure, quadrature_nodes)
     try:
@@ -315,6 +352,39 @@ def compile_for_this_cpu(functions, compiler, flags, tail=()) -> bytes:
         data = _compile(functions, compiler, (*flags, *tail))
         _REFUSING_NATIVE.add(tuple(compiler))  # built without them: they were refused
         return data
+
+
+def compile_generated(functions, compiler, flags=None, tail=()) -> bytes:
+    """The shared library of CasADi's generated ``functions``
+    (:func:`compile_for_this_cpu`) with ``flags``, by default :data:`FUNCTION_FLAGS`, or
+    :data:`PORTABLE_FUNCTION_FLAGS` where the compiler refuses those (remembered in
+    :data:`_REFUSING_FLAGS`).
+
+    Parameters
+    ----------
+    functions : dict of str to casadi.Function
+        The functions, by name.
+    compiler : list of str
+        The compiler's command (:func:`find_compiler`).
+    flags : tuple of str, optional
+        Optimization flags asked for instead of the default ones (no fallback then).
+    tail : tuple of str
+        Flags after the optimization and native ones.
+
+    Returns
+    -------
+    bytes
+        The library's content.
+    """
+    if flags is not None:
+        return compile_for_this_cpu(functions, compiler, tuple(flags), tail)
+    if tuple(compiler) in _REFUSING_FLAGS:
+        return compile_for_this_cpu(functions, compiler, PORTABLE_FUNCTION_FLAGS, tail)
+    try:
+        return compile_for_this_cpu(functions, compiler, FUNCTION_FLAGS, tail)
+    except subprocess.CalledProcessError:  # refused by this compiler: once more, portable
+        _REFUSING_FLAGS.add(tuple(compiler))
+        return compile_for_this_cpu(functions, compiler, PORTABLE_FUNCTION_FLAGS, tail)
 
 
 def run_compiler(command: list[str], directory: str) -> None:

@@ -17,31 +17,6 @@ from softcurve.compiled import _build as build
 from softcurve.compiled import _cache as cache
 from softcurve.compiled._source import load_external
 
-FUNCTION_FLAGS = ("-O2", "-fno-gcse", "-fno-tree-pre", "-fno-code-hoisting")
-"""Optimization flags of :func:`compile_function` (``-march=native`` is added unless
-``SOFTCURVE_PORTABLE`` is set). Its functions are large (the identification's
-sensitivity equations of the paper robot are 75,000 operations of straight-line code).
-Of what ``-O2`` adds to ``-O1``, GCC 12's partial-redundancy elimination and code
-hoisting take minutes on them (72-95 s with either on, against 7-10 s with both off)
-and global common-subexpression elimination makes the code slower (10.2-10.5 us with
-it against 8.9-10.0 us without, in a C loop over 64 states); CasADi has already shared
-the common subexpressions. Without the three, ``-O2`` compiles in 8.4 s against
-``-O1``'s 6.5 s and evaluates the sensitivity function in 9.86 us against 11.77 us
-(``python benchmarks/bench_compile_flags.py --only sensitivity --quick``,
-best of 5 alternating runs, ``-march=native`` on both). A two-segment robot's
-401,000-operation function compiled in 76 s against 59 s at ``-O1`` (side by side).
-They are GCC's (8 and later); a compiler that refuses them builds with
-:data:`PORTABLE_FUNCTION_FLAGS`."""
-
-PORTABLE_FUNCTION_FLAGS = ("-O1",)
-"""The flags of :func:`compile_function` for a compiler that refuses
-:data:`FUNCTION_FLAGS` (clang has no ``-fno-tree-pre``, GCC before 8 no
-``-fno-code-hoisting``): every C compiler takes them, and they compile as fast."""
-
-_REFUSING_FLAGS: set[tuple[str, ...]] = set()
-"""Compiler commands that refused :data:`FUNCTION_FLAGS` in this process: later builds
-use :data:`PORTABLE_FUNCTION_FLAGS` at once."""
-
 
 def compile_function(function: ca.Function, flags: tuple[str, ...] | None = None, load=None):
     """``function`` generated as C, compiled, cached on disk by its content and loaded.
@@ -58,8 +33,9 @@ def compile_function(function: ca.Function, flags: tuple[str, ...] | None = None
     function : casadi.Function
         An SX or MX function without Python callbacks.
     flags : tuple of str, optional
-        The compiler's optimization flags (default :data:`FUNCTION_FLAGS`, or
-        :data:`PORTABLE_FUNCTION_FLAGS` where the compiler refuses those);
+        The compiler's optimization flags (default: those of the model library,
+        ``FUNCTION_FLAGS``, or ``PORTABLE_FUNCTION_FLAGS`` where the compiler refuses
+        them);
         ``-march=native`` is added unless ``SOFTCURVE_PORTABLE`` is set, and dropped again
         if the compiler refuses it.
 
@@ -81,20 +57,9 @@ def compile_function(function: ca.Function, flags: tuple[str, ...] | None = None
     name = function.name()
     asked = None if flags is None else tuple(flags)
 
-    def compile_with(chosen: tuple[str, ...]) -> bytes:
-        return build.compile_for_this_cpu({name: function}, compiler, chosen, ("-fPIC",))
-
     def make() -> bytes:
         build.require_compiler(compiler)
-        if asked is not None:
-            return compile_with(asked)
-        if tuple(compiler) in _REFUSING_FLAGS:
-            return compile_with(PORTABLE_FUNCTION_FLAGS)
-        try:
-            return compile_with(FUNCTION_FLAGS)
-        except subprocess.CalledProcessError:  # refused by this compiler: once more, portable
-            _REFUSING_FLAGS.add(tuple(compiler))
-            return compile_with(PORTABLE_FUNCTION_FLAGS)
+        return build.compile_generated({name: function}, compiler, asked, ("-fPIC",))
 
     # the flags asked for, not those a compiler accepted: the key holds no compiler
     key = build.cache_key("function", function.serialize(), asked)
