@@ -17,7 +17,13 @@ from softcurve.base.validation import ParameterError, real_scalar
 from softcurve.figures.actuation import plot_inputs
 from softcurve.figures.drawing import backbones, panels, whole_number
 from softcurve.figures.obstacles import draw_obstacles
-from softcurve.figures.scales import NOISE, equal_limits, negligible, time_window
+from softcurve.figures.scales import (
+    NOISE,
+    equal_limits,
+    negligible,
+    time_window,
+    window_note,
+)
 
 MM_PER_M = 1e3
 STATE_LABELS = ("length l [m]", r"curvature $\kappa_x$ [1/m]", r"curvature $\kappa_y$ [1/m]")
@@ -123,23 +129,6 @@ def motion_window(trajectory, window="auto") -> tuple[float, float]:
     return time_window(trajectory.t, drawn_states(trajectory.q)[0], window)
 
 
-def window_note(trajectory, start: float, end: float) -> str:
-    """``", t = 0 .. 0.654 s of 10 s"`` when ``(start, end)`` is not the whole record,
-    else ``""``: what a title adds to say which window it shows.
-
-    Parameters
-    ----------
-    trajectory : softcurve.Trajectory
-        Read: ``t`` shape (T,) [s].
-    start, end : float
-        The window shown [s].
-    """
-    t = trajectory.t
-    if t.size > 1 and (start, end) != (t[0], t[-1]):
-        return f", t = {start:.3g} .. {end:.3g} s of {t[-1]:.3g} s"
-    return ""
-
-
 @figure_options
 def plot_states(trajectory, ax=None, *, window="auto", inputs=None):
     """``l``, ``kx`` and ``ky`` of every segment against time, one panel each (Fig. 4),
@@ -193,7 +182,7 @@ def plot_states(trajectory, ax=None, *, window="auto", inputs=None):
     if segments > 1:
         axes[0].legend(loc="upper right", fontsize="small")
     axes[-1].set_xlabel("time t [s]")
-    title = "State trajectories" + window_note(trajectory, start, end)
+    title = "State trajectories" + window_note(trajectory.t, start, end)
     if not trajectory.success:
         title += f" (FAILED at t = {trajectory.t[-1]:.4g} s)" if trajectory.t.size else " (FAILED)"
     axes[0].set_title(title)
@@ -244,7 +233,7 @@ def plot_tip(trajectory, ax=None, *, window="auto"):
         note = f" (< {NOISE:g} reach: 0)" if k in zeroed else ""
         getattr(ax, f"set_{name}label")(f"{name} [mm]{note}")
     draw_obstacles(ax, getattr(trajectory, "model", None))
-    ax.set_title("End-effector trajectory" + window_note(trajectory, start, end))
+    ax.set_title("End-effector trajectory" + window_note(trajectory.t, start, end))
     return figure
 
 
