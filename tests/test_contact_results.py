@@ -273,3 +273,51 @@ def test_equilibrium_against_a_wall_and_its_linearization():
     stiff, loose = np.sort(linear.frequencies), np.sort(loose_linear.frequencies)
     assert stiff[1] > 3 * loose[1]  # bending toward the wall: the wall's stiffness
     assert_close(stiff[0], loose[0], rtol=0.01, what="out-of-plane bending, frictionless")
+
+
+def _history(force):
+    """A ContactHistory of one obstacle pushing along x with ``force(t)`` [N], 1 ms grid."""
+    t = np.arange(0.0, 3.0, 1e-3)
+    forces = np.zeros((t.size, 1, 3))
+    forces[:, 0, 0] = force(t)
+    return sc.ContactHistory(
+        t, forces, np.full_like(forces, np.nan), np.zeros((t.size, 3)), 0 * t, ("0: plane",)
+    )
+
+
+def test_contact_figure_shows_the_contact_alone():
+    """An impact of a few ms, as examples/contact_wall.toml gives: the axis spans it."""
+    history = _history(lambda t: np.where((t > 0.0295) & (t < 0.0375), 12.0, 0.0))
+    figure = history.plot()
+    assert not figure.axes[0].child_axes  # the impact is the whole contact: no zoom
+    low, high = figure.axes[1].get_xlim()
+    assert low == pytest.approx(0.029 - 0.25 * 0.009) and high == pytest.approx(0.038 + 0.00225)
+    assert figure.axes[0].lines[0].get_marker() == "."  # 14 samples shown, each marked
+    assert "of 3 s" in figure.axes[0].get_title()
+    plt.close(figure)
+
+
+def test_a_short_impact_in_a_long_contact_gets_a_zoom():
+    """A 3 ms spike of 10 N at 0.5 s, then 1 N of resting contact until 2 s."""
+    history = _history(
+        lambda t: (
+            np.where((t >= 0.5) & (t < 2.0), 1.0, 0.0)
+            + np.where(np.abs(t - 0.501) < 1.5e-3, 9.0, 0.0)
+        )
+    )
+    figure = history.plot()
+    main, components = figure.axes
+    (inset,) = main.child_axes
+    low, high = components.get_xlim()
+    assert low < 0.5 and 1.999 < high < 2.5 and low > 0.1
+    zoom = inset.get_xlim()
+    assert zoom[0] < 0.4995 and 0.5025 < zoom[1] and zoom[1] - zoom[0] < 0.02
+    assert max(inset.lines[0].get_ydata()) == 10.0 and inset.texts[0].get_text() == "impact"
+    plt.close(figure)
+
+
+def test_contact_figure_without_contact_shows_the_record():
+    figure = _history(lambda t: 0 * t).plot()
+    assert figure.axes[1].get_xlim() == pytest.approx((0.0, 2.999))
+    assert "no contact" in figure.axes[0].get_title()
+    plt.close(figure)

@@ -1,20 +1,25 @@
 """The static figures as a new user meets them: equal axes on the tip plot, a time window
-that follows the motion, round-off drawn as zero, and the size, resolution and frame
-rate of the animation and the command's figures as options."""
+that follows the motion (states, tip path and animation alike), round-off drawn as zero,
+the animation's ticks, frames and progress, and the size, resolution and frame rate of
+the animation and the command's figures as options."""
 
 from __future__ import annotations
+
+import os
+import sys
 
 import matplotlib.pyplot as plt
 import numpy as np
 import pytest
 from matplotlib.backends.backend_agg import FigureCanvasAgg
+from mpl_toolkits.mplot3d import proj3d
 from PIL import Image
 
 import softcurve as sc
 from softcurve.base.validation import ParameterError
 from softcurve.cli import main
 from softcurve.figures.scales import equal_limits, settled_time, time_window
-from softcurve.figures.trajectories import animation_axes
+from softcurve.figures.trajectories import animation_axes, frame_samples, motion_window
 
 
 @pytest.fixture(autouse=True)
@@ -124,3 +129,95 @@ def test_command_figure_size_dpi_and_viewer(tmp_path, capsys):
     assert (out / "viewer.html").stat().st_size > 1e6  # Plotly inside
     assert main(["simulate", "-o", str(out), "--figsize", "4", "0"]) == 2
     assert "--figsize" in capsys.readouterr().err
+
+
+@pytest.fixture(scope="module")
+def ringing(paper_model):
+    """The paper's case over 2 s: it rings for about 0.65 s, then rests."""
+    return sc.simulate(paper_model, [0.064, 25.0, 0.0], [0.0, 0.0, 1500.0], t_final=2.0)
+
+
+def test_animation_frames_cover_only_the_motion(ringing, tmp_path):
+    start, end = motion_window(ringing)
+    assert start == 0.0 and 0.3 < end < 1.0
+    frames = frame_samples(ringing, fps=25)
+    assert frames.size == np.ceil(end * 25) and ringing.t[frames[-1]] <= end
+    assert frame_samples(ringing, window="all", fps=25).size == 50
+    assert ringing.t[frame_samples(ringing, window=(1.0, 1.2), fps=25)] == pytest.approx(
+        [1.0, 1.04, 1.08, 1.12, 1.16]
+    )
+    with pytest.raises(ParameterError, match="overlap the record"):
+        frame_samples(ringing, window=(3.0, 4.0))
+    path = ringing.animate(tmp_path / "a.gif", dpi=40)
+    with Image.open(path) as image:
+        assert image.n_frames == frames.size
+
+
+def test_the_tip_figure_shows_the_states_window(ringing):
+    start, end = motion_window(ringing)
+    figure = ringing.plot_tip()
+    (ax,) = [a for a in figure.axes if a.name == "3d"]
+    times = ax.collections[0].get_array()
+    assert times.min() == start and end - 1e-3 < times.max() <= end
+    assert ax.collections[0].get_clim() == pytest.approx((start, times.max()))
+    (colour_bar,) = [a for a in figure.axes if a.name != "3d"]
+    assert colour_bar.get_ylim()[1] == pytest.approx(times.max())
+    assert f"of {ringing.t[-1]:.3g} s" in ax.get_title()
+    whole = [a for a in ringing.plot_tip(window="all").axes if a.name == "3d"][0]
+    assert whole.collections[0].get_array().max() == ringing.t[-1]
+
+
+def test_animation_tick_labels_do_not_overlap():
+    """Adjacent ticks of each axis lie further apart on the frame than their labels are
+    long along the axis (what the frame shows: labels one after another)."""
+    limits = equal_limits([[-40, -40, -10], [40, 40, 75]])
+    figure, ax = animation_axes((5.0, 5.0), limits, 80)
+    figure.canvas.draw()
+    renderer = figure.canvas.get_renderer()
+    for k, axis in enumerate((ax.xaxis, ax.yaxis, ax.zaxis)):
+        low, high = limits[k]
+        ticks = [v for v in axis.get_majorticklocs() if low <= v <= high]
+        assert len(ticks) >= 3, axis  # every axis keeps ticks
+        corner = limits[:, 0].copy()
+        points = np.repeat(corner[None, :], len(ticks), axis=0)
+        points[:, k] = ticks
+        x, y, _ = proj3d.proj_transform(*points.T, ax.get_proj())
+        pixels = ax.transData.transform(np.column_stack([x, y]))
+        steps = np.diff(pixels, axis=0)
+        direction = np.abs(steps[0]) / np.linalg.norm(steps[0])
+        sizes = [
+            label.get_window_extent(renderer) for label in axis.get_ticklabels() if label.get_text()
+        ]
+        along = max(box.width * direction[0] + box.height * direction[1] for box in sizes)
+        assert np.linalg.norm(steps, axis=1).min() > along, axis
+
+
+def test_animation_progress_counts_frames(ringing, tmp_path, capsys):
+    ringing.animate(tmp_path / "a.gif", dpi=40, progress=True)
+    frames = frame_samples(ringing).size
+    assert f"{frames}/{frames} frames" in capsys.readouterr().err
+
+
+def test_mp4_frames_go_to_ffmpeg(ringing, tmp_path, monkeypatch):
+    """A stand-in ffmpeg on the PATH that writes how many bytes it was fed."""
+    fake = tmp_path / "bin" / "ffmpeg"
+    fake.parent.mkdir()
+    fake.write_text(
+        f"#!{sys.executable}\nimport sys\n"
+        "open(sys.argv[-1], 'w').write(str(len(sys.stdin.buffer.read())))\n"
+    )
+    fake.chmod(0o755)
+    monkeypatch.setenv("PATH", f"{fake.parent}{os.pathsep}{os.environ['PATH']}")
+    path = ringing.animate(tmp_path / "a.mp4", dpi=40, figsize=(3.0, 2.0))
+    assert int(path.read_text()) == frame_samples(ringing).size * 120 * 80 * 3
+
+
+def test_command_says_what_it_animates(tmp_path, capsys):
+    code = main(["simulate", "-o", str(tmp_path), "--t-final", "2", "--animate", "--no-figures",
+                 "--progress", "--dpi", "40"])  # fmt: skip
+    assert code == 0
+    error = capsys.readouterr().err
+    assert "writing animation.gif, 17 frames of t = 0 .. 0.6" in error
+    assert "17/17 frames" in error
+    with Image.open(tmp_path / "animation.gif") as image:
+        assert image.n_frames == 17

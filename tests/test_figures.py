@@ -253,3 +253,24 @@ def test_save_figure_rejects_what_it_cannot_write(trajectory, tmp_path):
     with pytest.raises(sc.ParameterError, match="dpi must be > 0"):
         save_figure(figure, tmp_path / "states.png", dpi=0)
     assert list(tmp_path.iterdir()) == []
+
+
+def test_the_states_of_an_actuated_run_have_a_panel_of_its_inputs(paper_model):
+    actuator = sc.PneumaticActuator.three_bellows(distance=0.01, area=2e-4, p_max=6e4)
+    run = sc.simulate(paper_model, [0.0644, 0, 0], [0, 0, 0], actuator=actuator,
+                      inputs=[2e4, 0, 0], t_final=0.05)  # fmt: skip
+    axes = run.plot().axes
+    assert len(axes) == 4 and axes[-1].get_ylabel() == "pressures [kPa]"
+    assert axes[-1].get_xlabel() == "time t [s]" and axes[2].get_xlabel() == ""
+    assert axes[-1].lines[0].get_ydata()[-1] == pytest.approx(20.0)  # kPa
+    assert axes[-1].get_xlim() == axes[0].get_xlim()
+    assert len(run.plot(inputs=False).axes) == 3
+    # the caller's three Axes keep the states alone; four take the inputs too
+    _, three = plt.subplots(3)
+    assert len(run.plot(three).axes) == 3
+    _, four = plt.subplots(4)
+    assert run.plot(four, inputs=True).axes[3].get_ylabel() == "pressures [kPa]"
+    unactuated = sc.simulate(paper_model, [0.0644, 5.0, 0.0], np.zeros(3), t_final=0.01)
+    assert len(unactuated.plot().axes) == 3
+    with pytest.raises(sc.ParameterError, match="inputs=True needs"):
+        unactuated.plot(inputs=True)

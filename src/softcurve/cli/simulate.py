@@ -67,7 +67,8 @@ def _add_arguments(parser) -> None:
     parser.add_argument(
         "--animate",
         action="store_true",
-        help="also write animation.gif (and animation.mp4 if ffmpeg exists)",
+        help="also write animation.gif (and animation.mp4 if ffmpeg exists) of the motion's "
+        "time window, the states figure's",
     )
     parser.add_argument(
         "--fps", type=int, default=25, help="frames per second of the animation and the viewer"
@@ -217,9 +218,9 @@ def _simulate(args, scenario, output, written: list) -> int:
         for name, draw in figures:
             written.append(write_figure(draw, output / name, **looks))
     if args.animate and trajectory.t.size > 1:
-        written.append(trajectory.animate(output / "animation.gif", fps=args.fps, **looks))
-        if shutil.which("ffmpeg"):
-            written.append(trajectory.animate(output / "animation.mp4", fps=args.fps, **looks))
+        movies = ["animation.gif"] + (["animation.mp4"] if shutil.which("ffmpeg") else [])
+        for name in movies:
+            written.append(_animation(trajectory, output / name, args, show_progress, looks))
     if args.html and trajectory.t.size:
         written.append(trajectory.to_html(output / "viewer.html", fps=args.fps))
     total = time.perf_counter() - start
@@ -232,6 +233,21 @@ def _simulate(args, scenario, output, written: list) -> int:
         file=sys.stderr,
     )
     return 1
+
+
+def _animation(trajectory, path, args, show_progress: bool, looks: dict):
+    """Write one animation over the motion's window, saying first what it draws."""
+    from softcurve.figures.trajectories import frame_samples, motion_window
+
+    if not args.quiet:
+        start, end = motion_window(trajectory)
+        frames = frame_samples(trajectory, fps=args.fps).size
+        print(
+            f"softcurve simulate: writing {path.name}, {frames} frames of t = {start:.3g} .. "
+            f"{end:.3g} s ...",
+            file=sys.stderr,
+        )
+    return trajectory.animate(path, fps=args.fps, progress=show_progress, **looks)
 
 
 def _summary(scenario, model, trajectory, built, total, written) -> str:

@@ -1,5 +1,6 @@
-"""Figures of the contact: the forces of the obstacles against time, and the obstacles
-themselves (planes, spheres, capsules) drawn into the 3-D plots and animations.
+"""Figures of the contact: the forces of the obstacles against time over the contact
+(with a zoom on a short impact), and the obstacles themselves (planes, spheres,
+capsules) drawn into the 3-D plots and animations.
 
 Obstacles are given in the robot's base frame; they are drawn in the world frame (turned
 by ``Robot.base_rotation``), like the backbone, in millimetres.
@@ -13,10 +14,18 @@ import numpy as np
 
 from softcurve.base.docs import parameters_from
 from softcurve.figures.drawing import panels
+from softcurve.figures.scales import SHORT_IMPACT, contact_window, impact_window, window_note
 
 MM_PER_M = 1e3
 OBSTACLE_STYLE = {"color": "0.55", "alpha": 0.25, "linewidth": 0.0}
 """How obstacles look: translucent grey surfaces."""
+FEW_SAMPLES = 60
+"""Below this many output samples in the contact figure's window, each is marked: a
+contact of a few samples is otherwise drawn as a smooth line the record does not hold."""
+INSET = (0.55, 0.3, 0.42, 0.55)
+"""Where the zoom on an impact sits in the magnitude panel: (left, bottom, width,
+height), fractions of the panel; on the right, or mirrored to the left when the impact
+is in the right half."""
 RESOLUTION = 16
 """Points per circle of a sphere or capsule surface."""
 
@@ -197,7 +206,13 @@ def draw_obstacles(ax, model, extent: float | None = None) -> list:
 
 def plot_contact_forces(contact, ax=None):
     """The force of each obstacle on the robot against time: its magnitude and, below,
-    its three components, base frame.
+    its three components, base frame; over the contact alone.
+
+    The time axis spans the contact (:func:`softcurve.figures.scales.contact_window`:
+    from the sample before the first force to the one after the last, a quarter of that
+    on either side), as the title says; the whole record without contact. An impact
+    shorter than ``SHORT_IMPACT`` (5 %) of that span gets a zoom of its own inside the
+    magnitude panel (:func:`softcurve.figures.scales.impact_window`).
 
     Parameters
     ----------
@@ -212,24 +227,55 @@ def plot_contact_forces(contact, ax=None):
     matplotlib.figure.Figure
     """
     figure, axes = panels(ax, 2, "the contact force figure", sharex=True, figsize=(7.0, 5.0))
+    t = contact.t
+    magnitude = np.linalg.norm(contact.forces, axis=2)
+    window = contact_window(t, magnitude)
+    whole = (float(t[0]), float(t[-1])) if t.size else (0.0, 1.0)
+    start, end = window if window is not None else whole
+    shown = np.count_nonzero((t >= start) & (t <= end))
+    marker = {"marker": ".", "ms": 4} if shown < FEW_SAMPLES else {}
     for o, label in enumerate(contact.labels):
-        (line,) = axes[0].plot(
-            contact.t, np.linalg.norm(contact.forces[:, o], axis=1), lw=1.0, label=label
-        )
+        (line,) = axes[0].plot(t, magnitude[:, o], lw=1.0, label=label, **marker)
         for k, style in enumerate(("-", "--", ":")):
             axes[1].plot(
-                contact.t,
+                t,
                 contact.forces[:, o, k],
                 style,
                 color=line.get_color(),
                 lw=0.9,
                 label=f"{label}, {'xyz'[k]}",
+                **marker,
             )
+    if t.size > 1:
+        axes[1].set_xlim(start, end)
+    impact = impact_window(t, magnitude)
+    zoomed = impact is not None and impact[1] - impact[0] < SHORT_IMPACT * (end - start)
+    legend = "upper right"
+    if zoomed:
+        left = sum(impact) > start + end  # the impact in the right half: the zoom left
+        _impact_zoom(axes[0], t, magnitude, impact, left)
+        legend = "upper right" if left else "upper left"
     axes[0].set_ylabel("contact force |F| [N]")
     axes[1].set_ylabel("components F [N]")
     axes[1].set_xlabel("time t [s]")
-    axes[0].set_title("Forces of the obstacles on the robot")
+    note = window_note(t, start, end) if window is not None else " (no contact)"
+    axes[0].set_title("Forces of the obstacles on the robot" + note)
     for a in axes:
         a.grid(True, alpha=0.3)
-        a.legend(loc="upper right", fontsize="small")
+        a.legend(loc=legend, fontsize="small")
     return figure
+
+
+def _impact_zoom(ax, t, magnitude, impact, left: bool) -> None:
+    """A zoom on the impact inside ``ax`` (on its left or right), each sample marked,
+    its span outlined."""
+    x, y, width, height = INSET
+    inset = ax.inset_axes((1.0 - x - width if left else x, y, width, height))
+    inside = (t >= impact[0]) & (t <= impact[1])
+    for o in range(magnitude.shape[1]):
+        inset.plot(t[inside], magnitude[inside, o], lw=1.0, marker=".", ms=3)
+    inset.set_xlim(*impact)
+    inset.text(0.03, 0.95, "impact", transform=inset.transAxes, va="top", fontsize="small")
+    inset.tick_params(labelsize="x-small")
+    inset.grid(True, alpha=0.3)
+    ax.indicate_inset_zoom(inset, edgecolor="0.4")

@@ -1,5 +1,6 @@
-"""Scales of the trajectory figures: which part of the time axis shows the motion, which
-signals are round-off rather than motion, and equal 3-D axes."""
+"""Scales of the trajectory figures: which part of the time axis shows the motion (or the
+contact, or its impact), which signals are round-off rather than motion, and equal 3-D
+axes."""
 
 from __future__ import annotations
 
@@ -16,6 +17,15 @@ SETTLED = 0.02
 the final value."""
 WINDOW_MARGIN = 0.25
 """The automatic time window ends this fraction of the settling time after it."""
+CONTACT_MARGIN = 0.25
+"""The contact figure shows the contact and this fraction of its duration on either side,
+so that the force is seen rising from zero and returning to it."""
+IMPACT_LEVEL = 0.5
+"""An impact lasts while the force stays above this fraction of its peak (the width at
+half the peak)."""
+SHORT_IMPACT = 0.05
+"""An impact lasting less than this fraction of the contact shown is a spike on its axis:
+the contact figure adds a zoom on it."""
 
 
 def negligible(values, scale: float, tolerance: float = NOISE) -> bool:
@@ -106,6 +116,87 @@ def time_window(t, signals, window) -> tuple[float, float]:
     if not end > start:
         raise ParameterError(f"window must have end > start, got ({start}, {end})")
     return (start, end)
+
+
+def window_note(t, start: float, end: float) -> str:
+    """``", t = 0 .. 0.654 s of 10 s"`` when ``(start, end)`` is not the whole record,
+    else ``""``: what a figure's title adds to say which window it shows.
+
+    Parameters
+    ----------
+    t : array_like, shape (T,)
+        The record's times [s].
+    start, end : float
+        The window shown [s].
+
+    Returns
+    -------
+    str
+    """
+    t = np.asarray(t, dtype=np.float64)
+    if t.size > 1 and (start, end) != (t[0], t[-1]):
+        return f", t = {start:.3g} .. {end:.3g} s of {t[-1]:.3g} s"
+    return ""
+
+
+def _around(t, first: int, last: int, margin: float) -> tuple[float, float]:
+    """From the sample before ``first`` to the one after ``last`` (where the signal is
+    back at its level), widened by ``margin`` of that span on either side, within ``t``."""
+    start, end = t[max(first - 1, 0)], t[min(last + 1, t.size - 1)]
+    pad = margin * (end - start)
+    return (float(max(start - pad, t[0])), float(min(end + pad, t[-1])))
+
+
+def contact_window(t, magnitude) -> tuple[float, float] | None:
+    """The time range of the contact: from the last sample before any force to the first
+    after the last, with ``CONTACT_MARGIN`` of it on either side; None without contact.
+
+    Parameters
+    ----------
+    t : array_like, shape (T,)
+        Times [s].
+    magnitude : array_like, shape (T, k)
+        The force of each obstacle [N] (zero out of contact).
+
+    Returns
+    -------
+    tuple of float or None
+        ``(start, end)`` [s].
+    """
+    t = np.asarray(t, dtype=np.float64)
+    touching = np.flatnonzero(np.any(np.asarray(magnitude).reshape(t.size, -1) > 0, axis=1))
+    if not touching.size:
+        return None
+    return _around(t, touching[0], touching[-1], CONTACT_MARGIN)
+
+
+def impact_window(t, magnitude) -> tuple[float, float] | None:
+    """The time range of the largest force's impact: the samples around its peak above
+    ``IMPACT_LEVEL`` of it, from the sample before to the one after, widened by that span
+    on either side; None without contact.
+
+    Parameters
+    ----------
+    t : array_like, shape (T,)
+        Times [s].
+    magnitude : array_like, shape (T, k)
+        The force of each obstacle [N].
+
+    Returns
+    -------
+    tuple of float or None
+        ``(start, end)`` [s].
+    """
+    t = np.asarray(t, dtype=np.float64)
+    largest = np.asarray(magnitude, dtype=np.float64).reshape(t.size, -1).max(axis=1)
+    if not t.size or not largest.max() > 0:
+        return None
+    peak = int(largest.argmax())
+    high = largest >= IMPACT_LEVEL * largest[peak]
+    low = np.flatnonzero(~high)
+    first = low[low < peak].max(initial=-1) + 1
+    last = low[low > peak].min(initial=t.size) - 1
+    return _around(t, first, last, 1.0)
 
 
 def equal_limits(points, least: float = 0.0) -> np.ndarray:

@@ -1,19 +1,29 @@
-"""Figures of trajectories: the states (paper Fig. 4), the tip path (Fig. 5), the tips
-of a batch, and an animation of the backbone."""
+"""Figures of trajectories: the states (paper Fig. 4) with the actuator's inputs, the tip
+path (Fig. 5), the tips of a batch, and an animation of the backbone; the states, the
+tip path and the animation show the same time window, the motion's."""
 
 from __future__ import annotations
 
 import shutil
+import subprocess
 from pathlib import Path
 
 import numpy as np
 
 from softcurve.base.docs import parameters_from
 from softcurve.base.files import atomic_path
+from softcurve.base.progress import ProgressLine
 from softcurve.base.validation import ParameterError, real_scalar
+from softcurve.figures.actuation import plot_inputs
 from softcurve.figures.drawing import backbones, panels, whole_number
 from softcurve.figures.obstacles import draw_obstacles
-from softcurve.figures.scales import NOISE, equal_limits, negligible, time_window
+from softcurve.figures.scales import (
+    NOISE,
+    equal_limits,
+    negligible,
+    time_window,
+    window_note,
+)
 
 MM_PER_M = 1e3
 STATE_LABELS = ("length l [m]", r"curvature $\kappa_x$ [1/m]", r"curvature $\kappa_y$ [1/m]")
@@ -24,6 +34,12 @@ MARGIN = 1.1
 MINIMUM_REACH = 0.1
 """Half-width of the animation's x-y axes at least, over the rest length: a robot that
 stays straight is still drawn in a box, not on a line."""
+ANIMATION_TICKS = 4
+"""Ticks per axis of the animation at most: at 400 px, more labels run into each other
+where two axes meet at the corner of the box."""
+GIF_COLOURS = 256
+"""Colours of the GIF's one palette, taken from the first frame (GIF allows 256): every
+frame draws the same artists in the same colours, so one palette serves all of them."""
 
 
 FIGURE_OPTIONS = {
@@ -46,6 +62,16 @@ FIGURE_OPTIONS = {
         "Panels for tip x, y and z; None draws a new figure.",
     ),
     "members": ("int, optional", "How many members to draw (the first ones) [count]."),
+    "inputs": (
+        "bool, optional",
+        "Add a panel of the actuator's inputs (:func:`softcurve.figures.plot_inputs`) "
+        "below the states; default: when the trajectory holds ``inputs`` and its "
+        "``actuator`` and no ``ax`` is given (with ``ax``, pass True and four Axes).",
+    ),
+    "progress": (
+        "bool, optional",
+        "Count the frames on a line on stderr while they are drawn.",
+    ),
 }
 """Options of the animation and the batch figure (``ax``: its panels), documented once for
 the figure functions and the result methods that call them
@@ -56,9 +82,57 @@ figure_options = parameters_from(FIGURE_OPTIONS)
 animation_options = parameters_from(FIGURE_OPTIONS, returns=("pathlib.Path", "``path``."))
 
 
+def drawn_states(q) -> tuple[np.ndarray, set]:
+    """The coordinates as the figures draw them: a curvature that stays below ``NOISE``
+    (1e-9) over the segment's length is round-off of an exact zero (a planar run), drawn
+    as zero.
+
+    Parameters
+    ----------
+    q : array_like, shape (T, 3 N)
+        Coordinates ``(l, kx, ky)`` per segment [m, 1/m, 1/m].
+
+    Returns
+    -------
+    drawn : ndarray, shape (T, 3 N)
+        The coordinates, round-off curvatures set to zero [m, 1/m, 1/m].
+    zeroed : set of int
+        The rows of the states figure (1: ``kx``, 2: ``ky``) with a curvature zeroed.
+    """
+    drawn, zeroed = np.array(q, dtype=np.float64), set()
+    for column in range(drawn.shape[1]):
+        row, first = column % len(STATE_LABELS), column - column % len(STATE_LABELS)
+        length = np.abs(drawn[:, first]).max(initial=0.0)
+        if row and length > 0 and negligible(drawn[:, column], 1.0 / length):
+            drawn[:, column] = 0.0
+            zeroed.add(row)
+    return drawn, zeroed
+
+
+def motion_window(trajectory, window="auto") -> tuple[float, float]:
+    """The time range the states figure, the tip figure and the animation show
+    (:func:`softcurve.figures.scales.time_window` of the states as drawn, so that
+    round-off "moving" until late does not stretch it).
+
+    Parameters
+    ----------
+    trajectory : softcurve.Trajectory
+        Read: ``t`` shape (T,) [s] and ``q`` shape (T, 3 N).
+    window : "auto", "all" or (float, float)
+        As :func:`softcurve.figures.scales.time_window` [s].
+
+    Returns
+    -------
+    tuple of float
+        ``(start, end)`` [s].
+    """
+    return time_window(trajectory.t, drawn_states(trajectory.q)[0], window)
+
+
 @figure_options
-def plot_states(trajectory, ax=None, *, window="auto"):
-    """``l``, ``kx`` and ``ky`` of every segment against time, one panel each (Fig. 4).
+def plot_states(trajectory, ax=None, *, window="auto", inputs=None):
+    """``l``, ``kx`` and ``ky`` of every segment against time, one panel each (Fig. 4),
+    and the actuator's inputs below them when the trajectory holds them.
 
     A curvature that stays below ``NOISE`` (1e-9) over the segment's length is round-off
     of an exact zero (a planar run) and is drawn as zero, as its axis label says.
@@ -66,27 +140,31 @@ def plot_states(trajectory, ax=None, *, window="auto"):
     Parameters
     ----------
     trajectory : softcurve.Trajectory
-        Read: ``t`` shape (T,) [s], ``q`` shape (T, 3 N) [m, 1/m, 1/m], ``success``.
-    ax : None or sequence of matplotlib.axes.Axes, shape (3,)
-        Panels for ``l``, ``kx`` and ``ky``; None draws a new figure.
+        Read: ``t`` shape (T,) [s], ``q`` shape (T, 3 N) [m, 1/m, 1/m], ``success``,
+        and, for the inputs' panel, ``inputs`` shape (T, m) and ``actuator``.
+    ax : None or sequence of matplotlib.axes.Axes, shape (3,) or (4,)
+        Panels for ``l``, ``kx`` and ``ky`` (and the inputs); None draws a new figure.
     %(window)s
+    %(inputs)s
 
     Returns
     -------
     matplotlib.figure.Figure
     """
-    figure, axes = panels(
-        ax, len(STATE_LABELS), "the states figure", sharex=True, figsize=(7.0, 6.0)
+    actuated = getattr(trajectory, "inputs", None) is not None and (
+        getattr(trajectory, "actuator", None) is not None
     )
+    if inputs is None:
+        inputs = actuated and ax is None
+    elif inputs and not actuated:
+        raise ParameterError(
+            "inputs=True needs a trajectory with inputs and its actuator (simulate with "
+            "actuator=); a loaded file keeps the inputs but not the actuator"
+        )
+    rows = len(STATE_LABELS) + bool(inputs)
+    figure, axes = panels(ax, rows, "the states figure", sharex=True, figsize=(7.0, 2.0 * rows))
     segments = trajectory.q.shape[1] // len(STATE_LABELS)
-    drawn, zeroed_rows = np.array(trajectory.q, dtype=np.float64), set()
-    for column in range(drawn.shape[1]):
-        row, first = column % len(STATE_LABELS), column - column % len(STATE_LABELS)
-        length = np.abs(drawn[:, first]).max(initial=0.0)
-        if row and length > 0 and negligible(drawn[:, column], 1.0 / length):
-            drawn[:, column] = 0.0
-            zeroed_rows.add(row)
-    # the window follows what is drawn: round-off "moving" until late does not stretch it
+    drawn, zeroed_rows = drawn_states(trajectory.q)
     start, end = time_window(trajectory.t, drawn, window)
     for row, label in enumerate(STATE_LABELS):
         zeroed = row in zeroed_rows
@@ -97,49 +175,55 @@ def plot_states(trajectory, ax=None, *, window="auto"):
             )
         axes[row].set_ylabel(label + (f"\n(below {NOISE:g}/l: 0)" if zeroed else ""))
         axes[row].grid(True, alpha=0.3)
+    if inputs:
+        plot_inputs(trajectory, trajectory.actuator, axes[-1])
     if trajectory.t.size > 1:
         axes[-1].set_xlim(start, end)
     if segments > 1:
         axes[0].legend(loc="upper right", fontsize="small")
     axes[-1].set_xlabel("time t [s]")
-    title = "State trajectories"
-    if trajectory.t.size > 1 and (start, end) != (trajectory.t[0], trajectory.t[-1]):
-        title += f", t = {start:.3g} .. {end:.3g} s of {trajectory.t[-1]:.3g} s"
+    title = "State trajectories" + window_note(trajectory.t, start, end)
     if not trajectory.success:
         title += f" (FAILED at t = {trajectory.t[-1]:.4g} s)" if trajectory.t.size else " (FAILED)"
     axes[0].set_title(title)
     return figure
 
 
-def plot_tip(trajectory, ax=None):
-    """The tip position in 3-D, colored by time, with its start and end marked (Fig. 5).
+@figure_options
+def plot_tip(trajectory, ax=None, *, window="auto"):
+    """The tip position in 3-D over the motion's time window, colored by time, with its
+    start and end marked (Fig. 5).
 
     The axes have equal scales. A coordinate that stays below ``NOISE`` (1e-9) of the
     tip's distance from the base is round-off of an exact zero (a planar run) and is
-    drawn as zero, as its axis label says.
+    drawn as zero, as its axis label says. The window is the states figure's
+    (:func:`motion_window`); the title says which it is when it is not the whole record.
 
     Parameters
     ----------
     trajectory : softcurve.Trajectory
-        Read: ``t`` shape (T,) [s] and ``tip`` shape (T, 3) [m].
+        Read: ``t`` shape (T,) [s], ``q`` shape (T, n) and ``tip`` shape (T, 3) [m].
     ax : None or matplotlib.axes.Axes, shape (1,)
         A 3-D Axes (``projection="3d"``); None draws a new figure.
+    %(window)s
 
     Returns
     -------
     matplotlib.figure.Figure
     """
     figure, (ax,) = panels(ax, 1, "the tip figure", projection="3d", figsize=(6.0, 5.5))
-    tip = np.array(trajectory.tip * MM_PER_M)
+    start, end = motion_window(trajectory, window)
+    shown = (trajectory.t >= start) & (trajectory.t <= end)
+    t, tip = trajectory.t[shown], np.array(trajectory.tip[shown] * MM_PER_M)
     zeroed = []
     if tip.shape[0]:
         scale = np.linalg.norm(tip, axis=1).max()
         zeroed = [k for k in range(3) if negligible(tip[:, k], scale)]
         tip[:, zeroed] = 0.0
-        points = ax.scatter(tip[:, 0], tip[:, 1], tip[:, 2], c=trajectory.t, s=1.0, cmap="viridis")
+        points = ax.scatter(tip[:, 0], tip[:, 1], tip[:, 2], c=t, s=1.0, cmap="viridis")
         ax.plot(tip[:, 0], tip[:, 1], tip[:, 2], lw=0.4, color="0.4", alpha=0.6)
-        ax.scatter(*tip[0], color="tab:red", s=25, label="start")
-        ax.scatter(*tip[-1], color="black", marker="x", s=40, label="end")
+        ax.scatter(*tip[0], color="tab:red", s=25, label=f"start, t = {t[0]:.3g} s")
+        ax.scatter(*tip[-1], color="black", marker="x", s=40, label=f"end, t = {t[-1]:.3g} s")
         figure.colorbar(points, ax=ax, shrink=0.6, label="time t [s]")
         ax.legend(loc="upper left", fontsize="small")
         limits = equal_limits(tip, least=1e-3 * scale)
@@ -149,7 +233,7 @@ def plot_tip(trajectory, ax=None):
         note = f" (< {NOISE:g} reach: 0)" if k in zeroed else ""
         getattr(ax, f"set_{name}label")(f"{name} [mm]{note}")
     draw_obstacles(ax, getattr(trajectory, "model", None))
-    ax.set_title("End-effector trajectory")
+    ax.set_title("End-effector trajectory" + window_note(trajectory.t, start, end))
     return figure
 
 
@@ -192,8 +276,9 @@ def plot_batch_tips(batch, ax=None, *, members: int = 50):
     return figure
 
 
-def animation_axes(figsize, limits):
-    """The figure and 3-D axes of the animation: equal scales, every label inside.
+def animation_axes(figsize, limits, dpi: float = 100):
+    """The figure and 3-D axes of the animation: equal scales, every label inside, at
+    most ``ANIMATION_TICKS`` ticks per axis in small print so that none overlap.
 
     Parameters
     ----------
@@ -201,16 +286,21 @@ def animation_axes(figsize, limits):
         ``(width, height)`` [inches].
     limits : ndarray, shape (3, 2)
         Axis limits [mm], of equal lengths.
+    dpi : float, optional
+        Resolution [dots per inch]; the frames are ``figsize * dpi`` pixels.
 
     Returns
     -------
     figure : matplotlib.figure.Figure
     ax : mpl_toolkits.mplot3d.axes3d.Axes3D
     """
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
+    from matplotlib.ticker import MaxNLocator
 
     # not through pyplot: the figure only feeds the file, so no window may show it
-    figure = Figure(figsize=figsize)
+    figure = Figure(figsize=figsize, dpi=dpi)
+    FigureCanvasAgg(figure)
     # room on the right for the z label, which a 3-D axes draws outside its box
     figure.subplots_adjust(left=0.0, right=0.88, bottom=0.04, top=0.94)
     ax = figure.add_subplot(projection="3d")
@@ -222,8 +312,145 @@ def animation_axes(figsize, limits):
         ylabel="y [mm]",
         zlabel="z [mm]",
     )
+    for axis in (ax.xaxis, ax.yaxis, ax.zaxis):
+        axis.set_major_locator(MaxNLocator(ANIMATION_TICKS))
+        axis.set_tick_params(labelsize="small")
     ax.set_box_aspect((1.0, 1.0, 1.0), zoom=0.85)
     return figure, ax
+
+
+@figure_options
+def frame_samples(trajectory, *, window="auto", fps: float = 25, speed: float = 1.0):
+    """The output samples an animation shows, one per frame: every ``speed / fps``
+    seconds of simulated time over the window, the sample nearest each.
+
+    Parameters
+    ----------
+    trajectory : softcurve.Trajectory
+        Read: ``t`` shape (T,) [s], T >= 2, and ``q`` shape (T, n).
+    %(window)s
+    %(fps)s
+    %(speed)s
+
+    Returns
+    -------
+    ndarray of int, shape (frames,)
+        Indices into ``trajectory.t``.
+    """
+    fps = real_scalar("fps", fps, positive=True)
+    speed = real_scalar("speed", speed, positive=True)
+    t = trajectory.t
+    if t.size < 2:
+        raise ParameterError("the trajectory has fewer than two samples: nothing to animate")
+    start, end = motion_window(trajectory, window)
+    start, end = max(start, float(t[0])), min(end, float(t[-1]))
+    if not end > start:
+        raise ParameterError(
+            f"window must overlap the record t = {t[0]:.6g} .. {t[-1]:.6g} s, got {window!r}"
+        )
+    times = np.arange(start, end, speed / fps)
+    after = np.searchsorted(t, times).clip(1, t.size - 1)
+    return np.where(times - t[after - 1] <= t[after] - times, after - 1, after)
+
+
+def blitted_frames(figure, animated, update, count: int):
+    """Draw ``figure`` once without the ``animated`` artists, then yield ``count`` frames
+    that redraw only them over that background (a full redraw of a 3-D axes costs about
+    50 ms, most of it ticks and panes that never change).
+
+    The artists are drawn in the order given, so list them back to front.
+
+    Parameters
+    ----------
+    figure : matplotlib.figure.Figure
+        With an Agg canvas (:func:`animation_axes`).
+    animated : sequence of matplotlib.artist.Artist
+        What changes between frames (and what must be drawn over it).
+    update : callable
+        ``update(i)`` sets the artists to frame ``i``.
+    count : int
+        Number of frames.
+
+    Yields
+    ------
+    ndarray of uint8, shape (height, width, 3)
+        The frame's RGB pixels.
+    """
+    canvas = figure.canvas
+    for artist in animated:
+        artist.set_animated(True)
+    canvas.draw()
+    background = canvas.copy_from_bbox(figure.bbox)
+    for i in range(count):
+        canvas.restore_region(background)
+        update(i)
+        for artist in animated:
+            artist.axes.draw_artist(artist)
+        yield np.asarray(canvas.buffer_rgba())[..., :3].copy()
+
+
+def write_gif(frames, path, fps: float) -> None:
+    """Write RGB frames as a looping GIF with one palette, the first frame's.
+
+    Parameters
+    ----------
+    frames : iterable of ndarray, shape (height, width, 3), uint8
+        The frames.
+    path : str or pathlib.Path
+        The file.
+    fps : float
+        Frames per second [1/s].
+    """
+    from PIL import Image
+
+    images = [Image.fromarray(frame) for frame in frames]
+    palette = images[0].quantize(GIF_COLOURS)
+    quantized = [image.quantize(palette=palette, dither=Image.Dither.NONE) for image in images]
+    quantized[0].save(
+        path,
+        format="GIF",
+        save_all=True,
+        append_images=quantized[1:],
+        duration=round(1000 / fps),
+        loop=0,
+    )
+
+
+def write_mp4(frames, path, fps: float) -> None:
+    """Write RGB frames as an H.264 MP4 through ffmpeg, fed raw pixels on its stdin.
+
+    Parameters
+    ----------
+    frames : iterable of ndarray, shape (height, width, 3), uint8
+        The frames, all of one size.
+    path : str or pathlib.Path
+        The file.
+    fps : float
+        Frames per second [1/s].
+    """
+    frames = iter(frames)
+    first = next(frames)
+    height, width = first.shape[:2]
+    command = [
+        "ffmpeg", "-y", "-loglevel", "error",
+        "-f", "rawvideo", "-pix_fmt", "rgb24", "-s", f"{width}x{height}", "-r", f"{fps:g}",
+        "-i", "-",
+        # H.264 in yuv420p needs even sizes; players expect that pixel format
+        "-vf", "scale=trunc(iw/2)*2:trunc(ih/2)*2", "-vcodec", "h264", "-pix_fmt", "yuv420p",
+        "-f", "mp4", str(path),
+    ]  # fmt: skip
+    with subprocess.Popen(command, stdin=subprocess.PIPE, stderr=subprocess.PIPE) as ffmpeg:
+        try:
+            ffmpeg.stdin.write(first.tobytes())
+            for frame in frames:
+                ffmpeg.stdin.write(frame.tobytes())
+        except BrokenPipeError:
+            pass  # ffmpeg stopped: its exit code and message follow
+        finally:
+            ffmpeg.stdin.close()
+        message = ffmpeg.stderr.read().decode(errors="replace").strip()
+    if ffmpeg.returncode:
+        raise RuntimeError(f"ffmpeg failed writing {Path(path).name}: {message}")
 
 
 @animation_options
@@ -237,9 +464,15 @@ def animate(
     points: int = 20,
     dpi: float = 80,
     figsize=(5.0, 5.0),
+    window="auto",
+    progress: bool = False,
 ) -> Path:
-    """Write an animation of the backbone to ``path``, whole or not at all, on axes of
-    equal scales.
+    """Write an animation of the backbone over the motion's time window to ``path``,
+    whole or not at all, on 3-D axes of equal scales.
+
+    The frames are drawn over one background of axes, ticks and panes
+    (:func:`blitted_frames`); the obstacles are drawn over the robot, as the static
+    figures draw them.
 
     Parameters
     ----------
@@ -254,48 +487,45 @@ def animate(
     %(points)s
     %(dpi)s
     %(figsize)s
+    %(window)s
+    %(progress)s
     """
-    from matplotlib import animation  # on first use, like drawing.pyplot
-
     path = Path(path)
     if path.suffix not in ANIMATION_SUFFIXES:
         raise ParameterError(f"animation path must end in .gif or .mp4, got {path.name!r}")
     if path.suffix == ".mp4" and shutil.which("ffmpeg") is None:
         raise RuntimeError("writing .mp4 needs ffmpeg on the PATH; write a .gif instead")
     fps = real_scalar("fps", fps, positive=True)
-    speed = real_scalar("speed", speed, positive=True)
     dpi = real_scalar("dpi", dpi, positive=True)
     points = whole_number("points", points, 2)
     figsize = _figure_size(figsize)
-    if trajectory.t.size < 2:
-        raise ParameterError("the trajectory has fewer than two samples: nothing to animate")
-    frame_times = np.arange(trajectory.t[0], trajectory.t[-1], speed / fps)
-    frames = np.searchsorted(trajectory.t, frame_times).clip(0, trajectory.t.size - 1)
+    frames = frame_samples(trajectory, window=window, fps=fps, speed=speed)
     shapes = backbones(model, trajectory.q[frames], points) * MM_PER_M
     least_reach = MINIMUM_REACH * model.robot.rest_length * MM_PER_M
     limits = equal_limits(shapes, least=least_reach)
     limits = limits.mean(axis=1, keepdims=True) + MARGIN * (
         limits - limits.mean(axis=1, keepdims=True)
     )
-    figure, ax = animation_axes(figsize, limits)
-    draw_obstacles(ax, model)
+    figure, ax = animation_axes(figsize, limits, dpi)
     (line,) = ax.plot([], [], [], lw=4, color="tab:blue")
     (tip,) = ax.plot([], [], [], "o", color="tab:red")
     title = ax.set_title("")
+    # drawn after the robot, as a full redraw of the 3-D axes orders them
+    obstacles = draw_obstacles(ax, model)
+    bar = ProgressLine(len(frames), show=progress, unit="frames", label=f"drawing {path.name}")
 
     def draw(i):
         shape = shapes[i]
         line.set_data_3d(shape[:, 0], shape[:, 1], shape[:, 2])
         tip.set_data_3d(shape[-1:, 0], shape[-1:, 1], shape[-1:, 2])
         title.set_text(f"t = {trajectory.t[frames[i]]:.3f} s")
-        return line, tip, title
+        bar.update(i + 1)
 
-    movie = animation.FuncAnimation(figure, draw, frames=len(frames), blit=False)
-    writer = (
-        animation.PillowWriter(fps=fps)
-        if path.suffix == ".gif"
-        else animation.FFMpegWriter(fps=fps)
-    )
-    with atomic_path(path) as tmp:
-        movie.save(str(tmp), writer=writer, dpi=dpi)
+    pixels = blitted_frames(figure, [line, tip, *obstacles, title], draw, len(frames))
+    write = write_gif if path.suffix == ".gif" else write_mp4
+    try:
+        with atomic_path(path) as tmp:
+            write(pixels, tmp, fps)
+    finally:
+        bar.close()
     return path

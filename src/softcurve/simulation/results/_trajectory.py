@@ -142,31 +142,33 @@ class Trajectory(Result):
 
     @result_figure_options
     @figure_options
-    def plot(self, ax=None, *, window="auto"):
+    def plot(self, ax=None, *, window="auto", inputs=None):
         """The states figure (paper Fig. 4): ``l``, ``kx``, ``ky`` of each segment against
-        time, one panel each; round-off curvatures of a planar run are drawn as zero.
+        time, one panel each, and the actuator's inputs below them in an actuated run;
+        round-off curvatures of a planar run are drawn as zero.
 
         Parameters
         ----------
-        ax : None or sequence of matplotlib.axes.Axes, shape (3,)
-            Panels for ``l``, ``kx`` and ``ky``; None draws a new figure.
+        ax : None or sequence of matplotlib.axes.Axes, shape (3,) or (4,)
+            Panels for ``l``, ``kx`` and ``ky`` (and the inputs); None draws a new figure.
         %(window)s
+        %(inputs)s
         """
-        return plot_states(self, ax, window=window)
+        return plot_states(self, ax, window=window, inputs=inputs)
 
-    def plot_tip(self, ax=None):
-        """The 3-D tip trajectory (paper Fig. 5), colored by time, on equal axes.
+    @result_figure_options
+    @figure_options
+    def plot_tip(self, ax=None, *, window="auto"):
+        """The 3-D tip trajectory (paper Fig. 5) over the states figure's time window,
+        colored by time, on equal axes.
 
         Parameters
         ----------
         ax : None or matplotlib.axes.Axes, shape (1,)
             A 3-D Axes (``projection="3d"``); None draws a new figure.
-
-        Returns
-        -------
-        matplotlib.figure.Figure
+        %(window)s
         """
-        return plot_tip(self, ax)
+        return plot_tip(self, ax, window=window)
 
     @animation_options
     def animate(
@@ -179,8 +181,11 @@ class Trajectory(Result):
         points: int = 20,
         dpi: float = 80,
         figsize=(5.0, 5.0),
+        window="auto",
+        progress: bool = False,
     ) -> Path:
-        """Write an animation of the backbone to ``path``, whole or not at all.
+        """Write an animation of the backbone over the motion's time window (the states
+        figure's) to ``path``, whole or not at all.
 
         Parameters
         ----------
@@ -193,6 +198,8 @@ class Trajectory(Result):
         %(points)s
         %(dpi)s
         %(figsize)s
+        %(window)s
+        %(progress)s
         """
         return animate(
             self,
@@ -203,6 +210,8 @@ class Trajectory(Result):
             points=points,
             dpi=dpi,
             figsize=figsize,
+            window=window,
+            progress=progress,
         )
 
     @viewer_options
