@@ -11,7 +11,7 @@ import pytest
 gymnasium = pytest.importorskip("gymnasium")
 
 import softcurve as sc  # noqa: E402
-import softcurve.envs  # noqa: E402, F401  (registers the ids)
+import softcurve.envs  # noqa: E402  (registers the ids)
 
 MEMBERS = 3
 """Environments of the vector: a small batch, several episodes drawn at once."""
