@@ -125,7 +125,7 @@ def rao2021(*, gravity: bool = False, damping_time: float | None = None) -> Robo
     >>> round(robot.segments[0].mass, 6), robot.gravity  # [kg], [m/s^2]
     (0.0043, array([0., 0., 0.]))
     >>> damped = sc.presets.rao2021(damping_time=sc.presets.RAO2021_DAMPING_TIME)
-    >>> damped.segments[0].damping.diagonal()  # [N s/m, N m^2 s, N m^2 s]
+    >>> damped.segments[0].damping.diagonal()  # [N s/m, N m^3 s, N m^3 s]
     array([5.19540885e+03, 2.54575034e-05, 2.54575034e-05])
     """
     second_moment = math.pi / 4 * RAO2021_BACKBONE_RADIUS**4
