@@ -241,3 +241,29 @@ def test_the_track_target_is_reachable_by_its_own_command(period):
         *_, info = env.step(action)
         distances.append(info["distance"])
     assert max(distances[150:]) < 0.02 * task.tolerance
+
+
+def test_the_benchmark_makes_its_vectors_as_a_user_does():
+    """benchmarks/bench_envs.py measures what ``gymnasium.make_vec`` returns: its rows
+    come from ``make_vec`` with the registered id (no class of softcurve.envs named in
+    the script), the default rows with the defaults a user gets (RK4 on the paper's
+    robot), another method by ``method=``."""
+    import ast
+    import importlib.util
+    from pathlib import Path
+
+    path = Path(__file__).resolve().parents[1] / "benchmarks" / "bench_envs.py"
+    tree = ast.parse(path.read_text())
+    names = {n.id for n in ast.walk(tree) if isinstance(n, ast.Name)}
+    attributes = {n.attr for n in ast.walk(tree) if isinstance(n, ast.Attribute)}
+    assert "make_vec" in attributes
+    assert not (names | attributes) & {"ReachVector", "SoftRobotVectorEnv", "Episodes"}
+    spec = importlib.util.spec_from_file_location("bench_envs", path)
+    bench = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(bench)
+    vector = bench._make(2, bench.DEFAULT, {})
+    user = gymnasium.make_vec("softcurve/Reach-v0", num_envs=2)
+    assert type(vector) is type(user) is envs.ReachVector
+    assert vector.episodes.setup.stepper is user.episodes.setup.stepper  # one stepper
+    assert vector.episodes.setup.stepper.method == "RK4"
+    assert bench._make(1, "ROS34PW2", {}).episodes.setup.stepper.method == "ROS34PW2"

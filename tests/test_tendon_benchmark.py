@@ -102,6 +102,42 @@ def test_tendons_follow_the_repo_routing():
     assert sc.presets.rao2021_tendons(t_max=5.0).upper.tolist() == [5.0] * 6
 
 
+def test_damping_time_gives_each_mode_its_damping_ratio(model):
+    """``damping_time`` is stiffness-proportional damping: the first bending mode at rest
+    (15.9 rad/s) gets the ratio ``damping_time w / 2`` (0.099 with
+    RAO2021_DAMPING_TIME), every faster mode more; the equilibria do not change."""
+    time_constant = sc.presets.RAO2021_DAMPING_TIME
+    damped = sc.Model(sc.presets.rao2021(damping_time=time_constant), compile=False)
+    q = [0.2, 0, 0, 0.2, 0, 0]
+    undamped = sc.linearize(model, q)
+    assert np.max(np.abs(undamped.eigenvalues.real)) < 1e-6 * np.max(np.abs(undamped.eigenvalues))
+    linear = sc.linearize(damped, q)
+    slowest = np.min(np.abs(linear.eigenvalues))
+    assert slowest == pytest.approx(15.886, rel=1e-3)  # [rad/s], undamped 15.9
+    ratios = linear.damping_ratios
+    assert np.min(ratios) == pytest.approx(time_constant * slowest / 2, rel=1e-2)
+    assert np.count_nonzero(ratios < 0.5) == 4  # the first bending mode, two planes
+    actuator = sc.presets.rao2021_tendons()
+    both = _solve(damped, actuator, [4.0, 0, 0, 4.0, 0, 0]).q
+    np.testing.assert_allclose(both, _solve(model, actuator, [4.0, 0, 0, 4.0, 0, 0]).q, atol=1e-12)
+    with pytest.raises(sc.ParameterError, match="damping_time"):
+        sc.presets.rao2021(damping_time=0.0)
+
+
+def test_the_default_tension_bound_keeps_every_held_tension_in_the_domain(model):
+    """At the default 8 N (RAO2021_T_MAX, the source's largest case), a proximal and a
+    distal tendon of one azimuth pulled together bend segment 0 by half a turn (2 T rho /
+    k_b = 3.14 rad), inside the model's domain (a full turn); at 20 N they would bend it
+    beyond."""
+    actuator = sc.presets.rao2021_tendons()
+    assert actuator.upper.tolist() == [8.0] * 6
+    bending = sc.presets.rao2021().segments[0].bending_stiffness.k0
+    e = _solve(model, actuator, [8.0, 0, 0, 8.0, 0, 0])
+    angle = float(np.hypot(*e.q[1:3]) * e.q[0])
+    assert angle == pytest.approx(2 * 8.0 * 0.01 / bending, rel=1e-3)
+    assert angle < np.pi * 1.01 and 2 * 20.0 * 0.01 / bending > 2 * np.pi
+
+
 def test_pulled_tendon_bends_toward_itself(model, actuator):
     """Tendon 1 sits at +y: alone it bends segment 0 toward +y with kappa l = T rho l0/EI."""
     e = _solve(model, actuator, [8.0, 0, 0, 0, 0, 0])

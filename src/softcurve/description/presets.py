@@ -7,6 +7,7 @@ import math
 
 import numpy as np
 
+from softcurve.base.validation import real_scalar
 from softcurve.description.materials import Creep, LinearStiffness, TanhStiffness
 from softcurve.description.robot import Robot, Segment
 from softcurve.description.tendons import TendonActuator
@@ -74,9 +75,17 @@ RAO2021_BACKBONE_DENSITY = 0.0115
 """Mass of the backbone per length [kg/m] (``m_bb = 0.0115*l*g``)."""
 RAO2021_DISK_MASS = 0.2e-3
 """Mass of one spacer disk [kg] (``m_disk = 0.2*1e-3``)."""
+RAO2021_DAMPING_TIME = 0.0125
+"""A damping time [s] for the dynamics of :func:`rao2021` (``damping_time=``): an
+assumption, since the source models statics only. Every mode of frequency ``w`` then has
+the damping ratio ``0.0125 w / 2``: 0.1 for the first bending mode at rest (15.9 rad/s),
+0.99 for the second (158 rad/s), the axial modes (7,900 and 27,700 rad/s undamped)
+overdamped. The undamped robot under tensions that change every control period gains
+energy at every change and keeps it; with this damping its motion stays bounded and the
+learning environments' stepper follows it (docs/envs.md)."""
 
 
-def rao2021(*, gravity: bool = False) -> Robot:
+def rao2021(*, gravity: bool = False, damping_time: float | None = None) -> Robot:
     """The two-segment tendon-driven continuum robot of Rao, Peyron, Lilge and
     Burgner-Kahrs (Front. Robot. AI 7:630245, 2021), with the numbers of the authors'
     code (github.com/SvenLilge/tdcr-modeling, matlab/Parameters/tdcr_2segments.m).
@@ -87,8 +96,9 @@ def rao2021(*, gravity: bool = False) -> Robot:
     ``k_b = E I / l0`` = 0.0509 N m/rad and ``k_e = E A / l0`` = 4.16e5 N/m. Mass per
     segment: backbone 0.0115 kg/m x 0.2 m plus ten 0.2 g spacer disks = 4.3 g. The
     repo has no disk radius; the slice radius (rotary inertia only) is the tendons'
-    10 mm. No damping (statics only in the source). Torsion and shear of the rod are
-    not modelled (constant-curvature segments).
+    10 mm. No damping by default (statics only in the source); ``damping_time`` adds
+    the rod's material damping for dynamics. Torsion and shear of the rod are not
+    modelled (constant-curvature segments).
 
     Parameters
     ----------
@@ -96,6 +106,13 @@ def rao2021(*, gravity: bool = False) -> Robot:
         False (the default, as the repo's parameter file sets ``g = 0``): no gravity.
         True: ``(0, 0, -9.81)`` m/s^2, the robot upright on its base as in the repo's
         rod model (gravity along ``-z``).
+    damping_time : float, optional
+        Stiffness-proportional (Kelvin-Voigt) damping [s], > 0: ``R = damping_time K0``
+        per segment, ``K0 = diag(k_e, k_b l0^2, k_b l0^2)`` the stiffness at rest in the
+        coordinates ``(l, kappa_x, kappa_y)``, so that a mode of frequency ``w`` [rad/s]
+        has the damping ratio ``damping_time w / 2``. :data:`RAO2021_DAMPING_TIME` is the
+        value of the learning environments' tendon task. None (default): no damping.
+        Statics do not depend on it.
 
     Examples
     --------
@@ -107,21 +124,39 @@ def rao2021(*, gravity: bool = False) -> Robot:
     0.050915
     >>> round(robot.segments[0].mass, 6), robot.gravity  # [kg], [m/s^2]
     (0.0043, array([0., 0., 0.]))
+    >>> damped = sc.presets.rao2021(damping_time=sc.presets.RAO2021_DAMPING_TIME)
+    >>> damped.segments[0].damping.diagonal()  # [N s/m, N m^3 s, N m^3 s]
+    array([5.19540885e+03, 2.54575034e-05, 2.54575034e-05])
     """
     second_moment = math.pi / 4 * RAO2021_BACKBONE_RADIUS**4
     area = math.pi * RAO2021_BACKBONE_RADIUS**2
+    elongation = RAO2021_YOUNG * area / RAO2021_LENGTH
+    bending = RAO2021_YOUNG * second_moment / RAO2021_LENGTH
+    damping = np.zeros(3)
+    if damping_time is not None:
+        damping_time = real_scalar("damping_time [s]", damping_time, positive=True)
+        damping = damping_time * np.array([elongation, *[bending * RAO2021_LENGTH**2] * 2])
     segment = Segment(
         rest_length=RAO2021_LENGTH,
         mass=RAO2021_BACKBONE_DENSITY * RAO2021_LENGTH + RAO2021_DISKS * RAO2021_DISK_MASS,
         radius=RAO2021_PITCH,
-        elongation_stiffness=LinearStiffness(RAO2021_YOUNG * area / RAO2021_LENGTH),
-        bending_stiffness=LinearStiffness(RAO2021_YOUNG * second_moment / RAO2021_LENGTH),
+        elongation_stiffness=LinearStiffness(elongation),
+        bending_stiffness=LinearStiffness(bending),
+        damping=damping,
     )
     g = np.array([0.0, 0.0, -9.81]) if gravity else np.zeros(3)
     return Robot(segments=(segment, segment), gravity=g)
 
 
-def rao2021_tendons(*, t_max: float = 20.0) -> TendonActuator:
+RAO2021_T_MAX = 8.0
+"""Default upper tension of :func:`rao2021_tendons` [N]: the largest of the source's
+cases (it gives no bound). It keeps every held tension inside the model's domain: a
+proximal and a distal tendon of one azimuth both at 8 N bend segment 0 by
+``2 x 8 N x 10 mm / k_b`` = 3.1 rad, half of the full turn the domain allows (above
+16 N they bend it beyond)."""
+
+
+def rao2021_tendons(*, t_max: float = RAO2021_T_MAX) -> TendonActuator:
     """The tendons of :func:`rao2021`: three per segment at 10 mm from the backbone, at
     the azimuths :data:`RAO2021_AZIMUTHS` (90, -30 and 210 degrees from +x toward +y),
     the proximal set (tensions 0-2) tied to the tip of segment 0 and the distal set
@@ -132,8 +167,8 @@ def rao2021_tendons(*, t_max: float = 20.0) -> TendonActuator:
     Parameters
     ----------
     t_max : float
-        Upper tension bound of every tendon [N] (the source gives none; its cases use
-        up to 8 N).
+        Upper tension bound of every tendon [N] (default :data:`RAO2021_T_MAX`, 8 N:
+        the source gives none; its cases use up to 8 N).
 
     Examples
     --------

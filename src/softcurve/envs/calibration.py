@@ -19,6 +19,7 @@ from __future__ import annotations
 import functools
 import math
 import pickle
+import warnings
 from dataclasses import dataclass
 
 import numpy as np
@@ -106,12 +107,19 @@ class Calibration:
 def calibrate(setup) -> Calibration:
     """Hold :data:`CALIBRATION_MEMBERS` random admissible inputs, and each input alone at
     its upper bound (the others at their lower), for :data:`SETTLE_TIME` from the start
-    state, in one batch of the stepper (cached).
+    state, in one batch of the stepper (cached). The runs that fail are left out.
 
     Parameters
     ----------
     setup : Setup
         The robot, actuator and period.
+
+    Warns
+    -----
+    UserWarning
+        Where some runs fail (the robot leaves its domain or the stepper does not follow
+        it under inputs within their bounds), with the count and the first reason; a
+        ParameterError where all fail.
     """
     stepper = setup.stepper
     rng = np.random.default_rng(CALIBRATION_SEED)
@@ -121,16 +129,29 @@ def calibrate(setup) -> Calibration:
     inputs = np.vstack([random, corners])
     x = np.tile(setup.x0, (inputs.shape[0], 1))
     ok = np.ones(inputs.shape[0], dtype=bool)
-    states = [x]
+    states, reason = [x], None
     for _ in range(max(1, math.ceil(SETTLE_TIME / stepper.period - 1e-9))):
         result = stepper.step(x, inputs)
         x = result.x
-        ok &= result.ok & np.all(np.isfinite(x), axis=1)
+        failed = ~(result.ok & np.all(np.isfinite(x), axis=1))
+        if reason is None and failed.any():
+            reason = result.reasons[int(np.argmax(failed))] or "a state that is not finite"
+        ok &= ~failed
         states.append(x)
     if not np.any(ok):
         raise ParameterError(
-            f"{setup.source}: every calibration run failed ({result.reasons[0]}): the "
+            f"{setup.source}: every calibration run failed ({reason}): the "
             "robot cannot be simulated with these inputs and period"
+        )
+    if not np.all(ok):
+        warnings.warn(
+            f"{setup.source}: {np.count_nonzero(~ok)} of {ok.size} calibration runs "
+            f"(inputs within their bounds held for {SETTLE_TIME:g} s from the start) failed "
+            f"(first: {reason}): episodes under such inputs end "
+            "early, truncated. Damp the robot, narrow its inputs' bounds or give the "
+            "stepper more substeps (docs/envs.md).",
+            UserWarning,
+            stacklevel=2,
         )
     states = np.concatenate([s[ok] for s in states])
     tips, forces = result.tip[ok], result.contact_force[ok]
