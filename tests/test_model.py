@@ -188,21 +188,21 @@ def test_compile_function_builds_for_this_cpu_and_falls_back_without_march_nativ
     monkeypatch.delenv("SOFTCURVE_PORTABLE")
     monkeypatch.setenv("CC", str(refusing))
     monkeypatch.setenv("SOFTCURVE_CACHE_DIR", str(tmp_path / "refused"))
-    monkeypatch.setattr(model_module, "_REFUSING_NATIVE", set())
+    monkeypatch.setattr(model_module, "_ACCEPTED", {})
     compiled = generated.compile_function(function)
     assert compiled.class_name() == "External"  # compiled, without -march=native
     x = np.array([0.3, -2.0, 1.5])
     np.testing.assert_allclose(np.array(compiled(x)), np.array(function(x)), rtol=1e-15)
-    assert model_module._REFUSING_NATIVE == {(str(refusing),)}
+    assert model_module._ACCEPTED[((str(refusing),), model_module._NATIVE_FLAGS)] is False
     x = ca.SX.sym("x")
     generated.compile_function(ca.Function("softcurve_test_other", [x], [ca.cos(x)]))
-    assert refused.read_text().count("x") == 1  # remembered: the second asked no more
+    assert refused.read_text().count("x") == 1  # the probe; remembered: asked no more
 
 
 def test_compile_function_without_a_working_compiler_returns_the_function(monkeypatch, tmp_path):
     monkeypatch.setenv("SOFTCURVE_CACHE_DIR", str(tmp_path))
     monkeypatch.setenv("CC", "false")
-    monkeypatch.setattr(model_module, "_REFUSING_FLAGS", set())
+    monkeypatch.setattr(model_module, "_ACCEPTED", {})
     function = _small_function()
     with pytest.warns(model_module.CompilerWarning, match="virtual machine"):
         assert generated.compile_function(function) is function
@@ -213,65 +213,87 @@ def test_compile_function_without_a_working_compiler_returns_the_function(monkey
 def test_the_model_library_is_compiled_with_the_function_flags(monkeypatch, tmp_path, paper_model):
     """The model's generated C takes the flags of every generated function (-O2 without
     the passes that cost seconds on straight-line code), and the portable ones where the
-    compiler refuses them, asked once."""
-    import subprocess
-
-    if model_module.find_compiler() is None:
+    compiler refuses them."""
+    refusing = compiler_refusing(tmp_path, "-fno-code-hoisting")
+    if refusing is None:
         pytest.skip("no C compiler")
     built = paper_model.compiled_library.read_bytes()
     asked = []
 
     def fake_compile(functions, compiler, flags=model_module._COMPILE_FLAGS):
         asked.append((sorted(functions), flags))
-        if refuse and "-fno-code-hoisting" in flags:
-            raise subprocess.CalledProcessError(1, compiler, stderr="unknown flag")
         return built
 
     monkeypatch.setattr(model_module, "_compile", fake_compile)
-    monkeypatch.setattr(model_module, "_REFUSING_FLAGS", set())
+    monkeypatch.setattr(model_module, "_ACCEPTED", {})
     monkeypatch.delenv("SOFTCURVE_PORTABLE", raising=False)
     monkeypatch.setenv("SOFTCURVE_CACHE_DIR", str(tmp_path / "good"))
-    refuse = False
     sc.Model(sc.presets.ifac2020())
     ((names, flags),) = asked
     assert names == sorted(model_module.COMPILED_FUNCTIONS)
-    expected = (*model_module.FUNCTION_FLAGS, *model_module._native_flags())
-    assert flags == (*expected, *model_module._LIBRARY_FLAGS)
+    native = model_module._native_flags()
+    assert flags == (*model_module.FUNCTION_FLAGS, *native, *model_module._LIBRARY_FLAGS)
 
     asked.clear()
-    refuse = True
+    monkeypatch.setenv("CC", str(refusing))
     monkeypatch.setenv("SOFTCURVE_CACHE_DIR", str(tmp_path / "refusing"))
     model = sc.Model(sc.presets.ifac2020())
-    assert [f[: len(model_module.PORTABLE_FUNCTION_FLAGS)] for _, f in asked][-1] == (
-        model_module.PORTABLE_FUNCTION_FLAGS
-    )
-    assert "-fno-code-hoisting" not in asked[-1][1]
+    ((_, flags),) = asked  # one build: the flags were probed, not tried on the model
+    assert flags == (*model_module.PORTABLE_FUNCTION_FLAGS, *native, *model_module._LIBRARY_FLAGS)
     assert model.compiled_library is not None
-    assert model_module._REFUSING_FLAGS == {tuple(model_module.find_compiler())}
+
+
+def test_a_failed_build_does_not_mark_the_flags_as_refused(monkeypatch, tmp_path):
+    """A build that fails for another reason than its flags (here every compile of the
+    library fails once) leaves the compiler's flags as they were: the next build in the
+    process takes FUNCTION_FLAGS again (before, a failure marked the compiler as refusing
+    them, and every later model of the process was built at -O1)."""
+    import subprocess
+
+    if model_module.find_compiler() is None:
+        pytest.skip("no C compiler")
+    real_compile, calls = model_module._compile, []
+
+    def failing_once(functions, compiler, flags=model_module._COMPILE_FLAGS):
+        calls.append(flags)
+        if len(calls) == 1:
+            raise subprocess.CalledProcessError(1, compiler, stderr="disk full")
+        return real_compile(functions, compiler, flags)
+
+    monkeypatch.setattr(model_module, "_compile", failing_once)
+    monkeypatch.setattr(model_module, "_ACCEPTED", {})
+    monkeypatch.setenv("SOFTCURVE_CACHE_DIR", str(tmp_path))
+    with pytest.warns(model_module.CompilerWarning, match="failed"):
+        assert generated.compile_function(_small_function()).class_name() != "External"
+    x = ca.SX.sym("x")
+    generated.compile_function(ca.Function("softcurve_test_other", [x], [ca.cos(x)]))
+    assert all(
+        flags[: len(model_module.FUNCTION_FLAGS)] == model_module.FUNCTION_FLAGS for flags in calls
+    )
+    assert len(calls) == 2
 
 
 def test_a_compiler_refusing_the_function_flags_builds_with_the_portable_ones(
     monkeypatch, tmp_path
 ):
     """clang has no -fno-tree-pre, GCC before 8 no -fno-code-hoisting: the function is
-    still compiled, with PORTABLE_FUNCTION_FLAGS, and the compiler is asked once."""
+    still compiled, with PORTABLE_FUNCTION_FLAGS, and the flags are probed once."""
     refused = tmp_path / "refused.log"
     refusing = compiler_refusing(tmp_path, "-fno-code-hoisting", log=refused)
     if refusing is None:
         pytest.skip("no C compiler")
     monkeypatch.setenv("CC", str(refusing))
     monkeypatch.setenv("SOFTCURVE_CACHE_DIR", str(tmp_path / "cache"))
-    monkeypatch.setattr(model_module, "_REFUSING_FLAGS", set())
+    monkeypatch.setattr(model_module, "_ACCEPTED", {})
     function = _small_function()
     compiled = generated.compile_function(function)
     assert compiled.class_name() == "External"
     x = np.array([0.3, -2.0, 1.5])
     np.testing.assert_allclose(np.array(compiled(x)), np.array(function(x)), rtol=1e-15)
-    assert model_module._REFUSING_FLAGS == {(str(refusing),)}
+    assert model_module._ACCEPTED[((str(refusing),), model_module.FUNCTION_FLAGS)] is False
     x = ca.SX.sym("x")
     generated.compile_function(ca.Function("softcurve_test_other", [x], [ca.cos(x)]))
-    # twice for the first function (with and without -march=native), not for the second
-    assert refused.read_text().count("x") == 2
+    assert refused.read_text().count("x") == 1  # the probe alone, once for both
 
 
 def test_the_cached_library_has_a_checksum_beside_it(paper_model):

@@ -78,10 +78,6 @@ PORTABLE_FUNCTION_FLAGS = ("-O1",)
 no ``-fno-tree-pre``, GCC before 8 no ``-fno-code-hoisting``): every C compiler takes
 them, and they compile as fast."""
 
-_REFUSING_FLAGS: set[tuple[str, ...]] = set()
-"""Compiler commands that refused :data:`FUNCTION_FLAGS` in this process: later builds
-use :data:`PORTABLE_FUNCTION_FLAGS` at once."""
-
 _NATIVE_FLAGS = ("-march=native",)
 """Added when the compiler accepts them and ``SOFTCURVE_PORTABLE`` is not set: the code
 then uses this CPU's vector and fused multiply-add instructions, 9-16 % faster
@@ -316,16 +312,46 @@ def _compile(
         return partial.read_bytes()
 
 
-_REFUSING_NATIVE: set[tuple[str, ...]] = set()
-"""Compiler commands that refused :data:`_NATIVE_FLAGS` in this process: later builds go
-without them at once, instead of failing first (a failed compile of a large generated
-file costs as much as a good one)."""
+_ACCEPTED: dict[tuple[tuple[str, ...], tuple[str, ...]], bool] = {}
+"""Whether a compiler command takes a set of flags, asked once per process
+(:func:`accepts`)."""
+
+
+def accepts(compiler, flags) -> bool:
+    """Whether ``compiler`` compiles with ``flags``, asked once per process with an empty
+    file (a compiler that refuses a flag refuses it on any file; this one takes
+    milliseconds) and remembered in :data:`_ACCEPTED`. A probe rather than a fallback
+    after a failed build: a build that fails for another reason (a full disk, a
+    compiler killed) does not mark the flags as refused for the rest of the process, and
+    a refused flag costs no failed compile of a large generated file.
+
+    Parameters
+    ----------
+    compiler : list of str
+        The compiler's command (:func:`find_compiler`).
+    flags : tuple of str
+        The flags.
+
+    Returns
+    -------
+    bool
+    """
+    key = (tuple(compiler), tuple(flags))
+    if key not in _ACCEPTED:
+        with tempfile.TemporaryDirectory() as tmp:
+            Path(tmp, "probe.c").touch()
+            try:
+                run_compiler([*compiler, *flags, "-c", "probe.c", "-o", "probe.o"], tmp)
+                _ACCEPTED[key] = True
+            except (OSError, subprocess.CalledProcessError):
+                _ACCEPTED[key] = False
+    return _ACCEPTED[key]
 
 
 def compile_for_this_cpu(functions, compiler, flags, tail=()) -> bytes:
     """The shared library of ``functions`` (:func:`_compile`) with ``(*flags, *native,
-    *tail)``, ``native`` from :func:`_native_flags`; again without them where the compiler
-    refuses them (remembered in :data:`_REFUSING_NATIVE`).
+    *tail)``, ``native`` from :func:`_native_flags`, left out where the compiler refuses
+    them (:func:`accepts`).
 
     Parameters
     ----------
@@ -343,22 +369,15 @@ def compile_for_this_cpu(functions, compiler, flags, tail=()) -> bytes:
     bytes
         The library's content.
     """
-    wanted = () if tuple(compiler) in _REFUSING_NATIVE else _native_flags()
-    try:
-        return _compile(functions, compiler, (*flags, *wanted, *tail))
-    except subprocess.CalledProcessError:
-        if not wanted:
-            raise
-        data = _compile(functions, compiler, (*flags, *tail))
-        _REFUSING_NATIVE.add(tuple(compiler))  # built without them: they were refused
-        return data
+    native = _native_flags()
+    wanted = native if native and accepts(compiler, native) else ()
+    return _compile(functions, compiler, (*flags, *wanted, *tail))
 
 
 def compile_generated(functions, compiler, flags=None, tail=()) -> bytes:
     """The shared library of CasADi's generated ``functions``
     (:func:`compile_for_this_cpu`) with ``flags``, by default :data:`FUNCTION_FLAGS`, or
-    :data:`PORTABLE_FUNCTION_FLAGS` where the compiler refuses those (remembered in
-    :data:`_REFUSING_FLAGS`).
+    :data:`PORTABLE_FUNCTION_FLAGS` where the compiler refuses those (:func:`accepts`).
 
     Parameters
     ----------
@@ -367,7 +386,7 @@ def compile_generated(functions, compiler, flags=None, tail=()) -> bytes:
     compiler : list of str
         The compiler's command (:func:`find_compiler`).
     flags : tuple of str, optional
-        Optimization flags asked for instead of the default ones (no fallback then).
+        Optimization flags asked for instead of the default ones.
     tail : tuple of str
         Flags after the optimization and native ones.
 
@@ -376,15 +395,9 @@ def compile_generated(functions, compiler, flags=None, tail=()) -> bytes:
     bytes
         The library's content.
     """
-    if flags is not None:
-        return compile_for_this_cpu(functions, compiler, tuple(flags), tail)
-    if tuple(compiler) in _REFUSING_FLAGS:
-        return compile_for_this_cpu(functions, compiler, PORTABLE_FUNCTION_FLAGS, tail)
-    try:
-        return compile_for_this_cpu(functions, compiler, FUNCTION_FLAGS, tail)
-    except subprocess.CalledProcessError:  # refused by this compiler: once more, portable
-        _REFUSING_FLAGS.add(tuple(compiler))
-        return compile_for_this_cpu(functions, compiler, PORTABLE_FUNCTION_FLAGS, tail)
+    if flags is None:
+        flags = FUNCTION_FLAGS if accepts(compiler, FUNCTION_FLAGS) else PORTABLE_FUNCTION_FLAGS
+    return compile_for_this_cpu(functions, compiler, tuple(flags), tail)
 
 
 def run_compiler(command: list[str], directory: str) -> None:
