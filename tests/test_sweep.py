@@ -12,6 +12,7 @@ import pytest
 pa = pytest.importorskip("pyarrow")
 pq = pytest.importorskip("pyarrow.parquet")
 
+import softcurve as sc  # noqa: E402
 from softcurve.base.status import Status  # noqa: E402
 from softcurve.cli import main  # noqa: E402
 from softcurve.scenarios.config import ConfigError  # noqa: E402
@@ -298,22 +299,27 @@ def test_sweep_figure_draws_each_output_against_each_variable(uninterrupted):
     variables = ["q0[1]", "segments[0].bending_stiffness.a1"]
     table = uninterrupted.table.to_pydict()
     pd = pytest.importorskip("pandas")
+    rows = ["final tip x [mm]", "final tip y [mm]", "final tip z [mm]"]
+    rows += ["tip range x [mm]", "tip range y [mm]", "tip range z [mm]"]
+    rows += ["settling time [s]", "peak energy [J]"]
+    labels = ["initial curvature kx, segment 0 [1/m]", "segment 0: bending stiffness a1 [N m/rad]"]
     for source in (uninterrupted.table, pd.read_parquet(uninterrupted.path), table):
         figure = uninterrupted.plot() if source is table else plot_sweep(source)
         axes = figure.axes
-        assert len(axes) == 4 * 2  # final tip, tip range, settling time, peak energy
-        assert [a.get_xlabel() for a in axes[-2:]] == variables
-        assert axes[4].get_ylabel() == "settling time [s]"
+        assert len(axes) == len(rows) * 2  # one output per row, each on its own scale
+        assert [a.get_ylabel() for a in axes[::2]] == rows
+        # the result knows the variables' units; a bare table gives their names
+        assert [a.get_xlabel() for a in axes[-2:]] == (labels if source is table else variables)
         for v, variable in enumerate(variables):  # the points are the table's values
-            x, y = axes[4 + v].lines[0].get_data()
+            x, y = axes[12 + v].lines[0].get_data()
             np.testing.assert_array_equal(x, table[variable])
             np.testing.assert_array_equal(y, table["settling_time"])
-        x_tip, z_tip = (axes[0].lines[k].get_data()[1] for k in (0, 2))
+        x_tip, z_tip = (axes[k].lines[0].get_data()[1] for k in (0, 4))
         np.testing.assert_allclose(z_tip, 1e3 * np.array(table["final_tip_z"]))  # [mm]
         np.testing.assert_allclose(x_tip, 1e3 * np.array(table["final_tip_x"]))
         plt.close(figure)
-    figure = plot_sweep(uninterrupted.table, variables="q0[1]")
-    assert len(figure.axes) == 4
+    figure = plot_sweep(uninterrupted.table, variables="q0[1]", labels={"q0[1]": "kx [1/m]"})
+    assert len(figure.axes) == len(rows) and figure.axes[-1].get_xlabel() == "kx [1/m]"
     plt.close(figure)
 
 
@@ -350,3 +356,34 @@ def test_reading_the_table_as_docs_sweeps_shows(uninterrupted):
     ok = table[table.status == "success"]
     mean = ok.groupby("q0[1]")["settling_time"].mean()
     assert list(mean.index) == [-20.0, 0.0, 20.0] and np.isfinite(mean).all()
+
+
+def test_swept_variables_are_labelled_in_words_with_their_units():
+    """The sweep figure's x axes: what each swept name sets, with its unit (before: the
+    raw name, ``segments[0].elongation_stiffness.a1``, without one)."""
+    from pathlib import Path
+
+    from softcurve.scenarios.sweep_variables import variable_label
+
+    examples = Path(__file__).resolve().parents[1] / "examples"
+    scenario = load_sweep(examples / "sweep_tendons.toml").scenario
+    assert variable_label(scenario, "q0[1]") == "initial curvature kx, segment 0 [1/m]"
+    assert variable_label(scenario, "qd0[3]") == "initial rate of length l, segment 1 [m/s]"
+    assert variable_label(scenario, "tensions[0]") == "tensions[0] [N]"
+    assert variable_label(scenario, "inputs[2]") == "tensions[2] [N]"
+    assert variable_label(scenario, "tendons[0].distance") == "tendons[0].distance"
+    layout = scenario.robot.layout
+    expected = {
+        "segments[0].elongation_stiffness.a1": "segment 0: elongation stiffness a1 [N/m]",
+        "segments[0].elongation_stiffness.a3": "segment 0: elongation stiffness a3 [1/m]",
+        "segments[0].bending_stiffness.a1": "segment 0: bending stiffness a1 [N m/rad]",
+        "segments[0].damping[1,1]": "segment 0: damping[1,1] [N m^3 s]",
+        "segments[0].damping[0,1]": "segment 0: damping[0,1] [N m s]",
+        "gravity[2]": "gravity[2] [m/s^2]",
+    }
+    for name, label in expected.items():
+        assert variable_label(scenario, name) == label == layout.label(name)
+    assert len(layout.units) == len(layout.names) == layout.size
+    linear = sc.presets.rao2021().layout  # linear laws: one parameter each
+    assert linear.unit("segments[1].bending_stiffness.k0") == "N m/rad"
+    assert linear.unit("segments[1].elongation_stiffness.k0") == "N/m"

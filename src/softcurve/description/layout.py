@@ -12,16 +12,32 @@ Matrices (damping, creep compliance, base rotation) are stored row by row.
 from __future__ import annotations
 
 import functools
+import re
 from dataclasses import dataclass
 
 import casadi as ca
 import numpy as np
 
 from softcurve.base.validation import ParameterError
-from softcurve.description.materials import STIFFNESS_LAWS, Creep
+from softcurve.description.materials import LAW_UNITS, STIFFNESS_LAWS, Creep
 
 _VECTOR3 = ("[0]", "[1]", "[2]")
 _MATRIX3 = tuple(f"[{i},{j}]" for i in range(3) for j in range(3))
+FORCE_UNITS = ("N", "N m^2", "N m^2")
+"""Units of a segment's generalized forces, dual to ``(l, kx, ky)`` [m, 1/m, 1/m]."""
+DAMPING_UNITS = (
+    "N s/m",
+    "N m s",
+    "N m s",
+    "N m s",
+    "N m^3 s",
+    "N m^3 s",
+    "N m s",
+    "N m^3 s",
+    "N m^3 s",
+)
+"""Units of a damping matrix's entries, row by row: generalized force [N, N m^2, N m^2]
+per coordinate rate [m/s, 1/(m s), 1/(m s)]."""
 
 
 @dataclass(frozen=True)
@@ -39,12 +55,16 @@ class ParameterField:
     labels : tuple of str
         Suffix of each entry's name: ``""`` for a scalar, ``".k0"`` for a stiffness-law
         parameter, ``"[0]"`` or ``"[0,1]"`` for vector and matrix entries.
+    units : tuple of str
+        Each entry's unit (``"N/m"``; ``""`` for a number without one, or whose unit is
+        the user's choice, as a creep state's).
     """
 
     name: str
     start: int
     shape: tuple[int, ...]
     labels: tuple[str, ...]
+    units: tuple[str, ...]
 
     @property
     def size(self) -> int:
@@ -84,31 +104,35 @@ class ParameterLayout:
     def __init__(self, structure: tuple):
         fields: list[ParameterField] = []
 
-        def add(name, shape, labels):
+        def add(name, shape, labels, units):
             start = fields[-1].start + fields[-1].size if fields else 0
-            fields.append(ParameterField(name, start, shape, tuple(labels)))
+            labels = tuple(labels)
+            units = (units,) * len(labels) if isinstance(units, str) else tuple(units)
+            fields.append(ParameterField(name, start, shape, labels, units))
 
         for k, (elongation, bending, has_creep) in enumerate(structure):
             head = f"segments[{k}]."
-            for name in ("rest_length", "mass", "radius"):
-                add(head + name, (), ("",))
+            for name, unit in (("rest_length", "m"), ("mass", "kg"), ("radius", "m")):
+                add(head + name, (), ("",), unit)
             for mode, kind in (
                 ("elongation_stiffness", elongation),
                 ("bending_stiffness", bending),
             ):
-                labels = STIFFNESS_LAWS[kind].parameter_labels
-                add(head + mode, (len(labels),), ("." + label for label in labels))
-            add(head + "damping", (3, 3), _MATRIX3)
-            if has_creep:
-                add(head + "creep.rate", (3,), _VECTOR3)
-                add(head + "creep.gain", (3,), _VECTOR3)
-                add(head + "creep.compliance", (3, 3), _MATRIX3)
-        add("gravity", (3,), _VECTOR3)
-        add("base_rotation", (3, 3), _MATRIX3)
+                law = STIFFNESS_LAWS[kind]
+                units = [LAW_UNITS[mode][quantity] for quantity in law.parameter_quantities]
+                add(head + mode, (len(units),), ("." + x for x in law.parameter_labels), units)
+            add(head + "damping", (3, 3), _MATRIX3, DAMPING_UNITS)
+            if has_creep:  # the creep state's unit is the user's: gain and K carry it
+                add(head + "creep.rate", (3,), _VECTOR3, "1/s")
+                add(head + "creep.gain", (3,), _VECTOR3, "")
+                add(head + "creep.compliance", (3, 3), _MATRIX3, "")
+        add("gravity", (3,), _VECTOR3, "m/s^2")
+        add("base_rotation", (3, 3), _MATRIX3, "")
         self.structure = structure
         self.fields: tuple[ParameterField, ...] = tuple(fields)
         self.size: int = fields[-1].start + fields[-1].size
         self.names: tuple[str, ...] = tuple(n for f in fields for n in f.entry_names)
+        self.units: tuple[str, ...] = tuple(u for f in fields for u in f.units)
         self._fields = {f.name: f for f in fields}
         self._entries = {name: i for i, name in enumerate(self.names)}
 
@@ -153,6 +177,48 @@ class ParameterLayout:
             return self._entries[name]
         except KeyError:
             raise ParameterError(self._unknown("parameter", name, list(self.names))) from None
+
+    def unit(self, name: str) -> str:
+        """The unit of the entry ``name`` (``""`` where it has none or the user chooses
+        it); ParameterError if there is no such entry.
+
+        Parameters
+        ----------
+        name : str
+            An entry of :attr:`names`, e.g. ``"segments[0].elongation_stiffness.a1"``.
+
+        Returns
+        -------
+        str
+            E.g. ``"N/m"``.
+        """
+        return self.units[self.index(name)]
+
+    def label(self, name: str) -> str:
+        """The entry ``name`` in words with its unit, for an axis or a table.
+
+        Parameters
+        ----------
+        name : str
+            An entry of :attr:`names`.
+
+        Returns
+        -------
+        str
+            E.g. ``"segment 0: elongation stiffness a1 [N/m]"`` for
+            ``"segments[0].elongation_stiffness.a1"``.
+
+        Examples
+        --------
+        >>> import softcurve as sc
+        >>> layout = sc.presets.ifac2020().layout
+        >>> layout.label("segments[0].bending_stiffness.a3"), layout.label("gravity[2]")
+        ('segment 0: bending stiffness a3 [1/rad]', 'gravity[2] [m/s^2]')
+        """
+        unit = self.unit(name)
+        words = re.sub(r"^segments\[(\d+)\]\.", r"segment \1: ", name)
+        words = re.sub(r"\.(?=[a-z])", " ", words).replace("_", " ")
+        return f"{words} [{unit}]" if unit else words
 
     def slice(self, name: str) -> slice:
         """Where a field or a single entry lies in the vector.

@@ -94,6 +94,7 @@ class LinearStiffness(_StiffnessLaw):
     kind: ClassVar[str] = "linear"
     n_parameters: ClassVar[int] = 1
     parameter_labels: ClassVar[tuple[str, ...]] = ("k0",)
+    parameter_quantities: ClassVar[tuple[str, ...]] = ("stiffness",)
 
     def __post_init__(self):
         object.__setattr__(self, "k0", real_scalar("k0", self.k0, positive=True))
@@ -148,6 +149,7 @@ class TanhStiffness(_StiffnessLaw):
     kind: ClassVar[str] = "tanh"
     n_parameters: ClassVar[int] = 3
     parameter_labels: ClassVar[tuple[str, ...]] = ("a1", "a2", "a3")
+    parameter_quantities: ClassVar[tuple[str, ...]] = ("stiffness", "stiffness", "1/strain")
 
     def __post_init__(self):
         a1 = real_scalar("a1", self.a1, positive=True)
@@ -183,6 +185,13 @@ class TanhStiffness(_StiffnessLaw):
 
 STIFFNESS_LAWS = {law.kind: law for law in (LinearStiffness, TanhStiffness)}
 """Stiffness laws by their ``kind`` name, as used in configuration files."""
+
+LAW_UNITS = {
+    "elongation_stiffness": {"stiffness": "N/m", "1/strain": "1/m"},
+    "bending_stiffness": {"stiffness": "N m/rad", "1/strain": "1/rad"},
+}
+"""The unit of each quantity of a law's parameters (``parameter_quantities``) by the
+strain it acts on: the elongation ``l - l0`` [m] or the bending angle [rad]."""
 
 
 PASSIVITY_TOLERANCE = 1e-12

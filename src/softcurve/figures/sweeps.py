@@ -13,13 +13,14 @@ OUTPUT_PREFIXES = ("final_", "tip_range_")
 OUTPUT_NAMES = ("settling_time", "peak_energy")
 MM_PER_M = 1e3
 PANELS = (
-    ("final tip position [mm]", ("final_tip_x", "final_tip_y", "final_tip_z"), MM_PER_M),
-    ("tip range [mm]", ("tip_range_x", "tip_range_y", "tip_range_z"), MM_PER_M),
-    ("settling time [s]", ("settling_time",), 1.0),
-    ("peak energy [J]", ("peak_energy",), 1.0),
+    *((f"final tip {k} [mm]", f"final_tip_{k}", MM_PER_M) for k in "xyz"),
+    *((f"tip range {k} [mm]", f"tip_range_{k}", MM_PER_M) for k in "xyz"),
+    ("settling time [s]", "settling_time", 1.0),
+    ("peak energy [J]", "peak_energy", 1.0),
 )
-"""The rows of the figure: ``(axis label, columns drawn in it, factor to the label's unit)``;
-a row whose columns are all absent from the table is left out."""
+"""The rows of the figure: ``(axis label, column, factor to the label's unit)``, one
+output per row so that each has its own scale (a millimetre of z beside 40 mm of x is
+invisible on a shared axis); a row whose column the table lacks is left out."""
 
 
 def sweep_columns(table) -> dict[str, np.ndarray]:
@@ -63,13 +64,13 @@ def is_output(name: str) -> bool:
     return name in OUTPUT_NAMES or name.startswith(OUTPUT_PREFIXES)
 
 
-def plot_sweep(table, ax=None, *, variables=None):
+def plot_sweep(table, ax=None, *, variables=None, labels=None):
     """Each summary output of a sweep against each swept variable, one point per
     simulation.
 
-    One column of panels per variable; one row per output: the final tip position and
-    the tip's range per axis (x, y, z in one panel) [mm], the settling time [s] and the
-    peak energy [J] (rows whose outputs the sweep did not compute are left out). With
+    One column of panels per variable; one row per output, each on its own scale: the
+    final tip position and the tip's range along x, y and z [mm], the settling time [s]
+    and the peak energy [J] (rows whose outputs the sweep did not compute are left out). With
     several variables, the points above one value of a variable are the simulations
     that differ in the others. Failed simulations (NaN outputs) are not drawn; their
     count is in the title.
@@ -84,6 +85,10 @@ def plot_sweep(table, ax=None, *, variables=None):
     variables : sequence of str, optional
         The swept variables to draw against, by column name (default: every column that
         is neither an output nor ``index``, ``status``, ``message``).
+    labels : mapping of str to str, optional
+        The x axis label of each variable, with its unit (``SweepResult.plot`` passes
+        the sweep's: ``"segment 0: elongation stiffness a1 [N/m]"``); default: the
+        column's name.
 
     Returns
     -------
@@ -111,8 +116,8 @@ def plot_sweep(table, ax=None, *, variables=None):
                 f"variables: {name!r} is not a swept variable of the table; its columns "
                 f"are {sorted(columns)}"
             )
-    rows = [(label, [c for c in names if c in columns], f) for label, names, f in PANELS]
-    rows = [row for row in rows if row[1]]
+    labels = dict(labels or {})
+    rows = [row for row in PANELS if row[1] in columns]
     if not variables or not rows:
         raise ParameterError(
             "the sweep figure needs at least one swept variable and one output column "
@@ -124,19 +129,16 @@ def plot_sweep(table, ax=None, *, variables=None):
         "the sweep figure",
         rows=len(rows),
         sharex="col",
-        figsize=(3.6 * len(variables) + 0.8, 2.3 * len(rows) + 0.6),
+        figsize=(3.6 * len(variables) + 0.8, 1.7 * len(rows) + 0.9),
     )
-    for r, (label, names, factor) in enumerate(rows):
+    for r, (label, name, factor) in enumerate(rows):
         for v, variable in enumerate(variables):
             axis = axes[r * len(variables) + v]
             x = columns[variable].astype(np.float64)
-            for name in names:
-                series = name.rsplit("_", 1)[-1] if len(names) > 1 else None
-                axis.plot(x, factor * columns[name].astype(np.float64), ".", label=series)
-            if len(names) > 1 and v == 0:
-                axis.legend(fontsize="small")
+            axis.plot(x, factor * columns[name].astype(np.float64), ".", ms=4)
+            axis.grid(True, alpha=0.3)
             if r == len(rows) - 1:
-                axis.set_xlabel(variable)
+                axis.set_xlabel(labels.get(variable, variable))
             if v == 0:
                 axis.set_ylabel(label)
     status = columns.get("status")

@@ -35,6 +35,7 @@ from softcurve.figures import plot_sweep
 from softcurve.scenarios.config import ConfigError
 from softcurve.scenarios.sweep_config import SweepConfig, load_sweep
 from softcurve.scenarios.sweep_parts import intact, part_path, read_part
+from softcurve.scenarios.sweep_variables import variable_label
 from softcurve.simulation.batch import (
     default_threads,
     run_in_processes,
@@ -162,7 +163,8 @@ class SweepResult(Result):
     message : str
         How many failed.
     stats : dict
-        ``size`` (design points), ``chunks`` and ``variables`` (the swept names).
+        ``size`` (design points), ``chunks``, ``variables`` (the swept names) and
+        ``labels`` (each name in words with its unit, the figure's axis labels).
     """
 
     path: Path
@@ -189,7 +191,8 @@ class SweepResult(Result):
         matplotlib.figure.Figure
             Write it with :func:`softcurve.figures.save_figure`.
         """
-        return plot_sweep(self.table, ax, variables=self.stats.get("variables"))
+        variables, labels = self.stats.get("variables"), self.stats.get("labels")
+        return plot_sweep(self.table, ax, variables=variables, labels=labels)
 
 
 def run_sweep(
@@ -303,6 +306,7 @@ def _sweep(config, output, workers, scheduler, restart, progress, on_chunk) -> S
             "size": config.size,
             "chunks": len(chunks),
             "variables": tuple(v.name for v in config.variables),
+            "labels": {v.name: variable_label(config.scenario, v.name) for v in config.variables},
         },
     )
 

@@ -96,6 +96,46 @@ def variable_target(scenario: Scenario, name: str) -> tuple[str, list[int]] | No
     return ("actuator_parameters", found) if found else None
 
 
+COORDINATES = (("length l", "m", "m/s"), ("curvature kx", "1/m", "1/(m s)"),
+               ("curvature ky", "1/m", "1/(m s)"))  # fmt: skip
+"""Per coordinate of a segment: its name, its unit and its rate's unit."""
+
+
+def variable_label(scenario: Scenario, name: str) -> str:
+    """The swept quantity ``name`` in words with its unit, for the sweep figure's axes.
+
+    Parameters
+    ----------
+    scenario : Scenario
+        The scenario swept.
+    name : str
+        A valid variable name (:func:`variable_target` finds it).
+
+    Returns
+    -------
+    str
+        E.g. ``"initial curvature kx, segment 0 [1/m]"`` for ``q0[1]``, ``"segment 0:
+        elongation stiffness a1 [N/m]"``, ``"tensions[0] [N]"``; an actuator parameter
+        keeps its name (its unit is its actuator's).
+    """
+    match = STATE.match(name)
+    if match and match.group(1) in ("q0", "qd0"):
+        i = int(match.group(2))
+        words, unit, rate_unit = COORDINATES[i % len(COORDINATES)]
+        segment = f", segment {i // len(COORDINATES)}"
+        if match.group(1) == "q0":
+            return f"initial {words}{segment} [{unit}]"
+        return f"initial rate of {words}{segment} [{rate_unit}]"
+    if parameter_index(scenario.robot, name) is not None:
+        return scenario.robot.layout.label(name)
+    actuator = scenario.actuator()
+    match = INPUT.match(name)
+    if actuator is not None and match and match.group(1) in ("inputs", actuator.input_name):
+        unit = f" [{actuator.input_unit}]" if actuator.input_unit else ""
+        return f"{actuator.input_name}[{match.group(2)}]{unit}"
+    return name
+
+
 def parameter_index(robot, name: str) -> int | None:
     """Where the parameter entry ``name`` lies in ``robot``'s vector, None if it is none.
 
