@@ -160,7 +160,10 @@ def test_trajectory_fit_recovers_stiffness_and_damping(oscillation, noise_deg):
     assert again.rms[0] < 2 * noise_deg + 1e-6
     fig = report.plot(title="oscillation")
     assert fig.axes[0].get_ylabel() == "beta [deg]"
+    assert fig.axes[1].get_ylabel() == "model - measured [deg]"
     matplotlib.pyplot.close(fig)
+    assert report.parameter_units == ("N m/rad", "N m^3 s")  # from the robot's layout
+    assert SEG + "damping[1,1] [N m^3 s]" in report.table()
 
 
 def test_tanh_reparametrization_and_robot_round_trip():

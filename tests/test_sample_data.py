@@ -7,6 +7,7 @@ import re
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 import softcurve as sc
 from softcurve.cli import main
@@ -41,3 +42,33 @@ def test_fit_on_the_sample_gives_back_the_presets_bending_law(tmp_path, capsys):
     a1, a2, a3 = map(float, fitted.groups())
     # noiseless data: the law to the six digits printed (a3's sign does not matter)
     np.testing.assert_allclose([a1, a2, abs(a3)], [law.a1, law.a2, abs(law.a3)], rtol=1e-5)
+
+
+def test_the_fit_report_and_figure_give_the_units_of_the_strains_kind(capsys):
+    """``--mode bending``: the strain in rad, the moment in N m, the law's parameters in
+    N m/rad and 1/rad, in the table and on the figure's axes (before: no unit anywhere);
+    without ``--mode`` each unit is written as either."""
+    import matplotlib.pyplot as plt
+
+    from softcurve.identification.experiments import load_csv
+
+    argv = ["fit", str(ROOT / SAMPLE), "--strain", "angle", "--force", "moment"]
+    assert main([*argv, "--mode", "bending"]) == 0
+    out = capsys.readouterr().out
+    for row in ("a1 [N m/rad]", "a2 [N m/rad]", "a3 [1/rad]", "RMS "):
+        assert row in out, out
+    assert "residual force: RMS" in out and out.count(" N m,") == 1, out
+    assert main([*argv, "--law", "linear"]) == 0
+    assert "k0 [N/m or N m/rad]" in capsys.readouterr().out
+    data = load_csv(ROOT / SAMPLE, signals=["angle", "moment"], time=None, sample_rate=1.0)
+    report = sc.fit_stiffness(
+        data.signals["angle"], data.signals["moment"], "linear", label="angle", mode="bending"
+    )
+    figure = report.plot()
+    top, bottom = figure.axes
+    assert top.get_ylabel() == "force [N m]" and bottom.get_xlabel() == "angle [rad]"
+    assert bottom.get_ylabel() == "model - measured [N m]"
+    assert report.parameter_units == ("N m/rad",)
+    plt.close(figure)
+    with pytest.raises(sc.ParameterError, match="mode must be 'elongation', 'bending'"):
+        sc.fit_stiffness(data.signals["angle"], data.signals["moment"], "linear", mode="twist")

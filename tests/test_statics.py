@@ -358,3 +358,38 @@ def test_chord_steps_reach_newtons_solutions(quality):
     found = np.column_stack([root.q for root in roots])
     np.testing.assert_allclose(found, solutions, rtol=0, atol=1e-11)
     assert (counted["jacobians"] == 0) == (quality == "near")
+
+
+def test_the_inverse_statics_figure_gives_each_quantity_its_axis_and_says_what_it_marks(
+    paper_model,
+):
+    """examples/inverse_statics.py's figure (docs/figures/inverse_statics.png): before, the
+    curvature [1/m] and the elongation [mm] shared one unlabelled axis and the red circles
+    were explained nowhere."""
+    import importlib.util
+    from pathlib import Path
+
+    import matplotlib.pyplot as plt
+
+    path = Path(__file__).resolve().parents[1] / "examples" / "inverse_statics.py"
+    spec = importlib.util.spec_from_file_location("inverse_statics_example", path)
+    example = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(example)
+    actuator = PneumaticActuator.three_bellows(distance=0.012, area=2e-4, p_max=6e4)
+    sweep = input_sweep(paper_model, actuator, np.array([[0.0, 0, 0], [3e4, 0, 0], [6e4, 0, 0]]))
+    results = [
+        inverse_statics(paper_model, actuator, np.array(target))
+        for target in ([0.015, 0.0, 0.066], [0.07, 0.0, 0.05])  # reached, beyond reach
+    ]
+    assert [r.success for r in results] == [True, False]
+    figure = example.draw(paper_model, sweep, results)
+    labels = sorted(a.get_ylabel() for a in figure.axes)
+    assert labels == [
+        "curvature |kappa| [1/m]", "elongation l - l0 [mm]", "tip position [mm]", "z [mm]"
+    ]  # fmt: skip
+    (statics,) = [a for a in figure.axes if a.get_ylabel() == "z [mm]"]
+    legend = [t.get_text() for t in statics.get_legend().get_texts()]
+    assert "closest tip (saturated pressures)" in legend and "target beyond reach" in legend
+    red = [line for line in statics.lines if line.get_color() == "C3"]
+    assert len(red) == 1  # the one target beyond reach
+    plt.close(figure)

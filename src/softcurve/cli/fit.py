@@ -23,6 +23,13 @@ def _add_arguments(parser) -> None:
     parser.add_argument("csv", help="CSV file with a header row")
     parser.add_argument("--strain", required=True, help="column of the strain (m or rad)")
     parser.add_argument("--force", required=True, help="column of the force (N or N m)")
+    parser.add_argument(
+        "--mode",
+        choices=("elongation", "bending"),
+        help="the strain's kind, for the units of the report and the figure: elongation "
+        "[m] under a force [N], or bending angle [rad] under a moment [N m] (default: "
+        "either, written as 'm or rad')",
+    )
     parser.add_argument("--law", choices=("tanh", "linear"), default="tanh")
     parser.add_argument("--weights", help="optional column of residual weights")
     parser.add_argument(
@@ -51,6 +58,7 @@ def _run(args) -> int:
         weights=data.signals[args.weights] if args.weights else None,
         confidence=args.confidence,
         label=args.strain,
+        mode=args.mode,
     )
     print(report.table())
     law = report.extra["law"]
@@ -76,6 +84,7 @@ COMMAND = Command(
     "the fit fails or a parameter is not identifiable from the data; 2 for bad input "
     "(e.g. fewer points than the law's parameters plus one). Data to try it on, from a "
     f"checkout of the repository: softcurve fit {SAMPLE} --strain angle --force moment "
+    "--mode bending "
     "(the paper's robot bent by tip moments; docs/identify.md).",
     add_arguments=_add_arguments,
     run=_run,

@@ -187,11 +187,14 @@ STIFFNESS_LAWS = {law.kind: law for law in (LinearStiffness, TanhStiffness)}
 """Stiffness laws by their ``kind`` name, as used in configuration files."""
 
 LAW_UNITS = {
-    "elongation_stiffness": {"stiffness": "N/m", "1/strain": "1/m"},
-    "bending_stiffness": {"stiffness": "N m/rad", "1/strain": "1/rad"},
-}
-"""The unit of each quantity of a law's parameters (``parameter_quantities``) by the
-strain it acts on: the elongation ``l - l0`` [m] or the bending angle [rad]."""
+    "elongation_stiffness": {"strain": "m", "force": "N", "stiffness": "N/m", "1/strain": "1/m"},
+    "bending_stiffness": {
+        "strain": "rad", "force": "N m", "stiffness": "N m/rad", "1/strain": "1/rad"
+    },
+}  # fmt: skip
+"""The units of a law's strain, its force ``k(x) x`` and each quantity of its
+parameters (``parameter_quantities``), by the strain it acts on: the elongation
+``l - l0`` [m] or the bending angle [rad]."""
 
 
 PASSIVITY_TOLERANCE = 1e-12

@@ -50,7 +50,7 @@ def plot_fit(report, ax=None, *, title: str | None = None):
         top.legend(loc="best", fontsize=8)
         bottom.plot(x, report.residuals[order, j], "C3" + style, ms=2, lw=1)
         bottom.axhline(0.0, color="0.5", lw=0.5)
-        bottom.set_ylabel("model - measured")
+        bottom.set_ylabel(f"model - measured [{unit}]" if unit else "model - measured")
         bottom.set_xlabel(report.abscissa_label)
     if title:
         figure.suptitle(title)

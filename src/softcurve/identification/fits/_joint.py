@@ -89,7 +89,7 @@ class JointParameters:
     def __init__(self, parts, names, single: bool, specific=frozenset()):
         self.specific = frozenset(specific)
         free = parts[0].free
-        labels, theta0, scale, lower, upper = [], [], [], [], []
+        labels, units, theta0, scale, lower, upper = [], [], [], [], [], []
         self.index = np.zeros((len(parts), len(free)), dtype=int)
         for i, f in enumerate(free):
             owners = range(len(parts)) if f.per_experiment else [0]
@@ -100,13 +100,14 @@ class JointParameters:
                 labels.append(
                     f.label if single or not f.per_experiment else f"{f.label}[{names[e]}]"
                 )
+                units.append(part.units[i])
                 theta0.append(part.theta0[i])
                 scale.append(part.scale[i])
                 lower.append(part.lower[i] * part.scale[i])
                 upper.append(part.upper[i] * part.scale[i])
         self.parts, self.experiments = parts, list(names)
         self.free = free
-        self.names = tuple(labels)
+        self.names, self.units = tuple(labels), tuple(units)
         self.theta0, self.scale = np.array(theta0), np.array(scale)
         self.lower, self.upper = np.array(lower) / self.scale, np.array(upper) / self.scale
 

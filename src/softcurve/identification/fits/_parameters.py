@@ -165,6 +165,10 @@ class FreeParameters:
         self.lower = np.array([f.lower for f in self.free]) / self.scale
         self.upper = np.array([f.upper for f in self.free]) / self.scale
         self.names = tuple(f.label for f in self.free)
+        # a robot parameter's unit from the layout; an extra parameter's is the user's
+        self.units = tuple(
+            layout.unit(f.targets[0]) if f.targets[0] in layout else "" for f in self.free
+        )
 
     def _current(self, name: str) -> float:
         if name in self.extra:

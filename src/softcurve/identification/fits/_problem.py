@@ -225,6 +225,7 @@ class Problem:
             status=status,
             message=f"{kind}: {message}",
             names=J.names,
+            parameter_units=J.units,
             values=theta,
             standard_errors=errors,
             correlation=corr,

@@ -51,6 +51,9 @@ class FitReport(Result):
         What the optimizer said, and any identifiability warning.
     names : tuple of str
         Fitted parameters.
+    parameter_units : tuple of str
+        Unit of each parameter, in order (``""`` when it has none or is unknown; empty
+        when no fit recorded them); the table prints them beside the names.
     values, standard_errors : ndarray, shape (P,)
         Estimates and their asymptotic standard errors (inf when not identifiable),
         each in the unit of its parameter.
@@ -97,6 +100,7 @@ class FitReport(Result):
     signals: tuple[str, ...]
     units: tuple[str, ...] = ()
     abscissa_label: str = "t [s]"
+    parameter_units: tuple[str, ...] = ()
     confidence: float = 0.95
     n_evaluations: int = 0
     identifiable: np.ndarray = field(default_factory=lambda: np.zeros(0, bool))
@@ -186,9 +190,11 @@ class FitReport(Result):
             f"status: {self.status.value} ({self.message})",
             f"{'parameter':44s} {'estimate':>12s} {'std err':>10s}   {pct}% interval",
         ]
-        for name, v, se, (lo, hi) in zip(
-            self.names, self.values, self.standard_errors, self.intervals, strict=True
+        units = self.parameter_units or ("",) * len(self.names)
+        for name, unit, v, se, (lo, hi) in zip(
+            self.names, units, self.values, self.standard_errors, self.intervals, strict=True
         ):
+            name = f"{name} [{unit}]" if unit else name
             lines.append(f"{name:44s} {v:12.5g} {se:10.3g}   [{lo:.5g}, {hi:.5g}]")
         pairs = [
             (abs(self.correlation[i, j]), self.names[i], self.names[j], self.correlation[i, j])

@@ -12,7 +12,12 @@ import scipy.optimize
 
 from softcurve.base.status import Status
 from softcurve.base.validation import ParameterError
-from softcurve.description.materials import LinearStiffness, TanhStiffness
+from softcurve.description.materials import (
+    LAW_UNITS,
+    STIFFNESS_LAWS,
+    LinearStiffness,
+    TanhStiffness,
+)
 from softcurve.identification.fits._report import FitReport, check_confidence, summarize
 from softcurve.identification.fits._solve import robust_least_squares
 
@@ -128,6 +133,7 @@ def fit_stiffness(
     confidence: float = 0.95,
     label: str = "strain",
     force_unit: str = "",
+    mode: str | None = None,
 ) -> FitReport:
     """Fit a stiffness law to quasi-static data: ``force = k(strain) * strain``.
 
@@ -152,9 +158,14 @@ def fit_stiffness(
     confidence : float
         Confidence level of the report's intervals, a probability in (0, 1).
     label : str
-        Name and unit of the strain, for the report's figure.
+        Name of the strain, for the report's figure (its unit is added from ``mode``).
     force_unit : str
-        Unit of the force, for the report's figure.
+        Unit of the force, for the report's figure (default: from ``mode``).
+    mode : {"elongation", "bending"}, optional
+        Which strain the data are: the elongation [m] under a force [N], or the bending
+        angle [rad] under a moment [N m]. It gives the units of the strain, the force and
+        the parameters in the report and its figure; without it they are written as
+        either (``"m or rad"``).
 
     Returns
     -------
@@ -187,9 +198,16 @@ def fit_stiffness(
     w = np.ones_like(x) if weights is None else np.asarray(weights, dtype=np.float64).ravel()
     if w.shape != x.shape or not np.all(w >= 0):
         raise ParameterError("weights must be non-negative with the shape of strain")
+    if mode not in (None, "elongation", "bending"):
+        raise ParameterError(f"mode must be 'elongation', 'bending' or None, got {mode!r}")
     kind = law if isinstance(law, str) else law.kind
     if kind not in ("tanh", "linear"):
         raise ParameterError(f"law must be 'tanh', 'linear' or a law instance, got {law!r}")
+    if mode is None:  # either strain: each unit written as both
+        elongation, bending = LAW_UNITS["elongation_stiffness"], LAW_UNITS["bending_stiffness"]
+        law_units = {k: f"{elongation[k]} or {bending[k]}" for k in elongation}
+    else:
+        law_units = LAW_UNITS[f"{mode}_stiffness"]
     units = _units(x, f)
     # the fit runs in units of the data's largest strain and force: it sees the same
     # numbers whatever units the data come in (SciPy's tolerances are absolute)
@@ -267,8 +285,9 @@ def fit_stiffness(
         measured=f[:, None],
         predicted=fitted[:, None] * units[1],
         signals=("force",),
-        units=(force_unit,),
-        abscissa_label=label,
+        units=(force_unit or law_units["force"],),
+        abscissa_label=f"{label} [{law_units['strain']}]",
+        parameter_units=tuple(law_units[q] for q in STIFFNESS_LAWS[kind].parameter_quantities),
         confidence=confidence,
         n_evaluations=count,
         identifiable=identifiable,
