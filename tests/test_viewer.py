@@ -81,6 +81,49 @@ def test_scene_axes_are_equal_and_hold_the_robot(paper_model, trajectory):
     assert (centres >= scene.bounds[:, 0]).all() and (centres <= scene.bounds[:, 1]).all()
 
 
+class Wall:
+    """A drawable obstacle ten times the robot's size: a 0.6 m square at x = -45 mm."""
+
+    def surface(self):
+        y, z = np.meshgrid([-0.3, 0.3], [-0.3, 0.3])
+        vertices = np.stack([np.full(4, -0.045), y.ravel(), z.ravel()], axis=1)
+        return vertices, np.array([[0, 1, 3], [0, 3, 2]])
+
+
+def test_a_large_obstacle_is_cut_to_the_robots_box_not_framed(paper_model, trajectory):
+    """The scene is framed on the robot's motion, the obstacle cut to that box (before,
+    a 0.6 m wall set the axes and the robot filled a tenth of them)."""
+    labels = ["a"] * trajectory.t.size
+    alone = build_scene(paper_model, trajectory.q, labels, rings=4)
+    scene = build_scene(paper_model, trajectory.q, labels, rings=4, obstacles=[Wall()])
+    np.testing.assert_array_equal(scene.bounds, alone.bounds)  # the wall moves no axis
+    assert np.diff(scene.bounds, axis=1).max() < 0.3 * 600  # mm: the robot's size
+    (wall,) = scene.obstacles
+    vertices = np.array(wall["vertices"])
+    assert (vertices >= scene.bounds[:, 0] - 1e-4).all()  # to the 4 decimals sent
+    assert (vertices <= scene.bounds[:, 1] + 1e-4).all()
+    np.testing.assert_allclose(vertices[:, 0], -45.0)  # still the wall's plane [mm]
+    # the part inside covers the box's whole y-z face: area of the clipped triangles
+    a, b, c = (vertices[np.array(wall["triangles"])[:, k]] for k in range(3))
+    area = 0.5 * np.linalg.norm(np.cross(b - a, c - a), axis=1).sum()
+    span = np.diff(scene.bounds, axis=1).ravel()
+    np.testing.assert_allclose(area, span[1] * span[2], rtol=1e-6)
+
+
+def test_clipping_a_mesh_keeps_what_is_inside_and_drops_what_is_not():
+    from softcurve.figures.scene import clip_mesh
+
+    vertices = np.array([[0.0, 0, 0], [2.0, 0, 0], [0.0, 2, 0]])
+    points, faces = clip_mesh(vertices, [[0, 1, 2]], [0.0, 0, -1], [1.0, 1, 1])
+    a, b, c = (points[faces[:, k]] for k in range(3))
+    area = 0.5 * np.linalg.norm(np.cross(b - a, c - a), axis=1).sum()
+    np.testing.assert_allclose(area, 1.0)  # the unit square of the triangle x + y <= 2
+    inside, _ = clip_mesh(vertices * 0.25, [[0, 1, 2]], [0.0, 0, -1], [1.0, 1, 1])
+    np.testing.assert_allclose(inside, vertices * 0.25)  # wholly inside: unchanged
+    outside, faces = clip_mesh(vertices + 5.0, [[0, 1, 2]], [0.0, 0, -1], [1.0, 1, 1])
+    assert outside.shape == (0, 3) and faces.shape == (0, 3)
+
+
 def test_one_self_contained_file(trajectory, tmp_path):
     path = trajectory.to_html(tmp_path / "robot.html")
     text = path.read_text()

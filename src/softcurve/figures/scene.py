@@ -26,7 +26,7 @@ FRAME_VALUES = 9
 MAX_PATH_POINTS = 4000
 """The tip path is thinned to at most this many points [count]."""
 AXES_MARGIN = 1.15
-"""The cube of the equal axes: the extent of everything drawn, 15 % wider."""
+"""The cube of the equal axes: the extent of the robot's motion, 15 % wider."""
 
 
 @dataclass(frozen=True)
@@ -52,11 +52,14 @@ class Scene:
     tip_path : ndarray, shape (P, 3)
         The tip's path [mm] (empty for equilibria).
     obstacles : tuple of dict
-        ``{"vertices": (V, 3) [mm], "triangles": (M, 3) indices}`` per obstacle.
+        ``{"vertices": (V, 3) [mm], "triangles": (M, 3) indices}`` per obstacle, the part
+        of it inside ``bounds`` (:func:`clip_mesh`); an obstacle wholly outside is left
+        out.
     base_axes : float
         Length of the drawn base frame's axes [mm].
     bounds : ndarray, shape (3, 2)
-        The equal axes' ranges: a cube [mm].
+        The equal axes' ranges: a cube [mm] around the robot's motion (its tube at every
+        frame, the tip path and the base frame), :data:`AXES_MARGIN` wider.
     title : str
         The page's heading.
     """
@@ -243,6 +246,52 @@ def drawable_obstacles(obstacles) -> tuple:
     return tuple(meshes)
 
 
+def clip_mesh(vertices, triangles, low, high) -> tuple[np.ndarray, np.ndarray]:
+    """The part of a triangle mesh inside the box ``[low, high]``: each triangle clipped
+    against the box's six planes (Sutherland-Hodgman) and the polygon left fanned into
+    triangles, so that an obstacle far larger than the robot is drawn where the robot
+    is, not where it ends.
+
+    Parameters
+    ----------
+    vertices : array_like, shape (V, 3)
+        The mesh's points [any length unit].
+    triangles : array_like of int, shape (M, 3)
+        Vertex indices.
+    low, high : array_like, shape (3,)
+        The box's corners [the unit of ``vertices``].
+
+    Returns
+    -------
+    vertices : ndarray, shape (V', 3)
+    triangles : ndarray of int, shape (M', 3)
+        The clipped mesh (both empty when nothing of it is inside the box).
+    """
+    vertices = np.asarray(vertices, dtype=np.float64)
+    planes = [(k, sign, bound) for k in range(3) for sign, bound in ((1, low[k]), (-1, high[k]))]
+    points, faces = [], []
+    for triangle in np.asarray(triangles, dtype=int):
+        polygon = [vertices[i] for i in triangle]
+        for k, sign, bound in planes:  # keep sign * (x_k - bound) >= 0
+            kept = []
+            for a, b in zip(polygon, polygon[1:] + polygon[:1], strict=True):
+                da, db = sign * (a[k] - bound), sign * (b[k] - bound)
+                if da >= 0:
+                    kept.append(a)
+                if (da >= 0) != (db >= 0):  # the edge crosses the plane
+                    kept.append(a + (b - a) * (da / (da - db)))
+            polygon = kept
+            if len(polygon) < 3:
+                break
+        if len(polygon) >= 3:
+            first = len(points)
+            points.extend(polygon)
+            faces.extend((first, first + j, first + j + 1) for j in range(1, len(polygon) - 1))
+    if not faces:
+        return np.empty((0, 3)), np.empty((0, 3), dtype=int)
+    return np.array(points), np.array(faces, dtype=int)
+
+
 def build_scene(
     model,
     q,
@@ -300,16 +349,26 @@ def build_scene(
     reach = 1.5 * model.robot.rest_length
     meshes = drawable_obstacles((*environment_meshes(model, reach), *obstacles))
     base_axes = max(0.3 * model.robot.rest_length * MM_PER_M, 2.0 * radii.max())
+    # framed on the robot's motion: obstacles are cut to that box, never widen it
     extent = [
         frames[..., :3].reshape(-1, 3) + radii.max(),
         frames[..., :3].reshape(-1, 3) - radii.max(),
         path,
         np.array([[base_axes] * 3, [-base_axes, -base_axes, 0.0]]),
-        *(np.array(mesh["vertices"]).reshape(-1, 3) for mesh in meshes),
     ]
     points = np.concatenate(extent)
     low, high = points.min(axis=0), points.max(axis=0)
     centre, half = (low + high) / 2, AXES_MARGIN * (high - low).max() / 2
+    clipped = []
+    for mesh in meshes:
+        vertices, triangles = clip_mesh(
+            mesh["vertices"], mesh["triangles"], centre - half, centre + half
+        )
+        if len(triangles):
+            clipped.append(
+                {"vertices": np.round(vertices, 4).tolist(), "triangles": triangles.tolist()}
+            )
+    meshes = tuple(clipped)
     return Scene(
         labels=labels,
         times=times,
