@@ -8,8 +8,12 @@ test recording's initial state is estimated, and a dynamic fit of the open loop 
 slow creep state (does the hysteresis ask for a slower creep than the oscillations?)::
 
     python examples/validate_joint.py [--only oscillation|openloop|creep|rate] [--quick]
+        [--laws tanh,linear] [--figure PATH]
 
-Every figure of the tables "real-data goals" in ``docs/validation.md`` is printed by it.
+Every figure of the tables "real-data goals" in ``docs/validation.md`` is printed by it;
+``--figure`` draws the free oscillations of both recordings, measured, fitted jointly and
+predicted from the other recording, for the first law with the initial state, angle and
+zero of each recording free.
 The joint fits are the library's: :func:`~softcurve.identification.fits.fit_trajectory`
 of a list of recordings, with the per-recording initial state and IMU zero as
 ``Free(..., per_experiment=True)`` entries ``x0.lam[1]``, ``x0.q[1]`` and ``offset``.
@@ -252,7 +256,32 @@ def oscillation_goals(experiments, laws=("tanh", "linear")):
             print(
                 f"### {law}, {label}: {test} from {train}, own initial state\n```\n{table}\n```\n"
             )
-    return rows
+    return rows, swings
+
+
+def swing_figure(experiments, swings: dict, path) -> Path:
+    """The free oscillations of each recording: measured, the joint fit, and predicted
+    from the other recording's fit (relaxed start and own initial state), for the first
+    law of ``swings`` with the most free variant; written to ``path``."""
+    import matplotlib.pyplot as plt
+
+    law, label = next(iter(swings))[:2]
+    label = max({k[1] for k in swings if k[0] == law}, key=len)
+    figure, axes = plt.subplots(len(RECORDINGS), 1, figsize=(8, 2.8 * len(RECORDINGS)))
+    for ax, tag in zip(np.atleast_1d(axes), RECORDINGS, strict=True):
+        t = experiments[tag].t
+        for name, y in swings[(law, label, tag)].items():
+            if not name.startswith(f"{tag} "):  # the other recording's own fit
+                continue
+            style = {"lw": 2.2, "color": "k", "alpha": 0.35} if "measured" in name else {"lw": 1}
+            ax.plot(t, y, label=name, **style)
+        ax.set(ylabel="bending angle beta [deg]", title=f"recording {tag}")
+        ax.grid(True, alpha=0.3)
+        ax.legend(fontsize="small", loc="upper right")
+    np.atleast_1d(axes)[-1].set_xlabel("time t [s]")
+    figure.suptitle(f"free oscillations, {law} law, {label} free per recording")
+    figure.tight_layout()
+    return sc.save_figure(figure, path, dpi=100)
 
 
 def rate_probe(experiments, law="tanh"):
@@ -496,6 +525,9 @@ def main(argv=None):
     )
     parser.add_argument("--laws", default="tanh,linear")
     parser.add_argument("--quick", action="store_true", help="2 ms oscillations, 25 Hz open loop")
+    parser.add_argument(
+        "--figure", type=Path, help="draw the free oscillations' fits to this file (PNG, PDF)"
+    )
     args = parser.parse_args(argv)
     directory = vc.data_directory(args.data)
     if directory is None:
@@ -504,7 +536,9 @@ def main(argv=None):
     out = {}
     if args.only in (None, "oscillation"):
         experiments = vc.load_oscillations(directory, 2e-3 if args.quick else 1e-3)
-        out["oscillation"] = oscillation_goals(experiments, tuple(args.laws.split(",")))
+        out["oscillation"], swings = oscillation_goals(experiments, tuple(args.laws.split(",")))
+        if args.figure:
+            print(f"figure: {swing_figure(experiments, swings, args.figure)}")
     if args.only == "rate":
         rate_probe(vc.load_oscillations(directory, 2e-3 if args.quick else 1e-3))
     if args.only in (None, "openloop", "creep"):

@@ -56,23 +56,98 @@ LAYERS = (
 """The subpackages in the order of docs/architecture.md: ``(name, what it holds)``."""
 
 GALLERY_FIGURES = {
-    "ifac2020.toml": ("paper-states.png", "paper-tip.png"),
-    "inverse_statics.py": ("inverse_statics.png",),
-    "sweep_grid.toml": ("sweep_grid.png",),
-    "tip_circle.py": ("tip_circle.png",),
-    "paper_reproduction.py": ("paper-states-first-second.png",),
-    "tendon_tracking.py": ("tendon_tracking_tensions.png", "tendon_tracking_shapes.png"),
-    "validate_caasenbrood2021.py": (
-        "validation_oscillation.png",
-        "validation_openloop.png",
-        "validation_static.png",
+    "contact_finger.py": (
+        "python examples/contact_finger.py all --output {out}",
+        {"contact_finger_force.png": "finger_force.png", "contact_floor_tip.png": "floor_tip.png"},
     ),
-}
-"""The figures in ``docs/figures/`` that each example makes (a missing one fails the build)."""
+    "contact_wall.toml": (
+        "softcurve simulate examples/contact_wall.toml -o {out}",
+        {"contact_wall_contact.png": "contact.png", "contact_wall_tip.png": "tip.png"},
+    ),
+    "hanging.toml": (
+        "softcurve simulate examples/hanging.toml -o {out}",
+        {"hanging_states.png": "states.png"},
+    ),
+    "ifac2020.toml": (
+        "softcurve simulate examples/ifac2020.toml -o {out}",
+        {"paper-states.png": "states.png", "paper-tip.png": "tip.png"},
+    ),
+    "inverse_statics.py": (
+        "python examples/inverse_statics.py --output {out}/inverse_statics.png",
+        {"inverse_statics.png": "inverse_statics.png"},
+    ),
+    "paper_reproduction.py": (
+        "python examples/paper_reproduction.py --figures {out}",
+        {"paper-states-first-second.png": "paper-states-first-second.png"},
+    ),
+    "pneumatic.toml": (
+        "softcurve equilibria examples/pneumatic.toml --inputs 2e4 0 0 --plot {out}/equilibria.png",
+        {"pneumatic_equilibria.png": "equilibria.png"},
+    ),
+    "pneumatic_step.toml": (
+        "softcurve simulate examples/pneumatic_step.toml -o {out}",
+        {"pneumatic_step_states.png": "states.png"},
+    ),
+    "sweep_bending.toml": (
+        "softcurve sweep examples/sweep_bending.toml -o {out} --figure",
+        {"sweep_bending.png": "sweep.png"},
+    ),
+    "sweep_grid.toml": (
+        "softcurve sweep examples/sweep_grid.toml -o {out} --figure",
+        {"sweep_grid.png": "sweep.png"},
+    ),
+    "sweep_tendons.toml": (
+        "softcurve sweep examples/sweep_tendons.toml -o {out} --figure",
+        {"sweep_tendons.png": "sweep.png"},
+    ),
+    "tendon_tracking.py": (
+        "python examples/tendon_tracking.py --output {out}",
+        {
+            "tendon_tracking_tensions.png": "tendon_tracking_tensions.png",
+            "tendon_tracking_shapes.png": "tendon_tracking_shapes.png",
+        },
+    ),
+    "tendons.toml": (
+        "softcurve simulate examples/tendons.toml -o {out}",
+        {"tendons_states.png": "states.png", "tendons_tip.png": "tip.png"},
+    ),
+    "tip_circle.py": (
+        "python examples/tip_circle.py --output {out}/tip_circle.png",
+        {"tip_circle.png": "tip_circle.png"},
+    ),
+    "train_reach.py": (
+        "python examples/train_reach.py --minutes 3 --output {out}",
+        {
+            "train_reach_learning_curve.png": "learning_curve.png",
+            "train_reach_rollout.png": "rollout.png",
+        },
+    ),
+    "two-segment.toml": (
+        "softcurve simulate examples/two-segment.toml -o {out}",
+        {"two_segment_states.png": "states.png", "two_segment_tip.png": "tip.png"},
+    ),
+    "validate_joint.py": (
+        "python examples/validate_joint.py --only oscillation --quick --laws tanh "
+        "--figure {out}/validate_joint.png",
+        {"validate_joint_oscillations.png": "validate_joint.png"},
+    ),
+    "validate_caasenbrood2021.py": (
+        "python examples/validate_caasenbrood2021.py --figures {out}",
+        {
+            "validation_oscillation.png": "validation_oscillation.png",
+            "validation_openloop.png": "validation_openloop.png",
+            "validation_static.png": "validation_static.png",
+        },
+    ),
+}  # fmt: skip
+"""Per example of ``examples/``: the command that makes its figures (``{out}`` a folder
+of its own) and, per figure of ``docs/figures/``, the file of that folder it is; the
+gallery page shows them (a missing one fails the build), ``docs/gallery_figures.py``
+runs the commands and copies the files."""
 
 COMMANDS_FOR_FILES = {
     "sweep_": "softcurve sweep examples/{name} -o sweep-out --figure",
-    "pneumatic.toml": "softcurve equilibria examples/{name}",
+    "pneumatic.toml": "softcurve equilibria examples/{name} --inputs 2e4 0 0",
 }
 """How an example TOML file is run, by the start of its name (default: ``simulate``)."""
 
@@ -356,14 +431,20 @@ def write_gallery(folder: Path, examples: Path) -> int:
         titles[path.stem] = title
         figures = "".join(
             f"```{{figure}} ../figures/{figure}\n:alt: {figure}\n\n{figure}\n```\n\n"
-            for figure in GALLERY_FIGURES.get(path.name, ())
+            for figure in GALLERY_FIGURES.get(path.name, ("", {}))[1]
         )
         language = "python" if path.suffix == ".py" else "toml"
         pages.write(
             f"{path.stem}.md",
             f"# {path.name}\n\n**{title}.**\n\n{description}\n\n"
             f"Run it from the repository's folder:\n\n```bash\n{_command(path)}\n```\n\n"
-            + (f"## Figures\n\n{figures}" if figures else "")
+            + (
+                f"## Figures\n\nMade by `{GALLERY_FIGURES[path.name][0].format(out='OUT')}` "
+                f"(`python docs/gallery_figures.py --only {path.name}` redraws them):\n\n"
+                f"{figures}"
+                if figures
+                else ""
+            )
             + f"## Source\n\n```{{literalinclude}} ../../examples/{path.name}\n"
             f":language: {language}\n```\n",
         )

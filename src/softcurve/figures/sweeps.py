@@ -137,6 +137,8 @@ def plot_sweep(table, ax=None, *, variables=None, labels=None):
             x = columns[variable].astype(np.float64)
             axis.plot(x, factor * columns[name].astype(np.float64), ".", ms=4)
             axis.grid(True, alpha=0.3)
+            # an output the same to many digits reads as its values, not as "1e-6 + 63.96"
+            axis.ticklabel_format(axis="y", useOffset=False)
             if r == len(rows) - 1:
                 axis.set_xlabel(labels.get(variable, variable))
             if v == 0:
