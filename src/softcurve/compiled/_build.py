@@ -24,6 +24,7 @@ from pathlib import Path
 
 import casadi as ca
 
+from softcurve.base.docs import parameters_from
 from softcurve.compiled._cache import CacheWarning as CacheWarning
 from softcurve.compiled._cache import cache_directory as cache_directory
 from softcurve.compiled._cache import cached_library, load_or_build
@@ -348,6 +349,15 @@ def accepts(compiler, flags) -> bool:
     return _ACCEPTED[key]
 
 
+_BUILD_PARAMETERS = {
+    "functions": ("dict of str to casadi.Function", "The functions, by name."),
+    "compiler": ("list of str", "The compiler's command (:func:`find_compiler`)."),
+    "tail": ("tuple of str", "Flags after the optimization and native ones."),
+}
+"""The arguments that the two builders of generated code share."""
+
+
+@parameters_from(_BUILD_PARAMETERS, returns=("bytes", "The library's content."))
 def compile_for_this_cpu(functions, compiler, flags, tail=()) -> bytes:
     """The shared library of ``functions`` (:func:`_compile`) with ``(*flags, *native,
     *tail)``, ``native`` from :func:`_native_flags`, left out where the compiler refuses
@@ -355,25 +365,18 @@ def compile_for_this_cpu(functions, compiler, flags, tail=()) -> bytes:
 
     Parameters
     ----------
-    functions : dict of str to casadi.Function
-        The functions, by name.
-    compiler : list of str
-        The compiler's command (:func:`find_compiler`).
+    %(functions)s
+    %(compiler)s
     flags : tuple of str
         The flags asked for.
-    tail : tuple of str
-        Flags after the native ones.
-
-    Returns
-    -------
-    bytes
-        The library's content.
+    %(tail)s
     """
     native = _native_flags()
     wanted = native if native and accepts(compiler, native) else ()
     return _compile(functions, compiler, (*flags, *wanted, *tail))
 
 
+@parameters_from(_BUILD_PARAMETERS, returns=("bytes", "The library's content."))
 def compile_generated(functions, compiler, flags=None, tail=()) -> bytes:
     """The shared library of CasADi's generated ``functions``
     (:func:`compile_for_this_cpu`) with ``flags``, by default :data:`FUNCTION_FLAGS`, or
@@ -381,19 +384,11 @@ def compile_generated(functions, compiler, flags=None, tail=()) -> bytes:
 
     Parameters
     ----------
-    functions : dict of str to casadi.Function
-        The functions, by name.
-    compiler : list of str
-        The compiler's command (:func:`find_compiler`).
+    %(functions)s
+    %(compiler)s
     flags : tuple of str, optional
         Optimization flags asked for instead of the default ones.
-    tail : tuple of str
-        Flags after the optimization and native ones.
-
-    Returns
-    -------
-    bytes
-        The library's content.
+    %(tail)s
     """
     if flags is None:
         flags = FUNCTION_FLAGS if accepts(compiler, FUNCTION_FLAGS) else PORTABLE_FUNCTION_FLAGS
