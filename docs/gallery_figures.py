@@ -7,7 +7,9 @@ The commands and which file of each run is which figure are the table
 ``GALLERY_FIGURES`` of ``docs/_ext/softcurve_docs.py``, the one the site's gallery reads.
 Each command runs from the repository's root in a fresh folder (``{out}``), with this
 Python and Matplotlib's Agg backend; a figure is copied into docs/figures/ whole or not
-at all, after its command succeeded. Prints each example's time and each figure's size.
+at all, after its command succeeded, as a PNG of at most 256 colours (a figure's lines,
+text and colour maps need no more; it keeps each file a third of Matplotlib's size, under
+:data:`LARGEST`). Prints each example's time and each figure's size.
 The validation examples read their data from ``$SOFTCURVE_DATA`` (or ../shared/data) and
 ``train_reach.py`` needs PyTorch and Stable-Baselines3 (``pip install "softcurve[rl]"``);
 without them those examples are reported and skipped.
@@ -19,7 +21,6 @@ import argparse
 import importlib.util
 import os
 import shlex
-import shutil
 import subprocess
 import sys
 import tempfile
@@ -32,6 +33,11 @@ NEEDS = {
     "train_reach.py": ("torch", "stable_baselines3"),
 }
 """Python modules an example needs beyond softcurve's own dependencies."""
+COLOURS = 256
+"""Colours of a gallery PNG: the most a PNG palette holds."""
+LARGEST = 150 * 1024
+"""Bytes a gallery figure may take, so that a page loads at once (checked by
+``tests/test_docs_guide.py``)."""
 
 
 def gallery_table() -> dict:
@@ -74,9 +80,22 @@ def redraw(example: str, command: str, figures: dict, out: Path) -> list[Path]:
         if not source.is_file():
             raise RuntimeError(f"{example}: the command wrote no {produced} into {out}")
         partial = FIGURES / f".{name}.partial"
-        shutil.copyfile(source, partial)
+        compact(source, partial)
         written.append(partial.replace(FIGURES / name))
     return written
+
+
+def compact(source: Path, target: Path) -> Path:
+    """Write the PNG ``source`` to ``target`` on white with a palette of :data:`COLOURS`
+    colours (no dithering, so lines and text stay crisp); returns ``target``."""
+    from PIL import Image
+
+    with Image.open(source) as image:
+        white = Image.new("RGBA", image.size, "white")
+        flat = Image.alpha_composite(white, image.convert("RGBA")).convert("RGB")
+    palette = flat.quantize(COLOURS, method=Image.Quantize.MEDIANCUT, dither=Image.Dither.NONE)
+    palette.save(target, format="PNG", optimize=True)
+    return target
 
 
 def main(argv=None) -> int:
