@@ -12,12 +12,14 @@ text and colour maps need no more; it keeps each file a third of Matplotlib's si
 :data:`LARGEST`). Prints each example's time and each figure's size.
 The validation examples read their data from ``$SOFTCURVE_DATA`` (or ../shared/data) and
 ``train_reach.py`` needs PyTorch and Stable-Baselines3 (``pip install "softcurve[rl]"``);
-without them those examples are reported and skipped.
+without them those examples are reported and skipped; the last line counts the
+examples redrawn, skipped and failed (exit code 1 if any failed).
 """
 
 from __future__ import annotations
 
 import argparse
+import functools
 import importlib.util
 import os
 import shlex
@@ -33,6 +35,9 @@ NEEDS = {
     "train_reach.py": ("torch", "stable_baselines3"),
 }
 """Python modules an example needs beyond softcurve's own dependencies."""
+READS_DATA = ("validate_joint.py", "validate_caasenbrood2021.py")
+"""Examples that read the caasenbrood2021 recordings (found as
+``examples/validate_caasenbrood2021.py`` finds them)."""
 COLOURS = 256
 """Colours of a gallery PNG: the most a PNG palette holds."""
 LARGEST = 150 * 1024
@@ -60,8 +65,20 @@ def command_line(command: str, out: Path) -> list[str]:
 
 
 def missing(example: str) -> list[str]:
-    """The modules of :data:`NEEDS` that this Python cannot import."""
-    return [m for m in NEEDS.get(example, ()) if importlib.util.find_spec(m) is None]
+    """What of :data:`NEEDS` and :data:`READS_DATA` this Python lacks for ``example``."""
+    absent = [m for m in NEEDS.get(example, ()) if importlib.util.find_spec(m) is None]
+    if example in READS_DATA and _data_directory() is None:
+        absent.append("the caasenbrood2021 data (set SOFTCURVE_DATA)")
+    return absent
+
+
+@functools.cache
+def _data_directory() -> Path | None:
+    path = ROOT / "examples" / "validate_caasenbrood2021.py"
+    spec = importlib.util.spec_from_file_location("validate_caasenbrood2021", path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module.data_directory()
 
 
 def redraw(example: str, command: str, figures: dict, out: Path) -> list[Path]:
@@ -112,11 +129,12 @@ def main(argv=None) -> int:
         for name in chosen:
             print(f"{name}: {table[name][0]}")
         return 0
-    failed = 0
+    failed = skipped = 0
     for name in chosen:
         command, figures = table[name]
         absent = missing(name)
         if absent:
+            skipped += 1
             print(f"{name}: skipped, needs {', '.join(absent)}")
             continue
         start = time.perf_counter()
@@ -129,6 +147,7 @@ def main(argv=None) -> int:
                 continue
         sizes = ", ".join(f"{p.name} ({p.stat().st_size // 1024} KB)" for p in written)
         print(f"{name}: {time.perf_counter() - start:.1f} s, wrote {sizes}")
+    print(f"{len(chosen) - failed - skipped} redrawn, {skipped} skipped, {failed} failed")
     return 1 if failed else 0
 
 
