@@ -61,15 +61,20 @@ def test_a_guide_line_passes():
     assert not _findings(line)
 
 
-def _gallery_table() -> dict:
+def _load(path: Path):
     import importlib.util
 
-    spec = importlib.util.spec_from_file_location(
-        "softcurve_docs", DOCS / "_ext" / "softcurve_docs.py"
-    )
+    spec = importlib.util.spec_from_file_location(path.stem, path)
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
-    return module.GALLERY_FIGURES
+    return module
+
+
+def _gallery_table() -> dict:
+    return _load(DOCS / "_ext" / "softcurve_docs.py").GALLERY_FIGURES
+
+
+LARGEST = _load(DOCS / "gallery_figures.py").LARGEST
 
 
 def _examples() -> list[str]:
@@ -79,11 +84,13 @@ def _examples() -> list[str]:
     )
 
 
-def gallery_problems(table: dict, examples: list[str], figures: Path) -> list[str]:
+def gallery_problems(
+    table: dict, examples: list[str], figures: Path, largest: int = LARGEST
+) -> list[str]:
     """What keeps a gallery page from showing its example's figures, or the figures from
     being redrawn by docs/gallery_figures.py: an example without an entry or without a
     figure, an entry for no example, a figure missing from docs/figures, a command that
-    does not run the example or writes nowhere."""
+    does not run the example or writes nowhere, a figure larger than ``largest`` bytes."""
     problems = [
         f"{name}: no gallery figure" for name in examples if not table.get(name, ("", {}))[1]
     ]
@@ -95,6 +102,11 @@ def gallery_problems(table: dict, examples: list[str], figures: Path) -> list[st
             problems.append(f"{name}: the command {command!r} is not python or softcurve")
         problems += [
             f"{name}: docs/figures/{f} is missing" for f in made if not (figures / f).is_file()
+        ]
+        problems += [
+            f"{name}: docs/figures/{f} is larger than {largest} bytes"
+            for f in made
+            if (figures / f).is_file() and (figures / f).stat().st_size > largest
         ]
     return problems
 
@@ -113,4 +125,9 @@ def test_every_example_page_has_a_figure_that_can_be_redrawn():
     renamed = {**table, "hanging.toml": (table["hanging.toml"][0], {"gone.png": "states.png"})}
     assert gallery_problems(renamed, _examples(), DOCS / "figures") == [
         "hanging.toml: docs/figures/gone.png is missing"
+    ]
+    only = {"hanging.toml": table["hanging.toml"]}
+    size = (DOCS / "figures" / "hanging_states.png").stat().st_size
+    assert gallery_problems(only, ["hanging.toml"], DOCS / "figures", largest=size - 1) == [
+        f"hanging.toml: docs/figures/hanging_states.png is larger than {size - 1} bytes"
     ]
