@@ -274,3 +274,15 @@ def test_the_states_of_an_actuated_run_have_a_panel_of_its_inputs(paper_model):
     assert len(unactuated.plot().axes) == 3
     with pytest.raises(sc.ParameterError, match="inputs=True needs"):
         unactuated.plot(inputs=True)
+
+
+def test_the_equilibria_figure_draws_backbones_in_millimetres(table):
+    """As every other figure of a robot (before: metres, without a title)."""
+    figure = table.plot()
+    (ax,) = figure.axes
+    assert (ax.get_xlabel(), ax.get_ylabel()) == ("x [mm]", "z [mm]")
+    assert ax.get_title().endswith("seen along y")
+    z = np.concatenate([line.get_ydata() for line in ax.lines])
+    rest = 1e3 * table.load.model.robot.rest_length  # [mm]
+    assert 0.5 * rest < z.max() <= 1.5 * rest
+    plt.close(figure)

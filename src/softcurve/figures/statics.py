@@ -15,8 +15,8 @@ MM_PER_M = 1e3
 
 
 def plot_equilibria(table, ax=None):
-    """The backbone of every equilibrium in the x-z plane, styled by stability (a ring of
-    equilibria is drawn by its representative).
+    """The backbone of every equilibrium in the x-z plane [mm], styled by stability (a ring
+    of equilibria is drawn by its representative).
 
     Parameters
     ----------
@@ -32,13 +32,16 @@ def plot_equilibria(table, ax=None):
     """
     figure, (ax,) = panels(ax, 1, "the equilibria figure", figsize=(5.0, 5.0))
     equilibria = tuple(table.equilibria)
-    shapes = backbones(table.load.model, [e.q for e in equilibria], BACKBONE_POINTS)
+    shapes = MM_PER_M * backbones(table.load.model, [e.q for e in equilibria], BACKBONE_POINTS)
     for k, (e, shape) in enumerate(zip(equilibria, shapes, strict=True)):
         label = f"#{k} {e.stability}" + (" ring" if e.continuum else "")
         ax.plot(shape[:, 0], shape[:, 2], STABILITY_STYLES.get(e.stability, "-"), label=label)
-    ax.set_xlabel("x [m]")
-    ax.set_ylabel("z [m]")
+    ax.set_xlabel("x [mm]")
+    ax.set_ylabel("z [mm]")
     ax.set_aspect("equal")
+    ax.grid(True, alpha=0.3)
+    count = f"{len(equilibria)} equilibri{'um' if len(equilibria) == 1 else 'a'}"
+    ax.set_title(f"{count}, seen along y")
     if equilibria:
         ax.legend(fontsize="small")
     return figure
