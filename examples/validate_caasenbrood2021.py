@@ -353,7 +353,7 @@ def static_figure(results, data, path: Path):
         beta.append(norm * REST_LENGTH)
         moment.append(net[1:] @ (k_vec / norm) / REST_LENGTH)  # = k_b(beta) beta
     beta, moment = np.array(beta), np.array(moment)
-    reports = {law: fit_stiffness(beta, moment, law, label="beta [rad]", force_unit="N m")
+    reports = {law: fit_stiffness(beta, moment, law, label="beta", mode="bending")
                for law in ("tanh", "linear")}  # fmt: skip
     fig, ax = plt.subplots(figsize=(6, 4))
     ax.plot(beta, moment, "k.", ms=2, label="measured (via identified pressure map)")

@@ -110,6 +110,18 @@ def test_a_large_obstacle_is_cut_to_the_robots_box_not_framed(paper_model, traje
     np.testing.assert_allclose(area, span[1] * span[2], rtol=1e-6)
 
 
+def test_an_obstacle_outside_the_robots_space_is_said_not_drawn(paper_model, trajectory):
+    class Far(Wall):
+        def surface(self):
+            vertices, triangles = super().surface()
+            return vertices + [2.0, 0.0, 0.0], triangles  # 2 m away
+
+    labels = ["a"] * trajectory.t.size
+    with pytest.warns(UserWarning, match="obstacle 2 lies wholly outside .* not drawn"):
+        scene = build_scene(paper_model, trajectory.q, labels, rings=4, obstacles=[Wall(), Far()])
+    assert len(scene.obstacles) == 1
+
+
 def test_clipping_a_mesh_keeps_what_is_inside_and_drops_what_is_not():
     from softcurve.figures.scene import clip_mesh
 

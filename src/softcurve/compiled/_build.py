@@ -342,7 +342,9 @@ def accepts(compiler, flags) -> bool:
         with tempfile.TemporaryDirectory() as tmp:
             Path(tmp, "probe.c").touch()
             try:
-                run_compiler([*compiler, *flags, "-c", "probe.c", "-o", "probe.o"], tmp)
+                # -Werror: clang takes GCC's optimization flags it lacks with a warning
+                command = [*compiler, *flags, "-Werror", "-c", "probe.c", "-o", "probe.o"]
+                run_compiler(command, tmp)
                 _ACCEPTED[key] = True
             except (OSError, subprocess.CalledProcessError):
                 _ACCEPTED[key] = False

@@ -62,7 +62,8 @@ def compile_function(function: ca.Function, flags: tuple[str, ...] | None = None
         return build.compile_generated({name: function}, compiler, asked, ("-fPIC",))
 
     # the flags asked for, not those a compiler accepted: the key holds no compiler
-    key = build.cache_key("function", function.serialize(), asked)
+    flags_key = asked if asked is not None else ("default", build.FUNCTION_FLAGS)
+    key = build.cache_key("function", function.serialize(), flags_key)
     try:
         _, loaded = cache.load_or_build(
             "function", key, make, lambda path: (load or load_external)(path, name), stacklevel=2

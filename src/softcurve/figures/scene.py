@@ -11,6 +11,7 @@ at 25 frames per second to a few hundred kilobytes.
 from __future__ import annotations
 
 import base64
+import warnings
 from dataclasses import dataclass
 
 import numpy as np
@@ -54,7 +55,7 @@ class Scene:
     obstacles : tuple of dict
         ``{"vertices": (V, 3) [mm], "triangles": (M, 3) indices}`` per obstacle, the part
         of it inside ``bounds`` (:func:`clip_mesh`); an obstacle wholly outside is left
-        out.
+        out, with a ``UserWarning`` that says so.
     base_axes : float
         Length of the drawn base frame's axes [mm].
     bounds : ndarray, shape (3, 2)
@@ -360,13 +361,21 @@ def build_scene(
     low, high = points.min(axis=0), points.max(axis=0)
     centre, half = (low + high) / 2, AXES_MARGIN * (high - low).max() / 2
     clipped = []
-    for mesh in meshes:
+    for i, mesh in enumerate(meshes):
         vertices, triangles = clip_mesh(
             mesh["vertices"], mesh["triangles"], centre - half, centre + half
         )
         if len(triangles):
             clipped.append(
                 {"vertices": np.round(vertices, 4).tolist(), "triangles": triangles.tolist()}
+            )
+        else:
+            warnings.warn(
+                f"obstacle {i + 1} lies wholly outside the space the robot moves in "
+                f"({np.round(centre - half, 1).tolist()} .. {np.round(centre + half, 1).tolist()}"
+                " mm) and is not drawn",
+                UserWarning,
+                stacklevel=3,
             )
     meshes = tuple(clipped)
     return Scene(

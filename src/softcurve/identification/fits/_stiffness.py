@@ -158,7 +158,8 @@ def fit_stiffness(
     confidence : float
         Confidence level of the report's intervals, a probability in (0, 1).
     label : str
-        Name of the strain, for the report's figure (its unit is added from ``mode``).
+        Name of the strain, for the report's figure; its unit from ``mode`` is added
+        unless the label ends in one (``"beta [rad]"``).
     force_unit : str
         Unit of the force, for the report's figure (default: from ``mode``).
     mode : {"elongation", "bending"}, optional
@@ -286,7 +287,7 @@ def fit_stiffness(
         predicted=fitted[:, None] * units[1],
         signals=("force",),
         units=(force_unit or law_units["force"],),
-        abscissa_label=f"{label} [{law_units['strain']}]",
+        abscissa_label=label if label.endswith("]") else f"{label} [{law_units['strain']}]",
         parameter_units=tuple(law_units[q] for q in STIFFNESS_LAWS[kind].parameter_quantities),
         confidence=confidence,
         n_evaluations=count,
