@@ -118,21 +118,19 @@ def variable_label(scenario: Scenario, name: str) -> str:
         elongation stiffness a1 [N/m]"``, ``"tensions[0] [N]"``; an actuator parameter
         keeps its name (its unit is its actuator's).
     """
-    match = STATE.match(name)
-    if match and match.group(1) in ("q0", "qd0"):
-        i = int(match.group(2))
-        words, unit, rate_unit = COORDINATES[i % len(COORDINATES)]
-        segment = f", segment {i // len(COORDINATES)}"
-        if match.group(1) == "q0":
+    kind, (index, *_) = variable_target(scenario, name)
+    if kind in ("q0", "qd0"):
+        words, unit, rate_unit = COORDINATES[index % len(COORDINATES)]
+        segment = f", segment {index // len(COORDINATES)}"
+        if kind == "q0":
             return f"initial {words}{segment} [{unit}]"
         return f"initial rate of {words}{segment} [{rate_unit}]"
-    if parameter_index(scenario.robot, name) is not None:
+    if kind == "parameters":
         return scenario.robot.layout.label(name)
-    actuator = scenario.actuator()
-    match = INPUT.match(name)
-    if actuator is not None and match and match.group(1) in ("inputs", actuator.input_name):
+    if kind == "inputs":
+        actuator = scenario.actuator()
         unit = f" [{actuator.input_unit}]" if actuator.input_unit else ""
-        return f"{actuator.input_name}[{match.group(2)}]{unit}"
+        return f"{actuator.input_name}[{index}]{unit}"
     return name
 
 
