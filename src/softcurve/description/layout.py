@@ -23,8 +23,6 @@ from softcurve.description.materials import LAW_UNITS, STIFFNESS_LAWS, Creep
 
 _VECTOR3 = ("[0]", "[1]", "[2]")
 _MATRIX3 = tuple(f"[{i},{j}]" for i in range(3) for j in range(3))
-FORCE_UNITS = ("N", "N m^2", "N m^2")
-"""Units of a segment's generalized forces, dual to ``(l, kx, ky)`` [m, 1/m, 1/m]."""
 DAMPING_UNITS = (
     "N s/m",
     "N m s",
