@@ -321,3 +321,15 @@ def test_contact_figure_without_contact_shows_the_record():
     assert figure.axes[1].get_xlim() == pytest.approx((0.0, 2.999))
     assert "no contact" in figure.axes[0].get_title()
     plt.close(figure)
+
+
+def test_contact_figure_of_an_empty_record_is_drawn():
+    """A run that failed before its first output: the figure is drawn, empty, as before
+    the contact window (which raised on the empty record)."""
+    empty = sc.ContactHistory(
+        np.zeros(0), np.zeros((0, 1, 3)), np.zeros((0, 1, 3)), np.zeros((0, 3)), np.zeros(0),
+        ("0: plane",),
+    )  # fmt: skip
+    figure = empty.plot()
+    assert "no contact" in figure.axes[0].get_title()
+    plt.close(figure)

@@ -164,6 +164,8 @@ def contact_window(t, magnitude) -> tuple[float, float] | None:
         ``(start, end)`` [s].
     """
     t = np.asarray(t, dtype=np.float64)
+    if not t.size:
+        return None
     touching = np.flatnonzero(np.any(np.asarray(magnitude).reshape(t.size, -1) > 0, axis=1))
     if not touching.size:
         return None
@@ -188,8 +190,10 @@ def impact_window(t, magnitude) -> tuple[float, float] | None:
         ``(start, end)`` [s].
     """
     t = np.asarray(t, dtype=np.float64)
+    if not t.size:
+        return None
     largest = np.asarray(magnitude, dtype=np.float64).reshape(t.size, -1).max(axis=1)
-    if not t.size or not largest.max() > 0:
+    if not largest.max() > 0:
         return None
     peak = int(largest.argmax())
     high = largest >= IMPACT_LEVEL * largest[peak]
