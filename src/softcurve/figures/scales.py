@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from softcurve.base.docs import parameters_from
 from softcurve.base.validation import ParameterError, real_scalar
 
 NOISE = 1e-9
@@ -147,53 +148,57 @@ def _around(t, first: int, last: int, margin: float) -> tuple[float, float]:
     return (float(max(start - pad, t[0])), float(min(end + pad, t[-1])))
 
 
+_FORCE_WINDOW = {
+    "t": ("array_like, shape (T,)", "Times [s]."),
+    "magnitude": (
+        "array_like, shape (T, k)",
+        "The force of each obstacle [N] (zero out of contact).",
+    ),
+}
+"""The arguments of the contact figure's two windows."""
+_forces_window = parameters_from(
+    _FORCE_WINDOW, returns=("tuple of float or None", "``(start, end)`` [s].")
+)
+
+
+def _samples(t, magnitude) -> tuple[np.ndarray, np.ndarray]:
+    """``t`` (T,) and the forces as (T, k) float arrays (k = 0 for an empty record)."""
+    t = np.asarray(t, dtype=np.float64)
+    return t, np.asarray(magnitude, dtype=np.float64).reshape(t.size, -1 if t.size else 0)
+
+
+@_forces_window
 def contact_window(t, magnitude) -> tuple[float, float] | None:
     """The time range of the contact: from the last sample before any force to the first
-    after the last, with ``CONTACT_MARGIN`` of it on either side; None without contact.
+    after the last, with ``CONTACT_MARGIN`` of it on either side; None without contact
+    (or samples).
 
     Parameters
     ----------
-    t : array_like, shape (T,)
-        Times [s].
-    magnitude : array_like, shape (T, k)
-        The force of each obstacle [N] (zero out of contact).
-
-    Returns
-    -------
-    tuple of float or None
-        ``(start, end)`` [s].
+    %(t)s
+    %(magnitude)s
     """
-    t = np.asarray(t, dtype=np.float64)
-    if not t.size:
-        return None
-    touching = np.flatnonzero(np.any(np.asarray(magnitude).reshape(t.size, -1) > 0, axis=1))
+    t, forces = _samples(t, magnitude)
+    touching = np.flatnonzero(np.any(forces > 0, axis=1))
     if not touching.size:
         return None
     return _around(t, touching[0], touching[-1], CONTACT_MARGIN)
 
 
+@_forces_window
 def impact_window(t, magnitude) -> tuple[float, float] | None:
     """The time range of the largest force's impact: the samples around its peak above
     ``IMPACT_LEVEL`` of it, from the sample before to the one after, widened by that span
-    on either side; None without contact.
+    on either side; None without contact (or samples).
 
     Parameters
     ----------
-    t : array_like, shape (T,)
-        Times [s].
-    magnitude : array_like, shape (T, k)
-        The force of each obstacle [N].
-
-    Returns
-    -------
-    tuple of float or None
-        ``(start, end)`` [s].
+    %(t)s
+    %(magnitude)s
     """
-    t = np.asarray(t, dtype=np.float64)
-    if not t.size:
-        return None
-    largest = np.asarray(magnitude, dtype=np.float64).reshape(t.size, -1).max(axis=1)
-    if not largest.max() > 0:
+    t, forces = _samples(t, magnitude)
+    largest = forces.max(axis=1, initial=0.0)
+    if not largest.max(initial=0.0) > 0:
         return None
     peak = int(largest.argmax())
     high = largest >= IMPACT_LEVEL * largest[peak]
