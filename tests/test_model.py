@@ -323,3 +323,12 @@ def test_the_cvodes_driver_builds_wherever_its_prerequisites_hold():
     assert native.driver() is not None, (
         "the driver's C files (driver_library.C_FOLDER) failed to build"
     )
+
+
+def test_the_cache_key_holds_every_module_of_the_symbolic_layer():
+    """A module added to the symbolic layer (the segment's Functions, the chain
+    algorithms) changes what the generated code computes: it is in the key."""
+    package = Path(sc.__file__).parent
+    hashed = set(model_module.key_sources())
+    assert set((package / "symbolic").glob("*.py")) <= hashed
+    assert {package / "symbolic" / name for name in ("segment.py", "chain.py")} <= hashed

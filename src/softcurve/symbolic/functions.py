@@ -43,9 +43,16 @@ def dynamics_terms_spec(e, *more) -> tuple:
     )
 
 
+WITHOUT_CSE = ("coriolis_matrix",)
+"""Functions built without eliminating common subexpressions: CasADi's ``cse`` of the
+Christoffel matrix (a derivative through every segment's calls, for analysis in the
+virtual machine) takes 11 s at ten segments and saves 28 % of its operations
+(``benchmarks/bench_chain.py --profile``)."""
+
+
 def build_functions(spec: dict, p) -> dict[str, ca.Function]:
     """One SX Function per entry of ``spec``, ``p`` appended to its inputs, each output
-    with its common subexpressions eliminated.
+    with its common subexpressions eliminated (but those of :data:`WITHOUT_CSE`).
 
     Parameters
     ----------
@@ -56,9 +63,9 @@ def build_functions(spec: dict, p) -> dict[str, ca.Function]:
     """
     functions = {}
     for name, (inputs, in_names, outputs, out_names) in spec.items():
-        functions[name] = ca.Function(
-            name, [*inputs, p], [ca.cse(o) for o in outputs], [*in_names, "p"], out_names
-        )
+        if name not in WITHOUT_CSE:
+            outputs = [ca.cse(o) for o in outputs]
+        functions[name] = ca.Function(name, [*inputs, p], outputs, [*in_names, "p"], out_names)
     return functions
 
 

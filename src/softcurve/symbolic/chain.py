@@ -1,0 +1,235 @@
+"""Algorithms over the chain of segments: the mass matrix, inverse and forward dynamics,
+each a recursion that calls one segment's Functions (:mod:`softcurve.symbolic.segment`)
+once per segment.
+
+- :func:`mass_matrix`, the composite-body algorithm: each segment's momentum per unit
+  rate, ``H_i + X_i^T I_(i+1) S_i``, carried to the base through the rigid transforms;
+  ``O(N^2)`` 6x3 products on top of ``N`` segment calls.
+- :func:`inverse_dynamics`, the recursive Newton-Euler algorithm: accelerations out
+  from the base, wrenches back from the tip; ``O(N)``.
+- :func:`forward_dynamics`, the articulated-body algorithm: the articulated inertia
+  ``I_i = M_i + X_i^T I_(i+1) X_i - Y_i^T U_i^-1 Y_i`` of everything from segment ``i``
+  on, back from the tip, then the accelerations out from the base, one 3x3 solve per
+  segment; ``O(N)``, where solving with the mass matrix costs ``O(N^3)``
+  (``benchmarks/bench_chain.py`` measures both).
+
+Accelerations ``A = (alpha, a)`` and wrenches ``W = (moment, force)`` are in the
+coordinates of the frame they belong to; gravity enters as the base's acceleration
+``(0, -g)``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import casadi as ca
+
+from softcurve.symbolic.segment import BIAS_OUTPUTS, INERTIA_OUTPUTS, SegmentFunctions
+
+
+@dataclass(frozen=True)
+class SegmentTerms:
+    """The outputs of one segment's Functions at its symbols (shapes in
+    :mod:`softcurve.symbolic.segment`); the velocity terms are None where only the
+    configuration was given."""
+
+    X: ca.SX
+    S: ca.SX
+    M: ca.SX
+    H: ca.SX
+    D: ca.SX
+    omega_tip: ca.SX | None = None
+    c: ca.SX | None = None
+    w: ca.SX | None = None
+    b: ca.SX | None = None
+
+
+def _coordinates(v, i):
+    return v[3 * i : 3 * i + 3]
+
+
+def segment_inertias(functions: SegmentFunctions, q, segments) -> list[SegmentTerms]:
+    """Each segment's linear maps at configuration ``q``.
+
+    Parameters
+    ----------
+    functions : SegmentFunctions
+        The segment's Functions.
+    q : casadi.SX, shape (3N,)
+        Coordinates.
+    segments : sequence of SegmentSymbols
+        Each segment's parameters (mass and radius are used).
+    """
+    terms = []
+    for i, seg in enumerate(segments):
+        out = functions.inertia(_coordinates(q, i), seg.mass, seg.radius)
+        terms.append(SegmentTerms(**dict(zip(INERTIA_OUTPUTS, out, strict=True))))
+    return terms
+
+
+def segment_motions(functions: SegmentFunctions, q, qd, segments) -> list[SegmentTerms]:
+    """Each segment's linear maps and velocity terms at ``(q, qd)``: the angular
+    velocities carried out from the base at rest (the first segment calls
+    ``SegmentFunctions.base_motion``).
+
+    Parameters
+    ----------
+    functions : SegmentFunctions
+        The segment's Functions.
+    q, qd : casadi.SX, shape (3N,)
+        Coordinates and rates.
+    segments : sequence of SegmentSymbols
+        Each segment's parameters (mass and radius are used).
+    """
+    terms, omega = [], None
+    names = (*INERTIA_OUTPUTS, *BIAS_OUTPUTS)
+    for i, seg in enumerate(segments):
+        q_i, qd_i = _coordinates(q, i), _coordinates(qd, i)
+        if omega is None:
+            out = functions.base_motion(q_i, qd_i, seg.mass, seg.radius)
+        else:
+            out = functions.motion(q_i, qd_i, omega, seg.mass, seg.radius)
+        term = SegmentTerms(**dict(zip(names, out, strict=True)))
+        terms.append(term)
+        omega = term.omega_tip
+    return terms
+
+
+def mass_matrix(terms: list[SegmentTerms]):
+    """``D(q)``, shape (3N, 3N), by the composite-body algorithm.
+
+    Parameters
+    ----------
+    terms : list of SegmentTerms
+        From :func:`segment_inertias` or :func:`segment_motions`.
+    """
+    n_segments = len(terms)
+    blocks = [[None] * n_segments for _ in range(n_segments)]
+    composite = ca.SX.zeros(6, 6)  # of everything beyond the tip, tip coordinates
+    for i in reversed(range(n_segments)):
+        t = terms[i]
+        carried = composite @ t.S
+        blocks[i][i] = t.D + t.S.T @ carried
+        momentum = t.H + t.X.T @ carried  # per unit qd_i, frame i
+        for j in reversed(range(i)):
+            blocks[j][i] = terms[j].S.T @ momentum
+            blocks[i][j] = blocks[j][i].T
+            momentum = terms[j].X.T @ momentum
+        composite = t.M + t.X.T @ composite @ t.X
+    d = ca.blockcat(blocks)
+    return 0.5 * (d + d.T)  # symmetric already; removes round-off
+
+
+def inverse_dynamics(terms: list[SegmentTerms], qdd, base_acceleration):
+    """``D qdd + C qd + G``, shape (3N,), by the recursive Newton-Euler algorithm.
+
+    Parameters
+    ----------
+    terms : list of SegmentTerms
+        From :func:`segment_motions`.
+    qdd : casadi.SX, shape (3N,)
+        Accelerations.
+    base_acceleration : casadi.SX, shape (6,)
+        ``(alpha, a)`` of the base frame; ``(0, -g)`` in base coordinates for gravity.
+    """
+    accelerations, a = [], base_acceleration
+    for i, t in enumerate(terms):
+        accelerations.append(a)
+        a = t.X @ a + t.S @ _coordinates(qdd, i) + t.c
+    forces, wrench = [None] * len(terms), ca.SX.zeros(6)
+    for i in reversed(range(len(terms))):
+        t, a, qdd_i = terms[i], accelerations[i], _coordinates(qdd, i)
+        forces[i] = t.H.T @ a + t.D @ qdd_i + t.S.T @ wrench + t.b
+        wrench = t.M @ a + t.H @ qdd_i + t.X.T @ wrench + t.w
+    return ca.vertcat(*forces)
+
+
+def forward_dynamics(terms: list[SegmentTerms], force, base_acceleration):
+    """``qdd`` for the generalized force ``force`` (all but the inertial terms), shape
+    (3N,), by the articulated-body algorithm.
+
+    Parameters
+    ----------
+    terms : list of SegmentTerms
+        From :func:`segment_motions`.
+    force : casadi.SX, shape (3N,)
+        ``tau + K^T lambda - K(q) - R qd`` [N, N m^2, N m^2].
+    base_acceleration : casadi.SX, shape (6,)
+        ``(alpha, a)`` of the base frame; ``(0, -g)`` in base coordinates for gravity.
+    """
+    gains = [None] * len(terms)
+    inertia, bias = ca.SX.zeros(6, 6), ca.SX.zeros(6)  # articulated, beyond the tip
+    for i in reversed(range(len(terms))):
+        t = terms[i]
+        inertia_x = inertia @ t.X
+        coupling = t.H.T + t.S.T @ inertia_x
+        joint = t.D + t.S.T @ inertia @ t.S
+        carried = inertia @ t.c + bias
+        solved = solve_positive_definite(
+            joint, ca.horzcat(coupling, _coordinates(force, i) - t.b - t.S.T @ carried)
+        )
+        gain, offset = solved[:, :6], solved[:, 6]
+        gains[i] = (gain, offset)
+        inertia = t.M + t.X.T @ inertia_x - coupling.T @ gain
+        bias = t.w + t.X.T @ carried + coupling.T @ offset
+    qdd, a = [], base_acceleration
+    for t, (gain, offset) in zip(terms, gains, strict=True):
+        qdd_i = offset - gain @ a
+        qdd.append(qdd_i)
+        a = t.X @ a + t.S @ qdd_i + t.c
+    return ca.vertcat(*qdd)
+
+
+def solve_positive_definite(a, b):
+    """``a^-1 b`` for a symmetric positive definite ``a`` by the factorization
+    ``a = L diag(d) L^T`` without pivoting, which is backward stable for such matrices.
+
+    CasADi's ``solve`` of an SX matrix orthogonalizes its columns by Gram-Schmidt, whose
+    error grows with the square of the condition number: on a segment's joint inertia
+    (elongation and bending rows differ by ``l^2``, 1e-9 for a segment of a few
+    millimetres) the forward dynamics of 20 segments then lost five digits
+    (``tests/test_chain.py``).
+
+    Parameters
+    ----------
+    a : casadi.SX, shape (k, k)
+        Symmetric positive definite; its lower triangle is read.
+    b : casadi.SX, shape (k, m)
+        Right-hand sides.
+    """
+    k = a.shape[0]
+    lower, d = [[None] * k for _ in range(k)], [None] * k
+    for j in range(k):
+        d[j] = a[j, j] - sum(lower[j][m] ** 2 * d[m] for m in range(j))
+        for i in range(j + 1, k):
+            lower[i][j] = (a[i, j] - sum(lower[i][m] * lower[j][m] * d[m] for m in range(j))) / d[j]
+    y = [None] * k
+    for i in range(k):
+        y[i] = b[i, :] - sum(lower[i][m] * y[m] for m in range(i))
+    x = [None] * k
+    for i in reversed(range(k)):
+        x[i] = y[i] / d[i] - sum(lower[m][i] * x[m] for m in range(i + 1, k))
+    return ca.vertcat(*x)
+
+
+def gravity_energy(functions: SegmentFunctions, q, segments, base_gravity):
+    """``V_g = -sum_i m_i g . x_i`` [J] over the segments' centres of mass.
+
+    Parameters
+    ----------
+    functions : SegmentFunctions
+        The segment's Functions.
+    q : casadi.SX, shape (3N,)
+        Coordinates.
+    segments : sequence of SegmentSymbols
+        Each segment's parameters (mass is used).
+    base_gravity : casadi.SX, shape (3,)
+        Gravity [m/s^2] in base coordinates.
+    """
+    rotation, origin, energy = ca.SX.eye(3), ca.SX.zeros(3), 0
+    for i, seg in enumerate(segments):
+        tip_rotation, tip_position, centre = functions.frame(_coordinates(q, i))
+        energy -= seg.mass * ca.dot(base_gravity, origin + rotation @ centre)
+        origin = origin + rotation @ tip_position
+        rotation = rotation @ tip_rotation
+    return energy
