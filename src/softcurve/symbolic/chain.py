@@ -29,48 +29,27 @@ from softcurve.symbolic.segment import BIAS_OUTPUTS, INERTIA_OUTPUTS, SegmentFun
 
 @dataclass(frozen=True)
 class SegmentTerms:
-    """The outputs of one segment's Functions at its symbols (shapes in
-    :mod:`softcurve.symbolic.segment`); the velocity terms are None where only the
-    configuration was given."""
+    """The outputs of one segment's ``motion`` Function at its symbols (shapes in
+    :mod:`softcurve.symbolic.segment`)."""
 
     X: ca.SX
     S: ca.SX
     M: ca.SX
     H: ca.SX
     D: ca.SX
-    omega_tip: ca.SX | None = None
-    c: ca.SX | None = None
-    w: ca.SX | None = None
-    b: ca.SX | None = None
+    omega_tip: ca.SX
+    c: ca.SX
+    w: ca.SX
+    b: ca.SX
 
 
 def _coordinates(v, i):
     return v[3 * i : 3 * i + 3]
 
 
-def segment_inertias(functions: SegmentFunctions, q, segments) -> list[SegmentTerms]:
-    """Each segment's linear maps at configuration ``q``.
-
-    Parameters
-    ----------
-    functions : SegmentFunctions
-        The segment's Functions.
-    q : casadi.SX, shape (3N,)
-        Coordinates.
-    segments : sequence of SegmentSymbols
-        Each segment's parameters (mass and radius are used).
-    """
-    terms = []
-    for i, seg in enumerate(segments):
-        out = functions.inertia(_coordinates(q, i), seg.mass, seg.radius)
-        terms.append(SegmentTerms(**dict(zip(INERTIA_OUTPUTS, out, strict=True))))
-    return terms
-
-
 def segment_motions(functions: SegmentFunctions, q, qd, segments) -> list[SegmentTerms]:
     """Each segment's linear maps and velocity terms at ``(q, qd)``: the angular
-    velocities carried out from the base at rest (the first segment calls
-    ``SegmentFunctions.base_motion``).
+    velocities carried out from the base at rest.
 
     Parameters
     ----------
@@ -81,14 +60,12 @@ def segment_motions(functions: SegmentFunctions, q, qd, segments) -> list[Segmen
     segments : sequence of SegmentSymbols
         Each segment's parameters (mass and radius are used).
     """
-    terms, omega = [], None
+    terms, omega = [], ca.SX.zeros(3)
     names = (*INERTIA_OUTPUTS, *BIAS_OUTPUTS)
     for i, seg in enumerate(segments):
-        q_i, qd_i = _coordinates(q, i), _coordinates(qd, i)
-        if omega is None:
-            out = functions.base_motion(q_i, qd_i, seg.mass, seg.radius)
-        else:
-            out = functions.motion(q_i, qd_i, omega, seg.mass, seg.radius)
+        out = functions.motion(
+            _coordinates(q, i), _coordinates(qd, i), omega, seg.mass, seg.radius
+        )
         term = SegmentTerms(**dict(zip(names, out, strict=True)))
         terms.append(term)
         omega = term.omega_tip
@@ -101,7 +78,7 @@ def mass_matrix(terms: list[SegmentTerms]):
     Parameters
     ----------
     terms : list of SegmentTerms
-        From :func:`segment_inertias` or :func:`segment_motions`.
+        From :func:`segment_motions` (the maps alone are used).
     """
     n_segments = len(terms)
     blocks = [[None] * n_segments for _ in range(n_segments)]

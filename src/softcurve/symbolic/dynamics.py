@@ -171,8 +171,10 @@ def build_dynamics(
     base_gravity = base_rotation.T @ gravity
     at_rest, falling = ca.SX.zeros(6), ca.vertcat(ca.SX.zeros(3), -base_gravity)
 
-    mass_matrix = chain.mass_matrix(chain.segment_inertias(functions, q, segments))
     motions = chain.segment_motions(functions, q, qd, segments)
+    # of q alone, though built from the Functions that take qd too (see
+    # SegmentFunctions.motion): a Function of q alone takes it at qd = 0
+    mass_matrix = chain.mass_matrix(motions)
     coriolis_force = chain.inverse_dynamics(motions, ca.SX.zeros(n), at_rest)
     gravity_energy = chain.gravity_energy(functions, q, segments, base_gravity)
     # G as the gradient of V_g rather than a Newton-Euler pass with qd = qdd = 0: the same

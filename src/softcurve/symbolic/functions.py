@@ -50,6 +50,20 @@ virtual machine) takes 11 s at ten segments and saves 28 % of its operations
 (``benchmarks/bench_chain.py --profile``)."""
 
 
+def configuration_only(e, expression):
+    """``expression`` of ``e`` (a function of ``q`` alone, such as ``D``) freed of the
+    symbol ``qd``, which reaches it only through the inputs of the segments' Functions.
+
+    Parameters
+    ----------
+    e : DynamicsExpressions
+        The expressions ``expression`` belongs to.
+    expression : casadi.SX
+        Independent of ``qd`` in value.
+    """
+    return ca.substitute(expression, e.qd, ca.SX.zeros(e.qd.shape[0]))
+
+
 def build_functions(spec: dict, p) -> dict[str, ca.Function]:
     """One SX Function per entry of ``spec``, ``p`` appended to its inputs, each output
     with its common subexpressions eliminated (but those of :data:`WITHOUT_CSE`).
@@ -92,7 +106,7 @@ def symbolic_functions(e) -> dict[str, ca.Function]:
     jacobian = ca.vertcat(ca.jacobian(frame.position, q), frame.rotation @ frame.angular_jacobian)
     spec = {
         "dynamics_terms": dynamics_terms_spec(e),
-        "mass_matrix": ([q], ["q"], [e.mass_matrix], ["D"]),
+        "mass_matrix": ([q], ["q"], [configuration_only(e, e.mass_matrix)], ["D"]),
         "coriolis_matrix": ([q, qd], ["q", "qd"], [e.coriolis_matrix], ["C"]),
         "coriolis_force": ([q, qd], ["q", "qd"], [e.coriolis_force], ["Cqd"]),
         "gravity_force": ([q], ["q"], [e.gravity_force], ["G"]),

@@ -230,26 +230,21 @@ class SegmentFunctions:
     frame : casadi.Function
         ``(q_i) -> (R_tip (3, 3), r_tip (3,), centre of mass (3,))``: the tip frame's pose
         and the centre of mass in the base frame [m].
-    inertia : casadi.Function
-        ``(q_i, mass, radius) -> (X, S, M, H, D_i)``: the configuration's linear maps.
     motion : casadi.Function
         ``(q_i, qd_i, omega, mass, radius) -> (X, S, M, H, D_i, omega_tip, c, w, b)``:
-        the maps and the velocity terms, for the chain algorithms that need both.
-    base_motion : casadi.Function
-        ``(q_i, qd_i, mass, radius) -> (X, ..., b)``: :attr:`motion` of a segment whose
-        base frame does not rotate (the first one), where the terms of ``omega`` vanish:
-        a third of the segment's operations (``benchmarks/bench_chain.py``).
+        the configuration's linear maps and the velocity terms. One Function for both:
+        the maps and the velocity terms share the slices' poses and Jacobians, and a
+        library holding a second Function of the maps alone compiles for as long again
+        (the maps of a configuration alone are ``motion`` at ``qd_i = 0``).
     """
 
     frame: ca.Function
-    inertia: ca.Function
     motion: ca.Function
-    base_motion: ca.Function
 
 
 INERTIA_OUTPUTS = ("X", "S", "M", "H", "D")
-"""Names of the linear maps of a segment, the outputs of ``SegmentFunctions.inertia``
-and the first of ``SegmentFunctions.motion``."""
+"""Names of the linear maps of a segment, the first outputs of
+``SegmentFunctions.motion``."""
 
 BIAS_OUTPUTS = ("omega_tip", "c", "w", "b")
 """Names of the velocity terms, the last outputs of ``SegmentFunctions.motion``."""
@@ -293,7 +288,6 @@ def segment_functions(quadrature_nodes: int, inline: bool = False) -> SegmentFun
     biases = [e.tip_omega, *(at_rest(v) for v in (e.tip_acceleration, e.base_wrench, e.force))]
     options = {"never_inline": not inline, "cse": True}
     shape = (e.mass, e.radius)
-    resting = ca.substitute(biases, [e.omega], [ca.SX.zeros(3)])
     return SegmentFunctions(
         frame=ca.Function(
             "segment_frame",
@@ -303,27 +297,11 @@ def segment_functions(quadrature_nodes: int, inline: bool = False) -> SegmentFun
             ["R_tip", "r_tip", "centre"],
             options,
         ),
-        inertia=ca.Function(
-            "segment_inertia",
-            [e.q, *shape],
-            maps,
-            ["q", "mass", "radius"],
-            list(INERTIA_OUTPUTS),
-            options,
-        ),
         motion=ca.Function(
             "segment_motion",
             [e.q, e.qd, e.omega, *shape],
             [*maps, *biases],
             ["q", "qd", "omega", "mass", "radius"],
-            [*INERTIA_OUTPUTS, *BIAS_OUTPUTS],
-            options,
-        ),
-        base_motion=ca.Function(
-            "segment_base_motion",
-            [e.q, e.qd, *shape],
-            [*maps, *resting],
-            ["q", "qd", "mass", "radius"],
             [*INERTIA_OUTPUTS, *BIAS_OUTPUTS],
             options,
         ),
