@@ -63,20 +63,134 @@ def segment_motions(functions: SegmentFunctions, q, qd, segments) -> list[Segmen
     terms, omega = [], ca.SX.zeros(3)
     names = (*INERTIA_OUTPUTS, *BIAS_OUTPUTS)
     for i, seg in enumerate(segments):
-        out = functions.motion(
-            _coordinates(q, i), _coordinates(qd, i), omega, seg.mass, seg.radius
-        )
+        out = functions.motion(_coordinates(q, i), _coordinates(qd, i), omega, seg.mass, seg.radius)
         term = SegmentTerms(**dict(zip(names, out, strict=True)))
         terms.append(term)
         omega = term.omega_tip
     return terms
 
 
-def mass_matrix(terms: list[SegmentTerms]):
+def _tip_acceleration(t, qdd_i, a):
+    return t.X @ a + t.S @ qdd_i + t.c
+
+
+def _newton_euler(t, a, qdd_i, wrench):
+    force = t.H.T @ a + t.D @ qdd_i + t.S.T @ wrench + t.b
+    return force, t.M @ a + t.H @ qdd_i + t.X.T @ wrench + t.w
+
+
+def _articulated(t, force_i, inertia, bias):
+    inertia_x = inertia @ t.X
+    coupling = t.H.T + t.S.T @ inertia_x
+    joint = t.D + t.S.T @ inertia @ t.S
+    carried = inertia @ t.c + bias
+    solved = solve_positive_definite(joint, ca.horzcat(coupling, force_i - t.b - t.S.T @ carried))
+    gain, offset = solved[:, :6], solved[:, 6]
+    inertia = t.M + t.X.T @ inertia_x - coupling.T @ gain
+    return inertia, t.w + t.X.T @ carried + coupling.T @ offset, gain, offset
+
+
+def _articulated_acceleration(t, gain, offset, a):
+    qdd_i = offset - gain @ a
+    return qdd_i, _tip_acceleration(t, qdd_i, a)
+
+
+def _composite(t, composite):
+    carried = composite @ t.S
+    block = t.D + t.S.T @ carried
+    return block, t.H + t.X.T @ carried, t.M + t.X.T @ composite @ t.X
+
+
+def _carry(t, momentum):
+    return t.S.T @ momentum, t.X.T @ momentum
+
+
+@dataclass(frozen=True)
+class ChainSteps:
+    """One step of each algorithm over the chain as a CasADi Function, called once per
+    segment (:func:`carry`: once per pair of segments), so that the generated code holds
+    one copy of each step however many segments. Each takes a segment's terms (the
+    outputs of ``SegmentFunctions.motion``, their sparsity kept) followed by the
+    quantities it carries.
+
+    Parameters
+    ----------
+    tip_acceleration : casadi.Function
+        ``(terms, qdd_i, A) -> A_tip``.
+    newton_euler : casadi.Function
+        ``(terms, A, qdd_i, W_tip) -> (tau_i, W)``.
+    articulated : casadi.Function
+        ``(terms, force_i, I_tip, p_tip) -> (I, p, U^-1 Y, U^-1 u)``: the articulated
+        inertia and bias of everything from the segment on.
+    articulated_acceleration : casadi.Function
+        ``(terms, U^-1 Y, U^-1 u, A) -> (qdd_i, A_tip)``.
+    composite : casadi.Function
+        ``(terms, I_tip) -> (D_ii, F_i, I)``: the diagonal block, the momentum of
+        everything from the segment on per unit ``qd_i``, the composite inertia.
+    carry : casadi.Function
+        ``(terms of j, F) -> (D_ji, F carried to frame j)``.
+    """
+
+    tip_acceleration: ca.Function
+    newton_euler: ca.Function
+    articulated: ca.Function
+    articulated_acceleration: ca.Function
+    composite: ca.Function
+    carry: ca.Function
+
+
+def chain_steps(functions: SegmentFunctions, inline: bool = False) -> ChainSteps:
+    """The steps of the chain algorithms for segments of ``functions``.
+
+    Parameters
+    ----------
+    functions : SegmentFunctions
+        The segment's Functions; the steps take their outputs.
+    inline : bool
+        Whether the steps are inlined where they are called (see
+        :func:`~softcurve.symbolic.segment.segment_functions`).
+    """
+    motion = functions.motion
+    names = (*INERTIA_OUTPUTS, *BIAS_OUTPUTS)
+    symbols = {name: ca.SX.sym(name, motion.sparsity_out(name)) for name in names}
+    t = SegmentTerms(**symbols)
+    terms = [symbols[name] for name in names]
+    a, wrench, bias = ca.SX.sym("A", 6), ca.SX.sym("W", 6), ca.SX.sym("p", 6)
+    qdd_i, force_i = ca.SX.sym("qdd", 3), ca.SX.sym("force", 3)
+    inertia, gain, offset = ca.SX.sym("I", 6, 6), ca.SX.sym("gain", 3, 6), ca.SX.sym("offset", 3)
+    momentum = ca.SX.sym("F", 6, 3)
+    options = {"never_inline": not inline, "cse": True}
+
+    def step(name, inputs, outputs):
+        return ca.Function(name, [*terms, *inputs], list(outputs), options)
+
+    return ChainSteps(
+        tip_acceleration=step("tip_acceleration", [qdd_i, a], [_tip_acceleration(t, qdd_i, a)]),
+        newton_euler=step("newton_euler", [a, qdd_i, wrench], _newton_euler(t, a, qdd_i, wrench)),
+        articulated=step(
+            "articulated", [force_i, inertia, bias], _articulated(t, force_i, inertia, bias)
+        ),
+        articulated_acceleration=step(
+            "articulated_acceleration",
+            [gain, offset, a],
+            _articulated_acceleration(t, gain, offset, a),
+        ),
+        composite=step("composite", [inertia], _composite(t, inertia)),
+        carry=step("carry", [momentum], _carry(t, momentum)),
+    )
+
+
+def _arguments(t: SegmentTerms) -> list:
+    return [getattr(t, name) for name in (*INERTIA_OUTPUTS, *BIAS_OUTPUTS)]
+
+
+def mass_matrix(steps: ChainSteps, terms: list[SegmentTerms]):
     """``D(q)``, shape (3N, 3N), by the composite-body algorithm.
 
     Parameters
     ----------
+    steps : ChainSteps
+        The algorithms' steps.
     terms : list of SegmentTerms
         From :func:`segment_motions` (the maps alone are used).
     """
@@ -84,24 +198,21 @@ def mass_matrix(terms: list[SegmentTerms]):
     blocks = [[None] * n_segments for _ in range(n_segments)]
     composite = ca.SX.zeros(6, 6)  # of everything beyond the tip, tip coordinates
     for i in reversed(range(n_segments)):
-        t = terms[i]
-        carried = composite @ t.S
-        blocks[i][i] = t.D + t.S.T @ carried
-        momentum = t.H + t.X.T @ carried  # per unit qd_i, frame i
+        blocks[i][i], momentum, composite = steps.composite(*_arguments(terms[i]), composite)
         for j in reversed(range(i)):
-            blocks[j][i] = terms[j].S.T @ momentum
+            blocks[j][i], momentum = steps.carry(*_arguments(terms[j]), momentum)
             blocks[i][j] = blocks[j][i].T
-            momentum = terms[j].X.T @ momentum
-        composite = t.M + t.X.T @ composite @ t.X
     d = ca.blockcat(blocks)
     return 0.5 * (d + d.T)  # symmetric already; removes round-off
 
 
-def inverse_dynamics(terms: list[SegmentTerms], qdd, base_acceleration):
+def inverse_dynamics(steps: ChainSteps, terms: list[SegmentTerms], qdd, base_acceleration):
     """``D qdd + C qd + G``, shape (3N,), by the recursive Newton-Euler algorithm.
 
     Parameters
     ----------
+    steps : ChainSteps
+        The algorithms' steps.
     terms : list of SegmentTerms
         From :func:`segment_motions`.
     qdd : casadi.SX, shape (3N,)
@@ -112,21 +223,23 @@ def inverse_dynamics(terms: list[SegmentTerms], qdd, base_acceleration):
     accelerations, a = [], base_acceleration
     for i, t in enumerate(terms):
         accelerations.append(a)
-        a = t.X @ a + t.S @ _coordinates(qdd, i) + t.c
+        a = steps.tip_acceleration(*_arguments(t), _coordinates(qdd, i), a)
     forces, wrench = [None] * len(terms), ca.SX.zeros(6)
     for i in reversed(range(len(terms))):
-        t, a, qdd_i = terms[i], accelerations[i], _coordinates(qdd, i)
-        forces[i] = t.H.T @ a + t.D @ qdd_i + t.S.T @ wrench + t.b
-        wrench = t.M @ a + t.H @ qdd_i + t.X.T @ wrench + t.w
+        forces[i], wrench = steps.newton_euler(
+            *_arguments(terms[i]), accelerations[i], _coordinates(qdd, i), wrench
+        )
     return ca.vertcat(*forces)
 
 
-def forward_dynamics(terms: list[SegmentTerms], force, base_acceleration):
+def forward_dynamics(steps: ChainSteps, terms: list[SegmentTerms], force, base_acceleration):
     """``qdd`` for the generalized force ``force`` (all but the inertial terms), shape
     (3N,), by the articulated-body algorithm.
 
     Parameters
     ----------
+    steps : ChainSteps
+        The algorithms' steps.
     terms : list of SegmentTerms
         From :func:`segment_motions`.
     force : casadi.SX, shape (3N,)
@@ -137,23 +250,13 @@ def forward_dynamics(terms: list[SegmentTerms], force, base_acceleration):
     gains = [None] * len(terms)
     inertia, bias = ca.SX.zeros(6, 6), ca.SX.zeros(6)  # articulated, beyond the tip
     for i in reversed(range(len(terms))):
-        t = terms[i]
-        inertia_x = inertia @ t.X
-        coupling = t.H.T + t.S.T @ inertia_x
-        joint = t.D + t.S.T @ inertia @ t.S
-        carried = inertia @ t.c + bias
-        solved = solve_positive_definite(
-            joint, ca.horzcat(coupling, _coordinates(force, i) - t.b - t.S.T @ carried)
+        inertia, bias, *gains[i] = steps.articulated(
+            *_arguments(terms[i]), _coordinates(force, i), inertia, bias
         )
-        gain, offset = solved[:, :6], solved[:, 6]
-        gains[i] = (gain, offset)
-        inertia = t.M + t.X.T @ inertia_x - coupling.T @ gain
-        bias = t.w + t.X.T @ carried + coupling.T @ offset
     qdd, a = [], base_acceleration
     for t, (gain, offset) in zip(terms, gains, strict=True):
-        qdd_i = offset - gain @ a
+        qdd_i, a = steps.articulated_acceleration(*_arguments(t), gain, offset, a)
         qdd.append(qdd_i)
-        a = t.X @ a + t.S @ qdd_i + t.c
     return ca.vertcat(*qdd)
 
 

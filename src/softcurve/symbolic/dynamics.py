@@ -22,6 +22,7 @@ import casadi as ca
 from softcurve.description.layout import ParameterLayout
 from softcurve.description.materials import STIFFNESS_LAWS
 from softcurve.symbolic import chain
+from softcurve.symbolic.kinematics import inline_calls
 from softcurve.symbolic.segment import segment_functions
 
 DEFAULT_QUADRATURE_NODES = 11
@@ -154,10 +155,8 @@ def build_dynamics(
     inline : bool or None
         Whether the segment's Functions are inlined (True: the expressions hold every
         operation, as :meth:`casadi.Function.n_instructions` then counts them) or stay
-        calls (False: one copy of a segment's work, however many segments). None: inlined
-        for one segment, where there is nothing to share and inlining drops the terms the
-        robot does not use (a third of the forward dynamics' operations,
-        ``benchmarks/bench_chain.py``), calls otherwise.
+        calls (False: one copy of a segment's work, however many segments). None: as
+        :func:`~softcurve.symbolic.kinematics.inline_calls` says.
     """
     n_segments = len(structure)
     n = 3 * n_segments
@@ -167,15 +166,17 @@ def build_dynamics(
     layout = ParameterLayout.of_structure(structure)
     p = ca.SX.sym("p", layout.size)
     segments, gravity, base_rotation = unpack_parameters(p, layout)
-    functions = segment_functions(quadrature_nodes, n_segments == 1 if inline is None else inline)
+    inline = inline_calls(n_segments) if inline is None else inline
+    functions = segment_functions(quadrature_nodes, inline)
+    steps = chain.chain_steps(functions, inline)
     base_gravity = base_rotation.T @ gravity
     at_rest, falling = ca.SX.zeros(6), ca.vertcat(ca.SX.zeros(3), -base_gravity)
 
     motions = chain.segment_motions(functions, q, qd, segments)
     # of q alone, though built from the Functions that take qd too (see
     # SegmentFunctions.motion): a Function of q alone takes it at qd = 0
-    mass_matrix = chain.mass_matrix(motions)
-    coriolis_force = chain.inverse_dynamics(motions, ca.SX.zeros(n), at_rest)
+    mass_matrix = chain.mass_matrix(steps, motions)
+    coriolis_force = chain.inverse_dynamics(steps, motions, ca.SX.zeros(n), at_rest)
     gravity_energy = chain.gravity_energy(functions, q, segments, base_gravity)
     # G as the gradient of V_g rather than a Newton-Euler pass with qd = qdd = 0: the same
     # force (tests/test_dynamics.py checks one against the other), and its Jacobian is the
@@ -188,10 +189,9 @@ def build_dynamics(
     creep_force, creep_rate = _creep(qd, lam, segments, n)
 
     generalized = tau + creep_force - elastic_force - damping_force
-    forward = chain.forward_dynamics(motions, generalized, falling)
-    inverse = (
-        chain.inverse_dynamics(motions, qdd, falling) + elastic_force + damping_force - creep_force
-    )
+    forward = chain.forward_dynamics(steps, motions, generalized, falling)
+    inertial = chain.inverse_dynamics(steps, motions, qdd, falling)
+    inverse = inertial + elastic_force + damping_force - creep_force
     return DynamicsExpressions(
         q=q,
         qd=qd,

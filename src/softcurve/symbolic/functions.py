@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import casadi as ca
 
-from softcurve.symbolic.kinematics import frame_at
+from softcurve.symbolic.kinematics import inline_calls, point_at, segment_point_function
 
 DYNAMICS_TERMS = (
     ("D", "mass_matrix"),
@@ -102,8 +102,8 @@ def symbolic_functions(e) -> dict[str, ca.Function]:
     rhs = ca.vertcat(qd, e.forward_dynamics, e.creep_rate)
     rhs = ca.substitute(rhs, x, xs)
     s = ca.SX.sym("s")
-    frame = frame_at(q, e.n_segments, e.base_rotation, s)
-    jacobian = ca.vertcat(ca.jacobian(frame.position, q), frame.rotation @ frame.angular_jacobian)
+    point = segment_point_function(inline_calls(e.n_segments))
+    frame = point_at(q, e.n_segments, e.base_rotation, s, point)
     spec = {
         "dynamics_terms": dynamics_terms_spec(e),
         "mass_matrix": ([q], ["q"], [configuration_only(e, e.mass_matrix)], ["D"]),
@@ -128,6 +128,6 @@ def symbolic_functions(e) -> dict[str, ca.Function]:
         "creep_rate": ([qd, lam], ["qd", "lam"], [e.creep_rate], ["lamd"]),
         "rhs": ([xs, tau], ["x", "tau"], [rhs], ["xdot"]),
         "pose": ([q, s], ["q", "s"], [frame.rotation, frame.position], ["rotation", "position"]),
-        "jacobian": ([q, s], ["q", "s"], [jacobian], ["J"]),
+        "jacobian": ([q, s], ["q", "s"], [frame.jacobian], ["J"]),
     }
     return build_functions(spec, p)
