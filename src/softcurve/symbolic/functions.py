@@ -43,13 +43,6 @@ def dynamics_terms_spec(e, *more) -> tuple:
     )
 
 
-WITHOUT_CSE = ("coriolis_matrix",)
-"""Functions built without eliminating common subexpressions: CasADi's ``cse`` of the
-Christoffel matrix (a derivative through every segment's calls, for analysis in the
-virtual machine) takes 11 s at ten segments and saves 28 % of its operations
-(``benchmarks/bench_chain.py --profile``)."""
-
-
 def configuration_only(e, expression):
     """``expression`` of ``e`` (a function of ``q`` alone, such as ``D``) freed of the
     symbol ``qd``, which reaches it only through the inputs of the segments' Functions.
@@ -64,9 +57,8 @@ def configuration_only(e, expression):
     return ca.substitute(expression, e.qd, ca.SX.zeros(e.qd.shape[0]))
 
 
-def build_functions(spec: dict, p) -> dict[str, ca.Function]:
-    """One SX Function per entry of ``spec``, ``p`` appended to its inputs, each output
-    with its common subexpressions eliminated (but those of :data:`WITHOUT_CSE`).
+def build_functions(spec: dict, p, eliminate: bool = True) -> dict[str, ca.Function]:
+    """One SX Function per entry of ``spec``, ``p`` appended to its inputs.
 
     Parameters
     ----------
@@ -74,10 +66,16 @@ def build_functions(spec: dict, p) -> dict[str, ca.Function]:
         Name -> ``(inputs, input names, outputs, output names)``.
     p : casadi.SX
         The parameter vector, the last input of every Function.
+    eliminate : bool
+        Whether each output's common subexpressions are eliminated: for inlined
+        expressions (:func:`~softcurve.symbolic.kinematics.inline_calls`). Around calls
+        there is little to share (the called Functions eliminate their own), and CasADi's
+        ``cse`` of an expression holding calls takes about 0.5 s for 2 % fewer operations
+        at 20 segments, 11 s for the Christoffel matrix at 10.
     """
     functions = {}
     for name, (inputs, in_names, outputs, out_names) in spec.items():
-        if name not in WITHOUT_CSE:
+        if eliminate:
             outputs = [ca.cse(o) for o in outputs]
         functions[name] = ca.Function(name, [*inputs, p], outputs, [*in_names, "p"], out_names)
     return functions
@@ -130,4 +128,4 @@ def symbolic_functions(e) -> dict[str, ca.Function]:
         "pose": ([q, s], ["q", "s"], [frame.rotation, frame.position], ["rotation", "position"]),
         "jacobian": ([q, s], ["q", "s"], [frame.jacobian], ["J"]),
     }
-    return build_functions(spec, p)
+    return build_functions(spec, p, inline_calls(e.n_segments))
