@@ -17,7 +17,12 @@ For robots of N paper segments (``presets.ifac2020().with_segments(N)``) it prin
 The comparison beside the figures is with N = 1 of the same run: the targets are a
 compile time within 3x of N = 1 at N = 10, and a cost per segment within 1.5x.
 
-Run: ``python benchmarks/bench_chain.py [--segments 1 2 4 10 20] [--no-compile]``
+With ``--cse`` it prints instead, per N, what CasADi's common-subexpression elimination
+costs and saves on expressions holding the segments' calls (the forward dynamics and the
+Christoffel matrix), the measurement behind building them without it
+(``softcurve.symbolic.functions.build_functions``).
+
+Run: ``python benchmarks/bench_chain.py [--segments 1 2 4 10 20] [--no-compile] [--cse]``
 """
 
 from __future__ import annotations
@@ -61,12 +66,35 @@ def forward_dynamics_function(structure, inline) -> ca.Function:
     )
 
 
+def cse_cost(n_segments: int) -> None:
+    """Print the time of ``ca.cse`` and the operations before and after, per expression."""
+    e = build_dynamics(sc.presets.ifac2020().with_segments(n_segments).structure())
+    inputs = [e.q, e.qd, e.tau, e.lam, e.p]
+    for name in ("forward_dynamics", "coriolis_matrix"):
+        expression = getattr(e, name)
+        start = time.perf_counter()
+        eliminated = ca.cse(expression)
+        seconds = time.perf_counter() - start
+        before = ca.Function("f", inputs, [expression]).n_instructions()
+        after = ca.Function("f", inputs, [eliminated]).n_instructions()
+        print(
+            f"N = {n_segments:>2} {name:>17}: cse {seconds:6.2f} s, "
+            f"{before} -> {after} instructions ({100 * (1 - after / before):.0f} % fewer)",
+            flush=True,
+        )
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--segments", type=int, nargs="+", default=[1, 2, 4, 6, 8, 10, 20])
     parser.add_argument("--no-compile", action="store_true", help="skip compiling (C columns)")
     parser.add_argument("--repeat", type=int, default=100_000, help="C loop evaluations at N = 1")
+    parser.add_argument("--cse", action="store_true", help="the cost of cse around calls")
     args = parser.parse_args()
+    if args.cse:
+        for n_segments in args.segments:
+            cse_cost(n_segments)
+        return
     header = (
         f"{'N':>3} {'ops':>8} {'/seg':>7} {'x N=1':>6} {'inlined':>8} {'build [s]':>9} "
         f"{'compile [s]':>11} {'x N=1':>6} {'in C [us]':>9} {'/seg':>6} {'x N=1':>6}"

@@ -70,8 +70,9 @@ def build_functions(spec: dict, p, eliminate: bool = True) -> dict[str, ca.Funct
         Whether each output's common subexpressions are eliminated: for inlined
         expressions (:func:`~softcurve.symbolic.kinematics.inline_calls`). Around calls
         there is little to share (the called Functions eliminate their own), and CasADi's
-        ``cse`` of an expression holding calls takes about 0.5 s for 2 % fewer operations
-        at 20 segments, 11 s for the Christoffel matrix at 10.
+        ``cse`` of an expression holding calls is slow: at ten segments 0.13 s for 2 %
+        fewer operations of the forward dynamics, 12 s for 9 % fewer of the Christoffel
+        matrix (45 s at twenty; ``python benchmarks/bench_chain.py --cse``).
     """
     functions = {}
     for name, (inputs, in_names, outputs, out_names) in spec.items():
