@@ -99,7 +99,7 @@ class Frame:
     angular_jacobian: ca.SX
 
 
-def segment_frames(q, n_segments: int, base_rotation, points):
+def segment_frames(q, n_segments: int, base_rotation, points, point=None):
     """Frames of a serial chain at the given material points.
 
     Parameters
@@ -112,12 +112,17 @@ def segment_frames(q, n_segments: int, base_rotation, points):
         World orientation of the base frame.
     points : sequence of (segment index, local s)
         Points at which frames are wanted; ``s`` may be a number or an expression.
+    point : casadi.Function, optional
+        :func:`segment_point_function` (default: a new one, inlined as
+        :func:`inline_calls` says).
 
     Returns
     -------
     list of Frame
         One per point, in the order given.
     """
+    if point is None:
+        point = segment_point_function(inline_calls(n_segments))
     n = 3 * n_segments
     wanted: dict[int, list[tuple[int, object]]] = {}
     for k, (i, s) in enumerate(points):
@@ -128,16 +133,16 @@ def segment_frames(q, n_segments: int, base_rotation, points):
     for i in range(n_segments):
         q_i = q[3 * i : 3 * i + 3]
         for k, s in wanted.get(i, []):
-            frames[k] = _chain_step(q_i, i, s, n, rotation, position, angular)
-        tip = _chain_step(q_i, i, 1.0, n, rotation, position, angular)
+            frames[k] = _chain_step(point, q_i, i, s, n, rotation, position, angular)
+        tip = _chain_step(point, q_i, i, 1.0, n, rotation, position, angular)
         rotation, position, angular = tip.rotation, tip.position, tip.angular_jacobian
     return frames
 
 
-def _chain_step(q_i, i, s, n, rotation, position, angular) -> Frame:
-    local_rotation, local_position = segment_pose(q_i, s)
+def _chain_step(point, q_i, i, s, n, rotation, position, angular) -> Frame:
+    local_rotation, local_position, _, segment_angular = point(q_i, s)
     local_angular = ca.SX.zeros(3, n)
-    local_angular[:, 3 * i : 3 * i + 3] = segment_angular_jacobian(q_i, s)
+    local_angular[:, 3 * i : 3 * i + 3] = segment_angular
     return Frame(
         rotation=rotation @ local_rotation,
         position=position + rotation @ local_position,
