@@ -37,6 +37,7 @@ from bench_model import inside_c
 
 import softcurve as sc
 from softcurve.symbolic.dynamics import build_dynamics
+from softcurve.symbolic.functions import common_subexpressions
 
 
 def executed_operations(function: ca.Function) -> int:
@@ -60,10 +61,14 @@ def executed_operations(function: ca.Function) -> int:
 
 
 def forward_dynamics_function(structure, inline) -> ca.Function:
+    """The forward dynamics as the model builds it (``inline=None``), or inlined."""
     e = build_dynamics(structure, inline=inline)
-    return ca.Function(
-        "forward_dynamics", [e.q, e.qd, e.tau, e.lam, e.p], [ca.cse(e.forward_dynamics)]
+    output = (
+        ca.cse(e.forward_dynamics)
+        if inline
+        else common_subexpressions(e.forward_dynamics, len(structure))
     )
+    return ca.Function("forward_dynamics", [e.q, e.qd, e.tau, e.lam, e.p], [output])
 
 
 def cse_cost(n_segments: int) -> None:

@@ -37,7 +37,7 @@ from softcurve.description.environment import Capsule, Environment, Plane, Spher
 from softcurve.description.layout import ParameterLayout
 from softcurve.symbolic.dynamics import DynamicsExpressions, unpack_parameters
 from softcurve.symbolic.functions import build_functions, dynamics_terms_spec, symbolic_functions
-from softcurve.symbolic.kinematics import inline_calls, segment_frames
+from softcurve.symbolic.kinematics import segment_frames
 
 EPS = 1e-9
 """Length [m] under the square root of the distance to a sphere centre or capsule axis."""
@@ -269,5 +269,5 @@ def contact_functions(e: ContactExpressions) -> dict[str, ca.Function]:
             ["Fc", "Vc", "forces", "points"],
         ),
     }
-    functions.update(build_functions(spec, p, inline_calls(e.n_segments)))
+    functions.update(build_functions(spec, p, e.n_segments))
     return functions

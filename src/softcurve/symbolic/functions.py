@@ -57,8 +57,29 @@ def configuration_only(e, expression):
     return ca.substitute(expression, e.qd, ca.SX.zeros(e.qd.shape[0]))
 
 
-def build_functions(spec: dict, p, eliminate: bool = True) -> dict[str, ca.Function]:
-    """One SX Function per entry of ``spec``, ``p`` appended to its inputs.
+def common_subexpressions(expression, n_segments: int):
+    """``expression`` with its common subexpressions eliminated where the segments'
+    Functions are inlined (:func:`~softcurve.symbolic.kinematics.inline_calls`), as it
+    is otherwise.
+
+    Around calls there is little to share (the called Functions eliminate their own),
+    and CasADi's ``cse`` of an expression holding calls is slow: at ten segments 0.13 s
+    for 2 % fewer operations of the forward dynamics, 12 s for 9 % fewer of the
+    Christoffel matrix (45 s at twenty; ``python benchmarks/bench_chain.py --cse``).
+
+    Parameters
+    ----------
+    expression : casadi.SX
+        Any expression of a model's symbols.
+    n_segments : int
+        The model's number of segments N.
+    """
+    return ca.cse(expression) if inline_calls(n_segments) else expression
+
+
+def build_functions(spec: dict, p, n_segments: int) -> dict[str, ca.Function]:
+    """One SX Function per entry of ``spec``, ``p`` appended to its inputs, each output
+    through :func:`common_subexpressions`.
 
     Parameters
     ----------
@@ -66,18 +87,12 @@ def build_functions(spec: dict, p, eliminate: bool = True) -> dict[str, ca.Funct
         Name -> ``(inputs, input names, outputs, output names)``.
     p : casadi.SX
         The parameter vector, the last input of every Function.
-    eliminate : bool
-        Whether each output's common subexpressions are eliminated: for inlined
-        expressions (:func:`~softcurve.symbolic.kinematics.inline_calls`). Around calls
-        there is little to share (the called Functions eliminate their own), and CasADi's
-        ``cse`` of an expression holding calls is slow: at ten segments 0.13 s for 2 %
-        fewer operations of the forward dynamics, 12 s for 9 % fewer of the Christoffel
-        matrix (45 s at twenty; ``python benchmarks/bench_chain.py --cse``).
+    n_segments : int
+        The model's number of segments N.
     """
     functions = {}
     for name, (inputs, in_names, outputs, out_names) in spec.items():
-        if eliminate:
-            outputs = [ca.cse(o) for o in outputs]
+        outputs = [common_subexpressions(o, n_segments) for o in outputs]
         functions[name] = ca.Function(name, [*inputs, p], outputs, [*in_names, "p"], out_names)
     return functions
 
@@ -129,4 +144,4 @@ def symbolic_functions(e) -> dict[str, ca.Function]:
         "pose": ([q, s], ["q", "s"], [frame.rotation, frame.position], ["rotation", "position"]),
         "jacobian": ([q, s], ["q", "s"], [frame.jacobian], ["J"]),
     }
-    return build_functions(spec, p, inline_calls(e.n_segments))
+    return build_functions(spec, p, e.n_segments)
