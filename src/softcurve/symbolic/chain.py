@@ -79,15 +79,29 @@ def _newton_euler(t, a, qdd_i, wrench):
     return force, t.M @ a + t.H @ qdd_i + t.X.T @ wrench + t.w
 
 
-def _articulated(t, force_i, inertia, bias):
+def _joint(t, force_i, inertia, bias):
+    """The articulated terms of a segment: its joint inertia ``U``, the coupling ``Y``
+    of its coordinates to the base frame's acceleration, the force ``u`` left at zero
+    base acceleration, and the products that carry them to the base."""
     inertia_x = inertia @ t.X
     coupling = t.H.T + t.S.T @ inertia_x
     joint = t.D + t.S.T @ inertia @ t.S
     carried = inertia @ t.c + bias
-    solved = solve_positive_definite(joint, ca.horzcat(coupling, force_i - t.b - t.S.T @ carried))
+    return joint, coupling, force_i - t.b - t.S.T @ carried, inertia_x, carried
+
+
+def _articulated(t, force_i, inertia, bias):
+    joint, coupling, free, inertia_x, carried = _joint(t, force_i, inertia, bias)
+    solved = solve_positive_definite(joint, ca.horzcat(coupling, free))
     gain, offset = solved[:, :6], solved[:, 6]
     inertia = t.M + t.X.T @ inertia_x - coupling.T @ gain
     return inertia, t.w + t.X.T @ carried + coupling.T @ offset, gain, offset
+
+
+def _root_acceleration(t, force_i, inertia, bias, a):
+    # the base's acceleration is known at the root: one right-hand side, not seven
+    joint, coupling, free, *_ = _joint(t, force_i, inertia, bias)
+    return solve_positive_definite(joint, free - coupling @ a)
 
 
 def _articulated_acceleration(t, gain, offset, a):
@@ -124,6 +138,9 @@ class ChainSteps:
         inertia and bias of everything from the segment on.
     articulated_acceleration : casadi.Function
         ``(terms, U^-1 Y, U^-1 u, A) -> (qdd_i, A_tip)``.
+    root_acceleration : casadi.Function
+        ``(terms, force_i, I_tip, p_tip, A) -> qdd_i``: the articulated step and the
+        acceleration at once, for the segment whose base acceleration ``A`` is known.
     composite : casadi.Function
         ``(terms, I_tip) -> (D_ii, F_i, I)``: the diagonal block, the momentum of
         everything from the segment on per unit ``qd_i``, the composite inertia.
@@ -135,6 +152,7 @@ class ChainSteps:
     newton_euler: ca.Function
     articulated: ca.Function
     articulated_acceleration: ca.Function
+    root_acceleration: ca.Function
     composite: ca.Function
     carry: ca.Function
 
@@ -174,6 +192,11 @@ def chain_steps(functions: SegmentFunctions, inline: bool = False) -> ChainSteps
             "articulated_acceleration",
             [gain, offset, a],
             _articulated_acceleration(t, gain, offset, a),
+        ),
+        root_acceleration=step(
+            "root_acceleration",
+            [force_i, inertia, bias, a],
+            [_root_acceleration(t, force_i, inertia, bias, a)],
         ),
         composite=step("composite", [inertia], _composite(t, inertia)),
         carry=step("carry", [momentum], _carry(t, momentum)),
@@ -249,12 +272,14 @@ def forward_dynamics(steps: ChainSteps, terms: list[SegmentTerms], force, base_a
     """
     gains = [None] * len(terms)
     inertia, bias = ca.SX.zeros(6, 6), ca.SX.zeros(6)  # articulated, beyond the tip
-    for i in reversed(range(len(terms))):
+    for i in reversed(range(1, len(terms))):
         inertia, bias, *gains[i] = steps.articulated(
             *_arguments(terms[i]), _coordinates(force, i), inertia, bias
         )
-    qdd, a = [], base_acceleration
-    for t, (gain, offset) in zip(terms, gains, strict=True):
+    root = _arguments(terms[0])
+    qdd = [steps.root_acceleration(*root, _coordinates(force, 0), inertia, bias, base_acceleration)]
+    a = steps.tip_acceleration(*root, qdd[0], base_acceleration)
+    for t, (gain, offset) in zip(terms[1:], gains[1:], strict=True):
         qdd_i, a = steps.articulated_acceleration(*_arguments(t), gain, offset, a)
         qdd.append(qdd_i)
     return ca.vertcat(*qdd)
