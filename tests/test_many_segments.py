@@ -242,7 +242,9 @@ def test_trajectory_sensitivities_against_two_simulations(model):
     evaluate = trajectory_sensitivities(model, free, output, None, x0, experiment, None)
     y, jacobian = evaluate(free.theta0)
     i = model.robot.layout.index(name)
-    h = 1e-3 * model.parameters[i]
+    # the tip is far from linear in a1 (the tanh law): the central difference's O(h^2)
+    # error is 3e-4 of the derivative at h = 1e-3 a1, 4e-8 at 1e-5 a1 (measured)
+    h = 1e-5 * model.parameters[i]
     parameters = np.tile(model.parameters, (2, 1))
     parameters[:, i] += [h, -h]
     runs = sc.simulate_batch(
@@ -251,10 +253,11 @@ def test_trajectory_sensitivities_against_two_simulations(model):
     )  # fmt: skip
     assert runs.success
     tips = np.array([[model.tip_pose(q).position for q in member] for member in runs.q])
-    assert_close(y.T, 0.5 * (tips[0] + tips[1]), rtol=0, atol=1e-6 * np.abs(tips).max())
+    # the evaluator integrates at its own tolerances (SENSITIVITY_CVODES, rtol 1e-8)
+    assert_close(y.T, 0.5 * (tips[0] + tips[1]), rtol=0, atol=1e-7 * np.abs(tips).max())
     difference = ((tips[0] - tips[1]) / (2 * h)).ravel()  # (T k,): time-major, as vec(y)
     assert np.abs(difference).max() > 0
-    assert_close(jacobian[:, 0], difference, rtol=1e-4, scale=np.abs(difference).max())
+    assert_close(jacobian[:, 0], difference, rtol=1e-5, scale=np.abs(difference).max())
 
 
 @pytest.mark.skipif(
