@@ -42,8 +42,13 @@ int main(int argc, char** argv) {
   int n = atoi(argv[2]), np_ = atoi(argv[3]);
   for (int i = 0; i < np_; i++) scanf("%lf", &p[i]);
   for (int i = 0; i < n; i++) { q[i] = (i % 3 == 0) ? 0.064 : 25.0 / (1 + i); qd[i] = 10.0; }
-  const casadi_real* arg[8] = {q, qd, tau, lam, p};
-  casadi_real* res[4] = {out};
+  casadi_int sz_arg, sz_res, sz_iw, sz_w;  /* called Functions use arg and res beyond 5, 1 */
+  forward_dynamics_work(&sz_arg, &sz_res, &sz_iw, &sz_w);
+  const casadi_real** arg = calloc(sz_arg, sizeof *arg);
+  casadi_real** res = calloc(sz_res, sizeof *res);
+  arg[0] = q; arg[1] = qd; arg[2] = tau; arg[3] = lam; arg[4] = p;
+  res[0] = out;
+  if (sz_w > (1 << 20) || sz_iw > (1 << 16)) return 3;
   struct timespec a, b;
   double checksum = 0;
   clock_gettime(CLOCK_MONOTONIC, &a);

@@ -30,6 +30,30 @@ def test_second_model_reuses_the_cached_library(paper_model):
     assert os.stat(library).st_mtime_ns == stamp
 
 
+def test_robots_of_one_segment_structure_share_one_library(two_segment_model, rng):
+    """The segments' Functions take each segment's numbers as inputs: two robots of two
+    segments with other lengths, masses, radii and stiffnesses per segment load the one
+    library, and each computes its own dynamics with it."""
+    robot = two_segment_model.robot
+    first, second = robot.segments
+    other = robot.replace(
+        segments=(
+            first.replace(rest_length=0.05, mass=0.03, radius=0.02),
+            second.replace(rest_length=0.09, mass=0.07, radius=0.03),
+        )
+    )
+    library = sc.Model(robot).compiled_library
+    stamp = os.stat(library).st_mtime_ns
+    again = sc.Model(other)
+    assert again.compiled_library == library
+    assert os.stat(library).st_mtime_ns == stamp
+    vm = sc.Model(other, compile=False)
+    q, qd = np.array([0.05, 20.0, -5.0, 0.09, -10.0, 8.0]), rng.normal(size=6)
+    assert_close(again.mass_matrix(q), vm.mass_matrix(q), rtol=1e-13, what="D")
+    assert_close(again.forward_dynamics(q, qd), vm.forward_dynamics(q, qd), rtol=1e-12)
+    assert not np.allclose(again.mass_matrix(q), two_segment_model.mass_matrix(q), rtol=0.1)
+
+
 def test_parameters_are_bound_at_run_time(paper_model):
     hanging = sc.Model(sc.presets.ifac2020().replace(gravity=[0.0, 0.0, 9.81]))
     q = np.array([0.064, 0.0, 0.0])
@@ -323,3 +347,12 @@ def test_the_cvodes_driver_builds_wherever_its_prerequisites_hold():
     assert native.driver() is not None, (
         "the driver's C files (driver_library.C_FOLDER) failed to build"
     )
+
+
+def test_the_cache_key_holds_every_module_of_the_symbolic_layer():
+    """A module added to the symbolic layer (the segment's Functions, the chain
+    algorithms) changes what the generated code computes: it is in the key."""
+    package = Path(sc.__file__).parent
+    hashed = set(model_module.key_sources())
+    assert set((package / "symbolic").glob("*.py")) <= hashed
+    assert {package / "symbolic" / name for name in ("segment.py", "chain.py")} <= hashed

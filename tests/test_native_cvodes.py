@@ -108,16 +108,25 @@ def test_actuated_runs_agree_with_casadi(paper_model, lag):
         distance=0.012, area=2e-4, p_max=6e4, time_constant=lag
     )
     pressures = np.array([2e4, 0.0, 1e4])
-    fast, slow = _both(
-        lambda: sc.simulate(
-            paper_model, Q0, QD0, actuator=actuator, inputs=pressures, t_final=10.0, dt=0.001
+    steps = np.zeros(2)
+    # the steps of one run jump between about 2,400 and 5,900 with the start's last digits
+    # (both routes, kx0 = 25 +- 0.1 1/m): their work is compared over ten nearby starts,
+    # where the driver takes 1.17-1.18 times CasADi's steps with the lag, 0.95 without
+    curvatures = (25.0, 25.001, 25.01, 24.99, 25.1, 25.002, 25.02, 24.98, 24.9, 25.05)
+    for curvature in curvatures:
+        q0 = Q0 + [0.0, curvature - Q0[1], 0.0]
+        fast, slow = _both(
+            lambda q0=q0: sc.simulate(
+                paper_model, q0, QD0, actuator=actuator, inputs=pressures, t_final=10.0, dt=0.001
+            )
         )
-    )
-    assert fast.success and slow.success
-    assert_close(fast.x, slow.x, rtol=50 * RTOL, scale=_scale(paper_model, slow.x))
-    np.testing.assert_allclose(fast.inputs, slow.inputs, rtol=1e-3, atol=1e-3 * 6e4)
-    # no more work than CasADi's route (a Jacobian kept across restarts once doubled it)
-    assert fast.stats["steps"] <= 1.2 * slow.stats["steps"]
+        assert fast.success and slow.success
+        assert_close(fast.x, slow.x, rtol=50 * RTOL, scale=_scale(paper_model, slow.x))
+        np.testing.assert_allclose(fast.inputs, slow.inputs, rtol=1e-3, atol=1e-3 * 6e4)
+        steps += fast.stats["steps"], slow.stats["steps"]
+    # no more work than CasADi's route to within that (a Jacobian kept across restarts
+    # once doubled it)
+    assert steps[0] <= 1.4 * steps[1]
 
 
 def test_inputs_that_change_on_the_grid_agree_with_casadi(paper_model):

@@ -158,12 +158,11 @@ _SYMBOLIC_SOURCES = (
     "base/smooth.py",
     "description/materials.py",
     "description/layout.py",
-    "symbolic/kinematics.py",
-    "symbolic/dynamics.py",
-    "symbolic/functions.py",
+    "symbolic/*.py",
     "compiled/_build.py",
 )
-"""The sources the generated code depends on, relative to the package folder."""
+"""The sources the generated code depends on, relative to the package folder (patterns:
+the symbolic layer is every module of its folder, so that a new one is in the key)."""
 
 
 def require_compiler(compiler: list[str] | None) -> list[str]:
@@ -215,13 +214,25 @@ def cache_key(kind: str, *parts) -> str:
     return digest.hexdigest()
 
 
+def key_sources() -> list[Path]:
+    """The files of :data:`_SYMBOLIC_SOURCES`, in the order they are hashed.
+
+    Returns
+    -------
+    list of pathlib.Path
+    """
+    package = Path(__file__).parent.parent
+    return [path for pattern in _SYMBOLIC_SOURCES for path in sorted(package.glob(pattern))]
+
+
 def _cache_key(structure: tuple, quadrature_nodes: int) -> str:
     """The model library's :func:`cache_key`: structure, node count, the flags and the
     source of the symbolic layer."""
     package = Path(__file__).parent.parent
     sources = hashlib.sha256()
-    for name in _SYMBOLIC_SOURCES:
-        sources.update((package / name).read_bytes())
+    for path in key_sources():
+        sources.update(path.relative_to(package).as_posix().encode())
+        sources.update(path.read_bytes())
     flags = (*FUNCTION_FLAGS, *_LIBRARY_FLAGS)
     return cache_key("model", structure, quadrature_nodes, flags, sources.hexdigest())
 

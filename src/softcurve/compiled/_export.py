@@ -41,6 +41,7 @@ from softcurve.base.status import Result, Status
 from softcurve.base.validation import ParameterError
 from softcurve.description.actuator import Actuator
 from softcurve.symbolic.contact import contact_statics
+from softcurve.symbolic.functions import common_subexpressions
 
 _TOLERANCE = 1e-12
 
@@ -103,7 +104,8 @@ def _functions(model, actuator: Actuator | None, prefix: str, embed: bool):
             output = ca.substitute(output, e.p, ca.DM(model.parameters))
         else:
             inputs, names = [*inputs, e.p], [*names, "p"]
-        functions[name] = ca.Function(f"{prefix}_{name}", inputs, [ca.cse(output)], names, ["out"])
+        output = common_subexpressions(output, e.n_segments)
+        functions[name] = ca.Function(f"{prefix}_{name}", inputs, [output], names, ["out"])
     return functions
 
 

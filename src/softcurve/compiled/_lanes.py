@@ -150,17 +150,61 @@ def _constant(value: float) -> str:
     return f"sc_broadcast({value!r})"
 
 
-def _statement(function: ca.Function, k: int, shared: Sequence[bool]) -> str:
+class _Signature(NamedTuple):
+    """How a lanes function reads its inputs and writes its outputs: one array per
+    input and output (``in<i>``, ``out<i>``; ``shared`` inputs as doubles), or, for a
+    called function, every nonzero of its inputs in one array ``in`` and of its outputs
+    in ``out`` (``offsets``: where each input's and output's nonzeros begin)."""
+
+    shared: Sequence[bool]
+    offsets: tuple[list[int], list[int]] | None = None
+
+    def input(self, i: int, nz: int) -> str:
+        if self.offsets is not None:
+            return f"in[{self.offsets[0][i] + nz}]"
+        return f"sc_broadcast(in{i}[{nz}])" if self.shared[i] else f"in{i}[{nz}]"
+
+    def output(self, i: int, nz: int) -> str:
+        if self.offsets is not None:
+            return f"out[{self.offsets[1][i] + nz}]"
+        return f"out{i}[{nz}]"
+
+
+def _offsets(function: ca.Function) -> tuple[list[int], list[int]]:
+    def starts(count, sparsity):
+        sizes = [sparsity(i).nnz() for i in range(count)]
+        return [sum(sizes[:i]) for i in range(count)]
+
+    return (
+        starts(function.n_in(), function.sparsity_in),
+        starts(function.n_out(), function.sparsity_out),
+    )
+
+
+def _call(function: ca.Function, k: int, name: str) -> str:
+    """C of call instruction ``k``: the callee's lanes function ``name`` on copies of
+    the arguments' work variables (results no one uses are left in the copy)."""
+    args, results = function.instruction_input(k), function.instruction_output(k)
+    copy_in = " ".join(f"ci[{j}] = w[{i}];" for j, i in enumerate(args))
+    copy_out = " ".join(f"w[{i}] = co[{j}];" for j, i in enumerate(results) if i >= 0)
+    return (
+        f"{{ sc_v ci[{max(len(args), 1)}], co[{max(len(results), 1)}]; {copy_in} "
+        f"{name}(ci, co, w_call); {copy_out} }}"
+    )
+
+
+def _statement(function: ca.Function, k: int, signature: _Signature, calls: dict) -> str:
     """C for instruction ``k`` of ``function`` on the work variables ``w<i>``."""
     op = _OPERATORS[function.instruction_id(k)]
     args, results = function.instruction_input(k), function.instruction_output(k)
     w = [f"w[{i}]" for i in args]
     if op == "OUTPUT":
-        return f"out{results[0]}[{results[1]}] = {w[0]};"
+        return f"{signature.output(*results)} = {w[0]};"
+    if op == "CALL":
+        return _call(function, k, calls[k])
     target = f"w[{results[0]}] = "
     if op == "INPUT":
-        i, nz = args
-        return target + (f"sc_broadcast(in{i}[{nz}]);" if shared[i] else f"in{i}[{nz}];")
+        return target + signature.input(*args) + ";"
     if op == "CONST":
         return target + _constant(function.instruction_constant(k)) + ";"
     if op in _BINARY:
@@ -219,7 +263,8 @@ def lanes_function(function: ca.Function, name: str, shared: Sequence[bool]) -> 
         or ``shared`` does not have one entry per input.
     NotImplementedError
         If ``function`` has an operation without lanes code (CasADi's remainder,
-        inverse error function, print and call instructions).
+        inverse error function and print instructions) or calls a function that is not
+        an SX function.
     """
     if not function.is_a("SXFunction"):
         raise ValueError(f"{function.name()} must be an SX function (call expand())")
@@ -232,23 +277,64 @@ def lanes_function(function: ca.Function, name: str, shared: Sequence[bool]) -> 
         for i in range(count):
             if not (sparsity(i).is_dense() and sparsity(i).is_column()):
                 raise ValueError(f"{function.name()}: {kind} {i} must be a dense column")
+    callees: dict = {}
+    _gather_callees(function, name, callees)
     inputs = [
         f"const double* in{i}" if is_shared else f"const sc_v* in{i}"
         for i, is_shared in enumerate(shared)
     ]
     outputs = [f"sc_v* out{i}" for i in range(function.n_out())]
-    body = [_statement(function, k, shared) for k in range(function.n_instructions())]
-    signature = ", ".join([*inputs, *outputs, "sc_v* restrict w"])
+    definitions = [code for _, code in callees.values()]
+    main = _definition(function, name, [*inputs, *outputs], _Signature(shared), callees)
+    return "\n".join([*definitions, main])
+
+
+def _callees(function: ca.Function) -> dict[int, ca.Function]:
+    """The function each call instruction of ``function`` calls, by instruction."""
+    ids = (function.instruction_id(k) for k in range(function.n_instructions()))
+    calls = [k for k, op in enumerate(ids) if op == ca.OP_CALL]
+    if not calls:
+        return {}
+    instructions = function.instructions_sx()
+    return {k: instructions[k].which_function() for k in calls}
+
+
+def _gather_callees(function: ca.Function, prefix: str, callees: dict) -> None:
+    """Every function ``function`` calls, directly or not, by name, each before those
+    that call it: ``name -> (C name, C definition)``. CasADi's code generator names a
+    called function once per name, as here."""
+    for callee in _callees(function).values():
+        if callee.name() in callees:
+            continue
+        if not callee.is_a("SXFunction"):
+            raise NotImplementedError(f"{function.name()} calls {callee.name()}, not SX")
+        _gather_callees(callee, prefix, callees)
+        c_name = f"{prefix}_call{len(callees)}"
+        signature = _Signature([False] * callee.n_in(), _offsets(callee))
+        parameters = ["const sc_v* in", "sc_v* out"]
+        callees[callee.name()] = (
+            c_name,
+            _definition(callee, c_name, parameters, signature, callees),
+        )
+
+
+def _definition(function, name, parameters, signature, callees) -> str:
+    calls = {k: callees[f.name()][0] for k, f in _callees(function).items()}
+    body = [_statement(function, k, signature, calls) for k in range(function.n_instructions())]
     declarations = []
     if function.sz_w() <= STACK_WORK:
-        body = [re.sub(r"w\[(\d+)\]", r"w\1", line) for line in body]
+        body = [re.sub(r"\bw\[(\d+)\]", r"w\1", line) for line in body]
         names = ", ".join(f"w{i}" for i in range(function.sz_w()))
         declarations = ["(void)w;", f"sc_v {names};" if names else ""]
-    return "\n  ".join([f"static void {name}({signature}) {{", *declarations, *body]) + "\n}\n"
+    if calls:  # the callees work beyond this function's rows of the array
+        declarations.append(f"sc_v* restrict w_call = w + {function.sz_w()};")
+    header = f"static void {name}({', '.join([*parameters, 'sc_v* restrict w'])}) {{"
+    return "\n  ".join([header, *declarations, *body]) + "\n}\n"
 
 
 def lanes_work(function: ca.Function) -> int:
-    """Vectors of work array that the :func:`lanes_function` of ``function`` needs.
+    """Vectors of work array that the :func:`lanes_function` of ``function`` needs
+    (its own rows, then the most any function it calls needs).
 
     Parameters
     ----------
@@ -260,7 +346,9 @@ def lanes_work(function: ca.Function) -> int:
     int
         At least 1.
     """
-    return max(function.sz_w(), 1)
+    called = {f.name(): f for f in _callees(function).values()}
+    called = [lanes_work(callee) for callee in called.values()]
+    return max(function.sz_w() + max(called, default=0), 1)
 
 
 class CompiledLanes(NamedTuple):

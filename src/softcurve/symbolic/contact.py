@@ -269,5 +269,5 @@ def contact_functions(e: ContactExpressions) -> dict[str, ca.Function]:
             ["Fc", "Vc", "forces", "points"],
         ),
     }
-    functions.update(build_functions(spec, p))
+    functions.update(build_functions(spec, p, e.n_segments))
     return functions

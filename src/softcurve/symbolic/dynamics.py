@@ -18,11 +18,12 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import casadi as ca
-import numpy as np
 
 from softcurve.description.layout import ParameterLayout
 from softcurve.description.materials import STIFFNESS_LAWS
-from softcurve.symbolic.kinematics import segment_angular_jacobian, segment_pose
+from softcurve.symbolic import chain
+from softcurve.symbolic.kinematics import inline_calls
+from softcurve.symbolic.segment import segment_functions
 
 DEFAULT_QUADRATURE_NODES = 11
 
@@ -131,16 +132,19 @@ class DynamicsExpressions:
 
 
 def build_dynamics(
-    structure: tuple, quadrature_nodes: int = DEFAULT_QUADRATURE_NODES
+    structure: tuple,
+    quadrature_nodes: int = DEFAULT_QUADRATURE_NODES,
+    inline: bool | None = None,
 ) -> DynamicsExpressions:
     """Assemble the equation of motion for a robot structure.
 
-    The inertial and gravitational forces come from a recursive Newton-Euler pass over
-    the segments (:func:`_newton_euler`), which costs O(N K) for N segments of K
-    quadrature nodes: ``D`` column by column with ``qd = 0``, ``C qd`` with ``qdd = 0``
-    and gravity with ``qd = qdd = 0``. The Christoffel matrix is
-    ``C = d(C qd)/d(qd) / 2``, since the Christoffel symbols are symmetric in the two
-    velocity indices.
+    The inertial and gravitational terms come from the algorithms over the chain
+    (:mod:`softcurve.symbolic.chain`), each calling one segment's Functions
+    (:mod:`softcurve.symbolic.segment`) once per segment: the mass matrix by the
+    composite-body algorithm, ``C qd`` and the inverse dynamics by the recursive
+    Newton-Euler algorithm, the forward dynamics by the articulated-body algorithm. The
+    Christoffel matrix is ``C = d(C qd)/d(qd) / 2``, since the Christoffel symbols are
+    symmetric in the two velocity indices.
 
     Parameters
     ----------
@@ -148,6 +152,11 @@ def build_dynamics(
         ``Robot.structure()``: per segment (elongation law kind, bending law kind, has creep).
     quadrature_nodes : int
         Gauss-Legendre nodes per segment for the backbone integrals.
+    inline : bool or None
+        Whether the segment's Functions are inlined (True: the expressions hold every
+        operation, as :meth:`casadi.Function.n_instructions` then counts them) or stay
+        calls (False: one copy of a segment's work, however many segments). None: as
+        :func:`~softcurve.symbolic.kinematics.inline_calls` says.
     """
     n_segments = len(structure)
     n = 3 * n_segments
@@ -157,22 +166,21 @@ def build_dynamics(
     layout = ParameterLayout.of_structure(structure)
     p = ca.SX.sym("p", layout.size)
     segments, gravity, base_rotation = unpack_parameters(p, layout)
-    chain = _SegmentChain(q, segments, quadrature_nodes)
+    inline = inline_calls(n_segments) if inline is None else inline
+    functions = segment_functions(quadrature_nodes, inline)
+    steps = chain.chain_steps(functions, inline)
     base_gravity = base_rotation.T @ gravity
-    zero = ca.SX.zeros(n)
+    at_rest, falling = ca.SX.zeros(6), ca.vertcat(ca.SX.zeros(3), -base_gravity)
 
-    mass_matrix = ca.horzcat(
-        *(chain.newton_euler(zero, ca.SX(ca.DM.eye(n)[:, j]), ca.SX.zeros(3)) for j in range(n))
-    )
-    mass_matrix = 0.5 * (mass_matrix + mass_matrix.T)  # exact already; removes round-off
-    coriolis_force = chain.newton_euler(qd, zero, ca.SX.zeros(3))
-    bias_force = chain.newton_euler(qd, zero, base_gravity)  # C qd + G in one pass
-    gravity_energy = chain.gravity_energy(base_gravity)
-    # G alone as the gradient of V_g rather than a Newton-Euler pass with qd = qdd = 0:
-    # the same force (tests/test_dynamics.py checks one against the other), in 40 % fewer
-    # operations, and its Jacobian is the symmetric Hessian of V_g, which CasADi builds in
-    # half the operations of the pass's Jacobian on three segments (the statics' Newton
-    # matrix; benchmarks/bench_identification.py, section 2)
+    motions = chain.segment_motions(functions, q, qd, segments)
+    # of q alone, though built from the Functions that take qd too (see
+    # SegmentFunctions.motion): a Function of q alone takes it at qd = 0
+    mass_matrix = chain.mass_matrix(steps, motions)
+    coriolis_force = chain.inverse_dynamics(steps, motions, ca.SX.zeros(n), at_rest)
+    gravity_energy = chain.gravity_energy(functions, q, segments, base_gravity)
+    # G as the gradient of V_g rather than a Newton-Euler pass with qd = qdd = 0: the same
+    # force (tests/test_dynamics.py checks one against the other), and its Jacobian is the
+    # symmetric Hessian of V_g (the statics' Newton matrix)
     gravity_force = ca.gradient(gravity_energy, q)
 
     elastic_force, elastic_energy = _elastic(q, segments, structure)
@@ -180,11 +188,10 @@ def build_dynamics(
     damping_force = ca.diagcat(*(seg.damping for seg in segments)) @ qd
     creep_force, creep_rate = _creep(qd, lam, segments, n)
 
-    generalized = tau + creep_force - bias_force - elastic_force - damping_force
-    forward = ca.solve(mass_matrix, generalized)
-    inverse = (
-        chain.newton_euler(qd, qdd, base_gravity) + elastic_force + damping_force - creep_force
-    )
+    generalized = tau + creep_force - elastic_force - damping_force
+    forward = chain.forward_dynamics(steps, motions, generalized, falling)
+    inertial = chain.inverse_dynamics(steps, motions, qdd, falling)
+    inverse = inertial + elastic_force + damping_force - creep_force
     return DynamicsExpressions(
         q=q,
         qd=qd,
@@ -208,149 +215,6 @@ def build_dynamics(
         forward_dynamics=forward,
         inverse_dynamics=inverse,
     )
-
-
-@dataclass(frozen=True)
-class _Point:
-    """A material point of a segment, in the segment's base frame: rotation, position,
-    their Jacobians w.r.t. the segment's coordinates (linear ``dp/dq_i``; angular in the
-    point's own frame) and the quadrature weight times the segment mass."""
-
-    rotation: ca.SX
-    position: ca.SX
-    linear: ca.SX
-    angular: ca.SX
-    mass: ca.SX
-
-
-class _SegmentChain:
-    """The robot's segments with their quadrature points, for Newton-Euler passes."""
-
-    def __init__(self, q, segments, quadrature_nodes: int):
-        nodes, weights = np.polynomial.legendre.leggauss(quadrature_nodes)
-        self.q, self.segments = q, segments
-        self.points, self.tips = [], []
-        for i, seg in enumerate(segments):
-            q_i = q[3 * i : 3 * i + 3]
-            self.points.append(
-                [
-                    self._point(q_i, 0.5 * (x + 1.0), 0.5 * w * seg.mass)
-                    for x, w in zip(nodes, weights, strict=True)
-                ]
-            )
-            self.tips.append(self._point(q_i, 1.0, 0.0))
-
-    @staticmethod
-    def _point(q_i, s, mass) -> _Point:
-        rotation, position = segment_pose(q_i, s)
-        return _Point(
-            rotation, position, ca.jacobian(position, q_i), segment_angular_jacobian(q_i, s), mass
-        )
-
-    def _coordinates(self, i):
-        return self.q[3 * i : 3 * i + 3]
-
-    def newton_euler(self, qd, qdd, base_gravity):
-        """Generalized inertial plus gravitational forces ``D qdd + C qd + G``, shape (n,).
-
-        Gravity enters as an upward acceleration ``-g`` of the base. Frame quantities are
-        in the frame's own coordinates: angular velocity ``omega``, angular acceleration
-        ``alpha`` and origin acceleration ``accel``.
-        """
-        n_segments = len(self.segments)
-        omega, alpha, accel = ca.SX.zeros(3), ca.SX.zeros(3), -base_gravity
-        frames = []
-        for i in range(n_segments):
-            frames.append((omega, alpha, accel))
-            q_i, qd_i, qdd_i = self._coordinates(i), qd[3 * i : 3 * i + 3], qdd[3 * i : 3 * i + 3]
-            # the tip slice's frame is the next segment's frame
-            tip_accel, omega, alpha = _point_motion(
-                self.tips[i], q_i, qd_i, qdd_i, omega, alpha, accel
-            )
-            accel = self.tips[i].rotation.T @ tip_accel
-        forces = [None] * n_segments
-        wrench_force, wrench_moment = ca.SX.zeros(3), ca.SX.zeros(3)  # from downstream
-        for i in reversed(range(n_segments)):
-            q_i, qd_i, qdd_i = self._coordinates(i), qd[3 * i : 3 * i + 3], qdd[3 * i : 3 * i + 3]
-            omega, alpha, accel = frames[i]
-            tip = self.tips[i]
-            force_at_tip = tip.rotation @ wrench_force
-            generalized = tip.linear.T @ force_at_tip + tip.angular.T @ wrench_moment
-            total_force = force_at_tip
-            total_moment = tip.rotation @ wrench_moment + ca.cross(tip.position, force_at_tip)
-            for point in self.points[i]:
-                linear_accel, body_omega, body_alpha = _point_motion(
-                    point, q_i, qd_i, qdd_i, omega, alpha, accel
-                )
-                inertia = self.segments[i].radius ** 2 * ca.DM([0.25, 0.25, 0.5])
-                force = point.mass * linear_accel
-                moment = point.mass * (
-                    inertia * body_alpha + ca.cross(body_omega, inertia * body_omega)
-                )
-                generalized += point.linear.T @ force + point.angular.T @ moment
-                total_force += force
-                total_moment += ca.cross(point.position, force) + point.rotation @ moment
-            forces[i] = generalized
-            wrench_force, wrench_moment = total_force, total_moment
-        return ca.vertcat(*forces)
-
-    def gravity_energy(self, base_gravity):
-        """``-sum m g . x`` over the quadrature points, in base-frame coordinates."""
-        rotation, origin, energy = ca.SX.eye(3), ca.SX.zeros(3), 0
-        for points, tip in zip(self.points, self.tips, strict=True):
-            for point in points:
-                energy -= point.mass * ca.dot(base_gravity, origin + rotation @ point.position)
-            origin = origin + rotation @ tip.position
-            rotation = rotation @ tip.rotation
-        return energy
-
-
-def _velocity_bias(point, q_i, qd_i):
-    """``(d/dt J) qd`` and ``(d/dt A) qd`` at fixed ``qd``: the point's relative
-    acceleration and angular acceleration when ``qdd = 0``.
-
-    Computed as derivatives along the line ``q + t qd`` in the scalar ``t`` (second
-    derivative of the position, first of ``A qd``): one derivative direction instead of
-    the three of ``jtimes(J qd, q, qd)``, which differentiates the Jacobian itself. On the
-    paper's robot this cuts the compiled right-hand side by a third; both forms agree to
-    round-off (``tests/test_dynamics.py`` checks the dynamics against energy and
-    finite-difference identities).
-    """
-    t = ca.SX.sym("t")
-    line = q_i + t * qd_i
-    position = ca.substitute(point.position, q_i, line)
-    linear_bias = ca.substitute(ca.jacobian(ca.jacobian(position, t), t), t, 0)
-    relative_omega = ca.substitute(point.angular @ qd_i, q_i, line)
-    angular_bias = ca.substitute(ca.jacobian(relative_omega, t), t, 0)
-    return linear_bias, angular_bias
-
-
-def _point_motion(point, q_i, qd_i, qdd_i, omega, alpha, accel):
-    """Acceleration of a material point (segment-frame coordinates), and the angular
-    velocity and acceleration of its slice (slice coordinates), given the segment frame's
-    angular velocity ``omega``, angular acceleration ``alpha`` and origin acceleration
-    ``accel`` (segment-frame coordinates)."""
-    rate = point.linear @ qd_i  # velocity relative to the segment frame
-    relative_omega = point.angular @ qd_i
-    linear_bias, angular_bias = _velocity_bias(point, q_i, qd_i)
-    r = point.position
-    linear_accel = (
-        accel
-        + ca.cross(alpha, r)
-        + ca.cross(omega, ca.cross(omega, r))
-        + 2 * ca.cross(omega, rate)
-        + point.linear @ qdd_i
-        + linear_bias
-    )
-    frame_omega = point.rotation.T @ omega
-    body_omega = frame_omega + relative_omega
-    body_alpha = (
-        point.rotation.T @ alpha
-        - ca.cross(relative_omega, frame_omega)
-        + point.angular @ qdd_i
-        + angular_bias
-    )
-    return linear_accel, body_omega, body_alpha
 
 
 def _elastic(q, segments, structure):

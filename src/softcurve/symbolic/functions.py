@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import casadi as ca
 
-from softcurve.symbolic.kinematics import frame_at
+from softcurve.symbolic.kinematics import inline_calls, point_at, segment_point_function
 
 DYNAMICS_TERMS = (
     ("D", "mass_matrix"),
@@ -43,9 +43,43 @@ def dynamics_terms_spec(e, *more) -> tuple:
     )
 
 
-def build_functions(spec: dict, p) -> dict[str, ca.Function]:
+def configuration_only(e, expression):
+    """``expression`` of ``e`` (a function of ``q`` alone, such as ``D``) freed of the
+    symbol ``qd``, which reaches it only through the inputs of the segments' Functions.
+
+    Parameters
+    ----------
+    e : DynamicsExpressions
+        The expressions ``expression`` belongs to.
+    expression : casadi.SX
+        Independent of ``qd`` in value.
+    """
+    return ca.substitute(expression, e.qd, ca.SX.zeros(e.qd.shape[0]))
+
+
+def common_subexpressions(expression, n_segments: int):
+    """``expression`` with its common subexpressions eliminated where the segments'
+    Functions are inlined (:func:`~softcurve.symbolic.kinematics.inline_calls`), as it
+    is otherwise.
+
+    Around calls there is little to share (the called Functions eliminate their own),
+    and CasADi's ``cse`` of an expression holding calls is slow: at ten segments 0.13 s
+    for 2 % fewer operations of the forward dynamics, 12 s for 9 % fewer of the
+    Christoffel matrix (45 s at twenty; ``python benchmarks/bench_chain.py --cse``).
+
+    Parameters
+    ----------
+    expression : casadi.SX
+        Any expression of a model's symbols.
+    n_segments : int
+        The model's number of segments N.
+    """
+    return ca.cse(expression) if inline_calls(n_segments) else expression
+
+
+def build_functions(spec: dict, p, n_segments: int) -> dict[str, ca.Function]:
     """One SX Function per entry of ``spec``, ``p`` appended to its inputs, each output
-    with its common subexpressions eliminated.
+    through :func:`common_subexpressions`.
 
     Parameters
     ----------
@@ -53,12 +87,13 @@ def build_functions(spec: dict, p) -> dict[str, ca.Function]:
         Name -> ``(inputs, input names, outputs, output names)``.
     p : casadi.SX
         The parameter vector, the last input of every Function.
+    n_segments : int
+        The model's number of segments N.
     """
     functions = {}
     for name, (inputs, in_names, outputs, out_names) in spec.items():
-        functions[name] = ca.Function(
-            name, [*inputs, p], [ca.cse(o) for o in outputs], [*in_names, "p"], out_names
-        )
+        outputs = [common_subexpressions(o, n_segments) for o in outputs]
+        functions[name] = ca.Function(name, [*inputs, p], outputs, [*in_names, "p"], out_names)
     return functions
 
 
@@ -81,11 +116,11 @@ def symbolic_functions(e) -> dict[str, ca.Function]:
     rhs = ca.vertcat(qd, e.forward_dynamics, e.creep_rate)
     rhs = ca.substitute(rhs, x, xs)
     s = ca.SX.sym("s")
-    frame = frame_at(q, e.n_segments, e.base_rotation, s)
-    jacobian = ca.vertcat(ca.jacobian(frame.position, q), frame.rotation @ frame.angular_jacobian)
+    point = segment_point_function(inline_calls(e.n_segments))
+    frame = point_at(q, e.n_segments, e.base_rotation, s, point)
     spec = {
         "dynamics_terms": dynamics_terms_spec(e),
-        "mass_matrix": ([q], ["q"], [e.mass_matrix], ["D"]),
+        "mass_matrix": ([q], ["q"], [configuration_only(e, e.mass_matrix)], ["D"]),
         "coriolis_matrix": ([q, qd], ["q", "qd"], [e.coriolis_matrix], ["C"]),
         "coriolis_force": ([q, qd], ["q", "qd"], [e.coriolis_force], ["Cqd"]),
         "gravity_force": ([q], ["q"], [e.gravity_force], ["G"]),
@@ -107,6 +142,6 @@ def symbolic_functions(e) -> dict[str, ca.Function]:
         "creep_rate": ([qd, lam], ["qd", "lam"], [e.creep_rate], ["lamd"]),
         "rhs": ([xs, tau], ["x", "tau"], [rhs], ["xdot"]),
         "pose": ([q, s], ["q", "s"], [frame.rotation, frame.position], ["rotation", "position"]),
-        "jacobian": ([q, s], ["q", "s"], [jacobian], ["J"]),
+        "jacobian": ([q, s], ["q", "s"], [frame.jacobian], ["J"]),
     }
-    return build_functions(spec, p)
+    return build_functions(spec, p, e.n_segments)

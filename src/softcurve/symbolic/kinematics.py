@@ -99,7 +99,7 @@ class Frame:
     angular_jacobian: ca.SX
 
 
-def segment_frames(q, n_segments: int, base_rotation, points):
+def segment_frames(q, n_segments: int, base_rotation, points, point=None):
     """Frames of a serial chain at the given material points.
 
     Parameters
@@ -112,12 +112,17 @@ def segment_frames(q, n_segments: int, base_rotation, points):
         World orientation of the base frame.
     points : sequence of (segment index, local s)
         Points at which frames are wanted; ``s`` may be a number or an expression.
+    point : casadi.Function, optional
+        :func:`segment_point_function` (default: a new one, inlined as
+        :func:`inline_calls` says).
 
     Returns
     -------
     list of Frame
         One per point, in the order given.
     """
+    if point is None:
+        point = segment_point_function(inline_calls(n_segments))
     n = 3 * n_segments
     wanted: dict[int, list[tuple[int, object]]] = {}
     for k, (i, s) in enumerate(points):
@@ -128,16 +133,16 @@ def segment_frames(q, n_segments: int, base_rotation, points):
     for i in range(n_segments):
         q_i = q[3 * i : 3 * i + 3]
         for k, s in wanted.get(i, []):
-            frames[k] = _chain_step(q_i, i, s, n, rotation, position, angular)
-        tip = _chain_step(q_i, i, 1.0, n, rotation, position, angular)
+            frames[k] = _chain_step(point, q_i, i, s, n, rotation, position, angular)
+        tip = _chain_step(point, q_i, i, 1.0, n, rotation, position, angular)
         rotation, position, angular = tip.rotation, tip.position, tip.angular_jacobian
     return frames
 
 
-def _chain_step(q_i, i, s, n, rotation, position, angular) -> Frame:
-    local_rotation, local_position = segment_pose(q_i, s)
+def _chain_step(point, q_i, i, s, n, rotation, position, angular) -> Frame:
+    local_rotation, local_position, _, segment_angular = point(q_i, s)
     local_angular = ca.SX.zeros(3, n)
-    local_angular[:, 3 * i : 3 * i + 3] = segment_angular_jacobian(q_i, s)
+    local_angular[:, 3 * i : 3 * i + 3] = segment_angular
     return Frame(
         rotation=rotation @ local_rotation,
         position=position + rotation @ local_position,
@@ -145,10 +150,71 @@ def _chain_step(q_i, i, s, n, rotation, position, angular) -> Frame:
     )
 
 
-def frame_at(q, n_segments: int, base_rotation, s):
-    """Frame at material coordinate ``s`` in [0, 1] of the whole robot (symbolic ``s``).
+def inline_calls(n_segments: int) -> bool:
+    """Whether a robot of ``n_segments`` inlines its segments' Functions: for one segment,
+    where there is nothing to share and inlining drops the terms the robot does not use
+    (a third of the forward dynamics' operations, ``benchmarks/bench_chain.py``);
+    otherwise they stay calls, one copy of a segment's work however many segments.
 
-    Segment ``i`` covers ``[i/N, (i+1)/N]``; ``s = 1`` is the tip.
+    Parameters
+    ----------
+    n_segments : int
+        Number of segments N.
+    """
+    return n_segments == 1
+
+
+@dataclass(frozen=True)
+class MaterialPoint:
+    """Pose of a material point of the robot and its world-frame Jacobian (symbolic).
+
+    Parameters
+    ----------
+    rotation : casadi.SX, shape (3, 3)
+        World-frame orientation.
+    position : casadi.SX, shape (3,)
+        World-frame position [m].
+    jacobian : casadi.SX, shape (6, n)
+        Linear velocity [m/s] above, angular velocity [rad/s] below, world frame, per
+        unit ``qd``.
+    """
+
+    rotation: ca.SX
+    position: ca.SX
+    jacobian: ca.SX
+
+
+def segment_point_function(inline: bool = False) -> ca.Function:
+    """``(q_i, s) -> (rotation, position, linear Jacobian, body angular Jacobian)`` of
+    material point ``s`` of a segment, in its base frame: one Function a chain calls per
+    segment.
+
+    Parameters
+    ----------
+    inline : bool
+        Whether it is inlined where it is called (False: it stays a call).
+    """
+    q_i, s = ca.SX.sym("q", 3), ca.SX.sym("s")
+    rotation, position = segment_pose(q_i, s)
+    return ca.Function(
+        "segment_point",
+        [q_i, s],
+        [rotation, position, ca.jacobian(position, q_i), segment_angular_jacobian(q_i, s)],
+        ["q", "s"],
+        ["rotation", "position", "linear", "angular"],
+        {"never_inline": not inline, "cse": True},
+    )
+
+
+def point_at(q, n_segments: int, base_rotation, s, point: ca.Function | None = None):
+    """The material point at coordinate ``s`` in [0, 1] of the whole robot (symbolic
+    ``s``), by one pass over the segments.
+
+    Segment ``i`` covers ``[i/N, (i+1)/N]``; ``s = 1`` is the tip. Segment ``j`` moves the
+    point rigidly with its tip frame when the point lies beyond it, through its own
+    slice when the point lies in it (the local coordinate ``clamp(s N - j, 0, 1)``), and
+    not at all when the point lies before it (the slice at ``0`` has zero Jacobian): each
+    segment's block of the Jacobian is one of two expressions, so the pass costs O(N).
 
     Parameters
     ----------
@@ -160,19 +226,32 @@ def frame_at(q, n_segments: int, base_rotation, s):
         World orientation of the base frame.
     s : casadi.SX
         Material coordinate of the whole robot, in [0, 1].
+    point : casadi.Function, optional
+        :func:`segment_point_function` (default: a new one, kept as calls).
     """
-    points = []
-    for i in range(n_segments):
-        local = ca.fmin(ca.fmax(s * n_segments - i, 0.0), 1.0)
-        points.append((i, local))
-    candidates = segment_frames(q, n_segments, base_rotation, points)
-    chosen = candidates[-1]
+    point = segment_point_function() if point is None else point
+    rotation, origin = base_rotation, ca.SX.zeros(3)
+    candidates, blocks = [], []
+    for j in range(n_segments):
+        q_j = q[3 * j : 3 * j + 3]
+        local = ca.fmin(ca.fmax(s * n_segments - j, 0.0), 1.0)
+        r_local, p_local, linear, angular = point(q_j, local)
+        r_tip, p_tip, linear_tip, angular_tip = point(q_j, 1.0)
+        frame_rotation = rotation @ r_local
+        candidates.append((frame_rotation, origin + rotation @ p_local))
+        inside = ca.vertcat(rotation @ linear, frame_rotation @ angular)
+        tip_origin, tip_rotation = origin + rotation @ p_tip, rotation @ r_tip
+        # beyond the segment: the tip frame's twist per unit qd_j, moved to the point below
+        blocks.append((j, inside, rotation @ linear_tip, tip_rotation @ angular_tip, tip_origin))
+        rotation, origin = tip_rotation, tip_origin
+    chosen_rotation, chosen_position = candidates[-1]
     for i in reversed(range(n_segments - 1)):
-        inside = s * n_segments < i + 1
-        c = candidates[i]
-        chosen = Frame(
-            rotation=ca.if_else(inside, c.rotation, chosen.rotation),
-            position=ca.if_else(inside, c.position, chosen.position),
-            angular_jacobian=ca.if_else(inside, c.angular_jacobian, chosen.angular_jacobian),
-        )
-    return chosen
+        before = s * n_segments < i + 1
+        chosen_rotation = ca.if_else(before, candidates[i][0], chosen_rotation)
+        chosen_position = ca.if_else(before, candidates[i][1], chosen_position)
+    columns = []
+    for j, inside, linear_tip, angular_tip, tip_origin in blocks:
+        moved = linear_tip - ca.skew(chosen_position - tip_origin) @ angular_tip
+        beyond = s * n_segments >= j + 1
+        columns.append(ca.if_else(beyond, ca.vertcat(moved, angular_tip), inside))
+    return MaterialPoint(chosen_rotation, chosen_position, ca.horzcat(*columns))

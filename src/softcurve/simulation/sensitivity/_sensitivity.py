@@ -72,6 +72,7 @@ from softcurve.simulation.solvers import (
     driver_options,
     driver_reason,
 )
+from softcurve.symbolic.functions import common_subexpressions
 
 SENSITIVITY_CVODES = cvodes_options(
     "adams", 1e-8, 1e-10, 100_000, max_order=None, nonlinear_solver_iteration="functional"
@@ -331,7 +332,7 @@ def trajectory_sensitivities(
     augmented = ca.Function(
         "softcurve_sensitivity",
         [ca.vertcat(xs, ca.vec(sens)), us, ca.vertcat(ds, sc_s)],
-        [ca.densify(ca.cse(ca.vertcat(f, ca.vec(s_dot))))],
+        [ca.densify(common_subexpressions(ca.vertcat(f, ca.vec(s_dot)), model.robot.n_segments))],
     )
     t = experiment.t
     settings = {**SENSITIVITY_CVODES, **(options or {})}
@@ -569,7 +570,9 @@ def column_parts(f, xs, us, ds, sens, scales, f_d, n_coordinates: int) -> list[c
         part = product + f_d if k == 0 else product
         parts.append(
             ca.Function(
-                f"softcurve_sensitivity_part{k}", inputs, [ca.densify(ca.cse(ca.vec(part)))]
+                f"softcurve_sensitivity_part{k}",
+                inputs,
+                [ca.densify(common_subexpressions(ca.vec(part), n_coordinates // 3))],
             )
         )
     return parts
