@@ -51,6 +51,12 @@ PARAMETERS: dict[str, tuple[str, str]] = {
         "Material coordinate along the segment, in [0, 1] (dimensionless).",
     ),
     "threads": ("int", "Threads of the mapped evaluation."),
+    "steps": ("ChainSteps", "The steps of the algorithms over the chain."),
+    "terms": ("list of SegmentTerms", "Each segment's terms (``chain.segment_motions``)."),
+    "base_acceleration": (
+        "casadi.SX, shape (6,)",
+        "``(alpha, a)`` of the base frame; ``(0, -g)`` in base coordinates for gravity.",
+    ),
     "parameters": (
         "ndarray, shape (B, n_p)",
         "One robot parameter vector per member (``Robot.layout``).",

@@ -24,6 +24,7 @@ from dataclasses import dataclass
 
 import casadi as ca
 
+from softcurve.base.docs import shared_parameters
 from softcurve.symbolic.segment import BIAS_OUTPUTS, INERTIA_OUTPUTS, SegmentFunctions
 
 
@@ -207,15 +208,15 @@ def _arguments(t: SegmentTerms) -> list:
     return [getattr(t, name) for name in (*INERTIA_OUTPUTS, *BIAS_OUTPUTS)]
 
 
+@shared_parameters
 def mass_matrix(steps: ChainSteps, terms: list[SegmentTerms]):
-    """``D(q)``, shape (3N, 3N), by the composite-body algorithm.
+    """``D(q)``, shape (3N, 3N), by the composite-body algorithm (of the terms, the maps
+    alone are used).
 
     Parameters
     ----------
-    steps : ChainSteps
-        The algorithms' steps.
-    terms : list of SegmentTerms
-        From :func:`segment_motions` (the maps alone are used).
+    %(steps)s
+    %(terms)s
     """
     n_segments = len(terms)
     blocks = [[None] * n_segments for _ in range(n_segments)]
@@ -229,19 +230,17 @@ def mass_matrix(steps: ChainSteps, terms: list[SegmentTerms]):
     return 0.5 * (d + d.T)  # symmetric already; removes round-off
 
 
+@shared_parameters
 def inverse_dynamics(steps: ChainSteps, terms: list[SegmentTerms], qdd, base_acceleration):
     """``D qdd + C qd + G``, shape (3N,), by the recursive Newton-Euler algorithm.
 
     Parameters
     ----------
-    steps : ChainSteps
-        The algorithms' steps.
-    terms : list of SegmentTerms
-        From :func:`segment_motions`.
+    %(steps)s
+    %(terms)s
     qdd : casadi.SX, shape (3N,)
         Accelerations.
-    base_acceleration : casadi.SX, shape (6,)
-        ``(alpha, a)`` of the base frame; ``(0, -g)`` in base coordinates for gravity.
+    %(base_acceleration)s
     """
     accelerations, a = [], base_acceleration
     for i, t in enumerate(terms):
@@ -255,20 +254,18 @@ def inverse_dynamics(steps: ChainSteps, terms: list[SegmentTerms], qdd, base_acc
     return ca.vertcat(*forces)
 
 
+@shared_parameters
 def forward_dynamics(steps: ChainSteps, terms: list[SegmentTerms], force, base_acceleration):
     """``qdd`` for the generalized force ``force`` (all but the inertial terms), shape
     (3N,), by the articulated-body algorithm.
 
     Parameters
     ----------
-    steps : ChainSteps
-        The algorithms' steps.
-    terms : list of SegmentTerms
-        From :func:`segment_motions`.
+    %(steps)s
+    %(terms)s
     force : casadi.SX, shape (3N,)
         ``tau + K^T lambda - K(q) - R qd`` [N, N m^2, N m^2].
-    base_acceleration : casadi.SX, shape (6,)
-        ``(alpha, a)`` of the base frame; ``(0, -g)`` in base coordinates for gravity.
+    %(base_acceleration)s
     """
     gains = [None] * len(terms)
     inertia, bias = ca.SX.zeros(6, 6), ca.SX.zeros(6)  # articulated, beyond the tip
