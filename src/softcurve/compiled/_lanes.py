@@ -278,14 +278,14 @@ def lanes_function(function: ca.Function, name: str, shared: Sequence[bool]) -> 
             if not (sparsity(i).is_dense() and sparsity(i).is_column()):
                 raise ValueError(f"{function.name()}: {kind} {i} must be a dense column")
     callees: dict = {}
-    _gather_callees(function, name, callees)
+    calls = _gather_callees(function, name, callees)
     inputs = [
         f"const double* in{i}" if is_shared else f"const sc_v* in{i}"
         for i, is_shared in enumerate(shared)
     ]
     outputs = [f"sc_v* out{i}" for i in range(function.n_out())]
     definitions = [code for _, code in callees.values()]
-    main = _definition(function, name, [*inputs, *outputs], _Signature(shared), callees)
+    main = _definition(function, name, [*inputs, *outputs], _Signature(shared), calls)
     return "\n".join([*definitions, main])
 
 
@@ -299,27 +299,29 @@ def _callees(function: ca.Function) -> dict[int, ca.Function]:
     return {k: instructions[k].which_function() for k in calls}
 
 
-def _gather_callees(function: ca.Function, prefix: str, callees: dict) -> None:
-    """Every function ``function`` calls, directly or not, by name, each before those
-    that call it: ``name -> (C name, C definition)``. CasADi's code generator names a
-    called function once per name, as here."""
-    for callee in _callees(function).values():
+def _gather_callees(function: ca.Function, prefix: str, callees: dict) -> dict[int, str]:
+    """Add every function ``function`` calls, directly or not, to ``callees`` by name,
+    each before those that call it (``name -> (C name, C definition)``; CasADi's code
+    generator names a called function once per name, as here), and return the C name
+    each call instruction of ``function`` calls."""
+    found = _callees(function)
+    for callee in found.values():
         if callee.name() in callees:
             continue
         if not callee.is_a("SXFunction"):
             raise NotImplementedError(f"{function.name()} calls {callee.name()}, not SX")
-        _gather_callees(callee, prefix, callees)
+        calls = _gather_callees(callee, prefix, callees)
         c_name = f"{prefix}_call{len(callees)}"
         signature = _Signature([False] * callee.n_in(), _offsets(callee))
         parameters = ["const sc_v* in", "sc_v* out"]
         callees[callee.name()] = (
             c_name,
-            _definition(callee, c_name, parameters, signature, callees),
+            _definition(callee, c_name, parameters, signature, calls),
         )
+    return {k: callees[f.name()][0] for k, f in found.items()}
 
 
-def _definition(function, name, parameters, signature, callees) -> str:
-    calls = {k: callees[f.name()][0] for k, f in _callees(function).items()}
+def _definition(function, name, parameters, signature, calls) -> str:
     body = [_statement(function, k, signature, calls) for k in range(function.n_instructions())]
     declarations = []
     if function.sz_w() <= STACK_WORK:
