@@ -231,6 +231,35 @@ def test_equilibrium_fit_recovers_mounting_angle_area_and_sensor_zero():
     assert np.all((lo <= expected) & (expected <= hi)), report.table()
 
 
+def test_stiffness_and_chamber_area_from_statics_are_not_separately_determined():
+    # Linear bending stiffness against the chambers' area, curvatures only: the
+    # equilibria fix their ratio alone. The Jacobian's columns are not exactly parallel
+    # (gravity, rounding), so the rank test passes, but the correlation is +1.000: the
+    # fit must not say SUCCESS, and must say which pair and what to do.
+    model = sc.Model(_robot(), quadrature_nodes=4)
+    t = np.linspace(0.0, 6.0, 60)
+    phase, amplitude = 4 * np.pi * t / 6.0, 3e3 + 1.4e4 * t / 6.0
+    pressures = {f"p{i}": 2e4 + amplitude * np.sin(phase - 2 * np.pi * i / 3) for i in range(3)}
+    template = Experiment(t, {"kx": 0 * t, "ky": 0 * t}, pressures)
+    output, inputs = curvature_map(), bellows_input_map(area=2.3e-5, distance=0.01)
+    clean = fit_equilibria(model, template, output=output, input_map=inputs, free=[])
+    noisy = clean.predicted + 0.05 * np.random.default_rng(5).standard_normal((t.size, 2))
+    data = template.with_signals(kx=noisy[:, 0], ky=noisy[:, 1])
+    free = [
+        Free("bellows.area", 1e-7, 1e-3, initial=1.5e-5),
+        Free(SEG + "bending_stiffness.k0", 1e-4, 1.0, initial=0.02),
+    ]
+    report = fit_equilibria(model, data, output=output, input_map=inputs, free=free)
+    assert report.identifiable.all()  # the rank test alone would have said SUCCESS
+    assert abs(report.correlation[0, 1]) > 0.999
+    assert report.status is Status.NOT_IDENTIFIABLE
+    assert "bellows.area ~ segments[0].bending_stiffness.k0" in report.message
+    assert "fix one of each pair" in report.message
+    # one of them fixed, the other is determined
+    alone = fit_equilibria(model, data, output=output, input_map=inputs, free=free[:1])
+    assert alone.success, alone.message
+
+
 def test_cli_fit_reports_and_fails_cleanly(tmp_path, capsys):
     from softcurve.cli import main
 

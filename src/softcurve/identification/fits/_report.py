@@ -23,6 +23,12 @@ from softcurve.base.status import Result, Status
 from softcurve.base.validation import ParameterError
 from softcurve.figures import plot_fit
 
+CORRELATED = 1e-3
+"""Two estimates whose correlation is within this of +-1 are not separately determined:
+the data fix a combination of them (a product, a sum), and the fit moves along the other
+direction by rounding or to a bound. A covariance this close to singular passes the rank
+test of :func:`covariance` yet gives intervals that mean nothing."""
+
 SPREAD_COST = 1.01
 """Optima of a multi-start within this factor of the best cost count as the same
 minimum in the spread of the report (1 % more cost)."""
@@ -44,7 +50,9 @@ class FitReport(Result):
     ----------
     status : Status
         SUCCESS; EVALUATION_LIMIT when the budget ran out first; NOT_IDENTIFIABLE when
-        the covariance is singular (some parameters are not determined by the data);
+        the covariance is singular (some parameters are not determined by the data) or
+        two estimates correlate within ``CORRELATED`` (1e-3) of +-1 (the data determine
+        only a combination of them; the message names the pairs);
         NOT_CONVERGED when the solver or the model failed; INFEASIBLE when the estimate
         is not an admissible law or robot.
     message : str
@@ -368,10 +376,11 @@ def summarize(names, jac_theta, weighted_residuals, status: Status, message: str
     weighted_residuals : ndarray, shape (N,)
         At the estimate.
     status : Status
-        The solver's; a converged fit whose covariance is singular becomes
-        NOT_IDENTIFIABLE.
+        The solver's; a converged fit whose covariance is singular, or in which two
+        estimates correlate within :data:`CORRELATED` of +-1, becomes NOT_IDENTIFIABLE.
     message : str
-        The solver's; the names not identifiable are appended.
+        The solver's; the names not identifiable, and the pairs not separately
+        determined, are appended with what to do.
 
     Returns
     -------
@@ -379,9 +388,23 @@ def summarize(names, jac_theta, weighted_residuals, status: Status, message: str
         ``(standard_errors, correlation, identifiable, status, message)``.
     """
     cov, identifiable = covariance(jac_theta, weighted_residuals)
+    correlation = correlation_matrix(cov)
     if not identifiable.all():
         bad = [n for n, ok in zip(names, identifiable, strict=True) if not ok]
         message += f"; not identifiable from these data (fix them): {bad}"
         if status is Status.SUCCESS:
             status = Status.NOT_IDENTIFIABLE
-    return np.sqrt(np.diag(cov)), correlation_matrix(cov), identifiable, status, message
+    pairs = [
+        f"{names[j]} ~ {names[i]} ({correlation[i, j]:+.4f})"
+        for i in range(len(names))
+        for j in range(i)
+        if abs(correlation[i, j]) > 1 - CORRELATED  # NaN (not identifiable) is not
+    ]
+    if pairs:
+        message += (
+            f"; not separately determined by these data, only together: {', '.join(pairs)}; "
+            "fix one of each pair at a known value, or add experiments that move them apart"
+        )
+        if status is Status.SUCCESS:
+            status = Status.NOT_IDENTIFIABLE
+    return np.sqrt(np.diag(cov)), correlation, identifiable, status, message

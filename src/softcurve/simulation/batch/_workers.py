@@ -16,9 +16,12 @@ that clock. The C driver reads no clock, so a batch on threads is as fast.
 
 from __future__ import annotations
 
+import ast
 import contextlib
+import inspect
 import os
 import signal
+import sys
 import threading
 import time
 from collections.abc import Callable, Iterator
@@ -26,6 +29,7 @@ from concurrent.futures import ProcessPoolExecutor, as_completed
 from concurrent.futures.process import BrokenProcessPool
 from multiprocessing import get_context
 
+from softcurve.base.validation import ParameterError
 from softcurve.compiled import Model
 from softcurve.description.robot import Robot
 
@@ -147,10 +151,78 @@ def model_description(model: Model) -> tuple:
     return (model.robot, model.quadrature_nodes, model.environment, compiled)
 
 
+def _is_main_guard(node: ast.AST) -> bool:
+    """Whether ``node`` is ``if __name__ == "__main__":`` (either side of the ``==``)."""
+    if not isinstance(node, ast.If) or not isinstance(node.test, ast.Compare):
+        return False
+    test = node.test
+    if len(test.ops) != 1 or not isinstance(test.ops[0], ast.Eq):
+        return False
+    sides = [test.left, test.comparators[0]]
+    named = any(isinstance(s, ast.Name) and s.id == "__name__" for s in sides)
+    return named and any(isinstance(s, ast.Constant) and s.value == "__main__" for s in sides)
+
+
+def unguarded_line() -> tuple[str, int] | None:
+    """Where the main script calls into softcurve outside ``if __name__ == "__main__":``.
+
+    A spawned worker runs the main script again, as the module ``__mp_main__``: whatever
+    its top level does outside that block (loading data, building a model, a fit) is done
+    again in every worker, and a worker that reaches a call starting processes fails. This
+    walks the calling frames to the main script's top level and reads, from the script's
+    syntax tree, whether the statement running there lies inside the block.
+
+    Returns
+    -------
+    tuple of (str, int) or None
+        The script's path and the line of the unguarded top-level statement; None when
+        the call is guarded, or the main module is no script a worker would run again
+        (an interactive session, ``python -c``, a notebook).
+    """
+    main = sys.modules.get("__main__")
+    path = getattr(main, "__file__", None)
+    if main is None or path is None or not os.path.isfile(path):
+        return None
+    frame = inspect.currentframe()
+    while frame is not None and not (
+        frame.f_globals is vars(main) and frame.f_code.co_name == "<module>"
+    ):
+        frame = frame.f_back
+    if frame is None:  # not called from the script's top level (e.g. a worker's thread)
+        return None
+    line = frame.f_lineno
+    try:
+        with open(path, encoding="utf-8") as file:
+            tree = ast.parse(file.read(), path)
+    except (OSError, SyntaxError, UnicodeDecodeError, ValueError):
+        return None
+    for node in tree.body:
+        if node.lineno <= line <= (node.end_lineno or node.lineno):
+            return None if _is_main_guard(node) else (path, line)
+    return None
+
+
+def _check_main_guard() -> None:
+    """:class:`~softcurve.ParameterError` before any worker starts, where the main script
+    would run again in every worker (:func:`unguarded_line`)."""
+    where = unguarded_line()
+    if where is None:
+        return
+    path, line = where
+    raise ParameterError(
+        f"{os.path.basename(path)}, line {line}: this call starts worker processes, and "
+        "each worker runs the script again from the top (workers are spawned), so the "
+        "script's loading, model building and fitting would be repeated in every one. "
+        'Put the script\'s work under `if __name__ == "__main__":` (or in a function called '
+        "from there), or pass processes=1 to stay in this process."
+    )
+
+
 def _pool(size: int) -> ProcessPoolExecutor:
     if _POOL and _POOL[0][0] != size:
         _POOL.pop()[1].shutdown()
     if not _POOL:
+        _check_main_guard()
         pool = ProcessPoolExecutor(
             size,
             mp_context=get_context("spawn"),
