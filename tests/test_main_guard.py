@@ -60,4 +60,3 @@ def test_a_guarded_script_runs_its_batch_in_workers(tmp_path):
     assert done.stdout.splitlines()[-1] == "True"
     # the top level outside the guard still runs in each worker started: that is spawning
     assert done.stdout.count("top level ran") >= 2
-
