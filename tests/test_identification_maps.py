@@ -252,6 +252,39 @@ def test_equilibrium_fit_recovers_per_chamber_gains_and_azimuths(paper_model):
     assert_close(report.values, expected, rtol=0.02)
 
 
+def test_a_free_scale_is_estimated_with_the_frame(paper_model):
+    """A tracker reporting in counts of unknown size: the scale is an extra parameter."""
+    model = paper_model
+    frame = SensorFrame("tracker", scale=1000.0, unit="", free_scale=True)
+    assert frame.names[-1] == "tracker.scale"
+    assert frame.parameters()["tracker.scale"] == 1000.0
+    output = tip_position_map(model, frame=frame)
+    q = np.array([0.066, 12.0, -5.0])
+    tip = model.tip_pose(q).position
+    values = {"tracker.scale": 2.5, "tracker.x": 0.01}
+    expected = 2.5 * (tip - [0.01, 0.0, 0.0])
+    assert_close(evaluate_output(output, model, q, values), expected, rtol=1e-14, scale=0.2)
+    inputs = bellows_input_map(area=2e-5, distance=0.01)
+    t = np.linspace(0.0, 6.0, 20)
+    phase = 4 * np.pi * t / 6.0
+    pressures = {f"p{i}": 4e4 + 3e4 * np.sin(phase - 2 * np.pi * i / 3) for i in range(3)}
+    zeros = {axis: 0 * t for axis in "xyz"}
+    template = sc.Experiment(t, zeros, pressures, dict.fromkeys(pressures, "Pa"))
+    truth = {"tracker.scale": 1234.5, "tracker.z": 0.004}
+    clean = sc.fit_equilibria(
+        model, template, output=output, input_map=inputs, free=[], extra=truth
+    )
+    noisy = clean.predicted + 0.01 * np.random.default_rng(2).standard_normal((t.size, 3))
+    data = template.with_signals(**{a: noisy[:, k] for k, a in enumerate("xyz")})
+    free = [sc.Free("tracker.scale", 100.0, 1e4), sc.Free("tracker.z", -0.1, 0.1, scale=0.01)]
+    report = sc.fit_equilibria(model, data, output=output, input_map=inputs, free=free)
+    assert report.success, report.message
+    lo, hi = report.intervals.T
+    assert np.all((lo <= [1234.5, 0.004]) & ([1234.5, 0.004] <= hi)), report.table()
+    with pytest.raises(sc.ParameterError, match="free_scale"):
+        SensorFrame("tracker", free_scale=1)
+
+
 # -- initial states -------------------------------------------------------------------------
 
 

@@ -166,6 +166,27 @@ def test_trajectory_fit_recovers_stiffness_and_damping(oscillation, noise_deg):
     assert SEG + "damping[1,1] [N m^3 s]" in report.table()
 
 
+def test_a_fit_starts_from_an_earlier_report(oscillation):
+    model, x0, data = oscillation
+    free = [
+        Free(SEG + "bending_stiffness.k0", 1e-4, 1.0, initial=0.012),
+        Free(SEG + "damping[1,1]", 1e-9, 1e-4, initial=1e-6),
+    ]
+    options = dict(output=bending_angle_map(), x0=x0, free=free)
+    short = fit_trajectory(model, data, max_evaluations=3, **options)
+    assert short.status is Status.EVALUATION_LIMIT
+    # the same list of Free, whose initial values are those of the first start
+    resumed = fit_trajectory(model, data, start=short, **options)
+    assert resumed.success, resumed.message
+    np.testing.assert_allclose(resumed.values, [0.008, 4e-7], rtol=1e-5)
+    # it began at the report's estimate: its first evaluation there costs what it did
+    first = fit_trajectory(model, data, start=short, max_evaluations=1, **options)
+    np.testing.assert_allclose(first.values, short.values, rtol=1e-14)
+    np.testing.assert_allclose(first.predicted, short.predicted, rtol=0, atol=1e-12)
+    with pytest.raises(sc.ParameterError, match="start must be a FitReport"):
+        fit_trajectory(model, data, start=short.values, **options)
+
+
 def test_tanh_reparametrization_and_robot_round_trip():
     robot = _robot(bending=sc.TanhStiffness(0.02, 0.012, 3.0))
     values, bind = tanh_parameters(robot, SEG + "bending_stiffness")

@@ -34,6 +34,9 @@ runs a seeded multi-start, ``progress=True`` shows a progress line
 
 from __future__ import annotations
 
+import warnings
+from dataclasses import replace
+
 import numpy as np
 
 from softcurve.analysis.loads import rest_configuration
@@ -43,8 +46,9 @@ from softcurve.compiled import Model
 from softcurve.identification.fits._equilibria import EquilibriumPredictor
 from softcurve.identification.fits._initial import LAG, initial_state, start_values
 from softcurve.identification.fits._joint import experiment_list, parallel_layout
+from softcurve.identification.fits._parameters import Free
 from softcurve.identification.fits._problem import Problem
-from softcurve.identification.fits._report import FitReport, usable_fit
+from softcurve.identification.fits._report import FitReport, FitWarning, usable_fit
 from softcurve.identification.fits._weights import WEIGHTS_DOC
 from softcurve.identification.maps import InputMap, OutputMap
 from softcurve.simulation.sensitivity import trajectory_sensitivities
@@ -93,7 +97,16 @@ FIT_OPTIONS = {
     "weights": WEIGHTS_DOC,
     "parameters": (
         "array_like, shape (P,), optional",
-        "Robot parameter vector to start from (default ``model.parameters``).",
+        "Robot parameter vector to start from (default ``model.parameters``, or the "
+        "estimate of ``start``).",
+    ),
+    "start": (
+        "FitReport, optional",
+        "An earlier fit to start from (one that ran out of evaluations, or of fewer "
+        "experiments): every parameter it estimated starts at its estimate, whatever "
+        "``Free(..., initial=)`` says (bounds and scales are kept), per-experiment values "
+        "for the experiments it had; the robot starts at its ``extra['parameters']`` unless "
+        "``parameters`` is given. A failed fit raises :class:`FitError`.",
     ),
     "confidence": (
         "float",
@@ -110,6 +123,24 @@ FIT_OPTIONS = {
 """The options ``fit_trajectory`` and ``fit_equilibria`` share, documented once."""
 
 _fit_options = parameters_from(FIT_OPTIONS)
+
+
+def _started(start, experiment, free, extra, parameters):
+    """``(free, extra, parameters)`` of a fit that starts from the report ``start``: its
+    estimates as the extra values and the robot vector, and no ``initial`` of the free
+    parameters it estimated, so that they start there."""
+    if start is None:
+        return free, extra, parameters
+    if not isinstance(start, FitReport):
+        raise ParameterError(f"start must be a FitReport of an earlier fit, got {start!r}")
+    with warnings.catch_warnings():  # resuming an unfinished fit is what start is for
+        warnings.simplefilter("ignore", FitWarning)
+        values = _fitted_values(start, experiment, dict(extra or {}))
+    per = start.extra.get("per_experiment", {})
+    estimated = set(start.names) | set(start.extra["values"]) | {n for v in per.values() for n in v}
+    free = [Free(f) if isinstance(f, str) else f for f in free]
+    free = [replace(f, initial=None) if f.label in estimated else f for f in free]
+    return free, values, start.extra["parameters"] if parameters is None else parameters
 
 
 def _per_experiment(name, value, experiments, is_one):
@@ -149,6 +180,7 @@ def fit_trajectory(
     signals=None,
     weights=None,
     parameters=None,
+    start: FitReport | None = None,
     max_evaluations: int = 60,
     confidence: float = 0.95,
     integrator_options: dict | None = None,
@@ -185,6 +217,7 @@ def fit_trajectory(
     %(signals)s
     %(weights)s
     %(parameters)s
+    %(start)s
     max_evaluations : int
         Budget of residual evaluations per start (each is one simulation with
         sensitivities of every experiment).
@@ -221,6 +254,7 @@ def fit_trajectory(
         each experiment's own; ``parts`` and :meth:`FitReport.part` give each
         experiment's rows.
     """
+    free, extra, parameters = _started(start, experiment, free, extra, parameters)
     experiments, _ = experiment_list(experiment)
     states = _per_experiment("x0", x0, experiments, _one_state)
     lagged = input_lag is not None
@@ -270,6 +304,7 @@ def fit_equilibria(
     signals=None,
     weights=None,
     parameters=None,
+    start: FitReport | None = None,
     max_evaluations: int = 100,
     confidence: float = 0.95,
     starts: int = 1,
@@ -302,6 +337,7 @@ def fit_equilibria(
     %(signals)s
     %(weights)s
     %(parameters)s
+    %(start)s
     max_evaluations : int
         Budget of residual evaluations per start.
     %(confidence)s
@@ -315,6 +351,9 @@ def fit_equilibria(
         As :func:`fit_trajectory`'s.
     """
     q0 = rest_configuration(model.robot) if q0 is None else real_array("q0", q0, (model.n,))
+    free, extra, parameters = _started(start, experiment, free, extra, parameters)
+    if start is not None:
+        extra.pop(LAG, None)  # a trajectory fit's input lag: no part of the statics
     problem = Problem(model, output, input_map, free, extra, bind, parameters, experiment)
     evaluators = [
         EquilibriumPredictor(model, part, output, input_map, q0)(e)

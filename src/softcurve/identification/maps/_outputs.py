@@ -114,31 +114,45 @@ class SensorFrame:
     Parameters
     ----------
     prefix : str
-        Prefix of the six extra parameters' names.
+        Prefix of the extra parameters' names.
     scale : float
         Sensor units per metre (e.g. 1000 for a system reporting millimetres) [unit/m],
-        > 0.
+        > 0; with ``free_scale``, the nominal value of ``prefix.scale``.
     unit : str
         The unit of the reported positions (e.g. ``"mm"``).
+    free_scale : bool
+        The scale as a seventh extra parameter ``prefix.scale`` [unit/m], to estimate
+        with ``Free("prefix.scale", ...)``: data in a unit of unknown size (a camera's
+        pixels, a tracker's uncalibrated counts). Estimated with the robot's length, a
+        scale is determined only where the data fix the robot's size some other way
+        (its rest length known, or gravity's sag).
     """
 
     prefix: str = "sensor"
     scale: float = 1.0
     unit: str = "m"
+    free_scale: bool = False
 
     def __post_init__(self):
         object.__setattr__(self, "scale", real_scalar("scale", self.scale, positive=True))
+        if not isinstance(self.free_scale, bool):
+            raise ParameterError(f"free_scale must be True or False, got {self.free_scale!r}")
         if not isinstance(self.prefix, str) or not self.prefix:
             raise ParameterError(f"prefix must be a non-empty str, got {self.prefix!r}")
 
     @property
     def names(self) -> tuple[str, ...]:
         """The six extra parameters: three angles [rad], then the origin [m]."""
-        return (*_angle_names(self.prefix), *(f"{self.prefix}.{a}" for a in AXES))
+        pose = (*_angle_names(self.prefix), *(f"{self.prefix}.{a}" for a in AXES))
+        return (*pose, f"{self.prefix}.scale") if self.free_scale else pose
 
     def parameters(self) -> dict:
-        """The six extra parameters with their nominal values (zero)."""
-        return dict.fromkeys(self.names, 0.0)
+        """The extra parameters with their nominal values (zero; ``scale`` for the
+        scale)."""
+        values = dict.fromkeys(self.names, 0.0)
+        if self.free_scale:
+            values[f"{self.prefix}.scale"] = self.scale
+        return values
 
     def rotation(self, values):
         """``R`` (3, 3): the frame's axes (columns) in world coordinates (CasADi).
@@ -161,7 +175,8 @@ class SensorFrame:
             The extra parameters, by name [rad and m].
         """
         origin = ca.vertcat(*(values[f"{self.prefix}.{a}"] for a in AXES))
-        return self.scale * (self.rotation(values).T @ (position - origin))
+        scale = values[f"{self.prefix}.scale"] if self.free_scale else self.scale
+        return scale * (self.rotation(values).T @ (position - origin))
 
 
 def _axes(axes: str) -> list[int]:
