@@ -98,3 +98,41 @@ def test_experiment_is_read_only_and_validates_names():
         e.signal_matrix(["z"])
     with pytest.raises(ExperimentError, match="at least one measured signal"):
         Experiment([0.0, 1.0], {})
+
+
+def test_thin_keeps_every_kth_sample_and_bin_averages_blocks():
+    t = np.arange(10) * 0.1
+    e = Experiment(t, {"x": t**2}, {"p": 2 * t}, {"x": "mm", "p": "kPa"}, name="trial")
+    thin = e.thin(3)
+    np.testing.assert_array_equal(thin.t, t[::3])
+    np.testing.assert_array_equal(thin.signals["x"], e.signals["x"][::3])
+    assert thin.units == e.units and thin.source_units == e.source_units
+    binned = e.bin(4)  # two whole blocks of four; the last two samples are dropped
+    np.testing.assert_allclose(binned.t, [0.15, 0.55], rtol=1e-14)
+    np.testing.assert_allclose(binned.signals["x"], 1e-3 * np.array([0.035, 0.315]), rtol=1e-13)
+    np.testing.assert_allclose(binned.inputs["p"], 2e3 * binned.t, rtol=1e-14)
+    assert e.thin(1).t.size == 10 and e.bin(1).t.size == 10
+    for method, bad in [(e.thin, 6), (e.bin, 0), (e.bin, 2.5), (e.thin, True)]:
+        with pytest.raises(ValueError):
+            method(bad)
+
+
+def test_binning_keeps_the_intervals_and_thinning_widens_them():
+    """Independent noise: a bin's mean has 1/k of the variance, so the standard error of a
+    fitted level is the whole record's; thinning keeps 1/k of the samples of the same
+    noise, so it is sqrt(k) times larger (the closed forms of a mean)."""
+    from softcurve.identification.fits._report import covariance
+
+    rng = np.random.default_rng(3)
+    t = np.arange(40_000) * 0.01
+    e = Experiment(t, {"y": 1.0 + 0.1 * rng.standard_normal(t.size)})
+
+    def standard_error(experiment):
+        y = experiment.signals["y"]
+        cov, _ = covariance(np.ones((y.size, 1)), y - y.mean())
+        return float(np.sqrt(cov[0, 0]))
+
+    whole = standard_error(e)
+    assert whole == pytest.approx(0.1 / np.sqrt(t.size), rel=0.02)
+    assert standard_error(e.bin(10)) == pytest.approx(whole, rel=0.05)
+    assert standard_error(e.thin(10)) == pytest.approx(np.sqrt(10) * whole, rel=0.05)

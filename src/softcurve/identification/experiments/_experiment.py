@@ -12,6 +12,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from softcurve.base.docs import parameters_from
+from softcurve.base.validation import whole_count
 from softcurve.identification.experiments._errors import ExperimentError, UnitError
 from softcurve.identification.experiments._units import to_si
 
@@ -207,6 +208,57 @@ class Experiment:
             raise ExperimentError(f"dt = {dt} s is longer than the experiment ({self.duration} s)")
         t = self.t[0] + dt * np.arange(count)
         return self._with(t, lambda v: np.interp(t, self.t, v))
+
+    def _blocks(self, count, what: str) -> int:
+        count = whole_count(what, count)
+        if self.t.size // count < 2:
+            raise ExperimentError(
+                f"experiment {self.name!r}: {what}={count} leaves fewer than 2 of its "
+                f"{self.t.size} samples"
+            )
+        return count
+
+    def thin(self, every: int) -> Experiment:
+        """Every ``every``-th sample, from the first, as a new experiment.
+
+        A fit on it costs about ``1 / every`` as much per evaluation where the cost is
+        per sample (a quasi-static fit solves one equilibrium per sample); its estimate
+        uses ``every`` times fewer samples of the same noise, so with independent noise
+        its standard errors and intervals grow by about ``sqrt(every)``. Thinning a
+        dense record, whose neighbouring residuals are correlated, loses less (their
+        intervals were too narrow: docs/identify.md).
+
+        Parameters
+        ----------
+        every : int
+            Keep sample 0, ``every``, ``2 every``, ...; at least 1.
+        """
+        every = self._blocks(every, "every")
+        return self._with(self.t[::every], lambda v: v[::every])
+
+    def bin(self, count: int) -> Experiment:
+        """Means of consecutive blocks of ``count`` samples (time, signals and inputs), as
+        a new experiment; a last, incomplete block is dropped.
+
+        As :meth:`thin`, ``count`` times fewer samples; but each mean has ``1 / count``
+        of the noise variance of independent noise, so the intervals stay about as wide
+        as on the whole record, and the residuals' RMS falls by ``sqrt(count)``. The
+        means smooth the record over ``count`` samples: keep ``count * dt`` well under
+        the fastest time the fit should resolve (for a quasi-static fit, the inputs'
+        changes).
+
+        Parameters
+        ----------
+        count : int
+            Samples per block; at least 1.
+        """
+        count = self._blocks(count, "count")
+        blocks = self.t.size // count
+
+        def means(v):
+            return v[: blocks * count].reshape(blocks, count).mean(axis=1)
+
+        return self._with(means(self.t), means)
 
     def with_signals(self, **signals) -> Experiment:
         """A copy with signals replaced or added (e.g. offsets removed).
