@@ -187,6 +187,28 @@ def test_a_fit_starts_from_an_earlier_report(oscillation):
         fit_trajectory(model, data, start=short.values, **options)
 
 
+def test_a_prediction_estimates_the_initial_state_of_a_trial_in_motion(oscillation):
+    model, x0, data = oscillation
+    free = [Free(SEG + "bending_stiffness.k0", 1e-4, 1.0, initial=0.012)]
+    options = dict(output=bending_angle_map())
+    report = fit_trajectory(model, data, x0=x0, free=free, **options)
+    assert report.success and report.extra["input_hold"] == "constant"
+    moving = data.trim(0.1, rezero=True)  # starts mid-swing: neither at rest nor at x0
+    given = predict_trajectory(model, data, report, x0=x0, **options)
+    assert given.rms[0] < 1e-5 and np.array_equal(given.extra["x0"][0], x0)
+    at_rest = predict_trajectory(model, moving, report, **options)  # the default
+    window = predict_trajectory(model, moving, report, x0="window", window=0.03, **options)
+    assert at_rest.rms[0] > 1.0  # degrees: the swing missed
+    assert window.rms[0] < 1e-3, window.table()
+    # the state found is the true one at 0.1 s (a free oscillation: its own truth)
+    truth = fit_trajectory(model, data.trim(0.0, 0.1), x0=x0, free=[], **options)
+    assert window.predicted[0, 0] == pytest.approx(truth.predicted[-1, 0], abs=1e-4)
+    with pytest.raises(sc.ParameterError, match="needs window"):
+        predict_trajectory(model, moving, report, x0="window", **options)
+    with pytest.warns(sc.FitWarning, match="input_hold='constant'"):
+        predict_trajectory(model, data, report, x0=x0, input_hold="linear", **options)
+
+
 def test_tanh_reparametrization_and_robot_round_trip():
     robot = _robot(bending=sc.TanhStiffness(0.02, 0.012, 3.0))
     values, bind = tanh_parameters(robot, SEG + "bending_stiffness")

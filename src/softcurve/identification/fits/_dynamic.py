@@ -45,10 +45,11 @@ from softcurve.base.validation import ParameterError, real_array
 from softcurve.compiled import Model
 from softcurve.identification.fits._equilibria import EquilibriumPredictor
 from softcurve.identification.fits._initial import LAG, initial_state, start_values
-from softcurve.identification.fits._joint import experiment_list, parallel_layout
+from softcurve.identification.fits._initial_equilibrium import initial_equilibrium
+from softcurve.identification.fits._joint import experiment_list, parallel_layout, split_extra
 from softcurve.identification.fits._parameters import Free
 from softcurve.identification.fits._problem import Problem
-from softcurve.identification.fits._report import FitReport, FitWarning, usable_fit
+from softcurve.identification.fits._report import FitError, FitReport, FitWarning, usable_fit
 from softcurve.identification.fits._weights import WEIGHTS_DOC
 from softcurve.identification.maps import InputMap, OutputMap
 from softcurve.simulation.sensitivity import trajectory_sensitivities
@@ -251,8 +252,8 @@ def fit_trajectory(
     FitReport
         With ``extra["robot"]`` the fitted robot, ``extra["parameters"]`` its vector,
         ``extra["values"]`` the shared extra parameters and ``extra["per_experiment"]``
-        each experiment's own; ``parts`` and :meth:`FitReport.part` give each
-        experiment's rows.
+        each experiment's own, ``extra["input_hold"]`` the hold of the inputs;
+        ``parts`` and :meth:`FitReport.part` give each experiment's rows.
     """
     free, extra, parameters = _started(start, experiment, free, extra, parameters)
     experiments, _ = experiment_list(experiment)
@@ -285,9 +286,10 @@ def fit_trajectory(
             LAG if lagged else None, input_hold, threads,
         ))  # fmt: skip
     options = dict(starts=starts, seed=seed, progress=progress, processes=processes)
-    return problem.run(
+    report = problem.run(
         evaluators, signals, weights, max_evaluations, confidence, "trajectory fit", options=options
     )
+    return replace(report, extra={**report.extra, "input_hold": input_hold})
 
 
 @_fit_options
@@ -384,8 +386,56 @@ def _fitted_values(fit: FitReport, experiment, given: dict) -> dict:
     return values
 
 
+def _estimated_states(model, experiments, fit, values, how, window, problem) -> list:
+    """Each experiment's initial state for a prediction: the equilibrium at its first
+    input under the fit's estimate, then (``how == "window"``) the coordinates and rates
+    fitted to its first ``window`` seconds with everything else held at the estimate."""
+    if how not in ("equilibrium", "window"):
+        raise ParameterError(
+            f"x0 must be a state, a callable, a list or dict of them, 'equilibrium' or "
+            f"'window', got {how!r}"
+        )
+    if how == "window" and not (
+        isinstance(window, int | float) and np.isfinite(window) and window > 0
+    ):
+        raise ParameterError(
+            f"x0='window' needs window, the seconds of each experiment's start to fit the "
+            f"initial state to (> 0), got {window!r}"
+        )
+    shared, per = split_extra(values, [e.name for e in experiments])
+    p = fit.extra["parameters"]
+    states = []
+    for e in experiments:
+        own = {**shared, **per[e.name]}
+        rest = initial_equilibrium(model, e, problem.get("input_map"), extra=own, parameters=p)
+        if not rest.success:
+            raise FitError(
+                f"x0='{how}': no equilibrium at the first input of experiment {e.name!r} "
+                f"({rest.message}); give x0 as a state"
+            )
+        if how == "equilibrium":
+            states.append(rest.x0)
+            continue
+        names = [f"x0.{part}[{i}]" for part in ("q", "qd") for i in range(model.n)]
+        start = e.trim(stop=e.t[0] + window)
+        options = {k: v for k, v in problem.items() if k != "x0"}
+        found = fit_trajectory(
+            model, start, free=names, extra=own, parameters=p, x0=rest.x0, **options
+        )
+        if not found.success:
+            raise FitError(
+                f"x0='window': the initial state of experiment {e.name!r} could not be fitted "
+                f"to its first {window:g} s ({found.status.value}: {found.message}); give a "
+                "longer window, or x0 as a state"
+            )
+        states.append(np.concatenate([found.values, rest.x0[2 * model.n :]]))
+    return states
+
+
 @parameters_from(PREDICTION_PARAMETERS)
-def predict_trajectory(model: Model, experiment, fit: FitReport, **problem):
+def predict_trajectory(
+    model: Model, experiment, fit: FitReport, *, x0="equilibrium", window=None, **problem
+):
     """Simulate ``experiment`` with the estimate of ``fit``, without refitting.
 
     Parameters
@@ -393,20 +443,53 @@ def predict_trajectory(model: Model, experiment, fit: FitReport, **problem):
     %(model)s
     %(experiment)s
     %(fit)s
+    x0 : array_like, shape (n_state,), callable, list, dict, "equilibrium" or "window"
+        Each experiment's initial state: given as in :func:`fit_trajectory`, or estimated
+        under the fit's estimate. ``"equilibrium"`` (the default): at rest in the
+        equilibrium of its first input (:func:`initial_equilibrium`; creep states zero),
+        for a trial that starts at rest. ``"window"``: that equilibrium, then its
+        coordinates and rates fitted to the experiment's first ``window`` seconds with
+        everything else held at the estimate (one small trajectory fit per experiment),
+        for a trial that starts in motion; the prediction covers the whole experiment,
+        the window included.
+    window : float, optional
+        Seconds from each experiment's start that ``x0="window"`` fits to [s]: long
+        enough for the outputs to show the motion (a few samples at least, and no
+        longer than needed: its fit is a simulation of that window per evaluation).
     **problem
-        The fit's keyword arguments ``output``, ``x0``, ``input_map``, ``bind``,
-        ``input_lag`` (and optionally ``signals``, ``weights``, ``extra``), passed on
-        to :func:`fit_trajectory` with no free parameters.
+        The fit's keyword arguments ``output``, ``input_map``, ``bind``, ``input_lag``,
+        ``input_hold`` (and optionally ``signals``, ``weights``, ``extra``,
+        ``integrator_options``, ``processes``, ``threads``), passed on to
+        :func:`fit_trajectory` with no free parameters. ``input_hold`` should be the
+        fit's: another one predicts a different model of the same inputs (a warning,
+        :class:`FitWarning`, says so). ``threads`` and ``processes`` change only the
+        speed (and, for ``threads``, the last digits).
 
     Returns
     -------
     FitReport
-        With no free parameters; its ``rms`` and ``max_error`` are the prediction errors.
+        With no free parameters; its ``rms`` and ``max_error`` are the prediction errors,
+        and ``extra["x0"]`` the initial states used, one per experiment.
     """
     values = _fitted_values(fit, experiment, problem.pop("extra", {}))
-    return fit_trajectory(
-        model, experiment, free=[], extra=values, parameters=fit.extra["parameters"], **problem
-    )
+    hold, fitted_hold = problem.get("input_hold", "constant"), fit.extra.get("input_hold")
+    if fitted_hold is not None and hold != fitted_hold:
+        warnings.warn(
+            f"predicting with input_hold={hold!r}, but the fit held its inputs "
+            f"{fitted_hold!r}: the estimate belongs to the fit's model of the inputs; pass "
+            f"input_hold={fitted_hold!r}",
+            FitWarning,
+            stacklevel=2,
+        )
+    experiments, _ = experiment_list(experiment)
+    if isinstance(x0, str):
+        x0 = _estimated_states(model, experiments, fit, values, x0, window, problem)
+    report = fit_trajectory(
+        model, experiment, free=[], extra=values, parameters=fit.extra["parameters"], x0=x0,
+        **problem,
+    )  # fmt: skip
+    states = _per_experiment("x0", x0, experiments, _one_state)
+    return replace(report, extra={**report.extra, "x0": states})
 
 
 @parameters_from(PREDICTION_PARAMETERS)
