@@ -219,3 +219,29 @@ def test_multi_start_reports_the_spread_of_its_optima(oscillation):
     assert not np.all(report.optimum_costs == report.optimum_costs.min())
     with pytest.raises(sc.ParameterError, match="starts must be an integer"):
         fit_trajectory(model, data, output=bending_angle_map(), x0=x0, free=FREE, starts=0)
+
+
+def test_a_fit_creeping_to_its_optimum_stops_once_the_steps_left_are_negligible():
+    """A Jacobian whose first column is five times too large (as an inexact sensitivity
+    can be) makes every step a fifth of the Gauss-Newton one: the fit creeps, and SciPy's
+    tolerances stop it only after 63 evaluations. The stopping test on the remaining step
+    against the standard errors ends it as converged within the budget, at a point within
+    a thousandth of a standard error of the optimum."""
+    from softcurve.identification.fits._solve import SETTLED, standard_errors
+
+    rng = np.random.default_rng(0)
+    x = np.linspace(0.0, 1.0, 200)
+    y = 2.0 * x + 0.5 + 0.1 * rng.standard_normal(x.size)
+
+    def residual_and_jacobian(z):
+        return z[0] * x + z[1] - y, np.column_stack([5.0 * x, np.ones_like(x)])
+
+    bounds = np.full(2, -np.inf), np.full(2, np.inf)
+    creeping = robust_least_squares(residual_and_jacobian, [0.0, 0.0], *bounds, 55)
+    assert creeping.status is Status.EVALUATION_LIMIT
+    settled = robust_least_squares(residual_and_jacobian, [0.0, 0.0], *bounds, 55, settle=SETTLED)
+    assert settled.status is Status.SUCCESS and "standard error" in settled.message
+    optimum = np.polyfit(x, y, 1)
+    exact = np.column_stack([x, np.ones_like(x)])
+    errors = standard_errors(exact, exact @ optimum - y)
+    assert np.all(np.abs(settled.z - optimum) < SETTLED * errors)

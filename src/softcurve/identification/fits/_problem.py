@@ -27,6 +27,7 @@ from softcurve.identification.fits._parameters import Free, FreeParameters
 from softcurve.identification.fits._report import FitReport, summarize
 from softcurve.identification.fits._solve import (
     EVALUATION_ERRORS,
+    SETTLED,
     robust_least_squares,
     starting_points,
 )
@@ -169,6 +170,7 @@ class Problem:
                     max_evaluations,
                     on_evaluation=lambda c, o=offset: bar.update(o + c),
                     on_best=lambda k=k: kept.__setitem__(k, list(latest)),
+                    settle=SETTLED,
                 )
             )
             if solutions[-1].status is Status.INTERRUPTED:  # a fault: do not start again
