@@ -37,3 +37,36 @@ def test_the_guide_runs_and_recovers_the_true_parameters(capsys):
     assert 0.08e-3 < rms < 0.12e-3  # the 0.1 mm of noise [m]
     start = namespace["start"]
     assert start.success and start.x0.shape == (namespace["model"].n_state,)
+
+
+def test_the_guides_trials_script_runs_as_a_script_in_worker_processes(tmp_path):
+    """Section 7 is a whole script under a main guard: run as written, it fits two trials
+    in spawned workers, names the pair it cannot separate, refits from the first fit and
+    predicts the third trial, at rest and in motion, at the noise."""
+    import os
+    import subprocess
+    import sys
+
+    blocks = python_blocks(PAGE.read_text())
+    script = next(b for b in blocks if 'if __name__ == "__main__":' in b)
+    (tmp_path / "trials.py").write_text(script)
+    done = subprocess.run(
+        [sys.executable, "trials.py"], cwd=tmp_path, capture_output=True, text=True,
+        timeout=900, env={**os.environ, "PYTHONWARNINGS": "error::UserWarning"},
+    )  # fmt: skip
+    assert done.returncode == 0, done.stderr[-3000:]
+    out = done.stdout
+    lines = out.splitlines()
+    assert lines[0].startswith("not_identifiable |") and "not separately determined" in lines[0]
+    assert "bending_stiffness.a1" in lines[0] and "bending_stiffness.a2" in lines[0]
+    assert "status: success" in out
+    table = {line.split()[0]: line for line in lines if line.startswith(("segments", "input_lag"))}
+    for name, truth in [("segments[0].bending_stiffness.a1", 0.423), ("input_lag", 0.05)]:
+        low, high = (float(v) for v in table[name].split("[")[-1].rstrip("]").split(","))
+        assert low <= truth <= high, table[name]
+    rms = [
+        [float(v) for v in line.split("[")[-1].rstrip("]").split()]
+        for line in lines
+        if "RMS [mm]" in line
+    ]
+    assert len(rms) == 2 and np.all(np.array(rms) < 0.13), rms  # the 0.1 mm of noise

@@ -92,7 +92,9 @@ def test_covariance_flags_parameters_that_only_enter_as_a_product():
     assert identifiable.tolist() == [False, False, True]
     assert np.isinf(cov[0, 0]) and np.isfinite(cov[2, 2])
     # a converged fit with a singular covariance is reported as not identifiable
-    *_, status, message = summarize(("a", "b", "c"), jac, np.full(20, 0.01), Status.SUCCESS, "")
+    *_, status, message = summarize(
+        ("a", "b", "c"), np.ones(3), jac, np.full(20, 0.01), Status.SUCCESS, ""
+    )
     assert status is Status.NOT_IDENTIFIABLE and "['a', 'b']" in message
 
 

@@ -391,11 +391,15 @@ def test_identification_of_tendon_routing_and_stiffness():
 
 
 def test_gravity_separates_routing_and_stiffness_weakly():
-    """Under gravity (known mass) the data do determine both, but the intervals are two
-    orders of magnitude wider than with one of them known."""
+    """Under gravity (known mass) the data determine both, but only just: the intervals
+    are two orders of magnitude wider than with one of them known, and the two correlate
+    within 1e-3 of +1, which the fit reports as not separately determined (naming the
+    pair), its intervals still holding the truth."""
     model, data, inputs = tendon_data(gravity=[0.0, 0.0, -9.81])
     both = fit(model, data, inputs, [ANGLE, DISTANCE, STIFFNESS])
-    assert both.success and within(both, {**TRUTH, SEG + "bending_stiffness.k0": BENDING})
+    assert both.status is Status.NOT_IDENTIFIABLE
+    assert f"tendons.distance ~ {SEG}bending_stiffness.k0" in both.message
+    assert within(both, {**TRUTH, SEG + "bending_stiffness.k0": BENDING})
     known = fit(model, data, inputs, [ANGLE, DISTANCE], extra=START)
     width = np.diff(both.intervals[1]) / np.diff(known.intervals[1])
     assert width > 50 and abs(both.correlation[1, 2]) > 0.99

@@ -39,8 +39,9 @@ from dataclasses import replace
 
 import numpy as np
 
-from softcurve.analysis.loads import rest_configuration
+from softcurve.analysis.loads import coordinate_scale, rest_configuration
 from softcurve.base.docs import parameters_from
+from softcurve.base.status import Status
 from softcurve.base.validation import ParameterError, real_array
 from softcurve.compiled import Model
 from softcurve.identification.fits._equilibria import EquilibriumPredictor
@@ -141,7 +142,15 @@ def _started(start, experiment, free, extra, parameters):
     estimated = set(start.names) | set(start.extra["values"]) | {n for v in per.values() for n in v}
     free = [Free(f) if isinstance(f, str) else f for f in free]
     free = [replace(f, initial=None) if f.label in estimated else f for f in free]
-    return free, values, start.extra["parameters"] if parameters is None else parameters
+    if parameters is None:
+        return free, values, start.extra["parameters"]
+    # a given robot vector, with the report's estimates of the free robot parameters
+    p, layout = np.array(parameters, dtype=np.float64), start.extra["robot"].layout
+    for f in free:
+        if f.label in start.names and all(t in layout for t in f.targets):
+            for target in f.targets:
+                p[layout.index(target)] = start.value(f.label)
+    return free, values, p
 
 
 def _per_experiment(name, value, experiments, is_one):
@@ -416,13 +425,22 @@ def _estimated_states(model, experiments, fit, values, how, window, problem) -> 
         if how == "equilibrium":
             states.append(rest.x0)
             continue
-        names = [f"x0.{part}[{i}]" for part in ("q", "qd") for i in range(model.n)]
+        # scales: a coordinate's natural size, and the rate that moves it that far in
+        # the window (zero starting values give no scale of their own)
+        size = coordinate_scale(model.robot)
+        names = [
+            Free(f"x0.{part}[{i}]", scale=size[i] / (window if part == "qd" else 1.0))
+            for part in ("q", "qd")
+            for i in range(model.n)
+        ]
         start = e.trim(stop=e.t[0] + window)
         options = {k: v for k, v in problem.items() if k != "x0"}
         found = fit_trajectory(
             model, start, free=names, extra=own, parameters=p, x0=rest.x0, **options
         )
-        if not found.success:
+        # entries the window determines only together (a planar sensor's view of an
+        # elongation and a bending rate) still give the outputs: enough to predict from
+        if found.status not in (Status.SUCCESS, Status.NOT_IDENTIFIABLE):
             raise FitError(
                 f"x0='window': the initial state of experiment {e.name!r} could not be fitted "
                 f"to its first {window:g} s ({found.status.value}: {found.message}); give a "
@@ -449,8 +467,9 @@ def predict_trajectory(
         equilibrium of its first input (:func:`initial_equilibrium`; creep states zero),
         for a trial that starts at rest. ``"window"``: that equilibrium, then its
         coordinates and rates fitted to the experiment's first ``window`` seconds with
-        everything else held at the estimate (one small trajectory fit per experiment),
-        for a trial that starts in motion; the prediction covers the whole experiment,
+        everything else held at the estimate (one small trajectory fit per experiment;
+        entries it determines only together are kept at its best fit, which reproduces
+        the outputs), for a trial that starts in motion; the prediction covers the whole experiment,
         the window included.
     window : float, optional
         Seconds from each experiment's start that ``x0="window"`` fits to [s]: long

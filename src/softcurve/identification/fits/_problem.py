@@ -204,7 +204,9 @@ class Problem:
             status = Status.INTERRUPTED if interrupted else Status.NOT_CONVERGED
             predicted = [np.full_like(m, np.nan) for m in measured]
             r, jac = np.zeros(0), np.zeros((0, size))
-        errors, corr, identifiable, status, message = summarize(J.names, jac, r, status, message)
+        errors, corr, identifiable, status, message = summarize(
+            J.names, theta, jac, r, status, message
+        )
         at_bound = [
             name
             for name, v, lo, hi in zip(J.names, z, J.lower, J.upper, strict=True)

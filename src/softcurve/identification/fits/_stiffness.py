@@ -262,7 +262,7 @@ def fit_stiffness(
     alpha_s = to_alpha @ (best.z * scale)
     fitted, jac_alpha = _law_force_and_jacobian(kind, alpha_s, xs)
     errors, corr, identifiable, status, message = summarize(
-        names, w[:, None] * jac_alpha, r, status, best.message
+        names, alpha_s, w[:, None] * jac_alpha, r, status, best.message
     )
     if status is not Status.SUCCESS:
         message = _failure(

@@ -183,6 +183,9 @@ def unguarded_line() -> tuple[str, int] | None:
     path = getattr(main, "__file__", None)
     if main is None or path is None or not os.path.isfile(path):
         return None
+    spec = getattr(main, "__spec__", None)
+    if spec is not None and (spec.name == "__main__" or spec.name.endswith(".__main__")):
+        return None  # a package's __main__ (python -m package): spawn does not rerun it
     frame = inspect.currentframe()
     while frame is not None and not (
         frame.f_globals is vars(main) and frame.f_code.co_name == "<module>"
