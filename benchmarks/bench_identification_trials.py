@@ -2,7 +2,7 @@
 one evaluation of ``fit_trajectory`` on nine trials of about 290 s at 12 Hz.
 
 Run:  python benchmarks/bench_identification_trials.py [--trials 9] [--duration 290]
-      [--cases linear,linear-loose,constant]
+      [--cases linear,linear-loose,constant,equilibrium]
 
 The data have the shape of the report that led to the issue: the paper's robot
 (ifac2020, with creep) driven by three chambers through a 50 ms pressure lag, pressure
@@ -20,7 +20,12 @@ compiles the sensitivities (printed as the cold time). Cases:
   (printed: the largest change of an output against the default tolerances) stays a
   small fraction of the 0.1 mm noise;
 - ``constant``: the inputs held between samples, the default (one trial only, scaled:
-  it is several times slower).
+  it is several times slower);
+- ``equilibrium``: ``fit_equilibria`` on the same records as if quasi-static (issue 33,
+  item 3), five free parameters (bending a1, the chambers' area and mounting angle, the
+  sensor offsets) on a model not compiled: the first fit of one evaluation (set-up and
+  the first evaluation, whose equilibria start from those of nearby inputs) and one
+  later evaluation, as above.
 
 The target is issue 33's: one evaluation of the nine trials within 5 s on a quiet
 machine; the load average is printed first.
@@ -89,6 +94,27 @@ def problem(model, experiments):
     return dict(output=output, input_map=input_map, x0=starts, free=free, input_lag=0.06)
 
 
+def equilibrium_time(experiments):
+    """``(first fit of one evaluation [s], one later evaluation [s])`` of
+    ``fit_equilibria`` (the module's docstring), after a fit that builds its functions."""
+    model = sc.Model(sc.presets.ifac2020(), compile=False)
+    kwargs = problem(model, experiments[:1])
+    free = [f for f in kwargs["free"] if f.label.split(".")[0] in ("bellows", "camera")]
+    free.insert(0, kwargs["free"][0])
+
+    def fit(evaluations):
+        start = time.perf_counter()
+        sc.fit_equilibria(
+            model, experiments, output=kwargs["output"], input_map=kwargs["input_map"],
+            free=free, max_evaluations=evaluations,
+        )  # fmt: skip
+        return time.perf_counter() - start
+
+    fit(1)
+    one = fit(1)
+    return one, (fit(3) - one) / 2
+
+
 def evaluation_time(model, experiments, hold, options):
     """``(cold first fit [s], one evaluation [s], outputs of one evaluation)``."""
     kwargs = dict(problem(model, experiments), input_hold=hold, integrator_options=options)
@@ -108,7 +134,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--trials", type=int, default=9)
     parser.add_argument("--duration", type=float, default=290.0)
-    parser.add_argument("--cases", default="linear,linear-loose,constant")
+    parser.add_argument("--cases", default="linear,linear-loose,constant,equilibrium")
     args = parser.parse_args()
     print(f"load average {os.getloadavg()[0]:.2f} on {os.cpu_count()} cores")
     model = sc.Model(sc.presets.ifac2020())
@@ -121,6 +147,13 @@ def main() -> None:
     )
     reference = None
     for case in args.cases.split(","):
+        if case == "equilibrium":
+            first, one = equilibrium_time(data)
+            print(
+                f"  {case:13s}: first fit of one evaluation {first:6.2f} s, one later "
+                f"evaluation {one:6.2f} s on {args.trials} trial(s)", flush=True,
+            )  # fmt: skip
+            continue
         hold = "constant" if case == "constant" else "linear"
         options = LOOSE if case == "linear-loose" else None
         subset = data[:1] if case == "constant" else data

@@ -68,6 +68,62 @@ def test_each_evaluation_starts_from_the_first_order_prediction(setting, monkeyp
     assert 0.15 < ratios[1] / ratios[0] < 0.35  # order 2: 1/4
 
 
+def _long(setting, samples=400):
+    """The fixture's setting with the record's sweep sampled ``samples`` times."""
+    model, parameters, output, inputs, q0, experiment = setting
+    t = np.linspace(0.0, 6.0, samples)
+    phase, amplitude = 4 * np.pi * t / 6.0, 3e3 + 1.4e4 * t / 6.0
+    pressures = {f"p{i}": 2e4 + amplitude * np.sin(phase - 2 * np.pi * i / 3) for i in range(3)}
+    record = Experiment(t, {"kx": 0 * t, "ky": 0 * t}, pressures)
+    return model, parameters, output, inputs, q0, record
+
+
+def test_a_long_record_starts_from_equilibria_of_nearby_inputs(setting, monkeypatch):
+    """At the first evaluation of a long record, every sample starts from the solution of
+    the sample of nearest inputs among about sqrt(T) solved first, with its stiffness for
+    chord steps: the starts lie closer to the solutions than the initial guess does (a
+    twentieth of the samples solved first, 36 degrees apart along the sweep's two turns),
+    the record takes fewer batched evaluations of its stiffness, and the predictions are
+    those of starting every sample at the initial guess."""
+    theta = np.array([-0.5, 2.3e-5])
+    long = _long(setting)
+    samples = long[-1].t.size
+    runs, solve = {}, equilibria.solve_equilibria
+    for warm in (True, False):
+        monkeypatch.setattr(equilibria, "WARM_START_MIN", 256 if warm else samples + 1)
+        starts, stiffness_calls = [], []
+
+        def recording(batch_system, system_of, q0, *, seen=(starts, stiffness_calls), **options):
+            def counted(q):
+                seen[1].append(q.shape[1])
+                return batch_system(q)
+
+            if q0.shape[1] == samples:
+                seen[0].append(np.array(q0))
+            return solve(counted, system_of, q0, **options)
+
+        monkeypatch.setattr(equilibria, "solve_equilibria", recording)
+        runs[warm] = (_predictor(long)(theta), starts[0], stiffness_calls.count(samples))
+    (y_warm, jac_warm), warm_start, warm_calls = runs[True]
+    (y_cold, jac_cold), cold_start, cold_calls = runs[False]
+    solution = _solution(long, theta)
+    warm_error, cold_error = np.abs(warm_start - solution), np.abs(cold_start - solution)
+    assert warm_error.max() < 0.5 * cold_error.max()
+    assert np.median(warm_error) < 0.2 * np.median(cold_error)
+    assert warm_calls < cold_calls
+    np.testing.assert_allclose(y_warm, y_cold, rtol=1e-8, atol=1e-8)  # both within tol
+    np.testing.assert_allclose(jac_warm, jac_cold, rtol=1e-6, atol=1e-9)
+
+
+def test_nearest_starts_measure_each_input_in_its_range():
+    """The nearest solved sample in inputs scaled by their ranges (unscaled, the second
+    input, a thousand times larger, would pick the other sample for the last two);
+    without inputs, the first."""
+    inputs = np.array([[0.0, 0.0], [1.0, 1000.0], [0.9, 300.0], [0.1, 600.0]])
+    np.testing.assert_array_equal(equilibria.nearest_starts(inputs, np.array([0, 1])), [0, 1, 1, 0])
+    assert equilibria.nearest_starts(np.zeros((5, 0)), np.array([2])).tolist() == [0] * 5
+
+
 def _solution(setting, theta):
     """The equilibria at ``theta`` (n, T), from a fresh predictor."""
     captured = []

@@ -341,8 +341,11 @@ def fit_equilibria(
     %(free)s
     q0 : array_like, shape (n,), optional
         Initial guess of every sample's equilibrium [m, 1/m, 1/m] (default: the
-        straight robot at rest length); later evaluations start from the previous
-        solutions (moved along their tangent where that move is small), then from ``q0``.
+        straight robot at rest length). At the first evaluation, a record of 256 samples
+        or more solves about ``sqrt(T)`` samples from ``q0`` first and starts every
+        sample from the solution of the one of nearest inputs; later evaluations start
+        from the previous solutions (moved along their tangent where that move is
+        small); ``q0`` is the last resort of every sample.
     %(extra)s
     %(bind)s
     %(signals)s

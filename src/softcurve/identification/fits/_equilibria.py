@@ -4,7 +4,12 @@ Each sample of an experiment is a static equilibrium ``N(q; p) = tau(q, u; value
 solved by the package's one equilibrium solver for many equilibria at once
 (:func:`softcurve.analysis.solver.solve_equilibria`), each sample starting from its
 solution at the previous evaluation of the fit (parameters change little between two
-evaluations), at the first evaluation from the given initial guess. The implicit function
+evaluations). At the first evaluation a long record starts from equilibria of its own:
+about ``sqrt(T)`` samples spread over the record are solved first, from the given
+initial guess, and every sample starts from the solution of the one among them whose
+inputs are nearest its own (an equilibrium depends on the inputs alone, so samples of
+nearby inputs have nearby equilibria; along a slowly varying record that is the previous
+such sample). The implicit function
 theorem gives the derivative of each solution with respect to the parameters,
 ``dq/dd = -K^-1 dr/dd`` with ``K = dr/dq``, and the chain rule the Jacobian of the
 outputs; the derivatives come from CasADi, evaluated for all samples in one call (split
@@ -17,6 +22,7 @@ import functools
 
 import casadi as ca
 import numpy as np
+import scipy.spatial
 
 from softcurve.analysis.loads import coordinate_scale, residual_reference
 from softcurve.analysis.solver import solve_equilibria
@@ -38,6 +44,32 @@ jump of the parameters as a multi-start makes, it can throw the start out of the
 domain) and the previous solution is the start. The fits of
 ``benchmarks/bench_identification.py`` move at most 0.02 (their first step, from a start
 10 % off), so the bound leaves them twelve times the room."""
+
+
+WARM_START_MIN = 256
+"""Records of fewer samples start every sample from the initial guess: there, solving
+``sqrt(T)`` of them first costs more than it saves (the first evaluation of the tests'
+one-segment sweep, ``tests/test_equilibrium_predictor.py``: 17.4 against 18.7 ms at 256
+samples, 15.5 against 11.1 ms at 128, 23 against 34 ms at 400, 76 against 136 ms at
+2,000)."""
+
+
+def nearest_starts(inputs: np.ndarray, solved: np.ndarray) -> np.ndarray:
+    """For every sample, the index (into ``solved``) of the solved sample whose inputs
+    are nearest its own, each input measured in its range over the record.
+
+    Parameters
+    ----------
+    inputs : ndarray, shape (T, m)
+        The record's inputs [unit of each input].
+    solved : ndarray of int, shape (C,)
+        The samples solved (indices into ``inputs``), C >= 1.
+    """
+    if inputs.shape[1] == 0:  # no inputs: every sample has the same equilibrium
+        return np.zeros(inputs.shape[0], dtype=int)
+    span = np.ptp(inputs, axis=0)
+    unit = inputs / np.where(span > 0, span, 1.0)
+    return scipy.spatial.cKDTree(unit[solved]).query(unit)[1]
 
 
 class EquilibriumPredictor:
@@ -102,47 +134,86 @@ class EquilibriumPredictor:
         rest = model.robot.rest_lengths
         actuator = None if self.input_map is None else self.input_map.actuator
 
-        def starts(d_value) -> list[np.ndarray]:
-            """Where the equilibria start, in turn for the samples not solved yet: the
-            previous solutions moved along their tangent (first-order prediction: the
-            chord steps start O(|change of d|^2) from the new solutions instead of
-            O(|change of d|)) where that move is small, then the previous solutions, then
-            the initial guess."""
-            found = [last, at_start]
+        def system_of(j, d_value):
+            def system(q_value):
+                r, k = balance(q_value, inputs[j], d_value)
+                return np.array(r, dtype=np.float64).ravel(), np.array(k, dtype=np.float64)
+
+            return system
+
+        options = dict(scale=self.scale, reference=self.reference, tol=EQUILIBRIUM_TOLERANCE)
+
+        def warm_start(d_value):
+            """``(Q (n, T), K (T, n, n))`` at the first evaluation: every sample starts
+            from the solution, and its chord steps from the stiffness, of the sample of
+            nearest inputs among about ``sqrt(T)`` solved first (the module's
+            docstring); None for a short record or where none of them is solved."""
+            if samples < WARM_START_MIN:
+                return None
+            solved = np.unique(np.linspace(0, samples - 1, int(np.ceil(np.sqrt(samples)))))
+            solved = solved.round().astype(int)
+            some = mapped(balance, solved.size, threads)
+
+            def some_system(q_some):
+                r, k = some(q_some, inputs[solved].T, d_value)
+                k = np.array(k, dtype=np.float64).reshape(n, solved.size, n).transpose(1, 0, 2)
+                return np.array(r, dtype=np.float64), k
+
+            roots = solve_equilibria(
+                some_system,
+                lambda j: system_of(solved[j], d_value),
+                at_start[:, solved],
+                max_evaluations=MAX_EVALUATIONS,
+                **options,
+            )
+            q_some = np.array([root.q for root in roots])
+            good = np.array([root.converged for root in roots])
+            good &= states_inside(rest, q_some, actuator)
+            if not good.any():
+                return None
+            nearest = nearest_starts(inputs, solved[good])
+            k_some = some_system(q_some.T)[1][good]
+            return q_some[good][nearest].T, k_some[nearest]
+
+        def starts(d_value) -> list[tuple[np.ndarray, np.ndarray | None]]:
+            """Where the equilibria start, in turn for the samples not solved yet, with
+            the stiffness for chord steps from there (None: Newton's method from the
+            start): the previous solutions moved along their tangent (first-order
+            prediction: the chord steps start O(|change of d|^2) from the new solutions
+            instead of O(|change of d|)) where that move is small, then the previous
+            solutions, then the initial guess. At the first evaluation, the solutions of
+            samples of nearby inputs come first (:func:`warm_start`)."""
+            chord = last_stiffness[0] if last_stiffness else None  # chord steps pay near
+            found = [(last, chord), (at_start, None)]
             if tangent:
                 previous_d, dq_dd = tangent
                 move = (dq_dd @ (d_value - previous_d)[active]).T  # (n, T)
                 near = np.max(np.abs(move) / self.scale[:, None], axis=0) <= TANGENT_LIMIT
-                found.insert(0, last + np.where(near, move, 0.0))
+                found.insert(0, (last + np.where(near, move, 0.0), chord))
+            elif chord is None:
+                warm = warm_start(d_value)
+                if warm is not None:
+                    found.insert(0, warm)
             unique = []
-            for start in found:
-                if not any(np.array_equal(start, other) for other in unique):
-                    unique.append(start)
+            for start, k in found:
+                if not any(np.array_equal(start, other) for other, _ in unique):
+                    unique.append((start, k))
             return unique
 
         def solve(d_value) -> np.ndarray:
             def batch_residual(q_all):
                 return np.array(residual_all(q_all, inputs.T, d_value), dtype=np.float64)
 
-            def system_of(j):
-                def system(q_value):
-                    r, k = balance(q_value, inputs[j], d_value)
-                    return np.array(r, dtype=np.float64).ravel(), np.array(k, dtype=np.float64)
-
-                return system
-
-            options = dict(scale=self.scale, reference=self.reference, tol=EQUILIBRIUM_TOLERANCE)
             system_all = functools.partial(batch_system, d_value=d_value)
             accepted, roots = [None] * samples, []
-            for start in starts(d_value):
-                near = last_stiffness and start is not at_start  # chord steps pay near
+            for start, chord in starts(d_value):
                 roots = solve_equilibria(
                     system_all,
-                    system_of,
+                    functools.partial(system_of, d_value=d_value),
                     start,
                     max_evaluations=MAX_EVALUATIONS,
-                    jacobians=last_stiffness[0] if near else None,
-                    batch_residual=batch_residual if near else None,
+                    jacobians=chord,
+                    batch_residual=None if chord is None else batch_residual,
                     **options,
                 )
                 # a root outside the model's or the actuator's domain (a start thrown
