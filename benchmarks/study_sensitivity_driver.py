@@ -14,6 +14,9 @@ prints wall time, steps, right-hand sides and sensitivity evaluations per family
 library's default, or the sensitivity columns too, ``fsens_err_con``), and the largest
 difference from CasADi's route relative to each row's range. The library's choice
 (Adams, rtol 1e-8) is ``softcurve.simulation.sensitivity._sensitivity.NATIVE_FAMILY``.
+Beside each Adams row with the state alone in the error test it prints the cost of the
+state alone, without the columns: what a fit pays for a trial point it evaluates
+without the Jacobian (``SensitivityEvaluator.outputs``).
 
 First it prints the eigenvalues of the robot linearized at the trial's first state with
 its first pressures, and their angle from the negative real axis: beyond a BDF order's
@@ -137,6 +140,17 @@ def main() -> None:
             f"states {difference[:n_x].max():.1e}, sensitivities "
             f"{difference[n_x:].max():.1e} (of each row's range)"
         )
+        if family == 1 and not tested:  # what a fit's trial point without the Jacobian costs
+            alone, (out, _, flag, counts) = best(
+                lambda t=settings: integrate_sensitivities(
+                    problem, columns, start[:n_x], d_value, d_scaled, times, table, linear, t
+                )
+            )
+            print(
+                f"driver, {name:5s} Newton, rtol {rtol:.0e}, the state alone: {alone:.3f} s "
+                f"({alone * scale:.1f} s, {wall / alone:.1f} times less), flag {flag}, "
+                f"{counts['steps']} steps"
+            )
 
 
 if __name__ == "__main__":

@@ -122,6 +122,9 @@ def test_nearest_starts_measure_each_input_in_its_range():
     inputs = np.array([[0.0, 0.0], [1.0, 1000.0], [0.9, 300.0], [0.1, 600.0]])
     np.testing.assert_array_equal(equilibria.nearest_starts(inputs, np.array([0, 1])), [0, 1, 1, 0])
     assert equilibria.nearest_starts(np.zeros((5, 0)), np.array([2])).tolist() == [0] * 5
+    # an input that never changes counts for nothing (its range is zero)
+    held = np.column_stack([inputs, np.full(4, 7.0)])
+    np.testing.assert_array_equal(equilibria.nearest_starts(held, np.array([0, 1])), [0, 1, 1, 0])
 
 
 def _solution(setting, theta):

@@ -10,6 +10,7 @@ import softcurve as sc
 import softcurve.identification.fits._dynamic as dynamic
 from softcurve.base.status import Status
 from softcurve.identification.experiments._loading import Experiment
+from softcurve.identification.fits import _solve as solve
 from softcurve.identification.fits._dynamic import fit_trajectory, predict_trajectory
 from softcurve.identification.fits._joint import evaluate_all
 from softcurve.identification.fits._parameters import Free
@@ -17,6 +18,8 @@ from softcurve.identification.fits._report import FitError, FitWarning
 from softcurve.identification.fits._solve import robust_least_squares, starting_points
 from softcurve.identification.maps import bending_angle_map
 from softcurve.simulation.batch._workers import WorkerDied
+from softcurve.simulation.sensitivity._sensitivity import SensitivityEvaluator
+from softcurve.simulation.solvers import _driver as native
 
 SEG = "segments[0]."
 LENGTH = 0.064
@@ -245,3 +248,132 @@ def test_a_fit_creeping_to_its_optimum_stops_once_the_steps_left_are_negligible(
     exact = np.column_stack([x, np.ones_like(x)])
     errors = standard_errors(exact, exact @ optimum - y)
     assert np.all(np.abs(settled.z - optimum) < SETTLED * errors)
+
+
+def test_with_the_residuals_alone_the_jacobian_is_evaluated_only_where_a_step_is_taken():
+    """Given the residuals alone, trial points are evaluated by them and the Jacobian
+    only where the solver steps: the same optimum in the same evaluations, fewer
+    Jacobians (Rosenbrock's valley rejects some) for less work in all, the best point's
+    Jacobian exact."""
+    bounds = (np.full(2, -5.0), np.full(2, 5.0))
+    full, full_calls = _rosenbrock(())
+    both, alone_calls = _rosenbrock(())
+
+    def residual(z):
+        return both(z)[0]
+
+    plain = robust_least_squares(_rosenbrock(())[0], [-1.2, 1.0], *bounds, 200)
+    split = robust_least_squares(full, [-1.2, 1.0], *bounds, 200, residual=residual)
+    assert split.status is Status.SUCCESS, split.message
+    np.testing.assert_allclose(split.z, plain.z, atol=1e-10)
+    assert split.n_evaluations == plain.n_evaluations == plain.n_jacobians
+    assert split.n_jacobians == len(full_calls) < plain.n_jacobians
+    work = len(full_calls) + solve.RESIDUAL_SHARE * len(alone_calls)
+    assert work < plain.n_jacobians
+    np.testing.assert_array_equal(split.jacobian, _rosenbrock(())[0](split.z)[1])
+    # a point whose residuals can be evaluated but not its Jacobian is a rejected step
+    failing, _ = _rosenbrock((3,))
+    rejected = robust_least_squares(failing, [-1.2, 1.0], *bounds, 200, residual=residual)
+    assert rejected.status is Status.SUCCESS and rejected.rejected == 1
+    np.testing.assert_allclose(rejected.z, [1.0, 1.0], atol=1e-8)
+
+
+def test_where_the_solver_steps_to_most_points_they_are_evaluated_with_the_jacobian():
+    """Where the solver steps to more than 1 - RESIDUAL_SHARE of the points, the points
+    are evaluated with their Jacobian at once: by the residuals alone first only while
+    the count (from one of one) says otherwise, after the first point the next five."""
+    calls = {"alone": 0}
+
+    def residual_and_jacobian(z):
+        return np.exp(z) - np.array([2.0, 3.0]), np.diag(np.exp(z))
+
+    def residual(z):
+        calls["alone"] += 1
+        return residual_and_jacobian(z)[0]
+
+    bounds = (np.full(2, -10.0), np.full(2, 10.0))
+    plain = robust_least_squares(residual_and_jacobian, [4.0, -3.0], *bounds, 200)
+    split = robust_least_squares(
+        residual_and_jacobian, [4.0, -3.0], *bounds, 200, residual=residual
+    )
+    np.testing.assert_allclose(split.z, np.log([2.0, 3.0]), atol=1e-10)
+    # every point is a step: (k + 1) / (k + 2) exceeds 1 - RESIDUAL_SHARE from k = 6 on
+    assert split.n_evaluations == split.n_jacobians == plain.n_evaluations == 9
+    assert calls["alone"] == 5
+
+
+def test_a_trajectory_fit_evaluates_its_trial_points_without_the_jacobian(oscillation, monkeypatch):
+    """On the driver's route a fit evaluates trial points by the outputs alone and the
+    Jacobian where it steps: the estimate and intervals of a fit that evaluates every
+    point with its Jacobian."""
+    model, x0, data = oscillation
+    if native.problem(model) is None:
+        pytest.skip("softcurve's CVODES driver is not available here (no C compiler)")
+    counts = {"outputs": 0, "call": 0}
+    call, outputs = SensitivityEvaluator.__call__, SensitivityEvaluator.outputs
+
+    def counted_call(self, theta):
+        counts["call"] += 1
+        return call(self, theta)
+
+    def counted_outputs(self, theta):
+        counts["outputs"] += 1
+        return outputs(self, theta)
+
+    monkeypatch.setattr(SensitivityEvaluator, "__call__", counted_call)
+    monkeypatch.setattr(SensitivityEvaluator, "outputs", counted_outputs)
+    start = [Free(SEG + "bending_stiffness.k0", 1e-4, 1.0, initial=0.002), FREE[1]]
+    kwargs = dict(output=bending_angle_map(), x0=x0, free=start)
+    split = fit_trajectory(model, data, **kwargs)
+    assert split.success, split.message
+    assert counts["outputs"] > 0 and split.n_jacobians == counts["call"] <= split.n_evaluations
+    monkeypatch.setattr(SensitivityEvaluator, "outputs_alone", property(lambda self: False))
+    counts.update(outputs=0, call=0)
+    plain = fit_trajectory(model, data, **kwargs)
+    assert counts["outputs"] == 0 and counts["call"] == plain.n_evaluations == plain.n_jacobians
+    np.testing.assert_allclose(split.values, plain.values, rtol=1e-6)
+    np.testing.assert_allclose(split.standard_errors, plain.standard_errors, rtol=1e-4)
+
+
+def test_looser_tolerances_are_checked_at_the_estimate(oscillation, monkeypatch):
+    """With looser integrator tolerances a fit integrates its estimate once more at the
+    default ones and reports the largest change of an output relative to the residuals'
+    RMS: small for rtol 1e-6, and said in the message (tighten them) for rtol 1e-2; the
+    default tolerances report nothing."""
+    model, x0, data = oscillation
+    if native.problem(model) is None:
+        pytest.skip("softcurve's CVODES driver is not available here (no C compiler)")
+    rng = np.random.default_rng(7)
+    noisy = data.with_signals(beta=data.signals["beta"] + 0.05 * rng.standard_normal(data.t.size))
+    kwargs = dict(output=bending_angle_map(), x0=x0, free=FREE)
+    default = fit_trajectory(model, noisy, **kwargs)
+    assert "integration_error" not in default.extra
+    loose = fit_trajectory(
+        model, noisy, integrator_options={"reltol": 1e-6, "abstol": 1e-8}, **kwargs
+    )
+    assert 0 < loose.extra["integration_error"] < dynamic.INTEGRATION_SHARE
+    assert "tighten" not in loose.message
+    np.testing.assert_allclose(loose.values, default.values, rtol=1e-3)
+    coarse = fit_trajectory(
+        model, noisy, integrator_options={"reltol": 1e-2, "abstol": 1e-2}, **kwargs
+    )
+    assert coarse.extra["integration_error"] > dynamic.INTEGRATION_SHARE
+    assert "to rtol 1e-08, atol 1e-10: tighten them" in coarse.message
+    # a check that cannot integrate (CVODES fails at the tighter tolerances) keeps the
+    # fit's estimate and says so
+    outputs = SensitivityEvaluator.outputs
+
+    def failing(self, theta, tolerances=None):
+        if tolerances is not None:
+            raise RuntimeError("CVode returned CV_TOO_MUCH_WORK (forced)")
+        return outputs(self, theta)
+
+    monkeypatch.setattr(SensitivityEvaluator, "outputs", failing)
+    options = {"reltol": 1e-6, "abstol": 1e-8}
+    kept = fit_trajectory(model, noisy, integrator_options=options, **kwargs)
+    assert kept.extra["integration_error"] is None
+    assert "the integration at the estimate was not checked: CVode returned" in kept.message
+    np.testing.assert_allclose(kept.values, loose.values, rtol=1e-12)
+    # mixed: the check takes the tighter of each tolerance
+    assert dynamic._looser_tolerances({"reltol": 1e-10, "abstol": 1e-8}) == (1e-10, 1e-10)
+    assert dynamic._looser_tolerances({"reltol": 1e-9}) is None

@@ -304,3 +304,19 @@ def test_an_evaluator_without_the_driver_integrates_by_casadi(model, threads):
     y_casadi, jacobian_casadi = evaluate(theta)
     assert evaluate.stats["route"] == "sensitivity-casadi"
     _assert_agree(y, jacobian, y_casadi, jacobian_casadi, 1e-6)
+
+
+@pytest.mark.parametrize("hold", ["linear", "constant"])
+def test_the_outputs_alone_are_the_outputs_of_a_call(model, hold):
+    """The state integrated without the columns, on the driver's route: the outputs of a
+    call to the integration's tolerance, no sensitivity evaluated; on CasADi's route (a
+    worker that could not load the libraries) a call's outputs."""
+    evaluate, theta = _evaluator(model, hold, lag=1)
+    assert evaluate.outputs_alone
+    y, _ = evaluate(theta)
+    alone = evaluate.outputs(theta)
+    assert evaluate.stats["sensitivity_evaluations"] == 0 and evaluate.stats["steps"] > 0
+    np.testing.assert_allclose(alone, y, rtol=1e-6, atol=1e-6 * np.abs(y).max())
+    evaluate._native = False
+    np.testing.assert_array_equal(evaluate.outputs(theta), evaluate(theta)[0])
+    assert evaluate.stats["route"] == "sensitivity-casadi"

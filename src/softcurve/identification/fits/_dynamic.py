@@ -47,13 +47,19 @@ from softcurve.compiled import Model
 from softcurve.identification.fits._equilibria import EquilibriumPredictor
 from softcurve.identification.fits._initial import LAG, initial_state, start_values
 from softcurve.identification.fits._initial_equilibrium import initial_equilibrium
-from softcurve.identification.fits._joint import experiment_list, parallel_layout, split_extra
+from softcurve.identification.fits._joint import (
+    experiment_list,
+    outputs_alone,
+    parallel_layout,
+    split_extra,
+)
 from softcurve.identification.fits._parameters import Free
 from softcurve.identification.fits._problem import Problem
 from softcurve.identification.fits._report import FitError, FitReport, FitWarning, usable_fit
+from softcurve.identification.fits._solve import EVALUATION_ERRORS
 from softcurve.identification.fits._weights import WEIGHTS_DOC
 from softcurve.identification.maps import InputMap, OutputMap
-from softcurve.simulation.sensitivity import trajectory_sensitivities
+from softcurve.simulation.sensitivity import SENSITIVITY_CVODES, trajectory_sensitivities
 
 PREDICTION_PARAMETERS = {
     "model": ("Model", "The compiled model the fit used."),
@@ -233,7 +239,12 @@ def fit_trajectory(
         sensitivities of every experiment).
     %(confidence)s
     integrator_options : dict, optional
-        Extra CVODES options of the sensitivity integration.
+        Extra CVODES options of the sensitivity integration (default tolerances: rtol
+        1e-8, atol 1e-10 in the state's units). With looser ``reltol`` or ``abstol``
+        the fit integrates its estimate once more at the default ones (the outputs
+        alone) and reports the largest change of an output relative to the RMS of its
+        signal's residuals as ``extra["integration_error"]``; above
+        :data:`INTEGRATION_SHARE` (1e-2) the message says to tighten them.
     input_lag : float, optional
         Nominal time constant [s] of a first-order lag of every input before the input
         map (the extra parameter ``"input_lag"``, free like any other); the lagged
@@ -261,7 +272,8 @@ def fit_trajectory(
     FitReport
         With ``extra["robot"]`` the fitted robot, ``extra["parameters"]`` its vector,
         ``extra["values"]`` the shared extra parameters and ``extra["per_experiment"]``
-        each experiment's own, ``extra["input_hold"]`` the hold of the inputs;
+        each experiment's own, ``extra["input_hold"]`` the hold of the inputs,
+        ``extra["integration_error"]`` with looser tolerances (``integrator_options``);
         ``parts`` and :meth:`FitReport.part` give each experiment's rows.
     """
     free, extra, parameters = _started(start, experiment, free, extra, parameters)
@@ -285,6 +297,7 @@ def fit_trajectory(
     )
     processes, threads = parallel_layout(len(experiments), processes, threads)
     evaluators = []
+    tolerances = _looser_tolerances(integrator_options)
     for e, part, state in zip(experiments, problem.parameters.parts, states, strict=True):
 
         def start(values, state=state, u0=first[e.name]):
@@ -298,7 +311,81 @@ def fit_trajectory(
     report = problem.run(
         evaluators, signals, weights, max_evaluations, confidence, "trajectory fit", options=options
     )
+    if tolerances is not None:
+        report = _integration_checked(report, evaluators, problem.parameters, tolerances)
     return replace(report, extra={**report.extra, "input_hold": input_hold})
+
+
+INTEGRATION_SHARE = 0.01
+"""Largest change of an output at the estimate, from the fit's integration tolerances to
+the default ones, relative to the RMS of its signal's residuals, that a fit with looser
+tolerances accepts silently; above it the message says to tighten them. An integration
+error of a hundredth of the residuals moves the estimate by a small fraction of its
+standard error."""
+
+
+def _looser_tolerances(options) -> tuple[float, float] | None:
+    """The tolerances ``(rtol, atol)`` that check a fit made with ``options``: each the
+    tighter of the given and the default one, where ``options`` loosen either; else None.
+
+    Parameters
+    ----------
+    options : dict or None
+        The fit's ``integrator_options``.
+    """
+    default = (SENSITIVITY_CVODES["reltol"], SENSITIVITY_CVODES["abstol"])
+    given = (options or {}).get("reltol", default[0]), (options or {}).get("abstol", default[1])
+    if given[0] <= default[0] and given[1] <= default[1]:
+        return None
+    return min(given[0], default[0]), min(given[1], default[1])
+
+
+def _integration_checked(report, evaluators, parameters, tolerances) -> FitReport:
+    """``report`` with ``extra["integration_error"]``: the largest change of an output at
+    the estimate when integrated at ``tolerances`` instead of the fit's, relative to the
+    RMS of its signal's residuals (unweighted; the outputs alone, in this process, one
+    experiment after another). Above :data:`INTEGRATION_SHARE` the message says to
+    tighten the tolerances. None where it cannot be checked: no estimate, CasADi's
+    route, or an integration that fails at those tolerances (the message says so).
+
+    Parameters
+    ----------
+    report : FitReport
+        The fit's.
+    evaluators : list of SensitivityEvaluator
+        The fit's, one per experiment.
+    parameters : JointParameters
+        The fit's free parameters.
+    tolerances : tuple of float
+        ``(rtol, atol)`` of the check (:func:`_looser_tolerances`).
+    """
+    unchecked = replace(report, extra={**report.extra, "integration_error": None})
+    if not (np.all(np.isfinite(report.predicted)) and outputs_alone(evaluators)):
+        return unchecked
+    try:
+        reference = np.vstack([
+            np.asarray(evaluator.outputs(parameters.local(report.values, k), tolerances)).T
+            for k, evaluator in enumerate(evaluators)
+        ])  # fmt: skip
+    except EVALUATION_ERRORS as exc:
+        message = f"{report.message}; the integration at the estimate was not checked: {exc}"
+        return replace(unchecked, message=message)
+    residuals = report.measured - report.predicted
+    seen = np.isfinite(residuals)
+    ratios = []
+    for j in np.flatnonzero(seen.any(axis=0)):  # signals with a measured sample
+        spread = np.sqrt(np.mean(residuals[seen[:, j], j] ** 2))
+        change = np.max(np.abs(reference[:, j] - report.predicted[:, j]))
+        ratios.append(change / spread if spread > 0 else (0.0 if change == 0 else np.inf))
+    error = float(max(ratios, default=0.0))
+    message = report.message
+    if error > INTEGRATION_SHARE:
+        message += (
+            f"; at the estimate the outputs change by {error:.2g} of the residuals' RMS "
+            f"from these integrator_options to rtol {tolerances[0]:g}, atol "
+            f"{tolerances[1]:g}: tighten them"
+        )
+    return replace(report, message=message, extra={**report.extra, "integration_error": error})
 
 
 @_fit_options

@@ -7,9 +7,11 @@ solution at the previous evaluation of the fit (parameters change little between
 evaluations). At the first evaluation a long record starts from equilibria of its own:
 about ``sqrt(T)`` samples spread over the record are solved first, from the given
 initial guess, and every sample starts from the solution of the one among them whose
-inputs are nearest its own (an equilibrium depends on the inputs alone, so samples of
-nearby inputs have nearby equilibria; along a slowly varying record that is the previous
-such sample). The implicit function
+inputs are nearest its own (a robot with one equilibrium per input has nearby
+equilibria at nearby inputs; along a slowly varying record that is the previous such
+sample). A robot with several equilibria at one input (snap-through, buckling) may then
+land on another branch than Newton's method from the initial guess would: the branch
+of the nearest solved sample, as a sweep that follows its branch would. The implicit function
 theorem gives the derivative of each solution with respect to the parameters,
 ``dq/dd = -K^-1 dr/dd`` with ``K = dr/dq``, and the chain rule the Jacobian of the
 outputs; the derivatives come from CasADi, evaluated for all samples in one call (split
@@ -64,6 +66,11 @@ def nearest_starts(inputs: np.ndarray, solved: np.ndarray) -> np.ndarray:
         The record's inputs [unit of each input].
     solved : ndarray of int, shape (C,)
         The samples solved (indices into ``inputs``), C >= 1.
+
+    Returns
+    -------
+    ndarray of int, shape (T,)
+        Indices into ``solved``.
     """
     if inputs.shape[1] == 0:  # no inputs: every sample has the same equilibrium
         return np.zeros(inputs.shape[0], dtype=int)
@@ -125,9 +132,11 @@ class EquilibriumPredictor:
         # and the solutions' tangent (dq/dd (T, n, n_d) at the active entries of d)
         last_stiffness, tangent = [], []
 
-        def batch_system(q_all, d_value):
-            r, k = balance_all(q_all, inputs.T, d_value)
-            k = np.array(k, dtype=np.float64).reshape(n, samples, n).transpose(1, 0, 2)
+        def batch_system(q_all, d_value, function=balance_all, rows=slice(None)):
+            """``(R (n, W), K (W, n, n))`` of ``function``, ``balance`` mapped over the
+            ``W`` samples ``rows`` (all of them by default)."""
+            r, k = function(q_all, inputs[rows].T, d_value)
+            k = np.array(k, dtype=np.float64).reshape(n, q_all.shape[1], n).transpose(1, 0, 2)
             return np.array(r, dtype=np.float64), k
 
         at_start = np.tile(self.q0[:, None], (1, samples))
@@ -150,17 +159,14 @@ class EquilibriumPredictor:
             docstring); None for a short record or where none of them is solved."""
             if samples < WARM_START_MIN:
                 return None
-            solved = np.unique(np.linspace(0, samples - 1, int(np.ceil(np.sqrt(samples)))))
-            solved = solved.round().astype(int)
-            some = mapped(balance, solved.size, threads)
-
-            def some_system(q_some):
-                r, k = some(q_some, inputs[solved].T, d_value)
-                k = np.array(k, dtype=np.float64).reshape(n, solved.size, n).transpose(1, 0, 2)
-                return np.array(r, dtype=np.float64), k
-
+            spread = np.linspace(0, samples - 1, int(np.ceil(np.sqrt(samples))))
+            solved = np.unique(spread.round().astype(int))
+            some = functools.partial(
+                batch_system, d_value=d_value, function=mapped(balance, solved.size, threads),
+                rows=solved,
+            )  # fmt: skip
             roots = solve_equilibria(
-                some_system,
+                some,
                 lambda j: system_of(solved[j], d_value),
                 at_start[:, solved],
                 max_evaluations=MAX_EVALUATIONS,
@@ -172,8 +178,9 @@ class EquilibriumPredictor:
             if not good.any():
                 return None
             nearest = nearest_starts(inputs, solved[good])
-            k_some = some_system(q_some.T)[1][good]
-            return q_some[good][nearest].T, k_some[nearest]
+            q_good = np.where(good[:, None], q_some, q_some[good][0])  # K at solutions only
+            k_good = some(q_good.T)[1][good]
+            return q_some[good][nearest].T, k_good[nearest]
 
         def starts(d_value) -> list[tuple[np.ndarray, np.ndarray | None]]:
             """Where the equilibria start, in turn for the samples not solved yet, with

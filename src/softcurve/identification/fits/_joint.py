@@ -162,12 +162,12 @@ def parallel_layout(experiments: int, processes=None, threads=None) -> tuple[int
     return processes, threads
 
 
-def _evaluate_task(evaluator, theta):
+def _evaluate_task(evaluator, theta, outputs_only=False):
     """Worker side of :func:`evaluate_all`."""
-    return evaluator(theta)
+    return evaluator.outputs(theta) if outputs_only else evaluator(theta)
 
 
-def evaluate_all(evaluators, thetas, processes: int) -> list:
+def evaluate_all(evaluators, thetas, processes: int, outputs_only: bool = False) -> list:
     """``[evaluators[e](thetas[e]) for e]``, in worker processes when ``processes > 1``.
 
     An evaluation error in a worker is raised here, as it would be in this process.
@@ -180,9 +180,32 @@ def evaluate_all(evaluators, thetas, processes: int) -> list:
         Each experiment's free vector, each entry in the unit of its parameter.
     processes : int
         Worker processes (1: evaluate here, in order).
+    outputs_only : bool
+        The outputs alone, ``evaluators[e].outputs(thetas[e])`` (see
+        :func:`outputs_alone`), instead of the outputs with their Jacobian.
     """
     if processes <= 1 or len(evaluators) == 1:
-        return [f(theta) for f, theta in zip(evaluators, thetas, strict=True)]
-    tasks = {e: (f, theta) for e, (f, theta) in enumerate(zip(evaluators, thetas, strict=True))}
+        return [
+            _evaluate_task(f, theta, outputs_only)
+            for f, theta in zip(evaluators, thetas, strict=True)
+        ]
+    tasks = {
+        e: (f, theta, outputs_only)
+        for e, (f, theta) in enumerate(zip(evaluators, thetas, strict=True))
+    }
     done = dict(run_in_processes(_evaluate_task, tasks, min(processes, len(tasks))))
     return [done[e] for e in range(len(evaluators))]
+
+
+def outputs_alone(evaluators) -> bool:
+    """Whether every evaluator computes its outputs alone for a fraction of the cost of
+    the outputs with their Jacobian (an ``outputs_alone`` attribute that is true, and a
+    method ``outputs(theta) -> Y``): then a fit evaluates its trial points without the
+    Jacobian, and the Jacobian only at the points it accepts.
+
+    Parameters
+    ----------
+    evaluators : list of callable
+        One per experiment.
+    """
+    return bool(evaluators) and all(getattr(f, "outputs_alone", False) for f in evaluators)

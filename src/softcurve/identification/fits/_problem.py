@@ -21,6 +21,7 @@ from softcurve.identification.fits._joint import (
     JointParameters,
     evaluate_all,
     experiment_list,
+    outputs_alone,
     split_extra,
 )
 from softcurve.identification.fits._parameters import Free, FreeParameters
@@ -131,23 +132,31 @@ class Problem:
             w.append(weight_matrix(per, e.t, len(names), e.name).ravel())
         size = len(J.names)
 
-        def evaluate(theta):
+        def evaluate(theta, outputs_only=False):
             thetas = [J.local(theta, e) for e in range(len(experiments))]
-            return evaluate_all(evaluators, thetas, processes)
+            return evaluate_all(evaluators, thetas, processes, outputs_only)
 
         latest: list = []  # the outputs of the last evaluation
         kept: dict = {}  # start -> the outputs at its best point: the estimate not rerun
 
+        def residuals_of(outputs):
+            """The weighted residuals of every experiment's outputs ``Y (k, T)``."""
+            return np.concatenate(
+                [(np.asarray(y).T - measured[e]).ravel() * w[e] for e, y in enumerate(outputs)]
+            )
+
         def residual_and_jacobian(z):
-            rows, columns = [], []
+            columns = []
             results = evaluate(z * J.scale)
-            for e, (y, jac) in enumerate(results):
-                rows.append((np.asarray(y).T - measured[e]).ravel() * w[e])
+            for e, (_, jac) in enumerate(results):
                 full = np.zeros((w[e].size, size))
                 full[:, J.index[e]] = jac * w[e][:, None]
                 columns.append(full)
             latest[:] = [np.asarray(y).T for y, _ in results]
-            return np.concatenate(rows), np.vstack(columns) * J.scale
+            return residuals_of([y for y, _ in results]), np.vstack(columns) * J.scale
+
+        def residuals(z):
+            return residuals_of(evaluate(z * J.scale, outputs_only=True))
 
         points = starting_points(
             J.theta0 / J.scale, J.lower, J.upper, n_starts, options.get("seed")
@@ -171,6 +180,7 @@ class Problem:
                     on_evaluation=lambda c, o=offset: bar.update(o + c),
                     on_best=lambda k=k: kept.__setitem__(k, list(latest)),
                     settle=SETTLED,
+                    residual=residuals if outputs_alone(evaluators) else None,
                 )
             )
             if solutions[-1].status is Status.INTERRUPTED:  # a fault: do not start again
@@ -185,8 +195,10 @@ class Problem:
                 if best.residuals is not None:
                     message += "; the values are the best point found before"
             count = sum(s.n_evaluations for s in solutions)
+            jacobians = sum(s.n_jacobians for s in solutions)
         else:
             z, status, message, count = np.zeros(0), Status.SUCCESS, "nothing to fit", 0
+            jacobians = 0
         theta = z * J.scale
         try:
             if solutions and best.residuals is None:  # nothing could be evaluated
@@ -195,7 +207,7 @@ class Problem:
                 r, jac, predicted = best.residuals, best.jacobian, kept[k_best]
             else:  # a prediction: nothing free
                 r, jac = residual_and_jacobian(z)
-                count, predicted = count + 1, latest
+                count, jacobians, predicted = count + 1, jacobians + 1, latest
             jac = jac / J.scale
         except EVALUATION_ERRORS as exc:
             if not (solutions and best.residuals is None):
@@ -243,6 +255,7 @@ class Problem:
             ),
             confidence=confidence,
             n_evaluations=count,
+            n_jacobians=jacobians,
             identifiable=identifiable,
             parts=tuple((e.name, e.t.size) for e in experiments),
             optima=optima,

@@ -88,6 +88,11 @@ class FitReport(Result):
         Confidence level of the intervals, a probability (default 0.95).
     n_evaluations : int
         Residual evaluations used.
+    n_jacobians : int
+        Of them, those with the Jacobian. A trajectory fit on softcurve's CVODES driver
+        evaluates its trial points by the outputs alone (about a seventh of the cost on
+        the paper robot) and the Jacobian only at the points it steps to; other fits
+        evaluate every point with it.
     identifiable : ndarray of bool, shape (P,)
         False for parameters the data do not determine.
     parts : tuple of (str, int)
@@ -118,6 +123,7 @@ class FitReport(Result):
     parameter_units: tuple[str, ...] = ()
     confidence: float = 0.95
     n_evaluations: int = 0
+    n_jacobians: int = 0
     identifiable: np.ndarray = field(default_factory=lambda: np.zeros(0, bool))
     parts: tuple = ()
     optima: np.ndarray | None = None

@@ -291,6 +291,7 @@ def fit_stiffness(
         parameter_units=tuple(law_units[q] for q in STIFFNESS_LAWS[kind].parameter_quantities),
         confidence=confidence,
         n_evaluations=count,
+        n_jacobians=sum(run.n_jacobians for run in runs),
         identifiable=identifiable,
         extra={"law": fitted_law, "weights": w},
     )

@@ -2,6 +2,9 @@
 :func:`trajectory_sensitivities`."""
 
 from softcurve.simulation.sensitivity._sensitivity import (
+    SENSITIVITY_CVODES as SENSITIVITY_CVODES,
+)
+from softcurve.simulation.sensitivity._sensitivity import (
     SensitivityEvaluator as SensitivityEvaluator,
 )
 from softcurve.simulation.sensitivity._sensitivity import (
@@ -9,6 +12,7 @@ from softcurve.simulation.sensitivity._sensitivity import (
 )
 
 __all__ = [
+    "SENSITIVITY_CVODES",
     "trajectory_sensitivities",
     "SensitivityEvaluator",
 ]

@@ -153,8 +153,48 @@ class SensitivityEvaluator:
         total = np.einsum("tkx,txm,mp->tkp", y_x, s_all, jac[self.active]) + y_d @ jac
         return y_value, total.reshape(size * k, -1)
 
-    def _integrate(self, start, d_value, d_scaled) -> np.ndarray:
-        """``(x, vec(S))`` at every sample, (W, T), by the driver or CasADi's CVODES."""
+    @property
+    def outputs_alone(self) -> bool:
+        """Whether :meth:`outputs` integrates the state alone (the driver's route, as
+        built in the process that made the evaluator): on the paper robot about a seventh
+        of the cost of the outputs with their Jacobian (``python
+        benchmarks/study_sensitivity_driver.py`` prints both); on CasADi's route it
+        costs as much as a call."""
+        return self.driven is not None
+
+    def outputs(self, theta_value, tolerances=None) -> np.ndarray:
+        """The outputs alone at ``theta_value``, ``Y (k, T)``: the state integrated
+        without the sensitivity columns (the same steps as a call's but for the
+        columns' corrector, so the same outputs to the integration's tolerance).
+
+        Parameters
+        ----------
+        theta_value : array_like, shape (P,)
+            The free parameters, in the units of each.
+        tolerances : tuple of float, optional
+            ``(rtol, atol)`` instead of the evaluator's, on the driver's route only
+            (:attr:`outputs_alone`; CasADi's route refuses them with ValueError).
+
+        Returns
+        -------
+        ndarray, shape (k, T)
+            The outputs at every sample, in the output map's units.
+        """
+        route = self._route()
+        if route is None:
+            if tolerances is not None:
+                raise ValueError("other tolerances need softcurve's CVODES driver")
+            return self(theta_value)[0]
+        start = self.n_p + self.n_v
+        d_value = np.array(self.direct(theta_value)[0]).ravel()
+        parameters = np.concatenate([d_value, self.scale])
+        states = self._integrate(d_value[start:], d_value, parameters, tolerances)
+        return np.array(self.out(states, np.tile(d_value[:, None], states.shape[1]))[0])
+
+    def _integrate(self, start, d_value, d_scaled, tolerances=None) -> np.ndarray:
+        """``(x, vec(S))`` at every sample, (W, T), by the driver or CasADi's CVODES; by
+        the driver, ``x`` alone for a ``start`` of the state alone, and with
+        ``tolerances`` ``(rtol, atol)`` instead of its own."""
         route = self._route()
         if route is None:
             states = np.array(self.integrator(x0=start, p=d_scaled, u=self.u_data)["xf"])
@@ -165,9 +205,15 @@ class SensitivityEvaluator:
             return states
         problem, columns = route
         driven = self.driven
+        settings = driven.settings
+        if tolerances is not None:
+            settings = DriverSettings(
+                float(tolerances[0]), float(tolerances[1]), settings.max_steps, settings.family,
+                settings.columns_tested,
+            )  # fmt: skip
         out, reached, flag, counts = integrate_sensitivities(
             problem, columns, start, d_value, d_scaled, driven.times, driven.table,
-            driven.linear, driven.settings, driven.helper,
+            driven.linear, settings, driven.helper,
         )  # fmt: skip
         split = len(driven.columns) > 1
         self.stats = {"route": "sensitivity-driver-split" if split else "sensitivity-driver",

@@ -95,9 +95,10 @@ SC_EXPORT int softcurve_sensitivities(const sc_function *fn, const sc_options *o
     args[0] = z.xs;
     args[1] = z.xs ? z.xs + width : NULL;
     args[2] = dsc;
+    /* the state alone (m = 0) evaluates no columns: no parts, no helper thread */
     if (flag || !y || !ones || !z.xs ||
-        parts_open(&z.parts, parts, fs, fs_sizes, args, leading + (long)n * m,
-                   options->helper) ||
+        (m > 0 && parts_open(&z.parts, parts, fs, fs_sizes, args, leading + (long)n * m,
+                             options->helper)) ||
         (m > 0 && !(yS = N_VCloneVectorArray_Serial(m, y)))) {
         flag = -100;
         goto done;
