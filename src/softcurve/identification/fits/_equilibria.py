@@ -28,6 +28,7 @@ import scipy.spatial
 
 from softcurve.analysis.loads import coordinate_scale, residual_reference
 from softcurve.analysis.solver import solve_equilibria
+from softcurve.compiled import compile_function, compile_functions
 from softcurve.description.domain import state_problem, states_inside
 from softcurve.simulation.batch import default_threads
 from softcurve.simulation.solvers import mapped
@@ -121,7 +122,7 @@ class EquilibriumPredictor:
             keys, n_p, len(u_names), active
         )
         # the samples split over the cores: 1.7x on two for three segments, 1.4x for one
-        # (CasADi's virtual machine; python benchmarks/bench_identification.py)
+        # (measured in CasADi's virtual machine; python benchmarks/bench_identification.py)
         samples, threads = experiment.t.size, default_threads()
         balance_all, residual_all, sensitivities = (
             mapped(f, samples, threads) for f in (balance, residual_function, sensitivity_function)
@@ -273,11 +274,12 @@ class EquilibriumPredictor:
         return evaluate
 
     def _functions(self, keys, n_p, n_u, active):
-        """``(balance, residual, sensitivities)``: per-sample SX Functions of
-        ``(q, u, d)``, kept with the model (the Hessian of a three-segment robot takes
-        0.1 s to build; a joint fit builds it once for all its experiments), keyed by the
-        maps' expressions themselves (serialized), not by their Python functions: a map
-        that reads a value changed since the last fit gets new functions."""
+        """``(balance, residual, sensitivities)``: per-sample Functions of ``(q, u, d)``,
+        compiled (:func:`~softcurve.compiled.compile_function`), kept with the model (the
+        Hessian of a three-segment robot takes 0.1 s to build; a joint fit builds it once
+        for all its experiments), keyed by the maps' expressions themselves
+        (serialized), not by their Python functions: a map that reads a value changed
+        since the last fit gets new functions."""
         model, n = self.model, self.model.n
         q, u, ds = ca.SX.sym("q", n), ca.SX.sym("u", n_u), ca.SX.sym("d", n_p + len(keys))
         p_s, v_s = ds[:n_p], {k: ds[n_p + i] for i, k in enumerate(keys)}
@@ -313,4 +315,16 @@ class EquilibriumPredictor:
             return ca.Function("sensitivities", [q_b, u_b, d_b], columns)
 
         key = ("equilibrium-fit-sensitivities", *structure, outputs.serialize(), tuple(active))
-        return balance, residual, model.cached(key, sensitivity_function)
+        sensitivities = model.cached(key, sensitivity_function)
+        # compiled as the model is: an evaluation of 31,329 samples of the paper robot
+        # in 1.2-1.4 s instead of 3.7 s in CasADi's virtual machine, for about 3 s of the
+        # compiler once per structure (benchmarks/bench_identification_trials.py, case
+        # equilibrium); the virtual machine where there is no compiler
+        compiled = model.cached(
+            ("equilibrium-fit-compiled", *structure),
+            lambda: tuple(compile_functions([balance, residual])),
+        )
+        compiled_sensitivities = model.cached(
+            (*key, "compiled"), lambda: compile_function(sensitivities)
+        )
+        return (*compiled, compiled_sensitivities)
