@@ -205,3 +205,25 @@ def test_symbolic_functions_are_built_once_per_model_and_maps(setting):
     # other active parameters: the same balance, other sensitivities
     other = predictor._functions(keys, n_p, 3, [n_p])
     assert other[0] is first[0] and other[2] is not first[2]
+
+
+def test_a_record_of_compiled_min_samples_runs_the_compiled_functions(setting, monkeypatch):
+    """From COMPILED_MIN samples on, the balance and its sensitivities are compiled (kept
+    with the model apart from the SX ones): the predictions and Jacobian of CasADi's
+    virtual machine to rounding."""
+    model, parameters, output, inputs, q0, experiment = setting
+    theta = np.array([-0.45, 2.2e-5])
+    predictor = EquilibriumPredictor(model, parameters, output, inputs, q0)
+    keys, n_p = sorted(parameters.extra), parameters.p0.size
+    machine = predictor._functions(keys, n_p, 3, [n_p, n_p + 1])
+    built = predictor._functions(keys, n_p, 3, [n_p, n_p + 1], compiled=True)
+    assert all(f.is_a("SXFunction") for f in machine)
+    if built[0].is_a("SXFunction"):
+        pytest.skip("no C compiler here: the compiled functions are the SX ones")
+    results = []
+    for smallest in (experiment.t.size + 1, experiment.t.size):
+        monkeypatch.setattr(equilibria, "COMPILED_MIN", smallest)
+        results.append(_predictor(setting)(theta))
+    (y_vm, jac_vm), (y_c, jac_c) = results
+    np.testing.assert_allclose(y_c, y_vm, rtol=1e-12, atol=1e-14)
+    np.testing.assert_allclose(jac_c, jac_vm, rtol=1e-9, atol=1e-12)

@@ -49,6 +49,15 @@ domain) and the previous solution is the start. The fits of
 10 % off), so the bound leaves them twelve times the room."""
 
 
+COMPILED_MIN = 1000
+"""Records of this many samples or more are fitted with the balance and its
+sensitivities compiled as the model is (CasADi's virtual machine where there is no
+compiler), shorter ones in CasADi's virtual machine. Compiled, an evaluation of the
+31,329 samples of ``benchmarks/bench_identification_trials.py`` (case equilibrium)
+takes 1.2-1.4 s instead of 3.7 s, about 75 us less per sample, for about 3 s of the
+compiler once per structure (a first fit of 4.6 s): the compiler pays from about 40,000
+sample-evaluations on, e.g. 1,000 samples over 40 evaluations of a fit."""
+
 WARM_START_MIN = 256
 """Records of fewer samples start every sample from the initial guess: there, solving
 ``sqrt(T)`` of them first costs more than it saves (the first evaluation of the tests'
@@ -118,12 +127,13 @@ class EquilibriumPredictor:
         direct = ca.Function("direct", [theta], [d, ca.densify(jac_d[active, :])])
 
         u_names = list(experiment.inputs)
+        samples = experiment.t.size
         balance, residual_function, sensitivity_function = self._functions(
-            keys, n_p, len(u_names), active
+            keys, n_p, len(u_names), active, compiled=samples >= COMPILED_MIN
         )
         # the samples split over the cores: 1.7x on two for three segments, 1.4x for one
         # (measured in CasADi's virtual machine; python benchmarks/bench_identification.py)
-        samples, threads = experiment.t.size, default_threads()
+        threads = default_threads()
         balance_all, residual_all, sensitivities = (
             mapped(f, samples, threads) for f in (balance, residual_function, sensitivity_function)
         )
@@ -273,13 +283,13 @@ class EquilibriumPredictor:
 
         return evaluate
 
-    def _functions(self, keys, n_p, n_u, active):
+    def _functions(self, keys, n_p, n_u, active, compiled=False):
         """``(balance, residual, sensitivities)``: per-sample Functions of ``(q, u, d)``,
-        compiled (:func:`~softcurve.compiled.compile_function`), kept with the model (the
-        Hessian of a three-segment robot takes 0.1 s to build; a joint fit builds it once
-        for all its experiments), keyed by the maps' expressions themselves
-        (serialized), not by their Python functions: a map that reads a value changed
-        since the last fit gets new functions."""
+        SX or, with ``compiled``, compiled (:func:`~softcurve.compiled.compile_function`),
+        kept with the model (the Hessian of a three-segment robot takes 0.1 s to build; a
+        joint fit builds it once for all its experiments), keyed by the maps' expressions
+        themselves (serialized), not by their Python functions: a map that reads a value
+        changed since the last fit gets new functions."""
         model, n = self.model, self.model.n
         q, u, ds = ca.SX.sym("q", n), ca.SX.sym("u", n_u), ca.SX.sym("d", n_p + len(keys))
         p_s, v_s = ds[:n_p], {k: ds[n_p + i] for i, k in enumerate(keys)}
@@ -316,10 +326,8 @@ class EquilibriumPredictor:
 
         key = ("equilibrium-fit-sensitivities", *structure, outputs.serialize(), tuple(active))
         sensitivities = model.cached(key, sensitivity_function)
-        # compiled as the model is: an evaluation of 31,329 samples of the paper robot
-        # in 1.2-1.4 s instead of 3.7 s in CasADi's virtual machine, for about 3 s of the
-        # compiler once per structure (benchmarks/bench_identification_trials.py, case
-        # equilibrium); the virtual machine where there is no compiler
+        if not compiled:
+            return balance, residual, sensitivities
         compiled = model.cached(
             ("equilibrium-fit-compiled", *structure),
             lambda: tuple(compile_functions([balance, residual])),
