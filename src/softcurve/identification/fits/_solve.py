@@ -210,35 +210,36 @@ def robust_least_squares(
     best: list = [None]  # (cost, z, r, J)
     cache: dict = {}
     count = jacobians = 0
-
-    trials = [0, 0]  # points evaluated for their residuals, and those then stepped to
-    pending = [None]  # the last of them, until the solver steps there or moves on
+    # points evaluated for their residuals, those the solver then stepped to, and the
+    # last of them until the solver steps there or moves on
+    tried = stepped = 0
+    pending = None
 
     def evaluate(z, jacobian=True):
         """``(r, J)`` at ``z``; ``J`` may be None for ``jacobian=False`` with
         ``residual``. A point evaluated without its Jacobian and then asked for it is
         evaluated again, with it, counted once in the budget (the residuals are the same
         to the model's tolerance)."""
-        nonlocal count, jacobians
+        nonlocal count, jacobians, tried, stepped, pending
         key = z.tobytes()
-        if jacobian and key == pending[0]:
-            trials[1] += 1
-        pending[0] = None
+        stepped += jacobian and key == pending
+        pending = None
         if best[0] is not None and key == best[0][1].tobytes():
             return best[0][2], best[0][3]
         if key in cache and (cache[key][1] is not None or not jacobian):
             return cache[key]
         fresh = key not in cache
         count += fresh
-        if fresh and not jacobian:
-            trials[0] += 1
-            pending[0] = key
+        if residual is None:
+            jacobian = True
+        elif fresh and not jacobian:
+            tried += 1
+            pending = key
             # with the Jacobian at once where the solver has stepped to most points so
             # far: a point it steps to costs the residuals twice otherwise
-            stepped = (trials[1] + 1) / (trials[0] + 1)
-            jacobian = count == 1 or stepped > 1.0 - RESIDUAL_SHARE
+            jacobian = count == 1 or (stepped + 1) / (tried + 1) > 1.0 - RESIDUAL_SHARE
         try:
-            if jacobian or residual is None:
+            if jacobian:
                 jacobians += 1
                 r, jac = residual_and_jacobian(z)
             else:
