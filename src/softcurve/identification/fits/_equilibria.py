@@ -60,10 +60,12 @@ sample-evaluations on, e.g. 1,000 samples over 40 evaluations of a fit."""
 
 WARM_START_MIN = 256
 """Records of fewer samples start every sample from the initial guess: there, solving
-``sqrt(T)`` of them first costs more than it saves (the first evaluation of the tests'
-one-segment sweep, ``tests/test_equilibrium_predictor.py``: 17.4 against 18.7 ms at 256
-samples, 15.5 against 11.1 ms at 128, 23 against 34 ms at 400, 76 against 136 ms at
-2,000)."""
+``sqrt(T)`` of them first costs more than it saves. The first evaluation of the tests'
+one-segment sweep (``python benchmarks/study_warm_start.py``), with against without:
+16.4 against 12.4 ms at 128 samples, 19.1 against 24.7 at 256, 27.6 against 36.9 at 400
+and 56.7 against 90.0 at 999 in CasADi's virtual machine; from :data:`COMPILED_MIN` on,
+where the functions are compiled and a Newton step is cheap, it saves less (29.3
+against 30.8 ms at 1,000, 477 against 506 at 16,000)."""
 
 
 def nearest_starts(inputs: np.ndarray, solved: np.ndarray) -> np.ndarray:
