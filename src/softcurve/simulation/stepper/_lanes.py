@@ -3,10 +3,11 @@ advanced at once in vector instructions, one C call per thread's share.
 
 The members of a fixed-step method take the same steps, so they run the same
 instructions in lock-step; ``softcurve.compiled._lanes`` generates the state
-derivative, the observation and the Newton matrix's factorization over lanes of
-members, and this module writes the method's steps around them from its coefficients:
-the same operations, in the same order, as the scalar scheme of
-``softcurve.simulation.stepper._scheme``. A thread's whole share of the members is one
+derivative and the observation over lanes of members, the period template
+(``stepper_period.c``) factors the Newton matrix, and this module writes the method's
+steps around them from its coefficients: the operations of the scalar scheme of
+``softcurve.simulation.stepper._scheme``, in its order, but for the Newton matrix's QR
+(the same factorization up to round-off, in loops). A thread's whole share of the members is one
 call: no Python per member.
 
 The step writers (:func:`explicit_step`, :func:`rosenbrock_step`) return
@@ -35,9 +36,7 @@ from softcurve.compiled import (
 from softcurve.simulation.stepper._methods import METHODS, ExplicitTableau, Tableau
 from softcurve.simulation.stepper._scheme import (
     DIFFERENCE_STEP,
-    Factorization,
     MemberShares,
-    jacobian_pattern,
     observer,
     rest_scale,
     state_derivative,
@@ -80,7 +79,8 @@ def period_source(model, inputs, substeps: int, method: str, vector_math: bool, 
     Raises
     ------
     NotImplementedError
-        If the model's expressions have an operation without lanes code.
+        If the model's expressions have an operation without lanes code, or a Rosenbrock
+        method's state derivative does not begin with ``q' = qd``.
     """
     f = state_derivative(model, inputs, True).expand()
     observe = observer(model, True)
@@ -89,15 +89,18 @@ def period_source(model, inputs, substeps: int, method: str, vector_math: bool, 
     if isinstance(tableau, ExplicitTableau):
         step = explicit_step(tableau, n_x)
     else:
-        pattern, scale = jacobian_pattern(model, inputs), rest_scale(model, inputs)
-        step = rosenbrock_step(tableau, n_x, pattern, scale, every or substeps)
+        if not rates_follow_coordinates(f, model.n):
+            raise NotImplementedError("the Newton solve eliminates q' = qd")
+        scale = rest_scale(model, inputs)
+        step = rosenbrock_step(tableau, n_x, model.n, scale, every or substeps)
     functions = [
         (f, "sc_xdot", (False, False, True)),
         (observe, "sc_observe", (False, True)),
         *step.functions,
     ]
     work = max(lanes_work(function) for function, _, _ in functions)
-    sizes = {"SC_NX": n_x, "SC_NU": n_u, "SC_NOBS": n_obs, "SC_SUBSTEPS": substeps}
+    sizes = {"SC_NX": n_x, "SC_NQ": model.n, "SC_NU": n_u, "SC_NOBS": n_obs}
+    sizes["SC_SUBSTEPS"] = substeps
     return "\n".join(
         [
             lanes_prelude(LANE_WIDTH, vector_math),
@@ -253,6 +256,21 @@ class StepSource:
     scratch: int = 0
 
 
+def rates_follow_coordinates(f: ca.Function, n_q: int) -> bool:
+    """Whether the first ``n_q`` entries of ``f(x, ...)`` are ``x[n_q:2 n_q]`` (``q' = qd``).
+
+    Parameters
+    ----------
+    f : casadi.Function
+        ``(x, u, p) -> xdot`` (SX).
+    n_q : int
+        Coordinates.
+    """
+    x = ca.SX.sym("x", f.size1_in(0))
+    xdot = f(x, *(ca.SX.sym(f"in{k}", f.sparsity_in(k)) for k in range(1, f.n_in())))
+    return bool(ca.is_equal(xdot[:n_q], x[n_q : 2 * n_q], 1))
+
+
 def _combination(terms) -> str:
     """``c0 * k0[j] + c1 * k1[j] + ...`` over ``terms`` ``[(i, c_i), ...]`` (stage index
     and nonzero coefficient), in order."""
@@ -286,21 +304,16 @@ def explicit_step(tableau: ExplicitTableau, n_x: int) -> StepSource:
     return StepSource(tuple(declarations), tuple(lines))
 
 
-def _on_nonzeros(function: ca.Function, name: str) -> ca.Function:
-    """``function`` with every input and output as the column of its nonzeros."""
-    inputs = [ca.SX.sym(f"in{k}", function.sparsity_in(k).nnz()) for k in range(function.n_in())]
-    matrices = [ca.SX(function.sparsity_in(k), x) for k, x in enumerate(inputs)]
-    outputs = function.call(matrices)
-    return ca.Function(name, inputs, [ca.vertcat(*out.nonzeros()) for out in outputs])
-
-
 def rosenbrock_step(
-    tableau: Tableau, n_x: int, pattern: ca.Sparsity, scale: np.ndarray, every: int
+    tableau: Tableau, n_x: int, n_q: int, scale: np.ndarray, every: int
 ) -> StepSource:
     """One step of a Rosenbrock method with a fresh Newton matrix at every ``every``-th
-    step (as ``softcurve.simulation.stepper._scheme.newton_matrix``, the QR of
-    ``softcurve.simulation.stepper._scheme.Factorization`` and
-    ``softcurve.simulation.stepper._scheme.rosenbrock_step``).
+    step (as ``softcurve.simulation.stepper._scheme.newton_matrix`` and
+    ``softcurve.simulation.stepper._scheme.rosenbrock_step``), the matrix factored by the
+    period template's loops (``sc_newton_factor``, ``sc_newton_solve``: the rows of
+    ``q' = qd`` eliminated, the rest by Householder QR), where the scalar scheme calls
+    CasADi's sparse QR of the whole matrix written out as straight-line code: the same
+    solves up to round-off, in code that does not grow with the states.
 
     Parameters
     ----------
@@ -308,25 +321,15 @@ def rosenbrock_step(
         The method.
     n_x : int
         States.
-    pattern : casadi.Sparsity
-        The Newton matrix's structure
-        (``softcurve.simulation.stepper._scheme.jacobian_pattern``).
+    n_q : int
+        Coordinates ``q``, the first states, whose rates ``qd`` are the next ``n_q``.
     scale : ndarray, shape (n_x,)
         The states' natural sizes
         (``softcurve.simulation.stepper._scheme.rest_scale``).
     every : int
         Steps between fresh Newton matrices.
     """
-    qr = Factorization(pattern)
-    factor, solve = _on_nonzeros(qr.factor, "sc_factor"), _on_nonzeros(qr.solve, "sc_solve")
-    sizes = [factor.size1_out(k) for k in range(3)]
     a, c, m, gamma = tableau.transformed()
-    rows, cols = pattern.get_triplet()
-    matrix = [
-        f"M[{k}] = "
-        + (f"sc_broadcast(1.0) - gh * J[{i}][{j}];" if i == j else f"-(gh * J[{i}][{j}]);")
-        for k, (i, j) in enumerate(zip(rows, cols, strict=True))
-    ]
     lines = [
         f"if (s % {every} == 0) {{",
         "  sc_xdot(y, U, p, f0, w);",
@@ -336,10 +339,11 @@ def rosenbrock_step(
         "    " + _each(n_x, "z[j] = y[j];"),
         "    z[c] = y[c] + step[c];",
         "    sc_xdot(z, U, p, fj, w);",
-        "    " + _each(n_x, "J[j][c] = (fj[j] - f0[j]) / step[c];"),
+        f"    for (int i = 0; i < {n_x - n_q}; i++)",
+        f"      A[c][i] = -(gh * ((fj[{n_q} + i] - f0[{n_q} + i]) / step[c]));",
+        f"    if (c >= {n_q}) A[c][c - {n_q}] = sc_broadcast(1.0) + A[c][c - {n_q}];",
         "  }",
-        *(f"  {line}" for line in matrix),
-        "  sc_factor(M, V, R, B, w);",
+        "  sc_newton_factor(&A[0][0], gh, beta, rdiag);",
         "} else {",
         "  sc_xdot(y, U, p, f0, w);",
         "}",
@@ -354,16 +358,15 @@ def rosenbrock_step(
         for j in range(i):
             if c[i, j]:
                 lines.append(_each(n_x, f"slope[j] = slope[j] + {float(c[i, j])!r} * k{j}[j];"))
-        lines.append(f"sc_solve(V, R, B, slope, k{i}, w);")
+        lines.append(f"sc_newton_solve(&A[0][0], gh, beta, rdiag, slope, k{i});")
     weights = [(i, m[i]) for i in range(len(m)) if m[i]]
     lines.append(_each(n_x, f"y[j] = y[j] + h * ({_combination(weights)});"))
     declarations = [
         f"static const double sc_scale[{n_x}] = {{{', '.join(repr(float(v)) for v in scale)}}};",
         f"const sc_v gh = sc_broadcast({float(gamma)!r}) * h;",
         f"sc_v z[{n_x}], f0[{n_x}], fj[{n_x}], step[{n_x}], slope[{n_x}];",
-        f"sc_v (*J)[{n_x}] = (sc_v (*)[{n_x}])scratch;",
-        f"sc_v M[{pattern.nnz()}], V[{sizes[0]}], R[{sizes[1]}], B[{sizes[2]}];",
+        f"sc_v beta[{n_x - n_q}], rdiag[{n_x - n_q}];",
+        f"sc_v (*A)[{n_x - n_q}] = (sc_v (*)[{n_x - n_q}])scratch; /* column c: A[c] */",
         *(f"sc_v k{i}[{n_x}];" for i in range(a.shape[0])),
     ]
-    functions = ((factor, "sc_factor", (False,)), (solve, "sc_solve", (False,) * 4))
-    return StepSource(tuple(declarations), tuple(lines), functions, n_x * n_x)
+    return StepSource(tuple(declarations), tuple(lines), (), n_x * (n_x - n_q))
