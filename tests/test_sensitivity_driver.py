@@ -9,6 +9,7 @@ import multiprocessing
 import pickle
 from concurrent.futures import ProcessPoolExecutor
 
+import casadi as ca
 import numpy as np
 import pytest
 
@@ -20,6 +21,7 @@ from softcurve.simulation.sensitivity._sensitivity import (
     SENSITIVITY_CVODES,
     integrate_sensitivities,
     split_states,
+    tangents,
     trajectory_sensitivities,
 )
 from softcurve.simulation.solvers import _driver as driver_library
@@ -218,6 +220,39 @@ def test_the_parts_sum_to_the_columns_right_hand_side(model):
         expected = np.array(fs(x, u, dsc)).ravel()[n_x:]
         total = sum(np.asarray(part(x, u, dsc)).ravel() for part in parts)
         assert np.abs(total - expected).max() <= 1e-12 * np.abs(expected).max()
+
+
+def test_forward_derivatives_through_the_segments_calls_equal_the_jacobians_product():
+    """Three segments, whose right-hand side calls the segments' functions: the columns'
+    derivative by forward derivatives through the calls (what the sensitivities compile
+    for a chain) against the Jacobian's product of the same expression, at bent, moving
+    states, with and without the parameters' seeds, in fewer instructions."""
+    model = sc.Model(sc.presets.ifac2020().with_segments(3), quadrature_nodes=2, compile=False)
+    rhs = model.casadi_rhs()
+    n_x, n_d, m = rhs.size1_in(0), rhs.size1_in(2), 3
+    xs, tau, ds = ca.SX.sym("x", n_x), ca.SX.sym("tau", model.n), ca.SX.sym("d", n_d)
+    v, scales = ca.SX.sym("v", n_x, m), ca.SX.sym("scale", m)
+    f = rhs(xs, tau, ds)
+    seeds = ca.SX(n_d, m)
+    for j, i in enumerate((0, n_d // 2, n_d - 1)):
+        seeds[i, j] = scales[j]
+    inputs = [xs, ca.vec(v), tau, ds, scales]
+    rng = np.random.default_rng(3)
+    x = np.zeros(n_x)
+    x[: model.n] = np.tile([0.064, 8.0, -4.0], 3) + rng.normal(0, 1, model.n) * np.tile(
+        [1e-3, 2, 2], 3
+    )
+    x[model.n : 2 * model.n] = rng.normal(0, 1, model.n) * np.tile([0.01, 10, 10], 3)
+    values = [x, rng.normal(size=n_x * m), rng.normal(0, 1e-3, model.n), model.parameters]
+    values.append(rng.uniform(0.5, 2.0, m))
+    for along in ((ds, seeds), (None, None)):
+        through = ca.Function("through", inputs, [tangents(f, xs, v, *along, True)])
+        product = ca.Function("product", inputs, [tangents(f, xs, v, *along, False)])
+        expected = np.array(product(*values))
+        got = np.array(through(*values))
+        assert np.abs(expected).max() > 0
+        assert np.abs(got - expected).max() <= 1e-11 * np.abs(expected).max()
+        assert through.n_instructions() < product.n_instructions() / 3
 
 
 def test_two_threads_give_the_one_threads_trajectory_and_jacobian(model):

@@ -373,8 +373,11 @@ def trajectory_sensitivities(
     # The column scales are an input (not constants of the code), so that experiments
     # and fits of one structure share one compiled library.
     sens, sc_s = ca.SX.sym("S", n_x, m), ca.SX.sym("scale", m)
-    f_d = ca.jacobian(f, ds)[:, active] @ ca.diag(sc_s) if m else ca.SX(n_x, 0)
-    s_dot = ca.jacobian(f, xs) @ sens + f_d
+    seeds = ca.SX(ds.shape[0], m)  # the columns' parameters, scaled
+    for j, i in enumerate(active):
+        seeds[i, j] = sc_s[j]
+    through_calls = bool(ca.Function("f", [xs, us, ds], [f]).get_function())
+    s_dot = tangents(f, xs, sens, ds, seeds, through_calls)
     augmented = ca.Function(
         "softcurve_sensitivity",
         [ca.vertcat(xs, ca.vec(sens)), us, ca.vertcat(ds, sc_s)],
@@ -396,7 +399,11 @@ def trajectory_sensitivities(
         """The driver's route of this evaluator, ``(DriverRoute, loaded)``, or None."""
         f_state = augmented(ca.vertcat(xs, ca.SX.zeros(n_x * m)), us, ca.vertcat(ds, np.ones(m)))
         plain = ca.Function("softcurve_state", [xs, us, ds], [ca.densify(f_state[:n_x])])
-        columns = column_parts(f, xs, us, ds, sens, sc_s, f_d, model.n) if split else [augmented]
+        columns = (
+            column_parts(f, xs, us, ds, sens, sc_s, seeds, model.n, through_calls)
+            if split
+            else [augmented]
+        )
         libraries = compile_functions([plain, *columns], load=load_with_path)
         if not all(isinstance(entry, tuple) for entry in libraries):
             return None
@@ -586,7 +593,41 @@ def split_states(n_coordinates: int, n_states: int) -> tuple[list[int], list[int
     return [i for i in range(n_states) if i not in second], second
 
 
-def column_parts(f, xs, us, ds, sens, scales, f_d, n_coordinates: int) -> list[ca.Function]:
+def tangents(f, x, v, d=None, seeds=None, through_calls=False):
+    """``f_x v + f_d seeds`` (SX): the state's derivative along the sensitivity columns.
+
+    Through the calls of a chain's segment functions it is CasADi's forward derivative
+    (``jtimes``: one forward call of each segment function for all the columns), where
+    the Jacobian's product takes one reverse call per output: at eight segments and eight
+    columns 3.3 million operations against 19.3 million, and 16,854 instructions to
+    compile against 105,022. On the inlined expression of one segment the Jacobian's
+    product shares more (88,388 operations against 190,207). Both measured by
+    ``python benchmarks/bench_chain.py --sensitivity``.
+
+    Parameters
+    ----------
+    f : casadi.SX, shape (n_x, 1)
+        The state's right-hand side.
+    x : casadi.SX
+        Symbols of (some of) the state.
+    v : casadi.SX, shape (x.numel(), m)
+        The columns' entries along ``x``.
+    d, seeds : casadi.SX, optional
+        Symbols of the parameters and the columns' entries along them (n_d, m).
+    through_calls : bool
+        Whether ``f`` calls functions.
+    """
+    if d is not None and through_calls:
+        x, v = ca.vertcat(x, d), ca.vertcat(v, seeds)
+    product = ca.jtimes(f, x, v) if through_calls else ca.jacobian(f, x) @ v
+    if d is not None and not through_calls:
+        product = product + ca.jacobian(f, d) @ seeds
+    return product
+
+
+def column_parts(
+    f, xs, us, ds, sens, scales, seeds, n_coordinates: int, through_calls: bool
+) -> list[ca.Function]:
     """The two parts ``(x;vec(S), u, d;scale) -> vec(part)`` that sum to ``vec(f_x S + f_d)``.
 
     Parameters
@@ -599,10 +640,12 @@ def column_parts(f, xs, us, ds, sens, scales, f_d, n_coordinates: int) -> list[c
         Symbols of the sensitivity columns.
     scales : casadi.SX, shape (m, 1)
         Symbols of the column scales.
-    f_d : casadi.SX, shape (n_x, m)
-        ``f``'s derivative along the columns' parameters, scaled.
+    seeds : casadi.SX, shape (n_d, m)
+        The columns' entries along ``d`` (the scales at their parameters).
     n_coordinates : int
         Coordinates ``q`` among the states.
+    through_calls : bool
+        Whether ``f`` calls functions (:func:`tangents`).
 
     Returns
     -------
@@ -612,8 +655,8 @@ def column_parts(f, xs, us, ds, sens, scales, f_d, n_coordinates: int) -> list[c
     inputs = [ca.vertcat(xs, ca.vec(sens)), us, ca.vertcat(ds, scales)]
     parts = []
     for k, states in enumerate(split_states(n_coordinates, xs.shape[0])):
-        product = ca.jacobian(f, xs[states]) @ sens[states, :]
-        part = product + f_d if k == 0 else product
+        along = (ds, seeds) if k == 0 else (None, None)
+        part = tangents(f, xs[states], sens[states, :], *along, through_calls)
         parts.append(
             ca.Function(
                 f"softcurve_sensitivity_part{k}",
