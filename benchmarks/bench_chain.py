@@ -22,20 +22,39 @@ costs and saves on expressions holding the segments' calls (the forward dynamics
 Christoffel matrix), the measurement behind building them without it
 (``softcurve.symbolic.functions.build_functions``).
 
-Run: ``python benchmarks/bench_chain.py [--segments 1 2 4 10 20] [--no-compile] [--cse]``
+With ``--stepper`` it prints instead, per N, the environments' stepper
+(``Stepper(model, period=0.02)``, its default ROS34PW2 with 16 steps): the build of its
+compiled period from an empty cache (the model's library built before, not counted), and
+one period per member over ``--members`` members on one thread, best of five rounds of a
+second, beside N = 1.
+
+With ``--sensitivity`` it prints instead, per N, the identification's sensitivities:
+the instructions and the operations executed of the columns' right-hand side
+``f_x S + f_d E`` for eight columns, as CasADi's forward derivative through the
+segments' calls (``jtimes``) and as the Jacobian's product, the measurement behind
+``softcurve.simulation.sensitivity._sensitivity.tangents``; and the first
+``fit_trajectory`` of one evaluation (a free swing of 0.1 s, the tip segment's bending
+stiffness free) from an empty cache, the model's library built before and not counted,
+and the same fit again (the libraries loaded).
+
+Run: ``python benchmarks/bench_chain.py [--segments 1 2 4 10 20] [--no-compile] [--cse]
+[--stepper [--members 64]] [--sensitivity]``
 """
 
 from __future__ import annotations
 
 import argparse
+import math
 import os
 import tempfile
 import time
 
 import casadi as ca
+import numpy as np
 from bench_model import inside_c
 
 import softcurve as sc
+from softcurve.simulation.stepper import Stepper
 from softcurve.symbolic.dynamics import build_dynamics
 from softcurve.symbolic.functions import common_subexpressions
 
@@ -89,16 +108,123 @@ def cse_cost(n_segments: int) -> None:
         )
 
 
+def stepper_cost(n_segments: int, members: int) -> tuple[float, float]:
+    """``(build [s], one period per member [s])`` of the default stepper of N segments,
+    built from an empty cache."""
+    robot = sc.presets.ifac2020().with_segments(n_segments)
+    with tempfile.TemporaryDirectory() as cache:
+        os.environ["SOFTCURVE_CACHE_DIR"] = cache
+        model = sc.Model(robot)
+        start = time.perf_counter()
+        stepper = Stepper(model, period=0.02, threads=1)
+        x = np.repeat(
+            stepper.initial_state(np.tile([0.0644, 5.0, -2.0], n_segments))[None], members, 0
+        )
+        u = np.zeros((members, model.n))
+        result = stepper.step(x, u)
+        build = time.perf_counter() - start
+    assert result.success, result.message
+    rounds = []
+    for _ in range(5):
+        start, count = time.perf_counter(), 0
+        while time.perf_counter() - start < 1.0:
+            stepper.step(x, u)
+            count += 1
+        rounds.append((time.perf_counter() - start) / count / members)
+    return build, min(rounds)
+
+
+def sensitivity_operations(n_segments: int, columns: int = 8) -> dict:
+    """``{form: (instructions, operations)}`` of the columns' right-hand side of N
+    segments for ``columns`` columns, ``form`` "through calls" or "product" (NaN on a
+    revision before ``tangents``, for ``first_fit`` alone: ``PYTHONPATH=<rev>/src``)."""
+    try:
+        from softcurve.simulation.sensitivity._sensitivity import tangents
+    except ImportError:
+        return {"through calls": (math.nan, math.nan), "product": (math.nan, math.nan)}
+
+    robot = sc.presets.ifac2020().with_segments(n_segments)
+    rhs = sc.Model(robot, compile=False).casadi_rhs()
+    n_x, n_d = rhs.size1_in(0), rhs.size1_in(2)
+    xs, tau, ds = ca.SX.sym("x", n_x), ca.SX.sym("tau", robot.n), ca.SX.sym("d", n_d)
+    v, scales = ca.SX.sym("v", n_x, columns), ca.SX.sym("scale", columns)
+    f = rhs(xs, tau, ds)
+    seeds = ca.SX(n_d, columns)
+    for j in range(columns):
+        seeds[j * n_d // columns, j] = scales[j]
+    counts = {}
+    for form, through in (("through calls", True), ("product", False)):
+        derivative = tangents(f, xs, v, ds, seeds, through)
+        function = ca.Function("columns", [xs, ca.vec(v), tau, ds, scales], [derivative])
+        counts[form] = (function.n_instructions(), executed_operations(function))
+    return counts
+
+
+def first_fit(n_segments: int) -> tuple[float, float]:
+    """Seconds of the first ``fit_trajectory`` of one evaluation of N segments from an
+    empty cache (the model's library built before), and of the same fit again."""
+    from softcurve.identification.maps import tip_position_map
+
+    robot = sc.presets.ifac2020().with_segments(n_segments).replace(gravity=[0.0, 0.0, 9.81])
+    t = np.linspace(0.0, 0.1, 11)
+    experiment = sc.Experiment(t, {axis: 0.0 * t for axis in "xyz"}, {})
+    with tempfile.TemporaryDirectory() as cache:
+        os.environ["SOFTCURVE_CACHE_DIR"] = cache
+        model = sc.Model(robot)
+        x0 = np.zeros(model.n_state)
+        x0[: model.n] = np.tile([0.0644, 5.0, -2.0], n_segments)
+        seconds = []
+        for _ in range(2):
+            start = time.perf_counter()
+            sc.fit_trajectory(
+                model, experiment, output=tip_position_map(model), x0=x0,
+                free=[f"segments[{n_segments - 1}].bending_stiffness.a1"], max_evaluations=1,
+                processes=1,
+            )  # fmt: skip
+            seconds.append(time.perf_counter() - start)
+        return seconds[0], seconds[1]
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--segments", type=int, nargs="+", default=[1, 2, 4, 6, 8, 10, 20])
     parser.add_argument("--no-compile", action="store_true", help="skip compiling (C columns)")
     parser.add_argument("--repeat", type=int, default=100_000, help="C loop evaluations at N = 1")
     parser.add_argument("--cse", action="store_true", help="the cost of cse around calls")
+    parser.add_argument("--stepper", action="store_true", help="the stepper's build and period")
+    parser.add_argument("--members", type=int, default=64, help="members stepped (--stepper)")
+    parser.add_argument("--sensitivity", action="store_true", help="the sensitivities' cost")
     args = parser.parse_args()
     if args.cse:
         for n_segments in args.segments:
             cse_cost(n_segments)
+        return
+    if args.sensitivity:
+        print(f"{'N':>3} {'through calls: instr':>21} {'ops':>9} {'product: instr':>15} "
+              f"{'ops':>9} {'first fit [s]':>13} {'x N=1':>6} {'again [s]':>9}")  # fmt: skip
+        first = None
+        for n_segments in args.segments:
+            counts = sensitivity_operations(n_segments)
+            seconds, again = first_fit(n_segments)
+            first = first or seconds
+            (a, b), (c, d) = counts["through calls"], counts["product"]
+            print(
+                f"{n_segments:>3} {a:>21.0f} {b:>9.0f} {c:>15.0f} {d:>9.0f} {seconds:>13.1f} "
+                f"{seconds / first:>6.2f} {again:>9.2f}",
+                flush=True,
+            )
+        return
+    if args.stepper:
+        print(f"{'N':>3} {'build [s]':>9} {'x N=1':>6} {'period/member [us]':>18} {'x N=1':>6}")
+        first = None
+        for n_segments in args.segments:
+            build, period = stepper_cost(n_segments, args.members)
+            first = first or (build, period)
+            print(
+                f"{n_segments:>3} {build:>9.1f} {build / first[0]:>6.2f} {period * 1e6:>18.1f} "
+                f"{period / first[1]:>6.2f}",
+                flush=True,
+            )
         return
     header = (
         f"{'N':>3} {'ops':>8} {'/seg':>7} {'x N=1':>6} {'inlined':>8} {'build [s]':>9} "
