@@ -65,8 +65,11 @@ int main(int argc, char** argv) {
 """
 
 
-def inside_c(model: sc.Model, repeat: int, flags: tuple[str, ...] | None = None) -> float:
-    """Seconds per forward-dynamics evaluation in a C loop (default: the model's flags)."""
+def inside_c(
+    model: sc.Model, repeat: int, flags: tuple[str, ...] | None = None, rounds: int = 5
+) -> float:
+    """Seconds per forward-dynamics evaluation in a C loop (default: the model's flags),
+    best of ``rounds`` runs of the loop (on a shared machine one run varies by 30 %)."""
     flags = (*FUNCTION_FLAGS, *_native_flags()) if flags is None else flags
     compiler = find_compiler()
     if compiler is None:
@@ -83,14 +86,15 @@ def inside_c(model: sc.Model, repeat: int, flags: tuple[str, ...] | None = None)
             capture_output=True,
         )
         parameters = " ".join(repr(float(v)) for v in model.parameters)
-        out = subprocess.run(
-            [os.path.join(tmp, "bench"), str(repeat), str(model.n), str(model.parameters.size)],
-            input=parameters,
-            text=True,
-            capture_output=True,
-            check=True,
-        ).stdout
-    return float(out.split()[0])
+        command = [os.path.join(tmp, "bench"), str(repeat), str(model.n)]
+        command.append(str(model.parameters.size))
+        seconds = []
+        for _ in range(rounds):
+            out = subprocess.run(
+                command, input=parameters, text=True, capture_output=True, check=True
+            ).stdout
+            seconds.append(float(out.split()[0]))
+    return min(seconds)
 
 
 def from_python(model: sc.Model, number: int = 2000) -> tuple[float, float]:
