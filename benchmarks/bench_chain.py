@@ -58,6 +58,10 @@ from softcurve.simulation.stepper import Stepper
 from softcurve.symbolic.dynamics import build_dynamics
 from softcurve.symbolic.functions import common_subexpressions
 
+BENT = (0.0644, 5.0, -2.0)
+"""Each segment's state for the stepper and the fits: the rest length [m] and the
+curvatures [1/m]."""
+
 
 def executed_operations(function: ca.Function) -> int:
     """Operations of one evaluation of an SX Function: its own instructions, each call
@@ -117,9 +121,8 @@ def stepper_cost(n_segments: int, members: int) -> tuple[float, float]:
         model = sc.Model(robot)
         start = time.perf_counter()
         stepper = Stepper(model, period=0.02, threads=1)
-        x = np.repeat(
-            stepper.initial_state(np.tile([0.0644, 5.0, -2.0], n_segments))[None], members, 0
-        )
+        x0 = stepper.initial_state(np.tile(BENT, n_segments))
+        x = np.repeat(x0[None], members, axis=0)
         u = np.zeros((members, model.n))
         result = stepper.step(x, u)
         build = time.perf_counter() - start
@@ -139,7 +142,7 @@ def sensitivity_operations(n_segments: int, columns: int = 8) -> dict:
     segments for ``columns`` columns, ``form`` "through calls" or "product" (NaN on a
     revision before ``tangents``, for ``first_fit`` alone: ``PYTHONPATH=<rev>/src``)."""
     try:
-        from softcurve.simulation.sensitivity._sensitivity import tangents
+        from softcurve.simulation.sensitivity._sensitivity import parameter_seeds, tangents
     except ImportError:
         return {"through calls": (math.nan, math.nan), "product": (math.nan, math.nan)}
 
@@ -149,9 +152,7 @@ def sensitivity_operations(n_segments: int, columns: int = 8) -> dict:
     xs, tau, ds = ca.SX.sym("x", n_x), ca.SX.sym("tau", robot.n), ca.SX.sym("d", n_d)
     v, scales = ca.SX.sym("v", n_x, columns), ca.SX.sym("scale", columns)
     f = rhs(xs, tau, ds)
-    seeds = ca.SX(n_d, columns)
-    for j in range(columns):
-        seeds[j * n_d // columns, j] = scales[j]
+    seeds = parameter_seeds(n_d, [j * n_d // columns for j in range(columns)], scales)
     counts = {}
     for form, through in (("through calls", True), ("product", False)):
         derivative = tangents(f, xs, v, ds, seeds, through)
@@ -172,7 +173,7 @@ def first_fit(n_segments: int) -> tuple[float, float]:
         os.environ["SOFTCURVE_CACHE_DIR"] = cache
         model = sc.Model(robot)
         x0 = np.zeros(model.n_state)
-        x0[: model.n] = np.tile([0.0644, 5.0, -2.0], n_segments)
+        x0[: model.n] = np.tile(BENT, n_segments)
         seconds = []
         for _ in range(2):
             start = time.perf_counter()

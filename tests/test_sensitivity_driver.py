@@ -19,7 +19,9 @@ from softcurve.identification.fits._parameters import Free, FreeParameters
 from softcurve.identification.maps import bellows_input_map, curvature_map
 from softcurve.simulation.sensitivity._sensitivity import (
     SENSITIVITY_CVODES,
+    column_parts,
     integrate_sensitivities,
+    parameter_seeds,
     split_states,
     tangents,
     trajectory_sensitivities,
@@ -226,25 +228,24 @@ def test_forward_derivatives_through_the_segments_calls_equal_the_jacobians_prod
     """Three segments, whose right-hand side calls the segments' functions: the columns'
     derivative by forward derivatives through the calls (what the sensitivities compile
     for a chain) against the Jacobian's product of the same expression, at bent, moving
-    states, with and without the parameters' seeds, in fewer instructions."""
+    states, with and without the parameters' seeds, in fewer instructions; and the two
+    parts of the split (forward through the calls too) sum to it."""
     model = sc.Model(sc.presets.ifac2020().with_segments(3), quadrature_nodes=2, compile=False)
     rhs = model.casadi_rhs()
     n_x, n_d, m = rhs.size1_in(0), rhs.size1_in(2), 3
     xs, tau, ds = ca.SX.sym("x", n_x), ca.SX.sym("tau", model.n), ca.SX.sym("d", n_d)
     v, scales = ca.SX.sym("v", n_x, m), ca.SX.sym("scale", m)
     f = rhs(xs, tau, ds)
-    seeds = ca.SX(n_d, m)
-    for j, i in enumerate((0, n_d // 2, n_d - 1)):
-        seeds[i, j] = scales[j]
+    seeds = parameter_seeds(n_d, (0, n_d // 2, n_d - 1), scales)
     inputs = [xs, ca.vec(v), tau, ds, scales]
     rng = np.random.default_rng(3)
     x = np.zeros(n_x)
-    x[: model.n] = np.tile([0.064, 8.0, -4.0], 3) + rng.normal(0, 1, model.n) * np.tile(
-        [1e-3, 2, 2], 3
-    )
+    spread = np.tile([1e-3, 2.0, 2.0], 3)
+    x[: model.n] = np.tile([0.064, 8.0, -4.0], 3) + rng.normal(0, 1, model.n) * spread
     x[model.n : 2 * model.n] = rng.normal(0, 1, model.n) * np.tile([0.01, 10, 10], 3)
     values = [x, rng.normal(size=n_x * m), rng.normal(0, 1e-3, model.n), model.parameters]
     values.append(rng.uniform(0.5, 2.0, m))
+    wholes = []
     for along in ((ds, seeds), (None, None)):
         through = ca.Function("through", inputs, [tangents(f, xs, v, *along, True)])
         product = ca.Function("product", inputs, [tangents(f, xs, v, *along, False)])
@@ -253,6 +254,13 @@ def test_forward_derivatives_through_the_segments_calls_equal_the_jacobians_prod
         assert np.abs(expected).max() > 0
         assert np.abs(got - expected).max() <= 1e-11 * np.abs(expected).max()
         assert through.n_instructions() < product.n_instructions() / 3
+        wholes.append(expected)
+    parts = column_parts(f, xs, tau, ds, v, scales, seeds, model.n, True)
+    state, columns, parameters = values[0], values[1], values[3]
+    arguments = (np.concatenate([state, columns]), values[2], np.append(parameters, values[4]))
+    total = sum(np.array(part(*arguments)).ravel() for part in parts)
+    whole = wholes[0].ravel(order="F")  # vec: column after column
+    assert np.abs(total - whole).max() <= 1e-11 * np.abs(whole).max()
 
 
 def test_two_threads_give_the_one_threads_trajectory_and_jacobian(model):

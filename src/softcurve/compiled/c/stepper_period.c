@@ -5,7 +5,7 @@
  * unused lanes.
  *
  * Python writes before this file what it computes from the model and the method: the
- * lanes prelude and functions (sc_xdot, sc_observe and the step's), the entry's name
+ * lanes prelude and functions (sc_xdot, sc_observe), the entry's name
  * SC_ENTRY, the sizes (SC_NX states, the first SC_NQ of them the coordinates q whose
  * rates qd are the next SC_NQ, SC_NU, SC_NOBS, SC_SUBSTEPS; SC_WORK vectors of work of the
  * lanes functions, SC_SCRATCH of the step), the step's declarations and statements
@@ -49,8 +49,8 @@ static void sc_observe(const sc_v *in0, const double *in1, sc_v *out0, sc_v *res
  * The rows of q' = qd are known, (I, -gh I, 0): M k = b gives k_q = b_q + gh k_qd, and
  * the other SC_NR states solve S k_R = b_R - P b_q with P = M_Rq and
  * S = M_RR + gh (P, 0), by Householder QR without pivoting (Q is orthogonal whatever S).
- * The columns of a (SC_NR rows each, column-major) are M's rows R: first P's SC_NQ, then
- * S's SC_NR. */
+ * a holds the rows R of M column by column (SC_NR entries per column): first the SC_NQ
+ * columns of P, then the SC_NR of M_RR, which sc_newton_factor turns into S's factors. */
 #define SC_NR (SC_NX - SC_NQ)
 
 /* Householder QR of the SC_NR x SC_NR matrix s in place: R above the diagonal, its

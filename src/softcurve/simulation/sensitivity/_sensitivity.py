@@ -373,9 +373,7 @@ def trajectory_sensitivities(
     # The column scales are an input (not constants of the code), so that experiments
     # and fits of one structure share one compiled library.
     sens, sc_s = ca.SX.sym("S", n_x, m), ca.SX.sym("scale", m)
-    seeds = ca.SX(ds.shape[0], m)  # the columns' parameters, scaled
-    for j, i in enumerate(active):
-        seeds[i, j] = sc_s[j]
+    seeds = parameter_seeds(ds.shape[0], active, sc_s)
     through_calls = bool(ca.Function("f", [xs, us, ds], [f]).get_function())
     s_dot = tangents(f, xs, sens, ds, seeds, through_calls)
     augmented = ca.Function(
@@ -593,6 +591,30 @@ def split_states(n_coordinates: int, n_states: int) -> tuple[list[int], list[int
     return [i for i in range(n_states) if i not in second], second
 
 
+def parameter_seeds(n_d: int, active, scales) -> ca.SX:
+    """``E`` (n_d, m): column ``j`` is ``scales[j]`` at parameter ``active[j]``, else
+    zero, so that ``f_d E`` are the scaled columns' derivatives along the parameters.
+
+    Parameters
+    ----------
+    n_d : int
+        Entries of the parameter vector ``d``.
+    active : sequence of int
+        The parameter of each column.
+    scales : casadi.SX, shape (m, 1)
+        The columns' scales.
+
+    Returns
+    -------
+    casadi.SX
+        The seeds, structurally zero but at ``(active[j], j)``.
+    """
+    seeds = ca.SX(n_d, len(active))
+    for j, i in enumerate(active):
+        seeds[i, j] = scales[j]
+    return seeds
+
+
 def tangents(f, x, v, d=None, seeds=None, through_calls=False):
     """``f_x v + f_d seeds`` (SX): the state's derivative along the sensitivity columns.
 
@@ -616,6 +638,11 @@ def tangents(f, x, v, d=None, seeds=None, through_calls=False):
         Symbols of the parameters and the columns' entries along them (n_d, m).
     through_calls : bool
         Whether ``f`` calls functions.
+
+    Returns
+    -------
+    casadi.SX, shape (n_x, m)
+        The derivative along each column.
     """
     if d is not None and through_calls:
         x, v = ca.vertcat(x, d), ca.vertcat(v, seeds)

@@ -7,14 +7,13 @@ derivative and the observation over lanes of members, the period template
 (``stepper_period.c``) factors the Newton matrix, and this module writes the method's
 steps around them from its coefficients: the operations of the scalar scheme of
 ``softcurve.simulation.stepper._scheme``, in its order, but for the Newton matrix's QR
-(the same factorization up to round-off, in loops). A thread's whole share of the members is one
-call: no Python per member.
+(the same solves up to round-off, in loops). A thread's whole share of the members is
+one call: no Python per member.
 
 The step writers (:func:`explicit_step`, :func:`rosenbrock_step`) return
 :class:`StepSource`: declarations, the lines of one step (inside the loop over the steps
 ``s``, on the state ``y``, inputs ``U``, parameters ``p`` and step ``h``, with the
-functions' work array ``w``), the SX functions it calls besides the state derivative
-``sc_xdot``, and the heap it needs (``scratch``)."""
+functions' work array ``w``), and the heap it needs (``scratch``)."""
 
 from __future__ import annotations
 
@@ -96,7 +95,6 @@ def period_source(model, inputs, substeps: int, method: str, vector_math: bool, 
     functions = [
         (f, "sc_xdot", (False, False, True)),
         (observe, "sc_observe", (False, True)),
-        *step.functions,
     ]
     work = max(lanes_work(function) for function, _, _ in functions)
     sizes = {"SC_NX": n_x, "SC_NQ": model.n, "SC_NU": n_u, "SC_NOBS": n_obs}
@@ -167,8 +165,9 @@ def lanes_period(model, inputs, substeps: int, method: str, every: int | None = 
     Returns
     -------
     LanesPeriod or None
-        None where no C compiler builds it, or the model has an operation without lanes
-        code (the caller then calls the scalar period per member).
+        None where no C compiler builds it, the model has an operation without lanes
+        code, or a Rosenbrock method's state derivative does not begin with ``q' = qd``
+        (the caller then calls the scalar period per member).
     """
     explicit = isinstance(METHODS[method], ExplicitTableau)
     every = None if explicit else min(every or substeps, substeps)
@@ -244,15 +243,12 @@ class StepSource:
         Lines before the loop over the members.
     lines : tuple of str
         One step, from ``y`` to ``y``.
-    functions : tuple of (casadi.Function, str, tuple of bool)
-        SX functions to write as lanes: function, C name, which inputs are shared.
     scratch : int
-        Vectors of heap the step needs besides the functions' work (``scratch``).
+        Vectors of heap the step needs besides the lanes functions' work (``scratch``).
     """
 
     declarations: tuple
     lines: tuple
-    functions: tuple = ()
     scratch: int = 0
 
 
@@ -265,6 +261,12 @@ def rates_follow_coordinates(f: ca.Function, n_q: int) -> bool:
         ``(x, u, p) -> xdot`` (SX).
     n_q : int
         Coordinates.
+
+    Returns
+    -------
+    bool
+        True where the rows of ``q' = qd`` are the rates' symbols themselves, as the
+        lanes' Newton solve assumes (``sc_newton_solve`` of ``stepper_period.c``).
     """
     x = ca.SX.sym("x", f.size1_in(0))
     xdot = f(x, *(ca.SX.sym(f"in{k}", f.sparsity_in(k)) for k in range(1, f.n_in())))
@@ -369,4 +371,4 @@ def rosenbrock_step(
         f"sc_v (*A)[{n_x - n_q}] = (sc_v (*)[{n_x - n_q}])scratch; /* column c: A[c] */",
         *(f"sc_v k{i}[{n_x}];" for i in range(a.shape[0])),
     ]
-    return StepSource(tuple(declarations), tuple(lines), (), n_x * (n_x - n_q))
+    return StepSource(tuple(declarations), tuple(lines), n_x * (n_x - n_q))
