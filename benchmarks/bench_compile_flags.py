@@ -109,20 +109,32 @@ def paper_model_and_inputs():
     return model, ActuatorInput.of(paper_actuator(), model.n)
 
 
-def captured_function(module, run):
-    """The CasADi Function that ``run()`` hands to ``module.compile_function``."""
+def captured_function(module, run, name=None):
+    """The CasADi Function that ``run()`` hands to ``module.compile_function``, or the
+    one called ``name`` among those it hands to ``module.compile_functions``."""
     captured = {}
-    original = module.compile_function
+    single = module.compile_function
+    several = getattr(module, "compile_functions", None)
 
     def capture(function, *args, **kwargs):
         captured["f"] = function
-        return original(function, *args, **kwargs)
+        return single(function, *args, **kwargs)
+
+    def capture_several(functions, *args, **kwargs):
+        for function in functions:
+            if function.name() == name:
+                captured["f"] = function
+        return several(functions, *args, **kwargs)
 
     module.compile_function = capture
+    if several is not None:
+        module.compile_functions = capture_several
     try:
         run()
     finally:
-        module.compile_function = original
+        module.compile_function = single
+        if several is not None:
+            module.compile_functions = several
     return captured["f"]
 
 
@@ -159,7 +171,9 @@ def cases(robot: str):
     commands = np.full(inputs.n_inputs, 3e4)
     yield "stepper", stepper, [xu, commands, model.parameters, np.array([PERIOD])]
     f = captured_function(
-        sensitivity, lambda: bench_identification.dynamic_evaluator(1.0, "linear")
+        sensitivity,
+        lambda: bench_identification.dynamic_evaluator(1.0, "linear"),
+        "softcurve_sensitivity",
     )
     rng = np.random.default_rng(0)
     values = [rng.random(f.size1_in(i)) for i in range(f.n_in())]

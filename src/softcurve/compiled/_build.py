@@ -54,7 +54,13 @@ _LIBRARY_FLAGS = ("-fPIC", "-fvisibility=hidden", "-DGCC_HASCLASSVISIBILITY")
 """Beside :data:`FUNCTION_FLAGS`, the model library's: position-independent code that
 exports CasADi's entry points alone."""
 
-FUNCTION_FLAGS = ("-O2", "-fno-gcse", "-fno-tree-pre", "-fno-code-hoisting")
+FUNCTION_FLAGS = (
+    "-O2",
+    "-fno-gcse",
+    "-fno-tree-pre",
+    "-fno-code-hoisting",
+    "-fira-algorithm=priority",
+)
 """Optimization flags of the C that CasADi generates: the model library and
 :func:`softcurve.compiled.compile_function` (``-march=native`` is added unless
 ``SOFTCURVE_PORTABLE`` is set). Generated functions are large straight-line code (the
@@ -72,7 +78,17 @@ runs, ``-march=native`` on both). The two-segment model's right-hand side compil
 against 3.99 us (4.97 us at ``-O1``), its ``dynamics_terms`` in 3.3 s against 7.2 s at
 the same speed (``python benchmarks/bench_compile_flags.py --robot two-segment``). They
 are GCC's (8 and later); a compiler that refuses them builds with
-:data:`PORTABLE_FUNCTION_FLAGS`."""
+:data:`PORTABLE_FUNCTION_FLAGS`.
+
+``-fira-algorithm=priority`` (GCC's register allocator by priority colouring instead
+of Chaitin-Briggs) makes the generated straight-line code faster at the same compile
+time (``python benchmarks/bench_compile_flags.py --only
+sensitivity --quick --repeat 3`` and ``--only rhs,dynamics_terms --repeat 3``, at the
+flags without and with it): the paper robot's sensitivity equations 12.50 -> 11.05 us,
+its right-hand side 1.62 -> 1.52 us, its forward dynamics in a C loop 1.63 -> 1.50 us
+(``benchmarks/bench_model.inside_c``), the two-segment robot's right-hand side 4.74 ->
+4.57 us; ``simulate`` of the paper case 3.41-3.43 -> 3.34-3.36 ms of integration
+(``python benchmarks/bench_revisions.py`` of the two flag sets)."""
 
 PORTABLE_FUNCTION_FLAGS = ("-O1",)
 """The flags of generated C for a compiler that refuses :data:`FUNCTION_FLAGS` (clang has
