@@ -17,6 +17,7 @@ import softcurve as sc
 from softcurve.identification.experiments import Experiment
 from softcurve.identification.fits._parameters import Free, FreeParameters
 from softcurve.identification.maps import bellows_input_map, curvature_map
+from softcurve.simulation.sensitivity import _sensitivity as sensitivity_module
 from softcurve.simulation.sensitivity._sensitivity import (
     SENSITIVITY_CVODES,
     column_parts,
@@ -261,6 +262,37 @@ def test_forward_derivatives_through_the_segments_calls_equal_the_jacobians_prod
     total = sum(np.array(part(*arguments)).ravel() for part in parts)
     whole = wholes[0].ravel(order="F")  # vec: column after column
     assert np.abs(total - whole).max() <= 1e-11 * np.abs(whole).max()
+
+
+def test_fits_of_one_structure_build_their_sensitivity_functions_once(monkeypatch):
+    """The SX functions (whose common-subexpression elimination is most of an evaluator's
+    build at one segment) are kept with the model by the state's expression: another
+    input hold builds none, an input lag (another state derivative) and the split over
+    two threads build theirs; an evaluator from kept functions computes what one from
+    a fresh model does."""
+    built = []
+    original = sensitivity_module.sensitivity_functions
+
+    def counting(*args):
+        built.append(args[1:])
+        return original(*args)
+
+    monkeypatch.setattr(sensitivity_module, "sensitivity_functions", counting)
+    model = sc.Model(sc.presets.ifac2020(), quadrature_nodes=4)  # from the disk cache
+    first, theta = _evaluator(model, "linear")
+    assert len(built) == 1
+    again, _ = _evaluator(model, "constant")
+    assert len(built) == 1
+    _evaluator(model, "linear", lag=1)
+    assert len(built) == 2
+    _evaluator(model, "linear", threads=2)
+    assert len(built) == 3
+    fresh, _ = _evaluator(sc.Model(sc.presets.ifac2020(), quadrature_nodes=4), "constant")
+    y, jacobian = again(theta)
+    y_fresh, jacobian_fresh = fresh(theta)
+    np.testing.assert_array_equal(y, y_fresh)
+    np.testing.assert_array_equal(jacobian, jacobian_fresh)
+    assert np.abs(first(theta)[0] - y).max() > 0  # the holds differ: not one evaluator
 
 
 def test_two_threads_give_the_one_threads_trajectory_and_jacobian(model):
