@@ -51,6 +51,7 @@ import time
 
 import casadi as ca
 import numpy as np
+from _timing import best_of  # benchmarks/_timing.py: a helper, not a benchmark
 from bench_model import inside_c
 
 import softcurve as sc
@@ -127,14 +128,10 @@ def stepper_cost(n_segments: int, members: int) -> tuple[float, float]:
         result = stepper.step(x, u)
         build = time.perf_counter() - start
     assert result.success, result.message
-    rounds = []
-    for _ in range(5):
-        start, count = time.perf_counter(), 0
-        while time.perf_counter() - start < 1.0:
-            stepper.step(x, u)
-            count += 1
-        rounds.append((time.perf_counter() - start) / count / members)
-    return build, min(rounds)
+    one, _ = best_of(1, lambda: stepper.step(x, u))
+    calls = max(1, round(1.0 / one))  # a round of about a second
+    best, _ = best_of(5, lambda: [stepper.step(x, u) for _ in range(calls)])
+    return build, best / calls / members
 
 
 def sensitivity_operations(n_segments: int, columns: int = 8) -> dict:

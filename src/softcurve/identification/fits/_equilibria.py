@@ -330,11 +330,11 @@ class EquilibriumPredictor:
         sensitivities = model.cached(key, sensitivity_function)
         if not compiled:
             return balance, residual, sensitivities
-        compiled = model.cached(
+        compiled_balance, compiled_residual = model.cached(
             ("equilibrium-fit-compiled", *structure),
             lambda: tuple(compile_functions([balance, residual])),
         )
         compiled_sensitivities = model.cached(
             (*key, "compiled"), lambda: compile_function(sensitivities)
         )
-        return (*compiled, compiled_sensitivities)
+        return compiled_balance, compiled_residual, compiled_sensitivities

@@ -51,7 +51,6 @@ from __future__ import annotations
 import ctypes
 import pickle
 import uuid
-from hashlib import sha256
 from typing import NamedTuple
 
 import casadi as ca
@@ -375,11 +374,11 @@ def trajectory_sensitivities(
     # and fits of one structure share one compiled library.
     split = threads > 1 and m > 0
     state = ca.Function("f", [xs, us, ds], [f])
-    # keyed by the state's expression: the fits of one structure (any data, parameter
-    # values and scales) build their sensitivity functions once per model
-    key = ("sensitivity-functions", sha256(state.serialize().encode()).hexdigest())
+    # keyed by the state's expression (serialized, as the equilibrium fit's functions):
+    # the fits of one structure (any data, parameter values and scales) build their
+    # sensitivity functions once per model
     functions = model.cached(
-        (*key, tuple(active), split),
+        ("sensitivity-functions", state.serialize(), tuple(active), split),
         lambda: sensitivity_functions(state, active, model.n, model.robot.n_segments, split),
     )
     augmented = functions.augmented

@@ -97,8 +97,13 @@ def period_source(model, inputs, substeps: int, method: str, vector_math: bool, 
         (observe, "sc_observe", (False, True)),
     ]
     work = max(lanes_work(function) for function, _, _ in functions)
-    sizes = {"SC_NX": n_x, "SC_NQ": model.n, "SC_NU": n_u, "SC_NOBS": n_obs}
-    sizes["SC_SUBSTEPS"] = substeps
+    sizes = {
+        "SC_NX": n_x,
+        "SC_NQ": model.n,
+        "SC_NU": n_u,
+        "SC_NOBS": n_obs,
+        "SC_SUBSTEPS": substeps,
+    }
     return "\n".join(
         [
             lanes_prelude(LANE_WIDTH, vector_math),
