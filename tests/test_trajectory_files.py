@@ -105,6 +105,7 @@ def test_failed_run_ends_early_and_loads_with_its_status(run, tmp_path):
         ({"n_creep": 0}, r"n_creep = 0.*column 8 is 'lam1', expected 'tip_x'"),
         ({"n_inputs": 2}, r"n_inputs = 2\): 16 columns, expected 18"),
         ({"n": 4}, "n must be 3 per segment, got 4"),
+        ({"n": 3 * 10**9}, "16 columns, expected 6000000007"),  # no names built
     ],
 )  # fmt: skip
 def test_csv_whose_n_disagrees_with_its_columns_is_refused(run, tmp_path, changes, match):

@@ -190,7 +190,7 @@ def _metadata(path, text: str) -> dict:
 def _columns(meta: dict, with_tau: bool) -> list[str]:
     """The column names of a file with ``meta``; version 1 named the inputs ``p1 ...``."""
     names = column_names(meta["n"], meta["n_creep"], with_tau, meta["n_inputs"])
-    if meta.get("version", FORMAT_VERSION) < 2:
+    if meta.get("version") == 1:
         names = [f"p{c[1:]}" if c.startswith("u") else c for c in names]
     return names
 
@@ -198,17 +198,19 @@ def _columns(meta: dict, with_tau: bool) -> list[str]:
 def _check_header(path, meta: dict, header: list[str]) -> bool:
     """Whether the CSV ``header`` (line 2) holds ``tau``; a
     :class:`TrajectoryFileError` if it is not the columns the metadata gives."""
-    choices = [True] if meta["n_inputs"] else [False, True]  # inputs come with tau
-    for with_tau in choices:
-        if header == _columns(meta, with_tau):
+    n, m = meta["n"], meta["n_inputs"]
+    states = 2 * n + meta["n_creep"] + 4  # t, q, qd, lam, tip
+    sizes = {True: states + n + m} if m else {False: states, True: states + n}  # u needs tau
+    with_tau = min(sizes, key=lambda w: abs(sizes[w] - len(header)))
+    what = f"{len(header)} columns, expected {sizes[with_tau]}"
+    if max(n, meta["n_creep"], m) <= len(header):  # else no names could match: none built
+        expected = _columns(meta, with_tau)
+        differ = [k for k, (a, b) in enumerate(zip(header, expected, strict=False)) if a != b]
+        if not differ and len(header) == len(expected):
             return with_tau
-    expected = min((_columns(meta, w) for w in choices), key=lambda c: abs(len(c) - len(header)))
-    differ = [k for k, (a, b) in enumerate(zip(header, expected, strict=False)) if a != b]
-    what = (
-        f"column {differ[0] + 1} is {header[differ[0]]!r}, expected {expected[differ[0]]!r}"
-        if differ
-        else f"{len(header)} columns, expected {len(expected)}"
-    )
+        if differ:
+            k = differ[0]
+            what = f"column {k + 1} is {header[k]!r}, expected {expected[k]!r}"
     counts = ", ".join(f"{k} = {meta[k]}" for k in ("n", "n_creep", "n_inputs"))
     raise TrajectoryFileError(
         f"{path}, line 2: the columns do not match the metadata ({counts}): {what}"
@@ -236,17 +238,24 @@ def _bad_line(path, rows: list[str], lines: list[int], header: list[str]) -> Tra
 
 def _read_csv(path) -> tuple[dict, np.ndarray, bool, list]:
     """``(metadata, table, with_tau, where)`` of a CSV file; ``where[k]`` names row ``k``."""
-    with open(path, encoding="utf-8") as f:
-        first = f.readline()
-        if not first.startswith("# "):
-            raise TrajectoryFileError(f"{path}, line 1: not a softcurve trajectory (no metadata)")
-        meta = _metadata(path, first[2:])
-        header = f.readline().strip().split(",")
-        rows, lines = [], []
-        for number, line in enumerate(f, start=3):
-            if line.strip():
-                rows.append(line)
-                lines.append(number)
+    try:
+        with open(path, encoding="utf-8") as f:
+            first = f.readline()
+            if not first.startswith("# "):
+                raise TrajectoryFileError(
+                    f"{path}, line 1: not a softcurve trajectory (no metadata)"
+                )
+            meta = _metadata(path, first[2:])
+            header = f.readline().strip().split(",")
+            rows, lines = [], []
+            for number, line in enumerate(f, start=3):
+                if line.strip():
+                    rows.append(line)
+                    lines.append(number)
+    except UnicodeDecodeError as exc:
+        raise TrajectoryFileError(
+            f"{path}: not a UTF-8 text file (byte {exc.start}): not a softcurve trajectory"
+        ) from None
     with_tau = _check_header(path, meta, header)
     if rows and not rows[-1].endswith("\n"):  # every line written ends in one
         raise TrajectoryFileError(
