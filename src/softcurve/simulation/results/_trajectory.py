@@ -261,5 +261,13 @@ def load_trajectory(path) -> Trajectory:
     ----------
     path : str or Path
         A ``.csv`` or ``.npz`` file.
+
+    Raises
+    ------
+    TrajectoryFileError
+        A :class:`~softcurve.ParameterError` naming the file, the line (the row of an
+        NPZ file) and what is wrong, if the file disagrees with its own metadata: cut
+        short, columns that do not match ``n``, a NaN or infinite cell, a time not after
+        the one before. A failed run's file, which may end early, loads with its status.
     """
     return Trajectory(**read_trajectory(path))
