@@ -306,6 +306,6 @@ def test_sweep_figure_draws_round_off_as_a_constant():
         assert axis.yaxis.get_offset_text().get_text() == "", axis.get_ylabel()
         assert np.all(axis.lines[0].get_ydata() == 0.0)
         (text,) = axis.texts
-        assert text.get_text().startswith("constant: 0 mm (spread below 0.0001 of 64.9")
+        assert text.get_text().startswith("constant: 0 mm (spread < 0.01 % of 64.9 mm)")
     assert not len(z_axis.texts) and z_axis.yaxis.get_offset_text().get_text() == ""
     np.testing.assert_array_equal(z_axis.lines[0].get_ydata(), 1e3 * z)

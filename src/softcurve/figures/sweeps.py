@@ -123,13 +123,12 @@ def _draw_constant(axis, x, value: float, scale: float, label: str) -> None:
     axis.plot(x, np.full(x.shape, value), ".", ms=4)
     half = 0.05 * (scale if scale > 0 else 1.0)
     axis.set_ylim(value - half, value + half)
-    unit = label[label.rfind("[") + 1 : -1] if label.endswith("]") else ""
+    unit = f" {label[label.rfind('[') + 1 : -1]}" if label.endswith("]") else ""
+    spread = f"spread < {100 * ROUND_OFF:g} % of {scale:.3g}{unit}"
     axis.text(
         0.5,
         0.8,
-        f"constant: {value:.6g} {unit} (spread below {ROUND_OFF:g} of {scale:.3g})".replace(
-            "  ", " "
-        ),
+        f"constant: {value:.6g}{unit} ({spread})",
         transform=axis.transAxes,
         ha="center",
         fontsize="small",
