@@ -266,7 +266,9 @@ def _simulate(args, scenario, output, written: list, window, earlier: list) -> i
             figures.append(("contact.png", lambda: trajectory.contact().plot()))
         for name, draw in figures:
             written.append(write_figure(draw, output / name, **looks))
-    if args.animate and trajectory.t.size > 1:
+    # a run that failed before the window has nothing in it to animate
+    reached = trajectory.t.size > 1 and (window == "all" or window[0] < trajectory.t[-1])
+    if args.animate and reached:
         movies = ["animation.gif"] + (["animation.mp4"] if shutil.which("ffmpeg") else [])
         for name in movies:
             written.append(
