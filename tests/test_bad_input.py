@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 import softcurve as sc
-from softcurve.analysis.statics import START_BYTES, starts_count
+from softcurve.analysis.statics import START_BYTES, physical_memory, starts_count
 from softcurve.base.status import Status
 from softcurve.base.validation import FLOAT_MAX, ParameterError
 from softcurve.cli import main
@@ -127,7 +127,7 @@ def test_more_starts_than_memory_holds_are_refused(two_segment_model, tmp_path, 
         ParameterError, match=r"starts must be an integer in \[1, \d+\], got 100000000000"
     ):
         sc.equilibria(two_segment_model, starts=10**11)
-    most = int(starts_count.__globals__["_memory"]() // (START_BYTES + 24 * n))
+    most = int(physical_memory() // (START_BYTES + 24 * n))
     assert starts_count("starts", most, n) == most
     with pytest.raises(ParameterError, match="bytes while the starts are drawn"):
         starts_count("starts", most + 1, n)

@@ -283,7 +283,7 @@ the starts are drawn: its row's NumPy object (112 B) and its list entry (8 B), m
 with ``tracemalloc``."""
 
 
-def _memory() -> int:
+def physical_memory() -> int:
     """The machine's physical memory [B]; ``sys.maxsize`` where the system does not say."""
     try:
         return os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
@@ -310,7 +310,7 @@ def starts_count(name: str, value, n: int) -> int:
     """
     starts = whole_count(name, value)
     per_start = START_BYTES + 3 * 8 * n
-    memory = _memory()
+    memory = physical_memory()
     most = memory // per_start
     if starts > most:
         raise ParameterError(

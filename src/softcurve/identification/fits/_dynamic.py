@@ -178,7 +178,8 @@ def _per_experiment(name, value, experiments, is_one):
 
 def _finite_states(states, experiments) -> None:
     """Refuse an initial state given as numbers with an entry that is not finite (NaN, inf),
-    naming the experiment and the entries; a callable is checked where it is called."""
+    naming the experiment and the entries (a callable gives CasADi expressions of the
+    extra parameters: nothing to check before the integration)."""
     for e, state in zip(experiments, states, strict=True):
         if callable(state):
             continue
