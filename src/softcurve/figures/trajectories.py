@@ -15,7 +15,7 @@ from softcurve.base.files import atomic_path
 from softcurve.base.progress import ProgressLine
 from softcurve.base.validation import ParameterError, real_scalar
 from softcurve.figures.actuation import plot_inputs
-from softcurve.figures.drawing import backbones, panels, whole_number
+from softcurve.figures.drawing import backbones, model_rows, panels, whole_number
 from softcurve.figures.obstacles import draw_obstacles
 from softcurve.figures.scales import (
     NOISE,
@@ -501,6 +501,7 @@ def animate(
     %(window)s
     %(progress)s
     """
+    model_rows(model, trajectory.q[:1], "the trajectory")
     path = Path(path)
     if path.suffix not in ANIMATION_SUFFIXES:
         raise ParameterError(f"animation path must end in .gif or .mp4, got {path.name!r}")

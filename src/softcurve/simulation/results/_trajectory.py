@@ -12,6 +12,7 @@ from softcurve.base.status import Result, Status
 from softcurve.compiled import Model
 from softcurve.description.actuator import Actuator
 from softcurve.figures import animate, plot_states, plot_tip
+from softcurve.figures.drawing import model_rows
 from softcurve.figures.shapes import result_figure_options
 from softcurve.figures.trajectories import animation_options, figure_options
 from softcurve.figures.viewer import trajectory_viewer, viewer_options
@@ -97,6 +98,7 @@ class Trajectory(Result):
         model = model if model is not None else self.model
         if model is None:
             raise ValueError("this trajectory has no model attached: pass model=Model(robot)")
+        model_rows(model, self.q[:1], "the trajectory")
         return model
 
     def energy(self, model: Model | None = None) -> np.ndarray:
