@@ -6,7 +6,9 @@ forces of the obstacles, with an ``[environment]``) and, with
 ``--animate``, ``animation.gif`` (``.mp4`` too where ffmpeg exists), with ``--html``
 ``viewer.html`` (the interactive 3-D viewer); prints a summary, naming the files of an
 earlier run in the folder that it replaced (and those it left). The figures and the
-animation show the whole run, or ``--window T0 T1``.
+animation show the motion (from the start to where the states settle, as the Python
+API's ``window="auto"``; their titles say the window and the run's end), or
+``--window T0 T1``.
 Exit code 0 on success, 1 when the integrator fails (the partial trajectory and its
 figures are still written), 2 for usage or configuration errors.
 """
@@ -72,7 +74,8 @@ def _add_arguments(parser) -> None:
         nargs=2,
         metavar=("T0", "T1"),
         help="the time window the figures and the animation show [s], 0 <= T0 < T1 <= the "
-        "end time (default: the whole run)",
+        "end time (default: the motion, from the start to where the states settle; "
+        "--window 0 T_FINAL for the whole run)",
     )
     parser.add_argument(
         "--animate",
@@ -131,9 +134,9 @@ def _scenario(args):
 
 def _window(args, scenario):
     """The time window of the figures and the animation: ``--window`` checked against
-    the run's end time, or ``"all"`` (the whole run)."""
+    the run's end time, or ``"auto"`` (the motion, as the figures choose it)."""
     if args.window is None:
-        return "all"
+        return "auto"
     start, end = args.window
     t_final = scenario.settings.t_final
     if not (np.isfinite(start) and np.isfinite(end) and 0 <= start < end <= t_final):
@@ -215,7 +218,7 @@ def _run(args) -> int:
 
 def _simulate(args, scenario, output, written: list, window, earlier: list) -> int:
     """Simulate and write into ``output``, appending each file to ``written`` once whole;
-    ``window`` is the figures' (``"all"`` or ``(start, end)`` [s]), ``earlier`` the files
+    ``window`` is the figures' (``"auto"`` or ``(start, end)`` [s]), ``earlier`` the files
     of an earlier run in ``output``."""
     from softcurve.simulation import simulate
 
@@ -267,7 +270,7 @@ def _simulate(args, scenario, output, written: list, window, earlier: list) -> i
         for name, draw in figures:
             written.append(write_figure(draw, output / name, **looks))
     # a run that failed before the window has nothing in it to animate
-    reached = trajectory.t.size > 1 and (window == "all" or window[0] < trajectory.t[-1])
+    reached = trajectory.t.size > 1 and (window == "auto" or window[0] < trajectory.t[-1])
     if args.animate and reached:
         movies = ["animation.gif"] + (["animation.mp4"] if shutil.which("ffmpeg") else [])
         for name in movies:
