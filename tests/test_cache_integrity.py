@@ -151,7 +151,7 @@ def test_an_intact_library_is_loaded_without_a_rebuild(cache, rebuilds):
 
 def test_a_library_is_verified_once_per_process_while_unchanged(cache, rebuilds, monkeypatch):
     checked = []
-    monkeypatch.setattr(cache_module, "library_problem", lambda path, key: checked.append(path))
+    monkeypatch.setattr(cache_module, "library_problem", lambda path, *_: checked.append(path))
     sc.Model(robot())
     sc.Model(robot())
     assert checked == [cache]  # the second model skips the read
