@@ -17,9 +17,7 @@ processes); a folder or file that every user can write is still refused.
 
 from __future__ import annotations
 
-import grp
 import os
-import pwd
 import stat
 from pathlib import Path
 
@@ -36,6 +34,9 @@ def shared() -> bool:
 def _private_group(gid: int, uid: int) -> bool:
     """Whether the group ``gid`` holds the user ``uid`` alone: their primary group, of
     their name, with no other member listed."""
+    import grp  # POSIX only, as this whole check
+    import pwd
+
     try:
         user, group = pwd.getpwuid(uid), grp.getgrgid(gid)
     except KeyError:
