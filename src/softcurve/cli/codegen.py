@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import shlex
 import subprocess
 import sys
 
@@ -42,7 +43,9 @@ def _run(args) -> int:
     )
     print(f"softcurve codegen: wrote {exported.source}, {exported.header}, {exported.test}")
     print(f"  functions: {', '.join(exported.functions)}")
-    print(f"  build the test: cd {exported.source.parent} && {' '.join(exported.compile_command)}")
+    # quoted for the shell: the line is meant to be pasted, and a folder is any name
+    folder, command = shlex.quote(str(exported.source.parent)), shlex.join(exported.compile_command)
+    print(f"  build the test: cd {folder} && {command}")
     if args.check:
         try:
             output = build_and_run_test(exported)

@@ -270,7 +270,7 @@ def cached_model_library(structure, quadrature_nodes) -> Path | None:
     pathlib.Path or None
         The intact library recording this structure's key, or None.
     """
-    return cached_library("model", _cache_key(structure, quadrature_nodes))
+    return cached_library("model", _cache_key(structure, quadrature_nodes), COMPILED_FUNCTIONS)
 
 
 def compiled_library(structure, quadrature_nodes, symbolic, load=None):
@@ -305,7 +305,8 @@ def compiled_library(structure, quadrature_nodes, symbolic, load=None):
 
     key = _cache_key(structure, quadrature_nodes)
     try:
-        return load_or_build("model", key, build, load or (lambda path: path), stacklevel=3)
+        loader = load or (lambda path: path)
+        return load_or_build("model", key, build, loader, 3, symbols=COMPILED_FUNCTIONS)
     except NoCompiler as exc:
         message = f"{exc}: softcurve runs in CasADi's virtual machine, about 10x slower to simulate"
     except (OSError, subprocess.CalledProcessError) as exc:
