@@ -20,8 +20,6 @@ import numpy as np
 
 from softcurve.base.files import writable_folder
 from softcurve.base.validation import ParameterError
-from softcurve.simulation import CSV_BYTES_PER_VALUE, SettingsError, format_bytes
-from softcurve.simulation.results import save_trajectory
 
 from . import (
     Command,
@@ -94,6 +92,7 @@ def _add_arguments(parser) -> None:
 
 def _scenario(args):
     from softcurve.scenarios.config import load_config, paper_scenario
+    from softcurve.simulation import SettingsError
 
     scenario = load_config(args.config) if args.config else paper_scenario()
     overrides = {
@@ -171,7 +170,8 @@ def _run(args) -> int:
 
 def _simulate(args, scenario, output, written: list) -> int:
     """Simulate and write into ``output``, appending each file to ``written`` once whole."""
-    from softcurve.simulation import simulate
+    from softcurve.simulation import CSV_BYTES_PER_VALUE, format_bytes, simulate
+    from softcurve.simulation.results import save_trajectory
 
     say = (lambda *a: None) if args.quiet else print
     show_progress = args.progress if args.progress is not None else sys.stderr.isatty()

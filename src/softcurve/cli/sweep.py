@@ -14,7 +14,6 @@ from pathlib import Path
 
 from softcurve.base.files import writable_folder
 from softcurve.base.validation import ParameterError
-from softcurve.figures.drawing import figure_format
 
 from . import Command, Interrupted, _options, add_progress_options, rate_text, write_figure
 from ._models import build_model
@@ -126,6 +125,8 @@ def _run(args) -> int:
 def _figure_path(figure, output):
     """The figure's file: a bare name goes into the output folder; checked before any work
     (its format, and that its folder exists)."""
+    from softcurve.figures.drawing import figure_format
+
     if figure is None:
         return None
     path = Path(figure)
