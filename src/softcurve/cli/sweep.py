@@ -150,12 +150,14 @@ RESUME = "the chunks written are kept: run the same command to resume"
 def _run_until_signal(function, *args, **kwargs):
     """``function(*args, **kwargs)``; on SIGTERM or an interrupt the worker processes are
     killed before the exception goes on (the chunks written so far are kept)."""
-    from softcurve.simulation.batch import stop_workers
+    from softcurve.simulation.batch import close_workers, stop_workers
 
     main_thread = threading.current_thread() is threading.main_thread()
     previous = signal.signal(signal.SIGTERM, _terminated) if main_thread else None
     try:
-        return function(*args, **kwargs)
+        result = function(*args, **kwargs)
+        close_workers()  # here, where an interrupt is one line, not at the interpreter's exit
+        return result
     except KeyboardInterrupt:
         stop_workers()
         raise Interrupted(RESUME) from None
