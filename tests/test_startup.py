@@ -14,8 +14,14 @@ import os
 import signal
 import subprocess
 import sys
+from pathlib import Path
 
 import pytest
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover
+    import tomli as tomllib
 
 from tests.test_faults import SWEEP_TOML
 
@@ -38,8 +44,13 @@ sys.argv = ["softcurve", *{argv!r}]
 PYTHON_M = "import runpy\nrunpy.run_module('softcurve', run_name='__main__', alter_sys=True)\n"
 """``python -m softcurve``: imports the facade, then runs ``softcurve/__main__.py``."""
 
-SCRIPT = "from softcurve.cli import main\nsys.exit(main())\n"
-"""What the ``softcurve`` console script runs."""
+ENTRY = tomllib.loads((Path(__file__).parents[1] / "pyproject.toml").read_text())["project"][
+    "scripts"
+]["softcurve"]
+"""``module:function`` that the ``softcurve`` console script calls."""
+
+SCRIPT = "from {} import {} as main\nsys.exit(main())\n".format(*ENTRY.split(":"))
+"""What the ``softcurve`` console script runs (pip writes it from ``ENTRY``)."""
 
 STARTING = "softcurve: interrupted before starting: nothing was done"
 
@@ -63,10 +74,20 @@ def _one_line_130(done: subprocess.CompletedProcess) -> str:
         (PYTHON_M, "softcurve.cli"),  # the command line's face
         (PYTHON_M, "argparse"),  # what the face imports
         (PYTHON_M, "numpy"),  # the commands' modules
+        (SCRIPT, "softcurve.cli"),
+        (SCRIPT, "argparse"),
         (SCRIPT, "numpy"),
         (SCRIPT, "softcurve.cli.simulate"),
     ],
-    ids=["m-cli", "m-argparse", "m-numpy", "script-numpy", "script-command"],
+    ids=[
+        "m-cli",
+        "m-argparse",
+        "m-numpy",
+        "script-cli",
+        "script-argparse",
+        "script-numpy",
+        "script-command",
+    ],
 )
 def test_ctrl_c_while_softcurve_imports_is_one_line_and_130(entry, target, tmp_path):
     done = _interrupted(entry, target, ["simulate", "-o", tmp_path / "out", "--no-figures"])
