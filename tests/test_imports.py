@@ -124,6 +124,15 @@ def test_the_facade_gives_each_name_where_it_is_defined():
         softcurve.no_such_name  # noqa: B018
 
 
+def test_the_facade_takes_its_names_from_public_modules():
+    """The facade's table is strings, which the architecture test does not read as
+    imports: its modules are public modules or faces, never private ones (rule 3)."""
+    modules = set(softcurve._FACES)
+    assert "softcurve.compiled" in modules
+    private = [m for m in modules if any(part.startswith("_") for part in m.split("."))]
+    assert not private, private
+
+
 def test_the_check_sees_a_heavy_import():
     assert "scipy.stats" in _modules_after("import scipy.stats")
     assert _within(_modules_after("import softcurve\nsoftcurve.Model"), LIBRARY)
