@@ -24,11 +24,7 @@ import traceback
 import warnings
 from collections.abc import Callable
 
-import matplotlib
-
 from softcurve._version import __version__
-from softcurve.base.validation import ParameterError
-from softcurve.figures import save_figure
 
 COMMANDS = ("info", "simulate", "equilibria", "codegen", "sweep", "fit")
 
@@ -188,6 +184,8 @@ def write_figure(draw, path, *, figsize=None, **options):
     """
     import matplotlib.pyplot as plt  # here: 0.6 s that commands without figures skip
 
+    from softcurve.figures import save_figure
+
     figure = draw()
     if figsize is not None:
         figure.set_size_inches(*figsize)
@@ -204,7 +202,7 @@ def main(argv: list[str] | None = None) -> int:
     argv : list of str, optional
         The arguments (default: ``sys.argv[1:]``).
     """
-    matplotlib.use("Agg")  # the command writes figures to files and never opens a window
+    _figures_to_files()
     try:  # the commands' modules are imported here: seconds in which Ctrl-C may come
         parser = build_parser()
         args = parser.parse_args(argv)
@@ -238,6 +236,17 @@ def main(argv: list[str] | None = None) -> int:
         return code
 
 
+def _figures_to_files() -> None:
+    """Matplotlib's backend to Agg: the command writes figures to files and never opens
+    a window. Matplotlib is not imported for it (0.1-0.3 s that most commands skip)."""
+    if "matplotlib" in sys.modules:  # imported already (main called from Python)
+        import matplotlib
+
+        matplotlib.use("Agg")
+    else:
+        os.environ["MPLBACKEND"] = "Agg"  # read when matplotlib is imported
+
+
 def _show_warning(command, message, category, filename, lineno, file=None, line=None):
     """Print a warning as ``softcurve COMMAND: warning: text`` on one line."""
     text = " ".join(str(message).split())
@@ -246,6 +255,8 @@ def _show_warning(command, message, category, filename, lineno, file=None, line=
 
 def _error_line(exc: Exception) -> tuple[int, str]:
     """``(exit code, one line)`` for an error: 2 for input the user can fix, 1 else."""
+    from softcurve.base.validation import ParameterError
+
     text = " ".join(str(exc).split()) or type(exc).__name__
     if isinstance(exc, ParameterError | FileNotFoundError | IsADirectoryError):
         return 2, text

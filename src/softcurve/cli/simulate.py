@@ -24,8 +24,6 @@ import numpy as np
 
 from softcurve.base.files import writable_folder
 from softcurve.base.validation import ParameterError
-from softcurve.simulation import CSV_BYTES_PER_VALUE, SettingsError, format_bytes
-from softcurve.simulation.results import save_trajectory
 
 from . import (
     Command,
@@ -107,6 +105,7 @@ def _add_arguments(parser) -> None:
 
 def _scenario(args):
     from softcurve.scenarios.config import load_config, paper_scenario
+    from softcurve.simulation import SettingsError
 
     scenario = load_config(args.config) if args.config else paper_scenario()
     overrides = {
@@ -220,7 +219,8 @@ def _simulate(args, scenario, output, written: list, window, earlier: list) -> i
     """Simulate and write into ``output``, appending each file to ``written`` once whole;
     ``window`` is the figures' (``"auto"`` or ``(start, end)`` [s]), ``earlier`` the files
     of an earlier run in ``output``."""
-    from softcurve.simulation import simulate
+    from softcurve.simulation import CSV_BYTES_PER_VALUE, format_bytes, simulate
+    from softcurve.simulation.results import save_trajectory
 
     say = (lambda *a: None) if args.quiet else print
     show_progress = args.progress if args.progress is not None else sys.stderr.isatty()

@@ -3,6 +3,7 @@ spread members (and the identification's experiments) over cores."""
 
 from softcurve.simulation.batch._batch import simulate_batch as simulate_batch
 from softcurve.simulation.batch._workers import WorkerDied as WorkerDied
+from softcurve.simulation.batch._workers import close_workers as close_workers
 from softcurve.simulation.batch._workers import default_threads as default_threads
 from softcurve.simulation.batch._workers import run_in_processes as run_in_processes
 from softcurve.simulation.batch._workers import stop_workers as stop_workers
@@ -14,5 +15,6 @@ __all__ = [
     "default_threads",
     "run_in_processes",
     "stop_workers",
+    "close_workers",
     "worker_model",
 ]

@@ -98,6 +98,16 @@ def stop_workers() -> None:
         process.join(timeout=PARENT_POLL)
 
 
+def close_workers() -> None:
+    """End the idle worker processes and wait until they and the pool's thread are gone,
+    so that the interpreter exits with nothing to wait for (a Ctrl-C while it waits at
+    its exit is a traceback that no command can catch). An interrupt meanwhile leaves
+    the pool to :func:`stop_workers`; the next call starts a new one."""
+    if _POOL:
+        _POOL[0][1].shutdown(wait=True)
+        _POOL.clear()
+
+
 def default_threads() -> int:
     """Cores usable by this process."""
     if hasattr(os, "sched_getaffinity"):
