@@ -210,7 +210,7 @@ def test_the_command_line_rebuilds_another_models_library(built, filled, tmp_pat
     env = {"SOFTCURVE_CACHE_DIR": tmp_path / "cache"}
     code, _, err = softcurve_process(*RUN, scenario, "-o", tmp_path / "run", **env)
     assert code == 0 and err.count("warning: ") == 1, err  # one warning line, and the
-    assert err.count("\n") == 3 and "model built in" in err, err  # rebuild's two lines
+    assert err.count("\n") == 3 and "compiled the model of" in err, err  # rebuild's two lines
     assert "warning: " in err and str(library) in err and "built for another key" in err, err
     assert _table(tmp_path / "run") == expected
     assert library_problem(library, checksum_file(own).read_text().split()[5]) is None

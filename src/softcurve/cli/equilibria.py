@@ -67,7 +67,7 @@ def _run(args) -> int:
         writable_file(args.html, "--html")
     robot, actuator, environment = _robots.robot_and_actuator(args)
     # the analysis is symbolic: no need to compile
-    model = build_model("equilibria", robot, environment=environment, compile=False)
+    model = build_model(robot, environment=environment, compile=False)
     loads = {}
     if args.hanging:
         loads["gravity"] = -robot.gravity

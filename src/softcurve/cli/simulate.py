@@ -32,6 +32,9 @@ from . import (
     rate_text,
     write_figure,
 )
+from . import (
+    show_progress as progress_shown,
+)
 from ._models import build_model
 
 
@@ -174,15 +177,9 @@ def _simulate(args, scenario, output, written: list) -> int:
     from softcurve.simulation import simulate
 
     say = (lambda *a: None) if args.quiet else print
-    show_progress = args.progress if args.progress is not None else sys.stderr.isatty()
+    show_progress = progress_shown(args)
     start = time.perf_counter()
-    model = build_model(
-        "simulate",
-        scenario.robot,
-        environment=scenario.environment,
-        quiet=args.quiet,
-        progress=show_progress,
-    )
+    model = build_model(scenario.robot, environment=scenario.environment)
     built = time.perf_counter() - start
     q0, qd0, lam0 = scenario.initial_state()
     trajectory = simulate(

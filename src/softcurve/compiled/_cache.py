@@ -32,6 +32,7 @@ from pathlib import Path
 
 from softcurve.base.docs import parameters_from
 from softcurve.base.files import atomic_write
+from softcurve.base.log import logger, timed
 
 
 class CacheWarning(UserWarning):
@@ -43,6 +44,7 @@ class CacheWarning(UserWarning):
 CACHE_VARIABLE = "SOFTCURVE_CACHE_DIR"
 """The environment variable that names the cache folder."""
 _CHECKSUM_SUFFIX = ".sha256"
+_LOG = logger("compiled")
 _LOAD_ERRORS = (OSError, RuntimeError)
 """What loading a library raises: ``ctypes.CDLL`` an OSError, CasADi's ``external`` a
 RuntimeError."""
@@ -272,10 +274,19 @@ class UnusableLibrary(OSError):
     """A freshly built library failed to load."""
 
 
-def load_or_build(kind: str, key: str, build: Callable[[], bytes], load: Callable, stacklevel: int):
+def load_or_build(
+    kind: str,
+    key: str,
+    build: Callable[[], bytes],
+    load: Callable,
+    stacklevel: int,
+    what: str | None = None,
+):
     """The library ``<kind>_<key[:24]>.so``, checked against ``key`` and loaded, built
     first when missing; one that fails :func:`library_problem` or fails to load is
-    replaced by a fresh build once, with a :class:`CacheWarning`.
+    replaced by a fresh build once, with a :class:`CacheWarning`. A build is said on the
+    logger ``softcurve.compiled`` (:mod:`softcurve.base.log`): what is compiled and where
+    it goes before, how long it took after.
 
     It is looked for in this process's stand-in for the cache folder (when the cache
     cannot be written), then in the cache folder. ``build`` is called only when nothing
@@ -296,6 +307,8 @@ def load_or_build(kind: str, key: str, build: Callable[[], bytes], load: Callabl
         ``load(path)`` opens the library; raises OSError or RuntimeError when it cannot.
     stacklevel : int
         Of the warnings, counted from the caller of this function.
+    what : str, optional
+        What is compiled, in words (``"the model of 2 segments"``; default ``kind``).
 
     Returns
     -------
@@ -327,7 +340,19 @@ def load_or_build(kind: str, key: str, build: Callable[[], bytes], load: Callabl
             stacklevel=stacklevel + 1,
         )
     target = _build_folder(folder, stacklevel + 1) / name
-    data = build()
+    what = what or kind
+    where = (
+        f"C, cached in {folder} for later runs"
+        if target.parent == folder
+        else f"C, kept in {target.parent} for this process only"
+    )
+    with timed(
+        _LOG,
+        f"compiling {what} ({where}) ...",
+        f"compiled {what} in %.1f s: {target.name}",
+        f"compiling {what}: %.0f s so far",
+    ):
+        data = build()
     try:
         install(target, data, key)
     except OSError as exc:  # the folder failed after the check (full, unmounted)

@@ -126,7 +126,8 @@ def _compiled(stem: str, key_parts: tuple, write, arguments: Sequence[str]):
 
     key = build.cache_key(stem, *key_parts, flags)
     try:
-        return load_or_build(stem, key, compile_, load_library, stacklevel=3)[1]
+        what = f"softcurve's {stem}"
+        return load_or_build(stem, key, compile_, load_library, stacklevel=3, what=what)[1]
     except (build.NoCompiler, OSError, subprocess.CalledProcessError):
         return None
 
