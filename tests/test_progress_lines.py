@@ -19,7 +19,6 @@ import pytest
 
 import softcurve as sc
 from softcurve.base import progress
-from softcurve.simulation.batch import POOL_START, pool_pays
 from tests.test_faults import SWEEP_TOML
 
 
@@ -51,13 +50,14 @@ SCRIPT = textwrap.dedent(
     """
     import logging, sys
     import casadi as ca
-    from softcurve.base import log
     from softcurve.compiled import compile_function
 
     mode = sys.argv[1]
     if mode == "silenced":
         logging.getLogger("softcurve").setLevel(logging.WARNING)
     elif mode == "progress":
+        from softcurve.base import log
+
         logging.getLogger("softcurve").setLevel(logging.DEBUG)
         log.LINE_EVERY = 1e-3
     elif mode == "configured":
@@ -106,6 +106,8 @@ def test_a_configured_application_gets_each_record_once(tmp_path):
 
 # -- sweeps: their workers, their lines outside a terminal --------------------------------
 def test_a_pool_pays_only_for_enough_work_on_one_thread():
+    from softcurve.simulation.batch import POOL_START, pool_pays
+
     cores = 2
     assert not pool_pays(wall=1.0, cpu=2.0, remaining=1000, processes=cores)  # on 2 threads
     assert pool_pays(wall=1.0, cpu=1.0, remaining=1000, processes=cores)  # on one thread
