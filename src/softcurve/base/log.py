@@ -91,8 +91,8 @@ def _threshold(log: logging.Logger) -> int:
 
 
 def say(log: logging.Logger, level: int, message: str, *args) -> None:
-    """``log.log(level, message, *args)`` when logging is configured; else, from
-    :func:`_threshold`, a line on stderr through :data:`FALLBACK`.
+    """``log.log(level, message, *args)`` when logging is configured; else, from INFO (or
+    the level set on the package's logger), a line on stderr through :data:`FALLBACK`.
 
     Parameters
     ----------
@@ -102,6 +102,8 @@ def say(log: logging.Logger, level: int, message: str, *args) -> None:
         ``logging.INFO`` for what is done, ``logging.DEBUG`` for progress.
     message : str
         The message, ``%``-formatted with ``args``.
+    *args
+        Its arguments.
     """
     if _configured(log):
         log.log(level, message, *args)
