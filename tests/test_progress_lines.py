@@ -165,7 +165,7 @@ def test_outside_a_terminal_progress_is_a_line_per_interval(monkeypatch):
     """No unit finishes: a line every ``LINE_EVERY`` seconds all the same."""
     monkeypatch.setattr(progress, "LINE_EVERY", 1e-3)
     stream = Pipe()
-    bar = progress.ProgressLine(2, unit="chunks", stream=stream)
+    bar = progress.ProgressLine(2, unit="chunks", stream=stream, beat=True)
     while stream.text.count("\n") < 3:  # the first line and two of the interval
         bar.stop.wait(1e-3)
     bar.close()

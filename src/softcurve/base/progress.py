@@ -4,7 +4,8 @@ so far (:func:`elapsed_line`).
 
 On a terminal the line is redrawn in place. Elsewhere (a pipe, a log file, a batch job's
 output) a redrawn line would pile up as one unreadable line: a line is written instead
-per tenth of the work and at least every :data:`LINE_EVERY` seconds.
+per tenth of the work or :data:`LINE_EVERY` seconds after the last (and, with ``beat``,
+every :data:`LINE_EVERY` seconds while no unit finishes).
 """
 
 from __future__ import annotations
@@ -62,10 +63,14 @@ class ProgressLine:
         Seconds of work before the bar appears (a short run shows none) [s].
     stream : file, optional
         Where to draw (default ``sys.stderr`` at each draw).
+    beat : bool
+        Outside a terminal, also a line every :data:`LINE_EVERY` seconds while no unit
+        finishes (a thread, until :meth:`close`: call it in a ``finally``), for units
+        that take long (a sweep's chunks).
     """
 
     def __init__(self, total: float, done: float = 0, show: bool = True, unit: str = "",
-                 label="", delay: float = 0.0, stream=None):  # fmt: skip
+                 label="", delay: float = 0.0, stream=None, beat: bool = False):  # fmt: skip
         self.total, self.first, self.show = total, done, show
         self.unit, self.label = unit, f"{label} " if label else ""
         self.delay, self.stream, self.shown = delay, stream, False
@@ -74,7 +79,7 @@ class ProgressLine:
         self.done, self.written, self.tenth = done, None, None
         self.lock = threading.Lock()
         self.stop = threading.Event()
-        if show and self.lines:  # a line every LINE_EVERY s while no unit finishes
+        if show and beat and self.lines:  # a line every LINE_EVERY s while no unit ends
             threading.Thread(target=self._tick, daemon=True).start()
         self.update(done)
 

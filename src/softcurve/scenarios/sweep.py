@@ -268,7 +268,6 @@ def _sweep(config, output, workers, scheduler, restart, progress, on_chunk) -> S
     done = {c for c, a, b in chunks if intact(part_path(parts, c), b - a)}
     design = config.design_points() if len(done) < len(chunks) else None
     pending = [(c, a, design[a:b]) for c, a, b in chunks if c not in done]
-    bar = ProgressLine(len(chunks), len(done), progress, unit="chunks")
     start = time.perf_counter()
 
     def write(c, columns):
@@ -281,6 +280,7 @@ def _sweep(config, output, workers, scheduler, restart, progress, on_chunk) -> S
 
     client = _connect(scheduler) if scheduler is not None and pending else None
     chosen: dict = {"workers": None}
+    bar = ProgressLine(len(chunks), len(done), progress, unit="chunks", beat=True)
     try:
         for c, columns in _execute(config, pending, workers, client, chosen):
             write(c, columns)
