@@ -15,8 +15,8 @@ one row per design point, sorted by ``index``.
 
 Chunks run in this process (``workers=0``), in the worker pool of
 ``softcurve.simulation.batch._workers`` or on a Dask distributed cluster
-(``scheduler="tcp://host:8786"`` or a ``distributed.Client``); by default the first chunk
-runs here, timed, and the pool takes the others only where it finishes them sooner.
+(``scheduler="tcp://host:8786"`` or a ``distributed.Client``); by default the first two
+chunks run here, timed, and the pool takes the others only where it finishes them sooner.
 """
 
 from __future__ import annotations
@@ -218,8 +218,8 @@ def run_sweep(
     output : str or Path
         Folder for ``manifest.json``, ``parts/`` and ``results.parquet``.
     workers : int, optional
-        Local worker processes; 0 runs in this process. Default: the first chunk in this
-        process, timed, then the others on one worker per usable core when that is
+        Local worker processes; 0 runs in this process. Default: the first two chunks in
+        this process, timed, then the others on one worker per usable core when that is
         sooner (a pool takes seconds to start), else here.
     scheduler : str or distributed.Client, optional
         A Dask scheduler address (``tcp://host:8786``) or client: run the chunks there.
@@ -379,27 +379,37 @@ def _connect(scheduler):
         raise ConfigError(f"scheduler {scheduler}: cannot connect ({exc})") from None
 
 
+MEASURED_CHUNKS = 2
+"""Chunks a sweep without ``workers`` runs in this process before it chooses where the
+others run: the first builds the integrators, the second gives the pace."""
+
+
 def _execute(config, pending, workers, client, chosen: dict):
     """Yield ``(chunk, columns)`` as chunks finish, in this process, a pool or on Dask;
     ``chosen["workers"]`` is set to the worker processes used (0: this process).
 
-    Without ``workers`` given, the first chunk runs in this process on all its threads,
-    timed, and the others go to a pool of one worker per core only if that finishes
-    them sooner (:func:`~softcurve.simulation.batch.pool_pays`): a small sweep never
-    waits for workers to start."""
+    Without ``workers`` given, the first two chunks run in this process on all its
+    threads, timed, and the others go to a pool of one worker per core only if that
+    finishes them sooner than the second chunk's pace here
+    (:func:`~softcurve.simulation.batch.pool_pays`): a small sweep never waits for
+    workers to start. The first chunk also builds the model's integrators, once (a
+    worker builds its own): its time would overstate the pace here."""
     if not pending:
         return
     if client is not None:
         yield from _on_dask(config, pending, client)
         return
-    if workers is None:  # measured: the first chunk here, then the pool if it pays
+    measured = MEASURED_CHUNKS if workers is None else 0
+    while measured and pending:
         (c, a, rows), pending = pending[0], pending[1:]
         wall, cpu = time.perf_counter(), time.process_time()
         columns = run_chunk(config, a, rows, threads=default_threads())
         wall, cpu = time.perf_counter() - wall, time.process_time() - cpu
-        pays = pool_pays(wall, cpu, len(pending), default_threads())
-        workers = default_threads() if pays else 0
-        chosen["workers"] = workers
+        measured -= 1
+        if measured == 0 or not pending:
+            pays = pool_pays(wall, cpu, len(pending), default_threads())
+            workers = default_threads() if pays else 0
+        chosen["workers"] = 0
         yield c, columns
     if workers == 0 or len(pending) == 1:
         chosen["workers"] = 0
