@@ -68,7 +68,7 @@ def _run(args) -> int:
         _options.viewer("--html")
         writable_file(args.html, "--html")
     # the analysis is symbolic: no need to compile
-    model = build_model("equilibria", robot, environment=environment, compile=False)
+    model = build_model(robot, environment=environment, compile=False)
     loads = {}
     if args.hanging:
         loads["gravity"] = -robot.gravity

@@ -34,6 +34,9 @@ from . import (
     rate_text,
     write_figure,
 )
+from . import (
+    show_progress as progress_shown,
+)
 from ._models import build_model
 
 
@@ -223,15 +226,9 @@ def _simulate(args, scenario, output, written: list, window, earlier: list) -> i
     from softcurve.simulation.results import save_trajectory
 
     say = (lambda *a: None) if args.quiet else print
-    show_progress = args.progress if args.progress is not None else sys.stderr.isatty()
+    show_progress = progress_shown(args)
     start = time.perf_counter()
-    model = build_model(
-        "simulate",
-        scenario.robot,
-        environment=scenario.environment,
-        quiet=args.quiet,
-        progress=show_progress,
-    )
+    model = build_model(scenario.robot, environment=scenario.environment)
     built = time.perf_counter() - start
     q0, qd0, lam0 = scenario.initial_state()
     trajectory = simulate(

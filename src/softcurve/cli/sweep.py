@@ -15,7 +15,15 @@ from pathlib import Path
 from softcurve.base.files import writable_folder
 from softcurve.base.validation import ParameterError
 
-from . import Command, Interrupted, _options, add_progress_options, rate_text, write_figure
+from . import (
+    Command,
+    Interrupted,
+    _options,
+    add_progress_options,
+    rate_text,
+    show_progress,
+    write_figure,
+)
 from ._models import build_model
 
 FIGURE = "sweep.png"
@@ -55,7 +63,7 @@ def _add_arguments(parser) -> None:
         help="also draw each output against each swept variable into FILE (default: "
         f"{FIGURE} in the output folder; the suffix gives the format: .png, .pdf, .svg)",
     )
-    add_progress_options(parser)
+    add_progress_options(parser, everywhere=True)
 
 
 def _run(args) -> int:
@@ -73,16 +81,13 @@ def _run(args) -> int:
         _options.count(args.workers, "--workers", 0)
     config = load_sweep(args.config)
     figure = _figure_path(args.figure, args.output)
-    show = args.progress if args.progress is not None else sys.stderr.isatty()
+    show = show_progress(args)
     if args.scheduler is None:  # the local workers share this cache: compile once, here
         writable_folder(args.output, "--output")  # before any work
         build_model(
-            "sweep",
             config.scenario.robot,
             environment=config.scenario.environment,
             quadrature_nodes=config.quadrature_nodes,
-            quiet=args.quiet,
-            progress=show,
         )
     result = _run_until_signal(
         run_sweep,

@@ -40,6 +40,7 @@ from pathlib import Path
 
 from softcurve.base.docs import parameters_from
 from softcurve.base.files import atomic_write
+from softcurve.base.log import logger, timed
 from softcurve.compiled import _trust as trust
 from softcurve.compiled._elf import image_problem
 
@@ -54,6 +55,7 @@ class CacheWarning(UserWarning):
 CACHE_VARIABLE = "SOFTCURVE_CACHE_DIR"
 """The environment variable that names the cache folder."""
 _CHECKSUM_SUFFIX = ".sha256"
+_LOG = logger("compiled")
 _LOAD_ERRORS = (OSError, RuntimeError, AttributeError)
 """What loading a library raises: ``ctypes.CDLL`` an OSError, CasADi's ``external`` a
 RuntimeError, a ctypes lookup of a symbol it lacks an AttributeError (the symbols a
@@ -335,10 +337,13 @@ def load_or_build(
     load: Callable,
     stacklevel: int,
     symbols: tuple[str, ...] = (),
+    what: str | None = None,
 ):
     """The library ``<kind>_<key[:24]>.so``, checked against ``key`` and loaded, built
     first when missing; one that fails :func:`library_problem` or fails to load is
-    replaced by a fresh build once, with a :class:`CacheWarning`.
+    replaced by a fresh build once, with a :class:`CacheWarning`. A build is said on the
+    logger ``softcurve.compiled`` (:mod:`softcurve.base.log`): what is compiled and where
+    it goes before, how long it took after.
 
     It is looked for in this process's stand-in for the cache folder (when the cache
     cannot be written or trusted), then in the cache folder (when it is trusted).
@@ -362,6 +367,8 @@ def load_or_build(
     symbols : tuple of str
         Names the library must define, checked before it is loaded (a library that
         lacks them is another's, and is rebuilt).
+    what : str, optional
+        What is compiled, in words (``"the model of 2 segments"``; default ``kind``).
 
     Returns
     -------
@@ -396,7 +403,19 @@ def load_or_build(
             stacklevel=stacklevel + 1,
         )
     target = _build_folder(folder, stacklevel + 1) / name
-    data = build()
+    what = what or kind
+    where = (
+        f"C, cached in {folder} for later runs"
+        if target.parent == folder
+        else f"C, kept in {target.parent} for this process only"
+    )
+    with timed(
+        _LOG,
+        f"compiling {what} ({where}) ...",
+        f"compiled {what} in %.1f s: {target.name}",
+        f"compiling {what}: %.0f s so far",
+    ):
+        data = build()
     try:
         install(target, data, key)
     except OSError as exc:  # the folder failed after the check (full, unmounted)

@@ -72,6 +72,7 @@ def compile_function(function: ca.Function, flags: tuple[str, ...] | None = None
             lambda path: (load or load_external)(path, name),
             stacklevel=2,
             symbols=(name,),
+            what=f"the function {name}",
         )
     except build.NoCompiler:
         return function

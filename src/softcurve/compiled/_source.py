@@ -127,7 +127,10 @@ def _compiled(stem: str, key_parts: tuple, write, arguments: Sequence[str], symb
 
     key = build.cache_key(stem, *key_parts, flags)
     try:
-        return load_or_build(stem, key, compile_, load_library, 3, tuple(symbols))[1]
+        what = f"softcurve's {stem}"
+        return load_or_build(
+            stem, key, compile_, load_library, stacklevel=3, symbols=tuple(symbols), what=what
+        )[1]
     except (build.NoCompiler, OSError, subprocess.CalledProcessError):
         return None
 

@@ -303,9 +303,10 @@ def simulate(
         failure = None
     except Stopped as stop:
         reached, failure = stop.reached, stop.reason
+    finally:  # also on an error: its line outside a terminal stops
+        if bar is not None:
+            bar.close()
     wall = time.perf_counter() - start_time
-    if bar is not None:
-        bar.close()
     stats.update(engine.counts, method=engine.method, wall_time=wall)
     return _result(model, grid, states, applied, reached, failure, stats, actuated, actuator)
 
