@@ -34,6 +34,28 @@ def pytest_collection_modifyitems(config, items):
     items.sort(key=lambda item: rank.get(item.path.name, len(rank)))
 
 
+LONG_MODULE_PROPERTY = "long_module"
+"""The property (``record_property``) under which tests/test_architecture.py records each
+long module; :func:`pytest_terminal_summary` lists them."""
+
+
+def pytest_terminal_summary(terminalreporter):
+    """List the long modules the architecture test recorded: a report, not a failure (a
+    warning would be one: pyproject.toml makes every warning an error)."""
+    found = sorted(
+        {
+            value
+            for report in terminalreporter.stats.get("passed", [])
+            for name, value in getattr(report, "user_properties", ())
+            if name == LONG_MODULE_PROPERTY
+        }
+    )
+    if found:
+        terminalreporter.section("long modules (docs/architecture.md)")
+        for line in found:
+            terminalreporter.line(line)
+
+
 def assert_close(actual, expected, *, rtol=1e-12, atol=0.0, scale=None, what=""):
     """``|actual - expected| <= atol + rtol * scale`` elementwise; ``scale`` defaults to
     ``|expected|``, or a number such as the norm of ``expected`` for quantities whose
