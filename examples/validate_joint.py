@@ -90,7 +90,7 @@ SIZES = {
     "quick": Size(2e-3, 0.04, None, _REFERENCE),
     # every step once, each fit stopped at its second evaluation: the numbers mean
     # nothing (the tests run it so that no step breaks)
-    "smoke": Size(0.02, 0.4, 2, vc.SIZES["smoke"]),
+    "smoke": Size(0.02, 0.04, 2, vc.SIZES["smoke"]),
 }
 """The sizes of a run: full (the tables of docs/validation.md), ``--quick``, ``--smoke``."""
 
@@ -578,8 +578,8 @@ def main(argv=None):
     sizes.add_argument(
         "--smoke",
         action="store_true",
-        help="for the tests: every step once on samples 20 ms and 0.4 s apart, each fit stopped at "
-        "its second evaluation (the numbers mean nothing)",
+        help="for the tests: every step once, on oscillations sampled at 20 ms, each fit "
+        "stopped at its second evaluation (the numbers mean nothing)",
     )
     parser.add_argument(
         "--figure", type=Path, help="draw the free oscillations' fits to this file (PNG, PDF)"

@@ -2,13 +2,13 @@
 runs it: a renamed function fails here, not in a user's hands.
 
 The runs on the measurements (``../shared/data`` relative to the repository, or
-``$SOFTCURVE_DATA``) skip with a message without them, and take minutes even at their
-smallest (each fit builds its sensitivity equations): they are marked ``slow``
-(``python -m pytest -m slow tests/test_examples.py``). By default every name the examples
-read from a module is checked to exist (a rename's leftover, found without running), and
-tests/test_validation_data.py and tests/test_validation_goals.py run parts of them. The
-runs of ``train_reach.py`` skip without Stable-Baselines3 (``pip install ".[rl]"`` and
-PyTorch).
+``$SOFTCURVE_DATA``) skip with a message without them. Those of validate_joint.py take
+minutes even at their smallest (each of its dozens of fits builds its sensitivity
+equations): they are marked ``slow`` (``python -m pytest -m slow tests/test_examples.py``);
+by default every name the examples read from a module is checked to exist (a rename's
+leftover, found without running), and tests/test_validation_goals.py runs a fit of it.
+The runs of ``train_reach.py`` skip without Stable-Baselines3 (``pip install ".[rl]"``
+and PyTorch).
 """
 
 from __future__ import annotations
@@ -186,7 +186,10 @@ def _data_directory():
         pytest.param(
             run,
             id=run.id,
-            marks=[pytest.mark.data, pytest.mark.slow] if run.needs == "data" else [],
+            marks=[
+                *([pytest.mark.data] if run.needs == "data" else []),
+                *([pytest.mark.slow] if run.script == "validate_joint.py" else []),
+            ],
         )
         for run in RUNS
     ],
