@@ -14,7 +14,8 @@ import pytest
 import softcurve as sc
 
 LONGEST_FIRST = (
-    "test_validation_data.py",
+    "test_docs_identify.py",
+    "test_examples.py",
     "test_identification_joint.py",
     "test_identify.py",
     "test_sensitivity_driver.py",
@@ -23,9 +24,10 @@ LONGEST_FIRST = (
     "test_envs_press.py",
     "test_validation_goals.py",
 )
-"""The test files that take longest (the 15 slowest tests of a CI run, 2026-12-01), run
-first: pytest-xdist hands out whole files in collection order, and a long file started
-last keeps one worker busy while the other idles."""
+"""The test files that take longest (from the 15 slowest tests of runs on two cores; the
+examples' runs, about a minute in all), run first: pytest-xdist hands out whole files in
+collection order, and a long file started last keeps one worker busy while the other
+idles."""
 
 
 def pytest_collection_modifyitems(config, items):
