@@ -348,7 +348,7 @@ def equilibria(
         Box of configurations searched [m, 1/m, 1/m]; default :func:`default_bounds`.
     starts : int
         Number of starting points, >= 1 and at most what the machine's memory holds
-        (:func:`starts_count`: ``120 + 24 n`` bytes each).
+        (``starts_count``: ``120 + 24 n`` bytes each).
     seed : int
         Seed of the Halton scrambling.
     tol : float
