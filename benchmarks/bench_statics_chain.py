@@ -12,11 +12,14 @@ counted) it prints, per N, the wall time of ``sc.equilibrium(model, q0)``:
 - ``warm [s]``: the same equilibrium again on the same model, best of three.
 
 Each process gets its own cache folder (a temporary copy of the model's library), so
-the figures do not depend on what the shared cache holds. With ``--before SRC`` the same
+the figures do not depend on what the shared cache holds; with ``--no-cold`` the cold
+column is skipped and the others run on the shared cache (a long chain's compile is
+minutes: its library may be there already). With ``--before SRC`` the same
 columns are measured first with the package at ``SRC`` (another checkout's ``src``
 folder, e.g. the code before a change) and printed beside.
 
-Run: ``python benchmarks/bench_statics_chain.py [--segments 1 2 4 10 20] [--before SRC]``
+Run: ``python benchmarks/bench_statics_chain.py [--segments 1 2 4 10 20] [--before SRC]
+[--no-cold]``
 """
 
 from __future__ import annotations
@@ -53,10 +56,12 @@ def child(segments: int) -> None:
     print(json.dumps({"first": first_time, "warm": warm, "stability": first.stability}))
 
 
-def run(segments: int, cache: Path, source: str | None) -> dict:
-    """The figures of :func:`child` in a fresh process on ``cache``, the package imported
-    from ``source`` (default: as this process imports it)."""
-    env = dict(os.environ, SOFTCURVE_CACHE_DIR=str(cache))
+def run(segments: int, cache: Path | None, source: str | None) -> dict:
+    """The figures of :func:`child` in a fresh process on ``cache`` (default: the shared
+    one), the package imported from ``source`` (default: as this process imports it)."""
+    env = dict(os.environ)
+    if cache is not None:
+        env["SOFTCURVE_CACHE_DIR"] = str(cache)
     if source is not None:
         env["PYTHONPATH"] = source
     out = subprocess.run(
@@ -70,8 +75,11 @@ def run(segments: int, cache: Path, source: str | None) -> dict:
     return json.loads(out.stdout.splitlines()[-1])
 
 
-def measure(segments: int, library: Path, source: str | None) -> tuple[dict, dict]:
-    """``(cold, cached)`` figures of ``segments`` on a cache holding ``library`` alone."""
+def measure(segments: int, library: Path, source: str | None, cold: bool) -> tuple:
+    """``(cold, cached)`` figures of ``segments`` on a cache holding ``library`` alone;
+    without ``cold``, ``(None, cached)`` on the shared cache."""
+    if not cold:
+        return None, run(segments, None, source)
     with tempfile.TemporaryDirectory() as folder:
         for path in (library, library.with_name(library.name + ".sha256")):
             shutil.copy2(path, folder)
@@ -83,6 +91,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--segments", type=int, nargs="+", default=[1, 2, 4, 10, 20])
     parser.add_argument("--before", help="src folder of the package to compare with")
+    parser.add_argument("--no-cold", action="store_true", help="skip the cold column")
     parser.add_argument("--child", type=int, help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.child is not None:
@@ -100,12 +109,12 @@ def main() -> None:
             raise SystemExit("the model is not compiled: the figures need a C compiler")
         cells = []
         for name, source in zip(names, sides, strict=True):
-            cold, cached = measure(n, model.compiled_library, source)
+            cold, cached = measure(n, model.compiled_library, source, not args.no_cold)
+            first = "-" if cold is None else f"{cold['first']:.3f}"
             cells.append(
-                f"{' ' * len(name)}  {cold['first']:8.3f}  {cached['first']:10.3f}  "
-                f"{cached['warm']:8.3f}"
+                f"{' ' * len(name)}  {first:>8s}  {cached['first']:10.3f}  {cached['warm']:8.3f}"
             )
-        print(f"{n:<3d}  " + "  |  ".join(cells) + f"  {cold['stability']}", flush=True)
+        print(f"{n:<3d}  " + "  |  ".join(cells) + f"  {cached['stability']}", flush=True)
 
 
 if __name__ == "__main__":
