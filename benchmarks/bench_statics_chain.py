@@ -16,10 +16,12 @@ the figures do not depend on what the shared cache holds; with ``--no-cold`` the
 column is skipped and the others run on the shared cache (a long chain's compile is
 minutes: its library may be there already). With ``--before SRC`` the same
 columns are measured first with the package at ``SRC`` (another checkout's ``src``
-folder, e.g. the code before a change) and printed beside.
+folder, e.g. the code before a change) and printed beside. With ``--virtual-machine``
+the models are built with ``compile=False``: every function, the static balance
+included, in CasADi's virtual machine.
 
 Run: ``python benchmarks/bench_statics_chain.py [--segments 1 2 4 10 20] [--before SRC]
-[--no-cold]``
+[--no-cold] [--virtual-machine]``
 """
 
 from __future__ import annotations
@@ -38,14 +40,14 @@ REPEAT = 3
 """Warm equilibria timed per robot, the best reported."""
 
 
-def child(segments: int) -> None:
+def child(segments: int, compiled: bool) -> None:
     """One process's equilibria (``--child``): prints the figures as JSON."""
     from _timing import best_of  # benchmarks/_timing.py: a helper, not a benchmark
 
     import softcurve as sc
 
     robot = sc.presets.ifac2020().with_segments(segments)
-    model = sc.Model(robot)
+    model = sc.Model(robot, compile=compiled)
     q0 = [v for s in robot.segments for v in (s.rest_length, 0.0, 0.0)]
     start = time.perf_counter()
     first = sc.equilibrium(model, q0)
@@ -56,7 +58,7 @@ def child(segments: int) -> None:
     print(json.dumps({"first": first_time, "warm": warm, "stability": first.stability}))
 
 
-def run(segments: int, cache: Path | None, source: str | None) -> dict:
+def run(segments: int, cache: Path | None, source: str | None, vm: bool = False) -> dict:
     """The figures of :func:`child` in a fresh process on ``cache`` (default: the shared
     one), the package imported from ``source`` (default: as this process imports it)."""
     env = dict(os.environ)
@@ -65,7 +67,7 @@ def run(segments: int, cache: Path | None, source: str | None) -> dict:
     if source is not None:
         env["PYTHONPATH"] = source
     out = subprocess.run(
-        [sys.executable, __file__, "--child", str(segments)],
+        [sys.executable, __file__, "--child", str(segments), *(["--virtual-machine"] * vm)],
         env=env,
         cwd=Path(__file__).parent,
         check=True,
@@ -75,16 +77,16 @@ def run(segments: int, cache: Path | None, source: str | None) -> dict:
     return json.loads(out.stdout.splitlines()[-1])
 
 
-def measure(segments: int, library: Path, source: str | None, cold: bool) -> tuple:
+def measure(segments: int, library: Path, source: str | None, cold: bool, vm: bool) -> tuple:
     """``(cold, cached)`` figures of ``segments`` on a cache holding ``library`` alone;
     without ``cold``, ``(None, cached)`` on the shared cache."""
     if not cold:
-        return None, run(segments, None, source)
+        return None, run(segments, None, source, vm)
     with tempfile.TemporaryDirectory() as folder:
         for path in (library, library.with_name(library.name + ".sha256")):
             shutil.copy2(path, folder)
-        cold = run(segments, Path(folder), source)
-        return cold, run(segments, Path(folder), source)
+        cold = run(segments, Path(folder), source, vm)
+        return cold, run(segments, Path(folder), source, vm)
 
 
 def main() -> None:
@@ -92,10 +94,13 @@ def main() -> None:
     parser.add_argument("--segments", type=int, nargs="+", default=[1, 2, 4, 10, 20])
     parser.add_argument("--before", help="src folder of the package to compare with")
     parser.add_argument("--no-cold", action="store_true", help="skip the cold column")
+    parser.add_argument(
+        "--virtual-machine", action="store_true", help="models built with compile=False"
+    )
     parser.add_argument("--child", type=int, help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.child is not None:
-        child(args.child)
+        child(args.child, not args.virtual_machine)
         return
     import softcurve as sc
 
@@ -109,7 +114,9 @@ def main() -> None:
             raise SystemExit("the model is not compiled: the figures need a C compiler")
         cells = []
         for name, source in zip(names, sides, strict=True):
-            cold, cached = measure(n, model.compiled_library, source, not args.no_cold)
+            cold, cached = measure(
+                n, model.compiled_library, source, not args.no_cold, args.virtual_machine
+            )
             first = "-" if cold is None else f"{cold['first']:.3f}"
             cells.append(
                 f"{' ' * len(name)}  {first:>8s}  {cached['first']:10.3f}  {cached['warm']:8.3f}"
