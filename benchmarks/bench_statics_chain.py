@@ -70,10 +70,11 @@ def run(segments: int, cache: Path | None, source: str | None, vm: bool = False)
         [sys.executable, __file__, "--child", str(segments), *(["--virtual-machine"] * vm)],
         env=env,
         cwd=Path(__file__).parent,
-        check=True,
         capture_output=True,
         text=True,
     )
+    if out.returncode != 0:
+        raise SystemExit(f"{segments} segments, {source or 'this'} package:\n{out.stderr}")
     return json.loads(out.stdout.splitlines()[-1])
 
 

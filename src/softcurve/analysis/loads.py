@@ -5,7 +5,9 @@ The loads are constant generalized forces ``tau``, constant actuator inputs ``u`
 through an :class:`~softcurve.description.actuator.Actuator` (``H(q) u``), and a
 constant world-frame tip wrench; the
 gravity vector may be overridden without recompiling (it is a run-time parameter).
-The CasADi Functions built from them are cached per model and actuator.
+The CasADi Functions built from them are cached per model, actuator and which tip loads
+they carry; the static balance of the equilibria is compiled to C from
+:data:`COMPILED_SEGMENTS` segments (:func:`static_balance`).
 """
 
 from __future__ import annotations
@@ -183,12 +185,14 @@ COMPILED_SEGMENTS = 4
 """Robots of this many segments or more solve their statics on the static balance
 compiled with the model (:func:`static_balance`), fewer in CasADi's virtual machine.
 An equilibrium of the upright robot from rest (``python
-benchmarks/bench_statics_chain.py``) takes in the virtual machine 0.02 s at one
-segment, 0.10 s at two and 0.22 s at four, and about 2 ms compiled; the compile, once per
-structure and cache, takes seconds (20 s and more from four segments). From four
-segments on a search of :func:`~softcurve.analysis.statics.equilibria` (48 starts)
-saves more than the compile costs; below, the first equilibrium would wait for a
-compile that only many equilibria repay."""
+benchmarks/bench_statics_chain.py``, and with ``--virtual-machine``) takes in the
+virtual machine 0.004 s at one segment, 0.013 s at two, 0.040 s at four, 0.30 s at ten
+and 1.4 s at twenty; compiled 0.003 s at four, 0.020 s at ten and 0.09 s at twenty,
+after a compile of 4.7 s, 14 s and 114 s once per structure and cache. From four
+segments a search of :func:`~softcurve.analysis.statics.equilibria` (48 starts) takes
+seconds in the virtual machine and a few searches repay the compile; below, the compile
+would be most of what a first equilibrium waits for, and hundreds of equilibria would
+repay it."""
 
 
 def static_balance(load: StaticLoad):
