@@ -10,7 +10,10 @@ For robots of N paper segments (``presets.ifac2020().with_segments(N)``) it prin
 - ``build [s]``: building the symbolic model (``Model(robot, compile=False).symbolic``,
   the segment's Functions included, which the first robot of a process builds);
 - ``compile [s]``: building and compiling the model from an empty cache (``Model(robot)``),
-  the first simulation's wait;
+  the first simulation's wait; ``cc CPU [s]``: the CPU seconds of the compiler processes
+  in it (their user and system time), which other work on the machine does not change:
+  the wait is about the largest file's share of them where there are free cores, and
+  grows with the machine's load where there are not;
 - ``in C [us]``: one forward-dynamics evaluation in a C loop (``bench_model.inside_c``),
   and per segment.
 
@@ -46,6 +49,7 @@ from __future__ import annotations
 import argparse
 import math
 import os
+import resource
 import tempfile
 import time
 
@@ -183,6 +187,12 @@ def first_fit(n_segments: int) -> tuple[float, float]:
         return seconds[0], seconds[1]
 
 
+def _children_cpu() -> float:
+    """User and system CPU seconds of this process's finished child processes [s]."""
+    usage = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return usage.ru_utime + usage.ru_stime
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--segments", type=int, nargs="+", default=[1, 2, 4, 6, 8, 10, 20])
@@ -226,7 +236,8 @@ def main() -> None:
         return
     header = (
         f"{'N':>3} {'ops':>8} {'/seg':>7} {'x N=1':>6} {'inlined':>8} {'build [s]':>9} "
-        f"{'compile [s]':>11} {'x N=1':>6} {'in C [us]':>9} {'/seg':>6} {'x N=1':>6}"
+        f"{'compile [s]':>11} {'x N=1':>6} {'cc CPU [s]':>10} {'in C [us]':>9} {'/seg':>6} "
+        f"{'x N=1':>6}"
     )
     print(header)
     print("-" * len(header))
@@ -239,20 +250,22 @@ def main() -> None:
         start = time.perf_counter()
         _ = sc.Model(robot, compile=False).symbolic
         build = time.perf_counter() - start
-        compile_time = c_time = float("nan")
+        compile_time = c_time = compilers = float("nan")
         if not args.no_compile:
             with tempfile.TemporaryDirectory() as cache:
                 os.environ["SOFTCURVE_CACHE_DIR"] = cache
-                start = time.perf_counter()
+                start, children = time.perf_counter(), _children_cpu()
                 model = sc.Model(robot)
                 compile_time = time.perf_counter() - start
+                compilers = _children_cpu() - children
                 c_time = inside_c(model, max(args.repeat // n_segments, 1000))
         row = (ops / n_segments, compile_time, c_time / n_segments)
         first = first or row
         print(
             f"{n_segments:>3} {ops:>8} {row[0]:>7.0f} {row[0] / first[0]:>6.2f} {inlined:>8} "
             f"{build:>9.2f} {compile_time:>11.1f} {compile_time / first[1]:>6.2f} "
-            f"{c_time * 1e6:>9.2f} {row[2] * 1e6:>6.2f} {row[2] / first[2]:>6.2f}",
+            f"{compilers:>10.1f} {c_time * 1e6:>9.2f} {row[2] * 1e6:>6.2f} "
+            f"{row[2] / first[2]:>6.2f}",
             flush=True,
         )
     print(

@@ -18,7 +18,7 @@ the body's radius, which the backbone touches), and the contact force.
 up by 20 1/m. It is released from rest, falls onto the floor 5 mm below its body, and
 settles. Figures: the contact force against time, and the tip's path with the floor.
 
-    python examples/contact_finger.py {finger,cylinder,floor,all} [--output contact]
+    python examples/contact_finger.py {finger,cylinder,floor,all} [--output contact] [--quick]
 
 Equilibria run in CasADi's virtual machine. The floor's simulation compiles its model
 once (about 30 s on two cores, then cached); ``--no-compile`` runs it uncompiled instead.
@@ -36,12 +36,23 @@ import softcurve as sc
 LAW = sc.ContactLaw(stiffness=1e7, damping=1.0)
 """Penalty 1e7 N/m^2.5 (about 0.1 mm for 1 N over 2 cm of body), Hunt-Crossley 1 s/m."""
 
+PRESSURE_STEP, MOMENT_STEP = 5e3, 0.01
+"""Steps of the finger's pressure [Pa] and of the cylinder's moment [N m]: each
+equilibrium starts from the one before, and a step twice as large carries the cylinder's
+backbone through the cylinder."""
+POINTS = {"pressures": 13, "moments": 7, "fall": 1.0}
+"""Pressures of the finger (to 60 kPa), moments of the cylinder (to 0.06 N m), seconds of
+the floor's fall [s]."""
+QUICK = {"pressures": 4, "moments": 3, "fall": 0.3}
+"""``--quick`` (the tests): the first few of each; the floor is touched at 0.03 s."""
 
-def finger(output: Path) -> list[Path]:
-    """Force on the wall against bellow pressure; returns the figures written."""
+
+def finger(output: Path, points: int = POINTS["pressures"]) -> list[Path]:
+    """Force on the wall against bellow pressure at ``points`` pressures; returns the
+    figures written."""
     robot = sc.presets.ifac2020()
     actuator = sc.PneumaticActuator.three_bellows(distance=0.012, area=2.0e-4, p_max=6.0e4)
-    pressures = np.linspace(0.0, 6.0e4, 13)
+    pressures = PRESSURE_STEP * np.arange(points)
     free = sc.Model(robot, compile=False)
     q, loose = np.array([0.0644, 0.0, 0.0]), []
     for p in pressures:
@@ -86,14 +97,14 @@ def finger(output: Path) -> list[Path]:
     return [sc.save_figure(figure, output / "finger_force.png")]
 
 
-def cylinder(output: Path) -> list[Path]:
-    """Two segments bending around a cylinder under a growing moment."""
+def cylinder(output: Path, points: int = POINTS["moments"]) -> list[Path]:
+    """Two segments bending around a cylinder under a moment growing in ``points`` steps."""
     segment = sc.presets.ifac2020(creep=False).segments[0]
     robot = sc.Robot(segments=(segment, segment), gravity=np.zeros(3))  # on a flat table
     capsule = sc.Capsule(a=[0.045, -0.05, 0.1], b=[0.045, 0.05, 0.1], radius=0.01)
     environment = sc.Environment([capsule], LAW, contact_radius=[0.01, 0.01])
     model = sc.Model(robot, environment=environment, compile=False)
-    moments = np.linspace(0.0, 0.06, 7)  # bending moment on each segment [N m^2 per 1/m]
+    moments = MOMENT_STEP * np.arange(points)  # bending moment on each segment [N m^2 per 1/m]
     q, shapes, forces = np.tile([0.0644, 0.0, 0.0], 2), [], []
     print(f"{'moment [N m]':>12} {'tip x [mm]':>10} {'tip z [mm]':>10} {'force [N]':>10}")
     for m in moments:
@@ -124,13 +135,13 @@ def cylinder(output: Path) -> list[Path]:
     return [sc.save_figure(figure, output / "cylinder.png")]
 
 
-def floor(output: Path, compile: bool) -> list[Path]:
-    """The paper's robot released onto a floor."""
+def floor(output: Path, compile: bool, t_final: float = POINTS["fall"]) -> list[Path]:
+    """The paper's robot released onto a floor, ``t_final`` seconds of it [s]."""
     robot = sc.presets.ifac2020().replace(gravity=np.array([-9.81, 0.0, 0.0]))
     radius = robot.segments[0].radius
     ground = sc.Plane(point=[-(radius + 0.005), 0.0, 0.0], normal=[1.0, 0.0, 0.0])
     model = sc.Model(robot, environment=sc.Environment([ground], LAW), compile=compile)
-    trajectory = sc.simulate(model, [0.0644, 20.0, 0.0], np.zeros(3), t_final=1.0, dt=1e-3)
+    trajectory = sc.simulate(model, [0.0644, 20.0, 0.0], np.zeros(3), t_final=t_final, dt=1e-3)
     if not trajectory.success:
         raise RuntimeError(trajectory.message)
     contact = trajectory.contact()
@@ -160,15 +171,24 @@ def main() -> None:
     parser.add_argument(
         "--no-compile", action="store_true", help="simulate the floor case uncompiled"
     )
+    parser.add_argument(
+        "--quick",
+        action="store_true",
+        help=f"a small run (for the tests): the first {QUICK['pressures']} pressures, "
+        f"{QUICK['moments']} moments, {QUICK['fall']:g} s of fall",
+    )
     args = parser.parse_args()
+    size = QUICK if args.quick else POINTS
     args.output.mkdir(parents=True, exist_ok=True)
     chosen = ("finger", "cylinder", "floor") if args.example == "all" else (args.example,)
     written = []
     for name in chosen:
         if name == "floor":
-            written += floor(args.output, compile=not args.no_compile)
+            written += floor(args.output, compile=not args.no_compile, t_final=size["fall"])
+        elif name == "finger":
+            written += finger(args.output, size["pressures"])
         else:
-            written += {"finger": finger, "cylinder": cylinder}[name](args.output)
+            written += cylinder(args.output, size["moments"])
     print("wrote", ", ".join(str(p) for p in written))
 
 

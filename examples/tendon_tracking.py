@@ -105,8 +105,15 @@ def main() -> None:
         default=Path("tendon_tracking"),
         help="folder for the figures (default: ./tendon_tracking)",
     )
-    parser.add_argument("--t-final", type=float, default=4.0, help="simulated time [s]")
+    parser.add_argument(
+        "--t-final",
+        type=float,
+        default=4.0,
+        help=f"simulated time [s], more than the {TRANSIENT:g} s transient (default 4)",
+    )
     args = parser.parse_args()
+    if not args.t_final > TRANSIENT:
+        parser.error(f"--t-final must exceed the {TRANSIENT:g} s transient, not {args.t_final:g}")
 
     model, actuator, reference = build()
     run, driven, error, path = track(model, actuator, reference, args.t_final)

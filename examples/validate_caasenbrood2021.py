@@ -4,7 +4,7 @@ Data: ``../shared/data/caasenbrood2021`` relative to the repository (or the dire
 in ``$SOFTCURVE_DATA``); see its README. Writes ``docs/figures/validation_*.png`` and
 prints the tables of ``docs/validation.md``::
 
-    python examples/validate_caasenbrood2021.py [--data DIR] [--figures DIR]
+    python examples/validate_caasenbrood2021.py [--data DIR] [--figures DIR] [--quick | --smoke]
 
 1. Free oscillations (IMU tip angle beta, 10 kHz, used at 1 kHz): identify bending
    stiffness, bending damping and creep on one recording, predict the other without
@@ -23,6 +23,7 @@ import os
 import sys
 import time
 from pathlib import Path
+from typing import NamedTuple
 
 import casadi as ca
 import matplotlib
@@ -59,6 +60,36 @@ ELONGATION_STIFFNESS, ELONGATION_DAMPING = 1000.0, 0.5  # N/m, N s/m
 CREEP_COMPLIANCE = (1.0, 1e-2, 1e-2)  # only gain * compliance is identifiable
 BELLOWS_DISTANCE = 0.01  # m; only area * distance matters for bending
 QUADRATURE_NODES = 6  # beta < 0.8 rad: 6 Gauss nodes are exact to ~1e-10
+
+
+class Size(NamedTuple):
+    """How much of the data a run uses and how long its fits may search (a named tuple:
+    a dataclass needs its module in ``sys.modules``, which a script loaded by
+    ``importlib`` from another is not)."""
+
+    oscillation_dt: float
+    """The free oscillations resampled to this step [s]."""
+    openloop_dt: float
+    """The open loop resampled to this step [s]."""
+    evaluations: int
+    """Evaluations of each fit of a free oscillation."""
+    equilibrium_evaluations: int
+    """Evaluations of each fit of the open loop's equilibria."""
+    dynamic_check: bool
+    """Whether the open loop's 40 s are simulated with the identified robot."""
+
+
+SIZES = {
+    "full": Size(1e-3, 0.04, 120, 150, True),
+    # 40 evaluations: every quick fit within 0.01 deg of 120's
+    "quick": Size(2e-3, 0.04, 40, 150, False),
+    # every step once, on samples 20 ms (oscillations) and 0.4 s (open loop) apart, each
+    # fit stopped at its second evaluation: its numbers mean nothing (the tests run it so
+    # that no step breaks)
+    "smoke": Size(0.02, 0.4, 2, 2, False),
+}
+"""The sizes of a run: ``full`` (the figures of docs/validation.md), ``--quick`` (CI) and
+``--smoke``."""
 
 
 def data_directory(explicit: str | None = None) -> Path | None:
@@ -179,7 +210,7 @@ def map_freedom(kind: str, angle: float):
 OFFSETS = ("offset.kx", "offset.ky")
 
 
-def openloop_fit(model, robot, data, law, kind, numbering, angle, k_zero):
+def openloop_fit(model, robot, data, law, kind, numbering, angle, k_zero, evaluations=150):
     values, bind, free = stiffness_freedom(robot, law, fixed_zero=k_zero)
     if law == "linear":
         values = {}
@@ -190,7 +221,9 @@ def openloop_fit(model, robot, data, law, kind, numbering, angle, k_zero):
         "input_map": pressure_map(kind, numbering),
         "bind": bind,
     }
-    fit = fit_equilibria(model, data, free=free, extra=values, max_evaluations=150, **problem)
+    fit = fit_equilibria(
+        model, data, free=free, extra=values, max_evaluations=evaluations, **problem
+    )
     return fit, problem, values
 
 
@@ -203,9 +236,9 @@ def static_robot(law: str, k_zero: float) -> sc.Robot:
     return robot.replace(segments=(segment,))
 
 
-def openloop_study(experiment, k_zero: dict):
+def openloop_study(experiment, k_zero: dict, size: Size = SIZES["full"]):
     """Quasi-static identification on 0-20 s, prediction of 20-40 s."""
-    data = experiment.resample(0.04)
+    data = experiment.resample(size.openloop_dt)
     train = data.trim(0.0, 20.0)
     results = {}
     # Mounting angle and numbering: a coarse search with the cheapest model. Creep and
@@ -216,7 +249,8 @@ def openloop_study(experiment, k_zero: dict):
     search = []
     for numbering in (1, -1):
         for angle in (-2.0, 0.0, 2.0):
-            fit, *_ = openloop_fit(model, robot, train, "linear", "constant", numbering, angle, 1)
+            fit, *_ = openloop_fit(model, robot, train, "linear", "constant", numbering, angle, 1,
+                                   size.equilibrium_evaluations)  # fmt: skip
             if fit.status not in (Status.NOT_CONVERGED, Status.INFEASIBLE):
                 search.append((float(np.sum(fit.rms**2)), numbering, fit.value("map.angle"), fit))
     search.sort(key=lambda item: item[0])
@@ -227,8 +261,9 @@ def openloop_study(experiment, k_zero: dict):
         model = sc.Model(robot, quadrature_nodes=QUADRATURE_NODES)
         for kind in ("geometric", "constant"):
             fit, problem, values = openloop_fit(
-                model, robot, train, law, kind, numbering, angle, k_zero[law]
-            )
+                model, robot, train, law, kind, numbering, angle, k_zero[law],
+                size.equilibrium_evaluations,
+            )  # fmt: skip
             prediction = predict_equilibria(model, data, fit, extra=values, **problem)
             results[(law, kind)] = {"fit": fit, "prediction": prediction, "model": model,
                                     "problem": problem, "values": values}  # fmt: skip
@@ -329,7 +364,7 @@ def openloop_figure(results, path: Path):
     plt.close(fig)
 
 
-def static_figure(results, data, path: Path):
+def static_figure(results, data, path: Path, dt: float = 0.04):
     """The paper's Fig. 3 on measured data: bending moment against bending angle.
 
     The moment ``k_b(beta) beta`` on each sample of 0-20 s follows from the identified
@@ -340,7 +375,7 @@ def static_figure(results, data, path: Path):
     entry = results[("tanh", "geometric")]
     fit, model = entry["fit"], entry["model"]
     values = {**entry["values"], **fit.extra["values"]}
-    train = data.resample(0.04).trim(0.0, 20.0)
+    train = data.resample(dt).trim(0.0, 20.0)
     kappa = train.signal_matrix(["kx", "ky"]) - np.array([values[o] for o in OFFSETS])
     q = ca.SX.sym("q", 3)
     u = ca.SX.sym("u", 3)
@@ -376,13 +411,21 @@ def main(argv=None) -> dict:
         "--data", help="data directory (default: $SOFTCURVE_DATA or ../shared/data)"
     )
     parser.add_argument("--figures", default=str(REPO / "docs" / "figures"))
-    parser.add_argument(
+    size = parser.add_mutually_exclusive_group()
+    size.add_argument(
         "--quick",
         action="store_true",
         help="for CI: oscillations at 2 ms with 40 evaluations per fit, no dynamic check "
         "of the open loop",
     )
+    size.add_argument(
+        "--smoke",
+        action="store_true",
+        help="for the tests: every step once on samples 20 ms and 0.4 s apart, each fit stopped at "
+        "its second evaluation (seconds; the numbers mean nothing)",
+    )
     args = parser.parse_args(argv)
+    size = SIZES["smoke" if args.smoke else "quick" if args.quick else "full"]
     directory = data_directory(args.data)
     if directory is None:
         raise SystemExit("caasenbrood2021 data not found: give --data or set SOFTCURVE_DATA")
@@ -390,9 +433,10 @@ def main(argv=None) -> dict:
     figures.mkdir(parents=True, exist_ok=True)
     start = time.perf_counter()
 
-    experiments = load_oscillations(directory, 2e-3 if args.quick else 1e-3)
-    evaluations = 40 if args.quick else 120  # 40: every quick fit within 0.01 deg of 120's
-    studies = {law: oscillation_study(experiments, law, evaluations) for law in ("tanh", "linear")}
+    experiments = load_oscillations(directory, size.oscillation_dt)
+    studies = {
+        law: oscillation_study(experiments, law, size.evaluations) for law in ("tanh", "linear")
+    }
     print("## Free oscillations: tip bending angle error [deg]\n")
     print("| model | identified on | fit RMS / max | predicts | prediction RMS / max |")
     print("| --- | --- | --- | --- | --- |")
@@ -409,8 +453,8 @@ def main(argv=None) -> dict:
 
     openloop = load_openloop(directory)
     k_zero = {law: _static_stiffness(studies[law]["b17"]["fit"]) for law in ("tanh", "linear")}
-    results = openloop_study(openloop, k_zero)
-    if not args.quick:
+    results = openloop_study(openloop, k_zero, size)
+    if size.dynamic_check:
         results["dynamic"] = dynamic_check(
             openloop, studies["tanh"]["b17"]["fit"], results[("tanh", "geometric")]
         )
@@ -434,7 +478,7 @@ def main(argv=None) -> dict:
     for key in (("tanh", "geometric"), ("tanh", "constant"), ("linear", "geometric")):
         print(f"### {key[0]} stiffness, {key[1]} map\n```\n{results[key]['fit'].table()}\n```\n")
     openloop_figure(results, figures / "validation_openloop.png")
-    static = static_figure(results, openloop, figures / "validation_static.png")
+    static = static_figure(results, openloop, figures / "validation_static.png", size.openloop_dt)
     print("## Static fit of the bending law to the open-loop data (Fig. 3 style)\n")
     for law, report in static.items():
         print(f"### {law}\n```\n{report.table()}\n```\n")

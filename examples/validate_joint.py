@@ -7,8 +7,8 @@ both recordings with one set of material parameters, cross-predictions where onl
 test recording's initial state is estimated, and a dynamic fit of the open loop with a
 slow creep state (does the hysteresis ask for a slower creep than the oscillations?)::
 
-    python examples/validate_joint.py [--only oscillation|openloop|creep|rate] [--quick]
-        [--laws tanh,linear] [--figure PATH]
+    python examples/validate_joint.py [--only oscillation|openloop|creep|rate]
+        [--quick | --smoke] [--laws tanh,linear] [--figure PATH]
 
 Every figure of the tables "real-data goals" in ``docs/validation.md`` is printed by it;
 ``--figure`` draws the free oscillations of both recordings, measured, fitted jointly and
@@ -27,6 +27,7 @@ import sys
 import time
 from dataclasses import replace
 from pathlib import Path
+from typing import NamedTuple
 
 import casadi as ca
 import numpy as np
@@ -34,8 +35,14 @@ import scipy.optimize
 
 import softcurve as sc
 from softcurve.description.bellows import PneumaticActuator
-from softcurve.identification.fits import Free, fit_trajectory, predict_trajectory
-from softcurve.identification.maps import InputMap, bending_angle_map
+from softcurve.identification.fits import (
+    Free,
+    fit_equilibria,
+    fit_trajectory,
+    predict_equilibria,
+    predict_trajectory,
+)
+from softcurve.identification.maps import InputMap, bending_angle_map, curvature_map
 
 HERE = Path(__file__).resolve().parent
 _spec = importlib.util.spec_from_file_location("vc", HERE / "validate_caasenbrood2021.py")
@@ -52,6 +59,40 @@ GOALS = {"b42 in-sample": 0.20, "cross": 1.0, "joint": 0.4, "openloop": 0.30}
 # |initial bending rate| allowed [1/(m s)]: 12.8 rad/s of tip angle, a third of the
 # fastest swing of b42 (about 36 rad/s, 43 deg at 0.13 s)
 RATE_BOUND = 200.0
+
+
+class Size(NamedTuple):
+    """How much of the data a run uses and how long its fits may search (a named tuple, as
+    validate_caasenbrood2021.Size)."""
+
+    oscillation_dt: float
+    """The free oscillations resampled to this step [s]."""
+    openloop_dt: float
+    """The open loop resampled to this step for its dynamic fit [s]."""
+    most_evaluations: int | None
+    """Evaluations after which every fit stops (None: each at its own budget)."""
+    reference: vc.Size
+    """The studies of validate_caasenbrood2021.py that the open loop starts from."""
+
+    def budget(self, evaluations: int) -> int:
+        """A fit's budget of ``evaluations``, within :attr:`most_evaluations`."""
+        return (
+            evaluations
+            if self.most_evaluations is None
+            else min(evaluations, self.most_evaluations)
+        )
+
+
+# the open loop starts from validate_caasenbrood2021's oscillations at 2 ms, 120 evaluations
+_REFERENCE = vc.SIZES["quick"]._replace(evaluations=120)
+SIZES = {
+    "full": Size(1e-3, 0.02, None, _REFERENCE),
+    "quick": Size(2e-3, 0.04, None, _REFERENCE),
+    # every step once, each fit stopped at its second evaluation: the numbers mean
+    # nothing (the tests run it so that no step breaks)
+    "smoke": Size(0.02, 0.04, 2, vc.SIZES["smoke"]),
+}
+"""The sizes of a run: full (the tables of docs/validation.md), ``--quick``, ``--smoke``."""
 
 
 # -- the material ---------------------------------------------------------------------
@@ -165,7 +206,7 @@ def single_fit(model, experiments, train, law, what, max_evaluations=120, start=
     return result
 
 
-def cross_predict(model, experiments, fit: dict, train: str, test: str, what):
+def cross_predict(model, experiments, fit: dict, train: str, test: str, what, evaluations=60):
     """The test recording simulated with the material of ``fit``: (a) relaxed creep and
     the measured first angle (no parameter of the test recording estimated), (b) only the
     test recording's initial state and zero (``what``) estimated, the material fixed."""
@@ -182,7 +223,8 @@ def cross_predict(model, experiments, fit: dict, train: str, test: str, what):
     state = fit_trajectory(
         model, experiment, output=bending_angle_map(offset=offset), x0=x0,
         free=recording_freedom({test: experiment}, what),
-        extra={**values, **({offset: 0.0} if offset else {})}, max_evaluations=60, **common,
+        extra={**values, **({offset: 0.0} if offset else {})}, max_evaluations=evaluations,
+        **common,
     )  # fmt: skip
     return relaxed, state
 
@@ -201,13 +243,15 @@ def swing_table(t, signals: dict):
         ext = z[turns][:4]
         peaks = t[turns][1::2][:3]
         period = float(np.mean(np.diff(peaks))) if len(peaks) > 1 else np.nan
-        ratios = [ext[0] / z[0], ext[1] / ext[0], ext[2] / ext[1]]
+        # min1/beta0, max1/min1, min2/max1: as many as there are extrema (a fit stopped
+        # early may swing fewer times)
+        ratios = [b / a for a, b in zip([z[0], *ext], ext[:3], strict=False)]
         lines.append(f"| {label} | {', '.join(f'{e:.2f}' for e in ext)} | {period:.3f} | "
                      f"{', '.join(f'{r:.3f}' for r in ratios)} |")  # fmt: skip
     return "\n".join(lines)
 
 
-def oscillation_goals(experiments, laws=("tanh", "linear")):
+def oscillation_goals(experiments, laws=("tanh", "linear"), size: Size = SIZES["full"]):
     rows, swings = [], {}
     variants = {"creep": ("lam",), "creep+angle+zero": ("lam", "beta", "offset")}
     for law in laws:
@@ -216,10 +260,14 @@ def oscillation_goals(experiments, laws=("tanh", "linear")):
             fits = {}
             for train in RECORDINGS:
                 t0 = time.perf_counter()
-                fits[train] = fit = single_fit(model, experiments, train, law, what)
+                fits[train] = fit = single_fit(
+                    model, experiments, train, law, what, size.budget(120)
+                )
                 print_joint(f"{law}, {label} free, fitted on {train}", fit)
                 test = "b42" if train == "b17" else "b17"
-                relaxed, state = cross_predict(model, experiments, fit, train, test, what)
+                relaxed, state = cross_predict(
+                    model, experiments, fit, train, test, what, size.budget(60)
+                )
                 rows.append((law, label, train, fit["rms"][train], test, relaxed.rms[0],
                              state.rms[0], state.table()))  # fmt: skip
                 swings[(law, label, test)] = {
@@ -230,7 +278,7 @@ def oscillation_goals(experiments, laws=("tanh", "linear")):
                 }
                 print(f"[{law} {label} {train}: {time.perf_counter() - t0:.0f} s]", flush=True)
             values, bind, free = material_freedom(model.robot, law)
-            joint = joint_fit(model, experiments, free, values, bind, what, 150)
+            joint = joint_fit(model, experiments, free, values, bind, what, size.budget(150))
             print_joint(f"{law}, {label} free, JOINT fit of b17 + b42", joint)
             rows.append((law, label, "joint", joint["rms"], None, None, None, ""))
             for tag in RECORDINGS:
@@ -284,7 +332,7 @@ def swing_figure(experiments, swings: dict, path) -> Path:
     return sc.save_figure(figure, path, dpi=100)
 
 
-def rate_probe(experiments, law="tanh"):
+def rate_probe(experiments, law="tanh", size: Size = SIZES["full"]):
     """Do the recordings start at rest, as the fits assume? The first samples' rates, and
     b17 -> b42 with each recording's initial bending rate measured or estimated."""
     for tag, e in experiments.items():
@@ -295,10 +343,10 @@ def rate_probe(experiments, law="tanh"):
     print("\n| " + " | ".join(head) + " |\n|" + " --- |" * len(head))
     trained = (("lam",), ("lam", "measured-rate"), ("lam", "rate"))
     for what in trained:
-        fit = single_fit(model, experiments, "b17", law, what)
+        fit = single_fit(model, experiments, "b17", law, what, size.budget(120))
         gain = fit["values"][fit["names"].index(SEG + "creep.gain[1]")]
         for own in [what] + ([] if "rate" in what else [(*what, "rate")]):
-            _, state = cross_predict(model, experiments, fit, "b17", "b42", own)
+            _, state = cross_predict(model, experiments, fit, "b17", "b42", own, size.budget(60))
             start = ", ".join(
                 f"{n} {v:.4g}" for n, v in zip(state.names, state.values, strict=True)
             )
@@ -309,15 +357,16 @@ def rate_probe(experiments, law="tanh"):
 # -- open loop with a slow creep state ------------------------------------------------
 
 
-def openloop_reference(directory):
+def openloop_reference(directory, size: Size = SIZES["full"]):
     """Today's quasi-static study (validate_caasenbrood2021.py, k(0) from the b17
     oscillation at 2 ms): ``(openloop, results, b17 fit)``."""
-    experiments = vc.load_oscillations(directory, 2e-3)
-    b17 = vc.oscillation_study(experiments, "tanh")["b17"]["fit"]
-    k_linear = vc.oscillation_study(experiments, "linear")["b17"]["fit"]
+    reference = size.reference
+    experiments = vc.load_oscillations(directory, reference.oscillation_dt)
+    b17 = vc.oscillation_study(experiments, "tanh", reference.evaluations)["b17"]["fit"]
+    k_linear = vc.oscillation_study(experiments, "linear", reference.evaluations)["b17"]["fit"]
     openloop = vc.load_openloop(directory)
     k_zero = {"tanh": vc._static_stiffness(b17), "linear": vc._static_stiffness(k_linear)}
-    results = vc.openloop_study(openloop, k_zero)
+    results = vc.openloop_study(openloop, k_zero, reference)
     p = results[("tanh", "geometric")]["prediction"]
     print("quasi-static tanh/geometric (reference):")
     print("  fit 0-20", np.round(vc.window_rms(p, 0, 20), 3),
@@ -334,7 +383,7 @@ def openloop_reference(directory):
     return openloop, results, b17
 
 
-def openloop_creep(openloop, results, b17, quick: bool):
+def openloop_creep(openloop, results, b17, size: Size = SIZES["full"]):
     """Dynamic fit of 0-20 s with a free (slow) bending creep state, prediction 20-40 s.
 
     Starts from the quasi-static tanh/geometric fit of validate_caasenbrood2021.py
@@ -344,8 +393,7 @@ def openloop_creep(openloop, results, b17, quick: bool):
     entry = results[("tanh", "geometric")]
     static, p = entry["fit"], entry["prediction"]
     rows = []
-    dt = 0.04 if quick else 0.02
-    data = openloop.resample(dt)
+    data = openloop.resample(size.openloop_dt)
     for rate0 in (0.3, 3.0):
         robot = static.extra["robot"]
         segment = robot.segments[0]
@@ -371,7 +419,7 @@ def openloop_creep(openloop, results, b17, quick: bool):
         ]
         t0 = time.perf_counter()
         fit = fit_trajectory(model, data.trim(0.0, 20.0), x0=x0, free=free, extra=values,
-                             max_evaluations=40, **problem)  # fmt: skip
+                             max_evaluations=size.budget(40), **problem)  # fmt: skip
         prediction = predict_trajectory(model, data, fit, x0=x0, extra=values, **problem)
         a, b = vc.window_rms(prediction, 0, 20), vc.window_rms(prediction, 20, 40.1)
         print(f"### open loop, dynamic with creep (start rate {rate0}) "
@@ -410,10 +458,10 @@ def chamber_map(angles, areas) -> InputMap:
     return InputMap(function, nominal)
 
 
-def openloop_maps(openloop, results, numbering):
+def openloop_maps(openloop, results, numbering, size: Size = SIZES["full"]):
     """Quasi-static tanh fits beyond today's: per-chamber gains and azimuths, and the
     in-sample reach (identified on all 40 s, or on 20-40 s only)."""
-    data = openloop.resample(0.04)
+    data = openloop.resample(size.reference.openloop_dt)
     entry = results[("tanh", "geometric")]
     static = entry["fit"]
     values = {**entry["values"], **static.extra["values"]}
@@ -442,14 +490,15 @@ def openloop_maps(openloop, results, numbering):
         "per-chamber map, identified on 0-40 s": (chambers, per_chamber, (0, 40.1)),
     }  # fmt: skip
     rows = []
-    output = vc.curvatures(offsets=vc.OFFSETS)
+    output = curvature_map(offsets=vc.OFFSETS)
     for label, (input_map, free, (a, b)) in cases.items():
         problem = {"output": output, "input_map": input_map, "bind": entry["problem"]["bind"]}
-        fit = vc.fit_equilibria(
-            model, data.trim(a, b), free=free + shape, extra=values, max_evaluations=150,
+        fit = fit_equilibria(
+            model, data.trim(a, b), free=free + shape, extra=values,
+            max_evaluations=size.budget(150),
             parameters=static.extra["parameters"], **problem,
         )  # fmt: skip
-        prediction = vc.predict_equilibria(model, data, fit, extra=values, **problem)
+        prediction = predict_equilibria(model, data, fit, extra=values, **problem)
         w1, w2 = vc.window_rms(prediction, 0, 20), vc.window_rms(prediction, 20, 40.1)
         print(f"### open loop, {label}\n```\n{fit.table()}\n```\n", flush=True)
         rows.append((label, w1, w2))
@@ -506,7 +555,7 @@ def hysteresis_probe(prediction, rates=(0.03, 0.1, 0.3, 1.0, 3.0, 10.0, 30.0)):
 
 def _openloop_start(entry, values, data):
     """Quasi-static equilibrium at t = 0 of the static fit, creep relaxed."""
-    first = vc.predict_equilibria(entry["model"], data.trim(0.0, 0.05), entry["fit"],
+    first = predict_equilibria(entry["model"], data.trim(0.0, 0.05), entry["fit"],
                                   **entry["problem"])  # fmt: skip
     k0 = first.predicted[0] - np.array([values[o] for o in vc.OFFSETS])
     x0 = np.array([vc.REST_LENGTH, k0[0], k0[1], 0, 0, 0, 0, 0, 0])
@@ -524,29 +573,38 @@ def main(argv=None):
         "creep state (dynamic, slow), initial rates of the oscillations",
     )
     parser.add_argument("--laws", default="tanh,linear")
-    parser.add_argument("--quick", action="store_true", help="2 ms oscillations, 25 Hz open loop")
+    sizes = parser.add_mutually_exclusive_group()
+    sizes.add_argument("--quick", action="store_true", help="2 ms oscillations, 25 Hz open loop")
+    sizes.add_argument(
+        "--smoke",
+        action="store_true",
+        help="for the tests: every step once, on oscillations sampled at 20 ms, each fit "
+        "stopped at its second evaluation (the numbers mean nothing)",
+    )
     parser.add_argument(
         "--figure", type=Path, help="draw the free oscillations' fits to this file (PNG, PDF)"
     )
     args = parser.parse_args(argv)
+    size = SIZES["smoke" if args.smoke else "quick" if args.quick else "full"]
     directory = vc.data_directory(args.data)
     if directory is None:
         raise SystemExit("caasenbrood2021 data not found: give --data or set SOFTCURVE_DATA")
     start = time.perf_counter()
     out = {}
     if args.only in (None, "oscillation"):
-        experiments = vc.load_oscillations(directory, 2e-3 if args.quick else 1e-3)
-        out["oscillation"], swings = oscillation_goals(experiments, tuple(args.laws.split(",")))
+        experiments = vc.load_oscillations(directory, size.oscillation_dt)
+        laws = tuple(args.laws.split(","))
+        out["oscillation"], swings = oscillation_goals(experiments, laws, size)
         if args.figure:
             print(f"figure: {swing_figure(experiments, swings, args.figure)}")
     if args.only == "rate":
-        rate_probe(vc.load_oscillations(directory, 2e-3 if args.quick else 1e-3))
+        rate_probe(vc.load_oscillations(directory, size.oscillation_dt), size=size)
     if args.only in (None, "openloop", "creep"):
-        openloop, results, b17 = openloop_reference(directory)
+        openloop, results, b17 = openloop_reference(directory, size)
         if args.only != "creep":
-            out["openloop"] = openloop_maps(openloop, results, results["numbering"])
+            out["openloop"] = openloop_maps(openloop, results, results["numbering"], size)
         if args.only != "openloop":
-            out["creep"] = openloop_creep(openloop, results, b17, args.quick)
+            out["creep"] = openloop_creep(openloop, results, b17, size)
     print(f"total time {time.perf_counter() - start:.1f} s")
     return out
 

@@ -14,7 +14,8 @@ import pytest
 import softcurve as sc
 
 LONGEST_FIRST = (
-    "test_validation_data.py",
+    "test_docs_identify.py",
+    "test_examples.py",
     "test_identification_joint.py",
     "test_identify.py",
     "test_sensitivity_driver.py",
@@ -23,15 +24,38 @@ LONGEST_FIRST = (
     "test_envs_press.py",
     "test_validation_goals.py",
 )
-"""The test files that take longest (the 15 slowest tests of a CI run, 2026-12-01), run
-first: pytest-xdist hands out whole files in collection order, and a long file started
-last keeps one worker busy while the other idles."""
+"""The test files that take longest (from the 15 slowest tests of runs on two cores; the
+examples' runs, about a minute in all), run first: pytest-xdist hands out whole files in
+collection order, and a long file started last keeps one worker busy while the other
+idles."""
 
 
 def pytest_collection_modifyitems(config, items):
     """Move the files of :data:`LONGEST_FIRST` to the front, in that order (stable)."""
     rank = {name: i for i, name in enumerate(LONGEST_FIRST)}
     items.sort(key=lambda item: rank.get(item.path.name, len(rank)))
+
+
+LONG_MODULE_PROPERTY = "long_module"
+"""The property (``record_property``) under which tests/test_architecture.py records each
+long module; :func:`pytest_terminal_summary` lists them."""
+
+
+def pytest_terminal_summary(terminalreporter):
+    """List the long modules the architecture test recorded: a report, not a failure (a
+    warning would be one: pyproject.toml makes every warning an error)."""
+    found = sorted(
+        {
+            value
+            for report in terminalreporter.stats.get("passed", [])
+            for name, value in getattr(report, "user_properties", ())
+            if name == LONG_MODULE_PROPERTY
+        }
+    )
+    if found:
+        terminalreporter.section("long modules (docs/architecture.md)")
+        for line in found:
+            terminalreporter.line(line)
 
 
 def assert_close(actual, expected, *, rtol=1e-12, atol=0.0, scale=None, what=""):

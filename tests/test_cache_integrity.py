@@ -1,4 +1,4 @@
-"""The compiled-library cache survives damage (issue 11, case 2).
+"""The compiled-library cache survives damage (issue 11, case 2; issue 44, item 4).
 
 A library truncated to 0 bytes, overwritten with random bytes, truncated to half (which
 crashed the process with SIGBUS inside the dynamic loader), or missing its checksum file
@@ -8,7 +8,14 @@ the file, and the model gives the same numbers as an undamaged one.
 One library is compiled per session (in a private cache) and copied into a fresh cache
 folder per case. The in-process cases rebuild by returning the known-good bytes from the
 compile step (the cache installs them with its own writer), which keeps them fast; the
-subprocess case rebuilds with the real compiler.
+subprocess cases rebuild with the real compiler.
+
+Issue 44: a library truncated and given a checksum file that matches it (the checksum
+proves only that the bytes are those it was computed on) crashed the process with SIGBUS
+inside the dynamic loader; a foreign library with a matching checksum file was loaded
+and failed with "AttributeError: undefined symbol" naming no cache. Both are now refused
+from their bytes before they are loaded (cut short; lacks the model's symbols) and
+rebuilt with a warning naming the file.
 """
 
 from __future__ import annotations
@@ -20,6 +27,7 @@ import shutil
 import subprocess
 import sys
 import warnings
+from pathlib import Path
 
 import casadi as ca
 import numpy as np
@@ -30,6 +38,7 @@ from softcurve.compiled import _build as build
 from softcurve.compiled import _cache as cache_module
 from softcurve.compiled import _generated as generated
 from softcurve.compiled._cache import CacheWarning, checksum_file, library_problem
+from softcurve.compiled._elf import image_problem
 
 from .conftest import assert_close
 
@@ -151,7 +160,7 @@ def test_an_intact_library_is_loaded_without_a_rebuild(cache, rebuilds):
 
 def test_a_library_is_verified_once_per_process_while_unchanged(cache, rebuilds, monkeypatch):
     checked = []
-    monkeypatch.setattr(cache_module, "library_problem", lambda path, key: checked.append(path))
+    monkeypatch.setattr(cache_module, "library_problem", lambda path, *_: checked.append(path))
     sc.Model(robot())
     sc.Model(robot())
     assert checked == [cache]  # the second model skips the read
@@ -219,3 +228,53 @@ def test_a_half_truncated_library_in_a_child_process(intact, cache):
     assert library_problem(cache) is None
     result = json.loads(child.stdout.strip().splitlines()[-1])
     assert_close(result, intact[0].forward_dynamics(Q, QD), rtol=1e-12, what="child")
+
+
+def test_a_truncated_library_with_a_matching_checksum_in_a_child_process(intact, cache):
+    """Before: the child died of SIGBUS (exit -7; 135 from a shell) with no message: the
+    checksum matched, and the loader mapped segments past the end of the file."""
+    data = cache.read_bytes()
+    _reinstall(cache, data[: len(data) // 2])
+    assert library_problem(cache, None) is not None  # found from the bytes alone
+    env = {**os.environ, "SOFTCURVE_CACHE_DIR": str(cache.parent)}
+    child = subprocess.run(
+        [sys.executable, "-c", CHILD, json.dumps([Q.tolist(), QD.tolist()])],
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
+    assert child.returncode == 0, f"exit {child.returncode}: {child.stderr[-2000:]}"
+    assert f"CacheWarning: softcurve cache: the compiled library {cache} is cut short" in (
+        child.stderr
+    )
+    assert library_problem(cache) is None and cache.read_bytes() == data
+    result = json.loads(child.stdout.strip().splitlines()[-1])
+    assert_close(result, intact[0].forward_dynamics(Q, QD), rtol=1e-12, what="child")
+
+
+@pytest.mark.parametrize("kept", [0.999, 0.9, 0.5, 0.1, 0.001])
+def test_a_library_cut_short_is_refused_from_its_bytes(intact, kept):
+    data = intact[1]
+    assert image_problem(data) is None
+    assert image_problem(data[: int(len(data) * kept)]).startswith("is cut short: its ")
+
+
+def test_a_foreign_library_with_a_matching_checksum_is_rebuilt(
+    intact, cache, rebuilds, tmp_path, monkeypatch
+):
+    """A shared library that is not the model's (``tests/c/planted.c``), installed with a
+    checksum file matching it and recording the model's key. Before: loaded (its
+    constructor ran), then "AttributeError: ...: undefined symbol: dynamics_terms"."""
+    foreign = tmp_path / "foreign.so"
+    planted = Path(__file__).parent / "c" / "planted.c"
+    command = [COMPILER, "-shared", "-fPIC", "-DSYMBOL=softcurve_foreign", str(planted)]
+    subprocess.run([*command, "-o", str(foreign)], check=True, capture_output=True)
+    _reinstall(cache, foreign.read_bytes())
+    monkeypatch.setenv("SOFTCURVE_TEST_MARKER", str(tmp_path / "marker"))
+    reason = " lacks the symbols dynamics_terms, potential_energy"
+    with pytest.warns(CacheWarning, match=re.escape(str(cache) + reason)):
+        model = sc.Model(robot())
+    assert not (tmp_path / "marker").exists()  # refused before the loader opened it
+    assert rebuilds == [cache.parent] and cache.read_bytes() == intact[1]
+    assert_close(model.forward_dynamics(Q, QD), intact[0].forward_dynamics(Q, QD), rtol=1e-12)

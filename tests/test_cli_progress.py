@@ -15,12 +15,12 @@ import warnings
 import pytest
 
 import softcurve as sc
-from softcurve.base import progress
+from softcurve.base import log, progress
 from softcurve.cli import main
 from tests.test_faults import SWEEP_TOML
 
-BUILDING = "building the compiled model of 1 segment (C, cached in"
-BUILT = "model built in"
+BUILDING = "compiling the model of 1 segment (C, cached in"
+BUILT = "compiled the model of 1 segment in"
 SUMMARY = "softcurve simulate: built-in paper case"
 SIMULATE = ["simulate", "--t-final", "0.05", "--no-figures", "--no-progress"]
 
@@ -44,6 +44,13 @@ class Recorder:
 
     def text(self) -> str:
         return "".join(text for name, text in self.log if name == self.name)
+
+
+class Terminal(Recorder):
+    """A :class:`Recorder` that says it is a terminal (where lines are redrawn)."""
+
+    def isatty(self) -> bool:
+        return True
 
 
 @pytest.fixture
@@ -80,7 +87,7 @@ def test_first_run_says_it_builds_then_a_cached_run_says_nothing(
 
     code, out, err, _ = _run([*SIMULATE, "-o", tmp_path / "second"], monkeypatch)
     assert code == 0, err
-    assert "building" not in err and BUILT not in err and SUMMARY in out
+    assert "compiling" not in err and BUILT not in err and SUMMARY in out
 
 
 def test_quiet_says_nothing_and_still_caches(empty_cache, tmp_path, monkeypatch):
@@ -122,16 +129,19 @@ def _lines(err: str) -> list[str]:
     return [line.rpartition("\r")[2] for line in err.split("\n")]
 
 
-def test_progress_redraws_the_seconds_then_erases_them(empty_cache, tmp_path, monkeypatch):
-    monkeypatch.setattr(progress, "TICK", 1e-3)  # a redraw within the seconds of the build
+def test_progress_says_the_seconds_so_far_while_compiling(empty_cache, tmp_path, monkeypatch):
+    monkeypatch.setattr(log, "LINE_EVERY", 1e-3)  # a line within the seconds of the build
     argv = [*SIMULATE[:-1], "-o", tmp_path / "out", "--progress"]  # not --no-progress
     code, out, err, _ = _run(argv, monkeypatch)
     assert code == 0, err
-    assert "\rsoftcurve simulate: compiling, " in err  # redrawn in place
-    lines = _lines(err)
+    lines = err.splitlines()
+    building = next(i for i, line in enumerate(lines) if BUILDING in line)
     built = next(i for i, line in enumerate(lines) if BUILT in line)
-    assert BUILDING in lines[built - 1] and lines[built].startswith("softcurve simulate: " + BUILT)
-    assert "compiling," not in "".join(lines)  # erased: nothing of it is left on screen
+    so_far = [line for line in lines[building + 1 : built] if "s so far" in line]
+    assert so_far and all(
+        line.startswith("softcurve simulate: compiling the model") for line in so_far
+    )
+    assert lines[built].startswith("softcurve simulate: " + BUILT) and "\r" not in err
 
 
 def test_a_warning_while_compiling_comes_after_the_redrawn_line(monkeypatch):
@@ -139,7 +149,7 @@ def test_a_warning_while_compiling_comes_after_the_redrawn_line(monkeypatch):
     after the redrawn seconds are erased, through the command's way of showing warnings."""
     monkeypatch.setattr(progress, "TICK", 1e-3)
     log: list = []
-    err = Recorder("err", log)
+    err = Terminal("err", log)
     monkeypatch.setattr(sys, "stderr", err)
     shown = []
 

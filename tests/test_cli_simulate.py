@@ -156,3 +156,16 @@ def test_subprocess_entry_point(tmp_path):
         cwd=tmp_path,
     )
     assert bad.returncode == 2 and "rtol" in bad.stderr and "Traceback" not in bad.stderr
+
+
+def test_a_rerun_names_the_files_it_replaced_and_those_it_left(tmp_path, capsys):
+    """A second run into the same folder says which files of the first it replaced and
+    which it left (written by the first only: they do not belong to this run)."""
+    out = tmp_path / "out"
+    short = ["simulate", "-o", str(out), "--t-final", "0.1", "--no-progress"]
+    assert main([*short, "--npz"]) == 0
+    assert "replaced" not in capsys.readouterr().out  # a new folder: nothing replaced
+    assert main(short) == 0
+    printed = capsys.readouterr().out.splitlines()
+    assert "  replaced    trajectory.csv, states.png, tip.png of an earlier run" in printed
+    assert "  left        trajectory.npz of an earlier run (not written now)" in printed

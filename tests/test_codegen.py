@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import shutil
+import subprocess
 
 import numpy as np
 import pytest
@@ -76,3 +77,22 @@ def test_cli_codegen_check_with_a_relative_output(tmp_path, monkeypatch, capsys,
         "test_softcurve_model",
     }
     assert str(folder) in captured.out  # the paths printed are the resolved ones
+
+
+@pytest.mark.skipif(COMPILER is None, reason="no C compiler (cc, gcc or clang) found")
+@pytest.mark.skipif(shutil.which("bash") is None, reason="no bash to paste the line into")
+def test_cli_codegen_hint_quotes_the_folder(tmp_path, monkeypatch, capsys):
+    """The printed ``cd <folder> && cc ...``, pasted into bash, builds the test program
+    in a folder named like a command substitution and runs nothing (before: the line
+    ran ``touch pwned``)."""
+    monkeypatch.chdir(tmp_path)
+    folder = tmp_path / "$(touch pwned)"
+    assert main(["codegen", "--no-actuator", "-o", str(folder)]) == 0
+    (line,) = [x for x in capsys.readouterr().out.splitlines() if "build the test: " in x]
+    pasted = tmp_path / "pasted"
+    pasted.mkdir()
+    command = line.split("build the test: ", 1)[1]
+    done = subprocess.run(["bash", "-c", command], cwd=pasted, capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr
+    assert not list(tmp_path.rglob("pwned")), "the folder's name ran as a command"
+    assert (folder / "test_softcurve_model").is_file()

@@ -56,6 +56,37 @@ def test_malformed_csv_is_rejected_with_a_clear_message(tmp_path, text, match):
         load_csv(path, signals=["beta"])
 
 
+@pytest.mark.parametrize(
+    ("text", "match"),
+    [
+        ("t,beta\n0,1\n0.1,2\n\n0.2,nan\n", r"bad.csv, line 5, column .beta.: non-finite"),
+        ("t,beta\n0,1\n0.1,inf\n", r"bad.csv, line 3, column 'beta': non-finite value inf"),
+        ("t,beta\n0,1\nnan,2\n", r"bad.csv, line 3, column 't': non-finite value nan"),
+        ("t,beta\n0,1\n0.1,2\n0.05,3\n", r"bad.csv, line 4: time must be strictly increasing, "
+                                            r"but 't' is 0.05 s, not after 0.1 s on line 3"),
+    ],
+)  # fmt: skip
+def test_csv_nan_and_time_not_increasing_name_the_line(tmp_path, text, match):
+    path = _write_csv(tmp_path / "bad.csv", text)
+    with pytest.raises(ExperimentError, match=match):
+        load_csv(path, signals=["beta"])
+
+
+def test_csv_nan_in_a_column_not_read_is_no_error(tmp_path):
+    path = _write_csv(tmp_path / "run.csv", "t,beta,note\n0,1,nan\n0.1,2,1\n")
+    np.testing.assert_array_equal(load_csv(path, signals=["beta"]).signals["beta"], [1.0, 2.0])
+
+
+def test_fit_command_refuses_a_nan_cell_naming_the_line(tmp_path, capsys):
+    from softcurve.cli import main
+
+    path = _write_csv(tmp_path / "data.csv", "x,f\n0.1,0.2\n0.2,0.4\n0.3,nan\n0.4,0.8\n")
+    code = main(["fit", str(path), "--strain", "x", "--force", "f", "--law", "linear"])
+    err = capsys.readouterr().err
+    assert code == 2 and err.count("\n") == 1, err
+    assert f"{path}, line 4, column 'f': non-finite value nan" in err
+
+
 def test_malformed_mat_is_rejected(tmp_path):
     scipy.io.savemat(tmp_path / "m.mat", {"x": np.arange(5.0), "y": np.arange(4.0)})
     with pytest.raises(ExperimentError, match="4 samples but the time vector has 5"):

@@ -217,7 +217,96 @@ def test_command_says_what_it_animates(tmp_path, capsys):
                  "--progress", "--dpi", "40"])  # fmt: skip
     assert code == 0
     error = capsys.readouterr().err
+    # by default the motion: the paper's case settles within 0.7 s of its 2 s
     assert "writing animation.gif, 17 frames of t = 0 .. 0.6" in error
     assert "17/17 frames" in error
     with Image.open(tmp_path / "animation.gif") as image:
         assert image.n_frames == 17
+
+
+def test_the_command_animates_a_chosen_window_and_a_long_one_faster(tmp_path, capsys):
+    long = ["simulate", "-o", str(tmp_path), "--t-final", "12", "--dt", "0.01", "--animate",
+            "--no-figures", "--dpi", "30"]  # fmt: skip
+    assert main([*long, "--window", "0.2", "0.52"]) == 0
+    assert "writing animation.gif, 8 frames of t = 0.2 .. 0.52 s ..." in capsys.readouterr().err
+    assert main([*long, "--window", "0", "12"]) == 0
+    # 12 s at 25 frames per second is 300 frames; MOST_FRAMES (250) play it faster
+    assert "250 frames of t = 0 .. 12 s at 1.2x real time" in capsys.readouterr().err
+    with Image.open(tmp_path / "animation.gif") as image:
+        assert image.n_frames == 250
+
+
+@pytest.mark.parametrize(
+    "window", [("-0.1", "0.5"), ("0.5", "0.5"), ("0.6", "0.5"), ("0", "3"), ("0", "nan")]
+)
+def test_a_window_outside_the_run_exits_2_before_any_work(tmp_path, capsys, window):
+    out = tmp_path / "out"
+    assert main(["simulate", "-o", str(out), "--t-final", "2", "--window", *window]) == 2
+    error = capsys.readouterr().err
+    assert "--window must be two times 0 <= T0 < T1 <= the end time 2 s" in error
+    assert error.count("\n") == 1 and not out.exists()  # one line, nothing written
+
+
+def test_the_figures_draw_the_window_and_say_it(ringing):
+    states = ringing.plot(window=(0.2, 0.5))
+    assert states.axes[-1].get_xlim() == pytest.approx((0.2, 0.5))
+    assert states.axes[0].get_title().endswith(", t = 0.2 .. 0.5 s of 2 s")
+    whole = ringing.plot(window="all")
+    assert whole.axes[0].get_title().endswith(", t = 0 .. 2 s")  # said for the whole run too
+
+
+@pytest.mark.parametrize("window", ["auto", "all", (0.1, 0.25)])
+def test_the_tip_figure_title_and_legend_agree_on_the_window(ringing, window):
+    (ax,) = [a for a in ringing.plot_tip(window=window).axes if a.name == "3d"]
+    start, end = (text.get_text().split("t = ")[1] for text in ax.get_legend().get_texts())
+    assert f", t = {start.removesuffix(' s')} .. {end}" in ax.get_title(), ax.get_title()
+
+
+def _segments(count: int):
+    """A ringing of ``count`` segments, each ``_synthetic``'s scaled."""
+    one = _synthetic()
+    q = np.hstack([one.q * (1.0 + 0.1 * i) for i in range(count)])
+    return sc.Trajectory(one.t, q, np.zeros_like(q), np.empty((one.t.size, 0)))
+
+
+@pytest.mark.parametrize("count", [2, 6, 20])
+def test_the_states_legend_covers_no_curve(count):
+    """The legend of many segments stands beside the panels, clear of the data area."""
+    figure = _segments(count).plot()
+    figure.canvas.draw()
+    renderer = figure.canvas.get_renderer()
+    legend = figure.axes[0].get_legend()
+    assert len(legend.get_texts()) == count
+    box = legend.get_window_extent(renderer)
+    for axis in figure.axes:
+        data = axis.get_window_extent(renderer)
+        assert box.x0 >= data.x1 or box.y1 <= data.y0 or box.y0 >= data.y1, axis
+    assert box.x1 <= figure.bbox.x1  # inside the figure
+
+
+def test_sweep_figure_draws_round_off_as_a_constant():
+    """A tip coordinate that is round-off of 0 (1e-5 mm on a 65 mm reach) and one of
+    exact zeros are drawn as constants and say so, without an offset or exponent label
+    of noise; an output that varies is drawn as its values."""
+    from softcurve.figures import plot_sweep
+
+    count = 8
+    z = 0.0648 + 1e-4 * np.linspace(0.0, 1.0, count)  # [m]: 0.1 mm, a real spread
+    table = {
+        "index": np.arange(count),
+        "q0[1]": np.linspace(-20.0, 20.0, count),
+        "final_tip_x": 1e-8 * np.random.default_rng(0).standard_normal(count),  # [m]
+        "final_tip_y": np.zeros(count),
+        "final_tip_z": z,
+        "status": np.array(["success"] * count),
+    }
+    figure = plot_sweep(table)
+    figure.canvas.draw()
+    x_axis, y_axis, z_axis = figure.axes
+    for axis in (x_axis, y_axis):
+        assert axis.yaxis.get_offset_text().get_text() == "", axis.get_ylabel()
+        assert np.all(axis.lines[0].get_ydata() == 0.0)
+        (text,) = axis.texts
+        assert text.get_text().startswith("constant: 0 mm (spread < 0.01 % of 64.9 mm)")
+    assert not len(z_axis.texts) and z_axis.yaxis.get_offset_text().get_text() == ""
+    np.testing.assert_array_equal(z_axis.lines[0].get_ydata(), 1e3 * z)

@@ -1,7 +1,10 @@
 """The validation on the real measurements (docs/validation.md), in its quick form.
 
 Needs ../shared/data/caasenbrood2021 relative to the repository, or the directory in
-$SOFTCURVE_DATA; skipped with a message otherwise.
+$SOFTCURVE_DATA; skipped with a message otherwise. The checks of the quick run's figures
+take minutes (40 evaluations of each fit): they are marked slow
+(``python -m pytest -m slow``); by default tests/test_examples.py runs every step of the
+script at its smallest (``--smoke``), and tests/test_validation_goals.py fits b42.
 """
 
 import importlib.util
@@ -54,6 +57,7 @@ def test_loaders_read_the_shared_files():
     assert openloop.duration == pytest.approx(39.996)
 
 
+@pytest.mark.slow
 def test_free_oscillations_fit_and_cross_predict(validation):
     results, figures = validation
     for law in ("tanh", "linear"):
@@ -69,6 +73,7 @@ def test_free_oscillations_fit_and_cross_predict(validation):
     assert (figures / "validation_oscillation.png").stat().st_size > 10_000
 
 
+@pytest.mark.slow
 def test_openloop_identifies_sensor_zero_and_predicts(validation):
     results, figures = validation
     openloop = results["openloop"]

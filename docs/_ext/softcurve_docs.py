@@ -58,7 +58,12 @@ LAYERS = (
 GALLERY_FIGURES = {
     "contact_finger.py": (
         "python examples/contact_finger.py all --output {out}",
-        {"contact_finger_force.png": "finger_force.png", "contact_floor_tip.png": "floor_tip.png"},
+        {
+            "contact_finger_force.png": "finger_force.png",
+            "contact_cylinder.png": "cylinder.png",
+            "contact_floor_force.png": "floor_force.png",
+            "contact_floor_tip.png": "floor_tip.png",
+        },
     ),
     "contact_wall.toml": (
         "softcurve simulate examples/contact_wall.toml -o {out}",

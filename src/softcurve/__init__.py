@@ -19,98 +19,129 @@ Examples
 array([0.0412, 0.    , 0.04  ])
 """
 
+import importlib
+
 from softcurve._version import __version__ as __version__
-from softcurve.analysis.equilibrium_results import Equilibrium, EquilibriumTable
-from softcurve.analysis.inverse_statics import InverseStatics, inverse_statics
-from softcurve.analysis.linear import Linearization
-from softcurve.analysis.quasistatic import InputSweep, input_sweep
-from softcurve.analysis.statics import equilibria, equilibrium, linearize
-from softcurve.base.status import Result, Status
-from softcurve.base.validation import ParameterError
-from softcurve.compiled import (
-    CacheWarning,
-    CompilerWarning,
-    DynamicsTerms,
-    ExportedC,
-    Model,
-    Pose,
-    export_c,
+
+_FACES = {
+    "softcurve.analysis.equilibrium_results": ("Equilibrium", "EquilibriumTable"),
+    "softcurve.analysis.inverse_statics": ("InverseStatics", "inverse_statics"),
+    "softcurve.analysis.linear": ("Linearization",),
+    "softcurve.analysis.quasistatic": ("InputSweep", "input_sweep"),
+    "softcurve.analysis.statics": ("equilibria", "equilibrium", "linearize"),
+    "softcurve.base.status": ("Result", "Status"),
+    "softcurve.base.validation": ("ParameterError",),
+    "softcurve.compiled": (
+        "CacheWarning",
+        "CompilerWarning",
+        "DynamicsTerms",
+        "ExportedC",
+        "Model",
+        "Pose",
+        "export_c",
+    ),
+    "softcurve.control.controllers": (
+        "ActuatorDriven",
+        "Allocation",
+        "ComputedTorque",
+        "InputAllocator",
+        "PDGravityElastic",
+        "SampledController",
+        "SaturatedInputs",
+    ),
+    "softcurve.control.mpc": ("ActuatorMPC",),
+    "softcurve.control.references": ("Reference", "tip_circle"),
+    "softcurve.description": ("presets",),
+    "softcurve.description.actuator": ("Actuator",),
+    "softcurve.description.bellows": ("Bellows", "ConstantPressureMap", "PneumaticActuator"),
+    "softcurve.description.environment": (
+        "Capsule",
+        "ContactLaw",
+        "Environment",
+        "Plane",
+        "Sphere",
+    ),
+    "softcurve.description.layout": ("ParameterLayout",),
+    "softcurve.description.materials": ("Creep", "LinearStiffness", "TanhStiffness"),
+    "softcurve.description.robot": ("Robot", "Segment"),
+    "softcurve.description.tendons": ("Tendon", "TendonActuator"),
+    "softcurve.figures": ("save_figure",),
+    "softcurve.identification.experiments": (
+        "Experiment",
+        "ExperimentError",
+        "check_units",
+        "load_csv",
+        "load_mat",
+        "load_mat_trials",
+    ),
+    "softcurve.identification.fits": (
+        "FitError",
+        "FitReport",
+        "FitWarning",
+        "Free",
+        "InitialState",
+        "fit_equilibria",
+        "fit_stiffness",
+        "fit_trajectory",
+        "initial_equilibrium",
+        "predict_equilibria",
+        "predict_trajectory",
+        "tanh_parameters",
+    ),
+    "softcurve.identification.maps": (
+        "InputMap",
+        "OutputMap",
+        "SensorFrame",
+        "actuator_input_map",
+        "bellows_input_map",
+        "bending_angle_map",
+        "constant_input_map",
+        "curvature_map",
+        "imu_orientation_map",
+        "marker_position_map",
+        "tendon_input_map",
+        "tip_position_map",
+        # deprecated names: not in __all__
+        "bending_angle",
+        "curvatures",
+        "imu_orientation",
+        "marker_position",
+        "tip_position",
+    ),
+    "softcurve.scenarios.config": ("Scenario", "load_config"),
+    "softcurve.scenarios.sweep": ("SweepResult", "run_sweep"),
+    "softcurve.scenarios.sweep_config": ("SweepConfig", "load_sweep"),
+    "softcurve.simulation": (
+        "BatchTrajectory",
+        "ContactHistory",
+        "SimulationSettings",
+        "State",
+        "Trajectory",
+        "load_trajectory",
+        "simulate",
+        "simulate_batch",
+    ),
+    "softcurve.simulation.solvers": ("RouteWarning",),
+}
+"""The module each name of the facade comes from (a public module or a face), imported
+on the first use of one of its names: ``import softcurve`` itself imports nothing heavy
+(no CasADi, SciPy or Matplotlib), so that the command line starts at once."""
+
+_LAYERS = (
+    "base",
+    "description",
+    "symbolic",
+    "compiled",
+    "figures",
+    "analysis",
+    "simulation",
+    "control",
+    "identification",
+    "scenarios",
 )
-from softcurve.control.controllers import (
-    ActuatorDriven,
-    Allocation,
-    ComputedTorque,
-    InputAllocator,
-    PDGravityElastic,
-    SampledController,
-    SaturatedInputs,
-)
-from softcurve.control.mpc import ActuatorMPC
-from softcurve.control.references import Reference, tip_circle
-from softcurve.description import presets
-from softcurve.description.actuator import Actuator
-from softcurve.description.bellows import Bellows, ConstantPressureMap, PneumaticActuator
-from softcurve.description.environment import Capsule, ContactLaw, Environment, Plane, Sphere
-from softcurve.description.layout import ParameterLayout
-from softcurve.description.materials import Creep, LinearStiffness, TanhStiffness
-from softcurve.description.robot import Robot, Segment
-from softcurve.description.tendons import Tendon, TendonActuator
-from softcurve.figures import save_figure
-from softcurve.identification.experiments import (
-    Experiment,
-    ExperimentError,
-    check_units,
-    load_csv,
-    load_mat,
-    load_mat_trials,
-)
-from softcurve.identification.fits import (
-    FitError,
-    FitReport,
-    FitWarning,
-    Free,
-    InitialState,
-    fit_equilibria,
-    fit_stiffness,
-    fit_trajectory,
-    initial_equilibrium,
-    predict_equilibria,
-    predict_trajectory,
-    tanh_parameters,
-)
-from softcurve.identification.maps import (
-    InputMap,
-    OutputMap,
-    SensorFrame,
-    actuator_input_map,
-    bellows_input_map,
-    bending_angle_map,
-    constant_input_map,
-    curvature_map,
-    imu_orientation_map,
-    marker_position_map,
-    tendon_input_map,
-    tip_position_map,
-)
-from softcurve.identification.maps import bending_angle as bending_angle  # deprecated names
-from softcurve.identification.maps import curvatures as curvatures
-from softcurve.identification.maps import imu_orientation as imu_orientation
-from softcurve.identification.maps import marker_position as marker_position
-from softcurve.identification.maps import tip_position as tip_position
-from softcurve.scenarios.config import Scenario, load_config
-from softcurve.scenarios.sweep import SweepResult, run_sweep
-from softcurve.scenarios.sweep_config import SweepConfig, load_sweep
-from softcurve.simulation import (
-    BatchTrajectory,
-    ContactHistory,
-    SimulationSettings,
-    State,
-    Trajectory,
-    load_trajectory,
-    simulate,
-    simulate_batch,
-)
-from softcurve.simulation.solvers import RouteWarning
+"""The layers reached as attributes (``softcurve.simulation``), imported on first use."""
+
+_SOURCE = {name: module for module, names in _FACES.items() for name in names}
 
 __all__ = [
     # description
@@ -216,3 +247,23 @@ __all__ = [
     "run_sweep",
     "SweepResult",
 ]
+
+
+def __getattr__(name: str) -> object:
+    """A facade name, imported from its module on first use (PEP 562)."""
+    if name in _SOURCE:
+        module = importlib.import_module(_SOURCE[name])
+        try:
+            value = getattr(module, name)
+        except AttributeError:  # a submodule not yet imported (presets)
+            value = importlib.import_module(f"{_SOURCE[name]}.{name}")
+    elif name in _LAYERS:
+        value = importlib.import_module(f"{__name__}.{name}")
+    else:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    globals()[name] = value  # the next use is a plain attribute read
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(_SOURCE) | set(_LAYERS))

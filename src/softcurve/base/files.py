@@ -21,7 +21,7 @@ os.umask(_UMASK)  # read once: files are created with the usual permissions
 
 
 @contextlib.contextmanager
-def atomic_path(path):
+def atomic_path(path, mode: int = 0o666):
     """Yield a temporary path next to ``path``; rename it over ``path`` on success,
     delete it on failure, so readers see the old file or the complete new one.
 
@@ -29,6 +29,9 @@ def atomic_path(path):
     ----------
     path : str or os.PathLike
         The file to write; its folder is created if missing.
+    mode : int
+        Its permissions less the umask, set before it is renamed into place (so nobody
+        the mode leaves out ever opened it for writing).
 
     Examples
     --------
@@ -51,7 +54,7 @@ def atomic_path(path):
     os.close(os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600))
     try:
         yield Path(tmp)
-        os.chmod(tmp, 0o666 & ~_UMASK)
+        os.chmod(tmp, mode & ~_UMASK)
         os.replace(tmp, path)
     except BaseException as exc:
         with contextlib.suppress(FileNotFoundError):
@@ -63,7 +66,7 @@ def atomic_path(path):
         raise
 
 
-def atomic_write(path, data: bytes) -> Path:
+def atomic_write(path, data: bytes, mode: int = 0o666) -> Path:
     """Write ``data`` to ``path`` whole or not at all.
 
     Parameters
@@ -72,13 +75,15 @@ def atomic_write(path, data: bytes) -> Path:
         The file to write; its folder is created if missing.
     data : bytes
         The file's complete content.
+    mode : int
+        As :func:`atomic_path`'s.
 
     Returns
     -------
     pathlib.Path
         ``path``.
     """
-    with atomic_path(path) as tmp:
+    with atomic_path(path, mode) as tmp:
         tmp.write_bytes(data)
     return Path(path)
 

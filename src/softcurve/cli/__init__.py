@@ -13,9 +13,11 @@ Ctrl-C stops a command with exit code 130 and one line saying what was kept
 from __future__ import annotations
 
 import argparse
+import contextlib
 import dataclasses
 import functools
 import importlib
+import logging
 import os
 import re
 import signal
@@ -24,11 +26,9 @@ import traceback
 import warnings
 from collections.abc import Callable
 
-import matplotlib
-
 from softcurve._version import __version__
-from softcurve.base.validation import ParameterError
-from softcurve.figures import save_figure
+from softcurve.base.log import PACKAGE, ConsoleHandler
+from softcurve.base.progress import on_terminal
 
 COMMANDS = ("info", "simulate", "equilibria", "codegen", "sweep", "fit")
 
@@ -115,21 +115,31 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-def add_progress_options(parser: argparse.ArgumentParser) -> None:
-    """``--progress`` / ``--no-progress`` (default: when stderr is a terminal) and ``-q``.
+def add_progress_options(parser: argparse.ArgumentParser, everywhere: bool = False) -> None:
+    """``--progress`` / ``--no-progress`` and ``-q``.
 
     Parameters
     ----------
     parser : argparse.ArgumentParser
         The subcommand's parser.
+    everywhere : bool
+        Show the progress by default also when stderr is not a terminal (as lines, per
+        tenth of the work or per ``LINE_EVERY`` seconds: a long command whose output goes
+        to a log); default: only on a terminal.
     """
     progress = parser.add_mutually_exclusive_group()
+    default = (
+        "redrawn on a terminal, else a line per tenth of the work or per 10 s"
+        if everywhere
+        else "when stderr is a terminal"
+    )
+    parser.set_defaults(progress_everywhere=everywhere)
     progress.add_argument(
         "--progress",
         dest="progress",
         action="store_true",
         default=None,
-        help="progress bar on stderr (default: when stderr is a terminal)",
+        help=f"progress on stderr (default: {default})",
     )
     progress.add_argument("--no-progress", dest="progress", action="store_false")
     parser.add_argument("-q", "--quiet", action="store_true", help="print nothing on success")
@@ -188,6 +198,8 @@ def write_figure(draw, path, *, figsize=None, **options):
     """
     import matplotlib.pyplot as plt  # here: 0.6 s that commands without figures skip
 
+    from softcurve.figures import save_figure
+
     figure = draw()
     if figsize is not None:
         figure.set_size_inches(*figsize)
@@ -204,7 +216,7 @@ def main(argv: list[str] | None = None) -> int:
     argv : list of str, optional
         The arguments (default: ``sys.argv[1:]``).
     """
-    matplotlib.use("Agg")  # the command writes figures to files and never opens a window
+    _figures_to_files()
     try:  # the commands' modules are imported here: seconds in which Ctrl-C may come
         parser = build_parser()
         args = parser.parse_args(argv)
@@ -215,7 +227,7 @@ def main(argv: list[str] | None = None) -> int:
         parser.print_help()
         return 2
     try:
-        with warnings.catch_warnings():
+        with warnings.catch_warnings(), _library_lines(args):
             if not args.debug:  # one line per warning, without the source line
                 warnings.showwarning = functools.partial(_show_warning, args.command)
             return int(args.handler(args))
@@ -238,6 +250,56 @@ def main(argv: list[str] | None = None) -> int:
         return code
 
 
+def _figures_to_files() -> None:
+    """Matplotlib's backend to Agg: the command writes figures to files and never opens
+    a window. Matplotlib is not imported for it (0.1-0.3 s that most commands skip)."""
+    if "matplotlib" in sys.modules:  # imported already (main called from Python)
+        import matplotlib
+
+        matplotlib.use("Agg")
+    else:
+        os.environ["MPLBACKEND"] = "Agg"  # read when matplotlib is imported
+
+
+def show_progress(args) -> bool:
+    """Whether the command shows its progress: ``--progress``/``--no-progress``, else
+    when stderr is a terminal, or everywhere for a command that shows it so
+    (:func:`add_progress_options`) without ``--quiet``; a command without these options:
+    no.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The parsed command line.
+    """
+    progress = getattr(args, "progress", False)
+    if progress is not None:
+        return bool(progress)
+    return on_terminal() or (args.progress_everywhere and not args.quiet)
+
+
+@contextlib.contextmanager
+def _library_lines(args):
+    """While the command runs, what the library logs (:mod:`softcurve.base.log`: what it
+    compiles, where and how long) as lines ``softcurve COMMAND: ...`` on stderr: none
+    with ``--quiet``, the seconds so far of a compile too with the progress shown."""
+    package = logging.getLogger(PACKAGE)
+    handler = ConsoleHandler(f"softcurve {args.command}: ")
+    saved = package.level, package.propagate
+    if getattr(args, "quiet", False):
+        package.setLevel(logging.WARNING)
+    else:
+        package.setLevel(logging.DEBUG if show_progress(args) else logging.INFO)
+    package.propagate = False  # the command's lines, once, whatever else is configured
+    package.addHandler(handler)
+    try:
+        yield
+    finally:
+        package.removeHandler(handler)
+        package.setLevel(saved[0])
+        package.propagate = saved[1]
+
+
 def _show_warning(command, message, category, filename, lineno, file=None, line=None):
     """Print a warning as ``softcurve COMMAND: warning: text`` on one line."""
     text = " ".join(str(message).split())
@@ -246,6 +308,8 @@ def _show_warning(command, message, category, filename, lineno, file=None, line=
 
 def _error_line(exc: Exception) -> tuple[int, str]:
     """``(exit code, one line)`` for an error: 2 for input the user can fix, 1 else."""
+    from softcurve.base.validation import ParameterError
+
     text = " ".join(str(exc).split()) or type(exc).__name__
     if isinstance(exc, ParameterError | FileNotFoundError | IsADirectoryError):
         return 2, text

@@ -2,8 +2,11 @@
 
 from __future__ import annotations
 
+import shlex
 import subprocess
 import sys
+
+from softcurve.base.progress import elapsed_line
 
 from . import Command, _options, _robots
 from ._models import build_model
@@ -34,7 +37,7 @@ def _run(args) -> int:
     robot, actuator, environment = _robots.robot_and_actuator(args)  # a bad file: no folder
     writable_folder(args.output, "--output")  # before any work
     exported = export_c(
-        build_model("codegen", robot, environment=environment, compile=False),
+        build_model(robot, environment=environment, compile=False),
         args.output,
         actuator=None if args.no_actuator else actuator,
         prefix=args.prefix,
@@ -42,10 +45,13 @@ def _run(args) -> int:
     )
     print(f"softcurve codegen: wrote {exported.source}, {exported.header}, {exported.test}")
     print(f"  functions: {', '.join(exported.functions)}")
-    print(f"  build the test: cd {exported.source.parent} && {' '.join(exported.compile_command)}")
+    # quoted for the shell: the line is meant to be pasted, and a folder is any name
+    folder, command = shlex.quote(str(exported.source.parent)), shlex.join(exported.compile_command)
+    print(f"  build the test: cd {folder} && {command}")
     if args.check:
         try:
-            output = build_and_run_test(exported)
+            with elapsed_line("softcurve codegen: compiling and running the test program"):
+                output = build_and_run_test(exported)
         except subprocess.CalledProcessError as exc:
             detail = (exc.stderr or exc.stdout or "").strip()[:400]
             print(f"softcurve codegen: test FAILED: {detail}", file=sys.stderr)

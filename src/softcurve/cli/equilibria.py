@@ -55,19 +55,20 @@ def _add_arguments(parser) -> None:
 def _run(args) -> int:
     """Run ``softcurve equilibria``; returns the exit code."""
     from softcurve.analysis.equilibrium_results import EIGENVALUE_HEADING
-    from softcurve.analysis.statics import equilibria, linearize
+    from softcurve.analysis.statics import equilibria, linearize, starts_count
     from softcurve.base.files import writable_file
 
     # every option before any work
     seed, starts = _options.seed(args.seed), _options.count(args.starts, "--starts")
+    robot, actuator, environment = _robots.robot_and_actuator(args)  # before any folder
+    starts = _options.as_option("--starts", starts_count, "starts", starts, robot.n)
     if args.plot:
         _options.figure_file(args.plot, "--plot")
     if args.html:
         _options.viewer("--html")
         writable_file(args.html, "--html")
-    robot, actuator, environment = _robots.robot_and_actuator(args)
     # the analysis is symbolic: no need to compile
-    model = build_model("equilibria", robot, environment=environment, compile=False)
+    model = build_model(robot, environment=environment, compile=False)
     loads = {}
     if args.hanging:
         loads["gravity"] = -robot.gravity

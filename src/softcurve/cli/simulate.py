@@ -4,7 +4,11 @@ Writes into the output folder: ``trajectory.csv`` (and ``trajectory.npz`` with
 ``--npz``), ``states.png`` (paper Fig. 4), ``tip.png`` (Fig. 5), ``contact.png`` (the
 forces of the obstacles, with an ``[environment]``) and, with
 ``--animate``, ``animation.gif`` (``.mp4`` too where ffmpeg exists), with ``--html``
-``viewer.html`` (the interactive 3-D viewer); prints a summary.
+``viewer.html`` (the interactive 3-D viewer); prints a summary, naming the files of an
+earlier run in the folder that it replaced (and those it left). The figures and the
+animation show the motion (from the start to where the states settle, as the Python
+API's ``window="auto"``; their titles say the window and the run's end), or
+``--window T0 T1``.
 Exit code 0 on success, 1 when the integrator fails (the partial trajectory and its
 figures are still written), 2 for usage or configuration errors.
 """
@@ -20,8 +24,6 @@ import numpy as np
 
 from softcurve.base.files import writable_folder
 from softcurve.base.validation import ParameterError
-from softcurve.simulation import CSV_BYTES_PER_VALUE, SettingsError, format_bytes
-from softcurve.simulation.results import save_trajectory
 
 from . import (
     Command,
@@ -31,6 +33,9 @@ from . import (
     in_cli_terms,
     rate_text,
     write_figure,
+)
+from . import (
+    show_progress as progress_shown,
 )
 from ._models import build_model
 
@@ -65,10 +70,19 @@ def _add_arguments(parser) -> None:
     parser.add_argument("--npz", action="store_true", help="also write trajectory.npz")
     parser.add_argument("--no-figures", action="store_true", help="skip states.png and tip.png")
     parser.add_argument(
+        "--window",
+        type=float,
+        nargs=2,
+        metavar=("T0", "T1"),
+        help="the time window the figures and the animation show [s], 0 <= T0 < T1 <= the "
+        "end time (default: the motion, from the start to where the states settle; "
+        "--window 0 T_FINAL for the whole run)",
+    )
+    parser.add_argument(
         "--animate",
         action="store_true",
-        help="also write animation.gif (and animation.mp4 if ffmpeg exists) of the motion's "
-        "time window, the states figure's",
+        help="also write animation.gif (and animation.mp4 if ffmpeg exists) of the figures' "
+        f"time window, in real time up to {MOST_FRAMES} frames, faster beyond",
     )
     parser.add_argument(
         "--fps", type=int, default=25, help="frames per second of the animation and the viewer"
@@ -94,6 +108,7 @@ def _add_arguments(parser) -> None:
 
 def _scenario(args):
     from softcurve.scenarios.config import load_config, paper_scenario
+    from softcurve.simulation import SettingsError
 
     scenario = load_config(args.config) if args.config else paper_scenario()
     overrides = {
@@ -117,6 +132,38 @@ def _scenario(args):
         return dataclasses.replace(scenario, settings=settings.replace(**overrides))
     except SettingsError as exc:
         raise ParameterError(as_flags(str(exc))) from None
+
+
+def _window(args, scenario):
+    """The time window of the figures and the animation: ``--window`` checked against
+    the run's end time, or ``"auto"`` (the motion, as the figures choose it)."""
+    if args.window is None:
+        return "auto"
+    start, end = args.window
+    t_final = scenario.settings.t_final
+    if not (np.isfinite(start) and np.isfinite(end) and 0 <= start < end <= t_final):
+        raise ParameterError(
+            f"--window must be two times 0 <= T0 < T1 <= the end time {t_final:g} s, "
+            f"got {start:g} {end:g}"
+        )
+    return (start, end)
+
+
+MOST_FRAMES = 250
+"""Frames of an animation at most, 10 s at 25 frames per second: the paper's case over
+its whole 10 s draws them in about 5 s into a 150 kB GIF (default size, 2-core x86_64);
+a longer window plays faster than real time."""
+OUTPUTS = (
+    "trajectory.csv",
+    "trajectory.npz",
+    "states.png",
+    "tip.png",
+    "contact.png",
+    "animation.gif",
+    "animation.mp4",
+    "viewer.html",
+)
+"""Every file ``simulate`` may write into its folder."""
 
 
 LARGE_CSV = 100e6
@@ -153,12 +200,14 @@ def as_flags(text: str) -> str:
 def _run(args) -> int:
     """Run ``softcurve simulate``; returns the exit code."""
     scenario = _scenario(args)
+    window = _window(args, scenario)
     if args.html:
         _options.viewer("--html")
     output = writable_folder(args.output, "--output")  # before any work
+    earlier = [output / name for name in OUTPUTS if (output / name).is_file()]
     written: list = []  # the files complete so far
     try:
-        return _simulate(args, scenario, output, written)
+        return _simulate(args, scenario, output, written, window, earlier)
     except KeyboardInterrupt:
         if not written:
             raise Interrupted(f"nothing written to {output}") from None
@@ -169,20 +218,17 @@ def _run(args) -> int:
         ) from None
 
 
-def _simulate(args, scenario, output, written: list) -> int:
-    """Simulate and write into ``output``, appending each file to ``written`` once whole."""
-    from softcurve.simulation import simulate
+def _simulate(args, scenario, output, written: list, window, earlier: list) -> int:
+    """Simulate and write into ``output``, appending each file to ``written`` once whole;
+    ``window`` is the figures' (``"auto"`` or ``(start, end)`` [s]), ``earlier`` the files
+    of an earlier run in ``output``."""
+    from softcurve.simulation import CSV_BYTES_PER_VALUE, format_bytes, simulate
+    from softcurve.simulation.results import save_trajectory
 
     say = (lambda *a: None) if args.quiet else print
-    show_progress = args.progress if args.progress is not None else sys.stderr.isatty()
+    show_progress = progress_shown(args)
     start = time.perf_counter()
-    model = build_model(
-        "simulate",
-        scenario.robot,
-        environment=scenario.environment,
-        quiet=args.quiet,
-        progress=show_progress,
-    )
+    model = build_model(scenario.robot, environment=scenario.environment)
     built = time.perf_counter() - start
     q0, qd0, lam0 = scenario.initial_state()
     trajectory = simulate(
@@ -212,22 +258,31 @@ def _simulate(args, scenario, output, written: list) -> int:
     looks = {"figsize": args.figsize, "dpi": args.dpi}
     looks = {k: v for k, v in looks.items() if v is not None}
     if not args.no_figures and trajectory.t.size:
-        figures = [("states.png", trajectory.plot), ("tip.png", trajectory.plot_tip)]
+        figures = [
+            ("states.png", lambda: trajectory.plot(window=window)),
+            ("tip.png", lambda: trajectory.plot_tip(window=window)),
+        ]
         if model.environment is not None:
             figures.append(("contact.png", lambda: trajectory.contact().plot()))
         for name, draw in figures:
             written.append(write_figure(draw, output / name, **looks))
-    if args.animate and trajectory.t.size > 1:
+    # a run that failed before the window has nothing in it to animate
+    reached = trajectory.t.size > 1 and (window == "auto" or window[0] < trajectory.t[-1])
+    if args.animate and reached:
         movies = ["animation.gif"] + (["animation.mp4"] if shutil.which("ffmpeg") else [])
         for name in movies:
-            written.append(_animation(trajectory, output / name, args, show_progress, looks))
+            written.append(
+                _animation(trajectory, output / name, args, show_progress, looks, window)
+            )
     if args.html and trajectory.t.size:
         written.append(trajectory.to_html(output / "viewer.html", fps=args.fps))
     total = time.perf_counter() - start
+    summary = _summary(scenario, model, trajectory, built, total, written)
+    summary += _earlier_lines(earlier, written)
     if trajectory.success:
-        say(_summary(scenario, model, trajectory, built, total, written))
+        say(summary)
         return 0
-    print(_summary(scenario, model, trajectory, built, total, written), file=sys.stderr)
+    print(summary, file=sys.stderr)
     print(
         f"softcurve simulate: integration failed: {as_flags(trajectory.message)}",
         file=sys.stderr,
@@ -235,19 +290,37 @@ def _simulate(args, scenario, output, written: list) -> int:
     return 1
 
 
-def _animation(trajectory, path, args, show_progress: bool, looks: dict):
-    """Write one animation over the motion's window, saying first what it draws."""
+def _animation(trajectory, path, args, show_progress: bool, looks: dict, window):
+    """Write one animation over ``window``, at most ``MOST_FRAMES`` frames, saying first
+    what it draws."""
     from softcurve.figures.trajectories import frame_samples, motion_window
 
+    start, end = motion_window(trajectory, window)
+    end = min(end, float(trajectory.t[-1]))  # a failed run ends early
+    speed = max(1.0, (end - start) * args.fps / MOST_FRAMES)
     if not args.quiet:
-        start, end = motion_window(trajectory)
-        frames = frame_samples(trajectory, fps=args.fps).size
+        frames = frame_samples(trajectory, window=window, fps=args.fps, speed=speed).size
         print(
             f"softcurve simulate: writing {path.name}, {frames} frames of t = {start:.3g} .. "
-            f"{end:.3g} s ...",
+            f"{end:.3g} s" + (f" at {speed:.3g}x real time" if speed > 1 else "") + " ...",
             file=sys.stderr,
         )
-    return trajectory.animate(path, fps=args.fps, progress=show_progress, **looks)
+    return trajectory.animate(
+        path, fps=args.fps, speed=speed, window=window, progress=show_progress, **looks
+    )
+
+
+def _earlier_lines(earlier: list, written: list) -> str:
+    """The summary's lines on the files of an earlier run: those replaced, and those left
+    that this run did not write (they belong to the earlier run)."""
+    replaced = [p.name for p in earlier if p in written]
+    left = [p.name for p in earlier if p not in written]
+    lines = ""
+    if replaced:
+        lines += "\n  replaced    " + ", ".join(replaced) + " of an earlier run"
+    if left:
+        lines += "\n  left        " + ", ".join(left) + " of an earlier run (not written now)"
+    return lines
 
 
 def _summary(scenario, model, trajectory, built, total, written) -> str:

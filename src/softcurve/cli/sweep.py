@@ -14,9 +14,16 @@ from pathlib import Path
 
 from softcurve.base.files import writable_folder
 from softcurve.base.validation import ParameterError
-from softcurve.figures.drawing import figure_format
 
-from . import Command, Interrupted, _options, add_progress_options, rate_text, write_figure
+from . import (
+    Command,
+    Interrupted,
+    _options,
+    add_progress_options,
+    rate_text,
+    show_progress,
+    write_figure,
+)
 from ._models import build_model
 
 FIGURE = "sweep.png"
@@ -56,7 +63,7 @@ def _add_arguments(parser) -> None:
         help="also draw each output against each swept variable into FILE (default: "
         f"{FIGURE} in the output folder; the suffix gives the format: .png, .pdf, .svg)",
     )
-    add_progress_options(parser)
+    add_progress_options(parser, everywhere=True)
 
 
 def _run(args) -> int:
@@ -74,16 +81,13 @@ def _run(args) -> int:
         _options.count(args.workers, "--workers", 0)
     config = load_sweep(args.config)
     figure = _figure_path(args.figure, args.output)
-    show = args.progress if args.progress is not None else sys.stderr.isatty()
+    show = show_progress(args)
     if args.scheduler is None:  # the local workers share this cache: compile once, here
         writable_folder(args.output, "--output")  # before any work
         build_model(
-            "sweep",
             config.scenario.robot,
             environment=config.scenario.environment,
             quadrature_nodes=config.quadrature_nodes,
-            quiet=args.quiet,
-            progress=show,
         )
     result = _run_until_signal(
         run_sweep,
@@ -126,6 +130,8 @@ def _run(args) -> int:
 def _figure_path(figure, output):
     """The figure's file: a bare name goes into the output folder; checked before any work
     (its format, and that its folder exists)."""
+    from softcurve.figures.drawing import figure_format
+
     if figure is None:
         return None
     path = Path(figure)
@@ -149,12 +155,14 @@ RESUME = "the chunks written are kept: run the same command to resume"
 def _run_until_signal(function, *args, **kwargs):
     """``function(*args, **kwargs)``; on SIGTERM or an interrupt the worker processes are
     killed before the exception goes on (the chunks written so far are kept)."""
-    from softcurve.simulation.batch import stop_workers
+    from softcurve.simulation.batch import close_workers, stop_workers
 
     main_thread = threading.current_thread() is threading.main_thread()
     previous = signal.signal(signal.SIGTERM, _terminated) if main_thread else None
     try:
-        return function(*args, **kwargs)
+        result = function(*args, **kwargs)
+        close_workers()  # here, where an interrupt is one line, not at the interpreter's exit
+        return result
     except KeyboardInterrupt:
         stop_workers()
         raise Interrupted(RESUME) from None

@@ -270,10 +270,10 @@ def cached_model_library(structure, quadrature_nodes) -> Path | None:
     pathlib.Path or None
         The intact library recording this structure's key, or None.
     """
-    return cached_library("model", _cache_key(structure, quadrature_nodes))
+    return cached_library("model", _cache_key(structure, quadrature_nodes), COMPILED_FUNCTIONS)
 
 
-def compiled_library(structure, quadrature_nodes, symbolic, load=None):
+def compiled_library(structure, quadrature_nodes, symbolic, load=None, what: str = "the model"):
     """The cached library for this structure, checked and loaded, compiling it first if
     needed (or if the cached one is damaged or another's); None on failure.
 
@@ -288,6 +288,9 @@ def compiled_library(structure, quadrature_nodes, symbolic, load=None):
     load : callable, optional
         ``load(path)`` opens the library (``ctypes.CDLL``, say) and raises OSError or
         RuntimeError when it cannot; default: return the path unchanged.
+    what : str
+        What it is, in words, for the line that says it is compiled (``"the model of 2
+        segments"``).
 
     Returns
     -------
@@ -305,7 +308,15 @@ def compiled_library(structure, quadrature_nodes, symbolic, load=None):
 
     key = _cache_key(structure, quadrature_nodes)
     try:
-        return load_or_build("model", key, build, load or (lambda path: path), stacklevel=3)
+        return load_or_build(
+            "model",
+            key,
+            build,
+            load or (lambda path: path),
+            stacklevel=3,
+            symbols=COMPILED_FUNCTIONS,
+            what=what,
+        )
     except NoCompiler as exc:
         message = f"{exc}: softcurve runs in CasADi's virtual machine, about 10x slower to simulate"
     except (OSError, subprocess.CalledProcessError) as exc:

@@ -12,6 +12,14 @@ reaches the dynamic loader, where a truncated library would crash the process wi
 SIGBUS). A library that fails either check, has no checksum file or fails to load is
 rebuilt once, with a :class:`CacheWarning` naming the file and the reason.
 
+The bytes that passed must also be a whole library defining the symbols its caller
+needs (:func:`~softcurve.compiled._elf.image_problem`: a checksum file written for a
+truncated library matches it, and the loader would crash on it). Before anything in the
+cache folder is trusted, the folder, the folders above it and each library and checksum
+file must be the user's and writable by no one else, unless the cache is declared
+shared (``softcurve.compiled._trust``); a folder that fails is not read at all, and
+builds go to a temporary folder kept for the process, with one :class:`CacheWarning`.
+
 A filled cache needs no compiler: the key is what the library computes (structure,
 sources, flags, CPU, CasADi's version), not the compiler that built it, and the compiler
 is asked for only when something must be built. A cache folder that cannot be written
@@ -32,20 +40,29 @@ from pathlib import Path
 
 from softcurve.base.docs import parameters_from
 from softcurve.base.files import atomic_write
+from softcurve.base.log import logger, timed
+from softcurve.compiled import _trust as trust
+from softcurve.compiled._elf import image_problem
 
 
 class CacheWarning(UserWarning):
-    """A cached compiled library was damaged (checksum, size), was built for another key
-    or failed to load, and was replaced by a fresh build; or the cache folder cannot be
-    written and builds are kept for the process only."""
+    """A cached compiled library was damaged (checksum, size, cut short), was built for
+    another key, lacked its symbols, failed to load or could be written by other users,
+    and was replaced by a fresh build; or the cache folder cannot be written or trusted
+    and builds are kept for the process only."""
 
 
 CACHE_VARIABLE = "SOFTCURVE_CACHE_DIR"
 """The environment variable that names the cache folder."""
 _CHECKSUM_SUFFIX = ".sha256"
-_LOAD_ERRORS = (OSError, RuntimeError)
+_LOG = logger("compiled")
+_LOAD_ERRORS = (OSError, RuntimeError, AttributeError)
 """What loading a library raises: ``ctypes.CDLL`` an OSError, CasADi's ``external`` a
-RuntimeError."""
+RuntimeError, a ctypes lookup of a symbol it lacks an AttributeError (the symbols a
+caller names are checked before loading; this is for those it does not name)."""
+_FILE_MODE = 0o644
+"""Libraries and checksum files: replaced by renames, never written in place, so no one
+needs to write them (whatever the umask, or :mod:`._trust` refuses them)."""
 
 
 def cache_directory() -> Path:
@@ -84,18 +101,22 @@ def _checksum_line(data: bytes, key: str) -> str:
 
 
 @_library_docs
-def library_problem(library, key: str | None = None) -> str | None:
+def library_problem(library, key: str | None = None, symbols: tuple[str, ...] = ()) -> str | None:
     """Why a cached library must not be loaded, or None when it is the one asked for.
 
     The recorded key is compared first (another library copied over this one, with its
     checksum file), then the size (a partial copy fails without being read), then the
-    SHA-256 of the content: one read of the file (about 0.1-0.5 MB).
+    SHA-256 of the content: one read of the file (about 0.1-0.5 MB); the same bytes must
+    then be a whole library defining ``symbols``
+    (:func:`~softcurve.compiled._elf.image_problem`).
 
     Parameters
     ----------
     %(library)s
     key : str, optional
         The full cache key the caller computed (hex digits); None checks integrity only.
+    symbols : tuple of str
+        Names the library must define.
 
     Returns
     -------
@@ -126,7 +147,7 @@ def library_problem(library, key: str | None = None) -> str | None:
         return f"cannot be read ({exc})"
     if hashlib.sha256(data).hexdigest() != fields[1]:
         return "does not match its checksum (damaged)"
-    return None
+    return image_problem(data, symbols)
 
 
 def install(library, data: bytes, key: str) -> Path:
@@ -152,23 +173,42 @@ def install(library, data: bytes, key: str) -> Path:
         ``library``.
     """
     library = Path(library)
-    atomic_write(checksum_file(library), _checksum_line(data, key).encode("ascii"))
-    return atomic_write(library, data)
+    atomic_write(checksum_file(library), _checksum_line(data, key).encode("ascii"), _FILE_MODE)
+    return atomic_write(library, data, _FILE_MODE)
 
 
 _VERIFIED: dict[tuple[Path, str], tuple] = {}
 """The libraries this process verified and loaded, by (path, key), with the (device,
-inode, size, modification time) of the library and its checksum file: a later model of
-the same structure skips the read while both are unchanged (a replaced or rewritten file
-is verified again)."""
+inode, size, modification time, mode, owner) of the library and its checksum file: a
+later model of the same structure skips the read while both are unchanged (a replaced,
+rewritten or opened up file is verified again)."""
+
+
+def _stats(library: Path) -> tuple[os.stat_result, ...] | None:
+    try:
+        return library.stat(), checksum_file(library).stat()
+    except OSError:  # missing, or its folder is not one
+        return None
 
 
 def _identity(library: Path) -> tuple | None:
-    try:
-        stats = library.stat(), checksum_file(library).stat()
-    except OSError:  # missing, or its folder is not one
+    stats = _stats(library)
+    if stats is None:
         return None
-    return tuple((s.st_dev, s.st_ino, s.st_size, s.st_mtime_ns) for s in stats)
+    return tuple((s.st_dev, s.st_ino, s.st_size, s.st_mtime_ns, s.st_mode, s.st_uid) for s in stats)
+
+
+_UNTRUSTED: dict[tuple[Path, bool], str | None] = {}
+"""Per cache folder (and whether it was declared shared), why its libraries are not
+trusted (:func:`softcurve.compiled._trust.folder_problem`), or None; checked once per
+process."""
+
+
+def _untrusted(folder: Path) -> str | None:
+    shared = trust.shared()
+    if (folder, shared) not in _UNTRUSTED:
+        _UNTRUSTED[folder, shared] = trust.folder_problem(folder, shared)
+    return _UNTRUSTED[folder, shared]
 
 
 _PROCESS_FOLDERS: dict[Path, Path] = {}
@@ -182,8 +222,8 @@ def _unwritable(folder: Path) -> str | None:
     nor what root may write)."""
     if folder.exists() and not folder.is_dir():
         return "is not a folder"
-    try:
-        folder.mkdir(parents=True, exist_ok=True)
+    try:  # a new folder writable by the user alone, or by the group of a shared one
+        folder.mkdir(parents=True, exist_ok=True, mode=0o775 if trust.shared() else 0o755)
         with tempfile.NamedTemporaryFile(dir=folder, prefix=".softcurve-probe-"):
             pass
     except OSError as exc:
@@ -202,7 +242,7 @@ def _process_folder(folder: Path, problem: str, stacklevel: int) -> Path:
         warnings.warn(
             f"softcurve cache: the cache folder {folder} ({CACHE_VARIABLE}{named}) {problem}; "
             f"compiled libraries are kept in {temporary} for this process only (set "
-            f"{CACHE_VARIABLE} to a writable folder to keep them)",
+            f"{CACHE_VARIABLE} to a writable folder of your own to keep them)",
             CacheWarning,
             stacklevel=stacklevel + 1,
         )
@@ -215,7 +255,7 @@ def _build_folder(folder: Path, stacklevel: int) -> Path:
     stand-in."""
     if folder in _PROCESS_FOLDERS:
         return _PROCESS_FOLDERS[folder]
-    problem = _unwritable(folder)
+    problem = _untrusted(folder) or _unwritable(folder)
     return folder if problem is None else _process_folder(folder, problem, stacklevel + 1)
 
 
@@ -226,27 +266,43 @@ def _library_name(kind: str, key: str) -> str:
 def _candidates(folder: Path, name: str) -> list[Path]:
     """Where the library ``name`` of the cache ``folder`` is looked for, in order: this
     process's stand-in first (a library it holds replaced one of the cache), then the
-    folder."""
-    candidates = [folder / name]
+    folder unless it is not trusted."""
+    candidates = [] if _untrusted(folder) else [folder / name]
     if folder in _PROCESS_FOLDERS:
         candidates.insert(0, _PROCESS_FOLDERS[folder] / name)
     return candidates
 
 
-def _found(folder: Path, name: str, key: str) -> tuple[Path, tuple | None, str | None] | None:
+def _file_problem(library: Path) -> str | None:
+    """Why the library or its checksum file is not trusted (another's, or writable by
+    others: :func:`softcurve.compiled._trust.file_problem`), or None."""
+    stats = _stats(library)
+    for path, status in zip((library, checksum_file(library)), stats or (), strict=bool(stats)):
+        problem = trust.file_problem(status, trust.shared())
+        if problem is not None:
+            return f"{'' if path == library else 'has a checksum file that '}{problem}"
+    return None
+
+
+def _found(
+    folder: Path, name: str, key: str, symbols: tuple[str, ...] = ()
+) -> tuple[Path, tuple | None, str | None] | None:
     """The first of :func:`_candidates` that exists, with its identity (before the check,
-    so a file changed after it is checked again) and :func:`library_problem` (None when
-    this process verified it unchanged); None when none exists."""
+    so a file changed after it is checked again) and why it must not be loaded
+    (:func:`_file_problem`, :func:`library_problem`; None when this process verified it
+    unchanged); None when none exists."""
     for library in _candidates(folder, name):
         identity = _identity(library)
         if identity is None and not library.exists():
             continue
-        verified = identity is not None and _VERIFIED.get((library, key)) == identity
-        return library, identity, None if verified else library_problem(library, key)
+        if identity is not None and _VERIFIED.get((library, key)) == identity:
+            return library, identity, None
+        problem = _file_problem(library) or library_problem(library, key, symbols)
+        return library, identity, problem
     return None
 
 
-def cached_library(kind: str, key: str) -> Path | None:
+def cached_library(kind: str, key: str, symbols: tuple[str, ...] = ()) -> Path | None:
     """The library :func:`load_or_build` would load for ``kind`` and ``key`` without
     building, or None when it would build (nothing cached, or what is cached fails
     :func:`library_problem`); nothing is built, loaded or warned about.
@@ -257,6 +313,8 @@ def cached_library(kind: str, key: str) -> Path | None:
         Start of the file name: ``"model"``, ``"function"``, a C source's stem.
     key : str
         The full cache key (hex digits).
+    symbols : tuple of str
+        Names the library must define.
 
     Returns
     -------
@@ -264,7 +322,7 @@ def cached_library(kind: str, key: str) -> Path | None:
         The library, intact and recording ``key`` (loading it fails only if the dynamic
         loader refuses it), or None.
     """
-    found = _found(cache_directory(), _library_name(kind, key), key)
+    found = _found(cache_directory(), _library_name(kind, key), key, symbols)
     return found[0] if found is not None and found[2] is None else None
 
 
@@ -272,15 +330,25 @@ class UnusableLibrary(OSError):
     """A freshly built library failed to load."""
 
 
-def load_or_build(kind: str, key: str, build: Callable[[], bytes], load: Callable, stacklevel: int):
+def load_or_build(
+    kind: str,
+    key: str,
+    build: Callable[[], bytes],
+    load: Callable,
+    stacklevel: int,
+    symbols: tuple[str, ...] = (),
+    what: str | None = None,
+):
     """The library ``<kind>_<key[:24]>.so``, checked against ``key`` and loaded, built
     first when missing; one that fails :func:`library_problem` or fails to load is
-    replaced by a fresh build once, with a :class:`CacheWarning`.
+    replaced by a fresh build once, with a :class:`CacheWarning`. A build is said on the
+    logger ``softcurve.compiled`` (:mod:`softcurve.base.log`): what is compiled and where
+    it goes before, how long it took after.
 
     It is looked for in this process's stand-in for the cache folder (when the cache
-    cannot be written), then in the cache folder. ``build`` is called only when nothing
-    usable is found, after the folder it will go to is known (the cache, else the
-    stand-in).
+    cannot be written or trusted), then in the cache folder (when it is trusted).
+    ``build`` is called only when nothing usable is found, after the folder it will go
+    to is known (the cache, else the stand-in).
 
     Parameters
     ----------
@@ -296,6 +364,11 @@ def load_or_build(kind: str, key: str, build: Callable[[], bytes], load: Callabl
         ``load(path)`` opens the library; raises OSError or RuntimeError when it cannot.
     stacklevel : int
         Of the warnings, counted from the caller of this function.
+    symbols : tuple of str
+        Names the library must define, checked before it is loaded (a library that
+        lacks them is another's, and is rebuilt).
+    what : str, optional
+        What is compiled, in words (``"the model of 2 segments"``; default ``kind``).
 
     Returns
     -------
@@ -309,7 +382,10 @@ def load_or_build(kind: str, key: str, build: Callable[[], bytes], load: Callabl
     """
     folder = cache_directory()
     name = _library_name(kind, key)
-    found = _found(folder, name, key)
+    untrusted = _untrusted(folder)
+    if untrusted is not None:  # its libraries are not even looked at
+        _process_folder(folder, untrusted, stacklevel + 1)
+    found = _found(folder, name, key, symbols)
     if found is not None:
         library, identity, problem = found
         if problem is None:  # checked before dlopen: a truncated file would SIGBUS in it
@@ -327,7 +403,19 @@ def load_or_build(kind: str, key: str, build: Callable[[], bytes], load: Callabl
             stacklevel=stacklevel + 1,
         )
     target = _build_folder(folder, stacklevel + 1) / name
-    data = build()
+    what = what or kind
+    where = (
+        f"C, cached in {folder} for later runs"
+        if target.parent == folder
+        else f"C, kept in {target.parent} for this process only"
+    )
+    with timed(
+        _LOG,
+        f"compiling {what} ({where}) ...",
+        f"compiled {what} in %.1f s: {target.name}",
+        f"compiling {what}: %.0f s so far",
+    ):
+        data = build()
     try:
         install(target, data, key)
     except OSError as exc:  # the folder failed after the check (full, unmounted)

@@ -45,6 +45,14 @@ from softcurve.symbolic.functions import common_subexpressions
 
 _TOLERANCE = 1e-12
 
+MAX_PREFIX = 255 - len("test_.c") - len(".") - len(".pid1234567@") - 64 - len(".01234567.c")
+"""Longest ``prefix`` [characters] (160): the longest file :func:`export_c` writes,
+``test_<prefix>.c``, is first written under a temporary name
+(:func:`softcurve.base.files.atomic_write`: ``.<name>.pid<pid>@<host>.<8 hex>.c``, a pid
+of up to 7 digits and a host name of up to 64 characters, POSIX's ``HOST_NAME_MAX``),
+and a file name has at most 255 bytes on Linux's, macOS's and Windows's file systems
+(measured: a prefix of 240 characters fails there, one of 300 in CasADi's own writer)."""
+
 
 @dataclass(frozen=True)
 class ExportedC(Result):
@@ -167,7 +175,9 @@ def _test_program(prefix: str, functions, samples, expected) -> str:
 
 def c_identifier(name: str, value: str) -> str:
     """``value``, checked to be a C identifier (ASCII letters, digits and ``_``, not
-    starting with a digit); :class:`~softcurve.ParameterError` naming ``name`` otherwise.
+    starting with a digit) of at most :data:`MAX_PREFIX` characters (the files
+    :func:`export_c` names after it); :class:`~softcurve.ParameterError` naming ``name``
+    otherwise.
 
     Parameters
     ----------
@@ -180,6 +190,11 @@ def c_identifier(name: str, value: str) -> str:
         raise ParameterError(
             f"{name} must be a C identifier (letters, digits and _, not starting with a "
             f"digit), got {value!r}"
+        )
+    if len(value) > MAX_PREFIX:
+        raise ParameterError(
+            f"{name} must have 1 to {MAX_PREFIX} characters (the files named after it must "
+            f"fit a file system's 255-byte names), got {len(value)}: {value[:20]}..."
         )
     return value
 
@@ -206,7 +221,8 @@ def export_c(
     actuator : Actuator, optional
         Adds ``<prefix>_input_matrix(q) -> H`` (n x m, column-major).
     prefix : str
-        A C identifier: file names and function names start with it.
+        A C identifier of at most ``MAX_PREFIX`` (160) characters: file names and function
+        names start with it.
     embed_parameters : bool
         Compile the robot's numbers in (default) or take ``p`` as the last input.
     seed : int

@@ -66,7 +66,13 @@ def compile_function(function: ca.Function, flags: tuple[str, ...] | None = None
     key = build.cache_key("function", function.serialize(), flags_key)
     try:
         _, loaded = cache.load_or_build(
-            "function", key, make, lambda path: (load or load_external)(path, name), stacklevel=2
+            "function",
+            key,
+            make,
+            lambda path: (load or load_external)(path, name),
+            stacklevel=2,
+            symbols=(name,),
+            what=f"the function {name}",
         )
     except build.NoCompiler:
         return function

@@ -387,7 +387,7 @@ def compile_lanes(stem: str, source_for, entry: str, argtypes: list) -> Compiled
     attempts = [(True, VECTOR_MATH_LIBRARY)] if vector_math_available() else []
     for vector_math, link in [*attempts, (False, ())]:
         try:
-            library = compile_source(stem, source_for(vector_math), link)
+            library = compile_source(stem, source_for(vector_math), link, (entry,))
         except NotImplementedError:
             return None
         if library is not None:

@@ -236,8 +236,14 @@ class Model:
         self._cache_lock = threading.Lock()
         self.compiled_library: Path | None = None
         if compile:
+            segments = f"{robot.n_segments} segment{'s' if robot.n_segments != 1 else ''}"
+            obstacles = "" if environment is None else " and its obstacles"
             loaded = compiled_library(
-                self._cache_structure(), quadrature_nodes, lambda: self.symbolic, load=_load
+                self._cache_structure(),
+                quadrature_nodes,
+                lambda: self.symbolic,
+                load=_load,
+                what=f"the model of {segments}{obstacles}",
             )
             if loaded is not None:
                 self.compiled_library, self._native = loaded

@@ -110,10 +110,11 @@ def load_external(path, name: str) -> ca.Function:
     return ca.external(name, str(path), {"enable_fd": True})
 
 
-def _compiled(stem: str, key_parts: tuple, write, arguments: Sequence[str]):
+def _compiled(stem: str, key_parts: tuple, write, arguments: Sequence[str], symbols: tuple):
     """The library ``stem`` built by the compiler with ``arguments`` in a folder where
     ``write(folder)`` put its sources, cached under the key of ``key_parts`` and the
-    flags; loaded, or None when it is not cached and cannot be built."""
+    flags, defining ``symbols``; loaded, or None when it is not cached and cannot be
+    built."""
     compiler = build.find_compiler()
     flags = build.compile_flags()
 
@@ -126,12 +127,15 @@ def _compiled(stem: str, key_parts: tuple, write, arguments: Sequence[str]):
 
     key = build.cache_key(stem, *key_parts, flags)
     try:
-        return load_or_build(stem, key, compile_, load_library, stacklevel=3)[1]
+        what = f"softcurve's {stem}"
+        return load_or_build(
+            stem, key, compile_, load_library, stacklevel=3, symbols=tuple(symbols), what=what
+        )[1]
     except (build.NoCompiler, OSError, subprocess.CalledProcessError):
         return None
 
 
-def compile_source(stem: str, source: str, link: tuple[str, ...] = ()):
+def compile_source(stem: str, source: str, link: tuple[str, ...] = (), symbols=()):
     """A C ``source`` compiled to a shared library, cached on disk by its content, loaded.
 
     Parameters
@@ -143,6 +147,9 @@ def compile_source(stem: str, source: str, link: tuple[str, ...] = ()):
     link : tuple of str
         Further arguments of the compiler's link step (``-L``, ``-l``, ``-Wl,-rpath``),
         part of the cache key.
+    symbols : sequence of str
+        Names the library must define (its entry points): a cached library that lacks
+        them is another's, and is rebuilt.
 
     Returns
     -------
@@ -155,10 +162,13 @@ def compile_source(stem: str, source: str, link: tuple[str, ...] = ()):
         (source, tuple(link)),
         lambda folder: (folder / f"{stem}.c").write_text(source),
         [f"{stem}.c", *link],
+        symbols,
     )
 
 
-def compile_files(stem: str, folder, link: tuple[str, ...] = (), defines: tuple[str, ...] = ()):
+def compile_files(
+    stem: str, folder, link: tuple[str, ...] = (), defines: tuple[str, ...] = (), symbols=()
+):
     """Every ``.c`` file of ``folder`` compiled into one shared library (its headers found
     in ``folder``), cached on disk by the content of every ``.c`` and ``.h`` file there,
     loaded.
@@ -173,6 +183,8 @@ def compile_files(stem: str, folder, link: tuple[str, ...] = (), defines: tuple[
         Further arguments of the link step, part of the cache key.
     defines : tuple of str
         Macros defined on the command line (``-D``), part of the cache key.
+    symbols : sequence of str
+        As :func:`compile_source`'s.
 
     Returns
     -------
@@ -185,4 +197,5 @@ def compile_files(stem: str, folder, link: tuple[str, ...] = (), defines: tuple[
         (path.name, path.read_bytes()) for path in sorted([*sources, *folder.glob("*.h")])
     )
     arguments = [f"-I{folder}", *(f"-D{name}" for name in defines), *map(str, sources), *link]
-    return _compiled(stem, (contents, tuple(link), tuple(defines)), lambda _: None, arguments)
+    key_parts = (contents, tuple(link), tuple(defines))
+    return _compiled(stem, key_parts, lambda _: None, arguments, symbols)

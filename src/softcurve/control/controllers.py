@@ -40,6 +40,7 @@ from softcurve.base.validation import ParameterError, real_array, real_scalar
 from softcurve.control.references import Reference
 from softcurve.description.actuator import Actuator
 from softcurve.figures import plot_input_bounds
+from softcurve.simulation import sample_time as checked_sample_time
 
 
 # -- controllers ------------------------------------------------------------------------
@@ -56,11 +57,13 @@ class SampledController:
     Parameters
     ----------
     sample_time : float
-        Time between two samples [s], > 0; the output is held in between.
+        Time between two samples [s], ``>= softcurve.simulation.MIN_TIME`` (about
+        1.5e-154 s; ``simulate`` also wants at most ``max_outputs`` samples); the output
+        is held in between.
     """
 
     def __init__(self, sample_time: float):
-        self.sample_time = real_scalar("sample_time", sample_time, positive=True)
+        self.sample_time = checked_sample_time("sample_time", sample_time)
         self.log: list[dict] = []
 
     def reset(self) -> None:

@@ -15,7 +15,13 @@ from functools import cached_property
 
 import numpy as np
 
-from softcurve.base.validation import ParameterError, positive_definite, real_array, real_scalar
+from softcurve.base.validation import (
+    FLOAT_MAX,
+    ParameterError,
+    positive_definite,
+    real_array,
+    real_scalar,
+)
 from softcurve.description.layout import ParameterLayout
 from softcurve.description.materials import Creep, LinearStiffness, TanhStiffness
 
@@ -34,6 +40,13 @@ turn. Beyond it the arc overlaps itself, which a solid segment cannot do. The ba
 quadrature is at round-off up to pi per segment with the default 11 nodes and within
 1e-13 relative at 2 pi (docs/model.md, "Quadrature"), so the whole domain is computed
 accurately."""
+
+MAX_REST_LENGTH = FLOAT_MAX**0.25 / MAX_STRETCH
+"""Longest rest length [m] (about 1.2e76 m): the mass matrix's bending entries grow as
+the fourth power of a segment's length (``m l^4``), and a segment reaches
+``MAX_STRETCH`` rest lengths, so beyond it they overflow float64 in the model's domain
+(measured: the paper's segment at rest simulates at ``l0 = 1e77`` m, and at 1e78 m its
+linearization holds infinities)."""
 
 
 def segment_inside(length, kx, ky, longest, hypot=np.hypot):
@@ -128,7 +141,7 @@ class Segment:
     Parameters
     ----------
     rest_length : float
-        Undeformed arc length ``l0`` [m], > 0.
+        Undeformed arc length ``l0`` [m], in ``(0, MAX_REST_LENGTH]`` (about 1.2e76 m).
     mass : float
         Total mass ``m`` [kg], > 0, spread uniformly along the backbone.
     radius : float
@@ -171,6 +184,11 @@ class Segment:
     def __post_init__(self):
         for name in ("rest_length", "mass", "radius"):
             object.__setattr__(self, name, real_scalar(name, getattr(self, name), positive=True))
+        if self.rest_length > MAX_REST_LENGTH:
+            raise ParameterError(
+                f"rest_length must be in (0, {MAX_REST_LENGTH:.3g}] m (beyond it the mass "
+                f"matrix's l^4 terms overflow float64), got {self.rest_length!r}"
+            )
         for name in ("elongation_stiffness", "bending_stiffness"):
             law = getattr(self, name)
             if not isinstance(law, LinearStiffness | TanhStiffness):

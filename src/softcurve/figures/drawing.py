@@ -187,6 +187,33 @@ def save_figure(figure, path, *, dpi: float = 110) -> Path:
     return path
 
 
+def model_rows(model, q, what: str) -> np.ndarray:
+    """``q`` as float64 rows, checked to have the coordinates of ``model`` (three per
+    segment); :class:`~softcurve.ParameterError` naming both sizes otherwise.
+
+    Parameters
+    ----------
+    model : softcurve.Model
+        The model that draws ``q``.
+    q : array_like, shape (k, n) or (n,)
+        Configurations [m, 1/m, 1/m per segment].
+    what : str
+        What ``q`` belongs to, for the message (e.g. ``"the trajectory"``).
+
+    Returns
+    -------
+    ndarray, shape (k, n)
+    """
+    q = np.atleast_2d(np.asarray(q, dtype=np.float64))
+    if q.shape[-1] != model.n:
+        raise ParameterError(
+            f"{what} has {q.shape[-1]} coordinates ({q.shape[-1] // 3} segment(s)), the "
+            f"model {model.n} ({model.robot.n_segments} segment(s)): pass the model it was "
+            "computed with"
+        )
+    return q
+
+
 def backbones(model, q, points: int) -> np.ndarray:
     """World positions along the robot, one backbone per configuration.
 
@@ -204,7 +231,7 @@ def backbones(model, q, points: int) -> np.ndarray:
     ndarray, shape (k, points, 3)
         Positions [m].
     """
-    q = np.atleast_2d(np.asarray(q, dtype=np.float64))
+    q = model_rows(model, q, "q")
     if q.shape[0] == 0:
         return np.empty((0, points, 3))
     s = np.linspace(0.0, 1.0, points)

@@ -121,7 +121,8 @@ def time_window(t, signals, window) -> tuple[float, float]:
 
 def window_note(t, start: float, end: float) -> str:
     """``", t = 0 .. 0.654 s of 10 s"`` when ``(start, end)`` is not the whole record,
-    else ``""``: what a figure's title adds to say which window it shows.
+    ``", t = 0 .. 10 s"`` when it is: what a figure's title adds to say which window it
+    shows.
 
     Parameters
     ----------
@@ -137,7 +138,7 @@ def window_note(t, start: float, end: float) -> str:
     t = np.asarray(t, dtype=np.float64)
     if t.size > 1 and (start, end) != (t[0], t[-1]):
         return f", t = {start:.3g} .. {end:.3g} s of {t[-1]:.3g} s"
-    return ""
+    return f", t = {start:.3g} .. {end:.3g} s" if t.size > 1 else ""
 
 
 def _around(t, first: int, last: int, margin: float) -> tuple[float, float]:

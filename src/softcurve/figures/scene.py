@@ -18,7 +18,7 @@ import numpy as np
 
 from softcurve.base.validation import ParameterError, real_array, real_scalar
 from softcurve.description.tendons import TendonActuator
-from softcurve.figures.drawing import whole_number
+from softcurve.figures.drawing import model_rows, whole_number
 from softcurve.figures.obstacles import environment_meshes
 
 MM_PER_M = 1e3
@@ -334,7 +334,7 @@ def build_scene(
     Scene
     """
     rings = whole_number("rings", rings, 2)
-    q = np.atleast_2d(np.asarray(q, dtype=np.float64))
+    q = model_rows(model, q, "q")
     labels = tuple(str(label) for label in labels)
     if len(labels) != q.shape[0]:
         raise ParameterError(f"labels must have one entry per frame ({q.shape[0]})")

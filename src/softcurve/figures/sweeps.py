@@ -21,6 +21,14 @@ PANELS = (
 """The rows of the figure: ``(axis label, column, factor to the label's unit)``, one
 output per row so that each has its own scale (a millimetre of z beside 40 mm of x is
 invisible on a shared axis); a row whose column the table lacks is left out."""
+TIP_COLUMNS = ("final_tip_x", "final_tip_y", "final_tip_z")
+ROUND_OFF = 1e-4
+"""Relative spread below which an output is drawn as a constant: a spread below
+``ROUND_OFF`` of the output's scale (for the tip's positions and ranges, the largest
+final tip distance; otherwise the largest value) is the integrator's error, not the
+swept variable's effect. CVODES at the default rtol 1e-6 leaves a settled tip about 2e-6
+of its reach off (examples/sweep_grid.toml: final tip x spread over 1.3e-4 mm around an
+exact 0 at a 65 mm reach); 1e-4 keeps a 50x margin above that."""
 
 
 def sweep_columns(table) -> dict[str, np.ndarray]:
@@ -64,6 +72,69 @@ def is_output(name: str) -> bool:
     return name in OUTPUT_NAMES or name.startswith(OUTPUT_PREFIXES)
 
 
+def constant_value(values, scale: float) -> float | None:
+    """The constant an output's values are within round-off, or None when they vary.
+
+    Parameters
+    ----------
+    values : array_like, shape (rows,)
+        The output over the simulations [any unit]; NaN (failed simulations) ignored.
+    scale : float
+        The output's scale [its unit]: a spread below ``ROUND_OFF`` of it is round-off.
+
+    Returns
+    -------
+    float or None
+        Their mean (0 where it is itself round-off of ``scale``) when the finite values
+        spread less than ``ROUND_OFF * scale``, exactly equal values included; None when
+        they spread more or none is finite.
+    """
+    values = np.asarray(values, dtype=np.float64)
+    values = values[np.isfinite(values)]
+    if not values.size:
+        return None
+    tolerance = ROUND_OFF * abs(scale)
+    if np.ptp(values) > tolerance:
+        return None
+    mean = float(values.mean())
+    return 0.0 if abs(mean) <= tolerance else mean
+
+
+def _scales(columns: dict, rows) -> dict[str, float]:
+    """Each row's scale (see ``ROUND_OFF``) in the row's unit: the tip's reach, the
+    largest final tip distance, for the tip's rows (at least their own largest value),
+    the largest value for the others."""
+    tip = [columns[c].astype(np.float64) for c in TIP_COLUMNS if c in columns]
+    reach = np.linalg.norm(np.array(tip), axis=0) if tip else np.zeros(0)
+    reach = float(reach[np.isfinite(reach)].max(initial=0.0))
+    scales = {}
+    for _, name, factor in rows:
+        values = np.abs(factor * columns[name].astype(np.float64))
+        own = float(values[np.isfinite(values)].max(initial=0.0))
+        scales[name] = (
+            max(own, factor * reach) if name.startswith(("final_tip_", "tip_range_")) else own
+        )
+    return scales
+
+
+def _draw_constant(axis, x, value: float, scale: float, label: str) -> None:
+    """One output that is constant within round-off: its points on one level, a band of
+    the scale's 5 % around it (no offset label of noise) and the value written."""
+    axis.plot(x, np.full(x.shape, value), ".", ms=4)
+    half = 0.05 * (scale if scale > 0 else 1.0)
+    axis.set_ylim(value - half, value + half)
+    unit = f" {label[label.rfind('[') + 1 : -1]}" if label.endswith("]") else ""
+    spread = f"spread < {100 * ROUND_OFF:g} % of {scale:.3g}{unit}"
+    axis.text(
+        0.5,
+        0.8,
+        f"constant: {value:.6g}{unit} ({spread})",
+        transform=axis.transAxes,
+        ha="center",
+        fontsize="small",
+    )
+
+
 def plot_sweep(table, ax=None, *, variables=None, labels=None):
     """Each summary output of a sweep against each swept variable, one point per
     simulation.
@@ -73,7 +144,9 @@ def plot_sweep(table, ax=None, *, variables=None, labels=None):
     and the peak energy [J] (rows whose outputs the sweep did not compute are left out). With
     several variables, the points above one value of a variable are the simulations
     that differ in the others. Failed simulations (NaN outputs) are not drawn; their
-    count is in the title.
+    count is in the title. An output whose values spread less than ``ROUND_OFF`` (1e-4)
+    of its scale (the tip's reach for the tip's rows) is the integrator's round-off of one
+    value: drawn on one level and written as a constant, never as noise under an offset.
 
     Parameters
     ----------
@@ -131,11 +204,17 @@ def plot_sweep(table, ax=None, *, variables=None, labels=None):
         sharex="col",
         figsize=(3.6 * len(variables) + 0.8, 1.7 * len(rows) + 0.9),
     )
+    scales = _scales(columns, rows)
     for r, (label, name, factor) in enumerate(rows):
+        values = factor * columns[name].astype(np.float64)
+        constant = constant_value(values, scales[name])
         for v, variable in enumerate(variables):
             axis = axes[r * len(variables) + v]
             x = columns[variable].astype(np.float64)
-            axis.plot(x, factor * columns[name].astype(np.float64), ".", ms=4)
+            if constant is None:
+                axis.plot(x, values, ".", ms=4)
+            else:
+                _draw_constant(axis, x[np.isfinite(values)], constant, scales[name], label)
             axis.grid(True, alpha=0.3)
             # an output the same to many digits reads as its values, not as "1e-6 + 63.96"
             axis.ticklabel_format(axis="y", useOffset=False)

@@ -15,7 +15,7 @@ from softcurve.base.files import atomic_path
 from softcurve.base.progress import ProgressLine
 from softcurve.base.validation import ParameterError, real_scalar
 from softcurve.figures.actuation import plot_inputs
-from softcurve.figures.drawing import backbones, panels, whole_number
+from softcurve.figures.drawing import backbones, model_rows, panels, whole_number
 from softcurve.figures.obstacles import draw_obstacles
 from softcurve.figures.scales import (
     NOISE,
@@ -29,6 +29,9 @@ MM_PER_M = 1e3
 STATE_LABELS = ("length l [m]", r"curvature $\kappa_x$ [1/m]", r"curvature $\kappa_y$ [1/m]")
 """Per segment, the coordinates are ``(l, kx, ky)``: one panel each."""
 ANIMATION_SUFFIXES = (".gif", ".mp4")
+LEGEND_ROWS = 8
+"""Entries per column of the states figure's legend, beside its top panel (2 inches
+tall: eight entries in small print fill it)."""
 MARGIN = 1.1
 """Axis limits of the animation: the space the backbone sweeps, 10 % wider."""
 MINIMUM_REACH = 0.1
@@ -179,8 +182,14 @@ def plot_states(trajectory, ax=None, *, window="auto", inputs=None):
         plot_inputs(trajectory, trajectory.actuator, axes[-1])
     if trajectory.t.size > 1:
         axes[-1].set_xlim(start, end)
-    if segments > 1:
-        axes[0].legend(loc="upper right", fontsize="small")
+    if segments > 1:  # beside the panels, where it covers no curve
+        axes[0].legend(
+            loc="upper left",
+            bbox_to_anchor=(1.01, 1.0),
+            borderaxespad=0.0,
+            fontsize="small",
+            ncols=-(-segments // LEGEND_ROWS),
+        )
     axes[-1].set_xlabel("time t [s]")
     title = "State trajectories" + window_note(trajectory.t, start, end)
     if not trajectory.success:
@@ -233,7 +242,9 @@ def plot_tip(trajectory, ax=None, *, window="auto"):
         note = f" (< {NOISE:g} reach: 0)" if k in zeroed else ""
         getattr(ax, f"set_{name}label")(f"{name} [mm]{note}")
     draw_obstacles(ax, getattr(trajectory, "model", None))
-    ax.set_title("End-effector trajectory" + window_note(trajectory.t, start, end))
+    # the window as drawn, its first and last samples: the legend's start and end
+    drawn = (float(t[0]), float(t[-1])) if t.size else (start, end)
+    ax.set_title("End-effector trajectory" + window_note(trajectory.t, *drawn))
     return figure
 
 
@@ -490,6 +501,7 @@ def animate(
     %(window)s
     %(progress)s
     """
+    model_rows(model, trajectory.q[:1], "the trajectory")
     path = Path(path)
     if path.suffix not in ANIMATION_SUFFIXES:
         raise ParameterError(f"animation path must end in .gif or .mp4, got {path.name!r}")

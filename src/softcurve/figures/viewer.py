@@ -18,6 +18,7 @@ import numpy as np
 from softcurve.base.docs import parameters_from
 from softcurve.base.files import atomic_write
 from softcurve.base.validation import ParameterError
+from softcurve.figures.drawing import model_rows
 from softcurve.figures.scene import Scene, build_scene, frame_indices
 from softcurve.figures.viewer_page import PAGE, SCRIPT
 
@@ -129,6 +130,7 @@ def trajectory_viewer(
     %(rings)s
 
     """
+    model_rows(model, trajectory.q[:1], "the trajectory")
     frames = frame_indices(trajectory.t, fps)
     times = trajectory.t[frames]
     status = "" if trajectory.success else f" (failed at t = {trajectory.t[-1]:.4g} s)"

@@ -13,9 +13,10 @@ the same folder, a sweep skips the chunks already written, so a killed sweep los
 the chunks in flight. When all chunks are in, ``<out>/results.parquet`` holds the table,
 one row per design point, sorted by ``index``.
 
-Chunks run in the worker pool of ``softcurve.simulation.batch._workers`` (default), in this
-process (``workers=0``) or on a Dask distributed cluster (``scheduler="tcp://host:8786"``
-or a ``distributed.Client``).
+Chunks run in this process (``workers=0``), in the worker pool of
+``softcurve.simulation.batch._workers`` or on a Dask distributed cluster
+(``scheduler="tcp://host:8786"`` or a ``distributed.Client``); by default the first two
+chunks run here, timed, and the pool takes the others only where it finishes them sooner.
 """
 
 from __future__ import annotations
@@ -38,6 +39,7 @@ from softcurve.scenarios.sweep_parts import intact, part_path, read_part
 from softcurve.scenarios.sweep_variables import variable_label
 from softcurve.simulation.batch import (
     default_threads,
+    pool_pays,
     run_in_processes,
     simulate_batch,
     worker_model,
@@ -163,8 +165,10 @@ class SweepResult(Result):
     message : str
         How many failed.
     stats : dict
-        ``size`` (design points), ``chunks``, ``variables`` (the swept names) and
-        ``labels`` (each name in words with its unit, the figure's axis labels).
+        ``size`` (design points), ``chunks``, ``variables`` (the swept names),
+        ``labels`` (each name in words with its unit, the figure's axis labels) and
+        ``workers`` (the worker processes that ran the chunks, 0 for this process; None
+        on a Dask cluster or with nothing to run).
     """
 
     path: Path
@@ -214,7 +218,9 @@ def run_sweep(
     output : str or Path
         Folder for ``manifest.json``, ``parts/`` and ``results.parquet``.
     workers : int, optional
-        Local worker processes (default: the usable cores); 0 runs in this process.
+        Local worker processes; 0 runs in this process. Default: the first two chunks in
+        this process, timed, then the others on one worker per usable core when that is
+        sooner (a pool takes seconds to start), else here.
     scheduler : str or distributed.Client, optional
         A Dask scheduler address (``tcp://host:8786``) or client: run the chunks there.
     restart : bool
@@ -262,7 +268,6 @@ def _sweep(config, output, workers, scheduler, restart, progress, on_chunk) -> S
     done = {c for c, a, b in chunks if intact(part_path(parts, c), b - a)}
     design = config.design_points() if len(done) < len(chunks) else None
     pending = [(c, a, design[a:b]) for c, a, b in chunks if c not in done]
-    bar = ProgressLine(len(chunks), len(done), progress, unit="chunks")
     start = time.perf_counter()
 
     def write(c, columns):
@@ -274,8 +279,10 @@ def _sweep(config, output, workers, scheduler, restart, progress, on_chunk) -> S
             on_chunk(c, len(done), len(chunks))
 
     client = _connect(scheduler) if scheduler is not None and pending else None
+    chosen: dict = {"workers": None}
+    bar = ProgressLine(len(chunks), len(done), progress, unit="chunks", beat=True)
     try:
-        for c, columns in _execute(config, pending, workers, client):
+        for c, columns in _execute(config, pending, workers, client, chosen):
             write(c, columns)
     finally:
         bar.close()
@@ -307,6 +314,7 @@ def _sweep(config, output, workers, scheduler, restart, progress, on_chunk) -> S
             "chunks": len(chunks),
             "variables": tuple(v.name for v in config.variables),
             "labels": {v.name: variable_label(config.scenario, v.name) for v in config.variables},
+            "workers": chosen["workers"],
         },
     )
 
@@ -371,18 +379,44 @@ def _connect(scheduler):
         raise ConfigError(f"scheduler {scheduler}: cannot connect ({exc})") from None
 
 
-def _execute(config, pending, workers, client):
-    """Yield ``(chunk, columns)`` as chunks finish, in this process, a pool or on Dask."""
+MEASURED_CHUNKS = 2
+"""Chunks a sweep without ``workers`` runs in this process before it chooses where the
+others run: the first builds the integrators, the second gives the pace."""
+
+
+def _execute(config, pending, workers, client, chosen: dict):
+    """Yield ``(chunk, columns)`` as chunks finish, in this process, a pool or on Dask;
+    ``chosen["workers"]`` is set to the worker processes used (0: this process).
+
+    Without ``workers`` given, the first two chunks run in this process on all its
+    threads, timed, and the others go to a pool of one worker per core only if that
+    finishes them sooner than the second chunk's pace here
+    (:func:`~softcurve.simulation.batch.pool_pays`): a small sweep never waits for
+    workers to start. The first chunk also builds the model's integrators, once (a
+    worker builds its own): its time would overstate the pace here."""
     if not pending:
         return
     if client is not None:
         yield from _on_dask(config, pending, client)
         return
-    workers = default_threads() if workers is None else workers
+    measured = MEASURED_CHUNKS if workers is None else 0
+    while measured and pending:
+        (c, a, rows), pending = pending[0], pending[1:]
+        wall, cpu = time.perf_counter(), time.process_time()
+        columns = run_chunk(config, a, rows, threads=default_threads())
+        wall, cpu = time.perf_counter() - wall, time.process_time() - cpu
+        measured -= 1
+        if measured == 0 or not pending:
+            pays = pool_pays(wall, cpu, len(pending), default_threads())
+            workers = default_threads() if pays else 0
+        chosen["workers"] = 0
+        yield c, columns
     if workers == 0 or len(pending) == 1:
+        chosen["workers"] = 0
         for c, a, rows in pending:
             yield c, run_chunk(config, a, rows, threads=default_threads())
         return
+    chosen["workers"] = workers
     tasks = {c: (config, a, rows, 1) for c, a, rows in pending}
     yield from run_in_processes(run_chunk, tasks, workers)
 

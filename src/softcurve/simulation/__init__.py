@@ -9,9 +9,12 @@ their file format), ``stepper``, ``sensitivity``, ``batch``.
 """
 
 from softcurve.simulation._settings import CSV_BYTES_PER_VALUE as CSV_BYTES_PER_VALUE
+from softcurve.simulation._settings import MAX_STEPS as MAX_STEPS
+from softcurve.simulation._settings import MIN_TIME as MIN_TIME
 from softcurve.simulation._settings import SettingsError as SettingsError
 from softcurve.simulation._settings import SimulationSettings as SimulationSettings
 from softcurve.simulation._settings import format_bytes as format_bytes
+from softcurve.simulation._settings import sample_time as sample_time
 from softcurve.simulation._simulate import simulate as simulate
 from softcurve.simulation.batch import simulate_batch as simulate_batch
 from softcurve.simulation.results import BatchTrajectory as BatchTrajectory
@@ -24,9 +27,12 @@ from softcurve.simulation.stepper import Stepper as Stepper
 
 __all__ = [
     "CSV_BYTES_PER_VALUE",
+    "MAX_STEPS",
+    "MIN_TIME",
     "SettingsError",
     "SimulationSettings",
     "format_bytes",
+    "sample_time",
     "simulate",
     "simulate_batch",
     "BatchTrajectory",

@@ -8,23 +8,38 @@ command line all take it, and each default is written here alone.
 
 from __future__ import annotations
 
+import ctypes
 import dataclasses
 import math
 from dataclasses import dataclass
 
 import numpy as np
 
-from softcurve.base.validation import ParameterError, beyond_float
+from softcurve.base.validation import ParameterError, beyond_float, real_scalar
 
 METHODS = ("cvodes", "adams", "bdf", "rk45")
 """Integrators: ``"cvodes"`` chooses Adams or BDF per problem, ``"adams"`` and ``"bdf"``
 force CVODES's family, ``"rk45"`` is SciPy's explicit Runge-Kutta 4(5)."""
 
-RTOL_MIN = 100 * np.finfo(np.float64).eps
+EPSILON = float(np.finfo(np.float64).eps)
+"""The float64 epsilon, 2^-52: the spacing of floats relative to their size."""
+
+RTOL_MIN = 100 * EPSILON
 """Smallest relative tolerance (about 2.2e-14): tighter ones ask for fewer than 100 units
 in the last place over a whole run, which float64 arithmetic cannot deliver, and CVODES
 stops with CV_TOO_MUCH_ACC after the work is done; they are refused up front instead."""
 
+MAX_STEPS = 2 ** (8 * ctypes.sizeof(ctypes.c_long) - 1) - 1
+"""Largest step budget (2^63 - 1 where a C ``long`` has 64 bits): CVODES takes it as a C
+``long`` (``CVodeSetMaxNumSteps``, and the C driver's ``sc_options.max_steps``); a
+larger one wraps around there (2^64 + 1 became 1)."""
+
+MIN_TIME = math.sqrt(float(np.finfo(np.float64).tiny))
+"""Shortest output interval, and so end time [s] (about 1.5e-154 s): CVODES squares
+step sizes (its first step's estimate weighs ``h^2`` times the second derivative), and
+below the square root of the smallest normal float64 that square is subnormal or zero
+(measured: from 1e-155 s CVODES needs four times the steps, below 1e-160 s it stops with
+CV_ILL_INPUT)."""
 
 MAX_OUTPUTS = 10_000_000
 """Default limit of output times: 1000 times the paper's 10 s at 1 ms; the state of a
@@ -88,10 +103,12 @@ class SimulationSettings:
     Parameters
     ----------
     t_final : float
-        End time [s], > 0 (default 10 s, the paper's case).
+        End time [s], ``>= MIN_TIME`` (default 10 s, the paper's case).
     dt : float
-        Output interval [s], ``0 < dt <= t_final`` (default 1 ms). The integrator chooses
-        its own steps by error control, independently of ``dt``.
+        Output interval [s], ``MIN_TIME <= dt <= t_final`` (default 1 ms; :data:`MIN_TIME`
+        is about 1.5e-154 s) and at least ``t_final`` times the float64 epsilon (so that
+        every ``t + dt`` is a new time). The integrator chooses its own steps by error
+        control, independently of ``dt``.
     method : {"cvodes", "adams", "bdf", "rk45"}
         The integrator (default ``"cvodes"``: CVODES, Adams or BDF chosen per problem).
     rtol : float
@@ -100,7 +117,9 @@ class SimulationSettings:
         Absolute tolerance per state (> 0); None (default) means ``rtol`` times each
         state's natural scale (:func:`~softcurve.simulation.solvers.nominal_scale`).
     max_steps : int
-        Internal steps allowed between two output times, >= 1 (default 50 000).
+        Internal steps allowed between two output times, in ``[1, MAX_STEPS]`` (default
+        50 000; :data:`MAX_STEPS` is a C ``long``'s largest value, 2^63 - 1 on 64-bit
+        Linux and macOS).
     max_outputs : int
         Output times allowed, >= 2 (default :data:`MAX_OUTPUTS`): ``t_final / dt + 1``
         above it is refused before anything is allocated, with the size the outputs
@@ -125,6 +144,12 @@ class SimulationSettings:
     def __post_init__(self):
         t_final = _number("t_final", self.t_final, unit=" [s]")
         dt = _number("dt", self.dt, unit=" [s]")
+        if t_final < MIN_TIME:
+            raise SettingsError(
+                "t_final",
+                f"must be >= {MIN_TIME:.3g} s (the shortest time whose square CVODES's step "
+                f"sizes need as a normal float64), got {t_final!r}",
+            )
         if dt > t_final:
             raise SettingsError("dt", f"must be <= t_final = {t_final!r} [s], got {dt!r}")
         if self.method not in METHODS:
@@ -136,8 +161,12 @@ class SimulationSettings:
             raise SettingsError("rtol", f"must be in [{RTOL_MIN:g}, 1), got {rtol!r}")
         max_steps = self.max_steps
         integer = isinstance(max_steps, int | np.integer) and not isinstance(max_steps, bool)
-        if not integer or max_steps < 1:
-            raise SettingsError("max_steps", f"must be an integer >= 1, got {max_steps!r}")
+        if not integer or not 1 <= max_steps <= MAX_STEPS:
+            raise SettingsError(
+                "max_steps",
+                f"must be an integer in [1, {MAX_STEPS}] (CVODES counts steps in a C long), "
+                f"got {max_steps!r}",
+            )
         limit = self.max_outputs
         integer = isinstance(limit, int | np.integer) and not isinstance(limit, bool)
         if not integer or limit < 2:
@@ -151,6 +180,15 @@ class SimulationSettings:
                 f"{format_bytes(outputs * CSV_BYTES_PER_VALUE)} of CSV for each recorded value, "
                 f"13 of them for one segment with creep), more than max_outputs "
                 f"{int(limit)}: shorten t_final, raise dt, or raise max_outputs",
+            )
+        shortest = max(MIN_TIME, t_final * EPSILON)
+        if dt < shortest:
+            raise SettingsError(
+                "dt",
+                f"must be in [{shortest:.3g}, {t_final!r}] [s] (at least {MIN_TIME:.2g} s, "
+                "whose square CVODES's step sizes need as a normal float64, and t_final "
+                f"times the float64 epsilon, so that each output time differs from the one "
+                f"before), got {dt!r}",
             )
         set_ = object.__setattr__
         set_(self, "max_outputs", int(limit))
@@ -237,6 +275,38 @@ def output_count(t_final: float, dt: float) -> float:
     if not ratio < 2.0**52:  # beyond exact integers, or inf: the ratio itself
         return ratio + 1.0
     return math.ceil(ratio * (1 - 1e-12)) + 1.0
+
+
+def sample_time(name: str, value, settings: SimulationSettings | None = None) -> float:
+    """``value`` as the time between a controller's samples [s]: a finite number >=
+    :data:`MIN_TIME` (the shortest time CVODES steps over, as ``dt``), and with
+    ``settings`` at most ``max_outputs`` samples up to ``t_final`` (the samples are
+    times of the run, as the outputs are); :class:`~softcurve.ParameterError` otherwise.
+
+    Parameters
+    ----------
+    name : str
+        The field's name, for the message (e.g. ``"controller.sample_time"``).
+    value : float
+        The sample time [s].
+    settings : SimulationSettings, optional
+        The run's settings.
+    """
+    x = real_scalar(name, value, positive=True)
+    shortest = MIN_TIME
+    if settings is not None:
+        shortest = max(shortest, settings.t_final / settings.max_outputs)
+    if x < shortest:
+        bound = "" if settings is None else (
+            f", and t_final {settings.t_final:g} s over at most max_outputs "
+            f"{settings.max_outputs} samples"
+        )  # fmt: skip
+        raise SettingsError(
+            name,
+            f"must be >= {shortest:.3g} s (at least {MIN_TIME:.2g} s, the shortest time "
+            f"CVODES steps over{bound}), got {x!r}",
+        )
+    return x
 
 
 def _atol(value):

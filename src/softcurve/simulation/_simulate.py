@@ -68,10 +68,10 @@ import numpy as np
 
 from softcurve.base.progress import ProgressLine
 from softcurve.base.status import Status
-from softcurve.base.validation import ParameterError, float_array, real_array, real_scalar
+from softcurve.base.validation import ParameterError, float_array, real_array
 from softcurve.compiled import Model
 from softcurve.description.actuator import Actuator
-from softcurve.simulation._settings import SimulationSettings, settings_with
+from softcurve.simulation._settings import SimulationSettings, sample_time, settings_with
 from softcurve.simulation.results import Trajectory
 from softcurve.simulation.solvers import (
     ActuatorInput,
@@ -163,14 +163,12 @@ def _constant(value, width: int) -> bool:
     return value is None or (not callable(value) and np.shape(value) == (width,))
 
 
-def _sample_time(controller):
+def _sample_time(controller, settings):
     if controller is None:
         return None
     if not callable(controller):
         raise ParameterError("controller must be callable as controller(t, q, qd, lam)")
-    return real_scalar(
-        "controller.sample_time", getattr(controller, "sample_time", None), positive=True
-    )
+    return sample_time("controller.sample_time", getattr(controller, "sample_time", None), settings)
 
 
 # -- the simulation ------------------------------------------------------------------------
@@ -253,7 +251,7 @@ def simulate(
     settings = settings_with(settings, options, "simulate")
     x0 = initial_state(model, q0, qd0, lam0)
     grid = settings.output_times()
-    sample_time = _sample_time(controller)
+    sample_time = _sample_time(controller, settings)
     values, actuated, check = _drive(model, grid, tau, controller, actuator, inputs)
     model_x0 = x0
     if actuator_state is not None and actuator is None:
@@ -305,9 +303,10 @@ def simulate(
         failure = None
     except Stopped as stop:
         reached, failure = stop.reached, stop.reason
+    finally:  # also on an error: its line outside a terminal stops
+        if bar is not None:
+            bar.close()
     wall = time.perf_counter() - start_time
-    if bar is not None:
-        bar.close()
     stats.update(engine.counts, method=engine.method, wall_time=wall)
     return _result(model, grid, states, applied, reached, failure, stats, actuated, actuator)
 

@@ -191,6 +191,30 @@ def load_mat_trials(path, root: str, **selectors) -> list[Experiment]:
     return [load_mat(path, root=f"{root}[{k}]", **selectors) for k in range(count)]
 
 
+def _check_rows(path, columns: dict[str, np.ndarray], lines: list[int], time) -> None:
+    """An :class:`ExperimentError` naming the line (``lines[k]`` holds row ``k``) and the
+    column of the first NaN or infinite value in ``columns`` (those read), or the line
+    where the ``time`` column does not increase."""
+    if columns:
+        names = list(columns)
+        bad = np.argwhere(~np.isfinite(np.column_stack([columns[k] for k in names])))
+        if bad.size:
+            k, j = bad[0]
+            raise ExperimentError(
+                f"{path}, line {lines[k]}, column {names[j]!r}: non-finite value "
+                f"{columns[names[j]][k]} (NaN or inf)"
+            )
+    if isinstance(time, str) and time in columns:
+        t = columns[time]
+        back = np.flatnonzero(np.diff(t) <= 0)
+        if back.size:
+            k = back[0] + 1
+            raise ExperimentError(
+                f"{path}, line {lines[k]}: time must be strictly increasing, but {time!r} is "
+                f"{float(t[k])!r} s, not after {float(t[k - 1])!r} s on line {lines[k - 1]}"
+            )
+
+
 def load_csv(
     path,
     *,
@@ -203,7 +227,8 @@ def load_csv(
 ) -> Experiment:
     """Read an experiment from a CSV file with one header row of column names.
 
-    Empty or non-numeric cells are errors.
+    Empty or non-numeric cells are errors, and so are NaN or infinite values in the
+    columns read and times that do not increase (naming the line).
 
     Parameters
     ----------
@@ -232,9 +257,11 @@ def load_csv(
         raise ExperimentError(f"{path}: needs a header row and at least one data row")
     header = [h.strip() for h in rows[0]]
     table: dict[str, list[float]] = {h: [] for h in header}
+    lines = []  # the line of each data row, for the messages
     for number, row in enumerate(rows[1:], start=2):
         if not row:
             continue
+        lines.append(number)
         if len(row) != len(header):
             raise ExperimentError(
                 f"{path}, line {number}: {len(row)} fields, the header has {len(header)}"
@@ -250,9 +277,14 @@ def load_csv(
     def as_dict(names):
         return dict(names) if isinstance(names, dict) else {n: n for n in names}
 
+    columns = {k: np.array(v) for k, v in table.items()}
+    read = [*as_dict(signals).values(), *as_dict(inputs or {}).values(), time]
+    _check_rows(
+        path, {k: columns[k] for k in read if isinstance(k, str) and k in columns}, lines, time
+    )
     return _build(
         str(path),
-        {k: np.array(v) for k, v in table.items()},
+        columns,
         time,
         sample_rate,
         as_dict(signals),

@@ -42,7 +42,7 @@ import numpy as np
 from softcurve.analysis.loads import coordinate_scale, rest_configuration
 from softcurve.base.docs import parameters_from
 from softcurve.base.status import Status
-from softcurve.base.validation import ParameterError, real_array
+from softcurve.base.validation import ParameterError, float_array, real_array, real_scalar
 from softcurve.compiled import Model
 from softcurve.identification.fits._equilibria import EquilibriumPredictor
 from softcurve.identification.fits._initial import LAG, initial_state, start_values
@@ -176,6 +176,23 @@ def _per_experiment(name, value, experiments, is_one):
     return values
 
 
+def _finite_states(states, experiments) -> None:
+    """Refuse an initial state given as numbers with an entry that is not finite (NaN, inf),
+    naming the experiment and the entries (a callable gives CasADi expressions of the
+    extra parameters: nothing to check before the integration)."""
+    for e, state in zip(experiments, states, strict=True):
+        if callable(state):
+            continue
+        name = "x0" if len(experiments) == 1 else f"x0 of experiment {e.name!r}"
+        entries = float_array(name, state, "a real array of shape (n_state,)")
+        bad = np.flatnonzero(~np.isfinite(entries.ravel()))
+        if bad.size:
+            raise ParameterError(
+                f"{name} must be finite in every entry, got {entries.ravel()[bad].tolist()} "
+                f"at entries {bad.tolist()}"
+            )
+
+
 def _one_state(value) -> bool:
     if isinstance(value, list | tuple) and value:  # a list of states or of callables?
         return not (callable(value[0]) or np.ndim(value[0]) == 1)
@@ -279,6 +296,7 @@ def fit_trajectory(
     free, extra, parameters = _started(start, experiment, free, extra, parameters)
     experiments, _ = experiment_list(experiment)
     states = _per_experiment("x0", x0, experiments, _one_state)
+    _finite_states(states, experiments)
     lagged = input_lag is not None
     if lagged:
         if input_map is None or not (np.isfinite(input_lag) and input_lag > 0):
@@ -298,7 +316,9 @@ def fit_trajectory(
     processes, threads = parallel_layout(len(experiments), processes, threads)
     evaluators = []
     tolerances = _looser_tolerances(integrator_options)
-    for e, part, state in zip(experiments, problem.parameters.parts, states, strict=True):
+    # too few data values: not identifiable, reported without building the evaluators
+    built = [] if problem.too_few(signals, weights) else experiments
+    for e, part, state in zip(built, problem.parameters.parts, states, strict=False):
 
         def start(values, state=state, u0=first[e.name]):
             return initial_state(model, state, values, u0, lagged)
@@ -311,7 +331,7 @@ def fit_trajectory(
     report = problem.run(
         evaluators, signals, weights, max_evaluations, confidence, "trajectory fit", options=options
     )
-    if tolerances is not None:
+    if tolerances is not None and evaluators:
         report = _integration_checked(report, evaluators, problem.parameters, tolerances)
     return replace(report, extra={**report.extra, "input_hold": input_hold})
 
@@ -485,6 +505,20 @@ def _fitted_values(fit: FitReport, experiment, given: dict) -> dict:
     return values
 
 
+def _check_window(window, experiments) -> None:
+    """A window of ``x0="window"`` shorter than every experiment: one as long as a record
+    fits the initial state to all of it, and the prediction is then a fit."""
+    window = real_scalar("window", window, positive=True)
+    shortest = min(experiments, key=lambda e: e.duration)
+    if not window < shortest.duration:
+        raise ParameterError(
+            f"window must be in (0, {shortest.duration:g}) s, shorter than every experiment "
+            f"(the shortest, {shortest.name!r}, lasts {shortest.duration:g} s; a window "
+            f"as long fits the initial state to the whole record, and the prediction is a "
+            f"fit), got {window:g}"
+        )
+
+
 def _estimated_states(model, experiments, fit, values, how, window, problem) -> list:
     """Each experiment's initial state for a prediction: the equilibrium at its first
     input under the fit's estimate, then (``how == "window"``) the coordinates and rates
@@ -530,7 +564,7 @@ def _estimated_states(model, experiments, fit, values, how, window, problem) -> 
         )
         # entries the window determines only together (a planar sensor's view of an
         # elongation and a bending rate) still give the outputs: enough to predict from
-        if found.status not in (Status.SUCCESS, Status.NOT_IDENTIFIABLE):
+        if found.status not in (Status.SUCCESS, Status.NOT_IDENTIFIABLE) or not found.n_evaluations:
             raise FitError(
                 f"x0='window': the initial state of experiment {e.name!r} could not be fitted "
                 f"to its first {window:g} s ({found.status.value}: {found.message}); give a "
@@ -562,9 +596,10 @@ def predict_trajectory(
         the outputs), for a trial that starts in motion; the prediction covers the whole experiment,
         the window included.
     window : float, optional
-        Seconds from each experiment's start that ``x0="window"`` fits to [s]: long
-        enough for the outputs to show the motion (a few samples at least, and no
-        longer than needed: its fit is a simulation of that window per evaluation).
+        Seconds from each experiment's start that ``x0="window"`` fits to [s], shorter
+        than every experiment: long enough for the outputs to show the motion (a few
+        samples at least, and no longer than needed: its fit is a simulation of that
+        window per evaluation).
     **problem
         The fit's keyword arguments ``output``, ``input_map``, ``bind``, ``input_lag``,
         ``input_hold`` (and optionally ``signals``, ``weights``, ``extra``,
@@ -591,6 +626,8 @@ def predict_trajectory(
             stacklevel=2,
         )
     experiments, _ = experiment_list(experiment)
+    if window is not None:
+        _check_window(window, experiments)
     if isinstance(x0, str):
         x0 = _estimated_states(model, experiments, fit, values, x0, window, problem)
     report = fit_trajectory(

@@ -49,6 +49,14 @@ def _signals(experiment, output, signals):
     return names, experiment.signal_matrix(names)
 
 
+def _count_values(measured, w) -> int:
+    """The data values that enter the residuals: finite, with a nonzero weight."""
+    return sum(
+        int(np.count_nonzero(np.isfinite(m).ravel() & (weight != 0)))
+        for m, weight in zip(measured, w, strict=True)
+    )
+
+
 class Problem:
     """Experiments, free parameters and their starting values, for one fit.
 
@@ -91,6 +99,46 @@ class Problem:
         specific = {name for values in per.values() for name in values}
         self.parameters = JointParameters(parts, names, single, specific)
 
+    def data(self, signals, weights) -> tuple[list, list, list]:
+        """``(names, measured, w)``: the signals' names, each experiment's measured
+        values (T, k) and its residual weights (T k,), units checked.
+
+        Parameters
+        ----------
+        signals : list of str or None
+            Signals matched to the outputs.
+        weights : see ``softcurve.identification.fits._weights``
+            Residual weights.
+        """
+        names, measured, w = [], [], []
+        if isinstance(weights, dict):
+            unknown = sorted(set(weights) - {e.name for e in self.experiments})
+            if unknown:
+                raise ParameterError(
+                    f"weights: a dict is per experiment, but {unknown} are not experiments "
+                    f"of this fit ({[e.name for e in self.experiments]})"
+                )
+        for e in self.experiments:
+            per = weights.get(e.name) if isinstance(weights, dict) else weights
+            names, values = _signals(e, self.output, signals)
+            check_units(e, output=self.output, input_map=self.input_map, signals=names)
+            measured.append(values)
+            w.append(weight_matrix(per, e.t, len(names), e.name).ravel())
+        return names, measured, w
+
+    def too_few(self, signals, weights) -> bool:
+        """Whether the free parameters outnumber the data values that enter the
+        residuals (finite, nonzero weight): the Jacobian is then rank-deficient at every
+        point, which no evaluation can change, and the fit is not identifiable.
+
+        Parameters
+        ----------
+        signals, weights
+            As :meth:`run`'s.
+        """
+        _, measured, w = self.data(signals, weights)
+        return len(self.parameters.names) > _count_values(measured, w)
+
     def run(
         self, evaluators, signals, weights, max_evaluations, confidence, kind, *, options
     ) -> FitReport:
@@ -116,21 +164,10 @@ class Problem:
         J, experiments = self.parameters, self.experiments
         n_starts = whole_count("starts", options.get("starts", 1))
         processes = whole_count("processes", options.get("processes", 1))
-        names, measured, w = [], [], []
-        if isinstance(weights, dict):
-            unknown = sorted(set(weights) - {e.name for e in experiments})
-            if unknown:
-                raise ParameterError(
-                    f"weights: a dict is per experiment, but {unknown} are not experiments "
-                    f"of this fit ({[e.name for e in experiments]})"
-                )
-        for e in experiments:
-            per = weights.get(e.name) if isinstance(weights, dict) else weights
-            names, data = _signals(e, self.output, signals)
-            check_units(e, output=self.output, input_map=self.input_map, signals=names)
-            measured.append(data)
-            w.append(weight_matrix(per, e.t, len(names), e.name).ravel())
+        names, measured, w = self.data(signals, weights)
         size = len(J.names)
+        data_values = _count_values(measured, w)
+        too_few = size > data_values  # see too_few
 
         def evaluate(theta, outputs_only=False):
             thetas = [J.local(theta, e) for e in range(len(experiments))]
@@ -168,7 +205,7 @@ class Problem:
             label=kind,
         )
         solutions = []
-        for k, z0 in enumerate(points if size else []):
+        for k, z0 in enumerate(points if size and not too_few else []):
             offset = k * max_evaluations
             solutions.append(
                 robust_least_squares(
@@ -196,14 +233,25 @@ class Problem:
                     message += "; the values are the best point found before"
             count = sum(s.n_evaluations for s in solutions)
             jacobians = sum(s.n_jacobians for s in solutions)
+        elif too_few:
+            z, status, count, jacobians = J.theta0 / J.scale, Status.NOT_IDENTIFIABLE, 0, 0
+            message = (
+                f"{size} free parameters on {data_values} data values (signal samples with "
+                f"a nonzero weight): not identifiable, nothing integrated; fix at least "
+                f"{size - data_values} of them or add data; the values are the starting "
+                "values"
+            )
         else:
             z, status, message, count = np.zeros(0), Status.SUCCESS, "nothing to fit", 0
             jacobians = 0
         theta = z * J.scale
         try:
-            if solutions and best.residuals is None:  # nothing could be evaluated
+            if too_few:  # nothing evaluated
+                predicted = [np.full_like(m, np.nan) for m in measured]
+                r, jac = np.zeros(0), np.zeros((0, size))
+            elif solutions and best.residuals is None:  # nothing could be evaluated
                 raise RuntimeError("no point could be evaluated")
-            if solutions:  # the best point, evaluated in the fit
+            elif solutions:  # the best point, evaluated in the fit
                 r, jac, predicted = best.residuals, best.jacobian, kept[k_best]
             else:  # a prediction: nothing free
                 r, jac = residual_and_jacobian(z)
@@ -216,9 +264,13 @@ class Problem:
             status = Status.INTERRUPTED if interrupted else Status.NOT_CONVERGED
             predicted = [np.full_like(m, np.nan) for m in measured]
             r, jac = np.zeros(0), np.zeros((0, size))
-        errors, corr, identifiable, status, message = summarize(
-            J.names, theta, jac, r, status, message
-        )
+        if too_few:
+            errors, corr = np.full(size, np.inf), np.full((size, size), np.nan)
+            identifiable = np.zeros(size, bool)
+        else:
+            errors, corr, identifiable, status, message = summarize(
+                J.names, theta, jac, r, status, message
+            )
         at_bound = [
             name
             for name, v, lo, hi in zip(J.names, z, J.lower, J.upper, strict=True)

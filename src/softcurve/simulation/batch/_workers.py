@@ -19,6 +19,7 @@ from __future__ import annotations
 import ast
 import contextlib
 import inspect
+import math
 import os
 import signal
 import sys
@@ -98,11 +99,56 @@ def stop_workers() -> None:
         process.join(timeout=PARENT_POLL)
 
 
+def close_workers() -> None:
+    """End the idle worker processes and wait until they and the pool's thread are gone,
+    so that the interpreter exits with nothing to wait for (a Ctrl-C while it waits at
+    its exit is a traceback that no command can catch). An interrupt meanwhile leaves
+    the pool to :func:`stop_workers`; the next call starts a new one."""
+    if _POOL:
+        _POOL[0][1].shutdown(wait=True)
+        _POOL.clear()
+
+
 def default_threads() -> int:
     """Cores usable by this process."""
     if hasattr(os, "sched_getaffinity"):
         return max(1, len(os.sched_getaffinity(0)))
     return os.cpu_count() or 1
+
+
+POOL_START = 6.4
+"""Seconds before a new pool's workers give their first result beyond the work itself
+[s]: each spawned worker imports softcurve, loads the cached model and builds its
+integrator. Two new workers that each ran a one-member chunk of
+``examples/sweep_grid.toml`` took 6.4-7.6 s where the same chunk takes 0.02-0.04 s in
+this process (``python benchmarks/bench_pool_start.py``, two cores). A start taken too
+long or too short costs at most about itself: a sweep that would gain less stays here."""
+
+
+def pool_pays(wall: float, cpu: float, remaining: int, processes: int) -> bool:
+    """Whether ``remaining`` tasks like one measured in this process finish sooner on a
+    new pool of ``processes`` workers, its start (:data:`POOL_START`) counted.
+
+    Here the tasks take ``remaining * wall``. A worker runs a task on one thread, in
+    about the CPU seconds it took here (on all of this process's threads), ``processes``
+    at a time: ``POOL_START + ceil(remaining / processes) * cpu``. Work that this process
+    already spreads over its threads (softcurve's C driver) gains nothing from
+    processes; work on one thread (CasADi's integrator) gains when there is enough of it.
+
+    Parameters
+    ----------
+    wall : float
+        Wall time of the measured task in this process [s].
+    cpu : float
+        CPU time of this process during it, all threads [s].
+    remaining : int
+        Tasks still to run.
+    processes : int
+        Workers the pool would have.
+    """
+    if processes < 2 or remaining < 2:  # one task: one worker's start, nothing in parallel
+        return False
+    return POOL_START + math.ceil(remaining / processes) * cpu < remaining * wall
 
 
 def worker_model(

@@ -5,6 +5,7 @@ from softcurve.simulation.results._batch import BatchTrajectory as BatchTrajecto
 from softcurve.simulation.results._batch import batch_status as batch_status
 from softcurve.simulation.results._batch import stop_at_actuator_domain as stop_at_actuator_domain
 from softcurve.simulation.results._contact import ContactHistory as ContactHistory
+from softcurve.simulation.results._files import TrajectoryFileError as TrajectoryFileError
 from softcurve.simulation.results._files import column_names as column_names
 from softcurve.simulation.results._files import save_trajectory as save_trajectory
 from softcurve.simulation.results._trajectory import Trajectory as Trajectory
@@ -17,6 +18,7 @@ __all__ = [
     "ContactHistory",
     "column_names",
     "save_trajectory",
+    "TrajectoryFileError",
     "Trajectory",
     "load_trajectory",
 ]

@@ -12,6 +12,7 @@ from softcurve.base.status import Result, Status
 from softcurve.compiled import Model
 from softcurve.description.actuator import Actuator
 from softcurve.figures import animate, plot_states, plot_tip
+from softcurve.figures.drawing import model_rows
 from softcurve.figures.shapes import result_figure_options
 from softcurve.figures.trajectories import animation_options, figure_options
 from softcurve.figures.viewer import trajectory_viewer, viewer_options
@@ -97,6 +98,7 @@ class Trajectory(Result):
         model = model if model is not None else self.model
         if model is None:
             raise ValueError("this trajectory has no model attached: pass model=Model(robot)")
+        model_rows(model, self.q[:1], "the trajectory")
         return model
 
     def energy(self, model: Model | None = None) -> np.ndarray:
@@ -261,5 +263,13 @@ def load_trajectory(path) -> Trajectory:
     ----------
     path : str or Path
         A ``.csv`` or ``.npz`` file.
+
+    Raises
+    ------
+    TrajectoryFileError
+        A :class:`~softcurve.ParameterError` naming the file, the line (the row of an
+        NPZ file) and what is wrong, if the file disagrees with its own metadata: cut
+        short, columns that do not match ``n``, a NaN or infinite cell, a time not after
+        the one before. A failed run's file, which may end early, loads with its status.
     """
     return Trajectory(**read_trajectory(path))

@@ -257,7 +257,7 @@ def _compiled_force(force: ca.Function) -> NativeFunction | None:
     """``force`` generated as C, compiled (cached on disk by its code) and loaded, or None."""
     generator = ca.CodeGenerator("force.c", {"with_header": False})
     generator.add(force)
-    built = compile_source("actuator_force", generator.dump())
+    built = compile_source("actuator_force", generator.dump(), symbols=(force.name(),))
     return None if built is None else NativeFunction(built, force.name())
 
 
@@ -538,7 +538,7 @@ def _load(defines: tuple[str, ...]):
     except OSError as exc:
         return f"CasADi's {PLUGIN} cannot be loaded ({exc})"
     link = (f"-L{directory}", f"-l:{PLUGIN}", f"-Wl,-rpath,{directory}", "-pthread")
-    loaded = compile_files("cvodes_driver", C_FOLDER, link, defines)
+    loaded = compile_files("cvodes_driver", C_FOLDER, link, defines, tuple(DECLARATIONS.functions))
     if loaded is None:
         return "the driver's C source did not compile (no C compiler, or the build failed)"
     return DECLARATIONS.bind(loaded)
