@@ -420,7 +420,8 @@ def _balance_arguments(rng, model, act):
 
 @pytest.mark.parametrize("segments", [1, 3])
 def test_the_compiled_static_balance_is_the_virtual_machines(segments, rng):
-    """The balance in C (as equilibria of two segments and more evaluate it) equals
+    """The balance in C (as equilibria of ``COMPILED_SEGMENTS`` segments and more evaluate
+    it) equals
     CasADi's virtual machine at a seeded random state with an actuator and every load,
     and its ``K`` (the Hessian of the gravity's and the tip force's potential) is the
     Jacobian of its residual. Three segments leave the tip moment's term out (a short
@@ -464,7 +465,8 @@ def test_equilibria_of_one_structure_build_their_static_balance_once(monkeypatch
 
     monkeypatch.setattr(loads_module, "static_function", counting_static)
     monkeypatch.setattr(build_module, "compile_generated", counting_compile)
-    monkeypatch.setattr(loads_module, "COMPILED_SEGMENTS", 2)  # a model in the cache
+    # compiled from two segments, whose model library the tests share
+    monkeypatch.setattr(loads_module, "COMPILED_SEGMENTS", 2)
     robot = sc.presets.ifac2020().with_segments(2)
     model = sc.Model(robot)
     q0 = rest_configuration(robot)
