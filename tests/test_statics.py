@@ -421,11 +421,10 @@ def _balance_arguments(rng, model, act):
 @pytest.mark.parametrize("segments", [1, 3])
 def test_the_compiled_static_balance_is_the_virtual_machines(segments, rng):
     """The balance in C (as equilibria of ``COMPILED_SEGMENTS`` segments and more evaluate
-    it) equals
-    CasADi's virtual machine at a seeded random state with an actuator and every load,
-    and its ``K`` (the Hessian of the gravity's and the tip force's potential) is the
-    Jacobian of its residual. Three segments leave the tip moment's term out (a short
-    compile: the function equilibria without a moment take)."""
+    it) equals CasADi's virtual machine at a seeded random state with an actuator and
+    every load, and its ``K`` (the Hessian of the gravity's and the tip force's
+    potential) is the Jacobian of its residual. Three segments leave the tip moment's
+    term out (a short compile: the function equilibria without a moment take)."""
     robot = sc.presets.ifac2020().with_segments(segments)
     model = sc.Model(robot, quadrature_nodes=4, compile=False)
     act = PneumaticActuator.three_bellows(distance=0.012, area=2e-4, p_max=6e4, n_segments=segments)
