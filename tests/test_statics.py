@@ -2,18 +2,23 @@
 
 from __future__ import annotations
 
+import casadi as ca
 import numpy as np
 import pytest
 import scipy.optimize
 
 import softcurve as sc
 from softcurve import ParameterError, PneumaticActuator
+from softcurve.analysis import loads as loads_module
 from softcurve.analysis.inverse_statics import inverse_statics
+from softcurve.analysis.loads import StaticLoad, rest_configuration, static_function
 from softcurve.analysis.quasistatic import input_sweep
 from softcurve.analysis.solver import solve_equilibria
 from softcurve.analysis.statics import equilibria, equilibrium, linearize, rotate_about_axis
 from softcurve.base.status import Status
 from softcurve.cli import main
+from softcurve.compiled import _build as build_module
+from softcurve.compiled import compile_function, load_function
 from softcurve.simulation._simulate import simulate
 
 from .conftest import assert_close
@@ -393,3 +398,91 @@ def test_the_inverse_statics_figure_gives_each_quantity_its_axis_and_says_what_i
     red = [line for line in statics.lines if line.get_color() == "C3"]
     assert len(red) == 1  # the one target beyond reach
     plt.close(figure)
+
+
+# -- the static balance, compiled ---------------------------------------------------------
+def _balance_arguments(rng, model, act):
+    """A seeded random state inside the domain and loads of every kind for ``act``."""
+    q = rest_configuration(model.robot) + rng.uniform(-1, 1, model.n) * np.tile(
+        [2e-3, 8.0, 8.0], model.robot.n_segments
+    )
+    load = StaticLoad(
+        model,
+        tau=rng.normal(size=model.n) * 1e-2,
+        actuator=act,
+        inputs=rng.uniform(act.lower, act.upper),
+        tip_force=rng.normal(size=3) * 0.1,
+        tip_moment=rng.normal(size=3) * 1e-3,
+        gravity=rng.normal(size=3) * 5.0,
+    )
+    return q, load.arguments()
+
+
+@pytest.mark.parametrize("segments", [1, 3])
+def test_the_compiled_static_balance_is_the_virtual_machines(segments, rng):
+    """The balance in C (as equilibria of ``COMPILED_SEGMENTS`` segments and more evaluate
+    it) equals CasADi's virtual machine at a seeded random state with an actuator and
+    every load, and its ``K`` (the Hessian of the gravity's and the tip force's
+    potential) is the Jacobian of its residual. Three segments leave the tip moment's
+    term out (a short compile: the function equilibria without a moment take)."""
+    robot = sc.presets.ifac2020().with_segments(segments)
+    model = sc.Model(robot, quadrature_nodes=4, compile=False)
+    act = PneumaticActuator.three_bellows(distance=0.012, area=2e-4, p_max=6e4, n_segments=segments)
+    q, arguments = _balance_arguments(rng, model, act)
+    moment = segments == 1
+    function = static_function(model, act, tip_moment=moment)
+    compiled = compile_function(function, load=load_function)
+    assert not isinstance(compiled, ca.Function)  # C, called through ctypes
+    expected = [np.array(v, dtype=np.float64) for v in function(q, *arguments)]
+    outputs = compiled(q, *arguments)
+    for name, value, reference in zip(function.name_out(), outputs, expected, strict=True):
+        reference = reference.ravel() if reference.shape[1] == 1 else reference
+        assert_close(value, reference, rtol=1e-12, scale=np.abs(reference).max(), what=name)
+    symbol = ca.SX.sym("q", model.n)
+    residual = function(symbol, *arguments)[0]
+    jacobian = ca.Function("j", [symbol], [ca.jacobian(residual, symbol)])
+    k_of_r = np.array(jacobian(q))
+    assert_close(expected[1], k_of_r, rtol=1e-12, scale=np.abs(k_of_r).max())
+
+
+def test_equilibria_of_one_structure_build_their_static_balance_once(monkeypatch):
+    """The balance is kept with the model by its structure (the actuator, which tip
+    loads), not by the loads' values: another equilibrium of the model builds nothing; a
+    model of the same structure with other numbers loads the library its first one
+    compiled (no compiler runs); the balance compiled gives the virtual machine's
+    equilibrium."""
+    built, compiled = [], []
+    original_static, original_compile = loads_module.static_function, build_module.compile_generated
+
+    def counting_static(*args, **kwargs):
+        built.append(args[1:])
+        return original_static(*args, **kwargs)
+
+    def counting_compile(*args, **kwargs):
+        compiled.append(sorted(args[0]))
+        return original_compile(*args, **kwargs)
+
+    monkeypatch.setattr(loads_module, "static_function", counting_static)
+    monkeypatch.setattr(build_module, "compile_generated", counting_compile)
+    # compiled from two segments, whose model library the tests share
+    monkeypatch.setattr(loads_module, "COMPILED_SEGMENTS", 2)
+    robot = sc.presets.ifac2020().with_segments(2)
+    model = sc.Model(robot)
+    q0 = rest_configuration(robot)
+    first = equilibrium(model, q0, gravity=[0.0, 0.0, 9.81])
+    assert len(built) == 1 and len(compiled) <= 1  # compiled unless cached before
+    assert not isinstance(loads_module.static_balance(StaticLoad(model)), ca.Function)
+    again = equilibrium(model, q0, gravity=[0.3, 0.0, 9.0], tau=np.full(6, 1e-3))
+    assert len(built) == 1 and len(compiled) <= 1
+    assert first.success and again.success and np.abs(again.q - first.q).max() > 0
+    compiled.clear()
+    heavier = robot.replace(segments=[s.replace(mass=2 * s.mass) for s in robot.segments])
+    other = equilibrium(sc.Model(heavier), q0, gravity=[0.0, 0.0, 9.81])
+    assert len(built) == 2 and compiled == []  # built for the new model, loaded from disk
+    assert other.success
+    in_vm = sc.Model(robot, compile=False)
+    assert isinstance(loads_module.static_balance(StaticLoad(in_vm)), ca.Function)
+    vm = equilibrium(in_vm, q0, gravity=[0.0, 0.0, 9.81])
+    assert_close(first.q, vm.q, rtol=1e-12, scale=np.abs(vm.q).max())
+    assert first.stability == vm.stability
+    assert_close(first.eigenvalues, vm.eigenvalues, rtol=1e-9, scale=np.abs(vm.eigenvalues).max())

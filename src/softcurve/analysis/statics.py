@@ -45,7 +45,7 @@ from softcurve.analysis.loads import (
     coordinate_scale,
     residual_reference,
     rest_configuration,
-    static_function,
+    static_balance,
 )
 from softcurve.analysis.solver import Root, solve_equilibrium
 from softcurve.base.status import Status
@@ -71,7 +71,7 @@ class _Problem:
     def __init__(self, load: StaticLoad):
         self.load = load
         self.model = load.model
-        self.function = static_function(self.model, load.actuator)
+        self.function = static_balance(load)
         self.scale = coordinate_scale(self.model.robot)
         self.reference = residual_reference(self.model)
         self.evaluations = 0
@@ -81,8 +81,8 @@ class _Problem:
         r, k, w, tip = self.function(q, *self.load.arguments())
         return (
             np.array(r, dtype=np.float64).ravel(),
-            np.array(k, dtype=np.float64),
-            float(w),
+            np.array(k, dtype=np.float64).reshape(self.model.n, self.model.n),
+            float(np.asarray(w, dtype=np.float64).reshape(-1)[0]),
             np.array(tip, dtype=np.float64).ravel(),
         )
 
