@@ -211,10 +211,9 @@ def test_a_damaged_function_library_is_rebuilt(tmp_path, monkeypatch):
     assert float(again([0.5, -2.0])) == pytest.approx(float(first([0.5, -2.0])), rel=1e-15)
 
 
-def test_a_half_truncated_library_in_a_child_process(intact, cache):
-    """The case that crashed with SIGBUS, with the real compiler, in a child process (a
-    crash would show as its exit code, not kill pytest)."""
-    _half(cache)
+def _child(cache):
+    """The forward dynamics computed in a child process on ``cache``'s folder (a crash shows
+    as its exit code, not as pytest's), which must exit 0."""
     env = {**os.environ, "SOFTCURVE_CACHE_DIR": str(cache.parent)}
     child = subprocess.run(
         [sys.executable, "-c", CHILD, json.dumps([Q.tolist(), QD.tolist()])],
@@ -224,6 +223,14 @@ def test_a_half_truncated_library_in_a_child_process(intact, cache):
         timeout=600,
     )
     assert child.returncode == 0, f"exit {child.returncode}: {child.stderr[-2000:]}"
+    return child
+
+
+def test_a_half_truncated_library_in_a_child_process(intact, cache):
+    """The case that crashed with SIGBUS, with the real compiler, in a child process (a
+    crash would show as its exit code, not kill pytest)."""
+    _half(cache)
+    child = _child(cache)
     assert "CacheWarning" in child.stderr and str(cache) in child.stderr
     assert library_problem(cache) is None
     result = json.loads(child.stdout.strip().splitlines()[-1])
@@ -236,15 +243,7 @@ def test_a_truncated_library_with_a_matching_checksum_in_a_child_process(intact,
     data = cache.read_bytes()
     _reinstall(cache, data[: len(data) // 2])
     assert library_problem(cache, None) is not None  # found from the bytes alone
-    env = {**os.environ, "SOFTCURVE_CACHE_DIR": str(cache.parent)}
-    child = subprocess.run(
-        [sys.executable, "-c", CHILD, json.dumps([Q.tolist(), QD.tolist()])],
-        env=env,
-        capture_output=True,
-        text=True,
-        timeout=600,
-    )
-    assert child.returncode == 0, f"exit {child.returncode}: {child.stderr[-2000:]}"
+    child = _child(cache)
     assert f"CacheWarning: softcurve cache: the compiled library {cache} is cut short" in (
         child.stderr
     )

@@ -21,10 +21,9 @@ from __future__ import annotations
 import contextlib
 import logging
 import sys
-import threading
 import time
 
-from softcurve.base.progress import LINE_EVERY
+from softcurve.base.progress import LINE_EVERY, every
 
 PACKAGE = "softcurve"
 """The name of the package's logger; every module logs under a child of it."""
@@ -131,17 +130,6 @@ def timed(log: logging.Logger, begin: str, end: str, so_far: str):
     """
     say(log, logging.INFO, "%s", begin)
     start = time.perf_counter()
-    stop = threading.Event()
-
-    def tick():
-        while not stop.wait(LINE_EVERY):
-            say(log, logging.DEBUG, so_far, time.perf_counter() - start)
-
-    ticker = threading.Thread(target=tick, daemon=True)
-    ticker.start()
-    try:
+    with every(LINE_EVERY, lambda elapsed: say(log, logging.DEBUG, so_far, elapsed)):
         yield
-    finally:
-        stop.set()
-        ticker.join()
     say(log, logging.INFO, end, time.perf_counter() - start)

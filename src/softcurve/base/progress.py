@@ -144,6 +144,34 @@ minutes, so finer would only redraw the same number."""
 
 
 @contextlib.contextmanager
+def every(interval: float, call):
+    """While the block runs, ``call(seconds so far)`` every ``interval`` seconds, on a
+    thread of its own that ends with the block.
+
+    Parameters
+    ----------
+    interval : float
+        Seconds between two calls [s].
+    call : callable
+        ``call(elapsed)``, ``elapsed`` in seconds since the block began.
+    """
+    stop = threading.Event()
+    start = time.perf_counter()
+
+    def tick():
+        while not stop.wait(interval):
+            call(time.perf_counter() - start)
+
+    ticker = threading.Thread(target=tick, daemon=True)
+    ticker.start()
+    try:
+        yield
+    finally:
+        stop.set()
+        ticker.join()
+
+
+@contextlib.contextmanager
 def elapsed_line(label: str, show: bool = True):
     """While the block runs, ``label, N s`` redrawn in place on stderr every :data:`TICK`
     seconds (when ``show``), erased after it; the warnings the block gives are shown after
@@ -160,33 +188,25 @@ def elapsed_line(label: str, show: bool = True):
     if not show:
         yield
         return
-    stop = threading.Event()
-    start = time.perf_counter()
     drawn = [""]
     lines = not on_terminal()
 
-    def tick():
-        while not stop.wait(LINE_EVERY if lines else TICK):
-            text = f"{label}, {time.perf_counter() - start:.0f} s"
-            if lines:
-                sys.stderr.write(text + "\n")
-            else:
-                drawn[0] = text
-                sys.stderr.write("\r" + text)
-            sys.stderr.flush()
+    def draw(elapsed):
+        text = f"{label}, {elapsed:.0f} s"
+        if lines:
+            sys.stderr.write(text + "\n")
+        else:
+            drawn[0] = text
+            sys.stderr.write("\r" + text)
+        sys.stderr.flush()
 
     if lines:
         sys.stderr.write(f"{label} ...\n")
         sys.stderr.flush()
-    ticker = threading.Thread(target=tick, daemon=True)
     try:
         with warnings.catch_warnings(record=True) as caught:
-            ticker.start()
-            try:
+            with every(LINE_EVERY if lines else TICK, draw):
                 yield
-            finally:
-                stop.set()
-                ticker.join()
     finally:
         if drawn[0]:
             sys.stderr.write("\r" + " " * len(drawn[0]) + "\r")
