@@ -1,27 +1,30 @@
-"""Cost of ``sc.equilibrium`` on robots of many segments: the static balance compiled.
+"""Cost of ``sc.equilibrium`` on robots of many segments: the static balance in CasADi's
+virtual machine, then compiled once it has paid for its compile.
 
 For robots of N paper segments (``presets.ifac2020().with_segments(N)``, upright under
 their own weight, from the rest configuration; the model's library built before and not
 counted) it prints, per N, the wall time of ``sc.equilibrium(model, q0)``:
 
-- ``cold [s]``: the first equilibrium in a fresh process whose cache holds the model's
-  library but nothing of the statics: building the static balance, compiling it
-  included;
-- ``cached [s]``: the first equilibrium in another fresh process on the cache the cold
-  one filled (the symbolic model built, the static balance loaded);
-- ``warm [s]``: the same equilibrium again on the same model, best of three.
+- ``first [s]``: the first equilibrium in a fresh process whose cache holds the model's
+  library but nothing of the statics (the static balance built, evaluated in the
+  virtual machine);
+- ``again [s]``: the same equilibrium again on the same model, best of three (still in
+  the virtual machine: fewer evaluations than ``COMPILE_AFTER``);
+- ``compiling [s]``: the next one with ``COMPILE_AFTER`` set to 0, so that it compiles
+  the balance first (what the equilibrium after ``COMPILE_AFTER`` evaluations waits);
+- ``in C [s]``: the same equilibrium again, best of three, on the compiled balance;
+- ``cached [s]``: the first equilibrium in another fresh process on the cache the first
+  one filled (the symbolic model built, the balance's library found and loaded at once).
 
-Each process gets its own cache folder (a temporary copy of the model's library), so
-the figures do not depend on what the shared cache holds; with ``--no-cold`` the cold
-column is skipped and the others run on the shared cache (a long chain's compile is
-minutes: its library may be there already). With ``--before SRC`` the same
-columns are measured first with the package at ``SRC`` (another checkout's ``src``
-folder, e.g. the code before a change) and printed beside. With ``--virtual-machine``
-the models are built with ``compile=False``: every function, the static balance
-included, in CasADi's virtual machine.
+Each N gets its own cache folder (a temporary copy of the model's library), so the
+figures do not depend on what the shared cache holds. With ``--before SRC`` the first
+and again columns are measured first with the package at ``SRC`` (another checkout's
+``src`` folder, e.g. the code before a change) and printed beside. With
+``--virtual-machine`` the models are built with ``compile=False``: every function, the
+static balance included, in CasADi's virtual machine (the compile columns are empty).
 
 Run: ``python benchmarks/bench_statics_chain.py [--segments 1 2 4 10 20] [--before SRC]
-[--no-cold] [--virtual-machine]``
+[--virtual-machine]``
 """
 
 from __future__ import annotations
@@ -55,7 +58,20 @@ def child(segments: int, compiled: bool) -> None:
     warm, again = best_of(REPEAT, lambda: sc.equilibrium(model, q0))
     if not (first.success and again.success):
         raise SystemExit(f"{segments} segments: {first.message}")
-    print(json.dumps({"first": first_time, "warm": warm, "stability": first.stability}))
+    figures = {"first": first_time, "warm": warm, "stability": first.stability}
+    try:  # the balance's rule, where the package has it (not before it)
+        from softcurve.analysis import loads
+
+        balance = loads.static_balance(loads.StaticLoad(model))
+    except AttributeError:
+        balance = None
+    if compiled and balance is not None and not balance.in_c:
+        loads.COMPILE_AFTER = 0
+        start = time.perf_counter()
+        sc.equilibrium(model, q0)
+        figures["compiling"] = time.perf_counter() - start
+        figures["in_c"] = best_of(REPEAT, lambda: sc.equilibrium(model, q0))[0]
+    print(json.dumps(figures))
 
 
 def run(segments: int, cache: Path | None, source: str | None, vm: bool = False) -> dict:
@@ -78,23 +94,24 @@ def run(segments: int, cache: Path | None, source: str | None, vm: bool = False)
     return json.loads(out.stdout.splitlines()[-1])
 
 
-def measure(segments: int, library: Path, source: str | None, cold: bool, vm: bool) -> tuple:
-    """``(cold, cached)`` figures of ``segments`` on a cache holding ``library`` alone;
-    without ``cold``, ``(None, cached)`` on the shared cache."""
-    if not cold:
-        return None, run(segments, None, source, vm)
+def measure(segments: int, library: Path, source: str | None, vm: bool) -> tuple:
+    """``(first, cached)`` figures of ``segments``: a fresh process on a cache holding
+    ``library`` alone, and another on the cache it filled."""
     with tempfile.TemporaryDirectory() as folder:
         for path in (library, library.with_name(library.name + ".sha256")):
             shutil.copy2(path, folder)
-        cold = run(segments, Path(folder), source, vm)
-        return cold, run(segments, Path(folder), source, vm)
+        first = run(segments, Path(folder), source, vm)
+        return first, run(segments, Path(folder), source, vm)
+
+
+def _seconds(figures: dict, name: str) -> str:
+    return f"{figures[name]:.3f}" if name in figures else "-"
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--segments", type=int, nargs="+", default=[1, 2, 4, 10, 20])
     parser.add_argument("--before", help="src folder of the package to compare with")
-    parser.add_argument("--no-cold", action="store_true", help="skip the cold column")
     parser.add_argument(
         "--virtual-machine", action="store_true", help="models built with compile=False"
     )
@@ -105,24 +122,23 @@ def main() -> None:
         return
     import softcurve as sc
 
-    columns = "cold [s]  cached [s]  warm [s]"
-    sides = [None] if not args.before else [str(Path(args.before).resolve()), None]
-    names = ["after"] if not args.before else ["before", "after"]
-    print("N    " + "  |  ".join(f"{name}: {columns}" for name in names) + "  stability")
+    before = None if not args.before else str(Path(args.before).resolve())
+    head = "N    first [s]  again [s]  compiling [s]  in C [s]  cached [s]"
+    print(head + ("  |  before: first [s]  again [s]" if before else "") + "  stability")
     for n in args.segments:
         model = sc.Model(sc.presets.ifac2020().with_segments(n))  # built here, not timed
         if model.compiled_library is None:
             raise SystemExit("the model is not compiled: the figures need a C compiler")
-        cells = []
-        for name, source in zip(names, sides, strict=True):
-            cold, cached = measure(
-                n, model.compiled_library, source, not args.no_cold, args.virtual_machine
-            )
-            first = "-" if cold is None else f"{cold['first']:.3f}"
-            cells.append(
-                f"{' ' * len(name)}  {first:>8s}  {cached['first']:10.3f}  {cached['warm']:8.3f}"
-            )
-        print(f"{n:<3d}  " + "  |  ".join(cells) + f"  {cached['stability']}", flush=True)
+        first, cached = measure(n, model.compiled_library, None, args.virtual_machine)
+        line = (
+            f"{n:<3d}  {first['first']:9.3f}  {first['warm']:9.3f}  "
+            f"{_seconds(first, 'compiling'):>13s}  {_seconds(first, 'in_c'):>8s}  "
+            f"{cached['first']:10.3f}"
+        )
+        if before:
+            old, _ = measure(n, model.compiled_library, before, args.virtual_machine)
+            line += f"  |  {old['first']:17.3f}  {old['warm']:9.3f}"
+        print(line + f"  {first['stability']}", flush=True)
 
 
 if __name__ == "__main__":

@@ -420,8 +420,8 @@ def _balance_arguments(rng, model, act):
 
 @pytest.mark.parametrize("segments", [1, 3])
 def test_the_compiled_static_balance_is_the_virtual_machines(segments, rng):
-    """The balance in C (as equilibria of ``COMPILED_SEGMENTS`` segments and more evaluate
-    it) equals CasADi's virtual machine at a seeded random state with an actuator and
+    """The balance in C (as equilibria evaluate it once it has paid for its compile)
+    equals CasADi's virtual machine at a seeded random state with an actuator and
     every load, and its ``K`` (the Hessian of the gravity's and the tip force's
     potential) is the Jacobian of its residual. Three segments leave the tip moment's
     term out (a short compile: the function equilibria without a moment take)."""
@@ -445,12 +445,8 @@ def test_the_compiled_static_balance_is_the_virtual_machines(segments, rng):
     assert_close(expected[1], k_of_r, rtol=1e-12, scale=np.abs(k_of_r).max())
 
 
-def test_equilibria_of_one_structure_build_their_static_balance_once(monkeypatch):
-    """The balance is kept with the model by its structure (the actuator, which tip
-    loads), not by the loads' values: another equilibrium of the model builds nothing; a
-    model of the same structure with other numbers loads the library its first one
-    compiled (no compiler runs); the balance compiled gives the virtual machine's
-    equilibrium."""
+def _counting_builds(monkeypatch):
+    """Lists that grow by one per static balance built and per compiler run."""
     built, compiled = [], []
     original_static, original_compile = loads_module.static_function, build_module.compile_generated
 
@@ -464,14 +460,23 @@ def test_equilibria_of_one_structure_build_their_static_balance_once(monkeypatch
 
     monkeypatch.setattr(loads_module, "static_function", counting_static)
     monkeypatch.setattr(build_module, "compile_generated", counting_compile)
-    # compiled from two segments, whose model library the tests share
-    monkeypatch.setattr(loads_module, "COMPILED_SEGMENTS", 2)
+    return built, compiled
+
+
+def test_equilibria_of_one_structure_build_their_static_balance_once(monkeypatch):
+    """The balance is kept with the model by its structure (the actuator, which tip
+    loads), not by the loads' values: another equilibrium of the model builds nothing; a
+    model of the same structure with other numbers loads the library its first one
+    compiled (no compiler runs); the balance compiled gives the virtual machine's
+    equilibrium."""
+    built, compiled = _counting_builds(monkeypatch)
+    monkeypatch.setattr(loads_module, "COMPILE_AFTER", 0)  # compiled at its first evaluation
     robot = sc.presets.ifac2020().with_segments(2)
     model = sc.Model(robot)
     q0 = rest_configuration(robot)
     first = equilibrium(model, q0, gravity=[0.0, 0.0, 9.81])
     assert len(built) == 1 and len(compiled) <= 1  # compiled unless cached before
-    assert not isinstance(loads_module.static_balance(StaticLoad(model)), ca.Function)
+    assert loads_module.static_balance(StaticLoad(model)).in_c
     again = equilibrium(model, q0, gravity=[0.3, 0.0, 9.0], tau=np.full(6, 1e-3))
     assert len(built) == 1 and len(compiled) <= 1
     assert first.success and again.success and np.abs(again.q - first.q).max() > 0
@@ -481,8 +486,33 @@ def test_equilibria_of_one_structure_build_their_static_balance_once(monkeypatch
     assert len(built) == 2 and compiled == []  # built for the new model, loaded from disk
     assert other.success
     in_vm = sc.Model(robot, compile=False)
-    assert isinstance(loads_module.static_balance(StaticLoad(in_vm)), ca.Function)
+    assert not loads_module.static_balance(StaticLoad(in_vm)).in_c
     vm = equilibrium(in_vm, q0, gravity=[0.0, 0.0, 9.81])
+    assert not loads_module.static_balance(StaticLoad(in_vm)).in_c  # never compiled
     assert_close(first.q, vm.q, rtol=1e-12, scale=np.abs(vm.q).max())
     assert first.stability == vm.stability
     assert_close(first.eigenvalues, vm.eigenvalues, rtol=1e-9, scale=np.abs(vm.eigenvalues).max())
+
+
+def test_the_static_balance_is_compiled_once_its_evaluations_would_have_paid(monkeypatch, tmp_path):
+    """In the virtual machine for ``COMPILE_AFTER`` evaluations, compiled at the next one
+    (the ski-rental rule); a new model of the structure, its library now in the cache,
+    loads it at once; counted, not timed."""
+    monkeypatch.setenv("SOFTCURVE_CACHE_DIR", str(tmp_path))  # nothing of it cached
+    built, compiled = _counting_builds(monkeypatch)
+    monkeypatch.setattr(loads_module, "COMPILE_AFTER", 30)
+    robot = sc.presets.ifac2020()
+    model = sc.Model(robot)
+    compiled.clear()  # the model's own library, compiled into the empty cache
+    q0 = rest_configuration(robot)
+    balance = loads_module.static_balance(StaticLoad(model))
+    solved = 0
+    while not balance.in_c and solved < 10:
+        assert equilibrium(model, q0, gravity=[0.0, 0.0, 9.81]).success
+        solved += 1
+        assert balance.in_c or (compiled == [] and balance.evaluations <= 30)
+    # 19 evaluations an equilibrium: the second stays in the virtual machine
+    assert balance.in_c and solved >= 2 and len(compiled) == 1
+    assert balance.evaluations == 31  # compiled at the 31st, counted no more
+    fresh = loads_module.static_balance(StaticLoad(sc.Model(robot)))
+    assert fresh.in_c and fresh.evaluations == 0 and len(compiled) == 1  # loaded, not built

@@ -6,8 +6,8 @@ through an :class:`~softcurve.description.actuator.Actuator` (``H(q) u``), and a
 constant world-frame tip wrench; the
 gravity vector may be overridden without recompiling (it is a run-time parameter).
 The CasADi Functions built from them are cached per model, actuator and which tip loads
-they carry; the static balance of the equilibria is compiled to C from
-:data:`COMPILED_SEGMENTS` segments (:func:`static_balance`).
+they carry; the static balance of the equilibria is compiled to C once its evaluations
+would have paid for the compile (:class:`StaticBalance`).
 """
 
 from __future__ import annotations
@@ -19,7 +19,7 @@ import numpy as np
 
 from softcurve.base.docs import shared_parameters
 from softcurve.base.validation import ParameterError, real_array
-from softcurve.compiled import compile_function, load_function
+from softcurve.compiled import compile_function, function_is_cached, load_function
 from softcurve.description.actuator import Actuator
 from softcurve.symbolic.contact import contact_statics
 from softcurve.symbolic.kinematics import segment_frames
@@ -181,27 +181,67 @@ def static_function(
     return _load_function(model, actuator, "static", build, (tip_force, tip_moment))
 
 
-COMPILED_SEGMENTS = 4
-"""Robots of this many segments or more solve their statics on the static balance
-compiled with the model (:func:`static_balance`), fewer in CasADi's virtual machine.
-An equilibrium of the upright robot from rest (``python
-benchmarks/bench_statics_chain.py``, and with ``--virtual-machine``) takes in the
-virtual machine 0.004 s at one segment, 0.013 s at two, 0.040 s at four, 0.30 s at ten
-and 1.4 s at twenty; compiled 0.003 s at four, 0.020 s at ten and 0.09 s at twenty,
-after a compile of 4.7 s, 14 s and 114 s once per structure and cache. From four
-segments a search of :func:`~softcurve.analysis.statics.equilibria` (48 starts) takes
-seconds in the virtual machine and a few searches repay the compile; below, the compile
-would be most of what a first equilibrium waits for, and hundreds of equilibria would
-repay it."""
+COMPILE_AFTER = 2000
+"""Evaluations of a structure's static balance in CasADi's virtual machine after which
+it is compiled (:class:`StaticBalance`): about what a compile costs. Measured with
+``python benchmarks/bench_statics_chain.py --virtual-machine`` and without (2-core
+x86_64), an equilibrium of the upright robot evaluates the balance 22 times at four
+segments, 35 at ten and 44 at twenty, an evaluation in the virtual machine takes 1.8 ms,
+8.6 ms and 32 ms, the compile 4.7 s, 14 s and 114 s: 2,600, 1,600 and 3,600
+evaluations' worth. Compiling once the
+evaluations made would have paid for it (the ski-rental rule) keeps the total within
+about twice the better of the two choices made in hindsight, whether a user solves one
+equilibrium (44 evaluations at twenty segments) or thousands; a library already in the
+cache is loaded at once."""
 
 
-def static_balance(load: StaticLoad):
+class StaticBalance:
+    """The static balance of one structure, called as its CasADi function: in CasADi's
+    virtual machine until it has been evaluated :data:`COMPILE_AFTER` times, then
+    compiled to C and cached on disk as the model's library is
+    (:func:`~softcurve.compiled.compile_function`, keyed by the function: the robot's
+    structure, the actuator and which tip loads, not their values); compiled at once
+    when its library is in the cache already. A model built with ``compile=False``
+    keeps it in the virtual machine, as does a machine without a C compiler.
+
+    Parameters
+    ----------
+    function : casadi.Function
+        :func:`static_function`'s.
+    compilable : bool
+        Whether it may be compiled (the model is).
+    """
+
+    def __init__(self, function: ca.Function, compilable: bool):
+        self.function = function
+        self.compiled = None
+        self.evaluations = 0
+        self.compilable = compilable
+        if compilable and function_is_cached(function):
+            self._compile()
+
+    @property
+    def in_c(self) -> bool:
+        """Whether it is evaluated in compiled C."""
+        return self.compiled is not None and not isinstance(self.compiled, ca.Function)
+
+    def _compile(self) -> None:
+        self.compiled = compile_function(self.function, load=load_function)
+        self.compilable = False
+
+    def __call__(self, *args):
+        """``(r, K, W, tip)`` at ``args``, as :func:`static_function`'s."""
+        if self.compiled is None:
+            self.evaluations += 1
+            if self.compilable and self.evaluations > COMPILE_AFTER:
+                self._compile()
+        return (self.compiled or self.function)(*args)
+
+
+def static_balance(load: StaticLoad) -> StaticBalance:
     """The static balance of ``load``'s structure, :func:`static_function` without the tip
-    terms ``load`` does not have, compiled to C and cached on disk as the model's library
-    is (:func:`~softcurve.compiled.compile_function`, keyed by the function: the robot's
-    structure, the actuator and which tip loads, not their values) and kept with the
-    model; in CasADi's virtual machine for a model that is not compiled, below
-    :data:`COMPILED_SEGMENTS` segments, or without a C compiler.
+    terms ``load`` does not have, kept with the model, compiled once its evaluations
+    would have paid for it (:class:`StaticBalance`).
 
     Parameters
     ----------
@@ -210,19 +250,18 @@ def static_balance(load: StaticLoad):
 
     Returns
     -------
-    callable
+    StaticBalance
         ``F(q, *load.arguments()) -> (r, K, W, tip)`` as :func:`static_function`'s,
         as NumPy arrays or CasADi matrices.
     """
     model = load.model
     tip = (bool(np.any(load.tip_force)), bool(np.any(load.tip_moment)))
-    compiled = model.compiled_library is not None and model.robot.n_segments >= COMPILED_SEGMENTS
-
-    def build():
-        function = static_function(model, load.actuator, *tip)
-        return compile_function(function, load=load_function) if compiled else function
-
-    return model.cached(("loads", "static balance", load.actuator, *tip), build)
+    return model.cached(
+        ("loads", "static balance", load.actuator, *tip),
+        lambda: StaticBalance(
+            static_function(model, load.actuator, *tip), model.compiled_library is not None
+        ),
+    )
 
 
 @shared_parameters

@@ -61,9 +61,7 @@ def compile_function(function: ca.Function, flags: tuple[str, ...] | None = None
         build.require_compiler(compiler)
         return build.compile_generated({name: function}, compiler, asked, ("-fPIC",))
 
-    # the flags asked for, not those a compiler accepted: the key holds no compiler
-    flags_key = asked if asked is not None else ("default", build.FUNCTION_FLAGS)
-    key = build.cache_key("function", function.serialize(), flags_key)
+    key = _function_key(function, asked)
     try:
         _, loaded = cache.load_or_build(
             "function",
@@ -86,6 +84,33 @@ def compile_function(function: ca.Function, flags: tuple[str, ...] | None = None
         )
         return function
     return loaded
+
+
+def _function_key(function: ca.Function, asked: tuple[str, ...] | None) -> str:
+    """The cache key of ``function`` compiled with the flags ``asked`` (None: the
+    default): the flags asked for, not those a compiler accepted, so the key holds no
+    compiler."""
+    flags_key = asked if asked is not None else ("default", build.FUNCTION_FLAGS)
+    return build.cache_key("function", function.serialize(), flags_key)
+
+
+def function_is_cached(function: ca.Function, flags: tuple[str, ...] | None = None) -> bool:
+    """Whether :func:`compile_function` would load ``function`` from the on-disk cache
+    without compiling (its library is there, intact); nothing is built or loaded.
+
+    Parameters
+    ----------
+    function : casadi.Function
+        As :func:`compile_function`'s.
+    flags : tuple of str, optional
+        As :func:`compile_function`'s.
+
+    Returns
+    -------
+    bool
+    """
+    key = _function_key(function, None if flags is None else tuple(flags))
+    return cache.cached_library("function", key, (function.name(),)) is not None
 
 
 def compile_functions(functions, flags: tuple[str, ...] | None = None, load=None) -> list:
