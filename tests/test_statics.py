@@ -446,7 +446,8 @@ def test_the_compiled_static_balance_is_the_virtual_machines(segments, rng):
 
 
 def _counting_builds(monkeypatch):
-    """Lists that grow by one per static balance built and per compiler run."""
+    """Lists that grow by one per static balance built and per compiler run on one (the
+    model's own library, compiled where the cache is empty, is not counted)."""
     built, compiled = [], []
     original_static, original_compile = loads_module.static_function, build_module.compile_generated
 
@@ -455,7 +456,8 @@ def _counting_builds(monkeypatch):
         return original_static(*args, **kwargs)
 
     def counting_compile(*args, **kwargs):
-        compiled.append(sorted(args[0]))
+        if "static_balance" in args[0]:
+            compiled.append(sorted(args[0]))
         return original_compile(*args, **kwargs)
 
     monkeypatch.setattr(loads_module, "static_function", counting_static)
@@ -503,7 +505,6 @@ def test_the_static_balance_is_compiled_once_its_evaluations_would_have_paid(mon
     monkeypatch.setattr(loads_module, "COMPILE_AFTER", 30)
     robot = sc.presets.ifac2020()
     model = sc.Model(robot)
-    compiled.clear()  # the model's own library, compiled into the empty cache
     q0 = rest_configuration(robot)
     balance = loads_module.static_balance(StaticLoad(model))
     solved = 0
