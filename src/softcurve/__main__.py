@@ -4,8 +4,20 @@ imports the command line is one line and exit code 130, not a traceback (the scr
 imports this module, which imports nothing but the tiny facade; ``softcurve.cli`` is
 imported inside :func:`main`)."""
 
+import os
 import signal
 import sys
+
+INTERRUPTED = 128 + signal.SIGINT
+"""Exit code of a command stopped by Ctrl-C, as a shell reports it."""
+
+
+def _interrupted_at_exit(signum, frame) -> None:
+    """Ctrl-C once the command has returned (while Python ends its threads and worker
+    pools): one line and exit code 130 at once, instead of a traceback from its teardown;
+    the command's output is flushed already."""
+    os.write(2, b"softcurve: interrupted while exiting: the command had finished\n")
+    os._exit(INTERRUPTED)
 
 
 def main() -> int:
@@ -14,8 +26,12 @@ def main() -> int:
         from softcurve.cli import main as command_line
     except KeyboardInterrupt:  # in the words of softcurve.cli.main's own interrupt
         print("softcurve: interrupted before starting: nothing was done", file=sys.stderr)
-        return 128 + signal.SIGINT
-    return command_line()
+        return INTERRUPTED
+    code = command_line()
+    sys.stdout.flush()
+    sys.stderr.flush()
+    signal.signal(signal.SIGINT, _interrupted_at_exit)
+    return code
 
 
 if __name__ == "__main__":
