@@ -24,6 +24,7 @@ import json
 import os
 import re
 import shutil
+import struct
 import subprocess
 import sys
 import warnings
@@ -277,3 +278,21 @@ def test_a_foreign_library_with_a_matching_checksum_is_rebuilt(
     assert not (tmp_path / "marker").exists()  # refused before the loader opened it
     assert rebuilds == [cache.parent] and cache.read_bytes() == intact[1]
     assert_close(model.forward_dynamics(Q, QD), intact[0].forward_dynamics(Q, QD), rtol=1e-12)
+
+
+def test_symbol_names_outside_their_string_table_are_no_symbols(intact):
+    """An ELF64 library whose dynamic string table is cut to one byte in its section
+    header: the names point past it. Before: ValueError from the bytes' search."""
+    data = bytearray(intact[1])
+    shoff, shentsize, shnum = (
+        struct.unpack_from("<Q", data, 0x28)[0],
+        *struct.unpack_from("<HH", data, 0x3A),
+    )
+    for i in range(shnum):
+        header = shoff + i * shentsize
+        if struct.unpack_from("<I", data, header + 4)[0] == 11:  # SHT_DYNSYM
+            link = struct.unpack_from("<I", data, header + 40)[0]
+            struct.pack_into("<Q", data, shoff + link * shentsize + 32, 1)  # its sh_size
+    assert image_problem(bytes(data), ("dynamics_terms",)).startswith(
+        "lacks the symbols dynamics_terms"
+    )

@@ -127,8 +127,10 @@ def test_every_example_has_a_run_of_every_mode():
     assert uncovered(RUNS, SCRIPTS) == []
     assert {run.script for run in RUNS} == {p.name for p in SCRIPTS}
     # the check fails where it should: a mode left out, an example left out
-    assert uncovered(RUNS[:-1], SCRIPTS) == ["validate_joint.py: no run of 'rate'"]
-    assert uncovered(RUNS[1:], SCRIPTS) == ["contact_finger.py: no run"]
+    without_rate = [r for r in RUNS if not (r.script == "validate_joint.py" and "rate" in r.modes)]
+    assert uncovered(without_rate, SCRIPTS) == ["validate_joint.py: no run of 'rate'"]
+    without_finger = [r for r in RUNS if r.script != "contact_finger.py"]
+    assert uncovered(without_finger, SCRIPTS) == ["contact_finger.py: no run"]
 
 
 def _load(script: Path):

@@ -169,3 +169,15 @@ def test_npz_faults_are_refused_naming_the_row(run, tmp_path):
     whole = run.save(tmp_path / "whole.npz").read_bytes()
     (tmp_path / "cut.npz").write_bytes(whole[: len(whole) // 2])
     _refused(tmp_path / "cut.npz", "not a readable NPZ file, cut or damaged")
+
+
+def test_an_npz_without_times_and_metadata_of_other_types_are_refused(run, tmp_path):
+    """Before: KeyError 't' and a TypeError from the message's pattern."""
+    path = _npz(run, tmp_path)
+    with np.load(path) as data:
+        arrays = {k: data[k] for k in data.files if k != "t"}
+    np.savez(path, **arrays)
+    _refused(path, r"array 't' has shape None")
+    _refused(_npz(run, tmp_path, meta={"message": 5}), "message must be text and its stats")
+    lines = _with_meta(_lines(run, tmp_path), stats=[1, 2])
+    _refused(_write(tmp_path, lines), "message must be text and its stats a table")

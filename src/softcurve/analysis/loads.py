@@ -186,8 +186,8 @@ COMPILE_AFTER = 2000
 it is compiled (:class:`StaticBalance`): about what a compile costs. Measured with
 ``python benchmarks/bench_statics_chain.py --virtual-machine`` and without (2-core
 x86_64), an equilibrium of the upright robot evaluates the balance 22 times at four
-segments, 35 at ten and 44 at twenty, an evaluation in the virtual machine takes 1.8 ms,
-8.6 ms and 32 ms, the compile 4.7 s, 14 s and 114 s: 2,600, 1,600 and 3,600
+segments, 35 at ten and 44 at twenty, an evaluation in the virtual machine takes 1.7 ms,
+8.6 ms and 32 ms, the compile 4.2 s, 14 s and 94 s: 2,500, 1,600 and 3,000
 evaluations' worth. Compiling once the
 evaluations made would have paid for it (the ski-rental rule) keeps the total within
 about twice the better of the two choices made in hindsight, whether a user solves one
@@ -226,8 +226,8 @@ class StaticBalance:
         return self.compiled is not None and not isinstance(self.compiled, ca.Function)
 
     def _compile(self) -> None:
+        self.compilable = False  # tried once, whatever happens
         self.compiled = compile_function(self.function, load=load_function)
-        self.compilable = False
 
     def __call__(self, *args):
         """``(r, K, W, tip)`` at ``args``, as :func:`static_function`'s."""

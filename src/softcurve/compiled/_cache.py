@@ -255,7 +255,11 @@ def _build_folder(folder: Path, stacklevel: int) -> Path:
     stand-in."""
     if folder in _PROCESS_FOLDERS:
         return _PROCESS_FOLDERS[folder]
+    existed = folder.is_dir()
     problem = _untrusted(folder) or _unwritable(folder)
+    if problem is None and not existed:  # made just now: trusted as it is, not as it was
+        _UNTRUSTED.pop((folder, trust.shared()), None)
+        problem = _untrusted(folder)
     return folder if problem is None else _process_folder(folder, problem, stacklevel + 1)
 
 

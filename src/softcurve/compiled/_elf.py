@@ -37,12 +37,14 @@ def _defined_symbols(data, sections, byte_order, symbol, size) -> set[str] | Non
     for kind, offset, length, link, _ in sections:
         if kind != _SHT_DYNSYM or link >= len(sections):
             continue
-        strings = sections[link][1]
+        _, strings, strings_length, _, _ = sections[link]
         names = set()
         for start in range(offset, offset + length - size + 1, size):
             name, index = _fields(data, byte_order + symbol, start)
             if index != _SHN_UNDEF and name:
-                end = data.index(b"\0", strings + name)
+                end = data.find(b"\0", strings + name, strings + strings_length)
+                if name >= strings_length or end < 0:
+                    return set()  # names outside their table: none is defined
                 names.add(data[strings + name : end].decode("ascii", "replace"))
         return names
     return None

@@ -168,6 +168,11 @@ def _metadata(path, text: str) -> dict:
     missing = [k for k in ("n", "n_creep", "status", "message", "stats") if k not in meta]
     if missing:
         raise TrajectoryFileError(f"{path}: the metadata lacks {missing}")
+    if not isinstance(meta["message"], str) or not isinstance(meta["stats"], dict):
+        raise TrajectoryFileError(
+            f"{path}: the metadata's message must be text and its stats a table, got "
+            f"{type(meta['message']).__name__} and {type(meta['stats']).__name__}"
+        )
     if _count(path, meta, "n", 3) % 3:
         raise TrajectoryFileError(
             f"{path}: the metadata's n must be 3 per segment, got {meta['n']!r}"
@@ -287,7 +292,8 @@ def _read_npz(path) -> tuple[dict, np.ndarray, bool, list]:
     if "pressures" in arrays:  # version 1
         arrays["inputs"] = arrays.pop("pressures")
     n, m = meta["n"], meta["n_inputs"]
-    size = arrays["t"].shape[0] if arrays.get("t", np.empty(0)).ndim == 1 else -1
+    t = arrays.get("t")
+    size = t.shape[0] if t is not None and t.ndim == 1 else -1
     shapes = {"t": (size,), "q": (size, n), "qd": (size, n), "lam": (size, meta["n_creep"])}
     shapes.update(tip=(size, 3))
     with_tau = "tau" in arrays
