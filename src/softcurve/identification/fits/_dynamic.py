@@ -317,7 +317,8 @@ def fit_trajectory(
     evaluators = []
     tolerances = _looser_tolerances(integrator_options)
     # too few data values: not identifiable, reported without building the evaluators
-    built = [] if problem.too_few(signals, weights) else experiments
+    data = problem.data(signals, weights)
+    built = [] if problem.too_few(data) else experiments
     for e, part, state in zip(built, problem.parameters.parts, states, strict=False):
 
         def start(values, state=state, u0=first[e.name]):
@@ -329,7 +330,7 @@ def fit_trajectory(
         ))  # fmt: skip
     options = dict(starts=starts, seed=seed, progress=progress, processes=processes)
     report = problem.run(
-        evaluators, signals, weights, max_evaluations, confidence, "trajectory fit", options=options
+        evaluators, data, max_evaluations, confidence, "trajectory fit", options=options
     )
     if tolerances is not None and evaluators:
         report = _integration_checked(report, evaluators, problem.parameters, tolerances)
@@ -483,8 +484,7 @@ def fit_equilibria(
     options = dict(starts=starts, seed=seed, progress=progress, processes=1)
     return problem.run(
         evaluators,
-        signals,
-        weights,
+        problem.data(signals, weights),
         max_evaluations,
         confidence,
         "equilibrium fit",

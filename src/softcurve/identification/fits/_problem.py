@@ -11,6 +11,8 @@ progress on request. The report stacks the experiments' samples one after anothe
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 
 from softcurve.base.progress import ProgressLine
@@ -49,12 +51,23 @@ def _signals(experiment, output, signals):
     return names, experiment.signal_matrix(names)
 
 
-def _count_values(measured, w) -> int:
-    """The data values that enter the residuals: finite, with a nonzero weight."""
-    return sum(
-        int(np.count_nonzero(np.isfinite(m).ravel() & (weight != 0)))
-        for m, weight in zip(measured, w, strict=True)
-    )
+class FitData(NamedTuple):
+    """What a fit compares its outputs with (:meth:`Problem.data`)."""
+
+    names: list
+    """The signals' names."""
+    measured: list
+    """Each experiment's measured values, shape (T, k)."""
+    w: list
+    """Each experiment's residual weights, shape (T k,)."""
+
+    @property
+    def values(self) -> int:
+        """The data values that enter the residuals: finite, with a nonzero weight."""
+        return sum(
+            int(np.count_nonzero(np.isfinite(m).ravel() & (weight != 0)))
+            for m, weight in zip(self.measured, self.w, strict=True)
+        )
 
 
 class Problem:
@@ -99,9 +112,9 @@ class Problem:
         specific = {name for values in per.values() for name in values}
         self.parameters = JointParameters(parts, names, single, specific)
 
-    def data(self, signals, weights) -> tuple[list, list, list]:
-        """``(names, measured, w)``: the signals' names, each experiment's measured
-        values (T, k) and its residual weights (T k,), units checked.
+    def data(self, signals, weights) -> FitData:
+        """The signals' names, each experiment's measured values and its residual
+        weights, units checked: what :meth:`too_few` and :meth:`run` take.
 
         Parameters
         ----------
@@ -124,34 +137,29 @@ class Problem:
             check_units(e, output=self.output, input_map=self.input_map, signals=names)
             measured.append(values)
             w.append(weight_matrix(per, e.t, len(names), e.name).ravel())
-        return names, measured, w
+        return FitData(names, measured, w)
 
-    def too_few(self, signals, weights) -> bool:
+    def too_few(self, data: FitData) -> bool:
         """Whether the free parameters outnumber the data values that enter the
         residuals (finite, nonzero weight): the Jacobian is then rank-deficient at every
         point, which no evaluation can change, and the fit is not identifiable.
 
         Parameters
         ----------
-        signals, weights
-            As :meth:`run`'s.
+        data : FitData
+            :meth:`data`'s.
         """
-        _, measured, w = self.data(signals, weights)
-        return len(self.parameters.names) > _count_values(measured, w)
+        return len(self.parameters.names) > data.values
 
-    def run(
-        self, evaluators, signals, weights, max_evaluations, confidence, kind, *, options
-    ) -> FitReport:
+    def run(self, evaluators, data, max_evaluations, confidence, kind, *, options) -> FitReport:
         """Fit (or, with nothing free, predict) and report.
 
         Parameters
         ----------
         evaluators : list of callable
             One per experiment: ``theta_e -> (Y (k, T), dvec(Y)/dtheta_e (k T, P_e))``.
-        signals : list of str or None
-            Signals matched to the outputs.
-        weights : see ``softcurve.identification.fits._weights``
-            Residual weights.
+        data : FitData
+            :meth:`data`'s: the measured signals and their weights.
         max_evaluations : int
             Budget of residual evaluations per start.
         confidence : float
@@ -164,10 +172,10 @@ class Problem:
         J, experiments = self.parameters, self.experiments
         n_starts = whole_count("starts", options.get("starts", 1))
         processes = whole_count("processes", options.get("processes", 1))
-        names, measured, w = self.data(signals, weights)
+        names, measured, w = data
         size = len(J.names)
-        data_values = _count_values(measured, w)
-        too_few = size > data_values  # see too_few
+        data_values = data.values
+        too_few = self.too_few(data)
 
         def evaluate(theta, outputs_only=False):
             thetas = [J.local(theta, e) for e in range(len(experiments))]
