@@ -19,7 +19,7 @@ import numpy as np
 
 from softcurve.base.docs import shared_parameters
 from softcurve.base.validation import ParameterError, real_array
-from softcurve.compiled import compile_function, function_is_cached, load_function
+from softcurve.compiled import compile_function, load_function
 from softcurve.description.actuator import Actuator
 from softcurve.symbolic.contact import contact_statics
 from softcurve.symbolic.kinematics import segment_frames
@@ -214,11 +214,12 @@ class StaticBalance:
 
     def __init__(self, function: ca.Function, compilable: bool):
         self.function = function
-        self.compiled = None
         self.evaluations = 0
         self.compilable = compilable
-        if compilable and function_is_cached(function):
-            self._compile()
+        # a library in the cache already: loaded now (serialized for its key once)
+        self.compiled = (
+            compile_function(function, load=load_function, build_new=False) if compilable else None
+        )
 
     @property
     def in_c(self) -> bool:

@@ -10,7 +10,6 @@ from softcurve.compiled._export import c_identifier as c_identifier
 from softcurve.compiled._export import export_c as export_c
 from softcurve.compiled._generated import compile_function as compile_function
 from softcurve.compiled._generated import compile_functions as compile_functions
-from softcurve.compiled._generated import function_is_cached as function_is_cached
 from softcurve.compiled._lanes import LANE_WIDTH as LANE_WIDTH
 from softcurve.compiled._lanes import c_template as c_template
 from softcurve.compiled._lanes import compile_lanes as compile_lanes
@@ -37,7 +36,6 @@ __all__ = [
     "export_c",
     "compile_function",
     "compile_functions",
-    "function_is_cached",
     "load_external",
     "LANE_WIDTH",
     "compile_lanes",

@@ -199,16 +199,19 @@ def _identity(library: Path) -> tuple | None:
 
 
 _UNTRUSTED: dict[tuple[Path, bool], str | None] = {}
-"""Per cache folder (and whether it was declared shared), why its libraries are not
-trusted (:func:`softcurve.compiled._trust.folder_problem`), or None; checked once per
-process."""
+"""Per existing cache folder (and whether it was declared shared), why its libraries are
+not trusted (:func:`softcurve.compiled._trust.folder_problem`), or None; checked once per
+process (a folder not made yet is checked again once it is)."""
 
 
 def _untrusted(folder: Path) -> str | None:
     shared = trust.shared()
-    if (folder, shared) not in _UNTRUSTED:
-        _UNTRUSTED[folder, shared] = trust.folder_problem(folder, shared)
-    return _UNTRUSTED[folder, shared]
+    if (folder, shared) in _UNTRUSTED:
+        return _UNTRUSTED[folder, shared]
+    problem = trust.folder_problem(folder, shared)
+    if folder.is_dir():
+        _UNTRUSTED[folder, shared] = problem
+    return problem
 
 
 _PROCESS_FOLDERS: dict[Path, Path] = {}
@@ -255,11 +258,8 @@ def _build_folder(folder: Path, stacklevel: int) -> Path:
     stand-in."""
     if folder in _PROCESS_FOLDERS:
         return _PROCESS_FOLDERS[folder]
-    existed = folder.is_dir()
-    problem = _untrusted(folder) or _unwritable(folder)
-    if problem is None and not existed:  # made just now: trusted as it is, not as it was
-        _UNTRUSTED.pop((folder, trust.shared()), None)
-        problem = _untrusted(folder)
+    # checked again after _unwritable made a missing folder: as it is now
+    problem = _untrusted(folder) or _unwritable(folder) or _untrusted(folder)
     return folder if problem is None else _process_folder(folder, problem, stacklevel + 1)
 
 

@@ -18,7 +18,9 @@ from softcurve.compiled import _cache as cache
 from softcurve.compiled._source import load_external
 
 
-def compile_function(function: ca.Function, flags: tuple[str, ...] | None = None, load=None):
+def compile_function(
+    function: ca.Function, flags: tuple[str, ...] | None = None, load=None, build_new=True
+):
     """``function`` generated as C, compiled, cached on disk by its content and loaded.
 
     For CasADi functions built on a model's expressions (the identification's
@@ -43,13 +45,17 @@ def compile_function(function: ca.Function, flags: tuple[str, ...] | None = None
         ``load(path, name)`` opens the compiled library (e.g. as a
         :class:`~softcurve.compiled.NativeFunction`, called without CasADi and
         without the GIL); default: :func:`load_external`, CasADi's ``external``.
+    build_new : bool
+        Compile it when the cache does not hold it (default); with False, return None
+        instead (nothing is built).
 
     Returns
     -------
     casadi.Function or object
         The compiled function as a CasADi ``external`` (derivatives by finite
         differences) or what ``load`` returned, or ``function`` itself when it is not
-        cached and there is no C compiler, or (with a
+        cached and there is no C compiler, or None when it is not cached and
+        ``build_new`` is False, or (with a
         :class:`~softcurve.compiled.CompilerWarning`) when the build fails: then it
         runs in CasADi's virtual machine.
     """
@@ -62,6 +68,8 @@ def compile_function(function: ca.Function, flags: tuple[str, ...] | None = None
         return build.compile_generated({name: function}, compiler, asked, ("-fPIC",))
 
     key = _function_key(function, asked)
+    if not build_new and cache.cached_library("function", key, (name,)) is None:
+        return None
     try:
         _, loaded = cache.load_or_build(
             "function",
@@ -92,25 +100,6 @@ def _function_key(function: ca.Function, asked: tuple[str, ...] | None) -> str:
     compiler."""
     flags_key = asked if asked is not None else ("default", build.FUNCTION_FLAGS)
     return build.cache_key("function", function.serialize(), flags_key)
-
-
-def function_is_cached(function: ca.Function, flags: tuple[str, ...] | None = None) -> bool:
-    """Whether :func:`compile_function` would load ``function`` from the on-disk cache
-    without compiling (its library is there, intact); nothing is built or loaded.
-
-    Parameters
-    ----------
-    function : casadi.Function
-        As :func:`compile_function`'s.
-    flags : tuple of str, optional
-        As :func:`compile_function`'s.
-
-    Returns
-    -------
-    bool
-    """
-    key = _function_key(function, None if flags is None else tuple(flags))
-    return cache.cached_library("function", key, (function.name(),)) is not None
 
 
 def compile_functions(functions, flags: tuple[str, ...] | None = None, load=None) -> list:
