@@ -102,7 +102,7 @@ def default_actuator(n_segments: int = 1) -> PneumaticActuator:
     Parameters
     ----------
     n_segments : int
-        Number of segments of the robot.
+        Number of soft segments of the robot (its rigid bodies carry none).
     """
     return PneumaticActuator.three_bellows(n_segments=n_segments, **DEFAULT_BELLOWS)
 
@@ -248,7 +248,15 @@ def build_setup(
     robot = presets.ifac2020() if robot is None else robot
     if not isinstance(robot, Robot):
         raise ParameterError(f"robot must be a softcurve.Robot, got {robot!r}")
-    actuator = default_actuator(robot.n_segments) if actuator is None else actuator
+    if actuator is None:
+        soft = sum(size > 0 for size in robot.sizes)  # rigid bodies carry no bellows
+        actuator = default_actuator(soft)
+        if actuator.n != robot.n:
+            raise ParameterError(
+                f"actuator is needed: the default, three bellows on each of the {soft} soft "
+                f"segments, acts on n = {actuator.n} coordinates, the robot has n = {robot.n}"
+                f" ({', '.join(sorted({s.kind for s in robot.segments}))})"
+            )
     if not isinstance(actuator, Actuator) or actuator.n != robot.n:
         raise ParameterError(
             f"actuator must be a softcurve.Actuator acting on the robot's n = {robot.n} "
