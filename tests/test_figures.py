@@ -325,3 +325,20 @@ def test_a_rigid_body_and_a_twisted_segment_are_drawn(tmp_path):
                                           [0.064, 20.0, 0.0])  # fmt: skip
     labels = [line.get_label() for ax in paper.axes for line in ax.lines]
     assert "stripe (twist)" not in labels and not paper.axes[0].patches  # cannot twist
+
+
+def test_the_states_of_a_six_strain_robot_are_its_strains(tmp_path):
+    """One panel per strain, each element that has it a line (the gripper has none)."""
+    from tests.test_kinds import six_strain_gripper_robot, twisted
+
+    robot = six_strain_gripper_robot()
+    model = sc.Model(robot, compile=False)
+    run = sc.simulate(model, twisted(robot, twist=5.0), np.zeros(robot.n), t_final=0.01)
+    figure = run.plot()
+    labels = [ax.get_ylabel() for ax in figure.axes]
+    units = ("1/m",) * 3 + ("-",) * 3
+    assert labels == [f"{s} [{u}]" for s, u in zip(sc.STRAINS, units, strict=True)]
+    twist = figure.axes[sc.STRAINS.index("twist")].lines
+    assert len(twist) == 1
+    np.testing.assert_array_equal(twist[0].get_ydata(), run.q[:, sc.STRAINS.index("twist")])
+    save_figure(figure, tmp_path / "states.png")
