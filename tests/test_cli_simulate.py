@@ -169,3 +169,93 @@ def test_a_rerun_names_the_files_it_replaced_and_those_it_left(tmp_path, capsys)
     printed = capsys.readouterr().out.splitlines()
     assert "  replaced    trajectory.csv, states.png, tip.png of an earlier run" in printed
     assert "  left        trajectory.npz of an earlier run (not written now)" in printed
+
+
+def test_a_six_strain_robot_with_a_gripper_runs_from_its_file(tmp_path, capsys):
+    """examples/twisting_gripper.toml: a constant-strain segment with all six strains
+    and a rigid gripper on a moved, turned base, simulated end to end."""
+    from tests.test_kinds import six_strain_gripper_robot
+
+    scenario = sc.load_config(EXAMPLES / "twisting_gripper.toml")
+    robot = scenario.robot
+    assert robot.structure() == six_strain_gripper_robot().structure()
+    np.testing.assert_array_equal(robot.base_position, [0.0, 0.0, 0.2])
+    segment, gripper = robot.segments
+    assert segment.strains == sc.STRAINS and gripper.mass == 0.02
+    np.testing.assert_array_equal(gripper.inertia[0], [3e-6, 2e-7, 0.0])
+    out = tmp_path / "out"
+    code = main(["simulate", str(EXAMPLES / "twisting_gripper.toml"), "-o", str(out),
+                 "--no-progress"])  # fmt: skip
+    assert code == 0, capsys.readouterr().err
+    run = sc.load_trajectory(out / "trajectory.csv")
+    assert run.q.shape == (301, 6) and run.status == "success"
+    twist = run.q[:, sc.STRAINS.index("twist")]
+    assert np.abs(twist).max() > 1e-2  # the gripper's weight off the axis twists it
+    model = sc.Model(robot, compile=False)
+    np.testing.assert_allclose(run.tip[-1], model.pose(run.q[-1], 1.0).position, atol=1e-9)
+
+
+STRAIN_SEGMENT = """
+[robot]
+base_position = [0.0, 0.0, 0.1]
+[[robot.segments]]
+kind = "constant_strain"
+rest_length = 0.1
+mass = 0.03
+radius = 0.01
+strains = STRAINS
+bending_stiffness = { law = "linear", k0 = 8e-3 }
+LAWS
+"""
+
+
+@pytest.mark.parametrize(
+    ("strains", "laws", "expected"),
+    [
+        ('["bend_x", "twirl"]', "", "robot.segments[0].strains: unknown strain 'twirl'"),
+        ('["bend_x", "twist"]', "", "robot.segments[0].torsion_stiffness: is required"),
+        (
+            '["bend_x"]',
+            'shear_stiffness = { law = "linear", k0 = 90.0 }',
+            "robot.segments[0].shear_stiffness: the segment chooses none of shear_x, shear_y",
+        ),
+        ('"bend_x"', "", "robot.segments[0].strains: must be a non-empty array of strings"),
+        (
+            '["bend_x"]\ndamping = [1.0, 2.0]',
+            "",
+            "robot.segments[0]: damping must have shape (1, 1), got (2,)",
+        ),
+    ],
+)
+def test_a_bad_strain_segment_exits_2_naming_its_field(tmp_path, capsys, strains, laws, expected):
+    config = tmp_path / "bad.toml"
+    config.write_text(STRAIN_SEGMENT.replace("STRAINS", strains).replace("LAWS", laws))
+    assert main(["simulate", str(config), "-o", str(tmp_path / "out")]) == 2
+    error = capsys.readouterr().err
+    assert f"{config}: {expected}" in error, error
+    assert error.count("\n") == 1 and "Traceback" not in error
+    assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize(
+    ("element", "expected"),
+    [
+        ('kind = "hinge"', "robot.segments[0].kind: must be one of"),
+        ('kind = "rigid_body"\nmass = 0.02', "robot.segments[0].tip_position: is required"),
+        (
+            'kind = "rigid_body"\nmass = 0.02\ntip_position = [0, 0, 0.03]\ninertia = [1, 2]',
+            "robot.segments[0].inertia: must be 3 numbers",
+        ),
+        (
+            'kind = "rigid_body"\nmass = -1.0\ntip_position = [0, 0, 0.03]',
+            "robot.segments[0]: mass must be >= 0",
+        ),
+    ],
+)
+def test_a_bad_rigid_body_exits_2_naming_its_field(tmp_path, capsys, element, expected):
+    config = tmp_path / "bad.toml"
+    config.write_text(f"[robot]\n[[robot.segments]]\n{element}\n")
+    assert main(["simulate", str(config), "-o", str(tmp_path / "out")]) == 2
+    error = capsys.readouterr().err
+    assert f"{config}: {expected}" in error, error
+    assert error.count("\n") == 1
