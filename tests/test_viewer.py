@@ -183,6 +183,12 @@ def test_the_models_environment_is_drawn(tmp_path):
     vertices, _ = environment_meshes(model, 0.1)[1].surface()
     center = np.diag([1.0, -1.0, -1.0]) @ sphere.center
     assert np.allclose(np.linalg.norm(vertices - center, axis=1), sphere.radius)
+    # and on a moved base, moved with it
+    moved = flipped.replace(base_position=[0.3, -0.1, 0.2])
+    model = sc.Model(moved, environment=environment, compile=False)
+    vertices, _ = environment_meshes(model, 0.1)[1].surface()
+    center = center + [0.3, -0.1, 0.2]
+    assert np.allclose(np.linalg.norm(vertices - center, axis=1), sphere.radius)
 
 
 def test_batch_members_and_equilibria(paper_model, tendons, tmp_path):
