@@ -342,3 +342,27 @@ def test_the_states_of_a_six_strain_robot_are_its_strains(tmp_path):
     assert len(twist) == 1
     np.testing.assert_array_equal(twist[0].get_ydata(), run.q[:, sc.STRAINS.index("twist")])
     save_figure(figure, tmp_path / "states.png")
+
+
+def test_the_animation_draws_the_gripper_and_the_stripe(tmp_path):
+    """Frames of a six-strain segment carrying a gripper: a dark grey bar (the gripper)
+    and an orange stripe (the twist) besides the blue segment; the paper's robot has
+    neither."""
+    from PIL import Image
+
+    from tests.test_kinds import six_strain_gripper_robot, twisted
+
+    def colours(model, q0):
+        run = sc.simulate(model, q0, np.zeros(model.n), t_final=0.04)
+        path = sc.figures.animate(run, tmp_path / "robot.gif", model, fps=25, figsize=(3, 3))
+        with Image.open(path) as gif:
+            rgb = np.asarray(gif.convert("RGB"), dtype=float) / 255
+        grey = (np.ptp(rgb, axis=-1) < 0.05) & (np.abs(rgb.mean(axis=-1) - 0.35) < 0.06)
+        orange = (rgb[..., 0] > 0.8) & (np.abs(rgb[..., 1] - 0.5) < 0.12) & (rgb[..., 2] < 0.25)
+        return grey.sum(), orange.sum()
+
+    robot = six_strain_gripper_robot()
+    grey, orange = colours(sc.Model(robot, compile=False), twisted(robot, twist=10.0))
+    paper = sc.Model(sc.presets.ifac2020(), compile=False)
+    text, none = colours(paper, [0.064, 10.0, 0.0])  # greys of the ticks' text alone
+    assert grey > text + 100 and orange > 20 and none == 0, (grey, text, orange, none)

@@ -15,7 +15,13 @@ from softcurve.base.files import atomic_path
 from softcurve.base.progress import ProgressLine
 from softcurve.base.validation import ParameterError, real_scalar
 from softcurve.figures.actuation import plot_inputs
-from softcurve.figures.drawing import backbones, model_rows, panels, state_rows, whole_number
+from softcurve.figures.drawing import (
+    element_shapes,
+    model_rows,
+    panels,
+    state_rows,
+    whole_number,
+)
 from softcurve.figures.obstacles import draw_obstacles
 from softcurve.figures.scales import (
     NOISE,
@@ -29,6 +35,10 @@ MM_PER_M = 1e3
 STATE_LABELS = ("length l [m]", r"curvature $\kappa_x$ [1/m]", r"curvature $\kappa_y$ [1/m]")
 """Per segment, the coordinates are ``(l, kx, ky)``: one panel each."""
 ANIMATION_SUFFIXES = (".gif", ".mp4")
+RIGID_LINE = {"lw": 9, "color": "0.35", "solid_capstyle": "butt"}
+"""A rigid body in the animation: a thick dark grey bar, where soft segments are blue."""
+STRIPE_LINE = {"lw": 1.2, "color": "tab:orange"}
+"""The stripe along a soft segment's surface (its material x axis), which shows twist."""
 LEGEND_ROWS = 8
 """Entries per column of the states figure's legend, beside its top panel (2 inches
 tall: eight entries in small print fill it)."""
@@ -544,14 +554,22 @@ def animate(
     points = whole_number("points", points, 2)
     figsize = _figure_size(figsize)
     frames = frame_samples(trajectory, window=window, fps=fps, speed=speed)
-    shapes = backbones(model, trajectory.q[frames], points) * MM_PER_M
+    per_element = max(2, -(-points // model.robot.n_segments) + 1)
+    parts = element_shapes(model, trajectory.q[frames], per_element)
+    shapes = np.concatenate([part.backbone for part in parts], axis=1) * MM_PER_M
     least_reach = MINIMUM_REACH * model.robot.rest_length * MM_PER_M
     limits = equal_limits(shapes, least=least_reach)
     limits = limits.mean(axis=1, keepdims=True) + MARGIN * (
         limits - limits.mean(axis=1, keepdims=True)
     )
     figure, ax = animation_axes(figsize, limits, dpi)
-    (line,) = ax.plot([], [], [], lw=4, color="tab:blue")
+    stripes = not model.robot.constant_curvature
+    drawn = []  # (artist, positions (F, P, 3) [mm]): each element, and its stripe
+    for part in parts:
+        style = RIGID_LINE if part.rigid else {"lw": 4, "color": "tab:blue"}
+        drawn.append((ax.plot([], [], [], **style)[0], part.backbone * MM_PER_M))
+        if stripes and not part.rigid:
+            drawn.append((ax.plot([], [], [], **STRIPE_LINE)[0], part.stripe * MM_PER_M))
     (tip,) = ax.plot([], [], [], "o", color="tab:red")
     title = ax.set_title("")
     # drawn after the robot, as a full redraw of the 3-D axes orders them
@@ -560,12 +578,14 @@ def animate(
 
     def draw(i):
         shape = shapes[i]
-        line.set_data_3d(shape[:, 0], shape[:, 1], shape[:, 2])
+        for artist, positions in drawn:
+            artist.set_data_3d(*positions[i].T)
         tip.set_data_3d(shape[-1:, 0], shape[-1:, 1], shape[-1:, 2])
         title.set_text(f"t = {trajectory.t[frames[i]]:.3f} s")
         bar.update(i + 1)
 
-    pixels = blitted_frames(figure, [line, tip, *obstacles, title], draw, len(frames))
+    artists = [artist for artist, _ in drawn]
+    pixels = blitted_frames(figure, [*artists, tip, *obstacles, title], draw, len(frames))
     write = write_gif if path.suffix == ".gif" else write_mp4
     try:
         with atomic_path(path) as tmp:
