@@ -64,6 +64,12 @@ _FACES = {
     "softcurve.description.layout": ("ParameterLayout",),
     "softcurve.description.materials": ("Creep", "LinearStiffness", "TanhStiffness"),
     "softcurve.description.robot": ("Robot", "Segment"),
+    "softcurve.description.sections": (
+        "Material",
+        "Section",
+        "SectionProperties",
+        "section_properties",
+    ),
     "softcurve.description.tendons": ("Tendon", "TendonActuator"),
     "softcurve.figures": ("save_figure",),
     "softcurve.identification.experiments": (
@@ -150,6 +156,10 @@ __all__ = [
     "LinearStiffness",
     "TanhStiffness",
     "Creep",
+    "Material",
+    "Section",
+    "SectionProperties",
+    "section_properties",
     "Actuator",
     "Bellows",
     "PneumaticActuator",
