@@ -109,7 +109,8 @@ class Material:
                         f"isotropic elastic solid: Poisson's ratio E / (2 G) - 1 <= 0.5), "
                         f"got {given!r}"
                     )
-                # G >= E / 3 means nu <= 0.5 exactly; E / (2 G) may round one unit above
+                # G >= E / 3 means nu <= 0.5 exactly; the min keeps the rounding of
+                # E / (2 G) from ever stating more (none found at G = E / 3 for 1e5 E)
                 nu = min(e / (2.0 * given) - 1.0, INCOMPRESSIBLE)
             elif not _agree(given, g):
                 raise ParameterError(
