@@ -41,9 +41,10 @@ RTOL = 1e-12
 each state's scale (length, 1, moment scale)."""
 
 SHOOTING_TOL = 1e-10
-"""Accepted tip moment mismatch, relative to the moment scale: two orders above what the
-integration at :data:`RTOL` can resolve (the mismatch measured at convergence is
-1e-13 to 1e-12 of the scale on the cases of ``tests/test_cosserat_rod.py``)."""
+"""Accepted tip moment mismatch, relative to the moment scale: a guard against a failed
+solve only. The mismatch reached is below 4e-16 of the scale on every solve of
+``tests/test_cosserat_rod.py``, and the shapes are as accurate as the integration at
+:data:`RTOL` (errors of 1e-12 to 1e-11 against the closed forms)."""
 
 GRID_POINTS = 201
 """Points of the output grid ``s`` by default."""
@@ -166,9 +167,10 @@ class _Rod:
         return np.concatenate([dp, (rotation @ hat(xi[:3])).ravel(), -np.cross(dp, n)])
 
     def moment_scale(self) -> float:
-        """[N m]: the loads' moment about the base on the rest shape, or the moment that
-        bends the rod by one radian when unloaded."""
-        return max(np.linalg.norm(self.guess()), self.ku[0] / self.length)
+        """[N m]: the loads' moment about the base on the rest shape, or, where it is
+        zero, the moment that bends the rod by one radian."""
+        moment = np.linalg.norm(self.guess())
+        return moment if moment > 0 else self.ku[0] / self.length
 
     def guess(self) -> np.ndarray:
         """The base moment [N m] that balances the loads on the rest shape (exact for a
