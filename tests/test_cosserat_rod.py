@@ -119,7 +119,7 @@ def test_precurved_rod_without_load_keeps_its_rest_shape():
 def test_closed_form_exponential_is_scipys():
     """On both sides of the series' switch, at zero angular strain and over several turns."""
     rng = np.random.default_rng(45)
-    x = np.concatenate([[0.0], np.geomspace(1e-9, 20.0, 200)])
+    x = np.concatenate([[0.0], np.geomspace(1e-9, 20.0, 40)])
     for scale in (0.0, 1e-3, 1.0):
         xi = np.concatenate([scale * rng.standard_normal(3), rng.standard_normal(3)])
         expected = np.array([scipy.linalg.expm(s * twist_matrix(xi)) for s in x])
