@@ -459,16 +459,20 @@ def _pcs_residual(rod: _Rod, count: int, xi: np.ndarray):
     return xi - rod.rest - mean / stiffness, poses
 
 
-def solve_pcs(count: int, guess=None, **keywords):
+STRAINS = ("bend_x", "bend_y", "twist", "shear_x", "shear_y", "stretch")
+"""The names of the six strains in their order in ``xi = (u, v)``."""
+
+
+def solve_pcs(count: int, guess=None, strains=STRAINS, **keywords):
     """The equilibrium of ``count`` equal segments of constant strain (the strain segments'
     model), by the principle of virtual work, for comparison with :func:`solve_rod`.
 
     For a clamped rod the internal wrench at ``X`` is the loads beyond ``X`` (statics of
     the part beyond), whatever the shape; the virtual work of the loads is that of the
     internal wrench on the strain variation, so segment ``i``'s equilibrium is
-    ``K (xi_i - xi*) = (1 / l) int_segment Lambda(X) dX``, ``Lambda`` the body-frame
-    internal (moment, force) and ``l = L0 / count``. Solved by ``scipy.optimize.root``
-    from the rest strains, with load continuation as :func:`solve_rod`. Meant to tell a
+    ``K (xi_i - xi*) = (1 / l) int_segment Lambda(X) dX`` in each chosen strain,
+    ``Lambda`` the body-frame internal (moment, force) and ``l = L0 / count``; the
+    strains not chosen stay at rest. Solved by ``scipy.optimize.root``. Meant to tell a
     discretization error from an implementation error: a correct piecewise-constant-
     strain model meets it to the solvers' precision.
 
@@ -478,7 +482,11 @@ def solve_pcs(count: int, guess=None, **keywords):
         Number of segments.
     guess : array_like, shape (count, 6), optional
         Strains to start from (e.g. :func:`segment_means` of the rod's solution), the
-        load then applied at once; default the rest strains, with load continuation.
+        load applied at once. Without it, or where it fails, the rest strains with load
+        continuation as :func:`solve_rod`.
+    strains : sequence of str
+        The strains free in every segment, among :data:`STRAINS` (default all); e.g.
+        ``("bend_x", "bend_y", "stretch")``, the constant-curvature segment.
     **keywords
         Those of :func:`solve_rod` but ``points`` (a ``"material"`` key is ignored).
 
@@ -490,21 +498,30 @@ def solve_pcs(count: int, guess=None, **keywords):
     """
     keywords = {k: v for k, v in keywords.items() if k != "material"}
     rod = _rod(**keywords)
-    for steps in CONTINUATION_STEPS:
+    chosen = [STRAINS.index(s) for s in strains]
+
+    def full(z):
         xi = np.tile(rod.rest, (count, 1))
-        if guess is not None:
-            xi, steps = np.asarray(guess, float).reshape(count, 6), 1
+        xi[:, chosen] = z.reshape(count, len(chosen))
+        return xi
+
+    def solved(step: _Rod, start: np.ndarray):
+        root = scipy.optimize.root(
+            lambda z: _pcs_residual(step, count, full(z))[0][:, chosen].ravel(),
+            start[:, chosen].ravel(),
+            method="hybr",
+            tol=1e-14,
+        )
+        return full(root.x) if np.max(np.abs(root.fun)) <= SHOOTING_TOL else None
+
+    attempts = [(1, guess)] if guess is not None else []
+    attempts += [(steps, None) for steps in CONTINUATION_STEPS]
+    for steps, start in attempts:
+        xi = np.tile(rod.rest, (count, 1)) if start is None else np.reshape(start, (count, 6))
         for k in range(1, steps + 1):
-            step = rod.scaled(k / steps)
-            root = scipy.optimize.root(
-                lambda z, step=step: _pcs_residual(step, count, z.reshape(count, 6))[0].ravel(),
-                xi.ravel(),
-                method="hybr",
-                tol=1e-14,
-            )
-            if np.max(np.abs(root.fun)) > SHOOTING_TOL:
+            xi = solved(rod.scaled(k / steps), np.asarray(xi, float))
+            if xi is None:
                 break
-            xi = root.x.reshape(count, 6)
         else:
             tip = _pcs_residual(rod, count, xi)[1][-1, -1]
             return xi, tip[:3, :3], tip[:3, 3]
@@ -663,7 +680,7 @@ def tip_shifts(parameters: dict, solution: RodSolution) -> dict:
 
 def report() -> str:
     """The two cases' tip positions, strains and each strain kind's share, as text."""
-    names = ("bend_x", "bend_y", "twist", "shear_x", "shear_y", "stretch")
+    names = STRAINS
     lines = []
     for case in (loaded_straight_rod, precurved_rod_under_gravity):
         parameters, solution = case()
