@@ -21,7 +21,13 @@ action of the part beyond ``X`` on the part before it)::
 ``f`` the distributed dead load per reference length (gravity: mass per length times
 ``g``). Dead loads make the force balance integrate in closed form,
 ``n(X) = F_tip + f (L0 - X)``, so the shooting unknowns are the three components of the
-base moment ``m(0)``; the residual is ``m(L0) - M_tip``.
+base moment ``m(0)`` (:func:`solve_rod`); the residual is ``m(L0) - M_tip``.
+
+Beside it, :func:`solve_pcs` solves the same rod cut into segments of constant strain
+(the strain segments' discretization), to tell their discretization error from an
+error of their implementation; :func:`loaded_straight_rod` and
+:func:`precurved_rod_under_gravity` are the two cases of the convergence study, and
+``python tests/cosserat_rod.py`` prints their figures (:func:`report`).
 """
 
 from __future__ import annotations

@@ -1,4 +1,5 @@
-"""The Cosserat rod reference of tests/cosserat_rod.py against closed forms."""
+"""The Cosserat rod reference of tests/cosserat_rod.py against closed forms, and its
+piecewise-constant-strain companion against the rod."""
 
 from __future__ import annotations
 
