@@ -115,9 +115,7 @@ def test_timoshenko_cantilever_converges_at_second_order():
         pieces = segment.replace(
             rest_length=length / count, mass=segment.mass / count, slice_inertia=None
         )
-        model = sc.Model(
-            weightless(sc.Robot(segments=(pieces,) * count)), compile=False
-        )
+        model = sc.Model(weightless(sc.Robot(segments=(pieces,) * count)), compile=False)
         e = sc.equilibrium(model, model.robot.rest_configuration(), tip_force=[force, 0, 0])
         assert e.success, e.message
         errors.append(abs(model.tip_pose(e.q).position[0] - expected) / expected)

@@ -14,7 +14,7 @@ import casadi as ca
 import numpy as np
 
 from softcurve.base.validation import ParameterError, real_array, real_scalar
-from softcurve.description.elements._element import (
+from softcurve.description.kind import (
     Body,
     Element,
     ElementModel,

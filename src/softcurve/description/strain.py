@@ -31,8 +31,8 @@ import casadi as ca
 import numpy as np
 
 from softcurve.base.validation import ParameterError, real_array, real_scalar
-from softcurve.description.elements._curvature import MAX_BEND, MAX_REST_LENGTH, MAX_STRETCH
-from softcurve.description.elements._element import (
+from softcurve.description.curvature import MAX_BEND, MAX_REST_LENGTH, MAX_STRETCH
+from softcurve.description.kind import (
     Element,
     SoftModel,
     creep_fields,
@@ -44,6 +44,7 @@ from softcurve.description.elements._element import (
     vector_field,
 )
 from softcurve.description.materials import STIFFNESS_LAWS, Creep, LinearStiffness, TanhStiffness
+from softcurve.description.sections import section_properties
 
 STRAINS = ("bend_x", "bend_y", "twist", "shear_x", "shear_y", "stretch")
 """The six Cosserat strains in their order in ``xi = (u, v)``."""
@@ -314,8 +315,6 @@ class StrainSegment(Element):
         creep : Creep, optional
             Creep on the chosen strains.
         """
-        from softcurve.description.sections import section_properties
-
         properties = section_properties(material, section)
         chosen = _chosen(strains)
         values = dict(zip(STRAINS, properties.stiffness, strict=True))

@@ -19,7 +19,7 @@ import casadi as ca
 import numpy as np
 
 from softcurve.base.validation import FLOAT_MAX, ParameterError, real_scalar
-from softcurve.description.elements._element import (
+from softcurve.description.kind import (
     E_Z,
     Element,
     SoftModel,
