@@ -79,9 +79,10 @@ def stiffness(args):
 def case(args):
     """The robot, load and runs, in softcurve's conventions (JSON-ready)."""
     n = args.segments
-    rest = np.tile([args.precurve, 0.0, 0.0, 0.0, 0.0, 1.0], (n, 1))
+    precurve, beta = (0.0, 0.0) if args.pcc else (args.precurve, args.beta)
+    rest = np.tile([precurve, 0.0, 0.0, 0.0, 0.0, 1.0], (n, 1))
     initial = rest + np.tile([0.0, -args.lift, 0.0, 0.0, 0.0, 0.0], (n, 1))
-    damping = np.tile(args.beta * args.length * stiffness(args), (n, 1))
+    damping = np.tile(beta * args.length * stiffness(args), (n, 1))
     return {
         "n_segments": n,
         "rest_length": args.length,
@@ -89,7 +90,7 @@ def case(args):
         "density": args.density,
         "youngs_modulus": args.young,
         "shear_modulus": args.shear,
-        "strains": list(STRAINS),
+        "strains": ["bend_x", "bend_y", "stretch"] if args.pcc else list(STRAINS),
         "rest_strain": rest.tolist(),
         "damping": damping.tolist(),
         "gravity": [0.0, 0.0, -9.81],
@@ -124,15 +125,15 @@ def run_peer(python, spec):
         return json.loads(result_file.read_text())
 
 
-def run_ours(spec):
-    """softcurve's results in the peer's layout, or None where StrainSegment is absent."""
-    import softcurve as sc
-
+def strain_robot(sc, spec):
+    """The case as ``StrainSegment``s: ``(robot, q of per-segment strains, strains of
+    q)``, or None where softcurve has no ``StrainSegment``."""
     if not hasattr(sc, "StrainSegment"):
         return None
     n, length, radius = spec["n_segments"], spec["rest_length"], spec["radius"]
     area, second, polar = section(radius)
     e, g = spec["youngs_modulus"], spec["shear_modulus"]
+    chosen = [STRAINS.index(name) for name in spec["strains"]]
     segments = tuple(
         sc.StrainSegment(
             rest_length=length,
@@ -145,17 +146,63 @@ def run_ours(spec):
             shear_stiffness=sc.LinearStiffness(g * area),
             stretch_stiffness=sc.LinearStiffness(e * area),
             rest_strain=tuple(spec["rest_strain"][i]),
-            damping=np.asarray(spec["damping"][i]),
+            damping=np.asarray(spec["damping"][i])[chosen],
         )
         for i in range(n)
     )
     robot = sc.Robot(
         segments=segments, gravity=spec["gravity"], base_rotation=spec["base_rotation"]
     )
+
+    def to_q(strains):
+        return np.asarray(strains, dtype=float)[:, chosen].reshape(-1)
+
+    def to_strains(q):
+        strains = np.array(spec["rest_strain"], dtype=float)
+        strains[:, chosen] = np.reshape(q, (n, len(chosen)))
+        return strains
+
+    return robot, to_q, to_strains
+
+
+def curvature_robot(sc, spec):
+    """The restricted case (bend x, bend y, stretch; straight at rest; undamped) as
+    today's constant-curvature ``Segment``s: ``(robot, to_q, to_strains)``. MODEL.md's
+    map: ``sigma = l / l0``, ``u = sigma (-ky, kx, 0)``, ``v = (0, 0, sigma)``; its
+    energy is the strains' with ``k_b = E I / l0``, ``k_e = E A / l0``."""
+    n, length, radius = spec["n_segments"], spec["rest_length"], spec["radius"]
+    area, second, _ = section(radius)
+    e = spec["youngs_modulus"]
+    segment = sc.Segment(
+        rest_length=length,
+        mass=spec["density"] * area * length,
+        radius=radius,
+        elongation_stiffness=sc.LinearStiffness(e * area / length),
+        bending_stiffness=sc.LinearStiffness(e * second / length),
+    )
+    robot = sc.Robot(
+        segments=(segment,) * n, gravity=spec["gravity"], base_rotation=spec["base_rotation"]
+    )
+
+    def to_q(strains):
+        u_x, u_y, sigma = np.asarray(strains, dtype=float)[:, [0, 1, 5]].T
+        return np.column_stack([sigma * length, u_y / sigma, -u_x / sigma]).reshape(-1)
+
+    def to_strains(q):
+        arc, kx, ky = np.reshape(q, (n, 3)).T
+        sigma = arc / length
+        zero = np.zeros(n)
+        return np.column_stack([-sigma * ky, sigma * kx, zero, zero, zero, sigma])
+
+    return robot, to_q, to_strains
+
+
+def run_ours(sc, spec, robot, to_q, to_strains):
+    """softcurve's results in the peer's layout."""
     start = time.perf_counter()
     model = sc.Model(robot)
     build_time = time.perf_counter() - start
-    q_rest = robot.rest_configuration()
+    q_rest = to_q(spec["rest_strain"])
 
     static_times, equilibrium = [], None
     for _ in range(2):
@@ -169,7 +216,7 @@ def run_ours(spec):
         [model.pose(equilibrium.q, s).position for s in np.linspace(0, 1, spec["n_backbone"])]
     )
 
-    q0 = np.concatenate(spec["initial_strain"])
+    q0 = to_q(spec["initial_strain"])
     dt = spec["t_final"] / (spec["n_out"] - 1)
     trajectory_times, trajectory = [], None
     for _ in range(2):
@@ -183,7 +230,7 @@ def run_ours(spec):
     return {
         "build_time": build_time,
         "static": {
-            "strains": np.asarray(equilibrium.q).reshape(n, -1).tolist(),
+            "strains": to_strains(equilibrium.q).tolist(),
             "tip_position": np.asarray(tip.position).tolist(),
             "tip_rotation": np.asarray(tip.rotation).tolist(),
             "backbone": backbone.tolist(),
@@ -241,8 +288,10 @@ def rows(peer, ours):
         raise RuntimeError("the two trajectories' output times differ")
 
     def tip_angle():
-        rotation = np.array(o_static["tip_rotation"]).T @ np.array(p_static["tip_rotation"])
-        return f"{math.degrees(math.acos(np.clip((np.trace(rotation) - 1) / 2, -1, 1))):.3g} deg"
+        # the angle of R_o^T R_p from |R_o - R_p|_F = 2 sqrt(2) sin(angle / 2), exact
+        # near zero, where the trace's arccos loses its digits
+        gap = np.linalg.norm(np.subtract(o_static["tip_rotation"], p_static["tip_rotation"]))
+        return f"{math.degrees(2 * math.asin(min(1.0, gap / math.sqrt(8)))):.2e} deg"
 
     table = [
         ("peer", "softcurve", f"soromox {peer['peer_version']} (jax {peer['jax_version']})", ""),
@@ -324,6 +373,12 @@ def main(argv=None):
     parser.add_argument("--outputs", type=int, default=51, help="output times")
     parser.add_argument("--rtol", type=float, default=1e-8)
     parser.add_argument("--gauss", type=int, default=5, help="the peer's Gauss points")
+    parser.add_argument(
+        "--pcc",
+        action="store_true",
+        help="the restricted case: bend x, bend y and stretch, straight, undamped, "
+        "softcurve's side today's constant-curvature Segment",
+    )
     parser.add_argument("--markdown", action="store_true")
     args = parser.parse_args(argv)
 
@@ -338,9 +393,12 @@ def main(argv=None):
     peer = run_peer(python, spec)
     if peer is None:
         return 1
-    ours = run_ours(spec)
-    if ours is None:
+    import softcurve as sc
+
+    built = (curvature_robot if args.pcc else strain_robot)(sc, spec)
+    if built is None:
         print("softcurve.StrainSegment is not available: the peer's numbers only")
+    ours = None if built is None else run_ours(sc, spec, *built)
     show(rows(peer, ours), args.markdown)
     return 0
 
