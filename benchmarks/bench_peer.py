@@ -34,11 +34,17 @@ solver, its side runs Newton's method on its ``potential_force``. Trajectory: so
 Wall times: each code's first call in a fresh process (compiling: softcurve's C build or
 its cache, the peer's JIT) and a second call.
 
+``--pcc`` runs the restricted case (bend x, bend y, stretch; straight at rest; undamped,
+since a damping on the strain rates is not one on ``(l, kx, ky)``) with softcurve's side
+today's constant-curvature ``Segment`` (MODEL.md's map ``sigma = l / l0``,
+``u = sigma (-ky, kx, 0)``, ``v = (0, 0, sigma)``).
+
 The peer lives in its own virtual environment (``python -m venv peer-venv &&
 peer-venv/bin/pip install soromox``); without ``--peer-python`` the peer side is skipped.
 Without ``softcurve.StrainSegment`` only the peer's numbers are printed.
 
-Run: ``python benchmarks/bench_peer.py --peer-python peer-venv/bin/python [--markdown]``
+Run: ``python benchmarks/bench_peer.py --peer-python peer-venv/bin/python [--pcc]
+[--markdown]``
 """
 
 from __future__ import annotations
