@@ -101,13 +101,21 @@ def rng() -> np.random.Generator:
     return np.random.default_rng(20200712)
 
 
-def random_state(rng, model, *, curvature=30.0, rate=(0.5, 200.0)):
-    """A random configuration and velocity of ``model``'s robot near its rest length."""
+def random_state(rng, model, *, curvature=30.0, rate=(0.5, 200.0), spread=0.3):
+    """A random configuration and velocity of ``model``'s robot near its rest state:
+    constant-curvature segments near their rest length with curvatures up to
+    ``curvature``; other elements at their rest coordinates plus up to ``spread`` of
+    their coordinate scale (rates up to ``rate[1] / 10`` scales per second)."""
     q, qd = [], []
     for segment in model.robot.segments:
-        l0 = segment.rest_length
-        q += [l0 * rng.uniform(0.8, 1.2), *rng.uniform(-curvature, curvature, 2)]
-        qd += [rng.uniform(-rate[0], rate[0]), *rng.uniform(-rate[1], rate[1], 2)]
+        if isinstance(segment, sc.Segment):
+            l0 = segment.rest_length
+            q += [l0 * rng.uniform(0.8, 1.2), *rng.uniform(-curvature, curvature, 2)]
+            qd += [rng.uniform(-rate[0], rate[0]), *rng.uniform(-rate[1], rate[1], 2)]
+        else:
+            scale, size = segment.coordinate_scale(), segment.n_coordinates
+            q += list(segment.rest_configuration() + spread * scale * rng.uniform(-1, 1, size))
+            qd += list(0.1 * rate[1] * scale * rng.uniform(-1, 1, size))
     return np.array(q), np.array(qd)
 
 

@@ -63,7 +63,8 @@ _FACES = {
     ),
     "softcurve.description.layout": ("ParameterLayout",),
     "softcurve.description.materials": ("Creep", "LinearStiffness", "TanhStiffness"),
-    "softcurve.description.robot": ("Robot", "Segment"),
+    "softcurve.description.elements": ("STRAINS", "RigidBody", "Segment", "StrainSegment"),
+    "softcurve.description.robot": ("Robot",),
     "softcurve.description.tendons": ("Tendon", "TendonActuator"),
     "softcurve.figures": ("save_figure",),
     "softcurve.identification.experiments": (
@@ -147,6 +148,9 @@ __all__ = [
     # description
     "Robot",
     "Segment",
+    "StrainSegment",
+    "RigidBody",
+    "STRAINS",
     "LinearStiffness",
     "TanhStiffness",
     "Creep",

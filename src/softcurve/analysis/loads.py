@@ -22,7 +22,7 @@ from softcurve.base.validation import ParameterError, real_array
 from softcurve.compiled import compile_function, load_function
 from softcurve.description.actuator import Actuator
 from softcurve.symbolic.contact import contact_statics
-from softcurve.symbolic.kinematics import segment_frames
+from softcurve.symbolic.kinematics import kinematic_chain, segment_frames
 
 
 # -- loads ------------------------------------------------------------------------------
@@ -101,7 +101,10 @@ def _load_symbols(model, actuator, tip_force: bool = True, tip_moment: bool = Tr
     m_inputs = 0 if actuator is None else actuator.n_inputs
     tau, u = ca.SX.sym("tau", n), ca.SX.sym("u", m_inputs)
     force, moment = ca.SX.sym("f", 3), ca.SX.sym("m", 3)
-    (tip,) = segment_frames(q, e.n_segments, e.base_rotation, [(e.n_segments - 1, 1.0)])
+    elements = kinematic_chain(e.structure, e.p)
+    (tip,) = segment_frames(
+        q, elements, e.base_rotation, [(e.n_segments - 1, 1.0)], e.base_position
+    )
     tip_work = ca.dot(force, tip.position) if tip_force else ca.SX(0)
     potential = e.gravity_energy + e.elastic_energy - ca.dot(tau, q) - tip_work
     # the tip force's term apart: the statics take it from its work (tip_work)
@@ -314,28 +317,30 @@ def elastic_stiffness_function(model) -> ca.Function:
 
 
 def coordinate_scale(robot) -> np.ndarray:
-    """``S = (l0, 1/l0, 1/l0)`` per segment: ``q / S`` is dimensionless (a bending of one
-    radian is 1) and ``S * force`` is an energy [J].
+    """``S``, :meth:`Robot.coordinate_scale <softcurve.description.robot.Robot.
+    coordinate_scale>` (``(l0, 1/l0, 1/l0)`` per constant-curvature segment, ``1/L0`` per
+    curvature and 1 per strain of a constant-strain one): ``q / S`` is dimensionless (a
+    bending of one radian is 1) and ``S * force`` is an energy [J].
 
     Parameters
     ----------
     robot : Robot
-        Supplies the rest lengths ``l0`` [m].
+        The robot.
     """
-    return np.array(
-        [v for s in robot.segments for v in (s.rest_length, 1 / s.rest_length, 1 / s.rest_length)]
-    )
+    return robot.coordinate_scale()
 
 
 def rest_configuration(robot) -> np.ndarray:
-    """The straight, unstretched configuration ``(l0, 0, 0)`` per segment.
+    """The configuration at rest: ``(l0, 0, 0)`` per constant-curvature segment, the rest
+    strains of a constant-strain one (:meth:`Robot.rest_configuration
+    <softcurve.description.robot.Robot.rest_configuration>`).
 
     Parameters
     ----------
     robot : Robot
-        Supplies the rest lengths ``l0`` [m].
+        The robot.
     """
-    return np.array([v for s in robot.segments for v in (s.rest_length, 0.0, 0.0)])
+    return robot.rest_configuration()
 
 
 def residual_reference(model) -> np.ndarray:

@@ -52,7 +52,10 @@ PARAMETERS: dict[str, tuple[str, str]] = {
     ),
     "threads": ("int", "Threads of the mapped evaluation."),
     "steps": ("ChainSteps", "The steps of the algorithms over the chain."),
-    "terms": ("list of SegmentTerms", "Each segment's terms (``chain.segment_motions``)."),
+    "terms": (
+        "list of SegmentTerms",
+        "Each element's terms and steps (``chain.segment_motions``).",
+    ),
     "base_acceleration": (
         "casadi.SX, shape (6,)",
         "``(alpha, a)`` of the base frame; ``(0, -g)`` in base coordinates for gravity.",

@@ -1,7 +1,8 @@
 """The domain of a state: the robot's configuration domain and its actuator's.
 
 Each rule is written once, next to what it is about: the configuration domain in
-:mod:`softcurve.description.robot` (:func:`~softcurve.description.robot.in_domain`), the
+each element kind's module (:mod:`softcurve.description.elements`, through
+:meth:`Robot.inside <softcurve.description.robot.Robot.inside>`), the
 actuator's (every tendon length and chamber volume > 0) in
 :mod:`softcurve.description.fibers` through :meth:`Actuator.fibers
 <softcurve.description.actuator.Actuator.fibers>`. :func:`state_problem` and
@@ -17,7 +18,6 @@ import numpy as np
 
 from softcurve.base.status import Status
 from softcurve.description.fibers import fiber_problem, fibers_inside
-from softcurve.description.robot import domain_problem, in_domain
 
 
 def state_problem(robot, q, actuator=None, *, entry: str = "q") -> str | None:
@@ -28,7 +28,7 @@ def state_problem(robot, q, actuator=None, *, entry: str = "q") -> str | None:
     Parameters
     ----------
     robot : Robot
-        Supplies the rest lengths.
+        The robot whose domain is checked.
     q : array_like, shape (n,)
         One configuration [m, 1/m, 1/m].
     actuator : Actuator or None
@@ -37,25 +37,25 @@ def state_problem(robot, q, actuator=None, *, entry: str = "q") -> str | None:
         How an index into ``q`` is named (see
         :func:`~softcurve.description.robot.domain_problem`).
     """
-    problem = domain_problem(q, robot.rest_lengths, entry=entry)
+    problem = robot.domain_problem(q, entry=entry)
     if problem is None and actuator is not None:
         problem = fiber_problem(actuator.fibers(), q)
     return problem
 
 
-def states_inside(rest_lengths, q, actuator=None) -> np.ndarray:
+def states_inside(robot, q, actuator=None) -> np.ndarray:
     """Vectorized :func:`state_problem` ``is None``: shape (...).
 
     Parameters
     ----------
-    rest_lengths : array_like, shape (N,) or (..., N)
-        Rest lengths [m].
+    robot : Robot
+        The robot.
     q : array_like, shape (..., n)
         Configurations [m, 1/m, 1/m].
     actuator : Actuator or None
         The actuator whose geometry is checked too.
     """
-    inside = in_domain(q, rest_lengths)
+    inside = robot.inside(q)
     if actuator is not None:
         inside &= fibers_inside(actuator.fibers(), q)
     return inside

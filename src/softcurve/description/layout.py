@@ -6,7 +6,7 @@ compiled library serves every robot of the same :meth:`Robot.structure`. Everyth
 that reads or writes ``p`` (the robot, the symbolic model, static loads, sweeps,
 identification) asks a :class:`ParameterLayout` where a field lies instead of counting.
 
-Matrices (damping, creep compliance, base rotation) are stored row by row.
+Matrices (damping, creep compliance, inertia, rotations) are stored row by row.
 """
 
 from __future__ import annotations
@@ -19,23 +19,10 @@ import casadi as ca
 import numpy as np
 
 from softcurve.base.validation import ParameterError
-from softcurve.description.materials import LAW_UNITS, STIFFNESS_LAWS, Creep
+from softcurve.description.elements import element_model
 
 _VECTOR3 = ("[0]", "[1]", "[2]")
 _MATRIX3 = tuple(f"[{i},{j}]" for i in range(3) for j in range(3))
-DAMPING_UNITS = (
-    "N s/m",
-    "N m s",
-    "N m s",
-    "N m s",
-    "N m^3 s",
-    "N m^3 s",
-    "N m s",
-    "N m^3 s",
-    "N m^3 s",
-)
-"""Units of a damping matrix's entries, row by row: generalized force [N, N m^2, N m^2]
-per coordinate rate [m/s, 1/(m s), 1/(m s)]."""
 
 
 @dataclass(frozen=True)
@@ -49,7 +36,7 @@ class ParameterField:
     start : int
         Index of its first entry in the vector.
     shape : tuple of int
-        ``()`` for a scalar, ``(k,)`` for a vector, ``(3, 3)`` for a matrix (row major).
+        ``()`` for a scalar, ``(k,)`` for a vector, ``(k, k)`` for a matrix (row major).
     labels : tuple of str
         Suffix of each entry's name: ``""`` for a scalar, ``".k0"`` for a stiffness-law
         parameter, ``"[0]"`` or ``"[0,1]"`` for vector and matrix entries.
@@ -86,8 +73,9 @@ class ParameterLayout:
     Parameters
     ----------
     structure : tuple
-        :meth:`Robot.structure`: per segment ``(elongation law kind, bending law kind,
-        has creep)``.
+        :meth:`Robot.structure`: each element's signature; the element kinds'
+        models (:func:`~softcurve.description.elements.element_model`) list their
+        fields.
 
     Examples
     --------
@@ -108,24 +96,12 @@ class ParameterLayout:
             units = (units,) * len(labels) if isinstance(units, str) else tuple(units)
             fields.append(ParameterField(name, start, shape, labels, units))
 
-        for k, (elongation, bending, has_creep) in enumerate(structure):
-            head = f"segments[{k}]."
-            for name, unit in (("rest_length", "m"), ("mass", "kg"), ("radius", "m")):
-                add(head + name, (), ("",), unit)
-            for mode, kind in (
-                ("elongation_stiffness", elongation),
-                ("bending_stiffness", bending),
-            ):
-                law = STIFFNESS_LAWS[kind]
-                units = [LAW_UNITS[mode][quantity] for quantity in law.parameter_quantities]
-                add(head + mode, (len(units),), ("." + x for x in law.parameter_labels), units)
-            add(head + "damping", (3, 3), _MATRIX3, DAMPING_UNITS)
-            if has_creep:  # the creep state's unit is the user's: gain and K carry it
-                add(head + "creep.rate", (3,), _VECTOR3, "1/s")
-                add(head + "creep.gain", (3,), _VECTOR3, "")
-                add(head + "creep.compliance", (3, 3), _MATRIX3, "")
+        for k, signature in enumerate(structure):
+            for spec in element_model(signature).fields():
+                add(f"segments[{k}].{spec.name}", spec.shape, spec.labels, spec.units)
         add("gravity", (3,), _VECTOR3, "m/s^2")
         add("base_rotation", (3, 3), _MATRIX3, "")
+        add("base_position", (3,), _VECTOR3, "m")
         self.structure = structure
         self.fields: tuple[ParameterField, ...] = tuple(fields)
         self.size: int = fields[-1].start + fields[-1].size
@@ -260,12 +236,31 @@ class ParameterLayout:
         parts = {}
         for f in self.fields:
             part = p[f.slice]
-            if f.shape == (3, 3):
+            if len(f.shape) == 2:
+                rows, columns = f.shape
                 part = (
-                    part.reshape(3, 3) if isinstance(part, np.ndarray) else ca.reshape(part, 3, 3).T
+                    part.reshape(rows, columns)
+                    if isinstance(part, np.ndarray)
+                    else ca.reshape(part, columns, rows).T
                 )
             parts[f.name] = part
         return parts
+
+    def element_parts(self, p) -> list[dict]:
+        """Each element's fields of ``p`` by their names on the element (``"mass"``,
+        ``"creep.rate"``), as :meth:`split` gives them.
+
+        Parameters
+        ----------
+        p : ndarray or casadi.SX, shape (size,)
+            A parameter vector.
+        """
+        part = self.split(p)
+        elements = []
+        for k in range(len(self.structure)):
+            head = f"segments[{k}]."
+            elements.append({n[len(head) :]: v for n, v in part.items() if n.startswith(head)})
+        return elements
 
     def pack(self, robot) -> np.ndarray:
         """The parameter vector of ``robot``, shape (size,).
@@ -304,21 +299,13 @@ class ParameterLayout:
         segments = []
         for k, s in enumerate(robot.segments):
             head = f"segments[{k}]."
-            creep = None
-            if s.creep is not None:
-                creep = Creep(*(value[f"{head}creep.{n}"] for n in ("rate", "gain", "compliance")))
-            laws = {
-                mode: type(getattr(s, mode))(*value[head + mode])
-                for mode in ("elongation_stiffness", "bending_stiffness")
-            }
-            scalars = {n: float(value[head + n]) for n in ("rest_length", "mass", "radius")}
-            segments.append(
-                s.replace(**scalars, damping=value[head + "damping"], creep=creep, **laws)
-            )
+            own = {name[len(head) :]: v for name, v in value.items() if name.startswith(head)}
+            segments.append(s.with_values(own))
         return robot.replace(
             segments=tuple(segments),
             gravity=value["gravity"],
             base_rotation=value["base_rotation"],
+            base_position=value["base_position"],
         )
 
     def _check_structure(self, robot) -> None:

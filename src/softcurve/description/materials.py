@@ -285,12 +285,14 @@ class Creep:
 
     Parameters
     ----------
-    rate : array_like, shape (3,)
-        Decay rates ``(gamma_1, gamma_3, gamma_5)`` [1/s], each > 0.
-    gain : array_like, shape (3,)
+    rate : array_like, shape (k,)
+        Decay rates ``(gamma_1, gamma_3, gamma_5)`` [1/s], each > 0: one per coordinate of
+        the segment it acts on (three for a constant-curvature segment, one per chosen
+        strain for a :class:`~softcurve.StrainSegment`).
+    gain : array_like, shape (k,)
         Couplings to the coordinate rates ``(gamma_2, gamma_4, gamma_6)``
         [creep-state unit per coordinate unit].
-    compliance : array_like, shape (3, 3) or (3,)
+    compliance : array_like, shape (k, k) or (k,)
         ``K``, mapping creep states to generalized forces; a vector is a diagonal.
     """
 
@@ -299,15 +301,24 @@ class Creep:
     compliance: np.ndarray
 
     def __post_init__(self):
-        rate = real_array("creep.rate", self.rate, (3,))
+        shapes = [np.shape(v) for v in (self.rate, self.gain, self.compliance)]
+        size = shapes[1][0] if len(shapes[1]) == 1 and shapes[1][0] > 0 else 3
+        if shapes[0] != (size,):
+            raise ParameterError(
+                f"creep.rate must have shape (k,), with gain (k,) and compliance (k, k) or "
+                f"(k,) of one size k (the segment's coordinates): got rate {shapes[0]}, "
+                f"gain {shapes[1]}, compliance {shapes[2]}"
+            )
+        rate = real_array("creep.rate", self.rate, (size,))
         if not np.all(rate > 0):
             raise ParameterError(f"creep.rate must be > 0 in every entry, got {rate.tolist()}")
         compliance = np.asarray(self.compliance, dtype=np.float64)
-        if compliance.shape == (3,):
+        if compliance.shape == (size,):
             compliance = np.diag(compliance)
         object.__setattr__(self, "rate", rate)
-        object.__setattr__(self, "gain", real_array("creep.gain", self.gain, (3,)))
-        object.__setattr__(self, "compliance", real_array("creep.compliance", compliance, (3, 3)))
+        object.__setattr__(self, "gain", real_array("creep.gain", self.gain, (size,)))
+        compliance = real_array("creep.compliance", compliance, (size, size))
+        object.__setattr__(self, "compliance", compliance)
         problem = passivity_problem(rate, self.gain, self.compliance)
         if problem is not None:
             raise ParameterError(
@@ -317,6 +328,11 @@ class Creep:
                 "compliance_i / gain_i >= 0), on the states with gain != 0; K[i, j] = 0 where "
                 "gain_i != 0 and gain_j = 0"
             )
+
+    @property
+    def size(self) -> int:
+        """Number of creep states ``k``."""
+        return self.rate.shape[0]
 
     @classmethod
     def from_gamma(cls, gamma, compliance) -> Creep:
@@ -337,4 +353,7 @@ class Creep:
         """The numbers as they enter the parameter vector: rate, gain, compliance (row major)."""
         return (*self.rate, *self.gain, *self.compliance.ravel())
 
-    n_parameters: ClassVar[int] = 15
+    @property
+    def n_parameters(self) -> int:
+        """Number of its numbers in the parameter vector, ``2 k + k^2``."""
+        return self.size * (self.size + 2)

@@ -1,6 +1,8 @@
-"""Algorithms over the chain of segments: the mass matrix, inverse and forward dynamics,
-each a recursion that calls one segment's Functions (:mod:`softcurve.symbolic.segment`)
-once per segment.
+"""Algorithms over the chain of elements: the mass matrix, inverse and forward dynamics,
+each a recursion that calls one element's Functions (:mod:`softcurve.symbolic.segment`)
+once per element. Element ``i`` owns the coordinates ``q[offset_i : offset_i + n_i]``
+(Pinocchio's ``idx_q`` and ``nq``); a rigid body has ``n_i = 0`` and only carries
+inertia and a fixed placement.
 
 - :func:`mass_matrix`, the composite-body algorithm: each segment's momentum per unit
   rate, ``H_i + X_i^T I_(i+1) S_i``, carried to the base through the rigid transforms;
@@ -20,7 +22,7 @@ coordinates of the frame they belong to; gravity enters as the base's accelerati
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import casadi as ca
 
@@ -30,8 +32,9 @@ from softcurve.symbolic.segment import BIAS_OUTPUTS, INERTIA_OUTPUTS, SegmentFun
 
 @dataclass(frozen=True)
 class SegmentTerms:
-    """The outputs of one segment's ``motion`` Function at its symbols (shapes in
-    :mod:`softcurve.symbolic.segment`)."""
+    """The outputs of one element's ``motion`` Function at its symbols (shapes in
+    :mod:`softcurve.symbolic.segment`), the steps of its kind and its coordinates' slice
+    in ``q``."""
 
     X: ca.SX
     S: ca.SX
@@ -42,30 +45,57 @@ class SegmentTerms:
     c: ca.SX
     w: ca.SX
     b: ca.SX
+    steps: ChainSteps | None = None
+    coordinates: slice = field(default_factory=lambda: slice(0, 0))
+
+    @property
+    def size(self) -> int:
+        """``n_i``."""
+        return self.coordinates.stop - self.coordinates.start
 
 
-def _coordinates(v, i):
-    return v[3 * i : 3 * i + 3]
-
-
-def segment_motions(functions: SegmentFunctions, q, qd, segments) -> list[SegmentTerms]:
-    """Each segment's linear maps and velocity terms at ``(q, qd)``: the angular
-    velocities carried out from the base at rest.
+@dataclass(frozen=True)
+class ChainElement:
+    """What the chain algorithms need of one element: its kind's Functions and steps,
+    its numbers and where its coordinates lie.
 
     Parameters
     ----------
     functions : SegmentFunctions
-        The segment's Functions.
-    q, qd : casadi.SX, shape (3N,)
+        The element kind's Functions.
+    steps : ChainSteps
+        The chain algorithms' steps for that kind.
+    geometry : casadi.SX
+        The element's numbers (its model's ``geometry``), sliced from ``p``.
+    coordinates : slice
+        Its coordinates in ``q``.
+    """
+
+    functions: SegmentFunctions
+    steps: ChainSteps
+    geometry: ca.SX
+    coordinates: slice
+
+
+def segment_motions(elements: list[ChainElement], q, qd) -> list[SegmentTerms]:
+    """Each element's linear maps and velocity terms at ``(q, qd)``: the angular
+    velocities carried out from the base at rest.
+
+    Parameters
+    ----------
+    elements : sequence of ChainElement
+        The chain's elements.
+    q, qd : casadi.SX, shape (n,)
         Coordinates and rates.
-    segments : sequence of SegmentSymbols
-        Each segment's parameters (mass and radius are used).
     """
     terms, omega = [], ca.SX.zeros(3)
     names = (*INERTIA_OUTPUTS, *BIAS_OUTPUTS)
-    for i, seg in enumerate(segments):
-        out = functions.motion(_coordinates(q, i), _coordinates(qd, i), omega, seg.mass, seg.radius)
-        term = SegmentTerms(**dict(zip(names, out, strict=True)))
+    for element in elements:
+        k = element.coordinates
+        out = element.functions.motion(q[k], qd[k], omega, element.geometry)
+        term = SegmentTerms(
+            **dict(zip(names, out, strict=True)), steps=element.steps, coordinates=k
+        )
         terms.append(term)
         omega = term.omega_tip
     return terms
@@ -145,8 +175,9 @@ class ChainSteps:
     composite : casadi.Function
         ``(terms, I_tip) -> (D_ii, F_i, I)``: the diagonal block, the momentum of
         everything from the segment on per unit ``qd_i``, the composite inertia.
-    carry : casadi.Function
-        ``(terms of j, F) -> (D_ji, F carried to frame j)``.
+    carry : dict
+        By the width ``n_i`` of ``F``: ``(terms of j, F) -> (D_ji, F carried to frame
+        j)``, made on first use (:meth:`carry_of`).
     """
 
     tip_acceleration: ca.Function
@@ -155,33 +186,52 @@ class ChainSteps:
     articulated_acceleration: ca.Function
     root_acceleration: ca.Function
     composite: ca.Function
-    carry: ca.Function
+    carry: dict
+
+    def carry_of(self, width: int) -> ca.Function:
+        """The ``carry`` step for a momentum ``F`` of ``width`` columns.
+
+        Parameters
+        ----------
+        width : int
+            ``n_i`` of the element whose momentum is carried.
+        """
+        if width not in self.carry:
+            self.carry[width] = self.carry["make"](width)
+        return self.carry[width]
 
 
-def chain_steps(functions: SegmentFunctions, inline: bool = False) -> ChainSteps:
-    """The steps of the chain algorithms for segments of ``functions``.
+def chain_steps(functions: SegmentFunctions, inline: bool = False, name: str = "") -> ChainSteps:
+    """The steps of the chain algorithms for elements of ``functions``.
 
     Parameters
     ----------
     functions : SegmentFunctions
-        The segment's Functions; the steps take their outputs.
+        The element kind's Functions; the steps take their outputs.
     inline : bool
         Whether the steps are inlined where they are called (see
         :func:`~softcurve.symbolic.segment.segment_functions`).
+    name : str
+        The steps' prefix, unique per kind within a model (generated C names them).
     """
     motion = functions.motion
     names = (*INERTIA_OUTPUTS, *BIAS_OUTPUTS)
     symbols = {name: ca.SX.sym(name, motion.sparsity_out(name)) for name in names}
     t = SegmentTerms(**symbols)
     terms = [symbols[name] for name in names]
+    nq = motion.size1_out("D")
     a, wrench, bias = ca.SX.sym("A", 6), ca.SX.sym("W", 6), ca.SX.sym("p", 6)
-    qdd_i, force_i = ca.SX.sym("qdd", 3), ca.SX.sym("force", 3)
-    inertia, gain, offset = ca.SX.sym("I", 6, 6), ca.SX.sym("gain", 3, 6), ca.SX.sym("offset", 3)
-    momentum = ca.SX.sym("F", 6, 3)
+    qdd_i, force_i = ca.SX.sym("qdd", nq), ca.SX.sym("force", nq)
+    inertia = ca.SX.sym("I", 6, 6)
+    gain, offset = ca.SX.sym("gain", nq, 6), ca.SX.sym("offset", nq)
     options = {"never_inline": not inline, "cse": True}
 
-    def step(name, inputs, outputs):
-        return ca.Function(name, [*terms, *inputs], list(outputs), options)
+    def step(step_name, inputs, outputs):
+        return ca.Function(name + step_name, [*terms, *inputs], list(outputs), options)
+
+    def carry(width):
+        momentum = ca.SX.sym("F", 6, width)
+        return step(f"carry{width}", [momentum], _carry(t, momentum))
 
     return ChainSteps(
         tip_acceleration=step("tip_acceleration", [qdd_i, a], [_tip_acceleration(t, qdd_i, a)]),
@@ -200,7 +250,7 @@ def chain_steps(functions: SegmentFunctions, inline: bool = False) -> ChainSteps
             [_root_acceleration(t, force_i, inertia, bias, a)],
         ),
         composite=step("composite", [inertia], _composite(t, inertia)),
-        carry=step("carry", [momentum], _carry(t, momentum)),
+        carry={"make": carry},
     )
 
 
@@ -209,75 +259,85 @@ def _arguments(t: SegmentTerms) -> list:
 
 
 @shared_parameters
-def mass_matrix(steps: ChainSteps, terms: list[SegmentTerms]):
-    """``D(q)``, shape (3N, 3N), by the composite-body algorithm (of the terms, the maps
+def mass_matrix(terms: list[SegmentTerms], n: int):
+    """``D(q)``, shape (n, n), by the composite-body algorithm (of the terms, the maps
     alone are used).
 
     Parameters
     ----------
-    %(steps)s
     %(terms)s
+    n : int
+        Number of coordinates.
     """
-    n_segments = len(terms)
-    blocks = [[None] * n_segments for _ in range(n_segments)]
+    d = ca.SX.zeros(n, n)
     composite = ca.SX.zeros(6, 6)  # of everything beyond the tip, tip coordinates
-    for i in reversed(range(n_segments)):
-        blocks[i][i], momentum, composite = steps.composite(*_arguments(terms[i]), composite)
+    for i in reversed(range(len(terms))):
+        t = terms[i]
+        block, momentum, composite = t.steps.composite(*_arguments(t), composite)
+        if not t.size:
+            continue  # a rigid body: inertia carried, no coordinates of its own
+        d[t.coordinates, t.coordinates] = block
         for j in reversed(range(i)):
-            blocks[j][i], momentum = steps.carry(*_arguments(terms[j]), momentum)
-            blocks[i][j] = blocks[j][i].T
-    d = ca.blockcat(blocks)
+            other = terms[j]
+            block, momentum = other.steps.carry_of(t.size)(*_arguments(other), momentum)
+            if other.size:
+                d[other.coordinates, t.coordinates] = block
+                d[t.coordinates, other.coordinates] = block.T
     return 0.5 * (d + d.T)  # symmetric already; removes round-off
 
 
 @shared_parameters
-def inverse_dynamics(steps: ChainSteps, terms: list[SegmentTerms], qdd, base_acceleration):
-    """``D qdd + C qd + G``, shape (3N,), by the recursive Newton-Euler algorithm.
+def inverse_dynamics(terms: list[SegmentTerms], qdd, base_acceleration):
+    """``D qdd + C qd + G``, shape (n,), by the recursive Newton-Euler algorithm.
 
     Parameters
     ----------
-    %(steps)s
     %(terms)s
-    qdd : casadi.SX, shape (3N,)
+    qdd : casadi.SX, shape (n,)
         Accelerations.
     %(base_acceleration)s
     """
     accelerations, a = [], base_acceleration
-    for i, t in enumerate(terms):
+    for t in terms:
         accelerations.append(a)
-        a = steps.tip_acceleration(*_arguments(t), _coordinates(qdd, i), a)
+        a = t.steps.tip_acceleration(*_arguments(t), qdd[t.coordinates], a)
     forces, wrench = [None] * len(terms), ca.SX.zeros(6)
     for i in reversed(range(len(terms))):
-        forces[i], wrench = steps.newton_euler(
-            *_arguments(terms[i]), accelerations[i], _coordinates(qdd, i), wrench
+        t = terms[i]
+        forces[i], wrench = t.steps.newton_euler(
+            *_arguments(t), accelerations[i], qdd[t.coordinates], wrench
         )
     return ca.vertcat(*forces)
 
 
 @shared_parameters
-def forward_dynamics(steps: ChainSteps, terms: list[SegmentTerms], force, base_acceleration):
+def forward_dynamics(terms: list[SegmentTerms], force, base_acceleration):
     """``qdd`` for the generalized force ``force`` (all but the inertial terms), shape
-    (3N,), by the articulated-body algorithm.
+    (n,), by the articulated-body algorithm.
 
     Parameters
     ----------
-    %(steps)s
     %(terms)s
-    force : casadi.SX, shape (3N,)
-        ``tau + K^T lambda - K(q) - R qd`` [N, N m^2, N m^2].
+    force : casadi.SX, shape (n,)
+        ``tau + K^T lambda - K(q) - R qd`` (e.g. [N, N m^2, N m^2] per segment).
     %(base_acceleration)s
     """
     gains = [None] * len(terms)
     inertia, bias = ca.SX.zeros(6, 6), ca.SX.zeros(6)  # articulated, beyond the tip
     for i in reversed(range(1, len(terms))):
-        inertia, bias, *gains[i] = steps.articulated(
-            *_arguments(terms[i]), _coordinates(force, i), inertia, bias
+        t = terms[i]
+        inertia, bias, *gains[i] = t.steps.articulated(
+            *_arguments(t), force[t.coordinates], inertia, bias
         )
-    root = _arguments(terms[0])
-    qdd = [steps.root_acceleration(*root, _coordinates(force, 0), inertia, bias, base_acceleration)]
-    a = steps.tip_acceleration(*root, qdd[0], base_acceleration)
+    root = terms[0]
+    qdd = [
+        root.steps.root_acceleration(
+            *_arguments(root), force[root.coordinates], inertia, bias, base_acceleration
+        )
+    ]
+    a = root.steps.tip_acceleration(*_arguments(root), qdd[0], base_acceleration)
     for t, (gain, offset) in zip(terms[1:], gains[1:], strict=True):
-        qdd_i, a = steps.articulated_acceleration(*_arguments(t), gain, offset, a)
+        qdd_i, a = t.steps.articulated_acceleration(*_arguments(t), gain, offset, a)
         qdd.append(qdd_i)
     return ca.vertcat(*qdd)
 
@@ -300,6 +360,8 @@ def solve_positive_definite(a, b):
         Right-hand sides.
     """
     k = a.shape[0]
+    if k == 0:  # a rigid body's joint: nothing to solve
+        return ca.SX(0, b.shape[1])
     lower, d = [[None] * k for _ in range(k)], [None] * k
     for j in range(k):
         d[j] = a[j, j] - sum(lower[j][m] ** 2 * d[m] for m in range(j))
@@ -314,24 +376,26 @@ def solve_positive_definite(a, b):
     return ca.vertcat(*x)
 
 
-def gravity_energy(functions: SegmentFunctions, q, segments, base_gravity):
-    """``V_g = -sum_i m_i g . x_i`` [J] over the segments' centres of mass.
+def gravity_energy(elements: list[ChainElement], q, base_gravity, base_origin):
+    """``V_g = -g . sum_k m_k x_k`` [J] over the elements' slices and bodies.
 
     Parameters
     ----------
-    functions : SegmentFunctions
-        The segment's Functions.
-    q : casadi.SX, shape (3N,)
+    elements : sequence of ChainElement
+        The chain's elements.
+    q : casadi.SX, shape (n,)
         Coordinates.
-    segments : sequence of SegmentSymbols
-        Each segment's parameters (mass is used).
     base_gravity : casadi.SX, shape (3,)
         Gravity [m/s^2] in base coordinates.
+    base_origin : casadi.SX, shape (3,)
+        The world's origin to the base's [m], in base coordinates.
     """
-    rotation, origin, energy = ca.SX.eye(3), ca.SX.zeros(3), 0
-    for i, seg in enumerate(segments):
-        tip_rotation, tip_position, centre = functions.frame(_coordinates(q, i))
-        energy -= seg.mass * ca.dot(base_gravity, origin + rotation @ centre)
+    rotation, origin, energy = ca.SX.eye(3), base_origin, 0
+    for element in elements:
+        tip_rotation, tip_position, moment, mass = element.functions.frame(
+            q[element.coordinates], element.geometry
+        )
+        energy -= ca.dot(base_gravity, mass * origin + rotation @ moment)
         origin = origin + rotation @ tip_position
         rotation = rotation @ tip_rotation
     return energy

@@ -37,7 +37,7 @@ from softcurve.description.environment import Capsule, Environment, Plane, Spher
 from softcurve.description.layout import ParameterLayout
 from softcurve.symbolic.dynamics import DynamicsExpressions, unpack_parameters
 from softcurve.symbolic.functions import build_functions, dynamics_terms_spec, symbolic_functions
-from softcurve.symbolic.kinematics import segment_frames
+from softcurve.symbolic.kinematics import kinematic_chain, segment_frames
 
 EPS = 1e-9
 """Length [m] under the square root of the distance to a sphere centre or capsule axis."""
@@ -146,6 +146,14 @@ def contact_points(structure: tuple, environment: Environment):
     return points
 
 
+def _length(part):
+    """An element's length [m] along which its contact points are spread: the rest
+    length of a segment, base to tip of a rigid body."""
+    if "rest_length" in part:
+        return part["rest_length"]
+    return ca.norm_2(part["tip_position"])
+
+
 def with_contact(e: DynamicsExpressions, structure: tuple, environment: Environment):
     """The equation of motion ``e`` with the environment's contact forces added.
 
@@ -164,10 +172,12 @@ def with_contact(e: DynamicsExpressions, structure: tuple, environment: Environm
         ``e`` with the contact in ``forward_dynamics`` and ``inverse_dynamics``.
     """
     law = environment.law
-    segments, _, _ = unpack_parameters(e.p, ParameterLayout.of_structure(structure))
-    radii = environment.radii([seg.radius for seg in segments])
+    segments, _, _, _ = unpack_parameters(e.p, ParameterLayout.of_structure(structure))
+    radii = environment.radii([seg["radius"] for seg in segments])
     points = contact_points(structure, environment)
-    frames = segment_frames(e.q, e.n_segments, ca.SX.eye(3), [(i, s) for i, s, _ in points])
+    frames = segment_frames(
+        e.q, kinematic_chain(structure, e.p), ca.SX.eye(3), [(i, s) for i, s, _ in points]
+    )
     y = ca.SX.sym("y", 3)
     geometry = []
     for obstacle in environment.obstacles:
@@ -181,7 +191,7 @@ def with_contact(e: DynamicsExpressions, structure: tuple, environment: Environm
     for (i, _, fraction), frame in zip(points, frames, strict=True):
         x = frame.position
         velocity = ca.jtimes(x, e.q, e.qd)
-        weight = fraction * segments[i].rest_length
+        weight = fraction * _length(segments[i])
         force, elastic_force = ca.SX.zeros(3), ca.SX.zeros(3)
         for o, g in enumerate(geometry):
             distance, normal = g(x)

@@ -19,8 +19,8 @@ from dataclasses import dataclass
 
 import casadi as ca
 
+from softcurve.description.elements import element_model
 from softcurve.description.layout import ParameterLayout
-from softcurve.description.materials import STIFFNESS_LAWS
 from softcurve.symbolic import chain
 from softcurve.symbolic.kinematics import inline_calls
 from softcurve.symbolic.segment import segment_functions
@@ -28,37 +28,9 @@ from softcurve.symbolic.segment import segment_functions
 DEFAULT_QUADRATURE_NODES = 11
 
 
-@dataclass(frozen=True)
-class SegmentSymbols:
-    """The symbolic parameters of one segment, sliced from ``p``.
-
-    Parameters
-    ----------
-    rest_length, mass, radius : casadi.SX
-        ``l0`` [m], ``m`` [kg] and ``r`` [m].
-    elongation, bending : casadi.SX, shape (n_parameters,)
-        The stiffness laws' parameters.
-    damping : casadi.SX, shape (3, 3)
-        ``R``.
-    creep_rate, creep_gain : casadi.SX, shape (3,), or None
-        Creep decay rates [1/s] and gains; None without creep.
-    creep_compliance : casadi.SX, shape (3, 3), or None
-        ``K`` of the creep force ``K^T lambda``; None without creep.
-    """
-
-    rest_length: ca.SX
-    mass: ca.SX
-    radius: ca.SX
-    elongation: ca.SX
-    bending: ca.SX
-    damping: ca.SX
-    creep_rate: ca.SX | None
-    creep_gain: ca.SX | None
-    creep_compliance: ca.SX | None
-
-
 def unpack_parameters(p, layout: ParameterLayout):
-    """Slice ``p`` into per-segment symbols, gravity (3,) and base rotation (3, 3).
+    """Slice ``p`` into each element's fields (field name -> SX, matrices as matrices),
+    gravity (3,), base rotation (3, 3) and base position (3,).
 
     Parameters
     ----------
@@ -68,16 +40,39 @@ def unpack_parameters(p, layout: ParameterLayout):
         Where each field lies in ``p``.
     """
     part = layout.split(p)
-    segments = []
-    for k, (_, _, has_creep) in enumerate(layout.structure):
-        head = f"segments[{k}]."
-        fields = {name: part[head + name] for name in ("rest_length", "mass", "radius", "damping")}
-        fields["elongation"] = part[head + "elongation_stiffness"]
-        fields["bending"] = part[head + "bending_stiffness"]
-        for name in ("rate", "gain", "compliance"):
-            fields[f"creep_{name}"] = part[f"{head}creep.{name}"] if has_creep else None
-        segments.append(SegmentSymbols(**fields))
-    return segments, part["gravity"], part["base_rotation"]
+    elements = layout.element_parts(p)
+    return elements, part["gravity"], part["base_rotation"], part["base_position"]
+
+
+def chain_elements(structure: tuple, parts: list[dict], quadrature_nodes: int, inline: bool):
+    """The chain's elements (:class:`~softcurve.symbolic.chain.ChainElement`) of a
+    structure: one set of Functions and steps per distinct signature, shared by every
+    element of it.
+
+    Parameters
+    ----------
+    structure : tuple
+        ``Robot.structure()``.
+    parts : list of dict
+        Each element's fields (:func:`unpack_parameters`).
+    quadrature_nodes : int
+        Gauss-Legendre nodes per segment.
+    inline : bool
+        Whether the Functions are inlined.
+    """
+    kinds: dict[tuple, tuple] = {}
+    elements, start = [], 0
+    for signature, part in zip(structure, parts, strict=True):
+        if signature not in kinds:
+            model = element_model(signature)
+            name = f"{signature[0]}{len(kinds)}_" if len(set(structure)) > 1 else "segment_"
+            functions = segment_functions(model, quadrature_nodes, inline, name=name.rstrip("_"))
+            kinds[signature] = (model, functions, chain.chain_steps(functions, inline, name))
+        model, functions, steps = kinds[signature]
+        k = slice(start, start + model.nq)
+        elements.append(chain.ChainElement(functions, steps, model.geometry(part), k))
+        start += model.nq
+    return elements
 
 
 @dataclass(frozen=True)
@@ -93,9 +88,13 @@ class DynamicsExpressions:
     p : casadi.SX, shape (n_p,)
         Symbol of the parameter vector.
     n_segments : int
-        Number of segments N.
+        Number of elements N.
+    structure : tuple
+        ``Robot.structure()``.
     base_rotation : casadi.SX, shape (3, 3)
         The base frame's orientation, sliced from ``p``.
+    base_position : casadi.SX, shape (3,)
+        The base frame's origin [m], sliced from ``p``.
     mass_matrix, coriolis_matrix : casadi.SX, shape (n, n)
         ``D(q)`` and ``C(q, qd)``.
     coriolis_force, gravity_force, elastic_force, damping_force, creep_force : casadi.SX, (n,)
@@ -115,7 +114,9 @@ class DynamicsExpressions:
     lam: ca.SX
     p: ca.SX
     n_segments: int
+    structure: tuple
     base_rotation: ca.SX
+    base_position: ca.SX
     mass_matrix: ca.SX
     coriolis_matrix: ca.SX
     coriolis_force: ca.SX
@@ -149,7 +150,7 @@ def build_dynamics(
     Parameters
     ----------
     structure : tuple
-        ``Robot.structure()``: per segment (elongation law kind, bending law kind, has creep).
+        ``Robot.structure()``: each element's signature.
     quadrature_nodes : int
         Gauss-Legendre nodes per segment for the backbone integrals.
     inline : bool or None
@@ -159,38 +160,40 @@ def build_dynamics(
         :func:`~softcurve.symbolic.kinematics.inline_calls` says.
     """
     n_segments = len(structure)
-    n = 3 * n_segments
-    n_creep = 3 * sum(has_creep for *_, has_creep in structure)
+    models = [element_model(signature) for signature in structure]
+    n = sum(m.nq for m in models)
+    n_creep = sum(m.n_creep for m in models)
     q, qd, qdd, tau = (ca.SX.sym(name, n) for name in ("q", "qd", "qdd", "tau"))
     lam = ca.SX.sym("lam", n_creep)
     layout = ParameterLayout.of_structure(structure)
     p = ca.SX.sym("p", layout.size)
-    segments, gravity, base_rotation = unpack_parameters(p, layout)
+    parts, gravity, base_rotation, base_position = unpack_parameters(p, layout)
     inline = inline_calls(n_segments) if inline is None else inline
-    functions = segment_functions(quadrature_nodes, inline)
-    steps = chain.chain_steps(functions, inline)
+    elements = chain_elements(structure, parts, quadrature_nodes, inline)
     base_gravity = base_rotation.T @ gravity
     at_rest, falling = ca.SX.zeros(6), ca.vertcat(ca.SX.zeros(3), -base_gravity)
 
-    motions = chain.segment_motions(functions, q, qd, segments)
+    motions = chain.segment_motions(elements, q, qd)
     # of q alone, though built from the Functions that take qd too (see
     # SegmentFunctions.motion): a Function of q alone takes it at qd = 0
-    mass_matrix = chain.mass_matrix(steps, motions)
-    coriolis_force = chain.inverse_dynamics(steps, motions, ca.SX.zeros(n), at_rest)
-    gravity_energy = chain.gravity_energy(functions, q, segments, base_gravity)
+    mass_matrix = chain.mass_matrix(motions, n)
+    coriolis_force = chain.inverse_dynamics(motions, ca.SX.zeros(n), at_rest)
+    base_origin = base_rotation.T @ base_position
+    gravity_energy = chain.gravity_energy(elements, q, base_gravity, base_origin)
     # G as the gradient of V_g rather than a Newton-Euler pass with qd = qdd = 0: the same
     # force (tests/test_dynamics.py checks one against the other), and its Jacobian is the
     # symmetric Hessian of V_g (the statics' Newton matrix)
     gravity_force = ca.gradient(gravity_energy, q)
 
-    elastic_force, elastic_energy = _elastic(q, segments, structure)
+    elastic_force, elastic_energy = _elastic(q, models, parts, elements)
     kinetic_energy = 0.5 * ca.dot(qd, mass_matrix @ qd)
-    damping_force = ca.diagcat(*(seg.damping for seg in segments)) @ qd
-    creep_force, creep_rate = _creep(qd, lam, segments, n)
+    damping_force = ca.diagcat(*(m.damping(part) for m, part in zip(models, parts, strict=True)))
+    damping_force = damping_force @ qd
+    creep_force, creep_rate = _creep(qd, lam, models, parts, elements, n)
 
     generalized = tau + creep_force - elastic_force - damping_force
-    forward = chain.forward_dynamics(steps, motions, generalized, falling)
-    inertial = chain.inverse_dynamics(steps, motions, qdd, falling)
+    forward = chain.forward_dynamics(motions, generalized, falling)
+    inertial = chain.inverse_dynamics(motions, qdd, falling)
     inverse = inertial + elastic_force + damping_force - creep_force
     return DynamicsExpressions(
         q=q,
@@ -200,7 +203,9 @@ def build_dynamics(
         lam=lam,
         p=p,
         n_segments=n_segments,
+        structure=structure,
         base_rotation=base_rotation,
+        base_position=base_position,
         mass_matrix=mass_matrix,
         coriolis_matrix=0.5 * ca.jacobian(coriolis_force, qd),
         coriolis_force=coriolis_force,
@@ -217,44 +222,30 @@ def build_dynamics(
     )
 
 
-def _elastic(q, segments, structure):
-    """Elastic forces ``k(x) x dx/dq`` and energy, from the squared strains.
-
-    Bending: ``beta dbeta/dq = d(beta^2)/dq / 2 = (l kappa^2, l^2 kx, l^2 ky)``, which is
-    smooth at zero curvature where ``beta`` itself is not.
-    """
+def _elastic(q, models, parts, elements):
+    """Elastic forces and energy, each element's model's."""
     forces, energy = [], 0
-    for i, (seg, (elongation_kind, bending_kind, _)) in enumerate(
-        zip(segments, structure, strict=True)
-    ):
-        length, kx, ky = q[3 * i], q[3 * i + 1], q[3 * i + 2]
-        eps = length - seg.rest_length
-        kappa2 = kx**2 + ky**2
-        beta2 = length**2 * kappa2
-        k_e = STIFFNESS_LAWS[elongation_kind]
-        k_b = STIFFNESS_LAWS[bending_kind]
-        kb = k_b.coefficient(beta2, seg.bending)
-        forces.append(
-            ca.vertcat(
-                k_e.coefficient(eps**2, seg.elongation) * eps + kb * length * kappa2,
-                kb * length**2 * kx,
-                kb * length**2 * ky,
-            )
-        )
-        energy += k_e.energy(eps**2, seg.elongation) + k_b.energy(beta2, seg.bending)
+    for model, part, element in zip(models, parts, elements, strict=True):
+        if not model.nq:
+            continue
+        element_energy, force = model.elastic(q[element.coordinates], part)
+        forces.append(force)
+        energy += element_energy
     return ca.vertcat(*forces), energy
 
 
-def _creep(qd, lam, segments, n):
+def _creep(qd, lam, models, parts, elements, n):
     force = ca.SX.zeros(n)
     rates = []
     k = 0
-    for i, seg in enumerate(segments):
-        if seg.creep_rate is None:
+    for model, part, element in zip(models, parts, elements, strict=True):
+        creep = model.creep(part)
+        if creep is None:
             continue
-        lam_i = lam[k : k + 3]
-        force[3 * i : 3 * i + 3] = seg.creep_compliance.T @ lam_i
-        rates.append(-seg.creep_rate * lam_i - seg.creep_gain * qd[3 * i : 3 * i + 3])
-        k += 3
+        rate, gain, compliance = creep
+        lam_i = lam[k : k + model.n_creep]
+        force[element.coordinates] = compliance.T @ lam_i
+        rates.append(-rate * lam_i - gain * qd[element.coordinates])
+        k += model.n_creep
     rate = ca.vertcat(*rates) if rates else ca.SX(0, 1)
     return force, rate

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import casadi as ca
 
-from softcurve.symbolic.kinematics import inline_calls, point_at, segment_point_function
+from softcurve.symbolic.kinematics import inline_calls, kinematic_chain, point_at
 
 DYNAMICS_TERMS = (
     ("D", "mass_matrix"),
@@ -116,8 +116,8 @@ def symbolic_functions(e) -> dict[str, ca.Function]:
     rhs = ca.vertcat(qd, e.forward_dynamics, e.creep_rate)
     rhs = ca.substitute(rhs, x, xs)
     s = ca.SX.sym("s")
-    point = segment_point_function(inline_calls(e.n_segments))
-    frame = point_at(q, e.n_segments, e.base_rotation, s, point)
+    elements = kinematic_chain(e.structure, p)
+    frame = point_at(q, elements, e.base_rotation, s, e.base_position)
     spec = {
         "dynamics_terms": dynamics_terms_spec(e),
         "mass_matrix": ([q], ["q"], [configuration_only(e, e.mass_matrix)], ["D"]),

@@ -19,21 +19,24 @@ import numpy as np
 
 from softcurve.base.docs import parameters_from
 from softcurve.base.validation import ParameterError
+from softcurve.description.elements import element_model
+from softcurve.description.layout import ParameterLayout
 from softcurve.symbolic.contact import contact_points, signed_distance
-from softcurve.symbolic.kinematics import segment_frames
+from softcurve.symbolic.kinematics import kinematic_chain, segment_frames
 
 
 @lru_cache(maxsize=16)
 def _distances(environment, structure: tuple):
     """``(Function q -> signed distances (points, obstacles), [(segment, s)])``."""
-    n_segments = len(structure)
+    layout = ParameterLayout.of_structure(structure)
     points = [(0, 0.0)] + [(i, s) for i, s, _ in contact_points(structure, environment)]
-    q = ca.SX.sym("q", 3 * n_segments)
-    frames = segment_frames(q, n_segments, ca.SX.eye(3), points)
+    q = ca.SX.sym("q", sum(element_model(signature).nq for signature in structure))
+    p = ca.SX.sym("p", layout.size)
+    frames = segment_frames(q, kinematic_chain(structure, p), ca.SX.eye(3), points)
     rows = [
         ca.horzcat(*[signed_distance(o, f.position) for o in environment.obstacles]) for f in frames
     ]
-    return ca.Function("distances", [q], [ca.vertcat(*rows)]), points
+    return ca.Function("distances", [q, p], [ca.vertcat(*rows)]), points
 
 
 def _allowed_depths(environment, robot, points) -> np.ndarray:
@@ -75,7 +78,8 @@ def start_problem(environment, robot, q, name: str = "q0") -> str | None:
     if environment is None:
         return None
     function, points = _distances(environment, robot.structure())
-    depths = -np.array(function(np.asarray(q, dtype=np.float64)), dtype=np.float64)
+    q = np.asarray(q, dtype=np.float64)
+    depths = -np.array(function(q, robot.parameter_vector()), dtype=np.float64)
 
     problem = _depth_problem(environment, robot, points, depths, name)
     return problem or _force_problem(environment, robot, points, depths, name)

@@ -1,13 +1,9 @@
-"""Piecewise-constant-curvature kinematics (section 2.1 of the paper), symbolic.
+"""Kinematics of the chain, symbolic: frames of material points and their Jacobians.
 
-Segment coordinates ``q_i = (l, kx, ky)``. At material coordinate ``s`` in [0, 1] of
-a segment the frame is the rotation ``exp([w]x)`` with rotation vector
-``w = s l (-ky, kx, 0)`` (eq. 3), and the position is ``s l Jl(w) e_z`` (eq. 4) with
-``Jl`` the left Jacobian of SO(3), since ``int_0^1 exp(t [w]x) dt = Jl(w)``. The body
-angular velocity is ``Jr(w) dw/dt``, ``Jr`` the right Jacobian: that is the exact
-time derivative of the pose at fixed material point (docs/model.md, "Kinematics"), not the paper's
-eq. (10). All trigonometric factors are smooth functions of ``|w|^2`` from
-:mod:`softcurve.base.smooth`, exact at zero curvature.
+Each element kind's pose of a material point (:mod:`softcurve.description.elements`:
+the constant-curvature segment's arc, the constant-strain segment's SE(3) exponential,
+the rigid body's fixed placement) is one CasADi Function a chain calls per element
+(:func:`segment_point_function`); the functions here compose them from the base.
 
 Functions here take and return CasADi expressions; masses and forces live in
 :mod:`softcurve.symbolic.dynamics`.
@@ -19,65 +15,55 @@ from dataclasses import dataclass
 
 import casadi as ca
 
-from softcurve.base import smooth as _smooth
-from softcurve.base.docs import shared_parameters
-
-E_Z = ca.DM([0.0, 0.0, 1.0])
+from softcurve.description.elements import ElementModel, element_model
+from softcurve.description.layout import ParameterLayout
 
 
-@shared_parameters
-def rotation_vector(q_i, s):
-    """``w = s l (-ky, kx, 0)``: the rotation from the segment base to material point ``s``.
+@dataclass(frozen=True)
+class KinematicElement:
+    """What the kinematics need of one element.
 
     Parameters
     ----------
-    %(q_i)s
-    %(s)s
+    point : casadi.Function
+        Its kind's :func:`segment_point_function`.
+    geometry : casadi.SX
+        Its numbers (its model's ``geometry``).
+    coordinates : slice
+        Its coordinates in ``q``.
     """
-    length, kx, ky = q_i[0], q_i[1], q_i[2]
-    return s * length * ca.vertcat(-ky, kx, 0)
+
+    point: ca.Function
+    geometry: ca.SX
+    coordinates: slice
 
 
-def _so3_terms(q_i, s):
-    """``(w, [w]x, |w|^2)`` of the rotation vector of point ``s``
-    (:func:`rotation_vector`), the arguments of the SO(3) series."""
-    w = rotation_vector(q_i, s)
-    z = ca.dot(w, w)
-    return w, ca.skew(w), z
-
-
-@shared_parameters
-def segment_pose(q_i, s):
-    """Rotation (3x3) and position (3,) [m] of material point ``s`` in the segment's
-    base frame.
+def kinematic_chain(structure: tuple, p, inline: bool | None = None) -> list[KinematicElement]:
+    """The chain's elements for its kinematics, one point Function per distinct kind.
 
     Parameters
     ----------
-    %(q_i)s
-    %(s)s
+    structure : tuple
+        ``Robot.structure()``.
+    p : casadi.SX, shape (n_p,)
+        The parameter vector (:meth:`Robot.parameter_vector`), symbolic.
+    inline : bool or None
+        Whether the point Functions are inlined (None: :func:`inline_calls`).
     """
-    _, wx, z = _so3_terms(q_i, s)
-    wx2 = wx @ wx
-    rotation = ca.SX.eye(3) + _smooth.sinc(z) * wx + _smooth.cosc(z) * wx2
-    left_jacobian = ca.SX.eye(3) + _smooth.cosc(z) * wx + _smooth.sinc3(z) * wx2
-    position = s * q_i[0] * (left_jacobian @ E_Z)
-    return rotation, position
-
-
-@shared_parameters
-def segment_angular_jacobian(q_i, s):
-    """Body-frame angular velocity Jacobian (3x3) of point ``s`` w.r.t. ``q_i``.
-
-    ``omega_body = Jr(w) dw/dq qd`` with ``Jr(w) = I - cosc [w]x + sinc3 [w]x^2``.
-
-    Parameters
-    ----------
-    %(q_i)s
-    %(s)s
-    """
-    w, wx, z = _so3_terms(q_i, s)
-    right_jacobian = ca.SX.eye(3) - _smooth.cosc(z) * wx + _smooth.sinc3(z) * (wx @ wx)
-    return right_jacobian @ ca.jacobian(w, q_i)
+    inline = inline_calls(len(structure)) if inline is None else inline
+    parts = ParameterLayout.of_structure(structure).element_parts(p)
+    points: dict[tuple, tuple] = {}
+    elements, start = [], 0
+    for signature, part in zip(structure, parts, strict=True):
+        if signature not in points:
+            model = element_model(signature)
+            name = f"{signature[0]}{len(points)}_point" if len(set(structure)) > 1 else ""
+            points[signature] = (model, segment_point_function(model, inline, name or None))
+        model, point = points[signature]
+        coordinates = slice(start, start + model.nq)
+        elements.append(KinematicElement(point, model.geometry(part), coordinates))
+        start += model.nq
+    return elements
 
 
 @dataclass(frozen=True)
@@ -99,50 +85,48 @@ class Frame:
     angular_jacobian: ca.SX
 
 
-def segment_frames(q, n_segments: int, base_rotation, points, point=None):
+def segment_frames(q, elements: list[KinematicElement], base_rotation, points, base_position=None):
     """Frames of a serial chain at the given material points.
 
     Parameters
     ----------
-    q : SX, shape (3N,)
+    q : SX, shape (n,)
         Generalized coordinates.
-    n_segments : int
-        Number of segments N.
+    elements : list of KinematicElement
+        :func:`kinematic_chain` of the robot.
     base_rotation : SX or DM, shape (3, 3)
         World orientation of the base frame.
-    points : sequence of (segment index, local s)
+    points : sequence of (element index, local s)
         Points at which frames are wanted; ``s`` may be a number or an expression.
-    point : casadi.Function, optional
-        :func:`segment_point_function` (default: a new one, inlined as
-        :func:`inline_calls` says).
+    base_position : SX or DM, shape (3,), optional
+        World position of the base frame [m]; default zero.
 
     Returns
     -------
     list of Frame
         One per point, in the order given.
     """
-    if point is None:
-        point = segment_point_function(inline_calls(n_segments))
-    n = 3 * n_segments
+    n = q.shape[0]
     wanted: dict[int, list[tuple[int, object]]] = {}
     for k, (i, s) in enumerate(points):
         wanted.setdefault(i, []).append((k, s))
     frames: list[Frame | None] = [None] * len(points)
 
-    rotation, position, angular = base_rotation, ca.SX.zeros(3), ca.SX.zeros(3, n)
-    for i in range(n_segments):
-        q_i = q[3 * i : 3 * i + 3]
+    position = ca.SX.zeros(3) if base_position is None else base_position
+    rotation, angular = base_rotation, ca.SX.zeros(3, n)
+    for i, element in enumerate(elements):
         for k, s in wanted.get(i, []):
-            frames[k] = _chain_step(point, q_i, i, s, n, rotation, position, angular)
-        tip = _chain_step(point, q_i, i, 1.0, n, rotation, position, angular)
+            frames[k] = _chain_step(element, q, s, rotation, position, angular)
+        tip = _chain_step(element, q, 1.0, rotation, position, angular)
         rotation, position, angular = tip.rotation, tip.position, tip.angular_jacobian
     return frames
 
 
-def _chain_step(point, q_i, i, s, n, rotation, position, angular) -> Frame:
-    local_rotation, local_position, _, segment_angular = point(q_i, s)
-    local_angular = ca.SX.zeros(3, n)
-    local_angular[:, 3 * i : 3 * i + 3] = segment_angular
+def _chain_step(element: KinematicElement, q, s, rotation, position, angular) -> Frame:
+    k = element.coordinates
+    local_rotation, local_position, _, element_angular = element.point(q[k], s, element.geometry)
+    local_angular = ca.SX.zeros(3, q.shape[0])
+    local_angular[:, k] = element_angular
     return Frame(
         rotation=rotation @ local_rotation,
         position=position + rotation @ local_position,
@@ -184,64 +168,73 @@ class MaterialPoint:
     jacobian: ca.SX
 
 
-def segment_point_function(inline: bool = False) -> ca.Function:
-    """``(q_i, s) -> (rotation, position, linear Jacobian, body angular Jacobian)`` of
-    material point ``s`` of a segment, in its base frame: one Function a chain calls per
-    segment.
+def segment_point_function(
+    model: ElementModel, inline: bool = False, name: str | None = None
+) -> ca.Function:
+    """``(q_i, s, g) -> (rotation, position, linear Jacobian, body angular Jacobian)`` of
+    material point ``s`` of an element, in its base frame: one Function a chain calls per
+    element of the kind.
 
     Parameters
     ----------
+    model : ElementModel
+        The element kind's model.
     inline : bool
         Whether it is inlined where it is called (False: it stays a call).
+    name : str, optional
+        Its name (default ``"segment_point"``), unique per kind within a model.
     """
-    q_i, s = ca.SX.sym("q", 3), ca.SX.sym("s")
-    rotation, position = segment_pose(q_i, s)
+    q_i, s = ca.SX.sym("q", model.nq), ca.SX.sym("s")
+    g = ca.SX.sym("g", model.geometry_size())
+    rotation, position = model.point_pose(q_i, s, g)
     return ca.Function(
-        "segment_point",
-        [q_i, s],
-        [rotation, position, ca.jacobian(position, q_i), segment_angular_jacobian(q_i, s)],
-        ["q", "s"],
+        name or "segment_point",
+        [q_i, s, g],
+        [rotation, position, ca.jacobian(position, q_i), model.angular_jacobian(q_i, s, g)],
+        ["q", "s", "g"],
         ["rotation", "position", "linear", "angular"],
         {"never_inline": not inline, "cse": True},
     )
 
 
-def point_at(q, n_segments: int, base_rotation, s, point: ca.Function | None = None):
+def point_at(q, elements: list[KinematicElement], base_rotation, s, base_position=None):
     """The material point at coordinate ``s`` in [0, 1] of the whole robot (symbolic
-    ``s``), by one pass over the segments.
+    ``s``), by one pass over the elements.
 
-    Segment ``i`` covers ``[i/N, (i+1)/N]``; ``s = 1`` is the tip. Segment ``j`` moves the
-    point rigidly with its tip frame when the point lies beyond it, through its own
-    slice when the point lies in it (the local coordinate ``clamp(s N - j, 0, 1)``), and
-    not at all when the point lies before it (the slice at ``0`` has zero Jacobian): each
-    segment's block of the Jacobian is one of two expressions, so the pass costs O(N).
+    Element ``i`` of ``N`` covers ``[i/N, (i+1)/N]``; ``s = 1`` is the tip. Element ``j``
+    moves the point rigidly with its tip frame when the point lies beyond it, through its
+    own slice when the point lies in it (the local coordinate ``clamp(s N - j, 0, 1)``),
+    and not at all when the point lies before it (the slice at ``0`` has zero Jacobian):
+    each element's block of the Jacobian is one of two expressions, so the pass costs
+    O(N).
 
     Parameters
     ----------
-    q : casadi.SX, shape (3N,)
+    q : casadi.SX, shape (n,)
         Generalized coordinates.
-    n_segments : int
-        Number of segments N.
+    elements : list of KinematicElement
+        :func:`kinematic_chain` of the robot.
     base_rotation : casadi.SX or casadi.DM, shape (3, 3)
         World orientation of the base frame.
     s : casadi.SX
         Material coordinate of the whole robot, in [0, 1].
-    point : casadi.Function, optional
-        :func:`segment_point_function` (default: a new one, kept as calls).
+    base_position : casadi.SX or casadi.DM, shape (3,), optional
+        World position of the base frame [m]; default zero.
     """
-    point = segment_point_function() if point is None else point
-    rotation, origin = base_rotation, ca.SX.zeros(3)
+    n_segments = len(elements)
+    rotation = base_rotation
+    origin = ca.SX.zeros(3) if base_position is None else base_position
     candidates, blocks = [], []
-    for j in range(n_segments):
-        q_j = q[3 * j : 3 * j + 3]
+    for j, element in enumerate(elements):
+        q_j, g = q[element.coordinates], element.geometry
         local = ca.fmin(ca.fmax(s * n_segments - j, 0.0), 1.0)
-        r_local, p_local, linear, angular = point(q_j, local)
-        r_tip, p_tip, linear_tip, angular_tip = point(q_j, 1.0)
+        r_local, p_local, linear, angular = element.point(q_j, local, g)
+        r_tip, p_tip, linear_tip, angular_tip = element.point(q_j, 1.0, g)
         frame_rotation = rotation @ r_local
         candidates.append((frame_rotation, origin + rotation @ p_local))
         inside = ca.vertcat(rotation @ linear, frame_rotation @ angular)
         tip_origin, tip_rotation = origin + rotation @ p_tip, rotation @ r_tip
-        # beyond the segment: the tip frame's twist per unit qd_j, moved to the point below
+        # beyond the element: the tip frame's twist per unit qd_j, moved to the point below
         blocks.append((j, inside, rotation @ linear_tip, tip_rotation @ angular_tip, tip_origin))
         rotation, origin = tip_rotation, tip_origin
     chosen_rotation, chosen_position = candidates[-1]
@@ -254,4 +247,5 @@ def point_at(q, n_segments: int, base_rotation, s, point: ca.Function | None = N
         moved = linear_tip - ca.skew(chosen_position - tip_origin) @ angular_tip
         beyond = s * n_segments >= j + 1
         columns.append(ca.if_else(beyond, ca.vertcat(moved, angular_tip), inside))
-    return MaterialPoint(chosen_rotation, chosen_position, ca.horzcat(*columns))
+    jacobian = ca.horzcat(*columns) if columns else ca.SX(6, 0)
+    return MaterialPoint(chosen_rotation, chosen_position, jacobian)

@@ -1,7 +1,8 @@
-"""What one segment contributes to the dynamics of the chain, written once as CasADi
-Functions of the segment's own coordinates.
+"""What one element contributes to the dynamics of the chain, written once as CasADi
+Functions of the element's own coordinates, for every element kind.
 
-A segment of coordinates ``q_i = (l, kx, ky)`` is a continuum body between two frames:
+An element (a segment of coordinates ``q_i``, e.g. ``(l, kx, ky)``, or a rigid body of
+none; :mod:`softcurve.description.elements`) is a body between two frames:
 its base frame ``i`` and its tip frame ``i + 1`` (the next segment's base). Its
 quadrature slices (``DEFAULT_QUADRATURE_NODES`` of :mod:`softcurve.symbolic.dynamics`,
 Gauss-Legendre nodes in the material coordinate) move with the base frame and with
@@ -17,18 +18,19 @@ between these quantities, all in the coordinates of the frame they belong to:
   ``W = M A + H qdd_i + X^T W_tip + w``;
 - the segment's generalized force ``tau_i = H^T A + D_i qdd_i + S^T W_tip + b``.
 
-``X`` (6x6) is the rigid transform from the base to the tip frame, ``S`` (6x3) the tip's
-acceleration per unit ``qdd_i``, ``M`` (6x6) the segment's spatial inertia about its
-base, ``H`` (6x3) its momentum per unit ``qd_i``, ``D_i`` (3x3) its own mass matrix; the
+``X`` (6x6) is the rigid transform from the base to the tip frame, ``S`` (6 x n_i) the
+tip's acceleration per unit ``qdd_i``, ``M`` (6x6) the element's spatial inertia about
+its base, ``H`` (6 x n_i) its momentum per unit ``qd_i``, ``D_i`` (n_i x n_i) its own
+mass matrix; the
 biases ``c``, ``w``, ``b`` hold the velocity terms and depend on ``qd_i`` and on the base
 frame's angular velocity. They are derived from one Newton-Euler pass over the slices
 (:func:`segment_newton_euler`), the maps as its exact derivatives, so that the chain's
 mass matrix, Coriolis terms and forward dynamics are one algebra.
 
-Each quantity is an SX Function (:func:`segment_functions`), called once per segment:
-the generated code holds one copy of a segment's work however many segments the robot
-has. A robot of one structure calls the same Functions with each segment's mass and
-radius.
+Each quantity is an SX Function (:func:`segment_functions`), called once per element:
+the generated code holds one copy of an element kind's work however many elements of
+that kind the robot has. A robot of one structure calls the same Functions with each
+element's numbers (its model's ``geometry``: mass, radius, rest strains ...).
 """
 
 from __future__ import annotations
@@ -36,33 +38,41 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import casadi as ca
-import numpy as np
 
-from softcurve.symbolic.kinematics import segment_angular_jacobian, segment_pose
-
-SLICE_INERTIA = ca.DM([0.25, 0.25, 0.5])
-"""Rotational inertia of a slice per unit mass and squared radius, in its own frame:
-a thin disc about its diameters and its axis."""
+from softcurve.description.elements import ElementModel
 
 
 @dataclass(frozen=True)
 class _Point:
-    """A material point of a segment, in the segment's base frame: rotation, position,
-    their Jacobians w.r.t. the segment's coordinates (linear ``dp/dq_i``; angular in the
-    point's own frame) and the quadrature weight times the segment mass."""
+    """A material point or rigid body of an element, in the element's base frame:
+    rotation, position, their Jacobians w.r.t. the element's coordinates (linear
+    ``dp/dq_i``; angular in the point's own frame), its mass and rotational inertia (3x3,
+    its own frame)."""
 
     rotation: ca.SX
     position: ca.SX
     linear: ca.SX
     angular: ca.SX
     mass: ca.SX
+    inertia: ca.SX
 
 
-def _point(q_i, s, mass) -> _Point:
-    rotation, position = segment_pose(q_i, s)
+def _point(model: ElementModel, q_i, g, s, mass=0.0, inertia=None) -> _Point:
+    rotation, position = model.point_pose(q_i, s, g) if s != 1.0 else model.tip_pose(q_i, g)
+    inertia = ca.SX.zeros(3, 3) if inertia is None else inertia
     return _Point(
-        rotation, position, ca.jacobian(position, q_i), segment_angular_jacobian(q_i, s), mass
+        rotation,
+        position,
+        ca.jacobian(position, q_i),
+        model.angular_jacobian(q_i, s, g),
+        mass,
+        inertia,
     )
+
+
+def _fixed(q_i, body) -> _Point:
+    zero = ca.SX(3, q_i.shape[0])
+    return _Point(ca.SX.eye(3), body.centre, zero, zero, body.mass, body.inertia)
 
 
 def _velocity_bias(point, q_i, qd_i):
@@ -119,8 +129,8 @@ class SegmentNewtonEuler:
 
     Parameters
     ----------
-    q, qd, qdd : casadi.SX, shape (3,)
-        The segment's coordinates, rates and accelerations.
+    q, qd, qdd : casadi.SX, shape (n_i,)
+        The element's coordinates, rates and accelerations.
     omega : casadi.SX, shape (3,)
         Angular velocity of the base frame [rad/s], base coordinates.
     acceleration : casadi.SX, shape (6,)
@@ -128,22 +138,24 @@ class SegmentNewtonEuler:
     tip_wrench : casadi.SX, shape (6,)
         ``W_tip`` [N m, N], the wrench the segment exerts on what it carries, tip
         coordinates.
-    mass, radius : casadi.SX
-        The segment's mass [kg] and radius [m].
+    geometry : casadi.SX, shape (n_g,)
+        The element's numbers (its model's ``geometry``).
     tip_omega : casadi.SX, shape (3,)
         Angular velocity of the tip frame, tip coordinates.
     tip_acceleration : casadi.SX, shape (6,)
         ``A_tip``, tip coordinates.
     base_wrench : casadi.SX, shape (6,)
         ``W``, the wrench on the segment and all it carries, base coordinates.
-    force : casadi.SX, shape (3,)
-        ``tau_i`` [N, N m^2, N m^2].
+    force : casadi.SX, shape (n_i,)
+        ``tau_i``, conjugate to ``q_i`` (e.g. [N, N m^2, N m^2]).
     tip_rotation : casadi.SX, shape (3, 3)
         Orientation of the tip frame in the base frame.
     tip_position : casadi.SX, shape (3,)
         Position [m] of the tip frame's origin, base coordinates.
-    centre_of_mass : casadi.SX, shape (3,)
-        The segment's centre of mass [m], base coordinates.
+    moment : casadi.SX, shape (3,)
+        The element's first moment of mass ``sum m_k p_k`` [kg m], base coordinates.
+    mass : casadi.SX
+        The element's mass [kg].
     """
 
     q: ca.SX
@@ -152,35 +164,40 @@ class SegmentNewtonEuler:
     omega: ca.SX
     acceleration: ca.SX
     tip_wrench: ca.SX
-    mass: ca.SX
-    radius: ca.SX
+    geometry: ca.SX
     tip_omega: ca.SX
     tip_acceleration: ca.SX
     base_wrench: ca.SX
     force: ca.SX
     tip_rotation: ca.SX
     tip_position: ca.SX
-    centre_of_mass: ca.SX
+    moment: ca.SX
+    mass: ca.SX
 
 
-def segment_newton_euler(quadrature_nodes: int) -> SegmentNewtonEuler:
-    """The Newton-Euler pass over one segment's slices, forward (tip motion) and
-    backward (base wrench and generalized force).
+def segment_newton_euler(model: ElementModel, quadrature_nodes: int) -> SegmentNewtonEuler:
+    """The Newton-Euler pass over one element's slices (or its rigid body), forward (tip
+    motion) and backward (base wrench and generalized force).
 
     Parameters
     ----------
+    model : ElementModel
+        The element kind's model.
     quadrature_nodes : int
-        Gauss-Legendre nodes along the segment.
+        Gauss-Legendre nodes along a segment.
     """
-    q, qd, qdd, omega = (ca.SX.sym(name, 3) for name in ("q", "qd", "qdd", "omega"))
+    nq = model.nq
+    q, qd, qdd = (ca.SX.sym(name, nq) for name in ("q", "qd", "qdd"))
+    omega = ca.SX.sym("omega", 3)
     acceleration, tip_wrench = ca.SX.sym("A", 6), ca.SX.sym("W_tip", 6)
-    mass, radius = ca.SX.sym("mass"), ca.SX.sym("radius")
+    geometry = ca.SX.sym("g", model.geometry_size())
     alpha, accel = acceleration[:3], acceleration[3:]
-    nodes, weights = np.polynomial.legendre.leggauss(quadrature_nodes)
     points = [
-        _point(q, 0.5 * (x + 1.0), 0.5 * w * mass) for x, w in zip(nodes, weights, strict=True)
-    ]
-    tip = _point(q, 1.0, 0.0)
+        _fixed(q, body) if body.s is None else _point(model, q, geometry, body.s, body.mass,
+                                                      body.inertia)
+        for body in model.bodies(geometry, quadrature_nodes)
+    ]  # fmt: skip
+    tip = _point(model, q, geometry, 1.0)
     tip_accel, tip_omega, tip_alpha = _point_motion(tip, q, qd, qdd, omega, alpha, accel)
 
     tip_moment, tip_force = tip_wrench[:3], tip_wrench[3:]
@@ -188,19 +205,16 @@ def segment_newton_euler(quadrature_nodes: int) -> SegmentNewtonEuler:
     generalized = tip.linear.T @ force_at_tip + tip.angular.T @ tip_moment
     total_force = force_at_tip
     total_moment = tip.rotation @ tip_moment + ca.cross(tip.position, force_at_tip)
-    inertia = radius**2 * SLICE_INERTIA
+    moment, mass = ca.SX.zeros(3), 0
     for point in points:
         linear_accel, body_omega, body_alpha = _point_motion(point, q, qd, qdd, omega, alpha, accel)
         slice_force = point.mass * linear_accel
-        slice_moment = point.mass * (
-            inertia * body_alpha + ca.cross(body_omega, inertia * body_omega)
-        )
+        slice_moment = point.inertia @ body_alpha + ca.cross(body_omega, point.inertia @ body_omega)
         generalized += point.linear.T @ slice_force + point.angular.T @ slice_moment
         total_force += slice_force
         total_moment += ca.cross(point.position, slice_force) + point.rotation @ slice_moment
-    centre = ca.SX.zeros(3)
-    for point, w in zip(points, weights, strict=True):
-        centre += 0.5 * w * point.position
+        moment += point.mass * point.position
+        mass += point.mass
     return SegmentNewtonEuler(
         q=q,
         qd=qd,
@@ -208,15 +222,15 @@ def segment_newton_euler(quadrature_nodes: int) -> SegmentNewtonEuler:
         omega=omega,
         acceleration=acceleration,
         tip_wrench=tip_wrench,
-        mass=mass,
-        radius=radius,
+        geometry=geometry,
         tip_omega=tip_omega,
         tip_acceleration=ca.vertcat(tip_alpha, tip.rotation.T @ tip_accel),
         base_wrench=ca.vertcat(total_moment, total_force),
         force=generalized,
         tip_rotation=tip.rotation,
         tip_position=tip.position,
-        centre_of_mass=centre,
+        moment=moment,
+        mass=mass,
     )
 
 
@@ -228,10 +242,10 @@ class SegmentFunctions:
     Parameters
     ----------
     frame : casadi.Function
-        ``(q_i) -> (R_tip (3, 3), r_tip (3,), centre of mass (3,))``: the tip frame's pose
-        and the centre of mass in the base frame [m].
+        ``(q_i, g) -> (R_tip (3, 3), r_tip (3,), moment (3,), mass)``: the tip frame's
+        pose [m] and the first moment of mass [kg m] in the base frame, and the mass [kg].
     motion : casadi.Function
-        ``(q_i, qd_i, omega, mass, radius) -> (X, S, M, H, D_i, omega_tip, c, w, b)``:
+        ``(q_i, qd_i, omega, g) -> (X, S, M, H, D_i, omega_tip, c, w, b)``:
         the configuration's linear maps and the velocity terms. One Function for both:
         the maps and the velocity terms share the slices' poses and Jacobians, and a
         library holding a second Function of the maps alone compiles for as long again
@@ -250,13 +264,19 @@ BIAS_OUTPUTS = ("omega_tip", "c", "w", "b")
 """Names of the velocity terms, the last outputs of ``SegmentFunctions.motion``."""
 
 
-def segment_functions(quadrature_nodes: int, inline: bool = False) -> SegmentFunctions:
-    """The Functions of a segment of ``quadrature_nodes`` slices.
+def segment_functions(
+    model: ElementModel, quadrature_nodes: int, inline: bool = False, name: str = "segment"
+) -> SegmentFunctions:
+    """The Functions of an element kind (segments of ``quadrature_nodes`` slices).
 
     Parameters
     ----------
+    model : ElementModel
+        The element kind's model.
     quadrature_nodes : int
         Gauss-Legendre nodes along the segment.
+    name : str
+        The Functions' prefix, unique per kind within a model (generated C names them).
     inline : bool
         Whether the Functions are inlined where they are called (False: they stay calls,
         so generated code and derivatives hold one copy per Function). Inlined, a model's
@@ -268,7 +288,7 @@ def segment_functions(quadrature_nodes: int, inline: bool = False) -> SegmentFun
     a shared Function would make a model's generated code (and so its round-off) depend
     on what the process built before.
     """
-    e = segment_newton_euler(quadrature_nodes)
+    e = segment_newton_euler(model, quadrature_nodes)
     accelerations = ca.vertcat(e.qdd, e.acceleration, e.tip_wrench)
 
     def at_rest(expression):
@@ -287,21 +307,20 @@ def segment_functions(quadrature_nodes: int, inline: bool = False) -> SegmentFun
     maps = [at_rest(m) for m in maps]
     biases = [e.tip_omega, *(at_rest(v) for v in (e.tip_acceleration, e.base_wrench, e.force))]
     options = {"never_inline": not inline, "cse": True}
-    shape = (e.mass, e.radius)
     return SegmentFunctions(
         frame=ca.Function(
-            "segment_frame",
-            [e.q],
-            [e.tip_rotation, e.tip_position, e.centre_of_mass],
-            ["q"],
-            ["R_tip", "r_tip", "centre"],
+            f"{name}_frame",
+            [e.q, e.geometry],
+            [e.tip_rotation, e.tip_position, e.moment, e.mass],
+            ["q", "g"],
+            ["R_tip", "r_tip", "moment", "mass"],
             options,
         ),
         motion=ca.Function(
-            "segment_motion",
-            [e.q, e.qd, e.omega, *shape],
+            f"{name}_motion",
+            [e.q, e.qd, e.omega, e.geometry],
             [*maps, *biases],
-            ["q", "qd", "omega", "mass", "radius"],
+            ["q", "qd", "omega", "g"],
             [*INERTIA_OUTPUTS, *BIAS_OUTPUTS],
             options,
         ),

@@ -153,7 +153,7 @@ class EquilibriumPredictor:
             return np.array(r, dtype=np.float64), k
 
         at_start = np.tile(self.q0[:, None], (1, samples))
-        rest = model.robot.rest_lengths
+        robot = model.robot
         actuator = None if self.input_map is None else self.input_map.actuator
 
         def system_of(j, d_value):
@@ -187,7 +187,7 @@ class EquilibriumPredictor:
             )
             q_some = np.array([root.q for root in roots])
             good = np.array([root.converged for root in roots])
-            good &= states_inside(rest, q_some, actuator)
+            good &= states_inside(robot, q_some, actuator)
             if not good.any():
                 return None
             nearest = nearest_starts(inputs, solved[good])
@@ -238,7 +238,7 @@ class EquilibriumPredictor:
                 )
                 # a root outside the model's or the actuator's domain (a start thrown
                 # far) is no equilibrium
-                inside = states_inside(rest, np.array([root.q for root in roots]), actuator)
+                inside = states_inside(robot, np.array([root.q for root in roots]), actuator)
                 for j, root in enumerate(roots):
                     if accepted[j] is None and root.converged and inside[j]:
                         accepted[j] = root

@@ -31,7 +31,7 @@ import numpy as np
 from softcurve.base.validation import ParameterError, whole_count
 from softcurve.compiled import LANE_WIDTH, Model
 from softcurve.description.actuator import Actuator
-from softcurve.description.robot import Robot, domain_problem, in_domain
+from softcurve.description.robot import Robot
 from softcurve.simulation._settings import SimulationSettings, settings_with
 from softcurve.simulation.batch._inputs import Drives, drive_arrays, member_rows
 from softcurve.simulation.batch._members import MemberRun, integrate_native
@@ -205,10 +205,12 @@ def simulate_batch(
     arrays = {name: np.array(np.broadcast_to(a, (size, a.shape[1]))) for name, a in arrays.items()}
     x0 = np.hstack([arrays["q0"], arrays["qd0"], arrays["lam0"]])
     nominal, rest_lengths = _nominal(model, arrays["parameters"], x0)
-    outside = ~in_domain(arrays["q0"], rest_lengths)
+    outside = ~model.robot.inside(arrays["q0"], rest_lengths)
     if np.any(outside):
         b = int(np.argmax(outside))
-        problem = domain_problem(arrays["q0"][b], rest_lengths[b], entry=f"q0[{b}]")
+        problem = model.robot.domain_problem(
+            arrays["q0"][b], entry=f"q0[{b}]", rest_lengths=rest_lengths[b]
+        )
         raise ParameterError(f"q0[{b}] (member {b}): {problem}")
     if model.environment is not None:  # no member starts inside an obstacle
         for b in np.unique(arrays["q0"], axis=0, return_index=True)[1]:

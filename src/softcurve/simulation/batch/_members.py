@@ -11,13 +11,13 @@ from dataclasses import replace
 import numpy as np
 
 from softcurve.base.status import Status
-from softcurve.description.robot import MAX_STRETCH
 from softcurve.simulation.solvers import (
     BufferedCall,
     blocks,
     cvodes_integrator,
     cvodes_reason,
     domain_reason,
+    driver_domain,
     driver_integrate,
     driver_reason,
     failure_message,
@@ -138,8 +138,8 @@ class MemberRun:
                 self._one_by_one(multistep, int(members[0]), k0, k1)
             return
         states[members, k0 + 1 : k1 + 1] = xf * self.nominal[members, None, :]
-        n, rest = self.model.n, self.rest_lengths[members]
-        bad = outside_domain(states[members, k0 + 1 : k1 + 1], n, rest[:, None, :])
+        rest = self.rest_lengths[members]
+        bad = outside_domain(states[members, k0 + 1 : k1 + 1], self.model.robot, rest[:, None, :])
         for j in np.flatnonzero(np.any(bad, axis=1)):
             self._outside(int(members[j]), k0 + 1 + int(np.argmax(bad[j])), multistep)
 
@@ -158,13 +158,14 @@ class MemberRun:
                 self._fail(b, k, cvodes_reason(failure), multistep)
                 return
             states[b, k] = xf * nominal
-            if outside_domain(states[b, k], self.model.n, self.rest_lengths[b]):
+            if outside_domain(states[b, k], self.model.robot, self.rest_lengths[b]):
                 self._outside(b, k, multistep)
                 return
 
     def _outside(self, b, k, multistep) -> None:
         """Member ``b`` left the model's domain at output ``k``."""
-        reason = domain_reason(self.states[b, k], self.model.n, self.rest_lengths[b], self.grid[k])
+        robot = self.model.robot
+        reason = domain_reason(self.states[b, k], robot, self.grid[k], self.rest_lengths[b])
         self._fail(b, k, reason, multistep)
 
     def _fail(self, b, k, reason, multistep) -> None:
@@ -202,7 +203,7 @@ def integrate_native(run: MemberRun, initial, fastest, problems) -> np.ndarray:
     ends = [k1 for _, k1 in segments]
     restart = [True] * len(ends)
     used_bdf = np.zeros(states.shape[0], bool)
-    longest = MAX_STRETCH * run.rest_lengths
+    longest = driver_domain(run.model.robot, run.rest_lengths)
     lmm = np.where(np.asarray(initial) == "adams", 1, 2)
     settle = np.zeros(states.shape[0]) if fastest is None else np.where(lmm == 1, fastest, 0.0)
     settings = run.problem.driver_options()
@@ -215,7 +216,7 @@ def integrate_native(run: MemberRun, initial, fastest, problems) -> np.ndarray:
             out, reached, flags, _, used = driver_integrate(
                 problem, lmm[members], states[members, 0], u, run.params[members],
                 run.nominal[members], grid, (ends, restart), settings, fastest=settle[members],
-                longest=longest[members], threads=run.threads,
+                longest=None if longest is None else longest[members], threads=run.threads,
             )  # fmt: skip
             used_bdf[members] = used
             states[members, 1:] = out[:, 1:]

@@ -10,7 +10,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from softcurve.base.validation import ParameterError
-from softcurve.description.robot import MAX_STRETCH, domain_problem, in_domain
+from softcurve.description.robot import MAX_STRETCH
 from softcurve.simulation.solvers import _driver as c_driver
 from softcurve.simulation.solvers._policy import (
     LEFT_DOMAIN,
@@ -52,25 +52,45 @@ class Stopped(Exception):
         self.reached, self.reason = reached, reason
 
 
-def outside_domain(x: np.ndarray, n: int, rest_lengths) -> np.ndarray:
+def outside_domain(x: np.ndarray, robot, rest_lengths=None) -> np.ndarray:
     """Which states lie outside the model's domain: a configuration outside it
-    (:func:`softcurve.description.robot.in_domain`: ``0 < l <= MAX_STRETCH l0``,
-    ``|kappa| l <= MAX_BEND``) or any entry non-finite. Vectorized over leading axes: the
-    check of a simulation's outputs, once per call of the integrator.
+    (:meth:`Robot.inside <softcurve.description.robot.Robot.inside>`: e.g. ``0 < l <=
+    MAX_STRETCH l0``, ``|kappa| l <= MAX_BEND``) or any entry non-finite. Vectorized over
+    leading axes: the check of a simulation's outputs, once per call of the integrator.
 
     Parameters
     ----------
     x : ndarray, shape (..., n_state)
         States ``(q, qd, lam, ...)``.
-    n : int
-        Number of coordinates.
-    rest_lengths : array_like, shape (N,) or (..., N)
-        Rest length ``l0`` [m] of each segment (per state where it differs).
+    robot : Robot
+        The robot.
+    rest_lengths : array_like, shape (N,) or (..., N), optional
+        Rest length ``l0`` [m] of each element where it differs from the robot's (per
+        state).
     """
-    return ~(in_domain(x[..., :n], rest_lengths) & np.all(np.isfinite(x), axis=-1))
+    inside = robot.inside(x[..., : robot.n], rest_lengths)
+    return ~(inside & np.all(np.isfinite(x), axis=-1))
 
 
-def domain_reason(x: np.ndarray, n: int, rest_lengths, t: float) -> str:
+def driver_domain(robot, rest_lengths):
+    """What the C driver checks the domain with at its outputs: the longest length of each
+    segment ``MAX_STRETCH l0`` [m] (shape of ``rest_lengths``) for a robot of
+    constant-curvature segments, None for others (their domain is checked at the outputs
+    here, :class:`Domain`).
+
+    Parameters
+    ----------
+    robot : Robot
+        The robot.
+    rest_lengths : array_like, shape (N,) or (B, N)
+        Rest lengths [m], per member where they differ.
+    """
+    if not robot.constant_curvature:
+        return None
+    return MAX_STRETCH * np.asarray(rest_lengths, dtype=np.float64)
+
+
+def domain_reason(x: np.ndarray, robot, t: float, rest_lengths=None) -> str:
     """Why the state ``x`` at time ``t`` [s] is outside the domain, naming the coordinate
     and its value (a run's failure reason, starting with :data:`LEFT_DOMAIN`).
 
@@ -78,14 +98,15 @@ def domain_reason(x: np.ndarray, n: int, rest_lengths, t: float) -> str:
     ----------
     x : ndarray, shape (n_state,)
         The state.
-    n : int
-        Number of coordinates.
-    rest_lengths : array_like, shape (N,)
-        Rest length ``l0`` [m] of each segment.
+    robot : Robot
+        The robot.
     t : float
         Its time [s].
+    rest_lengths : array_like, shape (N,), optional
+        Rest length ``l0`` [m] of each element where it differs from the robot's.
     """
-    problem = domain_problem(x[:n], rest_lengths, entry="q")
+    n = robot.n
+    problem = robot.domain_problem(x[:n], entry="q", rest_lengths=rest_lengths)
     if problem is None:
         bad = int(np.argmax(~np.isfinite(x)))
         names = ("qd", bad - n) if bad < 2 * n else ("lam", bad - 2 * n)
@@ -137,10 +158,10 @@ class Domain:
 
     def check(self, states, a: int, b: int) -> None:
         """Raise :class:`Stopped` at the first of ``states[a:b]`` outside the domain."""
-        bad = outside_domain(states[a:b], self.n, self.robot.rest_lengths)
+        bad = outside_domain(states[a:b], self.robot)
         if np.any(bad):
             first = a + int(np.argmax(bad))
-            reason = domain_reason(states[first], self.n, self.robot.rest_lengths, self.grid[first])
+            reason = domain_reason(states[first], self.robot, self.grid[first])
             raise Stopped(first, reason)
 
 
@@ -215,7 +236,7 @@ def _run_native(engine, grid, states, inputs, domain, segments, fastest, changes
         restart.extend([False] * (b - a))
     start, last = segments[0][0], segments[-1][1]
     starts = np.array([start, *ends[:-1]], dtype=int)
-    longest = MAX_STRETCH * np.asarray(domain.robot.rest_lengths, dtype=np.float64)
+    longest = driver_domain(domain.robot, domain.robot.rest_lengths)
     # the driver writes into the run's own array: no copy of the outputs
     span = states[start : last + 1]
     _, reached, flags = engine.run_native(
@@ -341,8 +362,8 @@ def run_sampled(engine, model, grid, states, applied, inputs, controller, sample
             x_next = engine.advance(x, h, np.ones(1), current[None, :])[0]
         except IntegrationFailure as failure:
             raise Stopped(output, f"{failure.reason} (near t = {times[i]:.6g} s)") from None
-        if outside_domain(x_next, n, model.robot.rest_lengths):  # before a callable sees it
-            reason = domain_reason(x_next, n, model.robot.rest_lengths, times[i + 1])
+        if outside_domain(x_next, model.robot):  # before a callable sees it
+            reason = domain_reason(x_next, model.robot, times[i + 1])
             raise Stopped(output, reason)
         x = x_next
         if grid_index[output] == i + 1:

@@ -62,7 +62,8 @@ def nominal_scale(model, x0: np.ndarray) -> np.ndarray:
     """A positive scale per state: ``max(|x0|, floor)``, floors from the geometry.
 
     Lengths scale with the rest length ``l0``, curvatures with ``1/l0`` (a 1 rad bend),
-    rates with those per second, creep states with their steady response ``gain/rate``
+    strains with 1 (:meth:`Robot.coordinate_scale`), rates with those per second, creep
+    states with their steady response ``gain/rate``
     to such a rate (1 where the gain is zero). The default absolute tolerance is
     ``rtol`` times this scale, so every state is accurate to ``rtol`` relative to the
     larger of its value and its natural size.
@@ -114,13 +115,12 @@ def state_scale(model, x0: np.ndarray, inputs=None) -> np.ndarray:
 def _state_floor(robot) -> np.ndarray:
     """The floors of :func:`nominal_scale` (n_state,), read-only: they depend on the robot
     alone, so a model computes them once."""
-    q_floor = np.concatenate(
-        [[s.rest_length, 1 / s.rest_length, 1 / s.rest_length] for s in robot.segments]
-    )
+    q_floor = robot.coordinate_scale()
     lam_floor = []
     for k, s in enumerate(robot.segments):
-        if s.creep is not None:
-            response = np.abs(s.creep.gain) / s.creep.rate * q_floor[3 * k : 3 * k + 3]
+        if s.n_creep:
+            own = robot.element_coordinates(q_floor, k)
+            response = np.abs(s.creep.gain) / s.creep.rate * own
             lam_floor.extend(np.where(response > 0, response, 1.0))
     floor = np.concatenate([q_floor, q_floor, lam_floor])
     floor.setflags(write=False)

@@ -8,7 +8,6 @@ from __future__ import annotations
 import numpy as np
 from scipy.integrate import RK45
 
-from softcurve.description.robot import in_domain
 from softcurve.simulation.solvers._cvodes import PiecewiseSolver
 from softcurve.simulation.solvers._policy import LEFT_DOMAIN, TOO_MUCH_WORK, IntegrationFailure
 
@@ -54,7 +53,7 @@ class ScipyEngine(PiecewiseSolver):
         outside the model's domain (the C driver's rule): outside it the motion can need
         steps a million times shorter, and the run would go on for hours."""
         solver = RK45(f, t0, x, times[-1], rtol=self.rtol, atol=self.atol)
-        n, rest_lengths = self.model.n, self.model.robot.rest_lengths
+        n, robot = self.model.n, self.model.robot
         i, taken = 0, 0
         while i < times.size and solver.status == "running":
             if taken == self.max_steps:
@@ -76,7 +75,7 @@ class ScipyEngine(PiecewiseSolver):
                 while i < times.size and solver.t >= times[i]:
                     out[i] = solver.y if times[i] == solver.t else dense(times[i])
                     i += 1
-                    if not in_domain(out[i - 1, :n], rest_lengths):
+                    if not robot.inside(out[i - 1, :n]):
                         self.counts["rhs_evaluations"] += solver.nfev
                         raise IntegrationFailure(LEFT_DOMAIN, out[:i].copy())
                 taken = 0

@@ -1,0 +1,85 @@
+"""The kinds of element a robot's chain is made of, one module per kind, as Pinocchio's
+joint models: the constant-curvature :class:`Segment` (the paper's), the
+:class:`StrainSegment` of piecewise constant strain that chooses among the six Cosserat
+strains, and the :class:`RigidBody` that adds no coordinates. Each declares its
+coordinates (count, names, units), rest state, scale, domain and parameter fields, and
+its model (:func:`element_model`) the pose and Jacobians, mass, energy, damping and
+creep as CasADi expressions (``_element.py`` says what every kind declares).
+"""
+
+from softcurve.description.elements._curvature import (
+    DAMPING_UNITS,
+    MAX_BEND,
+    MAX_REST_LENGTH,
+    MAX_STRETCH,
+    CurvatureModel,
+    Segment,
+    segment_inside,
+    segment_problem,
+)
+from softcurve.description.elements._element import (
+    Body,
+    Element,
+    ElementModel,
+    FieldSpec,
+    SoftModel,
+)
+from softcurve.description.elements._rigid import RigidBody, RigidModel, rotation_matrix
+from softcurve.description.elements._strain import (
+    GROUPS,
+    MAX_SHEAR,
+    MAX_TWIST,
+    REST_STRAIN,
+    STRAIN_UNITS,
+    STRAINS,
+    StrainModel,
+    StrainSegment,
+)
+
+KINDS = {
+    Segment.kind: (Segment, CurvatureModel),
+    StrainSegment.kind: (StrainSegment, StrainModel),
+    RigidBody.kind: (RigidBody, RigidModel),
+}
+"""Each kind's name (the first entry of its signature): its element and model classes."""
+
+
+def element_model(signature: tuple) -> ElementModel:
+    """The model of the element of ``signature`` (:meth:`Element.signature`).
+
+    Parameters
+    ----------
+    signature : tuple
+        ``(kind, ...)``.
+    """
+    return KINDS[signature[0]][1](signature)
+
+
+__all__ = [
+    "DAMPING_UNITS",
+    "GROUPS",
+    "KINDS",
+    "MAX_BEND",
+    "MAX_REST_LENGTH",
+    "MAX_SHEAR",
+    "MAX_STRETCH",
+    "MAX_TWIST",
+    "REST_STRAIN",
+    "STRAINS",
+    "STRAIN_UNITS",
+    "Body",
+    "CurvatureModel",
+    "Element",
+    "ElementModel",
+    "FieldSpec",
+    "RigidBody",
+    "RigidModel",
+    "Segment",
+    "SoftModel",
+    "StrainModel",
+    "StrainSegment",
+    "element_model",
+    "rotation_matrix",
+    "segment_inside",
+    "segment_problem",
+]
