@@ -36,12 +36,12 @@ its cache, the peer's JIT) and a second call.
 
 ``--pcc`` runs the restricted case (bend x, bend y, stretch; straight at rest; undamped,
 since a damping on the strain rates is not one on ``(l, kx, ky)``) with softcurve's side
-today's constant-curvature ``Segment`` (MODEL.md's map ``sigma = l / l0``,
+today's constant-curvature ``Segment`` (``StrainSegment``'s map ``sigma = l / l0``,
 ``u = sigma (-ky, kx, 0)``, ``v = (0, 0, sigma)``).
 
 The peer lives in its own virtual environment (``python -m venv peer-venv &&
-peer-venv/bin/pip install soromox``); without ``--peer-python`` the peer side is skipped.
-Without ``softcurve.StrainSegment`` only the peer's numbers are printed.
+peer-venv/bin/pip install soromox``, or the extra ``peer``); without ``--peer-python`` the
+script says so and stops.
 
 Run: ``python benchmarks/bench_peer.py --peer-python peer-venv/bin/python [--pcc]
 [--markdown]``
@@ -133,9 +133,7 @@ def run_peer(python, spec):
 
 def strain_robot(sc, spec):
     """The case as ``StrainSegment``s: ``(robot, q of per-segment strains, strains of
-    q)``, or None where softcurve has no ``StrainSegment``."""
-    if not hasattr(sc, "StrainSegment"):
-        return None
+    q)``."""
     n, length, radius = spec["n_segments"], spec["rest_length"], spec["radius"]
     area, second, polar = section(radius)
     e, g = spec["youngs_modulus"], spec["shear_modulus"]
@@ -173,9 +171,10 @@ def strain_robot(sc, spec):
 
 def curvature_robot(sc, spec):
     """The restricted case (bend x, bend y, stretch; straight at rest; undamped) as
-    today's constant-curvature ``Segment``s: ``(robot, to_q, to_strains)``. MODEL.md's
-    map: ``sigma = l / l0``, ``u = sigma (-ky, kx, 0)``, ``v = (0, 0, sigma)``; its
-    energy is the strains' with ``k_b = E I / l0``, ``k_e = E A / l0``."""
+    today's constant-curvature ``Segment``s: ``(robot, to_q, to_strains)``. The map of
+    ``StrainSegment``'s docstring: ``sigma = l / l0``, ``u = sigma (-ky, kx, 0)``,
+    ``v = (0, 0, sigma)``; its energy is the strains' with ``k_b = E I / l0``,
+    ``k_e = E A / l0``."""
     n, length, radius = spec["n_segments"], spec["rest_length"], spec["radius"]
     area, second, _ = section(radius)
     e = spec["youngs_modulus"]
@@ -274,55 +273,39 @@ def _timings(result):
 
 
 def rows(peer, ours):
-    """The table's rows: (quantity, softcurve, peer, difference or time ratio); ours None
-    leaves softcurve's column and the comparison empty."""
-    labels = (
-        "static, first call (build + solve)",
-        "static, second call",
-        "trajectory, first call",
-        "trajectory, second call",
-    )
+    """The table's rows: (quantity, softcurve, peer, difference or time ratio)."""
     p_static, p_traj = peer["static"], peer["trajectory"]
-    blank = {"static": {}, "trajectory": {}}
-    o_static, o_traj = (ours or blank)["static"], (ours or blank)["trajectory"]
-
-    def ours_only(f):
-        """f() where softcurve ran, else an empty cell."""
-        return "" if ours is None else f()
-
-    if ours is not None and not np.allclose(o_traj["t"], p_traj["t"], atol=1e-12):
+    o_static, o_traj = ours["static"], ours["trajectory"]
+    if not np.allclose(o_traj["t"], p_traj["t"], atol=1e-12):
         raise RuntimeError("the two trajectories' output times differ")
-
-    def tip_angle():
-        # the angle of R_o^T R_p from |R_o - R_p|_F = 2 sqrt(2) sin(angle / 2), exact
-        # near zero, where the trace's arccos loses its digits
-        gap = np.linalg.norm(np.subtract(o_static["tip_rotation"], p_static["tip_rotation"]))
-        return f"{math.degrees(2 * math.asin(min(1.0, gap / math.sqrt(8)))):.2e} deg"
-
+    # the angle of R_o^T R_p from |R_o - R_p|_F = 2 sqrt(2) sin(angle / 2), exact near
+    # zero, where the trace's arccos loses its digits
+    gap = np.linalg.norm(np.subtract(o_static["tip_rotation"], p_static["tip_rotation"]))
+    angle = math.degrees(2 * math.asin(min(1.0, gap / math.sqrt(8))))
     table = [
         ("peer", "softcurve", f"soromox {peer['peer_version']} (jax {peer['jax_version']})", ""),
         (
             "static tip position",
-            ours_only(lambda: _mm(o_static["tip_position"])),
+            _mm(o_static["tip_position"]),
             _mm(p_static["tip_position"]),
-            ours_only(lambda: _distance(o_static["tip_position"], p_static["tip_position"])),
+            _distance(o_static["tip_position"], p_static["tip_position"]),
         ),
         (
             "static backbone, largest distance",
             "",
             "",
-            ours_only(lambda: _distance(o_static["backbone"], p_static["backbone"])),
+            _distance(o_static["backbone"], p_static["backbone"]),
         ),
-        ("static tip rotation, angle between", "", "", ours_only(tip_angle)),
+        ("static tip rotation, angle between", "", "", f"{angle:.2e} deg"),
         (
             "static twist, segment 1 [1/m]",
-            ours_only(lambda: f"{o_static['strains'][0][2]:.6g}"),
-            f"{p_static['strains'][0][2]:.6g}",
+            f"{o_static['strains'][0][2]:.8g}",
+            f"{p_static['strains'][0][2]:.8g}",
             "",
         ),
         (
             "trajectory, final tip position",
-            ours_only(lambda: _mm(o_traj["tip_position"][-1])),
+            _mm(o_traj["tip_position"][-1]),
             _mm(p_traj["tip_position"][-1]),
             "",
         ),
@@ -330,20 +313,17 @@ def rows(peer, ours):
             "trajectory, largest tip distance",
             "",
             "",
-            ours_only(lambda: _distance(o_traj["tip_position"], p_traj["tip_position"])),
+            _distance(o_traj["tip_position"], p_traj["tip_position"]),
         ),
     ]
-    p_times = _timings(peer)
-    o_times = _timings(ours) if ours is not None else (None,) * 4
-    for label, o, p in zip(labels, o_times, p_times, strict=True):
-        table.append(
-            (
-                label,
-                "" if o is None else f"{o:.3f} s",
-                f"{p:.3f} s",
-                "" if o is None else f"{p / o:.2f}x",
-            )
-        )
+    labels = (
+        "static, first call (build + solve)",
+        "static, second call",
+        "trajectory, first call",
+        "trajectory, second call",
+    )
+    for label, o, p in zip(labels, _timings(ours), _timings(peer), strict=True):
+        table.append((label, f"{o:.3f} s", f"{p:.3f} s", f"{p / o:.2f}x"))
     return table
 
 
@@ -401,10 +381,7 @@ def main(argv=None):
         return 1
     import softcurve as sc
 
-    built = (curvature_robot if args.pcc else strain_robot)(sc, spec)
-    if built is None:
-        print("softcurve.StrainSegment is not available: the peer's numbers only")
-    ours = None if built is None else run_ours(sc, spec, *built)
+    ours = run_ours(sc, spec, *(curvature_robot if args.pcc else strain_robot)(sc, spec))
     show(rows(peer, ours), args.markdown)
     return 0
 

@@ -28,7 +28,7 @@ The map between the conventions (read from soromox 0.5.0's ``systems/pcs/pcs.py`
 - Stiffness. ``LinkSpec.circular(young_modulus=E, shear_modulus=G)`` builds, per link,
   ``L diag(G J, E I, E I, E A, G A, G A)`` with ``J = 2 I = pi r^4 / 2`` and no shear
   coefficient (``k = 1``): the energy ``1/2 L (xi - xi*)^T K (xi - xi*)`` of
-  MODEL.md with ``K = diag(E I, E I, G J, G A, G A, E A)`` in softcurve's order.
+  ``softcurve.StrainSegment`` with ``K = diag(E I, E I, G J, G A, G A, E A)`` in softcurve's order.
 - Inertia. Per unit reference length ``rho diag(J, I, I, A, A, A)`` (peer's order),
   i.e. mass ``rho A`` and rotary inertia per unit mass ``r^2 (1/2, 1/4, 1/4)`` about
   (backbone, transverse, transverse): softcurve's default ``slice_inertia``
