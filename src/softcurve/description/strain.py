@@ -37,6 +37,7 @@ from softcurve.description.kind import (
     SoftModel,
     creep_fields,
     damping_matrix,
+    element_parameters,
     finite_problem,
     law_field,
     matrix_field,
@@ -310,8 +311,8 @@ class StrainSegment(Element):
             The chosen strains (default all six).
         rest_strain : array_like, shape (6,)
             ``xi*``.
-        damping : array_like, optional
-            ``R`` on the chosen strains' rates.
+        damping : array_like, shape (k, k) or (k,), optional
+            ``R`` on the chosen strains' rates (e.g. [N m^3 s] for a bend).
         creep : Creep, optional
             Creep on the chosen strains.
         """
@@ -379,19 +380,44 @@ class StrainSegment(Element):
         xi[..., list(self.indices)] = q
         return xi
 
+    @element_parameters
     def inside(self, q, rest_length=None) -> np.ndarray:
+        """Whether configurations lie in the domain, shape (...).
+
+        Parameters
+        ----------
+        %(q)s
+        %(rest_length)s
+        """
         rest = self.rest_length if rest_length is None else np.asarray(rest_length)
         with np.errstate(invalid="ignore", over="ignore"):
             return strains_inside(self.full_strain(q), rest)
 
+    @element_parameters
     def domain_problem(self, q, index: int, place, rest_length=None) -> str | None:
+        """What puts ``q`` outside the domain, or None.
+
+        Parameters
+        ----------
+        %(q)s
+        %(index)s
+        %(place)s
+        %(rest_length)s
+        """
         problem = finite_problem(q, self.strains, index, place)
         if problem is not None:
             return problem
         rest = self.rest_length if rest_length is None else float(rest_length)
         return strain_problem(self.full_strain(q), rest, index)
 
+    @element_parameters
     def with_values(self, values: dict) -> StrainSegment:
+        """The element with the numbers ``values``, validated again.
+
+        Parameters
+        ----------
+        %(values)s
+        """
         creep = None
         if self.creep is not None:
             creep = Creep(*(values[f"creep.{n}"] for n in ("rate", "gain", "compliance")))
