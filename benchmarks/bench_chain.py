@@ -40,8 +40,16 @@ segments' calls (``jtimes``) and as the Jacobian's product, the measurement behi
 stiffness free) from an empty cache, the model's library built before and not counted,
 and the same fit again (the libraries loaded).
 
+With ``--kind strain`` the robots are of constant-strain segments with all six strains
+(:data:`STRAIN_SEGMENT`: the paper's segment's length and radius, silicone of 1 MPa) in
+place of the paper's constant-curvature segments; ``--kind both`` prints both tables and
+then, per N, the six-strain robot's figures over the constant-curvature robot's (the
+targets: forward dynamics of one six-strain segment at most 2.5x one constant-curvature
+segment; per segment at N = 10 and 20 within 1.6x of N = 1; a ten-segment six-strain
+robot compiled within 3x of one segment).
+
 Run: ``python benchmarks/bench_chain.py [--segments 1 2 4 10 20] [--no-compile] [--cse]
-[--stepper [--members 64]] [--sensitivity]``
+[--stepper [--members 64]] [--sensitivity] [--kind curvature|strain|both]``
 """
 
 from __future__ import annotations
@@ -62,6 +70,23 @@ import softcurve as sc
 from softcurve.simulation.stepper import Stepper
 from softcurve.symbolic.dynamics import build_dynamics
 from softcurve.symbolic.functions import common_subexpressions
+
+STRAIN_SEGMENT = sc.StrainSegment.from_material(
+    sc.Material(youngs_modulus=1e6, density=1070.0, poisson_ratio=0.5),
+    sc.Section.circle(0.0235),
+    rest_length=0.0644,
+    damping=[1e-6, 1e-6, 1e-6, 1e-2, 1e-2, 1e-2],
+)
+"""A segment of all six strains, the paper's segment's size (silicone of 1 MPa)."""
+
+
+def robot_of(kind: str, n_segments: int) -> sc.Robot:
+    """The benchmark's robot of ``n_segments`` segments of ``kind`` (``"curvature"``: the
+    paper's; ``"strain"``: :data:`STRAIN_SEGMENT`)."""
+    if kind == "strain":
+        return sc.Robot(segments=(STRAIN_SEGMENT,) * n_segments)
+    return sc.presets.ifac2020().with_segments(n_segments)
+
 
 BENT = (0.0644, 5.0, -2.0)
 """Each segment's state for the stepper and the fits: the rest length [m] and the
@@ -202,6 +227,10 @@ def main() -> None:
     parser.add_argument("--stepper", action="store_true", help="the stepper's build and period")
     parser.add_argument("--members", type=int, default=64, help="members stepped (--stepper)")
     parser.add_argument("--sensitivity", action="store_true", help="the sensitivities' cost")
+    parser.add_argument(
+        "--kind", choices=("curvature", "strain", "both"), default="curvature",
+        help="segments of constant curvature (the paper's), of six strains, or both",
+    )  # fmt: skip
     args = parser.parse_args()
     if args.cse:
         for n_segments in args.segments:
@@ -234,16 +263,35 @@ def main() -> None:
                 flush=True,
             )
         return
+    kinds = ("curvature", "strain") if args.kind == "both" else (args.kind,)
+    tables = {kind: chain_table(kind, args) for kind in kinds}
+    if len(tables) == 2:
+        print(f"\nsix strains over constant curvature, same N ({'N':>3} ops, compile, in C):")
+        for n_segments in args.segments:
+            a, b = tables["strain"][n_segments], tables["curvature"][n_segments]
+            ratios = "  ".join(f"{x / y:>6.2f}" for x, y in zip(a, b, strict=True))
+            print(f"{n_segments:>3}  {ratios}")
+    print(
+        "\nTargets: compile time at N = 10 within 3x of N = 1; ops and time per segment at "
+        "N = 10 and 20 within 1.6x of N = 1; one six-strain segment's forward dynamics "
+        "within 2.5x of one constant-curvature segment's."
+    )
+
+
+def chain_table(kind: str, args) -> dict:
+    """Print the cost table of robots of ``kind``; return per N ``(ops, compile [s], in C
+    [s])``."""
     header = (
         f"{'N':>3} {'ops':>8} {'/seg':>7} {'x N=1':>6} {'inlined':>8} {'build [s]':>9} "
         f"{'compile [s]':>11} {'x N=1':>6} {'cc CPU [s]':>10} {'in C [us]':>9} {'/seg':>6} "
         f"{'x N=1':>6}"
     )
+    print(f"\n{kind} segments")
     print(header)
     print("-" * len(header))
-    first = None
+    first, rows = None, {}
     for n_segments in args.segments:
-        robot = sc.presets.ifac2020().with_segments(n_segments)
+        robot = robot_of(kind, n_segments)
         structure = robot.structure()
         ops = executed_operations(forward_dynamics_function(structure, None))
         inlined = forward_dynamics_function(structure, True).n_instructions()
@@ -260,6 +308,7 @@ def main() -> None:
                 compilers = _children_cpu() - children
                 c_time = inside_c(model, max(args.repeat // n_segments, 1000))
         row = (ops / n_segments, compile_time, c_time / n_segments)
+        rows[n_segments] = (ops, compile_time, c_time)
         first = first or row
         print(
             f"{n_segments:>3} {ops:>8} {row[0]:>7.0f} {row[0] / first[0]:>6.2f} {inlined:>8} "
@@ -268,10 +317,7 @@ def main() -> None:
             f"{row[2] / first[2]:>6.2f}",
             flush=True,
         )
-    print(
-        "\nTargets (issue 32): compile time at N = 10 within 3x of N = 1; ops and time per "
-        "segment at N = 10 and 20 within 1.5x of N = 1."
-    )
+    return rows
 
 
 if __name__ == "__main__":

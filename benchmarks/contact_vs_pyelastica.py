@@ -82,15 +82,16 @@ def softcurve_case(args, wall):
     ``wall`` None for the free rod."""
     import softcurve as sc
 
-    area = math.pi * args.radius**2
-    second_moment = math.pi / 4 * args.radius**4
+    # nu = 0.5: PyElastica's rod has G = E / 3 (pyelastica_case)
+    rubber = sc.Material(youngs_modulus=args.young, density=args.density, poisson_ratio=0.5)
+    rod = sc.section_properties(rubber, sc.Section.circle(args.radius))
     l0 = args.length / args.segments
     segment = sc.Segment(
         rest_length=l0,
-        mass=args.density * area * l0,
+        mass=rod.mass_per_length * l0,
         radius=args.radius,
-        elongation_stiffness=sc.LinearStiffness(args.young * area / l0),
-        bending_stiffness=sc.LinearStiffness(args.young * second_moment / l0),
+        elongation_stiffness=sc.LinearStiffness(rod.elongation_stiffness(l0)),
+        bending_stiffness=sc.LinearStiffness(rod.bending_angle_stiffness(l0)),
     )
     robot = sc.Robot(segments=(segment,) * args.segments, gravity=np.zeros(3))
     tip_force = np.array([args.force, 0.0, 0.0])

@@ -241,7 +241,10 @@ def public_api() -> list:
     objects = []
     for name in softcurve.__all__:
         obj = getattr(softcurve, name)
-        objects += _module_functions(obj) if inspect.ismodule(obj) else [obj]
+        if inspect.ismodule(obj):
+            objects += _module_functions(obj)
+        elif callable(obj):  # constants (softcurve.STRAINS) have no parameters
+            objects.append(obj)
     for module in public_modules():
         objects += _module_functions(module)
     unique = {id(obj): obj for obj in objects}

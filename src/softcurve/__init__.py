@@ -65,6 +65,12 @@ _FACES = {
     "softcurve.description.materials": ("Creep", "LinearStiffness", "TanhStiffness"),
     "softcurve.description.elements": ("STRAINS", "RigidBody", "Segment", "StrainSegment"),
     "softcurve.description.robot": ("Robot",),
+    "softcurve.description.sections": (
+        "Material",
+        "Section",
+        "SectionProperties",
+        "section_properties",
+    ),
     "softcurve.description.tendons": ("Tendon", "TendonActuator"),
     "softcurve.figures": ("save_figure",),
     "softcurve.identification.experiments": (
@@ -154,6 +160,10 @@ __all__ = [
     "LinearStiffness",
     "TanhStiffness",
     "Creep",
+    "Material",
+    "Section",
+    "SectionProperties",
+    "section_properties",
     "Actuator",
     "Bellows",
     "PneumaticActuator",

@@ -317,10 +317,11 @@ def elastic_stiffness_function(model) -> ca.Function:
 
 
 def coordinate_scale(robot) -> np.ndarray:
-    """``S``, :meth:`Robot.coordinate_scale <softcurve.description.robot.Robot.
-    coordinate_scale>` (``(l0, 1/l0, 1/l0)`` per constant-curvature segment, ``1/L0`` per
-    curvature and 1 per strain of a constant-strain one): ``q / S`` is dimensionless (a
-    bending of one radian is 1) and ``S * force`` is an energy [J].
+    """``S``, the robot's
+    :meth:`~softcurve.description.robot.Robot.coordinate_scale` (``(l0, 1/l0, 1/l0)`` per
+    constant-curvature segment, ``1/L0`` per curvature and 1 per strain of a
+    constant-strain one): ``q / S`` is dimensionless (a bending of one radian is 1) and
+    ``S * force`` is an energy [J].
 
     Parameters
     ----------

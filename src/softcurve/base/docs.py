@@ -26,11 +26,12 @@ import types
 PARAMETERS: dict[str, tuple[str, str]] = {
     "q": (
         "array_like, shape (n,)",
-        "Generalized coordinates ``(l, kx, ky)`` of each segment [m, 1/m, 1/m].",
+        "Generalized coordinates: ``(l, kx, ky)`` of each constant-curvature segment [m, "
+        "1/m, 1/m], the chosen strains of each constant-strain segment [1/m or -].",
     ),
     "qd": (
         "array_like, shape (n,)",
-        "Their rates [m/s, 1/(m s), 1/(m s)].",
+        "Their rates (e.g. [m/s, 1/(m s), 1/(m s)]).",
     ),
     "lam": (
         "array_like, shape (n_creep,), optional",

@@ -10,6 +10,7 @@ import numpy as np
 from softcurve.base.validation import real_scalar
 from softcurve.description.materials import Creep, LinearStiffness, TanhStiffness
 from softcurve.description.robot import Robot, Segment
+from softcurve.description.sections import Material, Section, section_properties
 from softcurve.description.tendons import TendonActuator
 
 
@@ -61,6 +62,8 @@ RAO2021_LENGTH = 0.2
 """Rest length of each of the two segments [m] (``L = [200e-3; 200e-3]``)."""
 RAO2021_YOUNG = 54e9
 """Young's modulus of the nitinol backbone [Pa] (``E = 54*10^9``)."""
+RAO2021_POISSON = 0.3
+"""Poisson's ratio of the nitinol backbone [-] (``nu = 0.3``)."""
 RAO2021_BACKBONE_RADIUS = 0.7e-3
 """Radius of the solid backbone rod [m] (``ro = 1.4/2*10^-3``, ``ri = 0``)."""
 RAO2021_PITCH = 10e-3
@@ -75,6 +78,16 @@ RAO2021_BACKBONE_DENSITY = 0.0115
 """Mass of the backbone per length [kg/m] (``m_bb = 0.0115*l*g``)."""
 RAO2021_DISK_MASS = 0.2e-3
 """Mass of one spacer disk [kg] (``m_disk = 0.2*1e-3``)."""
+RAO2021_SECTION = Section.circle(RAO2021_BACKBONE_RADIUS, poisson_ratio=RAO2021_POISSON)
+"""The backbone's solid circular section (radius :data:`RAO2021_BACKBONE_RADIUS`)."""
+RAO2021_MATERIAL = Material(
+    youngs_modulus=RAO2021_YOUNG,
+    density=RAO2021_BACKBONE_DENSITY / RAO2021_SECTION.area,
+    poisson_ratio=RAO2021_POISSON,
+)
+"""The backbone's nitinol: :data:`RAO2021_YOUNG`, :data:`RAO2021_POISSON` and the
+density that gives the repo's mass per length :data:`RAO2021_BACKBONE_DENSITY`
+(7,470 kg/m^3)."""
 RAO2021_DAMPING_TIME = 0.0125
 """A damping time [s] for the dynamics of :func:`rao2021` (``damping_time=``): an
 assumption, since the source models statics only. Every mode of frequency ``w`` then has
@@ -91,9 +104,10 @@ def rao2021(*, gravity: bool = False, damping_time: float | None = None) -> Robo
     code (github.com/SvenLilge/tdcr-modeling, matlab/Parameters/tdcr_2segments.m).
 
     Two segments of l0 = 200 mm on a solid nitinol backbone (E = 54 GPa, radius
-    0.7 mm). softcurve's elastic energy is ``0.5 k_b (kappa l)^2 + 0.5 k_e (l - l0)^2``
-    where a rod's is ``0.5 E I kappa^2 l + 0.5 E A (l - l0)^2 / l0``, so
-    ``k_b = E I / l0`` = 0.0509 N m/rad and ``k_e = E A / l0`` = 4.16e5 N/m. Mass per
+    0.7 mm, :data:`RAO2021_MATERIAL` and :data:`RAO2021_SECTION`). softcurve's elastic
+    energy is ``0.5 k_b (kappa l)^2 + 0.5 k_e (l - l0)^2``, a rod's with
+    ``k_b = E I / l0`` = 0.0509 N m/rad and ``k_e = E A / l0`` = 4.16e5 N/m
+    (:class:`~softcurve.description.sections.SectionProperties`). Mass per
     segment: backbone 0.0115 kg/m x 0.2 m plus ten 0.2 g spacer disks = 4.3 g. The
     repo has no disk radius; the slice radius (rotary inertia only) is the tendons'
     10 mm. No damping by default (statics only in the source); ``damping_time`` adds
@@ -128,10 +142,9 @@ def rao2021(*, gravity: bool = False, damping_time: float | None = None) -> Robo
     >>> damped.segments[0].damping.diagonal()  # [N s/m, N m^3 s, N m^3 s]
     array([5.19540885e+03, 2.54575034e-05, 2.54575034e-05])
     """
-    second_moment = math.pi / 4 * RAO2021_BACKBONE_RADIUS**4
-    area = math.pi * RAO2021_BACKBONE_RADIUS**2
-    elongation = RAO2021_YOUNG * area / RAO2021_LENGTH
-    bending = RAO2021_YOUNG * second_moment / RAO2021_LENGTH
+    backbone = section_properties(RAO2021_MATERIAL, RAO2021_SECTION)
+    elongation = backbone.elongation_stiffness(RAO2021_LENGTH)
+    bending = backbone.bending_angle_stiffness(RAO2021_LENGTH)
     damping = np.zeros(3)
     if damping_time is not None:
         damping_time = real_scalar("damping_time [s]", damping_time, positive=True)

@@ -1,13 +1,16 @@
 """The kinds of element a robot's chain is made of, one module per kind, as Pinocchio's
-joint models: the constant-curvature :class:`Segment` (the paper's), the
-:class:`StrainSegment` of piecewise constant strain that chooses among the six Cosserat
-strains, and the :class:`RigidBody` that adds no coordinates. Each declares its
-coordinates (count, names, units), rest state, scale, domain and parameter fields, and
-its model (:func:`element_model`) the pose and Jacobians, mass, energy, damping and
-creep as CasADi expressions (``_element.py`` says what every kind declares).
+joint models: the constant-curvature :class:`Segment` (the paper's;
+:mod:`softcurve.description.curvature`), the :class:`StrainSegment` of piecewise
+constant strain that chooses among the six Cosserat strains
+(:mod:`softcurve.description.strain`), and the :class:`RigidBody` that adds no
+coordinates (:mod:`softcurve.description.rigid`). Each declares its coordinates (count,
+names, units), rest state, scale, domain and parameter fields, and its model
+(:func:`element_model`) the pose and Jacobians, mass, energy, damping and creep as
+CasADi expressions (:mod:`softcurve.description.kind` says what every kind declares).
+This module is their table: the kinds by name, and the names others import.
 """
 
-from softcurve.description.elements._curvature import (
+from softcurve.description.curvature import (
     DAMPING_UNITS,
     MAX_BEND,
     MAX_REST_LENGTH,
@@ -17,15 +20,15 @@ from softcurve.description.elements._curvature import (
     segment_inside,
     segment_problem,
 )
-from softcurve.description.elements._element import (
+from softcurve.description.kind import (
     Body,
     Element,
     ElementModel,
     FieldSpec,
     SoftModel,
 )
-from softcurve.description.elements._rigid import RigidBody, RigidModel, rotation_matrix
-from softcurve.description.elements._strain import (
+from softcurve.description.rigid import RigidBody, RigidModel, rotation_matrix
+from softcurve.description.strain import (
     GROUPS,
     MAX_SHEAR,
     MAX_TWIST,

@@ -23,10 +23,33 @@ import casadi as ca
 import numpy as np
 
 from softcurve.base import smooth as _smooth
+from softcurve.base.docs import parameters_from
 from softcurve.base.validation import ParameterError, positive_definite, real_array
 from softcurve.description.materials import STIFFNESS_LAWS
 
 E_Z = np.array([0.0, 0.0, 1.0])
+
+ELEMENT_PARAMETERS = {
+    "q": (
+        "array_like, shape (..., n_i)",
+        "Configurations of the element's coordinates (e.g. ``(l, kx, ky)`` [m, 1/m, 1/m]); "
+        "one, shape (n_i,), where one is asked for.",
+    ),
+    "rest_length": (
+        "float or array_like, optional",
+        "Replaces the element's rest length [m] (per configuration: the members of a batch).",
+    ),
+    "index": ("int", "The element's position in the chain (0 first), for the message."),
+    "place": ("callable", '``place(k)`` names entry ``k`` of its coordinates (``"q[3]"``).'),
+    "values": ("dict", "Field name -> array, the element's numbers (its layout's fields)."),
+    "name": ("str", 'The field\'s attribute path on the element (``"mass"``).'),
+    "size": ("int", "Number of entries (rows and columns of a matrix)."),
+    "units": ("str or sequence of str", "One unit for every entry, or one per entry."),
+}
+"""The parameters the element kinds' methods share."""
+
+element_parameters = parameters_from(ELEMENT_PARAMETERS)
+"""Decorator: ``%(q)s`` and the others of :data:`ELEMENT_PARAMETERS`."""
 
 
 @dataclass(frozen=True)
@@ -51,36 +74,74 @@ class FieldSpec:
     units: tuple[str, ...]
 
 
+@element_parameters
 def scalar_field(name: str, unit: str) -> FieldSpec:
-    """A scalar field of unit ``unit``."""
+    """A scalar field of unit ``unit``.
+
+    Parameters
+    ----------
+    %(name)s
+    unit : str
+        Its unit.
+    """
     return FieldSpec(name, (), ("",), (unit,))
 
 
+@element_parameters
 def vector_field(name: str, size: int, units) -> FieldSpec:
-    """A vector field; ``units`` one string for all entries or one per entry."""
+    """A vector field.
+
+    Parameters
+    ----------
+    %(name)s
+    %(size)s
+    %(units)s
+    """
     units = (units,) * size if isinstance(units, str) else tuple(units)
     return FieldSpec(name, (size,), tuple(f"[{i}]" for i in range(size)), units)
 
 
+@element_parameters
 def matrix_field(name: str, size: int, units) -> FieldSpec:
-    """A ``size x size`` matrix field, row major; ``units`` one string or one per entry."""
+    """A ``size x size`` matrix field, row major.
+
+    Parameters
+    ----------
+    %(name)s
+    %(size)s
+    %(units)s
+    """
     labels = tuple(f"[{i},{j}]" for i in range(size) for j in range(size))
     units = (units,) * len(labels) if isinstance(units, str) else tuple(units)
     return FieldSpec(name, (size, size), labels, units)
 
 
+@element_parameters
 def law_field(name: str, kind: str, units: dict) -> FieldSpec:
-    """The field of a stiffness law of ``kind`` (``"linear"``, ``"tanh"``); ``units`` maps
-    the law's parameter quantities (``"stiffness"``, ``"1/strain"``) to units."""
+    """The field of a stiffness law.
+
+    Parameters
+    ----------
+    %(name)s
+    kind : str
+        The law's kind (``"linear"``, ``"tanh"``).
+    units : dict
+        The law's parameter quantities (``"stiffness"``, ``"1/strain"``) to units.
+    """
     law = STIFFNESS_LAWS[kind]
     labels = tuple("." + x for x in law.parameter_labels)
     quantities = law.parameter_quantities
     return FieldSpec(name, (len(labels),), labels, tuple(units[q] for q in quantities))
 
 
+@element_parameters
 def creep_fields(size: int) -> list[FieldSpec]:
-    """The fields of creep of ``size`` states (the state's unit is the user's: gain and
-    compliance carry it)."""
+    """The fields of creep (the state's unit is the user's: gain and compliance carry it).
+
+    Parameters
+    ----------
+    %(size)s
+    """
     return [
         vector_field("creep.rate", size, "1/s"),
         vector_field("creep.gain", size, ""),
@@ -157,22 +218,40 @@ class Element:
         the floor of the integrator's state scale."""
         raise NotImplementedError
 
+    @element_parameters
     def inside(self, q, rest_length=None) -> np.ndarray:
-        """Whether configurations ``q[..., n_i]`` of the element lie in its domain
-        (NaN fails); elementwise over the leading axes. ``rest_length`` (shape (...,))
-        replaces the element's own per configuration where it differs (the members of a
-        batch)."""
+        """Whether configurations of the element lie in its domain (NaN fails),
+        elementwise over the leading axes, shape (...).
+
+        Parameters
+        ----------
+        %(q)s
+        %(rest_length)s
+        """
         raise NotImplementedError
 
+    @element_parameters
     def domain_problem(self, q, index: int, place, rest_length=None) -> str | None:
-        """What puts ``q`` (n_i,) outside the domain, or None; ``index`` is the
-        element's position (for the message), ``place(k)`` names entry ``k`` of the
-        element's coordinates, ``rest_length`` replaces the element's own."""
+        """What puts ``q`` outside the domain, naming the coordinate, its value and the
+        allowed range; None inside.
+
+        Parameters
+        ----------
+        %(q)s
+        %(index)s
+        %(place)s
+        %(rest_length)s
+        """
         raise NotImplementedError
 
+    @element_parameters
     def with_values(self, values: dict) -> Element:
-        """The element of this signature whose numbers are ``values`` (field name ->
-        array), validated again."""
+        """The element of this signature whose numbers are ``values``, validated again.
+
+        Parameters
+        ----------
+        %(values)s
+        """
         raise NotImplementedError
 
     def replace(self, **changes):
@@ -186,8 +265,18 @@ class Element:
         return dataclasses.replace(self, **changes)
 
 
+@element_parameters
 def finite_problem(q, names, index: int, place) -> str | None:
-    """The first non-finite coordinate of an element, worded, or None."""
+    """The first non-finite coordinate of an element, worded, or None.
+
+    Parameters
+    ----------
+    %(q)s
+    names : sequence of str
+        The coordinates' names.
+    %(index)s
+    %(place)s
+    """
     for k, (name, value) in enumerate(zip(names, q, strict=True)):
         if not np.isfinite(value):
             return f"entries must be finite: {name} of segment {index + 1} ({place(k)}) = {value}"

@@ -31,12 +31,13 @@ import casadi as ca
 import numpy as np
 
 from softcurve.base.validation import ParameterError, real_array, real_scalar
-from softcurve.description.elements._curvature import MAX_BEND, MAX_REST_LENGTH, MAX_STRETCH
-from softcurve.description.elements._element import (
+from softcurve.description.curvature import MAX_BEND, MAX_REST_LENGTH, MAX_STRETCH
+from softcurve.description.kind import (
     Element,
     SoftModel,
     creep_fields,
     damping_matrix,
+    element_parameters,
     finite_problem,
     law_field,
     matrix_field,
@@ -44,6 +45,7 @@ from softcurve.description.elements._element import (
     vector_field,
 )
 from softcurve.description.materials import STIFFNESS_LAWS, Creep, LinearStiffness, TanhStiffness
+from softcurve.description.sections import section_properties
 
 STRAINS = ("bend_x", "bend_y", "twist", "shear_x", "shear_y", "stretch")
 """The six Cosserat strains in their order in ``xi = (u, v)``."""
@@ -309,13 +311,11 @@ class StrainSegment(Element):
             The chosen strains (default all six).
         rest_strain : array_like, shape (6,)
             ``xi*``.
-        damping : array_like, optional
-            ``R`` on the chosen strains' rates.
+        damping : array_like, shape (k, k) or (k,), optional
+            ``R`` on the chosen strains' rates (e.g. [N m^3 s] for a bend).
         creep : Creep, optional
             Creep on the chosen strains.
         """
-        from softcurve.description.sections import section_properties
-
         properties = section_properties(material, section)
         chosen = _chosen(strains)
         values = dict(zip(STRAINS, properties.stiffness, strict=True))
@@ -380,19 +380,44 @@ class StrainSegment(Element):
         xi[..., list(self.indices)] = q
         return xi
 
+    @element_parameters
     def inside(self, q, rest_length=None) -> np.ndarray:
+        """Whether configurations lie in the domain, shape (...).
+
+        Parameters
+        ----------
+        %(q)s
+        %(rest_length)s
+        """
         rest = self.rest_length if rest_length is None else np.asarray(rest_length)
         with np.errstate(invalid="ignore", over="ignore"):
             return strains_inside(self.full_strain(q), rest)
 
+    @element_parameters
     def domain_problem(self, q, index: int, place, rest_length=None) -> str | None:
+        """What puts ``q`` outside the domain, or None.
+
+        Parameters
+        ----------
+        %(q)s
+        %(index)s
+        %(place)s
+        %(rest_length)s
+        """
         problem = finite_problem(q, self.strains, index, place)
         if problem is not None:
             return problem
         rest = self.rest_length if rest_length is None else float(rest_length)
         return strain_problem(self.full_strain(q), rest, index)
 
+    @element_parameters
     def with_values(self, values: dict) -> StrainSegment:
+        """The element with the numbers ``values``, validated again.
+
+        Parameters
+        ----------
+        %(values)s
+        """
         creep = None
         if self.creep is not None:
             creep = Creep(*(values[f"creep.{n}"] for n in ("rate", "gain", "compliance")))

@@ -19,12 +19,13 @@ import casadi as ca
 import numpy as np
 
 from softcurve.base.validation import FLOAT_MAX, ParameterError, real_scalar
-from softcurve.description.elements._element import (
+from softcurve.description.kind import (
     E_Z,
     Element,
     SoftModel,
     creep_fields,
     damping_matrix,
+    element_parameters,
     finite_problem,
     law_field,
     matrix_field,
@@ -231,17 +232,42 @@ class Segment(Element):
         """``(l0, 1/l0, 1/l0)``: a length and a 1 rad bend."""
         return np.array([self.rest_length, 1.0 / self.rest_length, 1.0 / self.rest_length])
 
+    @element_parameters
     def inside(self, q, rest_length=None) -> np.ndarray:
+        """Whether configurations lie in the domain, shape (...).
+
+        Parameters
+        ----------
+        %(q)s
+        %(rest_length)s
+        """
         q = np.asarray(q, dtype=np.float64)
         rest = self.rest_length if rest_length is None else np.asarray(rest_length)
         with np.errstate(invalid="ignore", over="ignore"):
             return segment_inside(q[..., 0], q[..., 1], q[..., 2], MAX_STRETCH * rest)
 
+    @element_parameters
     def domain_problem(self, q, index: int, place, rest_length=None) -> str | None:
+        """What puts ``q`` outside the domain, or None.
+
+        Parameters
+        ----------
+        %(q)s
+        %(index)s
+        %(place)s
+        %(rest_length)s
+        """
         rest = self.rest_length if rest_length is None else float(rest_length)
         return segment_problem(q, rest, index, place)
 
+    @element_parameters
     def with_values(self, values: dict) -> Segment:
+        """The element with the numbers ``values``, validated again.
+
+        Parameters
+        ----------
+        %(values)s
+        """
         creep = None
         if self.creep is not None:
             creep = Creep(*(values[f"creep.{n}"] for n in ("rate", "gain", "compliance")))
