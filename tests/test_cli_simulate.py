@@ -6,13 +6,16 @@ import os
 import shutil
 import subprocess
 import sys
+import textwrap
 from pathlib import Path
 
 import numpy as np
 import pytest
+import tomllib
 
 import softcurve as sc
 from softcurve.cli import main
+from softcurve.scenarios.config import scenario_from_dict
 
 EXAMPLES = Path(__file__).resolve().parent.parent / "examples"
 
@@ -182,6 +185,12 @@ def test_a_six_strain_robot_with_a_gripper_runs_from_its_file(tmp_path, capsys):
     np.testing.assert_array_equal(robot.base_position, [0.0, 0.0, 0.2])
     segment, gripper = robot.segments
     assert segment.strains == sc.STRAINS and gripper.mass == 0.02
+    # from its material and section: E I, G J with G = E / 3, E A, rho A L0
+    r, e = 0.01, 1e6
+    assert segment.bending_stiffness.k0 == pytest.approx(e * np.pi * r**4 / 4, rel=1e-12)
+    assert segment.torsion_stiffness.k0 == pytest.approx(e / 3 * np.pi * r**4 / 2, rel=1e-12)
+    assert segment.stretch_stiffness.k0 == pytest.approx(e * np.pi * r**2, rel=1e-12)
+    assert segment.mass == pytest.approx(1070.0 * np.pi * r**2 * 0.1, rel=1e-12)
     np.testing.assert_array_equal(gripper.inertia[0], [3e-6, 2e-7, 0.0])
     out = tmp_path / "out"
     code = main(["simulate", str(EXAMPLES / "twisting_gripper.toml"), "-o", str(out),
@@ -235,6 +244,62 @@ def test_a_bad_strain_segment_exits_2_naming_its_field(tmp_path, capsys, strains
     assert f"{config}: {expected}" in error, error
     assert error.count("\n") == 1 and "Traceback" not in error
     assert not (tmp_path / "out").exists()
+
+
+def test_a_strain_segment_of_laws_or_of_a_material_and_a_section():
+    laws = STRAIN_SEGMENT.replace("STRAINS", '["bend_x", "twist"]').replace(
+        "LAWS", 'torsion_stiffness = { law = "tanh", a1 = 5e-3, a2 = 2e-3, a3 = 4.0 }'
+    )
+    segment = scenario_from_dict(tomllib.loads(laws)).robot.segments[0]
+    assert segment.strains == ("bend_x", "twist") and segment.mass == 0.03
+    assert segment.bending_stiffness.k0 == 8e-3 and segment.torsion_stiffness.a3 == 4.0
+    tube = """
+    [robot]
+    [[robot.segments]]
+    kind = "constant_strain"
+    rest_length = 0.05
+    strains = ["bend_x", "bend_y", "twist"]
+    material = { youngs_modulus = 2e6, density = 1100.0, shear_modulus = 7e5 }
+    section = { outer_radius = 0.02, inner_radius = 0.01 }
+    """
+    segment = scenario_from_dict(tomllib.loads(textwrap.dedent(tube))).robot.segments[0]
+    second = np.pi * (0.02**4 - 0.01**4) / 4
+    assert segment.bending_stiffness.k0 == pytest.approx(2e6 * second, rel=1e-12)
+    assert segment.torsion_stiffness.k0 == pytest.approx(7e5 * 2 * second, rel=1e-12)
+    assert segment.radius == 0.02 and segment.shear_stiffness is None
+
+
+@pytest.mark.parametrize(
+    ("element", "expected"),
+    [
+        ("section = { radius = 0.01 }", "robot.segments[0].material: is required"),
+        (
+            "material = { youngs_modulus = 1e6, density = 1070.0 }\nsection = { radius = 0.01 }",
+            "robot.segments[0].material: a Material needs shear_modulus [Pa] or poisson_ratio",
+        ),
+        (
+            "material = { youngs_modulus = 1e6, density = 1e3, poisson_ratio = 0.5 }\n"
+            "section = { radius = 0.01 }\nmass = 0.03",
+            "robot.segments[0].mass: comes from material and section",
+        ),
+        (
+            "material = { youngs_modulus = 1e6, density = 1e3, poisson_ratio = 0.7 }\n"
+            "section = { radius = 0.01 }",
+            "robot.segments[0].material: ",
+        ),
+    ],
+)
+def test_a_bad_material_or_section_exits_2_naming_its_field(tmp_path, capsys, element, expected):
+    config = tmp_path / "bad.toml"
+    config.write_text(
+        '[robot]\n[[robot.segments]]\nkind = "constant_strain"\nrest_length = 0.1\n'
+        + element
+        + "\n"
+    )
+    assert main(["simulate", str(config), "-o", str(tmp_path / "out")]) == 2
+    error = capsys.readouterr().err
+    assert f"{config}: {expected}" in error, error
+    assert error.count("\n") == 1
 
 
 @pytest.mark.parametrize(

@@ -23,6 +23,7 @@ from softcurve.description.elements import GROUPS, STRAINS, RigidBody, StrainSeg
 from softcurve.description.environment import Environment
 from softcurve.description.materials import Creep, LinearStiffness, TanhStiffness
 from softcurve.description.robot import Robot, Segment
+from softcurve.description.sections import Material, Section
 from softcurve.scenarios.actuation import from_mapping
 from softcurve.scenarios.environment import environment_from_mapping
 from softcurve.scenarios.tables import ConfigError, Reader, read_toml, toml_parameters
@@ -293,12 +294,36 @@ def _element(r: Reader):
 
 
 def _strain_segment(r: Reader) -> StrainSegment:
-    values = {name: r.positive(name, required=True) for name in ("rest_length", "mass", "radius")}
+    """A constant-strain segment: its mass, radius and laws, or its ``material`` and
+    ``section`` (:meth:`StrainSegment.from_material`)."""
     strains = r.get("strains", "strings", STRAINS)
     for name in strains:
         if name not in STRAINS:
             r.fail("strains", f"unknown strain {name!r} (allowed: {', '.join(STRAINS)})")
-    values["strains"] = tuple(strains)
+    rest_length = r.positive("rest_length", required=True)
+    common = {}
+    if r.has("rest_strain"):
+        common["rest_strain"] = r.vector("rest_strain", 6)
+    if r.has("damping"):
+        common["damping"] = r.get("damping", "vector")
+    if r.has("creep"):
+        r.get("creep", "table")
+        common["creep"] = _creep(r.sub("creep"), len(strains))
+    if r.has("material") or r.has("section"):
+        derived = ("mass", "radius", "slice_inertia", *GROUPS)
+        given = [name for name in derived if r.has(name)]
+        if given:
+            r.fail(given[0], "comes from material and section: give one or the other")
+        material = _material(r)
+        section = _section(r, material)
+        r.done()
+        try:
+            return StrainSegment.from_material(
+                material, section, rest_length, tuple(strains), **common
+            )
+        except ParameterError as exc:
+            r.fail("", str(exc))
+    values = {name: r.positive(name, required=True) for name in ("mass", "radius")}
     for law, indices in GROUPS.items():
         chosen = [STRAINS[k] for k in indices if STRAINS[k] in strains]
         if chosen:
@@ -307,19 +332,56 @@ def _strain_segment(r: Reader) -> StrainSegment:
             continue
         if r.has(law):
             r.fail(law, f"the segment chooses none of {', '.join(STRAINS[k] for k in indices)}")
-    for name, size in (("rest_strain", 6), ("slice_inertia", 3)):
-        if r.has(name):
-            values[name] = r.vector(name, size)
-    if r.has("damping"):
-        values["damping"] = r.get("damping", "vector")
-    if r.has("creep"):
-        r.get("creep", "table")
-        values["creep"] = _creep(r.sub("creep"), len(strains))
+    if r.has("slice_inertia"):
+        values["slice_inertia"] = r.vector("slice_inertia", 3)
     r.done()
     try:
-        return StrainSegment(**values)
+        return StrainSegment(rest_length=rest_length, strains=tuple(strains), **values, **common)
     except ParameterError as exc:
         r.fail("", str(exc))
+
+
+def _material(r: Reader) -> Material:
+    """``material = { youngs_modulus, density, shear_modulus or poisson_ratio }``."""
+    r.get("material", "table", required=True)
+    m = r.sub("material")
+    values = {name: m.positive(name, required=True) for name in ("youngs_modulus", "density")}
+    for name in ("shear_modulus", "poisson_ratio"):
+        if m.has(name):
+            values[name] = m.get(name, "number")
+    m.done()
+    try:
+        return Material(**values)
+    except ParameterError as exc:
+        m.fail("", str(exc))
+
+
+def _section(r: Reader, material: Material) -> Section:
+    """``section = { radius }`` (a circle), ``{ outer_radius, inner_radius }`` (a tube),
+    both of the material's Poisson ratio, or the constants ``{ area, second_moment,
+    polar_moment, shear_coefficient, radius (optional) }``."""
+    r.get("section", "table", required=True)
+    s = r.sub("section")
+    nu = material.poisson_ratio
+    try:
+        if s.has("outer_radius"):
+            outer = s.positive("outer_radius")
+            inner = s.get("inner_radius", "number", required=True)
+            s.done()
+            return Section.tube(outer, inner, poisson_ratio=nu)
+        if s.has("area"):
+            names = ("area", "second_moment", "polar_moment", "shear_coefficient")
+            values = {name: s.positive(name, required=True) for name in names}
+            values["radius"] = s.positive("radius")
+            s.done()
+            return Section(**values)
+        radius = s.positive("radius", required=True)
+        s.done()
+        return Section.circle(radius, poisson_ratio=nu)
+    except ParameterError as exc:
+        if isinstance(exc, ConfigError):
+            raise
+        s.fail("", str(exc))
 
 
 def _rigid_body(r: Reader) -> RigidBody:
