@@ -272,6 +272,37 @@ class ElementShape:
     stripe: np.ndarray
 
 
+def element_poses(model, q, points: int) -> tuple[np.ndarray, np.ndarray]:
+    """The material frames at ``points`` evenly spaced points of every element.
+
+    Parameters
+    ----------
+    model : softcurve.Model
+        Gives the pose at each material coordinate (element ``i`` of ``N`` covers
+        ``[i/N, (i+1)/N]``).
+    q : array_like, shape (k, n)
+        Configurations.
+    points : int
+        Points along each element, both ends included [count].
+
+    Returns
+    -------
+    rotation : ndarray, shape (k, N, points, 3, 3)
+        The material frames' axes (columns) in the world frame.
+    position : ndarray, shape (k, N, points, 3)
+        Their origins [m].
+    """
+    q = model_rows(model, q, "q")
+    count = model.robot.n_segments
+    local = np.linspace(0.0, 1.0, points)
+    s = ((np.arange(count)[:, None] + local[None, :]) / count).ravel()
+    rotation, position = model.evaluate_along(
+        "pose", np.repeat(q, s.size, axis=0), np.tile(s, q.shape[0])[:, None]
+    )
+    shape = (q.shape[0], count, points)
+    return rotation.reshape(*shape, 3, 3), position.reshape(*shape, 3)
+
+
 def element_shapes(model, q, points: int) -> tuple[ElementShape, ...]:
     """Each element's backbone and surface stripe at the configurations ``q``.
 
@@ -290,16 +321,8 @@ def element_shapes(model, q, points: int) -> tuple[ElementShape, ...]:
     tuple of ElementShape
         One per element, base to tip.
     """
-    q = model_rows(model, q, "q")
-    elements = model.robot.segments
-    local = np.linspace(0.0, 1.0, points)
-    s = ((np.arange(len(elements))[:, None] + local[None, :]) / len(elements)).ravel()
-    rotation, position = model.evaluate_along(
-        "pose", np.repeat(q, s.size, axis=0), np.tile(s, q.shape[0])[:, None]
-    )
-    shape = (q.shape[0], len(elements), points, 3)
-    position = position.reshape(shape)
-    across = rotation.reshape(*shape[:3], 3, 3)[..., :, 0]  # the material x axis
+    rotation, position = element_poses(model, q, points)
+    across = rotation[..., :, 0]  # the material x axis
     return tuple(
         ElementShape(
             index=i,
@@ -308,7 +331,7 @@ def element_shapes(model, q, points: int) -> tuple[ElementShape, ...]:
             backbone=position[:, i],
             stripe=position[:, i] + element.radius * across[:, i],
         )
-        for i, element in enumerate(elements)
+        for i, element in enumerate(model.robot.segments)
     )
 
 

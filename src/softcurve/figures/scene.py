@@ -20,7 +20,7 @@ import numpy as np
 
 from softcurve.base.validation import ParameterError, real_array, real_scalar
 from softcurve.description.tendons import TendonActuator
-from softcurve.figures.drawing import RIGID_KIND, model_rows, whole_number
+from softcurve.figures.drawing import RIGID_KIND, element_poses, model_rows, whole_number
 from softcurve.figures.obstacles import environment_meshes
 
 MM_PER_M = 1e3
@@ -146,7 +146,7 @@ def ring_frames(model, q, rings_per_segment: int) -> np.ndarray:
     model : softcurve.Model
         Gives the pose at each material coordinate (``pose(q, s)``).
     q : array_like, shape (F, n)
-        Configurations [m, 1/m, 1/m per segment].
+        Configurations (``robot.coordinate_names()``).
     rings_per_segment : int
         Rings along each segment, both ends included [count].
 
@@ -155,16 +155,10 @@ def ring_frames(model, q, rings_per_segment: int) -> np.ndarray:
     ndarray, shape (F, N rings_per_segment, 9)
         Position [mm], material x axis and material y axis (unit vectors).
     """
-    q = np.atleast_2d(np.asarray(q, dtype=np.float64))
-    segments = model.robot.n_segments
-    local = np.linspace(0.0, 1.0, rings_per_segment)
-    s = ((np.arange(segments)[:, None] + local[None, :]) / segments).ravel()
-    count = s.size
-    rotation, position = model.evaluate_along(
-        "pose", np.repeat(q, count, axis=0), np.tile(s, q.shape[0])[:, None]
-    )
-    rotation = rotation.reshape(q.shape[0], count, 3, 3)
-    position = position.reshape(q.shape[0], count, 3) * MM_PER_M
+    rotation, position = element_poses(model, q, rings_per_segment)
+    frames = rotation.shape[0]
+    rotation = rotation.reshape(frames, -1, 3, 3)
+    position = position.reshape(frames, -1, 3) * MM_PER_M
     return np.concatenate([position, rotation[..., :, 0], rotation[..., :, 1]], axis=-1)
 
 
