@@ -288,3 +288,25 @@ def test_a_robot_carrying_a_gripper_reaches(rng):
     assert model.pose(robot.rest_configuration(), 1.0).position[0] > 0  # the gripper's tip
     with pytest.raises(sc.ParameterError, match=r"^actuator is needed: the default, three"):
         build_setup(robot=six_strain_gripper_robot(), duration=1.0)
+
+
+def test_a_six_strain_robot_with_a_gripper_is_an_environment():
+    """The tasks on a segment that bends, twists, shears and stretches, carrying a
+    gripper: actions drive its bending and twist through a constant input matrix; the
+    episode steps with the L-stable method (its shear and stretch are stiff)."""
+    from tests.test_kinds import six_strain_gripper_robot
+
+    robot = six_strain_gripper_robot()
+    h = np.zeros((robot.n, 3))
+    h[0, 0] = h[1, 1] = 8e-3  # bend_x, bend_y [N m^2 per unit input]
+    h[2, 2] = 5e-3  # twist
+    actuator = sc.ConstantPressureMap(constant=h, p_max=1.0, p_min=-1.0)
+    env = gymnasium.make(
+        "softcurve/Reach-v0", robot=robot, actuator=actuator, max_episode_steps=STEPS
+    )
+    assert env.unwrapped.episodes.setup.stepper.method == "ROS34PW2"
+    env.reset(seed=0)
+    for _ in range(STEPS):
+        _, reward, terminated, truncated, _ = env.step(np.array([1.0, -1.0, 1.0]))
+        assert np.isfinite(reward) and not terminated
+    assert truncated
