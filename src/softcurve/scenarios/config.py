@@ -286,8 +286,11 @@ def _element(r: Reader):
     """An element of ``[[robot.segments]]`` by its ``kind`` (default: the paper's
     constant-curvature segment)."""
     kind = r.get("kind", "string", Segment.kind)
-    readers = {Segment.kind: _segment, StrainSegment.kind: _strain_segment,
-               RigidBody.kind: _rigid_body}  # fmt: skip
+    readers = {
+        Segment.kind: _segment,
+        StrainSegment.kind: _strain_segment,
+        RigidBody.kind: _rigid_body,
+    }
     if kind not in readers:
         r.fail("kind", f"must be one of {sorted(readers)}, got {kind!r}")
     return readers[kind](r)
@@ -389,9 +392,8 @@ def _rigid_body(r: Reader) -> RigidBody:
     values = {"mass": mass, "tip_position": r.vector("tip_position", 3)}
     if values["tip_position"] is None:
         r.fail("tip_position", "is required (where the next element's base lies [m])")
-    for name in ("tip_rotation",):
-        if r.has(name):
-            values[name] = _matrix(r, name)
+    if r.has("tip_rotation"):
+        values["tip_rotation"] = _matrix(r, "tip_rotation")
     if r.has("centre_of_mass"):
         values["centre_of_mass"] = r.vector("centre_of_mass", 3)
     if r.has("inertia"):
