@@ -1,7 +1,8 @@
 """Identification on robots of every element kind: the output maps read each kind's
-coordinates, a map meant for constant curvature is refused on another robot, and a fit
-of equilibria recovers the bending, twist and shear stiffness of a six-strain segment
-from noisy marker positions."""
+coordinates, a map meant for constant curvature is refused on another robot, and fits
+of equilibria (marker positions under loads) and of a free motion (the tip's path)
+recover the bending, twist and shear stiffness of a six-strain segment from noisy
+data."""
 
 from __future__ import annotations
 
@@ -11,7 +12,7 @@ import pytest
 
 import softcurve as sc
 from softcurve.identification.experiments._loading import Experiment
-from softcurve.identification.fits._dynamic import fit_equilibria
+from softcurve.identification.fits._dynamic import fit_equilibria, fit_trajectory
 from softcurve.identification.fits._parameters import Free
 from softcurve.identification.maps import (
     InputMap,
@@ -149,5 +150,37 @@ def test_a_fit_of_equilibria_recovers_bending_twist_and_shear_stiffness():
     assert report.success, report.message
     expected = np.array(list(truth.values()))
     np.testing.assert_allclose(report.values, expected, rtol=0.03)
+    lo, hi = report.intervals.T
+    assert np.all((lo <= expected) & (expected <= hi)), report.table()
+
+
+def test_a_fit_of_a_free_motion_recovers_bending_twist_and_shear_stiffness():
+    """A six-strain segment carrying a gripper, released bent and twisted (0.8 rad and
+    1 rad), its gripper's tip tracked for 0.3 s with 0.01 mm of noise (seeded): the
+    trajectory fit recovers its three stiffnesses within 1 % from starts 30 % off, each
+    inside its 95 % interval."""
+    from .test_kinds import six_strain_gripper_robot, twisted
+
+    robot = six_strain_gripper_robot()
+    model = sc.Model(robot)
+    x0 = np.concatenate([twisted(robot, twist=10.0, bend=8.0), np.zeros(robot.n)])
+    t = np.linspace(0.0, 0.3, 151)
+    output = tip_position_map(model)
+    units = dict.fromkeys(output.names, "m")
+    template = Experiment(t, {n: 0 * t for n in output.names}, units=units)
+    clean = fit_trajectory(model, template, output=output, x0=x0, free=[])
+    assert clean.success, clean.message
+    rng = np.random.default_rng(1)
+    measured = clean.predicted + 1e-5 * rng.standard_normal(clean.predicted.shape)
+    data = template.with_signals(**{n: measured[:, k] for k, n in enumerate(output.names)})
+    truth = {SEG + f"{law}.k0": getattr(robot.segments[0], law).k0
+             for law in ("bending_stiffness", "torsion_stiffness", "shear_stiffness")}  # fmt: skip
+    free = [
+        Free(name, 0.1 * value, 10 * value, initial=1.3 * value) for name, value in truth.items()
+    ]
+    report = fit_trajectory(model, data, output=output, x0=x0, free=free)
+    assert report.success, report.message
+    expected = np.array(list(truth.values()))
+    np.testing.assert_allclose(report.values, expected, rtol=0.01)
     lo, hi = report.intervals.T
     assert np.all((lo <= expected) & (expected <= hi)), report.table()
