@@ -26,6 +26,7 @@ from softcurve.description.fibers import (
     offset_fiber_length,
     offset_fiber_turn,
 )
+from softcurve.scenarios.actuation import from_mapping
 
 from .test_kinds import six_strain_segment
 
@@ -277,3 +278,43 @@ def test_an_actuator_must_know_the_robot_it_drives():
     with pytest.raises(sc.ParameterError, match=r"segment 2 has radius 0.005 m \(RigidBody"):
         sc.TendonActuator([sc.Tendon(0.0, RHO, 5.0, anchor=1)], elements=narrow).check_robot(narrow)
     sc.TendonActuator([sc.Tendon(0.0, RHO, 5.0, anchor=1)], elements=robot).check_robot(robot)
+
+
+def test_friction_turns_with_the_helix_of_a_twisted_segment():
+    """Pure twist winds the fiber into a helix of radius rho and curvature ``rho uz^2 /
+    (1 + (rho uz)^2)`` over the arc length ``L0 sqrt(1 + (rho uz)^2)``: the capstan law
+    sees the turn ``L0 rho uz^2 / sqrt(1 + (rho uz)^2)``; a rigid link turns it not at
+    all, so the tension leaving the link is the tension entering it."""
+    robot = mixed_robot()
+    mu, twist = 0.3, 30.0  # [-], [1/m]
+    tendon = sc.Tendon(0.7, RHO, 10.0, anchor=2, friction=mu)
+    actuator = sc.TendonActuator([tendon], elements=robot)
+    q = robot.rest_configuration()
+    q[2] = twist
+    factors = [float(f) for f in actuator.tension_factors_symbolic(ca.DM(q))[0]]
+    turn = 0.1 * RHO * twist**2 / np.sqrt(1 + (RHO * twist) ** 2)
+    smoothed = np.sqrt(turn**2 + tendon.wrap_smoothing**2) - tendon.wrap_smoothing
+    assert factors[0] == pytest.approx(-np.expm1(-mu * smoothed) / (mu * smoothed), rel=1e-12)
+    assert factors[1] == pytest.approx(np.exp(-mu * smoothed), rel=1e-12)  # the link: mean 1
+    assert factors[2] == pytest.approx(np.exp(-mu * smoothed), rel=1e-12)  # straight segment
+
+
+def test_scenario_tables_run_along_the_robots_elements():
+    """``[actuation]`` read against a robot of other elements: three tendons or bellows
+    per soft segment, or an explicit list whose anchors count the rigid link."""
+    robot = mixed_robot()
+    tendons = from_mapping({"kind": "tendons", "distance": RHO, "t_max": 5.0}, robot=robot)
+    assert tendons.n == 12 and [t.anchor for t in tendons.tendons] == [0, 0, 0, 2, 2, 2]
+    tendons.check_robot(robot)
+    listed = from_mapping(
+        {"tendons": [{"azimuth": 0.0, "distance": RHO, "t_max": 5.0, "anchor": 1}]}, robot=robot
+    )
+    assert listed.elements == robot.segments
+    bellows = from_mapping({"distance": RHO, "area": 2e-5, "p_max": 1e5}, robot=robot)
+    assert bellows.n_inputs == 6 and bellows.elements == robot.segments
+    with pytest.raises(sc.ParameterError, match=r"actuation: bellows\[0\].*RigidBody"):
+        from_mapping(
+            {"bellows": [{"azimuth": 0.0, "distance": RHO, "area": 2e-5, "p_max": 1e5,
+                          "segments": [1]}]},
+            robot=robot,
+        )  # fmt: skip

@@ -226,6 +226,7 @@ class Actuator:
     # the parts' fields that are parameters; the three methods below then need no more.
     _parts_field: str = ""
     _part_parameters: tuple[str, ...] = ()
+    _fiber_kind: str = ""  # "tendon" (checked by length) or "chamber" (by volume)
 
     def _init_parts(self, part_type: type, beyond, bounds: tuple[str, str]) -> None:
         """Check and store the parts (a single part or a non-empty sequence of
@@ -490,11 +491,10 @@ class Actuator:
         through; none for an actuator without geometry (a constant map)."""
         if not self._parts_field:
             return ()
-        kind = "chamber" if self._parts_field == "bellows" else "tendon"
         return tuple(
             Fiber(
                 f"{self._parts_field}[{i}]",
-                kind,
+                self._fiber_kind,
                 j,
                 part.azimuth,
                 part.distance,

@@ -147,6 +147,7 @@ class PneumaticActuator(Actuator):
     input_name = "pressures"
     input_unit = "Pa"
     _parts_field = "bellows"
+    _fiber_kind = "chamber"
     _part_parameters = ("azimuth", "distance", "area")
 
     def __post_init__(self):

@@ -180,6 +180,7 @@ class TendonActuator(Actuator):
     input_name = "tensions"
     input_unit = "N"
     _parts_field = "tendons"
+    _fiber_kind = "tendon"
     _part_parameters = ("azimuth", "distance", "friction")
 
     def __post_init__(self):
