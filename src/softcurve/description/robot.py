@@ -4,8 +4,8 @@ A :class:`Robot` is a serial chain of ``N >= 1`` elements
 (:mod:`softcurve.description.elements`: constant-curvature :class:`Segment`,
 :class:`StrainSegment`, :class:`RigidBody`); element ``i`` starts at the tip frame of
 element ``i - 1`` and owns the coordinates ``q[offsets[i] : offsets[i] + sizes[i]]``
-(Pinocchio's ``idx_q`` and ``nq``). Every field is checked once, when the object is built, and a bad value raises
-:class:`ParameterError` naming it.
+(Pinocchio's ``idx_q`` and ``nq``). Every field is checked once, when the object is
+built, and a bad value raises :class:`ParameterError` naming it.
 """
 
 from __future__ import annotations
