@@ -157,7 +157,11 @@ def _classify(problem: _Problem, q, tangent_stiffness, ring: bool, zero_toleranc
 
 def _is_ring(problem: _Problem, q, tol: float, distinct: float) -> bool:
     """Whether ``q`` is on a ring of equilibria whose diameter in the scaled coordinates
-    exceeds ``distinct`` (a smaller orbit is one point)."""
+    exceeds ``distinct`` (a smaller orbit is one point). Robots of constant-curvature
+    segments alone: their configuration turns about the base axis by turning every
+    ``(kx, ky)`` (:func:`rotate_about_axis`); other robots have no ring here."""
+    if not problem.load.model.robot.constant_curvature:
+        return False
     if 2.0 * np.max(np.abs(_ring_tangent(q) / problem.scale)) <= distinct:
         return False
     for angle in (2.0 * np.pi / 3.0, np.pi / 2.0, np.pi):
@@ -262,19 +266,18 @@ def equilibrium(
 
 
 def default_bounds(robot) -> np.ndarray:
-    """The region searched by default: per segment ``l`` in ``[0.5, 1.5] l0`` and
-    ``|kx|, |ky| <= pi / l0`` (bending angles up to half a turn), shape (n, 2).
+    """The region searched by default, each element's own box (its kind's
+    ``search_bounds``): for a constant-curvature segment ``l`` in ``[0.5, 1.5] l0`` and
+    ``|kx|, |ky| <= pi / l0`` (bending angles up to half a turn); for a constant-strain
+    segment bending and twist within half a turn of rest, shear within 0.25, stretch
+    within half of rest; shape (n, 2).
 
     Parameters
     ----------
     robot : Robot
-        Supplies the rest lengths ``l0`` [m].
+        The robot.
     """
-    rows = []
-    for s in robot.segments:
-        k = np.pi / s.rest_length
-        rows += [(0.5 * s.rest_length, 1.5 * s.rest_length), (-k, k), (-k, k)]
-    return np.array(rows)
+    return np.vstack([s.search_bounds() for s in robot.segments])
 
 
 START_BYTES = 120
@@ -387,9 +390,14 @@ def equilibria(
     bounds = real_array("bounds", bounds, (model.n, 2))
     if not np.all(bounds[:, 1] > bounds[:, 0]):
         raise ParameterError("bounds must have lower < upper in every row")
+    extents = [
+        offset + s.extent_index
+        for s, offset in zip(model.robot.segments, model.robot.offsets, strict=True)
+        if s.extent_index is not None
+    ]
     for side, column in (("lower", 0), ("upper", 1)):  # lengths in the model's domain
-        straight = np.zeros(model.n)
-        straight[0::3] = bounds[0::3, column]
+        straight = np.zeros(model.n)  # straight: no bend, twist or shear
+        straight[extents] = bounds[extents, column]
         model.robot.check_configuration(straight, f"bounds[:, {column}] ({side} lengths)")
     points = [rest_configuration(model.robot)]
     if starts > 1:

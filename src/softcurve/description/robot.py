@@ -11,7 +11,6 @@ the coordinates ``q[offsets[i] : offsets[i] + sizes[i]]`` (Pinocchio's ``idx_q``
 from __future__ import annotations
 
 import dataclasses
-import math
 from dataclasses import dataclass, field
 from functools import cached_property
 
@@ -355,7 +354,7 @@ class Robot:
             # reductions; NaN fails every comparison
             values = q.tolist()
             for i, limit in enumerate(self._length_limits):
-                if not segment_inside(*values[3 * i : 3 * i + 3], limit, math.hypot):
+                if not segment_inside(*values[3 * i : 3 * i + 3], limit):
                     break
             else:
                 return q

@@ -14,6 +14,7 @@ from softcurve.description.elements._curvature import (
     MAX_STRETCH,
     CurvatureModel,
     Segment,
+    curvature_margins,
     segment_inside,
     segment_problem,
 )
@@ -22,7 +23,9 @@ from softcurve.description.elements._element import (
     Element,
     ElementModel,
     FieldSpec,
+    Margin,
     SoftModel,
+    margins_hold,
 )
 from softcurve.description.elements._rigid import RigidBody, RigidModel, rotation_matrix
 from softcurve.description.elements._strain import (
@@ -34,6 +37,7 @@ from softcurve.description.elements._strain import (
     STRAINS,
     StrainModel,
     StrainSegment,
+    strain_margins,
 )
 
 KINDS = {
@@ -72,14 +76,18 @@ __all__ = [
     "Element",
     "ElementModel",
     "FieldSpec",
+    "Margin",
     "RigidBody",
     "RigidModel",
     "Segment",
     "SoftModel",
     "StrainModel",
     "StrainSegment",
+    "curvature_margins",
     "element_model",
+    "margins_hold",
     "rotation_matrix",
     "segment_inside",
     "segment_problem",
+    "strain_margins",
 ]

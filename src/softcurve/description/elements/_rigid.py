@@ -148,6 +148,9 @@ class RigidBody(Element):
     def coordinate_scale(self) -> np.ndarray:
         return np.zeros(0)
 
+    def search_bounds(self) -> np.ndarray:
+        return np.zeros((0, 2))
+
     def inside(self, q, rest_length=None) -> np.ndarray:
         return np.ones(np.shape(q)[:-1], dtype=bool)
 
