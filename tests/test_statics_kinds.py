@@ -8,8 +8,9 @@ import numpy as np
 import pytest
 
 import softcurve as sc
-from softcurve.analysis.statics import default_bounds
+from softcurve.analysis.statics import default_bounds, planar_pairs, rotate_about_axis
 
+from .conftest import assert_close
 from .test_kinds import robots, six_strain_segment
 
 TIP_FORCE = [0.05, 0.02, -0.1]
@@ -61,3 +62,41 @@ def test_a_root_outside_a_strains_domain_is_never_success(strain_model, force, s
     assert strain in e.message
     table = sc.equilibria(strain_model, starts=4, tip_force=[0.0, 0.0, force])
     assert not table.success and len(table) == 0
+
+
+def test_a_buckled_six_strain_robot_has_a_stable_ring_and_a_saddle(strain_model):
+    """Under a compressive tip load beyond Euler's (about 2 N here) the straight column
+    is a saddle and the bent ones form a ring about the axis: the strain segment turns
+    with the robot by its bending and shear pairs."""
+    load = {"tip_force": [0.0, 0.0, -4.0]}
+    table = sc.equilibria(strain_model, starts=12, **load)
+    assert [(e.stability, e.continuum) for e in table] == [("stable", "ring"), ("saddle", None)]
+    ring = table[0]
+    bend_x, bend_y = ring.q[:2]
+    assert bend_x == 0.0 and bend_y > 0 and ring.q[3] > 0 and ring.q[4] == 0.0  # toward +x
+    assert ring.eigenvalues.size == strain_model.n - 1  # the ring's direction left out
+    assert_close(ring.curvature, [bend_y], rtol=1e-15)
+    for angle in (0.7, 2.5):  # every turned member is the same ring
+        member = rotate_about_axis(ring.q, angle, strain_model.robot)
+        assert_close(np.hypot(*member[:2]), bend_y, rtol=1e-14)
+        again = sc.equilibrium(strain_model, member, **load)
+        assert again.continuum == "ring"
+        assert_close(again.q, ring.q, atol=1e-9, scale=np.abs(ring.q) + 1e-3)
+
+
+def test_every_kind_turns_about_the_axis_or_says_it_cannot():
+    robot = robots()["mixed"]
+    pairs = planar_pairs(robot)
+    names = robot.coordinate_names()
+    turned = [(names[int(i)], names[int(j)]) for i, j, *_ in pairs]
+    assert turned == [
+        ("segments[0].bend_x", "segments[0].bend_y"),
+        ("segments[2].kx", "segments[2].ky"),
+    ]
+    half = six_strain_segment(
+        strains=("bend_x", "twist", "stretch"), shear_stiffness=None, damping=False
+    )
+    lopsided = sc.Robot(segments=(half,))
+    assert planar_pairs(lopsided) is None
+    with pytest.raises(sc.ParameterError, match="cannot be turned about its axis"):
+        rotate_about_axis(lopsided.rest_configuration(), 1.0, lopsided)

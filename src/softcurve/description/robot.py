@@ -247,6 +247,20 @@ class Robot:
         (``l0`` for a length, ``1/l0`` for a curvature: a 1 rad bend, 1 for a strain)."""
         return np.concatenate([s.coordinate_scale() for s in self.segments])
 
+    def bending_curvature(self, q) -> np.ndarray:
+        """Each element's bending curvature ``|kappa|`` [1/m] at configurations ``q``
+        (0 for a rigid body), shape (..., N).
+
+        Parameters
+        ----------
+        q : array_like, shape (..., n)
+            Configurations.
+        """
+        q = np.asarray(q, dtype=np.float64)
+        columns = [s.bending_curvature(self.element_coordinates(q, i))
+                   for i, s in enumerate(self.segments)]  # fmt: skip
+        return np.stack(columns, axis=-1)
+
     def element_coordinates(self, q, i: int):
         """The coordinates of element ``i`` in ``q[..., n]``.
 

@@ -255,6 +255,20 @@ class Segment(Element):
 
     extent_index = 0
 
+    planar_pairs = ((1, 2, (1.0, 0.0)),)
+    """``(kx, ky)`` turns with the robot; a representative bends toward +x."""
+
+    def bent_toward(self, q, curvature: float, azimuth: float) -> np.ndarray:
+        """``(kx, ky) = curvature (cos azimuth, sin azimuth)``."""
+        q = np.array(q, dtype=np.float64)
+        q[1:3] = curvature * np.cos(azimuth), curvature * np.sin(azimuth)
+        return q
+
+    def bending_curvature(self, q) -> np.ndarray:
+        """``hypot(kx, ky)``."""
+        q = np.asarray(q, dtype=np.float64)
+        return np.hypot(q[..., 1], q[..., 2])
+
     def search_bounds(self) -> np.ndarray:
         """``l`` in ``[0.5, 1.5] l0`` and ``|kx|, |ky| <= pi / l0`` (bending angles up to
         half a turn)."""

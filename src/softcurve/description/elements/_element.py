@@ -157,6 +157,29 @@ class Element:
         the floor of the integrator's state scale."""
         raise NotImplementedError
 
+    def bending_curvature(self, q) -> np.ndarray:
+        """The magnitude of the element's bending curvature ``|kappa|`` [1/m] at
+        configurations ``q[..., n_i]``, shape (...): 0 for a body that does not bend."""
+        return np.zeros(np.shape(q)[:-1])
+
+    @property
+    def planar_pairs(self) -> tuple[tuple[int, int, tuple[float, float]], ...] | None:
+        """How the element's coordinates turn when the whole robot turns about its base
+        axis (the conjugation by a rotation about z, which leaves an element's own frame
+        conventions alone): pairs ``(i, j, reference)`` of coordinates that turn as a
+        vector of the base's xy plane, each with the unit vector ``reference`` that a ring's
+        representative aligns the first nonzero pair with; the others stay. None where a
+        turned configuration cannot be written in the element's coordinates (a pair of
+        which one coordinate alone is chosen). A body without coordinates: ``()`` (whether
+        it is symmetric, the residual at the turned configurations tells)."""
+        return ()
+
+    def bent_toward(self, q, curvature: float, azimuth: float) -> np.ndarray:
+        """``q`` (n_i,) with the element bent as an arc of ``curvature`` [1/m] whose tip
+        moves toward the azimuth ``azimuth`` [rad] of its base frame (a guess of the
+        statics); unchanged for a body that does not bend."""
+        return np.array(q, dtype=np.float64)
+
     def search_bounds(self) -> np.ndarray:
         """The box of the element's coordinates that the multi-start search of equilibria
         samples by default (``softcurve.analysis.statics.default_bounds``), shape (n_i, 2)."""

@@ -394,6 +394,37 @@ class StrainSegment(Element):
         return np.array([1.0 / self.rest_length if k < 3 else 1.0 for k in self.indices])
 
     @property
+    def planar_pairs(self):
+        """``(bend_x, bend_y)`` and ``(shear_x, shear_y)`` turn with the robot (the strain
+        twist's ``u`` and ``v`` are vectors); a representative bends toward +x (``bend_y >
+        0``) or, unbent, shears toward +x. None where a pair is chosen in part."""
+        pairs = []
+        for (a, b), reference in ((("bend_x", "bend_y"), (0.0, 1.0)),
+                                  (("shear_x", "shear_y"), (1.0, 0.0))):  # fmt: skip
+            chosen = (a in self.strains, b in self.strains)
+            if chosen == (True, True):
+                pairs.append((self.strains.index(a), self.strains.index(b), reference))
+            elif any(chosen):
+                return None
+        return tuple(pairs)
+
+    def bent_toward(self, q, curvature: float, azimuth: float) -> np.ndarray:
+        """``(bend_x, bend_y) = curvature (-sin azimuth, cos azimuth)`` where chosen (the
+        curvature vector ``(kx, ky)`` of a constant-curvature segment is ``(bend_y,
+        -bend_x)``)."""
+        q = np.array(q, dtype=np.float64)
+        values = {"bend_x": -curvature * np.sin(azimuth), "bend_y": curvature * np.cos(azimuth)}
+        for k, name in enumerate(self.strains):
+            if name in values:
+                q[k] = values[name]
+        return q
+
+    def bending_curvature(self, q) -> np.ndarray:
+        """``hypot(bend_x, bend_y)`` of the full strain (rest values where not chosen)."""
+        xi = self.full_strain(q)
+        return np.hypot(xi[..., 0], xi[..., 1])
+
+    @property
     def extent_index(self) -> int | None:
         """The stretch's coordinate, where it is chosen."""
         return self.strains.index("stretch") if "stretch" in self.strains else None
