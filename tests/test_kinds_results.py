@@ -1,0 +1,76 @@
+"""Results of robots of every kind: batches of a chain with rigid bodies agree with their
+members' single runs, and trajectory files name each element's coordinates (and read
+back a robot whose coordinate count is not three per element)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import softcurve as sc
+from softcurve.simulation.results import TrajectoryFileError, column_names, coordinate_columns
+
+from .conftest import assert_close
+from .test_kinds import gripper, robots, six_strain_segment
+
+
+@pytest.fixture(scope="module")
+def mixed_model():
+    """A constant-strain segment that bends and twists, a rigid link, a constant-curvature
+    segment and a gripper, on a moved base (tests/test_kinds.py), compiled."""
+    return sc.Model(robots()["mixed"])
+
+
+def test_a_batch_of_a_chain_with_rigid_bodies_is_its_members_runs(rng, mixed_model):
+    robot = mixed_model.robot
+    scale = robot.coordinate_scale()
+    q0 = robot.rest_configuration() + 0.2 * scale * rng.uniform(-1, 1, (3, robot.n))
+    qd0 = scale * rng.uniform(-1, 1, (3, robot.n))
+    batch = sc.simulate_batch(mixed_model, q0, qd0, t_final=0.2, dt=0.01)
+    assert batch.success, batch.message
+    for b in range(3):
+        single = sc.simulate(mixed_model, q0[b], qd0[b], t_final=0.2, dt=0.01)
+        member = batch.member(b)
+        assert member.stats["route"] == single.stats["route"] == "driver"
+        assert_close(
+            member.x, single.x, rtol=1e-9, scale=np.abs(single.x).max(axis=0) + scale.max()
+        )
+
+
+def test_trajectory_files_name_each_kinds_coordinates(tmp_path, mixed_model):
+    robot = mixed_model.robot
+    columns = coordinate_columns(robot)
+    assert columns == ["bend_x1", "bend_y1", "twist1", "l3", "kx3", "ky3"]
+    run = sc.simulate(mixed_model, robot.rest_configuration(), np.zeros(robot.n), t_final=0.05)
+    for suffix in (".csv", ".npz"):
+        path = run.save(tmp_path / f"run{suffix}")
+        if suffix == ".csv":
+            header = path.read_text().splitlines()[1].split(",")
+            assert header[1:7] == columns and header[7:13] == [f"{c}_dot" for c in columns]
+        loaded = sc.load_trajectory(path)
+        np.testing.assert_array_equal(loaded.q, run.q)
+
+
+def test_a_file_of_four_coordinates_reads_back(tmp_path):
+    """Before, a file had to hold three coordinates per segment: a robot of four strains
+    and a gripper wrote it and could not read it."""
+    segment = six_strain_segment(
+        strains=("bend_x", "bend_y", "twist", "stretch"), shear_stiffness=None, damping=False
+    )
+    model = sc.Model(sc.Robot(segments=(segment, gripper())), compile=False)
+    run = sc.simulate(model, model.robot.rest_configuration(), np.zeros(4), t_final=0.02)
+    assert run.success and run.q.shape[1] == 4
+    path = run.save(tmp_path / "four.csv")
+    loaded = sc.load_trajectory(path)
+    np.testing.assert_array_equal(loaded.q, run.q)
+    assert path.read_text().splitlines()[1].startswith("t,bend_x1,bend_y1,twist1,stretch1,")
+    text = path.read_text().replace('"coordinates": ["bend_x1", ', '"coordinates": [')
+    broken = tmp_path / "broken.csv"
+    broken.write_text(text)
+    with pytest.raises(TrajectoryFileError, match="coordinates must be 4 distinct names"):
+        sc.load_trajectory(broken)
+
+
+def test_files_without_names_are_constant_curvature():
+    assert column_names(3, 0, False)[:4] == ["t", "l1", "kx1", "ky1"]
+    assert column_names(6, 0, False, coordinates=["a", "b", "c", "d", "e", "f"])[1:3] == ["a", "b"]
