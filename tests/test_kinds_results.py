@@ -74,3 +74,15 @@ def test_a_file_of_four_coordinates_reads_back(tmp_path):
 def test_files_without_names_are_constant_curvature():
     assert column_names(3, 0, False)[:4] == ["t", "l1", "kx1", "ky1"]
     assert column_names(6, 0, False, coordinates=["a", "b", "c", "d", "e", "f"])[1:3] == ["a", "b"]
+
+
+def test_equilibria_and_modes_of_a_chain_with_rigid_bodies(mixed_model):
+    table = sc.equilibria(mixed_model, starts=4)
+    assert table.success and table.stable, table.message
+    e = table.stable[0]
+    assert e.status is sc.Status.SUCCESS and np.all(e.eigenvalues > 0)
+    assert e.curvature.shape == (4,) and e.curvature[1] == e.curvature[3] == 0.0  # rigid
+    assert "twist(0) [1/m]" in table.table() and "l(2) [m]" in table.table()
+    lin = sc.linearize(mixed_model, e.q)
+    assert lin.success and lin.asymptotically_stable
+    assert lin.frequencies.size == mixed_model.n and np.all(lin.frequencies > 0)
