@@ -1,6 +1,7 @@
 """Results of robots of every kind: batches of a chain with rigid bodies agree with their
-members' single runs, and trajectory files name each element's coordinates (and read
-back a robot whose coordinate count is not three per element)."""
+members' single runs, its equilibria and modes, trajectory files that name each element's
+coordinates (and read back a robot whose coordinate count is not three per element), the
+forward sensitivities of a six-strain robot."""
 
 from __future__ import annotations
 
@@ -8,7 +9,12 @@ import numpy as np
 import pytest
 
 import softcurve as sc
+from softcurve.identification.experiments import Experiment
+from softcurve.identification.fits._parameters import Free, FreeParameters
+from softcurve.identification.maps import tip_position_map
 from softcurve.simulation.results import TrajectoryFileError, column_names, coordinate_columns
+from softcurve.simulation.sensitivity._sensitivity import trajectory_sensitivities
+from softcurve.simulation.solvers import _driver as native
 
 from .conftest import assert_close
 from .test_kinds import gripper, robots, six_strain_segment
@@ -86,3 +92,39 @@ def test_equilibria_and_modes_of_a_chain_with_rigid_bodies(mixed_model):
     lin = sc.linearize(mixed_model, e.q)
     assert lin.success and lin.asymptotically_stable
     assert lin.frequencies.size == mixed_model.n and np.all(lin.frequencies > 0)
+
+
+def test_trajectory_sensitivities_of_a_six_strain_robot():
+    """The identification's forward sensitivities (bending, torsion and shear stiffness,
+    the tip's position) through the C driver agree with CasADi's route and with finite
+    differences, on a segment that bends, twists, shears and stretches."""
+    model = sc.Model(sc.Robot(segments=(six_strain_segment(),)))
+    t = np.linspace(0.0, 0.3, 31)
+    experiment = Experiment(t, {"x": 0 * t, "y": 0 * t, "z": 0 * t}, {})
+    names = ("bending_stiffness.k0", "torsion_stiffness.k0", "shear_stiffness.k0")
+
+    def evaluator():
+        free = [Free(f"segments[0].{name}") for name in names]
+        parameters = FreeParameters(model, free, {}, {}, None)
+        x0 = np.zeros(model.n_state)
+        x0[: model.n] = [3.0, -2.0, 5.0, 0.01, 0.0, 1.02]
+        output = tip_position_map(model)
+        return trajectory_sensitivities(model, parameters, output, None, x0, experiment, None), (
+            parameters.theta0
+        )
+
+    evaluate, theta = evaluator()
+    y, jacobian = evaluate(theta)
+    assert evaluate.stats["route"] == "sensitivity-driver" and jacobian.shape == (3 * t.size, 3)
+    with native.casadi_only():
+        reference, theta_again = evaluator()
+        y_ref, jacobian_ref = reference(theta_again)
+    assert_close(y, y_ref, atol=1e-9, scale=0.0)
+    assert_close(jacobian, jacobian_ref, atol=1e-7 * np.abs(jacobian_ref).max(), scale=0.0)
+    for k in range(3):  # each column against a forward difference (h: 1e-6 relative)
+        step = theta.copy()
+        step[k] *= 1 + 1e-6
+        moved, _ = evaluate(step)
+        difference = (moved - y).ravel(order="F") / (theta[k] * 1e-6)
+        column = jacobian[:, k]
+        assert np.abs(difference - column).max() <= 1e-2 * np.abs(column).max()
