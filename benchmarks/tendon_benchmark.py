@@ -19,12 +19,16 @@ same with its own implementation of both, from the equations:
    CC forward kinematics (:func:`cc_tip`).
 
 The reference tip is step 3's; the rod's own tip and twist are printed beside it.
+With ``--six-strain`` the script prints softcurve's six-strain model instead
+(:func:`strain_robot`: every section of 1, 2, 4 or 8 constant-strain segments that bend,
+twist, shear and stretch, the tendons routed along them) against the same rod.
 :func:`cc_energy_equilibrium` re-derives softcurve's own model (least potential among
 CC shapes) independently, for the tests. softcurve's tip
 is ``softcurve.equilibrium(model, q0, actuator=, inputs=tensions, tip_force=)`` on
 ``presets.rao2021()`` with ``presets.rao2021_tendons()``.
 
-Run: ``python benchmarks/tendon_benchmark.py [--markdown]`` (docs/tendon_benchmark.md).
+Run: ``python benchmarks/tendon_benchmark.py [--markdown] [--six-strain]``
+(docs/tendon_benchmark.md).
 """
 
 from __future__ import annotations
@@ -53,7 +57,13 @@ SECOND_MOMENT = math.pi / 4 * BACKBONE_RADIUS**4  # I [m^4]
 AREA = math.pi * BACKBONE_RADIUS**2  # A [m^2]
 BENDING = YOUNG * SECOND_MOMENT  # E I [N m^2]
 AXIAL = YOUNG * AREA  # E A [N]
-TORSION = YOUNG / (2 * (1 + POISSON)) * 2 * SECOND_MOMENT  # G J, J = 2 I [N m^2]
+SHEAR_MODULUS = YOUNG / (2 * (1 + POISSON))  # G [Pa]
+TORSION = SHEAR_MODULUS * 2 * SECOND_MOMENT  # G J, J = 2 I [N m^2]
+SHEAR_COEFFICIENT = 6 * (1 + POISSON) / (7 + 6 * POISSON)
+"""Cowper's shear coefficient of a solid circle (0.886): the six-strain model's ``k G A``
+(the rod, unshearable, has none; the backbone's shear under the 0.05 N load is 1.5e-6)."""
+PER_SECTION = (1, 2, 4, 8)
+"""Constant-strain segments per section of the six-strain rows."""
 SHOOTING_RESIDUAL = 1e-12
 """A shooting whose fixed-point residual is within this fraction of the tip's distance
 is solved, whatever hybr's step test says (the integration's rtol is 1e-11)."""
@@ -325,6 +335,96 @@ def run(cases=CASES, loads=LOADS) -> list[dict]:
     return rows
 
 
+# -- softcurve's six-strain model -------------------------------------------------------
+def strain_robot(per_section: int) -> sc.Robot:
+    """The benchmark's robot as ``2 per_section`` constant-strain segments with all six
+    strains: ``EI``, ``GJ``, ``k G A``, ``E A`` of the nitinol backbone (linear laws),
+    mass per length as :func:`softcurve.presets.rao2021`'s, radius the tendons' 10 mm,
+    gravity off. (Built by hand from the repo's numbers; ``StrainSegment.from_material``
+    with a ``Material`` and a ``Section`` gives the same laws.)"""
+    rest_length = LENGTHS[0] / per_section
+    preset = sc.presets.rao2021().segments[0]
+    segment = sc.StrainSegment(
+        rest_length=rest_length,
+        mass=preset.mass * rest_length / preset.rest_length,
+        radius=PITCH,
+        strains=sc.STRAINS,
+        bending_stiffness=sc.LinearStiffness(BENDING),
+        torsion_stiffness=sc.LinearStiffness(TORSION),
+        shear_stiffness=sc.LinearStiffness(SHEAR_COEFFICIENT * SHEAR_MODULUS * AREA),
+        stretch_stiffness=sc.LinearStiffness(AXIAL),
+    )
+    return sc.Robot(segments=(segment,) * (2 * per_section), gravity=np.zeros(3))
+
+
+def strain_tendons(robot: sc.Robot, per_section: int) -> sc.TendonActuator:
+    """The repo's six tendons on :func:`strain_robot`: the proximal set tied to the tip of
+    section 0 (its last segment), the distal set to the robot's tip."""
+    tendons = [
+        sc.Tendon(azimuth, PITCH, 8.0, anchor=(k + 1) * per_section - 1)
+        for k in range(2)
+        for azimuth in AZIMUTHS
+    ]
+    return sc.TendonActuator(tendons, elements=robot)
+
+
+def strain_equilibrium(model, actuator, tensions, tip_force):
+    """softcurve's six-strain equilibrium: the tendons alone from the straight robot, then
+    the tip load from there. Returns the result and the twist angle at the tip [rad]
+    (the sum of ``twist L0`` over the segments)."""
+    robot = model.robot
+    e = sc.equilibrium(model, robot.rest_configuration(), actuator=actuator, inputs=tensions)
+    if np.any(tip_force) and e.success:
+        e = sc.equilibrium(model, e.q, actuator=actuator, inputs=tensions, tip_force=tip_force)
+    if not e.success:
+        raise RuntimeError(e.message)
+    twist = sum(
+        float(robot.element_coordinates(e.q, i)[2]) * s.rest_length
+        for i, s in enumerate(robot.segments)
+    )
+    return e, twist
+
+
+def strain_run(per_section=PER_SECTION, cases=CASES, loads=LOADS[1:]) -> list[dict]:
+    """One row per (case, load, segments per section): the rod's tip and twist, the
+    constant-curvature model's tip and the six-strain model's tip and twist."""
+    cc_model, cc_tendons = sc.Model(sc.presets.rao2021()), sc.presets.rao2021_tendons()
+    rods = {(c, ld): rod_equilibrium(t, f) for c, t, _ in cases for ld, f in loads}
+    rows = []
+    for count in per_section:
+        robot = strain_robot(count)
+        model, actuator = sc.Model(robot, compile=False), strain_tendons(robot, count)
+        for name, tensions, _ in cases:
+            for load, force in loads:
+                e, twist = strain_equilibrium(model, actuator, tensions, force)
+                rod = rods[name, load]
+                rows.append(
+                    dict(case=name, tensions=tensions, load=load, force=force, count=count,
+                         rod=rod.tip, rod_twist=rod.twist, strain=e.tip_position, twist=twist,
+                         curvature=softcurve_tip(cc_model, cc_tendons, tensions, force))
+                )  # fmt: skip
+    return rows
+
+
+def strain_table(rows, *, markdown: bool = False) -> str:
+    """The six-strain rows: tips in mm, distances to the rod's tip of the six-strain and
+    of the constant-curvature model, twists in degrees."""
+    head = [
+        "case", "tip load [N]", "segments per section", "six-strain tip [mm]",
+        "diff to rod [mm]", "CC diff to rod [mm]", "twist [deg]", "rod twist [deg]",
+    ]  # fmt: skip
+    lines = [
+        [
+            r["case"], " ".join(f"{f:g}" for f in r["force"]), str(r["count"]),
+            _mm(r["strain"]), f"{1e3 * np.linalg.norm(r['strain'] - r['rod']):.3f}",
+            f"{1e3 * np.linalg.norm(r['curvature'] - r['rod']):.3f}",
+            f"{math.degrees(r['twist']):.2f}", f"{math.degrees(r['rod_twist']):.2f}",
+        ]
+        for r in sorted(rows, key=lambda r: (r["case"], r["load"], r["count"]))
+    ]  # fmt: skip
+    return _format(head, lines, markdown)
+
+
 def closed_form_check(tension: float = 8.0) -> tuple[float, float, float]:
     """Segment 1 under one proximal tendon (tendon 1 alone, no load): ``T rho / EI``
     [1/m], softcurve's curvature ``kappa`` [1/m] and its bending angle per rest length
@@ -361,6 +461,10 @@ def table(rows, *, markdown: bool = False) -> str:
             f"{1e3 * d:.3f}", f"{100 * d / total:.3f}", _mm(r["rod"]), f"{1e3 * d_rod:.3f}",
             f"{math.degrees(r['twist']):.2f}",
         ])  # fmt: skip
+    return _format(head, lines, markdown)
+
+
+def _format(head, lines, markdown: bool) -> str:
     if markdown:
         out = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
         return "\n".join(out + ["| " + " | ".join(line) + " |" for line in lines])
@@ -369,11 +473,37 @@ def table(rows, *, markdown: bool = False) -> str:
     return "\n".join([fmt.format(*head)] + [fmt.format(*line) for line in lines])
 
 
+def _orders(rows) -> None:
+    """The observed order of the six-strain tips' convergence to the rod, per doubling."""
+    errors = {}
+    for r in rows:
+        errors.setdefault(r["count"], []).append(np.linalg.norm(r["strain"] - r["rod"]))
+    counts = sorted(errors)
+    for a, b in zip(counts, counts[1:], strict=False):
+        ratios = np.array(errors[a]) / np.array(errors[b])
+        orders = np.log2(ratios) / math.log2(b / a)
+        print(
+            f"observed order {a} -> {b} segments per section: "
+            f"{orders.min():.2f} to {orders.max():.2f}"
+        )
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--markdown", action="store_true", help="print a Markdown table")
+    parser.add_argument(
+        "--six-strain",
+        action="store_true",
+        help="the six-strain model (1, 2, 4, 8 segments per section) against the rod instead",
+    )
     args = parser.parse_args()
     start = time.perf_counter()
+    if args.six_strain:
+        rows = strain_run()
+        print(strain_table(rows, markdown=args.markdown))
+        _orders(rows)
+        print(f"({time.perf_counter() - start:.1f} s)")
+        return
     rows = run()
     print(table(rows, markdown=args.markdown))
     for name, _, source in CASES:

@@ -40,22 +40,32 @@ LONG_MODULE_PROPERTY = "long_module"
 """The property (``record_property``) under which tests/test_architecture.py records each
 long module; :func:`pytest_terminal_summary` lists them."""
 
+FIXED_STRIDE_PROPERTY = "fixed_stride"
+"""The property under which tests/test_architecture.py records each place of its list of
+constant-curvature strides that strides no more (its entry is to be removed)."""
+
+SUMMARY_SECTIONS = {
+    LONG_MODULE_PROPERTY: "long modules (docs/architecture.md)",
+    FIXED_STRIDE_PROPERTY: "strides fixed: remove them from constant_curvature_only()",
+}
+
 
 def pytest_terminal_summary(terminalreporter):
-    """List the long modules the architecture test recorded: a report, not a failure (a
-    warning would be one: pyproject.toml makes every warning an error)."""
-    found = sorted(
-        {
-            value
-            for report in terminalreporter.stats.get("passed", [])
-            for name, value in getattr(report, "user_properties", ())
-            if name == LONG_MODULE_PROPERTY
-        }
-    )
-    if found:
-        terminalreporter.section("long modules (docs/architecture.md)")
-        for line in found:
-            terminalreporter.line(line)
+    """List what the architecture test recorded (long modules, fixed strides): a report,
+    not a failure (a warning would be one: pyproject.toml makes every warning an error)."""
+    for property_name, heading in SUMMARY_SECTIONS.items():
+        found = sorted(
+            {
+                value
+                for report in terminalreporter.stats.get("passed", [])
+                for name, value in getattr(report, "user_properties", ())
+                if name == property_name
+            }
+        )
+        if found:
+            terminalreporter.section(heading)
+            for line in found:
+                terminalreporter.line(line)
 
 
 def assert_close(actual, expected, *, rtol=1e-12, atol=0.0, scale=None, what=""):

@@ -13,7 +13,7 @@ from pathlib import Path
 
 import pytest
 
-from .conftest import LONG_MODULE_PROPERTY
+from .conftest import FIXED_STRIDE_PROPERTY, LONG_MODULE_PROPERTY
 
 PACKAGE = Path(__file__).resolve().parents[1] / "src" / "softcurve"
 
@@ -203,6 +203,165 @@ def c_strings(tree: ast.AST) -> list[int]:
         if isinstance(node, ast.Constant) and isinstance(node.value, str)
         and _looks_like_c(node.value)
     ]  # fmt: skip
+
+
+CURVATURE_KIND = "softcurve.description.curvature"
+"""The constant-curvature kind's module: its three coordinates ``(l, kx, ky)`` are its own;
+everywhere else a coordinate is found through the robot's offsets and its kinds."""
+
+
+def _three(node: ast.AST) -> bool:
+    return isinstance(node, ast.Constant) and node.value == 3
+
+
+def _times_three(node: ast.AST) -> ast.AST | None:
+    """The other factor of a product ``3 * x`` or ``x * 3`` (``x`` not a constant)."""
+    if isinstance(node, ast.BinOp) and isinstance(node.op, ast.Mult):
+        for a, b in ((node.left, node.right), (node.right, node.left)):
+            if _three(a) and not isinstance(b, ast.Constant):
+                return b
+    return None
+
+
+def _names(node: ast.AST) -> set[str]:
+    return {n.id if isinstance(n, ast.Name) else n.attr
+            for n in ast.walk(node) if isinstance(n, ast.Name | ast.Attribute)}  # fmt: skip
+
+
+def _stride_lines(tree: ast.AST) -> set[int]:
+    """Lines that hard-wire three coordinates per element: an index or slice of three
+    times a variable (``q[3 * i]``, ``q[3 * i : 3 * i + 3]``) or of step 3 (``q[1::3]``),
+    a range of step 3 (``range(1, n, 3)``, ``np.arange(1, n, 3)``), three times a count of
+    segments (``3 * n_segments``)."""
+    lines = set()
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Subscript):
+            for part in ast.walk(node.slice):
+                if (isinstance(part, ast.Slice) and part.step is not None and _three(part.step)
+                        or _times_three(part) is not None):  # fmt: skip
+                    lines.add(part.lineno)
+        elif isinstance(node, ast.Call):
+            name = (
+                node.func.id if isinstance(node.func, ast.Name) else getattr(node.func, "attr", "")
+            )
+            step = node.args[2] if len(node.args) == 3 else None
+            step = next((k.value for k in node.keywords if k.arg == "step"), step)
+            if name in ("range", "arange") and step is not None and _three(step):
+                lines.add(node.lineno)
+        else:
+            other = _times_three(node)
+            if other is not None and any("segment" in n for n in _names(other)):
+                lines.add(node.lineno)
+    return lines
+
+
+def strides(tree: ast.AST) -> dict[str, list[int]]:
+    """The places of :func:`_stride_lines`, by their enclosing function's qualified name
+    (``"Robot.check_configuration"``; ``"<module>"`` at module level), each with its
+    lines."""
+    lines = _stride_lines(tree)
+    found: dict[str, list[int]] = {}
+
+    def visit(node: ast.AST, scope: str) -> None:
+        for child in ast.iter_child_nodes(node):
+            if isinstance(child, ast.FunctionDef | ast.AsyncFunctionDef | ast.ClassDef):
+                inner = child.name if scope == "<module>" else f"{scope}.{child.name}"
+                visit(child, inner)
+                continue
+            line = getattr(child, "lineno", None)
+            if line in lines:
+                found.setdefault(scope, [])
+                if line not in found[scope]:
+                    found[scope].append(line)
+            visit(child, scope)
+
+    visit(tree, "<module>")
+    return found
+
+
+def constant_curvature_only() -> dict[tuple[str, str], str]:
+    """The places outside the constant-curvature kind allowed to stride by three, as
+    ``(module, function) -> why``: genuinely constant-curvature-only, or not yet written
+    per kind. A place fixed is reported (:func:`test_the_list_of_strides_shrinks`), so that
+    its entry is removed; a new place fails :func:`test_no_new_hard_wired_stride`."""
+    robot = "softcurve.description.robot"
+    until_actuators = "constant curvature only until the actuators' routing is written per kind"
+    until_maps = "constant curvature only until the identification's maps are written per kind"
+    return {
+        (robot, "in_domain"): "the public rule of constant-curvature robots (every kind: "
+        "Robot.inside)",
+        (robot, "domain_problem"): "the public message of constant-curvature robots (every "
+        "kind: Robot.domain_problem)",
+        (robot, "Robot.check_configuration"): "the fast path of plain floats, behind "
+        "robot.constant_curvature",
+        ("softcurve.analysis.statics", "_curvature_pairs"): "rotate_about_axis without a "
+        "robot, whose default is a robot of constant-curvature segments",
+        ("softcurve.description.actuator", "Actuator._init_parts"): until_actuators,
+        ("softcurve.description.actuator", "Actuator._fiber_matrix_symbolic"): until_actuators,
+        ("softcurve.description.fibers", "offset_fiber_length"): until_actuators,
+        ("softcurve.description.fibers", "offset_fiber_gradient"): until_actuators,
+        ("softcurve.description.fibers", "fiber_lengths"): until_actuators,
+        (
+            "softcurve.description.tendons",
+            "TendonActuator.tension_factors_symbolic",
+        ): until_actuators,
+        ("softcurve.scenarios.actuation", "from_mapping"): until_actuators,
+        ("softcurve.identification.maps._outputs", "curvature_map.function"): until_maps,
+        ("softcurve.identification.maps._outputs", "bending_angle_map.function"): until_maps,
+        ("softcurve.identification.maps._inputs", "_count"): until_maps,
+        ("softcurve.control.references", "tip_circle"): "constant curvature only "
+        "until the references are written per kind",
+    }
+
+
+def _stride_places() -> dict[tuple[str, str], list[int]]:
+    return {
+        (module, scope): lines
+        for module in sorted(MODULES)
+        if module != CURVATURE_KIND
+        for scope, lines in strides(TREES[module]).items()
+    }
+
+
+def test_no_new_hard_wired_stride():
+    """Three coordinates per element is the constant-curvature kind's own layout; other
+    code finds an element's coordinates through ``robot.offsets`` and ``robot.sizes``, or
+    asks its kind (``description/elements.py`` and the kinds' modules)."""
+    allowed = constant_curvature_only()
+    new = [f"{module}, {scope} (lines {lines})"
+           for (module, scope), lines in _stride_places().items()
+           if (module, scope) not in allowed]  # fmt: skip
+    assert not new, (
+        "a stride of three coordinates per element outside the constant-curvature kind: "
+        "index through robot.offsets and robot.sizes, or ask the element's kind (or, if "
+        "the place is constant-curvature only, list it with its reason in "
+        "constant_curvature_only()):\n" + "\n".join(new)
+    )
+
+
+def test_the_list_of_strides_shrinks(record_property):
+    """An allowed place that strides no more is named in the run's summary (its entry is to
+    be removed); not a failure, since its owner fixes it on another branch."""
+    places = _stride_places()
+    for (module, scope), why in constant_curvature_only().items():
+        assert module in MODULES, f"{module} is not a module"
+        if (module, scope) not in places:
+            record_property(FIXED_STRIDE_PROPERTY, f"{module}, {scope}: no stride any more "
+                            f"(remove it from constant_curvature_only: {why})")  # fmt: skip
+
+
+def test_the_stride_check_sees_the_forms_of_a_stride():
+    text = (
+        "def f(q, i, robot):\n"
+        "    a = q[3 * i + 1]\n"
+        "    b = q[1::3]\n"
+        "    c = q[i * 3 : i * 3 + 3]\n"
+        "    d = np.arange(0, robot.n, 3)\n"
+        "    e = np.zeros(3 * robot.n_segments)\n"
+        "    f = np.zeros(3 * n)  # a vector per point: not a stride\n"
+        "    g = q[robot.offsets[i] : robot.offsets[i] + robot.sizes[i]]\n"
+    )
+    assert strides(ast.parse(text)) == {"f": [2, 3, 4, 5, 6]}
 
 
 def test_every_module_belongs_to_a_layer():

@@ -88,7 +88,7 @@ def test_the_options_struct_carries_every_setting_the_driver_reads():
     sensitivities = driver_library.DECLARATIONS.functions["softcurve_sensitivities"].names
     cvodes = driver_library.DECLARATIONS.functions["softcurve_cvodes"].names
     fields = {name for name, _ in driver_library.Options._fields_}
-    assert {"rtol", "atol", "max_steps", "max_order", "settled_ratio", "max_bend"} <= fields
+    assert {"rtol", "atol", "max_steps", "max_order", "settled_ratio"} <= fields
     assert not fields & (set(cvodes) | set(sensitivities))
     assert "options" in cvodes and "options" in sensitivities
 

@@ -117,6 +117,7 @@ def test_native_and_virtual_machine_agree_on_every_compiled_function(paper_model
         "rhs": (rng.normal(size=9) * 0.01 + np.r_[q, np.zeros(6)], rng.normal(size=3) * 1e-3),
         "pose": (q, 0.7),
         "jacobian": (q, 0.7),
+        "domain": (q,),
     }
     assert set(args) == set(model_module.COMPILED_FUNCTIONS)
     for name, inputs in args.items():

@@ -9,7 +9,6 @@ import pytest
 
 import softcurve as sc
 from softcurve.base.status import Status
-from softcurve.description.robot import MAX_BEND, MAX_STRETCH, in_domain
 from softcurve.simulation.batch._batch import simulate_batch
 from softcurve.simulation.solvers import _driver as native
 from softcurve.simulation.solvers._policy import nominal_scale
@@ -58,19 +57,6 @@ def test_the_driver_reuses_the_jacobian(paper_model):
     assert slow.stats["jacobian_evaluations"] == slow.stats["linear_solver_setups"]
     work = [s.stats["rhs_evaluations"] + 9 * s.stats["jacobian_evaluations"] for s in (fast, slow)]
     assert work[0] < 0.75 * work[1]
-
-
-def test_the_drivers_domain_test_is_pythons_at_the_bend_limit():
-    """The driver compares squares except within rounding of the bound, where it takes
-    Python's hypot: both agree on configurations within a few ulp of the bend limit."""
-    rng = np.random.default_rng(7)
-    length = rng.uniform(0.05, 0.1, 100_000)
-    angle = rng.uniform(0.0, 2 * np.pi, length.size)
-    kappa = MAX_BEND / length * (1 + rng.integers(-4, 5, length.size) * 2.2e-16)
-    q = np.column_stack([length, kappa * np.cos(angle), kappa * np.sin(angle)])
-    inside = in_domain(q, [0.064])
-    assert 0 < inside.sum() < inside.size  # both sides of the bound are sampled
-    np.testing.assert_array_equal(native.outside(q, [MAX_STRETCH * 0.064]), ~inside)
 
 
 def test_the_first_outputs_do_not_depend_on_the_end_time(paper_model):

@@ -39,6 +39,10 @@ def _with_meta(lines, **changes):
     return ["# " + json.dumps(meta) + "\n", *lines[1:]]
 
 
+UNNAMED = {"coordinates": None, "units": None}
+"""Metadata without the coordinates' names: a file written before they were recorded."""
+
+
 def _refused(path, match):
     """Loading ``path`` raises a ParameterError naming the file and matching ``match``."""
     with pytest.raises(sc.ParameterError, match=match) as info:
@@ -100,12 +104,14 @@ def test_failed_run_ends_early_and_loads_with_its_status(run, tmp_path):
 @pytest.mark.parametrize(
     ("changes", "match"),
     [
-        ({"n": 6}, r"line 2: the columns do not match the metadata \(n = 6, n_creep = 3, "
-                   r"n_inputs = 0\): column 5 is 'l1_dot', expected 'l2'"),
+        ({"n": 6, **UNNAMED}, r"line 2: the columns do not match the metadata \(n = 6, "
+                              r"n_creep = 3, n_inputs = 0\): column 5 is 'l1_dot', expected 'l2'"),
         ({"n_creep": 0}, r"n_creep = 0.*column 8 is 'lam1', expected 'tip_x'"),
         ({"n_inputs": 2}, r"n_inputs = 2\): 16 columns, expected 18"),
-        ({"n": 4}, "n must be 3 per segment, got 4"),
-        ({"n": 3 * 10**9}, "16 columns, expected 6000000007"),  # no names built
+        ({"n": 4, **UNNAMED}, "n must be 3 per segment where it does not name its coordinates"),
+        ({"n": 4}, r"coordinates must be 4 distinct names \(n = 4\), got \['l1', 'kx1', 'ky1'\]"),
+        ({"n": 3 * 10**9, **UNNAMED}, "16 columns, expected 6000000007"),  # no names built
+        ({"coordinates": ["l1", "kx1", "kx1"]}, "coordinates must be 3 distinct names"),
     ],
 )  # fmt: skip
 def test_csv_whose_n_disagrees_with_its_columns_is_refused(run, tmp_path, changes, match):
@@ -159,7 +165,8 @@ def _npz(run, tmp_path, **changes):
 def test_npz_faults_are_refused_naming_the_row(run, tmp_path):
     cut = {k: getattr(run, k)[:100] for k in ("t", "q", "qd", "lam", "tip", "tau")}
     _refused(_npz(run, tmp_path, **cut), "100 rows, ending at row 100, but the metadata says 201")
-    _refused(_npz(run, tmp_path, meta={"n": 6}), r"array 'q' has shape \(201, 3\).* \(201, 6\)")
+    six = {"n": 6, "coordinates": ["l1", "kx1", "ky1", "l2", "kx2", "ky2"]}
+    _refused(_npz(run, tmp_path, meta=six), r"array 'q' has shape \(201, 3\).* \(201, 6\)")
     q = run.q.copy()
     q[5, 1] = np.nan
     _refused(_npz(run, tmp_path, q=q), "row 6, column 'kx1': nan is not a finite number")

@@ -48,6 +48,8 @@ class Equilibrium(Result):
         Total potential of the conservative loads [J].
     tip_position : ndarray, shape (3,)
         World tip position [m].
+    curvature : ndarray, shape (N,)
+        Bending curvature ``|kappa|`` [1/m] of each element (0 for a rigid body).
     """
 
     q: np.ndarray
@@ -59,11 +61,7 @@ class Equilibrium(Result):
     residual: np.ndarray
     potential: float
     tip_position: np.ndarray
-
-    @property
-    def curvature(self) -> np.ndarray:
-        """Net curvature ``kappa`` [1/m] of each segment."""
-        return np.hypot(self.q[1::3], self.q[2::3])
+    curvature: np.ndarray
 
     @property
     def unstable_directions(self) -> int:
@@ -163,19 +161,19 @@ class EquilibriumTable(Result):
         curvatures, the potential ``V`` [J] and the smallest eigenvalue of ``S K S`` [J],
         the potential's Hessian in the dimensionless coordinates ``q / S`` (the Hessian
         in ``q`` itself has mixed units, J per product of two coordinates' units)."""
-        n_seg = self.load.model.robot.n_segments
-        head = f"{'#':>2}  {'stability':<10} {'set':<6} "
-        head += " ".join(
-            f"{f'l({i}) [m]':>10} {f'kx({i}) [1/m]':>11} {f'ky({i}) [1/m]':>11}"
-            for i in range(n_seg)
-        )
+        robot = self.load.model.robot
+        headings, forms = [], []
+        for i, s in enumerate(robot.segments):
+            for name, unit in zip(s.coordinate_names, s.coordinate_units, strict=True):
+                heading = f"{name}({i}) [{unit or '-'}]"
+                width = max(10, len(heading))
+                headings.append(f"{heading:>{width}}")
+                forms.append(f"{width}.6f" if unit == "m" else f"{width}.5f")  # m: to the um
+        head = f"{'#':>2}  {'stability':<10} {'set':<6} " + " ".join(headings)
         head += f" {'|kappa| [1/m]':>13} {'V [J]':>12} {EIGENVALUE_HEADING:>15}"
         rows = [head]
         for k, e in enumerate(self.equilibria):
-            coords = " ".join(
-                f"{e.q[3 * i]:10.6f} {e.q[3 * i + 1]:11.5f} {e.q[3 * i + 2]:11.5f}"
-                for i in range(n_seg)
-            )
+            coords = " ".join(f"{v:{f}}" for v, f in zip(e.q, forms, strict=True))
             kappa = ",".join(f"{c:.5f}" for c in e.curvature)
             rows.append(
                 f"{k:>2}  {e.stability:<10} {e.continuum or 'point':<6} {coords} {kappa:>13} "

@@ -117,11 +117,14 @@ def _guesses(model, target, starts: int):
     """The rest configuration and arcs bending toward the target's azimuth."""
     rest, azimuth = rest_configuration(model.robot), np.arctan2(target[1], target[0])
     guesses = [rest]
+    robot = model.robot
     for k in range(1, starts):
-        kappa = k / (starts * model.robot.rest_length)
-        q = rest.copy()
-        q[1::3], q[2::3] = kappa * np.cos(azimuth), kappa * np.sin(azimuth)
-        guesses.append(q)
+        kappa = k / (starts * robot.rest_length)
+        parts = [
+            s.bent_toward(robot.element_coordinates(rest, i), kappa, azimuth)
+            for i, s in enumerate(robot.segments)
+        ]
+        guesses.append(np.concatenate(parts))
     return guesses
 
 

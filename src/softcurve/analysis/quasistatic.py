@@ -47,6 +47,9 @@ class InputSweep(Result):
         point's status (NOT_CONVERGED, or LEFT_DOMAIN when it lies outside the domain).
     message : str
         How many points failed, and the first.
+    curvature : ndarray, shape (k, N)
+        Bending curvature ``|kappa|`` [1/m] of each element along the path (0 for a
+        rigid body).
     input_name, input_unit : str
         The actuator's :attr:`~softcurve.Actuator.input_name` and ``input_unit``, for
         labels (``"tensions"``, ``"N"``).
@@ -59,13 +62,9 @@ class InputSweep(Result):
     stability: tuple[str, ...]
     status: Status
     message: str
+    curvature: np.ndarray
     input_name: str = "inputs"
     input_unit: str = ""
-
-    @property
-    def curvature(self) -> np.ndarray:
-        """Net curvature (k, N) [1/m] of each segment."""
-        return np.hypot(self.q[:, 1::3], self.q[:, 2::3])
 
     def plot(self, ax=None, *, x=None, x_label: str | None = None):
         """Tip position and curvature along the sweep, points that are not stable marked.
@@ -141,6 +140,7 @@ def input_sweep(model, actuator: Actuator, inputs, *, q0=None, **loads) -> Input
         stability=tuple(stability),
         status=status,
         message=message,
+        curvature=model.robot.bending_curvature(np.array(qs)),
         input_name=actuator.input_name,
         input_unit=actuator.input_unit,
     )

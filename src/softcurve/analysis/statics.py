@@ -61,6 +61,7 @@ __all__ = [
     "equilibria",
     "equilibrium",
     "linearize",
+    "planar_pairs",
     "rotate_about_axis",
 ]
 
@@ -108,37 +109,88 @@ class _Problem:
         )
 
 
-def rotate_about_axis(q, angle: float) -> np.ndarray:
-    """``q`` with every segment's curvature vector ``(kx, ky)`` rotated by ``angle`` about
-    the base z axis (the robot's configuration turned about its base axis).
+def planar_pairs(robot) -> np.ndarray | None:
+    """The pairs of coordinates of ``robot`` that turn as vectors of the base's xy plane
+    when the robot turns about its base axis, each element's ``planar_pairs`` at its
+    offset: rows ``(i, j, reference x, reference y)``, shape (k, 4); None where an element
+    cannot be turned in its coordinates (no ring is then looked for).
+
+    Parameters
+    ----------
+    robot : Robot
+        The robot.
+    """
+    rows = []
+    for segment, offset in zip(robot.segments, robot.offsets, strict=True):
+        pairs = segment.planar_pairs
+        if pairs is None:
+            return None
+        rows += [(offset + i, offset + j, *reference) for i, j, reference in pairs]
+    return np.array(rows, dtype=np.float64).reshape(-1, 4)
+
+
+def rotate_about_axis(q, angle: float, robot=None) -> np.ndarray:
+    """``q`` with the robot turned by ``angle`` about its base z axis: every pair of
+    :func:`planar_pairs` (a constant-curvature segment's ``(kx, ky)``, a constant-strain
+    segment's bending and shear) rotated by ``angle``.
 
     Parameters
     ----------
     q : array_like, shape (n,)
-        Configuration [m, 1/m, 1/m].
+        Configuration.
     angle : float
         Rotation [rad], counterclockwise seen from +z.
+    robot : Robot, optional
+        The robot; default a robot of constant-curvature segments, ``(l, kx, ky)`` each.
+
+    Raises
+    ------
+    ParameterError
+        Where an element of ``robot`` cannot be turned in its coordinates.
     """
     q = np.array(q, dtype=np.float64)
+    if robot is None:
+        pairs = _curvature_pairs(q.size)
+    else:
+        pairs = planar_pairs(robot)
+        if pairs is None:
+            raise ParameterError(
+                "the robot cannot be turned about its axis in its coordinates: an element "
+                "chooses one strain of a pair (bend_x, bend_y) or (shear_x, shear_y) alone"
+            )
+    return _turned(q, pairs, angle)
+
+
+def _curvature_pairs(n: int) -> np.ndarray:
+    """:func:`planar_pairs` of a robot of ``n // 3`` constant-curvature segments."""
+    first = np.arange(1, n, 3)  # constant curvature: (l, kx, ky) per segment
+    return np.column_stack([first, first + 1, np.ones(first.size), np.zeros(first.size)])
+
+
+def _turned(q, pairs: np.ndarray, angle: float) -> np.ndarray:
+    q = np.array(q, dtype=np.float64)
+    i, j = pairs[:, 0].astype(int), pairs[:, 1].astype(int)
     c, s = np.cos(angle), np.sin(angle)
-    kx, ky = q[1::3].copy(), q[2::3].copy()
-    q[1::3], q[2::3] = c * kx - s * ky, s * kx + c * ky
+    x, y = q[i].copy(), q[j].copy()
+    q[i], q[j] = c * x - s * y, s * x + c * y
     return q
 
 
-def _ring_tangent(q) -> np.ndarray:
+def _ring_tangent(q, pairs: np.ndarray) -> np.ndarray:
+    i, j = pairs[:, 0].astype(int), pairs[:, 1].astype(int)
     tangent = np.zeros_like(q)
-    tangent[1::3], tangent[2::3] = -q[2::3], q[1::3]
+    tangent[i], tangent[j] = -q[j], q[i]
     return tangent
 
 
 # -- solving ----------------------------------------------------------------------------
-def _classify(problem: _Problem, q, tangent_stiffness, ring: bool, zero_tolerance: float):
+def _classify(problem: _Problem, q, tangent_stiffness, ring, zero_tolerance: float):
+    """``ring``: the robot's :func:`planar_pairs` where ``q`` is on a ring, else None."""
     scale = problem.scale
     k = scale[:, None] * tangent_stiffness * scale[None, :]
     symmetric = problem.load.conservative  # K is then a Hessian (module docstring)
-    if ring:
-        v = _ring_tangent(q) / scale
+    if ring is not None:
+        v = _ring_tangent(q, ring) / scale
         basis = scipy.linalg.null_space(v[None, :])
         k = basis.T @ k @ basis
     if symmetric:
@@ -155,34 +207,40 @@ def _classify(problem: _Problem, q, tangent_stiffness, ring: bool, zero_toleranc
     return "saddle", eigenvalues
 
 
-def _is_ring(problem: _Problem, q, tol: float, distinct: float) -> bool:
+def _is_ring(problem: _Problem, q, tol: float, distinct: float, pairs) -> bool:
     """Whether ``q`` is on a ring of equilibria whose diameter in the scaled coordinates
-    exceeds ``distinct`` (a smaller orbit is one point)."""
-    if 2.0 * np.max(np.abs(_ring_tangent(q) / problem.scale)) <= distinct:
+    exceeds ``distinct`` (a smaller orbit is one point): the robot turned about its base
+    axis (``pairs``, :func:`planar_pairs`; None: it cannot be) is an equilibrium too."""
+    if pairs is None or 2.0 * np.max(np.abs(_ring_tangent(q, pairs) / problem.scale)) <= distinct:
         return False
     for angle in (2.0 * np.pi / 3.0, np.pi / 2.0, np.pi):
-        if np.max(np.abs(problem.scaled_residual(rotate_about_axis(q, angle)))) > tol:
+        if np.max(np.abs(problem.scaled_residual(_turned(q, pairs, angle)))) > tol:
             return False
     return True
 
 
-def _canonical(q) -> np.ndarray:
-    """The member of ``q``'s ring whose first bent segment bends toward +x."""
-    bent = np.flatnonzero(np.hypot(q[1::3], q[2::3]) > 0)
-    i = 3 * bent[0]
-    turned = rotate_about_axis(q, -np.arctan2(q[i + 2], q[i + 1]))
-    turned[i + 1 : i + 3] = np.hypot(q[i + 1], q[i + 2]), 0.0  # exactly, not up to round-off
+def _canonical(q, pairs: np.ndarray) -> np.ndarray:
+    """The member of ``q``'s ring whose first nonzero pair points along its reference
+    (a constant-curvature robot: the first bent segment bends toward +x)."""
+    i, j = pairs[:, 0].astype(int), pairs[:, 1].astype(int)
+    size = np.hypot(q[i], q[j])
+    first = int(np.flatnonzero(size > 0)[0])
+    a, b, reference = i[first], j[first], pairs[first, 2:]
+    angle = np.arctan2(reference[1], reference[0]) - np.arctan2(q[b], q[a])
+    turned = _turned(q, pairs, angle)
+    turned[[a, b]] = size[first] * reference  # exactly, not up to round-off
     return turned
 
 
 def _result(problem: _Problem, root: Root, tol, zero_tolerance, distinct) -> Equilibrium:
     q, message = root.q, root.message
-    ring = root.converged and _is_ring(problem, q, tol, distinct)
+    pairs = planar_pairs(problem.load.model.robot)
+    ring = root.converged and _is_ring(problem, q, tol, distinct, pairs)
     if ring:
-        q = _canonical(q)
+        q = _canonical(q, pairs)
         message += "; a ring of equilibria (rotational symmetry about the base axis)"
     r, k, w, tip = problem.evaluate(q)
-    stability, eigenvalues = _classify(problem, q, k, ring, zero_tolerance)
+    stability, eigenvalues = _classify(problem, q, k, pairs if ring else None, zero_tolerance)
     if not problem.load.conservative:
         what = "tip moment" if np.any(problem.load.tip_moment) else "actuator (friction)"
         message += f"; {what} is not conservative: classification by static divergence only"
@@ -200,6 +258,7 @@ def _result(problem: _Problem, root: Root, tol, zero_tolerance, distinct) -> Equ
         residual=r,
         potential=w,
         tip_position=tip,
+        curvature=load.model.robot.bending_curvature(q),
     )
 
 
@@ -262,19 +321,18 @@ def equilibrium(
 
 
 def default_bounds(robot) -> np.ndarray:
-    """The region searched by default: per segment ``l`` in ``[0.5, 1.5] l0`` and
-    ``|kx|, |ky| <= pi / l0`` (bending angles up to half a turn), shape (n, 2).
+    """The region searched by default, each element's own box (its kind's
+    ``search_bounds``): for a constant-curvature segment ``l`` in ``[0.5, 1.5] l0`` and
+    ``|kx|, |ky| <= pi / l0`` (bending angles up to half a turn); for a constant-strain
+    segment bending and twist within half a turn of rest, shear within 0.25, stretch
+    within half of rest; shape (n, 2).
 
     Parameters
     ----------
     robot : Robot
-        Supplies the rest lengths ``l0`` [m].
+        The robot.
     """
-    rows = []
-    for s in robot.segments:
-        k = np.pi / s.rest_length
-        rows += [(0.5 * s.rest_length, 1.5 * s.rest_length), (-k, k), (-k, k)]
-    return np.array(rows)
+    return np.vstack([s.search_bounds() for s in robot.segments])
 
 
 START_BYTES = 120
@@ -387,9 +445,14 @@ def equilibria(
     bounds = real_array("bounds", bounds, (model.n, 2))
     if not np.all(bounds[:, 1] > bounds[:, 0]):
         raise ParameterError("bounds must have lower < upper in every row")
+    extents = [
+        offset + s.extent_index
+        for s, offset in zip(model.robot.segments, model.robot.offsets, strict=True)
+        if s.extent_index is not None
+    ]
     for side, column in (("lower", 0), ("upper", 1)):  # lengths in the model's domain
-        straight = np.zeros(model.n)
-        straight[0::3] = bounds[0::3, column]
+        straight = np.zeros(model.n)  # straight: no bend, twist or shear
+        straight[extents] = bounds[extents, column]
         model.robot.check_configuration(straight, f"bounds[:, {column}] ({side} lengths)")
     points = [rest_configuration(model.robot)]
     if starts > 1:

@@ -61,8 +61,9 @@ class Status(str, enum.Enum):
     )
     LEFT_DOMAIN = (
         "left_domain",
-        "the state left the model's domain (0 < l <= 10 rest lengths, a bend of at most "
-        "one turn, finite values) or its actuator's (tendon lengths and chamber volumes > 0; "
+        "the state left the model's domain (each element's: a length or stretch of at most "
+        "10 rest lengths and > 0, a bend or twist of at most one turn, a shear of at most 45 "
+        "degrees, finite values) or its actuator's (tendon lengths and chamber volumes > 0; "
         "docs/model.md); check the initial state, the inputs and the stiffness, which may "
         "be too soft for the loads",
     )

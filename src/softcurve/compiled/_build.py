@@ -164,16 +164,33 @@ COMPILED_FUNCTIONS = (
     "rhs",
     "pose",
     "jacobian",
+    "domain",
 )
 """Compiled to C: every term of the equation of motion comes from ``dynamics_terms`` and
 the accelerations from ``rhs``, so the large expressions are compiled twice, not once per
 method; ``coriolis_matrix`` (for analysis, several times larger than ``C qd``) runs in
-CasADi's virtual machine. The other entries of ``symbolic`` are for users who build on
-CasADi (optimal control, code generation)."""
+CasADi's virtual machine; ``domain`` is the elements' domain, which the C driver calls at
+its outputs. The other entries of ``symbolic`` are for users who build on CasADi
+(optimal control, code generation)."""
+
+EXACT_FLAGS = ("-ffp-contract=off",)
+"""Added to the flags of the functions of :data:`EXACT_FUNCTIONS`: no fused multiply-add,
+so that the C rounds every operation as NumPy does and the compiled rule decides as the
+Python one, bit for bit, up to its boundary (``tests/test_domain.py``)."""
+
+EXACT_FUNCTIONS = ("domain",)
+"""The generated functions built with :data:`EXACT_FLAGS` (where the compiler takes them):
+those whose result Python must reproduce exactly."""
+
 _SYMBOLIC_SOURCES = (
     "base/smooth.py",
     "description/materials.py",
     "description/layout.py",
+    "description/kind.py",
+    "description/elements.py",
+    "description/curvature.py",
+    "description/strain.py",
+    "description/rigid.py",
     "symbolic/*.py",
     "compiled/_build.py",
 )
@@ -249,7 +266,7 @@ def _cache_key(structure: tuple, quadrature_nodes: int) -> str:
     for path in key_sources():
         sources.update(path.relative_to(package).as_posix().encode())
         sources.update(path.read_bytes())
-    flags = (*FUNCTION_FLAGS, *_LIBRARY_FLAGS)
+    flags = (*FUNCTION_FLAGS, *_LIBRARY_FLAGS, EXACT_FUNCTIONS, EXACT_FLAGS)
     return cache_key("model", structure, quadrature_nodes, flags, sources.hexdigest())
 
 
@@ -342,7 +359,9 @@ def _compile(
             generator = ca.CodeGenerator(f"{name}.c", {"with_header": False})
             generator.add(f)
             generator.generate(tmp + os.sep)
-            jobs.append([*compiler, *flags, "-c", f"{name}.c", "-o", f"{name}.o"])
+            exact = name in EXACT_FUNCTIONS and accepts(compiler, EXACT_FLAGS)
+            more = EXACT_FLAGS if exact else ()
+            jobs.append([*compiler, *flags, *more, "-c", f"{name}.c", "-o", f"{name}.o"])
         with ThreadPoolExecutor(max_workers=os.cpu_count() or 1) as pool:
             list(pool.map(lambda job: run_compiler(job, tmp), jobs))
         partial = Path(tmp, "model.so")

@@ -21,13 +21,80 @@ import numpy as np
 
 from softcurve.base.docs import parameters_from
 from softcurve.base.validation import ParameterError, real_array, real_scalar, whole_count
+from softcurve.description.elements import Element
 from softcurve.description.fibers import (
+    Fiber,
     fiber_problem,
     fibers_inside,
     offset_fiber_gradient,
     offset_fiber_length,
     routing_problem,
 )
+
+
+def chain_elements(value) -> tuple | None:
+    """The elements an actuator runs along: ``None`` (constant-curvature segments), a
+    :class:`~softcurve.Robot` (its ``segments``) or a sequence of elements, checked.
+
+    Parameters
+    ----------
+    value : Robot, sequence of Element or None
+        What was given as ``elements``.
+    """
+    if value is None:
+        return None
+    value = getattr(value, "segments", value)
+    try:
+        elements = tuple(value)
+    except TypeError:
+        raise ParameterError(
+            f"elements must be a Robot or a sequence of its elements, got {type(value).__name__}"
+        ) from None
+    if not elements:
+        raise ParameterError("elements must hold at least one element, got none")
+    for i, e in enumerate(elements):
+        if not isinstance(e, Element):
+            raise ParameterError(
+                f"elements[{i}] must be a Segment, StrainSegment or RigidBody, got "
+                f"{type(e).__name__}"
+            )
+    return elements
+
+
+_FIBER_FIELDS = {"constant_strain": ("rest_length", "rest_strain"),
+                 "rigid_body": ("tip_position", "tip_rotation")}  # fmt: skip
+"""The numbers of an element a fiber's length depends on, per kind (a constant-curvature
+segment's length is a coordinate)."""
+
+
+def _elements_problem(elements, robot) -> str | None:
+    """Why the actuator's ``elements`` do not describe ``robot``'s chain, or None."""
+    if elements is None:
+        if robot.constant_curvature:
+            return None
+        return (
+            "the actuator was built for constant-curvature segments (no elements=), but the "
+            "robot has other elements: build it with elements=robot"
+        )
+    structure = tuple(e.signature()[0] for e in elements)
+    if structure != tuple(s[0] for s in robot.structure()) or tuple(
+        e.n_coordinates for e in elements
+    ) != tuple(robot.sizes):
+        return (
+            f"the actuator's elements {structure} are not the robot's "
+            f"{tuple(s[0] for s in robot.structure())}: build it with elements=robot"
+        )
+    for i, (mine, theirs) in enumerate(zip(elements, robot.segments, strict=True)):
+        if getattr(mine, "strains", None) != getattr(theirs, "strains", None):
+            return f"elements[{i}] chooses strains {mine.strains}, the robot's {theirs.strains}"
+        for name in _FIBER_FIELDS.get(mine.kind, ()):
+            if not np.array_equal(getattr(mine, name), getattr(theirs, name)):
+                return (
+                    f"elements[{i}].{name} = {np.asarray(getattr(mine, name)).tolist()} differs "
+                    f"from the robot's {np.asarray(getattr(theirs, name)).tolist()}: the fibers' "
+                    "lengths depend on it; build the actuator with elements=robot"
+                )
+    return None
 
 
 def optional_time_constant(value) -> float | None:
@@ -43,7 +110,10 @@ def optional_time_constant(value) -> float | None:
 
 _symbolic_parameters = parameters_from(
     {
-        "q": ("casadi.SX or casadi.MX, shape (n,)", "Generalized coordinates [m, 1/m, 1/m]."),
+        "q": (
+            "casadi.SX or casadi.MX, shape (n,)",
+            "Generalized coordinates (each element's, e.g. [m, 1/m, 1/m] of a segment).",
+        ),
         "theta": (
             "casadi.SX or casadi.MX, shape (k,), optional",
             "Symbols replacing :meth:`parameter_vector` (e.g. to identify areas).",
@@ -64,7 +134,8 @@ class Actuator:
     Attributes
     ----------
     n : int
-        Number of generalized coordinates (``3 N``).
+        Number of generalized coordinates (``3 N`` for constant-curvature segments, the
+        sum of the elements' otherwise).
     n_inputs : int
         Number of inputs ``m``.
     lower, upper : ndarray, shape (m,)
@@ -155,10 +226,11 @@ class Actuator:
     # the parts' fields that are parameters; the three methods below then need no more.
     _parts_field: str = ""
     _part_parameters: tuple[str, ...] = ()
+    _fiber_kind: str = ""  # "tendon" (checked by length) or "chamber" (by volume)
 
     def _init_parts(self, part_type: type, beyond, bounds: tuple[str, str]) -> None:
         """Check and store the parts (a single part or a non-empty sequence of
-        ``part_type``) and ``n_segments``, then set ``time_constant``, ``n``,
+        ``part_type``), ``elements`` and ``n_segments``, then set ``time_constant``, ``n``,
         ``n_inputs``, ``lower`` and ``upper`` (from the parts' fields ``bounds``).
         ``beyond(part, n_segments)`` says what of a part lies beyond the robot's last
         segment (``"anchor = 2 is beyond ..."``), or None."""
@@ -176,20 +248,42 @@ class Actuator:
         for i, part in enumerate(parts):
             if not isinstance(part, part_type):
                 raise ParameterError(f"{field}[{i}] must be a {kind}, got {type(part).__name__}")
-        n_segments = whole_count("n_segments", self.n_segments)
+        elements = chain_elements(self.elements)
+        if elements is None:
+            n_segments = whole_count(
+                "n_segments", 1 if self.n_segments is None else self.n_segments
+            )
+            n = 3 * int(n_segments)
+        else:
+            n_segments = len(elements)
+            if self.n_segments is not None and self.n_segments != n_segments:
+                raise ParameterError(
+                    f"n_segments = {self.n_segments!r} differs from the {n_segments} elements "
+                    "given (elements=); leave n_segments out"
+                )
+            n = sum(e.n_coordinates for e in elements)
         for i, part in enumerate(parts):
             problem = beyond(part, n_segments)
             if problem is not None:
                 raise ParameterError(f"{field}[{i}].{problem}")
         set_ = object.__setattr__  # frozen dataclasses: normalized once, here
         set_(self, field, parts)
+        set_(self, "elements", elements)
         set_(self, "n_segments", int(n_segments))
         set_(self, "time_constant", optional_time_constant(self.time_constant))
-        set_(self, "n", 3 * int(n_segments))
+        set_(self, "n", n)
         set_(self, "n_inputs", len(parts))
         for name, attribute in zip(("lower", "upper"), bounds, strict=True):
             values = [getattr(part, attribute) for part in parts]
             set_(self, name, real_array(attribute, values, (len(parts),)))
+
+    def _place(self, j: int) -> dict:
+        """Element ``j`` and the index of its first coordinate, as the fiber functions
+        take them (``{}``: a constant-curvature segment at ``3 j``)."""
+        if self.elements is None:
+            return {}
+        offset = sum(e.n_coordinates for e in self.elements[:j])
+        return {"element": self.elements[j], "offset": offset}
 
     def _parts(self) -> tuple:
         return getattr(self, self._parts_field)
@@ -217,7 +311,9 @@ class Actuator:
         lengths = []
         for i, part in enumerate(self._parts()):
             phi, rho = self._part_values(i, theta)[:2]
-            lengths.append([offset_fiber_length(q, j, phi, rho) for j in part.segments])
+            lengths.append(
+                [offset_fiber_length(q, j, phi, rho, **self._place(j)) for j in part.segments]
+            )
         return lengths
 
     def fiber_lengths_symbolic(self, q, theta=None):
@@ -239,8 +335,10 @@ class Actuator:
             phi, rho = self._part_values(i, theta)[:2]
             column = [0] * self.n
             for j, weight in zip(part.segments, row, strict=True):
-                gradient = offset_fiber_gradient(q, j, phi, rho)
-                column[3 * j : 3 * j + 3] = [weight * g for g in gradient[3 * j : 3 * j + 3]]
+                gradient = offset_fiber_gradient(q, j, phi, rho, **self._place(j))
+                for k, g in enumerate(gradient):
+                    if not isinstance(g, int):  # an int entry is a structural zero
+                        column[k] = column[k] + weight * g
             columns.append(ca.vertcat(*column))
         return ca.horzcat(*columns)
 
@@ -391,7 +489,21 @@ class Actuator:
         """The actuator's elements as offset fibers, one
         :class:`~softcurve.description.fibers.Fiber` per element and segment it runs
         through; none for an actuator without geometry (a constant map)."""
-        return ()
+        if not self._parts_field:
+            return ()
+        return tuple(
+            Fiber(
+                f"{self._parts_field}[{i}]",
+                self._fiber_kind,
+                j,
+                part.azimuth,
+                part.distance,
+                getattr(part, "area", None),
+                **self._place(j),
+            )
+            for i, part in enumerate(self._parts())
+            for j in part.segments
+        )
 
     def in_domain(self, q) -> np.ndarray:
         """Whether every tendon length and chamber volume is > 0 at ``q``, vectorized.
@@ -420,9 +532,12 @@ class Actuator:
 
     # -- helpers ---------------------------------------------------------------------
     def check_robot(self, robot) -> None:
-        """Raise :class:`ParameterError` unless the actuator fits ``robot``'s coordinates
-        and its routing lies inside the body (every distance ``rho`` at most the radius of
-        each segment it runs through; :func:`~softcurve.description.fibers.routing_problem`).
+        """Raise :class:`ParameterError` unless the actuator fits ``robot``: its
+        coordinates, its elements (an actuator built without ``elements`` drives
+        constant-curvature segments only; one built with them, elements whose kinds and
+        fiber geometry are the robot's) and its routing inside the body (every distance
+        ``rho`` at most the radius of each element it runs through;
+        :func:`~softcurve.description.fibers.routing_problem`).
 
         Parameters
         ----------
@@ -434,6 +549,10 @@ class Actuator:
                 f"the actuator acts on n = {self.n} coordinates but the robot has "
                 f"n = {robot.n} ({robot.n_segments} segments)"
             )
+        if self._parts_field:
+            problem = _elements_problem(getattr(self, "elements", None), robot)
+            if problem is not None:
+                raise ParameterError(problem)
         problem = routing_problem(self.fibers(), robot)
         if problem is not None:
             raise ParameterError(problem)

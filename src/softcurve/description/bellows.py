@@ -6,9 +6,11 @@ the gauge pressures ``p``):
 - :class:`PneumaticActuator`, a set of :class:`Bellows`, derives ``H(q)`` from the
   virtual work of the chamber pressures (docs/control.md, "Pneumatic actuation"). A bellow
   at azimuth ``phi`` (from +x toward +y in the segment's cross-section) and distance
-  ``rho`` from the backbone is an offset fiber of the constant-curvature arc, of length
-  ``L = l (1 - rho (kx cos phi + ky sin phi))``; its volume is ``V = A L`` and a gauge
-  pressure ``p`` does the work ``p dV``, so ``tau = sum_i p_i A_i dL_i/dq``::
+  ``rho`` from the backbone is an offset fiber (:mod:`softcurve.description.fibers`): of
+  the constant-curvature arc, of length ``L = l (1 - rho (kx cos phi + ky sin phi))``; of
+  a constant-strain segment, ``L = L0 |v + u x r|``. Its volume is ``V = A L`` and a
+  gauge pressure ``p`` does the work ``p dV``, so ``tau = sum_i p_i A_i dL_i/dq``; for
+  constant curvature::
 
       dL/dl  = 1 - rho (kx cos phi + ky sin phi)
       dL/dkx = -l rho cos phi
@@ -36,9 +38,9 @@ import numpy as np
 from softcurve.base.validation import ParameterError, real_array, real_scalar
 from softcurve.description.actuator import (
     Actuator,
+    chain_elements,
     optional_time_constant,
 )
-from softcurve.description.fibers import Fiber
 
 ATMOSPHERIC_PRESSURE = 101325.0
 """Standard atmosphere [Pa]: no gauge pressure can be below ``-ATMOSPHERIC_PRESSURE``."""
@@ -79,7 +81,8 @@ class Bellows:
         Lower pressure bound [Pa, gauge], default 0; negative only for vacuum actuation,
         never below ``-ATMOSPHERIC_PRESSURE``.
     segments : tuple of int
-        Indices of the segments the chamber runs through (default ``(0,)``).
+        Indices of the segments the chamber runs through (default ``(0,)``); soft
+        segments only (a rigid body holds no chamber).
     """
 
     azimuth: float
@@ -124,19 +127,27 @@ class PneumaticActuator(Actuator):
     ----------
     bellows : sequence of Bellows
         The chambers, in the order of the pressure vector.
-    n_segments : int
-        Number of segments of the robot driven (``n = 3 n_segments``); every
-        ``Bellows.segments`` index must be below it.
+    n_segments : int, optional
+        Number of constant-curvature segments of the robot driven (``n = 3
+        n_segments``, default 1); every ``Bellows.segments`` index must be below it.
+        Leave it out with ``elements``.
     time_constant : float or None
         First-order pressure lag [s], or None.
+    elements : Robot or sequence of elements, optional
+        The robot (or its ``segments``) the chambers lie in, for a chain of other
+        elements than constant-curvature segments: its elements give the coordinates and
+        each chamber's length. None (default): ``n_segments`` constant-curvature
+        segments.
     """
 
     bellows: tuple[Bellows, ...]
-    n_segments: int = 1
+    n_segments: int | None = None
     time_constant: float | None = None
+    elements: tuple | None = None
     input_name = "pressures"
     input_unit = "Pa"
     _parts_field = "bellows"
+    _fiber_kind = "chamber"
     _part_parameters = ("azimuth", "distance", "area")
 
     def __post_init__(self):
@@ -149,6 +160,13 @@ class PneumaticActuator(Actuator):
             )
 
         self._init_parts(Bellows, beyond, ("p_min", "p_max"))
+        for i, chamber in enumerate(self.bellows):
+            for j in chamber.segments:
+                if self.elements is not None and not self.elements[j].n_coordinates:
+                    raise ParameterError(
+                        f"bellows[{i}].segments = {chamber.segments} holds element {j}, a "
+                        f"{type(self.elements[j]).__name__}: a chamber lies in a soft segment"
+                    )
 
     @classmethod
     def three_bellows(
@@ -158,12 +176,14 @@ class PneumaticActuator(Actuator):
         area: float,
         p_max: float,
         p_min: float = 0.0,
-        n_segments: int = 1,
+        n_segments: int | None = None,
         azimuths=DEFAULT_AZIMUTHS,
         time_constant: float | None = None,
+        elements=None,
     ) -> PneumaticActuator:
         """Identical bellows at ``azimuths`` in every segment (3 N pressures, segment by
-        segment), each acting on its own segment.
+        segment), each acting on its own segment; with ``elements``, in every soft
+        segment.
 
         Parameters
         ----------
@@ -173,26 +193,27 @@ class PneumaticActuator(Actuator):
             Effective cross-section of every bellow [m^2].
         p_max, p_min : float
             Pressure bounds [Pa, gauge].
-        n_segments : int
-            Number of segments; each gets its own bellows.
+        n_segments : int, optional
+            Number of constant-curvature segments (default 1); each gets its own
+            bellows. Leave it out with ``elements``.
         azimuths : sequence of float
             Azimuths [rad] of the bellows in each segment.
         time_constant : float or None
             First-order pressure lag [s], or None.
+        elements : Robot or sequence of elements, optional
+            The chain (see :class:`PneumaticActuator`).
         """
+        chain = chain_elements(elements)
+        if chain is None:
+            soft = range(1 if n_segments is None else n_segments)
+        else:
+            soft = [j for j, e in enumerate(chain) if e.n_coordinates]
         bellows = tuple(
             Bellows(float(phi), distance, area, p_max, p_min, (j,))
-            for j in range(n_segments)
+            for j in soft
             for phi in azimuths
         )
-        return cls(bellows, n_segments=n_segments, time_constant=time_constant)
-
-    def fibers(self) -> tuple[Fiber, ...]:
-        return tuple(
-            Fiber(f"bellows[{i}]", "chamber", j, b.azimuth, b.distance, b.area)
-            for i, b in enumerate(self.bellows)
-            for j in b.segments
-        )
+        return cls(bellows, n_segments, time_constant, chain)
 
     def input_work_symbolic(self, q, inputs):
         areas = ca.DM([b.area for b in self.bellows])
@@ -204,7 +225,7 @@ class PneumaticActuator(Actuator):
         Parameters
         ----------
         q : array_like, shape (n,)
-            Generalized coordinates [m, 1/m, 1/m].
+            Generalized coordinates.
         """
         q = self._coordinates(q)
         lengths = np.array(ca.DM(self.fiber_lengths_symbolic(ca.DM(q)))).ravel()

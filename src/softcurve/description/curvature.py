@@ -22,12 +22,15 @@ from softcurve.base.validation import FLOAT_MAX, ParameterError, real_scalar
 from softcurve.description.kind import (
     E_Z,
     Element,
+    Margin,
     SoftModel,
     creep_fields,
     damping_matrix,
     element_parameters,
+    failed,
     finite_problem,
     law_field,
+    margins_hold,
     matrix_field,
     scalar_field,
 )
@@ -79,11 +82,30 @@ the fourth power of a segment's length (``m l^4``), and a segment reaches
 linearization holds infinities)."""
 
 
-def segment_inside(length, kx, ky, longest, hypot=np.hypot):
-    """The domain's rule for one segment's coordinates, written once: ``0 < l <= longest``
-    and a bending angle ``l |kappa| <= MAX_BEND`` (NaN fails every comparison). Works on
-    floats (with ``hypot=math.hypot``, several times faster for a few segments) and,
-    elementwise, on arrays.
+def curvature_margins(length, kx, ky, longest) -> list[Margin]:
+    """The domain's rule for one segment's coordinates, written once: ``0 < l <=
+    longest`` and a bending angle ``l |kappa| <= MAX_BEND``, as margins (squared: no
+    square root, exact at zero curvature). Arithmetic alone, so floats, NumPy arrays
+    (elementwise) and CasADi symbols all take it: the Python rule and the compiled
+    model's ``domain`` Function (:class:`CurvatureModel`) evaluate the same expression.
+
+    Parameters
+    ----------
+    length, kx, ky : float, ndarray or casadi.SX
+        The segment's length [m] and curvatures [1/m].
+    longest : float, ndarray or casadi.SX
+        The longest length in the domain, ``MAX_STRETCH l0`` [m].
+    """
+    return [
+        Margin("length", length, strict=True),
+        Margin("length", longest - length),
+        Margin("bend", MAX_BEND * MAX_BEND - length * length * (kx * kx + ky * ky)),
+    ]
+
+
+def segment_inside(length, kx, ky, longest):
+    """Whether one segment's coordinates lie in the domain (:func:`curvature_margins`;
+    NaN fails): on floats, or elementwise on arrays.
 
     Parameters
     ----------
@@ -91,16 +113,14 @@ def segment_inside(length, kx, ky, longest, hypot=np.hypot):
         The segment's length [m] and curvatures [1/m].
     longest : float or ndarray
         The longest length in the domain, ``MAX_STRETCH l0`` [m].
-    hypot : callable
-        ``math.hypot`` for floats, ``numpy.hypot`` (default) for arrays.
     """
-    return (length > 0) & (length <= longest) & (length * hypot(kx, ky) <= MAX_BEND)
+    return margins_hold(curvature_margins(length, kx, ky, longest))
 
 
 def segment_problem(q, rest_length: float, index: int, place) -> str | None:
     """What puts one segment's ``q = (l, kx, ky)`` outside the domain (see
-    :func:`segment_inside`), naming the coordinate, its value and the allowed range; None
-    inside.
+    :func:`curvature_margins`), naming the coordinate, its value and the allowed range;
+    None inside.
 
     Parameters
     ----------
@@ -117,14 +137,16 @@ def segment_problem(q, rest_length: float, index: int, place) -> str | None:
     problem = finite_problem((length, kx, ky), COORDINATES, index, place)
     if problem is not None:
         return problem
-    if not 0 < length <= MAX_STRETCH * rest_length:
+    longest = MAX_STRETCH * rest_length
+    with np.errstate(over="ignore", invalid="ignore"):
+        margins = curvature_margins(np.float64(length), kx, ky, longest)
+    if failed(margins, "length"):
         return (
             f"lengths l must be in the model's domain 0 < l <= {MAX_STRETCH:g} rest lengths "
-            f"({MAX_STRETCH * rest_length:.6g} m): l of segment {index + 1} ({place(0)}) = "
-            f"{length:.6g} m"
+            f"({longest:.6g} m): l of segment {index + 1} ({place(0)}) = {length:.6g} m"
         )
-    bend = length * math.hypot(kx, ky)
-    if not bend <= MAX_BEND:
+    if failed(margins, "bend"):
+        bend = length * math.hypot(kx, ky)
         return (
             f"bending angles |kappa| l must be <= 2 pi rad (a full turn, the model's "
             f"domain): segment {index + 1} bends {bend:.6g} rad (l = {length:.6g} m, "
@@ -232,6 +254,28 @@ class Segment(Element):
         """``(l0, 1/l0, 1/l0)``: a length and a 1 rad bend."""
         return np.array([self.rest_length, 1.0 / self.rest_length, 1.0 / self.rest_length])
 
+    extent_index = 0
+
+    planar_pairs = ((1, 2, (1.0, 0.0)),)
+    """``(kx, ky)`` turns with the robot; a representative bends toward +x."""
+
+    def bent_toward(self, q, curvature: float, azimuth: float) -> np.ndarray:
+        """``(kx, ky) = curvature (cos azimuth, sin azimuth)``."""
+        q = np.array(q, dtype=np.float64)
+        q[1:3] = curvature * np.cos(azimuth), curvature * np.sin(azimuth)
+        return q
+
+    def bending_curvature(self, q) -> np.ndarray:
+        """``hypot(kx, ky)``."""
+        q = np.asarray(q, dtype=np.float64)
+        return np.hypot(q[..., 1], q[..., 2])
+
+    def search_bounds(self) -> np.ndarray:
+        """``l`` in ``[0.5, 1.5] l0`` and ``|kx|, |ky| <= pi / l0`` (bending angles up to
+        half a turn)."""
+        k = np.pi / self.rest_length
+        return np.array([(0.5 * self.rest_length, 1.5 * self.rest_length), (-k, k), (-k, k)])
+
     @element_parameters
     def inside(self, q, rest_length=None) -> np.ndarray:
         """Whether configurations lie in the domain, shape (...).
@@ -302,6 +346,9 @@ class CurvatureModel(SoftModel):
 
     def geometry(self, part):
         return ca.vertcat(part["mass"], part["radius"])
+
+    def domain_margins(self, q, part):
+        return curvature_margins(q[0], q[1], q[2], MAX_STRETCH * part["rest_length"])
 
     def rotation_vector(self, q, s, g):
         return s * q[0] * ca.vertcat(-q[2], q[1], 0)

@@ -17,6 +17,7 @@ from softcurve.description.curvature import (
     MAX_STRETCH,
     CurvatureModel,
     Segment,
+    curvature_margins,
     segment_inside,
     segment_problem,
 )
@@ -25,7 +26,9 @@ from softcurve.description.kind import (
     Element,
     ElementModel,
     FieldSpec,
+    Margin,
     SoftModel,
+    margins_hold,
 )
 from softcurve.description.rigid import RigidBody, RigidModel, rotation_matrix
 from softcurve.description.strain import (
@@ -37,6 +40,7 @@ from softcurve.description.strain import (
     STRAINS,
     StrainModel,
     StrainSegment,
+    strain_margins,
 )
 
 KINDS = {
@@ -75,14 +79,18 @@ __all__ = [
     "Element",
     "ElementModel",
     "FieldSpec",
+    "Margin",
     "RigidBody",
     "RigidModel",
     "Segment",
     "SoftModel",
     "StrainModel",
     "StrainSegment",
+    "curvature_margins",
     "element_model",
+    "margins_hold",
     "rotation_matrix",
     "segment_inside",
     "segment_problem",
+    "strain_margins",
 ]

@@ -218,6 +218,38 @@ class Element:
         the floor of the integrator's state scale."""
         raise NotImplementedError
 
+    def bending_curvature(self, q) -> np.ndarray:
+        """The magnitude of the element's bending curvature ``|kappa|`` [1/m] at
+        configurations ``q[..., n_i]``, shape (...): 0 for a body that does not bend."""
+        return np.zeros(np.shape(q)[:-1])
+
+    @property
+    def planar_pairs(self) -> tuple[tuple[int, int, tuple[float, float]], ...] | None:
+        """How the element's coordinates turn when the whole robot turns about its base
+        axis (the conjugation by a rotation about z, which leaves an element's own frame
+        conventions alone): pairs ``(i, j, reference)`` of coordinates that turn as a
+        vector of the base's xy plane, each with the unit vector ``reference`` that a ring's
+        representative aligns the first nonzero pair with; the others stay. None where a
+        turned configuration cannot be written in the element's coordinates (a pair of
+        which one coordinate alone is chosen). A body without coordinates: ``()`` (whether
+        it is symmetric, the residual at the turned configurations tells)."""
+        return ()
+
+    def bent_toward(self, q, curvature: float, azimuth: float) -> np.ndarray:
+        """``q`` (n_i,) with the element bent as an arc of ``curvature`` [1/m] whose tip
+        moves toward the azimuth ``azimuth`` [rad] of its base frame (a guess of the
+        statics); unchanged for a body that does not bend."""
+        return np.array(q, dtype=np.float64)
+
+    def search_bounds(self) -> np.ndarray:
+        """The box of the element's coordinates that the multi-start search of equilibria
+        samples by default (``softcurve.analysis.statics.default_bounds``), shape (n_i, 2)."""
+        raise NotImplementedError
+
+    extent_index: int | None = None
+    """Which coordinate sets the element's length (a length, a stretch), or None: the
+    search's box is checked to keep it in the domain at both ends."""
+
     @element_parameters
     def inside(self, q, rest_length=None) -> np.ndarray:
         """Whether configurations of the element lie in its domain (NaN fails),
@@ -263,6 +295,61 @@ class Element:
             New values of fields, by name (e.g. ``mass=0.06``).
         """
         return dataclasses.replace(self, **changes)
+
+
+@dataclass(frozen=True)
+class Margin:
+    """One inequality of an element's domain, ``value > 0`` (strict) or ``value >= 0``.
+
+    A kind writes its domain once as margins, with arithmetic alone, so that the same
+    function evaluates them on floats, on NumPy arrays (elementwise) and on CasADi
+    symbols: the Python rule (:meth:`Element.inside`, :meth:`Element.domain_problem`) and
+    the compiled model's ``domain`` Function, which the C driver calls at its outputs,
+    are one rule. NaN fails both comparisons, so a non-finite coordinate is outside.
+
+    Parameters
+    ----------
+    what : str
+        Which bound it is (the kind's messages name it): ``"length"``, ``"bend"`` ...
+    value : float, ndarray or casadi.SX
+        The margin; in the domain where it is > 0 (``strict``) or >= 0.
+    strict : bool
+        ``value > 0`` rather than ``value >= 0``.
+    """
+
+    what: str
+    value: object
+    strict: bool = False
+
+    def holds(self):
+        """Whether the margin holds: bool (array) on numbers, 0/1 on CasADi symbols."""
+        return self.value > 0 if self.strict else self.value >= 0
+
+
+def margins_hold(margins):
+    """Whether every margin of ``margins`` holds: a bool, a bool array (elementwise) or
+    a CasADi expression of value 1 or 0 (True where there are none).
+
+    Parameters
+    ----------
+    margins : sequence of Margin
+        An element's domain, :meth:`ElementModel.domain_margins` or a kind's function.
+    """
+    held = True
+    for margin in margins:
+        ok = margin.holds()
+        if isinstance(ok, ca.SX | ca.MX):
+            held = ok if held is True else ca.logic_and(held, ok)
+        else:
+            held = held & ok
+    return held
+
+
+def failed(margins, what: str) -> bool:
+    """Whether a margin named ``what`` of ``margins`` (of one configuration, floats)
+    fails: the test the kinds' messages are worded from, so that a message is written
+    exactly where the rule puts a configuration outside."""
+    return not all(bool(m.holds()) for m in margins if m.what == what)
 
 
 @element_parameters
@@ -357,6 +444,13 @@ class ElementModel:
     def elastic(self, q, part):
         """Elastic energy [J] and force (nq,) of the element."""
         raise NotImplementedError
+
+    def domain_margins(self, q, part) -> list[Margin]:
+        """The element's domain as :class:`Margin` s of its coordinates ``q`` (nq,) and its
+        fields' symbols ``part``: inside where all hold (:func:`margins_hold`). The same
+        rule as :meth:`Element.inside` (the kind's one function evaluates both); an
+        element without coordinates has none."""
+        return []
 
     def damping(self, part):
         """Damping matrix (nq, nq)."""

@@ -149,6 +149,9 @@ class RigidBody(Element):
     def coordinate_scale(self) -> np.ndarray:
         return np.zeros(0)
 
+    def search_bounds(self) -> np.ndarray:
+        return np.zeros((0, 2))
+
     @element_parameters
     def inside(self, q, rest_length=None) -> np.ndarray:
         """Whether configurations lie in the domain, shape (...).

@@ -2,16 +2,15 @@
 
 A :class:`Robot` is a serial chain of ``N >= 1`` elements
 (:mod:`softcurve.description.elements`: constant-curvature :class:`Segment`,
-:class:`StrainSegment`, :class:`RigidBody`); element ``i`` starts at the tip frame of element ``i - 1`` and owns
-the coordinates ``q[offsets[i] : offsets[i] + sizes[i]]`` (Pinocchio's ``idx_q`` and
-``nq``). Every field is checked once, when the object is built, and a bad value raises
-:class:`ParameterError` naming it.
+:class:`StrainSegment`, :class:`RigidBody`); element ``i`` starts at the tip frame of
+element ``i - 1`` and owns the coordinates ``q[offsets[i] : offsets[i] + sizes[i]]``
+(Pinocchio's ``idx_q`` and ``nq``). Every field is checked once, when the object is
+built, and a bad value raises :class:`ParameterError` naming it.
 """
 
 from __future__ import annotations
 
 import dataclasses
-import math
 from dataclasses import dataclass, field
 from functools import cached_property
 
@@ -248,6 +247,20 @@ class Robot:
         (``l0`` for a length, ``1/l0`` for a curvature: a 1 rad bend, 1 for a strain)."""
         return np.concatenate([s.coordinate_scale() for s in self.segments])
 
+    def bending_curvature(self, q) -> np.ndarray:
+        """Each element's bending curvature ``|kappa|`` [1/m] at configurations ``q``
+        (0 for a rigid body), shape (..., N).
+
+        Parameters
+        ----------
+        q : array_like, shape (..., n)
+            Configurations.
+        """
+        q = np.asarray(q, dtype=np.float64)
+        columns = [s.bending_curvature(self.element_coordinates(q, i))
+                   for i, s in enumerate(self.segments)]  # fmt: skip
+        return np.stack(columns, axis=-1)
+
     def element_coordinates(self, q, i: int):
         """The coordinates of element ``i`` in ``q[..., n]``.
 
@@ -355,7 +368,7 @@ class Robot:
             # reductions; NaN fails every comparison
             values = q.tolist()
             for i, limit in enumerate(self._length_limits):
-                if not segment_inside(*values[3 * i : 3 * i + 3], limit, math.hypot):
+                if not segment_inside(*values[3 * i : 3 * i + 3], limit):
                     break
             else:
                 return q

@@ -34,12 +34,15 @@ from softcurve.base.validation import ParameterError, real_array, real_scalar
 from softcurve.description.curvature import MAX_BEND, MAX_REST_LENGTH, MAX_STRETCH
 from softcurve.description.kind import (
     Element,
+    Margin,
     SoftModel,
     creep_fields,
     damping_matrix,
     element_parameters,
+    failed,
     finite_problem,
     law_field,
+    margins_hold,
     matrix_field,
     scalar_field,
     vector_field,
@@ -90,8 +93,36 @@ most); a state beyond it is a runaway, as a segment stretched beyond
 :data:`MAX_STRETCH`."""
 
 
+def strain_margins(xi, rest_length) -> list[Margin]:
+    """The domain's rule for a full strain, written once: stretch ``0 < v_z <=
+    MAX_STRETCH``, bending angle ``L0 |(u_x, u_y)| <= MAX_BEND``, twist angle ``L0 |u_z|
+    <= MAX_TWIST``, shear ``|(v_x, v_y)| <= MAX_SHEAR v_z``, as margins (squared where
+    a norm is bounded: no square root). Arithmetic alone, so floats, NumPy arrays
+    (elementwise) and CasADi symbols all take it: the Python rule and the compiled
+    model's ``domain`` Function (:class:`StrainModel`) evaluate the same expression.
+
+    Parameters
+    ----------
+    xi : sequence of 6 (float, ndarray or casadi.SX)
+        ``(u_x, u_y, u_z, v_x, v_y, v_z)``, chosen strains and rest values.
+    rest_length : float, ndarray or casadi.SX
+        ``L0`` [m].
+    """
+    ux, uy, uz, vx, vy, vz = xi
+    bend_x, bend_y, twist = rest_length * ux, rest_length * uy, rest_length * uz
+    shear = MAX_SHEAR * vz
+    return [
+        Margin("stretch", vz, strict=True),
+        Margin("stretch", MAX_STRETCH - vz),
+        Margin("bend", MAX_BEND * MAX_BEND - (bend_x * bend_x + bend_y * bend_y)),
+        Margin("twist", MAX_TWIST * MAX_TWIST - twist * twist),
+        Margin("shear", shear * shear - (vx * vx + vy * vy)),
+    ]
+
+
 def strain_problem(xi, rest_length: float, index: int) -> str | None:
-    """What puts a full strain ``xi`` (6,) of a segment outside the domain, or None.
+    """What puts a full strain ``xi`` (6,) of a segment outside the domain
+    (:func:`strain_margins`), naming the strain and its value, or None.
 
     Parameters
     ----------
@@ -104,26 +135,28 @@ def strain_problem(xi, rest_length: float, index: int) -> str | None:
     """
     ux, uy, uz, vx, vy, vz = (float(v) for v in xi)
     where = f"segment {index + 1}"
-    if not 0 < vz <= MAX_STRETCH:
+    with np.errstate(over="ignore", invalid="ignore"):
+        margins = strain_margins(np.asarray(xi, dtype=np.float64), np.float64(rest_length))
+    if failed(margins, "stretch"):
         return (
             f"stretch must be in the model's domain 0 < stretch <= {MAX_STRETCH:g}: "
             f"{where} has stretch {vz:.6g}"
         )
-    bend = rest_length * math.hypot(ux, uy)
-    if not bend <= MAX_BEND:
+    if failed(margins, "bend"):
+        bend = rest_length * math.hypot(ux, uy)
         return (
             f"bending angles |(bend_x, bend_y)| L0 must be <= 2 pi rad (a full turn, the "
             f"model's domain): {where} bends {bend:.6g} rad (bend_x = {ux:.6g} 1/m, bend_y = "
             f"{uy:.6g} 1/m, L0 = {rest_length:.6g} m)"
         )
-    twist = rest_length * abs(uz)
-    if not twist <= MAX_TWIST:
+    if failed(margins, "twist"):
+        twist = rest_length * abs(uz)
         return (
             f"twist angles |twist| L0 must be <= 2 pi rad (a full turn, the model's domain): "
             f"{where} twists {twist:.6g} rad (twist = {uz:.6g} 1/m, L0 = {rest_length:.6g} m)"
         )
-    shear = math.hypot(vx, vy)
-    if not shear <= MAX_SHEAR * vz:
+    if failed(margins, "shear"):
+        shear = math.hypot(vx, vy)
         return (
             f"shear |(shear_x, shear_y)| must be <= {MAX_SHEAR:g} stretch (45 degrees, the "
             f"model's domain): {where} shears {shear:.6g} at stretch {vz:.6g}"
@@ -132,23 +165,16 @@ def strain_problem(xi, rest_length: float, index: int) -> str | None:
 
 
 def strains_inside(xi, rest_length):
-    """Elementwise :func:`strain_problem` ``is None`` over ``xi[..., 6]``.
+    """Elementwise :func:`strain_margins` all holding over ``xi[..., 6]``.
 
     Parameters
     ----------
     xi : ndarray, shape (..., 6)
         Full strains.
-    rest_length : float
+    rest_length : float or ndarray, shape (...)
         ``L0`` [m].
     """
-    ux, uy, uz, vx, vy, vz = (xi[..., k] for k in range(6))
-    return (
-        (vz > 0)
-        & (vz <= MAX_STRETCH)
-        & (rest_length * np.hypot(ux, uy) <= MAX_BEND)
-        & (rest_length * np.abs(uz) <= MAX_TWIST)
-        & (np.hypot(vx, vy) <= MAX_SHEAR * vz)
-    )
+    return margins_hold(strain_margins([xi[..., k] for k in range(6)], rest_length))
 
 
 def _chosen(strains) -> tuple[str, ...]:
@@ -367,6 +393,53 @@ class StrainSegment(Element):
         """``1/L0`` for curvatures (a 1 rad bend or twist), 1 for shear and stretch."""
         return np.array([1.0 / self.rest_length if k < 3 else 1.0 for k in self.indices])
 
+    @property
+    def planar_pairs(self):
+        """``(bend_x, bend_y)`` and ``(shear_x, shear_y)`` turn with the robot (the strain
+        twist's ``u`` and ``v`` are vectors); a representative bends toward +x (``bend_y >
+        0``) or, unbent, shears toward +x. None where a pair is chosen in part."""
+        pairs = []
+        for (a, b), reference in ((("bend_x", "bend_y"), (0.0, 1.0)),
+                                  (("shear_x", "shear_y"), (1.0, 0.0))):  # fmt: skip
+            chosen = (a in self.strains, b in self.strains)
+            if chosen == (True, True):
+                pairs.append((self.strains.index(a), self.strains.index(b), reference))
+            elif any(chosen):
+                return None
+        return tuple(pairs)
+
+    def bent_toward(self, q, curvature: float, azimuth: float) -> np.ndarray:
+        """``(bend_x, bend_y) = curvature (-sin azimuth, cos azimuth)`` where chosen (the
+        curvature vector ``(kx, ky)`` of a constant-curvature segment is ``(bend_y,
+        -bend_x)``)."""
+        q = np.array(q, dtype=np.float64)
+        values = {"bend_x": -curvature * np.sin(azimuth), "bend_y": curvature * np.cos(azimuth)}
+        for k, name in enumerate(self.strains):
+            if name in values:
+                q[k] = values[name]
+        return q
+
+    def bending_curvature(self, q) -> np.ndarray:
+        """``hypot(bend_x, bend_y)`` of the full strain (rest values where not chosen)."""
+        xi = self.full_strain(q)
+        return np.hypot(xi[..., 0], xi[..., 1])
+
+    @property
+    def extent_index(self) -> int | None:
+        """The stretch's coordinate, where it is chosen."""
+        return self.strains.index("stretch") if "stretch" in self.strains else None
+
+    def search_bounds(self) -> np.ndarray:
+        """About the rest strains: bending and twist within ``pi / L0`` (half a turn),
+        shear within 0.25 (14 degrees) and stretch within half of its rest value."""
+        rest = self.rest_configuration()
+        half = np.array([np.pi / self.rest_length] * 3 + [0.25, 0.25, 0.0])[list(self.indices)]
+        lower, upper = rest - half, rest + half
+        if "stretch" in self.strains:
+            k = self.extent_index
+            lower[k], upper[k] = 0.5 * rest[k], 1.5 * rest[k]
+        return np.column_stack([lower, upper])
+
     def full_strain(self, q) -> np.ndarray:
         """``xi`` (..., 6): the chosen strains from ``q[..., k]``, the rest values else.
 
@@ -474,6 +547,10 @@ class StrainModel(SoftModel):
         for i, k in enumerate(self.indices):
             entries[k] = q[i]
         return ca.vertcat(*entries)
+
+    def domain_margins(self, q, part):
+        xi = self.strain(q, part["rest_strain"])
+        return strain_margins([xi[k] for k in range(6)], part["rest_length"])
 
     def rotation_vector(self, q, s, g):
         xi = self.strain(q, g[5:11])

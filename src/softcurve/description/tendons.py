@@ -1,13 +1,17 @@
 """Tendon actuators: from tendon tensions to generalized forces, ``tau = H(q) T``.
 
 A :class:`Tendon` runs parallel to the backbone at distance ``rho`` and azimuth ``phi``
-(in each segment's base frame, from +x toward +y, like the bellows) through the segments
-``0 .. anchor`` and is tied to the tip of segment ``anchor`` (docs/tendons.md, "The
-model"). In segment ``j`` it is an offset fiber of the constant-curvature arc::
+(in each element's base frame, from +x toward +y, like the bellows) through the elements
+``0 .. anchor`` of the chain and is tied to the tip of element ``anchor``
+(docs/tendons.md, "The model"). In element ``j`` it is an offset fiber
+(:mod:`softcurve.description.fibers`): in a constant-curvature segment of length::
 
     L_j = l_j (1 - rho (kx_j cos phi + ky_j sin phi))
 
-exact for constant curvature and a polynomial in ``q`` (smooth at zero curvature). A
+exact and a polynomial in ``q`` (smooth at zero curvature); in a constant-strain segment
+``L_j = L0 |v + u x r|`` (a helix when it twists, leaning when it shears); through a
+rigid body (a rigid link between soft sections, a gripper) a straight run of constant
+length from hole to hole, which does no work. A
 tension ``T >= 0`` [N] pulled at the base does the work ``-T dL``, so the tendon
 shortens the robot and bends it TOWARD itself (``kx > 0`` for ``phi = 0``)::
 
@@ -23,7 +27,9 @@ exp(-mu theta)``, ``theta`` the angle the tendon has turned through since the ba
 Kato et al. (IEEE/ASME Trans. Mechatronics 20(5), 2015) validated this tension
 propagation on a tendon-driven continuum robot. The offset fiber of an arc is a
 concentric arc, so in segment ``j`` the tendon turns through the segment's bending
-angle ``beta_j = l_j kappa_j``. Because the tension varies along a segment while its
+angle ``beta_j = l_j kappa_j``; in a constant-strain segment through ``L0 |u x t| / |t|``
+(``t = v + u x r``, its tangent; the helix's total curvature), in a rigid body not at
+all. Because the tension varies along a segment while its
 virtual elongation is uniform in the material coordinate, segment ``j`` sees the mean
 tension::
 
@@ -47,10 +53,8 @@ import numpy as np
 
 from softcurve.base.deprecation import renamed
 from softcurve.base.validation import ParameterError, real_scalar, whole_count
-from softcurve.description.actuator import (
-    Actuator,
-)
-from softcurve.description.fibers import Fiber
+from softcurve.description.actuator import Actuator, chain_elements
+from softcurve.description.fibers import offset_fiber_turn
 
 DEFAULT_AZIMUTHS = (0.0, 2.0 * math.pi / 3.0, 4.0 * math.pi / 3.0)
 """Three tendons evenly spaced, measured from +x toward +y [rad]."""
@@ -89,8 +93,8 @@ class Tendon:
     t_min : float
         Lower tension bound [N], >= 0 (a pretension; default 0, a slack tendon).
     anchor : int
-        Index of the segment at whose tip the tendon is tied; it runs through segments
-        ``0 .. anchor`` (default 0, the first segment only).
+        Index of the element at whose tip the tendon is tied; it runs through elements
+        ``0 .. anchor`` (default 0, the first segment only), rigid bodies included.
     friction : float
         Capstan friction coefficient ``mu`` >= 0 of the routing, dimensionless (default
         0: none).
@@ -145,11 +149,17 @@ class TendonActuator(Actuator):
     ----------
     tendons : sequence of Tendon
         The tendons, in the order of the tension vector.
-    n_segments : int
-        Number of segments of the robot driven (``n = 3 n_segments``); every
-        ``Tendon.anchor`` must be below it.
+    n_segments : int, optional
+        Number of constant-curvature segments of the robot driven (``n = 3 n_segments``,
+        default 1); every ``Tendon.anchor`` must be below it. Leave it out with
+        ``elements``.
     time_constant : float or None
         First-order lag of the tensions behind their commands [s], or None.
+    elements : Robot or sequence of elements, optional
+        The robot (or its ``segments``) the tendons run along, for a chain of other
+        elements than constant-curvature segments (constant strain, rigid bodies): its
+        elements give the coordinates and each fiber's length. None (default):
+        ``n_segments`` constant-curvature segments.
 
     Examples
     --------
@@ -164,11 +174,13 @@ class TendonActuator(Actuator):
     """
 
     tendons: tuple[Tendon, ...]
-    n_segments: int = 1
+    n_segments: int | None = None
     time_constant: float | None = None
+    elements: tuple | None = None
     input_name = "tensions"
     input_unit = "N"
     _parts_field = "tendons"
+    _fiber_kind = "tendon"
     _part_parameters = ("azimuth", "distance", "friction")
 
     def __post_init__(self):
@@ -189,14 +201,16 @@ class TendonActuator(Actuator):
         distance: float,
         t_max: float,
         t_min: float = 0.0,
-        n_segments: int = 1,
+        n_segments: int | None = None,
         azimuths=DEFAULT_AZIMUTHS,
         friction: float = 0.0,
         time_constant: float | None = None,
+        elements=None,
     ) -> TendonActuator:
         """Identical tendons at ``azimuths``, one set tied to the tip of every segment
         (``len(azimuths) N`` tensions, proximal set first); a distal set runs through
-        every segment before its anchor.
+        every element before its anchor. With ``elements``, a set per soft segment (none
+        tied to a rigid body).
 
         Parameters
         ----------
@@ -204,36 +218,35 @@ class TendonActuator(Actuator):
             ``rho`` [m] of every tendon.
         t_max, t_min : float
             Tension bounds [N].
-        n_segments : int
-            Number of segments; each gets its own tendons.
+        n_segments : int, optional
+            Number of constant-curvature segments (default 1); each gets its own
+            tendons. Leave it out with ``elements``.
         azimuths : sequence of float
             Azimuths [rad] of the tendons of each set.
         friction : float
             Capstan friction coefficient ``mu`` >= 0 of every tendon, dimensionless.
         time_constant : float or None
             First-order tension lag [s], or None.
+        elements : Robot or sequence of elements, optional
+            The chain the tendons run along (see :class:`TendonActuator`).
         """
         if np.ndim(azimuths) != 1 or not len(azimuths):
             raise ParameterError(f"azimuths must be a sequence of angles [rad], got {azimuths!r}")
         angles = [real_scalar(f"azimuths[{i}]", phi) for i, phi in enumerate(azimuths)]
+        chain = chain_elements(elements)
+        if chain is None:
+            anchors = range(whole_count("n_segments", 1 if n_segments is None else n_segments))
+        else:
+            anchors = [k for k, e in enumerate(chain) if e.n_coordinates]
         tendons = tuple(
-            Tendon(phi, distance, t_max, t_min, k, friction)
-            for k in range(whole_count("n_segments", n_segments))
-            for phi in angles
+            Tendon(phi, distance, t_max, t_min, k, friction) for k in anchors for phi in angles
         )
-        return cls(tendons, n_segments=n_segments, time_constant=time_constant)
+        return cls(tendons, n_segments, time_constant, chain)
 
     @property
     def conservative(self) -> bool:
         """True without friction: the tensions' work is ``-T . L(q)``."""
         return all(t.friction == 0 for t in self.tendons)
-
-    def fibers(self) -> tuple[Fiber, ...]:
-        return tuple(
-            Fiber(f"tendons[{i}]", "tendon", j, t.azimuth, t.distance)
-            for i, t in enumerate(self.tendons)
-            for j in t.segments
-        )
 
     # -- symbolic --------------------------------------------------------------------
     def tension_factors_symbolic(self, q, theta=None) -> list[list]:
@@ -243,20 +256,20 @@ class TendonActuator(Actuator):
         Parameters
         ----------
         q : casadi.SX or casadi.MX, shape (n,)
-            Generalized coordinates [m, 1/m, 1/m].
+            Generalized coordinates.
         theta : casadi.SX or casadi.MX, shape (3 m,), optional
             ``(azimuth, distance, friction)`` of each tendon, replacing their values.
         """
         factors = []
         for i, tendon in enumerate(self.tendons):
-            mu = self._part_values(i, theta)[2]
+            phi, rho, mu = self._part_values(i, theta)
             if theta is None and tendon.friction == 0:
                 factors.append([1] * len(tendon.segments))
                 continue
             eps, turned, row = tendon.wrap_smoothing, 0, []
             for j in tendon.segments:
-                length, kx, ky = q[3 * j], q[3 * j + 1], q[3 * j + 2]
-                beta = ca.sqrt(length**2 * (kx**2 + ky**2) + eps**2) - eps
+                squared = offset_fiber_turn(q, j, phi, rho, **self._place(j))
+                beta = ca.sqrt(squared + eps**2) - eps
                 # (1 - exp(-x)) / x, written with expm1 so that it stays exact as x -> 0
                 row.append(ca.exp(-mu * turned) * _mean_capstan_factor(mu * beta))
                 turned = turned + beta
@@ -282,7 +295,7 @@ class TendonActuator(Actuator):
         Parameters
         ----------
         q : array_like, shape (n,)
-            Generalized coordinates [m, 1/m, 1/m].
+            Generalized coordinates.
         """
         q = self._coordinates(q)
         return np.array(ca.DM(self.fiber_lengths_symbolic(ca.DM(q)))).ravel()

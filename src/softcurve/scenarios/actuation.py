@@ -55,7 +55,9 @@ _REQUIRED = {
 """Required keys of each kind (for bellows and tendons: without an explicit list)."""
 
 
-def from_mapping(mapping: Mapping, *, n_segments: int = 1, where: str = "actuation") -> Actuator:
+def from_mapping(
+    mapping: Mapping, *, n_segments: int = 1, where: str = "actuation", robot=None
+) -> Actuator:
     """An actuator from a configuration table (e.g. TOML ``[actuation]``).
 
     ``kind = "bellows"`` (default): either ``distance``, ``area``, ``p_max`` (and optional
@@ -76,9 +78,12 @@ def from_mapping(mapping: Mapping, *, n_segments: int = 1, where: str = "actuati
     mapping : Mapping
         The table, keys as above.
     n_segments : int
-        Number of segments of the robot driven.
+        Number of constant-curvature segments of the robot driven (without ``robot``).
     where : str
         Where the table came from, for messages.
+    robot : Robot, optional
+        The robot driven: bellows and tendons then run along its elements (any kind;
+        three per soft segment for the short forms), and its ``n`` is the actuator's.
     """
     if not isinstance(mapping, Mapping):
         raise ParameterError(f"{where} must be a table, got {type(mapping).__name__}")
@@ -103,18 +108,26 @@ def from_mapping(mapping: Mapping, *, n_segments: int = 1, where: str = "actuati
             result = ConstantPressureMap(**args)
         elif kind == "authors_fit":
             result = ConstantPressureMap.authors_fit(**args)
+        elif robot is not None and not robot.constant_curvature:
+            chain = {"elements": robot}
+            if explicit:
+                result = _listed(kind, args, chain)
+            elif kind == "tendons":
+                result = TendonActuator.three_per_segment(**chain, **args)
+            else:
+                result = PneumaticActuator.three_bellows(**chain, **args)
         elif explicit:
-            result = _listed(kind, args, n_segments)
+            result = _listed(kind, args, {"n_segments": n_segments})
         elif kind == "tendons":
             result = TendonActuator.three_per_segment(n_segments=n_segments, **args)
         else:
             result = PneumaticActuator.three_bellows(n_segments=n_segments, **args)
     except ParameterError as exc:
         raise ParameterError(f"{where}: {exc}") from None
-    if result.n != 3 * n_segments:
+    n = 3 * n_segments if robot is None else robot.n
+    if result.n != n:
         raise ParameterError(
-            f"{where}: the actuator acts on n = {result.n} coordinates, "
-            f"the robot has {3 * n_segments}"
+            f"{where}: the actuator acts on n = {result.n} coordinates, the robot has {n}"
         )
     return result
 
@@ -129,8 +142,9 @@ def _azimuths(value) -> tuple[float, ...]:
     return angles
 
 
-def _listed(kind: str, args: dict, n_segments: int) -> Actuator:
-    """The actuator of an explicit list of ``bellows`` or ``tendons`` tables."""
+def _listed(kind: str, args: dict, chain: dict) -> Actuator:
+    """The actuator of an explicit list of ``bellows`` or ``tendons`` tables, on the chain
+    ``chain`` (``{"n_segments": N}`` or ``{"elements": robot}``)."""
     extra = sorted(set(args) - {kind, "time_constant"})
     if extra:
         raise ParameterError(f"keys {extra} are not allowed next to a {kind!r} list")
@@ -155,4 +169,4 @@ def _listed(kind: str, args: dict, n_segments: int) -> Actuator:
         except ParameterError as exc:
             raise ParameterError(f"{kind}[{i}]: {exc}") from None
     build = PneumaticActuator if kind == "bellows" else TendonActuator
-    return build(tuple(entries), n_segments=n_segments, time_constant=args.get("time_constant"))
+    return build(tuple(entries), time_constant=args.get("time_constant"), **chain)

@@ -103,7 +103,7 @@ class Scenario:
             where = f"{self.source}: actuation"
             try:
                 actuator = from_mapping(
-                    self.actuation, n_segments=self.robot.n_segments, where=where
+                    self.actuation, n_segments=self.robot.n_segments, where=where, robot=self.robot
                 )
             except ParameterError as exc:
                 raise ConfigError(str(exc)) from None

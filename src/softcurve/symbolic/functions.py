@@ -9,6 +9,8 @@ from __future__ import annotations
 
 import casadi as ca
 
+from softcurve.description.elements import element_model, margins_hold
+from softcurve.description.layout import ParameterLayout
 from softcurve.symbolic.kinematics import inline_calls, kinematic_chain, point_at
 
 DYNAMICS_TERMS = (
@@ -97,6 +99,31 @@ def build_functions(spec: dict, p, n_segments: int) -> dict[str, ca.Function]:
     return functions
 
 
+def domain_expression(structure: tuple, q, p):
+    """1 where the configuration ``q`` lies in every element's domain, else 0 (NaN: 0):
+    each element's :meth:`~softcurve.description.elements.ElementModel.domain_margins`,
+    the rule its Python side evaluates too, with its own parameters read from ``p`` (a
+    batch's members each check their own rest lengths).
+
+    Parameters
+    ----------
+    structure : tuple
+        ``Robot.structure()``.
+    q : casadi.SX, shape (n,)
+        The coordinates.
+    p : casadi.SX, shape (n_p,)
+        The parameter vector.
+    """
+    parts = ParameterLayout.of_structure(structure).element_parts(p)
+    margins, start = [], 0
+    for signature, part in zip(structure, parts, strict=True):
+        model = element_model(signature)
+        margins.extend(model.domain_margins(q[start : start + model.nq], part))
+        start += model.nq
+    inside = margins_hold(margins)
+    return ca.SX(1.0) if inside is True else inside
+
+
 def symbolic_functions(e) -> dict[str, ca.Function]:
     """All numeric entry points as SX Functions whose last input is ``p``.
 
@@ -143,5 +170,6 @@ def symbolic_functions(e) -> dict[str, ca.Function]:
         "rhs": ([xs, tau], ["x", "tau"], [rhs], ["xdot"]),
         "pose": ([q, s], ["q", "s"], [frame.rotation, frame.position], ["rotation", "position"]),
         "jacobian": ([q, s], ["q", "s"], [frame.jacobian], ["J"]),
+        "domain": ([q], ["q"], [domain_expression(e.structure, q, p)], ["inside"]),
     }
     return build_functions(spec, p, e.n_segments)

@@ -116,9 +116,7 @@ def _force_problem(environment, robot, points, depths, name) -> str | None:
         penetration = np.maximum(radii[segment] + row, 0.0)
         length = robot.segments[segment].rest_length
         forces += weight * length * law.stiffness * penetration**law.exponent
-    squeeze = min(
-        float(seg.elongation_stiffness.stiffness(0.0)) * seg.rest_length for seg in robot.segments
-    )
+    squeeze = min(_squeeze_force(element) for element in robot.segments)
     worst = int(np.argmax(forces))
     if not forces[worst] > squeeze:
         return None
@@ -128,6 +126,18 @@ def _force_problem(environment, robot, points, depths, name) -> str | None:
         f"with a penalty force of {forces[worst]:.4g} N, more than the {squeeze:.4g} N that "
         f"would squeeze a segment to zero length; start it outside every obstacle"
     )
+
+
+def _squeeze_force(element) -> float:
+    """The axial force [N] that squeezes an element to zero length at its rest stiffness:
+    ``k_e(0) l0`` of a constant-curvature segment, ``k(0)`` of a constant-strain segment's
+    stretch law (its strain from 1 to 0); infinite for a rigid body or a segment that does
+    not stretch."""
+    law = getattr(element, "elongation_stiffness", None)
+    if law is not None:
+        return float(law.stiffness(0.0)) * element.rest_length
+    law = getattr(element, "stretch_stiffness", None)
+    return np.inf if law is None else float(law.stiffness(0.0))
 
 
 @_start_parameters

@@ -17,7 +17,6 @@ from softcurve.simulation.solvers import (
     cvodes_integrator,
     cvodes_reason,
     domain_reason,
-    driver_domain,
     driver_integrate,
     driver_reason,
     failure_message,
@@ -203,7 +202,6 @@ def integrate_native(run: MemberRun, initial, fastest, problems) -> np.ndarray:
     ends = [k1 for _, k1 in segments]
     restart = [True] * len(ends)
     used_bdf = np.zeros(states.shape[0], bool)
-    longest = driver_domain(run.model.robot, run.rest_lengths)
     lmm = np.where(np.asarray(initial) == "adams", 1, 2)
     settle = np.zeros(states.shape[0]) if fastest is None else np.where(lmm == 1, fastest, 0.0)
     settings = run.problem.driver_options()
@@ -216,7 +214,7 @@ def integrate_native(run: MemberRun, initial, fastest, problems) -> np.ndarray:
             out, reached, flags, _, used = driver_integrate(
                 problem, lmm[members], states[members, 0], u, run.params[members],
                 run.nominal[members], grid, (ends, restart), settings, fastest=settle[members],
-                longest=None if longest is None else longest[members], threads=run.threads,
+                check_domain=True, threads=run.threads,
             )  # fmt: skip
             used_bdf[members] = used
             states[members, 1:] = out[:, 1:]

@@ -21,7 +21,9 @@ FORMAT_VERSION = 2
 """Version of the trajectory format written (in the metadata line). Version 1 named the
 actuator's inputs ``pressures`` (columns ``p1 ...``) and a failure ``"failed"``; both are
 still read. The metadata's ``rows`` (the number of output times) was added within
-version 2: a file without it is checked for everything else."""
+version 2: a file without it is checked for everything else; so were ``coordinates``
+and ``units`` (each coordinate's column and unit, per element kind): a file without them
+has constant-curvature segments, ``l1 kx1 ky1 ...``."""
 
 _LEGACY_STATUS = {"failed": "integration_failed"}
 
@@ -44,9 +46,25 @@ def _write_rows(out, table: np.ndarray, name: str, progress: bool) -> None:
         bar.close()
 
 
-def column_names(n: int, n_creep: int, with_tau: bool, n_inputs: int = 0) -> list[str]:
-    """CSV columns: t, l1 kx1 ky1 ..., l1_dot ..., lam1 ..., tip_x tip_y tip_z, tau1 ...,
-    u1 ... (the actuator's inputs, when an actuator drove the robot).
+def coordinate_columns(robot) -> list[str]:
+    """The columns of a robot's coordinates: each element's coordinate names numbered by
+    the element from 1 (``l1 kx1 ky1`` for a constant-curvature segment, ``bend_x2 ...
+    stretch2`` for a constant-strain one; a rigid body has none).
+
+    Parameters
+    ----------
+    robot : Robot
+        The robot.
+    """
+    return [f"{name}{i + 1}" for i, s in enumerate(robot.segments) for name in s.coordinate_names]
+
+
+def column_names(
+    n: int, n_creep: int, with_tau: bool, n_inputs: int = 0, coordinates=None
+) -> list[str]:
+    """CSV columns: t, the coordinates (``l1 kx1 ky1 ...``), their rates (``l1_dot
+    ...``), lam1 ..., tip_x tip_y tip_z, tau1 ..., u1 ... (the actuator's inputs, when an
+    actuator drove the robot).
 
     Parameters
     ----------
@@ -58,8 +76,13 @@ def column_names(n: int, n_creep: int, with_tau: bool, n_inputs: int = 0) -> lis
         Whether the input forces are columns.
     n_inputs : int
         Number of actuator inputs.
+    coordinates : sequence of str, optional
+        The coordinates' columns, :func:`coordinate_columns`; default those of ``n / 3``
+        constant-curvature segments (a file whose metadata does not name them).
     """
-    q = [f"{c}{i + 1}" for i in range(n // 3) for c in ("l", "kx", "ky")]
+    if coordinates is None:  # files before the element kinds: constant curvature
+        coordinates = [f"{c}{i + 1}" for i in range(n // 3) for c in ("l", "kx", "ky")]
+    q = list(coordinates)
     names = ["t", *q, *(f"{c}_dot" for c in q), *(f"lam{i + 1}" for i in range(n_creep))]
     names += ["tip_x", "tip_y", "tip_z"]
     names += [f"tau{i + 1}" for i in range(n)] if with_tau else []
@@ -67,10 +90,18 @@ def column_names(n: int, n_creep: int, with_tau: bool, n_inputs: int = 0) -> lis
 
 
 def _meta(trajectory) -> dict:
+    model = trajectory.model
+    named = {}
+    if model is not None:
+        named = {
+            "coordinates": coordinate_columns(model.robot),
+            "units": model.robot.coordinate_units(),
+        }
     return {
         "format": "softcurve-trajectory",
         "version": FORMAT_VERSION,
         "n": trajectory.n,
+        **named,
         "n_creep": trajectory.lam.shape[1],
         "n_inputs": 0 if trajectory.inputs is None else trajectory.inputs.shape[1],
         "rows": int(trajectory.t.size),
@@ -108,7 +139,13 @@ def save_trajectory(trajectory, path, *, progress: bool = False) -> Path:
             trajectory.tip,
         ] + [a for a in (tau, inputs) if a is not None]
         table = np.hstack(blocks)
-        names = column_names(trajectory.n, meta["n_creep"], tau is not None, meta["n_inputs"])
+        names = column_names(
+            trajectory.n,
+            meta["n_creep"],
+            tau is not None,
+            meta["n_inputs"],
+            meta.get("coordinates"),
+        )
         with atomic_path(path) as tmp, open(tmp, "w", encoding="utf-8") as out:
             out.write("# " + json.dumps(meta) + "\n")
             out.write(",".join(names) + "\n")
@@ -157,8 +194,9 @@ def _count(path, meta: dict, key: str, minimum: int, default=None) -> int:
 
 def _metadata(path, text: str) -> dict:
     """The metadata JSON ``text`` of ``path``, its fields checked: ``format``, the counts
-    ``n`` (three per segment), ``n_creep``, ``n_inputs``, ``rows`` (absent in files
-    written before it was recorded) and ``status``."""
+    ``n`` (with its ``coordinates`` named, or three per segment), ``n_creep``,
+    ``n_inputs``, ``rows`` (absent in files written before it was recorded) and
+    ``status``."""
     try:
         meta = json.loads(text)
     except json.JSONDecodeError as exc:
@@ -173,9 +211,19 @@ def _metadata(path, text: str) -> dict:
             f"{path}: the metadata's message must be text and its stats a table, got "
             f"{type(meta['message']).__name__} and {type(meta['stats']).__name__}"
         )
-    if _count(path, meta, "n", 3) % 3:
+    n = _count(path, meta, "n", 1)
+    names = meta.get("coordinates")
+    if names is not None:
+        if not (isinstance(names, list) and len(names) == n and len(set(names)) == n
+                and all(isinstance(c, str) and c for c in names)):  # fmt: skip
+            raise TrajectoryFileError(
+                f"{path}: the metadata's coordinates must be {n} distinct names (n = {n}), "
+                f"got {names!r}"
+            )
+    elif n % 3:
         raise TrajectoryFileError(
-            f"{path}: the metadata's n must be 3 per segment, got {meta['n']!r}"
+            f"{path}: the metadata's n must be 3 per segment where it does not name its "
+            f"coordinates, got {meta['n']!r}"
         )
     _count(path, meta, "n_creep", 0)
     meta["n_inputs"] = _count(path, meta, "n_inputs", 0, meta.get("n_pressures", 0))
@@ -194,7 +242,9 @@ def _metadata(path, text: str) -> dict:
 
 def _columns(meta: dict, with_tau: bool) -> list[str]:
     """The column names of a file with ``meta``; version 1 named the inputs ``p1 ...``."""
-    names = column_names(meta["n"], meta["n_creep"], with_tau, meta["n_inputs"])
+    names = column_names(
+        meta["n"], meta["n_creep"], with_tau, meta["n_inputs"], meta.get("coordinates")
+    )
     if meta.get("version") == 1:
         names = [f"p{c[1:]}" if c.startswith("u") else c for c in names]
     return names

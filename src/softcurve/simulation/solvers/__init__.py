@@ -33,7 +33,6 @@ from softcurve.simulation.solvers._grid import State as State
 from softcurve.simulation.solvers._grid import Stopped as Stopped
 from softcurve.simulation.solvers._grid import actuator_exit as actuator_exit
 from softcurve.simulation.solvers._grid import domain_reason as domain_reason
-from softcurve.simulation.solvers._grid import driver_domain as driver_domain
 from softcurve.simulation.solvers._grid import outside_domain as outside_domain
 from softcurve.simulation.solvers._grid import run_on_grid as run_on_grid
 from softcurve.simulation.solvers._grid import run_sampled as run_sampled
@@ -93,7 +92,6 @@ __all__ = [
     "Stopped",
     "actuator_exit",
     "domain_reason",
-    "driver_domain",
     "outside_domain",
     "run_on_grid",
     "run_sampled",

@@ -312,15 +312,16 @@ class CvodesEngine(PiecewiseSolver):
         return out[0, 1:]
 
     def run_native(
-        self, x0, u, times, ends, restart, fastest=None, longest=None, out=None
+        self, x0, u, times, ends, restart, fastest=None, check_domain=False, out=None
     ) -> tuple:
         """:func:`softcurve.simulation.solvers.driver_integrate` of this run (one member: ``x0``
-        (1, N), ``u`` (1, S, k); ``fastest`` [1/s], ``longest`` (n_segments,) [m] or None)
-        with this engine's family, counted: ``(states (1, T, N), reached, flags)``.
+        (1, N), ``u`` (1, S, k); ``fastest`` [1/s], ``check_domain``: stop at the first output
+        outside the model's domain) with this engine's family, counted: ``(states (1, T, N),
+        reached, flags)``.
 
         Parameters
         ----------
-        x0, u, times, ends, restart, fastest, longest, out
+        x0, u, times, ends, restart, fastest, check_domain, out
             As :func:`softcurve.simulation.solvers.driver_integrate` takes them, for one member.
         """
         family = 1 if self.multistep == "adams" else 2
@@ -329,7 +330,7 @@ class CvodesEngine(PiecewiseSolver):
             self.native, [family], x0, u, self.model.parameters[None], self.nominal[None],
             times, (ends, restart), settings,
             fastest=None if fastest is None else np.array([fastest]),
-            longest=None if longest is None else longest[None], out=out,
+            check_domain=check_domain, out=out,
         )  # fmt: skip
         for name, value in zip(c_driver.STATISTICS, counts[0].tolist(), strict=True):
             self.counts[name] += value

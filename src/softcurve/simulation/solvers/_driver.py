@@ -61,7 +61,6 @@ from softcurve.compiled import (
     load_library,
     read_header,
 )
-from softcurve.description.robot import MAX_BEND
 from softcurve.simulation.solvers._actuated import actuated_derivative
 
 STATISTICS = ("steps", "rhs_evaluations", "jacobian_evaluations", "linear_solver_setups",
@@ -165,7 +164,6 @@ def options(rtol, atol, max_steps, *, max_order=0, family=1, settled_ratio=0.0,
         max_order=max_order or 0,
         family=family,
         settled_ratio=settled_ratio,
-        max_bend=MAX_BEND,
         columns_tested=int(columns_tested),
         helper=constants["HELPER_SHARED"] if helper else constants["HELPER_NONE"],
     )
@@ -188,10 +186,15 @@ class DriverProblem:
         The same state derivative over lanes
         (``softcurve.simulation.solvers._driver.lanes_derivative``): members are then
         integrated in groups of its width, ``self.width`` (else 1).
+    domain : NativeFunction, optional
+        The model's compiled ``domain(q, p)`` (1 inside, 0 outside), which the driver
+        calls at its outputs with each member's parameters; None: no configuration is
+        outside (an entry not finite still is).
     """
 
-    def __init__(self, rhs, n_state, n, n_parameters, force=None, inputs=None, lanes=None):
-        functions = [rhs] if force is None else [rhs, force]
+    def __init__(self, rhs, n_state, n, n_parameters, force=None, inputs=None, lanes=None,
+                 domain=None):  # fmt: skip
+        functions = [f for f in (rhs, force, domain) if f is not None]
         self._keep = [*functions, lanes]  # the functions and bounds outlive the struct
         self.width = 1 if lanes is None else lanes.width
         lag = inputs is not None and inputs.time_constant is not None
@@ -203,6 +206,7 @@ class DriverProblem:
         self.struct = ProblemStruct(
             f=rhs.address,
             force=None if force is None else force.address,
+            domain=None if domain is None else domain.address,
             nx=n_state,
             nu=n,
             np=n_parameters,
@@ -245,8 +249,9 @@ def problem(model, inputs=None, lanes: bool = False) -> DriverProblem | None:
             if force is None:
                 return None
         vectors = lanes_derivative(model, inputs) if lanes else None
+        domain = model.compiled_function("domain")
         return DriverProblem(
-            rhs, model.n_state, model.n, model.parameters.size, force, inputs, vectors
+            rhs, model.n_state, model.n, model.parameters.size, force, inputs, vectors, domain
         )
 
     key = ("native problem", None if inputs is None else inputs.key, lanes)
@@ -262,7 +267,7 @@ def _compiled_force(force: ca.Function) -> NativeFunction | None:
 
 
 def integrate(problem, lmm, x0, u, p, nominal, times, segments, settings, *, fastest=None,
-              longest=None, threads=1, out=None) -> tuple:  # fmt: skip
+              check_domain=False, threads=1, out=None) -> tuple:  # fmt: skip
     """Integrate members from ``x0`` at ``times[0]`` over the output ``times``, restarting
     CVODES at the end of every segment, with one constant input per member and segment;
     in groups of ``problem.width`` consecutive members (``groups.c``).
@@ -294,9 +299,11 @@ def integrate(problem, lmm, x0, u, p, nominal, times, segments, settings, *, fas
         state, steps per output, largest order, the settled switch's ratio).
     fastest : ndarray, shape (B,), optional
         Fastest rate of each member's initial linearization [1/s] (0 or None: no switch).
-    longest : ndarray, shape (B, n_segments), optional
-        Longest length of each segment in the model's domain [m]: a member stops at its
-        first output outside the domain (None: no check).
+    check_domain : bool
+        A member stops at its first output whose configuration lies outside the model's
+        domain, by the model's compiled ``domain(q, p)`` with the member's own ``p`` (the
+        rule of :mod:`softcurve.description.elements`); at any output with an entry not
+        finite in any case.
     threads : int
         Threads over the members.
     out : ndarray, shape (B, T, N), optional
@@ -324,21 +331,18 @@ def integrate(problem, lmm, x0, u, p, nominal, times, segments, settings, *, fas
     fastest = np.zeros(count) if fastest is None else fastest
     arrays = [np.ascontiguousarray(a, dtype=np.float64) for a in (fastest, u, p, nominal)]
     lmm = np.ascontiguousarray(lmm, dtype=np.int32)
-    if longest is not None:
-        longest = np.ascontiguousarray(longest, dtype=np.float64)
     times = np.ascontiguousarray(times, dtype=np.float64)
     reached, flags, used = (np.zeros(count, dtype=np.int32) for _ in range(3))
     counts = np.zeros((count, len(STATISTICS)), dtype=np.int64)
     call = driver()
-    n_seg = 0 if longest is None else longest.shape[1]
 
     def run(a: int, b: int) -> None:
         fast, uu, pp, nom = (arr[a:b].ctypes.data for arr in arrays)
         call(ctypes.byref(problem.struct), ctypes.byref(settings), b - a, lmm[a:].ctypes.data,
-             fast, uu, pp, nom, None if longest is None else longest[a:].ctypes.data, n_seg,
-             times.ctypes.data, times.size, ends.ctypes.data, restart.ctypes.data, ends.size,
-             out[a:b].ctypes.data, reached[a:].ctypes.data, flags[a:].ctypes.data,
-             used[a:].ctypes.data, counts[a:b].ctypes.data)  # fmt: skip
+             fast, uu, pp, nom, int(check_domain), times.ctypes.data, times.size,
+             ends.ctypes.data, restart.ctypes.data, ends.size, out[a:b].ctypes.data,
+             reached[a:].ctypes.data, flags[a:].ctypes.data, used[a:].ctypes.data,
+             counts[a:b].ctypes.data)  # fmt: skip
 
     threads = max(1, min(threads, count))
     # shares of whole groups: the grouping, hence every result, is that of one thread
@@ -369,25 +373,6 @@ def evaluate(problem, x, u, p) -> np.ndarray:
                 p.ctypes.data, out.ctypes.data):  # fmt: skip
         raise RuntimeError("the compiled right-hand side failed")
     return out
-
-
-def outside(q, longest) -> np.ndarray:
-    """The driver's domain test of configurations ``q`` (K, 3 n_segments): whether each
-    lies outside the model's domain (the rule of
-    :func:`softcurve.description.robot.in_domain`), shape (K,), bool.
-
-    Parameters
-    ----------
-    q : ndarray, shape (K, 3 n_segments)
-        Configurations [m, 1/m, 1/m].
-    longest : ndarray, shape (n_segments,)
-        Longest length of each segment in the domain [m].
-    """
-    q, longest = (np.ascontiguousarray(a, dtype=np.float64) for a in (q, longest))
-    flags = np.zeros(q.shape[0], dtype=np.int32)
-    entry("softcurve_outside")(q.ctypes.data, q.shape[0], longest.ctypes.data, longest.size,
-                                MAX_BEND, flags.ctypes.data)  # fmt: skip
-    return flags.astype(bool)
 
 
 def reason(flag: int) -> str:

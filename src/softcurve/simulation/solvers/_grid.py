@@ -10,7 +10,6 @@ from dataclasses import dataclass
 import numpy as np
 
 from softcurve.base.validation import ParameterError
-from softcurve.description.robot import MAX_STRETCH
 from softcurve.simulation.solvers import _driver as c_driver
 from softcurve.simulation.solvers._policy import (
     LEFT_DOMAIN,
@@ -70,24 +69,6 @@ def outside_domain(x: np.ndarray, robot, rest_lengths=None) -> np.ndarray:
     """
     inside = robot.inside(x[..., : robot.n], rest_lengths)
     return ~(inside & np.all(np.isfinite(x), axis=-1))
-
-
-def driver_domain(robot, rest_lengths):
-    """What the C driver checks the domain with at its outputs: the longest length of each
-    segment ``MAX_STRETCH l0`` [m] (shape of ``rest_lengths``) for a robot of
-    constant-curvature segments, None for others (their domain is checked at the outputs
-    here, :class:`Domain`).
-
-    Parameters
-    ----------
-    robot : Robot
-        The robot.
-    rest_lengths : array_like, shape (N,) or (B, N)
-        Rest lengths [m], per member where they differ.
-    """
-    if not robot.constant_curvature:
-        return None
-    return MAX_STRETCH * np.asarray(rest_lengths, dtype=np.float64)
 
 
 def domain_reason(x: np.ndarray, robot, t: float, rest_lengths=None) -> str:
@@ -236,12 +217,11 @@ def _run_native(engine, grid, states, inputs, domain, segments, fastest, changes
         restart.extend([False] * (b - a))
     start, last = segments[0][0], segments[-1][1]
     starts = np.array([start, *ends[:-1]], dtype=int)
-    longest = driver_domain(domain.robot, domain.robot.rest_lengths)
     # the driver writes into the run's own array: no copy of the outputs
     span = states[start : last + 1]
     _, reached, flags = engine.run_native(
         span[:1], inputs[starts][None], grid[start : last + 1], np.array(ends) - start,
-        restart, fastest, longest, span[None],
+        restart, fastest, True, span[None],
     )  # fmt: skip
     done = start + int(reached[0])
     if flags[0] == 0:

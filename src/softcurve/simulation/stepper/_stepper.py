@@ -363,20 +363,18 @@ class Stepper:
             if failure is not None:
                 failures = dict.fromkeys(range(count), failure)
         x_next = out[:, : self._n_state]
-        robot, rest = self._model.robot, self._model.robot.rest_lengths
-        bad_start = outside_domain(x, robot, rest)
-        bad = bad_start | outside_domain(x_next, robot, rest)
+        robot = self._model.robot
+        bad_start = outside_domain(x, robot)
+        bad = bad_start | outside_domain(x_next, robot)
         bad[list(failures)] = True
         reasons = [None] * count
         for i in np.flatnonzero(bad):
             if i in failures:
                 reasons[i] = f"the compiled step failed: {failures[i]}"
             elif bad_start[i]:
-                reasons[i] = (
-                    domain_reason(x[i], robot, 0.0, rest) + " (the state given to the step)"
-                )
+                reasons[i] = domain_reason(x[i], robot, 0.0) + " (the state given to the step)"
             else:
-                reasons[i] = domain_reason(x_next[i], robot, self._period, rest) + (
+                reasons[i] = domain_reason(x_next[i], robot, self._period) + (
                     " (t from the start of the step)"
                 )
         tip = out[:, self._n_state : self._n_state + 3]

@@ -235,23 +235,16 @@ void *create(int lmm, double t0, N_Vector y, CVRhsFn f, void *data, double rtol,
                        max_order);
 }
 
-/* Whether the configuration q (n_seg segments of (l, kx, ky)) lies outside the model's
- * domain: l in (0, longest], bending angle l |kappa| <= max_bend, finite (the rule of
- * softcurve.description.robot.in_domain, which words the message). */
-int outside(const double *x, int width, const double *longest, int n_seg,
-                   double max_bend) {
+/* driver_internal.h */
+int outside(sc_work *s, const double *x, int width, const double *p) {
+    const sc_function *fn = s->fn;
+    double inside = 0.0;
     int i;
     for (i = 0; i < width; ++i)
         if (!isfinite(x[i])) return 1;
-    /* Squared, not hypot, at every output (hypot was a fifth of an output's cost); within
-     * rounding of the bound, Python's own test (l hypot(kx, ky) <= max_bend), so that
-     * both always agree. A square that overflows is outside, as it should be. */
-    for (i = 0; longest != NULL && i < n_seg; ++i) {
-        double l = x[3 * i], kx = x[3 * i + 1], ky = x[3 * i + 2];
-        double bend2 = l * l * (kx * kx + ky * ky), bound2 = max_bend * max_bend;
-        int inside = fabs(bend2 - bound2) > 1e-12 * bound2 ? bend2 < bound2
-                                                           : l * hypot(kx, ky) <= max_bend;
-        if (!(l > 0.0 && l <= longest[i] && inside)) return 1;
-    }
-    return 0;
+    if (fn->domain == NULL || p == NULL) return 0;
+    s->c.arg[0] = x;
+    s->c.arg[1] = p;
+    s->c.res[0] = &inside;
+    return fn->domain(s->c.arg, s->c.res, s->c.iw, s->c.w, 0) != 0 || inside == 0.0;
 }

@@ -69,10 +69,11 @@ void *create_with(int lmm, double t0, N_Vector y, CVRhsFn f, CVPrecSetupFn setup
 /* The same on the callbacks above (f's data starts with the sc_work they read). */
 void *create(int lmm, double t0, N_Vector y, CVRhsFn f, void *data, double rtol, double atol,
              long max_steps, int max_order);
-/* Whether the configuration q (n_seg segments of (l, kx, ky)) lies outside the model's
- * domain: l in (0, longest], bending angle l |kappa| <= max_bend, finite (the rule of
- * softcurve.description.robot.in_domain, which words the message). */
-int outside(const double *x, int width, const double *longest, int n_seg, double max_bend);
+/* Whether the state x (width entries, the configuration first) lies outside the model's
+ * domain: an entry not finite, or, with parameters p (NULL: no such check), the
+ * configuration outside by the model's domain(q, p) (s's function's, on s's work arrays;
+ * the rule of softcurve.description.elements, whose Python side words the message). */
+int outside(sc_work *s, const double *x, int width, const double *p);
 
 /* One part of the columns' right-hand side: its function, arrays and output. */
 typedef struct {

@@ -1,7 +1,6 @@
 /* The driver's small entries (softcurve_driver.h): the right-hand side at many states in
- * one call (the linearization that picks the integrator family), the domain test, which
- * the tests check against Python's rule, and the sizes of the structs, which the tests
- * check against Python's declarations. */
+ * one call (the linearization that picks the integrator family) and the sizes of the
+ * structs, which the tests check against Python's declarations. */
 #include <stdlib.h>
 
 #include "driver_internal.h"
@@ -27,15 +26,6 @@ SC_EXPORT int softcurve_rhs(const sc_function *fn, int count, const double *x, c
     free(ones);
     work_close(&s);
     return status;
-}
-
-/* outside() for `count` configurations q[b, :] (n_seg segments each): flags[b]; the
- * tests check it against Python's rule. */
-SC_EXPORT void softcurve_outside(const double *q, int count, const double *longest, int n_seg,
-                                 double max_bend, int *flags) {
-    int b;
-    for (b = 0; b < count; ++b)
-        flags[b] = outside(q + (long)b * 3 * n_seg, 3 * n_seg, longest, n_seg, max_bend);
 }
 
 SC_EXPORT long softcurve_sizeof_sc_function(void) { return (long)sizeof(sc_function); }

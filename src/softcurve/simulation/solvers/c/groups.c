@@ -140,8 +140,8 @@ typedef struct {
     const sc_function *fn;
     const int *lmm, *ends, *restart;
     const sc_options *o;
-    const double *fastest, *u, *p, *nominal, *longest, *times;
-    int n, inputs, n_seg, k, n_ends;
+    const double *fastest, *u, *p, *nominal, *times;
+    int n, inputs, check_domain, k, n_ends;
     double *out;
     int *reached, *flag, *used_bdf;
     long *stats;
@@ -237,8 +237,8 @@ static int integrate_members(sc_call *c, int b, int g) {
                 double *row = c->out + ((long)(b + l) * c->k + i) * n;
                 for (j = 0; j < n; ++j) row[j] = out_y[l * n + j] * nominal[l * n + j];
                 c->reached[b + l] = i + 1;
-                if (outside(row, n, c->longest ? c->longest + (long)(b + l) * c->n_seg : NULL,
-                            c->n_seg, c->o->max_bend))
+                if (outside(&c->s, row, n,
+                            c->check_domain ? c->p + (long)(b + l) * c->fn->np : NULL))
                     c->flag[b + l] = stop = 1;
             }
         }
@@ -259,18 +259,18 @@ static int integrate_members(sc_call *c, int b, int g) {
 /* softcurve_driver.h */
 SC_EXPORT int softcurve_cvodes(const sc_function *fn, const sc_options *options, int count,
                                const int *lmm, const double *fastest, const double *u,
-                               const double *p, const double *nominal, const double *longest,
-                               int n_seg, const double *times, int k, const int *ends,
-                               const int *restart, int n_ends, double *out, int *reached,
-                               int *flag, int *used_bdf, long *stats) {
+                               const double *p, const double *nominal, int check_domain,
+                               const double *times, int k, const int *ends, const int *restart,
+                               int n_ends, double *out, int *reached, int *flag, int *used_bdf,
+                               long *stats) {
     int width = fn->lanes != NULL && fn->width > 1 ? fn->width : 1, b, g, l, i, e, failed;
     long *kept = (long *)malloc(sizeof(long) * STATS * width); /* counters before a group */
     sc_call c;
     memset(&c, 0, sizeof(c));
     c.fn = fn, c.o = options, c.lmm = lmm, c.ends = ends, c.restart = restart;
-    c.fastest = fastest, c.u = u, c.p = p, c.nominal = nominal, c.longest = longest;
+    c.fastest = fastest, c.u = u, c.p = p, c.nominal = nominal, c.check_domain = check_domain;
     c.times = times, c.n = fn->nx + (fn->lag ? fn->m : 0), c.inputs = fn->force ? fn->m : fn->nu;
-    c.n_seg = n_seg, c.k = k, c.n_ends = n_ends, c.out = out, c.reached = reached, c.flag = flag;
+    c.k = k, c.n_ends = n_ends, c.out = out, c.reached = reached, c.flag = flag;
     c.used_bdf = used_bdf, c.stats = stats;
     c.y[0] = N_VNew_Serial(c.n), c.dky[0] = N_VNew_Serial(c.n);
     c.y[1] = N_VNew_Serial((long)width * c.n), c.dky[1] = N_VNew_Serial((long)width * c.n);

@@ -25,14 +25,16 @@ typedef int (*lanes_fn)(const double *x, const double *u, const double *p, doubl
                         double *w);
 
 /* A model described to the driver: its generated right-hand side f(x, tau, p) (nx states,
- * nu forces, np parameters) with its work sizes (the largest over f and force), and
+ * nu forces, np parameters) with its work sizes (the largest over f, force and domain),
  * optionally an actuator's force(q, v) -> tau = H(q) v with m inputs: the member's input
  * is then v (m) or, with lag, the command of v, whose m states follow x with the rate
- * (clip(command, lower, upper) - v) / time_constant; and optionally the same state
- * derivative over lanes. */
+ * (clip(command, lower, upper) - v) / time_constant; the model's generated
+ * domain(q, p) -> 1 inside, 0 outside (the elements' rule, written once in Python; NULL:
+ * no configuration is outside); and optionally the same state derivative over lanes. */
 typedef struct {
     casadi_fn f;
     casadi_fn force;
+    casadi_fn domain;
     int nx;
     int nu;
     int np;
@@ -59,7 +61,6 @@ typedef struct {
     int max_order;        /* the largest order of the method; 0: CVODES's own */
     int family;           /* softcurve_sensitivities: 1 Adams, 2 BDF */
     double settled_ratio; /* softcurve_cvodes: settled when max |xdot| ratio < fastest */
-    double max_bend;      /* the domain's largest bending angle of a segment [rad] */
     int columns_tested;   /* softcurve_sensitivities: the columns in the error test too */
     int helper;           /* softcurve_sensitivities: HELPER_NONE or HELPER_SHARED */
 } sc_options;
@@ -74,7 +75,8 @@ enum { HELPER_NONE = 0, HELPER_SHARED = 1 };
  * starts with family lmm[b] (1 Adams, 2 BDF); where restart[s] and fastest[b] > 0, segment s
  * is integrated with BDF if the member has settled (max |xdot / nominal| * settled_ratio <
  * fastest[b]) and with lmm[b] otherwise. A member stops at its first output outside the
- * domain (longest[b, :] per segment, NULL: no check) or at a failure of CVODES. Writes
+ * domain (an entry not finite, or, with check_domain, the configuration outside by
+ * fn->domain with the member's parameters p[b, :]) or at a failure of CVODES. Writes
  * out[b, i, :], reached[b] (outputs filled, the one outside the domain included), flag[b]
  * (0, 1 outside the domain, CVODES's negative flag, -100 when it could not be set up),
  * used_bdf[b], and adds to stats[b, :]: steps, right-hand sides, Jacobians, linear-solver
@@ -85,10 +87,10 @@ enum { HELPER_NONE = 0, HELPER_SHARED = 1 };
  * what a member then reaches are NaN). Returns 0. */
 SC_EXPORT int softcurve_cvodes(const sc_function *fn, const sc_options *options, int count,
                                const int *lmm, const double *fastest, const double *u,
-                               const double *p, const double *nominal, const double *longest,
-                               int n_seg, const double *times, int k, const int *ends,
-                               const int *restart, int n_ends, double *out, int *reached,
-                               int *flag, int *used_bdf, long *stats);
+                               const double *p, const double *nominal, int check_domain,
+                               const double *times, int k, const int *ends, const int *restart,
+                               int n_ends, double *out, int *reached, int *flag, int *used_bdf,
+                               long *stats);
 
 /* Integrate from out[0, :] = (x0, vec(S0)) (physical units) over times[0..count) and
  * write out[i, :] = (x, vec(S)) at times[i]. fn describes f(x, u, d) (nx states, nu
@@ -113,11 +115,6 @@ SC_EXPORT int softcurve_sensitivities(const sc_function *fn, const sc_options *o
  * parameters p (shared): xdot[b, :]. Returns 0, or -100 when out of memory. */
 SC_EXPORT int softcurve_rhs(const sc_function *fn, int count, const double *x, const double *u,
                             const double *p, double *xdot);
-
-/* Whether each of `count` configurations q[b, :] (n_seg segments of (l, kx, ky)) lies
- * outside the model's domain: flags[b]; the tests check it against Python's rule. */
-SC_EXPORT void softcurve_outside(const double *q, int count, const double *longest, int n_seg,
-                                 double max_bend, int *flags);
 
 /* sizeof of the structs above, for the check that Python's declarations match. */
 SC_EXPORT long softcurve_sizeof_sc_function(void);
