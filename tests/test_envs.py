@@ -269,25 +269,24 @@ def test_the_benchmark_makes_its_vectors_as_a_user_does():
     assert bench._make(1, "ROS34PW2", {}).episodes.setup.stepper.method == "ROS34PW2"
 
 
-def test_a_robot_carrying_a_gripper_reaches(rng):
+def test_a_robot_carrying_a_gripper_reaches():
     """The tasks take any robot: the paper's segment with a rigid gripper at its tip,
-    the default bellows on its one soft segment; the observation's tip is the gripper's.
-    A robot whose soft segments the default bellows do not fit (all six strains) needs
-    its own actuator, said in one line."""
-    from tests.test_kinds import gripper, six_strain_gripper_robot
+    and a six-strain segment with it, each with the default bellows on its soft segment
+    (none on the gripper)."""
+    from tests.test_kinds import gripper, six_strain_segment
 
-    robot = sc.Robot(segments=(sc.presets.ifac2020().segments[0], gripper()))
-    env = gymnasium.make("softcurve/Reach-v0", robot=robot, max_episode_steps=STEPS)
-    setup = env.unwrapped.episodes.setup
-    assert setup.stepper.model.robot == robot and setup.stepper.actuator.n == robot.n == 3
-    observation, _ = env.reset(seed=3)
-    for _ in range(STEPS):
-        observation, reward, terminated, truncated, info = env.step(env.action_space.sample())
-        assert np.isfinite(reward)
-    model = setup.stepper.model
-    assert model.pose(robot.rest_configuration(), 1.0).position[0] > 0  # the gripper's tip
-    with pytest.raises(sc.ParameterError, match=r"^actuator is needed: the default, three"):
-        build_setup(robot=six_strain_gripper_robot(), duration=1.0)
+    paper = sc.Robot(segments=(sc.presets.ifac2020().segments[0], gripper()))
+    thick = sc.Robot(segments=(six_strain_segment(radius=0.015), gripper()))  # bellows at 12 mm
+    for robot in (paper, thick):
+        env = gymnasium.make("softcurve/Reach-v0", robot=robot, max_episode_steps=STEPS)
+        stepper = env.unwrapped.episodes.setup.stepper
+        assert stepper.model.robot == robot
+        assert [b.segments for b in stepper.actuator.bellows] == [(0,)] * 3
+        env.reset(seed=3)
+        for _ in range(STEPS):
+            _, reward, terminated, truncated, _ = env.step(env.action_space.sample())
+            assert np.isfinite(reward) and not terminated
+        assert truncated
 
 
 def test_a_six_strain_robot_with_a_gripper_is_an_environment():

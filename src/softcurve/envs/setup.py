@@ -96,15 +96,21 @@ env_parameters = parameters_from(ENV_PARAMETERS)
 """Decorator: substitute the shared entries of :data:`ENV_PARAMETERS` into docstrings."""
 
 
-def default_actuator(n_segments: int = 1) -> PneumaticActuator:
+def default_actuator(n_segments: int = 1, *, robot: Robot | None = None) -> PneumaticActuator:
     """Three bellows per segment, as ``examples/pneumatic.toml`` (:data:`DEFAULT_BELLOWS`).
 
     Parameters
     ----------
     n_segments : int
-        Number of soft segments of the robot (its rigid bodies carry none).
+        Number of segments of a robot of constant-curvature segments alone.
+    robot : Robot, optional
+        A robot of any elements instead: three bellows on each of its soft segments
+        (its rigid bodies carry none).
     """
-    return PneumaticActuator.three_bellows(n_segments=n_segments, **DEFAULT_BELLOWS)
+    if robot is None or robot.constant_curvature:
+        count = n_segments if robot is None else robot.n_segments
+        return PneumaticActuator.three_bellows(n_segments=count, **DEFAULT_BELLOWS)
+    return PneumaticActuator.three_bellows(elements=robot, **DEFAULT_BELLOWS)
 
 
 @dataclass(frozen=True)
@@ -249,14 +255,7 @@ def build_setup(
     if not isinstance(robot, Robot):
         raise ParameterError(f"robot must be a softcurve.Robot, got {robot!r}")
     if actuator is None:
-        soft = sum(size > 0 for size in robot.sizes)  # rigid bodies carry no bellows
-        actuator = default_actuator(soft)
-        if actuator.n != robot.n:
-            raise ParameterError(
-                f"actuator is needed: the default, three bellows on each of the {soft} soft "
-                f"segments, acts on n = {actuator.n} coordinates, the robot has n = {robot.n}"
-                f" ({', '.join(sorted({s.kind for s in robot.segments}))})"
-            )
+        actuator = default_actuator(robot=robot)
     if not isinstance(actuator, Actuator) or actuator.n != robot.n:
         raise ParameterError(
             f"actuator must be a softcurve.Actuator acting on the robot's n = {robot.n} "
