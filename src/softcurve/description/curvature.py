@@ -259,14 +259,28 @@ class Segment(Element):
     planar_pairs = ((1, 2, (1.0, 0.0)),)
     """``(kx, ky)`` turns with the robot; a representative bends toward +x."""
 
+    @element_parameters
     def bent_toward(self, q, curvature: float, azimuth: float) -> np.ndarray:
-        """``(kx, ky) = curvature (cos azimuth, sin azimuth)``."""
+        """``(kx, ky) = curvature (cos azimuth, sin azimuth)``.
+
+        Parameters
+        ----------
+        %(q)s
+        %(curvature)s
+        %(azimuth)s
+        """
         q = np.array(q, dtype=np.float64)
         q[1:3] = curvature * np.cos(azimuth), curvature * np.sin(azimuth)
         return q
 
+    @element_parameters
     def bending_curvature(self, q) -> np.ndarray:
-        """``hypot(kx, ky)``."""
+        """``hypot(kx, ky)``.
+
+        Parameters
+        ----------
+        %(q)s
+        """
         q = np.asarray(q, dtype=np.float64)
         return np.hypot(q[..., 1], q[..., 2])
 

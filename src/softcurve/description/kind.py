@@ -42,6 +42,8 @@ ELEMENT_PARAMETERS = {
     "index": ("int", "The element's position in the chain (0 first), for the message."),
     "place": ("callable", '``place(k)`` names entry ``k`` of its coordinates (``"q[3]"``).'),
     "values": ("dict", "Field name -> array, the element's numbers (its layout's fields)."),
+    "curvature": ("float", "The bending curvature [1/m] of the arc."),
+    "azimuth": ("float", "Where the tip moves, an azimuth [rad] of the element's base frame."),
     "name": ("str", 'The field\'s attribute path on the element (``"mass"``).'),
     "size": ("int", "Number of entries (rows and columns of a matrix)."),
     "units": ("str or sequence of str", "One unit for every entry, or one per entry."),
@@ -218,9 +220,15 @@ class Element:
         the floor of the integrator's state scale."""
         raise NotImplementedError
 
+    @element_parameters
     def bending_curvature(self, q) -> np.ndarray:
-        """The magnitude of the element's bending curvature ``|kappa|`` [1/m] at
-        configurations ``q[..., n_i]``, shape (...): 0 for a body that does not bend."""
+        """The magnitude of the element's bending curvature ``|kappa|`` [1/m], shape
+        (...): 0 for a body that does not bend.
+
+        Parameters
+        ----------
+        %(q)s
+        """
         return np.zeros(np.shape(q)[:-1])
 
     @property
@@ -235,10 +243,18 @@ class Element:
         it is symmetric, the residual at the turned configurations tells)."""
         return ()
 
+    @element_parameters
     def bent_toward(self, q, curvature: float, azimuth: float) -> np.ndarray:
-        """``q`` (n_i,) with the element bent as an arc of ``curvature`` [1/m] whose tip
-        moves toward the azimuth ``azimuth`` [rad] of its base frame (a guess of the
-        statics); unchanged for a body that does not bend."""
+        """``q`` (n_i,) with the element bent as an arc of ``curvature`` whose tip moves
+        toward ``azimuth`` (a guess of the statics); unchanged for a body that does not
+        bend.
+
+        Parameters
+        ----------
+        %(q)s
+        %(curvature)s
+        %(azimuth)s
+        """
         return np.array(q, dtype=np.float64)
 
     def search_bounds(self) -> np.ndarray:
@@ -348,7 +364,15 @@ def margins_hold(margins):
 def failed(margins, what: str) -> bool:
     """Whether a margin named ``what`` of ``margins`` (of one configuration, floats)
     fails: the test the kinds' messages are worded from, so that a message is written
-    exactly where the rule puts a configuration outside."""
+    exactly where the rule puts a configuration outside.
+
+    Parameters
+    ----------
+    margins : sequence of Margin
+        One configuration's margins.
+    what : str
+        Which bound (``"length"``, ``"bend"`` ...).
+    """
     return not all(bool(m.holds()) for m in margins if m.what == what)
 
 

@@ -408,10 +408,18 @@ class StrainSegment(Element):
                 return None
         return tuple(pairs)
 
+    @element_parameters
     def bent_toward(self, q, curvature: float, azimuth: float) -> np.ndarray:
         """``(bend_x, bend_y) = curvature (-sin azimuth, cos azimuth)`` where chosen (the
         curvature vector ``(kx, ky)`` of a constant-curvature segment is ``(bend_y,
-        -bend_x)``)."""
+        -bend_x)``).
+
+        Parameters
+        ----------
+        %(q)s
+        %(curvature)s
+        %(azimuth)s
+        """
         q = np.array(q, dtype=np.float64)
         values = {"bend_x": -curvature * np.sin(azimuth), "bend_y": curvature * np.cos(azimuth)}
         for k, name in enumerate(self.strains):
@@ -419,8 +427,14 @@ class StrainSegment(Element):
                 q[k] = values[name]
         return q
 
+    @element_parameters
     def bending_curvature(self, q) -> np.ndarray:
-        """``hypot(bend_x, bend_y)`` of the full strain (rest values where not chosen)."""
+        """``hypot(bend_x, bend_y)`` of the full strain (rest values where not chosen).
+
+        Parameters
+        ----------
+        %(q)s
+        """
         xi = self.full_strain(q)
         return np.hypot(xi[..., 0], xi[..., 1])
 
