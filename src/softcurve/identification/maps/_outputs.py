@@ -62,6 +62,13 @@ def _strain(model, index: int, q, p):
     return ca.vertcat(*entries), p[robot.layout.index(f"{prefix}.rest_length")]
 
 
+def _curvature_start(segment: int) -> int:
+    """Where a map built without a model reads segment ``segment``'s ``(l, kx, ky)``:
+    every element before it a constant-curvature segment (the fits check it,
+    :func:`_built_for`)."""
+    return 3 * segment
+
+
 def _built_for(model, segment):
     """The check of the robot a map is used with: the structure of ``model``'s robot, or
     (no model) constant-curvature coordinates ``(l, kx, ky)`` at ``q[3 segment]``."""
@@ -78,11 +85,13 @@ def _built_for(model, segment):
     def problem(robot):
         index = segment % max(robot.n_segments, 1)
         if segment < robot.n_segments and (
-            robot.segments[index].kind == Segment.kind and robot.offsets[index] == 3 * index
+            robot.segments[index].kind == Segment.kind
+            and robot.offsets[index] == _curvature_start(index)
         ):
             return None
         return (
-            f"the output map reads (l, kx, ky) of segment {segment} at q[{3 * segment}]; "
+            f"the output map reads (l, kx, ky) of segment {segment} at "
+            f"q[{_curvature_start(segment)}]; "
             "this robot's elements are not all constant-curvature segments there: build "
             "the map with model="
         )
@@ -115,7 +124,7 @@ def bending_angle_map(
         a robot where they are not.
     """
     factor = 180.0 / np.pi if degrees else 1.0
-    start, strain = 3 * segment, None
+    start, strain = _curvature_start(segment), None
     if model is not None:
         index, element = _element(model, segment, "bending angle")
         start = model.robot.offsets[index]
@@ -159,7 +168,7 @@ def curvature_map(segment: int = 0, *, offsets: tuple[str, str] | None = None, m
     model : Model, optional
         The model the map is for (as :func:`bending_angle_map`'s).
     """
-    start, strain = 3 * segment, None
+    start, strain = _curvature_start(segment), None
     if model is not None:
         index, element = _element(model, segment, "curvature")
         start = model.robot.offsets[index]
