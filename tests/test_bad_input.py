@@ -164,7 +164,7 @@ def test_a_trajectory_drawn_with_a_model_of_another_size_is_refused(paper_model,
     t = np.array([0.0, 0.1])
     q = np.tile([0.064, 10.0, 0.0, 0.064, 10.0, 0.0], (2, 1))
     two = sc.Trajectory(t=t, q=q, qd=np.zeros_like(q), lam=np.zeros((2, 6)))
-    message = r"the trajectory has 6 coordinates \(2 segment\(s\)\), the model 3 \(1 segment\(s\)\)"
+    message = r"the trajectory has 6 coordinates, the model 3 \(1 element\(s\)\)"
     with pytest.raises(ParameterError, match=message):
         two.animate(tmp_path / "a.gif", model=paper_model)
     with pytest.raises(ParameterError, match=message):

@@ -6,13 +6,16 @@ import os
 import shutil
 import subprocess
 import sys
+import textwrap
 from pathlib import Path
 
 import numpy as np
 import pytest
+import tomllib
 
 import softcurve as sc
 from softcurve.cli import main
+from softcurve.scenarios.config import scenario_from_dict
 
 EXAMPLES = Path(__file__).resolve().parent.parent / "examples"
 
@@ -169,3 +172,155 @@ def test_a_rerun_names_the_files_it_replaced_and_those_it_left(tmp_path, capsys)
     printed = capsys.readouterr().out.splitlines()
     assert "  replaced    trajectory.csv, states.png, tip.png of an earlier run" in printed
     assert "  left        trajectory.npz of an earlier run (not written now)" in printed
+
+
+def test_a_six_strain_robot_with_a_gripper_runs_from_its_file(tmp_path, capsys):
+    """examples/twisting_gripper.toml: a constant-strain segment with all six strains
+    and a rigid gripper on a moved, turned base, simulated end to end."""
+    from tests.test_kinds import six_strain_gripper_robot
+
+    scenario = sc.load_config(EXAMPLES / "twisting_gripper.toml")
+    robot = scenario.robot
+    assert robot.structure() == six_strain_gripper_robot().structure()
+    np.testing.assert_array_equal(robot.base_position, [0.0, 0.0, 0.2])
+    segment, gripper = robot.segments
+    assert segment.strains == sc.STRAINS and gripper.mass == 0.02
+    # from its material and section: E I, G J with G = E / 3, E A, rho A L0
+    r, e = 0.01, 1e6
+    assert segment.bending_stiffness.k0 == pytest.approx(e * np.pi * r**4 / 4, rel=1e-12)
+    assert segment.torsion_stiffness.k0 == pytest.approx(e / 3 * np.pi * r**4 / 2, rel=1e-12)
+    assert segment.stretch_stiffness.k0 == pytest.approx(e * np.pi * r**2, rel=1e-12)
+    assert segment.mass == pytest.approx(1070.0 * np.pi * r**2 * 0.1, rel=1e-12)
+    np.testing.assert_array_equal(gripper.inertia[0], [3e-6, 2e-7, 0.0])
+    out = tmp_path / "out"
+    code = main(["simulate", str(EXAMPLES / "twisting_gripper.toml"), "-o", str(out),
+                 "--no-progress"])  # fmt: skip
+    assert code == 0, capsys.readouterr().err
+    run = sc.load_trajectory(out / "trajectory.csv")
+    assert run.q.shape == (301, 6) and run.status == "success"
+    twist = run.q[:, sc.STRAINS.index("twist")]
+    assert np.abs(twist).max() > 1e-2  # the gripper's weight off the axis twists it
+    model = sc.Model(robot, compile=False)
+    np.testing.assert_allclose(run.tip[-1], model.pose(run.q[-1], 1.0).position, atol=1e-9)
+
+
+STRAIN_SEGMENT = """
+[robot]
+base_position = [0.0, 0.0, 0.1]
+[[robot.segments]]
+kind = "constant_strain"
+rest_length = 0.1
+mass = 0.03
+radius = 0.01
+strains = STRAINS
+bending_stiffness = { law = "linear", k0 = 8e-3 }
+LAWS
+"""
+
+
+@pytest.mark.parametrize(
+    ("strains", "laws", "expected"),
+    [
+        ('["bend_x", "twirl"]', "", "robot.segments[0].strains: unknown strain 'twirl'"),
+        ('["bend_x", "twist"]', "", "robot.segments[0].torsion_stiffness: is required"),
+        (
+            '["bend_x"]',
+            'shear_stiffness = { law = "linear", k0 = 90.0 }',
+            "robot.segments[0].shear_stiffness: the segment chooses none of shear_x, shear_y",
+        ),
+        ('"bend_x"', "", "robot.segments[0].strains: must be a non-empty array of strings"),
+        (
+            '["bend_x"]\ndamping = [1.0, 2.0]',
+            "",
+            "robot.segments[0]: damping must have shape (1, 1), got (2,)",
+        ),
+    ],
+)
+def test_a_bad_strain_segment_exits_2_naming_its_field(tmp_path, capsys, strains, laws, expected):
+    config = tmp_path / "bad.toml"
+    config.write_text(STRAIN_SEGMENT.replace("STRAINS", strains).replace("LAWS", laws))
+    assert main(["simulate", str(config), "-o", str(tmp_path / "out")]) == 2
+    error = capsys.readouterr().err
+    assert f"{config}: {expected}" in error, error
+    assert error.count("\n") == 1 and "Traceback" not in error
+    assert not (tmp_path / "out").exists()
+
+
+def test_a_strain_segment_of_laws_or_of_a_material_and_a_section():
+    laws = STRAIN_SEGMENT.replace("STRAINS", '["bend_x", "twist"]').replace(
+        "LAWS", 'torsion_stiffness = { law = "tanh", a1 = 5e-3, a2 = 2e-3, a3 = 4.0 }'
+    )
+    segment = scenario_from_dict(tomllib.loads(laws)).robot.segments[0]
+    assert segment.strains == ("bend_x", "twist") and segment.mass == 0.03
+    assert segment.bending_stiffness.k0 == 8e-3 and segment.torsion_stiffness.a3 == 4.0
+    tube = """
+    [robot]
+    [[robot.segments]]
+    kind = "constant_strain"
+    rest_length = 0.05
+    strains = ["bend_x", "bend_y", "twist"]
+    material = { youngs_modulus = 2e6, density = 1100.0, shear_modulus = 7e5 }
+    section = { outer_radius = 0.02, inner_radius = 0.01 }
+    """
+    segment = scenario_from_dict(tomllib.loads(textwrap.dedent(tube))).robot.segments[0]
+    second = np.pi * (0.02**4 - 0.01**4) / 4
+    assert segment.bending_stiffness.k0 == pytest.approx(2e6 * second, rel=1e-12)
+    assert segment.torsion_stiffness.k0 == pytest.approx(7e5 * 2 * second, rel=1e-12)
+    assert segment.radius == 0.02 and segment.shear_stiffness is None
+
+
+@pytest.mark.parametrize(
+    ("element", "expected"),
+    [
+        ("section = { radius = 0.01 }", "robot.segments[0].material: is required"),
+        (
+            "material = { youngs_modulus = 1e6, density = 1070.0 }\nsection = { radius = 0.01 }",
+            "robot.segments[0].material: a Material needs shear_modulus [Pa] or poisson_ratio",
+        ),
+        (
+            "material = { youngs_modulus = 1e6, density = 1e3, poisson_ratio = 0.5 }\n"
+            "section = { radius = 0.01 }\nmass = 0.03",
+            "robot.segments[0].mass: comes from material and section",
+        ),
+        (
+            "material = { youngs_modulus = 1e6, density = 1e3, poisson_ratio = 0.7 }\n"
+            "section = { radius = 0.01 }",
+            "robot.segments[0].material: ",
+        ),
+    ],
+)
+def test_a_bad_material_or_section_exits_2_naming_its_field(tmp_path, capsys, element, expected):
+    config = tmp_path / "bad.toml"
+    config.write_text(
+        '[robot]\n[[robot.segments]]\nkind = "constant_strain"\nrest_length = 0.1\n'
+        + element
+        + "\n"
+    )
+    assert main(["simulate", str(config), "-o", str(tmp_path / "out")]) == 2
+    error = capsys.readouterr().err
+    assert f"{config}: {expected}" in error, error
+    assert error.count("\n") == 1
+
+
+@pytest.mark.parametrize(
+    ("element", "expected"),
+    [
+        ('kind = "hinge"', "robot.segments[0].kind: must be one of"),
+        ('kind = "rigid_body"\nmass = 0.02', "robot.segments[0].tip_position: is required"),
+        (
+            'kind = "rigid_body"\nmass = 0.02\ntip_position = [0, 0, 0.03]\ninertia = [1, 2]',
+            "robot.segments[0].inertia: must be 3 numbers",
+        ),
+        (
+            'kind = "rigid_body"\nmass = -1.0\ntip_position = [0, 0, 0.03]',
+            "robot.segments[0]: mass must be >= 0",
+        ),
+    ],
+)
+def test_a_bad_rigid_body_exits_2_naming_its_field(tmp_path, capsys, element, expected):
+    config = tmp_path / "bad.toml"
+    config.write_text(f"[robot]\n[[robot.segments]]\n{element}\n")
+    assert main(["simulate", str(config), "-o", str(tmp_path / "out")]) == 2
+    error = capsys.readouterr().err
+    assert f"{config}: {expected}" in error, error
+    assert error.count("\n") == 1

@@ -96,3 +96,26 @@ def test_cli_codegen_hint_quotes_the_folder(tmp_path, monkeypatch, capsys):
     assert done.returncode == 0, done.stderr
     assert not list(tmp_path.rglob("pwned")), "the folder's name ran as a command"
     assert (folder / "test_softcurve_model").is_file()
+
+
+@pytest.mark.skipif(COMPILER is None, reason="no C compiler (cc, gcc or clang) found")
+def test_the_c_of_a_six_strain_robot_with_a_gripper_agrees_with_the_model(tmp_path):
+    """All six strains and a rigid gripper: the exported C, compiled, gives the model's
+    forward and inverse dynamics and potential forces at a state with every strain
+    away from rest."""
+    import softcurve as sc
+
+    from .test_kinds import six_strain_gripper_robot
+
+    model = sc.Model(six_strain_gripper_robot())
+    exported = export_c(model, tmp_path, prefix="gripper")
+    assert exported.success, exported.message
+    output = build_and_run_test(exported, optimization="-O0")
+    assert output.strip().endswith("OK")
+    c = parse(output)
+    s = exported.sample_inputs
+    q = s["forward_dynamics"][0]
+    assert q.shape == (6,) and np.all(q != model.robot.rest_configuration())
+    for name in ("forward_dynamics", "inverse_dynamics", "potential_force"):
+        value = np.array(getattr(model, name)(*s[name]))
+        assert_close(c[name], value, rtol=1e-12, scale=np.abs(value).max(), what=name)

@@ -267,3 +267,45 @@ def test_the_benchmark_makes_its_vectors_as_a_user_does():
     assert vector.episodes.setup.stepper is user.episodes.setup.stepper  # one stepper
     assert vector.episodes.setup.stepper.method == "RK4"
     assert bench._make(1, "ROS34PW2", {}).episodes.setup.stepper.method == "ROS34PW2"
+
+
+def test_a_robot_carrying_a_gripper_reaches():
+    """The tasks take any robot: the paper's segment with a rigid gripper at its tip,
+    and a six-strain segment with it, each with the default bellows on its soft segment
+    (none on the gripper)."""
+    from tests.test_kinds import gripper, six_strain_segment
+
+    paper = sc.Robot(segments=(sc.presets.ifac2020().segments[0], gripper()))
+    thick = sc.Robot(segments=(six_strain_segment(radius=0.015), gripper()))  # bellows at 12 mm
+    for robot in (paper, thick):
+        env = gymnasium.make("softcurve/Reach-v0", robot=robot, max_episode_steps=STEPS)
+        stepper = env.unwrapped.episodes.setup.stepper
+        assert stepper.model.robot == robot
+        assert [b.segments for b in stepper.actuator.bellows] == [(0,)] * 3
+        env.reset(seed=3)
+        for _ in range(STEPS):
+            _, reward, terminated, truncated, _ = env.step(env.action_space.sample())
+            assert np.isfinite(reward) and not terminated
+        assert truncated
+
+
+def test_a_six_strain_robot_with_a_gripper_is_an_environment():
+    """The tasks on a segment that bends, twists, shears and stretches, carrying a
+    gripper: actions drive its bending and twist through a constant input matrix; the
+    episode steps with the L-stable method (its shear and stretch are stiff)."""
+    from tests.test_kinds import six_strain_gripper_robot
+
+    robot = six_strain_gripper_robot()
+    h = np.zeros((robot.n, 3))
+    h[0, 0] = h[1, 1] = 8e-3  # bend_x, bend_y [N m^2 per unit input]
+    h[2, 2] = 5e-3  # twist
+    actuator = sc.ConstantPressureMap(constant=h, p_max=1.0, p_min=-1.0)
+    env = gymnasium.make(
+        "softcurve/Reach-v0", robot=robot, actuator=actuator, max_episode_steps=STEPS
+    )
+    assert env.unwrapped.episodes.setup.stepper.method == "ROS34PW2"
+    env.reset(seed=0)
+    for _ in range(STEPS):
+        _, reward, terminated, truncated, _ = env.step(np.array([1.0, -1.0, 1.0]))
+        assert np.isfinite(reward) and not terminated
+    assert truncated

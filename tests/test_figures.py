@@ -286,3 +286,83 @@ def test_the_equilibria_figure_draws_backbones_in_millimetres(table):
     rest = 1e3 * table.load.model.robot.rest_length  # [mm]
     assert 0.5 * rest < z.max() <= 1.5 * rest
     plt.close(figure)
+
+
+def test_a_rigid_body_and_a_twisted_segment_are_drawn(tmp_path):
+    """The shape figure of a six-strain segment twisted by 1 rad (straight) carrying a
+    gripper: the gripper a grey bar of its diameter from its base to its tip, the
+    segment's stripe at its radius turning by the twist in the top view."""
+    from matplotlib.patches import Polygon
+
+    from tests.test_kinds import six_strain_gripper_robot, twisted
+
+    robot = six_strain_gripper_robot()
+    model = sc.Model(robot, compile=False)
+    segment, gripper = robot.segments
+    q = twisted(robot, twist=10.0)  # 10 1/m over 0.1 m: 1 rad
+    figure = sc.figures.plot_configuration(model, q, points=41)
+    path = save_figure(figure, tmp_path / "gripper.png")
+    assert path.read_bytes()[:8] == PNG_SIGNATURE
+    side, top = figure.axes
+    bars = [p for p in side.patches if isinstance(p, Polygon)]
+    assert len(bars) == 1 and bars[0].get_label() == "rigid body"
+    base = model.pose(q, 0.5).position
+    tip = model.pose(q, 1.0).position
+    corners = bars[0].get_xy()[:4]  # mm, x-z
+    ends = 1e3 * np.array([base[[0, 2]], tip[[0, 2]]])
+    width = np.linalg.norm(corners[0] - corners[3])
+    np.testing.assert_allclose(width, 2e3 * gripper.radius, rtol=1e-12)
+    np.testing.assert_allclose(corners[:2].mean(axis=0) + corners[2:].mean(axis=0),
+                               ends.sum(axis=0), atol=1e-9)  # fmt: skip
+    stripe = next(line for line in top.lines if line.get_label() == "stripe (twist)")
+    x, y = stripe.get_data()
+    radius = 1e3 * segment.radius
+    np.testing.assert_allclose(np.hypot(x, y), radius, rtol=1e-9)  # on the surface
+    turned = np.unwrap(np.arctan2(y, x))
+    np.testing.assert_allclose(turned[-1] - turned[0], 1.0, rtol=1e-9)  # the twist
+    assert np.all(np.diff(turned) > 0)  # turning steadily, one way
+    paper = sc.figures.plot_configuration(sc.Model(sc.presets.ifac2020(), compile=False),
+                                          [0.064, 20.0, 0.0])  # fmt: skip
+    labels = [line.get_label() for ax in paper.axes for line in ax.lines]
+    assert "stripe (twist)" not in labels and not paper.axes[0].patches  # cannot twist
+
+
+def test_the_states_of_a_six_strain_robot_are_its_strains(tmp_path):
+    """One panel per strain, each element that has it a line (the gripper has none)."""
+    from tests.test_kinds import six_strain_gripper_robot, twisted
+
+    robot = six_strain_gripper_robot()
+    model = sc.Model(robot, compile=False)
+    run = sc.simulate(model, twisted(robot, twist=5.0), np.zeros(robot.n), t_final=0.01)
+    figure = run.plot()
+    labels = [ax.get_ylabel() for ax in figure.axes]
+    units = ("1/m",) * 3 + ("-",) * 3
+    assert labels == [f"{s} [{u}]" for s, u in zip(sc.STRAINS, units, strict=True)]
+    twist = figure.axes[sc.STRAINS.index("twist")].lines
+    assert len(twist) == 1
+    np.testing.assert_array_equal(twist[0].get_ydata(), run.q[:, sc.STRAINS.index("twist")])
+    save_figure(figure, tmp_path / "states.png")
+
+
+def test_the_animation_draws_the_gripper_and_the_stripe(tmp_path):
+    """Frames of a six-strain segment carrying a gripper: a dark grey bar (the gripper)
+    and an orange stripe (the twist) besides the blue segment; the paper's robot has
+    neither."""
+    from PIL import Image
+
+    from tests.test_kinds import six_strain_gripper_robot, twisted
+
+    def colours(model, q0):
+        run = sc.simulate(model, q0, np.zeros(model.n), t_final=0.04)
+        path = sc.figures.animate(run, tmp_path / "robot.gif", model, fps=25, figsize=(3, 3))
+        with Image.open(path) as gif:
+            rgb = np.asarray(gif.convert("RGB"), dtype=float) / 255
+        grey = (np.ptp(rgb, axis=-1) < 0.05) & (np.abs(rgb.mean(axis=-1) - 0.35) < 0.06)
+        orange = (rgb[..., 0] > 0.8) & (np.abs(rgb[..., 1] - 0.5) < 0.12) & (rgb[..., 2] < 0.25)
+        return grey.sum(), orange.sum()
+
+    robot = six_strain_gripper_robot()
+    grey, orange = colours(sc.Model(robot, compile=False), twisted(robot, twist=10.0))
+    paper = sc.Model(sc.presets.ifac2020(), compile=False)
+    text, none = colours(paper, [0.064, 10.0, 0.0])  # greys of the ticks' text alone
+    assert grey > text + 100 and orange > 20 and none == 0, (grey, text, orange, none)

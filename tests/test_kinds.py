@@ -269,3 +269,18 @@ def test_compiled_equals_virtual_machine(rng):
                     assert_close(x, y, rtol=1e-13, scale=np.abs(y).max(), what=name)
             else:
                 assert_close(a, b, rtol=1e-13, scale=np.abs(b).max(), what=name)
+
+
+def six_strain_gripper_robot():
+    """A six-strain segment carrying a gripper: the robot the figures, scenario files,
+    identification and C export are checked on."""
+    return sc.Robot(segments=(six_strain_segment(), gripper()))
+
+
+def twisted(robot, twist=10.0, bend=0.0):
+    """The rest configuration of a robot whose first element is a six-strain segment,
+    twisted by ``twist`` [1/m] (and bent by ``bend`` [1/m] about y)."""
+    q = robot.rest_configuration()
+    q[sc.STRAINS.index("twist")] = twist
+    q[sc.STRAINS.index("bend_y")] = bend
+    return q

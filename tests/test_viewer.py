@@ -183,6 +183,12 @@ def test_the_models_environment_is_drawn(tmp_path):
     vertices, _ = environment_meshes(model, 0.1)[1].surface()
     center = np.diag([1.0, -1.0, -1.0]) @ sphere.center
     assert np.allclose(np.linalg.norm(vertices - center, axis=1), sphere.radius)
+    # and on a moved base, moved with it
+    moved = flipped.replace(base_position=[0.3, -0.1, 0.2])
+    model = sc.Model(moved, environment=environment, compile=False)
+    vertices, _ = environment_meshes(model, 0.1)[1].surface()
+    center = center + [0.3, -0.1, 0.2]
+    assert np.allclose(np.linalg.norm(vertices - center, axis=1), sphere.radius)
 
 
 def test_batch_members_and_equilibria(paper_model, tendons, tmp_path):
@@ -268,3 +274,85 @@ def test_ten_seconds_stay_under_ten_megabytes(paper_model, tmp_path):
     trajectory = sc.Trajectory(t, q, np.zeros_like(q), np.empty((t.size, 0)), model=paper_model)
     size = trajectory.to_html(tmp_path / "ten.html").stat().st_size
     assert size < 10e6, f"{size / 1e6:.1f} MB"
+
+
+@pytest.fixture(scope="module")
+def gripper_scene():
+    """A six-strain segment bent and twisted (2 rad), carrying a gripper whose tip is off
+    its base's axis, at rest and deformed."""
+    from tests.test_kinds import six_strain_gripper_robot, twisted
+
+    robot = six_strain_gripper_robot()
+    model = sc.Model(robot, compile=False)
+    q = np.array([robot.rest_configuration(), twisted(robot, twist=20.0, bend=6.0)])
+    return model, q, build_scene(model, q, ["rest", "twisted"], rings=9)
+
+
+def test_a_rigid_body_is_a_cylinder_from_its_base_to_its_tip(gripper_scene):
+    model, q, scene = gripper_scene
+    assert scene.kinds == ("soft", "rigid") and scene.stripes
+    rigid = scene.rings[:, 9:]
+    for f in range(2):
+        base, tip = model.pose(q[f], 0.5).position, model.pose(q[f], 1.0).position
+        axis = (tip - base) / np.linalg.norm(tip - base)
+        np.testing.assert_allclose(rigid[f, [0, -1], :3], 1e3 * np.array([base, tip]), atol=1e-9)
+        np.testing.assert_allclose(rigid[f, :, 3:6] @ axis, 0.0, atol=1e-12)  # across it
+        np.testing.assert_allclose(rigid[f, :, 6:9] @ axis, 0.0, atol=1e-12)
+        np.testing.assert_allclose(np.linalg.norm(rigid[f, :, 3:6], axis=1), 1.0, rtol=1e-12)
+    soft = ring_frames(model, q, 9)[:, :9]
+    np.testing.assert_allclose(scene.rings[:, :9], soft, atol=0)  # the soft segment's own
+    payload = scene.payload()
+    assert payload["kinds"] == ["soft", "rigid"] and payload["stripes"] is True
+    paper = sc.Model(sc.presets.ifac2020(), compile=False)
+    assert not build_scene(paper, [[0.064, 5.0, 0.0]], ["a"]).stripes
+
+
+@pytest.mark.skipif(
+    find_browser() is None and not os.environ.get(REQUIRE_BROWSER),
+    reason="no Chromium installed (apt install chromium)",
+)
+def test_the_viewer_draws_the_rigid_body_and_the_twist_in_chromium(gripper_scene, tmp_path):
+    """The page in a browser: the gripper a grey trace, and a stripe on the twisted
+    segment's surface along its material x axis (which turns with the twist:
+    tests/test_figures.py measures the turn)."""
+    import json
+
+    from matplotlib.image import imread
+
+    from softcurve.figures.viewer import write_page
+
+    model, q, scene = gripper_scene
+    path = write_page(scene, tmp_path / "gripper.html")
+    with Chromium(find_browser()) as browser:
+        browser.open(path.as_uri() + "#frame=1")
+        browser.wait_for('document.body.dataset.frame === "1"')
+        traces = json.loads(browser.evaluate(
+            "JSON.stringify(document.getElementById('plot').data.map(t => ({name: t.name, "
+            "color: t.color || (t.line && t.line.color), x: t.x, y: t.y, z: t.z})))"
+        ))  # fmt: skip
+        png = browser.screenshot()
+        rigid = [t["name"] for t in traces].index("rigid body 2")
+        browser.evaluate(
+            f"Plotly.restyle('plot', {{visible: false}}, [{rigid}]).then(() => new Promise("
+            "r => requestAnimationFrame(() => requestAnimationFrame(r))))"
+        )
+        hidden = browser.screenshot()  # the same view without the gripper
+        errors = list(browser.errors)
+    assert not errors, f"console errors in the viewer: {errors}"
+    named = {t["name"]: t for t in traces}
+    assert named["segment 1"]["color"] == "#1f77b4" and named["rigid body 2"]["color"] == "#555555"
+    stripe = np.array([named["stripe (twist)"][k] for k in "xyz"]).T
+    rings = scene.rings[1, :9]
+    radius = 1e3 * model.robot.segments[0].radius
+    expected = rings[:, :3] + 1.02 * radius * rings[:, 3:6]
+    np.testing.assert_allclose(stripe, expected, atol=1e-3)  # mm, float32 in the page
+
+    def grey(image):  # shaded #555555: channels alike, darker than the page
+        rgb = imread(io.BytesIO(image), format="png")[..., :3]
+        return (
+            (np.ptp(rgb, axis=-1) < 0.04) & (rgb.mean(axis=-1) > 0.15) & (rgb.mean(axis=-1) < 0.6)
+        )
+
+    gripper = (grey(png) & ~grey(hidden)).sum()
+    assert gripper > 200, f"the rigid body is not drawn ({gripper} grey pixels)"
+    assert _robot_pixels(png).sum() > 1000, "the soft segment is not drawn"

@@ -127,6 +127,10 @@ GALLERY_FIGURES = {
             "train_reach_rollout.png": "rollout.png",
         },
     ),
+    "twisting_gripper.toml": (
+        "softcurve simulate examples/twisting_gripper.toml -o {out}",
+        {"twisting_gripper_states.png": "states.png"},
+    ),
     "two-segment.toml": (
         "softcurve simulate examples/two-segment.toml -o {out}",
         {"two_segment_states.png": "states.png", "two_segment_tip.png": "tip.png"},

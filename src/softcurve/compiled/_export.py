@@ -40,6 +40,7 @@ from softcurve.base.files import atomic_write
 from softcurve.base.status import Result, Status
 from softcurve.base.validation import ParameterError
 from softcurve.description.actuator import Actuator
+from softcurve.description.elements import Segment
 from softcurve.symbolic.contact import contact_statics
 from softcurve.symbolic.functions import common_subexpressions
 
@@ -118,11 +119,18 @@ def _functions(model, actuator: Actuator | None, prefix: str, embed: bool):
 
 
 def _sample_inputs(model, functions, embed: bool, seed: int) -> dict:
-    """A bent, moving state (seeded) for the test program."""
+    """A bent, moving state (seeded) for the test program: a constant-curvature segment
+    3 % stretched and bent by up to 15 1/m, any other element's coordinates within a
+    fifth of their scale of rest (:meth:`Robot.coordinate_scale`), inside the domain."""
     rng = np.random.default_rng(seed)
-    q = np.array(
-        [v for s in model.robot.segments for v in (s.rest_length * 1.03, *rng.uniform(-15, 15, 2))]
-    )
+    parts = []
+    for element in model.robot.segments:
+        if element.kind == Segment.kind:
+            parts.append([element.rest_length * 1.03, *rng.uniform(-15, 15, 2)])
+        else:
+            away = rng.uniform(-0.2, 0.2, element.n_coordinates)
+            parts.append(element.rest_configuration() + away * element.coordinate_scale())
+    q = np.concatenate(parts)
     sizes = {"qd": model.n, "tau": model.n, "qdd": model.n, "lam": model.n_creep}
     samples = {}
     for name, f in functions.items():

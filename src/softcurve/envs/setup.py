@@ -96,15 +96,21 @@ env_parameters = parameters_from(ENV_PARAMETERS)
 """Decorator: substitute the shared entries of :data:`ENV_PARAMETERS` into docstrings."""
 
 
-def default_actuator(n_segments: int = 1) -> PneumaticActuator:
+def default_actuator(n_segments: int = 1, *, robot: Robot | None = None) -> PneumaticActuator:
     """Three bellows per segment, as ``examples/pneumatic.toml`` (:data:`DEFAULT_BELLOWS`).
 
     Parameters
     ----------
     n_segments : int
-        Number of segments of the robot.
+        Number of segments of a robot of constant-curvature segments alone.
+    robot : Robot, optional
+        A robot of any elements instead: three bellows on each of its soft segments
+        (its rigid bodies carry none).
     """
-    return PneumaticActuator.three_bellows(n_segments=n_segments, **DEFAULT_BELLOWS)
+    if robot is None or robot.constant_curvature:
+        count = n_segments if robot is None else robot.n_segments
+        return PneumaticActuator.three_bellows(n_segments=count, **DEFAULT_BELLOWS)
+    return PneumaticActuator.three_bellows(elements=robot, **DEFAULT_BELLOWS)
 
 
 @dataclass(frozen=True)
@@ -248,7 +254,8 @@ def build_setup(
     robot = presets.ifac2020() if robot is None else robot
     if not isinstance(robot, Robot):
         raise ParameterError(f"robot must be a softcurve.Robot, got {robot!r}")
-    actuator = default_actuator(robot.n_segments) if actuator is None else actuator
+    if actuator is None:
+        actuator = default_actuator(robot=robot)
     if not isinstance(actuator, Actuator) or actuator.n != robot.n:
         raise ParameterError(
             f"actuator must be a softcurve.Actuator acting on the robot's n = {robot.n} "

@@ -4,12 +4,16 @@ the backbone shapes that several figures draw."""
 from __future__ import annotations
 
 import operator
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from softcurve.base.files import atomic_path
 from softcurve.base.validation import ParameterError, real_scalar
+from softcurve.description.elements import RigidBody
+
+RIGID_KIND = RigidBody.kind
 
 
 def pyplot():
@@ -188,15 +192,15 @@ def save_figure(figure, path, *, dpi: float = 110) -> Path:
 
 
 def model_rows(model, q, what: str) -> np.ndarray:
-    """``q`` as float64 rows, checked to have the coordinates of ``model`` (three per
-    segment); :class:`~softcurve.ParameterError` naming both sizes otherwise.
+    """``q`` as float64 rows, checked to have the coordinates of ``model`` (``robot.n``);
+    :class:`~softcurve.ParameterError` naming both sizes otherwise.
 
     Parameters
     ----------
     model : softcurve.Model
         The model that draws ``q``.
     q : array_like, shape (k, n) or (n,)
-        Configurations [m, 1/m, 1/m per segment].
+        Configurations (``robot.coordinate_names()``).
     what : str
         What ``q`` belongs to, for the message (e.g. ``"the trajectory"``).
 
@@ -207,9 +211,8 @@ def model_rows(model, q, what: str) -> np.ndarray:
     q = np.atleast_2d(np.asarray(q, dtype=np.float64))
     if q.shape[-1] != model.n:
         raise ParameterError(
-            f"{what} has {q.shape[-1]} coordinates ({q.shape[-1] // 3} segment(s)), the "
-            f"model {model.n} ({model.robot.n_segments} segment(s)): pass the model it was "
-            "computed with"
+            f"{what} has {q.shape[-1]} coordinates, the model {model.n} "
+            f"({model.robot.n_segments} element(s)): pass the model it was computed with"
         )
     return q
 
@@ -222,7 +225,7 @@ def backbones(model, q, points: int) -> np.ndarray:
     model : softcurve.Model
         Gives the pose at each material coordinate.
     q : array_like, shape (k, n)
-        Configurations [m, 1/m, 1/m per segment].
+        Configurations (``robot.coordinate_names()``).
     points : int
         Points along each backbone, evenly spaced in ``s`` from base to tip.
 
@@ -239,3 +242,119 @@ def backbones(model, q, points: int) -> np.ndarray:
         "pose", np.repeat(q, points, axis=0), np.tile(s, q.shape[0])[:, None]
     )[1]
     return positions.reshape(q.shape[0], points, 3)
+
+
+@dataclass(frozen=True)
+class ElementShape:
+    """One element of the chain as the figures draw it, at ``k`` configurations.
+
+    Parameters
+    ----------
+    index : int
+        The element's index in ``robot.segments``.
+    rigid : bool
+        A :class:`~softcurve.RigidBody` (drawn as a thick bar of its own colour), else a
+        soft segment.
+    radius : float
+        Its radius [m].
+    backbone : ndarray, shape (k, P, 3)
+        World positions along it, base to tip [m].
+    stripe : ndarray, shape (k, P, 3)
+        A line painted on its surface: the backbone moved by ``radius`` along the
+        material x axis [m]. It winds round a twisted segment and stays on one side of
+        one that only bends, so twist shows.
+    """
+
+    index: int
+    rigid: bool
+    radius: float
+    backbone: np.ndarray
+    stripe: np.ndarray
+
+
+def element_poses(model, q, points: int) -> tuple[np.ndarray, np.ndarray]:
+    """The material frames at ``points`` evenly spaced points of every element.
+
+    Parameters
+    ----------
+    model : softcurve.Model
+        Gives the pose at each material coordinate (element ``i`` of ``N`` covers
+        ``[i/N, (i+1)/N]``).
+    q : array_like, shape (k, n)
+        Configurations.
+    points : int
+        Points along each element, both ends included [count].
+
+    Returns
+    -------
+    rotation : ndarray, shape (k, N, points, 3, 3)
+        The material frames' axes (columns) in the world frame.
+    position : ndarray, shape (k, N, points, 3)
+        Their origins [m].
+    """
+    q = model_rows(model, q, "q")
+    count = model.robot.n_segments
+    local = np.linspace(0.0, 1.0, points)
+    s = ((np.arange(count)[:, None] + local[None, :]) / count).ravel()
+    rotation, position = model.evaluate_along(
+        "pose", np.repeat(q, s.size, axis=0), np.tile(s, q.shape[0])[:, None]
+    )
+    shape = (q.shape[0], count, points)
+    return rotation.reshape(*shape, 3, 3), position.reshape(*shape, 3)
+
+
+def element_shapes(model, q, points: int) -> tuple[ElementShape, ...]:
+    """Each element's backbone and surface stripe at the configurations ``q``.
+
+    Parameters
+    ----------
+    model : softcurve.Model
+        Gives the pose at each material coordinate (element ``i`` of ``N`` covers
+        ``[i/N, (i+1)/N]``).
+    q : array_like, shape (k, n)
+        Configurations.
+    points : int
+        Points along each element, both ends included [count].
+
+    Returns
+    -------
+    tuple of ElementShape
+        One per element, base to tip.
+    """
+    rotation, position = element_poses(model, q, points)
+    across = rotation[..., :, 0]  # the material x axis
+    return tuple(
+        ElementShape(
+            index=i,
+            rigid=element.kind == RIGID_KIND,
+            radius=float(element.radius),
+            backbone=position[:, i],
+            stripe=position[:, i] + element.radius * across[:, i],
+        )
+        for i, element in enumerate(model.robot.segments)
+    )
+
+
+def state_rows(robot) -> tuple[tuple[str, str, tuple], ...]:
+    """The rows of a states figure: one per coordinate name, in the order the elements
+    first name them (``l, kx, ky`` for constant curvature, then the strains).
+
+    Parameters
+    ----------
+    robot : softcurve.Robot
+        The robot.
+
+    Returns
+    -------
+    tuple of (str, str, tuple of (int, int))
+        Per row: the coordinate's name, its unit, and the ``(element, column of q)`` of
+        every element that has it.
+    """
+    rows: dict[str, tuple[str, list]] = {}
+    for i, element in enumerate(robot.segments):
+        start = robot.offsets[i]
+        for k, (name, unit) in enumerate(
+            zip(element.coordinate_names, element.coordinate_units, strict=True)
+        ):
+            rows.setdefault(name, (unit, []))[1].append((i, start + k))
+    return tuple((name, unit, tuple(columns)) for name, (unit, columns) in rows.items())

@@ -85,6 +85,10 @@ _mesh_parameters = parameters_from(
             "The robot's base rotation: obstacles are given in the base frame, the robot "
             "is drawn in the world frame.",
         ),
+        "position": (
+            "array_like, shape (3,), optional",
+            "The robot's base position [m] in the world frame (default: the origin).",
+        ),
     }
 )
 
@@ -100,17 +104,19 @@ class ObstacleMesh:
     %(obstacle)s
     %(extent)s
     %(rotation)s
+    %(position)s
     """
 
     obstacle: object
     extent: float
     rotation: np.ndarray
+    position: np.ndarray | None = None
 
     def surface(self) -> tuple[np.ndarray, np.ndarray]:
         """``(vertices (V, 3) [m], triangles (M, 3))`` in the world frame: each grid patch
         of :func:`world_surfaces` split into two triangles per cell."""
         vertices, triangles = [], []
-        for grid in world_surfaces(self.obstacle, self.extent, self.rotation):
+        for grid in world_surfaces(self.obstacle, self.extent, self.rotation, self.position):
             x = np.moveaxis(grid, 0, -1)  # (rows, columns, 3)
             rows, columns = x.shape[:2]
             first = sum(len(v) for v in vertices)
@@ -136,11 +142,12 @@ def environment_meshes(model, extent: float) -> tuple[ObstacleMesh, ...]:
     if environment is None:
         return ()
     rotation = np.asarray(model.robot.base_rotation, dtype=float)
-    return tuple(ObstacleMesh(o, extent, rotation) for o in environment.obstacles)
+    position = np.asarray(model.robot.base_position, dtype=float)
+    return tuple(ObstacleMesh(o, extent, rotation, position) for o in environment.obstacles)
 
 
 @_mesh_parameters
-def world_surfaces(obstacle, extent: float, rotation) -> list[np.ndarray]:
+def world_surfaces(obstacle, extent: float, rotation, position=None) -> list[np.ndarray]:
     """The grids of :func:`obstacle_surfaces` in the world frame [m], each (3, rows,
     columns): the one place where obstacles (given in the base frame) are turned into the
     frame the robot is drawn in.
@@ -150,10 +157,12 @@ def world_surfaces(obstacle, extent: float, rotation) -> list[np.ndarray]:
     %(obstacle)s
     %(extent)s
     %(rotation)s
+    %(position)s
     """
     rotation = np.asarray(rotation, dtype=float)
+    origin = np.zeros(3) if position is None else np.asarray(position, dtype=float)
     return [
-        np.einsum("ij,j...->i...", rotation, np.stack(grid))
+        np.einsum("ij,j...->i...", rotation, np.stack(grid)) + origin[:, None, None]
         for grid in obstacle_surfaces(obstacle, extent)
     ]
 
@@ -181,8 +190,9 @@ def draw_obstacles(ax, model, extent: float | None = None) -> list:
     ax : matplotlib.axes.Axes
         A 3-D Axes (``projection="3d"``) whose units are millimetres.
     model : softcurve.Model or None
-        Read: ``environment`` (nothing is drawn without one) and ``robot.base_rotation``
-        (3, 3) and ``robot.rest_length`` [m]; None draws nothing.
+        Read: ``environment`` (nothing is drawn without one), ``robot.base_rotation``
+        (3, 3), ``robot.base_position`` (3,) [m] and ``robot.rest_length`` [m]; None
+        draws nothing.
     extent : float, optional
         Half-width [m] of the square drawn for a plane (default: the robot's rest
         length).
@@ -196,10 +206,11 @@ def draw_obstacles(ax, model, extent: float | None = None) -> list:
     if environment is None:
         return []
     rotation = np.asarray(model.robot.base_rotation, dtype=float)
+    position = np.asarray(model.robot.base_position, dtype=float)
     extent = model.robot.rest_length if extent is None else extent
     artists = []
     for obstacle in environment.obstacles:
-        for grid in world_surfaces(obstacle, extent, rotation):
+        for grid in world_surfaces(obstacle, extent, rotation, position):
             artists.append(ax.plot_surface(*(grid * MM_PER_M), **OBSTACLE_STYLE))
     return artists
 

@@ -2,9 +2,11 @@
 the shown instants, its tendons, its tip path and the obstacles around it.
 
 The page (:mod:`softcurve.figures.viewer`) receives, per frame, the position and the
-first two axes of the material frame at a few rings along each segment, and builds the
-tube (radius of each segment) and the tendons (offset ``rho`` at azimuth ``phi`` in the
-same frames) in the browser. Sending frames rather than meshes keeps a 10 s trajectory
+first two axes of the material frame at a few rings along each element, and builds the
+tube (radius of each element), the tendons (offset ``rho`` at azimuth ``phi`` in the
+same frames) and a stripe along each soft segment's material x axis (it winds round a
+twisted segment) in the browser; a rigid body is a grey cylinder from its base to its
+tip. Sending frames rather than meshes keeps a 10 s trajectory
 at 25 frames per second to a few hundred kilobytes.
 """
 
@@ -18,7 +20,7 @@ import numpy as np
 
 from softcurve.base.validation import ParameterError, real_array, real_scalar
 from softcurve.description.tendons import TendonActuator
-from softcurve.figures.drawing import model_rows, whole_number
+from softcurve.figures.drawing import RIGID_KIND, element_poses, model_rows, whole_number
 from softcurve.figures.obstacles import environment_meshes
 
 MM_PER_M = 1e3
@@ -44,9 +46,15 @@ class Scene:
     rings : ndarray, shape (F, R, 9)
         Per frame and ring: position, material x axis and material y axis [mm, -, -].
     rings_per_segment : int
-        Rings along each segment, both ends included [count].
+        Rings along each element, both ends included [count].
     radii : ndarray, shape (N,)
-        The tube's radius of each segment [mm].
+        The tube's radius of each element [mm].
+    kinds : tuple of str
+        ``"soft"`` or ``"rigid"`` per element: a rigid body is drawn grey, its rings
+        across the line from its base to its tip (:func:`bar_rings`).
+    stripes : bool
+        Draw a stripe along each soft segment's material x axis, which shows twist; off
+        for a robot of constant-curvature segments alone (they cannot twist).
     tendons : tuple of dict
         ``{"azimuth": phi [rad], "distance": rho [mm], "rings": count}``: the tendon runs
         through the first ``rings`` rings of every frame.
@@ -70,6 +78,8 @@ class Scene:
     rings: np.ndarray
     rings_per_segment: int
     radii: np.ndarray
+    kinds: tuple
+    stripes: bool
     tendons: tuple
     tip_path: np.ndarray
     obstacles: tuple
@@ -94,6 +104,8 @@ class Scene:
             "ringsPerSegment": self.rings_per_segment,
             "rings": base64.b64encode(rings.tobytes()).decode("ascii"),
             "radii": [round(float(r), 6) for r in self.radii],
+            "kinds": list(self.kinds),
+            "stripes": bool(self.stripes),
             "tendons": list(self.tendons),
             "tipPath": np.round(self.tip_path, 4).tolist(),
             "obstacles": list(self.obstacles),
@@ -134,7 +146,7 @@ def ring_frames(model, q, rings_per_segment: int) -> np.ndarray:
     model : softcurve.Model
         Gives the pose at each material coordinate (``pose(q, s)``).
     q : array_like, shape (F, n)
-        Configurations [m, 1/m, 1/m per segment].
+        Configurations (``robot.coordinate_names()``).
     rings_per_segment : int
         Rings along each segment, both ends included [count].
 
@@ -143,17 +155,48 @@ def ring_frames(model, q, rings_per_segment: int) -> np.ndarray:
     ndarray, shape (F, N rings_per_segment, 9)
         Position [mm], material x axis and material y axis (unit vectors).
     """
-    q = np.atleast_2d(np.asarray(q, dtype=np.float64))
-    segments = model.robot.n_segments
-    local = np.linspace(0.0, 1.0, rings_per_segment)
-    s = ((np.arange(segments)[:, None] + local[None, :]) / segments).ravel()
-    count = s.size
-    rotation, position = model.evaluate_along(
-        "pose", np.repeat(q, count, axis=0), np.tile(s, q.shape[0])[:, None]
-    )
-    rotation = rotation.reshape(q.shape[0], count, 3, 3)
-    position = position.reshape(q.shape[0], count, 3) * MM_PER_M
+    rotation, position = element_poses(model, q, rings_per_segment)
+    frames = rotation.shape[0]
+    rotation = rotation.reshape(frames, -1, 3, 3)
+    position = position.reshape(frames, -1, 3) * MM_PER_M
     return np.concatenate([position, rotation[..., :, 0], rotation[..., :, 1]], axis=-1)
+
+
+def bar_rings(rings, kinds, rings_per_segment: int) -> np.ndarray:
+    """The rings with those of each rigid body turned across the line from its base to
+    its tip, so that it is drawn as a straight cylinder (the model gives its points the
+    base's orientation, which a body whose tip is off its base's z axis does not share).
+
+    Parameters
+    ----------
+    rings : ndarray, shape (F, N rings_per_segment, 9)
+        :func:`ring_frames`.
+    kinds : sequence of str
+        ``"soft"`` or ``"rigid"`` per element.
+    rings_per_segment : int
+        Rings along each element [count].
+
+    Returns
+    -------
+    ndarray, shape (F, N rings_per_segment, 9)
+        A copy; soft elements' rings unchanged.
+    """
+    rings = np.array(rings, dtype=np.float64)
+    for i, kind in enumerate(kinds):
+        if kind != "rigid":
+            continue
+        part = rings[:, i * rings_per_segment : (i + 1) * rings_per_segment]
+        axis = part[:, -1, :3] - part[:, 0, :3]
+        length = np.linalg.norm(axis, axis=-1, keepdims=True)
+        base_z = np.cross(part[:, 0, 3:6], part[:, 0, 6:9])  # a body of no length: its own
+        axis = np.where(length > 0, axis / np.maximum(length, np.finfo(float).tiny), base_z)
+        x = part[:, 0, 3:6] - np.sum(part[:, 0, 3:6] * axis, axis=-1, keepdims=True) * axis
+        small = np.linalg.norm(x, axis=-1) < 1e-9  # the base's x along the bar: use its y
+        x[small] = np.cross(part[small, 0, 6:9], axis[small])
+        x /= np.linalg.norm(x, axis=-1, keepdims=True)
+        part[..., 3:6] = x[:, None, :]
+        part[..., 6:9] = np.cross(axis, x)[:, None, :]
+    return rings
 
 
 def tendon_paths(actuator, model, rings_per_segment: int) -> tuple:
@@ -340,7 +383,8 @@ def build_scene(
         raise ParameterError(f"labels must have one entry per frame ({q.shape[0]})")
     if times is not None:
         times = real_array("times", times, (q.shape[0],))
-    frames = ring_frames(model, q, rings)
+    kinds = tuple("rigid" if s.kind == RIGID_KIND else "soft" for s in model.robot.segments)
+    frames = bar_rings(ring_frames(model, q, rings), kinds, rings)
     radii = np.array([segment.radius for segment in model.robot.segments]) * MM_PER_M
     path = np.empty((0, 3))
     if tip_path is not None:
@@ -384,6 +428,8 @@ def build_scene(
         rings=frames,
         rings_per_segment=rings,
         radii=radii,
+        kinds=kinds,
+        stripes=not model.robot.constant_curvature,
         tendons=tendon_paths(actuator, model, rings),
         tip_path=path,
         obstacles=meshes,

@@ -11,7 +11,7 @@ import numpy as np
 
 from softcurve.base.docs import parameters_from
 from softcurve.base.validation import ParameterError, real_array
-from softcurve.figures.drawing import backbones, panels, whole_number
+from softcurve.figures.drawing import backbones, element_shapes, panels, whole_number
 from softcurve.figures.statics import BACKBONE_POINTS, DISPLAY_UNITS
 
 MM_PER_M = 1e3
@@ -26,6 +26,10 @@ STABLE_SHADE = {"color": "tab:green", "alpha": 0.08}
 """The stable half-plane ``Re(s) < 0`` of the eigenvalue figure."""
 TITLE_WIDTH = 60
 """Characters per line of a title made of a result's message, wrapped to fit a panel."""
+RIGID_STYLE = {"color": "0.35", "alpha": 0.85, "lw": 0.0}
+"""A rigid body: a dark grey bar, where the soft segments are blue lines."""
+STRIPE_STYLE = {"color": "tab:orange", "lw": 1.0}
+"""The stripe on a soft segment's surface (along its material x axis)."""
 MARGIN = 0.15
 """The eigenvalue figure's limits reach this fraction of the eigenvalues' spread beyond
 them, so the points sit inside the frame."""
@@ -63,6 +67,56 @@ def draw_views(views, positions, *style, **options) -> None:
     positions = np.asarray(positions, dtype=np.float64).reshape(-1, 3)
     for ax, (_, (i, j)) in zip(views, VIEWS, strict=True):
         ax.plot(positions[:, i], positions[:, j], *style, **options)
+
+
+def draw_robot(views, model, q, points: int) -> None:
+    """Draw the robot at one configuration into the side and top views: each soft
+    element's backbone with a stripe painted on its surface (it winds round a twisted
+    segment), each rigid body as a bar of its diameter from its base to its tip in a
+    colour of its own. A robot of constant-curvature segments alone, which cannot
+    twist, is drawn as its backbone only.
+
+    Parameters
+    ----------
+    views : sequence of matplotlib.axes.Axes, shape (2,)
+        The side and the top view.
+    model : softcurve.Model
+        Gives the poses.
+    q : array_like, shape (n,)
+        The configuration.
+    points : int
+        Points along each element [count].
+    """
+    stripes = not model.robot.constant_curvature
+    labelled: set[str] = set()
+
+    def label(name: str) -> str | None:
+        first = name not in labelled
+        labelled.add(name)
+        return name if first else None
+
+    for part in element_shapes(model, q[None], points):
+        backbone, stripe = MM_PER_M * part.backbone[0], MM_PER_M * part.stripe[0]
+        if part.rigid:
+            for ax, (_, (i, j)) in zip(views, VIEWS, strict=True):
+                ax.fill(*_bar(backbone[[0, -1]][:, [i, j]], MM_PER_M * part.radius).T,
+                        **RIGID_STYLE, label=label("rigid body"))  # fmt: skip
+            continue
+        draw_views(views, backbone, color="C0", lw=2.0, label=label("backbone"))
+        if stripes:
+            draw_views(views, stripe, **STRIPE_STYLE, label=label("stripe (twist)"))
+
+
+def _bar(ends, radius: float) -> np.ndarray:
+    """The corners (4, 2) of a bar of half-width ``radius`` between two points (2, 2) of a
+    view; a square of side ``2 radius`` round them where they coincide in it (a body
+    seen end on)."""
+    along = ends[1] - ends[0]
+    length = np.linalg.norm(along)
+    along = along / length if length > 0 else np.array([1.0, 0.0])
+    normal = radius * np.array([-along[1], along[0]])
+    start, end = ends[0] - radius * along, ends[1] + radius * along
+    return np.array([start + normal, end + normal, end - normal, start - normal])
 
 
 def finish_views(views) -> None:
@@ -193,7 +247,7 @@ def plot_configuration(
     figure, axes = panels(ax, count, "the shape figure", rows=1, figsize=(4.2 * count, 4.2))
     shape = MM_PER_M * backbones(model, q, points)[0]
     views = axes[:2]
-    draw_views(views, shape, color="C0", lw=2.0, label="backbone")
+    draw_robot(views, model, q, points)
     draw_views(views, shape[:1], "s", color="0.3", ms=5, label="base")
     draw_views(views, shape[-1:], "o", color="C0", ms=6, label="tip")
     for (name, point), marker in zip(marks.items(), MARKERS, strict=False):

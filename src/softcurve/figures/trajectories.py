@@ -15,7 +15,13 @@ from softcurve.base.files import atomic_path
 from softcurve.base.progress import ProgressLine
 from softcurve.base.validation import ParameterError, real_scalar
 from softcurve.figures.actuation import plot_inputs
-from softcurve.figures.drawing import backbones, model_rows, panels, whole_number
+from softcurve.figures.drawing import (
+    element_shapes,
+    model_rows,
+    panels,
+    state_rows,
+    whole_number,
+)
 from softcurve.figures.obstacles import draw_obstacles
 from softcurve.figures.scales import (
     NOISE,
@@ -29,6 +35,10 @@ MM_PER_M = 1e3
 STATE_LABELS = ("length l [m]", r"curvature $\kappa_x$ [1/m]", r"curvature $\kappa_y$ [1/m]")
 """Per segment, the coordinates are ``(l, kx, ky)``: one panel each."""
 ANIMATION_SUFFIXES = (".gif", ".mp4")
+RIGID_LINE = {"lw": 9, "color": "0.35", "solid_capstyle": "butt"}
+"""A rigid body in the animation: a thick dark grey bar, where soft segments are blue."""
+STRIPE_LINE = {"lw": 1.2, "color": "tab:orange"}
+"""The stripe along a soft segment's surface (its material x axis), which shows twist."""
 LEGEND_ROWS = 8
 """Entries per column of the states figure's legend, beside its top panel (2 inches
 tall: eight entries in small print fill it)."""
@@ -85,15 +95,18 @@ figure_options = parameters_from(FIGURE_OPTIONS)
 animation_options = parameters_from(FIGURE_OPTIONS, returns=("pathlib.Path", "``path``."))
 
 
-def drawn_states(q) -> tuple[np.ndarray, set]:
+def drawn_states(q, robot=None) -> tuple[np.ndarray, set]:
     """The coordinates as the figures draw them: a curvature that stays below ``NOISE``
     (1e-9) over the segment's length is round-off of an exact zero (a planar run), drawn
-    as zero.
+    as zero. Only for constant-curvature segments: the coordinates of other kinds are
+    drawn as they are.
 
     Parameters
     ----------
-    q : array_like, shape (T, 3 N)
-        Coordinates ``(l, kx, ky)`` per segment [m, 1/m, 1/m].
+    q : array_like, shape (T, n)
+        Coordinates; ``(l, kx, ky)`` per segment [m, 1/m, 1/m] without ``robot``.
+    robot : softcurve.Robot, optional
+        The robot of ``q`` (default: constant-curvature segments).
 
     Returns
     -------
@@ -103,6 +116,8 @@ def drawn_states(q) -> tuple[np.ndarray, set]:
         The rows of the states figure (1: ``kx``, 2: ``ky``) with a curvature zeroed.
     """
     drawn, zeroed = np.array(q, dtype=np.float64), set()
+    if robot is not None and not robot.constant_curvature:
+        return drawn, zeroed
     for column in range(drawn.shape[1]):
         row, first = column % len(STATE_LABELS), column - column % len(STATE_LABELS)
         length = np.abs(drawn[:, first]).max(initial=0.0)
@@ -129,13 +144,35 @@ def motion_window(trajectory, window="auto") -> tuple[float, float]:
     tuple of float
         ``(start, end)`` [s].
     """
-    return time_window(trajectory.t, drawn_states(trajectory.q)[0], window)
+    return time_window(trajectory.t, drawn_states(trajectory.q, _robot(trajectory))[0], window)
+
+
+def _robot(trajectory):
+    """The robot of a trajectory's model, or None (a loaded trajectory has no model)."""
+    model = getattr(trajectory, "model", None)
+    return None if model is None else model.robot
+
+
+def _state_rows(trajectory) -> tuple:
+    """The states figure's rows: ``(label, ((segment, column), ...))`` each; ``l``,
+    ``kx``, ``ky`` for constant-curvature segments (or a trajectory without its model),
+    else one row per coordinate name of the robot's elements."""
+    robot = _robot(trajectory)
+    if robot is None or robot.constant_curvature:
+        segments = trajectory.q.shape[1] // len(STATE_LABELS)
+        return tuple(
+            (label, tuple((i, len(STATE_LABELS) * i + row) for i in range(segments)))
+            for row, label in enumerate(STATE_LABELS)
+        )
+    return tuple((f"{name} [{unit or '-'}]", columns) for name, unit, columns in state_rows(robot))
 
 
 @figure_options
 def plot_states(trajectory, ax=None, *, window="auto", inputs=None):
     """``l``, ``kx`` and ``ky`` of every segment against time, one panel each (Fig. 4),
-    and the actuator's inputs below them when the trajectory holds them.
+    and the actuator's inputs below them when the trajectory holds them; for other
+    element kinds, one panel per coordinate (``bend_x``, ``twist``, ...) with every
+    element that has it.
 
     A curvature that stays below ``NOISE`` (1e-9) over the segment's length is round-off
     of an exact zero (a planar run) and is drawn as zero, as its axis label says.
@@ -146,7 +183,8 @@ def plot_states(trajectory, ax=None, *, window="auto", inputs=None):
         Read: ``t`` shape (T,) [s], ``q`` shape (T, 3 N) [m, 1/m, 1/m], ``success``,
         and, for the inputs' panel, ``inputs`` shape (T, m) and ``actuator``.
     ax : None or sequence of matplotlib.axes.Axes, shape (3,) or (4,)
-        Panels for ``l``, ``kx`` and ``ky`` (and the inputs); None draws a new figure.
+        Panels for ``l``, ``kx`` and ``ky`` (and the inputs), or one per coordinate
+        name of other kinds; None draws a new figure.
     %(window)s
     %(inputs)s
 
@@ -164,17 +202,21 @@ def plot_states(trajectory, ax=None, *, window="auto", inputs=None):
             "inputs=True needs a trajectory with inputs and its actuator (simulate with "
             "actuator=); a loaded file keeps the inputs but not the actuator"
         )
-    rows = len(STATE_LABELS) + bool(inputs)
+    state_panels = _state_rows(trajectory)
+    rows = len(state_panels) + bool(inputs)
     figure, axes = panels(ax, rows, "the states figure", sharex=True, figsize=(7.0, 2.0 * rows))
-    segments = trajectory.q.shape[1] // len(STATE_LABELS)
-    drawn, zeroed_rows = drawn_states(trajectory.q)
+    segments = len({i for _, columns in state_panels for i, _ in columns})
+    drawn, zeroed_rows = drawn_states(trajectory.q, _robot(trajectory))
     start, end = time_window(trajectory.t, drawn, window)
-    for row, label in enumerate(STATE_LABELS):
+    for row, (label, columns) in enumerate(state_panels):
         zeroed = row in zeroed_rows
-        for i in range(segments):
-            values = drawn[:, len(STATE_LABELS) * i + row]
+        for i, column in columns:
             axes[row].plot(
-                trajectory.t, values, lw=0.9, label=f"segment {i + 1}" if segments > 1 else None
+                trajectory.t,
+                drawn[:, column],
+                lw=0.9,
+                color=f"C{i % 10}",
+                label=f"segment {i + 1}" if segments > 1 else None,
             )
         axes[row].set_ylabel(label + (f"\n(below {NOISE:g}/l: 0)" if zeroed else ""))
         axes[row].grid(True, alpha=0.3)
@@ -512,14 +554,22 @@ def animate(
     points = whole_number("points", points, 2)
     figsize = _figure_size(figsize)
     frames = frame_samples(trajectory, window=window, fps=fps, speed=speed)
-    shapes = backbones(model, trajectory.q[frames], points) * MM_PER_M
+    per_element = max(2, -(-points // model.robot.n_segments) + 1)
+    parts = element_shapes(model, trajectory.q[frames], per_element)
+    shapes = np.concatenate([part.backbone for part in parts], axis=1) * MM_PER_M
     least_reach = MINIMUM_REACH * model.robot.rest_length * MM_PER_M
     limits = equal_limits(shapes, least=least_reach)
     limits = limits.mean(axis=1, keepdims=True) + MARGIN * (
         limits - limits.mean(axis=1, keepdims=True)
     )
     figure, ax = animation_axes(figsize, limits, dpi)
-    (line,) = ax.plot([], [], [], lw=4, color="tab:blue")
+    stripes = not model.robot.constant_curvature
+    drawn = []  # (artist, positions (F, P, 3) [mm]): each element, and its stripe
+    for part in parts:
+        style = RIGID_LINE if part.rigid else {"lw": 4, "color": "tab:blue"}
+        drawn.append((ax.plot([], [], [], **style)[0], part.backbone * MM_PER_M))
+        if stripes and not part.rigid:
+            drawn.append((ax.plot([], [], [], **STRIPE_LINE)[0], part.stripe * MM_PER_M))
     (tip,) = ax.plot([], [], [], "o", color="tab:red")
     title = ax.set_title("")
     # drawn after the robot, as a full redraw of the 3-D axes orders them
@@ -528,12 +578,14 @@ def animate(
 
     def draw(i):
         shape = shapes[i]
-        line.set_data_3d(shape[:, 0], shape[:, 1], shape[:, 2])
+        for artist, positions in drawn:
+            artist.set_data_3d(*positions[i].T)
         tip.set_data_3d(shape[-1:, 0], shape[-1:, 1], shape[-1:, 2])
         title.set_text(f"t = {trajectory.t[frames[i]]:.3f} s")
         bar.update(i + 1)
 
-    pixels = blitted_frames(figure, [line, tip, *obstacles, title], draw, len(frames))
+    artists = [artist for artist, _ in drawn]
+    pixels = blitted_frames(figure, [*artists, tip, *obstacles, title], draw, len(frames))
     write = write_gif if path.suffix == ".gif" else write_mp4
     try:
         with atomic_path(path) as tmp:

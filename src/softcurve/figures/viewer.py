@@ -1,6 +1,7 @@
 """The interactive 3-D viewer: one self-contained HTML file (Plotly embedded, no network)
-showing the robot as a tube of its radius, segment by segment, with its base frame, its
-tip path, its tendons and obstacles; play/pause, a time slider, real-time or slowed
+showing the robot as a tube of its radius, element by element (soft segments in colour
+with a stripe along them that shows twist, rigid bodies as grey cylinders), with its base
+frame, its tip path, its tendons and obstacles; play/pause, a time slider, real-time or slowed
 playback, orbit and zoom, equal axes (docs/viewer.md).
 
 Plotly comes with the optional extra ``viewer`` (``pip install "softcurve[viewer]"``);
@@ -28,7 +29,7 @@ VIEWER_OPTIONS = {
         "Frames per second of simulated time stored in the file [1/s]; the file grows "
         "with it (about 30 kB per second of motion and segment at 25).",
     ),
-    "rings": ("int, optional", "Rings per segment that shape the tube [count], >= 2."),
+    "rings": ("int, optional", "Rings per element that shape the tube [count], >= 2."),
     "obstacles": (
         "sequence, optional",
         "Static obstacles to draw, each with a ``surface()`` method returning "

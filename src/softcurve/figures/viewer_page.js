@@ -4,6 +4,8 @@
   const D = JSON.parse(document.getElementById("softcurve-scene").textContent);
   const COLOURS = ["#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd",
                    "#8c564b", "#e377c2", "#7f7f7f", "#bcbd22", "#17becf"];
+  const RIGID = "#555555";
+  const STRIPE = "#111111";
   const SIDES = 20;
   const bytes = Uint8Array.from(atob(D.rings), (c) => c.charCodeAt(0));
   const rings = new Float32Array(bytes.buffer);
@@ -51,6 +53,15 @@
     return out;
   }
 
+  function stripe(f, segment) {
+    const out = [[], [], []];
+    for (let r = segment * K; r < (segment + 1) * K; r++) offset(f, r, 1.02 * D.radii[segment], 0, out);
+    return out;
+  }
+  const soft = [], stripes = [];
+  for (let s = 0; s < N; s++) if (D.kinds[s] === "soft") soft.push(s);
+  if (D.stripes) stripes.push(...soft);
+
   function tip(f) { return [[ring(f, R - 1, 0)], [ring(f, R - 1, 1)], [ring(f, R - 1, 2)]]; }
 
   const traces = [], moving = [];
@@ -58,11 +69,21 @@
   const opacity = D.tendons.length ? 0.45 : 1.0;
   for (let s = 0; s < N; s++) {
     const [x, y, z] = tube(0, s);
+    const rigid = D.kinds[s] === "rigid";
     moving.push(traces.length);
-    traces.push({type: "mesh3d", x: x, y: y, z: z, i: I, j: J, k: L, color: COLOURS[s % 10],
-                 opacity: opacity, flatshading: false, name: "segment " + (s + 1),
+    traces.push({type: "mesh3d", x: x, y: y, z: z, i: I, j: J, k: L,
+                 color: rigid ? RIGID : COLOURS[soft.indexOf(s) % 10],
+                 opacity: opacity, flatshading: false,
+                 name: (rigid ? "rigid body " : "segment ") + (s + 1),
                  showlegend: true, hoverinfo: "name", lighting: {ambient: 0.55, diffuse: 0.7}});
   }
+  stripes.forEach((s, n) => {
+    const [x, y, z] = stripe(0, s);
+    moving.push(traces.length);
+    traces.push({type: "scatter3d", mode: "lines", x: x, y: y, z: z, name: "stripe (twist)",
+                 legendgroup: "stripe", showlegend: n === 0, hoverinfo: "name",
+                 line: {color: STRIPE, width: 5}});
+  });
   D.tendons.forEach((t, n) => {
     const [x, y, z] = tendon(0, t);
     moving.push(traces.length);
@@ -103,6 +124,7 @@
     const update = {x: [], y: [], z: []};
     const add = (p) => { update.x.push(p[0]); update.y.push(p[1]); update.z.push(p[2]); };
     for (let s = 0; s < N; s++) add(tube(f, s));
+    for (const s of stripes) add(stripe(f, s));
     for (const t of D.tendons) add(tendon(f, t));
     add(tip(f));
     return Plotly.restyle(plot, update, moving)

@@ -19,9 +19,11 @@ from softcurve.base.validation import ParameterError
 from softcurve.description import presets
 from softcurve.description.actuator import Actuator
 from softcurve.description.domain import state_problem
+from softcurve.description.elements import GROUPS, STRAINS, RigidBody, StrainSegment
 from softcurve.description.environment import Environment
 from softcurve.description.materials import Creep, LinearStiffness, TanhStiffness
 from softcurve.description.robot import Robot, Segment
+from softcurve.description.sections import Material, Section
 from softcurve.scenarios.actuation import from_mapping
 from softcurve.scenarios.environment import environment_from_mapping
 from softcurve.scenarios.tables import ConfigError, Reader, read_toml, toml_parameters
@@ -248,10 +250,9 @@ def _robot(r: Reader) -> Robot:
     if r.has("gravity"):
         extra["gravity"] = r.vector("gravity", 3)
     if r.has("base_rotation"):
-        rotation = r.get("base_rotation", "vector")
-        if np.shape(rotation) != (3, 3):
-            r.fail("base_rotation", "must be a 3 x 3 array of rows")
-        extra["base_rotation"] = rotation
+        extra["base_rotation"] = _matrix(r, "base_rotation")
+    if r.has("base_position"):
+        extra["base_position"] = r.vector("base_position", 3)
     try:
         if r.has("preset"):
             name = r.get("preset", "string")
@@ -262,13 +263,149 @@ def _robot(r: Reader) -> Robot:
             robot = presets.ifac2020(creep=creep, damping=damping)
             return robot.replace(**extra) if extra else robot
         segments = [
-            _segment(Reader(r.file, f"{r.key('segments')}[{i}]", table))
+            _element(Reader(r.file, f"{r.key('segments')}[{i}]", table))
             for i, table in enumerate(r.get("segments", "tables", required=True))
         ]
         r.done()
         return Robot(segments=tuple(segments), **extra)
     except ConfigError:
         raise
+    except ParameterError as exc:
+        r.fail("", str(exc))
+
+
+def _matrix(r: Reader, name: str):
+    """A 3 x 3 array of rows."""
+    rows = r.get(name, "vector")
+    if np.shape(rows) != (3, 3):
+        r.fail(name, "must be a 3 x 3 array of rows")
+    return rows
+
+
+def _element(r: Reader):
+    """An element of ``[[robot.segments]]`` by its ``kind`` (default: the paper's
+    constant-curvature segment)."""
+    kind = r.get("kind", "string", Segment.kind)
+    readers = {
+        Segment.kind: _segment,
+        StrainSegment.kind: _strain_segment,
+        RigidBody.kind: _rigid_body,
+    }
+    if kind not in readers:
+        r.fail("kind", f"must be one of {sorted(readers)}, got {kind!r}")
+    return readers[kind](r)
+
+
+def _strain_segment(r: Reader) -> StrainSegment:
+    """A constant-strain segment: its mass, radius and laws, or its ``material`` and
+    ``section`` (:meth:`StrainSegment.from_material`)."""
+    strains = r.get("strains", "strings", STRAINS)
+    for name in strains:
+        if name not in STRAINS:
+            r.fail("strains", f"unknown strain {name!r} (allowed: {', '.join(STRAINS)})")
+    rest_length = r.positive("rest_length", required=True)
+    common = {}
+    if r.has("rest_strain"):
+        common["rest_strain"] = r.vector("rest_strain", 6)
+    if r.has("damping"):
+        common["damping"] = r.get("damping", "vector")
+    if r.has("creep"):
+        r.get("creep", "table")
+        common["creep"] = _creep(r.sub("creep"), len(strains))
+    if r.has("material") or r.has("section"):
+        derived = ("mass", "radius", "slice_inertia", *GROUPS)
+        given = [name for name in derived if r.has(name)]
+        if given:
+            r.fail(given[0], "comes from material and section: give one or the other")
+        material = _material(r)
+        section = _section(r, material)
+        r.done()
+        try:
+            return StrainSegment.from_material(
+                material, section, rest_length, tuple(strains), **common
+            )
+        except ParameterError as exc:
+            r.fail("", str(exc))
+    values = {name: r.positive(name, required=True) for name in ("mass", "radius")}
+    for law, indices in GROUPS.items():
+        chosen = [STRAINS[k] for k in indices if STRAINS[k] in strains]
+        if chosen:
+            r.get(law, "table", required=True)
+            values[law] = _stiffness(r.sub(law))
+            continue
+        if r.has(law):
+            r.fail(law, f"the segment chooses none of {', '.join(STRAINS[k] for k in indices)}")
+    if r.has("slice_inertia"):
+        values["slice_inertia"] = r.vector("slice_inertia", 3)
+    r.done()
+    try:
+        return StrainSegment(rest_length=rest_length, strains=tuple(strains), **values, **common)
+    except ParameterError as exc:
+        r.fail("", str(exc))
+
+
+def _material(r: Reader) -> Material:
+    """``material = { youngs_modulus, density, shear_modulus or poisson_ratio }``."""
+    r.get("material", "table", required=True)
+    m = r.sub("material")
+    values = {name: m.positive(name, required=True) for name in ("youngs_modulus", "density")}
+    for name in ("shear_modulus", "poisson_ratio"):
+        if m.has(name):
+            values[name] = m.get(name, "number")
+    m.done()
+    try:
+        return Material(**values)
+    except ParameterError as exc:
+        m.fail("", str(exc))
+
+
+def _section(r: Reader, material: Material) -> Section:
+    """``section = { radius }`` (a circle), ``{ outer_radius, inner_radius }`` (a tube),
+    both of the material's Poisson ratio, or the constants ``{ area, second_moment,
+    polar_moment, shear_coefficient, radius (optional) }``."""
+    r.get("section", "table", required=True)
+    s = r.sub("section")
+    nu = material.poisson_ratio
+    try:
+        if s.has("outer_radius"):
+            outer = s.positive("outer_radius")
+            inner = s.get("inner_radius", "number", required=True)
+            s.done()
+            return Section.tube(outer, inner, poisson_ratio=nu)
+        if s.has("area"):
+            names = ("area", "second_moment", "polar_moment", "shear_coefficient")
+            values = {name: s.positive(name, required=True) for name in names}
+            values["radius"] = s.positive("radius")
+            s.done()
+            return Section(**values)
+        radius = s.positive("radius", required=True)
+        s.done()
+        return Section.circle(radius, poisson_ratio=nu)
+    except ParameterError as exc:
+        if isinstance(exc, ConfigError):
+            raise
+        s.fail("", str(exc))
+
+
+def _rigid_body(r: Reader) -> RigidBody:
+    mass = r.get("mass", "number", required=True)
+    values = {"mass": mass, "tip_position": r.vector("tip_position", 3)}
+    if values["tip_position"] is None:
+        r.fail("tip_position", "is required (where the next element's base lies [m])")
+    if r.has("tip_rotation"):
+        values["tip_rotation"] = _matrix(r, "tip_rotation")
+    if r.has("centre_of_mass"):
+        values["centre_of_mass"] = r.vector("centre_of_mass", 3)
+    if r.has("inertia"):
+        inertia = r.get("inertia", "vector")
+        if np.shape(inertia) not in ((3,), (3, 3)):
+            r.fail("inertia", "must be 3 numbers (a diagonal) or a 3 x 3 array of rows")
+        values["inertia"] = inertia
+    if r.has("radius"):
+        values["radius"] = r.positive("radius")
+    r.done()
+    try:
+        return RigidBody(**values)
     except ParameterError as exc:
         r.fail("", str(exc))
 
@@ -307,16 +444,19 @@ def _stiffness(r: Reader):
     r.fail("law", f"must be 'tanh' or 'linear', got {law!r}")
 
 
-def _creep(r: Reader) -> Creep:
+def _creep(r: Reader, size: int = 3) -> Creep:
+    """Creep of ``size`` states: ``rate``, ``gain`` and ``compliance`` of that size, or (a
+    constant-curvature segment) ``gamma``."""
     compliance = r.get("compliance", "vector", required=True)
     try:
-        if r.has("gamma"):
+        if r.has("gamma") and size == 3:
             gamma = r.vector("gamma", 6)
             r.done()
             return Creep.from_gamma(gamma, compliance)
-        rate, gain = r.vector("rate", 3), r.vector("gain", 3)
+        rate, gain = r.vector("rate", size), r.vector("gain", size)
         if rate is None or gain is None:
-            r.fail("", "needs gamma = [6 numbers] or both rate = [3] and gain = [3]")
+            gamma = "gamma = [6 numbers] or " if size == 3 else ""
+            r.fail("", f"needs {gamma}both rate = [{size}] and gain = [{size}]")
         r.done()
         return Creep(rate=rate, gain=gain, compliance=compliance)
     except ConfigError:

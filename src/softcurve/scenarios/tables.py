@@ -101,6 +101,7 @@ class Reader:
         checker = {
             "number": _number,
             "string": _string,
+            "strings": _strings,
             "bool": _bool,
             "vector": _vector,
             "integer": _integer,
@@ -168,6 +169,12 @@ def _integer(v):
 
 def _string(v):
     return (True, v) if isinstance(v, str) else (False, "a string")
+
+
+def _strings(v):
+    if isinstance(v, list) and v and all(isinstance(x, str) for x in v):
+        return True, tuple(v)
+    return False, "a non-empty array of strings"
 
 
 def _bool(v):

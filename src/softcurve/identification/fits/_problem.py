@@ -98,6 +98,9 @@ class Problem:
 
     def __init__(self, model, output, input_map, free, extra, bind, p, experiment, starts=None):
         self.model, self.output, self.input_map = model, output, input_map
+        problem = output.robot_problem(model.robot) if output.robot_problem else None
+        if problem is not None:
+            raise ParameterError(f"output: {problem}")
         self.experiments, single = experiment_list(experiment)
         names = [e.name for e in self.experiments]
         shared, per = split_extra(dict(extra or {}), names)

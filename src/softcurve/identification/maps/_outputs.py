@@ -5,7 +5,8 @@ sensor offsets, marker offsets and the pose of a sensor's frame are *named extra
 parameters* that a fit can estimate (their names are given here, their nominal values
 are zero unless the fit's ``extra`` says otherwise).
 
-- :func:`bending_angle_map` and :func:`curvature_map`: read from the coordinates.
+- :func:`bending_angle_map` and :func:`curvature_map`: read from the coordinates (of a
+  constant-curvature segment, or the strains of a constant-strain one).
 - :func:`marker_position_map` (a marker at any material point, optionally off the
   backbone) and :func:`tip_position_map`: from the robot's kinematics,
   ``model.symbolic["pose"]``, seen from a :class:`SensorFrame` (a motion-capture
@@ -25,56 +26,174 @@ import numpy as np
 from softcurve.base.deprecation import renamed
 from softcurve.base.validation import ParameterError, real_array, real_scalar
 from softcurve.compiled import Model
+from softcurve.description.elements import STRAINS, RigidBody, Segment, StrainSegment
 from softcurve.identification.maps._types import OutputMap
 
 AXES = "xyz"
 """The axes a position can be projected onto."""
 
 
-def bending_angle_map(segment: int = 0, *, degrees: bool = True, offset: str | None = None):
-    """Signed bending angle ``beta = kx * l`` of one segment, for motion in the x-z plane.
+def _element(model, segment: int, what: str):
+    """``(index, element)`` of ``segment`` (negative from the tip) in ``model``'s robot,
+    or ParameterError naming ``what`` needs."""
+    count = model.robot.n_segments
+    whole = isinstance(segment, int | np.integer) and not isinstance(segment, bool)
+    if not whole or not -count <= segment < count:
+        raise ParameterError(
+            f"segment must be an index in [{-count}, {count - 1}] (negative from the tip), "
+            f"got {segment!r}"
+        )
+    index = int(segment) % count
+    element = model.robot.segments[index]
+    if element.kind == RigidBody.kind:
+        raise ParameterError(f"segment {segment} is a rigid body: it has no {what}")
+    return index, element
+
+
+def _strain(model, index: int, q, p):
+    """The full strain ``xi`` (6,) of the constant-strain element ``index`` (CasADi): its
+    coordinates where it chooses them, its rest strain from ``p`` elsewhere; and its
+    ``L0`` from ``p``."""
+    robot, element = model.robot, model.robot.segments[index]
+    start, prefix = robot.offsets[index], f"segments[{index}]"
+    entries = [p[robot.layout.index(f"{prefix}.rest_strain[{k}]")] for k in range(6)]
+    for i, name in enumerate(element.strains):
+        entries[STRAINS.index(name)] = q[start + i]
+    return ca.vertcat(*entries), p[robot.layout.index(f"{prefix}.rest_length")]
+
+
+def _curvature_start(segment: int) -> int:
+    """Where a map built without a model reads segment ``segment``'s ``(l, kx, ky)``:
+    every element before it a constant-curvature segment (the fits check it,
+    :func:`_built_for`)."""
+    return 3 * segment
+
+
+def _built_for(model, segment):
+    """The check of the robot a map is used with: the structure of ``model``'s robot, or
+    (no model) constant-curvature coordinates ``(l, kx, ky)`` at ``q[3 segment]``."""
+    if model is not None:
+        structure = model.robot.structure()
+
+        def problem(robot):
+            if robot.structure() != structure:
+                return "the output map was built for another robot: build it with the fit's model"
+            return None
+
+        return problem
+
+    def problem(robot):
+        index = segment % max(robot.n_segments, 1)
+        if segment < robot.n_segments and (
+            robot.segments[index].kind == Segment.kind
+            and robot.offsets[index] == _curvature_start(index)
+        ):
+            return None
+        return (
+            f"the output map reads (l, kx, ky) of segment {segment} at "
+            f"q[{_curvature_start(segment)}]; "
+            "this robot's elements are not all constant-curvature segments there: build "
+            "the map with model="
+        )
+
+    return problem
+
+
+def bending_angle_map(
+    segment: int = 0, *, degrees: bool = True, offset: str | None = None, model=None
+):
+    """Signed bending angle of one segment in the x-z plane: ``beta = kx * l`` of a
+    constant-curvature segment, ``u_y L0`` (its bending about y over its reference
+    length) of a constant-strain one.
 
     That is what an IMU at the tip of a single segment measures.
 
     Parameters
     ----------
     segment : int
-        Index of the segment, from the base.
+        Index of the segment (an element of the robot's chain), from the base.
     degrees : bool
         Output in degrees (else radians).
     offset : str, optional
         Name of an extra parameter (sensor zero, nominal 0, in the output's unit) added
         to the output.
+    model : Model, optional
+        The model the map is for: needed for a robot other than constant-curvature
+        segments alone (it gives each element's kind and where its coordinates are).
+        Without it, the map reads ``(l, kx, ky)`` at ``q[3 segment]`` and a fit refuses
+        a robot where they are not.
     """
     factor = 180.0 / np.pi if degrees else 1.0
+    start, strain = _curvature_start(segment), None
+    if model is not None:
+        index, element = _element(model, segment, "bending angle")
+        start = model.robot.offsets[index]
+        if element.kind == StrainSegment.kind:
+            if "bend_y" not in element.strains:
+                raise ParameterError(
+                    f"segment {segment} does not bend about y (its strains: "
+                    f"{', '.join(element.strains)}): no bending angle in the x-z plane"
+                )
+            strain = index
 
     def function(q, qd, values, p):
-        y = factor * q[3 * segment] * q[3 * segment + 1]
+        if strain is None:
+            y = factor * q[start] * q[start + 1]
+        else:
+            xi, rest_length = _strain(model, strain, q, p)
+            y = factor * rest_length * xi[1]
         return y + (values[offset] if offset else 0)
 
     return OutputMap(
-        function, ("beta",), ("deg" if degrees else "rad",), {offset: 0.0} if offset else {}
+        function,
+        ("beta",),
+        ("deg" if degrees else "rad",),
+        {offset: 0.0} if offset else {},
+        robot_problem=_built_for(model, segment),
     )
 
 
-def curvature_map(segment: int = 0, *, offsets: tuple[str, str] | None = None):
-    """``(kx, ky)`` of one segment [1/m], plus optional sensor offsets.
+def curvature_map(segment: int = 0, *, offsets: tuple[str, str] | None = None, model=None):
+    """``(kx, ky)`` of one segment [1/m], plus optional sensor offsets: the coordinates of
+    a constant-curvature segment; of a constant-strain one, its backbone's curvature in
+    the same axes, ``(u_y, -u_x) / v_z`` (bending over stretch).
 
     Parameters
     ----------
     segment : int
-        Index of the segment, from the base.
+        Index of the segment (an element of the robot's chain), from the base.
     offsets : tuple of str, optional
         Names of two extra parameters (sensor zeros [1/m], nominal 0) added to
         ``kx`` and ``ky``.
+    model : Model, optional
+        The model the map is for (as :func:`bending_angle_map`'s).
     """
+    start, strain = _curvature_start(segment), None
+    if model is not None:
+        index, element = _element(model, segment, "curvature")
+        start = model.robot.offsets[index]
+        if element.kind == StrainSegment.kind:
+            if not {"bend_x", "bend_y"} & set(element.strains):
+                raise ParameterError(
+                    f"segment {segment} does not bend (its strains: "
+                    f"{', '.join(element.strains)}): its curvature is its rest curvature"
+                )
+            strain = index
 
     def function(q, qd, values, p):
-        y = ca.vertcat(q[3 * segment + 1], q[3 * segment + 2])
+        if strain is None:
+            y = ca.vertcat(q[start + 1], q[start + 2])
+        else:
+            xi = _strain(model, strain, q, p)[0]
+            y = ca.vertcat(xi[1], -xi[0]) / xi[5]
         return y + ca.vertcat(*(values[o] for o in offsets)) if offsets else y
 
     return OutputMap(
-        function, ("kx", "ky"), ("1/m", "1/m"), {o: 0.0 for o in offsets} if offsets else {}
+        function,
+        ("kx", "ky"),
+        ("1/m", "1/m"),
+        {o: 0.0 for o in offsets} if offsets else {},
+        robot_problem=_built_for(model, segment),
     )
 
 

@@ -41,12 +41,17 @@ class OutputMap:
     parameters : dict of str to float
         The named extra parameters ``function`` reads, with nominal values [unit of
         each parameter].
+    robot_problem : callable, optional
+        ``robot_problem(robot) -> str or None``: why the map cannot be used with a
+        robot (it reads coordinates the robot does not have where it looks), checked
+        by the fits before any work; None for a map that fits every robot.
     """
 
     function: Callable
     names: tuple[str, ...]
     units: tuple[str, ...]
     parameters: dict
+    robot_problem: Callable | None = None
 
 
 @dataclass(frozen=True)
