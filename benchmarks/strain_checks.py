@@ -20,6 +20,8 @@ Run: ``python benchmarks/strain_checks.py``
 
 from __future__ import annotations
 
+import argparse
+
 import numpy as np
 from scipy.linalg import expm
 
@@ -51,6 +53,7 @@ def weightless(*segments) -> sc.Robot:
 
 
 def main() -> None:
+    argparse.ArgumentParser(description=__doc__.splitlines()[0]).parse_args()
     rng = np.random.default_rng(45)
     model = sc.Model(weightless(SEGMENT), compile=False)
     length = SEGMENT.rest_length
