@@ -20,6 +20,8 @@ LONGEST_FIRST = (
     "test_identify.py",
     "test_sensitivity_driver.py",
     "test_docs_site.py",
+    "test_kinds.py",
+    "test_strain_convergence.py",
     "test_tendons.py",
     "test_envs_press.py",
     "test_validation_goals.py",
