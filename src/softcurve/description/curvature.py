@@ -290,42 +290,17 @@ class Segment(Element):
         k = np.pi / self.rest_length
         return np.array([(0.5 * self.rest_length, 1.5 * self.rest_length), (-k, k), (-k, k)])
 
-    @element_parameters
     def inside(self, q, rest_length=None) -> np.ndarray:
-        """Whether configurations lie in the domain, shape (...).
-
-        Parameters
-        ----------
-        %(q)s
-        %(rest_length)s
-        """
         q = np.asarray(q, dtype=np.float64)
         rest = self.rest_length if rest_length is None else np.asarray(rest_length)
         with np.errstate(invalid="ignore", over="ignore"):
             return segment_inside(q[..., 0], q[..., 1], q[..., 2], MAX_STRETCH * rest)
 
-    @element_parameters
     def domain_problem(self, q, index: int, place, rest_length=None) -> str | None:
-        """What puts ``q`` outside the domain, or None.
-
-        Parameters
-        ----------
-        %(q)s
-        %(index)s
-        %(place)s
-        %(rest_length)s
-        """
         rest = self.rest_length if rest_length is None else float(rest_length)
         return segment_problem(q, rest, index, place)
 
-    @element_parameters
     def with_values(self, values: dict) -> Segment:
-        """The element with the numbers ``values``, validated again.
-
-        Parameters
-        ----------
-        %(values)s
-        """
         creep = None
         if self.creep is not None:
             creep = Creep(*(values[f"creep.{n}"] for n in ("rate", "gain", "compliance")))

@@ -18,7 +18,6 @@ from softcurve.description.kind import (
     Body,
     Element,
     ElementModel,
-    element_parameters,
     matrix_field,
     scalar_field,
     vector_field,
@@ -152,38 +151,13 @@ class RigidBody(Element):
     def search_bounds(self) -> np.ndarray:
         return np.zeros((0, 2))
 
-    @element_parameters
     def inside(self, q, rest_length=None) -> np.ndarray:
-        """Whether configurations lie in the domain, shape (...).
-
-        Parameters
-        ----------
-        %(q)s
-        %(rest_length)s
-        """
         return np.ones(np.shape(q)[:-1], dtype=bool)
 
-    @element_parameters
     def domain_problem(self, q, index: int, place, rest_length=None) -> str | None:
-        """What puts ``q`` outside the domain, or None.
-
-        Parameters
-        ----------
-        %(q)s
-        %(index)s
-        %(place)s
-        %(rest_length)s
-        """
         return None
 
-    @element_parameters
     def with_values(self, values: dict) -> RigidBody:
-        """The element with the numbers ``values``, validated again.
-
-        Parameters
-        ----------
-        %(values)s
-        """
         return self.replace(
             mass=float(values["mass"]),
             centre_of_mass=values["centre_of_mass"],

@@ -467,44 +467,19 @@ class StrainSegment(Element):
         xi[..., list(self.indices)] = q
         return xi
 
-    @element_parameters
     def inside(self, q, rest_length=None) -> np.ndarray:
-        """Whether configurations lie in the domain, shape (...).
-
-        Parameters
-        ----------
-        %(q)s
-        %(rest_length)s
-        """
         rest = self.rest_length if rest_length is None else np.asarray(rest_length)
         with np.errstate(invalid="ignore", over="ignore"):
             return strains_inside(self.full_strain(q), rest)
 
-    @element_parameters
     def domain_problem(self, q, index: int, place, rest_length=None) -> str | None:
-        """What puts ``q`` outside the domain, or None.
-
-        Parameters
-        ----------
-        %(q)s
-        %(index)s
-        %(place)s
-        %(rest_length)s
-        """
         problem = finite_problem(q, self.strains, index, place)
         if problem is not None:
             return problem
         rest = self.rest_length if rest_length is None else float(rest_length)
         return strain_problem(self.full_strain(q), rest, index)
 
-    @element_parameters
     def with_values(self, values: dict) -> StrainSegment:
-        """The element with the numbers ``values``, validated again.
-
-        Parameters
-        ----------
-        %(values)s
-        """
         creep = None
         if self.creep is not None:
             creep = Creep(*(values[f"creep.{n}"] for n in ("rate", "gain", "compliance")))
