@@ -12,6 +12,7 @@ import softcurve as sc
 from softcurve.symbolic.dynamics import build_dynamics
 
 from .conftest import assert_close, random_state
+from .test_kinds import check_power_balance, check_three_algorithms
 
 SEGMENTS = (1, 2, 5, 12, 20)
 
@@ -33,32 +34,7 @@ def _inputs(rng, model):
 
 @pytest.mark.parametrize("n_segments", SEGMENTS)
 def test_the_three_algorithms_agree(rng, n_segments):
-    """The composite-body mass matrix is the derivative of the Newton-Euler inverse
-    dynamics in ``qdd``, symmetric positive definite; the articulated-body forward
-    dynamics inverts the Newton-Euler pass and agrees with solving with ``D``."""
-    model = _model(n_segments)
-    e = model.expressions
-    f = _function(
-        e,
-        [e.q, e.qd, e.qdd, e.tau, e.lam],
-        [e.mass_matrix, ca.jacobian(e.inverse_dynamics, e.qdd), e.inverse_dynamics],
-    )
-    forward = _function(e, [e.q, e.qd, e.tau, e.lam], [e.forward_dynamics])
-    for _ in range(2):
-        q, qd, tau, lam = _inputs(rng, model)
-        qdd = np.array(forward(q, qd, tau, lam, model.parameters)).ravel()
-        d, d_rnea, back = (np.array(v) for v in f(q, qd, qdd, tau, lam, model.parameters))
-        assert_close(d, d_rnea, atol=1e-14 * np.abs(d).max(), what="D against d(tau)/d(qdd)")
-        assert_close(d, d.T, atol=0, what="symmetry")
-        assert np.linalg.eigvalsh(d).min() > 0
-        bias = np.array(f(q, qd, np.zeros(model.n), tau, lam, model.parameters)[2]).ravel()
-        scale = np.abs(bias).max() + np.abs(tau).max()  # of the terms that cancel
-        assert_close(back.ravel(), tau, atol=1e-14 * scale, what="inverse(forward)")
-        # D's condition number is 1e6 (N = 1) to 1e10 (N = 20): the accelerations differ
-        # by as much; in tau both are exact to round-off (LAPACK's, with pivoting, less so:
-        # a residual of 1.6e-13 at N = 20 against the recursion's 1e-15)
-        solved = np.linalg.solve(d, tau - bias)
-        assert_close(d @ (solved - qdd), 0.0, atol=1e-12 * scale, what="ABA vs solve")
+    check_three_algorithms(_model(n_segments), rng, 2, inverse_tolerance=1e-14, inputs=_inputs)
 
 
 @pytest.mark.parametrize("n_segments", (1, 2, 5))
@@ -79,23 +55,7 @@ def test_calls_and_inlined_functions_agree(rng, n_segments):
 
 @pytest.mark.parametrize("n_segments", SEGMENTS)
 def test_power_balance(rng, n_segments):
-    """Along the forward dynamics, ``d(T + V_g + V_e)/dt = qd . (tau + K^T lambda - R qd)``:
-    the inertial terms neither create nor destroy energy, with
-    ``dT/dt = qd . D qdd + qd . Ddot qd / 2``."""
-    model = _model(n_segments)
-    e = model.expressions
-    qdd = e.forward_dynamics
-    kinetic_rate = ca.dot(e.qd, e.mass_matrix @ qdd) + 0.5 * ca.dot(
-        e.qd, ca.jtimes(e.mass_matrix, e.q, e.qd) @ e.qd
-    )
-    potential_rate = ca.dot(e.gravity_force + e.elastic_force, e.qd)
-    supplied = ca.dot(e.qd, e.tau + e.creep_force - e.damping_force)
-    f = _function(e, [e.q, e.qd, e.tau, e.lam], [kinetic_rate + potential_rate, supplied])
-    for _ in range(2):
-        q, qd, tau, lam = _inputs(rng, model)
-        balance, supplied_value = (float(v) for v in f(q, qd, tau, lam, model.parameters))
-        scale = abs(float(ca.dot(qd, qd))) ** 0.5 * 1e-3 + abs(supplied_value)
-        assert balance == pytest.approx(supplied_value, abs=1e-9 * scale)
+    check_power_balance(_model(n_segments), rng, 2, inputs=_inputs)
 
 
 @pytest.mark.parametrize("n_segments", (2, 8))
