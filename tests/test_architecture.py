@@ -306,8 +306,8 @@ def constant_curvature_only() -> dict[tuple[str, str], str]:
         "without model= reads constant-curvature coordinates; the fits refuse it on other "
         "robots (OutputMap.robot_problem)",
         ("softcurve.identification.maps._inputs", "_count"): until_maps,
-        ("softcurve.control.references", "tip_circle"): "constant curvature only "
-        "until the references are written per kind",
+        ("softcurve.control.references", "tip_circle"): "a reference in (l, kx, ky), "
+        "flagged constant_curvature: a controller refuses it on a robot of other elements",
     }
 
 

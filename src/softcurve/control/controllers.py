@@ -100,6 +100,11 @@ class ComputedTorque(SampledController):
         super().__init__(sample_time)
         if reference.n != model.n:
             raise ParameterError(f"reference has n = {reference.n}, model n = {model.n}")
+        if reference.constant_curvature and not model.robot.constant_curvature:
+            raise ParameterError(
+                "reference is written in the coordinates (l, kx, ky) of constant-curvature "
+                "segments, the robot has other elements: give it in the robot's coordinates"
+            )
         self.model, self.reference = model, reference
         self.kp, self.kd = _gain("kp", kp, model.n), _gain("kd", kd, model.n)
 

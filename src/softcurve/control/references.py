@@ -46,9 +46,13 @@ class Reference:
         expression built from CasADi operations.
     n : int
         Number of coordinates.
+    constant_curvature : bool
+        Whether the reference is written in the coordinates ``(l, kx, ky)`` of
+        constant-curvature segments (:func:`tip_circle`), which a controller then refuses
+        on a robot of other elements.
     """
 
-    def __init__(self, expression: Callable, n: int):
+    def __init__(self, expression: Callable, n: int, constant_curvature: bool = False):
         t = ca.SX.sym("t")
         q = ca.vertcat(expression(t))
         if q.shape != (n, 1):
@@ -56,6 +60,7 @@ class Reference:
         qd = ca.jacobian(q, t)
         qdd = ca.jacobian(qd, t)
         self.n = n
+        self.constant_curvature = constant_curvature
         self._function = ca.Function("reference", [t], [q, qd, qdd])
 
     def __call__(self, t: float) -> ReferenceSample:
@@ -167,4 +172,4 @@ def tip_circle(
         arc = tip_to_coordinates(point)
         return ca.repmat(ca.vertcat(arc[0] / segments, arc[1], arc[2]), segments, 1)
 
-    return Reference(expression, 3 * segments)
+    return Reference(expression, 3 * segments, constant_curvature=True)

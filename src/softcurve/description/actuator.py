@@ -531,6 +531,25 @@ class Actuator:
         return fiber_problem(self.fibers(), self._coordinates(q))
 
     # -- helpers ---------------------------------------------------------------------
+    def fiber_fields(self, robot) -> tuple[str, ...]:
+        """The robot's parameter fields the actuator's fibers depend on, as they were when
+        it was built (a constant-strain segment's rest length and rest strain, a rigid
+        body's tip; e.g. ``"segments[0].rest_length"``): numbers a fit may not free, nor a
+        batch vary, while this actuator drives the robot.
+
+        Parameters
+        ----------
+        robot : Robot
+            The robot driven.
+        """
+        if not self._parts_field:
+            return ()
+        return tuple(
+            f"segments[{i}].{name}"
+            for i, element in enumerate(robot.segments)
+            for name in _FIBER_FIELDS.get(element.kind, ())
+        )
+
     def check_robot(self, robot) -> None:
         """Raise :class:`ParameterError` unless the actuator fits ``robot``: its
         coordinates, its elements (an actuator built without ``elements`` drives

@@ -23,6 +23,12 @@ from softcurve.description.kind import (
     vector_field,
 )
 
+JOINT_ROUNDING = 1e-12
+"""How close to 1 a rigid body's local coordinate counts as its tip: the robot's
+``s N - i`` at an element's end ``s = (i + 1) / N`` rounds a few ulps short of 1 (4.4e-16
+at ``N = 22``), and there the point is the next element's base, the tip frame. Chains of
+thousands of elements stay within it; no drawing resolves 1e-12 of a body."""
+
 ROTATION_TOLERANCE = 1e-9
 """How far ``R^T R`` may be from the identity: the base rotation's tolerance, for a
 rotation matrix written with nine or more digits."""
@@ -111,12 +117,15 @@ class RigidBody(Element):
             inertia = np.diag(inertia)
         inertia = real_array("inertia", inertia, (3, 3))
         scale = max(np.max(np.abs(inertia)), np.finfo(float).tiny)
+        principal = np.linalg.eigvalsh(0.5 * (inertia + inertia.T))
         if (
             not np.allclose(inertia, inertia.T, rtol=0, atol=1e-12 * scale)
-            or np.min(np.linalg.eigvalsh(0.5 * (inertia + inertia.T))) < -1e-12 * scale
+            or np.min(principal) < -1e-12 * scale
+            or 2 * np.max(principal) > principal.sum() + 1e-12 * scale
         ):
             raise ParameterError(
-                f"inertia must be symmetric positive semidefinite [kg m^2], got {inertia.tolist()}"
+                "inertia must be symmetric positive semidefinite with each principal moment at "
+                f"most the sum of the other two (a body's) [kg m^2], got {inertia.tolist()}"
             )
         set_(self, "inertia", 0.5 * (inertia + inertia.T))
         length = float(np.linalg.norm(tip))
@@ -202,7 +211,8 @@ class RigidModel(ElementModel):
 
     def point_pose(self, q, s, g):
         # the body's points share its base frame's orientation; s = 1 is the tip frame
-        return ca.if_else(s >= 1, self._matrix(g, 13), ca.SX.eye(3)), s * g[22:25]
+        at_tip = s >= 1 - JOINT_ROUNDING
+        return ca.if_else(at_tip, self._matrix(g, 13), ca.SX.eye(3)), s * g[22:25]
 
     def angular_jacobian(self, q, s, g):
         return ca.SX(3, 0)

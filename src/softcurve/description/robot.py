@@ -64,10 +64,23 @@ def in_domain(q, rest_lengths) -> np.ndarray:
     ndarray of bool, shape (...)
     """
     q = np.asarray(q, dtype=np.float64)
+    _check_curvature_shape(q, rest_lengths)
     length, kx, ky = q[..., 0::3], q[..., 1::3], q[..., 2::3]
     limit = MAX_STRETCH * np.asarray(rest_lengths, dtype=np.float64)
     with np.errstate(invalid="ignore", over="ignore"):
         return np.all(segment_inside(length, kx, ky, limit), axis=-1)
+
+
+def _check_curvature_shape(q, rest_lengths) -> None:
+    """The rule of constant-curvature robots reads ``(l, kx, ky)`` per rest length: any
+    other count of coordinates is another robot's (:meth:`Robot.inside`)."""
+    count = np.shape(rest_lengths)[-1] if np.ndim(rest_lengths) else 1
+    if q.shape[-1] != 3 * count:
+        raise ParameterError(
+            f"q has {q.shape[-1]} coordinates, not (l, kx, ky) for each of {count} "
+            "constant-curvature segments: check a robot of other elements with Robot.inside "
+            "and Robot.domain_problem"
+        )
 
 
 def _place(entry: str):
@@ -93,6 +106,7 @@ def domain_problem(q, rest_lengths, *, entry: str = "entry") -> str | None:
         ``"entry 3"``.
     """
     q = np.asarray(q, dtype=np.float64)
+    _check_curvature_shape(q, rest_lengths)
     place = _place(entry)
     for i, l0 in enumerate(np.asarray(rest_lengths, dtype=np.float64)):
         problem = segment_problem(q[3 * i : 3 * i + 3], l0, i, lambda k, i=i: place(3 * i + k))

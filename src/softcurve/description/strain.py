@@ -81,6 +81,10 @@ _DAMPING_UNITS = {
     ("N", ""): "N s",
 }
 
+TRIANGLE = 1.0 + 1e-12
+"""Slack of the triangle inequality of principal moments ``I_1 <= I_2 + I_3``, relative:
+a thin section's moments meet it with equality (``2 I = I + I``), up to round-off."""
+
 MAX_TWIST = 2.0 * math.pi
 """Largest twist angle ``|u_z| L0`` of a segment [rad] in the model's domain: a full turn,
 as :data:`MAX_BEND` for bending (the quadrature's accuracy is the same)."""
@@ -180,7 +184,12 @@ def strains_inside(xi, rest_length):
 def _chosen(strains) -> tuple[str, ...]:
     if isinstance(strains, str):
         strains = (strains,)
-    strains = tuple(strains)
+    try:
+        strains = tuple(strains)
+    except TypeError:
+        raise ParameterError(
+            f"strains must be a sequence of names among {STRAINS}, got {strains!r}"
+        ) from None
     unknown = [s for s in strains if s not in STRAINS]
     if unknown or not strains or len(set(strains)) != len(strains):
         raise ParameterError(
@@ -217,8 +226,9 @@ class StrainSegment(Element):
     rest_strain : array_like, shape (6,)
         ``xi*`` [1/m, 1/m, 1/m, -, -, -], default ``(0, 0, 0, 0, 0, 1)``; in the domain.
     slice_inertia : array_like, shape (3,), optional
-        Rotary inertia per unit mass of a slice in its frame [m^2], each > 0 (``(I, I,
-        J) / A`` of the section); default ``radius^2 (1/4, 1/4, 1/2)``, a disc.
+        Rotary inertia per unit mass of a slice in its frame [m^2], each > 0 and each at
+        most the sum of the other two (``(I, I, 2 I) / A`` of a section: the polar moment
+        about the axis); default ``radius^2 (1/4, 1/4, 1/2)``, a disc.
     damping : array_like, shape (k, k) or (k,)
         ``R`` on the rates of the chosen strains, zero or symmetric positive definite; a
         vector is a diagonal.
@@ -291,9 +301,10 @@ class StrainSegment(Element):
         inertia = self.radius**2 * np.array([0.25, 0.25, 0.5])
         if self.slice_inertia is not None:
             inertia = real_array("slice_inertia", self.slice_inertia, (3,))
-            if not np.all(inertia > 0):
+            if not np.all(inertia > 0) or not np.all(2 * inertia <= inertia.sum() * TRIANGLE):
                 raise ParameterError(
-                    f"slice_inertia must be > 0 in every entry [m^2], got {inertia.tolist()}"
+                    f"slice_inertia must be > 0 in every entry and each at most the sum of the "
+                    f"other two (a body's principal moments) [m^2], got {inertia.tolist()}"
                 )
         set_(self, "slice_inertia", inertia)
         damping = np.zeros(self.n_coordinates) if self.damping is None else self.damping
@@ -322,7 +333,7 @@ class StrainSegment(Element):
         creep: Creep | None = None,
     ) -> StrainSegment:
         """The segment of a material and a section: linear laws ``EI``, ``GJ``, ``k G
-        A``, ``E A`` on the chosen strains, mass ``rho A L0``, slice inertia ``(I, I, J) /
+        A``, ``E A`` on the chosen strains, mass ``rho A L0``, slice inertia ``(I, I, 2 I) /
         A``, radius the section's (or ``sqrt(A / pi)`` where it has none).
 
         Parameters
@@ -429,14 +440,19 @@ class StrainSegment(Element):
 
     @element_parameters
     def bending_curvature(self, q) -> np.ndarray:
-        """``hypot(bend_x, bend_y)`` of the full strain (rest values where not chosen).
+        """The backbone's curvature [1/m] per unit of its arc length,
+        ``|v x (u x v)| / |v|^3`` of the full strain (rest values where not chosen):
+        ``hypot(bend_x, bend_y) / stretch`` without shear, as a constant-curvature
+        segment's ``hypot(kx, ky)``.
 
         Parameters
         ----------
         %(q)s
         """
         xi = self.full_strain(q)
-        return np.hypot(xi[..., 0], xi[..., 1])
+        u, v = xi[..., :3], xi[..., 3:]
+        normal = np.cross(v, np.cross(u, v))
+        return np.linalg.norm(normal, axis=-1) / np.linalg.norm(v, axis=-1) ** 3
 
     @property
     def extent_index(self) -> int | None:
@@ -445,13 +461,18 @@ class StrainSegment(Element):
 
     def search_bounds(self) -> np.ndarray:
         """About the rest strains: bending and twist within ``pi / L0`` (half a turn),
-        shear within 0.25 (14 degrees) and stretch within half of its rest value."""
+        shear within 0.25 (14 degrees) and stretch within half of its rest value, each
+        clipped to the strain's own bound (a full turn, ``MAX_STRETCH``)."""
         rest = self.rest_configuration()
         half = np.array([np.pi / self.rest_length] * 3 + [0.25, 0.25, 0.0])[list(self.indices)]
         lower, upper = rest - half, rest + half
+        turn = np.array([MAX_BEND / self.rest_length, MAX_BEND / self.rest_length,
+                         MAX_TWIST / self.rest_length, np.inf, np.inf, np.inf])  # fmt: skip
+        bound = turn[list(self.indices)]
+        lower, upper = np.maximum(lower, -bound), np.minimum(upper, bound)
         if "stretch" in self.strains:
             k = self.extent_index
-            lower[k], upper[k] = 0.5 * rest[k], 1.5 * rest[k]
+            lower[k], upper[k] = 0.5 * rest[k], min(1.5 * rest[k], MAX_STRETCH)
         return np.column_stack([lower, upper])
 
     def full_strain(self, q) -> np.ndarray:

@@ -101,12 +101,28 @@ class Problem:
         problem = output.robot_problem(model.robot) if output.robot_problem else None
         if problem is not None:
             raise ParameterError(f"output: {problem}")
+        if input_map is not None and input_map.robot_problem is not None:
+            problem = input_map.robot_problem(model.robot)
+            if problem is not None:
+                raise ParameterError(f"input map: {problem}")
         self.experiments, single = experiment_list(experiment)
         names = [e.name for e in self.experiments]
         shared, per = split_extra(dict(extra or {}), names)
         maps = {**output.parameters, **(input_map.parameters if input_map else {})}
         free = [f if isinstance(f, Free) else Free(f) for f in free]
         wanted = {t for f in free for t in f.targets} | set(shared)
+        fixed = input_map.fixed_fields(model.robot) if input_map and input_map.fixed_fields else ()
+        held = sorted(
+            t
+            for t in wanted
+            for name in fixed
+            if t == name or t.startswith((name + "[", name + "."))
+        )
+        if held:
+            raise ParameterError(
+                f"free: {held[0]} shapes the actuator's fibers, laid along the robot it was "
+                "built with; fit it without the actuator's input map, or hold it fixed"
+            )
         parts = []
         for e in self.experiments:
             own = starts(e, wanted | set(per[e.name])) if starts else {}

@@ -164,7 +164,7 @@ def bellows_input_map(
             theta += [phi, rho, values[f"{prefix}.area"] * gain]
         return actuator.input_matrix_symbolic(q, ca.vertcat(*theta)) @ u
 
-    return InputMap(function, nominal, ("Pa",) * count)
+    return InputMap(function, nominal, ("Pa",) * count, robot_problem=constant_curvature_only)
 
 
 def tendon_input_map(
@@ -236,7 +236,7 @@ def tendon_input_map(
             gains.append(gain)
         return actuator.input_matrix_symbolic(q, ca.vertcat(*theta)) @ (ca.vertcat(*gains) * u)
 
-    return InputMap(function, nominal, ("N",) * count)
+    return InputMap(function, nominal, ("N",) * count, robot_problem=constant_curvature_only)
 
 
 def constant_input_map(
@@ -276,7 +276,7 @@ def constant_input_map(
         f"{prefix}.a_k": bending_gain,
         f"{prefix}.angle": 0.0,
     }
-    return InputMap(function, nominal, ("Pa",) * 3)
+    return InputMap(function, nominal, ("Pa",) * 3, robot_problem=constant_curvature_only)
 
 
 def actuator_input_map(actuator: Actuator, *, prefix: str | None = None) -> InputMap:
@@ -304,11 +304,43 @@ def actuator_input_map(actuator: Actuator, *, prefix: str | None = None) -> Inpu
         def fixed(q, u, values):
             return actuator.input_matrix_symbolic(q) @ u
 
-        return InputMap(fixed, {}, units, actuator)
+        return InputMap(fixed, {}, units, actuator, _actuator_problem(actuator),
+                        actuator.fiber_fields)  # fmt: skip
     names = [prefix + name for name in actuator.parameter_names()]
     nominal = dict(zip(names, actuator.parameter_vector().tolist(), strict=True))
 
     def function(q, u, values):
         return actuator.input_matrix_symbolic(q, ca.vertcat(*(values[k] for k in names))) @ u
 
-    return InputMap(function, nominal, units)
+    return InputMap(function, nominal, units, None, _actuator_problem(actuator),
+                    actuator.fiber_fields)  # fmt: skip
+
+
+def _actuator_problem(actuator: Actuator):
+    """``robot_problem`` of a map through ``actuator``: its own check of the robot."""
+
+    def problem(robot) -> str | None:
+        try:
+            actuator.check_robot(robot)
+        except ParameterError as exc:
+            return str(exc)
+        return None
+
+    return problem
+
+
+def constant_curvature_only(robot) -> str | None:
+    """``robot_problem`` of the maps written for constant-curvature segments (their
+    fibers' lengths in ``(l, kx, ky)``): None on such a robot, why not on another.
+
+    Parameters
+    ----------
+    robot : Robot
+        The robot a fit drives with the map.
+    """
+    if robot.constant_curvature:
+        return None
+    return (
+        "the map is written for constant-curvature segments (l, kx, ky); for a robot of other "
+        "elements use actuator_input_map with an actuator built with elements=robot"
+    )

@@ -82,9 +82,19 @@ class InputMap:
         lengths, chamber volumes > 0) every fitted equilibrium must lie in
         (:func:`~softcurve.description.domain.states_inside`); None when unknown or
         when its geometry is identified (then only the robot's domain is checked).
+    robot_problem : callable, optional
+        ``robot_problem(robot) -> str or None``: why the map cannot drive ``robot`` (a
+        map written for constant-curvature segments on a robot of other kinds), checked
+        by every fit before any work.
+    fixed_fields : callable, optional
+        ``fixed_fields(robot) -> tuple of str``: the robot's parameter fields the map's
+        geometry was built with (an actuator's fibers along a strain segment), which a fit
+        may not free.
     """
 
     function: Callable
     parameters: dict
     units: tuple[str, ...] = field(default=())
     actuator: object = None
+    robot_problem: Callable | None = None
+    fixed_fields: Callable | None = None

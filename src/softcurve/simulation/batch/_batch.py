@@ -204,7 +204,7 @@ def simulate_batch(
             )
     arrays = {name: np.array(np.broadcast_to(a, (size, a.shape[1]))) for name, a in arrays.items()}
     x0 = np.hstack([arrays["q0"], arrays["qd0"], arrays["lam0"]])
-    nominal, rest_lengths = _nominal(model, arrays["parameters"], x0)
+    nominal, rest_lengths = _nominal(model, arrays["parameters"], x0, actuator)
     outside = ~model.robot.inside(arrays["q0"], rest_lengths)
     if np.any(outside):
         b = int(np.argmax(outside))
@@ -354,9 +354,12 @@ def _result(t, x, inputs, arrays, member_status, messages, reached, stats, model
     )
 
 
-def _nominal(model: Model, params: np.ndarray, x0: np.ndarray) -> tuple:
+def _nominal(model: Model, params: np.ndarray, x0: np.ndarray, actuator=None) -> tuple:
     """``(nominal_scale, rest lengths (B, N))`` of each member's own robot; validates
-    every parameter vector."""
+    every parameter vector, and the actuator against each member's robot (its fibers are
+    laid along the robot it was built with: a member that changes a number they depend
+    on, a strain segment's rest length or a rigid body's tip, is refused, not driven with
+    the nominal geometry)."""
     robots: dict[bytes, _RobotView] = {model.parameters.tobytes(): _RobotView(model.robot)}
     nominal = np.empty_like(x0)
     rest_lengths = np.empty((x0.shape[0], model.robot.n_segments))
@@ -365,6 +368,8 @@ def _nominal(model: Model, params: np.ndarray, x0: np.ndarray) -> tuple:
         if key not in robots:
             try:
                 robots[key] = _RobotView(model.robot.with_parameter_vector(params[b]))
+                if actuator is not None:
+                    actuator.check_robot(robots[key].robot)
             except ParameterError as exc:
                 raise ParameterError(f"parameters[{b}]: {exc}") from None
         nominal[b] = nominal_scale(robots[key], x0[b])
