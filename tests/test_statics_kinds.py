@@ -75,7 +75,9 @@ def test_a_buckled_six_strain_robot_has_a_stable_ring_and_a_saddle(strain_model)
     bend_x, bend_y = ring.q[:2]
     assert bend_x == 0.0 and bend_y > 0 and ring.q[3] > 0 and ring.q[4] == 0.0  # toward +x
     assert ring.eigenvalues.size == strain_model.n - 1  # the ring's direction left out
-    assert_close(ring.curvature, [bend_y], rtol=1e-15)
+    u, v = ring.q[:3], ring.q[3:]  # the backbone's curvature, |p' x p''| / |p'|^3
+    curvature = np.linalg.norm(np.cross(v, np.cross(u, v))) / np.linalg.norm(v) ** 3
+    assert_close(ring.curvature, [curvature], rtol=1e-14)
     for angle in (0.7, 2.5):  # every turned member is the same ring
         member = rotate_about_axis(ring.q, angle, strain_model.robot)
         assert_close(np.hypot(*member[:2]), bend_y, rtol=1e-14)
