@@ -188,7 +188,7 @@ BAD = [
     (one("q0[1]", 1, 1, points=2), r"variables\[0\]\.high: must be > low"),
     (one("q0[1]", 1, 2), r"variables\[0\]\.points: is required for a grid"),
     (one("q0[1]", -1, 2, points=2, scale="log"), r"variables\[0\]\.low: must be > 0 on a log"),
-    (one("q0[0]", -0.01, 0.07, points=2), r"q0\[0\] is a length"),
+    (one("q0[0]", -0.01, 0.07, points=2), r"q0\[0\] = -0.01 is outside the model's domain .*0 < l"),
     (
         one("segments[0].bending_stiffness.a1", 0.3, 0.5, points=2),
         r"corner segments\[0\]\.bending_stiffness\.a1 = 0\.3 of the design is invalid",
@@ -368,7 +368,7 @@ def test_swept_variables_are_labelled_in_words_with_their_units():
     examples = Path(__file__).resolve().parents[1] / "examples"
     scenario = load_sweep(examples / "sweep_tendons.toml").scenario
     assert variable_label(scenario, "q0[1]") == "initial curvature kx, segment 0 [1/m]"
-    assert variable_label(scenario, "qd0[3]") == "initial rate of length l, segment 1 [m/s]"
+    assert variable_label(scenario, "qd0[0]") == "initial rate of length l, segment 0 [m/s]"
     assert variable_label(scenario, "tensions[0]") == "tensions[0] [N]"
     assert variable_label(scenario, "inputs[2]") == "tensions[2] [N]"
     assert variable_label(scenario, "tendons[0].distance") == "tendons[0].distance"

@@ -166,6 +166,7 @@ def test_npz_faults_are_refused_naming_the_row(run, tmp_path):
     cut = {k: getattr(run, k)[:100] for k in ("t", "q", "qd", "lam", "tip", "tau")}
     _refused(_npz(run, tmp_path, **cut), "100 rows, ending at row 100, but the metadata says 201")
     six = {"n": 6, "coordinates": ["l1", "kx1", "ky1", "l2", "kx2", "ky2"]}
+    six["units"] = ["m", "1/m", "1/m"] * 2
     _refused(_npz(run, tmp_path, meta=six), r"array 'q' has shape \(201, 3\).* \(201, 6\)")
     q = run.q.copy()
     q[5, 1] = np.nan

@@ -85,7 +85,7 @@ def _run(args) -> int:
     table = equilibria(model, starts=starts, seed=seed, **loads)
     gravity = np.asarray(loads.get("gravity", robot.gravity), dtype=float) + 0.0  # no -0.0
     print(
-        f"softcurve equilibria: {robot.n_segments} segment(s), "
+        f"softcurve equilibria: {robot.n_segments} {robot.element_word}(s), "
         f"gravity {np.array2string(gravity)} m/s^2"
     )
     if args.inputs is not None:

@@ -329,8 +329,9 @@ def _summary(scenario, model, trajectory, built, total, written) -> str:
     wall = stats["wall_time"]
     simulated = trajectory.t[-1] if trajectory.t.size else 0.0
     fmt = lambda a: "(" + ", ".join(f"{v:.6g}" for v in a) + ")"  # noqa: E731
+    robot = model.robot
     lines = [
-        f"softcurve simulate: {scenario.source}, {model.robot.n_segments} segment(s), "
+        f"softcurve simulate: {scenario.source}, {robot.n_segments} {robot.element_word}(s), "
         f"t = 0 .. {simulated:.6g} s, output every {scenario.settings.dt:g} s "
         f"({trajectory.t.size} points)",
         f"  status      {trajectory.status.value}: {as_flags(trajectory.message)}",

@@ -236,7 +236,7 @@ class Model:
         self._cache_lock = threading.Lock()
         self.compiled_library: Path | None = None
         if compile:
-            segments = f"{robot.n_segments} segment{'s' if robot.n_segments != 1 else ''}"
+            segments = robot.counted()
             obstacles = "" if environment is None else " and its obstacles"
             loaded = compiled_library(
                 self._cache_structure(),

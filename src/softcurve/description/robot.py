@@ -192,6 +192,19 @@ class Robot:
         """Number of elements ``N`` (segments and rigid bodies)."""
         return len(self.segments)
 
+    @property
+    def element_word(self) -> str:
+        """What the robot's parts are called in messages: ``"segment"`` when every
+        element is a constant-curvature segment, else ``"element"`` (a chain with rigid
+        bodies or constant-strain segments; :attr:`n_segments` counts them all)."""
+        return "segment" if self.constant_curvature else "element"
+
+    def counted(self) -> str:
+        """The number of elements in words, ``"2 segments"``, ``"3 elements"``,
+        ``"1 element"``."""
+        n = self.n_segments
+        return f"{n} {self.element_word}{'s' if n != 1 else ''}"
+
     @cached_property
     def sizes(self) -> tuple[int, ...]:
         """Number of coordinates of each element (Pinocchio's ``nq``)."""

@@ -6,8 +6,8 @@ from __future__ import annotations
 import numpy as np
 
 from softcurve.base.validation import ParameterError, real_array
-from softcurve.figures.drawing import backbones, panels, whole_number
-from softcurve.figures.shapes import draw_views, finish_views, input_label
+from softcurve.figures.drawing import chain_lines, draw_rigid_body, panels, whole_number
+from softcurve.figures.shapes import VIEWS, draw_views, finish_views, input_label
 
 MM_PER_M = 1e3
 BOUND_STYLE = {"color": "0.35", "lw": 0.9, "ls": "--"}
@@ -72,7 +72,7 @@ def plot_inputs(trajectory, actuator, ax=None, *, labels=None):
 
 def plot_backbones(trajectory, times, ax=None, *, model=None, path=None, points: int = 40):
     """The backbone at chosen times, seen from the side (x-z) and from above (x-y), with
-    a reference path of the tip.
+    a reference path of the tip; rigid bodies as dark grey bars.
 
     Parameters
     ----------
@@ -104,15 +104,22 @@ def plot_backbones(trajectory, times, ax=None, *, model=None, path=None, points:
     if trajectory.t.size == 0:
         raise ParameterError("the trajectory has no samples: nothing to draw")
     index = np.abs(trajectory.t[None, :] - times[:, None]).argmin(axis=1)
-    shapes = backbones(model, trajectory.q[index], points) * MM_PER_M
+    lines, rigid = chain_lines(model, trajectory.q[index], points)
+    shapes = lines * MM_PER_M
+    ends_rigid = rigid and rigid[-1].index == model.robot.n_segments - 1  # a gripper, say
+    tips = MM_PER_M * (rigid[-1].backbone[:, -1] if ends_rigid else lines[:, -1])
     figure, views = panels(ax, 2, "the backbones figure", rows=1, figsize=(9.0, 4.2))
     colors = _colors(len(index))
     if path is not None:
         path = real_array("path", path, (np.asarray(path).shape[0], 3)) * MM_PER_M
         draw_views(views, path, "k--", lw=0.9, label="reference path")
-    for shape, k, color in zip(shapes, index, colors, strict=True):
+    for c, (shape, k, color) in enumerate(zip(shapes, index, colors, strict=True)):
         draw_views(views, shape, color=color, lw=2.0, label=f"t = {trajectory.t[k]:.2f} s")
-        draw_views(views, shape[-1:], "o", color=color, ms=4)
+        for part in rigid:
+            for ax, (_, plane) in zip(views, VIEWS, strict=True):
+                first = c == 0 and part is rigid[0] and ax is views[0]
+                draw_rigid_body(ax, part, c, plane, MM_PER_M, "rigid body" if first else None)
+        draw_views(views, tips[c], "o", color=color, ms=4)
     finish_views(views)
     views[0].legend(fontsize="small", loc="lower right")
     return figure

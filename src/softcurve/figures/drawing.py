@@ -14,6 +14,8 @@ from softcurve.base.validation import ParameterError, real_scalar
 from softcurve.description.elements import RigidBody
 
 RIGID_KIND = RigidBody.kind
+RIGID_STYLE = {"color": "0.35", "alpha": 0.85, "lw": 0.0}
+"""A rigid body: a dark grey bar, where the soft segments are blue lines."""
 
 
 def pyplot():
@@ -333,6 +335,84 @@ def element_shapes(model, q, points: int) -> tuple[ElementShape, ...]:
         )
         for i, element in enumerate(model.robot.segments)
     )
+
+
+def chain_lines(model, q, points: int) -> tuple[np.ndarray, tuple[ElementShape, ...]]:
+    """The soft elements' backbone as one line per configuration, broken where a rigid
+    body lies, and the rigid bodies (each drawn as a bar, :func:`draw_rigid_body`).
+
+    Parameters
+    ----------
+    model : softcurve.Model
+        Gives the poses.
+    q : array_like, shape (k, n)
+        Configurations.
+    points : int
+        Points along the whole backbone of a chain without rigid bodies (evenly spaced
+        in ``s``, as :func:`backbones`); along each element otherwise [count].
+
+    Returns
+    -------
+    lines : ndarray, shape (k, P, 3)
+        World positions [m]; NaN rows (where a line plot breaks) in place of each rigid
+        body.
+    rigid : tuple of ElementShape
+        The rigid bodies, base to tip.
+    """
+    if not any(s.kind == RIGID_KIND for s in model.robot.segments):
+        return backbones(model, q, points), ()
+    parts = element_shapes(model, q, points)
+    gap = np.full((parts[0].backbone.shape[0], 1, 3), np.nan)
+    lines = np.concatenate([gap if p.rigid else p.backbone for p in parts], axis=1)
+    return lines, tuple(p for p in parts if p.rigid)
+
+
+def draw_rigid_body(ax, part: ElementShape, k: int, plane, scale: float, label=None) -> None:
+    """Draw a rigid body at configuration ``k`` into ``ax`` as a dark grey bar of its
+    diameter from its base to its tip.
+
+    Parameters
+    ----------
+    ax : matplotlib.axes.Axes
+        Where to draw.
+    part : ElementShape
+        The rigid body (``rigid`` true).
+    k : int
+        The configuration drawn.
+    plane : tuple of int, shape (2,)
+        The world axes drawn horizontally and vertically (``(0, 2)``: x-z).
+    scale : float
+        From metres to the axes' unit (1e3 for mm) [the axes' unit per m].
+    label : str, optional
+        Its legend entry.
+    """
+    ends = scale * part.backbone[k][[0, -1]][:, list(plane)]
+    ax.fill(*bar_corners(ends, scale * part.radius).T, **RIGID_STYLE, label=label)
+
+
+def bar_corners(ends, radius: float) -> np.ndarray:
+    """The corners of a bar of half-width ``radius`` between two points of a view; a
+    square of side ``2 radius`` round them where they coincide in it (a body seen end
+    on).
+
+    Parameters
+    ----------
+    ends : ndarray, shape (2, 2)
+        The bar's ends in the view [the view's unit].
+    radius : float
+        Its half-width [the view's unit].
+
+    Returns
+    -------
+    ndarray, shape (4, 2)
+        The corners, in order round the bar.
+    """
+    along = ends[1] - ends[0]
+    length = np.linalg.norm(along)
+    along = along / length if length > 0 else np.array([1.0, 0.0])
+    normal = radius * np.array([-along[1], along[0]])
+    start, end = ends[0] - radius * along, ends[1] + radius * along
+    return np.array([start + normal, end + normal, end - normal, start - normal])
 
 
 def state_rows(robot) -> tuple[tuple[str, str, tuple], ...]:

@@ -11,7 +11,13 @@ import numpy as np
 
 from softcurve.base.docs import parameters_from
 from softcurve.base.validation import ParameterError, real_array
-from softcurve.figures.drawing import backbones, element_shapes, panels, whole_number
+from softcurve.figures.drawing import (
+    backbones,
+    draw_rigid_body,
+    element_shapes,
+    panels,
+    whole_number,
+)
 from softcurve.figures.statics import BACKBONE_POINTS, DISPLAY_UNITS
 
 MM_PER_M = 1e3
@@ -26,8 +32,6 @@ STABLE_SHADE = {"color": "tab:green", "alpha": 0.08}
 """The stable half-plane ``Re(s) < 0`` of the eigenvalue figure."""
 TITLE_WIDTH = 60
 """Characters per line of a title made of a result's message, wrapped to fit a panel."""
-RIGID_STYLE = {"color": "0.35", "alpha": 0.85, "lw": 0.0}
-"""A rigid body: a dark grey bar, where the soft segments are blue lines."""
 STRIPE_STYLE = {"color": "tab:orange", "lw": 1.0}
 """The stripe on a soft segment's surface (along its material x axis)."""
 MARGIN = 0.15
@@ -98,25 +102,12 @@ def draw_robot(views, model, q, points: int) -> None:
     for part in element_shapes(model, q[None], points):
         backbone, stripe = MM_PER_M * part.backbone[0], MM_PER_M * part.stripe[0]
         if part.rigid:
-            for ax, (_, (i, j)) in zip(views, VIEWS, strict=True):
-                ax.fill(*_bar(backbone[[0, -1]][:, [i, j]], MM_PER_M * part.radius).T,
-                        **RIGID_STYLE, label=label("rigid body"))  # fmt: skip
+            for ax, (_, plane) in zip(views, VIEWS, strict=True):
+                draw_rigid_body(ax, part, 0, plane, MM_PER_M, label("rigid body"))
             continue
         draw_views(views, backbone, color="C0", lw=2.0, label=label("backbone"))
         if stripes:
             draw_views(views, stripe, **STRIPE_STYLE, label=label("stripe (twist)"))
-
-
-def _bar(ends, radius: float) -> np.ndarray:
-    """The corners (4, 2) of a bar of half-width ``radius`` between two points (2, 2) of a
-    view; a square of side ``2 radius`` round them where they coincide in it (a body
-    seen end on)."""
-    along = ends[1] - ends[0]
-    length = np.linalg.norm(along)
-    along = along / length if length > 0 else np.array([1.0, 0.0])
-    normal = radius * np.array([-along[1], along[0]])
-    start, end = ends[0] - radius * along, ends[1] + radius * along
-    return np.array([start + normal, end + normal, end - normal, start - normal])
 
 
 def finish_views(views) -> None:

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from softcurve.base.validation import ParameterError
-from softcurve.figures.drawing import backbones, panels
+from softcurve.figures.drawing import chain_lines, draw_rigid_body, panels
 
 BACKBONE_POINTS = 40
 STABILITY_STYLES = {"stable": "-", "unstable": "--", "saddle": ":", "degenerate": "-."}
@@ -16,7 +16,7 @@ MM_PER_M = 1e3
 
 def plot_equilibria(table, ax=None):
     """The backbone of every equilibrium in the x-z plane [mm], styled by stability (a ring
-    of equilibria is drawn by its representative).
+    of equilibria is drawn by its representative); rigid bodies as dark grey bars.
 
     Parameters
     ----------
@@ -32,10 +32,13 @@ def plot_equilibria(table, ax=None):
     """
     figure, (ax,) = panels(ax, 1, "the equilibria figure", figsize=(5.0, 5.0))
     equilibria = tuple(table.equilibria)
-    shapes = MM_PER_M * backbones(table.load.model, [e.q for e in equilibria], BACKBONE_POINTS)
-    for k, (e, shape) in enumerate(zip(equilibria, shapes, strict=True)):
+    lines, rigid = chain_lines(table.load.model, [e.q for e in equilibria], BACKBONE_POINTS)
+    for k, (e, shape) in enumerate(zip(equilibria, MM_PER_M * lines, strict=True)):
         label = f"#{k} {e.stability}" + (" ring" if e.continuum else "")
         ax.plot(shape[:, 0], shape[:, 2], STABILITY_STYLES.get(e.stability, "-"), label=label)
+        for part in rigid:
+            first = k == 0 and part is rigid[0]
+            draw_rigid_body(ax, part, k, (0, 2), MM_PER_M, "rigid body" if first else None)
     ax.set_xlabel("x [mm]")
     ax.set_ylabel("z [mm]")
     ax.set_aspect("equal")

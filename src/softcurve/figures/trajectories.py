@@ -4,6 +4,7 @@ tip path and the animation show the same time window, the motion's."""
 
 from __future__ import annotations
 
+import re
 import shutil
 import subprocess
 from pathlib import Path
@@ -14,6 +15,7 @@ from softcurve.base.docs import parameters_from
 from softcurve.base.files import atomic_path
 from softcurve.base.progress import ProgressLine
 from softcurve.base.validation import ParameterError, real_scalar
+from softcurve.description.curvature import COORDINATES as CURVATURE_COORDINATES
 from softcurve.figures.actuation import plot_inputs
 from softcurve.figures.drawing import (
     element_shapes,
@@ -144,7 +146,7 @@ def motion_window(trajectory, window="auto") -> tuple[float, float]:
     tuple of float
         ``(start, end)`` [s].
     """
-    return time_window(trajectory.t, drawn_states(trajectory.q, _robot(trajectory))[0], window)
+    return time_window(trajectory.t, _drawn_states(trajectory)[0], window)
 
 
 def _robot(trajectory):
@@ -153,18 +155,49 @@ def _robot(trajectory):
     return None if model is None else model.robot
 
 
+NUMBERED = re.compile(r"^(.*\D)(\d+)$")
+"""A coordinate's column: its name and its element's number from 1 (``twist2``)."""
+
+
+def _named_rows(trajectory) -> tuple | None:
+    """The rows of :func:`~softcurve.figures.drawing.state_rows` from a trajectory's
+    ``coordinate_names`` and ``coordinate_units`` (a loaded file's), or None where they
+    are those of constant-curvature segments (or the trajectory has none)."""
+    names = getattr(trajectory, "coordinate_names", None)
+    units = getattr(trajectory, "coordinate_units", None)
+    parts = [NUMBERED.match(c) for c in names or ()]
+    if not names or not units or not all(parts):
+        return None
+    if {m.group(1) for m in parts} <= set(CURVATURE_COORDINATES):
+        return None
+    rows: dict[str, tuple[str, list]] = {}
+    for column, (m, unit) in enumerate(zip(parts, units, strict=True)):
+        rows.setdefault(m.group(1), (unit, []))[1].append((int(m.group(2)) - 1, column))
+    return tuple((name, unit, tuple(columns)) for name, (unit, columns) in rows.items())
+
+
+def _drawn_states(trajectory) -> tuple[np.ndarray, set]:
+    """:func:`drawn_states` of a trajectory: its coordinates drawn as they are unless
+    they are constant curvature's."""
+    if _robot(trajectory) is None and _named_rows(trajectory) is not None:
+        return np.array(trajectory.q, dtype=np.float64), set()
+    return drawn_states(trajectory.q, _robot(trajectory))
+
+
 def _state_rows(trajectory) -> tuple:
     """The states figure's rows: ``(label, ((segment, column), ...))`` each; ``l``,
-    ``kx``, ``ky`` for constant-curvature segments (or a trajectory without its model),
-    else one row per coordinate name of the robot's elements."""
+    ``kx``, ``ky`` for constant-curvature segments (or a trajectory that names no
+    others), else one row per coordinate name of the robot's elements (or of a loaded
+    file's)."""
     robot = _robot(trajectory)
-    if robot is None or robot.constant_curvature:
+    named = _named_rows(trajectory) if robot is None else state_rows(robot)
+    if named is None or (robot is not None and robot.constant_curvature):
         segments = trajectory.q.shape[1] // len(STATE_LABELS)
         return tuple(
             (label, tuple((i, len(STATE_LABELS) * i + row) for i in range(segments)))
             for row, label in enumerate(STATE_LABELS)
         )
-    return tuple((f"{name} [{unit or '-'}]", columns) for name, unit, columns in state_rows(robot))
+    return tuple((f"{name} [{unit or '-'}]", columns) for name, unit, columns in named)
 
 
 @figure_options
@@ -206,7 +239,7 @@ def plot_states(trajectory, ax=None, *, window="auto", inputs=None):
     rows = len(state_panels) + bool(inputs)
     figure, axes = panels(ax, rows, "the states figure", sharex=True, figsize=(7.0, 2.0 * rows))
     segments = len({i for _, columns in state_panels for i, _ in columns})
-    drawn, zeroed_rows = drawn_states(trajectory.q, _robot(trajectory))
+    drawn, zeroed_rows = _drawn_states(trajectory)
     start, end = time_window(trajectory.t, drawn, window)
     for row, (label, columns) in enumerate(state_panels):
         zeroed = row in zeroed_rows

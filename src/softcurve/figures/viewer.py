@@ -144,7 +144,7 @@ def trajectory_viewer(
         actuator=actuator,
         obstacles=obstacles,
         rings=rings,
-        title=f"softcurve: {model.robot.n_segments}-segment robot, "
+        title=f"softcurve: {model.robot.n_segments}-{model.robot.element_word} robot, "
         f"t = {times[0]:.4g} .. {times[-1]:.4g} s{status}",
     )
     return write_page(scene, path)

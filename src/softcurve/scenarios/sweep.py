@@ -44,7 +44,7 @@ from softcurve.simulation.batch import (
     simulate_batch,
     worker_model,
 )
-from softcurve.simulation.results import column_names
+from softcurve.simulation.results import column_names, coordinate_columns
 
 FORMAT = "softcurve-sweep"
 """The ``format`` of a sweep folder's ``manifest.json``."""
@@ -125,7 +125,9 @@ def summarize(batch, outputs, fraction: float) -> dict:
     failed = ~batch.member_success
     columns: dict[str, np.ndarray] = {}
     if "final_state" in outputs:
-        state_names = column_names(n, n_creep, with_tau=False)[1 : 1 + 2 * n + n_creep]
+        coordinates = None if batch.model is None else coordinate_columns(batch.model.robot)
+        names = column_names(n, n_creep, with_tau=False, coordinates=coordinates)
+        state_names = names[1 : 1 + 2 * n + n_creep]
         final = batch.x[:, -1, :]
         columns.update({f"final_{name}": final[:, i] for i, name in enumerate(state_names)})
         columns.update({f"final_tip_{a}": batch.tip[:, -1, i].copy() for i, a in enumerate("xyz")})

@@ -96,9 +96,10 @@ def variable_target(scenario: Scenario, name: str) -> tuple[str, list[int]] | No
     return ("actuator_parameters", found) if found else None
 
 
-COORDINATES = (("length l", "m", "m/s"), ("curvature kx", "1/m", "1/(m s)"),
-               ("curvature ky", "1/m", "1/(m s)"))  # fmt: skip
-"""Per coordinate of a segment: its name, its unit and its rate's unit."""
+WORDS = {"l": "length l", "kx": "curvature kx", "ky": "curvature ky"}
+"""A constant-curvature coordinate in words (a strain is named by itself, ``twist``)."""
+RATE_UNITS = {"m": "m/s", "1/m": "1/(m s)", "": "1/s"}
+"""The unit of a coordinate's rate, by the coordinate's unit."""
 
 
 def variable_label(scenario: Scenario, name: str) -> str:
@@ -120,10 +121,13 @@ def variable_label(scenario: Scenario, name: str) -> str:
     """
     kind, (index, *_) = variable_target(scenario, name)
     if kind in ("q0", "qd0"):
-        words, unit, rate_unit = COORDINATES[index % len(COORDINATES)]
-        segment = f", segment {index // len(COORDINATES)}"
+        robot = scenario.robot
+        element = int(np.searchsorted(robot.offsets, index, side="right")) - 1
+        name = robot.segments[element].coordinate_names[index - robot.offsets[element]]
+        words, unit = WORDS.get(name, name), robot.coordinate_units()[index]
+        segment, rate_unit = f", segment {element}", RATE_UNITS[unit]
         if kind == "q0":
-            return f"initial {words}{segment} [{unit}]"
+            return f"initial {words}{segment} [{unit or '-'}]"
         return f"initial rate of {words}{segment} [{rate_unit}]"
     if kind == "parameters":
         return scenario.robot.layout.label(name)
@@ -215,7 +219,8 @@ def check_design_box(config, r: Reader) -> None:
     Every robot of the design is valid if every corner of the box of swept robot
     parameters is: the valid set (positive values, ``a1 > a2``, positive definite
     matrices, ...) is convex, and the box is the convex hull of its corners. Actuators
-    alike (distances and areas > 0, friction >= 0, any azimuth), and initial lengths.
+    alike (distances and areas > 0, friction >= 0, any azimuth), and the initial
+    coordinates swept (each within the model's domain at the box's ends).
 
     Parameters
     ----------
@@ -245,7 +250,16 @@ def check_design_box(config, r: Reader) -> None:
                 where = ", ".join(f"{v.name} = {c:g}" for v, c in zip(swept, corner, strict=True))
                 r.fail("variables", f"the {what} at the corner {where} of the design is invalid: "
                                     f"{exc}")  # fmt: skip
+    robot = scenario.robot
+    start = robot.rest_configuration() if scenario.q0 is None else np.array(scenario.q0)
     for v in config.variables:
         match = STATE.match(v.name)
-        if match and match.group(1) == "q0" and int(match.group(2)) % 3 == 0 and v.low <= 0:
-            r.fail("variables", f"{v.name} is a length: low must be > 0, got {v.low}")
+        if not match or match.group(1) != "q0":
+            continue
+        for value in (v.low, v.high):  # each element's domain is an interval per coordinate
+            q = start.copy()
+            q[int(match.group(2))] = value
+            problem = robot.domain_problem(q, entry="q0")
+            if problem is not None:
+                r.fail("variables", f"{v.name} = {value:g} is outside the model's domain "
+                                    f"({problem})")  # fmt: skip

@@ -220,6 +220,13 @@ def _metadata(path, text: str) -> dict:
                 f"{path}: the metadata's coordinates must be {n} distinct names (n = {n}), "
                 f"got {names!r}"
             )
+        units = meta.get("units")
+        if not (isinstance(units, list) and len(units) == n
+                and all(isinstance(u, str) for u in units)):  # fmt: skip
+            raise TrajectoryFileError(
+                f"{path}: the metadata's units must be {n} texts, one per coordinate "
+                f"(n = {n}), got {units!r}"
+            )
     elif n % 3:
         raise TrajectoryFileError(
             f"{path}: the metadata's n must be 3 per segment where it does not name its "
@@ -436,4 +443,6 @@ def read_trajectory(path) -> dict:
         "stats": meta["stats"],
         "status": meta["status"],
         "message": meta["message"],
+        "coordinates": meta.get("coordinates"),
+        "units": meta.get("units"),
     }

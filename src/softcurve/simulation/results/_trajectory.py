@@ -17,7 +17,11 @@ from softcurve.figures.shapes import result_figure_options
 from softcurve.figures.trajectories import animation_options, figure_options
 from softcurve.figures.viewer import trajectory_viewer, viewer_options
 from softcurve.simulation.results._contact import ContactHistory, contact_along
-from softcurve.simulation.results._files import read_trajectory, save_trajectory
+from softcurve.simulation.results._files import (
+    coordinate_columns,
+    read_trajectory,
+    save_trajectory,
+)
 
 
 @dataclass(frozen=True, eq=False)
@@ -56,6 +60,12 @@ class Trajectory(Result):
     actuator : Actuator, optional
         The actuator that drove the robot (None without one, or for a loaded file); the
         viewer draws the tendons of a :class:`~softcurve.TendonActuator`.
+    coordinates : tuple of str, optional
+        The coordinates' names as a file's columns (``bend_x1 ... stretch1``), where
+        they are not the model's: those of a loaded file's metadata (see
+        :attr:`coordinate_names`).
+    units : tuple of str, optional
+        Their units, likewise (see :attr:`coordinate_units`).
     """
 
     t: np.ndarray
@@ -70,9 +80,37 @@ class Trajectory(Result):
     message: str = ""
     model: Model | None = field(default=None, repr=False)
     actuator: Actuator | None = field(default=None, repr=False)
+    coordinates: tuple[str, ...] | None = field(default=None, repr=False)
+    units: tuple[str, ...] | None = field(default=None, repr=False)
 
     def __post_init__(self):
         object.__setattr__(self, "status", Status.parse(self.status))
+        for name in ("coordinates", "units"):
+            value = getattr(self, name)
+            if value is not None:
+                object.__setattr__(self, name, tuple(value))
+
+    @property
+    def coordinate_names(self) -> tuple[str, ...]:
+        """The name of each coordinate, numbered by its element from 1 (``l1 kx1 ky1``,
+        ``bend_x2 ... stretch2``; the columns of a saved file): the model's, else the
+        loaded file's, else those of constant-curvature segments (a file that does not
+        name them)."""
+        if self.model is not None:
+            return tuple(coordinate_columns(self.model.robot))
+        if self.coordinates is not None:
+            return self.coordinates
+        return tuple(f"{c}{i + 1}" for i in range(self.n // 3) for c in ("l", "kx", "ky"))
+
+    @property
+    def coordinate_units(self) -> tuple[str, ...]:
+        """The unit of each coordinate (``"m"``, ``"1/m"``; ``""`` for a strain), from
+        the same source as :attr:`coordinate_names`."""
+        if self.model is not None:
+            return tuple(self.model.robot.coordinate_units())
+        if self.units is not None:
+            return self.units
+        return ("m", "1/m", "1/m") * (self.n // 3)
 
     @cached_property
     def tip(self) -> np.ndarray:
