@@ -302,3 +302,38 @@ def twisted(robot, twist=10.0, bend=0.0):
     q[sc.STRAINS.index("twist")] = twist
     q[sc.STRAINS.index("bend_y")] = bend
     return q
+
+
+def test_spans_place_each_element_in_the_material_coordinate(rng):
+    """``Robot(spans=...)`` gives each element its share of ``s``: the same material point
+    (element and local coordinate) has the same pose and Jacobian under any spans."""
+    equal = robots()["mixed"]
+    weights = np.array([3.0, 0.5, 2.0, 1.0])
+    spanned = equal.replace(spans=weights)
+    a, b = sc.Model(equal, compile=False), sc.Model(spanned, compile=False)
+    bounds = np.concatenate([[0.0], np.cumsum(weights) / weights.sum()])
+    assert_close(spanned.span_bounds, bounds, rtol=1e-15, what="bounds")
+    q, _ = random_state(rng, a)
+    for i in range(4):
+        for local in (0.0, 0.3, 0.999):
+            s_equal = (i + local) / 4
+            s_spanned = bounds[i] + local * (bounds[i + 1] - bounds[i])
+            pa, pb = a.pose(q, s_equal), b.pose(q, s_spanned)
+            assert_close(pb.position, pa.position, atol=1e-15, what=f"position {i}, {local}")
+            assert_close(pb.rotation, pa.rotation, atol=1e-14, what=f"rotation {i}, {local}")
+            assert_close(b.jacobian(q, s_spanned), a.jacobian(q, s_equal), atol=1e-14)
+    # the parameter vector carries them; equal spans stay the default
+    assert spanned.with_parameter_vector(spanned.parameter_vector()).spans.tolist() == [
+        3.0, 0.5, 2.0, 1.0
+    ]  # fmt: skip
+    assert equal.with_parameter_vector(equal.parameter_vector()).spans is None
+    assert spanned.with_segments(6).spans.tolist() == [3.0, 0.5, 2.0, 1.0, 3.0, 0.5]
+
+
+@pytest.mark.parametrize(
+    ("spans", "message"),
+    [([1.0, 2.0], r"spans must have shape \(4,\)"), ([1.0, 0.0, 1.0, 1.0], "spans must be > 0")],
+)
+def test_bad_spans_are_refused(spans, message):
+    with pytest.raises(sc.ParameterError, match=message):
+        robots()["mixed"].replace(spans=spans)

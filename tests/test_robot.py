@@ -106,7 +106,7 @@ def test_parameters_are_read_only_and_named():
     with pytest.raises(ValueError, match="read-only"):
         robot.gravity[2] = 0.0
     names, values = robot.parameter_names(), robot.parameter_vector()
-    assert len(names) == len(values) == 48  # 33 of the segment, gravity, base rotation and position
+    assert len(names) == len(values) == 49  # 33 of the segment, gravity, base pose, its span
     lookup = dict(zip(names, values, strict=True))
     assert lookup["segments[0].bending_stiffness.a2"] == 0.399
     assert lookup["segments[0].creep.gain[0]"] == 0.522

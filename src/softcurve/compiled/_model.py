@@ -688,7 +688,8 @@ class Model:
     def pose(self, q, s) -> Pose:
         """World pose at material coordinate ``s`` of the whole robot.
 
-        Segment ``i`` covers ``[i/N, (i+1)/N]``; ``s = 1`` is the tip.
+        Element ``i`` covers ``[i/N, (i+1)/N]`` (``robot.span_bounds[i : i + 2]`` where the
+        robot gives its ``spans``); ``s = 1`` is the tip.
 
         Parameters
         ----------

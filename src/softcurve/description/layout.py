@@ -102,6 +102,8 @@ class ParameterLayout:
         add("gravity", (3,), _VECTOR3, "m/s^2")
         add("base_rotation", (3, 3), _MATRIX3, "")
         add("base_position", (3,), _VECTOR3, "m")
+        count = len(structure)
+        add("span_weights", (count,), tuple(f"[{i}]" for i in range(count)), "")
         self.structure = structure
         self.fields: tuple[ParameterField, ...] = tuple(fields)
         self.size: int = fields[-1].start + fields[-1].size
@@ -301,11 +303,15 @@ class ParameterLayout:
             head = f"segments[{k}]."
             own = {name[len(head) :]: v for name, v in value.items() if name.startswith(head)}
             segments.append(s.with_values(own))
+        spans = value["span_weights"]
+        if robot.spans is None and np.all(spans == 1):
+            spans = None  # equal spans stay the default, whatever the elements become
         return robot.replace(
             segments=tuple(segments),
             gravity=value["gravity"],
             base_rotation=value["base_rotation"],
             base_position=value["base_position"],
+            spans=spans,
         )
 
     def _check_structure(self, robot) -> None:

@@ -136,6 +136,12 @@ class Robot:
         which is the base frame when this is the identity and ``base_position`` zero.
     base_position : array_like, shape (3,)
         Position of the base frame's origin in the world frame [m]; default zero.
+    spans : array_like, shape (N,), optional
+        Each element's share of the whole robot's material coordinate ``s`` in [0, 1]
+        (weights > 0, dimensionless, normalized to sum 1): element ``i`` covers
+        ``[c_i, c_(i+1)]`` with ``c`` their cumulative sum. Default equal shares, element
+        ``i`` of ``N`` covering ``[i/N, (i+1)/N]``; e.g. the rest lengths
+        (``spans=robot.rest_lengths``) make ``s`` the share of the rest length.
 
     Examples
     --------
@@ -162,6 +168,7 @@ class Robot:
     gravity: np.ndarray = field(default_factory=lambda: np.array([0.0, 0.0, -9.81]))
     base_rotation: np.ndarray = field(default_factory=lambda: np.eye(3))
     base_position: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    spans: np.ndarray | None = None
 
     def __post_init__(self):
         if isinstance(self.segments, Element):
@@ -186,6 +193,30 @@ class Robot:
         object.__setattr__(self, "base_rotation", rotation)
         position = real_array("base_position", self.base_position, (3,))
         object.__setattr__(self, "base_position", position)
+        if self.spans is not None:
+            spans = real_array("spans", self.spans, (len(segments),))
+            if not np.all(spans > 0):
+                raise ParameterError(
+                    f"spans must be > 0 for every element (their shares of the material "
+                    f"coordinate s), got {spans.tolist()}"
+                )
+            spans.setflags(write=False)
+            object.__setattr__(self, "spans", spans)
+
+    @property
+    def span_weights(self) -> np.ndarray:
+        """The elements' shares of ``s`` as given (all ones by default), shape (N,)."""
+        return np.ones(len(self.segments)) if self.spans is None else self.spans
+
+    @cached_property
+    def span_bounds(self) -> np.ndarray:
+        """Where each element begins and ends in ``s``, shape (N + 1,): ``0``, the
+        normalized cumulative :attr:`span_weights`, ``1``."""
+        ends = np.cumsum(self.span_weights) / np.sum(self.span_weights)
+        ends[-1] = 1.0
+        bounds = np.concatenate([[0.0], ends])
+        bounds.setflags(write=False)
+        return bounds
 
     @property
     def n_segments(self) -> int:
@@ -461,6 +492,6 @@ class Robot:
         """
         if count < 1:
             raise ParameterError(f"count must be >= 1, got {count}")
-        return self.replace(
-            segments=tuple(self.segments[i % self.n_segments] for i in range(count))
-        )
+        pick = [i % self.n_segments for i in range(count)]
+        spans = None if self.spans is None else self.spans[pick]
+        return self.replace(segments=tuple(self.segments[i] for i in pick), spans=spans)

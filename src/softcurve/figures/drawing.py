@@ -280,8 +280,8 @@ def element_poses(model, q, points: int) -> tuple[np.ndarray, np.ndarray]:
     Parameters
     ----------
     model : softcurve.Model
-        Gives the pose at each material coordinate (element ``i`` of ``N`` covers
-        ``[i/N, (i+1)/N]``).
+        Gives the pose at each material coordinate (element ``i`` covers
+        ``robot.span_bounds[i : i + 2]``).
     q : array_like, shape (k, n)
         Configurations.
     points : int
@@ -297,7 +297,8 @@ def element_poses(model, q, points: int) -> tuple[np.ndarray, np.ndarray]:
     q = model_rows(model, q, "q")
     count = model.robot.n_segments
     local = np.linspace(0.0, 1.0, points)
-    s = ((np.arange(count)[:, None] + local[None, :]) / count).ravel()
+    bounds = model.robot.span_bounds
+    s = (bounds[:-1, None] + local[None, :] * np.diff(bounds)[:, None]).ravel()
     rotation, position = model.evaluate_along(
         "pose", np.repeat(q, s.size, axis=0), np.tile(s, q.shape[0])[:, None]
     )

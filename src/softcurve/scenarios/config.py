@@ -253,6 +253,8 @@ def _robot(r: Reader) -> Robot:
         extra["base_rotation"] = _matrix(r, "base_rotation")
     if r.has("base_position"):
         extra["base_position"] = r.vector("base_position", 3)
+    if r.has("spans"):
+        extra["spans"] = r.vector("spans")
     try:
         if r.has("preset"):
             name = r.get("preset", "string")

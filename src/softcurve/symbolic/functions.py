@@ -144,7 +144,10 @@ def symbolic_functions(e) -> dict[str, ca.Function]:
     rhs = ca.substitute(rhs, x, xs)
     s = ca.SX.sym("s")
     elements = kinematic_chain(e.structure, p)
-    frame = point_at(q, elements, e.base_rotation, s, e.base_position)
+    weights = ParameterLayout.of_structure(e.structure).split(p)["span_weights"]
+    ends = ca.cumsum(weights) / ca.sum1(weights)
+    bounds = [0, *(ends[i] for i in range(weights.shape[0] - 1)), 1]
+    frame = point_at(q, elements, e.base_rotation, s, e.base_position, bounds)
     spec = {
         "dynamics_terms": dynamics_terms_spec(e),
         "mass_matrix": ([q], ["q"], [configuration_only(e, e.mass_matrix)], ["D"]),

@@ -197,16 +197,18 @@ def segment_point_function(
     )
 
 
-def point_at(q, elements: list[KinematicElement], base_rotation, s, base_position=None):
+def point_at(
+    q, elements: list[KinematicElement], base_rotation, s, base_position=None, bounds=None
+):
     """The material point at coordinate ``s`` in [0, 1] of the whole robot (symbolic
     ``s``), by one pass over the elements.
 
-    Element ``i`` of ``N`` covers ``[i/N, (i+1)/N]``; ``s = 1`` is the tip. Element ``j``
-    moves the point rigidly with its tip frame when the point lies beyond it, through its
-    own slice when the point lies in it (the local coordinate ``clamp(s N - j, 0, 1)``),
-    and not at all when the point lies before it (the slice at ``0`` has zero Jacobian):
-    each element's block of the Jacobian is one of two expressions, so the pass costs
-    O(N).
+    Element ``i`` covers ``[c_i, c_(i+1)]`` (``bounds``; by default ``[i/N, (i+1)/N]``);
+    ``s = 1`` is the tip. Element ``j`` moves the point rigidly with its tip frame when
+    the point lies beyond it, through its own slice when the point lies in it (the local
+    coordinate ``clamp((s - c_j) / (c_(j+1) - c_j), 0, 1)``), and not at all when the
+    point lies before it (the slice at ``0`` has zero Jacobian): each element's block of
+    the Jacobian is one of two expressions, so the pass costs O(N).
 
     Parameters
     ----------
@@ -220,14 +222,19 @@ def point_at(q, elements: list[KinematicElement], base_rotation, s, base_positio
         Material coordinate of the whole robot, in [0, 1].
     base_position : casadi.SX or casadi.DM, shape (3,), optional
         World position of the base frame [m]; default zero.
+    bounds : casadi.SX or sequence of float, shape (N + 1,), optional
+        Where each element begins and ends in ``s`` (``Robot.span_bounds``, symbolic from
+        the parameter vector); default equal spans.
     """
     n_segments = len(elements)
+    if bounds is None:
+        bounds = [i / n_segments for i in range(n_segments + 1)]
     rotation = base_rotation
     origin = ca.SX.zeros(3) if base_position is None else base_position
     candidates, blocks = [], []
     for j, element in enumerate(elements):
         q_j, g = q[element.coordinates], element.geometry
-        local = ca.fmin(ca.fmax(s * n_segments - j, 0.0), 1.0)
+        local = ca.fmin(ca.fmax((s - bounds[j]) / (bounds[j + 1] - bounds[j]), 0.0), 1.0)
         r_local, p_local, linear, angular = element.point(q_j, local, g)
         r_tip, p_tip, linear_tip, angular_tip = element.point(q_j, 1.0, g)
         frame_rotation = rotation @ r_local
@@ -239,13 +246,13 @@ def point_at(q, elements: list[KinematicElement], base_rotation, s, base_positio
         rotation, origin = tip_rotation, tip_origin
     chosen_rotation, chosen_position = candidates[-1]
     for i in reversed(range(n_segments - 1)):
-        before = s * n_segments < i + 1
+        before = s < bounds[i + 1]
         chosen_rotation = ca.if_else(before, candidates[i][0], chosen_rotation)
         chosen_position = ca.if_else(before, candidates[i][1], chosen_position)
     columns = []
     for j, inside, linear_tip, angular_tip, tip_origin in blocks:
         moved = linear_tip - ca.skew(chosen_position - tip_origin) @ angular_tip
-        beyond = s * n_segments >= j + 1
+        beyond = s >= bounds[j + 1]
         columns.append(ca.if_else(beyond, ca.vertcat(moved, angular_tip), inside))
     jacobian = ca.horzcat(*columns) if columns else ca.SX(6, 0)
     return MaterialPoint(chosen_rotation, chosen_position, jacobian)

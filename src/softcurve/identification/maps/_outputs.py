@@ -318,7 +318,9 @@ def _material_point(model: Model, segment: int, s: float) -> float:
     s = real_scalar("s", s)
     if not 0.0 <= s <= 1.0:
         raise ParameterError(f"s must be in [0, 1] (segment base to tip), got {s!r}")
-    return (segment % count + s) / count
+    bounds = model.robot.span_bounds
+    i = segment % count
+    return float(bounds[i] + s * (bounds[i + 1] - bounds[i]))
 
 
 def _offset(offset):
