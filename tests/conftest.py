@@ -146,3 +146,13 @@ def compiler_refusing(folder, argument: str, log=None):
     )
     script.chmod(0o755)
     return script
+
+
+def sigint_default() -> None:
+    """``preexec_fn`` of the Ctrl-C tests' processes: SIGINT handled as by a terminal's
+    process. A shell without job control starts a background job with SIGINT ignored and
+    its processes inherit that; Python then installs no KeyboardInterrupt handler and a
+    Ctrl-C test would send its signal into nothing (the command ends with 0)."""
+    import signal
+
+    signal.signal(signal.SIGINT, signal.SIG_DFL)

@@ -26,6 +26,7 @@ import softcurve as sc
 from softcurve import cli
 from softcurve.base.validation import ParameterError
 from softcurve.cli import main
+from tests.conftest import sigint_default
 from tests.test_faults import SWEEP_TOML, alive, descendants, leftovers, run, working
 
 
@@ -46,6 +47,7 @@ class Command:
             stdout=subprocess.DEVNULL,
             stderr=subprocess.PIPE,
             start_new_session=True,
+            preexec_fn=sigint_default,
         )
         self.err = bytearray()
         self.reader = threading.Thread(target=self._read, daemon=True)

@@ -23,6 +23,7 @@ if sys.version_info >= (3, 11):
 else:  # pragma: no cover
     import tomli as tomllib
 
+from tests.conftest import sigint_default
 from tests.test_faults import SWEEP_TOML
 
 INTERRUPT_AT = """\
@@ -57,7 +58,10 @@ STARTING = "softcurve: interrupted before starting: nothing was done"
 
 def _interrupted(entry: str, target: str, argv: list[str]) -> subprocess.CompletedProcess:
     code = INTERRUPT_AT.format(target=target, argv=[str(a) for a in argv]) + entry
-    return subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=600)
+    return subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, timeout=600,
+        preexec_fn=sigint_default,
+    )  # fmt: skip
 
 
 def _one_line_130(done: subprocess.CompletedProcess) -> str:
@@ -108,6 +112,7 @@ def test_ctrl_c_right_after_start_is_no_traceback(tmp_path):
     signal ends the process, which a shell reports as 130) or it is in the imports."""
     process = subprocess.Popen(
         [sys.executable, "-m", "softcurve", "simulate", "-o", tmp_path, "--no-figures"],
+        preexec_fn=sigint_default,
         stdout=subprocess.DEVNULL,
         stderr=subprocess.PIPE,
         text=True,
@@ -158,6 +163,7 @@ def test_ctrl_c_just_after_a_sweep_wrote_its_table_is_no_traceback(paper_model, 
     argv = ["sweep", config, "-o", tmp_path / "out", "--workers", "2", "--no-progress"]
     process = subprocess.Popen(
         [sys.executable, "-m", "softcurve", *map(str, argv)],
+        preexec_fn=sigint_default,
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         env={**os.environ, "PYTHONUNBUFFERED": "1"},
