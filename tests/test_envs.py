@@ -269,6 +269,7 @@ def test_the_benchmark_makes_its_vectors_as_a_user_does():
     assert bench._make(1, "ROS34PW2", {}).episodes.setup.stepper.method == "ROS34PW2"
 
 
+@pytest.mark.slow  # compiles its own structures: in the slow study, under the CI budget
 def test_a_robot_carrying_a_gripper_reaches():
     """The tasks take any robot: the paper's segment with a rigid gripper at its tip,
     and a six-strain segment with it, each with the default bellows on its soft segment

@@ -154,6 +154,7 @@ def test_a_fit_of_equilibria_recovers_bending_twist_and_shear_stiffness():
     assert np.all((lo <= expected) & (expected <= hi)), report.table()
 
 
+@pytest.mark.slow  # compiles its own structures: in the slow study, under the CI budget
 def test_a_fit_of_a_free_motion_recovers_bending_twist_and_shear_stiffness():
     """A six-strain segment carrying a gripper, released bent and twisted (0.8 rad and
     1 rad), its gripper's tip tracked for 0.3 s with 0.01 mm of noise (seeded): the

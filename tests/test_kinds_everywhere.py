@@ -70,6 +70,7 @@ def test_inverse_statics_and_input_sweep_with_tendons(name):
 
 
 # -- 2. sweeps -------------------------------------------------------------------------------
+@pytest.mark.slow  # compiles its own structures: in the slow study, under the CI budget
 def test_sweep_of_a_six_strain_robot_names_its_columns(tmp_path, capsys):
     """``softcurve sweep`` over the twisting gripper's torsion stiffness and initial twist:
     the final state's columns are its strains (before: ``final_l1 final_kx1 ...``, three

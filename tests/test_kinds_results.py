@@ -94,6 +94,7 @@ def test_equilibria_and_modes_of_a_chain_with_rigid_bodies(mixed_model):
     assert lin.frequencies.size == mixed_model.n and np.all(lin.frequencies > 0)
 
 
+@pytest.mark.slow  # compiles its own structures: in the slow study, under the CI budget
 def test_trajectory_sensitivities_of_a_six_strain_robot():
     """The identification's forward sensitivities (bending, torsion and shear stiffness,
     the tip's position) through the C driver agree with CasADi's route and with finite
