@@ -176,6 +176,11 @@ def test_ctrl_c_just_after_a_sweep_wrote_its_table_is_no_traceback(paper_model, 
     _, err = process.communicate(timeout=600)
     err = err.decode()
     assert "Traceback" not in err and "KeyboardInterrupt" not in err, err
+    if process.returncode == -signal.SIGINT:
+        # in the last steps of Python's finalization, which restores SIGINT's default
+        # action: the signal ends the process (a shell reports 130), nothing printed
+        assert err.strip() == "", err
+        return
     # in the command or in Python's teardown: one line and 130
     assert process.returncode == 128 + signal.SIGINT, (process.returncode, err)
     assert len(err.strip().splitlines()) == 1, err
