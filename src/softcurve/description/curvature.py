@@ -24,7 +24,9 @@ from softcurve.description.kind import (
     Element,
     Margin,
     SoftModel,
+    check_creep,
     creep_fields,
+    creep_of,
     damping_matrix,
     element_parameters,
     failed,
@@ -217,13 +219,7 @@ class Segment(Element):
                     f"{name} must be a LinearStiffness or TanhStiffness, got {type(law).__name__}"
                 )
         object.__setattr__(self, "damping", damping_matrix(self.damping, self.coordinate_names))
-        if self.creep is not None and not isinstance(self.creep, Creep):
-            raise ParameterError(f"creep must be a Creep or None, got {type(self.creep).__name__}")
-        if self.creep is not None and self.creep.size != 3:
-            raise ParameterError(
-                f"creep of a Segment must have 3 states (one per coordinate l, kx, ky), "
-                f"got {self.creep.size}"
-            )
+        check_creep(self.creep, self.coordinate_names, "coordinate")
 
     kind = "constant_curvature"
 
@@ -301,9 +297,7 @@ class Segment(Element):
         return segment_problem(q, rest, index, place)
 
     def with_values(self, values: dict) -> Segment:
-        creep = None
-        if self.creep is not None:
-            creep = Creep(*(values[f"creep.{n}"] for n in ("rate", "gain", "compliance")))
+        creep = None if self.creep is None else creep_of(values)
         laws = {
             mode: type(getattr(self, mode))(*values[mode])
             for mode in ("elongation_stiffness", "bending_stiffness")

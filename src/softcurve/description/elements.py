@@ -62,6 +62,24 @@ def element_model(signature: tuple) -> ElementModel:
     return KINDS[signature[0]][1](signature)
 
 
+def coordinate_slices(structure: tuple) -> tuple[slice, ...]:
+    """Where each element's coordinates lie in ``q``, from a structure alone (the robot's
+    own table is :attr:`Robot.offsets` and :attr:`Robot.sizes`): Pinocchio's ``idx_q``
+    and ``nq`` as slices; the last one's ``stop`` is the number of coordinates ``n``.
+
+    Parameters
+    ----------
+    structure : tuple
+        ``Robot.structure()``: each element's signature.
+    """
+    slices, start = [], 0
+    for signature in structure:
+        size = element_model(signature).nq
+        slices.append(slice(start, start + size))
+        start += size
+    return tuple(slices)
+
+
 __all__ = [
     "DAMPING_UNITS",
     "GROUPS",
@@ -87,6 +105,7 @@ __all__ = [
     "StrainModel",
     "StrainSegment",
     "curvature_margins",
+    "coordinate_slices",
     "element_model",
     "margins_hold",
     "rotation_matrix",

@@ -25,7 +25,7 @@ import numpy as np
 from softcurve.base import smooth as _smooth
 from softcurve.base.docs import parameters_from
 from softcurve.base.validation import ParameterError, positive_definite, real_array
-from softcurve.description.materials import STIFFNESS_LAWS
+from softcurve.description.materials import STIFFNESS_LAWS, Creep
 
 E_Z = np.array([0.0, 0.0, 1.0])
 
@@ -374,6 +374,42 @@ def failed(margins, what: str) -> bool:
         Which bound (``"length"``, ``"bend"`` ...).
     """
     return not all(bool(m.holds()) for m in margins if m.what == what)
+
+
+def check_creep(creep, names: tuple[str, ...], what: str) -> None:
+    """ParameterError unless ``creep`` is None or a :class:`Creep` of one state per
+    coordinate.
+
+    Parameters
+    ----------
+    creep : Creep or None
+        The element's creep.
+    names : tuple of str
+        The element's coordinates.
+    what : str
+        What a coordinate is, for the message (``"coordinate"``, ``"chosen strain"``).
+    """
+    if creep is None:
+        return
+    if not isinstance(creep, Creep):
+        raise ParameterError(f"creep must be a Creep or None, got {type(creep).__name__}")
+    if creep.size != len(names):
+        raise ParameterError(
+            f"creep must have {len(names)} states (one per {what}: {', '.join(names)}), "
+            f"got {creep.size}"
+        )
+
+
+@element_parameters
+def creep_of(values: dict):
+    """The creep of an element's numbers ``values`` (its ``creep.rate``, ``creep.gain``
+    and ``creep.compliance`` fields), validated again.
+
+    Parameters
+    ----------
+    %(values)s
+    """
+    return Creep(*(values[f"creep.{n}"] for n in ("rate", "gain", "compliance")))
 
 
 @element_parameters

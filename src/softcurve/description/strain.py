@@ -36,7 +36,9 @@ from softcurve.description.kind import (
     Element,
     Margin,
     SoftModel,
+    check_creep,
     creep_fields,
+    creep_of,
     damping_matrix,
     element_parameters,
     failed,
@@ -309,16 +311,7 @@ class StrainSegment(Element):
         set_(self, "slice_inertia", inertia)
         damping = np.zeros(self.n_coordinates) if self.damping is None else self.damping
         set_(self, "damping", damping_matrix(damping, self.coordinate_names))
-        if self.creep is not None:
-            if not isinstance(self.creep, Creep):
-                raise ParameterError(
-                    f"creep must be a Creep or None, got {type(self.creep).__name__}"
-                )
-            if self.creep.size != self.n_coordinates:
-                raise ParameterError(
-                    f"creep must have {self.n_coordinates} states (one per chosen strain "
-                    f"{self.strains}), got {self.creep.size}"
-                )
+        check_creep(self.creep, self.strains, "chosen strain")
 
     @classmethod
     def from_material(
@@ -501,9 +494,7 @@ class StrainSegment(Element):
         return strain_problem(self.full_strain(q), rest, index)
 
     def with_values(self, values: dict) -> StrainSegment:
-        creep = None
-        if self.creep is not None:
-            creep = Creep(*(values[f"creep.{n}"] for n in ("rate", "gain", "compliance")))
+        creep = None if self.creep is None else creep_of(values)
         laws = {
             name: type(getattr(self, name))(*values[name])
             for name in GROUPS

@@ -19,7 +19,7 @@ from dataclasses import dataclass
 
 import casadi as ca
 
-from softcurve.description.elements import element_model
+from softcurve.description.elements import coordinate_slices, element_model
 from softcurve.description.layout import ParameterLayout
 from softcurve.symbolic import chain
 from softcurve.symbolic.kinematics import inline_calls
@@ -61,17 +61,15 @@ def chain_elements(structure: tuple, parts: list[dict], quadrature_nodes: int, i
         Whether the Functions are inlined.
     """
     kinds: dict[tuple, tuple] = {}
-    elements, start = [], 0
-    for signature, part in zip(structure, parts, strict=True):
+    elements = []
+    for signature, part, k in zip(structure, parts, coordinate_slices(structure), strict=True):
         if signature not in kinds:
             model = element_model(signature)
             name = f"{signature[0]}{len(kinds)}_" if len(set(structure)) > 1 else "segment_"
             functions = segment_functions(model, quadrature_nodes, inline, name=name.rstrip("_"))
             kinds[signature] = (model, functions, chain.chain_steps(functions, inline, name))
         model, functions, steps = kinds[signature]
-        k = slice(start, start + model.nq)
         elements.append(chain.ChainElement(functions, steps, model.geometry(part), k))
-        start += model.nq
     return elements
 
 
@@ -161,7 +159,7 @@ def build_dynamics(
     """
     n_segments = len(structure)
     models = [element_model(signature) for signature in structure]
-    n = sum(m.nq for m in models)
+    n = coordinate_slices(structure)[-1].stop
     n_creep = sum(m.n_creep for m in models)
     q, qd, qdd, tau = (ca.SX.sym(name, n) for name in ("q", "qd", "qdd", "tau"))
     lam = ca.SX.sym("lam", n_creep)

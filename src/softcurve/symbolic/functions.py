@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import casadi as ca
 
-from softcurve.description.elements import element_model, margins_hold
+from softcurve.description.elements import coordinate_slices, element_model, margins_hold
 from softcurve.description.layout import ParameterLayout
 from softcurve.symbolic.kinematics import inline_calls, kinematic_chain, point_at
 
@@ -115,11 +115,9 @@ def domain_expression(structure: tuple, q, p):
         The parameter vector.
     """
     parts = ParameterLayout.of_structure(structure).element_parts(p)
-    margins, start = [], 0
-    for signature, part in zip(structure, parts, strict=True):
-        model = element_model(signature)
-        margins.extend(model.domain_margins(q[start : start + model.nq], part))
-        start += model.nq
+    margins = []
+    for signature, part, k in zip(structure, parts, coordinate_slices(structure), strict=True):
+        margins.extend(element_model(signature).domain_margins(q[k], part))
     inside = margins_hold(margins)
     return ca.SX(1.0) if inside is True else inside
 

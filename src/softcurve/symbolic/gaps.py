@@ -19,7 +19,7 @@ import numpy as np
 
 from softcurve.base.docs import parameters_from
 from softcurve.base.validation import ParameterError
-from softcurve.description.elements import element_model
+from softcurve.description.elements import coordinate_slices
 from softcurve.description.layout import ParameterLayout
 from softcurve.symbolic.contact import contact_points, signed_distance
 from softcurve.symbolic.kinematics import kinematic_chain, segment_frames
@@ -30,7 +30,7 @@ def _distances(environment, structure: tuple):
     """``(Function q -> signed distances (points, obstacles), [(segment, s)])``."""
     layout = ParameterLayout.of_structure(structure)
     points = [(0, 0.0)] + [(i, s) for i, s, _ in contact_points(structure, environment)]
-    q = ca.SX.sym("q", sum(element_model(signature).nq for signature in structure))
+    q = ca.SX.sym("q", coordinate_slices(structure)[-1].stop)
     p = ca.SX.sym("p", layout.size)
     frames = segment_frames(q, kinematic_chain(structure, p), ca.SX.eye(3), points)
     rows = [

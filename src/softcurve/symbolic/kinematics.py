@@ -15,7 +15,7 @@ from dataclasses import dataclass
 
 import casadi as ca
 
-from softcurve.description.elements import ElementModel, element_model
+from softcurve.description.elements import ElementModel, coordinate_slices, element_model
 from softcurve.description.layout import ParameterLayout
 
 
@@ -53,16 +53,15 @@ def kinematic_chain(structure: tuple, p, inline: bool | None = None) -> list[Kin
     inline = inline_calls(len(structure)) if inline is None else inline
     parts = ParameterLayout.of_structure(structure).element_parts(p)
     points: dict[tuple, tuple] = {}
-    elements, start = [], 0
-    for signature, part in zip(structure, parts, strict=True):
+    elements = []
+    slices = coordinate_slices(structure)
+    for signature, part, coordinates in zip(structure, parts, slices, strict=True):
         if signature not in points:
             model = element_model(signature)
             name = f"{signature[0]}{len(points)}_point" if len(set(structure)) > 1 else ""
             points[signature] = (model, segment_point_function(model, inline, name or None))
         model, point = points[signature]
-        coordinates = slice(start, start + model.nq)
         elements.append(KinematicElement(point, model.geometry(part), coordinates))
-        start += model.nq
     return elements
 
 
