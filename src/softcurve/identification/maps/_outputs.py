@@ -33,9 +33,9 @@ AXES = "xyz"
 """The axes a position can be projected onto."""
 
 
-def _element(model, segment: int, what: str):
-    """``(index, element)`` of ``segment`` (negative from the tip) in ``model``'s robot,
-    or ParameterError naming ``what`` needs."""
+def _segment_index(model, segment) -> int:
+    """The index of element ``segment`` (negative from the tip) in ``model``'s robot, or
+    ParameterError."""
     count = model.robot.n_segments
     whole = isinstance(segment, int | np.integer) and not isinstance(segment, bool)
     if not whole or not -count <= segment < count:
@@ -43,7 +43,13 @@ def _element(model, segment: int, what: str):
             f"segment must be an index in [{-count}, {count - 1}] (negative from the tip), "
             f"got {segment!r}"
         )
-    index = int(segment) % count
+    return int(segment) % count
+
+
+def _element(model, segment: int, what: str):
+    """``(index, element)`` of ``segment`` (negative from the tip) in ``model``'s robot,
+    or ParameterError naming ``what`` needs."""
+    index = _segment_index(model, segment)
     element = model.robot.segments[index]
     if element.kind == RigidBody.kind:
         raise ParameterError(f"segment {segment} is a rigid body: it has no {what}")
@@ -308,18 +314,11 @@ def _axes(axes: str) -> list[int]:
 
 def _material_point(model: Model, segment: int, s: float) -> float:
     """The whole robot's material coordinate of point ``s`` of ``segment``."""
-    count = model.robot.n_segments
-    whole = isinstance(segment, int | np.integer) and not isinstance(segment, bool)
-    if not whole or not -count <= segment < count:
-        raise ParameterError(
-            f"segment must be an index in [{-count}, {count - 1}] (negative from the tip), "
-            f"got {segment!r}"
-        )
+    i = _segment_index(model, segment)
     s = real_scalar("s", s)
     if not 0.0 <= s <= 1.0:
         raise ParameterError(f"s must be in [0, 1] (segment base to tip), got {s!r}")
     bounds = model.robot.span_bounds
-    i = segment % count
     return float(bounds[i] + s * (bounds[i + 1] - bounds[i]))
 
 
