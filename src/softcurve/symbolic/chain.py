@@ -115,18 +115,25 @@ def _joint(t, force_i, inertia, bias):
     of its coordinates to the base frame's acceleration, the force ``u`` left at zero
     base acceleration, and the products that carry them to the base."""
     inertia_x = inertia @ t.X
-    coupling = t.H.T + t.S.T @ inertia_x
-    joint = t.D + t.S.T @ inertia @ t.S
+    inertia_s = t.S.T @ inertia
+    coupling = t.H.T + inertia_s @ t.X
+    joint = t.D + inertia_s @ t.S
     carried = inertia @ t.c + bias
     return joint, coupling, force_i - t.b - t.S.T @ carried, inertia_x, carried
 
 
 def _articulated(t, force_i, inertia, bias):
+    # With U = L diag(d) L^T and Z = L^-1 [Y, u], the inertia's update Y^T U^-1 Y is
+    # Z^T diag(1/d) Z, one symmetric product; the solve with L^T waits for the outward
+    # pass, where it takes one right-hand side instead of seven.
     joint, coupling, free, inertia_x, carried = _joint(t, force_i, inertia, bias)
-    solved = solve_positive_definite(joint, ca.horzcat(coupling, free))
-    gain, offset = solved[:, :6], solved[:, 6]
-    inertia = t.M + t.X.T @ inertia_x - coupling.T @ gain
-    return inertia, t.w + t.X.T @ carried + coupling.T @ offset, gain, offset
+    lower, reciprocal = ldl_factor(joint)
+    projected = _forward_substitute(lower, ca.horzcat(coupling, free))
+    scaled = ca.vertcat(*(projected[i, :] * r for i, r in enumerate(reciprocal)))
+    scaled = scaled if reciprocal else projected
+    inertia = _symmetric(t.M + t.X.T @ inertia_x - projected[:, :6].T @ scaled[:, :6])
+    bias = t.w + t.X.T @ carried + projected[:, :6].T @ scaled[:, 6]
+    return inertia, bias, _packed(lower, reciprocal), projected
 
 
 def _root_acceleration(t, force_i, inertia, bias, a):
@@ -135,9 +142,32 @@ def _root_acceleration(t, force_i, inertia, bias, a):
     return solve_positive_definite(joint, free - coupling @ a)
 
 
-def _articulated_acceleration(t, gain, offset, a):
-    qdd_i = offset - gain @ a
+def _articulated_acceleration(t, factor, projected, a):
+    lower, reciprocal = _unpacked(factor, projected.shape[0])
+    scaled = projected[:, 6] - projected[:, :6] @ a
+    qdd_i = _back_substitute(lower, [scaled[i] * reciprocal[i] for i in range(len(reciprocal))])
     return qdd_i, _tip_acceleration(t, qdd_i, a)
+
+
+def _symmetric(a):
+    """``a`` from its lower triangle, so that the upper one is never computed."""
+    return ca.tril2symm(ca.tril(a))
+
+
+def _packed(lower, reciprocal):
+    """The factor ``L diag(d) L^T`` as one vector: ``L``'s entries below the diagonal by
+    rows, then ``1 / d``."""
+    entries = [entry for row in lower for entry in row] + list(reciprocal)
+    return ca.vertcat(*entries) if entries else ca.SX(0, 1)
+
+
+def _unpacked(factor, k):
+    entries = [factor[i] for i in range(factor.shape[0])]
+    lower, start = [], 0
+    for i in range(k):
+        lower.append(entries[start : start + i])
+        start += i
+    return lower, entries[start : start + k]
 
 
 def _composite(t, composite):
@@ -165,10 +195,12 @@ class ChainSteps:
     newton_euler : casadi.Function
         ``(terms, A, qdd_i, W_tip) -> (tau_i, W)``.
     articulated : casadi.Function
-        ``(terms, force_i, I_tip, p_tip) -> (I, p, U^-1 Y, U^-1 u)``: the articulated
-        inertia and bias of everything from the segment on.
+        ``(terms, force_i, I_tip, p_tip) -> (I, p, factor, Z)``: the articulated
+        inertia and bias of everything from the segment on, the joint inertia's factor
+        ``U = L diag(d) L^T`` (packed: ``L`` below its diagonal by rows, then ``1 / d``)
+        and ``Z = L^-1 [Y, u]``.
     articulated_acceleration : casadi.Function
-        ``(terms, U^-1 Y, U^-1 u, A) -> (qdd_i, A_tip)``.
+        ``(terms, factor, Z, A) -> (qdd_i, A_tip)``, ``qdd_i = U^-1 (u - Y A)``.
     root_acceleration : casadi.Function
         ``(terms, force_i, I_tip, p_tip, A) -> qdd_i``: the articulated step and the
         acceleration at once, for the segment whose base acceleration ``A`` is known.
@@ -223,7 +255,8 @@ def chain_steps(functions: SegmentFunctions, inline: bool = False, name: str = "
     a, wrench, bias = ca.SX.sym("A", 6), ca.SX.sym("W", 6), ca.SX.sym("p", 6)
     qdd_i, force_i = ca.SX.sym("qdd", nq), ca.SX.sym("force", nq)
     inertia = ca.SX.sym("I", 6, 6)
-    gain, offset = ca.SX.sym("gain", nq, 6), ca.SX.sym("offset", nq)
+    factor = ca.SX.sym("factor", nq * (nq + 1) // 2)
+    projected = ca.SX.sym("projected", nq, 7)
     options = {"never_inline": not inline, "cse": True}
 
     def step(step_name, inputs, outputs):
@@ -241,8 +274,8 @@ def chain_steps(functions: SegmentFunctions, inline: bool = False, name: str = "
         ),
         articulated_acceleration=step(
             "articulated_acceleration",
-            [gain, offset, a],
-            _articulated_acceleration(t, gain, offset, a),
+            [factor, projected, a],
+            _articulated_acceleration(t, factor, projected, a),
         ),
         root_acceleration=step(
             "root_acceleration",
@@ -322,11 +355,11 @@ def forward_dynamics(terms: list[SegmentTerms], force, base_acceleration):
         ``tau + K^T lambda - K(q) - R qd`` (e.g. [N, N m^2, N m^2] per segment).
     %(base_acceleration)s
     """
-    gains = [None] * len(terms)
+    factors = [None] * len(terms)
     inertia, bias = ca.SX.zeros(6, 6), ca.SX.zeros(6)  # articulated, beyond the tip
     for i in reversed(range(1, len(terms))):
         t = terms[i]
-        inertia, bias, *gains[i] = t.steps.articulated(
+        inertia, bias, *factors[i] = t.steps.articulated(
             *_arguments(t), force[t.coordinates], inertia, bias
         )
     root = terms[0]
@@ -336,15 +369,16 @@ def forward_dynamics(terms: list[SegmentTerms], force, base_acceleration):
         )
     ]
     a = root.steps.tip_acceleration(*_arguments(root), qdd[0], base_acceleration)
-    for t, (gain, offset) in zip(terms[1:], gains[1:], strict=True):
-        qdd_i, a = t.steps.articulated_acceleration(*_arguments(t), gain, offset, a)
+    for t, (factor, projected) in zip(terms[1:], factors[1:], strict=True):
+        qdd_i, a = t.steps.articulated_acceleration(*_arguments(t), factor, projected, a)
         qdd.append(qdd_i)
     return ca.vertcat(*qdd)
 
 
 def solve_positive_definite(a, b):
     """``a^-1 b`` for a symmetric positive definite ``a`` by the factorization
-    ``a = L diag(d) L^T`` without pivoting, which is backward stable for such matrices.
+    ``a = L diag(d) L^T`` without pivoting (:func:`ldl_factor`), which is backward
+    stable for such matrices.
 
     CasADi's ``solve`` of an SX matrix orthogonalizes its columns by Gram-Schmidt, whose
     error grows with the square of the condition number: on a segment's joint inertia
@@ -359,21 +393,58 @@ def solve_positive_definite(a, b):
     b : casadi.SX, shape (k, m)
         Right-hand sides.
     """
-    k = a.shape[0]
-    if k == 0:  # a rigid body's joint: nothing to solve
+    if a.shape[0] == 0:  # a rigid body's joint: nothing to solve
         return ca.SX(0, b.shape[1])
-    lower, d = [[None] * k for _ in range(k)], [None] * k
+    lower, reciprocal = ldl_factor(a)
+    y = _forward_substitute(lower, b)
+    return _back_substitute(lower, [y[i, :] * reciprocal[i] for i in range(len(reciprocal))])
+
+
+def ldl_factor(a):
+    """``a = L diag(d) L^T`` for a symmetric positive definite ``a``, its lower triangle
+    read, without pivoting.
+
+    Parameters
+    ----------
+    a : casadi.SX, shape (k, k)
+        The matrix.
+
+    Returns
+    -------
+    lower : list of list of casadi.SX
+        Row ``i`` holds ``L[i, :i]`` (the unit diagonal left out).
+    reciprocal : list of casadi.SX
+        ``1 / d``: one division per pivot, the solves then multiply.
+    """
+    k = a.shape[0]
+    lower, d, reciprocal = [[None] * i for i in range(k)], [None] * k, [None] * k
     for j in range(k):
-        d[j] = a[j, j] - sum(lower[j][m] ** 2 * d[m] for m in range(j))
+        scaled = [lower[j][m] * d[m] for m in range(j)]  # row j of L diag(d)
+        d[j] = a[j, j] - sum(lower[j][m] * scaled[m] for m in range(j))
+        reciprocal[j] = 1 / d[j]
         for i in range(j + 1, k):
-            lower[i][j] = (a[i, j] - sum(lower[i][m] * lower[j][m] * d[m] for m in range(j))) / d[j]
-    y = [None] * k
-    for i in range(k):
-        y[i] = b[i, :] - sum(lower[i][m] * y[m] for m in range(i))
+            products = sum(lower[i][m] * scaled[m] for m in range(j))
+            lower[i][j] = (a[i, j] - products) * reciprocal[j]
+    return lower, reciprocal
+
+
+def _forward_substitute(lower, b):
+    """``L^-1 b`` for the unit lower triangular ``L`` of :func:`ldl_factor`, shape of
+    ``b``."""
+    y = []
+    for i, row in enumerate(lower):
+        y.append(b[i, :] - sum(row[m] * y[m] for m in range(i)))
+    return ca.vertcat(*y) if y else ca.SX(0, b.shape[1])
+
+
+def _back_substitute(lower, y):
+    """``L^-T y`` for the unit lower triangular ``L`` of :func:`ldl_factor`; ``y`` a list
+    of its rows."""
+    k = len(lower)
     x = [None] * k
     for i in reversed(range(k)):
-        x[i] = y[i] / d[i] - sum(lower[m][i] * x[m] for m in range(i + 1, k))
-    return ca.vertcat(*x)
+        x[i] = y[i] - sum(lower[m][i] * x[m] for m in range(i + 1, k))
+    return ca.vertcat(*x) if k else ca.SX(0, 1)
 
 
 def gravity_energy(elements: list[ChainElement], q, base_gravity, base_origin):

@@ -23,14 +23,15 @@ tip's acceleration per unit ``qdd_i``, ``M`` (6x6) the element's spatial inertia
 its base, ``H`` (6 x n_i) its momentum per unit ``qd_i``, ``D_i`` (n_i x n_i) its own
 mass matrix; the
 biases ``c``, ``w``, ``b`` hold the velocity terms and depend on ``qd_i`` and on the base
-frame's angular velocity. They are derived from one Newton-Euler pass over the slices
-(:func:`segment_newton_euler`), the maps as its exact derivatives, so that the chain's
-mass matrix, Coriolis terms and forward dynamics are one algebra.
+frame's angular velocity. They are derived from one Newton-Euler pass over the slices,
+each slice's share its relations' exact derivatives and their values at rest, so that
+the chain's mass matrix, Coriolis terms and forward dynamics are one algebra.
 
-Each quantity is an SX Function (:func:`segment_functions`), called once per element:
-the generated code holds one copy of an element kind's work however many elements of
-that kind the robot has. A robot of one structure calls the same Functions with each
-element's numbers (its model's ``geometry``: mass, radius, rest strains ...).
+Each quantity is an SX Function (:func:`segment_functions`), called once per element,
+which calls one Function per slice: the generated code holds one copy of an element
+kind's work and of a slice's however many elements and slices. A robot of one structure
+calls the same Functions with each element's numbers (its model's ``geometry``: mass,
+radius, rest strains ...).
 """
 
 from __future__ import annotations
@@ -57,8 +58,8 @@ class _Point:
     inertia: ca.SX
 
 
-def _point(model: ElementModel, q_i, g, s, mass=0.0, inertia=None) -> _Point:
-    rotation, position = model.point_pose(q_i, s, g) if s != 1.0 else model.tip_pose(q_i, g)
+def _point(model: ElementModel, q_i, g, s, mass=0.0, inertia=None, tip=False) -> _Point:
+    rotation, position = model.tip_pose(q_i, g) if tip else model.point_pose(q_i, s, g)
     inertia = ca.SX.zeros(3, 3) if inertia is None else inertia
     return _Point(
         rotation,
@@ -123,114 +124,89 @@ def _point_motion(point, q_i, qd_i, qdd_i, omega, alpha, accel):
     return linear_accel, body_omega, body_alpha
 
 
-@dataclass(frozen=True)
-class SegmentNewtonEuler:
-    """One segment's Newton-Euler relations as SX expressions of its symbols.
+def _point_wrench(point, q_i, qd_i, qdd_i, omega, acceleration):
+    """A point's share of the Newton-Euler relations: its generalized force (n_i,) and
+    the wrench (6,) the base exerts on it (moment about the base's origin, force; base
+    coordinates), given the base frame's angular velocity and acceleration ``A``."""
+    linear_accel, body_omega, body_alpha = _point_motion(
+        point, q_i, qd_i, qdd_i, omega, acceleration[:3], acceleration[3:]
+    )
+    force = point.mass * linear_accel
+    moment = point.inertia @ body_alpha + ca.cross(body_omega, point.inertia @ body_omega)
+    generalized = point.linear.T @ force + point.angular.T @ moment
+    wrench = ca.vertcat(ca.cross(point.position, force) + point.rotation @ moment, force)
+    return generalized, wrench
 
-    Parameters
-    ----------
-    q, qd, qdd : casadi.SX, shape (n_i,)
-        The element's coordinates, rates and accelerations.
-    omega : casadi.SX, shape (3,)
-        Angular velocity of the base frame [rad/s], base coordinates.
-    acceleration : casadi.SX, shape (6,)
-        ``A = (alpha, a)`` of the base frame [rad/s^2, m/s^2], base coordinates.
-    tip_wrench : casadi.SX, shape (6,)
-        ``W_tip`` [N m, N], the wrench the segment exerts on what it carries, tip
-        coordinates.
-    geometry : casadi.SX, shape (n_g,)
-        The element's numbers (its model's ``geometry``).
-    tip_omega : casadi.SX, shape (3,)
-        Angular velocity of the tip frame, tip coordinates.
-    tip_acceleration : casadi.SX, shape (6,)
-        ``A_tip``, tip coordinates.
-    base_wrench : casadi.SX, shape (6,)
-        ``W``, the wrench on the segment and all it carries, base coordinates.
-    force : casadi.SX, shape (n_i,)
-        ``tau_i``, conjugate to ``q_i`` (e.g. [N, N m^2, N m^2]).
-    tip_rotation : casadi.SX, shape (3, 3)
-        Orientation of the tip frame in the base frame.
-    tip_position : casadi.SX, shape (3,)
-        Position [m] of the tip frame's origin, base coordinates.
-    moment : casadi.SX, shape (3,)
-        The element's first moment of mass ``sum m_k p_k`` [kg m], base coordinates.
-    mass : casadi.SX
-        The element's mass [kg].
-    """
+
+def _spatial_inertia(point):
+    """``M`` of a point (``W = M A`` at rest): ``[[J, h^], [-h^, m 1]]`` with ``h = m r``
+    and ``J = R I R^T + m (|r|^2 1 - r r^T)`` about the base's origin (the derivative of
+    its wrench by ``A``, written out; its lower triangle computed)."""
+    r, rotation, mass = point.position, point.rotation, point.mass
+    shift = mass * (ca.dot(r, r) * ca.SX.eye(3) - r @ r.T)
+    rotational = ca.tril2symm(ca.tril(rotation @ point.inertia @ rotation.T + shift))
+    skew = ca.skew(mass * r)
+    return ca.blockcat([[rotational, skew], [-skew, mass * ca.SX.eye(3)]])
+
+
+@dataclass(frozen=True)
+class _Symbols:
+    """The symbols of one element's terms: coordinates, rates and accelerations
+    (n_i,), the base frame's angular velocity (3,) and acceleration ``A`` (6,), the
+    element's numbers (n_g,)."""
 
     q: ca.SX
     qd: ca.SX
     qdd: ca.SX
     omega: ca.SX
     acceleration: ca.SX
-    tip_wrench: ca.SX
     geometry: ca.SX
-    tip_omega: ca.SX
-    tip_acceleration: ca.SX
-    base_wrench: ca.SX
-    force: ca.SX
-    tip_rotation: ca.SX
-    tip_position: ca.SX
-    moment: ca.SX
-    mass: ca.SX
+
+    def at_rest(self, expression):
+        """``expression`` at ``qdd = 0``, ``A = 0``."""
+        accelerations = ca.vertcat(self.qdd, self.acceleration)
+        return ca.substitute(expression, accelerations, ca.SX.zeros(accelerations.shape[0]))
 
 
-def segment_newton_euler(model: ElementModel, quadrature_nodes: int) -> SegmentNewtonEuler:
-    """The Newton-Euler pass over one element's slices (or its rigid body), forward (tip
-    motion) and backward (base wrench and generalized force).
+def _symbols(model: ElementModel) -> _Symbols:
+    q, qd, qdd = (ca.SX.sym(name, model.nq) for name in ("q", "qd", "qdd"))
+    return _Symbols(
+        q, qd, qdd, ca.SX.sym("omega", 3), ca.SX.sym("A", 6),
+        ca.SX.sym("g", model.geometry_size()),
+    )  # fmt: skip
 
-    Parameters
-    ----------
-    model : ElementModel
-        The element kind's model.
-    quadrature_nodes : int
-        Gauss-Legendre nodes along a segment.
-    """
-    nq = model.nq
-    q, qd, qdd = (ca.SX.sym(name, nq) for name in ("q", "qd", "qdd"))
-    omega = ca.SX.sym("omega", 3)
-    acceleration, tip_wrench = ca.SX.sym("A", 6), ca.SX.sym("W_tip", 6)
-    geometry = ca.SX.sym("g", model.geometry_size())
-    alpha, accel = acceleration[:3], acceleration[3:]
-    points = [
-        _fixed(q, body) if body.s is None else _point(model, q, geometry, body.s, body.mass,
-                                                      body.inertia)
-        for body in model.bodies(geometry, quadrature_nodes)
-    ]  # fmt: skip
-    tip = _point(model, q, geometry, 1.0)
-    tip_accel, tip_omega, tip_alpha = _point_motion(tip, q, qd, qdd, omega, alpha, accel)
 
-    tip_moment, tip_force = tip_wrench[:3], tip_wrench[3:]
-    force_at_tip = tip.rotation @ tip_force
-    generalized = tip.linear.T @ force_at_tip + tip.angular.T @ tip_moment
-    total_force = force_at_tip
-    total_moment = tip.rotation @ tip_moment + ca.cross(tip.position, force_at_tip)
-    moment, mass = ca.SX.zeros(3), 0
-    for point in points:
-        linear_accel, body_omega, body_alpha = _point_motion(point, q, qd, qdd, omega, alpha, accel)
-        slice_force = point.mass * linear_accel
-        slice_moment = point.inertia @ body_alpha + ca.cross(body_omega, point.inertia @ body_omega)
-        generalized += point.linear.T @ slice_force + point.angular.T @ slice_moment
-        total_force += slice_force
-        total_moment += ca.cross(point.position, slice_force) + point.rotation @ slice_moment
-        moment += point.mass * point.position
-        mass += point.mass
-    return SegmentNewtonEuler(
-        q=q,
-        qd=qd,
-        qdd=qdd,
-        omega=omega,
-        acceleration=acceleration,
-        tip_wrench=tip_wrench,
-        geometry=geometry,
-        tip_omega=tip_omega,
-        tip_acceleration=ca.vertcat(tip_alpha, tip.rotation.T @ tip_accel),
-        base_wrench=ca.vertcat(total_moment, total_force),
-        force=generalized,
-        tip_rotation=tip.rotation,
-        tip_position=tip.position,
-        moment=moment,
-        mass=mass,
+def _point_terms(point, x: _Symbols) -> list:
+    """A point's share of ``(M, H, D_i, w, b)``: the relations are linear in ``qdd``
+    and ``A``, their derivatives the maps, their values at rest the biases."""
+    generalized, wrench = _point_wrench(point, x.q, x.qd, x.qdd, x.omega, x.acceleration)
+    return [
+        _spatial_inertia(point),
+        ca.jacobian(wrench, x.qdd),
+        ca.jacobian(generalized, x.qdd),
+        x.at_rest(wrench),
+        x.at_rest(generalized),
+    ]
+
+
+def _slice_function(model: ElementModel, inertia: ca.Sparsity, options: dict, name: str):
+    """``(q_i, qd_i, omega, g, s, m, I) -> (M_k, H_k, D_k, w_k, b_k)``, a slice's share
+    at material coordinate ``s`` of mass ``m`` and rotational inertia ``I``. One
+    Function called per slice, not a segment's slices written out: a ten-segment
+    robot of six strains then compiles in a fifth less time at the same time per
+    evaluation, for a twentieth more operations (the slices no longer share
+    subexpressions; ``benchmarks/bench_chain.py``). Inlined (a robot of one segment),
+    it costs what the slices written out cost."""
+    x = _symbols(model)
+    s, mass, inertia = ca.SX.sym("s"), ca.SX.sym("m"), ca.SX.sym("I", inertia)
+    point = _point(model, x.q, x.geometry, s, mass, inertia)
+    return ca.Function(
+        f"{name}_slice",
+        [x.q, x.qd, x.omega, x.geometry, s, mass, inertia],
+        _point_terms(point, x),
+        ["q", "qd", "omega", "g", "s", "m", "I"],
+        ["M", "H", "D", "w", "b"],
+        options,
     )
 
 
@@ -269,6 +245,11 @@ def segment_functions(
 ) -> SegmentFunctions:
     """The Functions of an element kind (segments of ``quadrature_nodes`` slices).
 
+    The tip's motion gives ``X``, ``S``, ``c`` and ``omega_tip`` (its acceleration's
+    derivatives by ``A`` and ``qdd_i``, and its value at rest); each slice (or the rigid
+    body) its share of ``M``, ``H``, ``D_i``, ``w`` and ``b``, summed: what the tip
+    carries enters the chain through ``X`` and ``S`` alone.
+
     Parameters
     ----------
     model : ElementModel
@@ -288,37 +269,51 @@ def segment_functions(
     a shared Function would make a model's generated code (and so its round-off) depend
     on what the process built before.
     """
-    e = segment_newton_euler(model, quadrature_nodes)
-    accelerations = ca.vertcat(e.qdd, e.acceleration, e.tip_wrench)
-
-    def at_rest(expression):
-        return ca.substitute(expression, accelerations, ca.SX.zeros(accelerations.shape[0]))
-
-    maps = [
-        ca.jacobian(e.tip_acceleration, e.acceleration),
-        ca.jacobian(e.tip_acceleration, e.qdd),
-        ca.jacobian(e.base_wrench, e.acceleration),
-        ca.jacobian(e.base_wrench, e.qdd),
-        ca.jacobian(e.force, e.qdd),
-    ]
-    maps[-1] = 0.5 * (maps[-1] + maps[-1].T)  # symmetric already; removes round-off
-    # the relations are linear in the accelerations and W_tip: their derivatives are the
-    # maps, free of those symbols once they are set to zero
-    maps = [at_rest(m) for m in maps]
-    biases = [e.tip_omega, *(at_rest(v) for v in (e.tip_acceleration, e.base_wrench, e.force))]
     options = {"never_inline": not inline, "cse": True}
+    x = _symbols(model)
+    tip = _point(model, x.q, x.geometry, 1.0, tip=True)
+    tip_accel, tip_omega, tip_alpha = _point_motion(
+        tip, x.q, x.qd, x.qdd, x.omega, x.acceleration[:3], x.acceleration[3:]
+    )
+    tip_acceleration = ca.vertcat(tip_alpha, tip.rotation.T @ tip_accel)
+    bodies = model.bodies(x.geometry, quadrature_nodes)
+    slices = [body for body in bodies if body.s is not None]
+    terms = [ca.SX.zeros(6, 6), ca.SX.zeros(6, model.nq), ca.SX.zeros(model.nq, model.nq)]
+    terms += [ca.SX.zeros(6), ca.SX.zeros(model.nq)]
+    if slices:
+        slice_terms = _slice_function(model, slices[0].inertia.sparsity(), options, name)
+    moment, mass = ca.SX.zeros(3), 0
+    for body in bodies:
+        if body.s is None:
+            position, shares = body.centre, _point_terms(_fixed(x.q, body), x)
+        else:
+            _, position = model.point_pose(x.q, body.s, x.geometry)
+            shares = slice_terms(x.q, x.qd, x.omega, x.geometry, body.s, body.mass, body.inertia)
+        terms = [total + share for total, share in zip(terms, shares, strict=True)]
+        moment += body.mass * position
+        mass += body.mass
+    spatial, momentum, own, wrench_bias, force_bias = terms
+    own = 0.5 * (own + own.T)  # symmetric already; removes round-off
+    maps = [
+        ca.jacobian(tip_acceleration, x.acceleration),
+        ca.jacobian(tip_acceleration, x.qdd),
+        spatial,
+        momentum,
+        own,
+    ]
+    biases = [tip_omega, x.at_rest(tip_acceleration), wrench_bias, force_bias]
     return SegmentFunctions(
         frame=ca.Function(
             f"{name}_frame",
-            [e.q, e.geometry],
-            [e.tip_rotation, e.tip_position, e.moment, e.mass],
+            [x.q, x.geometry],
+            [tip.rotation, tip.position, moment, mass],
             ["q", "g"],
             ["R_tip", "r_tip", "moment", "mass"],
             options,
         ),
         motion=ca.Function(
             f"{name}_motion",
-            [e.q, e.qd, e.omega, e.geometry],
+            [x.q, x.qd, x.omega, x.geometry],
             [*maps, *biases],
             ["q", "qd", "omega", "g"],
             [*INERTIA_OUTPUTS, *BIAS_OUTPUTS],
