@@ -138,15 +138,22 @@ def _point_wrench(point, q_i, qd_i, qdd_i, omega, acceleration):
     return generalized, wrench
 
 
-def _spatial_inertia(point):
-    """``M`` of a point (``W = M A`` at rest): ``[[J, h^], [-h^, m 1]]`` with ``h = m r``
-    and ``J = R I R^T + m (|r|^2 1 - r r^T)`` about the base's origin (the derivative of
-    its wrench by ``A``, written out; its lower triangle computed)."""
-    r, rotation, mass = point.position, point.rotation, point.mass
-    shift = mass * (ca.dot(r, r) * ca.SX.eye(3) - r @ r.T)
-    rotational = ca.tril2symm(ca.tril(rotation @ point.inertia @ rotation.T + shift))
-    skew = ca.skew(mass * r)
-    return ca.blockcat([[rotational, skew], [-skew, mass * ca.SX.eye(3)]])
+def _rotational_inertia(point):
+    """A point's rotational inertia about the element's base, base coordinates,
+    ``R I R^T + m (|r|^2 1 - r r^T)``: its lower triangle."""
+    r, rotation = point.position, point.rotation
+    shift = point.mass * (ca.dot(r, r) * ca.SX.eye(3) - r @ r.T)
+    return ca.tril(rotation @ point.inertia @ rotation.T + shift)
+
+
+def _spatial_inertia(rotational, moment, mass):
+    """``M`` of ``W = M A`` at rest from the rotational inertia ``J`` about the base's
+    origin (its lower triangle), the first moment ``h`` and the mass:
+    ``[[J, h^], [-h^, m 1]]`` (the derivative of the wrench by ``A``, written out)."""
+    skew = ca.SX(3, 3)
+    for i, j, k in ((0, 1, 2), (1, 2, 0), (2, 0, 1)):  # h^ a = h x a
+        skew[i, j], skew[j, i] = -moment[k], moment[k]
+    return ca.blockcat([[ca.tril2symm(rotational), skew], [-skew, mass * ca.SX.eye(3)]])
 
 
 @dataclass(frozen=True)
@@ -176,21 +183,27 @@ def _symbols(model: ElementModel) -> _Symbols:
     )  # fmt: skip
 
 
-def _point_terms(point, x: _Symbols) -> list:
-    """A point's share of ``(M, H, D_i, w, b)``: the relations are linear in ``qdd``
-    and ``A``, their derivatives the maps, their values at rest the biases."""
+def _point_terms(point, x: _Symbols, triangle: bool) -> list:
+    """A point's share of ``(J, h, H, D_i, w, b)``: its rotational inertia about the base
+    and first moment (which make its share of ``M``), and the derivatives of its
+    relations (linear in ``qdd`` and ``A``) and their values at rest; the symmetric
+    ``J`` by its lower triangle, ``D_i`` too where ``triangle``."""
     generalized, wrench = _point_wrench(point, x.q, x.qd, x.qdd, x.omega, x.acceleration)
+    own = ca.jacobian(generalized, x.qdd)
     return [
-        _spatial_inertia(point),
+        _rotational_inertia(point),
+        point.mass * point.position,
         ca.jacobian(wrench, x.qdd),
-        ca.jacobian(generalized, x.qdd),
+        ca.tril(own) if triangle else own,
         x.at_rest(wrench),
         x.at_rest(generalized),
     ]
 
 
-def _slice_function(model: ElementModel, inertia: ca.Sparsity, options: dict, name: str):
-    """``(q_i, qd_i, omega, g, s, m, I) -> (M_k, H_k, D_k, w_k, b_k)``, a slice's share
+def _slice_function(
+    model: ElementModel, inertia: ca.Sparsity, options: dict, name: str, triangle: bool
+):
+    """``(q_i, qd_i, omega, g, s, m, I) -> (J_k, h_k, H_k, D_k, w_k, b_k)``, a slice's share
     at material coordinate ``s`` of mass ``m`` and rotational inertia ``I``. One
     Function called per slice, not a segment's slices written out: a ten-segment
     robot of six strains then compiles in a fifth less time at the same time per
@@ -203,9 +216,9 @@ def _slice_function(model: ElementModel, inertia: ca.Sparsity, options: dict, na
     return ca.Function(
         f"{name}_slice",
         [x.q, x.qd, x.omega, x.geometry, s, mass, inertia],
-        _point_terms(point, x),
+        _point_terms(point, x, triangle),
         ["q", "qd", "omega", "g", "s", "m", "I"],
-        ["M", "H", "D", "w", "b"],
+        ["J", "h", "H", "D", "w", "b"],
         options,
     )
 
@@ -270,6 +283,11 @@ def segment_functions(
     on what the process built before.
     """
     options = {"never_inline": not inline, "cse": True}
+    # D_i's upper triangle is the transpose of its lower one; called per segment, the
+    # lower alone takes 4 % off a ten-segment chain's time, while in the one expression
+    # of an inlined segment GCC's schedule of it ran a six-strain segment 23 % slower
+    # than the full product (benchmarks/bench_chain.py, both compared in turns)
+    triangle = not inline
     x = _symbols(model)
     tip = _point(model, x.q, x.geometry, 1.0, tip=True)
     tip_accel, tip_omega, tip_alpha = _point_motion(
@@ -278,22 +296,23 @@ def segment_functions(
     tip_acceleration = ca.vertcat(tip_alpha, tip.rotation.T @ tip_accel)
     bodies = model.bodies(x.geometry, quadrature_nodes)
     slices = [body for body in bodies if body.s is not None]
-    terms = [ca.SX.zeros(6, 6), ca.SX.zeros(6, model.nq), ca.SX.zeros(model.nq, model.nq)]
-    terms += [ca.SX.zeros(6), ca.SX.zeros(model.nq)]
+    n = model.nq
+    terms = [ca.SX(3, 3), ca.SX(3, 1), ca.SX(6, n), ca.SX(n, n), ca.SX(6, 1), ca.SX(n, 1)]
     if slices:
-        slice_terms = _slice_function(model, slices[0].inertia.sparsity(), options, name)
+        slice_terms = _slice_function(model, slices[0].inertia.sparsity(), options, name, triangle)
     moment, mass = ca.SX.zeros(3), 0
     for body in bodies:
         if body.s is None:
-            position, shares = body.centre, _point_terms(_fixed(x.q, body), x)
+            position, shares = body.centre, _point_terms(_fixed(x.q, body), x, triangle)
         else:
             _, position = model.point_pose(x.q, body.s, x.geometry)
             shares = slice_terms(x.q, x.qd, x.omega, x.geometry, body.s, body.mass, body.inertia)
         terms = [total + share for total, share in zip(terms, shares, strict=True)]
         moment += body.mass * position
         mass += body.mass
-    spatial, momentum, own, wrench_bias, force_bias = terms
-    own = 0.5 * (own + own.T)  # symmetric already; removes round-off
+    rotational, first_moment, momentum, own, wrench_bias, force_bias = terms
+    spatial = _spatial_inertia(rotational, first_moment, mass)
+    own = ca.tril2symm(own) if triangle else 0.5 * (own + own.T)  # the latter: round-off
     maps = [
         ca.jacobian(tip_acceleration, x.acceleration),
         ca.jacobian(tip_acceleration, x.qdd),
