@@ -285,7 +285,7 @@ def segment_functions(
     options = {"never_inline": not inline, "cse": True}
     # D_i's upper triangle is the transpose of its lower one; called per segment, the
     # lower alone takes 4 % off a ten-segment chain's time, while in the one expression
-    # of an inlined segment GCC's schedule of it ran a six-strain segment 23 % slower
+    # of an inlined segment GCC's schedule of it ran a six-strain segment 21 % slower
     # than the full product (benchmarks/bench_chain.py, both compared in turns)
     triangle = not inline
     x = _symbols(model)
