@@ -206,10 +206,9 @@ def _slice_function(
     """``(q_i, qd_i, omega, g, s, m, I) -> (J_k, h_k, H_k, D_k, w_k, b_k)``, a slice's share
     at material coordinate ``s`` of mass ``m`` and rotational inertia ``I``. One
     Function called per slice, not a segment's slices written out: a ten-segment
-    robot of six strains then compiles in a fifth less time at the same time per
-    evaluation, for a twentieth more operations (the slices no longer share
-    subexpressions; ``benchmarks/bench_chain.py``). Inlined (a robot of one segment),
-    it costs what the slices written out cost."""
+    robot of six strains then compiles in 13.6 s instead of 19.0 s
+    (``benchmarks/bench_chain.py``). Inlined (a robot of one segment), it costs what
+    the slices written out cost."""
     x = _symbols(model)
     s, mass, inertia = ca.SX.sym("s"), ca.SX.sym("m"), ca.SX.sym("I", inertia)
     point = _point(model, x.q, x.geometry, s, mass, inertia)
@@ -286,7 +285,7 @@ def segment_functions(
     # D_i's upper triangle is the transpose of its lower one; called per segment, the
     # lower alone takes 4 % off a ten-segment chain's time, while in the one expression
     # of an inlined segment GCC's schedule of it ran a six-strain segment 21 % slower
-    # than the full product (benchmarks/bench_chain.py, both compared in turns)
+    # than the full product (the C loops of benchmarks/bench_chain.py timed in turns)
     triangle = not inline
     x = _symbols(model)
     tip = _point(model, x.q, x.geometry, 1.0, tip=True)
