@@ -6,14 +6,15 @@ inertia and a fixed placement.
 
 - :func:`mass_matrix`, the composite-body algorithm: each segment's momentum per unit
   rate, ``H_i + X_i^T I_(i+1) S_i``, carried to the base through the rigid transforms;
-  ``O(N^2)`` 6x3 products on top of ``N`` segment calls.
+  ``O(N^2)`` 6 x n_i products on top of ``N`` segment calls.
 - :func:`inverse_dynamics`, the recursive Newton-Euler algorithm: accelerations out
   from the base, wrenches back from the tip; ``O(N)``.
 - :func:`forward_dynamics`, the articulated-body algorithm: the articulated inertia
   ``I_i = M_i + X_i^T I_(i+1) X_i - Y_i^T U_i^-1 Y_i`` of everything from segment ``i``
-  on, back from the tip, then the accelerations out from the base, one 3x3 solve per
-  segment; ``O(N)``, where solving with the mass matrix costs ``O(N^3)``
-  (``benchmarks/bench_chain.py`` measures both).
+  on, back from the tip, each joint inertia ``U_i`` (n_i x n_i) factored on the way,
+  then the accelerations out from the base, one solve with each factor; ``O(N)``, where
+  solving with the mass matrix costs ``O(N^3)`` (``benchmarks/bench_chain.py`` measures
+  both).
 
 Accelerations ``A = (alpha, a)`` and wrenches ``W = (moment, force)`` are in the
 coordinates of the frame they belong to; gravity enters as the base's acceleration
@@ -28,6 +29,10 @@ import casadi as ca
 
 from softcurve.base.docs import shared_parameters
 from softcurve.symbolic.segment import BIAS_OUTPUTS, INERTIA_OUTPUTS, SegmentFunctions
+
+_SPATIAL = 6
+"""Columns of a coupling ``Y`` (a spatial acceleration's); ``Z = L^-1 [Y, u]`` has one
+more."""
 
 
 @dataclass(frozen=True)
@@ -129,10 +134,10 @@ def _articulated(t, force_i, inertia, bias):
     joint, coupling, free, inertia_x, carried = _joint(t, force_i, inertia, bias)
     lower, reciprocal = ldl_factor(joint)
     projected = _forward_substitute(lower, ca.horzcat(coupling, free))
-    scaled = ca.vertcat(*(projected[i, :] * r for i, r in enumerate(reciprocal)))
-    scaled = scaled if reciprocal else projected
-    inertia = _symmetric(t.M + t.X.T @ inertia_x - projected[:, :6].T @ scaled[:, :6])
-    bias = t.w + t.X.T @ carried + projected[:, :6].T @ scaled[:, 6]
+    scaled = _scaled_rows(projected, reciprocal)
+    coupled, scaled_coupled = projected[:, :_SPATIAL], scaled[:, :_SPATIAL]
+    inertia = _symmetric(t.M + t.X.T @ inertia_x - coupled.T @ scaled_coupled)
+    bias = t.w + t.X.T @ carried + coupled.T @ scaled[:, _SPATIAL]
     return inertia, bias, _packed(lower, reciprocal), projected
 
 
@@ -144,9 +149,16 @@ def _root_acceleration(t, force_i, inertia, bias, a):
 
 def _articulated_acceleration(t, factor, projected, a):
     lower, reciprocal = _unpacked(factor, projected.shape[0])
-    scaled = projected[:, 6] - projected[:, :6] @ a
-    qdd_i = _back_substitute(lower, [scaled[i] * reciprocal[i] for i in range(len(reciprocal))])
+    free = projected[:, _SPATIAL] - projected[:, :_SPATIAL] @ a
+    qdd_i = _back_substitute(lower, _scaled_rows(free, reciprocal))
     return qdd_i, _tip_acceleration(t, qdd_i, a)
+
+
+def _scaled_rows(rows, reciprocal):
+    """``diag(1 / d) rows`` for the pivots' reciprocals ``1 / d``."""
+    if not reciprocal:
+        return rows
+    return ca.vertcat(*(rows[i, :] * r for i, r in enumerate(reciprocal)))
 
 
 def _symmetric(a):
@@ -197,8 +209,8 @@ class ChainSteps:
     articulated : casadi.Function
         ``(terms, force_i, I_tip, p_tip) -> (I, p, factor, Z)``: the articulated
         inertia and bias of everything from the segment on, the joint inertia's factor
-        ``U = L diag(d) L^T`` (packed: ``L`` below its diagonal by rows, then ``1 / d``)
-        and ``Z = L^-1 [Y, u]``.
+        ``U = L diag(d) L^T`` (packed, shape (n_i (n_i + 1) / 2,): ``L`` below its
+        diagonal by rows, then ``1 / d``) and ``Z = L^-1 [Y, u]``, shape (n_i, 7).
     articulated_acceleration : casadi.Function
         ``(terms, factor, Z, A) -> (qdd_i, A_tip)``, ``qdd_i = U^-1 (u - Y A)``.
     root_acceleration : casadi.Function
@@ -256,7 +268,7 @@ def chain_steps(functions: SegmentFunctions, inline: bool = False, name: str = "
     qdd_i, force_i = ca.SX.sym("qdd", nq), ca.SX.sym("force", nq)
     inertia = ca.SX.sym("I", 6, 6)
     factor = ca.SX.sym("factor", nq * (nq + 1) // 2)
-    projected = ca.SX.sym("projected", nq, 7)
+    projected = ca.SX.sym("projected", nq, _SPATIAL + 1)
     options = {"never_inline": not inline, "cse": True}
 
     def step(step_name, inputs, outputs):
@@ -396,8 +408,7 @@ def solve_positive_definite(a, b):
     if a.shape[0] == 0:  # a rigid body's joint: nothing to solve
         return ca.SX(0, b.shape[1])
     lower, reciprocal = ldl_factor(a)
-    y = _forward_substitute(lower, b)
-    return _back_substitute(lower, [y[i, :] * reciprocal[i] for i in range(len(reciprocal))])
+    return _back_substitute(lower, _scaled_rows(_forward_substitute(lower, b), reciprocal))
 
 
 def ldl_factor(a):
@@ -438,13 +449,13 @@ def _forward_substitute(lower, b):
 
 
 def _back_substitute(lower, y):
-    """``L^-T y`` for the unit lower triangular ``L`` of :func:`ldl_factor`; ``y`` a list
-    of its rows."""
+    """``L^-T y`` for the unit lower triangular ``L`` of :func:`ldl_factor`, shape of
+    ``y``."""
     k = len(lower)
     x = [None] * k
     for i in reversed(range(k)):
-        x[i] = y[i] - sum(lower[m][i] * x[m] for m in range(i + 1, k))
-    return ca.vertcat(*x) if k else ca.SX(0, 1)
+        x[i] = y[i, :] - sum(lower[m][i] * x[m] for m in range(i + 1, k))
+    return ca.vertcat(*x) if k else ca.SX(0, y.shape[1])
 
 
 def gravity_energy(elements: list[ChainElement], q, base_gravity, base_origin):
