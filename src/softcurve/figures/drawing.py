@@ -312,8 +312,8 @@ def element_shapes(model, q, points: int) -> tuple[ElementShape, ...]:
     Parameters
     ----------
     model : softcurve.Model
-        Gives the pose at each material coordinate (element ``i`` of ``N`` covers
-        ``[i/N, (i+1)/N]``).
+        Gives the pose at each material coordinate (element ``i`` covers
+        ``robot.span_bounds[i : i + 2]``, :func:`element_poses`).
     q : array_like, shape (k, n)
         Configurations.
     points : int
