@@ -58,6 +58,12 @@ def _add_arguments(parser) -> None:
         help="integrator (default cvodes: Adams or BDF chosen per problem)",
     )
     parser.add_argument("--rtol", type=float, help="relative tolerance (default 1e-6)")
+    parser.add_argument(
+        "--jacobian",
+        choices=("differences", "exact"),
+        help="the Newton matrix's Jacobian (default differences; exact: the model's own, "
+        "compiled on first use, cheaper from four segments on)",
+    )
     parser.add_argument("--atol", type=float, help="absolute tolerance for every state")
     parser.add_argument("--max-steps", type=int, help="internal steps allowed per output interval")
     parser.add_argument(
@@ -116,6 +122,7 @@ def _scenario(args):
         "dt": args.dt,
         "method": args.method,
         "rtol": args.rtol,
+        "jacobian": args.jacobian,
         "atol": args.atol,
         "max_steps": args.max_steps,
         "max_outputs": args.max_outputs,

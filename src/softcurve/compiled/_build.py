@@ -157,6 +157,12 @@ def compile_flags() -> tuple[str, ...]:
     return _COMPILE_FLAGS + _native_flags()
 
 
+JACOBIAN_FUNCTIONS = ("rhs_jacobian",)
+"""The library of the model's exact Jacobian (:mod:`softcurve.symbolic.derivatives`),
+compiled apart from the model's on first use (``Model.rhs_jacobian``, ``simulate`` with
+``jacobian="exact"``): at eight segments it takes 2.5 times the model's compile time, and
+forward differences serve the default routes."""
+
 COMPILED_FUNCTIONS = (
     "dynamics_terms",
     "potential_energy",
@@ -258,8 +264,11 @@ def key_sources() -> list[Path]:
     return [path for pattern in _SYMBOLIC_SOURCES for path in sorted(package.glob(pattern))]
 
 
-def _cache_key(structure: tuple, quadrature_nodes: int) -> str:
-    """The model library's :func:`cache_key`: structure, node count, the flags and the
+_LIBRARIES = {"model": COMPILED_FUNCTIONS, "jacobian": JACOBIAN_FUNCTIONS}
+
+
+def _cache_key(structure: tuple, quadrature_nodes: int, kind: str = "model") -> str:
+    """A model library's :func:`cache_key`: structure, node count, the flags and the
     source of the symbolic layer."""
     package = Path(__file__).parent.parent
     sources = hashlib.sha256()
@@ -267,7 +276,7 @@ def _cache_key(structure: tuple, quadrature_nodes: int) -> str:
         sources.update(path.relative_to(package).as_posix().encode())
         sources.update(path.read_bytes())
     flags = (*FUNCTION_FLAGS, *_LIBRARY_FLAGS, EXACT_FUNCTIONS, EXACT_FLAGS)
-    return cache_key("model", structure, quadrature_nodes, flags, sources.hexdigest())
+    return cache_key(kind, structure, quadrature_nodes, flags, sources.hexdigest())
 
 
 def cached_model_library(structure, quadrature_nodes) -> Path | None:
@@ -290,7 +299,9 @@ def cached_model_library(structure, quadrature_nodes) -> Path | None:
     return cached_library("model", _cache_key(structure, quadrature_nodes), COMPILED_FUNCTIONS)
 
 
-def compiled_library(structure, quadrature_nodes, symbolic, load=None, what: str = "the model"):
+def compiled_library(
+    structure, quadrature_nodes, symbolic, load=None, what: str = "the model", kind: str = "model"
+):
     """The cached library for this structure, checked and loaded, compiling it first if
     needed (or if the cached one is damaged or another's); None on failure.
 
@@ -308,6 +319,9 @@ def compiled_library(structure, quadrature_nodes, symbolic, load=None, what: str
     what : str
         What it is, in words, for the line that says it is compiled (``"the model of 2
         segments"``).
+    kind : {"model", "jacobian"}
+        The model's library (:data:`COMPILED_FUNCTIONS`) or its exact Jacobian's
+        (:data:`JACOBIAN_FUNCTIONS`).
 
     Returns
     -------
@@ -317,21 +331,22 @@ def compiled_library(structure, quadrature_nodes, symbolic, load=None, what: str
         then runs in CasADi's virtual machine.
     """
     compiler = find_compiler()
+    names = _LIBRARIES[kind]
 
     def build() -> bytes:
         functions = symbolic()
-        selected = {name: functions[name] for name in COMPILED_FUNCTIONS}
+        selected = {name: functions[name] for name in names}
         return compile_generated(selected, require_compiler(compiler), tail=_LIBRARY_FLAGS)
 
-    key = _cache_key(structure, quadrature_nodes)
+    key = _cache_key(structure, quadrature_nodes, kind)
     try:
         return load_or_build(
-            "model",
+            kind,
             key,
             build,
             load or (lambda path: path),
             stacklevel=3,
-            symbols=COMPILED_FUNCTIONS,
+            symbols=names,
             what=what,
         )
     except NoCompiler as exc:

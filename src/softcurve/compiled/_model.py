@@ -25,6 +25,7 @@ from softcurve.base.docs import shared_parameters
 from softcurve.base.validation import ParameterError
 from softcurve.compiled._build import (
     COMPILED_FUNCTIONS,
+    JACOBIAN_FUNCTIONS,
     cache_directory,
     cached_model_library,
     compiled_library,
@@ -34,6 +35,7 @@ from softcurve.compiled._source import load_library
 from softcurve.description.environment import Environment
 from softcurve.description.robot import Robot
 from softcurve.symbolic.contact import contact_functions, with_contact
+from softcurve.symbolic.derivatives import state_jacobian
 from softcurve.symbolic.dynamics import (
     DEFAULT_QUADRATURE_NODES,
     DynamicsExpressions,
@@ -66,6 +68,12 @@ def _load(library: Path) -> dict[str, NativeFunction]:
     loaded; ``softcurve.compiled._build.compiled_library`` then rebuilds it once)."""
     handle = load_library(library)
     return {name: NativeFunction(handle, name) for name in COMPILED_FUNCTIONS}
+
+
+def _load_jacobian(library: Path) -> NativeFunction:
+    """The exact Jacobian of a verified library (:func:`_load`'s counterpart)."""
+    (name,) = JACOBIAN_FUNCTIONS
+    return NativeFunction(load_library(library), name)
 
 
 def _check_arguments(robot, environment, quadrature_nodes) -> None:
@@ -673,6 +681,63 @@ class Model:
             return self._call("rhs", x, tau)[0]
 
         return f
+
+    def rhs_jacobian(self, x, tau=None) -> np.ndarray:
+        """The exact Jacobian ``d xdot / dx`` of the state derivative (:meth:`rhs`) at one
+        state, for constant ``tau``: the derivatives of the chain algorithms
+        (:mod:`softcurve.symbolic.derivatives`), compiled on first use into a library of
+        its own (cached on disk as the model's), else evaluated by CasADi.
+
+        Parameters
+        ----------
+        x : array_like, shape (n_state,)
+            The state ``(q, qd, lam)``.
+        tau : array_like, shape (n,), optional
+            Constant generalized input forces (default zero).
+
+        Returns
+        -------
+        ndarray, shape (n_state, n_state)
+            Row ``i``, column ``j``: ``d xdot_i / d x_j`` (units of ``xdot_i`` per unit of
+            ``x_j``).
+        """
+        x = self._vector("x", x, self.n_state)
+        tau = np.zeros(self.n) if tau is None else self._vector("tau", tau, self.n)
+        native = self.compiled_jacobian()
+        if native is not None:
+            return native(x, tau, self.parameters)[0]
+        return np.array(self.casadi_jacobian()(x, tau, self.parameters)[0])
+
+    def casadi_jacobian(self) -> ca.Function:
+        """``rhs_jacobian(x, tau, p) -> (J_x, D)`` as a CasADi Function: the exact
+        Jacobian of :meth:`casadi_rhs` by the state (n_state, n_state) and the mass matrix
+        (n, n), ``d qdd / d tau`` being ``D^-1`` (:mod:`softcurve.symbolic.derivatives`).
+        Built on first use."""
+        return self.cached(
+            ("casadi", "rhs_jacobian"),
+            lambda: state_jacobian(self.expressions, self.quadrature_nodes),
+        )
+
+    def compiled_jacobian(self) -> NativeFunction | None:
+        """:meth:`casadi_jacobian` compiled (on first use, into its own library cached on
+        disk as the model's), or None where the model is not compiled or the Jacobian
+        does not compile."""
+        if self._native is None:
+            return None
+
+        def build():
+            segments = self.robot.counted()
+            loaded = compiled_library(
+                self._cache_structure(),
+                self.quadrature_nodes,
+                lambda: {"rhs_jacobian": self.casadi_jacobian()},
+                load=_load_jacobian,
+                what=f"the exact Jacobian of the model of {segments}",
+                kind="jacobian",
+            )
+            return None if loaded is None else loaded[1]
+
+        return self.cached(("compiled", "rhs_jacobian"), build)
 
     def casadi_rhs(self) -> ca.Function:
         """``rhs(x, tau, p) -> xdot`` as a symbolic CasADi Function, for optimal control."""

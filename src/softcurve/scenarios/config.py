@@ -217,6 +217,7 @@ def scenario_from_dict(data: dict, file: str = "<config>") -> Scenario:
         "t_final": sim.positive("t_final"),
         "dt": sim.positive("dt"),
         "method": sim.get("method", "string"),
+        "jacobian": sim.get("jacobian", "string"),
         "rtol": sim.positive("rtol"),
         "max_steps": sim.get("max_steps", "integer"),
         "max_outputs": sim.get("max_outputs", "integer"),

@@ -21,6 +21,9 @@ METHODS = ("cvodes", "adams", "bdf", "rk45")
 """Integrators: ``"cvodes"`` chooses Adams or BDF per problem, ``"adams"`` and ``"bdf"``
 force CVODES's family, ``"rk45"`` is SciPy's explicit Runge-Kutta 4(5)."""
 
+JACOBIANS = ("differences", "exact")
+"""The Jacobians of the C driver's Newton matrix (``SimulationSettings.jacobian``)."""
+
 EPSILON = float(np.finfo(np.float64).eps)
 """The float64 epsilon, 2^-52: the spacing of floats relative to their size."""
 
@@ -124,6 +127,12 @@ class SimulationSettings:
         Output times allowed, >= 2 (default :data:`MAX_OUTPUTS`): ``t_final / dt + 1``
         above it is refused before anything is allocated, with the size the outputs
         would take; raise it for longer records.
+    jacobian : {"differences", "exact"}
+        The Jacobian of CVODES's Newton matrix in the C driver: forward differences of
+        the state derivative (default; ``n_state + 1`` evaluations each), or the
+        model's exact one (:meth:`~softcurve.Model.rhs_jacobian`, compiled on first use
+        into a library of its own and cached: at 2 segments and more it is cheaper, see
+        docs/performance.md). Other routes take their own.
 
     Examples
     --------
@@ -140,6 +149,7 @@ class SimulationSettings:
     atol: float | tuple[float, ...] | None = None
     max_steps: int = 50_000
     max_outputs: int = MAX_OUTPUTS
+    jacobian: str = "differences"
 
     def __post_init__(self):
         t_final = _number("t_final", self.t_final, unit=" [s]")
@@ -155,6 +165,10 @@ class SimulationSettings:
         if self.method not in METHODS:
             raise SettingsError(
                 "method", f"must be one of {', '.join(METHODS)}, got {self.method!r}"
+            )
+        if self.jacobian not in JACOBIANS:
+            raise SettingsError(
+                "jacobian", f"must be one of {', '.join(JACOBIANS)}, got {self.jacobian!r}"
             )
         rtol = _number("rtol", self.rtol, unit="")
         if not RTOL_MIN <= rtol < 1:

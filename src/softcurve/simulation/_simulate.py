@@ -269,7 +269,9 @@ def simulate(
 
     method, rtol = settings.method, settings.rtol
     on_grid = controller is None and not callable(values)
-    route = choose_route("simulate", method, model=model, inputs=actuated)
+    route = choose_route(
+        "simulate", method, model=model, inputs=actuated, jacobian=settings.jacobian
+    )
     stats = {"method": method, "route": route.name, "route_reason": route.reason,
              "rtol": rtol, "atol": atol.tolist(), "dt": settings.dt}  # fmt: skip
     fastest = None  # at a restart: BDF once the robot moves slower than this allows

@@ -299,7 +299,14 @@ def chain_steps(functions: SegmentFunctions, inline: bool = False, name: str = "
     )
 
 
-def _arguments(t: SegmentTerms) -> list:
+def arguments(t: SegmentTerms) -> list:
+    """The terms in the order the steps take them (the outputs of ``motion``).
+
+    Parameters
+    ----------
+    t : SegmentTerms
+        One element's terms.
+    """
     return [getattr(t, name) for name in (*INERTIA_OUTPUTS, *BIAS_OUTPUTS)]
 
 
@@ -318,13 +325,13 @@ def mass_matrix(terms: list[SegmentTerms], n: int):
     composite = ca.SX.zeros(6, 6)  # of everything beyond the tip, tip coordinates
     for i in reversed(range(len(terms))):
         t = terms[i]
-        block, momentum, composite = t.steps.composite(*_arguments(t), composite)
+        block, momentum, composite = t.steps.composite(*arguments(t), composite)
         if not t.size:
             continue  # a rigid body: inertia carried, no coordinates of its own
         d[t.coordinates, t.coordinates] = block
         for j in reversed(range(i)):
             other = terms[j]
-            block, momentum = other.steps.carry_of(t.size)(*_arguments(other), momentum)
+            block, momentum = other.steps.carry_of(t.size)(*arguments(other), momentum)
             if other.size:
                 d[other.coordinates, t.coordinates] = block
                 d[t.coordinates, other.coordinates] = block.T
@@ -342,17 +349,46 @@ def inverse_dynamics(terms: list[SegmentTerms], qdd, base_acceleration):
         Accelerations.
     %(base_acceleration)s
     """
+    return ca.vertcat(*newton_euler_passes(terms, qdd, base_acceleration).forces)
+
+
+@dataclass(frozen=True)
+class NewtonEulerPasses:
+    """What the recursive Newton-Euler algorithm carries: per element, the acceleration
+    of its base frame (6,) and the wrench its tip frame exerts on what lies beyond
+    (6,, zero at the last), both outward from the base; and its generalized force
+    ``tau_i`` (n_i,)."""
+
+    accelerations: list
+    tip_wrenches: list
+    forces: list
+
+
+@shared_parameters
+def newton_euler_passes(terms: list[SegmentTerms], qdd, base_acceleration) -> NewtonEulerPasses:
+    """The two passes of :func:`inverse_dynamics` with what they carry between elements
+    (:class:`NewtonEulerPasses`), for the algorithms that differentiate them.
+
+    Parameters
+    ----------
+    %(terms)s
+    qdd : casadi.SX, shape (n,)
+        Accelerations.
+    %(base_acceleration)s
+    """
     accelerations, a = [], base_acceleration
     for t in terms:
         accelerations.append(a)
-        a = t.steps.tip_acceleration(*_arguments(t), qdd[t.coordinates], a)
-    forces, wrench = [None] * len(terms), ca.SX.zeros(6)
+        a = t.steps.tip_acceleration(*arguments(t), qdd[t.coordinates], a)
+    forces, tip_wrenches = [None] * len(terms), [None] * len(terms)
+    wrench = ca.SX.zeros(6)
     for i in reversed(range(len(terms))):
         t = terms[i]
+        tip_wrenches[i] = wrench
         forces[i], wrench = t.steps.newton_euler(
-            *_arguments(t), accelerations[i], qdd[t.coordinates], wrench
+            *arguments(t), accelerations[i], qdd[t.coordinates], wrench
         )
-    return ca.vertcat(*forces)
+    return NewtonEulerPasses(accelerations, tip_wrenches, forces)
 
 
 @shared_parameters
@@ -372,17 +408,17 @@ def forward_dynamics(terms: list[SegmentTerms], force, base_acceleration):
     for i in reversed(range(1, len(terms))):
         t = terms[i]
         inertia, bias, *factors[i] = t.steps.articulated(
-            *_arguments(t), force[t.coordinates], inertia, bias
+            *arguments(t), force[t.coordinates], inertia, bias
         )
     root = terms[0]
     qdd = [
         root.steps.root_acceleration(
-            *_arguments(root), force[root.coordinates], inertia, bias, base_acceleration
+            *arguments(root), force[root.coordinates], inertia, bias, base_acceleration
         )
     ]
-    a = root.steps.tip_acceleration(*_arguments(root), qdd[0], base_acceleration)
+    a = root.steps.tip_acceleration(*arguments(root), qdd[0], base_acceleration)
     for t, (factor, projected) in zip(terms[1:], factors[1:], strict=True):
-        qdd_i, a = t.steps.articulated_acceleration(*_arguments(t), factor, projected, a)
+        qdd_i, a = t.steps.articulated_acceleration(*arguments(t), factor, projected, a)
         qdd.append(qdd_i)
     return ca.vertcat(*qdd)
 

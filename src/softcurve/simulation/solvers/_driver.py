@@ -190,11 +190,16 @@ class DriverProblem:
         The model's compiled ``domain(q, p)`` (1 inside, 0 outside), which the driver
         calls at its outputs with each member's parameters; None: no configuration is
         outside (an entry not finite still is).
+    jacobian : NativeFunction, optional
+        The model's compiled exact Jacobian ``rhs_jacobian(x, tau, p) -> (J_x, D)``
+        (:meth:`~softcurve.Model.compiled_jacobian`) for the Newton matrix; None:
+        forward differences of ``rhs``.
     """
 
     def __init__(self, rhs, n_state, n, n_parameters, force=None, inputs=None, lanes=None,
-                 domain=None):  # fmt: skip
-        functions = [f for f in (rhs, force, domain) if f is not None]
+                 domain=None, jacobian=None):  # fmt: skip
+        functions = [f for f in (rhs, force, domain, jacobian) if f is not None]
+        self.exact = jacobian is not None
         self._keep = [*functions, lanes]  # the functions and bounds outlive the struct
         self.width = 1 if lanes is None else lanes.width
         lag = inputs is not None and inputs.time_constant is not None
@@ -207,6 +212,7 @@ class DriverProblem:
             f=rhs.address,
             force=None if force is None else force.address,
             domain=None if domain is None else domain.address,
+            jacobian=None if jacobian is None else jacobian.address,
             nx=n_state,
             nu=n,
             np=n_parameters,
@@ -222,7 +228,7 @@ class DriverProblem:
         )
 
 
-def problem(model, inputs=None, lanes: bool = False) -> DriverProblem | None:
+def problem(model, inputs=None, lanes: bool = False, exact: bool = False) -> DriverProblem | None:
     """The :class:`DriverProblem` of ``model`` driven by forces or by ``inputs`` (an
     :class:`~softcurve.simulation.solvers.ActuatorInput`, whose force ``H(q) u`` is
     compiled once per actuator and cached on disk), cached with the model; None where the
@@ -237,6 +243,9 @@ def problem(model, inputs=None, lanes: bool = False) -> DriverProblem | None:
     lanes : bool
         Integrate members in groups on the state derivative over lanes (compiled at the
         first such call); where it cannot be built, the problem integrates them alone.
+    exact : bool
+        The Newton matrix from the model's exact Jacobian (compiled at the first such
+        call), where it compiles; else from forward differences.
     """
     rhs = model.compiled_function("rhs")
     if driver() is None or rhs is None:
@@ -250,11 +259,11 @@ def problem(model, inputs=None, lanes: bool = False) -> DriverProblem | None:
                 return None
         vectors = lanes_derivative(model, inputs) if lanes else None
         domain = model.compiled_function("domain")
-        return DriverProblem(
-            rhs, model.n_state, model.n, model.parameters.size, force, inputs, vectors, domain
-        )
+        jacobian = model.compiled_jacobian() if exact else None
+        return DriverProblem(rhs, model.n_state, model.n, model.parameters.size, force,
+                             inputs, vectors, domain, jacobian)  # fmt: skip
 
-    key = ("native problem", None if inputs is None else inputs.key, lanes)
+    key = ("native problem", None if inputs is None else inputs.key, lanes, exact)
     return model.cached(key, build)
 
 

@@ -117,7 +117,7 @@ def _driver_missing(model) -> tuple[str | None, bool]:
 
 def choose_route(task: str, method: str = "cvodes", *, model=None, inputs=None, members=1,
                  lanes=False, actuators=1, options_known=True, threads=1,
-                 builders=None) -> Route:  # fmt: skip
+                 builders=None, jacobian="differences") -> Route:  # fmt: skip
     """The route of one integration, with the reason, warning once (:class:`RouteWarning`)
     where a fast route should build and does not.
 
@@ -149,6 +149,9 @@ def choose_route(task: str, method: str = "cvodes", *, model=None, inputs=None, 
         Whether the driver understands every CVODES option given (sensitivities).
     threads : int
         Threads of one evaluation (sensitivities).
+    jacobian : {"differences", "exact"}
+        The Jacobian of the driver's Newton matrix (``SimulationSettings.jacobian``); the
+        lanes and the other routes take their own.
     builders : dict, optional
         ``route name -> build()`` returning what the route runs on, or None where it does
         not build: the sensitivities' compiled columns (``"sensitivity-driver"``), the
@@ -184,7 +187,7 @@ def choose_route(task: str, method: str = "cvodes", *, model=None, inputs=None, 
     if why is None and actuators > COMPILED_ACTUATORS:
         why, asked = f"{actuators} actuators, more than {COMPILED_ACTUATORS} to compile", True
     grouped = task == "batch" and lanes and members >= LANE_WIDTH
-    problem = None if why else c_driver.problem(model, inputs, grouped)
+    problem = None if why else c_driver.problem(model, inputs, grouped, jacobian == "exact")
     if why is None and problem is None:
         why, asked = "the actuator's force H(q) u did not compile", False
     if why is not None:
@@ -197,6 +200,12 @@ def choose_route(task: str, method: str = "cvodes", *, model=None, inputs=None, 
         warn_once("the state derivative over lanes did not compile", "driver")
         return Route("driver", "the lane code did not build", problem)
     reason = "lanes=False" if task == "batch" and not lanes else "one member per system"
+    if jacobian == "exact":
+        if problem.exact:
+            reason += ", the model's exact Jacobian"
+        else:
+            warn_once("the exact Jacobian did not compile", "driver")
+            reason += ", forward-difference Jacobians (the exact one did not compile)"
     return Route("driver", reason, problem)
 
 

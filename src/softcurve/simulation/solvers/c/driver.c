@@ -3,7 +3,9 @@
  *
  * CVODES is the copy inside CasADi (sundials2.h). The Newton systems are solved by
  * CVSPGMR preconditioned with the exact LU factors of the Newton matrix I - gamma J, whose
- * Jacobian J comes from forward differences of f; with the same J in the Jacobian-vector
+ * Jacobian J is the model's exact one where the problem has it (an actuator's force then
+ * differentiated by forward differences) or else forward differences of f; with the same
+ * J in the Jacobian-vector
  * product, GMRES converges in one iteration, so this is a direct dense solve. CVODES says
  * when J may be reused (jok): only then is it recomputed.
  *
@@ -38,12 +40,13 @@ void arrays_close(sc_arrays *c) {
 /* Work arrays of f for n states (x, xdot, tau, ftmp, J and LU in one block after f's own
  * work); 0, or 1 when out of memory (work_close frees what was allocated). */
 int work_open(sc_work *s, const sc_function *fn, int n) {
+    long exact = fn->jacobian == NULL ? 0 : fn->nx * fn->nx + fn->nu * fn->nu + fn->nu * n;
     memset(s, 0, sizeof(*s));
     s->fn = fn;
     s->n = n;
     s->piv = (int *)calloc(n, sizeof(int));
     if (arrays_open(&s->c, fn->sz_arg, fn->sz_res, fn->sz_iw, fn->sz_w,
-                  4 * n + fn->nx + 2 * n * n) || !s->piv)
+                  4 * n + fn->nx + 2 * n * n + exact) || !s->piv)
         return 1;
     s->x = s->c.w + fn->sz_w + 1;
     s->xdot = s->x + n;
@@ -51,6 +54,9 @@ int work_open(sc_work *s, const sc_function *fn, int n) {
     s->ftmp = s->tau + fn->nx;
     s->J = s->ftmp + n;
     s->LU = s->J + n * n;
+    s->Jx = s->LU + n * n;
+    s->mass = s->Jx + fn->nx * fn->nx;
+    s->dtau = s->mass + fn->nu * fn->nu;
     return 0;
 }
 
@@ -73,19 +79,24 @@ static void quiet(int code, const char *module, const char *function, char *msg,
     (void)code; (void)module; (void)function; (void)msg; (void)data;
 }
 
+/* The generalized force at the state s->x: the actuator's H(q) v into `tau` (returned), or
+ * the member's forces; NULL where the force function fails. */
+static const double *input_force(sc_work *s, double *tau) {
+    const sc_function *fn = s->fn;
+    if (fn->force == NULL) return s->u;
+    s->c.arg[0] = s->x;
+    s->c.arg[1] = fn->lag ? s->x + fn->nx : s->u;
+    s->c.res[0] = tau;
+    return fn->force(s->c.arg, s->c.res, s->c.iw, s->c.w, 0) ? NULL : tau;
+}
+
 /* ydot = f(nominal * y, u, p) / nominal; 1 (recoverable) on a non-finite value */
 int evaluate(sc_work *s, const double *y, double *ydot) {
     const sc_function *fn = s->fn;
     int i, n = s->n;
     for (i = 0; i < n; ++i) s->x[i] = s->nominal[i] * y[i];
-    s->c.arg[1] = s->u;
-    if (fn->force != NULL) {
-        s->c.arg[0] = s->x;
-        s->c.arg[1] = fn->lag ? s->x + fn->nx : s->u;
-        s->c.res[0] = s->tau;
-        if (fn->force(s->c.arg, s->c.res, s->c.iw, s->c.w, 0)) return -1;
-        s->c.arg[1] = s->tau;
-    }
+    s->c.arg[1] = input_force(s, s->tau);
+    if (s->c.arg[1] == NULL) return -1;
     s->c.arg[0] = s->x;
     s->c.arg[2] = s->p;
     s->c.res[0] = s->xdot;
@@ -163,6 +174,78 @@ void times_jacobian(const double *J, const double *v, int n, double *Jv) {
         for (i = 0; i < n; ++i) Jv[i] += J[i + j * n] * v[j];
 }
 
+/* a = L L^T in place (lower triangle, column-major k x k) for a symmetric positive
+ * definite a; 1 where it is not. */
+static int cholesky(double *a, int k) {
+    int i, j, m;
+    for (j = 0; j < k; ++j) {
+        double d = a[j + j * k];
+        for (m = 0; m < j; ++m) d -= a[j + m * k] * a[j + m * k];
+        if (!(d > 0.0)) return 1;
+        d = sqrt(d);
+        a[j + j * k] = d;
+        for (i = j + 1; i < k; ++i) {
+            double v = a[i + j * k];
+            for (m = 0; m < j; ++m) v -= a[i + m * k] * a[j + m * k];
+            a[i + j * k] = v / d;
+        }
+    }
+    return 0;
+}
+
+/* b = (L L^T)^-1 b for one column b of k entries, L from cholesky(). */
+static void cholesky_solve(const double *l, int k, double *b) {
+    int i, m;
+    for (i = 0; i < k; ++i) {
+        for (m = 0; m < i; ++m) b[i] -= l[i + m * k] * b[m];
+        b[i] /= l[i + i * k];
+    }
+    for (i = k - 1; i >= 0; --i) {
+        for (m = i + 1; m < k; ++m) b[i] -= l[m + i * k] * b[m];
+        b[i] /= l[i + i * k];
+    }
+}
+
+/* s->J (column-major, the integrated scaled state's) from the model's exact Jacobian at
+ * y: J_x at (x, tau); with an actuator, the accelerations' rows gain D^-1 dtau/dx (the
+ * force H(q) v differentiated by forward differences, its columns of x and of the lagging
+ * inputs) and the lagging inputs' rows their rate's -1 / time_constant. 0, or the failing
+ * call's nonzero. */
+static int exact_jacobian(sc_work *s, double *y) {
+    const sc_function *fn = s->fn;
+    int n = s->n, nx = fn->nx, nu = fn->nu, i, j;
+    const double *tau;
+    for (i = 0; i < n; ++i) s->x[i] = s->nominal[i] * y[i];
+    tau = input_force(s, s->tau);
+    if (tau == NULL) return -1;
+    s->c.arg[0] = s->x;
+    s->c.arg[1] = tau;
+    s->c.arg[2] = s->p;
+    s->c.res[0] = s->Jx;
+    s->c.res[1] = s->mass;
+    if (fn->jacobian(s->c.arg, s->c.res, s->c.iw, s->c.w, 0)) return -1;
+    memset(s->J, 0, (size_t)n * n * sizeof(double));
+    for (j = 0; j < nx; ++j)
+        for (i = 0; i < nx; ++i) s->J[i + j * n] = s->Jx[i + j * nx];
+    if (fn->force != NULL) {
+        if (cholesky(s->mass, nu)) return 1;
+        for (j = 0; j < n; ++j) {
+            double saved = s->x[j], step = difference_step(saved);
+            double *column = s->dtau + (long)j * nu;
+            s->x[j] = saved + step;
+            if (input_force(s, column) == NULL) return -1;
+            s->x[j] = saved;
+            for (i = 0; i < nu; ++i) column[i] = (column[i] - tau[i]) / step;
+            cholesky_solve(s->mass, nu, column);
+            for (i = 0; i < nu; ++i) s->J[nu + i + j * n] += column[i];
+        }
+        for (i = nx; fn->lag && i < n; ++i) s->J[i + i * n] = -1.0 / fn->time_constant;
+    }
+    for (j = 0; j < n; ++j)
+        for (i = 0; i < n; ++i) s->J[i + j * n] *= s->nominal[j] / s->nominal[i];
+    return 0;
+}
+
 /* Forward-difference Jacobian (column-major) when CVODES asks for a fresh one, then the LU
  * factors of I - gamma J. (Offering the previous segment's J after a restart instead saved
  * 9 of the paper case's 24 Jacobians but doubled the steps of the actuated case with lag,
@@ -174,7 +257,12 @@ static int setup(realtype t, N_Vector yv, N_Vector fyv, int jok, int *jcur, real
     int n = s->n, i, j, flag;
     double *y = N_VGetArrayPointer(yv), *fy = N_VGetArrayPointer(fyv);
     (void)t; (void)t1; (void)t2; (void)t3;
-    if (!jok) {
+    if (!jok && s->fn->jacobian != NULL) {
+        flag = exact_jacobian(s, y);
+        if (flag) return flag;
+        s->jacobians++;
+        *jcur = 1;
+    } else if (!jok) {
         for (j = 0; j < n; ++j) {
             double saved = y[j], step = difference_step(saved);
             y[j] = saved + step;

@@ -28,6 +28,7 @@ typedef struct {
     const double *u, *p, *nominal;
     sc_arrays c;
     double *x, *xdot, *tau, *J, *LU, *ftmp;
+    double *Jx, *mass, *dtau; /* the exact Jacobian's outputs and the force's derivative */
     int n; /* states integrated: nx, plus m lagging inputs */
     int *piv;
     long jacobians;
@@ -40,8 +41,9 @@ typedef struct {
 int arrays_open(sc_arrays *c, long long sz_arg, long long sz_res, long long sz_iw,
                 long long sz_w, long extra);
 void arrays_close(sc_arrays *c);
-/* Work arrays of f for n states (x, xdot, tau, ftmp, J and LU in one block after f's own
- * work); 0, or 1 when out of memory (work_close frees what was allocated). */
+/* Work arrays of f for n states (x, xdot, tau, ftmp, J, LU and, with an exact Jacobian,
+ * its outputs in one block after f's own work); 0, or 1 when out of memory (work_close
+ * frees what was allocated). */
 int work_open(sc_work *s, const sc_function *fn, int n);
 void work_close(sc_work *s);
 /* CVODES's counters since its last (re)start: steps, right-hand sides, linear-solver

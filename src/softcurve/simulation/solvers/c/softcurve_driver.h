@@ -25,16 +25,20 @@ typedef int (*lanes_fn)(const double *x, const double *u, const double *p, doubl
                         double *w);
 
 /* A model described to the driver: its generated right-hand side f(x, tau, p) (nx states,
- * nu forces, np parameters) with its work sizes (the largest over f, force and domain),
+ * nu forces, np parameters) with its work sizes (the largest over f, force, domain and
+ * jacobian),
  * optionally an actuator's force(q, v) -> tau = H(q) v with m inputs: the member's input
  * is then v (m) or, with lag, the command of v, whose m states follow x with the rate
  * (clip(command, lower, upper) - v) / time_constant; the model's generated
  * domain(q, p) -> 1 inside, 0 outside (the elements' rule, written once in Python; NULL:
- * no configuration is outside); and optionally the same state derivative over lanes. */
+ * no configuration is outside); optionally the same state derivative over lanes; and
+ * optionally the model's exact Jacobian jacobian(x, tau, p) -> (J_x (nx x nx), D (nu x nu))
+ * (softcurve.symbolic.derivatives; NULL: forward differences of f). */
 typedef struct {
     casadi_fn f;
     casadi_fn force;
     casadi_fn domain;
+    casadi_fn jacobian;
     int nx;
     int nu;
     int np;

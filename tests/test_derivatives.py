@@ -1,0 +1,123 @@
+"""The exact Jacobian of the state derivative (softcurve.symbolic.derivatives) against
+CasADi's own differentiation of the right-hand side, on every element kind, with creep
+and contact; and the C driver's Newton matrix built on it."""
+
+from __future__ import annotations
+
+import casadi as ca
+import numpy as np
+import pytest
+
+import softcurve as sc
+from softcurve.simulation import SettingsError, SimulationSettings
+
+from .conftest import random_state
+from .test_kinds import robots
+
+
+def _reference(model):
+    """``(d rhs / dx, d rhs / d tau)`` by CasADi's forward and reverse modes through the
+    model's symbolic right-hand side: an algorithm independent of the chain's tangents."""
+    rhs = model.symbolic["rhs"]
+    x, tau = ca.SX.sym("x", model.n_state), ca.SX.sym("tau", model.n)
+    xdot = rhs(x, tau, model.parameters)
+    return ca.Function("reference", [x, tau], [ca.jacobian(xdot, x), ca.jacobian(xdot, tau)])
+
+
+def _state(rng, model):
+    q, qd = random_state(rng, model)
+    lam = 1e-3 * rng.normal(size=model.n_creep)
+    scale = np.abs(model.gravity_force(q)) + np.abs(model.elastic_force(q)) + 1e-9
+    return np.concatenate([q, qd, lam]), rng.normal(size=model.n) * scale
+
+
+def _relative(a, b):
+    return np.abs(a - b).max() / np.abs(b).max()
+
+
+def _check(model, rng, samples=2):
+    jacobian, reference = model.casadi_jacobian(), _reference(model)
+    for _ in range(samples):
+        x, tau = _state(rng, model)
+        j_x, mass = (np.array(v) for v in jacobian(x, tau, model.parameters))
+        r_x, r_tau = (np.array(v) for v in reference(x, tau))
+        assert _relative(j_x, r_x) < 1e-10
+        # d qdd / d tau = D^-1, the mass matrix of the dynamics' terms
+        terms = model.dynamics_terms(x[: model.n], x[model.n : 2 * model.n], x[2 * model.n :])
+        d = terms.mass_matrix
+        np.testing.assert_allclose(mass, d, rtol=1e-12, atol=1e-12 * np.abs(d).max())
+        n = model.n
+        assert _relative(np.linalg.inv(mass), r_tau[n : 2 * n]) < 1e-9
+
+
+@pytest.mark.parametrize("kind", ["curvature", "six strains", "creep", "mixed"])
+def test_the_exact_jacobian_is_casadis_derivative_of_the_right_hand_side(rng, kind):
+    _check(sc.Model(robots()[kind], compile=False), rng)
+
+
+def test_the_exact_jacobian_of_one_segment_and_of_many(rng):
+    _check(sc.Model(sc.presets.ifac2020(), compile=False), rng)
+    _check(sc.Model(sc.presets.ifac2020().with_segments(5), compile=False), rng, samples=1)
+
+
+def test_the_exact_jacobian_holds_the_contact_force(rng):
+    robot = sc.presets.ifac2020().with_segments(2)
+    tip = robot.rest_length
+    sphere = sc.Sphere([0.0, 0.0, tip + 0.004], 0.006)
+    model = sc.Model(robot, environment=sc.Environment([sphere], sc.ContactLaw(1e6, damping=0.1)),
+                     compile=False)  # fmt: skip
+    x, tau = _state(rng, model)
+    x[: model.n] = robot.rest_configuration()  # the tip inside the sphere: a force acts
+    contact = model.dynamics_terms(x[: model.n], x[model.n : 2 * model.n]).contact_force
+    assert np.abs(contact).max() > 0
+    j_x, _ = model.casadi_jacobian()(x, tau, model.parameters)
+    r_x, _ = _reference(model)(x, tau)
+    assert _relative(np.array(j_x), np.array(r_x)) < 1e-10
+
+
+def test_the_compiled_jacobian_is_the_symbolic_one(rng):
+    model = sc.Model(sc.presets.ifac2020().with_segments(2))
+    x, tau = _state(rng, model)
+    compiled = model.rhs_jacobian(x, tau)
+    symbolic = np.array(model.casadi_jacobian()(x, tau, model.parameters)[0])
+    assert compiled.shape == (model.n_state, model.n_state)
+    assert _relative(compiled, symbolic) < 1e-12
+    with pytest.raises(ValueError, match="x"):
+        model.rhs_jacobian(x[:-1])
+
+
+def _actuated(time_constant):
+    robot = sc.presets.ifac2020().with_segments(2)
+    tendons = sc.TendonActuator.three_per_segment(
+        distance=0.01, t_max=5.0, time_constant=time_constant, elements=robot
+    )
+    return robot, tendons
+
+
+@pytest.mark.parametrize("time_constant", [None, 0.02])
+def test_the_driver_on_the_exact_jacobian_follows_the_differences(time_constant):
+    """The same trajectory (to the tolerance) and the same work: the Newton matrix changes,
+    not the method; the route says which Jacobian it took."""
+    robot, tendons = _actuated(time_constant)
+    model = sc.Model(robot)
+    inputs = np.linspace(0.0, 3.0, tendons.n_inputs)
+    runs = {}
+    for jacobian in ("differences", "exact"):
+        settings = SimulationSettings(t_final=0.3, dt=0.01, rtol=1e-8, jacobian=jacobian)
+        runs[jacobian] = sc.simulate(
+            model, robot.rest_configuration(), np.zeros(model.n), actuator=tendons,
+            inputs=inputs, settings=settings,
+        )  # fmt: skip
+    exact, differences = runs["exact"], runs["differences"]
+    assert exact.success and differences.success
+    assert exact.stats["route"] == "driver"
+    assert "exact Jacobian" in exact.stats["route_reason"]
+    assert "exact" not in differences.stats["route_reason"]
+    np.testing.assert_allclose(exact.q, differences.q, rtol=0, atol=1e-5 * np.abs(exact.q).max())
+    assert exact.stats["jacobian_evaluations"] > 0
+    assert exact.stats["steps"] <= 1.2 * differences.stats["steps"]
+
+
+def test_the_jacobian_setting_is_checked():
+    with pytest.raises(SettingsError, match="jacobian.*differences, exact.*'finite'"):
+        SimulationSettings(jacobian="finite")
