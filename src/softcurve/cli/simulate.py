@@ -62,7 +62,7 @@ def _add_arguments(parser) -> None:
         "--jacobian",
         choices=("differences", "exact"),
         help="the Newton matrix's Jacobian (default differences; exact: the model's own, "
-        "compiled on first use, cheaper from four segments on)",
+        "compiled on first use, cheaper from two segments on)",
     )
     parser.add_argument("--atol", type=float, help="absolute tolerance for every state")
     parser.add_argument("--max-steps", type=int, help="internal steps allowed per output interval")

@@ -160,8 +160,8 @@ def compile_flags() -> tuple[str, ...]:
 JACOBIAN_FUNCTIONS = ("rhs_jacobian",)
 """The library of the model's exact Jacobian (:mod:`softcurve.symbolic.derivatives`),
 compiled apart from the model's on first use (``Model.rhs_jacobian``, ``simulate`` with
-``jacobian="exact"``): at eight segments it takes 2.5 times the model's compile time, and
-forward differences serve the default routes."""
+``jacobian="exact"``): at eight segments it takes 3.8 times the model's compile time
+(``benchmarks/bench_jacobian.py``), and forward differences serve the default routes."""
 
 COMPILED_FUNCTIONS = (
     "dynamics_terms",

@@ -31,20 +31,14 @@ import numpy as np
 from softcurve.description.layout import ParameterLayout
 from softcurve.symbolic import chain
 from softcurve.symbolic.dynamics import chain_elements, unpack_parameters
-from softcurve.symbolic.segment import BIAS_OUTPUTS, INERTIA_OUTPUTS
+from softcurve.symbolic.segment import BIAS_OUTPUTS, INERTIA_OUTPUTS, nonzeros
 
 _NAMES = (*INERTIA_OUTPUTS, *BIAS_OUTPUTS)
 _OPTIONS = {"never_inline": True, "cse": True}
 
 
-def _nonzeros(parts) -> ca.SX:
-    """The nonzeros of ``parts`` in one column."""
-    columns = [part.nz[:] for part in parts if part.nnz()]
-    return ca.vertcat(*columns) if columns else ca.SX(0, 1)
-
-
 def _from_nonzeros(vector, patterns) -> list:
-    """``vector`` cut into matrices of ``patterns`` (:func:`_nonzeros` undone)."""
+    """``vector`` cut into matrices of ``patterns`` (``nonzeros`` undone)."""
     parts, start = [], 0
     for pattern in patterns:
         parts.append(ca.SX(pattern, vector[start : start + pattern.nnz()]))
@@ -52,69 +46,69 @@ def _from_nonzeros(vector, patterns) -> list:
     return parts
 
 
-def local_jacobian(motion: ca.Function) -> ca.Function:
-    """``(q_i, qd_i, omega, g) -> (the outputs of motion..., L)``: an element kind's terms
-    and ``L``, the derivatives of their nonzeros (column by column of each output) by
-    ``(q_i, qd_i, omega)``, shape (nnz, 2 n_i + 3).
-
-    Parameters
-    ----------
-    motion : casadi.Function
-        The kind's ``SegmentFunctions.motion``.
-    """
-    inputs = [ca.SX.sym(name, motion.sparsity_in(k)) for k, name in enumerate(motion.name_in())]
-    q, qd, omega, _ = inputs
-    outputs = motion(*inputs)
-    local = ca.jacobian(_nonzeros(outputs), ca.vertcat(q, qd, omega))
-    return ca.Function(
-        f"{motion.name()}_local",
-        inputs,
-        [*outputs, local],
-        list(motion.name_in()),
-        [*_NAMES, "L"],
-        _OPTIONS,
-    )
+_MAPS = len(INERTIA_OUTPUTS)
+DIRECTIONS = ("q", "qd", "qdd")
+"""The kinds of direction of the Newton-Euler tangent, one mapped pass each: along a
+coordinate the maps and the biases change, along a rate the biases alone, along an
+acceleration neither."""
 
 
-def _tangent_pass(elements, patterns, shared, direction):
-    """``dID`` (n,) along ``direction = (dq, dqd, dqdd)`` at the passes ``shared``."""
+def _with_biases(values, biases) -> list:
+    """An element's terms with its maps from ``values`` and ``biases`` (or, for None,
+    zero biases of the same sparsity)."""
+    if biases is None:
+        biases = [ca.SX(*v.shape) for v in values[_MAPS:]]
+    return [*values[:_MAPS], *biases]
+
+
+def _tangent_pass(elements, patterns, shared, kind, direction):
+    """``dID`` (n,) along ``direction`` (n,) of the coordinates, rates or accelerations
+    (``kind``, one of :data:`DIRECTIONS`) at the passes ``shared``.
+
+    The steps are bilinear: ``A_tip = X A + S qdd + c`` and the Newton-Euler relations
+    are linear in the maps for given accelerations and wrenches, plus the biases. Their
+    tangent is then the steps themselves: at the maps with the biases' tangents in place
+    of the biases, on the accelerations' and wrenches' tangents, plus (along a
+    coordinate, where the maps change) at the maps' tangents without biases on the
+    accelerations and wrenches. Structural zeros of the other kinds drop out."""
     terms, local, qdd, accelerations, wrenches = shared
-    dq, dqd, dqdd = direction
-    d_omega, d_acceleration = ca.SX.zeros(3), ca.SX.zeros(6)
-    segment_terms, tangents, start = [], [], 0
-    term_start = 0
+    zero = ca.SX(direction.shape[0], 1)
+    dq, dqd, dqdd = (direction if kind == name else zero for name in DIRECTIONS)
+    d_omega = ca.SX(3, 1)
+    values, tangents, start, term_start = [], [], 0, 0
     for element, (pattern, local_pattern) in zip(elements, patterns, strict=True):
         k = element.coordinates
         size = sum(p.nnz() for p in pattern)
-        values = _from_nonzeros(terms[term_start : term_start + size], pattern)
+        values.append(_from_nonzeros(terms[term_start : term_start + size], pattern))
         term_start += size
         jacobian = ca.SX(local_pattern, local[start : start + local_pattern.nnz()])
         start += local_pattern.nnz()
         change = _from_nonzeros(jacobian @ ca.vertcat(dq[k], dqd[k], d_omega), pattern)
         d_omega = change[_NAMES.index("omega_tip")]
-        segment_terms.append(values)
         tangents.append(change)
-    base_tangents = []
+    maps_change = kind == "q"
+    d_acceleration, base_tangents = ca.SX(6, 1), []
     for i, element in enumerate(elements):
-        k = element.coordinates
-        a = accelerations[6 * i : 6 * i + 6]
+        k, a = element.coordinates, accelerations[6 * i : 6 * i + 6]
         base_tangents.append(d_acceleration)
-        tip = element.steps.tip_acceleration(*segment_terms[i], qdd[k], a)
-        d_acceleration = ca.jtimes(
-            tip,
-            ca.vertcat(_nonzeros(segment_terms[i]), qdd[k], a),
-            ca.vertcat(_nonzeros(tangents[i]), dqdd[k], d_acceleration),
-        )
-    forces, d_wrench = [None] * len(elements), ca.SX.zeros(6)
+        tip = element.steps.tip_acceleration
+        moved = tip(*_with_biases(values[i], tangents[i][_MAPS:]), dqdd[k], d_acceleration)
+        if maps_change:
+            moved += tip(*_with_biases(tangents[i], None), qdd[k], a)
+        d_acceleration = moved
+    forces, d_wrench = [None] * len(elements), ca.SX(6, 1)
     for i in reversed(range(len(elements))):
         element = elements[i]
-        k = element.coordinates
-        a, w = accelerations[6 * i : 6 * i + 6], wrenches[6 * i : 6 * i + 6]
-        force, wrench = element.steps.newton_euler(*segment_terms[i], a, qdd[k], w)
-        wrt = ca.vertcat(_nonzeros(segment_terms[i]), a, qdd[k], w)
-        seeds = ca.vertcat(_nonzeros(tangents[i]), base_tangents[i], dqdd[k], d_wrench)
-        forces[i] = ca.jtimes(force, wrt, seeds)
-        d_wrench = ca.jtimes(wrench, wrt, seeds)
+        k, a = element.coordinates, accelerations[6 * i : 6 * i + 6]
+        newton_euler = element.steps.newton_euler
+        force, wrench = newton_euler(
+            *_with_biases(values[i], tangents[i][_MAPS:]), base_tangents[i], dqdd[k], d_wrench
+        )
+        if maps_change:
+            w = wrenches[6 * i : 6 * i + 6]
+            more_force, more_wrench = newton_euler(*_with_biases(tangents[i], None), a, qdd[k], w)
+            force, wrench = force + more_force, wrench + more_wrench
+        forces[i], d_wrench = force, wrench
     return ca.vertcat(*forces)
 
 
@@ -142,13 +136,11 @@ def state_jacobian(e, quadrature_nodes: int) -> ca.Function:
     contact = getattr(e, "contact_force", 0)
     force = e.tau + contact + e.creep_force - e.elastic_force - e.damping_force
 
-    locals_, terms, jacobians, patterns = {}, [], [], []
+    terms, jacobians, patterns = [], [], []
     omega = ca.SX.zeros(3)
     for element in elements:
-        k, motion = element.coordinates, element.functions.motion
-        if motion.name() not in locals_:
-            locals_[motion.name()] = local_jacobian(motion)
-        *outputs, local = locals_[motion.name()](e.q[k], e.qd[k], omega, element.geometry)
+        k = element.coordinates
+        *outputs, local = element.functions.local()(e.q[k], e.qd[k], omega, element.geometry)
         terms.append(
             chain.SegmentTerms(**dict(zip(_NAMES, outputs, strict=True)), steps=element.steps,
                                coordinates=k)
@@ -159,8 +151,8 @@ def state_jacobian(e, quadrature_nodes: int) -> ca.Function:
     qdd = chain.forward_dynamics(terms, force, falling)
     passes = chain.newton_euler_passes(terms, qdd, falling)
     shared = [
-        _nonzeros([_nonzeros(chain.arguments(t)) for t in terms]),
-        _nonzeros(jacobians),
+        nonzeros([nonzeros(chain.arguments(t)) for t in terms]),
+        nonzeros(jacobians),
         qdd,
         ca.vertcat(*passes.accelerations),
         ca.vertcat(*passes.tip_wrenches),
@@ -170,22 +162,25 @@ def state_jacobian(e, quadrature_nodes: int) -> ca.Function:
     at_state = ca.Function("state_passes", inputs, [*shared, *derivatives], _OPTIONS)
 
     symbols = [ca.SX.sym(f"shared{i}", s.sparsity()) for i, s in enumerate(shared)]
-    direction = [ca.SX.sym(name, n) for name in ("dq", "dqd", "dqdd")]
-    tangent = ca.Function(
-        "newton_euler_tangent",
-        [*symbols, *direction],
-        [_tangent_pass(elements, patterns, symbols, direction)],
-        _OPTIONS,
-    )
-    mapped = tangent.map("newton_euler_tangents", "serial", 3 * n, list(range(len(shared))), [])
+    direction = ca.SX.sym("direction", n)
+    shared_inputs = list(range(len(shared)))
+    passes = {}
+    for kind in DIRECTIONS:
+        tangent = ca.Function(
+            f"newton_euler_tangent_{kind}",
+            [*symbols, direction],
+            [_tangent_pass(elements, patterns, symbols, kind, direction)],
+            _OPTIONS,
+        )
+        passes[kind] = tangent.map(f"newton_euler_tangents_{kind}", "serial", n, shared_inputs, [])
 
     x_mx, tau_mx, p_mx = (
         ca.MX.sym(name, v.sparsity()) for name, v in zip("xtp", inputs, strict=True)
     )
     *values, force_x, creep_x = at_state(x_mx, tau_mx, p_mx)
-    seeds = np.eye(3 * n)
-    columns = mapped(*values, seeds[:n], seeds[n : 2 * n], seeds[2 * n :])
-    d_inverse, mass = columns[:, : 2 * n], columns[:, 2 * n :]
+    seeds = np.eye(n)
+    d_inverse = ca.horzcat(passes["q"](*values, seeds), passes["qd"](*values, seeds))
+    mass = passes["qdd"](*values, seeds)
     n_lam = e.lam.shape[0]
     rhs = force_x - ca.horzcat(d_inverse, ca.MX(n, n_lam))
     solved = ca.solve(mass, rhs, "ldl")

@@ -36,6 +36,8 @@ radius, rest strains ...).
 
 from __future__ import annotations
 
+import functools
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import casadi as ca
@@ -201,7 +203,12 @@ def _point_terms(point, x: _Symbols, triangle: bool) -> list:
 
 
 def _slice_function(
-    model: ElementModel, pattern: ca.Sparsity, options: dict, name: str, triangle: bool
+    model: ElementModel,
+    pattern: ca.Sparsity,
+    options: dict,
+    name: str,
+    triangle: bool,
+    local: bool = False,
 ):
     """``(q_i, qd_i, omega, g, s, m, I) -> (J_k, h_k, H_k, D_k, w_k, b_k)``, a slice's share
     at material coordinate ``s`` of mass ``m`` and rotational inertia ``I`` (of sparsity
@@ -209,16 +216,25 @@ def _slice_function(
     Function called per slice, not a segment's slices written out: a ten-segment
     robot of six strains then compiles with a third fewer compiler CPU seconds
     (``benchmarks/bench_chain.py``, with the articulated step's factor). Inlined (a
-    robot of one segment), it costs what the slices written out cost."""
+    robot of one segment), it costs what the slices written out cost.
+
+    With ``local``, a last output ``dS``: the derivatives of the shares, stacked column by
+    column (``vec``), by ``(q_i, qd_i, omega)``, written out here where the share is (a
+    forward derivative of the call would take one pass per direction)."""
     x = _symbols(model)
     s, mass, inertia = ca.SX.sym("s"), ca.SX.sym("m"), ca.SX.sym("I", pattern)
     point = _point(model, x.q, x.geometry, s, mass, inertia)
+    shares, names = _point_terms(point, x, triangle), ["J", "h", "H", "D", "w", "b"]
+    if local:
+        wrt = ca.vertcat(x.q, x.qd, x.omega)
+        shares = [*shares, ca.jacobian(ca.vertcat(*map(ca.vec, shares)), wrt)]
+        names = [*names, "dS"]
     return ca.Function(
-        f"{name}_slice",
+        f"{name}_slice_local" if local else f"{name}_slice",
         [x.q, x.qd, x.omega, x.geometry, s, mass, inertia],
-        _point_terms(point, x, triangle),
+        shares,
         ["q", "qd", "omega", "g", "s", "m", "I"],
-        ["J", "h", "H", "D", "w", "b"],
+        names,
         options,
     )
 
@@ -239,10 +255,22 @@ class SegmentFunctions:
         the maps and the velocity terms share the slices' poses and Jacobians, and a
         library holding a second Function of the maps alone compiles for as long again
         (the maps of a configuration alone are ``motion`` at ``qd_i = 0``).
+    make_local : callable
+        ``make_local() -> Function``, :meth:`local`'s builder.
     """
 
     frame: ca.Function
     motion: ca.Function
+    make_local: Callable[[], ca.Function]
+
+    def local(self) -> ca.Function:
+        """``(q_i, qd_i, omega, g) -> (the outputs of motion..., L)``: the terms and ``L``,
+        the derivatives of their nonzeros (column by column of each output) by
+        ``(q_i, qd_i, omega)``, shape (nnz, 2 n_i + 3): each slice's share differentiated
+        where it is written (one call per slice, as ``motion``'s), then carried through
+        the sums. Built on first use (for the exact Jacobian,
+        :mod:`softcurve.symbolic.derivatives`)."""
+        return self.make_local()
 
 
 INERTIA_OUTPUTS = ("X", "S", "M", "H", "D")
@@ -251,6 +279,42 @@ INERTIA_OUTPUTS = ("X", "S", "M", "H", "D")
 
 BIAS_OUTPUTS = ("omega_tip", "c", "w", "b")
 """Names of the velocity terms, the last outputs of ``SegmentFunctions.motion``."""
+
+
+def nonzeros(parts) -> ca.SX:
+    """The nonzeros of the matrices ``parts`` in one column, matrix by matrix, each column
+    by column (the order of ``SegmentFunctions.local``'s ``L``).
+
+    Parameters
+    ----------
+    parts : sequence of casadi.SX
+        The matrices.
+    """
+    columns = [part.nz[:] for part in parts if part.nnz()]
+    return ca.vertcat(*columns) if columns else ca.SX(0, 1)
+
+
+def _assembled(x: _Symbols, tip, totals, mass, triangle: bool) -> list:
+    """The outputs of ``motion`` from the tip's motion and the bodies' summed shares
+    ``totals = (J, h, H, D_i, w, b)``."""
+    tip_accel, tip_omega, tip_alpha = _point_motion(
+        tip, x.q, x.qd, x.qdd, x.omega, x.acceleration[:3], x.acceleration[3:]
+    )
+    tip_acceleration = ca.vertcat(tip_alpha, tip.rotation.T @ tip_accel)
+    rotational, first_moment, momentum, own, wrench_bias, force_bias = totals
+    spatial = _spatial_inertia(rotational, first_moment, mass)
+    own = ca.tril2symm(own) if triangle else 0.5 * (own + own.T)  # the latter: round-off
+    return [
+        ca.jacobian(tip_acceleration, x.acceleration),
+        ca.jacobian(tip_acceleration, x.qdd),
+        spatial,
+        momentum,
+        own,
+        tip_omega,
+        x.at_rest(tip_acceleration),
+        wrench_bias,
+        force_bias,
+    ]
 
 
 def segment_functions(
@@ -290,21 +354,18 @@ def segment_functions(
     triangle = not inline
     x = _symbols(model)
     tip = _point(model, x.q, x.geometry, 1.0, tip=True)
-    tip_accel, tip_omega, tip_alpha = _point_motion(
-        tip, x.q, x.qd, x.qdd, x.omega, x.acceleration[:3], x.acceleration[3:]
-    )
-    tip_acceleration = ca.vertcat(tip_alpha, tip.rotation.T @ tip_accel)
     bodies = model.bodies(x.geometry, quadrature_nodes)
     slices = [body for body in bodies if body.s is not None]
     n = model.nq
-    terms = [ca.SX(3, 3), ca.SX(3, 1), ca.SX(6, n), ca.SX(n, n), ca.SX(6, 1), ca.SX(n, 1)]
+    empty = [ca.SX(3, 3), ca.SX(3, 1), ca.SX(6, n), ca.SX(n, n), ca.SX(6, 1), ca.SX(n, 1)]
+    pattern = None
     if slices:
         pattern = slices[0].inertia.sparsity()
         # a call projects an argument onto the input's sparsity without a word
         if any(body.inertia.sparsity() != pattern for body in slices):
             raise ValueError(f"the slices of {name} must share one sparsity of inertia")
         slice_terms = _slice_function(model, pattern, options, name, triangle)
-    moment, mass = ca.SX.zeros(3), 0  # for frame, which takes (q, g) alone
+    terms, moment, mass = list(empty), ca.SX.zeros(3), 0  # for frame, which takes (q, g)
     for body in bodies:
         if body.s is None:
             position, shares = body.centre, _point_terms(_fixed(x.q, body), x, triangle)
@@ -314,17 +375,45 @@ def segment_functions(
         terms = [total + share for total, share in zip(terms, shares, strict=True)]
         moment += body.mass * position
         mass += body.mass
-    rotational, first_moment, momentum, own, wrench_bias, force_bias = terms
-    spatial = _spatial_inertia(rotational, first_moment, mass)
-    own = ca.tril2symm(own) if triangle else 0.5 * (own + own.T)  # the latter: round-off
-    maps = [
-        ca.jacobian(tip_acceleration, x.acceleration),
-        ca.jacobian(tip_acceleration, x.qdd),
-        spatial,
-        momentum,
-        own,
-    ]
-    biases = [tip_omega, x.at_rest(tip_acceleration), wrench_bias, force_bias]
+    inputs, input_names = [x.q, x.qd, x.omega, x.geometry], ["q", "qd", "omega", "g"]
+    outputs = _assembled(x, tip, terms, mass, triangle)
+
+    def make_local() -> ca.Function:
+        # each share's derivative where the share is written, summed; the tip's and the
+        # assembly's by the chain rule through the sums
+        wrt = ca.vertcat(x.q, x.qd, x.omega)
+        shared_derivative = ca.SX(sum(t.numel() for t in empty), wrt.shape[0])
+        totals = list(empty)
+        if slices:
+            local_slice = _slice_function(model, pattern, options, name, triangle, local=True)
+        for body in bodies:
+            if body.s is None:
+                shares = _point_terms(_fixed(x.q, body), x, triangle)
+                shares_derivative = ca.jacobian(ca.vertcat(*map(ca.vec, shares)), wrt)
+            else:
+                *shares, shares_derivative = local_slice(
+                    x.q, x.qd, x.omega, x.geometry, body.s, body.mass, body.inertia
+                )
+            totals = [total + share for total, share in zip(totals, shares, strict=True)]
+            shared_derivative += shares_derivative
+        # the shares' derivatives are by entries (vec); the sums are read by nonzeros
+        rows, offset = [], 0
+        for total in totals:
+            rows += [offset + i for i in total.sparsity().find()]
+            offset += total.numel()
+        sums = [ca.SX.sym(f"total{k}", t.sparsity()) for k, t in enumerate(totals)]
+        assembled = [
+            ca.project(a, o.sparsity())
+            for a, o in zip(_assembled(x, tip, sums, mass, triangle), outputs, strict=True)
+        ]
+        through_sums = ca.jacobian(nonzeros(assembled), nonzeros(sums))
+        local = ca.jacobian(nonzeros(assembled), wrt) + through_sums @ shared_derivative[rows, :]
+        values = ca.substitute([*assembled, local], [nonzeros(sums)], [nonzeros(totals)])
+        return ca.Function(
+            f"{name}_local", inputs, values, input_names,
+            [*INERTIA_OUTPUTS, *BIAS_OUTPUTS, "L"], options,
+        )  # fmt: skip
+
     return SegmentFunctions(
         frame=ca.Function(
             f"{name}_frame",
@@ -336,10 +425,11 @@ def segment_functions(
         ),
         motion=ca.Function(
             f"{name}_motion",
-            [x.q, x.qd, x.omega, x.geometry],
-            [*maps, *biases],
-            ["q", "qd", "omega", "g"],
+            inputs,
+            outputs,
+            input_names,
             [*INERTIA_OUTPUTS, *BIAS_OUTPUTS],
             options,
         ),
+        make_local=functools.cache(make_local),
     )
