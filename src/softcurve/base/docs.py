@@ -57,6 +57,7 @@ PARAMETERS: dict[str, tuple[str, str]] = {
         "list of SegmentTerms",
         "Each element's terms and steps (``chain.segment_motions``).",
     ),
+    "qdd": ("casadi.SX, shape (n,)", "Accelerations."),
     "base_acceleration": (
         "casadi.SX, shape (6,)",
         "``(alpha, a)`` of the base frame; ``(0, -g)`` in base coordinates for gravity.",

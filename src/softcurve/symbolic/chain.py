@@ -345,8 +345,7 @@ def inverse_dynamics(terms: list[SegmentTerms], qdd, base_acceleration):
     Parameters
     ----------
     %(terms)s
-    qdd : casadi.SX, shape (n,)
-        Accelerations.
+    %(qdd)s
     %(base_acceleration)s
     """
     return ca.vertcat(*newton_euler_passes(terms, qdd, base_acceleration).forces)
@@ -372,8 +371,7 @@ def newton_euler_passes(terms: list[SegmentTerms], qdd, base_acceleration) -> Ne
     Parameters
     ----------
     %(terms)s
-    qdd : casadi.SX, shape (n,)
-        Accelerations.
+    %(qdd)s
     %(base_acceleration)s
     """
     accelerations, a = [], base_acceleration
