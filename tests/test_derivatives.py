@@ -10,6 +10,12 @@ import pytest
 
 import softcurve as sc
 from softcurve.simulation import SettingsError, SimulationSettings
+from softcurve.simulation.solvers import (
+    ActuatorInput,
+    driver_newton_jacobian,
+    driver_problem,
+    state_scale,
+)
 
 from .conftest import random_state
 from .test_kinds import robots
@@ -82,7 +88,7 @@ def test_the_compiled_jacobian_is_the_symbolic_one(rng):
     symbolic = np.array(model.casadi_jacobian()(x, tau, model.parameters)[0])
     assert compiled.shape == (model.n_state, model.n_state)
     assert _relative(compiled, symbolic) < 1e-12
-    with pytest.raises(ValueError, match="x"):
+    with pytest.raises(ValueError, match=r"x must have shape \(18,\)"):
         model.rhs_jacobian(x[:-1])
 
 
@@ -118,6 +124,71 @@ def test_the_driver_on_the_exact_jacobian_follows_the_differences(time_constant)
     assert exact.stats["steps"] <= 1.2 * differences.stats["steps"]
 
 
+@pytest.mark.parametrize("time_constant", [None, "free", 0.02])
+def test_the_drivers_newton_jacobian_is_the_differences_one(rng, time_constant):
+    """The driver's scaled Jacobian, exact (the model's and, with an actuator, the force's
+    differences through D^-1 and the lag rows) against forward differences of the whole
+    right-hand side, at a moving state with scales far from one."""
+    if time_constant == "free":
+        robot, inputs = sc.presets.ifac2020().with_segments(2), None
+    else:
+        robot, tendons = _actuated(time_constant)
+        inputs = ActuatorInput.of(tendons, robot.n)
+    model = sc.Model(robot)
+    x = np.concatenate(_state(rng, model)[:1])
+    if inputs is not None and inputs.n_states:
+        x = np.concatenate([x, rng.uniform(0.5, 2.0, inputs.n_states)])
+    u = rng.uniform(0.5, 2.0, model.n if inputs is None else inputs.n_inputs)
+    nominal = state_scale(model, x[: model.n_state], inputs) * rng.uniform(0.5, 2.0, x.size)
+    both = {}
+    for exact in (False, True):
+        problem = driver_problem(model, inputs, exact=exact)
+        assert problem.exact is exact
+        both[exact] = driver_newton_jacobian(problem, x, u, model.parameters, nominal)
+    scale = np.abs(both[False]).max(axis=1, keepdims=True) + 1.0
+    assert np.abs((both[True] - both[False]) / scale).max() < 1e-5
+
+
 def test_the_jacobian_setting_is_checked():
     with pytest.raises(SettingsError, match="jacobian.*differences, exact.*'finite'"):
         SimulationSettings(jacobian="finite")
+
+
+def test_the_command_line_and_the_scenario_file_take_the_jacobian(tmp_path):
+    from softcurve.cli import main
+    from softcurve.scenarios.config import load_config
+
+    with pytest.raises(SystemExit) as refused:  # argparse's usage error, before any work
+        main(["simulate", "--jacobian", "finite"])
+    assert refused.value.code == 2
+    config = tmp_path / "robot.toml"
+    config.write_text('[robot]\npreset = "ifac2020"\n[simulation]\njacobian = "exact"\n')
+    assert load_config(config).settings.jacobian == "exact"
+    config.write_text('[robot]\npreset = "ifac2020"\n[simulation]\njacobian = "finite"\n')
+    with pytest.raises(sc.ParameterError, match="jacobian"):
+        load_config(config)
+
+
+def test_without_a_compiled_jacobian_the_driver_says_it_took_differences(monkeypatch, tmp_path):
+    """A compiler that fails for the Jacobian's library (the model's built before): the
+    run goes on with forward differences, says so in its route and warns once."""
+    robot = sc.presets.ifac2020().with_segments(3)
+    monkeypatch.setenv("SOFTCURVE_CACHE_DIR", str(tmp_path))  # nothing of it cached
+    model = sc.Model(robot)
+    settings = SimulationSettings(t_final=0.01, dt=0.01, jacobian="exact")
+    sc.simulate(
+        model,
+        robot.rest_configuration(),
+        np.zeros(model.n),
+        settings=settings.replace(jacobian="differences"),
+    )  # the driver's library built with the model's
+    monkeypatch.setenv("CC", str(tmp_path / "no-such-compiler"))
+    with pytest.warns(UserWarning) as warned:
+        result = sc.simulate(model, robot.rest_configuration(), np.zeros(model.n),
+                             settings=settings)  # fmt: skip
+    said = [str(w.message) for w in warned]
+    assert any("exact Jacobian with" in m and "takes forward differences" in m for m in said)
+    assert any("the exact Jacobian did not compile" in m for m in said)
+    assert result.success
+    assert "forward-difference Jacobians" in result.stats["route_reason"]
+    assert model.compiled_jacobian() is None

@@ -182,6 +182,7 @@ FLAGS = {
     r"method='(\w+)'": r"--method \1",
     r"\bt_final\b": "--t-final",
     r"\bdt\b": "--dt",
+    r"jacobian='(\w+)'": r"--jacobian \1",
     r"\brtol\b": "--rtol",
     r"\batol\b": "--atol",
     r"\bmax_steps\b": "--max-steps",

@@ -350,15 +350,23 @@ def compiled_library(
             what=what,
         )
     except NoCompiler as exc:
-        message = f"{exc}: softcurve runs in CasADi's virtual machine, about 10x slower to simulate"
+        message = f"{exc}: {_WITHOUT[kind]}" + (
+            ", about 10x slower to simulate" * (kind == "model")
+        )
     except (OSError, subprocess.CalledProcessError) as exc:
         detail = str(getattr(exc, "stderr", None) or exc).strip()[:400]
-        message = (
-            f"compiling the model with {compiler[0]} failed ({detail}): softcurve runs in "
-            "CasADi's virtual machine"
-        )
+        message = f"compiling {_NAMED[kind]} with {compiler[0]} failed ({detail}): {_WITHOUT[kind]}"
     warnings.warn(message, CompilerWarning, stacklevel=3)
     return None
+
+
+_NAMED = {"model": "the model", "jacobian": "the model's exact Jacobian"}
+_WITHOUT = {
+    "model": "softcurve runs in CasADi's virtual machine",
+    "jacobian": "the driver's Newton matrix takes forward differences",
+}
+"""What a library is called, and what runs without it, in :func:`compiled_library`'s
+warning."""
 
 
 def _compile(

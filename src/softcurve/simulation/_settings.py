@@ -128,11 +128,13 @@ class SimulationSettings:
         above it is refused before anything is allocated, with the size the outputs
         would take; raise it for longer records.
     jacobian : {"differences", "exact"}
-        The Jacobian of CVODES's Newton matrix in the C driver: forward differences of
-        the state derivative (default; ``n_state + 1`` evaluations each), or the
+        The Jacobian of CVODES's Newton matrix in the C driver's route of one member per
+        system (``simulate``, and batches not grouped over lanes): forward differences
+        of the state derivative (default; ``n_state + 1`` evaluations each), or the
         model's exact one (:meth:`~softcurve.Model.rhs_jacobian`, compiled on first use
         into a library of its own and cached: at 2 segments and more it is cheaper, see
-        docs/performance.md). Other routes take their own.
+        docs/performance.md). The other routes take their own; the route's reason says
+        which the driver took.
 
     Examples
     --------

@@ -28,18 +28,20 @@ from dataclasses import dataclass, field
 import casadi as ca
 
 from softcurve.base.docs import shared_parameters
-from softcurve.symbolic.segment import BIAS_OUTPUTS, INERTIA_OUTPUTS, SegmentFunctions
+from softcurve.symbolic.segment import TERM_NAMES, SegmentFunctions
 
-_SPATIAL = 6
-"""Columns of a coupling ``Y`` (a spatial acceleration's); ``Z = L^-1 [Y, u]`` has one
-more."""
+SPATIAL = 6
+"""Entries of a spatial acceleration or wrench, and columns of a coupling ``Y``;
+``Z = L^-1 [Y, u]`` has one more."""
 
 
 @dataclass(frozen=True)
 class SegmentTerms:
     """The outputs of one element's ``motion`` Function at its symbols (shapes in
     :mod:`softcurve.symbolic.segment`), the steps of its kind and its coordinates' slice
-    in ``q``."""
+    in ``q``; with ``segment_motions(..., local=True)``, also ``local``: the derivatives
+    of the outputs' nonzeros by the element's coordinates, rates and base angular
+    velocity (``SegmentFunctions.local``)."""
 
     X: ca.SX
     S: ca.SX
@@ -52,6 +54,7 @@ class SegmentTerms:
     b: ca.SX
     steps: ChainSteps | None = None
     coordinates: slice = field(default_factory=lambda: slice(0, 0))
+    local: ca.SX | None = None
 
     @property
     def size(self) -> int:
@@ -82,7 +85,7 @@ class ChainElement:
     coordinates: slice
 
 
-def segment_motions(elements: list[ChainElement], q, qd) -> list[SegmentTerms]:
+def segment_motions(elements: list[ChainElement], q, qd, local: bool = False) -> list[SegmentTerms]:
     """Each element's linear maps and velocity terms at ``(q, qd)``: the angular
     velocities carried out from the base at rest.
 
@@ -92,14 +95,20 @@ def segment_motions(elements: list[ChainElement], q, qd) -> list[SegmentTerms]:
         The chain's elements.
     q, qd : casadi.SX, shape (n,)
         Coordinates and rates.
+    local : bool
+        Also each element's local derivatives (``SegmentTerms.local``), from the same
+        call.
     """
     terms, omega = [], ca.SX.zeros(3)
-    names = (*INERTIA_OUTPUTS, *BIAS_OUTPUTS)
     for element in elements:
         k = element.coordinates
-        out = element.functions.motion(q[k], qd[k], omega, element.geometry)
+        function = element.functions.local() if local else element.functions.motion
+        out = function(q[k], qd[k], omega, element.geometry)
         term = SegmentTerms(
-            **dict(zip(names, out, strict=True)), steps=element.steps, coordinates=k
+            **dict(zip(TERM_NAMES, out[: len(TERM_NAMES)], strict=True)),
+            steps=element.steps,
+            coordinates=k,
+            local=out[len(TERM_NAMES)] if local else None,
         )
         terms.append(term)
         omega = term.omega_tip
@@ -135,9 +144,9 @@ def _articulated(t, force_i, inertia, bias):
     lower, reciprocal = ldl_factor(joint)
     projected = _forward_substitute(lower, ca.horzcat(coupling, free))
     scaled = _scaled_rows(projected, reciprocal)
-    coupled, scaled_coupled = projected[:, :_SPATIAL], scaled[:, :_SPATIAL]
+    coupled, scaled_coupled = projected[:, :SPATIAL], scaled[:, :SPATIAL]
     inertia = _symmetric(t.M + t.X.T @ inertia_x - coupled.T @ scaled_coupled)
-    bias = t.w + t.X.T @ carried + coupled.T @ scaled[:, _SPATIAL]
+    bias = t.w + t.X.T @ carried + coupled.T @ scaled[:, SPATIAL]
     return inertia, bias, _packed(lower, reciprocal), projected
 
 
@@ -149,7 +158,7 @@ def _root_acceleration(t, force_i, inertia, bias, a):
 
 def _articulated_acceleration(t, factor, projected, a):
     lower, reciprocal = _unpacked(factor, projected.shape[0])
-    free = projected[:, _SPATIAL] - projected[:, :_SPATIAL] @ a
+    free = projected[:, SPATIAL] - projected[:, :SPATIAL] @ a
     qdd_i = _back_substitute(lower, _scaled_rows(free, reciprocal))
     return qdd_i, _tip_acceleration(t, qdd_i, a)
 
@@ -259,16 +268,15 @@ def chain_steps(functions: SegmentFunctions, inline: bool = False, name: str = "
         The steps' prefix, unique per kind within a model (generated C names them).
     """
     motion = functions.motion
-    names = (*INERTIA_OUTPUTS, *BIAS_OUTPUTS)
-    symbols = {name: ca.SX.sym(name, motion.sparsity_out(name)) for name in names}
+    symbols = {name: ca.SX.sym(name, motion.sparsity_out(name)) for name in TERM_NAMES}
     t = SegmentTerms(**symbols)
-    terms = [symbols[name] for name in names]
+    terms = [symbols[name] for name in TERM_NAMES]
     nq = motion.size1_out("D")
     a, wrench, bias = ca.SX.sym("A", 6), ca.SX.sym("W", 6), ca.SX.sym("p", 6)
     qdd_i, force_i = ca.SX.sym("qdd", nq), ca.SX.sym("force", nq)
     inertia = ca.SX.sym("I", 6, 6)
     factor = ca.SX.sym("factor", nq * (nq + 1) // 2)
-    projected = ca.SX.sym("projected", nq, _SPATIAL + 1)
+    projected = ca.SX.sym("projected", nq, SPATIAL + 1)
     options = {"never_inline": not inline, "cse": True}
 
     def step(step_name, inputs, outputs):
@@ -307,7 +315,7 @@ def arguments(t: SegmentTerms) -> list:
     t : SegmentTerms
         One element's terms.
     """
-    return [getattr(t, name) for name in (*INERTIA_OUTPUTS, *BIAS_OUTPUTS)]
+    return [getattr(t, name) for name in TERM_NAMES]
 
 
 @shared_parameters

@@ -222,6 +222,7 @@ def with_contact(e: DynamicsExpressions, structure: tuple, environment: Environm
     fields = {name: getattr(e, name) for name in e.__dataclass_fields__}
     fields["forward_dynamics"] = ca.substitute(e.forward_dynamics, e.tau, e.tau + total)
     fields["inverse_dynamics"] = e.inverse_dynamics - total
+    fields["generalized_force"] = e.generalized_force + total
     return ContactExpressions(
         **fields,
         contact_force=total,

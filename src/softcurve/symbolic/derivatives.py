@@ -30,10 +30,10 @@ import numpy as np
 
 from softcurve.description.layout import ParameterLayout
 from softcurve.symbolic import chain
+from softcurve.symbolic.chain import SPATIAL
 from softcurve.symbolic.dynamics import chain_elements, unpack_parameters
-from softcurve.symbolic.segment import BIAS_OUTPUTS, INERTIA_OUTPUTS, nonzeros
+from softcurve.symbolic.segment import INERTIA_OUTPUTS, TERM_NAMES, nonzeros
 
-_NAMES = (*INERTIA_OUTPUTS, *BIAS_OUTPUTS)
 _OPTIONS = {"never_inline": True, "cse": True}
 
 
@@ -63,7 +63,10 @@ def _with_biases(values, biases) -> list:
 
 def _tangent_pass(elements, patterns, shared, kind, direction):
     """``dID`` (n,) along ``direction`` (n,) of the coordinates, rates or accelerations
-    (``kind``, one of :data:`DIRECTIONS`) at the passes ``shared``.
+    (``kind``, one of :data:`DIRECTIONS`) at the passes ``shared``: the elements' terms'
+    and local derivatives' nonzeros (their ``patterns``, per element the terms' and the
+    derivatives'), ``qdd`` (n,), the base accelerations and tip wrenches (6 per
+    element).
 
     The steps are bilinear: ``A_tip = X A + S qdd + c`` and the Newton-Euler relations
     are linear in the maps for given accelerations and wrenches, plus the biases. Their
@@ -84,28 +87,28 @@ def _tangent_pass(elements, patterns, shared, kind, direction):
         jacobian = ca.SX(local_pattern, local[start : start + local_pattern.nnz()])
         start += local_pattern.nnz()
         change = _from_nonzeros(jacobian @ ca.vertcat(dq[k], dqd[k], d_omega), pattern)
-        d_omega = change[_NAMES.index("omega_tip")]
+        d_omega = change[TERM_NAMES.index("omega_tip")]
         tangents.append(change)
     maps_change = kind == "q"
-    d_acceleration, base_tangents = ca.SX(6, 1), []
+    d_acceleration, base_tangents = ca.SX(SPATIAL, 1), []
     for i, element in enumerate(elements):
-        k, a = element.coordinates, accelerations[6 * i : 6 * i + 6]
+        k, a = element.coordinates, accelerations[SPATIAL * i : SPATIAL * (i + 1)]
         base_tangents.append(d_acceleration)
         tip = element.steps.tip_acceleration
         moved = tip(*_with_biases(values[i], tangents[i][_MAPS:]), dqdd[k], d_acceleration)
         if maps_change:
             moved += tip(*_with_biases(tangents[i], None), qdd[k], a)
         d_acceleration = moved
-    forces, d_wrench = [None] * len(elements), ca.SX(6, 1)
+    forces, d_wrench = [None] * len(elements), ca.SX(SPATIAL, 1)
     for i in reversed(range(len(elements))):
         element = elements[i]
-        k, a = element.coordinates, accelerations[6 * i : 6 * i + 6]
+        k, a = element.coordinates, accelerations[SPATIAL * i : SPATIAL * (i + 1)]
         newton_euler = element.steps.newton_euler
         force, wrench = newton_euler(
             *_with_biases(values[i], tangents[i][_MAPS:]), base_tangents[i], dqdd[k], d_wrench
         )
         if maps_change:
-            w = wrenches[6 * i : 6 * i + 6]
+            w = wrenches[SPATIAL * i : SPATIAL * (i + 1)]
             more_force, more_wrench = newton_euler(*_with_biases(tangents[i], None), a, qdd[k], w)
             force, wrench = force + more_force, wrench + more_wrench
         forces[i], d_wrench = force, wrench
@@ -113,58 +116,46 @@ def _tangent_pass(elements, patterns, shared, kind, direction):
 
 
 def state_jacobian(e, quadrature_nodes: int) -> ca.Function:
-    """``(x, tau, p) -> (J_x, D)``: the Jacobian of the state derivative ``rhs`` by the
-    state ``x = (q, qd, lam)`` (n_x, n_x), exact (see the module docstring), and the mass
-    matrix ``D`` (n, n), whose inverse is the accelerations' derivative by the
-    generalized input force ``tau``.
+    """The exact Jacobian of the state derivative ``rhs`` (see the module docstring).
 
     Parameters
     ----------
     e : DynamicsExpressions
         The model's expressions (with contact, :class:`ContactExpressions`, whose
-        contact force enters ``F``).
+        contact force is in ``e.generalized_force``).
     quadrature_nodes : int
         Gauss-Legendre nodes per segment, as the model's.
+
+    Returns
+    -------
+    casadi.Function
+        ``rhs_jacobian(x, tau, p) -> (J_x, D)``: ``J_x`` (n_x, n_x), the derivatives of
+        ``xdot`` by the state ``x = (q, qd, lam)``; ``D`` (n, n), the mass matrix, whose
+        inverse is the derivative of ``qdd`` by the generalized input force ``tau``.
     """
     structure, n = e.structure, e.q.shape[0]
     x = ca.vertcat(e.q, e.qd, e.lam)
-    parts, gravity, base_rotation, _ = unpack_parameters(
-        e.p, ParameterLayout.of_structure(structure)
-    )
+    parts, *_ = unpack_parameters(e.p, ParameterLayout.of_structure(structure))
     elements = chain_elements(structure, parts, quadrature_nodes, inline=False)
-    falling = ca.vertcat(ca.SX.zeros(3), -(base_rotation.T @ gravity))
-    contact = getattr(e, "contact_force", 0)
-    force = e.tau + contact + e.creep_force - e.elastic_force - e.damping_force
-
-    terms, jacobians, patterns = [], [], []
-    omega = ca.SX.zeros(3)
-    for element in elements:
-        k = element.coordinates
-        *outputs, local = element.functions.local()(e.q[k], e.qd[k], omega, element.geometry)
-        terms.append(
-            chain.SegmentTerms(**dict(zip(_NAMES, outputs, strict=True)), steps=element.steps,
-                               coordinates=k)
-        )  # fmt: skip
-        jacobians.append(local)
-        patterns.append(([o.sparsity() for o in outputs], local.sparsity()))
-        omega = outputs[_NAMES.index("omega_tip")]
+    force, falling = e.generalized_force, e.base_acceleration
+    terms = chain.segment_motions(elements, e.q, e.qd, local=True)
     qdd = chain.forward_dynamics(terms, force, falling)
-    passes = chain.newton_euler_passes(terms, qdd, falling)
+    carried = chain.newton_euler_passes(terms, qdd, falling)
     shared = [
         nonzeros([nonzeros(chain.arguments(t)) for t in terms]),
-        nonzeros(jacobians),
+        nonzeros([t.local for t in terms]),
         qdd,
-        ca.vertcat(*passes.accelerations),
-        ca.vertcat(*passes.tip_wrenches),
+        ca.vertcat(*carried.accelerations),
+        ca.vertcat(*carried.tip_wrenches),
     ]
+    patterns = [([v.sparsity() for v in chain.arguments(t)], t.local.sparsity()) for t in terms]
     inputs = [x, e.tau, e.p]
     derivatives = [ca.jacobian(force, x), ca.jacobian(e.creep_rate, x)]
     at_state = ca.Function("state_passes", inputs, [*shared, *derivatives], _OPTIONS)
 
-    symbols = [ca.SX.sym(f"shared{i}", s.sparsity()) for i, s in enumerate(shared)]
+    symbols = [ca.SX.sym(f"shared{i}", v.sparsity()) for i, v in enumerate(shared)]
     direction = ca.SX.sym("direction", n)
-    shared_inputs = list(range(len(shared)))
-    passes = {}
+    tangents = {}
     for kind in DIRECTIONS:
         tangent = ca.Function(
             f"newton_euler_tangent_{kind}",
@@ -172,15 +163,16 @@ def state_jacobian(e, quadrature_nodes: int) -> ca.Function:
             [_tangent_pass(elements, patterns, symbols, kind, direction)],
             _OPTIONS,
         )
-        passes[kind] = tangent.map(f"newton_euler_tangents_{kind}", "serial", n, shared_inputs, [])
+        name = f"newton_euler_tangents_{kind}"
+        tangents[kind] = tangent.map(name, "serial", n, list(range(len(shared))), [])
 
     x_mx, tau_mx, p_mx = (
         ca.MX.sym(name, v.sparsity()) for name, v in zip("xtp", inputs, strict=True)
     )
     *values, force_x, creep_x = at_state(x_mx, tau_mx, p_mx)
     seeds = np.eye(n)
-    d_inverse = ca.horzcat(passes["q"](*values, seeds), passes["qd"](*values, seeds))
-    mass = passes["qdd"](*values, seeds)
+    d_inverse = ca.horzcat(tangents["q"](*values, seeds), tangents["qd"](*values, seeds))
+    mass = tangents["qdd"](*values, seeds)
     n_lam = e.lam.shape[0]
     rhs = force_x - ca.horzcat(d_inverse, ca.MX(n, n_lam))
     solved = ca.solve(mass, rhs, "ldl")

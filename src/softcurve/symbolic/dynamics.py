@@ -103,6 +103,13 @@ class DynamicsExpressions:
         ``T``, ``V_g`` and ``V_e`` [J].
     forward_dynamics, inverse_dynamics : casadi.SX, shape (n,)
         ``qdd`` for given ``tau``, and ``tau`` for given ``qdd``.
+    generalized_force : casadi.SX, shape (n,)
+        Every generalized force but the inertial and gravitational ones, which
+        ``forward_dynamics`` balances: ``tau + K^T lambda - K(q) - R qd`` (and the
+        contact force, :func:`~softcurve.symbolic.contact.with_contact`).
+    base_acceleration : casadi.SX, shape (6,)
+        The base frame's ``(alpha, a)`` that carries gravity: ``(0, -g)`` in base
+        coordinates.
     """
 
     q: ca.SX
@@ -128,6 +135,8 @@ class DynamicsExpressions:
     elastic_energy: ca.SX
     forward_dynamics: ca.SX
     inverse_dynamics: ca.SX
+    generalized_force: ca.SX
+    base_acceleration: ca.SX
 
 
 def build_dynamics(
@@ -217,6 +226,8 @@ def build_dynamics(
         elastic_energy=elastic_energy,
         forward_dynamics=forward,
         inverse_dynamics=inverse,
+        generalized_force=generalized,
+        base_acceleration=falling,
     )
 
 

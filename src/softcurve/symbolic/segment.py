@@ -280,6 +280,9 @@ INERTIA_OUTPUTS = ("X", "S", "M", "H", "D")
 BIAS_OUTPUTS = ("omega_tip", "c", "w", "b")
 """Names of the velocity terms, the last outputs of ``SegmentFunctions.motion``."""
 
+TERM_NAMES = (*INERTIA_OUTPUTS, *BIAS_OUTPUTS)
+"""Names of all the outputs of ``SegmentFunctions.motion``, in order."""
+
 
 def nonzeros(parts) -> ca.SX:
     """The nonzeros of the matrices ``parts`` in one column, matrix by matrix, each column
@@ -411,7 +414,7 @@ def segment_functions(
         values = ca.substitute([*assembled, local], [nonzeros(sums)], [nonzeros(totals)])
         return ca.Function(
             f"{name}_local", inputs, values, input_names,
-            [*INERTIA_OUTPUTS, *BIAS_OUTPUTS, "L"], options,
+            [*TERM_NAMES, "L"], options,
         )  # fmt: skip
 
     return SegmentFunctions(
@@ -428,7 +431,7 @@ def segment_functions(
             inputs,
             outputs,
             input_names,
-            [*INERTIA_OUTPUTS, *BIAS_OUTPUTS],
+            list(TERM_NAMES),
             options,
         ),
         make_local=functools.cache(make_local),

@@ -258,7 +258,8 @@ def _integrate(model, x0, arrays, scales, settings, how, drives) -> BatchTraject
     groups = [np.arange(size)] if drives is None else [
         np.flatnonzero(drives.group == g) for g in range(len(drives.inputs))]  # fmt: skip
     switch = fastest if method == "cvodes" and drives is None else None  # BDF once settled
-    routes = _routes(model, method, drives, [g.size for g in groups], lanes)
+    sizes = [g.size for g in groups]
+    routes = _routes(model, method, drives, sizes, lanes, settings.jacobian)
     on_driver = all(route.built is not None for route in routes)
     if on_driver:
         native_bdf = integrate_native(run, initial, switch, [r.built for r in routes])
@@ -308,9 +309,10 @@ def _integrate(model, x0, arrays, scales, settings, how, drives) -> BatchTraject
                    None if drives is None else drives.actuator)  # fmt: skip
 
 
-def _routes(model, method, drives, sizes, lanes) -> list:
+def _routes(model, method, drives, sizes, lanes, jacobian) -> list:
     """The route of each actuator group of a batch (one group without an actuator), of
-    ``sizes`` members each (:func:`~softcurve.simulation.solvers.choose_route`)."""
+    ``sizes`` members each, the driver's Newton matrix from ``jacobian``
+    (:func:`~softcurve.simulation.solvers.choose_route`)."""
     kinds = [None] if drives is None else list(drives.inputs)
     return [
         choose_route(
@@ -321,6 +323,7 @@ def _routes(model, method, drives, sizes, lanes) -> list:
             members=size,
             lanes=lanes,
             actuators=len(kinds),
+            jacobian=jacobian,
         )
         for inputs, size in zip(kinds, sizes, strict=True)
     ]

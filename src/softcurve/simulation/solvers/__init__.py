@@ -25,6 +25,7 @@ from softcurve.simulation.solvers._driver import driver as driver
 from softcurve.simulation.solvers._driver import entry as driver_entry
 from softcurve.simulation.solvers._driver import integrate as driver_integrate
 from softcurve.simulation.solvers._driver import library as driver_library
+from softcurve.simulation.solvers._driver import newton_jacobian as driver_newton_jacobian
 from softcurve.simulation.solvers._driver import options as driver_options
 from softcurve.simulation.solvers._driver import problem as driver_problem
 from softcurve.simulation.solvers._driver import reason as driver_reason
@@ -86,6 +87,7 @@ __all__ = [
     "driver_entry",
     "driver_integrate",
     "driver_problem",
+    "driver_newton_jacobian",
     "driver_reason",
     "Domain",
     "State",

@@ -384,6 +384,38 @@ def evaluate(problem, x, u, p) -> np.ndarray:
     return out
 
 
+def newton_jacobian(problem, x, u, p, nominal) -> np.ndarray:
+    """The Jacobian that the driver's Newton matrix takes at one state: that of the
+    integrated scaled state ``x / nominal``, from the problem's exact Jacobian where it
+    has one, else from forward differences.
+
+    Parameters
+    ----------
+    problem : DriverProblem
+        What to differentiate.
+    x : ndarray, shape (N,)
+        State (``n_state`` plus the lagging inputs).
+    u : ndarray, shape (k,)
+        Inputs: forces [N, N m^2, N m^2] or the actuator's inputs.
+    p : ndarray, shape (n_p,)
+        Parameter vector.
+    nominal : ndarray, shape (N,)
+        State scales (> 0).
+
+    Returns
+    -------
+    ndarray, shape (N, N)
+        ``d (xdot_i / nominal_i) / d (x_j / nominal_j)``.
+    """
+    x, u, p, nominal = (np.ascontiguousarray(a, dtype=np.float64) for a in (x, u, p, nominal))
+    out = np.empty((x.size, x.size), order="F")
+    function = entry("softcurve_newton_jacobian")
+    if function(ctypes.byref(problem.struct), x.ctypes.data, u.ctypes.data, p.ctypes.data,
+                nominal.ctypes.data, out.ctypes.data):  # fmt: skip
+        raise RuntimeError("the Newton matrix's Jacobian failed")
+    return out
+
+
 def reason(flag: int) -> str:
     """CVODES's ``flag`` as the name :func:`~softcurve.simulation.solvers.cvodes_reason`
     explains.

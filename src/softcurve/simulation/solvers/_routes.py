@@ -149,14 +149,14 @@ def choose_route(task: str, method: str = "cvodes", *, model=None, inputs=None, 
         Whether the driver understands every CVODES option given (sensitivities).
     threads : int
         Threads of one evaluation (sensitivities).
-    jacobian : {"differences", "exact"}
-        The Jacobian of the driver's Newton matrix (``SimulationSettings.jacobian``); the
-        lanes and the other routes take their own.
     builders : dict, optional
         ``route name -> build()`` returning what the route runs on, or None where it does
         not build: the sensitivities' compiled columns (``"sensitivity-driver"``), the
         stepper's lane code and per-member period (``"stepper-lanes"``,
         ``"stepper-threads"``).
+    jacobian : {"differences", "exact"}
+        The Jacobian of the driver's Newton matrix (``SimulationSettings.jacobian``); the
+        lanes and the other routes take their own.
 
     Returns
     -------

@@ -4,10 +4,9 @@
  * CVODES is the copy inside CasADi (sundials2.h). The Newton systems are solved by
  * CVSPGMR preconditioned with the exact LU factors of the Newton matrix I - gamma J, whose
  * Jacobian J is the model's exact one where the problem has it (an actuator's force then
- * differentiated by forward differences) or else forward differences of f; with the same
- * J in the Jacobian-vector
- * product, GMRES converges in one iteration, so this is a direct dense solve. CVODES says
- * when J may be reused (jok): only then is it recomputed.
+ * differentiated by forward differences) or else forward differences of f; with the
+ * same J in the Jacobian-vector product, GMRES converges in one iteration, so this is a
+ * direct dense solve. CVODES says when J may be reused (jok): only then is it recomputed.
  *
  * The state is integrated scaled, xs = x / nominal, with one absolute tolerance.
  */
@@ -40,7 +39,7 @@ void arrays_close(sc_arrays *c) {
 /* Work arrays of f for n states (x, xdot, tau, ftmp, J and LU in one block after f's own
  * work); 0, or 1 when out of memory (work_close frees what was allocated). */
 int work_open(sc_work *s, const sc_function *fn, int n) {
-    long exact = fn->jacobian == NULL ? 0 : fn->nx * fn->nx + fn->nu * fn->nu + fn->nu * n;
+    long exact = fn->jacobian == NULL ? 0 : fn->nx * fn->nx + fn->nu * fn->nu + fn->nu;
     memset(s, 0, sizeof(*s));
     s->fn = fn;
     s->n = n;
@@ -54,9 +53,11 @@ int work_open(sc_work *s, const sc_function *fn, int n) {
     s->ftmp = s->tau + fn->nx;
     s->J = s->ftmp + n;
     s->LU = s->J + n * n;
-    s->Jx = s->LU + n * n;
-    s->mass = s->Jx + fn->nx * fn->nx;
-    s->dtau = s->mass + fn->nu * fn->nu;
+    if (fn->jacobian != NULL) {
+        s->Jx = s->LU + n * n;
+        s->mass = s->Jx + fn->nx * fn->nx;
+        s->dtau = s->mass + fn->nu * fn->nu;
+    }
     return 0;
 }
 
@@ -206,12 +207,12 @@ static void cholesky_solve(const double *l, int k, double *b) {
     }
 }
 
-/* s->J (column-major, the integrated scaled state's) from the model's exact Jacobian at
- * y: J_x at (x, tau); with an actuator, the accelerations' rows gain D^-1 dtau/dx (the
- * force H(q) v differentiated by forward differences, its columns of x and of the lagging
- * inputs) and the lagging inputs' rows their rate's -1 / time_constant. 0, or the failing
- * call's nonzero. */
-static int exact_jacobian(sc_work *s, double *y) {
+/* J (column-major, the integrated scaled state's, n x n) from the model's exact Jacobian
+ * at y: J_x at (x, tau); with an actuator, the accelerations' rows gain D^-1 dtau/dx (the
+ * force H(q) v differentiated by forward differences of the scaled state, along q and the
+ * lagging inputs, the only states it reads) and the lagging inputs' rows their rate's
+ * -1 / time_constant. 0, or the failing call's nonzero. */
+static int exact_jacobian(sc_work *s, double *y, double *J) {
     const sc_function *fn = s->fn;
     int n = s->n, nx = fn->nx, nu = fn->nu, i, j;
     const double *tau;
@@ -224,59 +225,67 @@ static int exact_jacobian(sc_work *s, double *y) {
     s->c.res[0] = s->Jx;
     s->c.res[1] = s->mass;
     if (fn->jacobian(s->c.arg, s->c.res, s->c.iw, s->c.w, 0)) return -1;
-    memset(s->J, 0, (size_t)n * n * sizeof(double));
+    memset(J, 0, (size_t)n * n * sizeof(double));
     for (j = 0; j < nx; ++j)
-        for (i = 0; i < nx; ++i) s->J[i + j * n] = s->Jx[i + j * nx];
+        for (i = 0; i < nx; ++i) J[i + j * n] = s->Jx[i + j * nx];
     if (fn->force != NULL) {
         if (cholesky(s->mass, nu)) return 1;
         for (j = 0; j < n; ++j) {
-            double saved = s->x[j], step = difference_step(saved);
-            double *column = s->dtau + (long)j * nu;
+            double saved = s->x[j], step = s->nominal[j] * difference_step(y[j]);
+            if (j >= nu && j < nx) continue;
             s->x[j] = saved + step;
-            if (input_force(s, column) == NULL) return -1;
+            if (input_force(s, s->dtau) == NULL) return -1;
             s->x[j] = saved;
-            for (i = 0; i < nu; ++i) column[i] = (column[i] - tau[i]) / step;
-            cholesky_solve(s->mass, nu, column);
-            for (i = 0; i < nu; ++i) s->J[nu + i + j * n] += column[i];
+            for (i = 0; i < nu; ++i) s->dtau[i] = (s->dtau[i] - tau[i]) / step;
+            cholesky_solve(s->mass, nu, s->dtau);
+            for (i = 0; i < nu; ++i) J[nu + i + j * n] += s->dtau[i];
         }
-        for (i = nx; fn->lag && i < n; ++i) s->J[i + i * n] = -1.0 / fn->time_constant;
+        for (i = nx; fn->lag && i < n; ++i) J[i + i * n] = -1.0 / fn->time_constant;
     }
     for (j = 0; j < n; ++j)
-        for (i = 0; i < n; ++i) s->J[i + j * n] *= s->nominal[j] / s->nominal[i];
+        for (i = 0; i < n; ++i) J[i + j * n] *= s->nominal[j] / s->nominal[i];
     return 0;
 }
 
-/* Forward-difference Jacobian (column-major) when CVODES asks for a fresh one, then the LU
- * factors of I - gamma J. (Offering the previous segment's J after a restart instead saved
+/* driver_internal.h; the exact Jacobian is formed in the factors' array and copied only
+ * whole, so that a failure never leaves s->J half new */
+int newton_jacobian(sc_work *s, double *y, const double *fy) {
+    int n = s->n, i, j, flag;
+    if (s->fn->jacobian != NULL) {
+        flag = exact_jacobian(s, y, s->LU);
+        if (flag == 0) memcpy(s->J, s->LU, (size_t)n * n * sizeof(double));
+        return flag;
+    }
+    for (j = 0; j < n; ++j) {
+        double saved = y[j], step = difference_step(saved);
+        y[j] = saved + step;
+        flag = evaluate(s, y, s->ftmp);
+        y[j] = saved;
+        if (flag) return flag;
+        for (i = 0; i < n; ++i) s->J[i + j * n] = (s->ftmp[i] - fy[i]) / step;
+    }
+    return 0;
+}
+
+/* A fresh Jacobian (newton_jacobian) when CVODES asks for one, then the LU factors of
+ * I - gamma J. (Offering the previous segment's J after a restart instead saved
  * 9 of the paper case's 24 Jacobians but doubled the steps of the actuated case with lag,
  * 2,461 -> 5,555: CVODES takes the Jacobian of a first step for current and keeps it for
  * up to 50 steps.) */
 static int setup(realtype t, N_Vector yv, N_Vector fyv, int jok, int *jcur, realtype gamma,
                  void *data, N_Vector t1, N_Vector t2, N_Vector t3) {
     sc_work *s = (sc_work *)data;
-    int n = s->n, i, j, flag;
-    double *y = N_VGetArrayPointer(yv), *fy = N_VGetArrayPointer(fyv);
+    int flag;
     (void)t; (void)t1; (void)t2; (void)t3;
-    if (!jok && s->fn->jacobian != NULL) {
-        flag = exact_jacobian(s, y);
+    if (!jok) {
+        flag = newton_jacobian(s, N_VGetArrayPointer(yv), N_VGetArrayPointer(fyv));
         if (flag) return flag;
-        s->jacobians++;
-        *jcur = 1;
-    } else if (!jok) {
-        for (j = 0; j < n; ++j) {
-            double saved = y[j], step = difference_step(saved);
-            y[j] = saved + step;
-            flag = evaluate(s, y, s->ftmp);
-            y[j] = saved;
-            if (flag) return flag;
-            for (i = 0; i < n; ++i) s->J[i + j * n] = (s->ftmp[i] - fy[i]) / step;
-        }
         s->jacobians++;
         *jcur = 1;
     } else {
         *jcur = 0;
     }
-    return factor_newton(s->J, gamma, n, s->LU, s->piv);
+    return factor_newton(s->J, gamma, s->n, s->LU, s->piv);
 }
 
 static int solve(realtype t, N_Vector yv, N_Vector fyv, N_Vector rv, N_Vector zv, realtype gamma,

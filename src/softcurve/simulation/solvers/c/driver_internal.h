@@ -28,7 +28,7 @@ typedef struct {
     const double *u, *p, *nominal;
     sc_arrays c;
     double *x, *xdot, *tau, *J, *LU, *ftmp;
-    double *Jx, *mass, *dtau; /* the exact Jacobian's outputs and the force's derivative */
+    double *Jx, *mass, *dtau; /* with an exact Jacobian: its outputs, a force's column */
     int n; /* states integrated: nx, plus m lagging inputs */
     int *piv;
     long jacobians;
@@ -56,6 +56,10 @@ int rhs(realtype t, N_Vector y, N_Vector ydot, void *data);
 /* Forward-difference step of a state entry's value v: the square root of the machine
  * epsilon, relative where |v| > 1. */
 double difference_step(double v);
+/* s->J (column-major, the integrated scaled state's) at y, where fy = f(y): the model's
+ * exact Jacobian where the problem has one, else forward differences of f; 0, or the
+ * failing call's nonzero. */
+int newton_jacobian(sc_work *s, double *y, const double *fy);
 /* A = I - gamma J (n x n, column-major) as its LU factors (partial pivoting, row swaps in
  * piv); 1 where singular. */
 int factor_newton(const double *J, double gamma, int n, double *A, int *piv);

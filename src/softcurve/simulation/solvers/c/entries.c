@@ -1,7 +1,9 @@
 /* The driver's small entries (softcurve_driver.h): the right-hand side at many states in
- * one call (the linearization that picks the integrator family) and the sizes of the
- * structs, which the tests check against Python's declarations. */
+ * one call (the linearization that picks the integrator family), the Newton matrix's
+ * Jacobian at one state (which the tests check) and the sizes of the structs, which the
+ * tests check against Python's declarations. */
 #include <stdlib.h>
+#include <string.h>
 
 #include "driver_internal.h"
 
@@ -24,6 +26,30 @@ SC_EXPORT int softcurve_rhs(const sc_function *fn, int count, const double *x, c
         }
     }
     free(ones);
+    work_close(&s);
+    return status;
+}
+
+/* The Jacobian of the integrated scaled state's derivative, J (n x n, column-major), that
+ * the Newton matrix takes at the physical state x (nx + lagging inputs) with inputs u,
+ * parameters p and state scales nominal: the problem's exact one, or forward
+ * differences. Returns 0, -1 when a function fails, or -100 when out of memory. */
+SC_EXPORT int softcurve_newton_jacobian(const sc_function *fn, const double *x, const double *u,
+                                        const double *p, const double *nominal, double *J) {
+    int n = fn->nx + (fn->lag ? fn->m : 0), i, status = 0;
+    sc_work s;
+    double *y = (double *)malloc(2 * n * sizeof(double));
+    if (work_open(&s, fn, n) || !y) {
+        status = -100;
+    } else {
+        s.nominal = nominal;
+        s.p = p;
+        s.u = u;
+        for (i = 0; i < n; ++i) y[i] = x[i] / nominal[i];
+        if (evaluate(&s, y, y + n) || newton_jacobian(&s, y, y + n)) status = -1;
+        else memcpy(J, s.J, (size_t)n * n * sizeof(double));
+    }
+    free(y);
     work_close(&s);
     return status;
 }

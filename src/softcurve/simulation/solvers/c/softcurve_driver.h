@@ -120,6 +120,13 @@ SC_EXPORT int softcurve_sensitivities(const sc_function *fn, const sc_options *o
 SC_EXPORT int softcurve_rhs(const sc_function *fn, int count, const double *x, const double *u,
                             const double *p, double *xdot);
 
+/* The Jacobian of the integrated scaled state's derivative, J (n x n, column-major, n = nx
+ * plus the lagging inputs), that the Newton matrix takes at the physical state x with
+ * inputs u, parameters p and state scales nominal: the problem's exact one, or forward
+ * differences. Returns 0, -1 when a function fails, or -100 when out of memory. */
+SC_EXPORT int softcurve_newton_jacobian(const sc_function *fn, const double *x, const double *u,
+                                        const double *p, const double *nominal, double *J);
+
 /* sizeof of the structs above, for the check that Python's declarations match. */
 SC_EXPORT long softcurve_sizeof_sc_function(void);
 SC_EXPORT long softcurve_sizeof_sc_options(void);
