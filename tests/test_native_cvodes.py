@@ -144,3 +144,27 @@ def test_a_batch_on_two_threads_equals_its_members_alone(paper_model):
         single = sc.simulate(paper_model, q0s[i], qd0s[i], t_final=2.0, dt=0.01)
         assert batch.stats["methods"][i] == single.stats["method"]
         np.testing.assert_allclose(batch.member(i).x, single.x, rtol=1e-12, atol=1e-14)
+
+
+def test_large_newton_matrices_go_to_scipys_lapack():
+    """The pin on SciPy's Cython API (the capsules of ``dgetrf``, ``dgetrs`` and ``dgemv``)
+    and the switch at ``LAPACK_FROM`` states: a robot above it integrates on LAPACK as on
+    the driver's own loops, to round-off, with the same steps."""
+    addresses = native.lapack_addresses()
+    assert len(addresses) == 3 and all(isinstance(a, int) and a > 0 for a in addresses)
+    robot = sc.presets.ifac2020().with_segments(4)
+    model = sc.Model(robot)
+    assert model.n_state >= native.LAPACK_FROM
+    runs, library = [], native.library()
+    try:
+        for start in (native.LAPACK_FROM, 10**6):
+            library.softcurve_use_lapack(*addresses, start)
+            runs.append(sc.simulate(model, robot.rest_configuration(), np.zeros(model.n),
+                                    t_final=0.2, dt=0.01))  # fmt: skip
+    finally:
+        library.softcurve_use_lapack(*addresses, native.LAPACK_FROM)
+    lapack, loops = runs
+    assert lapack.success and loops.success
+    assert lapack.stats["steps"] == loops.stats["steps"]
+    np.testing.assert_allclose(lapack.q, loops.q, rtol=0, atol=1e-9 * np.abs(loops.q).max())
+    assert not np.array_equal(lapack.q, loops.q)  # other arithmetic: LAPACK did run

@@ -567,7 +567,40 @@ def _load(defines: tuple[str, ...]):
     loaded = compile_files("cvodes_driver", C_FOLDER, link, defines, tuple(DECLARATIONS.functions))
     if loaded is None:
         return "the driver's C source did not compile (no C compiler, or the build failed)"
-    return DECLARATIONS.bind(loaded)
+    bound = DECLARATIONS.bind(loaded)
+    bound.softcurve_use_lapack(*lapack_addresses(), LAPACK_FROM)
+    return bound
+
+
+LAPACK_FROM = 32
+"""Newton matrices of this many states and more are factored and solved by LAPACK, and
+multiplied by BLAS (SciPy's, :func:`lapack_addresses`); smaller ones by the driver's own
+loops. 1 s of the hanging chain of ``benchmarks/bench_jacobian.py`` ran 2 and 0 % slower
+on LAPACK at 18 and 27 states and 2, 9 and 17 % faster at 36, 72 and 144 (best of seven,
+both ways in one process), the loops' LU of 144 states taking four times ``dgetrf``'s
+time."""
+
+
+def lapack_addresses() -> tuple[int, int, int]:
+    """The addresses of LAPACK's ``dgetrf`` and ``dgetrs`` and BLAS's ``dgemv`` in SciPy
+    (``scipy.linalg.cython_lapack`` and ``cython_blas``, whose Cython API exports them as
+    capsules in ``__pyx_capi__``: the mechanism ``cimport`` uses, checked by
+    ``tests/test_native_cvodes.py``).
+
+    Returns
+    -------
+    tuple of int
+        ``(dgetrf, dgetrs, dgemv)``.
+    """
+    from scipy.linalg import cython_blas, cython_lapack
+
+    name = ctypes.pythonapi.PyCapsule_GetName
+    name.restype, name.argtypes = ctypes.c_char_p, [ctypes.py_object]
+    pointer = ctypes.pythonapi.PyCapsule_GetPointer
+    pointer.restype, pointer.argtypes = ctypes.c_void_p, [ctypes.py_object, ctypes.c_char_p]
+    capsules = [cython_lapack.__pyx_capi__[routine] for routine in ("dgetrf", "dgetrs")]
+    capsules.append(cython_blas.__pyx_capi__["dgemv"])
+    return tuple(pointer(capsule, name(capsule)) for capsule in capsules)
 
 
 ENTRY = "softcurve_lanes_xdot"
