@@ -147,24 +147,32 @@ def test_a_batch_on_two_threads_equals_its_members_alone(paper_model):
 
 
 def test_large_newton_matrices_go_to_scipys_lapack():
-    """The pin on SciPy's Cython API (the capsules of ``dgetrf``, ``dgetrs`` and ``dgemv``)
-    and the switch at ``LAPACK_FROM`` states: a robot above it integrates on LAPACK as on
-    the driver's own loops, to round-off, with the same steps."""
+    """The pin on SciPy's Cython API (the capsules of ``dgetf2`` and ``dgetrs``, their
+    signatures) and the switch at ``LAPACK_FROM`` states: a robot above it integrates on
+    LAPACK as on the driver's own loops, to round-off, with the same steps, alone and in
+    a batch over lanes."""
     addresses = native.lapack_addresses()
-    assert len(addresses) == 3 and all(isinstance(a, int) and a > 0 for a in addresses)
+    assert len(addresses) == 2 and all(isinstance(a, int) and a > 0 for a in addresses)
     robot = sc.presets.ifac2020().with_segments(4)
     model = sc.Model(robot)
     assert model.n_state >= native.LAPACK_FROM
+    q0 = np.tile(robot.rest_configuration(), (4, 1))
+    q0[:, 1::3] += np.linspace(0.0, 5.0, 4)[:, None]
     runs, library = [], native.library()
     try:
         for start in (native.LAPACK_FROM, 10**6):
             library.softcurve_use_lapack(*addresses, start)
-            runs.append(sc.simulate(model, robot.rest_configuration(), np.zeros(model.n),
-                                    t_final=0.2, dt=0.01))  # fmt: skip
+            alone = sc.simulate(model, q0[0], np.zeros(model.n), t_final=0.2, dt=0.01)
+            grouped = simulate_batch(model, q0, np.zeros_like(q0), t_final=0.2, dt=0.01)
+            runs.append((alone, grouped))
     finally:
         library.softcurve_use_lapack(*addresses, native.LAPACK_FROM)
-    lapack, loops = runs
-    assert lapack.success and loops.success
+    (lapack, lapack_batch), (loops, loops_batch) = runs
+    assert lapack.success and loops.success and lapack_batch.success
+    assert lapack_batch.stats["route"] == "driver-lanes"
     assert lapack.stats["steps"] == loops.stats["steps"]
     np.testing.assert_allclose(lapack.q, loops.q, rtol=0, atol=1e-9 * np.abs(loops.q).max())
     assert not np.array_equal(lapack.q, loops.q)  # other arithmetic: LAPACK did run
+    np.testing.assert_allclose(lapack_batch.q, loops_batch.q, rtol=0,
+                               atol=1e-9 * np.abs(loops_batch.q).max())  # fmt: skip
+    assert not np.array_equal(lapack_batch.q, loops_batch.q)

@@ -408,6 +408,13 @@ def newton_jacobian(problem, x, u, p, nominal) -> np.ndarray:
         ``d (xdot_i / nominal_i) / d (x_j / nominal_j)``.
     """
     x, u, p, nominal = (np.ascontiguousarray(a, dtype=np.float64) for a in (x, u, p, nominal))
+    fn = problem.struct
+    inputs = fn.m if fn.force else fn.nu
+    sizes = {"x": fn.nx + (fn.m if fn.lag else 0), "u": inputs, "p": fn.np, "nominal": None}
+    sizes["nominal"] = sizes["x"]
+    for name, value in zip(sizes, (x, u, p, nominal), strict=True):
+        if value.shape != (sizes[name],):
+            raise ValueError(f"{name} must have shape ({sizes[name]},), got {value.shape}")
     out = np.empty((x.size, x.size), order="F")
     function = entry("softcurve_newton_jacobian")
     if function(ctypes.byref(problem.struct), x.ctypes.data, u.ctypes.data, p.ctypes.data,
@@ -568,39 +575,59 @@ def _load(defines: tuple[str, ...]):
     if loaded is None:
         return "the driver's C source did not compile (no C compiler, or the build failed)"
     bound = DECLARATIONS.bind(loaded)
-    bound.softcurve_use_lapack(*lapack_addresses(), LAPACK_FROM)
+    try:
+        bound.softcurve_use_lapack(*lapack_addresses(), LAPACK_FROM)
+    except (ImportError, AttributeError, KeyError, ValueError):
+        pass  # a SciPy without these capsules: the driver's own loops at every size
     return bound
 
 
 LAPACK_FROM = 32
-"""Newton matrices of this many states and more are factored and solved by LAPACK, and
-multiplied by BLAS (SciPy's, :func:`lapack_addresses`); smaller ones by the driver's own
-loops. 1 s of the hanging chain of ``benchmarks/bench_jacobian.py`` ran 2 and 0 % slower
-on LAPACK at 18 and 27 states and 2, 9 and 17 % faster at 36, 72 and 144 (best of seven,
-both ways in one process), the loops' LU of 144 states taking four times ``dgetrf``'s
-time."""
+"""Newton matrices of this many states and more are factored and solved by LAPACK
+(SciPy's ``dgetf2`` and ``dgetrs``, :func:`lapack_addresses`); smaller ones by the
+driver's own loops. 1 s of the hanging chain of ``benchmarks/bench_jacobian.py`` ran 2
+and 3 % slower on LAPACK at 18 and 27 states, as fast at 36, and 4 and 11 % faster at 72
+and 144 (best of seven, both ways in one process, OpenBLAS's default threads)."""
+
+LAPACK_SIGNATURES = {
+    "dgetf2": "void (int *, int *, __pyx_t_5scipy_6linalg_13cython_lapack_d *, int *, int *, "
+    "int *)",
+    "dgetrs": "void (char *, int *, int *, __pyx_t_5scipy_6linalg_13cython_lapack_d *, int *, "
+    "int *, __pyx_t_5scipy_6linalg_13cython_lapack_d *, int *, int *)",
+}
+"""The C signatures of the routines the driver calls, as SciPy's capsules name them: C
+``int`` for every integer (not 64-bit LAPACK), ``double`` for the reals."""
 
 
-def lapack_addresses() -> tuple[int, int, int]:
-    """The addresses of LAPACK's ``dgetrf`` and ``dgetrs`` and BLAS's ``dgemv`` in SciPy
-    (``scipy.linalg.cython_lapack`` and ``cython_blas``, whose Cython API exports them as
-    capsules in ``__pyx_capi__``: the mechanism ``cimport`` uses, checked by
-    ``tests/test_native_cvodes.py``).
+def lapack_addresses() -> tuple[int, int]:
+    """The addresses of LAPACK's ``dgetf2`` and ``dgetrs`` in SciPy
+    (``scipy.linalg.cython_lapack``, whose Cython API exports them as capsules in
+    ``__pyx_capi__``: the mechanism ``cimport`` uses), each checked against
+    :data:`LAPACK_SIGNATURES` (``tests/test_native_cvodes.py`` checks the pin).
 
     Returns
     -------
     tuple of int
-        ``(dgetrf, dgetrs, dgemv)``.
-    """
-    from scipy.linalg import cython_blas, cython_lapack
+        ``(dgetf2, dgetrs)``.
 
-    name = ctypes.pythonapi.PyCapsule_GetName
-    name.restype, name.argtypes = ctypes.c_char_p, [ctypes.py_object]
-    pointer = ctypes.pythonapi.PyCapsule_GetPointer
-    pointer.restype, pointer.argtypes = ctypes.c_void_p, [ctypes.py_object, ctypes.c_char_p]
-    capsules = [cython_lapack.__pyx_capi__[routine] for routine in ("dgetrf", "dgetrs")]
-    capsules.append(cython_blas.__pyx_capi__["dgemv"])
-    return tuple(pointer(capsule, name(capsule)) for capsule in capsules)
+    Raises
+    ------
+    ValueError
+        Where a capsule's signature is not the one the driver calls.
+    """
+    from scipy.linalg import cython_lapack
+
+    py_object, text, address = ctypes.py_object, ctypes.c_char_p, ctypes.c_void_p
+    api = ctypes.pythonapi
+    name = ctypes.PYFUNCTYPE(text, py_object)(("PyCapsule_GetName", api))
+    pointer = ctypes.PYFUNCTYPE(address, py_object, text)(("PyCapsule_GetPointer", api))
+    addresses = []
+    for routine, signature in LAPACK_SIGNATURES.items():
+        capsule = cython_lapack.__pyx_capi__[routine]
+        if name(capsule) != signature.encode():
+            raise ValueError(f"SciPy's {routine} is {name(capsule)!r}, not {signature!r}")
+        addresses.append(pointer(capsule, name(capsule)))
+    return tuple(addresses)
 
 
 ENTRY = "softcurve_lanes_xdot"

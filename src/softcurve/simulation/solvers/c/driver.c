@@ -124,38 +124,36 @@ double difference_step(double v) {
     return 1.4901161193847656e-08 * (fabs(v) > 1.0 ? fabs(v) : 1.0);
 }
 
-/* LAPACK's dgetrf and dgetrs and BLAS's dgemv (SciPy's, softcurve_use_lapack) for the
- * Newton matrices of lapack_from states and more; NULL: the loops below for all. Set
- * once, before any integration. */
-typedef void (*getrf_fn)(int *m, int *n, double *a, int *lda, int *ipiv, int *info);
+/* LAPACK's dgetf2 and dgetrs (SciPy's, softcurve_use_lapack) for the Newton matrices of
+ * lapack_from states and more; NULL: the loops below for all. dgetf2, the unblocked LU,
+ * because SciPy's OpenBLAS runs its blocked dgetrf (and dgemv) on threads of its own
+ * at these sizes, which made a batch on two threads of the driver 1.6 times slower
+ * than on the loops. Set once, when the library is loaded, before any integration. */
+typedef void (*getf2_fn)(int *m, int *n, double *a, int *lda, int *ipiv, int *info);
 typedef void (*getrs_fn)(char *trans, int *n, int *nrhs, double *a, int *lda, int *ipiv,
                          double *b, int *ldb, int *info);
-typedef void (*gemv_fn)(char *trans, int *m, int *n, double *alpha, double *a, int *lda,
-                        double *x, int *incx, double *beta, double *y, int *incy);
-static getrf_fn lapack_getrf;
+static getf2_fn lapack_getf2;
 static getrs_fn lapack_getrs;
-static gemv_fn blas_gemv;
 static int lapack_from;
 
 /* softcurve_driver.h */
-SC_EXPORT void softcurve_use_lapack(void *getrf, void *getrs, void *gemv, int from) {
-    lapack_getrf = (getrf_fn)getrf;
+SC_EXPORT void softcurve_use_lapack(void *getf2, void *getrs, int from) {
+    lapack_getf2 = (getf2_fn)getf2;
     lapack_getrs = (getrs_fn)getrs;
-    blas_gemv = (gemv_fn)gemv;
     lapack_from = from;
 }
 
-static int by_lapack(int n) { return lapack_getrf != NULL && n >= lapack_from; }
+static int by_lapack(int n) { return lapack_getf2 != NULL && n >= lapack_from; }
 
 /* A = I - gamma J (n x n, column-major) as its LU factors (partial pivoting, row swaps in
- * piv: 0-based by the loops, LAPACK's 1-based by dgetrf); 1 where singular. */
+ * piv: 0-based by the loops, LAPACK's 1-based by dgetf2); 1 where singular. */
 int factor_newton(const double *J, double gamma, int n, double *A, int *piv) {
     int i, j, k;
     for (k = 0; k < n * n; ++k) A[k] = -gamma * J[k];
     for (i = 0; i < n; ++i) A[i + i * n] += 1.0;
     if (by_lapack(n)) {
         int info = 0;
-        lapack_getrf(&n, &n, A, &n, piv, &info);
+        lapack_getf2(&n, &n, A, &n, piv, &info);
         return info != 0;
     }
     for (k = 0; k < n; ++k) {
@@ -204,13 +202,6 @@ void solve_newton(const double *A, const int *piv, int n, double *z) {
 /* Jv = J v (n x n, column-major). */
 void times_jacobian(const double *J, const double *v, int n, double *Jv) {
     int i, j;
-    if (by_lapack(n)) {
-        int one = 1;
-        double unit = 1.0, zero = 0.0;
-        char trans = 'N';
-        blas_gemv(&trans, &n, &n, &unit, (double *)J, &n, (double *)v, &one, &zero, Jv, &one);
-        return;
-    }
     for (i = 0; i < n; ++i) Jv[i] = 0.0;
     for (j = 0; j < n; ++j)
         for (i = 0; i < n; ++i) Jv[i] += J[i + j * n] * v[j];

@@ -127,11 +127,10 @@ SC_EXPORT int softcurve_rhs(const sc_function *fn, int count, const double *x, c
 SC_EXPORT int softcurve_newton_jacobian(const sc_function *fn, const double *x, const double *u,
                                         const double *p, const double *nominal, double *J);
 
-/* The Newton matrices of `from` states and more factored and solved by LAPACK's dgetrf
- * and dgetrs, and their Jacobians' products by BLAS's dgemv, at these addresses (SciPy's;
- * NULL: by the driver's own loops, as below `from`). Called once, before any
- * integration. */
-SC_EXPORT void softcurve_use_lapack(void *getrf, void *getrs, void *gemv, int from);
+/* The Newton matrices of `from` states and more factored and solved by LAPACK's dgetf2
+ * and dgetrs at these addresses (SciPy's; NULL: by the driver's own loops, as below
+ * `from`). Called once, when the library is loaded. */
+SC_EXPORT void softcurve_use_lapack(void *getf2, void *getrs, int from);
 
 /* sizeof of the structs above, for the check that Python's declarations match. */
 SC_EXPORT long softcurve_sizeof_sc_function(void);
