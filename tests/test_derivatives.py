@@ -66,12 +66,13 @@ def test_the_exact_jacobian_of_one_segment_and_of_many(rng):
     _check(sc.Model(sc.presets.ifac2020().with_segments(5), compile=False), rng, samples=1)
 
 
-def test_the_exact_jacobian_holds_the_contact_force(rng):
+@pytest.mark.parametrize("friction", [0.0, 0.4])
+def test_the_exact_jacobian_holds_the_contact_force(rng, friction):
     robot = sc.presets.ifac2020().with_segments(2)
     tip = robot.rest_length
     sphere = sc.Sphere([0.0, 0.0, tip + 0.004], 0.006)
-    model = sc.Model(robot, environment=sc.Environment([sphere], sc.ContactLaw(1e6, damping=0.1)),
-                     compile=False)  # fmt: skip
+    law = sc.ContactLaw(1e6, damping=0.1, friction=friction)
+    model = sc.Model(robot, environment=sc.Environment([sphere], law), compile=False)
     x, tau = _state(rng, model)
     x[: model.n] = robot.rest_configuration()  # the tip inside the sphere: a force acts
     contact = model.dynamics_terms(x[: model.n], x[model.n : 2 * model.n]).contact_force
