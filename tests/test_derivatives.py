@@ -17,8 +17,7 @@ from softcurve.simulation.solvers import (
     state_scale,
 )
 
-from .conftest import random_state
-from .test_kinds import robots
+from .test_kinds import random_inputs, robots
 
 
 def _reference(model):
@@ -31,10 +30,8 @@ def _reference(model):
 
 
 def _state(rng, model):
-    q, qd = random_state(rng, model)
-    lam = 1e-3 * rng.normal(size=model.n_creep)
-    scale = np.abs(model.gravity_force(q)) + np.abs(model.elastic_force(q)) + 1e-9
-    return np.concatenate([q, qd, lam]), rng.normal(size=model.n) * scale
+    q, qd, tau, lam = random_inputs(rng, model)
+    return np.concatenate([q, qd, lam]), tau
 
 
 def _relative(a, b):

@@ -102,7 +102,9 @@ def _function(e, inputs, outputs):
     return ca.Function("f", [*inputs, e.p], outputs)
 
 
-def _inputs(rng, model):
+def random_inputs(rng, model):
+    """A random state near rest of ``model`` with input forces of the size of its gravity
+    and elastic forces: ``(q, qd, tau, lam)``."""
     q, qd = random_state(rng, model)
     scale = np.abs(model.gravity_force(q)) + np.abs(model.elastic_force(q)) + 1e-9
     tau = rng.normal(size=model.n) * scale
@@ -114,7 +116,7 @@ def check_three_algorithms(model, rng, samples=3, inverse_tolerance=1e-13, input
     """The composite-body mass matrix is the derivative of the Newton-Euler inverse
     dynamics in ``qdd``, symmetric positive definite; the articulated-body forward
     dynamics inverts the Newton-Euler pass and agrees with solving with ``D``."""
-    inputs = _inputs if inputs is None else inputs
+    inputs = random_inputs if inputs is None else inputs
     e = model.expressions
     f = _function(
         e,
@@ -160,7 +162,7 @@ def check_power_balance(model, rng, samples=3, inputs=None):
     """Along the forward dynamics, ``d(T + V_g + V_e)/dt = qd . (tau + K^T lambda - R qd)``:
     the inertial terms neither create nor destroy energy, with ``dT/dt = qd . D qdd + qd .
     Ddot qd / 2``."""
-    inputs = _inputs if inputs is None else inputs
+    inputs = random_inputs if inputs is None else inputs
     e = model.expressions
     qdd = e.forward_dynamics
     kinetic_rate = ca.dot(e.qd, e.mass_matrix @ qdd) + 0.5 * ca.dot(

@@ -21,6 +21,7 @@ import tempfile
 import warnings
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
+from typing import NamedTuple
 
 import casadi as ca
 
@@ -160,7 +161,7 @@ def compile_flags() -> tuple[str, ...]:
 JACOBIAN_FUNCTIONS = ("rhs_jacobian",)
 """The library of the model's exact Jacobian (:mod:`softcurve.symbolic.derivatives`),
 compiled apart from the model's on first use (``Model.rhs_jacobian``, ``simulate`` with
-``jacobian="exact"``): at eight segments it takes 3.8 times the model's compile time
+``jacobian="exact"``): at eight segments it takes 3.9 times the model's compile time
 (``benchmarks/bench_jacobian.py``), and forward differences serve the default routes."""
 
 COMPILED_FUNCTIONS = (
@@ -264,7 +265,29 @@ def key_sources() -> list[Path]:
     return [path for pattern in _SYMBOLIC_SOURCES for path in sorted(package.glob(pattern))]
 
 
-_LIBRARIES = {"model": COMPILED_FUNCTIONS, "jacobian": JACOBIAN_FUNCTIONS}
+class _Library(NamedTuple):
+    """A kind of model library: its functions, what it is called and what runs without
+    it (in :func:`compiled_library`'s warning; ``slower`` where there is no compiler)."""
+
+    names: tuple[str, ...]
+    called: str
+    without: str
+    slower: str = ""
+
+
+_LIBRARIES = {
+    "model": _Library(
+        COMPILED_FUNCTIONS,
+        "the model",
+        "softcurve runs in CasADi's virtual machine",
+        ", about 10x slower to simulate",
+    ),
+    "jacobian": _Library(
+        JACOBIAN_FUNCTIONS,
+        "the model's exact Jacobian",
+        "the driver's Newton matrix takes forward differences",
+    ),
+}
 
 
 def _cache_key(structure: tuple, quadrature_nodes: int, kind: str = "model") -> str:
@@ -331,7 +354,8 @@ def compiled_library(
         then runs in CasADi's virtual machine.
     """
     compiler = find_compiler()
-    names = _LIBRARIES[kind]
+    library = _LIBRARIES[kind]
+    names = library.names
 
     def build() -> bytes:
         functions = symbolic()
@@ -350,23 +374,13 @@ def compiled_library(
             what=what,
         )
     except NoCompiler as exc:
-        message = f"{exc}: {_WITHOUT[kind]}" + (
-            ", about 10x slower to simulate" * (kind == "model")
-        )
+        message = f"{exc}: {library.without}{library.slower}"
     except (OSError, subprocess.CalledProcessError) as exc:
         detail = str(getattr(exc, "stderr", None) or exc).strip()[:400]
-        message = f"compiling {_NAMED[kind]} with {compiler[0]} failed ({detail}): {_WITHOUT[kind]}"
+        message = f"compiling {library.called} with {compiler[0]} failed ({detail}): "
+        message += library.without
     warnings.warn(message, CompilerWarning, stacklevel=3)
     return None
-
-
-_NAMED = {"model": "the model", "jacobian": "the model's exact Jacobian"}
-_WITHOUT = {
-    "model": "softcurve runs in CasADi's virtual machine",
-    "jacobian": "the driver's Newton matrix takes forward differences",
-}
-"""What a library is called, and what runs without it, in :func:`compiled_library`'s
-warning."""
 
 
 def _compile(

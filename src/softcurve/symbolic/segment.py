@@ -152,7 +152,7 @@ def _spatial_inertia(rotational, moment, mass):
     """``M`` of ``W = M A`` at rest from the rotational inertia ``J`` about the base's
     origin (its lower triangle), the first moment ``h`` and the mass:
     ``[[J, h^], [-h^, m 1]]`` (the derivative of the wrench by ``A``, written out)."""
-    skew = ca.SX(3, 3)
+    skew = ca.SX(3, 3)  # not ca.skew, which stores its zero diagonal as entries of M
     for i, j, k in ((0, 1, 2), (1, 2, 0), (2, 0, 1)):  # h^ a = h x a
         skew[i, j], skew[j, i] = -moment[k], moment[k]
     return ca.blockcat([[ca.tril2symm(rotational), skew], [-skew, mass * ca.SX.eye(3)]])
@@ -202,6 +202,13 @@ def _point_terms(point, x: _Symbols, triangle: bool) -> list:
     ]
 
 
+def _with_derivative(shares, x: _Symbols) -> list:
+    """``shares`` and, last, their derivatives stacked column by column (``vec``) by the
+    local variables ``(q_i, qd_i, omega)``."""
+    wrt = ca.vertcat(x.q, x.qd, x.omega)
+    return [*shares, ca.jacobian(ca.vertcat(*map(ca.vec, shares)), wrt)]
+
+
 def _slice_function(
     model: ElementModel,
     pattern: ca.Sparsity,
@@ -226,9 +233,7 @@ def _slice_function(
     point = _point(model, x.q, x.geometry, s, mass, inertia)
     shares, names = _point_terms(point, x, triangle), ["J", "h", "H", "D", "w", "b"]
     if local:
-        wrt = ca.vertcat(x.q, x.qd, x.omega)
-        shares = [*shares, ca.jacobian(ca.vertcat(*map(ca.vec, shares)), wrt)]
-        names = [*names, "dS"]
+        shares, names = _with_derivative(shares, x), [*names, "dS"]
     return ca.Function(
         f"{name}_slice_local" if local else f"{name}_slice",
         [x.q, x.qd, x.omega, x.geometry, s, mass, inertia],
@@ -391,8 +396,9 @@ def segment_functions(
             local_slice = _slice_function(model, pattern, options, name, triangle, local=True)
         for body in bodies:
             if body.s is None:
-                shares = _point_terms(_fixed(x.q, body), x, triangle)
-                shares_derivative = ca.jacobian(ca.vertcat(*map(ca.vec, shares)), wrt)
+                *shares, shares_derivative = _with_derivative(
+                    _point_terms(_fixed(x.q, body), x, triangle), x
+                )
             else:
                 *shares, shares_derivative = local_slice(
                     x.q, x.qd, x.omega, x.geometry, body.s, body.mass, body.inertia

@@ -409,9 +409,8 @@ def newton_jacobian(problem, x, u, p, nominal) -> np.ndarray:
     """
     x, u, p, nominal = (np.ascontiguousarray(a, dtype=np.float64) for a in (x, u, p, nominal))
     fn = problem.struct
-    inputs = fn.m if fn.force else fn.nu
-    sizes = {"x": fn.nx + (fn.m if fn.lag else 0), "u": inputs, "p": fn.np, "nominal": None}
-    sizes["nominal"] = sizes["x"]
+    states = fn.nx + (fn.m if fn.lag else 0)
+    sizes = {"x": states, "u": fn.m if fn.force else fn.nu, "p": fn.np, "nominal": states}
     for name, value in zip(sizes, (x, u, p, nominal), strict=True):
         if value.shape != (sizes[name],):
             raise ValueError(f"{name} must have shape ({sizes[name]},), got {value.shape}")
