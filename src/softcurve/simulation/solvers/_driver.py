@@ -584,9 +584,10 @@ def _load(defines: tuple[str, ...]):
 LAPACK_FROM = 32
 """Newton matrices of this many states and more are factored and solved by LAPACK
 (SciPy's ``dgetf2`` and ``dgetrs``, :func:`lapack_addresses`); smaller ones by the
-driver's own loops. 1 s of the hanging chain of ``benchmarks/bench_jacobian.py`` ran 2
-and 3 % slower on LAPACK at 18 and 27 states, as fast at 36, and 4 and 11 % faster at 72
-and 144 (best of seven, both ways in one process, OpenBLAS's default threads)."""
+driver's own loops. 1 s of the hanging chain ran as fast on LAPACK at 18, 27 and 36
+states, and 5 and 11 % faster at 72 and 144; a batch of two members on two threads 4 and
+8 % faster there (``python benchmarks/bench_lapack.py``, best of seven, OpenBLAS's
+default threads)."""
 
 LAPACK_SIGNATURES = {
     "dgetf2": "void (int *, int *, __pyx_t_5scipy_6linalg_13cython_lapack_d *, int *, int *, "

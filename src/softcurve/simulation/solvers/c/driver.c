@@ -127,8 +127,8 @@ double difference_step(double v) {
 /* LAPACK's dgetf2 and dgetrs (SciPy's, softcurve_use_lapack) for the Newton matrices of
  * lapack_from states and more; NULL: the loops below for all. dgetf2, the unblocked LU,
  * because SciPy's OpenBLAS runs its blocked dgetrf (and dgemv) on threads of its own
- * at these sizes, which made a batch on two threads of the driver 1.6 times slower
- * than on the loops. Set once, when the library is loaded, before any integration. */
+ * at these sizes, which made a batch on two threads of the driver slower than on the
+ * loops. Set once, when the library is loaded, before any integration. */
 typedef void (*getf2_fn)(int *m, int *n, double *a, int *lda, int *ipiv, int *info);
 typedef void (*getrs_fn)(char *trans, int *n, int *nrhs, double *a, int *lda, int *ipiv,
                          double *b, int *ldb, int *info);
