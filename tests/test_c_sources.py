@@ -84,13 +84,14 @@ def test_the_declarations_match_the_library_built():
 
 
 def test_the_options_struct_carries_every_setting_the_driver_reads():
-    """softcurve_cvodes and softcurve_sensitivities take their settings from one struct."""
+    """softcurve_integrate and softcurve_sensitivities take their settings from one
+    struct."""
     sensitivities = driver_library.DECLARATIONS.functions["softcurve_sensitivities"].names
-    cvodes = driver_library.DECLARATIONS.functions["softcurve_cvodes"].names
+    integrate = driver_library.DECLARATIONS.functions["softcurve_integrate"].names
     fields = {name for name, _ in driver_library.Options._fields_}
-    assert {"rtol", "atol", "max_steps", "max_order", "settled_ratio"} <= fields
-    assert not fields & (set(cvodes) | set(sensitivities))
-    assert "options" in cvodes and "options" in sensitivities
+    assert {"rtol", "atol", "max_steps", "max_order", "settled_ratio", "radau"} <= fields
+    assert not fields & (set(integrate) | set(sensitivities))
+    assert "options" in integrate and "options" in sensitivities
 
 
 @pytest.mark.parametrize(

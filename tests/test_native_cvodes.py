@@ -147,12 +147,12 @@ def test_a_batch_on_two_threads_equals_its_members_alone(paper_model):
 
 
 def test_large_newton_matrices_go_to_scipys_lapack():
-    """The pin on SciPy's Cython API (the capsules of ``dgetf2`` and ``dgetrs``, their
-    signatures) and the switch at ``LAPACK_FROM`` states: a robot above it integrates on
-    LAPACK as on the driver's own loops, to round-off, with the same steps, alone and in
-    a batch over lanes."""
+    """The pin on SciPy's Cython API (the capsules of ``dgetf2``, ``dgetrs``, ``zgetf2``
+    and ``zgetrs``, their signatures) and the switch at ``LAPACK_FROM`` states: a robot
+    above it integrates on LAPACK as on the driver's own loops, to round-off, with the same
+    steps, alone, in a batch over lanes and by Radau IIA (its complex systems too)."""
     addresses = native.lapack_addresses()
-    assert len(addresses) == 2 and all(isinstance(a, int) and a > 0 for a in addresses)
+    assert len(addresses) == 4 and all(isinstance(a, int) and a > 0 for a in addresses)
     robot = sc.presets.ifac2020().with_segments(4)
     model = sc.Model(robot)
     assert model.n_state >= native.LAPACK_FROM
@@ -164,10 +164,17 @@ def test_large_newton_matrices_go_to_scipys_lapack():
             library.softcurve_use_lapack(*addresses, start)
             alone = sc.simulate(model, q0[0], np.zeros(model.n), t_final=0.2, dt=0.01)
             grouped = simulate_batch(model, q0, np.zeros_like(q0), t_final=0.2, dt=0.01)
-            runs.append((alone, grouped))
+            radau = sc.simulate(model, q0[3], np.zeros(model.n), t_final=0.2, dt=0.01,
+                                method="radau")  # fmt: skip
+            runs.append((alone, grouped, radau))
     finally:
         library.softcurve_use_lapack(*addresses, native.LAPACK_FROM)
-    (lapack, lapack_batch), (loops, loops_batch) = runs
+    (lapack, lapack_batch, lapack_radau), (loops, loops_batch, loops_radau) = runs
+    assert lapack_radau.success and lapack_radau.stats["route"] == "driver-radau"
+    assert lapack_radau.stats["steps"] == loops_radau.stats["steps"]
+    np.testing.assert_allclose(lapack_radau.q, loops_radau.q, rtol=0,
+                               atol=1e-9 * np.abs(loops_radau.q).max())  # fmt: skip
+    assert not np.array_equal(lapack_radau.q, loops_radau.q)
     assert lapack.success and loops.success and lapack_batch.success
     assert lapack_batch.stats["route"] == "driver-lanes"
     assert lapack.stats["steps"] == loops.stats["steps"]

@@ -54,8 +54,9 @@ def _add_arguments(parser) -> None:
     parser.add_argument("--dt", type=float, metavar="S", help="output interval [s]")
     parser.add_argument(
         "--method",
-        choices=("cvodes", "adams", "bdf", "rk45"),
-        help="integrator (default cvodes: Adams or BDF chosen per problem)",
+        choices=("cvodes", "adams", "bdf", "radau", "rk45"),
+        help="integrator (default cvodes: Adams or BDF chosen per problem; radau: the "
+        "L-stable Radau IIA of order 5)",
     )
     parser.add_argument("--rtol", type=float, help="relative tolerance (default 1e-6)")
     parser.add_argument(

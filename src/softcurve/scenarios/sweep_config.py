@@ -163,7 +163,9 @@ def sweep_from_dict(data: dict, file: str = "<config>") -> SweepConfig:
     rest = {k: v for k, v in data.items() if k != "sweep"}
     scenario = scenario_from_dict(rest, file)
     if scenario.settings.method == "rk45":
-        raise ConfigError(f"{file}: simulation.method: sweeps run cvodes, adams or bdf, got 'rk45'")
+        raise ConfigError(
+            f"{file}: simulation.method: sweeps run cvodes, adams, bdf or radau, got 'rk45'"
+        )
     r = Reader(file, "sweep", data["sweep"])
     design = r.get("design", "string", required=True)
     if design not in DESIGNS:

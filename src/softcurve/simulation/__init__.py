@@ -9,7 +9,9 @@ their file format), ``stepper``, ``sensitivity``, ``batch``.
 """
 
 from softcurve.simulation._settings import CSV_BYTES_PER_VALUE as CSV_BYTES_PER_VALUE
+from softcurve.simulation._settings import JACOBIANS as JACOBIANS
 from softcurve.simulation._settings import MAX_STEPS as MAX_STEPS
+from softcurve.simulation._settings import METHODS as METHODS
 from softcurve.simulation._settings import MIN_TIME as MIN_TIME
 from softcurve.simulation._settings import SettingsError as SettingsError
 from softcurve.simulation._settings import SimulationSettings as SimulationSettings
@@ -27,7 +29,9 @@ from softcurve.simulation.stepper import Stepper as Stepper
 
 __all__ = [
     "CSV_BYTES_PER_VALUE",
+    "JACOBIANS",
     "MAX_STEPS",
+    "METHODS",
     "MIN_TIME",
     "SettingsError",
     "SimulationSettings",

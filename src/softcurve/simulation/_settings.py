@@ -17,9 +17,10 @@ import numpy as np
 
 from softcurve.base.validation import ParameterError, beyond_float, real_scalar
 
-METHODS = ("cvodes", "adams", "bdf", "rk45")
+METHODS = ("cvodes", "adams", "bdf", "radau", "rk45")
 """Integrators: ``"cvodes"`` chooses Adams or BDF per problem, ``"adams"`` and ``"bdf"``
-force CVODES's family, ``"rk45"`` is SciPy's explicit Runge-Kutta 4(5)."""
+force CVODES's family, ``"radau"`` is the C driver's L-stable Radau IIA of order 5,
+``"rk45"`` is SciPy's explicit Runge-Kutta 4(5)."""
 
 JACOBIANS = ("differences", "exact")
 """The Jacobians of the C driver's Newton matrix (``SimulationSettings.jacobian``)."""
@@ -112,8 +113,9 @@ class SimulationSettings:
         is about 1.5e-154 s) and at least ``t_final`` times the float64 epsilon (so that
         every ``t + dt`` is a new time). The integrator chooses its own steps by error
         control, independently of ``dt``.
-    method : {"cvodes", "adams", "bdf", "rk45"}
-        The integrator (default ``"cvodes"``: CVODES, Adams or BDF chosen per problem).
+    method : {"cvodes", "adams", "bdf", "radau", "rk45"}
+        The integrator (default ``"cvodes"``: CVODES, Adams or BDF chosen per problem;
+        ``"radau"``: Radau IIA of order 5, L-stable, in the C driver).
     rtol : float
         Relative tolerance, ``0 < rtol < 1`` (default 1e-6).
     atol : None, float or sequence of float, shape (n_state,)
@@ -128,8 +130,9 @@ class SimulationSettings:
         above it is refused before anything is allocated, with the size the outputs
         would take; raise it for longer records.
     jacobian : {"differences", "exact"}
-        The Jacobian of CVODES's Newton matrix in the C driver's route of one member per
-        system (``simulate``, and batches not grouped over lanes): forward differences
+        The Jacobian of the Newton matrices in the C driver's routes of one member per
+        system (CVODES's and Radau IIA's: ``simulate``, and batches not grouped over
+        lanes): forward differences
         of the state derivative (default; ``n_state + 1`` evaluations each), or the
         model's exact one (:meth:`~softcurve.Model.rhs_jacobian`, compiled on first use
         into a library of its own and cached: at 2 segments and more it is cheaper, see

@@ -22,6 +22,14 @@ Integrators (``method``)
     callable input the family chosen at the start is kept.
 ``"adams"``, ``"bdf"``
     CVODES with that family, no choice made.
+``"radau"``
+    Radau IIA of order 5 (three implicit stages), in softcurve's C driver: L-stable and of
+    order 5 at any stiffness, a one-step method that restarts at a change of the input
+    with nothing to rebuild, its two Newton matrices (one real, one complex) factored per
+    step size and Jacobian and kept while the iteration converges. Cheaper than CVODES
+    where fast modes die out while the motion is slow (after a transient, under slow
+    inputs); dearer where the motion itself is fast (``docs/performance.md``). Where the
+    driver cannot run, SciPy's Radau stepped from Python (route ``"scipy-radau"``).
 ``"rk45"``
     SciPy's explicit Runge-Kutta 4(5) of Dormand and Prince (the paper's ``ode45``)
     on the same compiled right-hand side, stepped from Python: 5-10x slower, for

@@ -50,6 +50,7 @@ from softcurve.simulation.solvers import (
     choose_route,
     chunks,
     linearization_rates,
+    method_name,
     multistep_family,
     nominal_scale,
     restart_segments,
@@ -182,7 +183,7 @@ def simulate_batch(
         raise ParameterError(f"model must be a softcurve.Model, got {type(model).__name__}")
     settings = settings_with(settings, options, "simulate_batch")
     if settings.method == "rk45":
-        raise ParameterError("method must be cvodes, adams or bdf in a batch, got 'rk45'")
+        raise ParameterError("method must be cvodes, adams, bdf or radau in a batch, got 'rk45'")
     threads = _count("threads", threads, default_threads())
     processes = _count("processes", processes, 1)
     n, n_creep = model.n, model.n_creep
@@ -267,6 +268,8 @@ def _integrate(model, x0, arrays, scales, settings, how, drives) -> BatchTraject
     else:  # every member on CasADi's integrator where one group cannot take the driver
         why = next(route.reason for route in routes if route.built is None)
         routes = [Route("casadi-cvodes", why)] * len(groups)
+        if method == "radau":  # CasADi has no Radau IIA: its stiff family instead
+            methods = initial = np.full(size, "bdf")
     member_routes = [""] * size
     for group, route in zip(groups, routes, strict=True):
         for b in group.tolist():
@@ -283,7 +286,7 @@ def _integrate(model, x0, arrays, scales, settings, how, drives) -> BatchTraject
             for block in blocks(members.size, k1 - k0 + 1, x0.shape[1] + u.shape[1]):
                 run.integrate(multistep, members[block], k0, k1)
     wall = time.perf_counter() - start
-    families = [f"cvodes-{m}" for m in initial]
+    families = [method_name(m) for m in initial]
     for b in np.flatnonzero(used_bdf & (initial == "adams")):
         families[b] = "cvodes-adams+bdf"
     messages = run.messages

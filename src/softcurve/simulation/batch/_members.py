@@ -12,7 +12,9 @@ import numpy as np
 
 from softcurve.base.status import Status
 from softcurve.simulation.solvers import (
+    DRIVER_FAMILIES,
     BufferedCall,
+    RadauEngine,
     blocks,
     cvodes_integrator,
     cvodes_reason,
@@ -22,6 +24,7 @@ from softcurve.simulation.solvers import (
     failure_message,
     failure_status,
     mapped,
+    method_name,
     outside_domain,
     restart_segments,
 )
@@ -172,7 +175,7 @@ class MemberRun:
         self.states[b, k:] = np.nan
         self.reached[b] = k
         self.status[b] = failure_status(reason)
-        self.messages[b] = failure_message(reason, self.grid, k, f"cvodes-{multistep}")
+        self.messages[b] = failure_message(reason, self.grid, k, method_name(multistep))
 
 
 def integrate_native(run: MemberRun, initial, fastest, problems) -> np.ndarray:
@@ -202,7 +205,7 @@ def integrate_native(run: MemberRun, initial, fastest, problems) -> np.ndarray:
     ends = [k1 for _, k1 in segments]
     restart = [True] * len(ends)
     used_bdf = np.zeros(states.shape[0], bool)
-    lmm = np.where(np.asarray(initial) == "adams", 1, 2)
+    lmm = np.array([DRIVER_FAMILIES[family] for family in initial], dtype=np.int32)
     settle = np.zeros(states.shape[0]) if fastest is None else np.where(lmm == 1, fastest, 0.0)
     settings = run.problem.driver_options()
     for g, problem in enumerate(problems):
@@ -222,6 +225,8 @@ def integrate_native(run: MemberRun, initial, fastest, problems) -> np.ndarray:
                 b, done = int(members[j]), int(reached[j])
                 if flags[j] == 1:
                     run._outside(b, done - 1, "adams+bdf" if used[j] else initial[b])
+                elif initial[b] == "radau":
+                    run._fail(b, done, RadauEngine.failure_reason(flags[j]), "radau")
                 else:
                     reason = cvodes_reason(driver_reason(flags[j]))
                     run._fail(b, done, reason, "adams+bdf" if used[j] else initial[b])

@@ -4,7 +4,7 @@ One problem (:class:`Problem`: the model's state derivative with an actuator's f
 lag, state scales, the domain), one solver interface (:class:`Solver`, :data:`METHODS`),
 the route chosen in one function (:func:`choose_route`, :data:`ROUTES`), the method policy
 (Adams or BDF, the settled switch, restarts, failure advice), CasADi's CVODES, SciPy's
-RK45, and softcurve's CVODES driver in C (``c/``).
+RK45 and Radau, and softcurve's driver in C (``c/``) of CVODES and of its own Radau IIA.
 """
 
 from softcurve.simulation.solvers._actuated import actuated_derivative as actuated_derivative
@@ -18,6 +18,7 @@ from softcurve.simulation.solvers._cvodes import ActuatorInput as ActuatorInput
 from softcurve.simulation.solvers._cvodes import BufferedCall as BufferedCall
 from softcurve.simulation.solvers._cvodes import CvodesEngine as CvodesEngine
 from softcurve.simulation.solvers._cvodes import cvodes_integrator as cvodes_integrator
+from softcurve.simulation.solvers._driver import FAMILIES as DRIVER_FAMILIES
 from softcurve.simulation.solvers._driver import FLAGS as DRIVER_FLAGS
 from softcurve.simulation.solvers._driver import DriverProblem as DriverProblem
 from softcurve.simulation.solvers._driver import casadi_only as casadi_only
@@ -50,6 +51,7 @@ from softcurve.simulation.solvers._policy import failure_status as failure_statu
 from softcurve.simulation.solvers._policy import lag_scale as lag_scale
 from softcurve.simulation.solvers._policy import linear_rates as linear_rates
 from softcurve.simulation.solvers._policy import linearization_rates as linearization_rates
+from softcurve.simulation.solvers._policy import method_name as method_name
 from softcurve.simulation.solvers._policy import multistep_family as multistep_family
 from softcurve.simulation.solvers._policy import nominal_scale as nominal_scale
 from softcurve.simulation.solvers._policy import restart_segments as restart_segments
@@ -61,7 +63,12 @@ from softcurve.simulation.solvers._problem import Problem as Problem
 from softcurve.simulation.solvers._problem import Solver as Solver
 from softcurve.simulation.solvers._problem import initial_state as initial_state
 from softcurve.simulation.solvers._problem import solver as solver
+from softcurve.simulation.solvers._radau import RadauEngine as RadauEngine
+from softcurve.simulation.solvers._radau import RadauTableau as RadauTableau
+from softcurve.simulation.solvers._radau import radau_constants as radau_constants
+from softcurve.simulation.solvers._radau import radau_tableau as radau_tableau
 from softcurve.simulation.solvers._rk45 import ScipyEngine as ScipyEngine
+from softcurve.simulation.solvers._rk45 import ScipyRadauEngine as ScipyRadauEngine
 from softcurve.simulation.solvers._routes import COMPILED_ACTUATORS as COMPILED_ACTUATORS
 from softcurve.simulation.solvers._routes import ROUTES as ROUTES
 from softcurve.simulation.solvers._routes import Route as Route
@@ -107,6 +114,7 @@ __all__ = [
     "failure_status",
     "linear_rates",
     "linearization_rates",
+    "method_name",
     "multistep_family",
     "lag_scale",
     "nominal_scale",
@@ -118,13 +126,19 @@ __all__ = [
     "Problem",
     "Solver",
     "solver",
+    "RadauEngine",
+    "RadauTableau",
+    "radau_constants",
+    "radau_tableau",
     "ScipyEngine",
+    "ScipyRadauEngine",
     "COMPILED_ACTUATORS",
     "ROUTES",
     "Route",
     "RouteWarning",
     "batch_route",
     "choose_route",
+    "DRIVER_FAMILIES",
     "DRIVER_FLAGS",
     "driver_options",
     "driver_library",

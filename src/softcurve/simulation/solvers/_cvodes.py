@@ -307,9 +307,21 @@ class CvodesEngine(PiecewiseSolver):
             x[None], np.atleast_2d(tau)[:, None, :], np.r_[0.0, h * tout], [tout.size], [False]
         )
         if flags[0]:
-            reason = cvodes_reason(c_driver.reason(flags[0]))
+            reason = self.failure_reason(flags[0])
             raise IntegrationFailure(reason, out[0, 1 : reached[0]].copy())
         return out[0, 1:]
+
+    @staticmethod
+    def failure_reason(flag: int) -> str:
+        """The driver's failure ``flag`` in a sentence
+        (:func:`~softcurve.simulation.solvers.cvodes_reason`).
+
+        Parameters
+        ----------
+        flag : int
+            A negative flag of CVODES, or -100 (the driver could not set it up).
+        """
+        return cvodes_reason(c_driver.reason(flag))
 
     def run_native(
         self, x0, u, times, ends, restart, fastest=None, check_domain=False, out=None
@@ -324,7 +336,7 @@ class CvodesEngine(PiecewiseSolver):
         x0, u, times, ends, restart, fastest, check_domain, out
             As :func:`softcurve.simulation.solvers.driver_integrate` takes them, for one member.
         """
-        family = 1 if self.multistep == "adams" else 2
+        family = c_driver.FAMILIES[self.multistep]
         settings = self.problem.driver_options()
         out, reached, flags, counts, used_bdf = c_driver.integrate(
             self.native, [family], x0, u, self.model.parameters[None], self.nominal[None],

@@ -82,10 +82,10 @@ threads finish: members differ in cost (a violent transient takes more steps).""
 
 
 def driver():
-    """The driver's entry point ``softcurve_cvodes`` (ctypes), built and loaded once per
+    """The driver's entry point ``softcurve_integrate`` (ctypes), built and loaded once per
     process; None where it cannot be (see the module notes) or inside :func:`casadi_only`."""
     loaded = library()
-    return None if loaded is None or _BYPASS else loaded.softcurve_cvodes
+    return None if loaded is None or _BYPASS else loaded.softcurve_integrate
 
 
 def unavailable() -> str | None:
@@ -127,7 +127,7 @@ def casadi_only():
 
 
 def options(rtol, atol, max_steps, *, max_order=0, family=1, settled_ratio=0.0,
-            columns_tested=False, helper=False):  # fmt: skip
+            columns_tested=False, helper=False, radau=None):  # fmt: skip
     """The settings of a call of the driver, as the header's ``sc_options``: the one place
     that fills it.
 
@@ -151,6 +151,9 @@ def options(rtol, atol, max_steps, *, max_order=0, family=1, settled_ratio=0.0,
         The sensitivity columns in the error test too.
     helper : bool
         With two parts of the columns' right-hand side, a helper thread shares the second.
+    radau : ndarray, shape (RADAU_CONSTANTS,), optional
+        Radau IIA's constants (:func:`~softcurve.simulation.solvers.radau_constants`), for
+        members of the family ``FAMILY_RADAU``; the array must outlive the call.
 
     Returns
     -------
@@ -166,6 +169,7 @@ def options(rtol, atol, max_steps, *, max_order=0, family=1, settled_ratio=0.0,
         settled_ratio=settled_ratio,
         columns_tested=int(columns_tested),
         helper=constants["HELPER_SHARED"] if helper else constants["HELPER_NONE"],
+        radau=None if radau is None else radau.ctypes.data,
     )
 
 
@@ -454,6 +458,11 @@ Options = DECLARATIONS.structs["sc_options"]
 """The header's ``sc_options``: the settings of a call
 (:func:`softcurve.simulation.solvers.driver_options`)."""
 
+FAMILIES = {
+    name: DECLARATIONS.constants[f"FAMILY_{name.upper()}"] for name in ("adams", "bdf", "radau")
+}
+"""The driver's integration families by name (``FAMILY_*`` of ``softcurve_driver.h``)."""
+
 CASADI_VERIFIED = ">=3.8,<3.9"
 """The CasADi versions whose private CVODES plugin the driver was verified with (the
 requirement of ``pyproject.toml``, which a test checks equal): the driver declares the
@@ -594,13 +603,17 @@ LAPACK_SIGNATURES = {
     "int *)",
     "dgetrs": "void (char *, int *, int *, __pyx_t_5scipy_6linalg_13cython_lapack_d *, int *, "
     "int *, __pyx_t_5scipy_6linalg_13cython_lapack_d *, int *, int *)",
+    "zgetf2": "void (int *, int *, __pyx_t_double_complex *, int *, int *, int *)",
+    "zgetrs": "void (char *, int *, int *, __pyx_t_double_complex *, int *, int *, "
+    "__pyx_t_double_complex *, int *, int *)",
 }
 """The C signatures of the routines the driver calls, as SciPy's capsules name them: C
-``int`` for every integer (not 64-bit LAPACK), ``double`` for the reals."""
+``int`` for every integer (not 64-bit LAPACK), ``double`` and C99's ``double complex``
+(two doubles) for the numbers."""
 
 
-def lapack_addresses() -> tuple[int, int]:
-    """The addresses of LAPACK's ``dgetf2`` and ``dgetrs`` in SciPy
+def lapack_addresses() -> tuple[int, ...]:
+    """The addresses of LAPACK's ``dgetf2``, ``dgetrs``, ``zgetf2`` and ``zgetrs`` in SciPy
     (``scipy.linalg.cython_lapack``, whose Cython API exports them as capsules in
     ``__pyx_capi__``: the mechanism ``cimport`` uses), each checked against
     :data:`LAPACK_SIGNATURES` (``tests/test_native_cvodes.py`` checks the pin).
@@ -608,7 +621,7 @@ def lapack_addresses() -> tuple[int, int]:
     Returns
     -------
     tuple of int
-        ``(dgetf2, dgetrs)``.
+        ``(dgetf2, dgetrs, zgetf2, zgetrs)``.
 
     Raises
     ------

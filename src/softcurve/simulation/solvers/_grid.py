@@ -10,12 +10,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from softcurve.base.validation import ParameterError
-from softcurve.simulation.solvers import _driver as c_driver
 from softcurve.simulation.solvers._policy import (
     LEFT_DOMAIN,
     RESTART_INTERVAL,
     IntegrationFailure,
-    cvodes_reason,
     restart_segments,
     settled,
 )
@@ -180,7 +178,7 @@ def run_on_grid(engine, grid, states, inputs, bar, domain, fastest=None, constan
         of the input to look for.
     """
     segments = restart_segments(grid, RESTART_INTERVAL)
-    on_driver = engine.route == "driver"
+    on_driver = getattr(engine, "native", None) is not None
     if on_driver:
         changes = np.empty(0, dtype=int) if constant else _input_changes(inputs)
         if bar is None:
@@ -229,7 +227,7 @@ def _run_native(engine, grid, states, inputs, domain, segments, fastest, changes
     domain.check(states, start + 1, done)
     if flags[0] == 1:  # outside by the driver's test, inside by Python's: stop there
         raise Stopped(done - 1, f"{LEFT_DOMAIN} at t = {grid[done - 1]:.6g} s")
-    raise Stopped(done, cvodes_reason(c_driver.reason(flags[0])))
+    raise Stopped(done, engine.failure_reason(flags[0]))
 
 
 def _input_changes(inputs: np.ndarray) -> np.ndarray:

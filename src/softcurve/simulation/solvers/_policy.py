@@ -254,6 +254,19 @@ def multistep_family(ratio, contact: bool = False):
     return np.where(stiff, "bdf", "adams")
 
 
+def method_name(family: str) -> str:
+    """The integrator's name as results carry it (``stats["method"]``, messages) for the
+    family a member ran: ``"radau"``, or CVODES's ``"cvodes-adams"``, ``"cvodes-bdf"``,
+    ``"cvodes-adams+bdf"``.
+
+    Parameters
+    ----------
+    family : {"adams", "bdf", "adams+bdf", "radau"}
+        The family.
+    """
+    return str(family) if family == "radau" else f"cvodes-{family}"
+
+
 SETTLED_RATIO = 1000.0
 """Where ``"cvodes"`` chose Adams, it integrates a restart segment with BDF once the robot
 has settled: when at the segment's start the state changes at less than 1/SETTLED_RATIO of
@@ -433,7 +446,7 @@ def failure_message(reason: str, grid: np.ndarray, reached: int, family: str) ->
             "rtol; check that the initial state and inputs are physical"
         )
     advice = ["loosen rtol/atol", "raise max_steps"]
-    if family != "cvodes-bdf":
-        advice.insert(0, "method='bdf' if the problem is stiff")
+    if family not in ("cvodes-bdf", "radau"):
+        advice.insert(0, "method='bdf' or 'radau' if the problem is stiff")
     advice.append("check that the initial state and inputs are physical")
     return f"{where}. What to try: " + "; ".join(advice)

@@ -24,7 +24,8 @@ from softcurve.simulation.solvers import _policy
 from softcurve.simulation.solvers._cvodes import ActuatorInput, CvodesEngine
 from softcurve.simulation.solvers._driver import options as driver_options
 from softcurve.simulation.solvers._policy import MAX_ORDER, cvodes_options
-from softcurve.simulation.solvers._rk45 import ScipyEngine
+from softcurve.simulation.solvers._radau import RadauEngine, radau_constants
+from softcurve.simulation.solvers._rk45 import ScipyEngine, ScipyRadauEngine
 from softcurve.symbolic.gaps import check_start
 
 
@@ -152,7 +153,7 @@ class Problem:
         ratio = _policy.SETTLED_RATIO if settled_ratio is None else settled_ratio
         return driver_options(
             self.rtol, self.scaled_atol, self.max_steps, family=family, max_order=max_order,
-            settled_ratio=ratio,
+            settled_ratio=ratio, radau=radau_constants(),
         )  # fmt: skip
 
 
@@ -160,7 +161,7 @@ class Solver(Protocol):
     """What every solver of one member implements once (:data:`METHODS`)."""
 
     name: str
-    """The algorithm's family: "cvodes" or "rk45"."""
+    """The algorithm's family: "cvodes", "radau" or "rk45"."""
     route: str
     """The route it runs (a key of ``ROUTES`` of :mod:`softcurve.simulation.solvers`)."""
     counts: dict
@@ -175,7 +176,13 @@ class Solver(Protocol):
         ``taus[k]`` applied on ``(tout[k-1], tout[k]]``."""
 
 
-METHODS = {"driver": CvodesEngine, "casadi-cvodes": CvodesEngine, "rk45": ScipyEngine}
+METHODS = {
+    "driver": CvodesEngine,
+    "casadi-cvodes": CvodesEngine,
+    "driver-radau": RadauEngine,
+    "scipy-radau": ScipyRadauEngine,
+    "rk45": ScipyEngine,
+}
 """The solver class behind each route of one member."""
 
 

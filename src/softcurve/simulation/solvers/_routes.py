@@ -25,6 +25,10 @@ ROUTES = {
     "as one system on the state derivative over vector lanes",
     "casadi-cvodes": "CVODES inside CasADi's integrator on the scaled DAE (a batch: one "
     "integrator mapped over the members)",
+    "driver-radau": "Radau IIA of order 5 in softcurve's C driver, one member per system, "
+    "the whole output grid in one call",
+    "scipy-radau": "SciPy's Radau IIA of order 5 stepped from Python (method='radau' "
+    "where the C driver cannot run)",
     "rk45": "SciPy's explicit Runge-Kutta 4(5) stepped from Python",
     "sensitivity-driver": "the C driver's forward sensitivities (staggered corrector), on "
     "one thread",
@@ -121,7 +125,8 @@ def choose_route(task: str, method: str = "cvodes", *, model=None, inputs=None, 
     """The route of one integration, with the reason, warning once (:class:`RouteWarning`)
     where a fast route should build and does not.
 
-    The rules, in order: ``method="rk45"`` runs SciPy's RK45; CVODES runs in the C driver
+    The rules, in order: ``method="rk45"`` runs SciPy's RK45; ``method="radau"`` runs the
+    C driver's Radau IIA where the driver runs (as below), else SciPy's; CVODES runs in the C driver
     where it loads, the model is compiled and the actuator's force compiles (and a batch
     has at most :data:`COMPILED_ACTUATORS` actuators), in groups over lanes where a batch
     of ``lanes`` fills one and the lane code builds; else in CasADi's integrator. The
@@ -134,7 +139,7 @@ def choose_route(task: str, method: str = "cvodes", *, model=None, inputs=None, 
     task : {"simulate", "batch", "sensitivity", "stepper"}
         What integrates.
     method : str
-        The settings' method ("cvodes", "adams", "bdf" or "rk45").
+        The settings' method ("cvodes", "adams", "bdf", "radau" or "rk45").
     model : Model, optional
         The compiled model (simulate, batch).
     inputs : ActuatorInput, optional
@@ -183,30 +188,34 @@ def choose_route(task: str, method: str = "cvodes", *, model=None, inputs=None, 
         return Route(name, f"the C driver on {min(threads, 2)} thread(s)", built)
     if method == "rk45":
         return Route("rk45", "method='rk45' was asked")
+    radau = method == "radau"
     why, asked = _driver_missing(model)
     if why is None and actuators > COMPILED_ACTUATORS:
         why, asked = f"{actuators} actuators, more than {COMPILED_ACTUATORS} to compile", True
-    grouped = task == "batch" and lanes and members >= LANE_WIDTH
+    grouped = task == "batch" and lanes and members >= LANE_WIDTH and not radau
     problem = None if why else c_driver.problem(model, inputs, grouped, jacobian == "exact")
     if why is None and problem is None:
         why, asked = "the actuator's force H(q) u did not compile", False
     if why is not None:
+        instead = "scipy-radau" if radau else "casadi-cvodes"
         if not asked:
-            warn_once(why, "casadi-cvodes")
-        return Route("casadi-cvodes", why)
+            warn_once(why, instead)
+        return Route(instead, why)
     if problem.width > 1:
         return Route("driver-lanes", f"{members} members in groups of {problem.width}", problem)
     if grouped:
         warn_once("the state derivative over lanes did not compile", "driver")
         return Route("driver", "the lane code did not build", problem)
     reason = "lanes=False" if task == "batch" and not lanes else "one member per system"
+    if radau:
+        reason = "method='radau' was asked, one member per system"
     if jacobian == "exact":
         if problem.exact:
             reason += ", the model's exact Jacobian"
         else:
             warn_once("the exact Jacobian did not compile", "driver")
             reason += ", forward-difference Jacobians (the exact one did not compile)"
-    return Route("driver", reason, problem)
+    return Route("driver-radau" if radau else "driver", reason, problem)
 
 
 def batch_route(names) -> str:

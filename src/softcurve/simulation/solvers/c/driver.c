@@ -124,80 +124,52 @@ double difference_step(double v) {
     return 1.4901161193847656e-08 * (fabs(v) > 1.0 ? fabs(v) : 1.0);
 }
 
-/* LAPACK's dgetf2 and dgetrs (SciPy's, softcurve_use_lapack) for the Newton matrices of
- * lapack_from states and more; NULL: the loops below for all. dgetf2, the unblocked LU,
+/* LAPACK's dgetf2 and dgetrs, and zgetf2 and zgetrs for the complex ones (SciPy's,
+ * softcurve_use_lapack), for the Newton matrices of lapack_from states and more; NULL:
+ * the loops of newton_lu.h for all. dgetf2, the unblocked LU,
  * because SciPy's OpenBLAS runs its blocked dgetrf (and dgemv) on threads of its own
  * at these sizes, which made a batch on two threads of the driver slower than on the
  * loops. Set once, when the library is loaded, before any integration. */
 typedef void (*getf2_fn)(int *m, int *n, double *a, int *lda, int *ipiv, int *info);
 typedef void (*getrs_fn)(char *trans, int *n, int *nrhs, double *a, int *lda, int *ipiv,
                          double *b, int *ldb, int *info);
+typedef void (*zgetf2_fn)(int *m, int *n, double complex *a, int *lda, int *ipiv, int *info);
+typedef void (*zgetrs_fn)(char *trans, int *n, int *nrhs, double complex *a, int *lda,
+                          int *ipiv, double complex *b, int *ldb, int *info);
 static getf2_fn lapack_getf2;
 static getrs_fn lapack_getrs;
+static zgetf2_fn lapack_zgetf2;
+static zgetrs_fn lapack_zgetrs;
 static int lapack_from;
 
 /* softcurve_driver.h */
-SC_EXPORT void softcurve_use_lapack(void *getf2, void *getrs, int from) {
+SC_EXPORT void softcurve_use_lapack(void *getf2, void *getrs, void *zgetf2, void *zgetrs,
+                                    int from) {
     lapack_getf2 = (getf2_fn)getf2;
     lapack_getrs = (getrs_fn)getrs;
+    lapack_zgetf2 = (zgetf2_fn)zgetf2;
+    lapack_zgetrs = (zgetrs_fn)zgetrs;
     lapack_from = from;
 }
 
 static int by_lapack(int n) { return lapack_getf2 != NULL && n >= lapack_from; }
 
-/* A = I - gamma J (n x n, column-major) as its LU factors (partial pivoting, row swaps in
- * piv: 0-based by the loops, LAPACK's 1-based by dgetf2); 1 where singular. */
-int factor_newton(const double *J, double gamma, int n, double *A, int *piv) {
-    int i, j, k;
-    for (k = 0; k < n * n; ++k) A[k] = -gamma * J[k];
-    for (i = 0; i < n; ++i) A[i + i * n] += 1.0;
-    if (by_lapack(n)) {
-        int info = 0;
-        lapack_getf2(&n, &n, A, &n, piv, &info);
-        return info != 0;
-    }
-    for (k = 0; k < n; ++k) {
-        int p = k;
-        double big = fabs(A[k + k * n]);
-        for (i = k + 1; i < n; ++i)
-            if (fabs(A[i + k * n]) > big) big = fabs(A[i + k * n]), p = i;
-        if (big == 0.0) return 1;
-        piv[k] = p;
-        if (p != k)
-            for (j = 0; j < n; ++j) {
-                double a = A[k + j * n];
-                A[k + j * n] = A[p + j * n];
-                A[p + j * n] = a;
-            }
-        for (i = k + 1; i < n; ++i) A[i + k * n] /= A[k + k * n];
-        for (j = k + 1; j < n; ++j)
-            for (i = k + 1; i < n; ++i) A[i + j * n] -= A[i + k * n] * A[k + j * n];
-    }
-    return 0;
-}
-
-/* z = A^-1 z with the factors of factor_newton: the row swaps, then L, then U. */
-void solve_newton(const double *A, const int *piv, int n, double *z) {
-    int i, k;
-    if (by_lapack(n)) {
-        int one = 1, info = 0;
-        char trans = 'N';
-        lapack_getrs(&trans, &n, &one, (double *)A, &n, (int *)piv, z, &n, &info);
-        return;
-    }
-    for (k = 0; k < n; ++k)
-        if (piv[k] != k) {
-            double a = z[k];
-            z[k] = z[piv[k]];
-            z[piv[k]] = a;
-        }
-    for (k = 0; k < n; ++k)
-        for (i = k + 1; i < n; ++i) z[i] -= A[i + k * n] * z[k];
-    for (k = n - 1; k >= 0; --k) {
-        z[k] /= A[k + k * n];
-        for (i = 0; i < k; ++i) z[i] -= A[i + k * n] * z[k];
-    }
-}
+/* driver_internal.h: factor_newton, solve_newton, and for Radau IIA's complex Newton
+ * matrix factor_complex, solve_complex */
+#define LU_SCALAR double
+#define LU_ABS fabs
+#define LU_GETF2 lapack_getf2
+#define LU_GETRS lapack_getrs
+#define LU_FACTOR factor_newton
+#define LU_SOLVE solve_newton
+#include "newton_lu.h"
+#define LU_SCALAR double complex
+#define LU_ABS cabs
+#define LU_GETF2 lapack_zgetf2
+#define LU_GETRS lapack_zgetrs
+#define LU_FACTOR factor_complex
+#define LU_SOLVE solve_complex
+#include "newton_lu.h"
 
 /* Jv = J v (n x n, column-major). */
 void times_jacobian(const double *J, const double *v, int n, double *Jv) {

@@ -1,9 +1,11 @@
 /* The driver's own declarations, shared by its C files (not seen by Python): the work of
- * one member, the Newton-matrix callbacks' helpers and the domain test (driver.c), the
+ * one member, the Newton-matrix callbacks' helpers and the domain test (driver.c), Radau
+ * IIA (radau.c), the
  * parts of the columns' right-hand side (parts.c). */
 #ifndef SOFTCURVE_DRIVER_INTERNAL_H
 #define SOFTCURVE_DRIVER_INTERNAL_H
 
+#include <complex.h>
 #include <pthread.h>
 
 #include "softcurve_driver.h"
@@ -65,6 +67,9 @@ int newton_jacobian(sc_work *s, double *y, const double *fy);
 int factor_newton(const double *J, double gamma, int n, double *A, int *piv);
 /* z = A^-1 z with the factors of factor_newton: the row swaps, then L, then U. */
 void solve_newton(const double *A, const int *piv, int n, double *z);
+/* The same two for A = I - mu J with a complex mu (Radau IIA's complex Newton matrix). */
+int factor_complex(const double *J, double complex mu, int n, double complex *A, int *piv);
+void solve_complex(const double complex *A, const int *piv, int n, double complex *z);
 /* Jv = J v (n x n, column-major). */
 void times_jacobian(const double *J, const double *v, int n, double *Jv);
 /* CVODES with Newton's method on a Newton matrix of callbacks (setup, solve, jtimes) for
@@ -80,6 +85,40 @@ void *create(int lmm, double t0, N_Vector y, CVRhsFn f, void *data, double rtol,
  * configuration outside by the model's domain(q, p) (s's function's, on s's work arrays;
  * the rule of softcurve.description.elements, whose Python side words the message). */
 int outside(sc_work *s, const double *x, int width, const double *p);
+
+/* Radau IIA of order 5 on one member's work (radau.c). */
+enum { JACOBIAN_NONE = 0, JACOBIAN_KEPT = 1, JACOBIAN_FRESH = 2 }; /* s->J: none, of an
+                                                earlier state, of this step's start */
+typedef struct {
+    sc_work *s;
+    const double *k; /* the method's constants, RADAU_* */
+    int n;
+    double rtol, atol, newton_tolerance;
+    double t, t_stop, h;         /* the time, where steps stop, the next step size */
+    double t_last, h_last;       /* the last accepted step (h_last 0: none since the start) */
+    double h_factored;           /* the step size of the factors (0: none) */
+    double eta, error_last;      /* the last Newton contraction factor and error norm */
+    int jacobian, continues, predict, rejected, first;
+    double *block, *y, *fy, *y_last, *scale, *v, *e, *ze, *z, *w, *dw, *f, *q;
+    double complex *lu; /* the complex factors (n x n), then n complex for a solve */
+    int *piv;
+    long counters[5]; /* since the start, as read_counters orders them */
+} sc_radau;
+
+/* 0, or 1 when out of memory or without constants (radau_close frees what was
+ * allocated). */
+int radau_open(sc_radau *r, sc_work *s, const sc_options *o);
+void radau_close(sc_radau *r);
+/* A new member: no step size, no Jacobian. */
+void radau_reset(sc_radau *r);
+/* Start at t0 from the scaled state y, stepping up to t_stop at most; with same_input the
+ * steps go on where the last one ended at t0 (y unread). 0, or CV_FIRST_RHSFUNC_ERR. */
+int radau_start(sc_radau *r, double t0, const double *y, double t_stop, int same_input);
+/* One accepted step (*tret: where it ends); 0, or the CVODES flag of the failure's
+ * meaning. */
+int radau_step(sc_radau *r, double *tret);
+/* The state at t within the last accepted step, by its collocation polynomial. */
+void radau_interpolate(const sc_radau *r, double t, double *out);
 
 /* One part of the columns' right-hand side: its function, arrays and output. */
 typedef struct {

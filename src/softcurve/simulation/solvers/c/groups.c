@@ -1,6 +1,7 @@
-/* softcurve_cvodes (softcurve_driver.h): members integrated one by one, or, where the
- * problem has the state derivative over lanes (lanes_derivative of softcurve.simulation.solvers), in
- * groups whose members are stacked into one CVODES system and evaluated together.
+/* softcurve_integrate (softcurve_driver.h): members integrated one by one, by CVODES or by
+ * Radau IIA (radau.c), or, where the problem has the state derivative over lanes
+ * (lanes_derivative of softcurve.simulation.solvers), in groups whose members are stacked
+ * into one CVODES system and evaluated together.
  *
  * Why groups: one lanes evaluation of four members costs about one scalar evaluation
  * (softcurve.compiled.LANE_WIDTH), and CVODES's own work per step (vector
@@ -135,7 +136,7 @@ static int group_jtimes(N_Vector vv, N_Vector Jvv, realtype t, N_Vector y, N_Vec
     return 0;
 }
 
-/* One call of softcurve_cvodes: its arguments and its work. */
+/* One call of softcurve_integrate: its arguments and its work. */
 typedef struct {
     const sc_function *fn;
     const int *lmm, *ends, *restart;
@@ -147,6 +148,8 @@ typedef struct {
     long *stats;
     sc_work s;
     sc_group G;
+    sc_radau radau;
+    int radau_open; /* radau is allocated */
     void *mem[5]; /* by family (1 Adams, 2 BDF), + 2 for a group */
     N_Vector y[2], dky[2]; /* one member's, a group's */
 } sc_call;
@@ -155,14 +158,18 @@ typedef struct {
  * Returns 1 where a member of a group failed or left the domain (the caller then
  * integrates them again alone), else 0. */
 static int integrate_members(sc_call *c, int b, int g) {
-    int n = c->n, grouped = g > 1, own, family, first = 0, stop = 0, l, i, j, e;
+    int n = c->n, grouped = g > 1, own, family, radau, first = 0, stop = 0, l, i, j, e;
     double *ys = N_VGetArrayPointer(c->y[grouped]), *out_y = N_VGetArrayPointer(c->dky[grouped]);
     double tret, *ftmp = grouped ? c->G.ftmp : c->s.ftmp;
     const double *nominal = c->nominal + (long)b * n;
     void *data = grouped ? (void *)&c->G : (void *)&c->s;
     for (l = 0; l < g; ++l) c->flag[b + l] = 0, c->reached[b + l] = 1;
-    own = family = c->lmm[b] == CV_BDF ? CV_BDF : CV_ADAMS; /* a group's members share it */
+    own = family = c->lmm[b] == FAMILY_RADAU ? FAMILY_RADAU
+                   : c->lmm[b] == CV_BDF      ? CV_BDF
+                                              : CV_ADAMS; /* a group's members share it */
+    radau = family == FAMILY_RADAU; /* never in a group */
     for (l = 0; l < g; ++l) c->used_bdf[b + l] = family == CV_BDF;
+    if (radau) radau_reset(&c->radau);
     if (grouped) {
         c->G.nominal = nominal;
         for (l = 0; l < g; ++l)
@@ -174,7 +181,7 @@ static int integrate_members(sc_call *c, int b, int g) {
     for (e = 0; e < c->n_ends && !stop; first = c->ends[e], ++e) {
         long counters[5] = {0, 0, 0, 0, 0};
         int slot;
-        int switches = e > 0 && c->restart[e];
+        int switches = e > 0 && c->restart[e] && !radau;
         for (l = 0; l < g; ++l) {
             const double *u = c->u + ((long)(b + l) * c->n_ends + e) * c->inputs;
             const double *start = c->out + ((long)(b + l) * c->k + first) * n;
@@ -197,7 +204,11 @@ static int integrate_members(sc_call *c, int b, int g) {
         }
         if (grouped) c->G.jacobians = 0; else c->s.jacobians = 0;
         slot = family + 2 * grouped;
-        if (c->mem[slot] == NULL) {
+        if (radau) {
+            const double *u = c->u + ((long)b * c->n_ends + e) * c->inputs;
+            int same = e > 0 && memcmp(u, u - c->inputs, sizeof(double) * c->inputs) == 0;
+            stop = radau_start(&c->radau, c->times[first], ys, c->times[c->ends[e]], same);
+        } else if (c->mem[slot] == NULL) {
             double shrink = sqrt((double)g); /* the group's norm bounds every member's */
             c->mem[slot] = grouped ? create_with(family, c->times[first], c->y[1], group_rhs,
                                                  group_setup, group_solve, group_jtimes, data,
@@ -213,7 +224,7 @@ static int integrate_members(sc_call *c, int b, int g) {
             for (l = 0; l < g; ++l) c->flag[b + l] = stop;
             break;
         }
-        CVodeSetStopTime(c->mem[slot], c->times[c->ends[e]]);
+        if (!radau) CVodeSetStopTime(c->mem[slot], c->times[c->ends[e]]);
         tret = c->times[first];
         for (i = first + 1; i <= c->ends[e] && !stop; ++i) {
             /* One internal step at a time, and every output it passed interpolated:
@@ -222,13 +233,16 @@ static int integrate_members(sc_call *c, int b, int g) {
              * tout the next output: CVODES sizes a restart's first step by it. */
             long taken = 0;
             while (tret < c->times[i] && !stop) {
-                int status = ++taken > c->o->max_steps
-                                 ? CV_TOO_MUCH_WORK
-                                 : CVode(c->mem[slot], c->times[i], c->y[grouped], &tret,
-                                         CV_ONE_STEP);
+                int status = ++taken > c->o->max_steps ? CV_TOO_MUCH_WORK
+                             : radau ? radau_step(&c->radau, &tret)
+                                     : CVode(c->mem[slot], c->times[i], c->y[grouped], &tret,
+                                             CV_ONE_STEP);
                 if (status < 0) stop = status;
             }
-            if (!stop && CVodeGetDky(c->mem[slot], c->times[i], 0, c->dky[grouped])) stop = -100;
+            if (!stop && radau)
+                radau_interpolate(&c->radau, c->times[i], out_y);
+            else if (!stop && CVodeGetDky(c->mem[slot], c->times[i], 0, c->dky[grouped]))
+                stop = -100;
             if (stop) {
                 for (l = 0; l < g; ++l) c->flag[b + l] = stop;
                 break;
@@ -242,7 +256,10 @@ static int integrate_members(sc_call *c, int b, int g) {
                     c->flag[b + l] = stop = 1;
             }
         }
-        read_counters(c->mem[slot], counters);
+        if (radau)
+            memcpy(counters, c->radau.counters, sizeof(counters));
+        else
+            read_counters(c->mem[slot], counters);
         for (l = 0; l < g; ++l) {
             long *stats = c->stats + (long)(b + l) * STATS;
             stats[0] += counters[0];
@@ -257,12 +274,12 @@ static int integrate_members(sc_call *c, int b, int g) {
 }
 
 /* softcurve_driver.h */
-SC_EXPORT int softcurve_cvodes(const sc_function *fn, const sc_options *options, int count,
-                               const int *lmm, const double *fastest, const double *u,
-                               const double *p, const double *nominal, int check_domain,
-                               const double *times, int k, const int *ends, const int *restart,
-                               int n_ends, double *out, int *reached, int *flag, int *used_bdf,
-                               long *stats) {
+SC_EXPORT int softcurve_integrate(const sc_function *fn, const sc_options *options, int count,
+                                  const int *lmm, const double *fastest, const double *u,
+                                  const double *p, const double *nominal, int check_domain,
+                                  const double *times, int k, const int *ends,
+                                  const int *restart, int n_ends, double *out, int *reached,
+                                  int *flag, int *used_bdf, long *stats) {
     int width = fn->lanes != NULL && fn->width > 1 ? fn->width : 1, b, g, l, i, e, failed;
     long *kept = (long *)malloc(sizeof(long) * STATS * width); /* counters before a group */
     sc_call c;
@@ -276,11 +293,16 @@ SC_EXPORT int softcurve_cvodes(const sc_function *fn, const sc_options *options,
     c.y[1] = N_VNew_Serial((long)width * c.n), c.dky[1] = N_VNew_Serial((long)width * c.n);
     failed = work_open(&c.s, fn, c.n) || !c.y[0] || !c.dky[0] || !c.y[1] || !c.dky[1] || !kept;
     if (width > 1) failed = group_open(&c.G, fn, c.n) || failed;
+    for (b = 0; b < count && !c.radau_open; ++b)
+        if (lmm[b] == FAMILY_RADAU) {
+            c.radau_open = 1;
+            failed = radau_open(&c.radau, &c.s, options) || failed;
+        }
     for (b = 0; b < count && failed; ++b) flag[b] = -100, reached[b] = 1;
     for (b = 0; b < count && !failed; b += g) {
         int alike = 1, tried = 0;
         g = width > 1 && count - b >= width ? width : 1;
-        for (l = 1; l < g; ++l) alike = alike && lmm[b + l] == lmm[b];
+        for (l = 0; l < g; ++l) alike = alike && lmm[b + l] == lmm[b] && lmm[b] != FAMILY_RADAU;
         if (g > 1 && alike) {
             memcpy(kept, stats + (long)b * STATS, sizeof(long) * STATS * g);
             if (!integrate_members(&c, b, g)) continue;
@@ -304,6 +326,7 @@ SC_EXPORT int softcurve_cvodes(const sc_function *fn, const sc_options *options,
     }
     work_close(&c.s);
     if (width > 1) group_close(&c.G);
+    if (c.radau_open) radau_close(&c.radau);
     free(kept);
     return 0;
 }

@@ -61,13 +61,36 @@ typedef struct {
 typedef struct {
     double rtol;          /* relative tolerance */
     double atol;          /* absolute tolerance of the integrated state */
-    long max_steps;       /* CVODES's steps allowed per output */
+    long max_steps;       /* steps allowed per output */
     int max_order;        /* the largest order of the method; 0: CVODES's own */
     int family;           /* softcurve_sensitivities: 1 Adams, 2 BDF */
-    double settled_ratio; /* softcurve_cvodes: settled when max |xdot| ratio < fastest */
+    double settled_ratio; /* softcurve_integrate: settled when max |xdot| ratio < fastest */
     int columns_tested;   /* softcurve_sensitivities: the columns in the error test too */
     int helper;           /* softcurve_sensitivities: HELPER_NONE or HELPER_SHARED */
+    const double *radau;  /* FAMILY_RADAU: the method's RADAU_CONSTANTS constants */
 } sc_options;
+
+/* The families of softcurve_integrate: CVODES's Adams and BDF (SUNDIALS's CV_ADAMS and
+ * CV_BDF), and the driver's own Radau IIA of order 5 (radau.c). */
+enum { FAMILY_ADAMS = 1, FAMILY_BDF = 2, FAMILY_RADAU = 3 };
+
+/* Where Radau IIA's constants lie in sc_options.radau (RADAU_CONSTANTS doubles, computed
+ * by softcurve.simulation.solvers.radau_constants): the nodes c (3); T and T^-1 (3 x 3,
+ * row-major), with T^-1 A^-1 T = [[gamma, 0, 0], [0, alpha, -beta], [0, beta, alpha]] for
+ * the method's matrix A; gamma, alpha, beta; the error estimate's weights E (3); the dense
+ * output's P (3 x 3, row-major: the collocation polynomial is y + sum_k x^(k+1) sum_i
+ * P[k][i] Z_i at t + x h, for the stage increments Z_i). */
+enum {
+    RADAU_C = 0,
+    RADAU_T = 3,
+    RADAU_TI = 12,
+    RADAU_GAMMA = 21,
+    RADAU_ALPHA = 22,
+    RADAU_BETA = 23,
+    RADAU_E = 24,
+    RADAU_P = 27,
+    RADAU_CONSTANTS = 36
+};
 
 /* Who evaluates the second of two parts of the columns' right-hand side: the driver's
  * own thread, or whichever of it and a helper thread claims it first. */
@@ -75,26 +98,30 @@ enum { HELPER_NONE = 0, HELPER_SHARED = 1 };
 
 /* Integrate `count` members over the grid `times[0..k)` from out[b, 0, :] (physical, at
  * times[0]), in segments ending at the output indices ends[0..n_ends) (the last is k - 1),
- * each a fresh start of CVODES with the member's input of that segment u[b, s, :]. Member b
- * starts with family lmm[b] (1 Adams, 2 BDF); where restart[s] and fastest[b] > 0, segment s
- * is integrated with BDF if the member has settled (max |xdot / nominal| * settled_ratio <
- * fastest[b]) and with lmm[b] otherwise. A member stops at its first output outside the
- * domain (an entry not finite, or, with check_domain, the configuration outside by
- * fn->domain with the member's parameters p[b, :]) or at a failure of CVODES. Writes
- * out[b, i, :], reached[b] (outputs filled, the one outside the domain included), flag[b]
- * (0, 1 outside the domain, CVODES's negative flag, -100 when it could not be set up),
+ * each with the member's input of that segment u[b, s, :]. Member b is integrated with the
+ * family lmm[b] (FAMILY_ADAMS, FAMILY_BDF or FAMILY_RADAU). CVODES starts afresh at every
+ * segment; where restart[s] and fastest[b] > 0, segment s is integrated with BDF if the
+ * member has settled (max |xdot / nominal| * settled_ratio < fastest[b]) and with lmm[b]
+ * otherwise. Radau IIA keeps its step size and Jacobian over segments, and its steps go on
+ * through a segment whose input is the last one's. A member stops at its first output
+ * outside the domain (an entry not finite, or, with check_domain, the configuration
+ * outside by fn->domain with the member's parameters p[b, :]) or at a failure of its
+ * method. Writes out[b, i, :], reached[b] (outputs filled, the one outside the domain
+ * included), flag[b] (0, 1 outside the domain, CVODES's negative flag, or Radau IIA's
+ * failure as the CVODES flag of the same meaning, -100 when it could not be set up),
  * used_bdf[b], and adds to stats[b, :]: steps, right-hand sides, Jacobians, linear-solver
- * setups, error-test failures, Newton failures. Where fn has lanes, members b .. b + width
- * - 1 of one family (b a multiple of fn->width) go in a group, the others alone: a group
- * switches to BDF at a restart where all have settled, and its counters are every
- * member's; a group that fails is integrated again member by member (outputs beyond
- * what a member then reaches are NaN). Returns 0. */
-SC_EXPORT int softcurve_cvodes(const sc_function *fn, const sc_options *options, int count,
-                               const int *lmm, const double *fastest, const double *u,
-                               const double *p, const double *nominal, int check_domain,
-                               const double *times, int k, const int *ends, const int *restart,
-                               int n_ends, double *out, int *reached, int *flag, int *used_bdf,
-                               long *stats);
+ * setups (Radau IIA: factorizations of its pair of Newton matrices), error-test failures,
+ * Newton failures. Where fn has lanes, members b .. b + width - 1 of one multistep family
+ * (b a multiple of fn->width) go in a group, the others alone: a group switches to BDF at
+ * a restart where all have settled, and its counters are every member's; a group that
+ * fails is integrated again member by member (outputs beyond what a member then reaches
+ * are NaN). Returns 0. */
+SC_EXPORT int softcurve_integrate(const sc_function *fn, const sc_options *options, int count,
+                                  const int *lmm, const double *fastest, const double *u,
+                                  const double *p, const double *nominal, int check_domain,
+                                  const double *times, int k, const int *ends,
+                                  const int *restart, int n_ends, double *out, int *reached,
+                                  int *flag, int *used_bdf, long *stats);
 
 /* Integrate from out[0, :] = (x0, vec(S0)) (physical units) over times[0..count) and
  * write out[i, :] = (x, vec(S)) at times[i]. fn describes f(x, u, d) (nx states, nu
@@ -128,9 +155,11 @@ SC_EXPORT int softcurve_newton_jacobian(const sc_function *fn, const double *x, 
                                         const double *p, const double *nominal, double *J);
 
 /* The Newton matrices of `from` states and more factored and solved by LAPACK's dgetf2
- * and dgetrs at these addresses (SciPy's; NULL: by the driver's own loops, as below
- * `from`). Called once, when the library is loaded. */
-SC_EXPORT void softcurve_use_lapack(void *getf2, void *getrs, int from);
+ * and dgetrs, the complex ones of Radau IIA by zgetf2 and zgetrs, at these addresses
+ * (SciPy's; NULL: by the driver's own loops, as below `from`). Called once, when the
+ * library is loaded. */
+SC_EXPORT void softcurve_use_lapack(void *getf2, void *getrs, void *zgetf2, void *zgetrs,
+                                    int from);
 
 /* sizeof of the structs above, for the check that Python's declarations match. */
 SC_EXPORT long softcurve_sizeof_sc_function(void);

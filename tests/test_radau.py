@@ -1,0 +1,276 @@
+"""Radau IIA of order 5 in the C driver (``method="radau"``): its constants against their
+defining conditions, its order on problems with a known solution (one of them stiff), the
+energy it never creates, the trajectories of CVODES to the tolerance on every segment
+kind, actuator and scenario file, batches, its fallback and its failures."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+import casadi as ca
+import numpy as np
+import pytest
+
+import softcurve as sc
+from softcurve.base.status import Status
+from softcurve.cli import main
+from softcurve.cli import simulate as simulate_command
+from softcurve.compiled import NativeFunction, compile_source
+from softcurve.simulation import JACOBIANS, METHODS, SimulationSettings
+from softcurve.simulation.solvers import (
+    DRIVER_FAMILIES,
+    casadi_only,
+    driver_integrate,
+    driver_options,
+    radau_constants,
+    radau_tableau,
+)
+from softcurve.simulation.solvers import _driver as c_driver
+
+from .conftest import random_state
+from .test_kinds import KINDS, robots
+
+EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
+
+
+# -- the method's constants -------------------------------------------------------------------
+def test_the_tableau_meets_the_conditions_that_define_it():
+    """Nodes, collocation (C(3)) and quadrature of order 5 (B(5)), the eigenvalues and the
+    error weights Hairer and Wanner publish, and the dense output through the stages."""
+    t = radau_tableau()
+    root6 = np.sqrt(6.0)
+    np.testing.assert_allclose(t.nodes, [(4 - root6) / 10, (4 + root6) / 10, 1.0], rtol=1e-14)
+    for k in range(1, 4):  # C(3): the stages are collocation points of order 3
+        np.testing.assert_allclose(t.matrix @ t.nodes ** (k - 1), t.nodes**k / k, atol=1e-15)
+    for k in range(1, 6):  # B(5): the weights integrate polynomials of degree 4 exactly
+        assert t.weights @ t.nodes ** (k - 1) == pytest.approx(1.0 / k, abs=1e-15)
+    blocks = t.inverse_transform @ np.linalg.inv(t.matrix) @ t.transform
+    expected = [[t.gamma, 0, 0], [0, t.alpha, -t.beta], [0, t.beta, t.alpha]]
+    np.testing.assert_allclose(blocks, expected, atol=1e-13)
+    assert t.gamma == pytest.approx(3 + 3 ** (2 / 3) - 3 ** (1 / 3), rel=1e-14)
+    published = np.array([-13 - 7 * root6, -13 + 7 * root6, -1]) / 3
+    np.testing.assert_allclose(t.error, published, rtol=1e-13)
+    # the polynomial y + sum_k x^(k+1) sum_i P[k, i] Z_i passes through the stages Z_j
+    powers = t.nodes[:, None] ** np.arange(1, 4)
+    np.testing.assert_allclose(powers @ t.dense, np.eye(3), atol=1e-13)
+
+
+def test_the_constants_lie_where_the_header_says():
+    constants, at, t = radau_constants(), c_driver.DECLARATIONS.constants, radau_tableau()
+    assert constants.size == at["RADAU_CONSTANTS"] and not constants.flags.writeable
+    np.testing.assert_array_equal(constants[at["RADAU_C"] : at["RADAU_C"] + 3], t.nodes)
+    np.testing.assert_array_equal(constants[at["RADAU_TI"] : at["RADAU_TI"] + 9],
+                                  t.inverse_transform.ravel())  # fmt: skip
+    assert constants[at["RADAU_BETA"]] == t.beta
+    np.testing.assert_array_equal(constants[at["RADAU_P"] :], t.dense.ravel())
+
+
+# -- order and stiffness on a problem with a known solution --------------------------------
+def _prothero_robinson():
+    """``y' = lam (y - s) + c`` with ``s' = c``, ``c' = -s`` (autonomous, as the driver
+    integrates): from ``(0, 0, 1)``, ``y = s = sin t`` whatever ``lam`` (the parameter)."""
+    x, tau, p = ca.SX.sym("x", 3), ca.SX.sym("tau", 1), ca.SX.sym("p", 1)
+    f = ca.Function("radau_prothero_robinson", [x, tau, p],
+                    [ca.vertcat(p[0] * (x[0] - x[1]) + x[2], x[2], -x[1])])  # fmt: skip
+    generator = ca.CodeGenerator("f.c", {"with_header": False})
+    generator.add(f)
+    built = compile_source("test_radau", generator.dump(), symbols=(f.name(),))
+    return c_driver.DriverProblem(NativeFunction(built, f.name()), 3, 1, 1)
+
+
+def _final_error(problem, lam, rtol, t_final=10.0):
+    settings = driver_options(rtol, rtol, 10**6, radau=radau_constants())
+    out, _, flags, counts, _ = driver_integrate(
+        problem, [DRIVER_FAMILIES["radau"]], np.array([[0.0, 0.0, 1.0]]), np.zeros((1, 1, 1)),
+        np.array([[lam]]), np.ones((1, 3)), np.array([0.0, t_final]), ([1], [True]), settings,
+    )  # fmt: skip
+    assert flags[0] == 0
+    return abs(out[0, -1, 0] - np.sin(t_final)), int(counts[0, 0])
+
+
+def test_order_five_and_steps_free_of_the_stiffness():
+    """Error against steps over tolerances 1e-3 .. 1e-10: slope -5 (order 5) with lam = -1
+    and with lam = -1e6, in the same steps (an explicit method would need 1e6 / 2.8 steps
+    per second)."""
+    problem = _prothero_robinson()
+    rtols = 10.0 ** -np.arange(3, 11)
+    runs = {lam: [_final_error(problem, lam, rtol) for rtol in rtols] for lam in (-1.0, -1e6)}
+    for lam, rows in runs.items():
+        errors, steps = np.array(rows).T
+        slope = np.polyfit(np.log(steps), np.log(errors), 1)[0]
+        assert -5.6 < slope < -4.6, f"lam {lam}: error ~ steps^{slope:.2f}"
+        assert np.all(np.diff(errors) < 0)
+    stiff, mild = (np.array(runs[lam])[:, 1] for lam in (-1e6, -1.0))
+    assert np.all(stiff <= 1.1 * mild), (stiff, mild)
+
+
+def test_the_order_observed_on_the_paper_case(paper_model):
+    """The paper's case, 0.5 s: error at the outputs against steps over tolerances 1e-3 ..
+    1e-7, against CVODES at 1e-13. The outputs between steps come from the collocation
+    polynomial (degree 3, local error h^4), so the order seen there lies between 4 and
+    the steps' 5."""
+    start = ([0.064, 25.0, 0.0], [0.0, 0.0, 1500.0])
+    reference = sc.simulate(paper_model, *start, t_final=0.5, dt=0.01, rtol=1e-13)
+    scale = np.abs(reference.q).max(axis=0)
+    rows = []
+    for rtol in 10.0 ** -np.arange(3, 8):
+        run = sc.simulate(paper_model, *start, t_final=0.5, dt=0.01, rtol=rtol, method="radau")
+        rows.append((np.max(np.abs(run.q - reference.q) / scale), run.stats["steps"]))
+    errors, steps = np.array(rows).T
+    slope = np.polyfit(np.log(steps), np.log(errors), 1)[0]
+    assert -5.5 < slope < -3.6, f"error ~ steps^{slope:.2f}"
+    assert np.all(errors < 10.0 ** -np.arange(3, 8))  # within the tolerance asked
+
+
+# -- against CVODES, on every kind, actuator and scenario ---------------------------------
+def _close(a, b, scale, what):
+    gap = np.abs(a - b).max(axis=0) / scale
+    assert gap.max() < 1e-5, f"{what}: {gap.max():.2e}"
+
+
+@pytest.mark.parametrize("kind", KINDS)
+def test_radau_follows_cvodes_on_every_kind(rng, kind):
+    model = sc.Model(robots()[kind])
+    q0, qd0 = random_state(rng, model)
+    runs = {}
+    for method in ("cvodes", "radau"):
+        runs[method] = sc.simulate(model, q0, qd0, t_final=0.2, dt=0.01, rtol=1e-9,
+                                   method=method)  # fmt: skip
+        assert runs[method].success, runs[method].message
+    radau = runs["radau"]
+    assert radau.stats["route"] == "driver-radau" and radau.stats["method"] == "radau"
+    assert "radau" in radau.message
+    scale = np.abs(runs["cvodes"].q).max(axis=0) + 1e-3
+    _close(radau.q, runs["cvodes"].q, scale, kind)
+
+
+@pytest.mark.parametrize("time_constant", [None, 0.02])
+def test_radau_follows_cvodes_with_tendons(time_constant):
+    robot = sc.presets.ifac2020().with_segments(2)
+    tendons = sc.TendonActuator.three_per_segment(
+        distance=0.01, t_max=5.0, time_constant=time_constant, elements=robot
+    )
+    model = sc.Model(robot)
+    inputs = np.zeros((31, tendons.n_inputs))
+    inputs[:, 0], inputs[15:, 4] = 3.0, 2.0  # a jump halfway: a new segment of the input
+    runs = {}
+    for method in ("cvodes", "radau"):
+        runs[method] = sc.simulate(
+            model, robot.rest_configuration(), np.zeros(model.n), actuator=tendons,
+            inputs=inputs, t_final=0.3, dt=0.01, rtol=1e-9, method=method,
+        )  # fmt: skip
+        assert runs[method].success, runs[method].message
+    scale = np.abs(runs["cvodes"].q).max(axis=0) + 1e-3
+    _close(runs["radau"].q, runs["cvodes"].q, scale, f"tendons, lag {time_constant}")
+
+
+SCENARIOS = sorted(p.name for p in EXAMPLES.glob("*.toml") if not p.name.startswith("sweep"))
+
+
+@pytest.mark.parametrize("name", SCENARIOS)
+def test_radau_follows_cvodes_on_every_scenario_file(name):
+    scenario = sc.load_config(EXAMPLES / name)
+    model = sc.Model(scenario.robot, environment=scenario.environment)
+    q0, qd0, lam0 = scenario.initial_state()
+    t_final = min(0.3, scenario.settings.t_final)
+    runs = {}
+    for method in ("cvodes", "radau"):
+        dt = min(scenario.settings.dt, t_final / 10)
+        settings = scenario.settings.replace(method=method, rtol=1e-8, t_final=t_final, dt=dt)
+        runs[method] = sc.simulate(
+            model, q0, qd0, lam0, tau=None if scenario.tau is None else scenario.tau,
+            actuator=scenario.actuator() if scenario.inputs is not None else None,
+            inputs=scenario.inputs, settings=settings,
+        )  # fmt: skip
+        assert runs[method].success, runs[method].message
+    scale = np.abs(runs["cvodes"].q).max(axis=0) + 1e-3
+    _close(runs["radau"].q, runs["cvodes"].q, scale, name)
+
+
+# -- energy -----------------------------------------------------------------------------------
+@pytest.mark.parametrize("damping", [False, True])
+def test_the_scheme_never_creates_energy(damping):
+    """Without damping the energy stays within the tolerance of the start (Radau IIA's
+    damping of the fastest modes only takes energy away); with damping it never rises
+    from one output to the next beyond the tolerance."""
+    robot = sc.presets.ifac2020(damping=damping)
+    segment = robot.segments[0]
+    creep = sc.Creep(segment.creep.rate, segment.creep.gain, np.zeros(3))  # creep inert
+    model = sc.Model(robot.replace(segments=(segment.replace(creep=creep),)))
+    run = sc.simulate(model, [0.064, 25.0, 0.0], [0.0, 0.0, 1500.0], t_final=1.0, dt=0.01,
+                      rtol=1e-8, method="radau")  # fmt: skip
+    assert run.success, run.message
+    energy = np.array([model.energy(q, qd) for q, qd in zip(run.q, run.qd, strict=True)])
+    slack = 1e-6 * abs(energy[0])
+    if damping:
+        assert np.all(np.diff(energy) <= slack) and energy[-1] < 0.5 * energy[0]
+    else:
+        assert np.all(energy <= energy[0] + slack)
+        assert energy.min() > energy[0] - 1e-4 * abs(energy[0])
+
+
+# -- batches, routes, restarts, failures ------------------------------------------------------
+def test_a_batch_runs_each_member_as_simulate_does(paper_model):
+    q0 = [[0.064, 5.0, 0.0], [0.064, -8.0, 3.0]]
+    batch = sc.simulate_batch(paper_model, q0, [0.0, 0.0, 0.0], t_final=0.5, dt=0.01,
+                              method="radau", threads=2)  # fmt: skip
+    assert batch.success and batch.stats["route"] == "driver-radau"
+    assert batch.stats["methods"] == ["radau", "radau"]
+    for b, q in enumerate(q0):
+        alone = sc.simulate(paper_model, q, [0.0, 0.0, 0.0], t_final=0.5, dt=0.01,
+                            method="radau")  # fmt: skip
+        np.testing.assert_array_equal(batch.q[b], alone.q)
+
+
+def test_the_steps_go_on_through_restarts_of_the_same_input(paper_model):
+    """Outputs and steps do not depend on the restart segments (every 1 s) while the input
+    stays: 2 s in one run are the first 2 s of a 3 s run, and a constant input given per
+    output is the constant input."""
+    start = ([0.064, 25.0, 0.0], [0.0, 0.0, 1500.0])
+    long = sc.simulate(paper_model, *start, t_final=3.0, dt=0.01, method="radau")
+    short = sc.simulate(paper_model, *start, t_final=2.0, dt=0.01, method="radau")
+    np.testing.assert_array_equal(long.q[: short.t.size], short.q)
+    tau = np.tile([0.0, 1e-3, 0.0], (201, 1))
+    constant = sc.simulate(paper_model, *start, tau=tau[0], t_final=2.0, dt=0.01, method="radau")
+    per_output = sc.simulate(paper_model, *start, tau=tau, t_final=2.0, dt=0.01, method="radau")
+    np.testing.assert_array_equal(constant.q, per_output.q)
+    assert constant.stats["steps"] == per_output.stats["steps"]
+
+
+def test_without_the_driver_radau_is_scipys(paper_model):
+    start = ([0.064, 25.0, 0.0], [0.0, 0.0, 1500.0])
+    with casadi_only():
+        scipy = sc.simulate(paper_model, *start, t_final=0.2, dt=0.01, method="radau")
+    ours = sc.simulate(paper_model, *start, t_final=0.2, dt=0.01, method="radau")
+    assert scipy.success and scipy.stats["route"] == "scipy-radau"
+    assert scipy.stats["method"] == "radau-scipy"
+    _close(scipy.q, ours.q, np.abs(ours.q).max(axis=0), "SciPy's Radau")
+
+
+def test_failures_say_which_method_and_why(paper_model):
+    start = ([0.064, 25.0, 0.0], [0.0, 0.0, 1500.0])
+    run = sc.simulate(paper_model, *start, t_final=0.2, dt=0.01, method="radau", max_steps=2)
+    assert run.status is Status.INTEGRATION_FAILED
+    assert "Radau IIA CV_TOO_MUCH_WORK" in run.message and "max_steps" in run.message
+    assert "method='bdf'" not in run.message  # already a stiff method
+    crushed = sc.simulate(paper_model, [0.0644, 0.0, 0.0], [0.0, 0.0, 0.0],
+                          tau=[-150.0, 0.0, 0.0], t_final=0.2, dt=0.01, method="radau")  # fmt: skip
+    assert crushed.status is Status.LEFT_DOMAIN, crushed.message
+    assert "l of segment 1" in crushed.message
+    assert np.all(crushed.q[:, 0] > 0)  # no output outside the domain is kept
+
+
+def test_the_settings_and_the_command_line_take_radau(tmp_path):
+    assert SimulationSettings(method="radau").method == "radau"
+    with pytest.raises(SystemExit) as refused:  # argparse's usage error, before any work
+        main(["simulate", "--method", "radau5"])
+    assert refused.value.code == 2
+    code = main(["simulate", "--method", "radau", "--t-final", "0.1", "--quiet",
+                 "--out", str(tmp_path)])  # fmt: skip
+    assert code == 0
+    # the command line writes the choices out (it imports no layer to read them from)
+    parser = argparse.ArgumentParser()
+    simulate_command._add_arguments(parser)
+    choices = {a.dest: a.choices for a in parser._actions if a.choices}
+    assert tuple(choices["method"]) == METHODS and tuple(choices["jacobian"]) == JACOBIANS
