@@ -11,9 +11,10 @@ Cases (``--case``):
   elastic force of a 20 1/m bend) switched on at ``t = 0`` and held for 30 s: a transient
   that dies out, then creep; outputs every 10 ms.
 - ``slow``: the same robot and start under the moment ``M (1 - cos(2 pi t / 10 s)) / 2``
-  (the slow case of ``study_implicit_steps.py``) sampled at every output (10 ms) and held
-  between them, as ``simulate`` takes inputs: 3,000 small jumps of the input, where
-  CVODES restarts and Radau IIA goes on with its step size and Jacobian.
+  (the slow case of ``study_implicit_steps.py``) sampled at every output (``--dt``,
+  default 10 ms) and held between them, as ``simulate`` takes inputs: ``30 s / dt`` small
+  jumps of the input, where CVODES restarts and Radau IIA goes on with its step size and
+  Jacobian.
 - ``batch``: 100 windows of 1 s of the paper's robot (``simulate_batch``, one thread),
   each from a state of the paper's 10 s run (every 0.1 s) under a constant random moment;
   CVODES on its best route (``lanes=True``, groups of four) against Radau IIA.
@@ -27,7 +28,7 @@ accurate, divided by this row's (above 1: Radau IIA is faster at that error; "-"
 CVODES row that accurate).
 
 Run: ``python benchmarks/bench_radau.py --case paper|chain|settle|slow|batch [--segments 1 2 4
-8] [--repeat 5] [--markdown]``
+8] [--dt 0.01] [--repeat 5] [--markdown]``
 """
 
 from __future__ import annotations
@@ -75,12 +76,12 @@ def settle_case():
     return lambda **kw: sc.simulate(model, q0, np.zeros(3), tau=tau, t_final=30.0, dt=0.01, **kw)
 
 
-def slow_case():
+def slow_case(dt: float = 0.01):
     model = sc.Model(sc.presets.ifac2020())
     q0 = sc.equilibrium(model, model.robot.rest_configuration()).q
-    t = np.arange(3001) * 0.01
+    t = np.arange(round(30.0 / dt) + 1) * dt
     tau = _moment(model) * 0.5 * (1.0 - np.cos(2.0 * np.pi * t / 10.0))[:, None]
-    return lambda **kw: sc.simulate(model, q0, np.zeros(3), tau=tau, t_final=30.0, dt=0.01, **kw)
+    return lambda **kw: sc.simulate(model, q0, np.zeros(3), tau=tau, t_final=30.0, dt=dt, **kw)
 
 
 BATCH_SIZE = 100
@@ -147,6 +148,7 @@ def main(argv=None) -> int:
     parser.add_argument("--case", choices=("paper", "chain", "settle", "slow", "batch"),
                         default="paper")  # fmt: skip
     parser.add_argument("--segments", type=int, nargs="+", default=[1, 2, 4, 8])
+    parser.add_argument("--dt", type=float, default=0.01, help="--case slow: output interval")
     parser.add_argument("--repeat", type=int, default=5, help="best of this many")
     parser.add_argument("--markdown", action="store_true")
     args = parser.parse_args(argv)
@@ -155,7 +157,8 @@ def main(argv=None) -> int:
             show(f"hanging chain, N = {n}, 1 s", rows_of(chain_case(n), args.repeat),
                  args.markdown)  # fmt: skip
         return 0
-    cases = {"paper": paper_case, "settle": settle_case, "slow": slow_case, "batch": batch_case}
+    cases = {"paper": paper_case, "settle": settle_case, "batch": batch_case,
+             "slow": lambda: slow_case(args.dt)}  # fmt: skip
     case = cases[args.case]()
     show(args.case, rows_of(case, args.repeat), args.markdown)
     return 0

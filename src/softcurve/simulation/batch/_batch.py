@@ -160,7 +160,8 @@ def simulate_batch(
         (``docs/performance.md``), where the C compiler builds it (once per model,
         cached): the members share the group's steps, each within its tolerance.
         False integrates every member alone, as
-        :func:`~softcurve.simulation.simulate` does (equal to it bit for bit).
+        :func:`~softcurve.simulation.simulate` does (equal to it bit for bit), as
+        ``method="radau"`` always does.
     **options : dict
         Fields of :class:`SimulationSettings` overriding ``settings``: ``t_final`` [s],
         ``dt`` [s], ``method``, ``rtol``, ``atol``, ``max_steps``.

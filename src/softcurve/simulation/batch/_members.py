@@ -179,8 +179,8 @@ class MemberRun:
 
 
 def integrate_native(run: MemberRun, initial, fastest, problems) -> np.ndarray:
-    """The whole batch of ``run`` with CVODES's C driver
-    (``softcurve.simulation.solvers._driver``): one call per group of members that
+    """The whole batch of ``run`` with the C driver (CVODES, or Radau IIA;
+    ``softcurve.simulation.solvers._driver``): one call per group of members that
     share an actuator, every restart segment inside it, members on ``run.threads``
     threads. Fills ``run.states`` and the failures as
     :meth:`MemberRun.integrate` does; returns which members used BDF.
@@ -190,7 +190,7 @@ def integrate_native(run: MemberRun, initial, fastest, problems) -> np.ndarray:
     run : MemberRun
         The batch (its states hold the initial states).
     initial : ndarray of str, shape (B,)
-        Each member's family, "adams" or "bdf".
+        Each member's family, "adams", "bdf" or "radau".
     fastest : ndarray, shape (B,) or None
         Fastest rate of each member's initial linearization [1/s]: members that start with
         Adams switch to BDF at a restart once settled (None: no switch).

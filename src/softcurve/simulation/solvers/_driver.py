@@ -1,6 +1,7 @@
 """CVODES driven from C: softcurve's own driver (the C files of
 ``softcurve/simulation/solvers/c``, declared to Python by ``softcurve_driver.h``) of the
-SUNDIALS CVODES that ships inside CasADi, on the model's compiled right-hand side.
+SUNDIALS CVODES that ships inside CasADi, and of its own Radau IIA (``radau.c``;
+``softcurve.simulation.solvers.RadauEngine``), on the model's compiled right-hand side.
 
 Why not CasADi's ``integrator``: on the paper's 10 s case it spends more time around the
 right-hand side than in it (``docs/performance.md``): every evaluation goes through
@@ -139,11 +140,12 @@ def options(rtol, atol, max_steps, *, max_order=0, family=1, settled_ratio=0.0,
         Absolute tolerance of the integrated state (the scaled state of
         :func:`integrate`, the state's units of the sensitivities).
     max_steps : int
-        CVODES's steps allowed per output.
+        Steps allowed per output.
     max_order : int, optional
         The method's largest order (0 or None: CVODES's own).
     family : int
-        1 Adams, 2 BDF (the sensitivities; :func:`integrate` takes one per member).
+        1 Adams, 2 BDF (the sensitivities; :func:`integrate` takes one per member,
+        :data:`FAMILIES`).
     settled_ratio : float
         ``softcurve.simulation.solvers._policy.SETTLED_RATIO`` (dimensionless), with a
         member's fastest rate.
@@ -281,16 +283,17 @@ def _compiled_force(force: ca.Function) -> NativeFunction | None:
 
 def integrate(problem, lmm, x0, u, p, nominal, times, segments, settings, *, fastest=None,
               check_domain=False, threads=1, out=None) -> tuple:  # fmt: skip
-    """Integrate members from ``x0`` at ``times[0]`` over the output ``times``, restarting
-    CVODES at the end of every segment, with one constant input per member and segment;
-    in groups of ``problem.width`` consecutive members (``groups.c``).
+    """Integrate members from ``x0`` at ``times[0]`` over the output ``times``, with one
+    constant input per member and segment: CVODES restarts at the end of every segment,
+    Radau IIA only steps to it where the input changes there; CVODES's members in groups
+    of ``problem.width`` consecutive members of one family (``groups.c``).
 
     Parameters
     ----------
     problem : DriverProblem
         What to integrate.
     lmm : array_like of int, shape (B,)
-        Family per member: 1 Adams, 2 BDF.
+        Family per member, a value of :data:`FAMILIES` (1 Adams, 2 BDF, 3 Radau IIA).
     x0 : ndarray, shape (B, N)
         Initial states (``N`` = n_state, plus the lagging inputs).
     u : ndarray, shape (B, S, k)
@@ -329,7 +332,8 @@ def integrate(problem, lmm, x0, u, p, nominal, times, segments, settings, *, fas
     tuple
         ``(states (B, T, N), reached (B,), flags (B,), counts (B, 6), used_bdf (B,))``:
         outputs, how many were computed (the first outside the domain included), the flag
-        (0: success, 1: outside the domain, else CVODES's, :data:`FLAGS`), the counters of
+        (0: success, 1: outside the domain, else CVODES's or Radau IIA's as the CVODES flag
+        of the same meaning, :data:`FLAGS`), the counters of
         :data:`STATISTICS` and whether BDF was used.
     """
     count, width = x0.shape
@@ -592,8 +596,9 @@ def _load(defines: tuple[str, ...]):
 
 LAPACK_FROM = 32
 """Newton matrices of this many states and more are factored and solved by LAPACK
-(SciPy's ``dgetf2`` and ``dgetrs``, :func:`lapack_addresses`); smaller ones by the
-driver's own loops. 1 s of the hanging chain ran as fast on LAPACK at 18, 27 and 36
+(SciPy's ``dgetf2`` and ``dgetrs``, and for Radau IIA's complex ones ``zgetf2`` and
+``zgetrs``, :func:`lapack_addresses`); smaller ones by the driver's own loops. Measured
+on the real routines: 1 s of the hanging chain ran as fast on LAPACK at 18, 27 and 36
 states, and 5 and 11 % faster at 72 and 144; a batch of two members on two threads 4 and
 8 % faster there (``python benchmarks/bench_lapack.py``, best of seven, OpenBLAS's
 default threads)."""

@@ -154,7 +154,9 @@ def run_on_grid(engine, grid, states, inputs, bar, domain, fastest=None, constan
     segment, choosing the family of each in Python by the rule the driver applies inside
     its one call (:func:`~softcurve.simulation.solvers.settled`), so the route and the
     trajectory are those without the bar, bit for bit (``tests/test_routes.py``); the
-    driver reports no progress from inside a call.
+    driver reports no progress from inside a call. Radau IIA's calls each start afresh
+    (a first step size and Jacobian), so its trajectory with the bar is the one without
+    it to the tolerance, not bit for bit (``tests/test_radau.py``).
 
     Parameters
     ----------

@@ -446,7 +446,7 @@ def failure_message(reason: str, grid: np.ndarray, reached: int, family: str) ->
             "rtol; check that the initial state and inputs are physical"
         )
     advice = ["loosen rtol/atol", "raise max_steps"]
-    if family not in ("cvodes-bdf", "radau"):
+    if family not in ("cvodes-bdf", "radau", "radau-scipy"):
         advice.insert(0, "method='bdf' or 'radau' if the problem is stiff")
     advice.append("check that the initial state and inputs are physical")
     return f"{where}. What to try: " + "; ".join(advice)

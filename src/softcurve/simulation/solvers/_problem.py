@@ -136,8 +136,9 @@ class Problem:
 
     def driver_options(self, family: int = 1, max_order: int = MAX_ORDER, settled_ratio=None):
         """The C driver's settings (the header's ``sc_options``) of this problem: by
-        default those of CasADi's route (:meth:`cvodes_options`), the same order cap, and
-        the settled switch.
+        default those of CasADi's route (:meth:`cvodes_options`), the same order cap, the
+        settled switch, and Radau IIA's constants
+        (:func:`~softcurve.simulation.solvers.radau_constants`) for members of that family.
 
         Parameters
         ----------
@@ -193,10 +194,10 @@ def solver(route, problem: Problem, multistep: str = "adams") -> Solver:
     ----------
     route : Route
         The route (:func:`~softcurve.simulation.solvers.choose_route`); its ``built`` (the
-        driver's problem on "driver", else None) goes to the solver.
+        driver's problem on "driver" and "driver-radau", else None) goes to the solver.
     problem : Problem
         The integration.
     multistep : {"adams", "bdf"}
-        CVODES's family at the start (unused by RK45).
+        CVODES's family at the start (unused by Radau IIA and RK45).
     """
     return METHODS[route.name](problem, multistep, route.built)

@@ -189,4 +189,4 @@ class RadauEngine(CvodesEngine):
             A negative flag of the driver's Radau IIA (a CVODES flag of the same meaning).
         """
         name = c_driver.reason(flag)
-        return f"Radau IIA {name}: {REASONS.get(name, 'failed')}"
+        return f"Radau IIA {name}: {REASONS[name]}" if name in REASONS else f"Radau IIA: {name}"

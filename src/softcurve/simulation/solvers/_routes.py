@@ -126,7 +126,9 @@ def choose_route(task: str, method: str = "cvodes", *, model=None, inputs=None, 
     where a fast route should build and does not.
 
     The rules, in order: ``method="rk45"`` runs SciPy's RK45; ``method="radau"`` runs the
-    C driver's Radau IIA where the driver runs (as below), else SciPy's; CVODES runs in the C driver
+    C driver's Radau IIA where the driver runs (as below), one member per system, else
+    SciPy's for ``simulate`` and CasADi's CVODES (the batch then takes BDF) for a batch;
+    CVODES runs in the C driver
     where it loads, the model is compiled and the actuator's force compiles (and a batch
     has at most :data:`COMPILED_ACTUATORS` actuators), in groups over lanes where a batch
     of ``lanes`` fills one and the lane code builds; else in CasADi's integrator. The
@@ -197,7 +199,8 @@ def choose_route(task: str, method: str = "cvodes", *, model=None, inputs=None, 
     if why is None and problem is None:
         why, asked = "the actuator's force H(q) u did not compile", False
     if why is not None:
-        instead = "scipy-radau" if radau else "casadi-cvodes"
+        # SciPy's Radau steps one member; a batch takes CasADi's integrator, with BDF
+        instead = "scipy-radau" if radau and task == "simulate" else "casadi-cvodes"
         if not asked:
             warn_once(why, instead)
         return Route(instead, why)
@@ -209,13 +212,14 @@ def choose_route(task: str, method: str = "cvodes", *, model=None, inputs=None, 
     reason = "lanes=False" if task == "batch" and not lanes else "one member per system"
     if radau:
         reason = "method='radau' was asked, one member per system"
+    name = "driver-radau" if radau else "driver"
     if jacobian == "exact":
         if problem.exact:
             reason += ", the model's exact Jacobian"
         else:
-            warn_once("the exact Jacobian did not compile", "driver")
+            warn_once("the exact Jacobian did not compile", name)
             reason += ", forward-difference Jacobians (the exact one did not compile)"
-    return Route("driver-radau" if radau else "driver", reason, problem)
+    return Route(name, reason, problem)
 
 
 def batch_route(names) -> str:

@@ -1,5 +1,7 @@
 /* softcurve's driver of SUNDIALS CVODES: integrate members of a batch (or one run) on
- * a CasADi-generated right-hand side f(x, u, p) -> xdot, all in C.
+ * a CasADi-generated right-hand side f(x, u, p) -> xdot, all in C; here the work of one
+ * member, its Newton matrices (CVODES's and, through newton_lu.h, Radau IIA's of
+ * radau.c) and the domain test.
  *
  * CVODES is the copy inside CasADi (sundials2.h). The Newton systems are solved by
  * CVSPGMR preconditioned with the exact LU factors of the Newton matrix I - gamma J, whose

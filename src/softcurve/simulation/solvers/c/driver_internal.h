@@ -99,7 +99,7 @@ typedef struct {
     double h_factored;           /* the step size of the factors (0: none) */
     double eta, error_last;      /* the last Newton contraction factor and error norm */
     int jacobian, continues, predict, rejected, first;
-    double *block, *y, *fy, *y_last, *scale, *v, *e, *ze, *z, *w, *dw, *f, *q;
+    double *block, *y, *fy, *y_last, *scale, *v, *e, *ze, *z, *w, *dw, *f, *g, *q;
     double complex *lu; /* the complex factors (n x n), then n complex for a solve */
     int *piv;
     long counters[5]; /* since the start, as read_counters orders them */
@@ -111,8 +111,10 @@ int radau_open(sc_radau *r, sc_work *s, const sc_options *o);
 void radau_close(sc_radau *r);
 /* A new member: no step size, no Jacobian. */
 void radau_reset(sc_radau *r);
-/* Start at t0 from the scaled state y, stepping up to t_stop at most; with same_input the
- * steps go on where the last one ended at t0 (y unread). 0, or CV_FIRST_RHSFUNC_ERR. */
+/* Start at t0 from the scaled state y, stepping up to t_stop at most (where the input
+ * changes next); with same_input the steps go on from where they reached, at t0 or beyond
+ * (y unread), and with a new input from where the last one ended if that is t0. 0, or
+ * CV_FIRST_RHSFUNC_ERR. */
 int radau_start(sc_radau *r, double t0, const double *y, double t_stop, int same_input);
 /* One accepted step (*tret: where it ends); 0, or the CVODES flag of the failure's
  * meaning. */

@@ -204,10 +204,13 @@ static int integrate_members(sc_call *c, int b, int g) {
         }
         if (grouped) c->G.jacobians = 0; else c->s.jacobians = 0;
         slot = family + 2 * grouped;
-        if (radau) {
+        if (radau) { /* steps stop only where the input changes */
             const double *u = c->u + ((long)b * c->n_ends + e) * c->inputs;
-            int same = e > 0 && memcmp(u, u - c->inputs, sizeof(double) * c->inputs) == 0;
-            stop = radau_start(&c->radau, c->times[first], ys, c->times[c->ends[e]], same);
+            size_t bytes = sizeof(double) * c->inputs;
+            int same = e > 0 && memcmp(u, u - c->inputs, bytes) == 0, last = e;
+            while (last + 1 < c->n_ends && memcmp(u, u + (last + 1 - e) * c->inputs, bytes) == 0)
+                ++last;
+            stop = radau_start(&c->radau, c->times[first], ys, c->times[c->ends[last]], same);
         } else if (c->mem[slot] == NULL) {
             double shrink = sqrt((double)g); /* the group's norm bounds every member's */
             c->mem[slot] = grouped ? create_with(family, c->times[first], c->y[1], group_rhs,
@@ -225,7 +228,7 @@ static int integrate_members(sc_call *c, int b, int g) {
             break;
         }
         if (!radau) CVodeSetStopTime(c->mem[slot], c->times[c->ends[e]]);
-        tret = c->times[first];
+        tret = radau ? c->radau.t : c->times[first]; /* Radau IIA may be ahead */
         for (i = first + 1; i <= c->ends[e] && !stop; ++i) {
             /* One internal step at a time, and every output it passed interpolated:
              * CVODES's normal mode costs a call per output, a third of the cost of an

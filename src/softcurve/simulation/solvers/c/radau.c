@@ -61,16 +61,18 @@ int radau_open(sc_radau *r, sc_work *s, const sc_options *o) {
     int n = s->n;
     memset(r, 0, sizeof(*r));
     r->s = s, r->k = o->radau, r->n = n, r->rtol = o->rtol, r->atol = o->atol;
-    /* Newton's tolerance in units of the error tolerance (the book's default) */
+    /* Newton's tolerance in units of the error tolerance: Hairer and Wanner's default
+     * applied to rtol itself, as SciPy's Radau does (their code applies it to rtol mapped
+     * to 0.1 rtol^(2/3) first) */
     r->newton_tolerance = fmax(10.0 * DBL_EPSILON / o->rtol, fmin(0.03, sqrt(o->rtol)));
-    r->block = (double *)malloc(sizeof(double) * 22 * (size_t)n);
+    r->block = (double *)malloc(sizeof(double) * 25 * (size_t)n);
     r->lu = malloc(sizeof(double complex) * (size_t)n * n + sizeof(double complex) * n);
     r->piv = (int *)malloc(sizeof(int) * (size_t)n);
     if (!r->block || !r->lu || !r->piv || r->k == NULL) return 1;
     r->y = r->block, r->fy = r->y + n, r->y_last = r->fy + n, r->scale = r->y_last + n;
     r->v = r->scale + n, r->e = r->v + n, r->ze = r->e + n;
     r->z = r->ze + n, r->w = r->z + 3 * n, r->dw = r->w + 3 * n, r->f = r->dw + 3 * n;
-    r->q = r->f + 3 * n; /* 7 n + 15 n doubles */
+    r->g = r->f + 3 * n, r->q = r->g + 3 * n; /* 7 n + 18 n doubles */
     radau_reset(r);
     return 0;
 }
@@ -84,7 +86,17 @@ void radau_close(sc_radau *r) {
 /* driver_internal.h */
 void radau_reset(sc_radau *r) {
     r->h = 0.0, r->h_factored = 0.0, r->h_last = 0.0, r->error_last = 0.0;
-    r->eta = 0.0, r->jacobian = JACOBIAN_NONE, r->continues = 0;
+    r->eta = 1.0; /* no contraction known: the first step iterates at least twice */
+    r->jacobian = JACOBIAN_NONE, r->continues = 0;
+}
+
+/* out_i = sum_m M[3 i + m] in_m for three blocks of n entries (M 3 x 3, row-major): the
+ * stages transformed by T or T^-1, the collocation polynomial's coefficients by P. */
+static void mix(const double *M, const double *in, int n, double *out) {
+    int i, j;
+    for (i = 0; i < 3; ++i)
+        for (j = 0; j < n; ++j)
+            out[i * n + j] = M[3 * i] * in[j] + M[3 * i + 1] * in[n + j] + M[3 * i + 2] * in[2 * n + j];
 }
 
 static int rhs_at(sc_radau *r, const double *y, double *f) {
@@ -129,7 +141,7 @@ int radau_start(sc_radau *r, double t0, const double *y, double t_stop, int same
     int n = r->n;
     memset(r->counters, 0, sizeof(r->counters));
     r->t_stop = t_stop;
-    if (same_input && r->continues && r->t == t0) return 0; /* the steps go on */
+    if (same_input && r->continues && r->t >= t0) return 0; /* the steps go on */
     if (r->continues && r->t == t0) {
         /* a new input where the last step ended: its polynomial still starts the stages */
         r->first = 1;
@@ -138,8 +150,7 @@ int radau_start(sc_radau *r, double t0, const double *y, double t_stop, int same
         memcpy(r->y, y, sizeof(double) * n);
         r->continues = 0, r->predict = 0, r->rejected = 0, r->first = 1, r->h_last = 0.0;
     }
-    if (r->jacobian == JACOBIAN_FRESH) r->jacobian = JACOBIAN_KEPT; /* of another input */
-    if (rhs_at(r, r->y, r->fy)) return -9; /* CV_FIRST_RHSFUNC_ERR */
+    if (rhs_at(r, r->y, r->fy)) return CV_FIRST_RHSFUNC_ERR;
     if (r->h <= 0.0) r->h = first_step(r);
     r->continues = 1;
     return 0;
@@ -176,23 +187,19 @@ static int newton(sc_radau *r, double h, int *iterations, double *theta) {
     double eta = pow(fmax(r->eta, DBL_EPSILON), 0.8); /* the last step's, as a first guess */
     double complex mu = h / (k[RADAU_ALPHA] + I * k[RADAU_BETA]), *x = r->lu + n * n;
     *theta = 0.0;
-    for (i = 0; i < 3; ++i)
-        for (j = 0; j < n; ++j)
-            r->w[i * n + j] = TI[3 * i] * r->z[j] + TI[3 * i + 1] * r->z[n + j] +
-                              TI[3 * i + 2] * r->z[2 * n + j];
+    mix(TI, r->z, n, r->w);
     for (it = 0; it < NEWTON_ITERATIONS; ++it) {
         for (i = 0; i < 3; ++i) {
             for (j = 0; j < n; ++j) r->v[j] = r->y[j] + r->z[i * n + j];
             flag = rhs_at(r, r->v, r->f + i * n);
             if (flag) return flag;
         }
+        mix(TI, r->f, n, r->g);
         for (j = 0; j < n; ++j) {
-            double g[3], w1 = r->w[n + j], w2 = r->w[2 * n + j];
-            for (i = 0; i < 3; ++i)
-                g[i] = TI[3 * i] * r->f[j] + TI[3 * i + 1] * r->f[n + j] +
-                       TI[3 * i + 2] * r->f[2 * n + j];
-            r->dw[j] = mu_real * (g[0] - gamma * r->w[j]);
-            x[j] = mu * ((g[1] - alpha * w1 + beta * w2) + I * (g[2] - beta * w1 - alpha * w2));
+            double w1 = r->w[n + j], w2 = r->w[2 * n + j];
+            r->dw[j] = mu_real * (r->g[j] - gamma * r->w[j]);
+            x[j] = mu * ((r->g[n + j] - alpha * w1 + beta * w2) +
+                         I * (r->g[2 * n + j] - beta * w1 - alpha * w2));
         }
         solve_newton(r->s->LU, r->s->piv, n, r->dw);
         solve_complex(r->lu, r->piv, n, x);
@@ -209,10 +216,7 @@ static int newton(sc_radau *r, double h, int *iterations, double *theta) {
         }
         previous = norm;
         for (j = 0; j < 3 * n; ++j) r->w[j] += r->dw[j];
-        for (i = 0; i < 3; ++i)
-            for (j = 0; j < n; ++j)
-                r->z[i * n + j] = T[3 * i] * r->w[j] + T[3 * i + 1] * r->w[n + j] +
-                                  T[3 * i + 2] * r->w[2 * n + j];
+        mix(T, r->w, n, r->z);
         if (eta * norm <= r->newton_tolerance) {
             r->eta = eta;
             *iterations = it + 1;
@@ -223,7 +227,8 @@ static int newton(sc_radau *r, double h, int *iterations, double *theta) {
 }
 
 /* The error estimate's norm of the converged step of size h (stages r->z), the estimate
- * filtered once more where `again`; NAN where the right-hand side fails. */
+ * filtered once more where `again`; INFINITY where it is not a number or the right-hand
+ * side fails there. */
 static double error_norm(sc_radau *r, double h, int again) {
     const double *E = r->k + RADAU_E;
     int n = r->n, j;
@@ -238,38 +243,38 @@ static double error_norm(sc_radau *r, double h, int again) {
     norm = rms(r->e, r->v, n, 1);
     if (norm > 1.0 && again) {
         for (j = 0; j < n; ++j) r->e[j] += r->y[j];
-        if (rhs_at(r, r->e, r->e)) return NAN;
+        if (rhs_at(r, r->e, r->e)) return INFINITY; /* rejected: a shorter step */
         for (j = 0; j < n; ++j) r->e[j] = mu_real * (r->e[j] + r->ze[j]);
         solve_newton(r->s->LU, r->s->piv, n, r->e);
         norm = rms(r->e, r->v, n, 1);
     }
-    return fmax(norm, ERROR_FLOOR);
+    return isnan(norm) ? INFINITY : fmax(norm, ERROR_FLOOR); /* NaN: rejected */
 }
 
 /* driver_internal.h */
 int radau_step(sc_radau *r, double *tret) {
-    const double *c = r->k + RADAU_C, *P = r->k + RADAU_P;
-    int n = r->n, i, j, m, flag, iterations = 0;
-    int failure = -3; /* CV_ERR_FAILURE, or CV_CONV_FAILURE after Newton's failures */
+    const double *c = r->k + RADAU_C;
+    int n = r->n, i, j, flag, iterations = 0;
+    int failure = CV_ERR_FAILURE; /* or what made the last attempt fail */
     for (;;) {
-        double h = r->h, theta, error, factor, h_new;
+        double h = r->h, theta, error, factor, h_new, *y_new = r->ze, *f_new = r->e;
         int clipped = r->t + END_SLACK * h >= r->t_stop;
         if (clipped) h = r->t_stop - r->t;
         if (!(h > 16.0 * DBL_EPSILON * fmax(fabs(r->t), fabs(r->t_stop)))) return failure;
         for (j = 0; j < n; ++j) r->scale[j] = r->atol + r->rtol * fabs(r->y[j]);
         if (r->jacobian == JACOBIAN_NONE) {
-            flag = newton_jacobian(r->s, r->y, r->fy);
-            if (flag) return -6; /* CV_LSETUP_FAIL */
+            if (newton_jacobian(r->s, r->y, r->fy)) return CV_LSETUP_FAIL;
             r->s->jacobians++;
             r->jacobian = JACOBIAN_FRESH;
             r->h_factored = 0.0;
         }
         if (h != r->h_factored && factor_pair(r, h)) {
-            r->counters[4]++, failure = -6; /* singular: a shorter step */
+            r->counters[4]++, failure = CV_LSETUP_FAIL; /* singular: a shorter step */
             r->h = 0.5 * h, r->rejected = 1;
             continue;
         }
-        if (r->predict) { /* the last step's polynomial, extrapolated */
+        /* the last step's polynomial extrapolated, as far as the controller grows a step */
+        if (r->predict && h <= FACTOR_MAX * r->h_last) {
             for (i = 0; i < 3; ++i) {
                 double x = 1.0 + c[i] * h / r->h_last;
                 for (j = 0; j < n; ++j)
@@ -279,9 +284,9 @@ int radau_step(sc_radau *r, double *tret) {
             memset(r->z, 0, sizeof(double) * 3 * n);
         }
         flag = newton(r, h, &iterations, &theta);
-        if (flag < 0) return -8; /* CV_RHSFUNC_FAIL */
+        if (flag < 0) return CV_RHSFUNC_FAIL;
         if (flag > 0) {
-            r->counters[4]++, failure = -4; /* CV_CONV_FAILURE */
+            r->counters[4]++, failure = CV_CONV_FAILURE;
             r->rejected = 1;
             if (r->jacobian == JACOBIAN_KEPT)
                 r->jacobian = JACOBIAN_NONE; /* a fresh Jacobian, the same step size */
@@ -290,28 +295,27 @@ int radau_step(sc_radau *r, double *tret) {
             continue;
         }
         error = error_norm(r, h, r->first || r->rejected);
-        if (isnan(error)) return -8;
         factor = SAFETY * (2 * NEWTON_ITERATIONS + 1) / (2 * NEWTON_ITERATIONS + iterations) *
                  pow(error, -0.25);
-        if (error > 1.0) {
-            r->counters[3]++, failure = -3;
+        for (j = 0; j < n && error <= 1.0; ++j) y_new[j] = r->y[j] + r->z[2 * n + j];
+        flag = error <= 1.0 ? rhs_at(r, y_new, f_new) : 0;
+        if (flag < 0) return CV_RHSFUNC_FAIL;
+        if (error > 1.0 || flag > 0) { /* rejected, or the new state's derivative not finite */
+            r->counters[3]++, failure = CV_ERR_FAILURE;
             r->rejected = 1;
-            r->h = h * fmax(FACTOR_MIN, factor);
+            r->h = flag > 0 ? 0.5 * h : h * fmax(FACTOR_MIN, factor);
             continue;
         }
         /* accepted: the dense output's coefficients, the new state and its derivative */
-        for (m = 0; m < 3; ++m)
-            for (j = 0; j < n; ++j)
-                r->q[m * n + j] = P[3 * m] * r->z[j] + P[3 * m + 1] * r->z[n + j] +
-                                  P[3 * m + 2] * r->z[2 * n + j];
+        mix(r->k + RADAU_P, r->z, n, r->q);
         memcpy(r->y_last, r->y, sizeof(double) * n);
-        for (j = 0; j < n; ++j) r->y[j] += r->z[2 * n + j];
+        memcpy(r->y, y_new, sizeof(double) * n);
+        memcpy(r->fy, f_new, sizeof(double) * n);
         if (r->h_last > 0.0 && r->error_last > 0.0) /* Gustafsson's predictive controller */
             factor *= fmin(1.0, h / r->h_last * pow(r->error_last / error, 0.25));
         r->t_last = r->t, r->h_last = h, r->error_last = error;
         r->t = clipped ? r->t_stop : r->t + h;
         r->counters[0]++;
-        if (rhs_at(r, r->y, r->fy)) return -8;
         factor = fmin(FACTOR_MAX, fmax(FACTOR_MIN, factor));
         if (r->rejected) factor = fmin(factor, 1.0);
         h_new = factor >= 1.0 && factor <= KEEP_STEP ? h : h * factor;

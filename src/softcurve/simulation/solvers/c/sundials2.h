@@ -62,6 +62,11 @@ extern int CVodeGetSens(void *mem, realtype *tret, N_Vector *yS);
 #define CV_ONE_STEP 2
 #define CV_STAGGERED 2
 #define CV_TOO_MUCH_WORK -1
+#define CV_ERR_FAILURE -3
+#define CV_CONV_FAILURE -4
+#define CV_LSETUP_FAIL -6
+#define CV_RHSFUNC_FAIL -8
+#define CV_FIRST_RHSFUNC_ERR -9
 #define PREC_LEFT 1
 
 #endif
