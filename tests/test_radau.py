@@ -310,6 +310,32 @@ def test_failures_say_which_method_and_why(paper_model):
     assert np.all(crushed.q[:, 0] > 0)  # no output outside the domain is kept
 
 
+@pytest.mark.parametrize(
+    ("every", "chosen"), [(None, "cvodes-adams"), (0.01, "radau"), (0.1, "cvodes-adams")]
+)
+def test_auto_takes_radau_where_the_input_changes_often(paper_model, every, chosen):
+    """The slow moment of ``benchmarks/bench_radau.py --case slow``, held for ``every``
+    seconds (None: a constant moment): Radau IIA where it changes within AUTO_INTERVAL
+    over the fastest rate (283 1/s: 35 ms), else CVODES's choice; the result says why."""
+    q0 = sc.equilibrium(paper_model, paper_model.robot.rest_configuration()).q
+    if every is None:
+        tau = np.array([0.0, 1e-3, 0.0])
+    else:  # the moment sampled every `every` s, on the grid of 10 ms
+        held = np.floor(np.arange(101) * 0.01 / every + 1e-9) * every
+        tau = np.outer(0.5 * (1.0 - np.cos(2.0 * np.pi * held / 10.0)), [0.0, 2e-3, 0.0])
+    run = sc.simulate(paper_model, q0, np.zeros(3), tau=tau, t_final=1.0, dt=0.01,
+                      method="auto")  # fmt: skip
+    assert run.success and run.stats["method"] == chosen, run.stats
+    reason = run.stats["method_reason"]
+    assert reason.startswith("auto: ") and ("within" in reason) == (chosen == "radau")
+    if every is None:
+        assert "no change" in reason
+    batch = sc.simulate_batch(paper_model, [q0], np.zeros(3), tau=np.atleast_2d(tau)[0],
+                              t_final=0.1, method="auto")  # fmt: skip
+    assert batch.stats["methods"] == ["cvodes-adams"]
+    assert "no change" in batch.stats["method_reason"]
+
+
 def test_the_settings_and_the_command_line_take_radau(tmp_path, capsys):
     assert SimulationSettings(method="radau").method == "radau"
     with pytest.raises(SystemExit) as refused:  # argparse's usage error, before any work

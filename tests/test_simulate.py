@@ -15,7 +15,7 @@ from softcurve.base.status import Status
 from softcurve.simulation._settings import SimulationSettings
 from softcurve.simulation.solvers import _driver as native
 from softcurve.simulation.solvers import _policy as _engines
-from softcurve.simulation.solvers._grid import _input_changes
+from softcurve.simulation.solvers._grid import input_changes
 from softcurve.simulation.solvers._policy import STIFFNESS_RATIO, linearization_rates, nominal_scale
 
 from .conftest import assert_close
@@ -275,13 +275,13 @@ def test_restart_segments_cover_the_grid(t_final, dt, interval, expected):
     assert _engines.restart_segments(grid, interval) == expected
 
 
-def test_input_changes_are_the_rows_that_differ_from_the_one_before():
+def testinput_changes_are_the_rows_that_differ_from_the_one_before():
     rng = np.random.default_rng(15)
     inputs = rng.integers(0, 2, size=(400, 3)).astype(np.float64)
     inputs[100:200] = inputs[100]  # a long constant stretch
     expected = np.flatnonzero(np.any(inputs[1:-1] != inputs[:-2], axis=1)) + 1
-    np.testing.assert_array_equal(_input_changes(inputs), expected)
-    assert _input_changes(np.zeros((2, 3))).size == _input_changes(np.zeros((9, 3))).size == 0
+    np.testing.assert_array_equal(input_changes(inputs), expected)
+    assert input_changes(np.zeros((2, 3))).size == input_changes(np.zeros((9, 3))).size == 0
 
 
 def test_restarts_keep_the_trajectory_within_tolerance(paper_model):

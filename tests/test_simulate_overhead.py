@@ -16,7 +16,7 @@ Q0, QD0 = np.array([0.064, 25.0, 0.0]), np.array([0.0, 0.0, 1500.0])
 
 
 def _column_changes(inputs: np.ndarray) -> np.ndarray:
-    """The rule of ``_input_changes`` written plainly, column by column."""
+    """The rule of ``input_changes`` written plainly, column by column."""
     changed = np.zeros(max(inputs.shape[0] - 2, 0), dtype=bool)
     for column in inputs.T:
         changed |= column[1:-1] != column[:-2]
@@ -24,26 +24,26 @@ def _column_changes(inputs: np.ndarray) -> np.ndarray:
 
 
 @pytest.mark.parametrize("width", [1, 3, 7])
-def test_input_changes_match_the_column_by_column_rule(rng, width):
+def testinput_changes_match_the_column_by_column_rule(rng, width):
     for rows in (2, 3, 4, 50, 1001):
         inputs = rng.integers(0, 3, size=(rows, width)).astype(np.float64)
         inputs[rng.random(rows) < 0.5] = 0.0  # runs of equal rows
         inputs[rng.random((rows, width)) < 0.2] *= -1.0  # -0.0 equals 0.0
-        np.testing.assert_array_equal(stepping._input_changes(inputs), _column_changes(inputs))
+        np.testing.assert_array_equal(stepping.input_changes(inputs), _column_changes(inputs))
         strided = np.repeat(inputs, 2, axis=1)[:, ::2]  # not C-contiguous
-        np.testing.assert_array_equal(stepping._input_changes(strided), _column_changes(inputs))
+        np.testing.assert_array_equal(stepping.input_changes(strided), _column_changes(inputs))
 
 
 @pytest.fixture
 def counted_changes(monkeypatch):
     calls = []
-    original = stepping._input_changes
+    original = stepping.input_changes
 
     def counting(inputs):
         calls.append(inputs.shape)
         return original(inputs)
 
-    monkeypatch.setattr(stepping, "_input_changes", counting)
+    monkeypatch.setattr(stepping, "input_changes", counting)
     return calls
 
 

@@ -54,9 +54,10 @@ def _add_arguments(parser) -> None:
     parser.add_argument("--dt", type=float, metavar="S", help="output interval [s]")
     parser.add_argument(
         "--method",
-        choices=("cvodes", "adams", "bdf", "radau", "rk45"),
+        choices=("cvodes", "auto", "adams", "bdf", "radau", "rk45"),
         help="integrator (default cvodes: Adams or BDF chosen per problem; radau: the "
-        "L-stable Radau IIA of order 5)",
+        "L-stable Radau IIA of order 5; auto: radau where the input changes often, "
+        "else cvodes)",
     )
     parser.add_argument("--rtol", type=float, help="relative tolerance (default 1e-6)")
     parser.add_argument(

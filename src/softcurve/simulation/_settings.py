@@ -17,10 +17,12 @@ import numpy as np
 
 from softcurve.base.validation import ParameterError, beyond_float, real_scalar
 
-METHODS = ("cvodes", "adams", "bdf", "radau", "rk45")
-"""Integrators: ``"cvodes"`` chooses Adams or BDF per problem, ``"adams"`` and ``"bdf"``
-force CVODES's family, ``"radau"`` is the C driver's L-stable Radau IIA of order 5,
-``"rk45"`` is SciPy's explicit Runge-Kutta 4(5)."""
+METHODS = ("cvodes", "auto", "adams", "bdf", "radau", "rk45")
+"""Integrators: ``"cvodes"`` chooses Adams or BDF per problem, ``"auto"`` chooses Radau IIA
+or ``"cvodes"``'s choice by the initial linearization and the changes of the input
+(``softcurve.simulation.solvers.auto_method``), ``"adams"`` and ``"bdf"`` force CVODES's
+family, ``"radau"`` is the C driver's L-stable Radau IIA of order 5, ``"rk45"`` is
+SciPy's explicit Runge-Kutta 4(5)."""
 
 JACOBIANS = ("differences", "exact")
 """The Jacobians of the C driver's Newton matrix (``SimulationSettings.jacobian``)."""
@@ -113,9 +115,11 @@ class SimulationSettings:
         is about 1.5e-154 s) and at least ``t_final`` times the float64 epsilon (so that
         every ``t + dt`` is a new time). The integrator chooses its own steps by error
         control, independently of ``dt``.
-    method : {"cvodes", "adams", "bdf", "radau", "rk45"}
+    method : {"cvodes", "auto", "adams", "bdf", "radau", "rk45"}
         The integrator (default ``"cvodes"``: CVODES, Adams or BDF chosen per problem;
-        ``"radau"``: Radau IIA of order 5, L-stable, in the C driver).
+        ``"radau"``: Radau IIA of order 5, L-stable, in the C driver; ``"auto"``: Radau
+        IIA where an input on the output grid changes often against the robot's fastest
+        mode, else ``"cvodes"``; a batch's members hold one input each: ``"cvodes"``).
     rtol : float
         Relative tolerance, ``0 < rtol < 1`` (default 1e-6).
     atol : None, float or sequence of float, shape (n_state,)

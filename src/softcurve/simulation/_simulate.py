@@ -20,6 +20,11 @@ Integrators (``method``)
     ``softcurve.simulation.solvers.SETTLED_RATIO``), and with Adams again if it moves; the method
     is then reported as ``"cvodes-adams+bdf"``. With actuator inputs, a controller or a
     callable input the family chosen at the start is kept.
+``"auto"``
+    Radau IIA (below) where the input given on the output grid changes on average within
+    ``AUTO_INTERVAL`` over the fastest rate of the initial linearization (a slow input
+    sampled often, where CVODES would restart at every sample), else ``"cvodes"``; the
+    result says which and why in ``stats["method_reason"]``.
 ``"adams"``, ``"bdf"``
     CVODES with that family, no choice made.
 ``"radau"``
@@ -87,10 +92,12 @@ from softcurve.simulation.solvers import (
     Problem,
     Stopped,
     actuator_exit,
+    auto_method,
     choose_route,
     failure_message,
     failure_status,
     initial_state,
+    input_changes,
     lag_scale,
     linearization_rates,
     multistep_family,
@@ -277,16 +284,21 @@ def simulate(
 
     method, rtol = settings.method, settings.rtol
     on_grid = controller is None and not callable(values)
+    rates, chosen = None, {}
+    if method in ("cvodes", "auto"):
+        tau0 = _initial_force(model, model_x0, x0, values, actuated)
+        rates = linearization_rates(model, model_x0, tau0, nominal[: model.n_state])
+    if method == "auto":
+        method, chosen["method_reason"] = auto_method(rates[1], _change_interval(grid, values))
     route = choose_route(
         "simulate", method, model=model, inputs=actuated, jacobian=settings.jacobian
     )
     stats = {"method": method, "route": route.name, "route_reason": route.reason,
-             "rtol": rtol, "atol": atol.tolist(), "dt": settings.dt}  # fmt: skip
+             "rtol": rtol, "atol": atol.tolist(), "dt": settings.dt, **chosen}  # fmt: skip
     fastest = None  # at a restart: BDF once the robot moves slower than this allows
     multistep = method
     if method == "cvodes":
-        tau0 = _initial_force(model, model_x0, x0, values, actuated)
-        ratio, fastest = linearization_rates(model, model_x0, tau0, nominal[: model.n_state])
+        ratio, fastest = rates
         stats["stiffness_ratio"] = ratio
         multistep = multistep_family(ratio, model.environment is not None)
         if multistep != "adams" or actuated is not None:
@@ -319,6 +331,16 @@ def simulate(
     wall = time.perf_counter() - start_time
     stats.update(engine.counts, method=engine.method, wall_time=wall)
     return _result(model, grid, states, applied, reached, failure, stats, actuated, actuator)
+
+
+def _change_interval(grid, values) -> float | None:
+    """The mean time [s] between changes of an input given on the output grid (the runs of
+    equal rows of ``values``), or None where it never changes or is computed during the
+    run."""
+    if not isinstance(values, np.ndarray) or values.ndim != 2:
+        return None
+    changes = input_changes(values).size
+    return (grid[-1] - grid[0]) / (changes + 1) if changes else None
 
 
 def _initial_force(model, model_x0, x0, values, actuated) -> np.ndarray:

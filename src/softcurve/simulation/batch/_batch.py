@@ -45,6 +45,7 @@ from softcurve.simulation.results import BatchTrajectory, batch_status, stop_at_
 from softcurve.simulation.solvers import (
     Problem,
     Route,
+    auto_method,
     batch_route,
     blocks,
     choose_route,
@@ -135,7 +136,8 @@ def simulate_batch(
         into them), as in :func:`~softcurve.simulation.simulate`.
     settings : SimulationSettings, optional
         As in :func:`~softcurve.simulation.simulate`; ``method`` is "cvodes"
-        (chosen per member), "adams" or "bdf". Memory is ``B * T * (2 n + n_creep + 3)``
+        (chosen per member), "adams", "bdf", "radau" or "auto" (a member's input does
+        not change: "cvodes"). Memory is ``B * T * (2 n + n_creep + 3)``
         doubles: use a coarser ``dt`` for large batches; the integration steps are chosen
         by error control, so a coarser grid keeps the accuracy. One integrator serves
         the batch, so a given ``atol`` is applied as the tightest ``atol / nominal`` over
@@ -238,6 +240,9 @@ def _integrate(model, x0, arrays, scales, settings, how, drives) -> BatchTraject
     params = arrays["parameters"]
     nominal, atol, rest_lengths = scales
     size, method, n_state = x0.shape[0], settings.method, model.n_state
+    auto = {}
+    if method == "auto":  # one input per member: no change of the input (auto_method)
+        method, auto["method_reason"] = auto_method(0.0, None)
     grid = settings.output_times()
     # one problem of every member; the lagging inputs (after n_state) are held relative
     problem = Problem(model, None, nominal, atol, settings.rtol, settings.max_steps, grid,
@@ -298,6 +303,7 @@ def _integrate(model, x0, arrays, scales, settings, how, drives) -> BatchTraject
         inputs = states[..., n_state:] if drives.lag else np.repeat(u[:, None, :], grid.size, 1)
         inputs = np.where(np.isnan(states[..., :1]), np.nan, inputs)  # NaN after a failure
     stats = {
+        **auto,
         "methods": families,
         **_route_stats(member_routes, [route.reason for route in routes]),
         "rtol": settings.rtol,

@@ -35,13 +35,16 @@ from softcurve.simulation.solvers._grid import State as State
 from softcurve.simulation.solvers._grid import Stopped as Stopped
 from softcurve.simulation.solvers._grid import actuator_exit as actuator_exit
 from softcurve.simulation.solvers._grid import domain_reason as domain_reason
+from softcurve.simulation.solvers._grid import input_changes as input_changes
 from softcurve.simulation.solvers._grid import outside_domain as outside_domain
 from softcurve.simulation.solvers._grid import run_on_grid as run_on_grid
 from softcurve.simulation.solvers._grid import run_sampled as run_sampled
+from softcurve.simulation.solvers._policy import AUTO_INTERVAL as AUTO_INTERVAL
 from softcurve.simulation.solvers._policy import MAX_ORDER as MAX_ORDER
 from softcurve.simulation.solvers._policy import RESTART_INTERVAL as RESTART_INTERVAL
 from softcurve.simulation.solvers._policy import SETTLED_RATIO as SETTLED_RATIO
 from softcurve.simulation.solvers._policy import STIFFNESS_RATIO as STIFFNESS_RATIO
+from softcurve.simulation.solvers._policy import auto_method as auto_method
 from softcurve.simulation.solvers._policy import cvodes_options as cvodes_options
 from softcurve.simulation.solvers._policy import cvodes_reason as cvodes_reason
 from softcurve.simulation.solvers._policy import difference_eigenvalues as difference_eigenvalues
@@ -101,11 +104,14 @@ __all__ = [
     "Stopped",
     "actuator_exit",
     "domain_reason",
+    "input_changes",
     "outside_domain",
     "run_on_grid",
     "run_sampled",
+    "AUTO_INTERVAL",
     "MAX_ORDER",
     "SETTLED_RATIO",
+    "auto_method",
     "cvodes_options",
     "cvodes_reason",
     "difference_eigenvalues",

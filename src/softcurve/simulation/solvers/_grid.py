@@ -182,7 +182,7 @@ def run_on_grid(engine, grid, states, inputs, bar, domain, fastest=None, constan
     segments = restart_segments(grid, RESTART_INTERVAL)
     on_driver = getattr(engine, "native", None) is not None
     if on_driver:
-        changes = np.empty(0, dtype=int) if constant else _input_changes(inputs)
+        changes = np.empty(0, dtype=int) if constant else input_changes(inputs)
         if bar is None:
             return _run_native(engine, grid, states, inputs, domain, segments, fastest, changes)
     model, nominal = getattr(engine, "model", None), getattr(engine, "nominal", None)
@@ -202,7 +202,7 @@ def run_on_grid(engine, grid, states, inputs, bar, domain, fastest=None, constan
 def _run_native(engine, grid, states, inputs, domain, segments, fastest, changes) -> int:
     """Outputs ``segments[0][0]`` to ``segments[-1][1]`` of :func:`run_on_grid` in one call
     of the C driver: segments end at the restarts and at the ``changes`` of the input
-    (:func:`_input_changes`); the driver stops at the first output outside the domain,
+    (:func:`input_changes`); the driver stops at the first output outside the domain,
     which :class:`Domain` then words."""
     ends, restart = [], []
     bounds = np.array(segments).T
@@ -232,13 +232,18 @@ def _run_native(engine, grid, states, inputs, domain, segments, fastest, changes
     raise Stopped(done, engine.failure_reason(flags[0]))
 
 
-def _input_changes(inputs: np.ndarray) -> np.ndarray:
+def input_changes(inputs: np.ndarray) -> np.ndarray:
     """The output indices ``k`` (ascending) where the input of interval ``k`` differs from
-    that of interval ``k - 1``, for ``inputs`` (T, width), one row per interval (the last
-    row is unused). Rows 1..T-2 and rows 0..T-3 are each one contiguous block of a
-    C-ordered array, so one elementwise comparison of the blocks finds the differing
+    that of interval ``k - 1``. Rows 1..T-2 and rows 0..T-3 are each one contiguous block
+    of a C-ordered array, so one elementwise comparison of the blocks finds the differing
     entries: about three times faster than column by column on a 10,000-row grid, and
-    NumPy's ``any(axis=1)`` over a few columns is slower still."""
+    NumPy's ``any(axis=1)`` over a few columns is slower still.
+
+    Parameters
+    ----------
+    inputs : ndarray, shape (T, width)
+        One row per output interval (the last row is unused).
+    """
     rows, width = inputs.shape
     if rows < 3 or width == 0:
         return np.empty(0, dtype=int)

@@ -254,6 +254,43 @@ def multistep_family(ratio, contact: bool = False):
     return np.where(stiff, "bdf", "adams")
 
 
+AUTO_INTERVAL = 10.0
+"""``method="auto"`` integrates with Radau IIA where the input on the output grid changes
+on average within ``AUTO_INTERVAL`` over the fastest rate of the initial linearization
+(seconds), else as ``"cvodes"`` (:func:`auto_method`). CVODES restarts at every change of
+the input, at order one with a fresh Jacobian, where Radau IIA goes on with its step size
+and Jacobian. Measured on the paper's robot under a slow moment held between outputs
+(fastest rate 283 1/s; ``python benchmarks/bench_radau.py --case slow --dt DT``, rtol
+1e-6 to 1e-3): a change every 1 ms (0.28 over the fastest rate), Radau IIA 4.3 to 5.6
+times faster at the same error; every 10 ms (2.8), 1.3 to 2.6 times; every 100 ms (28),
+CVODES 1.2 to 1.4 times faster. Without changes (the paper's case, chains, a constant
+moment) CVODES is as fast or faster (docs/performance.md, "Radau IIA")."""
+
+
+def auto_method(fastest: float, interval: float | None) -> tuple[str, str]:
+    """What ``method="auto"`` integrates with, and why in a phrase: ``("radau", why)`` or
+    ``("cvodes", why)`` (:data:`AUTO_INTERVAL`).
+
+    Parameters
+    ----------
+    fastest : float
+        The fastest rate of the initial linearization [1/s]
+        (:func:`linearization_rates`).
+    interval : float or None
+        The mean time between changes of the input on the output grid [s]; None where the
+        input is held on the whole grid or computed during the run (a controller, a
+        callable: not measured, CVODES).
+    """
+    if interval is None:
+        return "cvodes", "auto: no change of the input on the output grid"
+    bound = AUTO_INTERVAL / max(fastest, 1e-300)
+    if interval < bound:
+        return "radau", (f"auto: the input changes every {interval:.3g} s on average, within "
+                         f"{AUTO_INTERVAL:g} / fastest rate ({bound:.3g} s)")  # fmt: skip
+    return "cvodes", (f"auto: the input changes every {interval:.3g} s on average, beyond "
+                      f"{AUTO_INTERVAL:g} / fastest rate ({bound:.3g} s)")  # fmt: skip
+
+
 def method_name(family: str) -> str:
     """The integrator's name as results carry it (``stats["method"]``, messages) for the
     family a member ran: ``"radau"``, or CVODES's ``"cvodes-adams"``, ``"cvodes-bdf"``,
