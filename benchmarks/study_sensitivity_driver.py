@@ -12,8 +12,11 @@ by CVODES's staggered corrector, with the same compiled ``[f; f_x S + f_d]``. It
 prints wall time, steps, right-hand sides and sensitivity evaluations per family
 (Adams, BDF), tolerance (rtol 1e-8 down to 1e-4) and error test (the state alone, the
 library's default, or the sensitivity columns too, ``fsens_err_con``), and the largest
-difference from CasADi's route relative to each row's range. The library's choice
-(Adams, rtol 1e-8) is ``softcurve.simulation.sensitivity._sensitivity.NATIVE_FAMILY``.
+difference from CasADi's route relative to each row's range; then the same for the
+driver's Radau IIA with the sensitivities of its discrete scheme
+(``integrator_options={"method": "radau"}``). The library's choice
+(Adams, rtol 1e-8) is the first of
+``softcurve.simulation.sensitivity._sensitivity.SENSITIVITY_METHODS``.
 Beside each Adams row with the state alone in the error test it prints the cost of the
 state alone, without the columns: what a fit pays for a trial point it evaluates
 without the Jacobian (``SensitivityEvaluator.outputs``).
@@ -119,10 +122,15 @@ def main() -> None:
     )
     span = np.abs(reference).max(axis=1) + 1e-300
     n_x = evaluate.n_x
+    tolerances = ((1e-8, 1e-10), (1e-6, 1e-8), (1e-4, 1e-6))
     cases = [(family, rtol, atol, tested) for family in (1, 2) for tested in (False, True)
-             for rtol, atol in ((1e-8, 1e-10), (1e-6, 1e-8), (1e-4, 1e-6))]  # fmt: skip
+             for rtol, atol in tolerances]  # fmt: skip
+    # Radau IIA's columns are never in its error test: the sensitivities of its steps
+    cases += [
+        (3, rtol, atol, False) for rtol, atol in ((1e-8, 1e-10), (1e-7, 1e-9), *tolerances[1:])
+    ]
     for family, rtol, atol, tested in cases:
-        name = {1: "Adams", 2: "BDF"}[family]
+        name = {1: "Adams", 2: "BDF", 3: "Radau"}[family]
         tested_text = "state and columns" if tested else "state only"
         settings = DriverSettings(rtol, atol, max_steps, family, tested)
         wall, (out, _, flag, counts) = best(

@@ -15,6 +15,7 @@ import softcurve as sc
 from softcurve.base.status import Status
 from softcurve.cli import main
 from softcurve.compiled import NativeFunction, compile_source
+from softcurve.identification.maps import bending_angle_map
 from softcurve.simulation import JACOBIANS, METHODS, SimulationSettings
 from softcurve.simulation.solvers import (
     DRIVER_FAMILIES,
@@ -28,7 +29,10 @@ from softcurve.simulation.solvers import (
 from softcurve.simulation.solvers import _driver as c_driver
 
 from .conftest import random_state
+from .test_identify import SEG
+from .test_identify import oscillation as identify_oscillation
 from .test_kinds import KINDS, robots
+from .test_sensitivity_driver import _evaluator as sensitivity_trial
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
 
@@ -334,6 +338,73 @@ def test_auto_takes_radau_where_the_input_changes_often(paper_model, every, chos
                               t_final=0.1, method="auto")  # fmt: skip
     assert batch.stats["methods"] == ["cvodes-adams"]
     assert "no change" in batch.stats["method_reason"]
+
+
+# -- sensitivities of the discrete scheme --------------------------------------------------
+@pytest.fixture(scope="module")
+def fit_model():
+    return sc.Model(sc.presets.ifac2020(), quadrature_nodes=4)
+
+
+@pytest.mark.parametrize("hold", ["linear", "constant"])
+def test_the_sensitivities_through_radau_are_cvodes_tight_ones(fit_model, hold):
+    """The identification's trial of ``tests/test_sensitivity_driver.py`` (bellows, four
+    free parameters): outputs and Jacobian by Radau IIA at the default rtol 1e-8 against
+    CVODES at rtol 1e-12 with its columns in the error test (measured: outputs 7e-10 and
+    3e-11, columns 5e-9 and 2e-11 of each column's largest entry)."""
+    tight = {"reltol": 1e-12, "abstol": 1e-14, "max_num_steps": 10**6, "fsens_err_con": True}
+    reference, theta = sensitivity_trial(fit_model, hold, options=tight)
+    y_ref, jacobian_ref = reference(theta)
+    evaluate, theta = sensitivity_trial(fit_model, hold, options={"method": "radau"})
+    y, jacobian = evaluate(theta)
+    assert evaluate.stats["method"] == "radau" and reference.stats["method"] == "adams"
+    assert evaluate.stats["sensitivity_evaluations"] > 3 * evaluate.stats["steps"]
+    assert np.abs(y - y_ref).max() <= 1e-7 * np.abs(y_ref).max()
+    for j in range(jacobian.shape[1]):
+        scale = np.abs(jacobian_ref[:, j]).max()
+        assert np.abs(jacobian[:, j] - jacobian_ref[:, j]).max() <= 1e-6 * scale, j
+    np.testing.assert_array_equal(evaluate.outputs(theta), y)  # the state's own steps
+
+
+def test_the_sensitivities_through_radau_are_the_differences_of_its_outputs(fit_model):
+    """Central differences of Radau IIA's outputs (rtol 1e-11, its steps re-chosen at each
+    point) against its columns, each parameter stepped by 1e-6 of its value (1e-6 rad for
+    the angle at zero), within 1e-5 of each column's largest entry (measured: up to 1.2e-6,
+    the damping's; the stiffness's differences are off by 3e-9 there, 3e-7 at 1e-5 and
+    3e-5 at 1e-4, of order two)."""
+    evaluate, theta = sensitivity_trial(fit_model, "linear", options={"method": "radau"})
+    _, jacobian = evaluate(theta)
+    for j in range(theta.size):
+        step = 1e-6 * (abs(theta[j]) or 1.0)
+        plus, minus = theta.copy(), theta.copy()
+        plus[j] += step
+        minus[j] -= step
+        moved = [evaluate.outputs(x, (1e-11, 1e-13)) for x in (plus, minus)]
+        difference = (moved[0] - moved[1]).ravel("F") / (2 * step)  # vec: column-major
+        scale = np.abs(difference).max()
+        assert np.abs(jacobian[:, j] - difference).max() <= 1e-5 * scale, j
+
+
+oscillation = identify_oscillation  # tests/test_identify.py's fixture, here too
+
+
+def test_a_trajectory_fit_through_radau_recovers_the_robot(oscillation):
+    """``tests/test_identify.py``'s noise-free oscillation fit, through Radau IIA."""
+    model, x0, data = oscillation
+    free = [
+        sc.Free(SEG + "bending_stiffness.k0", 1e-4, 1.0, initial=0.012),
+        sc.Free(SEG + "damping[1,1]", 1e-9, 1e-4, initial=1e-6),
+    ]
+    report = sc.fit_trajectory(model, data, output=bending_angle_map(), x0=x0, free=free,
+                               integrator_options={"method": "radau"})  # fmt: skip
+    assert report.success, report.message
+    assert report.extra["method"] == "radau"
+    np.testing.assert_allclose(report.values, [0.008, 4e-7], rtol=1e-5)
+
+
+def test_a_method_of_the_sensitivities_outside_the_list_is_refused(fit_model):
+    with pytest.raises(sc.ParameterError, match="method.*adams, bdf, radau.*'rk45'"):
+        sensitivity_trial(fit_model, "linear", options={"method": "rk45"})
 
 
 def test_the_settings_and_the_command_line_take_radau(tmp_path, capsys):

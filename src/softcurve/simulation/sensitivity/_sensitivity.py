@@ -12,7 +12,7 @@ is applied afterwards, sample by sample.
 
 Two routes integrate it (the route is chosen by the solvers' ``choose_route`` and
 recorded in the statistics). Where softcurve's CVODES driver is available, the state is
-integrated by Adams-Newton (or BDF, :attr:`DriverSettings.family`) on its own Newton
+integrated by Adams-Newton (or BDF, or Radau IIA: :data:`SENSITIVITY_METHODS`) on its own Newton
 matrix and the sensitivity columns by CVODES's staggered corrector (outside the error
 test), all in C (``softcurve_sensitivities`` of the driver's ``sensitivity.c``), without
 a restart at the samples of a linear hold; what an evaluator carries into worker
@@ -56,6 +56,7 @@ from typing import NamedTuple
 import casadi as ca
 import numpy as np
 
+from softcurve.base.validation import ParameterError
 from softcurve.compiled import (
     compile_function,
     compile_functions,
@@ -64,6 +65,7 @@ from softcurve.compiled import (
     load_with_path,
 )
 from softcurve.simulation.solvers import (
+    DRIVER_FAMILIES,
     DriverProblem,
     choose_route,
     cvodes_options,
@@ -71,6 +73,7 @@ from softcurve.simulation.solvers import (
     driver_library,
     driver_options,
     driver_reason,
+    radau_constants,
 )
 from softcurve.symbolic.functions import common_subexpressions
 
@@ -90,11 +93,26 @@ error test: 1.6 times the steps for Jacobian columns within 4e-9 instead of 6e-8
 3e-7 of a reference, which no fit resolves (docs/validation.md). CasADi's route always has
 them in it (it integrates ``(x, S)`` as one system)."""
 
-NATIVE_FAMILY = 1
-"""Adams (1), with Newton iteration, in the driver's route: on the 30 s benchmark case
-(``benchmarks/study_sensitivity_driver.py``) 13,142 steps in 0.62 s at rtol
-1e-8 against BDF's 17,936 steps in 1.01 s (the paper robot's lightly damped modes favour
-Adams's higher orders)."""
+FAMILY_NAMES = {family: name for name, family in DRIVER_FAMILIES.items()}
+"""The driver's families by number (``DriverSettings.family``)."""
+
+METHOD_OPTION = "method"
+"""The option of :func:`trajectory_sensitivities` (a fit's ``integrator_options``) that
+picks the driver's method, one of :data:`SENSITIVITY_METHODS`; the other options are
+CVODES's."""
+
+SENSITIVITY_METHODS = ("adams", "bdf", "radau")
+"""The driver's methods of the sensitivities: CVODES's Adams (the default: on the 30 s
+benchmark case of ``benchmarks/study_sensitivity_driver.py`` 9,032 steps in 0.37 s at
+rtol 1e-8 against BDF's 11,286 steps in 0.46 s, the paper robot's lightly damped modes
+favouring Adams's higher orders) or BDF with the staggered corrector, or Radau IIA with the
+sensitivities of its discrete scheme (the driver's ``sensitivity.c``: the converged
+stages differentiated, solved on the step's own factors). CasADi's route, without the
+driver, takes Adams; the evaluator's ``stats["method"]`` says which ran. Radau IIA is
+not the default: on the 30 s case of ``benchmarks/study_sensitivity_driver.py`` it takes
+0.43 to 0.84 times Adams's steps at the same tolerance, each with 7 to 8 right-hand sides
+and 8 to 11 evaluations of the columns against Adams's 2.3 and 1.4; its columns are far
+more accurate (docs/performance.md)."""
 
 
 class SensitivityEvaluator:
@@ -154,6 +172,12 @@ class SensitivityEvaluator:
         return y_value, total.reshape(size * k, -1)
 
     @property
+    def method(self) -> str:
+        """The method of the integration, one of :data:`SENSITIVITY_METHODS`: the
+        driver's as asked (``integrator_options``), Adams on CasADi's route."""
+        return "adams" if self.driven is None else FAMILY_NAMES[self.driven.settings.family]
+
+    @property
     def outputs_alone(self) -> bool:
         """Whether :meth:`outputs` integrates the state alone (the driver's route, as
         built in the process that made the evaluator): on the paper robot about a seventh
@@ -199,7 +223,8 @@ class SensitivityEvaluator:
         if route is None:
             states = np.array(self.integrator(x0=start, p=d_scaled, u=self.u_data)["xf"])
             counts = self.integrator.stats()
-            self.stats = {"route": "sensitivity-casadi", "steps": counts.get("nsteps"),
+            self.stats = {"route": "sensitivity-casadi", "method": "adams",
+                          "steps": counts.get("nsteps"),
                           "rhs_evaluations": counts.get("nfevals"),
                           "error_test_failures": counts.get("netfails")}  # fmt: skip
             return states
@@ -217,10 +242,11 @@ class SensitivityEvaluator:
         )  # fmt: skip
         split = len(driven.columns) > 1
         self.stats = {"route": "sensitivity-driver-split" if split else "sensitivity-driver",
-                      **counts}  # fmt: skip
+                      "method": self.method, **counts}  # fmt: skip
         if flag:
+            solver = "Radau IIA" if self.method == "radau" else "CVODES"
             raise RuntimeError(
-                f"CVODES failed after t = {driven.times[reached - 1]:g} s: {driver_reason(flag)}"
+                f"{solver} failed after t = {driven.times[reached - 1]:g} s: {driver_reason(flag)}"
             )
         return out.T
 
@@ -383,7 +409,14 @@ def trajectory_sensitivities(
     )
     augmented = functions.augmented
     t = experiment.t
-    settings = {**SENSITIVITY_CVODES, **(options or {})}
+    options = dict(options or {})
+    method = options.pop(METHOD_OPTION, SENSITIVITY_METHODS[0])
+    if method not in SENSITIVITY_METHODS:
+        raise ParameterError(
+            f"integrator_options['{METHOD_OPTION}'] must be one of "
+            f"{', '.join(SENSITIVITY_METHODS)}, got {method!r}"
+        )
+    settings = {**SENSITIVITY_CVODES, **options}
     y = output.function(q, qd, v_s, ds[:n_p])
     out = ca.Function("out", [xs, ds], [y, ca.jacobian(y, xs), ca.jacobian(y, ds)]).map(t.size)
     u_data = experiment.input_matrix(u_names).T if u_names else np.zeros((0, t.size))
@@ -401,7 +434,7 @@ def trajectory_sensitivities(
             return None
         driver_settings = DriverSettings(
             float(settings["reltol"]), float(settings["abstol"]),
-            int(settings["max_num_steps"]), NATIVE_FAMILY,
+            int(settings["max_num_steps"]), DRIVER_FAMILIES[method],
             bool(settings.get("fsens_err_con", False)),
         )  # fmt: skip
         table = np.ascontiguousarray(u_data.T)
@@ -411,7 +444,7 @@ def trajectory_sensitivities(
                             driver_settings, "shared" if split else "none")  # fmt: skip
         return route, (DriverProblem(libraries[0][2], *sizes), [e[2] for e in libraries[1:]])
 
-    chosen = choose_route("sensitivity", options_known=set(options or {}) <= NATIVE_OPTIONS,
+    chosen = choose_route("sensitivity", options_known=set(options) <= NATIVE_OPTIONS,
                           threads=2 if split else 1,
                           builders={"sensitivity-driver": build_driver})  # fmt: skip
     driven, loaded = chosen.built or (None, None)
@@ -502,7 +535,7 @@ class DriverSettings(NamedTuple):
     max_steps: int
     """Steps allowed per output interval."""
     family: int
-    """1 Adams, 2 BDF."""
+    """1 Adams, 2 BDF, 3 Radau IIA (``softcurve.simulation.solvers.DRIVER_FAMILIES``)."""
     columns_tested: bool
     """The sensitivity columns in the error test too (``fsens_err_con``)."""
 
@@ -615,6 +648,7 @@ def integrate_sensitivities(
     chosen = driver_options(
         settings.rtol, settings.atol, settings.max_steps, family=settings.family,
         columns_tested=settings.columns_tested, helper=helper == "shared",
+        radau=radau_constants(),
     )  # fmt: skip
     flag = call(
         ctypes.byref(problem.struct), ctypes.byref(chosen), pointers, sizes.ctypes.data,

@@ -87,6 +87,7 @@ void *create(int lmm, double t0, N_Vector y, CVRhsFn f, void *data, double rtol,
 int outside(sc_work *s, const double *x, int width, const double *p);
 
 /* Radau IIA of order 5 on one member's work (radau.c). */
+#define NEWTON_ITERATIONS 7 /* the most simplified Newton iterations in one step */
 enum { JACOBIAN_NONE = 0, JACOBIAN_KEPT = 1, JACOBIAN_FRESH = 2 }; /* s->J: none, of an
                                                 earlier state, of this step's start */
 typedef struct {
@@ -103,6 +104,8 @@ typedef struct {
     double complex *lu; /* the complex factors (n x n), then n complex for a solve */
     int *piv;
     long counters[5]; /* since the start, as read_counters orders them */
+    void (*inputs)(void *data, double t); /* sets s->u at t (NULL: constant) */
+    void *inputs_data;
 } sc_radau;
 
 /* 0, or 1 when out of memory or without constants (radau_close frees what was
@@ -121,6 +124,14 @@ int radau_start(sc_radau *r, double t0, const double *y, double t_stop, int same
 int radau_step(sc_radau *r, double *tret);
 /* The state at t within the last accepted step, by its collocation polynomial. */
 void radau_interpolate(const sc_radau *r, double t, double *out);
+/* out_i = sum_m M[3 i + m] in_m for three blocks of n entries (M 3 x 3, row-major, of the
+ * constants: T, T^-1, P): stages transformed, or the collocation polynomial's
+ * coefficients. */
+void radau_mix(const double *M, const double *in, int n, double *out);
+/* The simplified Newton correction dw (3 n) of transformed stages w (3 n) at step size h
+ * from the stage derivatives f (3 n), on the factors of the last step (r->h_factored ==
+ * h). */
+void radau_correction(sc_radau *r, double h, const double *f, const double *w, double *dw);
 
 /* One part of the columns' right-hand side: its function, arrays and output. */
 typedef struct {

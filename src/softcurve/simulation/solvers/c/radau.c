@@ -27,7 +27,6 @@
 
 #include "driver_internal.h"
 
-#define NEWTON_ITERATIONS 7 /* the most simplified Newton iterations in one step */
 #define SAFETY 0.9          /* the step size factor's safety, lowered by slow Newton */
 #define FACTOR_MIN 0.2      /* the smallest and largest change of the step size */
 #define FACTOR_MAX 8.0
@@ -90,17 +89,19 @@ void radau_reset(sc_radau *r) {
     r->jacobian = JACOBIAN_NONE, r->continues = 0;
 }
 
-/* out_i = sum_m M[3 i + m] in_m for three blocks of n entries (M 3 x 3, row-major): the
- * stages transformed by T or T^-1, the collocation polynomial's coefficients by P. */
-static void mix(const double *M, const double *in, int n, double *out) {
+/* driver_internal.h */
+void radau_mix(const double *M, const double *in, int n, double *out) {
     int i, j;
     for (i = 0; i < 3; ++i)
         for (j = 0; j < n; ++j)
-            out[i * n + j] = M[3 * i] * in[j] + M[3 * i + 1] * in[n + j] + M[3 * i + 2] * in[2 * n + j];
+            out[i * n + j] =
+                M[3 * i] * in[j] + M[3 * i + 1] * in[n + j] + M[3 * i + 2] * in[2 * n + j];
 }
 
-static int rhs_at(sc_radau *r, const double *y, double *f) {
+/* f at time t (where the input moves with time: r->inputs sets it first) */
+static int rhs_at(sc_radau *r, double t, const double *y, double *f) {
     r->counters[1]++;
+    if (r->inputs != NULL) r->inputs(r->inputs_data, t);
     return evaluate(r->s, y, f);
 }
 
@@ -129,7 +130,7 @@ static double first_step(sc_radau *r) {
     h0 = d0 < 1e-5 || d1 < 1e-5 ? 1e-6 : 0.01 * d0 / d1;
     h0 = fmin(h0, r->t_stop - r->t);
     for (j = 0; j < n; ++j) r->v[j] = r->y[j] + h0 * r->fy[j];
-    if (rhs_at(r, r->v, r->e)) return h0;
+    if (rhs_at(r, r->t + h0, r->v, r->e)) return h0;
     for (j = 0; j < n; ++j) r->e[j] -= r->fy[j];
     d2 = rms(r->e, r->scale, n, 1) / h0;
     h1 = d1 <= 1e-15 && d2 <= 1e-15 ? fmax(1e-6, 1e-3 * h0) : pow(0.01 / fmax(d1, d2), 0.25);
@@ -150,7 +151,7 @@ int radau_start(sc_radau *r, double t0, const double *y, double t_stop, int same
         memcpy(r->y, y, sizeof(double) * n);
         r->continues = 0, r->predict = 0, r->rejected = 0, r->first = 1, r->h_last = 0.0;
     }
-    if (rhs_at(r, r->y, r->fy)) return CV_FIRST_RHSFUNC_ERR;
+    if (rhs_at(r, r->t, r->y, r->fy)) return CV_FIRST_RHSFUNC_ERR;
     if (r->h <= 0.0) r->h = first_step(r);
     r->continues = 1;
     return 0;
@@ -175,35 +176,43 @@ void radau_interpolate(const sc_radau *r, double t, double *out) {
     for (j = 0; j < n; ++j) out[j] = r->y_last[j] + polynomial(r, x, j);
 }
 
+/* driver_internal.h */
+void radau_correction(sc_radau *r, double h, const double *f, const double *w, double *dw) {
+    const double *k = r->k;
+    int n = r->n, j;
+    double gamma = k[RADAU_GAMMA] / h, alpha = k[RADAU_ALPHA] / h, beta = k[RADAU_BETA] / h;
+    double mu_real = h / k[RADAU_GAMMA];
+    double complex mu = h / (k[RADAU_ALPHA] + I * k[RADAU_BETA]), *x = r->lu + n * n;
+    radau_mix(k + RADAU_TI, f, n, r->g);
+    for (j = 0; j < n; ++j) {
+        double w1 = w[n + j], w2 = w[2 * n + j];
+        dw[j] = mu_real * (r->g[j] - gamma * w[j]);
+        x[j] = mu * ((r->g[n + j] - alpha * w1 + beta * w2) +
+                     I * (r->g[2 * n + j] - beta * w1 - alpha * w2));
+    }
+    solve_newton(r->s->LU, r->s->piv, n, dw);
+    solve_complex(r->lu, r->piv, n, x);
+    for (j = 0; j < n; ++j) dw[n + j] = creal(x[j]), dw[2 * n + j] = cimag(x[j]);
+}
+
 /* The simplified Newton iteration of one step of size h from the stages in r->z: 0 when it
  * converged (the stages in r->z, its iterations and last contraction in *iterations and
  * *theta), 1 when it diverged or converges too slowly, or the failing right-hand side's
  * flag (1 recoverable, negative not). */
 static int newton(sc_radau *r, double h, int *iterations, double *theta) {
-    const double *k = r->k, *T = k + RADAU_T, *TI = k + RADAU_TI;
+    const double *k = r->k, *T = k + RADAU_T, *TI = k + RADAU_TI, *c = k + RADAU_C;
     int n = r->n, i, j, it, flag;
-    double gamma = k[RADAU_GAMMA] / h, alpha = k[RADAU_ALPHA] / h, beta = k[RADAU_BETA] / h;
-    double mu_real = h / k[RADAU_GAMMA], norm, previous = 0.0;
+    double norm, previous = 0.0;
     double eta = pow(fmax(r->eta, DBL_EPSILON), 0.8); /* the last step's, as a first guess */
-    double complex mu = h / (k[RADAU_ALPHA] + I * k[RADAU_BETA]), *x = r->lu + n * n;
     *theta = 0.0;
-    mix(TI, r->z, n, r->w);
+    radau_mix(TI, r->z, n, r->w);
     for (it = 0; it < NEWTON_ITERATIONS; ++it) {
         for (i = 0; i < 3; ++i) {
             for (j = 0; j < n; ++j) r->v[j] = r->y[j] + r->z[i * n + j];
-            flag = rhs_at(r, r->v, r->f + i * n);
+            flag = rhs_at(r, r->t + c[i] * h, r->v, r->f + i * n);
             if (flag) return flag;
         }
-        mix(TI, r->f, n, r->g);
-        for (j = 0; j < n; ++j) {
-            double w1 = r->w[n + j], w2 = r->w[2 * n + j];
-            r->dw[j] = mu_real * (r->g[j] - gamma * r->w[j]);
-            x[j] = mu * ((r->g[n + j] - alpha * w1 + beta * w2) +
-                         I * (r->g[2 * n + j] - beta * w1 - alpha * w2));
-        }
-        solve_newton(r->s->LU, r->s->piv, n, r->dw);
-        solve_complex(r->lu, r->piv, n, x);
-        for (j = 0; j < n; ++j) r->dw[n + j] = creal(x[j]), r->dw[2 * n + j] = cimag(x[j]);
+        radau_correction(r, h, r->f, r->w, r->dw);
         norm = rms(r->dw, r->scale, n, 3);
         if (!isfinite(norm)) return 1;
         if (it > 0) {
@@ -216,7 +225,7 @@ static int newton(sc_radau *r, double h, int *iterations, double *theta) {
         }
         previous = norm;
         for (j = 0; j < 3 * n; ++j) r->w[j] += r->dw[j];
-        mix(T, r->w, n, r->z);
+        radau_mix(T, r->w, n, r->z);
         if (eta * norm <= r->newton_tolerance) {
             r->eta = eta;
             *iterations = it + 1;
@@ -243,7 +252,7 @@ static double error_norm(sc_radau *r, double h, int again) {
     norm = rms(r->e, r->v, n, 1);
     if (norm > 1.0 && again) {
         for (j = 0; j < n; ++j) r->e[j] += r->y[j];
-        if (rhs_at(r, r->e, r->e)) return INFINITY; /* rejected: a shorter step */
+        if (rhs_at(r, r->t, r->e, r->e)) return INFINITY; /* rejected: a shorter step */
         for (j = 0; j < n; ++j) r->e[j] = mu_real * (r->e[j] + r->ze[j]);
         solve_newton(r->s->LU, r->s->piv, n, r->e);
         norm = rms(r->e, r->v, n, 1);
@@ -263,6 +272,7 @@ int radau_step(sc_radau *r, double *tret) {
         if (!(h > 16.0 * DBL_EPSILON * fmax(fabs(r->t), fabs(r->t_stop)))) return failure;
         for (j = 0; j < n; ++j) r->scale[j] = r->atol + r->rtol * fabs(r->y[j]);
         if (r->jacobian == JACOBIAN_NONE) {
+            if (r->inputs != NULL) r->inputs(r->inputs_data, r->t);
             if (newton_jacobian(r->s, r->y, r->fy)) return CV_LSETUP_FAIL;
             r->s->jacobians++;
             r->jacobian = JACOBIAN_FRESH;
@@ -298,7 +308,7 @@ int radau_step(sc_radau *r, double *tret) {
         factor = SAFETY * (2 * NEWTON_ITERATIONS + 1) / (2 * NEWTON_ITERATIONS + iterations) *
                  pow(error, -0.25);
         for (j = 0; j < n && error <= 1.0; ++j) y_new[j] = r->y[j] + r->z[2 * n + j];
-        flag = error <= 1.0 ? rhs_at(r, y_new, f_new) : 0;
+        flag = error <= 1.0 ? rhs_at(r, clipped ? r->t_stop : r->t + h, y_new, f_new) : 0;
         if (flag < 0) return CV_RHSFUNC_FAIL;
         if (error > 1.0 || flag > 0) { /* rejected, or the new state's derivative not finite */
             r->counters[3]++, failure = CV_ERR_FAILURE;
@@ -307,7 +317,7 @@ int radau_step(sc_radau *r, double *tret) {
             continue;
         }
         /* accepted: the dense output's coefficients, the new state and its derivative */
-        mix(r->k + RADAU_P, r->z, n, r->q);
+        radau_mix(r->k + RADAU_P, r->z, n, r->q);
         memcpy(r->y_last, r->y, sizeof(double) * n);
         memcpy(r->y, y_new, sizeof(double) * n);
         memcpy(r->fy, f_new, sizeof(double) * n);

@@ -74,6 +74,148 @@ static int sensitivity_rhs(int m, realtype t, N_Vector y, N_Vector ydot, N_Vecto
     return 0;
 }
 
+/* Radau IIA's columns (family FAMILY_RADAU): the sensitivities of the discrete scheme. A
+ * step's stages Z solve Z = h (A (x) I) F(y + Z); differentiated, the columns' increments
+ * dZ solve dZ_i = h sum_j a_ij (f_x(Y_j) (S + dZ_j) + f_d(Y_j)), a linear system whose
+ * matrix is the exact one of the stages, solved by the simplified Newton iteration on the
+ * step's own factors (radau_correction) to the state's Newton tolerance: one evaluation of
+ * the columns' right-hand side per stage and iteration. S then moves to S + dZ_3, and the
+ * collocation polynomial of dZ gives the columns between steps. The step sizes are the
+ * state's (not differentiated, as in CVODES). */
+typedef struct {
+    double *start, *now;   /* S at the last step's start and end (m columns of n) */
+    double *dz, *w, *f, *q; /* per column 3 n: the stages' increments, transformed, their
+                               right-hand sides, the polynomial's coefficients */
+    double *dw, *scale;    /* 3 n: a correction; n: the error scale of a column */
+} sc_columns;
+
+static void columns_close(sc_columns *c) {
+    free(c->start);
+}
+
+/* 0, or 1 when out of memory (columns_close frees what was allocated). */
+static int columns_open(sc_columns *c, int n, int m) {
+    long nm = (long)n * (m > 0 ? m : 1);
+    c->start = (double *)calloc(2 * nm + 12 * nm + 4 * (long)n, sizeof(double));
+    if (c->start == NULL) return 1;
+    c->now = c->start + nm, c->dz = c->now + nm, c->w = c->dz + 3 * nm;
+    c->f = c->w + 3 * nm, c->q = c->f + 3 * nm, c->dw = c->q + 3 * nm, c->scale = c->dw + 3 * n;
+    return 0;
+}
+
+/* The columns at the end of the step just accepted by r; 0, 1 where the iteration does
+ * not converge, or -1 where the columns' right-hand side fails. */
+static int step_columns(sc_sensitivity *z, sc_radau *r, sc_columns *c) {
+    const double *nodes = r->k + RADAU_C;
+    int n = r->n, m = z->m, i, j, k, p, it;
+    double h = r->h_last, previous = 0.0;
+    memcpy(c->start, c->now, sizeof(double) * n * m);
+    memset(c->dz, 0, sizeof(double) * 3 * n * m);
+    memset(c->w, 0, sizeof(double) * 3 * n * m);
+    for (it = 0; it < 2 * NEWTON_ITERATIONS; ++it) {
+        double norm = 0.0, theta;
+        for (i = 0; i < 3; ++i) {
+            if (z->linear) inputs_at(z, r->t_last + nodes[i] * h);
+            for (k = 0; k < n; ++k) z->xs[k] = r->y_last[k] + r->z[i * n + k];
+            for (j = 0; j < m; ++j)
+                for (k = 0; k < n; ++k)
+                    z->xs[n * (1 + j) + k] = c->start[j * n + k] + c->dz[(3 * j + i) * n + k];
+            if (evaluate_parts(&z->parts)) return -1;
+            z->sensitivity_evaluations++;
+            for (j = 0; j < m; ++j) {
+                double *column = c->f + (3 * j + i) * n;
+                memcpy(column, z->parts.part[0].out + z->leading + n * j, sizeof(double) * n);
+                for (p = 1; p < z->parts.count; ++p)
+                    for (k = 0; k < n; ++k)
+                        column[k] += z->parts.part[p].out[z->leading + n * j + k];
+            }
+        }
+        for (j = 0; j < m; ++j) {
+            double *w = c->w + 3 * j * n, sum = 0.0;
+            radau_correction(r, h, c->f + 3 * j * n, w, c->dw);
+            for (k = 0; k < 3 * n; ++k) {
+                double e = c->dw[k] / (r->atol + r->rtol * fabs(c->start[j * n + k % n]));
+                sum += e * e, w[k] += c->dw[k];
+            }
+            norm = fmax(norm, sqrt(sum / (3.0 * n)));
+            radau_mix(r->k + RADAU_T, w, n, c->dz + 3 * j * n);
+        }
+        if (!isfinite(norm)) return 1;
+        theta = it > 0 ? norm / previous : 1.0;
+        if (it > 0 && theta >= 1.0) return 1;
+        if (norm == 0.0 || (it > 0 && theta / (1.0 - theta) * norm <= r->newton_tolerance)) break;
+        previous = norm;
+    }
+    if (it == 2 * NEWTON_ITERATIONS) return 1;
+    for (j = 0; j < m; ++j) {
+        for (k = 0; k < n; ++k) c->now[j * n + k] = c->start[j * n + k] + c->dz[(3 * j + 2) * n + k];
+        radau_mix(r->k + RADAU_P, c->dz + 3 * j * n, n, c->q + 3 * j * n);
+    }
+    return 0;
+}
+
+/* The columns at t within the last accepted step into out (m columns of n). */
+static void interpolate_columns(const sc_radau *r, const sc_columns *c, int m, double t,
+                                double *out) {
+    int n = r->n, j, k;
+    double x = r->h_last > 0.0 ? (t - r->t_last) / r->h_last : 1.0;
+    for (j = 0; j < m; ++j) {
+        const double *q = c->q + 3 * j * n;
+        for (k = 0; k < n; ++k)
+            out[j * n + k] = t == r->t || r->h_last == 0.0
+                                 ? c->now[j * n + k]
+                                 : c->start[j * n + k] + x * (q[k] + x * (q[n + k] + x * q[2 * n + k]));
+    }
+}
+
+static void inputs_moved(void *data, double t) { inputs_at((sc_sensitivity *)data, t); }
+
+/* The state and columns by Radau IIA from out[0] over times[1..count) (the rest as
+ * softcurve_sensitivities); 0 or the failure's CVODES flag. */
+static int radau_columns(sc_sensitivity *z, const sc_options *options, double *out,
+                         long *stats, int *reached) {
+    int n = z->s.n, m = z->m, width = n * (1 + m), i, j, flag = 0;
+    long taken;
+    double tret;
+    sc_radau r;
+    sc_columns c;
+    memset(&c, 0, sizeof(c));
+    if (radau_open(&r, &z->s, options) || columns_open(&c, n, m)) {
+        flag = -100;
+        goto done;
+    }
+    if (z->linear) r.inputs = inputs_moved, r.inputs_data = z;
+    for (j = 0; j < m; ++j) memcpy(c.now + j * n, out + n * (1 + j), sizeof(double) * n);
+    for (i = 1; i < z->count && !flag; ++i) {
+        double *row = out + (long)i * width;
+        if (i == 1 || !z->linear) { /* held inputs: each interval its own, a new start */
+            z->row = i;
+            inputs_at(z, z->times[i]);
+            flag = radau_start(&r, z->times[i - 1], out, z->linear ? z->times[z->count - 1]
+                                                                   : z->times[i], 0);
+        }
+        for (taken = 0; !flag && r.t < z->times[i];) {
+            if (++taken > options->max_steps) flag = CV_TOO_MUCH_WORK;
+            if (!flag) flag = radau_step(&r, &tret);
+            if (!flag && m > 0 && (flag = step_columns(z, &r, &c)) != 0)
+                flag = flag < 0 ? CV_RHSFUNC_FAIL : CV_CONV_FAILURE;
+        }
+        if (!z->linear || i == z->count - 1 || flag) {
+            stats[0] += r.counters[0], stats[1] += r.counters[1], stats[3] += r.counters[2];
+            stats[4] += r.counters[3];
+            memset(r.counters, 0, sizeof(r.counters));
+        }
+        if (flag) break;
+        radau_interpolate(&r, z->times[i], row);
+        interpolate_columns(&r, &c, m, z->times[i], row + n);
+        *reached = i + 1;
+    }
+done:
+    columns_close(&c);
+    radau_close(&r);
+    return flag;
+}
+
 /* softcurve_driver.h */
 SC_EXPORT int softcurve_sensitivities(const sc_function *fn, const sc_options *options,
                                       const casadi_fn *fs, const long long *fs_sizes, int parts,
@@ -119,6 +261,12 @@ SC_EXPORT int softcurve_sensitivities(const sc_function *fn, const sc_options *o
     memcpy(N_VGetArrayPointer(y), out, bytes);
     for (j = 0; j < m; ++j) memcpy(N_VGetArrayPointer(yS[j]), out + n * (1 + j), bytes);
     inputs_at(&z, times[1]);
+    if (options->family == FAMILY_RADAU) {
+        flag = radau_columns(&z, options, out, stats, reached);
+        stats[2] = z.s.jacobians;
+        stats[5] = z.sensitivity_evaluations;
+        goto done;
+    }
     mem = create(options->family == CV_BDF ? CV_BDF : CV_ADAMS, times[0], y, state_rhs, &z,
                  options->rtol, options->atol, options->max_steps, options->max_order);
     if (!mem || (m > 0 && (CVodeSensInit(mem, m, CV_STAGGERED, sensitivity_rhs, yS) ||
