@@ -41,13 +41,16 @@ def model():
     return model
 
 
-def _evaluator(model, hold, lag=None, options=None, threads=1):
-    """Bellows with smooth random pressures for 1.5 s at 12 Hz; four free parameters."""
-    rng = np.random.default_rng(16)
-    t = np.arange(0.0, 1.5 + 1e-9, 1 / 12)
-    knots = np.linspace(0.0, 1.5, 4)
-    pressures = {f"p{i}": np.interp(t, knots, 1e4 + 1e4 * rng.random(4)) for i in range(3)}
-    experiment = Experiment(t, {"kx": 0 * t, "ky": 0 * t}, pressures)
+def bellows_trial(model, hold, lag=None, options=None, threads=1, experiment=None):
+    """Bellows with smooth random pressures for 1.5 s at 12 Hz (or the pressures of
+    ``experiment``, with its signals kx and ky); four free parameters."""
+    if experiment is None:
+        rng = np.random.default_rng(16)
+        t = np.arange(0.0, 1.5 + 1e-9, 1 / 12)
+        knots = np.linspace(0.0, 1.5, 4)
+        pressures = {f"p{i}": np.interp(t, knots, 1e4 + 1e4 * rng.random(4)) for i in range(3)}
+        experiment = Experiment(t, {"kx": 0 * t, "ky": 0 * t}, pressures)
+    pressures = experiment.inputs
     inputs = bellows_input_map(area=2e-5, distance=0.01)
     free = [
         Free(SEG + "bending_stiffness.a1"),
@@ -73,12 +76,12 @@ def _evaluator(model, hold, lag=None, options=None, threads=1):
 
 @pytest.mark.parametrize("lag", [None, 1])
 def test_the_driver_agrees_with_casadis_cvodes(model, lag):
-    evaluate, theta = _evaluator(model, "linear", lag)
+    evaluate, theta = bellows_trial(model, "linear", lag)
     y, jacobian = evaluate(theta)
     assert evaluate.stats["route"] == "sensitivity-driver"
     assert evaluate.stats["sensitivity_evaluations"] > 0
     with native.casadi_only():
-        reference, theta_again = _evaluator(model, "linear", lag)
+        reference, theta_again = bellows_trial(model, "linear", lag)
         y_ref, jacobian_ref = reference(theta_again)
     assert reference.stats["route"] == "sensitivity-casadi"
     _assert_agree(y, jacobian, y_ref, jacobian_ref, 1e-6)
@@ -88,12 +91,12 @@ def test_the_driver_restarts_at_every_held_input(model):
     """Against CasADi's route at rtol 1e-10: at the default tolerances CasADi's route is
     the less accurate of the two across the jumps of held inputs (8e-7 against 8e-10 from
     a reference at 1e-12; CasADi's Adams with functional iteration fails at 1e-12)."""
-    evaluate, theta = _evaluator(model, "constant")
+    evaluate, theta = bellows_trial(model, "constant")
     y, jacobian = evaluate(theta)
     assert evaluate.stats["route"] == "sensitivity-driver"
     with native.casadi_only():
         tight = {"reltol": 1e-10, "abstol": 1e-12, "max_num_steps": 10**6}
-        reference, theta_again = _evaluator(model, "constant", options=tight)
+        reference, theta_again = bellows_trial(model, "constant", options=tight)
         y_ref, jacobian_ref = reference(theta_again)
     assert reference.stats["route"] == "sensitivity-casadi"
     _assert_agree(y, jacobian, y_ref, jacobian_ref, 1e-7)
@@ -124,11 +127,11 @@ def test_the_sensitivities_are_as_accurate_as_the_error_test_says(model, hold):
     with them in the error test (``fsens_err_con``, measured 0.7-1.4 rtol) and within
     :data:`UNCONTROLLED` rtol without (the default)."""
     tight = {"reltol": 1e-12, "abstol": 1e-14, "max_num_steps": 10**6}
-    reference, theta = _evaluator(model, hold, options=tight)
+    reference, theta = bellows_trial(model, hold, options=tight)
     y_ref, jacobian_ref = reference(theta)
     rtol = SENSITIVITY_CVODES["reltol"]
     for options, bound in ((None, UNCONTROLLED), ({"fsens_err_con": True}, 5)):
-        evaluate, theta = _evaluator(model, hold, options=options)
+        evaluate, theta = bellows_trial(model, hold, options=options)
         y, jacobian = evaluate(theta)
         assert evaluate.stats["route"] == reference.stats["route"] == "sensitivity-driver"
         assert np.abs(y - y_ref).max() <= 2 * rtol * np.abs(y_ref).max()
@@ -137,9 +140,9 @@ def test_the_sensitivities_are_as_accurate_as_the_error_test_says(model, hold):
 
 
 def test_fsens_err_con_puts_the_columns_in_the_driver_error_test(model):
-    evaluate, theta = _evaluator(model, "linear")
+    evaluate, theta = bellows_trial(model, "linear")
     y, jacobian = evaluate(theta)
-    tested, theta_again = _evaluator(model, "linear", options={"fsens_err_con": True})
+    tested, theta_again = bellows_trial(model, "linear", options={"fsens_err_con": True})
     y_tested, jacobian_tested = tested(theta_again)
     assert tested.stats["route"] == "sensitivity-driver"
     # more error to control, more steps; the same trajectory within the tolerances, the
@@ -151,24 +154,24 @@ def test_fsens_err_con_puts_the_columns_in_the_driver_error_test(model):
 
 
 def test_the_driver_counts_every_restart_of_a_held_input(model):
-    evaluate, theta = _evaluator(model, "constant")
+    evaluate, theta = bellows_trial(model, "constant")
     evaluate(theta)
     held = dict(evaluate.stats)
-    evaluate, theta = _evaluator(model, "linear")
+    evaluate, theta = bellows_trial(model, "linear")
     evaluate(theta)
     # 17 restarts (one per sample after the first): more steps than the linear hold's run
     assert held["steps"] > evaluate.stats["steps"] > 0
 
 
 def test_options_the_driver_does_not_know_select_casadis_route(model):
-    evaluate, theta = _evaluator(model, "linear", options={"max_order": 3})
+    evaluate, theta = bellows_trial(model, "linear", options={"max_order": 3})
     evaluate(theta)
     assert evaluate.stats["route"] == "sensitivity-casadi"
 
 
 @pytest.mark.parametrize("threads", [1, 2])
 def test_a_failure_of_the_driver_is_a_runtime_error_naming_cvodes(model, threads):
-    evaluate, theta = _evaluator(model, "linear", options={"max_num_steps": 2}, threads=threads)
+    evaluate, theta = bellows_trial(model, "linear", options={"max_num_steps": 2}, threads=threads)
     with pytest.raises(RuntimeError, match="CVODES failed after t = 0 s: CV_TOO_MUCH_WORK"):
         evaluate(theta)
     assert evaluate.driven.helper == {1: "none", 2: "shared"}[threads]
@@ -182,7 +185,7 @@ def _evaluate_in_this_process(evaluate, theta):
 @pytest.mark.parametrize("threads", [1, 2])
 def test_an_evaluator_carried_to_a_new_process_loads_the_driver_again(model, threads):
     """With two threads, both parts (and CasADi's fallback on them) travel by path."""
-    evaluate, theta = _evaluator(model, "linear", threads=threads)
+    evaluate, theta = bellows_trial(model, "linear", threads=threads)
     y, jacobian = evaluate(theta)
     blob = pickle.dumps(evaluate)
     assert len(blob) < 1_000_000  # the libraries' paths travel, not their functions
@@ -208,8 +211,8 @@ def test_the_split_covers_every_state_once(coordinates, states):
 
 
 def test_the_parts_sum_to_the_columns_right_hand_side(model):
-    whole, theta = _evaluator(model, "linear")
-    split, _ = _evaluator(model, "linear", threads=2)
+    whole, theta = bellows_trial(model, "linear")
+    split, _ = bellows_trial(model, "linear", threads=2)
     _, parts = split._route()
     fs = whole.variational
     n_x, m = whole.n_x, len(whole.active)
@@ -279,15 +282,15 @@ def test_fits_of_one_structure_build_their_sensitivity_functions_once(monkeypatc
 
     monkeypatch.setattr(sensitivity_module, "sensitivity_functions", counting)
     model = sc.Model(sc.presets.ifac2020(), quadrature_nodes=4)  # from the disk cache
-    first, theta = _evaluator(model, "linear")
+    first, theta = bellows_trial(model, "linear")
     assert len(built) == 1
-    again, _ = _evaluator(model, "constant")
+    again, _ = bellows_trial(model, "constant")
     assert len(built) == 1
-    _evaluator(model, "linear", lag=1)
+    bellows_trial(model, "linear", lag=1)
     assert len(built) == 2
-    _evaluator(model, "linear", threads=2)
+    bellows_trial(model, "linear", threads=2)
     assert len(built) == 3
-    fresh, _ = _evaluator(sc.Model(sc.presets.ifac2020(), quadrature_nodes=4), "constant")
+    fresh, _ = bellows_trial(sc.Model(sc.presets.ifac2020(), quadrature_nodes=4), "constant")
     y, jacobian = again(theta)
     y_fresh, jacobian_fresh = fresh(theta)
     np.testing.assert_array_equal(y, y_fresh)
@@ -298,9 +301,9 @@ def test_fits_of_one_structure_build_their_sensitivity_functions_once(monkeypatc
 def test_two_threads_give_the_one_threads_trajectory_and_jacobian(model):
     """The parts are summed in another order than the whole is computed, so the columns
     (outside the error test) differ by rounding, within what nothing controls."""
-    evaluate, theta = _evaluator(model, "linear")
+    evaluate, theta = bellows_trial(model, "linear")
     y, jacobian = evaluate(theta)
-    split, _ = _evaluator(model, "linear", threads=2)
+    split, _ = bellows_trial(model, "linear", threads=2)
     y_split, jacobian_split = split(theta)
     assert split.driven.helper == "shared" and len(split.driven.columns) == 2
     assert split.stats["route"] == "sensitivity-driver-split"
@@ -323,7 +326,7 @@ def test_the_helper_thread_changes_no_bit(model):
     helper may never win a claim)."""
     helper_only = driver_library.library(HELPER_TAKES_ALL)
     assert helper_only is not None and helper_only is not driver_library.library()
-    evaluate, theta = _evaluator(model, "linear", threads=2)
+    evaluate, theta = bellows_trial(model, "linear", threads=2)
     problem, parts = evaluate._route()
     route = evaluate.driven
     d_value = np.array(evaluate.direct(theta)[0]).ravel()
@@ -362,7 +365,7 @@ def test_the_helper_thread_changes_no_bit(model):
 
 
 def test_an_unknown_helper_mode_is_refused_by_name(model):
-    evaluate, _ = _evaluator(model, "linear", threads=2)
+    evaluate, _ = bellows_trial(model, "linear", threads=2)
     problem, parts = evaluate._route()
     with pytest.raises(ValueError, match="helper must be one of .* got True"):
         integrate_sensitivities(problem, parts, *[None] * 7, True)
@@ -373,7 +376,7 @@ def test_an_evaluator_without_the_driver_integrates_by_casadi(model, threads):
     """The fallback of a process without the driver: CasADi's CVODES on the driver's
     compiled function of the augmented system, or on that system assembled from the
     compiled parts, to the same trajectory."""
-    evaluate, theta = _evaluator(model, "linear", threads=threads)
+    evaluate, theta = bellows_trial(model, "linear", threads=threads)
     y, jacobian = evaluate(theta)
     evaluate._native = False  # as a worker that could not load the libraries
     y_casadi, jacobian_casadi = evaluate(theta)
@@ -386,7 +389,7 @@ def test_the_outputs_alone_are_the_outputs_of_a_call(model, hold):
     """The state integrated without the columns, on the driver's route: the outputs of a
     call to the integration's tolerance, no sensitivity evaluated; on CasADi's route (a
     worker that could not load the libraries) a call's outputs."""
-    evaluate, theta = _evaluator(model, hold, lag=1)
+    evaluate, theta = bellows_trial(model, hold, lag=1)
     assert evaluate.outputs_alone
     y, _ = evaluate(theta)
     alone = evaluate.outputs(theta)

@@ -275,7 +275,7 @@ def test_restart_segments_cover_the_grid(t_final, dt, interval, expected):
     assert _engines.restart_segments(grid, interval) == expected
 
 
-def testinput_changes_are_the_rows_that_differ_from_the_one_before():
+def test_input_changes_are_the_rows_that_differ_from_the_one_before():
     rng = np.random.default_rng(15)
     inputs = rng.integers(0, 2, size=(400, 3)).astype(np.float64)
     inputs[100:200] = inputs[100]  # a long constant stretch

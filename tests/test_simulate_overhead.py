@@ -24,7 +24,7 @@ def _column_changes(inputs: np.ndarray) -> np.ndarray:
 
 
 @pytest.mark.parametrize("width", [1, 3, 7])
-def testinput_changes_match_the_column_by_column_rule(rng, width):
+def test_input_changes_match_the_column_by_column_rule(rng, width):
     for rows in (2, 3, 4, 50, 1001):
         inputs = rng.integers(0, 3, size=(rows, width)).astype(np.float64)
         inputs[rng.random(rows) < 0.5] = 0.0  # runs of equal rows

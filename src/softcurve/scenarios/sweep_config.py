@@ -164,7 +164,7 @@ def sweep_from_dict(data: dict, file: str = "<config>") -> SweepConfig:
     scenario = scenario_from_dict(rest, file)
     if scenario.settings.method == "rk45":
         raise ConfigError(
-            f"{file}: simulation.method: sweeps run cvodes, adams, bdf or radau, got 'rk45'"
+            f"{file}: simulation.method: sweeps run cvodes, auto, adams, bdf or radau, got 'rk45'"
         )
     r = Reader(file, "sweep", data["sweep"])
     design = r.get("design", "string", required=True)

@@ -289,7 +289,8 @@ def simulate(
         tau0 = _initial_force(model, model_x0, x0, values, actuated)
         rates = linearization_rates(model, model_x0, tau0, nominal[: model.n_state])
     if method == "auto":
-        method, chosen["method_reason"] = auto_method(rates[1], _change_interval(grid, values))
+        interval = _change_interval(grid, values) if on_grid else None
+        method, chosen["method_reason"] = auto_method(rates[1], interval, not on_grid)
     route = choose_route(
         "simulate", method, model=model, inputs=actuated, jacobian=settings.jacobian
     )
@@ -335,12 +336,10 @@ def simulate(
 
 def _change_interval(grid, values) -> float | None:
     """The mean time [s] between changes of an input given on the output grid (the runs of
-    equal rows of ``values``), or None where it never changes or is computed during the
-    run."""
-    if not isinstance(values, np.ndarray) or values.ndim != 2:
-        return None
+    equal rows of ``values``, (T, width)) where it changes at half of the output intervals
+    or more, else None."""
     changes = input_changes(values).size
-    return (grid[-1] - grid[0]) / (changes + 1) if changes else None
+    return (grid[-1] - grid[0]) / (changes + 1) if 2 * changes >= grid.size - 1 else None
 
 
 def _initial_force(model, model_x0, x0, values, actuated) -> np.ndarray:

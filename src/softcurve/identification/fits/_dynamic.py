@@ -260,9 +260,9 @@ def fit_trajectory(
         1e-8, atol 1e-10 in the state's units), and ``"method"``: CVODES's ``"adams"``
         (default) or ``"bdf"``, or ``"radau"``, Radau IIA with the sensitivities of its
         discrete scheme, whose Jacobian is its outputs' own derivative, far more
-        accurate than CVODES's columns (outside its error test), at 1.35 times Adams's
-        cost at rtol 1e-6 (docs/performance.md, "Radau IIA"); ``extra["method"]`` says
-        which ran. With looser ``reltol`` or ``abstol``
+        accurate than CVODES's columns (outside its error test): at rtol 1e-6 it costs
+        what Adams costs at the default 1e-8 (docs/performance.md, "Radau IIA");
+        ``extra["method"]`` says which ran (None: no experiment was integrated). With looser ``reltol`` or ``abstol``
         the fit integrates its estimate once more at the default ones (the outputs
         alone) and reports the largest change of an output relative to the RMS of its
         signal's residuals as ``extra["integration_error"]``; above
@@ -295,7 +295,8 @@ def fit_trajectory(
         With ``extra["robot"]`` the fitted robot, ``extra["parameters"]`` its vector,
         ``extra["values"]`` the shared extra parameters and ``extra["per_experiment"]``
         each experiment's own, ``extra["input_hold"]`` the hold of the inputs,
-        ``extra["method"]`` the integration method (``integrator_options``),
+        ``extra["method"]`` the integration method (``integrator_options``; None where
+        none ran),
         ``extra["integration_error"]`` with looser tolerances (``integrator_options``);
         ``parts`` and :meth:`FitReport.part` give each experiment's rows.
     """
@@ -340,7 +341,8 @@ def fit_trajectory(
     )
     if tolerances is not None and evaluators:
         report = _integration_checked(report, evaluators, problem.parameters, tolerances)
-    method = evaluators[0].method if evaluators else None
+    # the method where the evaluators say it (any callable evaluates a fit)
+    method = getattr(evaluators[0], "method", None) if evaluators else None
     return replace(report, extra={**report.extra, "input_hold": input_hold, "method": method})
 
 

@@ -186,7 +186,9 @@ def simulate_batch(
         raise ParameterError(f"model must be a softcurve.Model, got {type(model).__name__}")
     settings = settings_with(settings, options, "simulate_batch")
     if settings.method == "rk45":
-        raise ParameterError("method must be cvodes, adams, bdf or radau in a batch, got 'rk45'")
+        raise ParameterError(
+            "method must be cvodes, auto, adams, bdf or radau in a batch, got 'rk45'"
+        )
     threads = _count("threads", threads, default_threads())
     processes = _count("processes", processes, 1)
     n, n_creep = model.n, model.n_creep

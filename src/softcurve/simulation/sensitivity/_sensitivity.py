@@ -12,10 +12,11 @@ is applied afterwards, sample by sample.
 
 Two routes integrate it (the route is chosen by the solvers' ``choose_route`` and
 recorded in the statistics). Where softcurve's CVODES driver is available, the state is
-integrated by Adams-Newton (or BDF, or Radau IIA: :data:`SENSITIVITY_METHODS`) on its own Newton
-matrix and the sensitivity columns by CVODES's staggered corrector (outside the error
-test), all in C (``softcurve_sensitivities`` of the driver's ``sensitivity.c``), without
-a restart at the samples of a linear hold; what an evaluator carries into worker
+integrated by Adams-Newton (or BDF) on its own Newton matrix and the sensitivity
+columns by CVODES's staggered corrector (outside the error test), or both by Radau IIA
+with the sensitivities of its discrete scheme (:data:`SENSITIVITY_METHODS`), all in C
+(``softcurve_sensitivities`` of the driver's ``sensitivity.c``), without a restart at
+the samples of a linear hold; what an evaluator carries into worker
 processes for that route is a :class:`DriverRoute`. Otherwise (no driver, or CVODES
 options other than :data:`NATIVE_OPTIONS`) CasADi's CVODES integrates the augmented
 system with :data:`SENSITIVITY_CVODES`. Both agree to the tolerances
@@ -110,9 +111,10 @@ sensitivities of its discrete scheme (the driver's ``sensitivity.c``: the conver
 stages differentiated, solved on the step's own factors). CasADi's route, without the
 driver, takes Adams; the evaluator's ``stats["method"]`` says which ran. Radau IIA is
 not the default: on the 30 s case of ``benchmarks/study_sensitivity_driver.py`` it takes
-0.43 to 0.84 times Adams's steps at the same tolerance, each with 7 to 8 right-hand sides
-and 8 to 11 evaluations of the columns against Adams's 2.3 and 1.4; its columns are far
-more accurate (docs/performance.md)."""
+0.18 to 0.84 times Adams's steps at the same tolerance, each with 7 to 8 right-hand sides
+and 6 to 7 evaluations of the columns against Adams's 2.3 and 1.4; at rtol 1e-6 it costs
+what Adams costs at 1e-8, with states as accurate and far more accurate columns
+(docs/performance.md)."""
 
 
 class SensitivityEvaluator:
@@ -175,7 +177,7 @@ class SensitivityEvaluator:
     def method(self) -> str:
         """The method of the integration, one of :data:`SENSITIVITY_METHODS`: the
         driver's as asked (``integrator_options``), Adams on CasADi's route."""
-        return "adams" if self.driven is None else FAMILY_NAMES[self.driven.settings.family]
+        return "adams" if self._route() is None else FAMILY_NAMES[self.driven.settings.family]
 
     @property
     def outputs_alone(self) -> bool:
@@ -327,6 +329,33 @@ def _casadi_integrator(rhs, n_u: int, hold: str, t, options) -> ca.Function:
     return ca.integrator("sensitivity", "cvodes", problem, float(t[0]), t, options)
 
 
+def _method_of(options) -> tuple[str, dict]:
+    """``(method, the CVODES options)`` of ``options`` (a fit's ``integrator_options``),
+    checked: :data:`METHOD_OPTION` one of :data:`SENSITIVITY_METHODS`; a method other than
+    Adams only with the options the driver takes (CasADi's route has Adams alone), Radau
+    IIA without ``fsens_err_con`` (its columns are its scheme's derivative, never in its
+    error test)."""
+    options = dict(options or {})
+    method = options.pop(METHOD_OPTION, SENSITIVITY_METHODS[0])
+    field = f"integrator_options['{METHOD_OPTION}']"
+    if method not in SENSITIVITY_METHODS:
+        raise ParameterError(
+            f"{field} must be one of {', '.join(SENSITIVITY_METHODS)}, got {method!r}"
+        )
+    foreign = sorted(set(options) - NATIVE_OPTIONS)
+    if method != SENSITIVITY_METHODS[0] and foreign:
+        raise ParameterError(
+            f"{field} = {method!r} runs in softcurve's driver, which does not take "
+            f"{', '.join(foreign)} (CasADi's CVODES, which does, runs Adams alone)"
+        )
+    if method == "radau" and options.get("fsens_err_con"):
+        raise ParameterError(
+            f"{field} = 'radau' takes no fsens_err_con: its columns are the derivative of "
+            "its discrete scheme, outside its error test"
+        )
+    return method, options
+
+
 def trajectory_sensitivities(
     model,
     parameters,
@@ -356,7 +385,8 @@ def trajectory_sensitivities(
     experiment : Experiment
         Time grid and inputs.
     options : dict or None
-        Extra CVODES options.
+        Extra CVODES options, and :data:`METHOD_OPTION` (one of
+        :data:`SENSITIVITY_METHODS`, checked by ``_method_of``'s rules).
     lag : str, optional
         Name of the extra parameter holding the time constant [s] of a first-order lag
         ``u_a' = (u - u_a) / T`` of every input before the input map (None: no lag).
@@ -367,6 +397,7 @@ def trajectory_sensitivities(
         columns' right-hand side is evaluated in two parts on two threads
         (``softcurve.simulation.sensitivity._sensitivity``).
     """
+    method, options = _method_of(options)
     P = parameters
     u_names = list(experiment.inputs)
     n_model, n_p = model.n_state, P.p0.size
@@ -409,13 +440,6 @@ def trajectory_sensitivities(
     )
     augmented = functions.augmented
     t = experiment.t
-    options = dict(options or {})
-    method = options.pop(METHOD_OPTION, SENSITIVITY_METHODS[0])
-    if method not in SENSITIVITY_METHODS:
-        raise ParameterError(
-            f"integrator_options['{METHOD_OPTION}'] must be one of "
-            f"{', '.join(SENSITIVITY_METHODS)}, got {method!r}"
-        )
     settings = {**SENSITIVITY_CVODES, **options}
     y = output.function(q, qd, v_s, ds[:n_p])
     out = ca.Function("out", [xs, ds], [y, ca.jacobian(y, xs), ca.jacobian(y, ds)]).map(t.size)

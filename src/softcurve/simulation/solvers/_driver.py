@@ -144,7 +144,7 @@ def options(rtol, atol, max_steps, *, max_order=0, family=1, settled_ratio=0.0,
     max_order : int, optional
         The method's largest order (0 or None: CVODES's own).
     family : int
-        1 Adams, 2 BDF (the sensitivities; :func:`integrate` takes one per member,
+        1 Adams, 2 BDF, 3 Radau IIA (the sensitivities; :func:`integrate` takes one per member,
         :data:`FAMILIES`).
     settled_ratio : float
         ``softcurve.simulation.solvers._policy.SETTLED_RATIO`` (dimensionless), with a

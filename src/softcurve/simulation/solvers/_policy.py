@@ -260,14 +260,15 @@ on average within ``AUTO_INTERVAL`` over the fastest rate of the initial lineari
 (seconds), else as ``"cvodes"`` (:func:`auto_method`). CVODES restarts at every change of
 the input, at order one with a fresh Jacobian, where Radau IIA goes on with its step size
 and Jacobian. Measured on the paper's robot under a slow moment held between outputs
-(fastest rate 283 1/s; ``python benchmarks/bench_radau.py --case slow --dt DT``, rtol
-1e-6 to 1e-3): a change every 1 ms (0.28 over the fastest rate), Radau IIA 4.3 to 5.6
-times faster at the same error; every 10 ms (2.8), 1.3 to 2.6 times; every 100 ms (28),
-CVODES 1.2 to 1.4 times faster. Without changes (the paper's case, chains, a constant
-moment) CVODES is as fast or faster (docs/performance.md, "Radau IIA")."""
+(fastest rate 283 1/s; ``python benchmarks/bench_radau.py --case slow --dt DT``): a
+change every 1 ms (0.28 over the fastest rate), Radau IIA 4.3 to 5.6 times faster at the
+same error (rtol 1e-4 and 1e-3; at 1e-6 and 1e-5 no CVODES run was as accurate); every
+10 ms (2.8), 1.3 to 2.6 times; every 100 ms (28), CVODES 1.2 to 1.4 times faster.
+Without changes (the paper's case, chains, a constant moment) CVODES is as fast or faster
+(docs/performance.md, "Radau IIA")."""
 
 
-def auto_method(fastest: float, interval: float | None) -> tuple[str, str]:
+def auto_method(fastest: float, interval: float | None, sampled: bool = False) -> tuple[str, str]:
     """What ``method="auto"`` integrates with, and why in a phrase: ``("radau", why)`` or
     ``("cvodes", why)`` (:data:`AUTO_INTERVAL`).
 
@@ -277,18 +278,22 @@ def auto_method(fastest: float, interval: float | None) -> tuple[str, str]:
         The fastest rate of the initial linearization [1/s]
         (:func:`linearization_rates`).
     interval : float or None
-        The mean time between changes of the input on the output grid [s]; None where the
-        input is held on the whole grid or computed during the run (a controller, a
-        callable: not measured, CVODES).
+        The mean time between changes of the input on the output grid [s], where it
+        changes at half of the output intervals or more; None where it changes less often
+        or never.
+    sampled : bool
+        The inputs are computed during the run (a controller, a callable): integrated
+        piece by piece, each piece a fresh start of either method (not measured: CVODES).
     """
+    if sampled:
+        return "cvodes", "auto: inputs computed during the run, integrated piece by piece"
     if interval is None:
-        return "cvodes", "auto: no change of the input on the output grid"
-    bound = AUTO_INTERVAL / max(fastest, 1e-300)
-    if interval < bound:
-        return "radau", (f"auto: the input changes every {interval:.3g} s on average, within "
-                         f"{AUTO_INTERVAL:g} / fastest rate ({bound:.3g} s)")  # fmt: skip
-    return "cvodes", (f"auto: the input changes every {interval:.3g} s on average, beyond "
-                      f"{AUTO_INTERVAL:g} / fastest rate ({bound:.3g} s)")  # fmt: skip
+        return "cvodes", "auto: the input changes at fewer than half of the outputs"
+    bound = AUTO_INTERVAL / fastest if fastest > 0.0 else np.inf
+    relation = "within" if interval < bound else "beyond"
+    why = (f"auto: the input changes every {interval:.3g} s on average, {relation} "
+           f"{AUTO_INTERVAL:g} / fastest rate ({bound:.3g} s)")  # fmt: skip
+    return ("radau" if interval < bound else "cvodes"), why
 
 
 def method_name(family: str) -> str:

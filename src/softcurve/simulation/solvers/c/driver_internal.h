@@ -88,6 +88,7 @@ int outside(sc_work *s, const double *x, int width, const double *p);
 
 /* Radau IIA of order 5 on one member's work (radau.c). */
 #define NEWTON_ITERATIONS 7 /* the most simplified Newton iterations in one step */
+#define FACTOR_MAX 8.0      /* the largest growth of the step size from one to the next */
 enum { JACOBIAN_NONE = 0, JACOBIAN_KEPT = 1, JACOBIAN_FRESH = 2 }; /* s->J: none, of an
                                                 earlier state, of this step's start */
 typedef struct {
@@ -124,6 +125,14 @@ int radau_start(sc_radau *r, double t0, const double *y, double t_stop, int same
 int radau_step(sc_radau *r, double *tret);
 /* The state at t within the last accepted step, by its collocation polynomial. */
 void radau_interpolate(const sc_radau *r, double t, double *out);
+/* The collocation polynomial with coefficients q (3 blocks of n) at x, entry j:
+ * sum_k x^(k+1) q_k[j] (the state or a column at t_last + x h_last, minus its value at
+ * t_last). */
+double radau_polynomial(const double *q, int n, double x, int j);
+/* A fresh Jacobian at the last step's start (y_last at t_last) and the factors at its
+ * size h_last, for a linear system of that step that the kept ones do not solve (the
+ * columns' of sensitivity.c); 0, or 1 where f, the Jacobian or the factors fail. */
+int radau_refresh(sc_radau *r);
 /* out_i = sum_m M[3 i + m] in_m for three blocks of n entries (M 3 x 3, row-major, of the
  * constants: T, T^-1, P): stages transformed, or the collocation polynomial's
  * coefficients. */

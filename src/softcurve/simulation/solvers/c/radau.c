@@ -28,8 +28,7 @@
 #include "driver_internal.h"
 
 #define SAFETY 0.9          /* the step size factor's safety, lowered by slow Newton */
-#define FACTOR_MIN 0.2      /* the smallest and largest change of the step size */
-#define FACTOR_MAX 8.0
+#define FACTOR_MIN 0.2      /* the smallest change of the step size (FACTOR_MAX: largest) */
 #define KEEP_STEP 1.2 /* a step size that would grow by at most this factor is kept, and
                          with it the factors of the Newton matrices */
 #define END_SLACK 1.0001 /* a step ending this little past the stop ends at the stop */
@@ -157,11 +156,9 @@ int radau_start(sc_radau *r, double t0, const double *y, double t_stop, int same
     return 0;
 }
 
-/* The collocation polynomial of the last accepted step at x = (t - t_last) / h_last,
- * minus y_last: sum_k x^(k+1) q_k, entry j. */
-static double polynomial(const sc_radau *r, double x, int j) {
-    int n = r->n;
-    return x * (r->q[j] + x * (r->q[n + j] + x * r->q[2 * n + j]));
+/* driver_internal.h */
+double radau_polynomial(const double *q, int n, double x, int j) {
+    return x * (q[j] + x * (q[n + j] + x * q[2 * n + j]));
 }
 
 /* driver_internal.h */
@@ -173,7 +170,17 @@ void radau_interpolate(const sc_radau *r, double t, double *out) {
         return;
     }
     x = (t - r->t_last) / r->h_last;
-    for (j = 0; j < n; ++j) out[j] = r->y_last[j] + polynomial(r, x, j);
+    for (j = 0; j < n; ++j) out[j] = r->y_last[j] + radau_polynomial(r->q, n, x, j);
+}
+
+/* driver_internal.h */
+int radau_refresh(sc_radau *r) {
+    if (r->inputs != NULL) r->inputs(r->inputs_data, r->t_last);
+    if (rhs_at(r, r->t_last, r->y_last, r->e) || newton_jacobian(r->s, r->y_last, r->e))
+        return 1;
+    r->s->jacobians++;
+    r->jacobian = JACOBIAN_KEPT;
+    return factor_pair(r, r->h_last);
 }
 
 /* driver_internal.h */
@@ -288,7 +295,7 @@ int radau_step(sc_radau *r, double *tret) {
             for (i = 0; i < 3; ++i) {
                 double x = 1.0 + c[i] * h / r->h_last;
                 for (j = 0; j < n; ++j)
-                    r->z[i * n + j] = r->y_last[j] + polynomial(r, x, j) - r->y[j];
+                    r->z[i * n + j] = r->y_last[j] + radau_polynomial(r->q, n, x, j) - r->y[j];
             }
         } else {
             memset(r->z, 0, sizeof(double) * 3 * n);

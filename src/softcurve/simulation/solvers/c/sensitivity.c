@@ -1,12 +1,14 @@
-/* softcurve_sensitivities (softcurve_driver.h): forward sensitivities of an experiment (softcurve.simulation.sensitivity): the state
- * x' = f(x, u(t), d) by CVODES with Newton's method on its own Newton matrix (the
- * callbacks above), the m sensitivity columns S' = f_x S + f_d by CVODES's staggered
- * corrector. By default only the state is in the error test (CVODES's default): with
+/* softcurve_sensitivities (softcurve_driver.h): forward sensitivities of an experiment
+ * (softcurve.simulation.sensitivity): the state x' = f(x, u(t), d) by CVODES with Newton's
+ * method on its own Newton matrix (driver.c's callbacks), the m sensitivity columns
+ * S' = f_x S + f_d by CVODES's staggered corrector; or both by Radau IIA (radau.c), the
+ * columns as the derivative of its discrete scheme (below). By default only the state is in the error test (CVODES's default): with
  * the columns in it too (columns_tested), the paper robot's 300 s trial takes 1.6 times
  * the steps for columns more accurate than a fit needs (docs/validation.md, "Speed").
  * f_x S + f_d comes from the identification's compiled function
  * fs(x;vec(S), u, d;scale) -> f;vec(S'), or from two parts that sum to it, the second on
  * a helper thread (parts.c). */
+#include <float.h>
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -50,10 +52,24 @@ static int state_rhs(realtype t, N_Vector y, N_Vector ydot, void *data) {
     return evaluate(&z->s, N_VGetArrayPointer(y), N_VGetArrayPointer(ydot));
 }
 
+/* Column j of the columns' right-hand side, f_x S_j + f_d, from the parts just evaluated
+ * (their sum); 1 where an entry is not finite. */
+static int column_of_parts(const sc_sensitivity *z, int j, double *column) {
+    int n = z->s.n, i, k;
+    memcpy(column, z->parts.part[0].out + z->leading + n * j, n * sizeof(double));
+    for (k = 1; k < z->parts.count; ++k) {
+        const double *part = z->parts.part[k].out + z->leading + n * j;
+        for (i = 0; i < n; ++i) column[i] += part[i];
+    }
+    for (i = 0; i < n; ++i)
+        if (!isfinite(column[i])) return 1;
+    return 0;
+}
+
 static int sensitivity_rhs(int m, realtype t, N_Vector y, N_Vector ydot, N_Vector *yS,
                            N_Vector *ySdot, void *data, N_Vector tmp1, N_Vector tmp2) {
     sc_sensitivity *z = (sc_sensitivity *)data;
-    int n = z->s.n, i, j, k;
+    int n = z->s.n, j;
     size_t bytes = n * sizeof(double);
     (void)ydot; (void)tmp1; (void)tmp2;
     if (z->linear) inputs_at(z, t);
@@ -61,16 +77,8 @@ static int sensitivity_rhs(int m, realtype t, N_Vector y, N_Vector ydot, N_Vecto
     for (j = 0; j < m; ++j) memcpy(z->xs + n * (1 + j), N_VGetArrayPointer(yS[j]), bytes);
     if (evaluate_parts(&z->parts)) return -1;
     z->sensitivity_evaluations++;
-    for (j = 0; j < m; ++j) {
-        double *column = N_VGetArrayPointer(ySdot[j]);
-        memcpy(column, z->parts.part[0].out + z->leading + n * j, bytes);
-        for (k = 1; k < z->parts.count; ++k) {
-            const double *part = z->parts.part[k].out + z->leading + n * j;
-            for (i = 0; i < n; ++i) column[i] += part[i];
-        }
-        for (i = 0; i < n; ++i)
-            if (!isfinite(column[i])) return 1;
-    }
+    for (j = 0; j < m; ++j)
+        if (column_of_parts(z, j, N_VGetArrayPointer(ySdot[j]))) return 1;
     return 0;
 }
 
@@ -79,41 +87,43 @@ static int sensitivity_rhs(int m, realtype t, N_Vector y, N_Vector ydot, N_Vecto
  * dZ solve dZ_i = h sum_j a_ij (f_x(Y_j) (S + dZ_j) + f_d(Y_j)), a linear system whose
  * matrix is the exact one of the stages, solved by the simplified Newton iteration on the
  * step's own factors (radau_correction) to the state's Newton tolerance: one evaluation of
- * the columns' right-hand side per stage and iteration. S then moves to S + dZ_3, and the
- * collocation polynomial of dZ gives the columns between steps. The step sizes are the
- * state's (not differentiated, as in CVODES). */
+ * the columns' right-hand side per stage and iteration, from the last step's columns'
+ * polynomial extrapolated. Where the kept Jacobian does not solve it (the state's
+ * iteration converged on it), once more on a fresh one (radau_refresh). S then moves to
+ * S + dZ_3 (the method is stiffly accurate), and the collocation polynomial of dZ gives
+ * the columns between steps. The step sizes are the state's, not differentiated, as in
+ * CVODES. */
 typedef struct {
-    double *start, *now;   /* S at the last step's start and end (m columns of n) */
+    double *start, *now;    /* S at the last step's start and end (m columns of n) */
     double *dz, *w, *f, *q; /* per column 3 n: the stages' increments, transformed, their
                                right-hand sides, the polynomial's coefficients */
-    double *dw, *scale;    /* 3 n: a correction; n: the error scale of a column */
+    double *dw;             /* 3 n: a correction */
+    double h;               /* the last step's size (0: none yet, no polynomial) */
 } sc_columns;
 
-static void columns_close(sc_columns *c) {
-    free(c->start);
-}
+static void columns_close(sc_columns *c) { free(c->start); }
 
 /* 0, or 1 when out of memory (columns_close frees what was allocated). */
 static int columns_open(sc_columns *c, int n, int m) {
     long nm = (long)n * (m > 0 ? m : 1);
-    c->start = (double *)calloc(2 * nm + 12 * nm + 4 * (long)n, sizeof(double));
+    c->start = (double *)calloc(14 * nm + 3 * (long)n, sizeof(double));
     if (c->start == NULL) return 1;
     c->now = c->start + nm, c->dz = c->now + nm, c->w = c->dz + 3 * nm;
-    c->f = c->w + 3 * nm, c->q = c->f + 3 * nm, c->dw = c->q + 3 * nm, c->scale = c->dw + 3 * n;
+    c->f = c->w + 3 * nm, c->q = c->f + 3 * nm, c->dw = c->q + 3 * nm;
+    c->h = 0.0;
     return 0;
 }
 
-/* The columns at the end of the step just accepted by r; 0, 1 where the iteration does
- * not converge, or -1 where the columns' right-hand side fails. */
-static int step_columns(sc_sensitivity *z, sc_radau *r, sc_columns *c) {
+/* The simplified Newton iteration of the columns' increments from those in c->dz: 0 when
+ * it converged, 1 where it diverges, converges too slowly or a column is not finite, -1
+ * where the columns' right-hand side fails. */
+static int iterate_columns(sc_sensitivity *z, sc_radau *r, sc_columns *c) {
     const double *nodes = r->k + RADAU_C;
-    int n = r->n, m = z->m, i, j, k, p, it;
-    double h = r->h_last, previous = 0.0;
-    memcpy(c->start, c->now, sizeof(double) * n * m);
-    memset(c->dz, 0, sizeof(double) * 3 * n * m);
-    memset(c->w, 0, sizeof(double) * 3 * n * m);
-    for (it = 0; it < 2 * NEWTON_ITERATIONS; ++it) {
-        double norm = 0.0, theta;
+    int n = r->n, m = z->m, i, j, k, it;
+    double h = r->h_last, previous = 0.0, eta = pow(fmax(r->eta, DBL_EPSILON), 0.8);
+    for (j = 0; j < m; ++j) radau_mix(r->k + RADAU_TI, c->dz + 3 * j * n, n, c->w + 3 * j * n);
+    for (it = 0; it < NEWTON_ITERATIONS; ++it) {
+        double norm = 0.0;
         for (i = 0; i < 3; ++i) {
             if (z->linear) inputs_at(z, r->t_last + nodes[i] * h);
             for (k = 0; k < n; ++k) z->xs[k] = r->y_last[k] + r->z[i * n + k];
@@ -122,13 +132,8 @@ static int step_columns(sc_sensitivity *z, sc_radau *r, sc_columns *c) {
                     z->xs[n * (1 + j) + k] = c->start[j * n + k] + c->dz[(3 * j + i) * n + k];
             if (evaluate_parts(&z->parts)) return -1;
             z->sensitivity_evaluations++;
-            for (j = 0; j < m; ++j) {
-                double *column = c->f + (3 * j + i) * n;
-                memcpy(column, z->parts.part[0].out + z->leading + n * j, sizeof(double) * n);
-                for (p = 1; p < z->parts.count; ++p)
-                    for (k = 0; k < n; ++k)
-                        column[k] += z->parts.part[p].out[z->leading + n * j + k];
-            }
+            for (j = 0; j < m; ++j)
+                if (column_of_parts(z, j, c->f + (3 * j + i) * n)) return 1;
         }
         for (j = 0; j < m; ++j) {
             double *w = c->w + 3 * j * n, sum = 0.0;
@@ -137,20 +142,48 @@ static int step_columns(sc_sensitivity *z, sc_radau *r, sc_columns *c) {
                 double e = c->dw[k] / (r->atol + r->rtol * fabs(c->start[j * n + k % n]));
                 sum += e * e, w[k] += c->dw[k];
             }
+            if (!isfinite(sum)) return 1;
             norm = fmax(norm, sqrt(sum / (3.0 * n)));
             radau_mix(r->k + RADAU_T, w, n, c->dz + 3 * j * n);
         }
-        if (!isfinite(norm)) return 1;
-        theta = it > 0 ? norm / previous : 1.0;
-        if (it > 0 && theta >= 1.0) return 1;
-        if (norm == 0.0 || (it > 0 && theta / (1.0 - theta) * norm <= r->newton_tolerance)) break;
+        if (it > 0) { /* the contraction, as the state's iteration measures it */
+            double theta = norm / previous;
+            if (theta >= 1.0) return 1;
+            eta = theta / (1.0 - theta);
+        }
+        if (eta * norm <= r->newton_tolerance) return 0;
         previous = norm;
     }
-    if (it == 2 * NEWTON_ITERATIONS) return 1;
+    return 1;
+}
+
+/* The columns at the end of the step just accepted by r; 0, 1 where their iteration fails
+ * on a fresh Jacobian too, or -1 where the columns' right-hand side or the Jacobian
+ * fails. */
+static int step_columns(sc_sensitivity *z, sc_radau *r, sc_columns *c) {
+    const double *nodes = r->k + RADAU_C;
+    int n = r->n, m = z->m, i, j, k, flag;
+    double h = r->h_last;
+    for (j = 0; j < m; ++j) /* the last step's polynomial extrapolated, as the state's */
+        for (i = 0; i < 3; ++i)
+            for (k = 0; k < n; ++k)
+                c->dz[(3 * j + i) * n + k] =
+                    c->h > 0.0 && h <= FACTOR_MAX * c->h
+                        ? c->start[j * n + k] - c->now[j * n + k] +
+                              radau_polynomial(c->q + 3 * j * n, n, 1.0 + nodes[i] * h / c->h, k)
+                        : 0.0;
+    memcpy(c->start, c->now, sizeof(double) * n * m);
+    flag = iterate_columns(z, r, c);
+    if (flag == 1) {
+        if (radau_refresh(r)) return -1;
+        flag = iterate_columns(z, r, c);
+    }
+    if (flag) return flag;
     for (j = 0; j < m; ++j) {
         for (k = 0; k < n; ++k) c->now[j * n + k] = c->start[j * n + k] + c->dz[(3 * j + 2) * n + k];
         radau_mix(r->k + RADAU_P, c->dz + 3 * j * n, n, c->q + 3 * j * n);
     }
+    c->h = h;
     return 0;
 }
 
@@ -158,14 +191,13 @@ static int step_columns(sc_sensitivity *z, sc_radau *r, sc_columns *c) {
 static void interpolate_columns(const sc_radau *r, const sc_columns *c, int m, double t,
                                 double *out) {
     int n = r->n, j, k;
-    double x = r->h_last > 0.0 ? (t - r->t_last) / r->h_last : 1.0;
-    for (j = 0; j < m; ++j) {
-        const double *q = c->q + 3 * j * n;
+    for (j = 0; j < m; ++j)
         for (k = 0; k < n; ++k)
-            out[j * n + k] = t == r->t || r->h_last == 0.0
+            out[j * n + k] = t == r->t || c->h == 0.0
                                  ? c->now[j * n + k]
-                                 : c->start[j * n + k] + x * (q[k] + x * (q[n + k] + x * q[2 * n + k]));
-    }
+                                 : c->start[j * n + k] +
+                                       radau_polynomial(c->q + 3 * j * n, n,
+                                                        (t - r->t_last) / r->h_last, k);
 }
 
 static void inputs_moved(void *data, double t) { inputs_at((sc_sensitivity *)data, t); }
@@ -191,8 +223,8 @@ static int radau_columns(sc_sensitivity *z, const sc_options *options, double *o
         if (i == 1 || !z->linear) { /* held inputs: each interval its own, a new start */
             z->row = i;
             inputs_at(z, z->times[i]);
-            flag = radau_start(&r, z->times[i - 1], out, z->linear ? z->times[z->count - 1]
-                                                                   : z->times[i], 0);
+            flag = radau_start(&r, z->times[i - 1], row - width,
+                               z->linear ? z->times[z->count - 1] : z->times[i], 0);
         }
         for (taken = 0; !flag && r.t < z->times[i];) {
             if (++taken > options->max_steps) flag = CV_TOO_MUCH_WORK;

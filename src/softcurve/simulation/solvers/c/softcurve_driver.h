@@ -63,7 +63,7 @@ typedef struct {
     double atol;          /* absolute tolerance of the integrated state */
     long max_steps;       /* steps allowed per output */
     int max_order;        /* the largest order of the method; 0: CVODES's own */
-    int family;           /* softcurve_sensitivities: 1 Adams, 2 BDF */
+    int family;           /* softcurve_sensitivities: a FAMILY_* below */
     double settled_ratio; /* softcurve_integrate: settled when max |xdot| ratio < fastest */
     int columns_tested;   /* softcurve_sensitivities: the columns in the error test too */
     int helper;           /* softcurve_sensitivities: HELPER_NONE or HELPER_SHARED */
@@ -131,7 +131,9 @@ SC_EXPORT int softcurve_integrate(const sc_function *fn, const sc_options *optio
  * feeds f, dsc = (d, scale) the parts.
  * table (count rows): per interval the inputs (linear = 0: a jump at every sample, where
  * CVODES restarts) or the line (a, b) (linear = 1: integrated through). options->family:
- * 1 Adams, 2 BDF; options->columns_tested: the sensitivities in the error test too.
+ * FAMILY_ADAMS, FAMILY_BDF (CVODES's staggered corrector for the columns) or FAMILY_RADAU
+ * (Radau IIA, the columns the derivative of its discrete scheme);
+ * options->columns_tested: CVODES's sensitivities in the error test too.
  * Returns 0, CVODES's negative flag, or -100 when the solver could not be set up; adds to
  * stats (zeroed by the caller): steps, right-hand sides, Jacobians, linear-solver setups,
  * error-test failures, sensitivity evaluations, second parts the helper thread
