@@ -22,7 +22,7 @@ from softcurve.simulation.solvers import ROUTES, Route, casadi_only, choose_rout
 from softcurve.simulation.solvers import _driver as native
 from softcurve.simulation.solvers._driver import SWITCHED_OFF
 from softcurve.simulation.stepper import Stepper
-from tests.test_sensitivity_driver import _evaluator
+from tests.test_sensitivity_driver import bellows_trial
 
 Q0, QD0 = [0.064, 25.0, 0.0], [0.0, 0.0, 1500.0]
 DOCS = Path(__file__).resolve().parent.parent / "docs" / "architecture.md"
@@ -80,12 +80,12 @@ def test_a_batch_in_processes_names_the_routes_of_its_chunks(paper_model):
 @needs_driver
 def test_the_sensitivities_name_their_route():
     model = sc.Model(sc.presets.ifac2020(), quadrature_nodes=4)
-    one, theta = _evaluator(model, "linear")
+    one, theta = bellows_trial(model, "linear")
     one(theta)
-    two, theta = _evaluator(model, "linear", threads=2)
+    two, theta = bellows_trial(model, "linear", threads=2)
     two(theta)
     with casadi_only():
-        reference, theta = _evaluator(model, "linear")
+        reference, theta = bellows_trial(model, "linear")
     reference(theta)
     assert one.stats["route"] == "sensitivity-driver"
     assert two.stats["route"] == "sensitivity-driver-split"

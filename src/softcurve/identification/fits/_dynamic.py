@@ -262,10 +262,11 @@ def fit_trajectory(
         discrete scheme, whose Jacobian is its outputs' own derivative, far more
         accurate than CVODES's columns (outside its error test): at rtol 1e-6 it costs
         what Adams costs at the default 1e-8 (docs/performance.md, "Radau IIA");
-        ``extra["method"]`` says which ran (None: no experiment was integrated). With looser ``reltol`` or ``abstol``
-        the fit integrates its estimate once more at the default ones (the outputs
-        alone) and reports the largest change of an output relative to the RMS of its
-        signal's residuals as ``extra["integration_error"]``; above
+        ``extra["method"]`` says which ran (None: no experiment was integrated). With
+        looser ``reltol`` or ``abstol`` the fit integrates its estimate once more at the
+        default ones (the outputs alone) and reports the largest change of an output
+        relative to the RMS of its signal's residuals as ``extra["integration_error"]``;
+        above
         :data:`INTEGRATION_SHARE` (1e-2) the message says to tighten them.
     input_lag : float, optional
         Nominal time constant [s] of a first-order lag of every input before the input
