@@ -68,15 +68,6 @@ STATISTICS = ("steps", "rhs_evaluations", "jacobian_evaluations", "linear_solver
               "error_test_failures", "newton_failures")  # fmt: skip
 """The counters the driver returns per member, in its order."""
 
-FLAGS = {
-    -1: "CV_TOO_MUCH_WORK", -2: "CV_TOO_MUCH_ACC", -3: "CV_ERR_FAILURE",
-    -4: "CV_CONV_FAILURE", -5: "CV_LINIT_FAIL", -6: "CV_LSETUP_FAIL", -7: "CV_LSOLVE_FAIL",
-    -8: "CV_RHSFUNC_FAIL", -9: "CV_FIRST_RHSFUNC_ERR", -10: "CV_REPTD_RHSFUNC_ERR",
-    -11: "CV_UNREC_RHSFUNC_ERR", -20: "CV_MEM_FAIL", -22: "CV_ILL_INPUT",
-    -27: "CV_TOO_CLOSE", -100: "the solver could not be set up",
-}  # fmt: skip
-"""CVODES's return flags (SUNDIALS 2.x ``cvodes.h``) by value."""
-
 CHUNKS_PER_THREAD = 4
 """Members of a batch are handed to the threads in this many chunks per thread, taken as
 threads finish: members differ in cost (a violent transient takes more steps)."""
@@ -466,6 +457,17 @@ FAMILIES = {
     name: DECLARATIONS.constants[f"FAMILY_{name.upper()}"] for name in ("adams", "bdf", "radau")
 }
 """The driver's integration families by name (``FAMILY_*`` of ``softcurve_driver.h``)."""
+
+FLAGS = {
+    -1: "CV_TOO_MUCH_WORK", -2: "CV_TOO_MUCH_ACC", -3: "CV_ERR_FAILURE",
+    -4: "CV_CONV_FAILURE", -5: "CV_LINIT_FAIL", -6: "CV_LSETUP_FAIL", -7: "CV_LSOLVE_FAIL",
+    -8: "CV_RHSFUNC_FAIL", -9: "CV_FIRST_RHSFUNC_ERR", -10: "CV_REPTD_RHSFUNC_ERR",
+    -11: "CV_UNREC_RHSFUNC_ERR", -20: "CV_MEM_FAIL", -22: "CV_ILL_INPUT",
+    -27: "CV_TOO_CLOSE", -100: "the solver could not be set up",
+    DECLARATIONS.constants["COLUMNS_FAILURE"]: "the sensitivity columns' iteration did not "
+    "converge, on a fresh Jacobian either (tighten rtol, or use Adams)",
+}  # fmt: skip
+"""CVODES's return flags (SUNDIALS 2.x ``cvodes.h``) by value, and the driver's own."""
 
 CASADI_VERIFIED = ">=3.8,<3.9"
 """The CasADi versions whose private CVODES plugin the driver was verified with (the

@@ -230,7 +230,7 @@ static int radau_columns(sc_sensitivity *z, const sc_options *options, double *o
             if (++taken > options->max_steps) flag = CV_TOO_MUCH_WORK;
             if (!flag) flag = radau_step(&r, &tret);
             if (!flag && m > 0 && (flag = step_columns(z, &r, &c)) != 0)
-                flag = flag < 0 ? CV_RHSFUNC_FAIL : CV_CONV_FAILURE;
+                flag = flag < 0 ? CV_RHSFUNC_FAIL : COLUMNS_FAILURE;
         }
         if (!z->linear || i == z->count - 1 || flag) {
             stats[0] += r.counters[0], stats[1] += r.counters[1], stats[3] += r.counters[2];

@@ -96,6 +96,10 @@ enum {
  * own thread, or whichever of it and a helper thread claims it first. */
 enum { HELPER_NONE = 0, HELPER_SHARED = 1 };
 
+/* softcurve_sensitivities' flag where Radau IIA's columns do not converge on a fresh
+ * Jacobian either (the state's step did): not a CVODES flag. */
+enum { COLUMNS_FAILURE = -101 };
+
 /* Integrate `count` members over the grid `times[0..k)` from out[b, 0, :] (physical, at
  * times[0]), in segments ending at the output indices ends[0..n_ends) (the last is k - 1),
  * each with the member's input of that segment u[b, s, :]. Member b is integrated with the
