@@ -284,12 +284,18 @@ def simulate(
 
     method, rtol = settings.method, settings.rtol
     on_grid = controller is None and not callable(values)
+    width = model.n if actuated is None else actuated.n_inputs
+    # the output indices where an input on the grid changes, where known: none for one value
+    constant = on_grid and _constant(tau if actuated is None else inputs, width)
+    changes = np.empty(0, dtype=int) if constant else None
     rates, chosen = None, {}
     if method in ("cvodes", "auto"):
         tau0 = _initial_force(model, model_x0, x0, values, actuated)
         rates = linearization_rates(model, model_x0, tau0, nominal[: model.n_state])
     if method == "auto":
-        interval = _change_interval(grid, values) if on_grid else None
+        if on_grid and changes is None:
+            changes = input_changes(values)
+        interval = _change_interval(grid, changes) if on_grid else None
         method, chosen["method_reason"] = auto_method(rates[1], interval, not on_grid)
     route = choose_route(
         "simulate", method, model=model, inputs=actuated, jacobian=settings.jacobian
@@ -310,15 +316,13 @@ def simulate(
     states = np.empty((grid.size, x0.size))
     states[0] = x0
     # on the grid, the inputs applied are the values (an array of this run's own)
-    width = model.n if actuated is None else actuated.n_inputs
     applied = values if on_grid else np.zeros((grid.size, width))
     bar = ProgressLine(settings.t_final, unit="s simulated", delay=1.0) if progress else None
     start_time = time.perf_counter()
     try:
         if on_grid:
-            constant = _constant(tau if actuated is None else inputs, width)
             domain = Domain(model, grid)
-            reached = run_on_grid(engine, grid, states, values, bar, domain, fastest, constant)
+            reached = run_on_grid(engine, grid, states, values, bar, domain, fastest, changes)
         else:
             reached = run_sampled(
                 engine, model, grid, states, applied, values, controller, sample_time, bar, check
@@ -334,12 +338,12 @@ def simulate(
     return _result(model, grid, states, applied, reached, failure, stats, actuated, actuator)
 
 
-def _change_interval(grid, values) -> float | None:
-    """The mean time [s] between changes of an input given on the output grid (the runs of
-    equal rows of ``values``, (T, width)) where it changes at half of the output intervals
-    or more, else None."""
-    changes = input_changes(values).size
-    return (grid[-1] - grid[0]) / (changes + 1) if 2 * changes >= grid.size - 1 else None
+def _change_interval(grid, changes) -> float | None:
+    """The mean time [s] between changes of an input given on the output grid, at the
+    output indices ``changes`` (:func:`~softcurve.simulation.solvers.input_changes`), where
+    it changes at half of the output intervals or more, else None."""
+    count = changes.size
+    return (grid[-1] - grid[0]) / (count + 1) if 2 * count >= grid.size - 1 else None
 
 
 def _initial_force(model, model_x0, x0, values, actuated) -> np.ndarray:

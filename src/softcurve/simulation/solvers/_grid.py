@@ -144,7 +144,7 @@ class Domain:
             raise Stopped(first, reason)
 
 
-def run_on_grid(engine, grid, states, inputs, bar, domain, fastest=None, constant=False) -> int:
+def run_on_grid(engine, grid, states, inputs, bar, domain, fastest=None, changes=None) -> int:
     """All outputs in one call per restart segment (see ``RESTART_INTERVAL``), or with
     CVODES's C driver the whole grid in one call; with ``fastest``, each segment after the
     first is integrated with BDF once the robot has settled, else Adams
@@ -175,14 +175,15 @@ def run_on_grid(engine, grid, states, inputs, bar, domain, fastest=None, constan
     fastest : float, optional
         Fastest rate of the initial linearization [1/s]: switch to BDF at a restart once
         settled (:func:`~softcurve.simulation.solvers.settled`).
-    constant : bool
-        Whether ``inputs`` holds one value on every row, known to the caller: no changes
-        of the input to look for.
+    changes : ndarray of int, optional
+        The output indices where the input changes (:func:`input_changes`), where the
+        caller knows them (empty: one value on every row); None: found here where the
+        route needs them.
     """
     segments = restart_segments(grid, RESTART_INTERVAL)
     on_driver = getattr(engine, "native", None) is not None
     if on_driver:
-        changes = np.empty(0, dtype=int) if constant else input_changes(inputs)
+        changes = input_changes(inputs) if changes is None else changes
         if bar is None:
             return _run_native(engine, grid, states, inputs, domain, segments, fastest, changes)
     model, nominal = getattr(engine, "model", None), getattr(engine, "nominal", None)

@@ -125,6 +125,17 @@ int radau_start(sc_radau *r, double t0, const double *y, double t_stop, int same
 int radau_step(sc_radau *r, double *tret);
 /* The state at t within the last accepted step, by its collocation polynomial. */
 void radau_interpolate(const sc_radau *r, double t, double *out);
+/* The same for any n values that moved over the last accepted step from `last` to `now`
+ * along the collocation polynomial of coefficients q (3 blocks of n): now itself at the
+ * step's end or before any step. */
+void radau_value(const sc_radau *r, double t, const double *last, const double *q,
+                 const double *now, double *out);
+/* The starting stages z (3 blocks of n) of a step of size h: the polynomial (coefficients
+ * q) of the last step, of size h_last, from `last` to `now`, extrapolated to the nodes and
+ * taken from now; zero without a last step (h_last 0) or where h exceeds what the
+ * controller grows a step to. */
+void radau_predict(const sc_radau *r, const double *last, const double *q, const double *now,
+                   double h_last, double h, double *z);
 /* The collocation polynomial with coefficients q (3 blocks of n) at x, entry j:
  * sum_k x^(k+1) q_k[j] (the state or a column at t_last + x h_last, minus its value at
  * t_last). */

@@ -97,10 +97,15 @@ void radau_mix(const double *M, const double *in, int n, double *out) {
                 M[3 * i] * in[j] + M[3 * i + 1] * in[n + j] + M[3 * i + 2] * in[2 * n + j];
 }
 
-/* f at time t (where the input moves with time: r->inputs sets it first) */
+/* The input at time t, where it moves with time (r->inputs). */
+static void inputs_at_time(sc_radau *r, double t) {
+    if (r->inputs != NULL) r->inputs(r->inputs_data, t);
+}
+
+/* f at time t */
 static int rhs_at(sc_radau *r, double t, const double *y, double *f) {
     r->counters[1]++;
-    if (r->inputs != NULL) r->inputs(r->inputs_data, t);
+    inputs_at_time(r, t);
     return evaluate(r->s, y, f);
 }
 
@@ -162,20 +167,35 @@ double radau_polynomial(const double *q, int n, double x, int j) {
 }
 
 /* driver_internal.h */
-void radau_interpolate(const sc_radau *r, double t, double *out) {
+void radau_value(const sc_radau *r, double t, const double *last, const double *q,
+                 const double *now, double *out) {
     int n = r->n, j;
-    double x;
-    if (t == r->t || r->h_last == 0.0) {
-        memcpy(out, r->y, sizeof(double) * n);
+    double x = r->h_last > 0.0 ? (t - r->t_last) / r->h_last : 1.0;
+    for (j = 0; j < n; ++j)
+        out[j] = t == r->t || r->h_last == 0.0 ? now[j] : last[j] + radau_polynomial(q, n, x, j);
+}
+
+/* driver_internal.h */
+void radau_interpolate(const sc_radau *r, double t, double *out) {
+    radau_value(r, t, r->y_last, r->q, r->y, out);
+}
+
+/* driver_internal.h */
+void radau_predict(const sc_radau *r, const double *last, const double *q, const double *now,
+                   double h_last, double h, double *z) {
+    const double *c = r->k + RADAU_C;
+    int n = r->n, i, j;
+    if (!(h_last > 0.0 && h <= FACTOR_MAX * h_last)) {
+        memset(z, 0, sizeof(double) * 3 * n);
         return;
     }
-    x = (t - r->t_last) / r->h_last;
-    for (j = 0; j < n; ++j) out[j] = r->y_last[j] + radau_polynomial(r->q, n, x, j);
+    for (i = 0; i < 3; ++i)
+        for (j = 0; j < n; ++j)
+            z[i * n + j] = last[j] + radau_polynomial(q, n, 1.0 + c[i] * h / h_last, j) - now[j];
 }
 
 /* driver_internal.h */
 int radau_refresh(sc_radau *r) {
-    if (r->inputs != NULL) r->inputs(r->inputs_data, r->t_last);
     if (rhs_at(r, r->t_last, r->y_last, r->e) || newton_jacobian(r->s, r->y_last, r->e))
         return 1;
     r->s->jacobians++;
@@ -269,8 +289,7 @@ static double error_norm(sc_radau *r, double h, int again) {
 
 /* driver_internal.h */
 int radau_step(sc_radau *r, double *tret) {
-    const double *c = r->k + RADAU_C;
-    int n = r->n, i, j, flag, iterations = 0;
+    int n = r->n, j, flag, iterations = 0;
     int failure = CV_ERR_FAILURE; /* or what made the last attempt fail */
     for (;;) {
         double h = r->h, theta, error, factor, h_new, *y_new = r->ze, *f_new = r->e;
@@ -279,7 +298,7 @@ int radau_step(sc_radau *r, double *tret) {
         if (!(h > 16.0 * DBL_EPSILON * fmax(fabs(r->t), fabs(r->t_stop)))) return failure;
         for (j = 0; j < n; ++j) r->scale[j] = r->atol + r->rtol * fabs(r->y[j]);
         if (r->jacobian == JACOBIAN_NONE) {
-            if (r->inputs != NULL) r->inputs(r->inputs_data, r->t);
+            inputs_at_time(r, r->t);
             if (newton_jacobian(r->s, r->y, r->fy)) return CV_LSETUP_FAIL;
             r->s->jacobians++;
             r->jacobian = JACOBIAN_FRESH;
@@ -290,16 +309,7 @@ int radau_step(sc_radau *r, double *tret) {
             r->h = 0.5 * h, r->rejected = 1;
             continue;
         }
-        /* the last step's polynomial extrapolated, as far as the controller grows a step */
-        if (r->predict && h <= FACTOR_MAX * r->h_last) {
-            for (i = 0; i < 3; ++i) {
-                double x = 1.0 + c[i] * h / r->h_last;
-                for (j = 0; j < n; ++j)
-                    r->z[i * n + j] = r->y_last[j] + radau_polynomial(r->q, n, x, j) - r->y[j];
-            }
-        } else {
-            memset(r->z, 0, sizeof(double) * 3 * n);
-        }
+        radau_predict(r, r->y_last, r->q, r->y, r->predict ? r->h_last : 0.0, h, r->z);
         flag = newton(r, h, &iterations, &theta);
         if (flag < 0) return CV_RHSFUNC_FAIL;
         if (flag > 0) {

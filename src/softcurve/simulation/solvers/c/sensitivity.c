@@ -36,14 +36,20 @@ static void inputs_at(sc_sensitivity *z, double t) {
     for (i = 0; i < z->nu; ++i) z->u[i] = row[i] + (z->linear ? row[z->nu + i] * t : 0.0);
 }
 
-/* Adds CVODES's counters since its last (re)start to stats[0], [1], [3] and [4]. */
-static void add_counters(void *mem, long *stats) {
-    long counters[5] = {0, 0, 0, 0, 0};
-    read_counters(mem, counters);
+/* Adds a method's counters (steps, right-hand sides, linear-solver setups, error-test
+ * failures, as read_counters orders them) to stats[0], [1], [3] and [4]. */
+static void add_counters(const long counters[5], long *stats) {
     stats[0] += counters[0];
     stats[1] += counters[1];
     stats[3] += counters[2];
     stats[4] += counters[3];
+}
+
+/* add_counters of CVODES's counters since its last (re)start. */
+static void add_cvodes_counters(void *mem, long *stats) {
+    long counters[5] = {0, 0, 0, 0, 0};
+    read_counters(mem, counters);
+    add_counters(counters, stats);
 }
 
 static int state_rhs(realtype t, N_Vector y, N_Vector ydot, void *data) {
@@ -161,17 +167,11 @@ static int iterate_columns(sc_sensitivity *z, sc_radau *r, sc_columns *c) {
  * on a fresh Jacobian too, or -1 where the columns' right-hand side or the Jacobian
  * fails. */
 static int step_columns(sc_sensitivity *z, sc_radau *r, sc_columns *c) {
-    const double *nodes = r->k + RADAU_C;
-    int n = r->n, m = z->m, i, j, k, flag;
+    int n = r->n, m = z->m, j, k, flag;
     double h = r->h_last;
     for (j = 0; j < m; ++j) /* the last step's polynomial extrapolated, as the state's */
-        for (i = 0; i < 3; ++i)
-            for (k = 0; k < n; ++k)
-                c->dz[(3 * j + i) * n + k] =
-                    c->h > 0.0 && h <= FACTOR_MAX * c->h
-                        ? c->start[j * n + k] - c->now[j * n + k] +
-                              radau_polynomial(c->q + 3 * j * n, n, 1.0 + nodes[i] * h / c->h, k)
-                        : 0.0;
+        radau_predict(r, c->start + j * n, c->q + 3 * j * n, c->now + j * n, c->h, h,
+                      c->dz + 3 * j * n);
     memcpy(c->start, c->now, sizeof(double) * n * m);
     flag = iterate_columns(z, r, c);
     if (flag == 1) {
@@ -190,14 +190,9 @@ static int step_columns(sc_sensitivity *z, sc_radau *r, sc_columns *c) {
 /* The columns at t within the last accepted step into out (m columns of n). */
 static void interpolate_columns(const sc_radau *r, const sc_columns *c, int m, double t,
                                 double *out) {
-    int n = r->n, j, k;
+    int n = r->n, j;
     for (j = 0; j < m; ++j)
-        for (k = 0; k < n; ++k)
-            out[j * n + k] = t == r->t || c->h == 0.0
-                                 ? c->now[j * n + k]
-                                 : c->start[j * n + k] +
-                                       radau_polynomial(c->q + 3 * j * n, n,
-                                                        (t - r->t_last) / r->h_last, k);
+        radau_value(r, t, c->start + j * n, c->q + 3 * j * n, c->now + j * n, out + j * n);
 }
 
 static void inputs_moved(void *data, double t) { inputs_at((sc_sensitivity *)data, t); }
@@ -233,8 +228,7 @@ static int radau_columns(sc_sensitivity *z, const sc_options *options, double *o
                 flag = flag < 0 ? CV_RHSFUNC_FAIL : COLUMNS_FAILURE;
         }
         if (!z->linear || i == z->count - 1 || flag) {
-            stats[0] += r.counters[0], stats[1] += r.counters[1], stats[3] += r.counters[2];
-            stats[4] += r.counters[3];
+            add_counters(r.counters, stats);
             memset(r.counters, 0, sizeof(r.counters));
         }
         if (flag) break;
@@ -313,7 +307,7 @@ SC_EXPORT int softcurve_sensitivities(const sc_function *fn, const sc_options *o
         if (!linear && i > 1) {
             z.row = i;
             inputs_at(&z, times[i]);
-            add_counters(mem, stats);
+            add_cvodes_counters(mem, stats);
             counted = 1;
             if (CVodeReInit(mem, times[i - 1], y) ||
                 (m > 0 && CVodeSensReInit(mem, CV_STAGGERED, yS))) {
@@ -331,7 +325,7 @@ SC_EXPORT int softcurve_sensitivities(const sc_function *fn, const sc_options *o
         for (j = 0; j < m; ++j) memcpy(row + n * (1 + j), N_VGetArrayPointer(yS[j]), bytes);
         *reached = i + 1;
     }
-    if (!counted) add_counters(mem, stats);
+    if (!counted) add_cvodes_counters(mem, stats);
     stats[2] = z.s.jacobians;
     stats[5] = z.sensitivity_evaluations;
 done:
