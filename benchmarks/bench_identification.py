@@ -66,20 +66,22 @@ PREVIOUS = {
 }
 
 
-def random_pressures(duration: float) -> tuple[np.ndarray, dict]:
-    """The trial's sample times (12 Hz) and pressures p0..p2 [Pa]: piecewise linear
-    between knots 5 s apart, 10-20 kPa, seeded."""
+def random_pressures(duration: float, rate: float = 12.0) -> tuple[np.ndarray, dict]:
+    """The trial's sample times (``rate`` [Hz], 12 by default) and pressures p0..p2 [Pa]:
+    piecewise linear between knots 5 s apart, 10-20 kPa, seeded."""
     rng = np.random.default_rng(16)
-    t = np.arange(0.0, duration + 1e-9, 1 / 12)
+    t = np.arange(0.0, duration + 1e-9, 1 / rate)
     knots = np.arange(0.0, duration + 5.0, 5.0)
     pressures = {f"p{i}": np.interp(t, knots, 1e4 + 1e4 * rng.random(knots.size)) for i in range(3)}
     return t, pressures
 
 
-def dynamic_evaluator(duration: float, hold: str, options=None, threads: int = 1, nodes=None):
+def dynamic_evaluator(
+    duration: float, hold: str, options=None, threads: int = 1, nodes=None, rate: float = 12.0
+):
     nodes = {} if nodes is None else {"quadrature_nodes": nodes}  # None: the model's default
     model = sc.Model(sc.presets.ifac2020(), **nodes)
-    t, pressures = random_pressures(duration)
+    t, pressures = random_pressures(duration, rate)
     experiment = Experiment(t, {"kx": 0 * t, "ky": 0 * t}, pressures, name="random")
     free = [
         Free(SEG + "bending_stiffness.a1"),

@@ -2,6 +2,7 @@
 family and tolerance, against CasADi's CVODES on the augmented system.
 
 Run:  python benchmarks/study_sensitivity_driver.py [--duration 30] [--repeat 2]
+      python benchmarks/study_sensitivity_driver.py --rates 12 100 300 500 1000
 
 The case is ``bench_identification.py``'s (the paper robot, three bellows, smooth random
 pressures sampled at 12 Hz and held linearly, five free parameters), over ``--duration``
@@ -20,6 +21,12 @@ driver's Radau IIA with the sensitivities of its discrete scheme
 Beside each Adams row with the state alone in the error test it prints the cost of the
 state alone, without the columns: what a fit pays for a trial point it evaluates
 without the Jacobian (``SensitivityEvaluator.outputs``).
+
+With ``--rates`` it prints instead what ``integrator_options={"method": "auto"}`` (a
+fit's default) weighs: the same trial over 3 s with the pressures sampled at each rate
+and held, Adams against Radau IIA at the fit's default tolerances through the public
+evaluator, their errors against CVODES at rtol 1e-11, and what ``"auto"`` chose and why
+(``softcurve.simulation.sensitivity.AUTO_WITHIN``).
 
 First it prints the eigenvalues of the robot linearized at the trial's first state with
 its first pressures, and their angle from the negative real axis: beyond a BDF order's
@@ -40,6 +47,7 @@ from scipy.integrate import solve_ivp
 
 import softcurve as sc
 from softcurve.identification.maps import bellows_input_map
+from softcurve.simulation.sensitivity import AUTO_WITHIN
 from softcurve.simulation.sensitivity._sensitivity import DriverSettings, integrate_sensitivities
 
 sys.path.insert(0, str(Path(__file__).parent))
@@ -88,11 +96,56 @@ def implicit_runge_kutta(duration: float) -> None:
             print(f"SciPy {method:5s} (state only), rtol {rtol:.0e}: {solution.t.size - 1} steps")
 
 
+def held_rates(rates, repeat: int) -> None:
+    """Adams against Radau IIA on held pressures sampled at each rate, and ``"auto"``."""
+    duration = 3.0
+    print(f"held pressures over {duration:g} s, rtol 1e-8, atol 1e-10 (a fit's default); "
+          "errors: of the outputs or the Jacobian, the larger, of the largest entry")  # fmt: skip
+    model = sc.Model(sc.presets.ifac2020())
+    actuator = sc.PneumaticActuator.three_bellows(distance=0.01, area=2e-5, p_max=1e5)
+    first = [p[0] for p in bench_identification.random_pressures(duration)[1].values()]
+    q0 = np.array([0.0644, 1.0, 0.0])  # the trial's start
+    linear = sc.linearize(model, q0, actuator=actuator, inputs=np.array(first))
+    fastest = np.abs(linear.eigenvalues).max()  # [1/s]
+    print(f"fastest rate at the start {fastest:.0f} 1/s; auto takes Radau IIA below "
+          f"{AUTO_WITHIN:g} / fastest rate ({AUTO_WITHIN / fastest:.2g} s)")  # fmt: skip
+    print("| rate [Hz] | change x fastest rate | Adams [s] | Radau IIA [s] | Radau / Adams "
+          "speed | error Adams | error Radau | auto |")  # fmt: skip
+    print("| --- | --- | --- | --- | --- | --- | --- | --- |")
+    for rate in rates:
+        reference, theta = bench_identification.dynamic_evaluator(
+            duration, "constant", {"reltol": 1e-11, "abstol": 1e-13}, rate=rate
+        )
+        y_reference, j_reference = reference(theta)
+        row, errors = {}, {}
+        for method in ("adams", "radau"):
+            evaluate, _ = bench_identification.dynamic_evaluator(
+                duration, "constant", {"method": method}, rate=rate
+            )
+            evaluate(theta)  # compiles and loads
+            row[method], (y, jacobian) = best_of(repeat, lambda e=evaluate, at=theta: e(at))
+            errors[method] = max(
+                np.abs(y - y_reference).max() / np.abs(y_reference).max(),
+                np.abs(jacobian - j_reference).max() / np.abs(j_reference).max(),
+            )
+        chosen, _ = bench_identification.dynamic_evaluator(duration, "constant", rate=rate)
+        print(
+            f"| {rate:g} | {fastest / rate:.2f} | {row['adams']:.3f} | "
+            f"{row['radau']:.3f} | {row['adams'] / row['radau']:.2f} | "
+            f"{errors['adams']:.1e} | {errors['radau']:.1e} | {chosen.method} |"
+        )
+        print(f"  ({chosen.method_reason})")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--duration", type=float, default=30.0)
     parser.add_argument("--repeat", type=int, default=2)
+    parser.add_argument("--rates", type=float, nargs="+", help="held pressures' rates [Hz]")
     args = parser.parse_args()
+    if args.rates:
+        held_rates(args.rates, args.repeat)
+        return
     modes()
     implicit_runge_kutta(args.duration)
     evaluate, theta = bench_identification.dynamic_evaluator(args.duration, "linear")

@@ -18,6 +18,7 @@ from softcurve.compiled import NativeFunction, compile_source
 from softcurve.identification.experiments import Experiment
 from softcurve.identification.maps import bending_angle_map
 from softcurve.simulation import JACOBIANS, METHODS, SimulationSettings
+from softcurve.simulation.sensitivity import choose_method, hold_inputs
 from softcurve.simulation.solvers import (
     DRIVER_FAMILIES,
     casadi_only,
@@ -399,8 +400,55 @@ def test_a_trajectory_fit_through_radau_recovers_the_robot(oscillation):
     report = sc.fit_trajectory(model, data, output=bending_angle_map(), x0=x0, free=free,
                                integrator_options={"method": "radau"})  # fmt: skip
     assert report.success, report.message
-    assert report.extra["method"] == "radau"
+    assert report.extra["method"] == {data.name: "radau"}
+    assert report.extra["method_reason"] == {data.name: "integrator_options['method'] = 'radau'"}
     np.testing.assert_allclose(report.values, [0.008, 4e-7], rtol=1e-5)
+
+
+@pytest.mark.parametrize(
+    ("options", "hold", "rate", "expected", "why"),
+    [
+        ({}, "constant", 1000.0, "radau", "every 0.00101 s on average, within 0.35 / fastest"),
+        ({}, "constant", 100.0, "adams", "every 0.0111 s on average, beyond 0.35 / fastest"),
+        ({}, "linear", 1000.0, "adams", "joined linearly"),
+        ({"max_order": 3}, "constant", 1000.0, "adams", "only CasADi's CVODES takes"),
+        ({"fsens_err_con": True}, "constant", 1000.0, "adams", "fsens_err_con"),
+    ],
+)
+def test_auto_chooses_the_method_of_a_fit_by_its_inputs(options, hold, rate, expected, why):
+    t = np.arange(0.0, 0.1 + 1e-9, 1 / rate)
+    u_data = hold_inputs(t, 1e4 + 1e3 * np.sin(7.0 * t)[None, :], hold)
+    asked = []
+
+    def fastest():
+        asked.append(True)
+        return 282.0
+
+    method, reason = choose_method(options, hold, t, u_data, fastest)
+    assert (method, reason.startswith("auto: ")) == (expected, True)
+    assert why in reason
+    assert asked == ([True] if why.startswith("every") else [])  # the rate only where needed
+
+
+def test_auto_is_the_default_of_a_fits_sensitivities_and_says_why(fit_model):
+    """Held pressures sampled at 1 kHz take Radau IIA; the default 12 Hz trial Adams;
+    each says why, and both agree with an explicit choice of the same method."""
+    t = np.arange(0.0, 0.3 + 1e-9, 1e-3)
+    pressures = {f"p{i}": 1.5e4 + 2e3 * np.sin((5.0 + i) * t) for i in range(3)}
+    fast = Experiment(t, {"kx": 0 * t, "ky": 0 * t}, pressures)
+    for experiment, expected in ((fast, "radau"), (None, "adams")):
+        evaluate, theta = sensitivity_trial(fit_model, "constant", experiment=experiment)
+        assert evaluate.method == expected
+        assert evaluate.method_reason.startswith("auto: the input changes every")
+        y, jacobian = evaluate(theta)
+        assert evaluate.stats["method"] == expected
+        chosen, _ = sensitivity_trial(
+            fit_model, "constant", options={"method": expected}, experiment=experiment
+        )
+        assert chosen.method_reason == f"integrator_options['method'] = '{expected}'"
+        y_chosen, jacobian_chosen = chosen(theta)
+        np.testing.assert_array_equal(y, y_chosen)
+        np.testing.assert_array_equal(jacobian, jacobian_chosen)
 
 
 def test_a_method_of_the_sensitivities_outside_the_list_is_refused(fit_model):

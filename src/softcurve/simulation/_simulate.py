@@ -93,6 +93,7 @@ from softcurve.simulation.solvers import (
     Stopped,
     actuator_exit,
     auto_method,
+    change_interval,
     choose_route,
     failure_message,
     failure_status,
@@ -295,7 +296,7 @@ def simulate(
     if method == "auto":
         if on_grid and changes is None:
             changes = input_changes(values)
-        interval = _change_interval(grid, changes) if on_grid else None
+        interval = change_interval(grid, changes) if on_grid else None
         method, chosen["method_reason"] = auto_method(rates[1], interval, not on_grid)
     route = choose_route(
         "simulate", method, model=model, inputs=actuated, jacobian=settings.jacobian
@@ -336,14 +337,6 @@ def simulate(
     wall = time.perf_counter() - start_time
     stats.update(engine.counts, method=engine.method, wall_time=wall)
     return _result(model, grid, states, applied, reached, failure, stats, actuated, actuator)
-
-
-def _change_interval(grid, changes) -> float | None:
-    """The mean time [s] between changes of an input given on the output grid, at the
-    output indices ``changes`` (:func:`~softcurve.simulation.solvers.input_changes`), where
-    it changes at half of the output intervals or more, else None."""
-    count = changes.size
-    return (grid[-1] - grid[0]) / (count + 1) if 2 * count >= grid.size - 1 else None
 
 
 def _initial_force(model, model_x0, x0, values, actuated) -> np.ndarray:

@@ -257,12 +257,15 @@ def fit_trajectory(
     %(confidence)s
     integrator_options : dict, optional
         Extra CVODES options of the sensitivity integration (default tolerances: rtol
-        1e-8, atol 1e-10 in the state's units), and ``"method"``: CVODES's ``"adams"``
-        (default) or ``"bdf"``, or ``"radau"``, Radau IIA with the sensitivities of its
+        1e-8, atol 1e-10 in the state's units), and ``"method"``: ``"auto"`` (default)
+        chooses per experiment (Radau IIA where the inputs are held and change within
+        ``softcurve.simulation.sensitivity.AUTO_WITHIN`` over the fastest rate, else
+        Adams: ``softcurve.simulation.sensitivity.choose_method``); or CVODES's
+        ``"adams"`` or ``"bdf"``, or ``"radau"``, Radau IIA with the sensitivities of its
         discrete scheme, whose Jacobian is its outputs' own derivative, far more
         accurate than CVODES's columns (outside its error test): at rtol 1e-6 it costs
         what Adams costs at the default 1e-8 (docs/performance.md, "Radau IIA");
-        ``extra["method"]`` says which ran (None: no experiment was integrated). With
+        ``extra["method"]`` and ``extra["method_reason"]`` say which ran and why. With
         looser ``reltol`` or ``abstol`` the fit integrates its estimate once more at the
         default ones (the outputs alone) and reports the largest change of an output
         relative to the RMS of its signal's residuals as ``extra["integration_error"]``;
@@ -296,8 +299,9 @@ def fit_trajectory(
         With ``extra["robot"]`` the fitted robot, ``extra["parameters"]`` its vector,
         ``extra["values"]`` the shared extra parameters and ``extra["per_experiment"]``
         each experiment's own, ``extra["input_hold"]`` the hold of the inputs,
-        ``extra["method"]`` the integration method (``integrator_options``; None where
-        none ran),
+        ``extra["method"]`` and ``extra["method_reason"]`` each experiment's integration
+        method and why, by experiment name (``integrator_options``; empty where none
+        ran),
         ``extra["integration_error"]`` with looser tolerances (``integrator_options``);
         ``parts`` and :meth:`FitReport.part` give each experiment's rows.
     """
@@ -342,9 +346,12 @@ def fit_trajectory(
     )
     if tolerances is not None and evaluators:
         report = _integration_checked(report, evaluators, problem.parameters, tolerances)
-    # the method where the evaluators say it (any callable evaluates a fit)
-    method = getattr(evaluators[0], "method", None) if evaluators else None
-    return replace(report, extra={**report.extra, "input_hold": input_hold, "method": method})
+    # the methods where the evaluators say them (any callable evaluates a fit)
+    said = {e.name: v for e, v in zip(built, evaluators, strict=False) if hasattr(v, "method")}
+    methods = {name: v.method for name, v in said.items()}
+    reasons = {name: v.method_reason for name, v in said.items()}
+    extra = {"input_hold": input_hold, "method": methods, "method_reason": reasons}
+    return replace(report, extra={**report.extra, **extra})
 
 
 INTEGRATION_SHARE = 0.01

@@ -68,12 +68,16 @@ from softcurve.compiled import (
 from softcurve.simulation.solvers import (
     DRIVER_FAMILIES,
     DriverProblem,
+    auto_method,
+    change_interval,
     choose_route,
     cvodes_options,
     driver,
     driver_library,
     driver_options,
     driver_reason,
+    input_changes,
+    linear_rates,
     radau_constants,
 )
 from softcurve.symbolic.functions import common_subexpressions
@@ -99,8 +103,8 @@ FAMILY_NAMES = {family: name for name, family in DRIVER_FAMILIES.items()}
 
 METHOD_OPTION = "method"
 """The option of :func:`trajectory_sensitivities` (a fit's ``integrator_options``) that
-picks the driver's method, one of :data:`SENSITIVITY_METHODS`; the other options are
-CVODES's."""
+picks the driver's method: ``"auto"`` (the default: :func:`choose_method`) or one of
+:data:`SENSITIVITY_METHODS`; the other options are CVODES's."""
 
 SENSITIVITY_METHODS = ("adams", "bdf", "radau")
 """The driver's methods of the sensitivities: CVODES's Adams (the default: on the 30 s
@@ -117,6 +121,23 @@ what Adams costs at 1e-8, with states as accurate and far more accurate columns
 (docs/performance.md)."""
 
 
+AUTO_WITHIN = 0.35
+"""``integrator_options={"method": "auto"}`` (the default) integrates with Radau IIA where
+the inputs are held between samples and change on average within ``AUTO_WITHIN`` over the
+fastest rate of the linearization at the start (seconds), else with Adams
+(:func:`choose_method`). Below 10 (a simulation's ``AUTO_INTERVAL``) because Radau's
+columns cost six to seven evaluations a step, and both methods run at the fit's one
+tolerance. Measured at the default rtol 1e-8 on ``bench_identification.py``'s case over 3 s
+with the pressures sampled at each rate and held (fastest rate 282 1/s; ``python
+benchmarks/study_sensitivity_driver.py --rates 12 100 300 500 1000``): a change every
+1 ms (0.28 over the fastest rate) Radau IIA 1.09 times Adams's speed, every 2 ms (0.56)
+0.83 times, every 3.3 ms (0.94) 0.58 times, every 10 ms 0.32 times, at 12 Hz 0.14
+times; Radau's own error is 100 to 1,000 times smaller there. The speeds are equal near
+0.35, interpolated in the logarithms between 0.28 and 0.56. Inputs joined linearly are
+integrated through without restarts, and there Adams is faster at every tolerance
+measured (docs/performance.md, "Radau IIA")."""
+
+
 class SensitivityEvaluator:
     """``theta -> (Y (k, T), dvec(Y)/dtheta (k T, P))`` for one experiment.
 
@@ -125,11 +146,15 @@ class SensitivityEvaluator:
     library on disk, and so are the driver's functions, at the first call in a process).
     """
 
-    def __init__(self, direct, integrator, out, u_data, seed, scale, active, sizes, driven):
+    def __init__(
+        self, direct, integrator, out, u_data, seed, scale, active, sizes, driven, reason=""
+    ):
         self.direct, self.integrator, self.out = direct, integrator, out
         self.u_data, self.seed, self.scale, self.active = u_data, seed, scale, active
         self.n_p, self.n_v, self.n_x = sizes
         self.driven: DriverRoute | None = driven
+        self.method_reason: str = reason
+        """Why :attr:`method` was chosen (``integrator_options``, :func:`choose_method`)."""
         self.token, self._blob, self._native = uuid.uuid4().hex, None, None
         self.stats: dict = {}
         """The last evaluation's route and counters (steps, right-hand sides, ...), in the
@@ -145,6 +170,7 @@ class SensitivityEvaluator:
         if self._blob is None:
             state = (self.direct, self.integrator, self.out, self.u_data, self.seed)
             state += (self.scale, self.active, (self.n_p, self.n_v, self.n_x), self.driven)
+            state += (self.method_reason,)
             self._blob = pickle.dumps(state)
         return (_restore, (self.token, self._blob))
 
@@ -331,19 +357,20 @@ def _casadi_integrator(rhs, n_u: int, hold: str, t, options) -> ca.Function:
 
 def _method_of(options) -> tuple[str, dict]:
     """``(method, the CVODES options)`` of ``options`` (a fit's ``integrator_options``),
-    checked: :data:`METHOD_OPTION` one of :data:`SENSITIVITY_METHODS`; a method other than
-    Adams only with the options the driver takes (CasADi's route has Adams alone), Radau
-    IIA without ``fsens_err_con`` (its columns are its scheme's derivative, never in its
-    error test)."""
+    checked: :data:`METHOD_OPTION` ``"auto"`` (the default, resolved by
+    :func:`choose_method`) or one of :data:`SENSITIVITY_METHODS`; a method other than Adams
+    only with the options the driver takes (CasADi's route has Adams alone), Radau IIA
+    without ``fsens_err_con`` (its columns are its scheme's derivative, never in its error
+    test)."""
     options = dict(options or {})
-    method = options.pop(METHOD_OPTION, SENSITIVITY_METHODS[0])
+    method = options.pop(METHOD_OPTION, "auto")
     field = f"integrator_options['{METHOD_OPTION}']"
-    if method not in SENSITIVITY_METHODS:
+    if method != "auto" and method not in SENSITIVITY_METHODS:
         raise ParameterError(
-            f"{field} must be one of {', '.join(SENSITIVITY_METHODS)}, got {method!r}"
+            f"{field} must be 'auto' or one of {', '.join(SENSITIVITY_METHODS)}, got {method!r}"
         )
     foreign = sorted(set(options) - NATIVE_OPTIONS)
-    if method != SENSITIVITY_METHODS[0] and foreign:
+    if method not in ("auto", SENSITIVITY_METHODS[0]) and foreign:
         raise ParameterError(
             f"{field} = {method!r} runs in softcurve's driver, which does not take "
             f"{', '.join(foreign)} (CasADi's CVODES, which does, runs Adams alone)"
@@ -354,6 +381,40 @@ def _method_of(options) -> tuple[str, dict]:
             "its discrete scheme, outside its error test"
         )
     return method, options
+
+
+def choose_method(options, hold, t, u_data, fastest) -> tuple[str, str]:
+    """What ``integrator_options={"method": "auto"}`` integrates a fit's sensitivities
+    with, and why: ``(method, reason)``, the method one of :data:`SENSITIVITY_METHODS`.
+
+    Radau IIA where the inputs are held and change at half of the samples or more, on
+    average within :data:`AUTO_WITHIN` over the fastest rate; Adams otherwise, and always
+    with options that keep Radau out (CVODES's own, ``fsens_err_con``).
+
+    Parameters
+    ----------
+    options : dict
+        The CVODES options (without the method).
+    hold : {"constant", "linear"}
+        The inputs between samples (:func:`hold_inputs`).
+    t : ndarray, shape (T,)
+        Sample times [s].
+    u_data : ndarray, shape (m, T)
+        The inputs per interval (:func:`hold_inputs`).
+    fastest : callable() -> float
+        The fastest rate of the linearization at the start [1/s], computed only where the
+        rule needs it.
+    """
+    if set(options) - NATIVE_OPTIONS:
+        return "adams", "auto: options only CasADi's CVODES takes, which runs Adams alone"
+    if options.get("fsens_err_con"):
+        return "adams", "auto: fsens_err_con puts the columns in CVODES's error test"
+    if hold == "linear":
+        return "adams", "auto: inputs joined linearly, integrated through without restarts"
+    interval = change_interval(t, input_changes(u_data.T)) if u_data.shape[0] else None
+    rule, why = auto_method(fastest() if interval is not None else 0.0, interval,
+                            within=AUTO_WITHIN)  # fmt: skip
+    return ("radau" if rule == "radau" else "adams"), why
 
 
 def trajectory_sensitivities(
@@ -385,8 +446,9 @@ def trajectory_sensitivities(
     experiment : Experiment
         Time grid and inputs.
     options : dict or None
-        Extra CVODES options, and :data:`METHOD_OPTION` (one of
-        :data:`SENSITIVITY_METHODS`, checked by ``_method_of``'s rules).
+        Extra CVODES options, and :data:`METHOD_OPTION`: ``"auto"`` (default,
+        :func:`choose_method`) or one of :data:`SENSITIVITY_METHODS`, checked by
+        ``_method_of``'s rules.
     lag : str, optional
         Name of the extra parameter holding the time constant [s] of a first-order lag
         ``u_a' = (u - u_a) / T`` of every input before the input map (None: no lag).
@@ -445,6 +507,16 @@ def trajectory_sensitivities(
     out = ca.Function("out", [xs, ds], [y, ca.jacobian(y, xs), ca.jacobian(y, ds)]).map(t.size)
     u_data = experiment.input_matrix(u_names).T if u_names else np.zeros((0, t.size))
     u_data = hold_inputs(t, u_data, hold)
+    reason = f"integrator_options['{METHOD_OPTION}'] = {method!r}"
+    if method == "auto":
+
+        def fastest():
+            """The fastest rate [1/s] of the linearization at the start and first input."""
+            jacobian = ca.Function("jacobian", [xs, us, ds], [ca.jacobian(f, xs)])
+            at_start = np.array(jacobian(d0[n_p + n_v :], u_data[:, 0], d0))
+            return float(linear_rates(np.linalg.eigvals(at_start))[1])
+
+        method, reason = choose_method(options, hold, t, u_data, fastest)
     seed = np.zeros((n_x, m))
     for j, i in enumerate(active):
         if i >= n_p + n_v:
@@ -482,7 +554,7 @@ def trajectory_sensitivities(
         rhs = load_external(*driven.columns[0])
     integrator = _casadi_integrator(rhs, len(u_names), hold, t, settings)
     evaluator = SensitivityEvaluator(
-        direct, integrator, out, u_data, seed, scale, active, (n_p, n_v, n_x), driven
+        direct, integrator, out, u_data, seed, scale, active, (n_p, n_v, n_x), driven, reason
     )
     evaluator._native = loaded
     evaluator.variational = augmented

@@ -34,6 +34,7 @@ from softcurve.simulation.solvers._grid import Domain as Domain
 from softcurve.simulation.solvers._grid import State as State
 from softcurve.simulation.solvers._grid import Stopped as Stopped
 from softcurve.simulation.solvers._grid import actuator_exit as actuator_exit
+from softcurve.simulation.solvers._grid import change_interval as change_interval
 from softcurve.simulation.solvers._grid import domain_reason as domain_reason
 from softcurve.simulation.solvers._grid import input_changes as input_changes
 from softcurve.simulation.solvers._grid import outside_domain as outside_domain
@@ -105,6 +106,7 @@ __all__ = [
     "actuator_exit",
     "domain_reason",
     "input_changes",
+    "change_interval",
     "outside_domain",
     "run_on_grid",
     "run_sampled",

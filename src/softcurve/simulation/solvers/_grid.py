@@ -258,6 +258,22 @@ def input_changes(inputs: np.ndarray) -> np.ndarray:
     return changed[first]
 
 
+def change_interval(grid: np.ndarray, changes: np.ndarray) -> float | None:
+    """The mean time [s] between changes of an input given on the output grid, where it
+    changes at half of the output intervals or more, else None: what ``method="auto"``
+    weighs (:func:`~softcurve.simulation.solvers.auto_method`).
+
+    Parameters
+    ----------
+    grid : ndarray, shape (T,)
+        Output times [s].
+    changes : ndarray of int
+        The output indices where the input changes (:func:`input_changes`).
+    """
+    count = changes.size
+    return (grid[-1] - grid[0]) / (count + 1) if 2 * count >= grid.size - 1 else None
+
+
 def _advance(engine, grid, states, inputs, k, m, domain) -> None:
     """Fill states[k+1 : k+m+1] from states[k], stopping at the first output outside the
     domain; on failure retry point by point to keep every output reached, then raise

@@ -268,9 +268,11 @@ Without changes (the paper's case, chains, a constant moment) CVODES is as fast 
 (docs/performance.md, "Radau IIA")."""
 
 
-def auto_method(fastest: float, interval: float | None, sampled: bool = False) -> tuple[str, str]:
+def auto_method(
+    fastest: float, interval: float | None, sampled: bool = False, within: float = AUTO_INTERVAL
+) -> tuple[str, str]:
     """What ``method="auto"`` integrates with, and why in a phrase: ``("radau", why)`` or
-    ``("cvodes", why)`` (:data:`AUTO_INTERVAL`).
+    ``("cvodes", why)``.
 
     Parameters
     ----------
@@ -278,21 +280,25 @@ def auto_method(fastest: float, interval: float | None, sampled: bool = False) -
         The fastest rate of the initial linearization [1/s]
         (:func:`linearization_rates`).
     interval : float or None
-        The mean time between changes of the input on the output grid [s], where it
-        changes at half of the output intervals or more; None where it changes less often
-        or never.
+        The mean time between changes of the input on the output grid [s]
+        (:func:`~softcurve.simulation.solvers.change_interval`), None where it changes at
+        fewer than half of the output intervals.
     sampled : bool
         The inputs are computed during the run (a controller, a callable): integrated
         piece by piece, each piece a fresh start of either method (not measured: CVODES).
+    within : float
+        A dimensionless ratio: Radau IIA where ``interval < within / fastest``
+        (:data:`AUTO_INTERVAL` for a simulation; a fit's sensitivities have their own
+        measured bound, ``softcurve.simulation.sensitivity.AUTO_WITHIN``).
     """
     if sampled:
         return "cvodes", "auto: inputs computed during the run, integrated piece by piece"
     if interval is None:
         return "cvodes", "auto: the input changes at fewer than half of the outputs"
-    bound = AUTO_INTERVAL / fastest if fastest > 0.0 else np.inf
+    bound = within / fastest if fastest > 0.0 else np.inf
     relation = "within" if interval < bound else "beyond"
     why = (f"auto: the input changes every {interval:.3g} s on average, {relation} "
-           f"{AUTO_INTERVAL:g} / fastest rate ({bound:.3g} s)")  # fmt: skip
+           f"{within:g} / fastest rate ({bound:.3g} s)")  # fmt: skip
     return ("radau" if interval < bound else "cvodes"), why
 
 
