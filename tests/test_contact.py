@@ -92,6 +92,22 @@ def test_penalty_energy_integrates_the_elastic_force():
         assert energy >= 0.0 and (energy == 0.0) == (value <= 0.0)
 
 
+def test_the_powered_ramp_is_the_ramps_power_with_finite_second_derivatives():
+    """``ramp(x, w, e) = ramp(x, w)^e``, written so that ``d2/dx2`` is finite at the onset
+    (``x = 0``) and at the corner (``x = w``), where ``h^1.5`` gives NaN."""
+    x, width = ca.SX.sym("x"), 1e-4
+    for exponent in (1.0, 1.5, 2.0, 3.0):
+        powered = ramp(x, width, exponent)
+        both = ca.Function("r", [x], [powered, ramp(x, width) ** exponent,
+                                      ca.hessian(powered, x)[0]])  # fmt: skip
+        for value in (-1e-3, 0.0, 3e-5, width, 2.5e-4, 1e-2):
+            mine, reference, curvature = (float(v) for v in both(value))
+            assert mine == pytest.approx(reference, rel=1e-13, abs=1e-300)
+            assert np.isfinite(curvature)
+    naive = ca.Function("n", [x], [ca.hessian(ramp(x, width) ** 1.5, x)[0]])
+    assert np.isnan(float(naive(0.0)))  # why the power is written piecewise
+
+
 def test_no_nan_at_zero_curvature_and_at_the_contact_boundary():
     """Every derivative the analyses take is finite at a straight robot touching a wall."""
     model = _model(_robot(), [sc.Plane([0, 0, 0.0644 + RC], [0, 0, -1])], damping=0.5, friction=0.3)

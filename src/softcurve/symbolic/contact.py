@@ -66,9 +66,13 @@ def signed_distance(obstacle, x):
     raise TypeError(f"not an obstacle: {type(obstacle).__name__}")
 
 
-def ramp(x, width: float):
-    """The rounded penetration ``h(x)`` [m]: 0 for ``x <= 0``, ``x^2 / (2 w)`` on
-    ``(0, w)``, ``x - w/2`` beyond; continuously differentiable.
+def ramp(x, width: float, exponent: float = 1.0):
+    """The rounded penetration ``h(x)`` [m] raised to ``exponent``: ``h`` is 0 for
+    ``x <= 0``, ``x^2 / (2 w)`` on ``(0, w)``, ``x - w/2`` beyond; continuously
+    differentiable. The power is written on each piece (``x^(2 e) / (2 w)^e`` near the
+    surface) rather than as ``h^e``, whose second derivative ``e (e - 1) h^(e - 2) h'^2``
+    is NaN (0 times infinity) at the contact's onset for Hertz's ``e = 1.5``: an
+    optimizer's Hessian of the dynamics stays finite there.
 
     Parameters
     ----------
@@ -76,9 +80,15 @@ def ramp(x, width: float):
         Penetration [m] (contact radius minus distance).
     width : float
         ``w`` [m] > 0.
+    exponent : float
+        ``e`` [-], >= 1.
     """
     inner = ca.fmin(ca.fmax(x, 0.0), width)
-    return inner**2 / (2.0 * width) + ca.fmax(x - width, 0.0)
+    if exponent == 1.0:
+        return inner**2 / (2.0 * width) + ca.fmax(x - width, 0.0)
+    near = inner ** (2.0 * exponent) / (2.0 * width) ** exponent
+    far = (ca.fmax(x - width, 0.0) + width / 2.0) ** exponent
+    return ca.if_else(x < width, near, far)
 
 
 def penalty_energy(x, law):
@@ -196,7 +206,7 @@ def with_contact(e: DynamicsExpressions, structure: tuple, environment: Environm
         for o, g in enumerate(geometry):
             distance, normal = g(x)
             penetration = radii[i] - distance
-            elastic = weight * law.stiffness * ramp(penetration, law.smoothing) ** law.exponent
+            elastic = weight * law.stiffness * ramp(penetration, law.smoothing, law.exponent)
             energy += weight * penalty_energy(penetration, law)
             normal_force = elastic
             if law.damping:
