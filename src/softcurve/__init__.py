@@ -40,6 +40,13 @@ _FACES = {
         "Pose",
         "export_c",
     ),
+    "softcurve.control": (
+        "ConfigurationTarget",
+        "TipTarget",
+        "TrajectoryPlan",
+        "Transcription",
+        "optimize_trajectory",
+    ),
     "softcurve.control.controllers": (
         "ActuatorDriven",
         "Allocation",

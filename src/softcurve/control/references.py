@@ -63,6 +63,17 @@ class Reference:
         self.constant_curvature = constant_curvature
         self._function = ca.Function("reference", [t], [q, qd, qdd])
 
+    def symbolic(self, t) -> ReferenceSample:
+        """The reference and its derivatives at a CasADi time ``t`` (expressions).
+
+        Parameters
+        ----------
+        t : casadi.SX or casadi.MX
+            A scalar time [s].
+        """
+        q, qd, qdd = self._function(t)
+        return ReferenceSample(q, qd, qdd)
+
     def __call__(self, t: float) -> ReferenceSample:
         q, qd, qdd = (np.array(v, dtype=np.float64).ravel() for v in self._function(float(t)))
         return ReferenceSample(q, qd, qdd)

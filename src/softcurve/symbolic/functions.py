@@ -114,12 +114,32 @@ def domain_expression(structure: tuple, q, p):
     p : casadi.SX, shape (n_p,)
         The parameter vector.
     """
+    inside = margins_hold(domain_margins(structure, q, p))
+    return ca.SX(1.0) if inside is True else inside
+
+
+def domain_margins(structure: tuple, q, p) -> list:
+    """Every element's :meth:`~softcurve.description.elements.ElementModel.domain_margins`
+    at ``q``, in the chain's order: inside the model's domain where all hold.
+
+    Parameters
+    ----------
+    structure : tuple
+        ``Robot.structure()``.
+    q : casadi.SX or casadi.MX, shape (n,)
+        The coordinates.
+    p : casadi.SX or casadi.MX, shape (n_p,)
+        The parameter vector.
+
+    Returns
+    -------
+    list of Margin
+    """
     parts = ParameterLayout.of_structure(structure).element_parts(p)
     margins = []
     for signature, part, k in zip(structure, parts, coordinate_slices(structure), strict=True):
         margins.extend(element_model(signature).domain_margins(q[k], part))
-    inside = margins_hold(margins)
-    return ca.SX(1.0) if inside is True else inside
+    return margins
 
 
 def symbolic_functions(e) -> dict[str, ca.Function]:

@@ -26,8 +26,23 @@ from softcurve.symbolic.kinematics import kinematic_chain, segment_frames
 
 
 @lru_cache(maxsize=16)
-def _distances(environment, structure: tuple):
-    """``(Function q -> signed distances (points, obstacles), [(segment, s)])``."""
+def obstacle_distances(environment, structure: tuple):
+    """The signed distances of the contact points from the obstacles, and the points.
+
+    Parameters
+    ----------
+    environment : Environment
+        The obstacles.
+    structure : tuple
+        ``Robot.structure()``.
+
+    Returns
+    -------
+    tuple
+        ``(distances, points)``: ``distances(q, p)`` a CasADi SX Function of the
+        coordinates and the parameter vector, (points, obstacles) [m], positive outside;
+        ``points`` the ``(element, s)`` of each row, the base ``(0, 0.0)`` first.
+    """
     layout = ParameterLayout.of_structure(structure)
     points = [(0, 0.0)] + [(i, s) for i, s, _ in contact_points(structure, environment)]
     q = ca.SX.sym("q", coordinate_slices(structure)[-1].stop)
@@ -77,7 +92,7 @@ def start_problem(environment, robot, q, name: str = "q0") -> str | None:
     """
     if environment is None:
         return None
-    function, points = _distances(environment, robot.structure())
+    function, points = obstacle_distances(environment, robot.structure())
     q = np.asarray(q, dtype=np.float64)
     depths = -np.array(function(q, robot.parameter_vector()), dtype=np.float64)
 

@@ -1,0 +1,130 @@
+"""Trajectory optimization (``sc.optimize_trajectory``) on a reach task of the paper's
+robot with bellows: direct collocation against direct multiple shooting, cold (the
+problem built and solved) and warm (solved again from the first plan), and each plan's
+inputs simulated forward by ``simulate`` at its default tolerances.
+
+Run:  python benchmarks/bench_planning.py [--intervals 15] [--methods collocation shooting]
+      python benchmarks/bench_planning.py --baselines
+
+The task: from rest straight up, the tip to (20, 0, 62) mm within 1 mm at 0.3 s and at
+rest there, the pressures within the bellows' bounds (0 to 100 kPa), a small effort
+weight (1e-3). It prints per method the wall time to the first plan (the Functions
+built, IPOPT's solve), the solve alone, IPOPT's iterations, the cost, the constraint
+violation, and the distance of the simulated tip from the planned one at the end.
+
+With ``--baselines`` it compares, on the same robot and bounds over 0.6 s, the plan's
+inputs (held at rest after the horizon) with the linear MPC (``ActuatorMPC``, 20 x 10 ms)
+and computed torque (``ComputedTorque`` through ``ActuatorDriven``, kp 400 1/s^2, kd
+40 1/s, 10 ms), both tracking the plan's final configuration from the start: the time
+after which the simulated tip stays within 1 mm of the goal, the tip's distance from the
+goal at 0.3 s, and the plan's own cost terms (the goal at 0.3 s, the effort over 0.3 s)
+evaluated on each run.
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+import numpy as np
+
+import softcurve as sc
+
+TARGET = np.array([0.02, 0.0, 0.062])
+"""The tip's goal [m]."""
+
+
+def task(method: str, intervals: int, warm_start=None):
+    model = sc.Model(sc.presets.ifac2020())
+    bellows = sc.PneumaticActuator.three_bellows(distance=0.01, area=2e-5, p_max=1e5)
+    goal = sc.TipTarget(TARGET, tolerance=1e-3)
+    return sc.optimize_trajectory(
+        model, [0.064, 0.0, 0.0], actuator=bellows, horizon=0.3, intervals=intervals,
+        targets=[goal], effort_weight=1e-3, rest_at_end=True, method=method,
+        warm_start=warm_start,
+    )  # fmt: skip
+
+
+def baselines(intervals: int) -> None:
+    """The plan against the linear MPC and computed torque on the same task."""
+    model = sc.Model(sc.presets.ifac2020())
+    bellows = sc.PneumaticActuator.three_bellows(distance=0.01, area=2e-5, p_max=1e5)
+    plan = task("collocation", intervals)
+    final = sc.Reference.constant(plan.x[-1, : model.n])
+    dt, duration, horizon = 0.01, 0.6, plan.horizon
+    mpc = sc.ActuatorMPC(model, bellows, final, horizon=20, sample_time=dt)
+    torque = sc.ComputedTorque(model, final, kp=400.0, kd=40.0, sample_time=dt)
+    driven = sc.ActuatorDriven(torque, bellows, model.robot)
+    step = float(plan.t[1] - plan.t[0])
+    grid = np.arange(0.0, duration + step / 2, step)
+    held = np.vstack([plan.u, np.tile(plan.u[-1], (grid.size - plan.u.shape[0], 1))])
+    runs = {
+        "optimize_trajectory": (
+            sc.simulate(
+                model,
+                [0.064, 0.0, 0.0],
+                np.zeros(3),
+                actuator=bellows,
+                inputs=held,
+                t_final=duration,
+                dt=step,
+            ),
+            plan.solve_time,
+        ),  # fmt: skip
+    }
+    for name, controller in (("ActuatorMPC", mpc), ("ComputedTorque", driven)):
+        began = time.perf_counter()
+        run = sc.simulate(model, [0.064, 0.0, 0.0], np.zeros(3), actuator=bellows,
+                          controller=controller, t_final=duration, dt=dt)  # fmt: skip
+        runs[name] = (run, time.perf_counter() - began)
+    span = bellows.upper - bellows.lower
+    length = model.robot.rest_length
+    print(f"reach task over {duration:g} s, goal {1e3 * TARGET} mm")
+    print("| inputs by | computing [s] | within 1 mm from [s] | off at 0.3 s [mm] | goal term "
+          "| effort term | cost |")  # fmt: skip
+    print("| --- | --- | --- | --- | --- | --- | --- |")
+    for name, (run, seconds) in runs.items():
+        tips = np.array([run.model.tip_pose(q).position for q in run.q])
+        off = np.linalg.norm(tips - TARGET, axis=1)
+        outside = np.flatnonzero(off > 1e-3)
+        settled = "never" if outside.size and outside[-1] == off.size - 1 else (
+            f"{run.t[outside[-1] + 1] if outside.size else 0.0:.3f}")  # fmt: skip
+        at = int(np.argmin(np.abs(run.t - horizon)))
+        goal_term = off[at] ** 2 / length**2
+        during = run.t < horizon - 1e-12
+        effort = 1e-3 * np.mean(np.sum(((run.inputs[during] - bellows.rest_inputs()) / span) ** 2,
+                                       axis=1))  # fmt: skip
+        print(f"| {name} | {seconds:.2f} | {settled} | {1e3 * off[at]:.2f} | {goal_term:.3g} | "
+              f"{effort:.3g} | {goal_term + effort:.3g} |")  # fmt: skip
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--intervals", type=int, default=15)
+    parser.add_argument("--methods", nargs="+", default=list(sc.control.PLAN_METHODS))
+    parser.add_argument("--baselines", action="store_true", help="against MPC and torque")
+    args = parser.parse_args()
+    if args.baselines:
+        baselines(args.intervals)
+        return
+    print(f"reach task, {args.intervals} intervals of 20 ms; times in seconds")
+    print("| method | first plan | solve | iterations | warm solve | warm iterations "
+          "| cost | violation | simulated tip off [mm] | status |")  # fmt: skip
+    print("| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |")
+    for method in args.methods:
+        began = time.perf_counter()
+        plan = task(method, args.intervals)
+        first = time.perf_counter() - began
+        again = task(method, args.intervals, warm_start=plan)
+        run = plan.simulate()
+        tip = run.model.tip_pose(run.q[-1]).position
+        off = 1e3 * np.linalg.norm(tip - plan.tip[-1])
+        print(
+            f"| {method} | {first:.1f} | {plan.solve_time:.1f} | {plan.iterations} | "
+            f"{again.solve_time:.1f} | {again.iterations} | {plan.cost:.4g} | "
+            f"{plan.violation:.1e} | {off:.2f} | {plan.status.value} |"
+        )
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,711 @@
+"""Trajectory optimization: the inputs that move a robot as asked, under its input
+bounds, found by IPOPT over the robot's :class:`~softcurve.control.Transcription`
+(:func:`optimize_trajectory`, its result :class:`TrajectoryPlan`).
+
+The horizon ``[0, T]`` is split into ``intervals`` steps of ``h = T / intervals``, the
+inputs held over each (as ``simulate`` holds inputs given on its grid). Two
+transcriptions of the dynamics are built, one per ``method``:
+
+- ``"collocation"`` (direct collocation): the states at the nodes and the three stage
+  increments of each step are unknowns, tied by the Radau IIA collocation equations
+  (:attr:`Transcription.collocation`);
+- ``"shooting"`` (direct multiple shooting): the states at the nodes are unknowns, tied
+  by ``x_(k+1) = step(x_k, u_k, p, h)`` (:attr:`Transcription.step`, its stages solved by
+  Newton's method inside every evaluation).
+
+Both are the same discrete scheme, so both reach the same optimum; :data:`PLAN_METHODS`
+says which is the default and why.
+
+The unknowns are scaled so that IPOPT sees entries of order one: the states by the
+nominal scale of the start (``softcurve.simulation.solvers.nominal_scale``), the inputs
+by their range, a free final time by its upper bound.
+"""
+
+from __future__ import annotations
+
+import sys
+import time
+from dataclasses import dataclass, field
+
+import casadi as ca
+import numpy as np
+
+from softcurve.base.progress import on_terminal
+from softcurve.base.status import Result, Status
+from softcurve.base.validation import ParameterError, real_scalar
+from softcurve.control._transcription import Transcription
+from softcurve.control.references import Reference
+from softcurve.simulation.solvers import lag_scale, nominal_scale
+
+PLAN_METHODS = ("collocation", "shooting")
+"""The transcriptions of :func:`optimize_trajectory`; the first is the default. Both
+reach the same plan, collocation 16 times faster: IPOPT sees the collocation equations
+and their exact second derivatives, where multiple shooting sees each step through a
+Newton solve, solved and differentiated at every evaluation. On the reach task of
+docs/planning.md (15 intervals, the paper's robot): 16.7 s and 45 iterations against
+271 s and 39 (``python benchmarks/bench_planning.py``)."""
+
+
+@dataclass(frozen=True)
+class TipTarget:
+    """The tip at ``position`` at ``time``.
+
+    Parameters
+    ----------
+    position : array_like, shape (3,)
+        Where the tip should be [m], in the world frame.
+    time : float, optional
+        When [s], from the start; None: at the end of the horizon. Taken at the node
+        nearest to it.
+    weight : float
+        Weight of ``|tip - position|^2 / L^2`` in the cost (``L`` the robot's rest
+        length), >= 0, dimensionless.
+    tolerance : float, optional
+        A hard constraint ``|tip - position| <= tolerance`` [m] instead of (or besides)
+        the cost; None: the cost alone.
+    """
+
+    position: np.ndarray
+    time: float | None = None
+    weight: float = 1.0
+    tolerance: float | None = None
+
+    def __post_init__(self):
+        position = np.asarray(self.position, dtype=np.float64)
+        if position.shape != (3,) or not np.all(np.isfinite(position)):
+            raise ParameterError(
+                f"TipTarget.position must be 3 finite values [m], got {position!r}"
+            )
+        object.__setattr__(self, "position", position)
+        _check_common(self, "TipTarget")
+
+
+@dataclass(frozen=True)
+class ConfigurationTarget:
+    """The coordinates at ``q`` at ``time``.
+
+    Parameters
+    ----------
+    q : array_like, shape (n,)
+        The coordinates, in the model's units (per segment ``(l, kx, ky)`` [m, 1/m,
+        1/m]).
+    time : float, optional
+        When [s]; None: at the end of the horizon. Taken at the node nearest to it.
+    weight : float
+        Weight of ``|(q_k - q) / S|^2`` in the cost (``S`` the robot's coordinate
+        scale: a bend of one radian is 1), >= 0, dimensionless.
+    tolerance : float, optional
+        A hard constraint ``|(q_k - q) / S| <= tolerance`` (dimensionless) besides the
+        cost; None: the cost alone.
+    """
+
+    q: np.ndarray
+    time: float | None = None
+    weight: float = 1.0
+    tolerance: float | None = None
+
+    def __post_init__(self):
+        q = np.asarray(self.q, dtype=np.float64)
+        if q.ndim != 1 or not np.all(np.isfinite(q)):
+            raise ParameterError(f"ConfigurationTarget.q must be finite values, got {q!r}")
+        object.__setattr__(self, "q", q)
+        _check_common(self, "ConfigurationTarget")
+
+
+def _check_common(target, name: str) -> None:
+    """The weight, time and tolerance of a target, checked once."""
+    weight = real_scalar(f"{name}.weight", target.weight)
+    if weight < 0:
+        raise ParameterError(f"{name}.weight must be >= 0, got {target.weight!r}")
+    if target.time is not None and not real_scalar(f"{name}.time", target.time) >= 0:
+        raise ParameterError(f"{name}.time must be >= 0 [s], got {target.time!r}")
+    if target.tolerance is not None and not real_scalar(f"{name}.tolerance", target.tolerance) > 0:
+        raise ParameterError(f"{name}.tolerance must be > 0, got {target.tolerance!r}")
+
+
+@dataclass(frozen=True)
+class TrajectoryPlan(Result):
+    """What :func:`optimize_trajectory` found.
+
+    Attributes
+    ----------
+    status : Status
+        SUCCESS where IPOPT converged to a point that meets every constraint; INFEASIBLE
+        where it found none (the message names the constraint that binds most);
+        EVALUATION_LIMIT where ``max_iterations`` ran out; NOT_CONVERGED otherwise.
+    message : str
+        What happened, in IPOPT's words and ours.
+    t : ndarray, shape (K + 1,)
+        The nodes [s].
+    x : ndarray, shape (K + 1, n_x)
+        The planned state at the nodes (``simulate``'s layout).
+    u : ndarray, shape (K, n_u)
+        The inputs held over each step (commands where the actuator lags).
+    tip : ndarray, shape (K + 1, 3)
+        The planned tip positions [m].
+    cost : float
+        The objective at the plan (dimensionless, or [s] with a ``time_weight``).
+    iterations : int
+        IPOPT's iterations.
+    violation : float
+        The largest constraint violation at the plan, in the scaled units IPOPT sees.
+    optimality : float
+        IPOPT's dual infeasibility at the plan (first-order optimality).
+    solve_time : float
+        Wall time of the solve [s] (the problem's construction excluded).
+    method : str
+        The transcription, one of :data:`PLAN_METHODS`.
+    binding : str
+        The constraint group that binds most (:func:`optimize_trajectory`'s message
+        names it), e.g. ``"rest at the end"``; "" where none is active.
+    transcription : Transcription
+        The model and actuator the plan is for.
+    stages : ndarray, shape (3 K, n_x)
+        The stage increments of every step (direct collocation; empty for shooting).
+    multipliers : tuple of ndarray
+        IPOPT's multipliers of the bounds and the constraints at the plan (scaled),
+        which a warm start from this plan begins with.
+    """
+
+    status: Status
+    message: str
+    t: np.ndarray
+    x: np.ndarray
+    u: np.ndarray
+    tip: np.ndarray
+    cost: float
+    iterations: int
+    violation: float
+    optimality: float
+    solve_time: float
+    method: str
+    binding: str
+    transcription: Transcription = field(repr=False, compare=False)
+    stages: np.ndarray = field(repr=False, compare=False)
+    multipliers: tuple = field(repr=False, compare=False)
+
+    @property
+    def horizon(self) -> float:
+        """The plan's final time [s]."""
+        return float(self.t[-1])
+
+    @property
+    def inputs(self) -> np.ndarray:
+        """The inputs on the grid :attr:`t`, shape (K + 1, n_u): what ``simulate``'s
+        ``inputs`` (or ``tau`` without an actuator) takes with ``dt`` the step; the last
+        row repeats the last step's."""
+        return np.vstack([self.u, self.u[-1:]])
+
+    def input_function(self, t: float, state=None) -> np.ndarray:
+        """The input held at time ``t`` [s], shape (n_u,): ``simulate``'s callable form.
+
+        Parameters
+        ----------
+        t : float
+            Time [s]; before 0 the first step's, after the horizon the last step's.
+        state : object, optional
+            Ignored (``simulate`` passes the state).
+        """
+        k = int(np.clip(np.searchsorted(self.t, t, side="right") - 1, 0, self.u.shape[0] - 1))
+        return self.u[k].copy()
+
+    def simulate(self, **settings):
+        """The plan's inputs applied by ``simulate`` from the plan's start, on its grid.
+
+        Parameters
+        ----------
+        **settings
+            ``simulate``'s settings (``rtol``, ``atol``, ``method``, ...); ``dt`` and
+            ``t_final`` are the plan's.
+
+        Returns
+        -------
+        Trajectory
+        """
+        from softcurve.simulation import simulate
+
+        tr = self.transcription
+        model, n = tr.model, tr.model.n
+        x0 = self.x[0]
+        lam0 = x0[2 * n : model.n_state]
+        drive = {"tau": self.inputs} if tr.actuator is None else {
+            "actuator": tr.actuator, "inputs": self.inputs,
+            **({"actuator_state": x0[model.n_state :]} if tr.n_x > model.n_state else {}),
+        }  # fmt: skip
+        step = float(self.t[1] - self.t[0])
+        return simulate(model, x0[:n], x0[n : 2 * n], lam0, t_final=self.horizon, dt=step,
+                        **drive, **settings)  # fmt: skip
+
+    def plot(self, targets=(), title: str | None = None):
+        """The planned tip and inputs against time.
+
+        Parameters
+        ----------
+        targets : sequence of TipTarget
+            Drawn as markers at their times.
+        title : str, optional
+            The figure's title.
+
+        Returns
+        -------
+        matplotlib.figure.Figure
+        """
+        from softcurve.figures.plans import plan_figure
+
+        marks = [(self.horizon if g.time is None else g.time, g.position) for g in targets
+                 if isinstance(g, TipTarget)]  # fmt: skip
+        return plan_figure(self.t, self.tip, self.u, self.transcription.actuator, marks, title)
+
+
+class _Progress(ca.Callback):
+    """IPOPT's iterations as a line: ``iteration k, cost f, violation v``."""
+
+    def __init__(self, n_x: int, lower, upper, stream=None):
+        ca.Callback.__init__(self)
+        self.n_x, self.lower, self.upper = n_x, np.asarray(lower), np.asarray(upper)
+        self.stream, self.count = stream, 0
+        self.lines = not on_terminal(stream)
+        self.construct("softcurve_plan_progress", {})
+
+    def get_n_in(self):
+        return ca.nlpsol_n_out()
+
+    def get_n_out(self):
+        return 1
+
+    def get_name_in(self, i):
+        return ca.nlpsol_out(i)
+
+    def get_name_out(self, i):
+        return "ret"
+
+    def get_sparsity_in(self, i):
+        name = ca.nlpsol_out(i)
+        sizes = {"f": 1, "x": self.n_x, "lam_x": self.n_x, "g": self.lower.size,
+                 "lam_g": self.lower.size}  # fmt: skip
+        return ca.Sparsity.dense(sizes[name], 1) if name in sizes else ca.Sparsity(0, 0)
+
+    def eval(self, arg):
+        g = np.array(arg[2]).ravel()
+        violation = max(0.0, float(np.max(np.concatenate(
+            [self.lower - g, g - self.upper, [0.0]]))))  # fmt: skip
+        stream = self.stream or sys.stderr
+        text = (f"optimize_trajectory: iteration {self.count}, cost {float(arg[1]):.6g}, "
+                f"violation {violation:.2g}")  # fmt: skip
+        stream.write(f"{text}\n" if self.lines else f"\r{text}   ")
+        stream.flush()
+        self.count += 1
+        return [0]
+
+
+def _horizon(horizon) -> tuple[float, float, bool]:
+    """``(lower, upper, free)`` of the final time [s]."""
+    if np.ndim(horizon) == 0:
+        value = real_scalar("horizon", horizon)
+        if not value > 0:
+            raise ParameterError(f"horizon must be > 0 [s], got {horizon!r}")
+        return value, value, False
+    bounds = tuple(horizon)
+    if len(bounds) != 2:
+        raise ParameterError(f"horizon must be a time or (shortest, longest), got {horizon!r}")
+    low, high = (real_scalar("horizon", b) for b in bounds)
+    if not 0 < low < high:
+        raise ParameterError(f"horizon must be 0 < shortest < longest [s], got {horizon!r}")
+    return low, high, True
+
+
+class _Constraints:
+    """The NLP's constraints by group: expressions, bounds and each group's rows."""
+
+    def __init__(self):
+        self.rows, self.lower, self.upper, self.groups = [], [], [], []
+
+    def add(self, group: str, expression, lower, upper) -> None:
+        size = expression.numel()
+        if size == 0:
+            return
+        self.rows.append(ca.vec(expression))
+        # bounds in the order of ca.vec: column by column
+        for bounds, value in ((self.lower, lower), (self.upper, upper)):
+            flat = np.asarray(value, dtype=np.float64).ravel(order="F")
+            bounds.append(np.broadcast_to(flat, (size,)))
+        self.groups.extend([group] * size)
+
+    def arrays(self):
+        return ca.vertcat(*self.rows), np.concatenate(self.lower), np.concatenate(self.upper)
+
+
+def optimize_trajectory(
+    model,
+    q0,
+    qd0=None,
+    lam0=None,
+    *,
+    actuator=None,
+    actuator_state=None,
+    horizon=1.0,
+    intervals: int = 25,
+    targets=(),
+    reference: Reference | None = None,
+    reference_weight: float = 1.0,
+    effort_weight: float = 0.0,
+    rate_weight: float = 0.0,
+    time_weight: float = 0.0,
+    rest_at_end: bool = False,
+    clearance: float | None = None,
+    tip_bounds=None,
+    method: str = PLAN_METHODS[0],
+    warm_start: TrajectoryPlan | None = None,
+    max_iterations: int = 300,
+    tolerance: float = 1e-8,
+    progress: bool = False,
+) -> TrajectoryPlan:
+    """The inputs over a horizon that best meet the targets under the bounds.
+
+    Minimizes, over the inputs held on ``intervals`` steps (and the final time where
+    ``horizon`` is a range)::
+
+        sum_targets weight |error|^2
+          + reference_weight / T integral |(q - q_r(t)) / S|^2 dt
+          + effort_weight / T integral |(u - u_rest) / span|^2 dt
+          + rate_weight sum_k |(u_k - u_(k-1)) / span|^2  +  time_weight T
+
+    subject to the dynamics (Radau IIA over each step, ``method``), the start, the
+    actuator's input bounds, the model's and the actuator's domain at every node
+    (lengths, bends, tendon lengths, chamber volumes), and as asked: hard target
+    tolerances, clearance from the obstacles, tip bounds and rest at the end. ``S`` is the
+    robot's coordinate scale, ``span`` the input range; the integrals are sums over the
+    nodes times ``h``.
+
+    Parameters
+    ----------
+    model : Model
+        The compiled model; its environment's obstacles give the clearance constraints.
+    q0 : array_like, shape (n,)
+        Initial coordinates, in the model's domain.
+    qd0 : array_like, shape (n,), optional
+        Initial rates (default zero).
+    lam0 : array_like, shape (n_creep,), optional
+        Initial creep states (default zero).
+    actuator : Actuator, optional
+        The actuator whose inputs are planned; None: generalized forces (unbounded).
+    actuator_state : array_like, shape (m,), optional
+        Initial inputs of a lagging actuator (default its rest inputs).
+    horizon : float or (float, float)
+        The final time [s], or ``(shortest, longest)`` for a free final time.
+    intervals : int
+        Steps of the horizon, >= 1.
+    targets : sequence of TipTarget or ConfigurationTarget
+        Where the robot should be, when.
+    reference : Reference, optional
+        ``q_r(t)`` to track over the horizon.
+    reference_weight : float
+        Weight of the tracking term, >= 0, dimensionless.
+    effort_weight : float
+        Weight of the inputs' distance from rest, >= 0, dimensionless.
+    rate_weight : float
+        Weight of the inputs' changes between steps, >= 0, dimensionless.
+    time_weight : float
+        Weight of the final time, >= 0 [1/s]; with a free horizon, > 0 asks for the
+        fastest plan.
+    rest_at_end : bool
+        Whether the robot ends at rest: zero rates and accelerations at the last node
+        with the last inputs held (an equilibrium; creep may still move).
+    clearance : float, optional
+        Smallest signed distance [m] of every contact point from every obstacle at every
+        node (needs an environment; may be negative, down to a penetration the contact
+        law allows).
+    tip_bounds : tuple of array_like, optional
+        ``(lower, upper)`` (3,) each: a box [m] the tip stays in at every node.
+    method : {"collocation", "shooting"}
+        The transcription (:data:`PLAN_METHODS`).
+    warm_start : TrajectoryPlan, optional
+        A plan of the same problem size whose states, stages, inputs and final time start
+        the iteration (default: the start held, the rest inputs).
+    max_iterations : int
+        IPOPT's iteration budget, >= 1.
+    tolerance : float
+        IPOPT's convergence tolerance (its scaled NLP error), > 0.
+    progress : bool
+        Write ``iteration k, cost f, violation v`` on stderr at each iteration.
+
+    Returns
+    -------
+    TrajectoryPlan
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import softcurve as sc
+    >>> model = sc.Model(sc.presets.ifac2020(), quadrature_nodes=3)
+    >>> bellows = sc.PneumaticActuator.three_bellows(distance=0.01, area=2e-5, p_max=1e5)
+    >>> goal = sc.TipTarget([0.02, 0.0, 0.062], tolerance=2e-3)  # [m], at the end
+    >>> plan = sc.optimize_trajectory(model, [0.064, 0.0, 0.0], actuator=bellows,
+    ...                               horizon=0.2, intervals=8, targets=[goal],
+    ...                               effort_weight=1e-3, rest_at_end=True)
+    >>> plan.success, plan.u.shape
+    (True, (8, 3))
+    """
+    if method not in PLAN_METHODS:
+        raise ParameterError(f"method must be one of {', '.join(PLAN_METHODS)}, got {method!r}")
+    if not (isinstance(intervals, int | np.integer) and intervals >= 1):
+        raise ParameterError(f"intervals must be an integer >= 1, got {intervals!r}")
+    if not (isinstance(max_iterations, int | np.integer) and max_iterations >= 1):
+        raise ParameterError(f"max_iterations must be an integer >= 1, got {max_iterations!r}")
+    if not real_scalar("tolerance", tolerance) > 0:
+        raise ParameterError(f"tolerance must be > 0, got {tolerance!r}")
+    weights = {}
+    for name, value in (("reference_weight", reference_weight), ("effort_weight", effort_weight),
+                        ("rate_weight", rate_weight), ("time_weight", time_weight)):  # fmt: skip
+        weights[name] = real_scalar(name, value)
+        if weights[name] < 0:
+            raise ParameterError(f"{name} must be >= 0, got {value!r}")
+    t_low, t_high, free = _horizon(horizon)
+    tr = Transcription(model, actuator)
+    x0 = tr.start(q0, qd0, lam0, actuator_state)
+    K, n, n_x, n_u = int(intervals), model.n, tr.n_x, tr.n_u
+    targets = tuple(targets)
+    for target in targets:
+        if not isinstance(target, TipTarget | ConfigurationTarget):
+            raise ParameterError(
+                f"targets must be TipTarget or ConfigurationTarget, got {type(target).__name__}"
+            )
+        if isinstance(target, ConfigurationTarget) and target.q.shape != (n,):
+            raise ParameterError(
+                f"ConfigurationTarget.q must have {n} entries, got {target.q.shape}"
+            )
+        if target.time is not None and (free or target.time > t_high):
+            raise ParameterError(
+                f"a target's time ({target.time!r} s) must lie in a fixed horizon of "
+                f"{t_high:g} s (with a free final time, targets are at the end: time=None)"
+            )
+    if reference is not None and reference.n != n:
+        raise ParameterError(f"reference must have {n} coordinates, got {reference.n}")
+    if clearance is not None:
+        clearance = real_scalar("clearance", clearance)
+        if model.environment is None:
+            raise ParameterError("clearance needs a model with an environment (obstacles)")
+    if tip_bounds is not None:
+        tip_low, tip_high = (np.asarray(b, dtype=np.float64) for b in tip_bounds)
+        if tip_low.shape != (3,) or tip_high.shape != (3,) or np.any(tip_low >= tip_high):
+            raise ParameterError(
+                "tip_bounds must be (lower (3,), upper (3,)) with lower < upper [m], "
+                f"got {tip_bounds!r}"
+            )
+    if warm_start is not None and (
+        warm_start.x.shape != (K + 1, n_x) or warm_start.method != method
+    ):
+        raise ParameterError(
+            f"warm_start must be a plan of {K} intervals, {n_x} states and method {method!r}"
+        )
+
+    # -- scales ------------------------------------------------------------------------
+    p = tr.parameters
+    lower_u, upper_u = tr.input_bounds
+    bounded = np.isfinite(lower_u) & np.isfinite(upper_u)
+    span = np.where(bounded, upper_u - lower_u, 1.0 if actuator else _force_scale(model, x0))
+    offset = np.where(bounded, lower_u, 0.0)
+    x_scale = np.ones(n_x)
+    x_scale[: model.n_state] = nominal_scale(model, x0[: model.n_state])
+    if n_x > model.n_state:
+        x_scale[model.n_state :] = lag_scale(tr.inputs)
+    rest_u = offset if actuator is None else actuator.rest_inputs()
+    length = float(model.robot.rest_length)
+    q_scale = model.robot.coordinate_scale()
+
+    # -- unknowns (scaled) -------------------------------------------------------------
+    stages = 3
+    Xs = ca.MX.sym("X", n_x, K + 1)
+    Us = ca.MX.sym("U", n_u, K)
+    Zs = ca.MX.sym("Z", n_x, stages * K) if method == "collocation" else ca.MX(n_x, 0)
+    Ts = ca.MX.sym("T") if free else ca.MX(0, 1)
+    X = Xs * ca.DM(x_scale)
+    U = Us * ca.DM(span) + ca.DM(offset)
+    T = Ts * t_high if free else ca.MX(t_high)
+    h = T / K
+    P = ca.DM(p)
+
+    constraints = _Constraints()
+    if method == "collocation":
+        Z = Zs * ca.DM(x_scale)
+        mapped = tr.collocation.map(K)
+        residual, following = mapped(X[:, :K], Z, U, P, h)
+        constraints.add("dynamics", residual / ca.DM(x_scale), 0.0, 0.0)
+    else:
+        following = tr.step.map(K)(X[:, :K], U, P, h)
+    constraints.add("dynamics", (X[:, 1:] - following) / ca.DM(x_scale), 0.0, 0.0)
+    margins = tr.domain.map(K)(X[:, 1:], P)
+    constraints.add("model or actuator domain", margins, 0.0, np.inf)
+    tips = tr.tip.map(K + 1)(X, P)
+    if clearance is not None:
+        constraints.add("clearance", tr.gaps.map(K)(X[:, 1:], P), clearance, np.inf)
+    if tip_bounds is not None:
+        box = (np.tile(tip_low[:, None], K), np.tile(tip_high[:, None], K))
+        constraints.add("tip bounds", tips[:, 1:], *box)
+    if rest_at_end:
+        xdot = tr.rhs(X[:, K], U[:, K - 1], P)
+        constraints.add("rest at the end", xdot[:n] / ca.DM(x_scale[:n]), 0.0, 0.0)
+        constraints.add("rest at the end", xdot[n : 2 * n] / ca.DM(x_scale[n : 2 * n]), 0.0, 0.0)
+
+    # -- cost --------------------------------------------------------------------------
+    def node(time_value):
+        return K if time_value is None else int(round(time_value / t_high * K))
+
+    cost = 0
+    for i, target in enumerate(targets):
+        k = node(target.time)
+        if isinstance(target, TipTarget):
+            error = (tips[:, k] - ca.DM(target.position)) / length
+            scale = length
+        else:
+            error = (X[:n, k] - ca.DM(target.q)) / ca.DM(q_scale)
+            scale = 1.0
+        cost = cost + target.weight * ca.sumsqr(error)
+        if target.tolerance is not None:
+            name = f"target {i} ({type(target).__name__} at {node(target.time) * t_high / K:g} s)"
+            constraints.add(name, ca.sumsqr(error) - (target.tolerance / scale) ** 2, -np.inf, 0.0)
+    if reference is not None and weights["reference_weight"] > 0:
+        t_nodes = ca.linspace(ca.MX(0), T, K + 1)[1:]
+        t_sym = ca.SX.sym("t")
+        q_r = ca.Function("q_r", [t_sym], [reference.symbolic(t_sym).q]).map(K)(t_nodes.T)
+        tracking = ca.sumsqr((X[:n, 1:] - q_r) / ca.DM(q_scale)) / K
+        cost = cost + weights["reference_weight"] * tracking
+    if weights["effort_weight"] > 0:
+        cost = cost + weights["effort_weight"] * ca.sumsqr((U - ca.DM(rest_u)) / ca.DM(span)) / K
+    if weights["rate_weight"] > 0 and K > 1:
+        changes = (U[:, 1:] - U[:, :-1]) / ca.DM(span)
+        cost = cost + weights["rate_weight"] * ca.sumsqr(changes)
+    if weights["time_weight"] > 0:
+        cost = cost + weights["time_weight"] * T
+
+    # -- the NLP ------------------------------------------------------------------------
+    w = ca.vertcat(ca.vec(Xs), ca.vec(Us), ca.vec(Zs), Ts)
+    g, lbg, ubg = constraints.arrays()
+    lbw = np.full(w.numel(), -np.inf)
+    ubw = np.full(w.numel(), np.inf)
+    start = x0 / x_scale
+    lbw[:n_x], ubw[:n_x] = start, start
+    u_rows = slice(n_x * (K + 1), n_x * (K + 1) + n_u * K)
+    lbw[u_rows] = np.tile(np.where(bounded, 0.0, -np.inf), K)
+    ubw[u_rows] = np.tile(np.where(bounded, 1.0, np.inf), K)
+    if free:
+        lbw[-1], ubw[-1] = t_low / t_high, 1.0
+    if warm_start is not None:
+        guess = np.concatenate([
+            (warm_start.x / x_scale).ravel(), ((warm_start.u - offset) / span).ravel(),
+            (warm_start.stages / x_scale).ravel(),
+            [warm_start.horizon / t_high] if free else [],
+        ])  # fmt: skip
+    else:
+        guess = np.concatenate([
+            np.tile(start, K + 1), np.tile((rest_u - offset) / span, K),
+            np.zeros(Zs.numel()), [1.0] if free else [],
+        ])  # fmt: skip
+    options = {
+        "ipopt.max_iter": int(max_iterations), "ipopt.tol": float(tolerance),
+        "ipopt.print_level": 0, "ipopt.sb": "yes", "print_time": False,
+    }  # fmt: skip
+    duals = {}
+    if warm_start is not None:  # begin at the plan's primal and dual point, barrier small
+        options.update({f"ipopt.{name}": value for name, value in WARM_START.items()})
+        duals = dict(zip(("lam_x0", "lam_g0"), warm_start.multipliers, strict=True))
+    if progress:
+        watcher = _Progress(w.numel(), lbg, ubg)
+        options["iteration_callback"] = watcher
+    solver = ca.nlpsol("optimize_trajectory", "ipopt", {"x": w, "f": cost, "g": g}, options)
+    began = time.perf_counter()
+    solution = solver(x0=guess, lbx=lbw, ubx=ubw, lbg=lbg, ubg=ubg, **duals)
+    solve_time = time.perf_counter() - began
+    if progress and on_terminal():
+        sys.stderr.write("\n")
+    stats = solver.stats()
+
+    # -- the result ----------------------------------------------------------------------
+    values = np.array(solution["x"]).ravel()
+    x_plan = values[: n_x * (K + 1)].reshape(K + 1, n_x) * x_scale
+    u_plan = values[u_rows].reshape(K, n_u) * span + offset
+    z_plan = (values[u_rows.stop : u_rows.stop + Zs.numel()].reshape(K * stages, n_x)
+              * x_scale) if method == "collocation" else np.zeros((0, n_x))  # fmt: skip
+    horizon_value = values[-1] * t_high if free else t_high
+    g_value = np.array(solution["g"]).ravel()
+    excess = np.maximum(lbg - g_value, g_value - ubg)
+    violation = float(max(0.0, excess.max(initial=0.0)))
+    multipliers = np.abs(np.array(solution["lam_g"]).ravel())
+    binding = _binding(constraints.groups, excess, multipliers)
+    iterations = stats.get("iterations", {})
+    optimality = float(iterations["inf_du"][-1]) if iterations.get("inf_du") else float("nan")
+    status, words = _status(stats, violation, tolerance)
+    tip_plan = np.array(tr.tip.map(K + 1)(x_plan.T, p)).T
+    message = f"{words} after {stats.get('iter_count', 0)} iterations"
+    if status is not Status.SUCCESS and binding:
+        message += f"; the constraint that binds most: {binding}"
+    return TrajectoryPlan(
+        status, message, np.linspace(0.0, horizon_value, K + 1), x_plan, u_plan, tip_plan,
+        float(solution["f"]), int(stats.get("iter_count", 0)), violation, optimality,
+        solve_time, method, binding, tr, z_plan,
+        (np.array(solution["lam_x"]).ravel(), np.array(solution["lam_g"]).ravel()),
+    )  # fmt: skip
+
+
+def _force_scale(model, x0) -> np.ndarray:
+    """A generalized force per coordinate, of the size that holds it one coordinate scale
+    from the start (the change of the potential force along it, plus the force at the
+    start): what unbounded force inputs are scaled by, so that IPOPT sees entries of order
+    one [N, N m^2 per coordinate]."""
+    n, scale = model.n, model.robot.coordinate_scale()
+    q0 = x0[:n]
+    at_start = model.potential_force(q0)
+    moved = [model.potential_force(q0 + scale[i] * np.eye(n)[i])[i] for i in range(n)]
+    return np.maximum(np.abs(np.array(moved) - at_start) + np.abs(at_start), 1e-9)
+
+
+WARM_START = {
+    "warm_start_init_point": "yes",
+    "mu_init": 1e-6,
+    "warm_start_bound_push": 1e-9,
+    "warm_start_bound_frac": 1e-9,
+    "warm_start_slack_bound_push": 1e-9,
+    "warm_start_slack_bound_frac": 1e-9,
+    "warm_start_mult_bound_push": 1e-9,
+}
+"""IPOPT's options where a plan starts from another (``warm_start``): its primal and
+dual point kept as given (pushed off the bounds by 1e-9 rather than IPOPT's 1e-2, which
+would move an optimum with active bounds far from itself) and a barrier parameter
+near the one the first plan ended with, so that an unchanged problem converges in a
+few iterations."""
+
+VIOLATION_ALLOWED = 1e-6
+"""The largest constraint violation (scaled) at which a converged plan is a SUCCESS:
+IPOPT's own ``constr_viol_tol`` default is 1e-4; the dynamics' rows are scaled by the
+state's nominal size, so 1e-6 is a relative defect of the step well below ``simulate``'s
+default rtol 1e-6 times the state's scale."""
+
+
+def _status(stats: dict, violation: float, tolerance: float) -> tuple[Status, str]:
+    """The plan's status and IPOPT's words."""
+    words = str(stats.get("return_status", "unknown"))
+    if words == "Solve_Succeeded" and violation <= VIOLATION_ALLOWED:
+        return Status.SUCCESS, f"IPOPT: {words}"
+    if words in ("Infeasible_Problem_Detected", "Restoration_Failed"):
+        return Status.INFEASIBLE, f"IPOPT: {words}"
+    if words in ("Maximum_Iterations_Exceeded", "Maximum_CpuTime_Exceeded"):
+        return Status.EVALUATION_LIMIT, f"IPOPT: {words}"
+    if words == "Solve_Succeeded":
+        return Status.NOT_CONVERGED, f"IPOPT: {words}, but a constraint is off by {violation:.2g}"
+    return Status.NOT_CONVERGED, f"IPOPT: {words}"
+
+
+def _binding(groups, excess, multipliers) -> str:
+    """The constraint group that binds most: of the groups other than the dynamics (which
+    any inputs meet, by simulating them), the one violated most, else the one with the
+    largest multiplier; the dynamics where no other group is violated or active."""
+    others = [(e, m, g) for g, e, m in zip(groups, excess, multipliers, strict=True)
+              if g != "dynamics"]  # fmt: skip
+    if others:
+        worst = max(others, key=lambda row: row[0])
+        if worst[0] > VIOLATION_ALLOWED:
+            return worst[2]
+        active = max(others, key=lambda row: row[1])
+        if active[1] > 0:
+            return active[2]
+    return "dynamics" if excess.size and excess.max() > VIOLATION_ALLOWED else ""

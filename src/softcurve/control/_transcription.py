@@ -1,0 +1,250 @@
+"""What an optimizer needs of a robot, as CasADi Functions with exact derivatives: the
+actuated right-hand side, one step of Radau IIA over it, the collocation equations of
+that step, the tip, the domain margins and the contact gaps (:class:`Transcription`).
+
+Planning (:func:`~softcurve.control.optimize_trajectory`), the gradients of rollouts and
+a user's own optimizer share these Functions. Every one takes the parameter vector ``p``
+as an input, so a derivative along the robot's parameters is one more seed, as along the
+initial state and the inputs.
+
+The step is one step of the three-stage Radau IIA method (order 5, L-stable, stiffly
+accurate: the last stage is the new state), with the inputs held over it. Its stages
+solve the collocation equations ``Z_i = h sum_j a_ij f(x + Z_j, u, p)`` (the tableau of
+:func:`softcurve.simulation.solvers.radau_tableau`, the C driver's own); the step solves
+them by Newton's method (CasADi's ``rootfinder``), so its derivatives are the implicit
+function's, exact to the Newton tolerance, and :attr:`Transcription.collocation` gives the
+equations themselves to an optimizer that keeps the stages as unknowns (direct
+collocation).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import cached_property
+
+import casadi as ca
+import numpy as np
+
+from softcurve.base.validation import ParameterError
+from softcurve.description.actuator import Actuator
+from softcurve.simulation.solvers import ActuatorInput, actuated_derivative, radau_tableau
+from softcurve.symbolic.functions import domain_margins
+from softcurve.symbolic.gaps import obstacle_distances
+
+NEWTON_TOLERANCE = 1e-12
+"""Residual norm at which :attr:`Transcription.step`'s Newton iteration stops, in the
+units of the state: the stages' derivatives, by the implicit function theorem, are exact
+to it."""
+
+NEWTON_ITERATIONS = 30
+"""Iterations :attr:`Transcription.step`'s Newton method may take before it fails."""
+
+
+@dataclass(frozen=True, eq=False)
+class Transcription:
+    """A robot's dynamics as CasADi Functions for optimizers.
+
+    The state is ``simulate``'s: ``x = (q, qd, lam)`` then, where the actuator lags its
+    commands, its inputs; ``u`` is the actuator's inputs (its commands where it lags), or
+    the generalized forces ``tau`` without an actuator; ``p`` is the model's parameter
+    vector (:attr:`parameters`, ``Model.parameters``).
+
+    Parameters
+    ----------
+    model : Model
+        The compiled model; its environment gives :attr:`gaps`.
+    actuator : Actuator, optional
+        The actuator whose inputs drive the robot; None: generalized forces.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import softcurve as sc
+    >>> model = sc.Model(sc.presets.ifac2020())
+    >>> plan = sc.Transcription(model)
+    >>> x = np.array([0.064, 25.0, 0.0, 0, 0, 0, 0, 0, 0])
+    >>> x1 = plan.step(x, np.zeros(3), plan.parameters, 0.01)
+    >>> x1.shape
+    (9, 1)
+    """
+
+    model: object
+    actuator: Actuator | None = None
+
+    def __post_init__(self):
+        if self.actuator is not None:
+            if not isinstance(self.actuator, Actuator):
+                raise ParameterError(
+                    f"actuator must be an Actuator or None, got {type(self.actuator).__name__}"
+                )
+            self.actuator.check_robot(self.model.robot)
+
+    # -- sizes ------------------------------------------------------------------------
+    @cached_property
+    def inputs(self) -> ActuatorInput | None:
+        """The actuator as the integrator's input (None without one)."""
+        if self.actuator is None:
+            return None
+        return ActuatorInput.of(self.actuator, self.model.n)
+
+    @property
+    def n_x(self) -> int:
+        """Entries of the state: the model's and the lagging inputs."""
+        return self.model.n_state + (0 if self.inputs is None else self.inputs.n_states)
+
+    @property
+    def n_u(self) -> int:
+        """Entries of the input: the actuator's inputs, else the coordinates' forces."""
+        return self.model.n if self.inputs is None else self.inputs.n_inputs
+
+    @property
+    def parameters(self) -> np.ndarray:
+        """The model's parameter vector, shape (n_p,): the ``p`` of every Function."""
+        return np.asarray(self.model.parameters, dtype=np.float64)
+
+    @property
+    def input_bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        """``(lower, upper)`` of ``u``, shape (n_u,) each: the actuator's bounds, else
+        unbounded forces."""
+        if self.inputs is None:
+            return np.full(self.n_u, -np.inf), np.full(self.n_u, np.inf)
+        return self.inputs.lower.copy(), self.inputs.upper.copy()
+
+    def _symbols(self):
+        x = ca.SX.sym("x", self.n_x)
+        return x, ca.SX.sym("u", self.n_u), ca.SX.sym("p", self.parameters.size)
+
+    # -- the Functions ----------------------------------------------------------------
+    @cached_property
+    def rhs(self) -> ca.Function:
+        """``rhs(x, u, p) -> xdot``: the actuated state derivative (MX, calling the
+        model's symbolic ``rhs``)."""
+        return actuated_derivative(self.model, self.inputs, self.model.casadi_rhs())
+
+    @cached_property
+    def collocation(self) -> ca.Function:
+        """``collocation(x, z, u, p, h) -> (residual, x_next)``: the equations of one Radau
+        IIA step from ``x`` with stage increments ``z`` (n_x, 3), ``residual`` (n_x, 3)
+        zero at the step's stages, ``x_next = x + z[:, 2]``; ``h`` the step [s]."""
+        tableau = radau_tableau()
+        x, u, p = self._symbols()
+        z, h = ca.SX.sym("z", self.n_x, tableau.nodes.size), ca.SX.sym("h")
+        rhs = self.rhs_sx
+        slopes = ca.horzcat(*[rhs(x + z[:, j], u, p) for j in range(z.shape[1])])
+        residual = z - h * ca.mtimes(slopes, ca.DM(tableau.matrix.T))
+        return ca.Function(
+            "collocation", [x, z, u, p, h], [residual, x + z[:, -1]],
+            ["x", "z", "u", "p", "h"], ["residual", "x_next"],
+        )  # fmt: skip
+
+    @cached_property
+    def rhs_sx(self) -> ca.Function:
+        """:attr:`rhs` expanded to SX: one expression graph, evaluated faster in CasADi's
+        virtual machine and differentiated without calls (the collocation's)."""
+        return self.rhs.expand()
+
+    @cached_property
+    def step(self) -> ca.Function:
+        """``step(x, u, p, h) -> x_next``: one Radau IIA step of ``h`` [s] with ``u`` held,
+        its stages solved by Newton's method from the explicit Euler guess
+        (:data:`NEWTON_TOLERANCE`); derivatives by the implicit function theorem."""
+        stages = radau_tableau().nodes.size
+        x, u, p = (ca.MX.sym(name, size) for name, size in
+                   (("x", self.n_x), ("u", self.n_u), ("p", self.parameters.size)))  # fmt: skip
+        h, z = ca.MX.sym("h"), ca.MX.sym("z", self.n_x * stages)
+        residual = self.collocation(x, ca.reshape(z, self.n_x, stages), u, p, h)[0]
+        equations = ca.Function("stages", [z, ca.vertcat(x, u, p, h)], [ca.vec(residual)])
+        solver = ca.rootfinder(
+            "radau_stages", "newton", equations,
+            {"abstol": NEWTON_TOLERANCE, "max_iter": NEWTON_ITERATIONS, "error_on_fail": True},
+        )  # fmt: skip
+        guess = ca.vec(h * ca.mtimes(self.rhs(x, u, p), ca.DM(radau_tableau().nodes).T))
+        z_solved = ca.reshape(solver(guess, ca.vertcat(x, u, p, h)), self.n_x, stages)
+        return ca.Function(
+            "step", [x, u, p, h], [x + z_solved[:, -1]], ["x", "u", "p", "h"], ["x_next"]
+        )
+
+    def rollout(self, steps: int) -> ca.Function:
+        """``rollout(x0, U, p, h) -> X``: ``steps`` steps of :attr:`step` from ``x0``,
+        ``U`` (n_u, steps) held one per step, ``X`` (n_x, steps) the state after each.
+
+        Parameters
+        ----------
+        steps : int
+            Steps, >= 1.
+        """
+        if not (isinstance(steps, int | np.integer) and steps >= 1):
+            raise ParameterError(f"steps must be an integer >= 1, got {steps!r}")
+        x, u, p = (ca.MX.sym(name, size) for name, size in
+                   (("x", self.n_x), ("u", self.n_u), ("p", self.parameters.size)))  # fmt: skip
+        h = ca.MX.sym("h")
+        one = ca.Function("one", [x, ca.vertcat(u, p, h)], [self.step(x, u, p, h)])
+        x0, U = ca.MX.sym("x0", self.n_x), ca.MX.sym("U", self.n_u, int(steps))
+        rest = ca.repmat(ca.vertcat(p, h), 1, int(steps))
+        states = one.mapaccum("steps", int(steps))(x0, ca.vertcat(U, rest))
+        return ca.Function("rollout", [x0, U, p, h], [states], ["x0", "U", "p", "h"], ["X"])
+
+    @cached_property
+    def tip(self) -> ca.Function:
+        """``tip(x, p) -> position``: the tip's position (3,) [m] in the world frame."""
+        x, _, p = self._symbols()
+        position = self.model.symbolic["pose"](x[: self.model.n], 1.0, p)[1]
+        return ca.Function("tip", [x, p], [position], ["x", "p"], ["position"])
+
+    @cached_property
+    def domain(self) -> ca.Function:
+        """``domain(x, p) -> margins``: every element's domain margins (length, bend,
+        twist, shear, in the chain's order) and the actuator's (each fiber's length per
+        segment: tendons, chambers), inside the domain where all are >= 0 (the strict
+        ones > 0) [each margin's unit]."""
+        x, _, p = self._symbols()
+        q = x[: self.model.n]
+        values = [m.value for m in domain_margins(self.model.robot.structure(), q, p)]
+        if self.actuator is not None:
+            for part in self.actuator.segment_lengths_symbolic(q):
+                values.extend(part)
+        margins = ca.vertcat(*values) if values else ca.SX(0, 1)
+        return ca.Function("domain", [x, p], [margins], ["x", "p"], ["margins"])
+
+    @cached_property
+    def gaps(self) -> ca.Function | None:
+        """``gaps(x, p) -> distances``: the signed distance [m] of each contact point (the
+        base first) from each obstacle, vectorized point by point, positive outside; None
+        where the model has no environment."""
+        environment = self.model.environment
+        if environment is None:
+            return None
+        distances, _ = obstacle_distances(environment, self.model.robot.structure())
+        x, _, p = self._symbols()
+        values = ca.vec(distances(x[: self.model.n], p).T)
+        return ca.Function("gaps", [x, p], [values], ["x", "p"], ["distances"])
+
+    def start(self, q0, qd0=None, lam0=None, actuator_state=None) -> np.ndarray:
+        """The state ``x`` of a start, as ``simulate`` builds it, checked.
+
+        Parameters
+        ----------
+        q0 : array_like, shape (n,)
+            Coordinates, in the model's domain.
+        qd0 : array_like, shape (n,), optional
+            Rates (default zero).
+        lam0 : array_like, shape (n_creep,), optional
+            Creep states (default zero).
+        actuator_state : array_like, shape (m,), optional
+            The lagging inputs' start (default the actuator's rest inputs).
+        """
+        robot, model = self.model.robot, self.model
+        q0 = robot.check_configuration(q0, "q0")
+        qd0 = np.zeros(model.n) if qd0 is None else np.asarray(qd0, dtype=np.float64)
+        lam0 = np.zeros(model.n_creep) if lam0 is None else np.asarray(lam0, dtype=np.float64)
+        for name, value, size in (("qd0", qd0, model.n), ("lam0", lam0, model.n_creep)):
+            if value.shape != (size,) or not np.all(np.isfinite(value)):
+                raise ParameterError(f"{name} must be {size} finite values, got {value!r}")
+        parts = [q0, qd0, lam0]
+        if self.inputs is not None and self.inputs.n_states:
+            parts.append(self.actuator.lag_start(actuator_state))
+        if self.actuator is not None:
+            problem = self.actuator.domain_problem(q0)
+            if problem is not None:
+                raise ParameterError(f"q0 is outside the actuator's domain: {problem}")
+        return np.concatenate(parts)

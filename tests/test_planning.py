@@ -1,0 +1,282 @@
+"""The transcription layer (``sc.Transcription``) and trajectory optimization
+(``sc.optimize_trajectory``): the Functions against the model and ``simulate``, their
+derivatives against differences, and plans checked by simulating their inputs."""
+
+from __future__ import annotations
+
+import casadi as ca
+import matplotlib.pyplot
+import numpy as np
+import pytest
+import scipy.optimize
+
+import softcurve as sc
+from softcurve.base.status import Status
+
+NODES = 3  # quadrature nodes: a smaller expression, the same physics to check
+
+
+@pytest.fixture(scope="module")
+def model():
+    return sc.Model(sc.presets.ifac2020(), quadrature_nodes=NODES)
+
+
+@pytest.fixture(scope="module")
+def bellows():
+    return sc.PneumaticActuator.three_bellows(distance=0.01, area=2e-5, p_max=1e5)
+
+
+@pytest.fixture(scope="module")
+def transcription(model, bellows):
+    return sc.Transcription(model, bellows)
+
+
+def a_state(transcription, seed=0):
+    rng = np.random.default_rng(seed)
+    x = transcription.start([0.064, 8.0, -5.0], rng.normal(size=3) * [0.01, 20.0, 20.0])
+    return x, np.array([3e4, 1e4, 5e3])
+
+
+def test_the_right_hand_side_is_the_models(model, bellows, transcription):
+    x, u = a_state(transcription)
+    tau = bellows.input_matrix(x[:3]) @ u
+    expected = model.state_derivative(x, tau)
+    got = np.array(transcription.rhs(x, u, transcription.parameters)).ravel()
+    np.testing.assert_allclose(got, expected, rtol=1e-12, atol=1e-12)
+    assert (transcription.n_x, transcription.n_u) == (model.n_state, 3)
+
+
+def test_a_lagging_actuator_adds_its_inputs_to_the_state(model):
+    lagging = sc.PneumaticActuator.three_bellows(
+        distance=0.01, area=2e-5, p_max=1e5, time_constant=0.05
+    )
+    tr = sc.Transcription(model, lagging)
+    x = tr.start([0.064, 0.0, 0.0], actuator_state=[1e4, 0.0, 0.0])
+    assert tr.n_x == model.n_state + 3
+    xdot = np.array(tr.rhs(x, [2e4, 0.0, 0.0], tr.parameters)).ravel()
+    np.testing.assert_allclose(xdot[model.n_state :], [(2e4 - 1e4) / 0.05, 0.0, 0.0])
+
+
+def test_the_steps_converge_to_simulate_at_high_order(model, bellows, transcription):
+    x, u = a_state(transcription)
+    duration = 0.04
+    run = sc.simulate(model, x[:3], x[3:6], actuator=bellows, inputs=u, t_final=duration,
+                      dt=duration, rtol=1e-12, atol=1e-14)  # fmt: skip
+    errors = []
+    for steps in (4, 8, 16):
+        rollout = transcription.rollout(steps)
+        U = np.tile(u[:, None], (1, steps))
+        final = np.array(rollout(x, U, transcription.parameters, duration / steps))[:, -1]
+        errors.append(np.abs(final[:3] - run.q[-1]).max())
+    slopes = -np.diff(np.log2(errors))
+    assert np.all(slopes > 3.0), errors  # order 5 at small steps, stage order 3 when stiff
+
+
+def test_the_steps_derivatives_are_exact(transcription):
+    x, u = a_state(transcription, seed=1)
+    p, h = transcription.parameters, 0.005
+    xs, us = ca.MX.sym("x", x.size), ca.MX.sym("u", u.size)
+    out = transcription.step(xs, us, p, h)
+    derivative = ca.Function("d", [xs, us], [ca.jacobian(out, xs), ca.jacobian(out, us)])
+    by_x, by_u = (np.array(a) for a in derivative(x, u))
+    for value, exact, scale in ((x, by_x, np.maximum(np.abs(x), 1e-3)), (u, by_u, 1e4 + 0 * u)):
+        for j in range(value.size):
+            delta = np.zeros(value.size)
+            delta[j] = 1e-6 * scale[j]
+            args = (value + delta, value - delta)
+            if value is x:
+                plus, minus = (np.array(transcription.step(a, u, p, h)).ravel() for a in args)
+            else:
+                plus, minus = (np.array(transcription.step(x, a, p, h)).ravel() for a in args)
+            central = (plus - minus) / (2 * delta[j])
+            np.testing.assert_allclose(
+                exact[:, j], central, rtol=1e-5, atol=1e-6 * np.abs(exact).max()
+            )
+
+
+def test_the_collocation_equations_hold_at_the_steps_stages(transcription):
+    x, u = a_state(transcription, seed=2)
+    p, h, n_x = transcription.parameters, 0.01, transcription.n_x
+
+    def residual(z):
+        return np.array(transcription.collocation(x, z.reshape(3, n_x).T, u, p, h)[0]).T.ravel()
+
+    z = scipy.optimize.fsolve(residual, np.zeros(3 * n_x), xtol=1e-14)
+    assert np.abs(residual(z)).max() < 1e-8
+    after = np.array(transcription.collocation(x, z.reshape(3, n_x).T, u, p, h)[1]).ravel()
+    np.testing.assert_allclose(after, np.array(transcription.step(x, u, p, h)).ravel(), rtol=1e-9,
+                               atol=1e-9)  # fmt: skip
+
+
+def test_the_domain_margins_are_the_models_and_the_actuators(model, transcription):
+    x, _ = a_state(transcription)
+    margins = np.array(transcription.domain(x, transcription.parameters)).ravel()
+    assert np.all(margins >= 0)
+    assert margins.size == 3 + 3  # length, bend, stretch; one chamber per bellows
+    outside = x.copy()
+    outside[0] = -0.01  # a negative length
+    assert np.array(transcription.domain(outside, transcription.parameters)).min() < 0
+    bent = x.copy()
+    bent[1] = 400.0  # beyond a chamber's volume (and a turn of the segment)
+    assert np.array(transcription.domain(bent, transcription.parameters)).min() < 0
+
+
+def test_the_gaps_are_the_signed_distances_from_the_obstacles():
+    environment = sc.Environment([sc.Plane([0.0, 0.0, 0.05], [0.0, 0.0, -1.0])], sc.ContactLaw(1e4))
+    model = sc.Model(sc.presets.ifac2020(), environment=environment, quadrature_nodes=NODES)
+    tr = sc.Transcription(model)
+    q = np.array([0.064, 0.0, 0.0])
+    gaps = np.array(tr.gaps(np.r_[q, np.zeros(6)], tr.parameters)).ravel()
+    assert gaps[0] == pytest.approx(0.05)  # the base, 5 cm below the ceiling
+    assert gaps.min() == pytest.approx(0.05 - 0.064)  # the tip, 14 mm inside
+    assert sc.Transcription(sc.Model(sc.presets.ifac2020(), quadrature_nodes=NODES)).gaps is None
+
+
+def test_a_start_outside_a_domain_is_refused(transcription):
+    with pytest.raises(sc.ParameterError, match="q0"):
+        transcription.start([-0.01, 0.0, 0.0])
+    with pytest.raises(sc.ParameterError, match="qd0 must be 3 finite values"):
+        transcription.start([0.064, 0.0, 0.0], [np.nan, 0.0, 0.0])
+
+
+REACH = np.array([0.02, 0.0, 0.062])
+"""A tip position the bellows reach in 0.2 s from rest [m]."""
+
+
+@pytest.fixture(scope="module")
+def reach(model, bellows):
+    goal = sc.TipTarget(REACH, tolerance=2e-3)
+    return sc.optimize_trajectory(
+        model, [0.064, 0.0, 0.0], actuator=bellows, horizon=0.2, intervals=8, targets=[goal],
+        effort_weight=1e-3, rest_at_end=True,
+    )  # fmt: skip
+
+
+def test_a_reach_plan_meets_its_target_and_simulate_agrees(model, bellows, reach):
+    assert reach.success, reach.message
+    assert reach.violation <= 1e-6 and reach.optimality < 1e-6
+    assert np.linalg.norm(reach.tip[-1] - REACH) <= 2e-3 + 1e-9
+    assert np.all(reach.u >= bellows.lower - 1e-9) and np.all(reach.u <= bellows.upper + 1e-9)
+    assert reach.t[-1] == pytest.approx(0.2) and reach.inputs.shape == (9, 3)
+    np.testing.assert_allclose(reach.x[-1, 3:6], 0.0, atol=1e-6)  # at rest
+    run = reach.simulate()
+    assert run.success
+    simulated = model.tip_pose(run.q[-1]).position
+    # the plan's own steps against simulate's tolerance: within 1 mm at 25 ms steps
+    assert np.linalg.norm(simulated - reach.tip[-1]) < 1e-3
+    assert np.linalg.norm(simulated - REACH) < 3e-3
+    np.testing.assert_array_equal(reach.input_function(0.026), reach.u[1])
+    figure = reach.plot([sc.TipTarget(REACH)], title="reach")
+    assert figure.axes[0].get_ylabel() == "tip [mm]"
+    matplotlib.pyplot.close(figure)
+
+
+def test_a_warm_start_converges_at_once(model, bellows, reach):
+    goal = sc.TipTarget(REACH, tolerance=2e-3)
+    again = sc.optimize_trajectory(
+        model, [0.064, 0.0, 0.0], actuator=bellows, horizon=0.2, intervals=8, targets=[goal],
+        effort_weight=1e-3, rest_at_end=True, warm_start=reach,
+    )  # fmt: skip
+    assert again.success
+    assert again.iterations < reach.iterations / 2
+    assert again.cost == pytest.approx(reach.cost, rel=1e-4)
+    # a flat optimum in the smallest pressures: the same within 1e-3 of their range
+    np.testing.assert_allclose(again.u, reach.u, rtol=0, atol=1e-3 * 1e5)
+
+
+def test_an_unreachable_target_is_not_a_success_and_says_what_binds(model, bellows):
+    far = sc.TipTarget([0.06, 0.0, 0.02], tolerance=1e-3)  # beyond a quarter turn
+    plan = sc.optimize_trajectory(
+        model, [0.064, 0.0, 0.0], actuator=bellows, horizon=0.1, intervals=4, targets=[far],
+        max_iterations=60,
+    )  # fmt: skip
+    assert not plan.success
+    assert plan.status in (Status.INFEASIBLE, Status.EVALUATION_LIMIT, Status.NOT_CONVERGED)
+    assert "the constraint that binds most: target 0 (TipTarget at 0.1 s)" in plan.message
+
+
+@pytest.mark.parametrize(
+    ("change", "match"),
+    [
+        ({"method": "euler"}, "method must be one of collocation, shooting"),
+        ({"intervals": 0}, "intervals must be an integer >= 1"),
+        ({"horizon": -1.0}, "horizon must be > 0"),
+        ({"horizon": (0.3, 0.1)}, "0 < shortest < longest"),
+        ({"effort_weight": -1.0}, "effort_weight must be >= 0"),
+        ({"targets": ["tip"]}, "targets must be TipTarget or ConfigurationTarget"),
+        ({"targets": [sc.TipTarget(REACH, time=0.5)]}, "must lie in a fixed horizon"),
+        ({"clearance": 0.01}, "clearance needs a model with an environment"),
+        ({"tip_bounds": ([0, 0, 0], [0, 1, 1])}, "lower < upper"),
+    ],
+)
+def test_bad_requests_are_refused_before_any_work(model, bellows, change, match):
+    request = {"actuator": bellows, "horizon": 0.2, "intervals": 4, **change}
+    with pytest.raises(sc.ParameterError, match=match):
+        sc.optimize_trajectory(model, [0.064, 0.0, 0.0], **request)
+
+
+def test_targets_check_their_fields():
+    with pytest.raises(sc.ParameterError, match="TipTarget.position must be 3 finite"):
+        sc.TipTarget([0.0, 0.0])
+    with pytest.raises(sc.ParameterError, match="TipTarget.tolerance must be > 0"):
+        sc.TipTarget(REACH, tolerance=0.0)
+    with pytest.raises(sc.ParameterError, match="ConfigurationTarget.weight must be >= 0"):
+        sc.ConfigurationTarget([0.064, 0.0, 0.0], weight=-1.0)
+
+
+def test_a_free_final_time_rates_and_a_reference_are_honoured(model, bellows, capsys):
+    """The fastest plan within (0.1, 0.4) s to a configuration, with smooth inputs, a
+    reference to follow loosely, and the progress line."""
+    goal = sc.ConfigurationTarget([0.065, 15.0, 0.0], tolerance=0.05)
+    request = {"actuator": bellows, "intervals": 6, "targets": [goal], "rate_weight": 1e-3,
+               "reference": sc.Reference.constant(goal.q), "reference_weight": 1e-3}  # fmt: skip
+    fast = sc.optimize_trajectory(
+        model, [0.064, 0.0, 0.0], horizon=(0.1, 0.4), time_weight=1.0, progress=True, **request
+    )
+    assert fast.success, fast.message
+    assert fast.horizon == pytest.approx(0.1, rel=1e-6)  # the shortest allowed
+    scale = model.robot.coordinate_scale()
+    assert np.linalg.norm((fast.x[-1, :3] - goal.q) / scale) <= 0.05 + 1e-6
+    assert "optimize_trajectory: iteration 0, cost" in capsys.readouterr().err
+    smooth = sc.optimize_trajectory(
+        model,
+        [0.064, 0.0, 0.0],
+        horizon=(0.1, 0.4),
+        time_weight=1.0,
+        **{**request, "rate_weight": 1.0},
+    )
+    assert smooth.success, smooth.message
+    changes = [np.sum(np.diff(p.u, axis=0) ** 2) for p in (fast, smooth)]
+    assert changes[1] < changes[0]  # a larger rate weight, gentler pressures
+
+
+def test_tip_bounds_hold_where_they_bind(model, bellows, reach):
+    lid = 0.0645  # [m]: the reach plan's tip rises above it
+    assert reach.tip[:, 2].max() > lid + 1e-4
+    box = ([-0.1, -0.1, 0.0], [0.1, 0.1, lid])
+    plan = sc.optimize_trajectory(
+        model, [0.064, 0.0, 0.0], actuator=bellows, horizon=0.2, intervals=8,
+        targets=[sc.TipTarget(REACH, tolerance=2e-3)], effort_weight=1e-3, rest_at_end=True,
+        tip_bounds=box,
+    )  # fmt: skip
+    assert plan.success, plan.message
+    assert plan.tip[:, 2].max() <= lid + 1e-6
+    assert plan.binding == "tip bounds"
+
+
+def test_a_plan_keeps_its_clearance_from_an_obstacle(bellows):
+    ceiling = sc.Plane([0.0, 0.0, 0.0645], [0.0, 0.0, -1.0])  # 0.5 mm above the tip at rest
+    environment = sc.Environment([ceiling], sc.ContactLaw(1e4))
+    model = sc.Model(sc.presets.ifac2020(), environment=environment, quadrature_nodes=NODES)
+    goal = sc.TipTarget(REACH, tolerance=2e-3)
+    request = {"actuator": bellows, "horizon": 0.2, "intervals": 8, "targets": [goal],
+               "effort_weight": 1e-3}  # fmt: skip
+    free = sc.optimize_trajectory(model, [0.064, 0.0, 0.0], **request)
+    kept = sc.optimize_trajectory(model, [0.064, 0.0, 0.0], clearance=0.0, **request)
+    assert free.success and kept.success, (free.message, kept.message)
+    tr = kept.transcription
+    gaps = [np.array(tr.gaps(x, tr.parameters)).min() for x in (free.x, kept.x)[0]]
+    assert min(gaps) < -1e-4  # without the clearance the plan pushes into the ceiling
+    kept_gaps = [np.array(tr.gaps(x, tr.parameters)).min() for x in kept.x]
+    assert min(kept_gaps) >= -1e-6
+    assert np.linalg.norm(kept.tip[-1] - REACH) <= 2e-3 + 1e-9
