@@ -107,7 +107,7 @@ def main() -> None:
     if args.baselines:
         baselines(args.intervals)
         return
-    print(f"reach task, {args.intervals} intervals of 20 ms; times in seconds")
+    print(f"reach task, {args.intervals} intervals of {300 / args.intervals:.3g} ms; times in s")
     print("| method | first plan | solve | iterations | warm solve | warm iterations "
           "| cost | violation | simulated tip off [mm] | status |")  # fmt: skip
     print("| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |")

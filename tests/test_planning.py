@@ -166,7 +166,7 @@ def test_a_reach_plan_meets_its_target_and_simulate_agrees(model, bellows, reach
     assert np.linalg.norm(simulated - reach.tip[-1]) < 1e-3
     assert np.linalg.norm(simulated - REACH) < 3e-3
     np.testing.assert_array_equal(reach.input_function(0.026), reach.u[1])
-    figure = reach.plot([sc.TipTarget(REACH)], title="reach")
+    figure = reach.plot(targets=[sc.TipTarget(REACH)], title="reach")
     assert figure.axes[0].get_ylabel() == "tip [mm]"
     matplotlib.pyplot.close(figure)
 
@@ -207,12 +207,28 @@ def test_an_unreachable_target_is_not_a_success_and_says_what_binds(model, bello
         ({"targets": [sc.TipTarget(REACH, time=0.5)]}, "must lie in a fixed horizon"),
         ({"clearance": 0.01}, "clearance needs a model with an environment"),
         ({"tip_bounds": ([0, 0, 0], [0, 1, 1])}, "lower < upper"),
+        ({"tip_bounds": ([0, 0, np.nan], [1, 1, 1])}, "lower < upper"),
+        ({"tip_bounds": [0.0, 1.0]}, "tip_bounds must be"),
+        ({"reference": "circle"}, "reference must be a Reference of 3 coordinates"),
+        ({"actuator_state": [1e4, 0, 0]}, "actuator_state is the initial state of a lagging"),
+        ({"warm_start": "plan"}, "warm_start must be a TrajectoryPlan"),
     ],
 )
 def test_bad_requests_are_refused_before_any_work(model, bellows, change, match):
     request = {"actuator": bellows, "horizon": 0.2, "intervals": 4, **change}
     with pytest.raises(sc.ParameterError, match=match):
         sc.optimize_trajectory(model, [0.064, 0.0, 0.0], **request)
+
+
+def test_a_warm_start_of_another_problem_is_refused(model, bellows, reach):
+    goal = sc.TipTarget(REACH, tolerance=2e-3)
+    request = {"actuator": bellows, "horizon": 0.2, "targets": [goal], "effort_weight": 1e-3,
+               "rest_at_end": True, "warm_start": reach}  # fmt: skip
+    with pytest.raises(sc.ParameterError, match="a plan of 4 intervals"):
+        sc.optimize_trajectory(model, [0.064, 0.0, 0.0], intervals=4, **request)
+    with pytest.raises(sc.ParameterError, match="the same problem"):
+        sc.optimize_trajectory(model, [0.064, 0.0, 0.0], intervals=8, clearance=None,
+                               tip_bounds=([-1, -1, -1], [1, 1, 1]), **request)  # fmt: skip
 
 
 def test_targets_check_their_fields():
@@ -264,19 +280,19 @@ def test_tip_bounds_hold_where_they_bind(model, bellows, reach):
     assert plan.binding == "tip bounds"
 
 
-def test_a_plan_keeps_its_clearance_from_an_obstacle(bellows):
+def test_a_plan_keeps_its_clearance_from_an_obstacle(bellows, reach):
     ceiling = sc.Plane([0.0, 0.0, 0.0645], [0.0, 0.0, -1.0])  # 0.5 mm above the tip at rest
     environment = sc.Environment([ceiling], sc.ContactLaw(1e4))
     model = sc.Model(sc.presets.ifac2020(), environment=environment, quadrature_nodes=NODES)
-    goal = sc.TipTarget(REACH, tolerance=2e-3)
-    request = {"actuator": bellows, "horizon": 0.2, "intervals": 8, "targets": [goal],
-               "effort_weight": 1e-3}  # fmt: skip
-    free = sc.optimize_trajectory(model, [0.064, 0.0, 0.0], **request)
-    kept = sc.optimize_trajectory(model, [0.064, 0.0, 0.0], clearance=0.0, **request)
-    assert free.success and kept.success, (free.message, kept.message)
-    tr = kept.transcription
-    gaps = [np.array(tr.gaps(x, tr.parameters)).min() for x in (free.x, kept.x)[0]]
-    assert min(gaps) < -1e-4  # without the clearance the plan pushes into the ceiling
-    kept_gaps = [np.array(tr.gaps(x, tr.parameters)).min() for x in kept.x]
+    tr = sc.Transcription(model, bellows)
+    # the plan in free space passes through where the ceiling is
+    assert min(np.array(tr.gaps(x, tr.parameters))[1:].min() for x in reach.x) < -1e-4
+    kept = sc.optimize_trajectory(
+        model, [0.064, 0.0, 0.0], actuator=bellows, horizon=0.2, intervals=8,
+        targets=[sc.TipTarget(REACH, tolerance=2e-3)], effort_weight=1e-3, rest_at_end=True,
+        clearance=0.0,
+    )  # fmt: skip
+    assert kept.success, kept.message
+    kept_gaps = [np.array(tr.gaps(x, tr.parameters))[1:].min() for x in kept.x]
     assert min(kept_gaps) >= -1e-6
     assert np.linalg.norm(kept.tip[-1] - REACH) <= 2e-3 + 1e-9

@@ -18,7 +18,7 @@ from softcurve.compiled import NativeFunction, compile_source
 from softcurve.identification.experiments import Experiment
 from softcurve.identification.maps import bending_angle_map
 from softcurve.simulation import JACOBIANS, METHODS, SimulationSettings
-from softcurve.simulation.sensitivity import choose_method, hold_inputs
+from softcurve.simulation.sensitivity import choose_method
 from softcurve.simulation.solvers import (
     DRIVER_FAMILIES,
     casadi_only,
@@ -408,8 +408,8 @@ def test_a_trajectory_fit_through_radau_recovers_the_robot(oscillation):
 @pytest.mark.parametrize(
     ("options", "hold", "rate", "expected", "why"),
     [
-        ({}, "constant", 1000.0, "radau", "every 0.00101 s on average, within 0.35 / fastest"),
-        ({}, "constant", 100.0, "adams", "every 0.0111 s on average, beyond 0.35 / fastest"),
+        ({}, "constant", 1000.0, "radau", "every 0.001 s on average, within 0.35 / fastest"),
+        ({}, "constant", 100.0, "adams", "every 0.01 s on average, beyond 0.35 / fastest"),
         ({}, "linear", 1000.0, "adams", "joined linearly"),
         ({"max_order": 3}, "constant", 1000.0, "adams", "only CasADi's CVODES takes"),
         ({"fsens_err_con": True}, "constant", 1000.0, "adams", "fsens_err_con"),
@@ -417,14 +417,14 @@ def test_a_trajectory_fit_through_radau_recovers_the_robot(oscillation):
 )
 def test_auto_chooses_the_method_of_a_fit_by_its_inputs(options, hold, rate, expected, why):
     t = np.arange(0.0, 0.1 + 1e-9, 1 / rate)
-    u_data = hold_inputs(t, 1e4 + 1e3 * np.sin(7.0 * t)[None, :], hold)
+    samples = 1e4 + 1e3 * np.sin(7.0 * t)[None, :]
     asked = []
 
     def fastest():
         asked.append(True)
         return 282.0
 
-    method, reason = choose_method(options, hold, t, u_data, fastest)
+    method, reason = choose_method(options, hold, t, samples, fastest)
     assert (method, reason.startswith("auto: ")) == (expected, True)
     assert why in reason
     assert asked == ([True] if why.startswith("every") else [])  # the rate only where needed

@@ -130,8 +130,10 @@ class TrajectoryPlan(Result):
     Attributes
     ----------
     status : Status
-        SUCCESS where IPOPT converged to a point that meets every constraint; INFEASIBLE
-        where it found none (the message names the constraint that binds most);
+        SUCCESS where IPOPT converged to a point that meets every constraint; LEFT_DOMAIN
+        where that point leaves the model's or the actuator's domain by the rules
+        ``simulate`` applies; INFEASIBLE where IPOPT proved none exists (the message
+        names the constraint that binds most);
         EVALUATION_LIMIT where ``max_iterations`` ran out; NOT_CONVERGED otherwise.
     message : str
         What happened, in IPOPT's words and ours.
@@ -148,7 +150,9 @@ class TrajectoryPlan(Result):
     iterations : int
         IPOPT's iterations.
     violation : float
-        The largest constraint violation at the plan, in the scaled units IPOPT sees.
+        The largest constraint violation at the plan, in the units IPOPT sees: the
+        dynamics relative to the state's nominal size, a target relative to its
+        tolerance, margins [their unit] and distances [m] in their own.
     optimality : float
         IPOPT's dual infeasibility at the plan (first-order optimality).
     solve_time : float
@@ -236,13 +240,15 @@ class TrajectoryPlan(Result):
         return simulate(model, x0[:n], x0[n : 2 * n], lam0, t_final=self.horizon, dt=step,
                         **drive, **settings)  # fmt: skip
 
-    def plot(self, targets=(), title: str | None = None):
+    def plot(self, ax=None, *, targets=(), title: str | None = None):
         """The planned tip and inputs against time.
 
         Parameters
         ----------
+        ax : None or sequence of matplotlib.axes.Axes, shape (2,)
+            Panels for the tip and the inputs; None draws a new figure.
         targets : sequence of TipTarget
-            Drawn as markers at their times.
+            Drawn as crosses at their times.
         title : str, optional
             The figure's title.
 
@@ -254,7 +260,8 @@ class TrajectoryPlan(Result):
 
         marks = [(self.horizon if g.time is None else g.time, g.position) for g in targets
                  if isinstance(g, TipTarget)]  # fmt: skip
-        return plan_figure(self.t, self.tip, self.u, self.transcription.actuator, marks, title)
+        actuator = self.transcription.actuator
+        return plan_figure(self.t, self.tip, self.u, actuator, marks, title, ax=ax)
 
 
 class _Progress(ca.Callback):
@@ -412,9 +419,9 @@ def optimize_trajectory(
         Whether the robot ends at rest: zero rates and accelerations at the last node
         with the last inputs held (an equilibrium; creep may still move).
     clearance : float, optional
-        Smallest signed distance [m] of every contact point from every obstacle at every
-        node (needs an environment; may be negative, down to a penetration the contact
-        law allows).
+        Smallest signed distance [m] of the backbone at every contact point but the base
+        (which no input moves) from every obstacle, at every node (needs an
+        environment): the contact radius or more keeps the contact forces off.
     tip_bounds : tuple of array_like, optional
         ``(lower, upper)`` (3,) each: a box [m] the tip stays in at every node.
     method : {"collocation", "shooting"}
@@ -479,25 +486,32 @@ def optimize_trajectory(
                 f"a target's time ({target.time!r} s) must lie in a fixed horizon of "
                 f"{t_high:g} s (with a free final time, targets are at the end: time=None)"
             )
-    if reference is not None and reference.n != n:
-        raise ParameterError(f"reference must have {n} coordinates, got {reference.n}")
+    if reference is not None and not (isinstance(reference, Reference) and reference.n == n):
+        raise ParameterError(f"reference must be a Reference of {n} coordinates, got {reference!r}")
     if clearance is not None:
         clearance = real_scalar("clearance", clearance)
         if model.environment is None:
             raise ParameterError("clearance needs a model with an environment (obstacles)")
     if tip_bounds is not None:
-        tip_low, tip_high = (np.asarray(b, dtype=np.float64) for b in tip_bounds)
-        if tip_low.shape != (3,) or tip_high.shape != (3,) or np.any(tip_low >= tip_high):
+        pair = tuple(tip_bounds) if np.ndim(tip_bounds) == 2 else ()
+        tip_low, tip_high = (np.asarray(b, dtype=np.float64) for b in pair) if len(pair) == 2 else (
+            np.zeros(0), np.zeros(0))  # fmt: skip
+        if tip_low.shape != (3,) or tip_high.shape != (3,) or not np.all(tip_low < tip_high):
             raise ParameterError(
                 "tip_bounds must be (lower (3,), upper (3,)) with lower < upper [m], "
                 f"got {tip_bounds!r}"
             )
-    if warm_start is not None and (
-        warm_start.x.shape != (K + 1, n_x) or warm_start.method != method
-    ):
-        raise ParameterError(
-            f"warm_start must be a plan of {K} intervals, {n_x} states and method {method!r}"
-        )
+    if warm_start is not None:
+        if not isinstance(warm_start, TrajectoryPlan):
+            raise ParameterError(
+                f"warm_start must be a TrajectoryPlan, got {type(warm_start).__name__}"
+            )
+        shapes = (warm_start.x.shape, warm_start.u.shape, warm_start.method)
+        if shapes != ((K + 1, n_x), (K, n_u), method):
+            raise ParameterError(
+                f"warm_start must be a plan of {K} intervals, {n_x} states, {n_u} inputs and "
+                f"method {method!r}, got {shapes}"
+            )
 
     # -- scales ------------------------------------------------------------------------
     p = tr.parameters
@@ -538,7 +552,10 @@ def optimize_trajectory(
     constraints.add("model or actuator domain", margins, 0.0, np.inf)
     tips = tr.tip.map(K + 1)(X, P)
     if clearance is not None:
-        constraints.add("clearance", tr.gaps.map(K)(X[:, 1:], P), clearance, np.inf)
+        # the base's rows (first) are fixed: no input moves them
+        obstacles = len(model.environment.obstacles)
+        gaps = tr.gaps.map(K)(X[:, 1:], P)[obstacles:, :]
+        constraints.add("clearance", gaps, clearance, np.inf)
     if tip_bounds is not None:
         box = (np.tile(tip_low[:, None], K), np.tile(tip_high[:, None], K))
         constraints.add("tip bounds", tips[:, 1:], *box)
@@ -546,6 +563,8 @@ def optimize_trajectory(
         xdot = tr.rhs(X[:, K], U[:, K - 1], P)
         constraints.add("rest at the end", xdot[:n] / ca.DM(x_scale[:n]), 0.0, 0.0)
         constraints.add("rest at the end", xdot[n : 2 * n] / ca.DM(x_scale[n : 2 * n]), 0.0, 0.0)
+        lagging = slice(model.n_state, n_x)  # a lagging actuator settled too
+        constraints.add("rest at the end", xdot[lagging] / ca.DM(x_scale[lagging]), 0.0, 0.0)
 
     # -- cost --------------------------------------------------------------------------
     def node(time_value):
@@ -561,9 +580,9 @@ def optimize_trajectory(
             error = (X[:n, k] - ca.DM(target.q)) / ca.DM(q_scale)
             scale = 1.0
         cost = cost + target.weight * ca.sumsqr(error)
-        if target.tolerance is not None:
+        if target.tolerance is not None:  # relative to the tolerance: |e| <= tolerance
             name = f"target {i} ({type(target).__name__} at {node(target.time) * t_high / K:g} s)"
-            constraints.add(name, ca.sumsqr(error) - (target.tolerance / scale) ** 2, -np.inf, 0.0)
+            constraints.add(name, ca.sumsqr(error) / (target.tolerance / scale) ** 2, -np.inf, 1.0)
     if reference is not None and weights["reference_weight"] > 0:
         t_nodes = ca.linspace(ca.MX(0), T, K + 1)[1:]
         t_sym = ca.SX.sym("t")
@@ -607,6 +626,13 @@ def optimize_trajectory(
     }  # fmt: skip
     duals = {}
     if warm_start is not None:  # begin at the plan's primal and dual point, barrier small
+        sizes = tuple(m.size for m in warm_start.multipliers)
+        if sizes != (w.numel(), g.numel()):
+            raise ParameterError(
+                "warm_start must be a plan of the same problem (targets, tolerances, "
+                f"clearance, tip bounds, rest at the end, horizon): {sizes} multipliers "
+                f"against {(w.numel(), g.numel())}"
+            )
         options.update({f"ipopt.{name}": value for name, value in WARM_START.items()})
         duals = dict(zip(("lam_x0", "lam_g0"), warm_start.multipliers, strict=True))
     if progress:
@@ -630,13 +656,20 @@ def optimize_trajectory(
     g_value = np.array(solution["g"]).ravel()
     excess = np.maximum(lbg - g_value, g_value - ubg)
     violation = float(max(0.0, excess.max(initial=0.0)))
-    multipliers = np.abs(np.array(solution["lam_g"]).ravel())
-    binding = _binding(constraints.groups, excess, multipliers)
+    # the input bounds are bounds of the unknowns: IPOPT keeps them, their multipliers say
+    bound_multipliers = np.abs(np.array(solution["lam_x"]).ravel()[u_rows])
+    groups = [*constraints.groups, *["input bounds"] * bound_multipliers.size]
+    multipliers = np.concatenate([np.abs(np.array(solution["lam_g"]).ravel()), bound_multipliers])
+    excess_all = np.concatenate([excess, np.zeros(bound_multipliers.size)])
+    binding = _binding(groups, excess_all, multipliers)
     iterations = stats.get("iterations", {})
     optimality = float(iterations["inf_du"][-1]) if iterations.get("inf_du") else float("nan")
     status, words = _status(stats, violation, tolerance)
     tip_plan = np.array(tr.tip.map(K + 1)(x_plan.T, p)).T
     message = f"{words} after {stats.get('iter_count', 0)} iterations"
+    left = _left_domain(tr, x_plan, np.linspace(0.0, horizon_value, K + 1))
+    if status is Status.SUCCESS and left:  # the margins are >= 0, the domain's strict
+        status, message = Status.LEFT_DOMAIN, f"{message}, but {left}"
     if status is not Status.SUCCESS and binding:
         message += f"; the constraint that binds most: {binding}"
     return TrajectoryPlan(
@@ -657,6 +690,20 @@ def _force_scale(model, x0) -> np.ndarray:
     at_start = model.potential_force(q0)
     moved = [model.potential_force(q0 + scale[i] * np.eye(n)[i])[i] for i in range(n)]
     return np.maximum(np.abs(np.array(moved) - at_start) + np.abs(at_start), 1e-9)
+
+
+def _left_domain(tr: Transcription, x: np.ndarray, t: np.ndarray) -> str:
+    """Where the planned states leave the model's or the actuator's domain, checked by
+    the rules ``simulate`` applies (strict margins, every kind's own), or ""."""
+    n = tr.model.n
+    for k in range(x.shape[0]):
+        q = x[k, :n]
+        problem = tr.model.robot.domain_problem(q, entry="the plan's q")
+        if problem is None and tr.actuator is not None:
+            problem = tr.actuator.domain_problem(q)
+        if problem is not None:
+            return f"at t = {t[k]:.6g} s the plan leaves the domain: {problem}"
+    return ""
 
 
 WARM_START = {
@@ -686,7 +733,7 @@ def _status(stats: dict, violation: float, tolerance: float) -> tuple[Status, st
     words = str(stats.get("return_status", "unknown"))
     if words == "Solve_Succeeded" and violation <= VIOLATION_ALLOWED:
         return Status.SUCCESS, f"IPOPT: {words}"
-    if words in ("Infeasible_Problem_Detected", "Restoration_Failed"):
+    if words == "Infeasible_Problem_Detected":
         return Status.INFEASIBLE, f"IPOPT: {words}"
     if words in ("Maximum_Iterations_Exceeded", "Maximum_CpuTime_Exceeded"):
         return Status.EVALUATION_LIMIT, f"IPOPT: {words}"
@@ -698,7 +745,8 @@ def _status(stats: dict, violation: float, tolerance: float) -> tuple[Status, st
 def _binding(groups, excess, multipliers) -> str:
     """The constraint group that binds most: of the groups other than the dynamics (which
     any inputs meet, by simulating them), the one violated most, else the one with the
-    largest multiplier; the dynamics where no other group is violated or active."""
+    largest multiplier (a heuristic: the groups' units differ); the dynamics where no
+    other group is violated or active."""
     others = [(e, m, g) for g, e, m in zip(groups, excess, multipliers, strict=True)
               if g != "dynamics"]  # fmt: skip
     if others:

@@ -241,8 +241,11 @@ class Transcription:
             if value.shape != (size,) or not np.all(np.isfinite(value)):
                 raise ParameterError(f"{name} must be {size} finite values, got {value!r}")
         parts = [q0, qd0, lam0]
-        if self.inputs is not None and self.inputs.n_states:
-            parts.append(self.actuator.lag_start(actuator_state))
+        if self.actuator is not None:
+            lagging = self.actuator.lag_start(actuator_state)  # refused without a lag
+            parts += [lagging] if self.inputs.n_states else []
+        elif actuator_state is not None:
+            raise ParameterError("actuator_state needs an actuator with a time_constant")
         if self.actuator is not None:
             problem = self.actuator.domain_problem(q0)
             if problem is not None:

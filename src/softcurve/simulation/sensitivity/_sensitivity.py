@@ -383,7 +383,7 @@ def _method_of(options) -> tuple[str, dict]:
     return method, options
 
 
-def choose_method(options, hold, t, u_data, fastest) -> tuple[str, str]:
+def choose_method(options, hold, t, samples, fastest) -> tuple[str, str]:
     """What ``integrator_options={"method": "auto"}`` integrates a fit's sensitivities
     with, and why: ``(method, reason)``, the method one of :data:`SENSITIVITY_METHODS`.
 
@@ -399,8 +399,8 @@ def choose_method(options, hold, t, u_data, fastest) -> tuple[str, str]:
         The inputs between samples (:func:`hold_inputs`).
     t : ndarray, shape (T,)
         Sample times [s].
-    u_data : ndarray, shape (m, T)
-        The inputs per interval (:func:`hold_inputs`).
+    samples : ndarray, shape (m, T)
+        The input samples [unit of each input].
     fastest : callable() -> float
         The fastest rate of the linearization at the start [1/s], computed only where the
         rule needs it.
@@ -411,7 +411,8 @@ def choose_method(options, hold, t, u_data, fastest) -> tuple[str, str]:
         return "adams", "auto: fsens_err_con puts the columns in CVODES's error test"
     if hold == "linear":
         return "adams", "auto: inputs joined linearly, integrated through without restarts"
-    interval = change_interval(t, input_changes(u_data.T)) if u_data.shape[0] else None
+    # held, sample k acts on the interval after t_k, as simulate's grid rows do
+    interval = change_interval(t, input_changes(samples.T)) if samples.shape[0] else None
     rule, why = auto_method(fastest() if interval is not None else 0.0, interval,
                             within=AUTO_WITHIN)  # fmt: skip
     return ("radau" if rule == "radau" else "adams"), why
@@ -505,8 +506,8 @@ def trajectory_sensitivities(
     settings = {**SENSITIVITY_CVODES, **options}
     y = output.function(q, qd, v_s, ds[:n_p])
     out = ca.Function("out", [xs, ds], [y, ca.jacobian(y, xs), ca.jacobian(y, ds)]).map(t.size)
-    u_data = experiment.input_matrix(u_names).T if u_names else np.zeros((0, t.size))
-    u_data = hold_inputs(t, u_data, hold)
+    samples = experiment.input_matrix(u_names).T if u_names else np.zeros((0, t.size))
+    u_data = hold_inputs(t, samples, hold)
     reason = f"integrator_options['{METHOD_OPTION}'] = {method!r}"
     if method == "auto":
 
@@ -516,7 +517,7 @@ def trajectory_sensitivities(
             at_start = np.array(jacobian(d0[n_p + n_v :], u_data[:, 0], d0))
             return float(linear_rates(np.linalg.eigvals(at_start))[1])
 
-        method, reason = choose_method(options, hold, t, u_data, fastest)
+        method, reason = choose_method(options, hold, t, samples, fastest)
     seed = np.zeros((n_x, m))
     for j, i in enumerate(active):
         if i >= n_p + n_v:
