@@ -27,10 +27,18 @@ def main() -> int:
     except KeyboardInterrupt:  # in the words of softcurve.cli.main's own interrupt
         print("softcurve: interrupted before starting: nothing was done", file=sys.stderr)
         return INTERRUPTED
-    code = command_line()
-    sys.stdout.flush()
-    sys.stderr.flush()
-    signal.signal(signal.SIGINT, _interrupted_at_exit)
+    code = None
+    try:
+        code = command_line()
+        sys.stdout.flush()
+        sys.stderr.flush()
+        signal.signal(signal.SIGINT, _interrupted_at_exit)
+    except KeyboardInterrupt:
+        if code is None:  # in the command's last steps, past its own handler
+            print("softcurve: interrupted", file=sys.stderr)
+            return INTERRUPTED
+        # between the command's return and the exit handler's installation
+        _interrupted_at_exit(signal.SIGINT, None)
     return code
 
 
