@@ -296,3 +296,20 @@ def test_a_plan_keeps_its_clearance_from_an_obstacle(bellows, reach):
     kept_gaps = [np.array(tr.gaps(x, tr.parameters))[1:].min() for x in kept.x]
     assert min(kept_gaps) >= -1e-6
     assert np.linalg.norm(kept.tip[-1] - REACH) <= 2e-3 + 1e-9
+
+
+def test_a_lagging_actuator_is_planned_by_its_commands_and_settles(model):
+    lagging = sc.PneumaticActuator.three_bellows(
+        distance=0.01, area=2e-5, p_max=1e5, time_constant=0.02
+    )
+    plan = sc.optimize_trajectory(
+        model, [0.064, 0.0, 0.0], actuator=lagging, horizon=0.2, intervals=8,
+        targets=[sc.TipTarget(REACH, tolerance=2e-3)], effort_weight=1e-3, rest_at_end=True,
+    )  # fmt: skip
+    assert plan.success, plan.message
+    assert plan.x.shape == (9, model.n_state + 3)
+    np.testing.assert_allclose(plan.x[-1, model.n_state :], plan.u[-1], rtol=1e-6, atol=1e-3)
+    run = plan.simulate()
+    assert run.success
+    simulated = model.tip_pose(run.q[-1]).position
+    assert np.linalg.norm(simulated - plan.tip[-1]) < 1e-3

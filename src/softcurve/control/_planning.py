@@ -39,11 +39,11 @@ from softcurve.simulation.solvers import lag_scale, nominal_scale
 
 PLAN_METHODS = ("collocation", "shooting")
 """The transcriptions of :func:`optimize_trajectory`; the first is the default. Both
-reach the same plan, collocation 16 times faster: IPOPT sees the collocation equations
+reach the same plan, collocation 21 times faster: IPOPT sees the collocation equations
 and their exact second derivatives, where multiple shooting sees each step through a
 Newton solve, solved and differentiated at every evaluation. On the reach task of
-docs/planning.md (15 intervals, the paper's robot): 16.7 s and 45 iterations against
-271 s and 39 (``python benchmarks/bench_planning.py``)."""
+docs/planning.md (15 intervals, the paper's robot): 17.3 s and 47 iterations against
+370 s and 53 (``python benchmarks/bench_planning.py``)."""
 
 
 @dataclass(frozen=True)
@@ -169,6 +169,10 @@ class TrajectoryPlan(Result):
     multipliers : tuple of ndarray
         IPOPT's multipliers of the bounds and the constraints at the plan (scaled),
         which a warm start from this plan begins with.
+    timings : dict
+        Wall time [s] of the solve by what IPOPT evaluated: ``"hessian"`` (of the
+        Lagrangian), ``"jacobian"`` (of the constraints), ``"constraints"``, ``"cost"``,
+        ``"gradient"`` (of the cost).
     """
 
     status: Status
@@ -187,6 +191,7 @@ class TrajectoryPlan(Result):
     transcription: Transcription = field(repr=False, compare=False)
     stages: np.ndarray = field(repr=False, compare=False)
     multipliers: tuple = field(repr=False, compare=False)
+    timings: dict = field(repr=False, compare=False)
 
     @property
     def horizon(self) -> float:
@@ -677,6 +682,7 @@ def optimize_trajectory(
         float(solution["f"]), int(stats.get("iter_count", 0)), violation, optimality,
         solve_time, method, binding, tr, z_plan,
         (np.array(solution["lam_x"]).ravel(), np.array(solution["lam_g"]).ravel()),
+        {name: float(stats.get(f"t_wall_nlp_{key}", 0.0)) for name, key in TIMED.items()},
     )  # fmt: skip
 
 
@@ -705,6 +711,10 @@ def _left_domain(tr: Transcription, x: np.ndarray, t: np.ndarray) -> str:
             return f"at t = {t[k]:.6g} s the plan leaves the domain: {problem}"
     return ""
 
+
+TIMED = {"hessian": "hess_l", "jacobian": "jac_g", "constraints": "g", "cost": "f",
+         "gradient": "grad_f"}  # fmt: skip
+""":attr:`TrajectoryPlan.timings`' names for IPOPT's evaluations in CasADi's statistics."""
 
 WARM_START = {
     "warm_start_init_point": "yes",
