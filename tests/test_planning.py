@@ -135,7 +135,7 @@ def test_the_gaps_are_the_signed_distances_from_the_obstacles():
 def test_a_start_outside_a_domain_is_refused(transcription):
     with pytest.raises(sc.ParameterError, match="q0"):
         transcription.start([-0.01, 0.0, 0.0])
-    with pytest.raises(sc.ParameterError, match="qd0 must be 3 finite values"):
+    with pytest.raises(sc.ParameterError, match="qd0 must be finite"):
         transcription.start([0.064, 0.0, 0.0], [np.nan, 0.0, 0.0])
 
 

@@ -35,7 +35,13 @@ from softcurve.base.status import Result, Status
 from softcurve.base.validation import ParameterError, real_scalar
 from softcurve.control._transcription import Transcription
 from softcurve.control.references import Reference
-from softcurve.simulation.solvers import lag_scale, nominal_scale
+from softcurve.simulation.solvers import (
+    actuator_exit,
+    domain_reason,
+    lag_scale,
+    nominal_scale,
+    outside_domain,
+)
 
 PLAN_METHODS = ("collocation", "shooting")
 """The transcriptions of :func:`optimize_trajectory`; the first is the default. Both
@@ -533,7 +539,7 @@ def optimize_trajectory(
     q_scale = model.robot.coordinate_scale()
 
     # -- unknowns (scaled) -------------------------------------------------------------
-    stages = 3
+    stages = tr.stages
     Xs = ca.MX.sym("X", n_x, K + 1)
     Us = ca.MX.sym("U", n_u, K)
     Zs = ca.MX.sym("Z", n_x, stages * K) if method == "collocation" else ca.MX(n_x, 0)
@@ -566,10 +572,9 @@ def optimize_trajectory(
         constraints.add("tip bounds", tips[:, 1:], *box)
     if rest_at_end:
         xdot = tr.rhs(X[:, K], U[:, K - 1], P)
-        constraints.add("rest at the end", xdot[:n] / ca.DM(x_scale[:n]), 0.0, 0.0)
-        constraints.add("rest at the end", xdot[n : 2 * n] / ca.DM(x_scale[n : 2 * n]), 0.0, 0.0)
-        lagging = slice(model.n_state, n_x)  # a lagging actuator settled too
-        constraints.add("rest at the end", xdot[lagging] / ca.DM(x_scale[lagging]), 0.0, 0.0)
+        # q and qd still, and a lagging actuator settled; creep may still move
+        still = [*range(2 * n), *range(model.n_state, n_x)]
+        constraints.add("rest at the end", xdot[still] / ca.DM(x_scale[still]), 0.0, 0.0)
 
     # -- cost --------------------------------------------------------------------------
     def node(time_value):
@@ -586,7 +591,7 @@ def optimize_trajectory(
             scale = 1.0
         cost = cost + target.weight * ca.sumsqr(error)
         if target.tolerance is not None:  # relative to the tolerance: |e| <= tolerance
-            name = f"target {i} ({type(target).__name__} at {node(target.time) * t_high / K:g} s)"
+            name = f"target {i} ({type(target).__name__} at {k * t_high / K:g} s)"
             constraints.add(name, ca.sumsqr(error) / (target.tolerance / scale) ** 2, -np.inf, 1.0)
     if reference is not None and weights["reference_weight"] > 0:
         t_nodes = ca.linspace(ca.MX(0), T, K + 1)[1:]
@@ -672,13 +677,14 @@ def optimize_trajectory(
     status, words = _status(stats, violation, tolerance)
     tip_plan = np.array(tr.tip.map(K + 1)(x_plan.T, p)).T
     message = f"{words} after {stats.get('iter_count', 0)} iterations"
-    left = _left_domain(tr, x_plan, np.linspace(0.0, horizon_value, K + 1))
+    t_plan = np.linspace(0.0, horizon_value, K + 1)
+    left = _left_domain(tr, x_plan, t_plan)
     if status is Status.SUCCESS and left:  # the margins are >= 0, the domain's strict
         status, message = Status.LEFT_DOMAIN, f"{message}, but {left}"
     if status is not Status.SUCCESS and binding:
         message += f"; the constraint that binds most: {binding}"
     return TrajectoryPlan(
-        status, message, np.linspace(0.0, horizon_value, K + 1), x_plan, u_plan, tip_plan,
+        status, message, t_plan, x_plan, u_plan, tip_plan,
         float(solution["f"]), int(stats.get("iter_count", 0)), violation, optimality,
         solve_time, method, binding, tr, z_plan,
         (np.array(solution["lam_x"]).ravel(), np.array(solution["lam_g"]).ravel()),
@@ -699,17 +705,14 @@ def _force_scale(model, x0) -> np.ndarray:
 
 
 def _left_domain(tr: Transcription, x: np.ndarray, t: np.ndarray) -> str:
-    """Where the planned states leave the model's or the actuator's domain, checked by
-    the rules ``simulate`` applies (strict margins, every kind's own), or ""."""
-    n = tr.model.n
-    for k in range(x.shape[0]):
-        q = x[k, :n]
-        problem = tr.model.robot.domain_problem(q, entry="the plan's q")
-        if problem is None and tr.actuator is not None:
-            problem = tr.actuator.domain_problem(q)
-        if problem is not None:
-            return f"at t = {t[k]:.6g} s the plan leaves the domain: {problem}"
-    return ""
+    """Where the planned states leave the model's or the actuator's domain, by the checks
+    ``simulate`` runs at its outputs (strict margins, every kind's own), or ""."""
+    model_states = x[:, : tr.model.n_state]
+    outside = np.flatnonzero(outside_domain(model_states, tr.model.robot))
+    exit_ = actuator_exit(tr.actuator, t, model_states[:, : tr.model.n])
+    first = [(k, domain_reason(model_states[k], tr.model.robot, t[k])) for k in outside[:1]]
+    first += [exit_] if exit_ is not None else []
+    return min(first, key=lambda entry: entry[0])[1] if first else ""  # the model's first
 
 
 TIMED = {"hessian": "hess_l", "jacobian": "jac_g", "constraints": "g", "cost": "f",

@@ -27,7 +27,12 @@ import numpy as np
 
 from softcurve.base.validation import ParameterError
 from softcurve.description.actuator import Actuator
-from softcurve.simulation.solvers import ActuatorInput, actuated_derivative, radau_tableau
+from softcurve.simulation.solvers import (
+    ActuatorInput,
+    actuated_derivative,
+    initial_state,
+    radau_tableau,
+)
 from softcurve.symbolic.functions import domain_margins
 from softcurve.symbolic.gaps import obstacle_distances
 
@@ -97,6 +102,16 @@ class Transcription:
         """Entries of the input: the actuator's inputs, else the coordinates' forces."""
         return self.model.n if self.inputs is None else self.inputs.n_inputs
 
+    @cached_property
+    def tableau(self):
+        """Radau IIA's constants (:func:`softcurve.simulation.solvers.radau_tableau`)."""
+        return radau_tableau()
+
+    @property
+    def stages(self) -> int:
+        """Stages of a step (3): the columns of :attr:`collocation`'s ``z``."""
+        return self.tableau.nodes.size
+
     @property
     def parameters(self) -> np.ndarray:
         """The model's parameter vector, shape (n_p,): the ``p`` of every Function."""
@@ -126,12 +141,11 @@ class Transcription:
         """``collocation(x, z, u, p, h) -> (residual, x_next)``: the equations of one Radau
         IIA step from ``x`` with stage increments ``z`` (n_x, 3), ``residual`` (n_x, 3)
         zero at the step's stages, ``x_next = x + z[:, 2]``; ``h`` the step [s]."""
-        tableau = radau_tableau()
         x, u, p = self._symbols()
-        z, h = ca.SX.sym("z", self.n_x, tableau.nodes.size), ca.SX.sym("h")
+        z, h = ca.SX.sym("z", self.n_x, self.stages), ca.SX.sym("h")
         rhs = self.rhs_sx
-        slopes = ca.horzcat(*[rhs(x + z[:, j], u, p) for j in range(z.shape[1])])
-        residual = z - h * ca.mtimes(slopes, ca.DM(tableau.matrix.T))
+        slopes = ca.horzcat(*[rhs(x + z[:, j], u, p) for j in range(self.stages)])
+        residual = z - h * ca.mtimes(slopes, ca.DM(self.tableau.matrix.T))
         return ca.Function(
             "collocation", [x, z, u, p, h], [residual, x + z[:, -1]],
             ["x", "z", "u", "p", "h"], ["residual", "x_next"],
@@ -148,7 +162,7 @@ class Transcription:
         """``step(x, u, p, h) -> x_next``: one Radau IIA step of ``h`` [s] with ``u`` held,
         its stages solved by Newton's method from the explicit Euler guess
         (:data:`NEWTON_TOLERANCE`); derivatives by the implicit function theorem."""
-        stages = radau_tableau().nodes.size
+        stages = self.stages
         x, u, p = (ca.MX.sym(name, size) for name, size in
                    (("x", self.n_x), ("u", self.n_u), ("p", self.parameters.size)))  # fmt: skip
         h, z = ca.MX.sym("h"), ca.MX.sym("z", self.n_x * stages)
@@ -158,7 +172,7 @@ class Transcription:
             "radau_stages", "newton", equations,
             {"abstol": NEWTON_TOLERANCE, "max_iter": NEWTON_ITERATIONS, "error_on_fail": True},
         )  # fmt: skip
-        guess = ca.vec(h * ca.mtimes(self.rhs(x, u, p), ca.DM(radau_tableau().nodes).T))
+        guess = ca.vec(h * ca.mtimes(self.rhs(x, u, p), ca.DM(self.tableau.nodes).T))
         z_solved = ca.reshape(solver(guess, ca.vertcat(x, u, p, h)), self.n_x, stages)
         return ca.Function(
             "step", [x, u, p, h], [x + z_solved[:, -1]], ["x", "u", "p", "h"], ["x_next"]
@@ -233,21 +247,15 @@ class Transcription:
         actuator_state : array_like, shape (m,), optional
             The lagging inputs' start (default the actuator's rest inputs).
         """
-        robot, model = self.model.robot, self.model
-        q0 = robot.check_configuration(q0, "q0")
-        qd0 = np.zeros(model.n) if qd0 is None else np.asarray(qd0, dtype=np.float64)
-        lam0 = np.zeros(model.n_creep) if lam0 is None else np.asarray(lam0, dtype=np.float64)
-        for name, value, size in (("qd0", qd0, model.n), ("lam0", lam0, model.n_creep)):
-            if value.shape != (size,) or not np.all(np.isfinite(value)):
-                raise ParameterError(f"{name} must be {size} finite values, got {value!r}")
-        parts = [q0, qd0, lam0]
-        if self.actuator is not None:
-            lagging = self.actuator.lag_start(actuator_state)  # refused without a lag
-            parts += [lagging] if self.inputs.n_states else []
-        elif actuator_state is not None:
-            raise ParameterError("actuator_state needs an actuator with a time_constant")
-        if self.actuator is not None:
-            problem = self.actuator.domain_problem(q0)
-            if problem is not None:
-                raise ParameterError(f"q0 is outside the actuator's domain: {problem}")
+        model = self.model
+        x0 = initial_state(model, q0, np.zeros(model.n) if qd0 is None else qd0, lam0)
+        if self.actuator is None:
+            if actuator_state is not None:
+                raise ParameterError("actuator_state needs an actuator with a time_constant")
+            return x0
+        lagging = self.actuator.lag_start(actuator_state)  # refused without a lag
+        problem = self.actuator.domain_problem(x0[: model.n])
+        if problem is not None:
+            raise ParameterError(f"q0 is outside the actuator's domain: {problem}")
+        parts = [x0, lagging] if self.inputs.n_states else [x0]
         return np.concatenate(parts)
