@@ -42,9 +42,12 @@ _FACES = {
     ),
     "softcurve.control": (
         "ConfigurationTarget",
+        "RolloutGradient",
+        "RolloutSymbols",
         "TipTarget",
         "TrajectoryPlan",
         "Transcription",
+        "gradient",
         "optimize_trajectory",
     ),
     "softcurve.control.controllers": (

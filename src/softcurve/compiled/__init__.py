@@ -22,6 +22,7 @@ from softcurve.compiled._model import Pose as Pose
 from softcurve.compiled._native import NativeFunction as NativeFunction
 from softcurve.compiled._source import compile_files as compile_files
 from softcurve.compiled._source import compile_source as compile_source
+from softcurve.compiled._source import exact_external as exact_external
 from softcurve.compiled._source import load_external as load_external
 from softcurve.compiled._source import load_function as load_function
 from softcurve.compiled._source import load_library as load_library
@@ -36,6 +37,7 @@ __all__ = [
     "export_c",
     "compile_function",
     "compile_functions",
+    "exact_external",
     "load_external",
     "LANE_WIDTH",
     "compile_lanes",

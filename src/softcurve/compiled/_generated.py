@@ -15,11 +15,15 @@ import casadi as ca
 
 from softcurve.compiled import _build as build
 from softcurve.compiled import _cache as cache
-from softcurve.compiled._source import load_external
+from softcurve.compiled._source import exact_external, load_external
 
 
 def compile_function(
-    function: ca.Function, flags: tuple[str, ...] | None = None, load=None, build_new=True
+    function: ca.Function,
+    flags: tuple[str, ...] | None = None,
+    load=None,
+    build_new=True,
+    derivatives: int = 0,
 ):
     """``function`` generated as C, compiled, cached on disk by its content and loaded.
 
@@ -48,14 +52,21 @@ def compile_function(
     build_new : bool
         Compile it when the cache does not hold it (default); with False, return None
         instead (nothing is built).
+    derivatives : {0, 1, 2}
+        Derivatives compiled with it, which an ``external`` of the library calls instead
+        of finite differences: 1 its first, forward and reverse (CasADi's
+        ``fwd1_<name>`` and ``adj1_<name>``, what an integrator's adjoint sensitivities
+        need), 2 also the forward derivative of the forward one (``fwd1_fwd1_<name>``,
+        what its forward sensitivities need). With 1 or 2 the default loader loads it
+        without finite differences.
 
     Returns
     -------
     casadi.Function or object
         The compiled function as a CasADi ``external`` (derivatives by finite
-        differences) or what ``load`` returned, or ``function`` itself when it is not
-        cached and there is no C compiler, or None when it is not cached and
-        ``build_new`` is False, or (with a
+        differences, or the compiled ones with ``derivatives``) or what ``load``
+        returned, or ``function`` itself when it is not cached and there is no C
+        compiler, or None when it is not cached and ``build_new`` is False, or (with a
         :class:`~softcurve.compiled.CompilerWarning`) when the build fails: then it
         runs in CasADi's virtual machine.
     """
@@ -63,11 +74,20 @@ def compile_function(
     name = function.name()
     asked = None if flags is None else tuple(flags)
 
+    if derivatives not in (0, 1, 2):
+        raise ValueError(f"derivatives must be 0, 1 or 2, got {derivatives!r}")
+    functions = {name: function}
+    if derivatives:
+        forward = function.forward(1)
+        extra = (forward, function.reverse(1)) + ((forward.forward(1),) if derivatives == 2 else ())
+        functions.update((f.name(), f) for f in extra)
+    loader = load or (exact_external if derivatives else load_external)
+
     def make() -> bytes:
         build.require_compiler(compiler)
-        return build.compile_generated({name: function}, compiler, asked, ("-fPIC",))
+        return build.compile_generated(functions, compiler, asked, ("-fPIC",))
 
-    key = _function_key(function, asked)
+    key = _function_key(function, asked, derivatives)
     if not build_new and cache.cached_library("function", key, (name,)) is None:
         return None
     try:
@@ -75,7 +95,7 @@ def compile_function(
             "function",
             key,
             make,
-            lambda path: (load or load_external)(path, name),
+            lambda path: loader(path, name),
             stacklevel=2,
             symbols=(name,),
             what=f"the function {name}",
@@ -94,12 +114,17 @@ def compile_function(
     return loaded
 
 
-def _function_key(function: ca.Function, asked: tuple[str, ...] | None) -> str:
+def _function_key(
+    function: ca.Function, asked: tuple[str, ...] | None, derivatives: int = 0
+) -> str:
     """The cache key of ``function`` compiled with the flags ``asked`` (None: the
-    default): the flags asked for, not those a compiler accepted, so the key holds no
-    compiler."""
+    default), with or without its ``derivatives``: the flags asked for, not those a
+    compiler accepted, so the key holds no compiler."""
     flags_key = asked if asked is not None else ("default", build.FUNCTION_FLAGS)
-    return build.cache_key("function", function.serialize(), flags_key)
+    parts = (function.serialize(), flags_key) + (
+        (f"derivatives {derivatives}",) if derivatives else ()
+    )
+    return build.cache_key("function", *parts)
 
 
 def compile_functions(functions, flags: tuple[str, ...] | None = None, load=None) -> list:

@@ -1,7 +1,7 @@
 """Hand-written C compiled next to the generated code, and the one loader of compiled
 libraries: :func:`compile_source` (a source that Python fills in), :func:`compile_files`
-(C files shipped with the package), :func:`load_library`, :func:`load_function` and
-:func:`load_external`.
+(C files shipped with the package), :func:`load_library`, :func:`load_function`,
+:func:`load_external` and :func:`exact_external`.
 
 The compiler, flags, checksum files and on-disk cache are those of
 ``softcurve.compiled._build`` and ``softcurve.compiled._cache``; a library's cache
@@ -108,6 +108,20 @@ def load_external(path, name: str) -> ca.Function:
     %(name)s
     """
     return ca.external(name, str(path), {"enable_fd": True})
+
+
+@_loaded
+def exact_external(path, name: str) -> ca.Function:
+    """The function ``name`` of the compiled library ``path`` as a CasADi ``external``
+    whose derivatives are the library's own ``fwd1_<name>`` and ``adj1_<name>``
+    (:func:`~softcurve.compiled.compile_function` with ``derivatives=True``).
+
+    Parameters
+    ----------
+    %(path)s
+    %(name)s
+    """
+    return ca.external(name, str(path))
 
 
 def _compiled(stem: str, key_parts: tuple, write, arguments: Sequence[str], symbols: tuple):

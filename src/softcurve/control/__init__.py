@@ -1,8 +1,15 @@
 """Control: feedback controllers (``controllers``), the linear MPC (``mpc``), references
 (``references``), and planning over the robot's transcription: :class:`Transcription`
-(the dynamics, one step, the gaps and the domain as CasADi Functions) and
-:func:`optimize_trajectory` (IPOPT over it, its result :class:`TrajectoryPlan`)."""
+(the dynamics, one step, the gaps and the domain as CasADi Functions),
+:func:`optimize_trajectory` (IPOPT over it, its result :class:`TrajectoryPlan`) and
+:func:`gradient` (the exact gradient of a cost of a simulated trajectory, its result
+:class:`RolloutGradient`)."""
 
+from softcurve.control._gradient import GRADIENT_METHODS as GRADIENT_METHODS
+from softcurve.control._gradient import WITH_RESPECT_TO as WITH_RESPECT_TO
+from softcurve.control._gradient import RolloutGradient as RolloutGradient
+from softcurve.control._gradient import RolloutSymbols as RolloutSymbols
+from softcurve.control._gradient import gradient as gradient
 from softcurve.control._planning import PLAN_METHODS as PLAN_METHODS
 from softcurve.control._planning import ConfigurationTarget as ConfigurationTarget
 from softcurve.control._planning import TipTarget as TipTarget
@@ -11,10 +18,15 @@ from softcurve.control._planning import optimize_trajectory as optimize_trajecto
 from softcurve.control._transcription import Transcription as Transcription
 
 __all__ = [
+    "GRADIENT_METHODS",
     "PLAN_METHODS",
+    "WITH_RESPECT_TO",
     "ConfigurationTarget",
     "TipTarget",
+    "RolloutGradient",
+    "RolloutSymbols",
     "TrajectoryPlan",
     "Transcription",
+    "gradient",
     "optimize_trajectory",
 ]

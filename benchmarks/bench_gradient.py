@@ -1,0 +1,90 @@
+"""Gradients of rollouts (``sc.gradient``) against one forward simulation (``sc.simulate``)
+on the paper's case: preset ifac2020, q0 = (0.064, 25, 0), qd0 = (0, 0, 1500), 10 s.
+
+Run:  python benchmarks/bench_gradient.py [--intervals 1 100 1000] [--methods] [--repeat 3]
+
+The cost is the integral of the squared coordinate rates over the 10 s (``running``,
+integrated with the state) plus the squared tip height at every output time; the
+inputs are zero generalized forces, one sample per output interval. For each number of
+output intervals it prints the first call (the right-hand side and its derivatives
+compiled, or loaded from the cache, and the CasADi Functions built) and the best of
+``--repeat`` calls after it, along the parameters and the initial state (one integration
+through the output times) and along the inputs too (one integration per interval), each
+beside the best of ``simulate``'s default run (1 ms outputs, its compiled driver) as
+their ratio, the issue's target being 5x.
+
+``--methods`` compares adjoint and forward sensitivities (``method=``) along the
+initial state alone (9 seeds) and along the parameters (49) on 100 intervals: what
+``GRADIENT_METHODS`` says.
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+import casadi as ca
+import numpy as np
+from _timing import best_of  # benchmarks/_timing.py: a helper, not a benchmark
+
+import softcurve as sc
+
+Q0, QD0, DURATION = (0.064, 25.0, 0.0), (0.0, 0.0, 1500.0), 10.0
+TARGET_RATIO = 5.0
+"""Issue 47: the gradient along all parameters within 5x one forward simulation."""
+
+
+def cost(trajectory):
+    """The running integral plus the squared tip height at every output time [m^2]."""
+    return trajectory.integral[0, -1] + ca.sumsqr(trajectory.tip[2, :]) / trajectory.t.size
+
+
+def running(x, u, p):
+    """The squared coordinate rates, scaled to the order of one."""
+    return ca.sumsqr(x[3:6] / ca.DM([1.0, 1e3, 1e3]))
+
+
+def one_gradient(model, intervals: int, method: str = "auto", wrt=sc.control.WITH_RESPECT_TO):
+    t = np.linspace(0.0, DURATION, intervals + 1)
+    return sc.gradient(model, cost, Q0, QD0, t=t, running=running, method=method, wrt=wrt)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--intervals", type=int, nargs="+", default=[1, 100, 1000])
+    parser.add_argument("--repeat", type=int, default=3)
+    parser.add_argument("--methods", action="store_true")
+    args = parser.parse_args()
+    model = sc.Model(sc.presets.ifac2020())
+    sc.simulate(model, Q0, QD0)  # the driver compiled or loaded
+    forward, run = best_of(5, lambda: sc.simulate(model, Q0, QD0))
+    steps = run.stats["steps"]
+    print(f"simulate, 10 s, 1 ms outputs: {1e3 * forward:.1f} ms (best of 5; {steps} steps)")
+    if args.methods:
+        print("\n| seeds | adjoint [s] | forward [s] |")
+        print("| --- | --- | --- |")
+        for wrt, seeds in (("x0", 9), ("parameters", 49)):
+            times = []
+            for method in ("adjoint", "forward"):
+                one_gradient(model, 100, method, wrt)  # compiled and built
+                wall, _ = best_of(
+                    args.repeat, lambda m=method, w=wrt: one_gradient(model, 100, m, w)
+                )
+                times.append(wall)
+            print(f"| {seeds} ({wrt}) | {times[0]:.3f} | {times[1]:.3f} |")
+        return
+    print("\n| output intervals | along | first call [s] | gradient [s] | / simulate | target |")
+    print("| --- | --- | --- | --- | --- | --- |")
+    for intervals in args.intervals:
+        for wrt in (("parameters", "x0"), sc.control.WITH_RESPECT_TO):
+            began = time.perf_counter()
+            first = one_gradient(model, intervals, wrt=wrt)
+            cold = time.perf_counter() - began
+            assert first.success, first.message
+            wall, _ = best_of(args.repeat, lambda k=intervals, w=wrt: one_gradient(model, k, wrt=w))
+            print(f"| {intervals} | {', '.join(wrt)} | {cold:.2f} | {wall:.3f} | "
+                  f"{wall / forward:.0f}x | {TARGET_RATIO:g}x |")  # fmt: skip
+
+
+if __name__ == "__main__":
+    main()

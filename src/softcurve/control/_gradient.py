@@ -1,0 +1,525 @@
+"""Exact gradients of a scalar function of a simulated trajectory (:func:`gradient`, its
+result :class:`RolloutGradient`).
+
+The cost is written by the user in CasADi symbols of the whole trajectory
+(:class:`RolloutSymbols`: the states and the tip at the output times, the input samples,
+the parameters, and the running integrals of an integrand), so it is differentiated
+exactly along with the integration. The integration is CVODES's (through CasADi's
+``integrator``) over the robot's actuated right-hand side
+(:attr:`Transcription.rhs <softcurve.control.Transcription.rhs>`) in the state scaled as
+``simulate`` scales it, compiled with its first derivatives
+(:func:`softcurve.compiled.compile_function`, ``derivatives``). Its derivative along the
+robot's parameters, the initial state and the input samples is CVODES's adjoint (one
+backward pass for every seed at once, with the forward pass checkpointed) or its forward
+sensitivities (one column per seed): :data:`GRADIENT_METHODS`.
+
+The inputs are held between samples, as ``simulate`` holds a grid of inputs: row ``k``
+acts on ``[t_k, t_(k+1))``, so the last row acts on nothing and its gradient is zero.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from functools import cached_property
+
+import casadi as ca
+import numpy as np
+
+from softcurve.base.status import Result, Status
+from softcurve.base.validation import ParameterError, float_array, real_array
+from softcurve.compiled import compile_function
+from softcurve.control._transcription import Transcription
+from softcurve.simulation.solvers import (
+    actuator_exit,
+    cvodes_options,
+    domain_reason,
+    outside_domain,
+    state_scale,
+)
+
+GRADIENT_METHODS = ("adjoint", "forward")
+"""How :func:`gradient` differentiates; ``"auto"`` takes the first. Adjoint: one backward
+pass for all seeds. Forward: one sensitivity column per seed, and a second derivative of
+the right-hand side compiled besides the first. On the paper robot's 10 s swing at 100
+output intervals, along the initial state (9 seeds) 1.33 s by adjoint against 2.90 s
+forward, along the 49 parameters 1.32 s against 15.1 s (``python
+benchmarks/bench_gradient.py --methods``): adjoint from the smallest group of seeds on,
+so the counts never favour forward; it stays as the independent check of the adjoint
+(``tests/test_gradient.py``)."""
+
+WITH_RESPECT_TO = ("parameters", "x0", "inputs")
+"""What :func:`gradient` differentiates along (its ``wrt``): the model's parameter vector
+(``Model.parameters``, named by ``Robot.parameter_names()``), the initial state and the
+input samples."""
+
+GRADIENT_TOLERANCES = (1e-10, 1e-12)
+"""CVODES's ``(rtol, atol)`` of :func:`gradient`, ``atol`` of the scaled state (each
+state over its nominal size, ``softcurve.simulation.solvers.state_scale``). The adjoint
+is that of the continuous equations, integrated backward over an interpolation of the
+forward pass, so it is the gradient of the integrated cost to about the tolerance: on
+``tests/test_gradient.py``'s case, at the fits' (1e-8, 1e-10) the adjoint and forward
+sensitivities differed by 1e-5 relative along the segment's length, at these by 1.4e-7,
+for 1.5 times the time."""
+
+MAX_STEPS = 100_000
+"""CVODES's internal steps allowed between two output times."""
+
+DERIVATIVE_FLAGS = ("-O1",)
+"""The compiler's flags of the right-hand side and its derivatives: on the paper robot
+they compile in 6.6 s against 22.9 s with the model's flags, for gradients 18 % slower
+(1.08 s against 0.92 s on 100 intervals), so the first gradient comes 16 s sooner and a
+hundred cost what they would otherwise (measured by swapping the flags under
+``benchmarks/bench_gradient.py``'s case)."""
+
+
+@dataclass(frozen=True, eq=False)
+class RolloutSymbols:
+    """The trajectory that :func:`gradient`'s cost is written in, as CasADi symbols (MX):
+    combine them with CasADi's operations into one scalar.
+
+    Attributes
+    ----------
+    t : ndarray, shape (T,)
+        The output times [s] (numbers).
+    x : casadi.MX, shape (n_x, T)
+        The state at every output time (``simulate``'s layout; the lagging inputs last).
+    u : casadi.MX, shape (n_u, T)
+        The input samples, row ``k`` of the inputs held from ``t_k``.
+    p : casadi.MX, shape (n_p,)
+        The model's parameter vector.
+    integral : casadi.MX, shape (k, T)
+        The integral of ``running`` from ``t_0`` to every output time (zero at ``t_0``);
+        an error where :func:`gradient` got no ``running``.
+    transcription : Transcription
+        The robot's Functions (its :attr:`~Transcription.tip`, :attr:`~Transcription.domain`).
+    """
+
+    t: np.ndarray
+    x: ca.MX
+    u: ca.MX
+    p: ca.MX
+    running_integral: ca.MX | None = field(repr=False)
+    transcription: Transcription = field(repr=False)
+
+    @property
+    def q(self) -> ca.MX:
+        """The coordinates at every output time, shape (n, T)."""
+        return self.x[: self.transcription.model.n, :]
+
+    @property
+    def qd(self) -> ca.MX:
+        """The coordinates' rates at every output time, shape (n, T)."""
+        n = self.transcription.model.n
+        return self.x[n : 2 * n, :]
+
+    @cached_property
+    def tip(self) -> ca.MX:
+        """The tip's position [m] at every output time, shape (3, T)."""
+        return self.transcription.tip.map(self.t.size)(self.x, self.p)
+
+    @property
+    def integral(self) -> ca.MX:
+        """The running integrals, shape (k, T) (see the class)."""
+        if self.running_integral is None:
+            raise ParameterError("trajectory.integral needs gradient(..., running=...)")
+        return self.running_integral
+
+
+@dataclass(frozen=True)
+class RolloutGradient(Result):
+    """What :func:`gradient` computed.
+
+    Attributes
+    ----------
+    status : Status
+        SUCCESS; LEFT_DOMAIN where the trajectory leaves the model's or the actuator's
+        domain at an output time (no gradient then: NaN); INTEGRATION_FAILED where CVODES
+        stopped.
+    message : str
+        What happened.
+    value : float
+        The cost [its unit].
+    t : ndarray, shape (T,)
+        The output times [s].
+    x : ndarray, shape (T, n_x)
+        The trajectory at them (``simulate``'s layout).
+    parameters : ndarray, shape (n_p,) or None
+        ``d value / d p`` [unit of the cost per unit of each parameter]; None where not
+        asked (``wrt``).
+    x0 : ndarray, shape (n_x,) or None
+        ``d value / d x0`` [per unit of each state].
+    inputs : ndarray, shape (T, n_u) or None
+        ``d value / d u_k`` [per unit of each input], row ``k`` the sample held from
+        ``t_k`` (the last row zero: it acts on nothing).
+    method : str
+        One of :data:`GRADIENT_METHODS`.
+    reason : str
+        Why that method.
+    names : tuple of str
+        The parameters' names, in the order of :attr:`parameters`.
+    at : ndarray, shape (n_p,)
+        The parameter vector the gradient is at (``gradient``'s ``parameters``).
+    solve_time : float
+        Wall time [s] of the integration and its derivative (the build excluded).
+    transcription : Transcription
+        The model and actuator.
+    """
+
+    status: Status
+    message: str
+    value: float
+    t: np.ndarray
+    x: np.ndarray
+    parameters: np.ndarray | None
+    x0: np.ndarray | None
+    inputs: np.ndarray | None
+    method: str
+    reason: str
+    names: tuple
+    at: np.ndarray
+    solve_time: float
+    transcription: Transcription = field(repr=False, compare=False)
+
+    @property
+    def by_name(self) -> dict:
+        """``d value / d p`` by parameter name (empty where not asked)."""
+        if self.parameters is None:
+            return {}
+        return dict(zip(self.names, self.parameters.tolist(), strict=True))
+
+    def plot(self, ax=None, *, largest: int = 10, title: str | None = None):
+        """The gradient along the input samples against time, and the largest relative
+        sensitivities ``p_i d value / d p_i`` of the parameters.
+
+        Parameters
+        ----------
+        ax : None or sequence of matplotlib.axes.Axes, shape (2,)
+            Where to draw; None draws a new figure.
+        largest : int
+            Parameters drawn, the largest in magnitude first, >= 1.
+        title : str, optional
+            The figure's title.
+
+        Returns
+        -------
+        matplotlib.figure.Figure
+        """
+        from softcurve.figures.gradients import gradient_figure
+
+        relative = None if self.parameters is None else self.at * self.parameters
+        return gradient_figure(
+            self.t, self.inputs, relative, self.names, self.transcription.actuator,
+            largest=largest, title=title, ax=ax,
+        )  # fmt: skip
+
+
+def _times(t) -> np.ndarray:
+    t = float_array("t", t, "increasing output times [s]")
+    if t.ndim != 1 or t.size < 2 or not np.all(np.isfinite(t)) or not np.all(np.diff(t) > 0):
+        raise ParameterError(
+            f"t must be increasing output times [s], at least two, got shape {t.shape}"
+        )
+    return t
+
+
+def _samples(inputs, tr: Transcription, size: int) -> np.ndarray:
+    """The input samples, (T, n_u), checked against the actuator's bounds."""
+    n_u = tr.n_u
+    u = np.zeros(n_u) if inputs is None else float_array("inputs", inputs, "input samples")
+    if u.shape == (n_u,):
+        u = np.tile(u, (size, 1))
+    if not np.all(np.isfinite(u)):
+        raise ParameterError("inputs must be finite")
+    if u.shape != (size, n_u):
+        raise ParameterError(
+            f"inputs must have shape ({n_u},) or ({size}, {n_u}) (one row per output "
+            f"time), got {u.shape}"
+        )
+    lower, upper = tr.input_bounds
+    bad = np.argwhere((u < lower) | (u > upper))
+    if bad.size:
+        k, i = bad[0]
+        raise ParameterError(
+            f"inputs[{k}, {i}] = {u[k, i]:g} is outside the actuator's bounds "
+            f"[{lower[i]:g}, {upper[i]:g}]"
+        )
+    return u
+
+
+def _integrand(running, tr: Transcription) -> ca.Function:
+    """``running`` as an SX Function ``(x, u, p) -> l (k,)``, checked."""
+    x, u, p = (ca.SX.sym(name, size) for name, size in
+               (("x", tr.n_x), ("u", tr.n_u), ("p", tr.parameters.size)))  # fmt: skip
+    try:
+        value = ca.vec(ca.SX(running(x, u, p)))
+    except (TypeError, NotImplementedError, RuntimeError) as error:
+        raise ParameterError(
+            f"running must be a CasADi expression of (x, u, p): {error}"
+        ) from error
+    return ca.Function("running", [x, u, p], [value])
+
+
+def _method(method: str) -> tuple[str, str]:
+    if method == "auto":
+        return GRADIENT_METHODS[
+            0
+        ], "auto: the adjoint costs less from the smallest group of seeds on (GRADIENT_METHODS)"
+    if method not in GRADIENT_METHODS:
+        raise ParameterError(
+            f"method must be 'auto' or one of {', '.join(GRADIENT_METHODS)}, got {method!r}"
+        )
+    return method, "asked"
+
+
+def _wrt(wrt) -> tuple:
+    wrt = (wrt,) if isinstance(wrt, str) else tuple(wrt)
+    unknown = [w for w in wrt if w not in WITH_RESPECT_TO]
+    if unknown or not wrt:
+        raise ParameterError(
+            f"wrt must name one or more of {', '.join(WITH_RESPECT_TO)}, got {wrt!r}"
+        )
+    return wrt
+
+
+def _compiled_rhs(tr: Transcription, order: int) -> ca.Function:
+    """``rhs(x, u, p) -> xdot`` compiled with its derivatives up to what the method needs
+    (``order`` of :func:`softcurve.compiled.compile_function`'s ``derivatives``), cached
+    with the model's libraries."""
+    x, u, p = (ca.SX.sym(name, size) for name, size in
+               (("x", tr.n_x), ("u", tr.n_u), ("p", tr.parameters.size)))  # fmt: skip
+    rhs = ca.Function("softcurve_actuated_rhs", [x, u, p], [tr.rhs_sx(x, u, p)])
+    return compile_function(rhs, flags=DERIVATIVE_FLAGS, derivatives=order)
+
+
+def gradient(
+    model,
+    cost,
+    q0,
+    qd0=None,
+    lam0=None,
+    *,
+    t,
+    inputs=None,
+    actuator=None,
+    actuator_state=None,
+    running=None,
+    wrt=WITH_RESPECT_TO,
+    method: str = "auto",
+    parameters=None,
+) -> RolloutGradient:
+    """The exact gradient of a scalar function of a simulated trajectory.
+
+    The robot is integrated from ``(q0, qd0, lam0)`` over the output times ``t`` with the
+    input samples held, and ``cost(trajectory)`` is differentiated along the model's
+    parameters, the initial state and the input samples.
+
+    Parameters
+    ----------
+    model : Model
+        The compiled model.
+    cost : callable(RolloutSymbols) -> casadi.MX
+        The scalar, written in the trajectory's symbols (:class:`RolloutSymbols`: its
+        states, tip, inputs and parameters at the output times, and the integrals of
+        ``running``), in any unit.
+    q0 : array_like, shape (n,)
+        Initial coordinates, in the model's domain.
+    qd0 : array_like, shape (n,), optional
+        Initial rates (default zero).
+    lam0 : array_like, shape (n_creep,), optional
+        Initial creep states (default zero).
+    t : array_like, shape (T,)
+        Output times [s], increasing, at least two; the first is the start.
+    inputs : array_like, shape (n_u,) or (T, n_u), optional
+        The actuator's inputs (its commands where it lags), else the generalized forces,
+        row ``k`` held from ``t_k`` (default zero), within the actuator's bounds.
+    actuator : Actuator, optional
+        What the inputs drive (None: generalized forces).
+    actuator_state : array_like, shape (m,), optional
+        A lagging actuator's inputs at the start (default its rest inputs).
+    running : callable(x, u, p) -> casadi.SX, optional
+        An integrand of the state (n_x,), the inputs (n_u,) and the parameters (n_p,),
+        shape (k,); its integrals are ``trajectory.integral``, integrated by CVODES with
+        the state (exact, not a sum over the output times).
+    wrt : str or sequence of str
+        What to differentiate along, among :data:`WITH_RESPECT_TO` (default all).
+    method : {"auto", "adjoint", "forward"}
+        :data:`GRADIENT_METHODS`; "auto" takes adjoint.
+    parameters : array_like, shape (n_p,), optional
+        The parameter vector to integrate and differentiate at, each entry in its unit
+        (``Robot.parameter_names()``; default ``model.parameters``): an optimizer's
+        iterate, without a model built for it.
+
+    Returns
+    -------
+    RolloutGradient
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import softcurve as sc
+    >>> model = sc.Model(sc.presets.ifac2020(), quadrature_nodes=3)
+    >>> g = sc.gradient(model, lambda tr: tr.tip[2, -1], [0.064, 5.0, 0.0],
+    ...                 t=np.linspace(0.0, 0.05, 6), wrt="x0")
+    >>> g.success, g.x0.shape
+    (True, (9,))
+    """
+    t = _times(t)
+    tr = Transcription(model, actuator)
+    x0 = tr.start(q0, qd0, lam0, actuator_state)
+    samples = _samples(inputs, tr, t.size)
+    wrt = _wrt(wrt)
+    chosen, reason = _method(method)
+    if not callable(cost) or (running is not None and not callable(running)):
+        raise ParameterError("cost (and running) must be callables of the trajectory's symbols")
+
+    start, samples_sym, params = (ca.MX.sym(name, *shape) for name, shape in (
+        ("x0", (tr.n_x,)), ("u", (tr.n_u, t.size)), ("p", (tr.parameters.size,))))  # fmt: skip
+    arguments = [params, start, samples_sym]
+    held = "inputs" in wrt or not np.all(samples[:-1] == samples[0])
+    states, integrals = _rollout(tr, x0, t, running, chosen, held)(*arguments)
+
+    def cost_of(states, integral):
+        """The cost in the trajectory's symbols ``states`` (n_x, T), ``integral``."""
+        value = cost(RolloutSymbols(t, states, samples_sym, params, integral, tr))
+        if not isinstance(value, ca.MX | ca.DM | float | int) or ca.MX(value).numel() != 1:
+            raise ParameterError(
+                "cost must return one scalar: a CasADi expression of the trajectory's "
+                f"symbols, shape (1, 1), got {type(value).__name__}"
+            )
+        return ca.MX(value)
+
+    trajectory = ca.Function("rollout", arguments, [states, integrals])
+    # the cost of given states (evaluated on the numbers of the integration), and through
+    # the integration (differentiated)
+    free = ca.MX.sym("X", *states.shape), ca.MX.sym("Q", *integrals.shape)
+    integrated = running is not None
+    of_states = ca.Function(
+        "rollout_cost", [*arguments, *free], [cost_of(free[0], free[1] if integrated else None)]
+    )
+    value_only = ca.Function(
+        "rollout_value", arguments, [cost_of(states, integrals if integrated else None)]
+    )
+
+    names = tuple(model.robot.parameter_names())
+    p_value = tr.parameters
+    if parameters is not None:
+        p_value = np.array(real_array("parameters", parameters, p_value.shape))
+    numbers = [p_value, x0, samples.T]
+    began = time.perf_counter()
+    try:
+        x, quadratures = (np.array(a) for a in trajectory(*numbers))
+    except RuntimeError as error:
+        return _failed(Status.INTEGRATION_FAILED, f"CVODES failed: {str(error).splitlines()[-1]}",
+                       t, tr, chosen, reason, names, p_value, began)  # fmt: skip
+    problem_text = _domain_problem(tr, t, x.T)
+    if problem_text is not None:
+        return _failed(
+            Status.LEFT_DOMAIN, problem_text, t, tr, chosen, reason, names, p_value, began, x.T
+        )
+    cost_value = float(of_states(*numbers, x, quadratures))
+    if chosen == "adjoint":
+        seeds = value_only.reverse(1)(*numbers, cost_value, 1.0)
+        d_p, d_x0, d_u = (np.array(s) for s in seeds)
+    else:
+        d_p, d_x0, d_u = _forward(value_only, numbers, cost_value, wrt)
+    asked = dict(zip(WITH_RESPECT_TO, (d_p.ravel(), d_x0.ravel(), d_u.T), strict=True))
+    return RolloutGradient(
+        Status.SUCCESS, f"the gradient of the cost along {', '.join(wrt)}", cost_value,
+        t, x.T, *(asked[w] if w in wrt else None for w in WITH_RESPECT_TO), chosen, reason,
+        names, p_value, time.perf_counter() - began, tr,
+    )  # fmt: skip
+
+
+def _rollout(tr: Transcription, x0, t, running, method, held: bool) -> ca.Function:
+    """``(p, x0, U) -> (X (n_x, T), Q (k, T))``: the states at the output times and the
+    running integrals, integrated by CVODES.
+
+    The state is scaled as ``simulate`` scales it (``state_scale``), so that one absolute
+    tolerance fits every state. With ``held`` (inputs that change, or a gradient along
+    them) each interval between output times is one integration over a unit of scaled
+    time ``s = (t - t_k) / h_k``, its length ``h_k`` and its held inputs among the
+    integrator's parameters, so one integrator serves every interval. Otherwise one
+    integration runs through every output time, the inputs ``U[:, 0]`` among its
+    parameters, without the restarts: on ``benchmarks/bench_gradient.py``'s case, 1.2 and
+    2.3 times faster at 100 and 1,000 intervals than the integration per interval (which
+    that benchmark times with the inputs' seeds too). The inputs are never the
+    integrator's controls: CasADi 3.8.2's reverse mode of an integrator with controls and
+    more than one output time crashes (``tests/test_gradient.py`` pins that)."""
+    model, n_x, n_u, n_p = tr.model, tr.n_x, tr.n_u, tr.parameters.size
+    scale = ca.DM(state_scale(model, x0[: model.n_state], tr.inputs))
+    rhs = _compiled_rhs(tr, 2 if method == "forward" else 1)
+    z, w = ca.MX.sym("z", n_x), ca.MX.sym("w", n_u + n_p + 1)
+    u, p, h = w[:n_u], w[n_u : n_u + n_p], w[-1]
+    problem = {"x": z, "p": w, "ode": h * rhs(scale * z, u, p) / scale}
+    if running is not None:
+        problem["quad"] = h * _integrand(running, tr)(scale * z, u, p)
+    options = cvodes_options("adams", *GRADIENT_TOLERANCES, MAX_STEPS, max_order=None)
+    start, samples, params = ca.MX.sym("x0", n_x), ca.MX.sym("u", n_u, t.size), ca.MX.sym("p", n_p)
+    if held:
+        one = ca.integrator("interval", "cvodes", problem, 0.0, 1.0, options)
+        n_q = one.size1_out("qf")
+        carried, w_k = ca.MX.sym("carried", n_x + n_q), ca.MX.sym("w", w.shape[0])
+        ran = one(x0=carried[:n_x], p=w_k)
+        interval = ca.Function(
+            "interval", [carried, w_k], [ca.vertcat(ran["xf"], carried[n_x:] + ran["qf"])]
+        )
+        steps = ca.vertcat(samples[:, :-1], ca.repmat(params, 1, t.size - 1), ca.DM(np.diff(t)).T)
+        carried0 = ca.vertcat(start / scale, ca.MX.zeros(n_q))
+        after = interval.mapaccum("intervals", t.size - 1)(carried0, steps)
+        final, integrals = after[:n_x, :], after[n_x:, :]
+    else:  # time in units of 1 s from t_0 (h = 1): the output times as they are
+        grid = t[1:] - t[0]
+        through = ca.integrator("through", "cvodes", problem, 0.0, grid, options)
+        ran = through(x0=start / scale, p=ca.vertcat(samples[:, 0], params, 1.0))
+        final, integrals = ran["xf"], ran["qf"]
+    n_q = integrals.shape[0]
+    states = ca.horzcat(start, scale * final)
+    integrals = ca.horzcat(ca.MX.zeros(n_q, 1), integrals)
+    return ca.Function("rollout", [params, start, samples], [states, integrals])
+
+
+def _forward(function: ca.Function, numbers, value: float, wrt) -> tuple:
+    """The gradient by forward sensitivities: one seed per entry of what ``wrt`` names
+    (zero along the rest)."""
+    sizes = [np.size(a) for a in numbers]
+    chosen = [name in wrt for name in WITH_RESPECT_TO]
+    total = sum(s for s, c in zip(sizes, chosen, strict=True) if c)
+    seeds, offset = [], 0
+    for array, size, on in zip(numbers, sizes, chosen, strict=True):
+        block = np.zeros((size, total))
+        if on:
+            block[:, offset : offset + size] = np.eye(size)
+            offset += size
+        shape = np.shape(array) if np.ndim(array) == 2 else (size, 1)
+        # CasADi takes the seeds of an input side by side, one input's shape each
+        seeds.append(np.hstack([block[:, j].reshape(shape, order="F") for j in range(total)]))
+    row = np.array(function.forward(total)(*numbers, value, *seeds)).ravel()
+    parts, offset = [], 0
+    for array, size, on in zip(numbers, sizes, chosen, strict=True):
+        part = np.zeros(size)
+        if on:
+            part, offset = row[offset : offset + size], offset + size
+        parts.append(part.reshape(np.shape(array), order="F") if np.ndim(array) == 2 else part)
+    return tuple(parts)
+
+
+def _domain_problem(tr: Transcription, t: np.ndarray, x: np.ndarray) -> str | None:
+    model = tr.model
+    states = x[:, : model.n_state]
+    outside = outside_domain(states, model.robot)
+    if outside.any():
+        k = int(np.argmax(outside))
+        return domain_reason(states[k], model.robot, float(t[k]))
+    exit_ = actuator_exit(tr.actuator, t, states[:, : model.n])
+    return None if exit_ is None else exit_[1]
+
+
+def _failed(status, message, t, tr, method, reason, names, at, began, x=None) -> RolloutGradient:
+    x = np.full((t.size, tr.n_x), np.nan) if x is None else x
+    nan = np.full(tr.parameters.size, np.nan)
+    return RolloutGradient(
+        status, message, float("nan"), t, x, nan, np.full(tr.n_x, np.nan),
+        np.full((t.size, tr.n_u), np.nan), method, reason, names, at,
+        time.perf_counter() - began, tr,
+    )  # fmt: skip
