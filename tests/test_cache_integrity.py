@@ -52,10 +52,15 @@ CHILD = """
 import json, sys, warnings
 import numpy as np, softcurve as sc
 warnings.simplefilter("always")
-model = sc.Model(sc.presets.ifac2020(creep=False))
+model = sc.Model(sc.presets.ifac2020(creep=False), quadrature_nodes=3)
 q, qd = json.loads(sys.argv[1])
 print(json.dumps(model.forward_dynamics(np.array(q), np.array(qd)).tolist()))
 """
+
+
+NODES = 3
+"""Quadrature nodes of the models here (the child's too): a library that compiles in a
+third of the default's time, what the cache does with it the same."""
 
 
 def robot() -> sc.Robot:
@@ -69,7 +74,7 @@ def intact(tmp_path_factory):
     folder = tmp_path_factory.mktemp("intact-cache")
     with pytest.MonkeyPatch.context() as patch:
         patch.setenv("SOFTCURVE_CACHE_DIR", str(folder))
-        model = sc.Model(robot())
+        model = sc.Model(robot(), quadrature_nodes=NODES)
     assert model.compiled_library is not None and library_problem(model.compiled_library) is None
     return model, model.compiled_library.read_bytes()
 
@@ -131,7 +136,7 @@ def test_a_damaged_library_is_rebuilt_with_a_warning(intact, cache, rebuilds, da
     DAMAGE[damage](cache)
     assert library_problem(cache) is not None
     with pytest.warns(CacheWarning, match=re.escape(str(cache)) + ".*replacing it"):
-        model = sc.Model(robot())
+        model = sc.Model(robot(), quadrature_nodes=NODES)
     assert model.compiled_library == cache and rebuilds == [cache.parent]
     assert library_problem(cache) is None and cache.read_bytes() == intact[1]
     expected = intact[0].forward_dynamics(Q, QD)
@@ -155,18 +160,18 @@ def test_the_reason_is_named(cache, damage, reason):
 def test_an_intact_library_is_loaded_without_a_rebuild(cache, rebuilds):
     with warnings.catch_warnings():
         warnings.simplefilter("error")
-        model = sc.Model(robot())
+        model = sc.Model(robot(), quadrature_nodes=NODES)
     assert model.compiled_library == cache and rebuilds == []
 
 
 def test_a_library_is_verified_once_per_process_while_unchanged(cache, rebuilds, monkeypatch):
     checked = []
     monkeypatch.setattr(cache_module, "library_problem", lambda path, *_: checked.append(path))
-    sc.Model(robot())
-    sc.Model(robot())
+    sc.Model(robot(), quadrature_nodes=NODES)
+    sc.Model(robot(), quadrature_nodes=NODES)
     assert checked == [cache]  # the second model skips the read
     _reinstall(cache, cache.read_bytes())  # replaced (a new file, same bytes)
-    sc.Model(robot())
+    sc.Model(robot(), quadrature_nodes=NODES)
     assert checked == [cache, cache] and rebuilds == []
 
 
@@ -175,7 +180,7 @@ def test_a_library_that_fails_to_load_is_rebuilt(intact, cache, rebuilds):
     _reinstall(cache, b"not an ELF file" * 100)
     assert library_problem(cache) is None
     with pytest.warns(CacheWarning, match=re.escape(str(cache)) + " failed to load"):
-        model = sc.Model(robot())
+        model = sc.Model(robot(), quadrature_nodes=NODES)
     assert rebuilds == [cache.parent] and cache.read_bytes() == intact[1]
     assert_close(model.forward_dynamics(Q, QD), intact[0].forward_dynamics(Q, QD), rtol=1e-12)
 
@@ -188,7 +193,7 @@ def test_a_failing_rebuild_falls_back_to_the_virtual_machine(intact, cache, monk
     _zero(cache)
     with pytest.warns(CacheWarning, match=re.escape(str(cache))):
         with pytest.warns(sc.CompilerWarning, match="out of disk space"):
-            model = sc.Model(robot())
+            model = sc.Model(robot(), quadrature_nodes=NODES)
     assert model.compiled_library is None
     assert_close(model.forward_dynamics(Q, QD), intact[0].forward_dynamics(Q, QD), rtol=1e-12)
 
@@ -274,7 +279,7 @@ def test_a_foreign_library_with_a_matching_checksum_is_rebuilt(
     monkeypatch.setenv("SOFTCURVE_TEST_MARKER", str(tmp_path / "marker"))
     reason = " lacks the symbols dynamics_terms, potential_energy"
     with pytest.warns(CacheWarning, match=re.escape(str(cache) + reason)):
-        model = sc.Model(robot())
+        model = sc.Model(robot(), quadrature_nodes=NODES)
     assert not (tmp_path / "marker").exists()  # refused before the loader opened it
     assert rebuilds == [cache.parent] and cache.read_bytes() == intact[1]
     assert_close(model.forward_dynamics(Q, QD), intact[0].forward_dynamics(Q, QD), rtol=1e-12)

@@ -19,6 +19,8 @@ from softcurve.identification.fits._parameters import Free, FreeParameters
 from softcurve.identification.maps import bellows_input_map, curvature_map
 from softcurve.simulation.sensitivity import trajectory_sensitivities
 
+from .test_kinds import gripper, six_strain_segment
+
 NODES = 3  # quadrature nodes: a smaller expression, the same physics to check
 Q0 = np.array([0.064, 5.0, -2.0])
 QD0 = np.array([0.0, 40.0, 0.0])
@@ -100,15 +102,19 @@ def test_the_gradient_is_the_central_differences_one(model, bellows, reference):
         np.testing.assert_allclose(reference.by_name[name], difference, rtol=1e-4)
 
 
-def test_forward_sensitivities_give_the_adjoint_gradient(model, bellows, reference):
-    forward = sc.gradient(
-        model, cost, Q0, QD0, t=T, inputs=pressures(T), actuator=bellows, running=running,
-        method="forward", wrt=("x0", "inputs"),
-    )  # fmt: skip
+def test_forward_sensitivities_give_the_adjoint_gradient():
+    """On a coarser model (two quadrature nodes: forward sensitivities compile the
+    right-hand side's second derivative besides the first), along the initial state and
+    generalized forces that change at every sample."""
+    small = sc.Model(sc.presets.ifac2020(), quadrature_nodes=2, compile=False)
+    forces = 0.002 * np.sin(np.outer(T, [30.0, 50.0, 70.0]))  # [N, N m^2, N m^2]
+    options = dict(t=T, inputs=forces, running=running, wrt=("x0", "inputs"))
+    adjoint = sc.gradient(small, cost, Q0, QD0, **options)
+    forward = sc.gradient(small, cost, Q0, QD0, method="forward", **options)
     assert forward.method == "forward" and forward.parameters is None
-    np.testing.assert_allclose(forward.x0, reference.x0, rtol=1e-6, atol=1e-10)
-    np.testing.assert_allclose(forward.inputs, reference.inputs, rtol=1e-5, atol=1e-13)
-    assert forward.value == pytest.approx(reference.value, rel=1e-12)
+    np.testing.assert_allclose(forward.x0, adjoint.x0, rtol=1e-6, atol=1e-10)
+    np.testing.assert_allclose(forward.inputs, adjoint.inputs, rtol=1e-5, atol=1e-10)
+    assert forward.value == pytest.approx(adjoint.value, rel=1e-12)
 
 
 def test_the_trajectory_and_the_cost_are_those_simulate_integrates(model, bellows, reference):
@@ -195,6 +201,38 @@ def test_a_lagging_actuator_gradient_reaches_its_commands(model):
     shift[1, 0] = 10.0
     difference = (height(u + shift).value - height(u - shift).value) / 20.0
     np.testing.assert_allclose(g.inputs[1, 0], difference, rtol=1e-4)
+
+
+def test_a_chain_of_other_kinds_has_the_central_differences_gradient():
+    """A six-strain segment with creep carrying a rigid gripper (twist, shear, creep
+    states and a fixed placement): the gradient along the initial state and two
+    parameters, one of them the rigid body's mass."""
+    robot = sc.Robot(segments=(six_strain_segment(creep=True), gripper()))
+    chain = sc.Model(robot, compile=False, quadrature_nodes=2)
+    q0 = robot.rest_configuration() + np.array([5.0, -3.0, 4.0, 0.05, -0.02, 0.1])
+    t = np.linspace(0.0, 0.05, 6)
+
+    def reach(trajectory):
+        return trajectory.tip[0, -1] + trajectory.tip[2, -1]
+
+    def at(q=q0, parameters=None):
+        return sc.gradient(chain, reach, q, t=t, wrt="x0", parameters=parameters)
+
+    g = sc.gradient(chain, reach, q0, t=t, wrt=("x0", "parameters"))
+    assert g.success and g.x0.shape == (chain.n_state,)
+    for i, step in ((0, 1e-3), (2, 1e-3), (4, 1e-5)):  # bend, twist, shear
+        shift = np.eye(chain.n)[i] * step
+        difference = (at(q0 + shift).value - at(q0 - shift).value) / (2 * step)
+        np.testing.assert_allclose(g.x0[i], difference, rtol=1e-5, atol=1e-10)
+    for name in ("segments[1].mass", "segments[0].stretch_stiffness.k0"):
+        j = list(g.names).index(name)
+        p = chain.parameters.copy()
+        step = 1e-5 * abs(p[j])
+        p[j] += step
+        up = at(parameters=p).value
+        p[j] -= 2 * step
+        difference = (up - at(parameters=p).value) / (2 * step)
+        np.testing.assert_allclose(g.by_name[name], difference, rtol=1e-4, atol=1e-10)
 
 
 def test_a_trajectory_that_leaves_the_domain_gives_no_gradient(model):
