@@ -1,7 +1,8 @@
 """Gradients of rollouts (``sc.gradient``) against one forward simulation (``sc.simulate``)
 on the paper's case: preset ifac2020, q0 = (0.064, 25, 0), qd0 = (0, 0, 1500), 10 s.
 
-Run:  python benchmarks/bench_gradient.py [--intervals 1 100 1000] [--methods] [--repeat 3]
+Run:  python benchmarks/bench_gradient.py [--intervals 1 100 1000] [--repeat 3]
+      python benchmarks/bench_gradient.py --methods | --costs | --flags
 
 The cost is the integral of the squared coordinate rates over the 10 s (``running``,
 integrated with the state) plus the squared tip height at every output time; the
@@ -15,12 +16,18 @@ their ratio, the issue's target being 5x.
 
 ``--methods`` compares adjoint and forward sensitivities (``method=``) along the
 initial state alone (9 seeds) and along the parameters (49) on 100 intervals: what
-``GRADIENT_METHODS`` says.
+``GRADIENT_METHODS`` says. ``--costs`` times other costs on 100 intervals along the
+parameters and the initial state: the integral alone, the tip's height at the end, the
+squared state at every output time. ``--flags`` compiles the right-hand side with its
+first derivatives under ``DERIVATIVE_FLAGS`` and under the model's flags, each in an
+empty cache, and times a gradient on 100 intervals with each (``DERIVATIVE_FLAGS``).
 """
 
 from __future__ import annotations
 
 import argparse
+import os
+import tempfile
 import time
 
 import casadi as ca
@@ -28,6 +35,8 @@ import numpy as np
 from _timing import best_of  # benchmarks/_timing.py: a helper, not a benchmark
 
 import softcurve as sc
+from softcurve.compiled import _build as build
+from softcurve.control import _transcription as transcription
 
 Q0, QD0, DURATION = (0.064, 25.0, 0.0), (0.0, 0.0, 1500.0), 10.0
 TARGET_RATIO = 5.0
@@ -44,9 +53,46 @@ def running(x, u, p):
     return ca.sumsqr(x[3:6] / ca.DM([1.0, 1e3, 1e3]))
 
 
-def one_gradient(model, intervals: int, method: str = "auto", wrt=sc.control.WITH_RESPECT_TO):
+def one_gradient(
+    model, intervals: int, method: str = "auto", wrt=sc.control.WITH_RESPECT_TO, of=cost
+):
     t = np.linspace(0.0, DURATION, intervals + 1)
-    return sc.gradient(model, cost, Q0, QD0, t=t, running=running, method=method, wrt=wrt)
+    return sc.gradient(model, of, Q0, QD0, t=t, running=running, method=method, wrt=wrt)
+
+
+COSTS = {
+    "the integral alone": lambda trajectory: trajectory.integral[0, -1],
+    "the tip's height at the end": lambda trajectory: trajectory.tip[2, -1],
+    "the squared state at every output time": lambda trajectory: ca.sumsqr(trajectory.x),
+}
+
+
+def costs(model, repeat: int) -> None:
+    print("\n| cost (100 intervals, along parameters and x0) | gradient [s] |")
+    print("| --- | --- |")
+    for name, of in COSTS.items():
+
+        def run(of=of):
+            return one_gradient(model, 100, wrt=("parameters", "x0"), of=of)
+
+        run()
+        wall, _ = best_of(repeat, run)
+        print(f"| {name} | {wall:.3f} |")
+
+
+def flags(model, repeat: int) -> None:
+    print("\n| flags | compile [s] | gradient [s] (100 intervals) |")
+    print("| --- | --- | --- |")
+    for chosen in (transcription.DERIVATIVE_FLAGS, build.FUNCTION_FLAGS):
+        with tempfile.TemporaryDirectory() as folder:
+            os.environ["SOFTCURVE_CACHE_DIR"] = folder
+            transcription.DERIVATIVE_FLAGS = chosen
+            began = time.perf_counter()
+            sc.Transcription(model).compiled_rhs(1)
+            compiled = time.perf_counter() - began
+            one_gradient(model, 100, wrt=("parameters", "x0"))
+            wall, _ = best_of(repeat, lambda: one_gradient(model, 100, wrt=("parameters", "x0")))
+            print(f"| {' '.join(chosen)} | {compiled:.1f} | {wall:.3f} |")
 
 
 def main() -> None:
@@ -54,12 +100,20 @@ def main() -> None:
     parser.add_argument("--intervals", type=int, nargs="+", default=[1, 100, 1000])
     parser.add_argument("--repeat", type=int, default=3)
     parser.add_argument("--methods", action="store_true")
+    parser.add_argument("--costs", action="store_true")
+    parser.add_argument("--flags", action="store_true")
     args = parser.parse_args()
     model = sc.Model(sc.presets.ifac2020())
     sc.simulate(model, Q0, QD0)  # the driver compiled or loaded
     forward, run = best_of(5, lambda: sc.simulate(model, Q0, QD0))
     steps = run.stats["steps"]
     print(f"simulate, 10 s, 1 ms outputs: {1e3 * forward:.1f} ms (best of 5; {steps} steps)")
+    if args.costs:
+        costs(model, args.repeat)
+        return
+    if args.flags:
+        flags(model, args.repeat)
+        return
     if args.methods:
         print("\n| seeds | adjoint [s] | forward [s] |")
         print("| --- | --- | --- |")

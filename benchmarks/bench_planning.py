@@ -4,22 +4,26 @@ problem built and solved) and warm (solved again from the first plan), and each 
 inputs simulated forward by ``simulate`` at its default tolerances.
 
 Run:  python benchmarks/bench_planning.py [--intervals 15] [--methods collocation shooting]
+      [--hessians exact limited-memory]
+      python benchmarks/bench_planning.py --lbfgs-history 6 20 50
       python benchmarks/bench_planning.py --baselines
 
 The task: from rest straight up, the tip to (20, 0, 62) mm within 1 mm at 0.3 s and at
 rest there, the pressures within the bellows' bounds (0 to 100 kPa), a small effort
-weight (1e-3). It prints per method the wall time to the first plan (the Functions
-built, IPOPT's solve), the solve alone, IPOPT's iterations, the cost, the constraint
+weight (1e-3). It prints per method (and Hessian of the Lagrangian, ``--hessians``: the
+exact one by default) the wall time to the first plan (the Functions built, IPOPT's
+solve), the solve alone, IPOPT's iterations, the cost, the constraint
 violation, and the distance of the simulated tip from the planned one at the end; then
 the share of each solve that IPOPT's Hessian of the Lagrangian took.
 
-With ``--baselines`` it compares, on the same robot and bounds over 0.6 s, the plan's
-inputs (held at rest after the horizon) with the linear MPC (``ActuatorMPC``, 20 x 10 ms)
-and computed torque (``ComputedTorque`` through ``ActuatorDriven``, kp 400 1/s^2, kd
-40 1/s, 10 ms), both tracking the plan's final configuration from the start: the time
-after which the simulated tip stays within 1 mm of the goal, the tip's distance from the
-goal at 0.3 s, and the plan's own cost terms (the goal at 0.3 s, the effort over 0.3 s)
-evaluated on each run.
+With ``--lbfgs-history`` it solves the task with the limited-memory Hessian at each number
+of pairs (``LBFGS_HISTORY``). With ``--baselines`` it compares, on the same robot and
+bounds over 0.6 s, the plan's inputs (held at rest after the horizon) with the linear
+MPC (``ActuatorMPC``, 20 x 10 ms) and computed torque (``ComputedTorque`` through
+``ActuatorDriven``, kp 400 1/s^2, kd 40 1/s, 10 ms), both tracking the plan's final
+configuration from the start: the time after which the simulated tip stays within 1 mm
+of the goal, the tip's distance from the goal at 0.3 s, and the plan's own cost terms
+(the goal at 0.3 s, the effort over 0.3 s) evaluated on each run.
 """
 
 from __future__ import annotations
@@ -30,19 +34,20 @@ import time
 import numpy as np
 
 import softcurve as sc
+from softcurve.control import _planning as planning
 
 TARGET = np.array([0.02, 0.0, 0.062])
 """The tip's goal [m]."""
 
 
-def task(method: str, intervals: int, warm_start=None):
+def task(method: str, intervals: int, warm_start=None, hessian: str = "exact"):
     model = sc.Model(sc.presets.ifac2020())
     bellows = sc.PneumaticActuator.three_bellows(distance=0.01, area=2e-5, p_max=1e5)
     goal = sc.TipTarget(TARGET, tolerance=1e-3)
     return sc.optimize_trajectory(
         model, [0.064, 0.0, 0.0], actuator=bellows, horizon=0.3, intervals=intervals,
         targets=[goal], effort_weight=1e-3, rest_at_end=True, method=method,
-        warm_start=warm_start,
+        warm_start=warm_start, hessian=hessian,
     )  # fmt: skip
 
 
@@ -109,30 +114,46 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--intervals", type=int, default=15)
     parser.add_argument("--methods", nargs="+", default=list(sc.control.PLAN_METHODS))
+    parser.add_argument("--hessians", nargs="+", default=["exact"],
+                        choices=sc.control.PLAN_HESSIANS)  # fmt: skip
+    parser.add_argument("--lbfgs-history", type=int, nargs="+", default=None,
+                        help="limited-memory pairs to compare (LBFGS_HISTORY)")  # fmt: skip
     parser.add_argument("--baselines", action="store_true", help="against MPC and torque")
     args = parser.parse_args()
     if args.baselines:
         baselines(args.intervals)
         return
+    if args.lbfgs_history:
+        print("| limited-memory pairs | solve | iterations | cost |")
+        print("| --- | --- | --- | --- |")
+        for pairs in args.lbfgs_history:
+            planning.LBFGS_HISTORY = pairs
+            plan = task("collocation", args.intervals, hessian="limited-memory")
+            print(f"| {pairs} | {plan.solve_time:.1f} | {plan.iterations} | {plan.cost:.4g} |")
+        return
     print(f"reach task, {args.intervals} intervals of {300 / args.intervals:.3g} ms; times in s")
-    print("| method | first plan | solve | iterations | warm solve | warm iterations "
+    print("| method | Hessian | first plan | solve | iterations | warm solve | warm iterations "
           "| cost | violation | simulated tip off [mm] | status |")  # fmt: skip
-    print("| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |")
+    print("| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |")
     shares = {}
     for method in args.methods:
-        began = time.perf_counter()
-        plan = task(method, args.intervals)
-        first = time.perf_counter() - began
-        again = task(method, args.intervals, warm_start=plan)
-        run = plan.simulate()
-        tip = run.model.tip_pose(run.q[-1]).position
-        off = 1e3 * np.linalg.norm(tip - plan.tip[-1])
-        shares[method] = plan.timings["hessian"] / plan.solve_time
-        print(
-            f"| {method} | {first:.1f} | {plan.solve_time:.1f} | {plan.iterations} | "
-            f"{again.solve_time:.1f} | {again.iterations} | {plan.cost:.4g} | "
-            f"{plan.violation:.1e} | {off:.2f} | {plan.status.value} |"
-        )
+        for hessian in args.hessians:
+            if hessian == "limited-memory" and method == "shooting":
+                continue  # refused: collocation alone
+            began = time.perf_counter()
+            plan = task(method, args.intervals, hessian=hessian)
+            first = time.perf_counter() - began
+            again = task(method, args.intervals, warm_start=plan, hessian=hessian)
+            run = plan.simulate()
+            tip = run.model.tip_pose(run.q[-1]).position
+            off = 1e3 * np.linalg.norm(tip - plan.tip[-1])
+            if hessian == "exact":
+                shares[method] = plan.timings["hessian"] / plan.solve_time
+            print(
+                f"| {method} | {hessian} | {first:.1f} | {plan.solve_time:.1f} | "
+                f"{plan.iterations} | {again.solve_time:.1f} | {again.iterations} | "
+                f"{plan.cost:.4g} | {plan.violation:.1e} | {off:.2f} | {plan.status.value} |"
+            )
     print_shares(shares)
 
 

@@ -52,15 +52,15 @@ CHILD = """
 import json, sys, warnings
 import numpy as np, softcurve as sc
 warnings.simplefilter("always")
-model = sc.Model(sc.presets.ifac2020(creep=False), quadrature_nodes=3)
+model = sc.Model(sc.presets.ifac2020(creep=False), quadrature_nodes=int(sys.argv[2]))
 q, qd = json.loads(sys.argv[1])
 print(json.dumps(model.forward_dynamics(np.array(q), np.array(qd)).tolist()))
 """
 
 
 NODES = 3
-"""Quadrature nodes of the models here (the child's too): a library that compiles in a
-third of the default's time, what the cache does with it the same."""
+"""Quadrature nodes of the models here (the child's too): a smaller library than the
+default's, which compiles sooner; what the cache does with it is the same."""
 
 
 def robot() -> sc.Robot:
@@ -222,7 +222,7 @@ def _child(cache):
     as its exit code, not as pytest's), which must exit 0."""
     env = {**os.environ, "SOFTCURVE_CACHE_DIR": str(cache.parent)}
     child = subprocess.run(
-        [sys.executable, "-c", CHILD, json.dumps([Q.tolist(), QD.tolist()])],
+        [sys.executable, "-c", CHILD, json.dumps([Q.tolist(), QD.tolist()]), str(NODES)],
         env=env,
         capture_output=True,
         text=True,

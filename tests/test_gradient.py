@@ -103,9 +103,10 @@ def test_the_gradient_is_the_central_differences_one(model, bellows, reference):
 
 
 def test_forward_sensitivities_give_the_adjoint_gradient():
-    """On a coarser model (two quadrature nodes: forward sensitivities compile the
-    right-hand side's second derivative besides the first), along the initial state and
-    generalized forces that change at every sample."""
+    """Along the initial state and generalized forces that change at every sample, on a
+    model that is not compiled (the right-hand side and its derivatives in CasADi's
+    virtual machine: the compiled second derivatives are checked by
+    ``tests/test_planning.py``'s compiled collocation)."""
     small = sc.Model(sc.presets.ifac2020(), quadrature_nodes=2, compile=False)
     forces = 0.002 * np.sin(np.outer(T, [30.0, 50.0, 70.0]))  # [N, N m^2, N m^2]
     options = dict(t=T, inputs=forces, running=running, wrt=("x0", "inputs"))
@@ -245,6 +246,28 @@ def test_a_trajectory_that_leaves_the_domain_gives_no_gradient(model):
 
 
 @pytest.mark.parametrize(
+    ("q0", "qd0", "failing"), [(Q0, QD0, "CVode returned"), ([0.064, 0.0, 0.0], None, "CVodeB")]
+)
+def test_a_failing_integration_is_integration_failed_with_no_gradient(model, q0, qd0, failing):
+    """Gravity at 1e305 m/s^2 overflows CVODES: in the integration (moving) or, from rest,
+    in its adjoint. The result says so, without a gradient, and raises nothing."""
+    p = model.parameters.copy()
+    p[model.robot.parameter_names().index("gravity[2]")] = 1e305
+    g = sc.gradient(model, lambda tr: tr.tip[2, -1], q0, qd0, t=[0.0, 0.025], parameters=p)
+    assert g.status is Status.INTEGRATION_FAILED and "CVODES failed" in g.message
+    assert failing in g.message, g.message
+    assert np.isnan(g.parameters).all() and np.isnan(g.value)
+    assert g.x.shape == (2, model.n_state)
+
+
+def test_a_parameter_vector_is_checked_as_a_robot(model):
+    p = model.parameters.copy()
+    p[model.robot.parameter_names().index("segments[0].mass")] = -1.0
+    with pytest.raises(sc.ParameterError, match=r"parameters: .*mass"):
+        sc.gradient(model, lambda tr: tr.tip[2, -1], Q0, t=T, parameters=p)
+
+
+@pytest.mark.parametrize(
     ("change", "match"),
     [
         ({"t": [0.0, 0.1, 0.1]}, "increasing output times"),
@@ -273,14 +296,17 @@ def test_the_figure_draws_the_inputs_and_the_largest_parameters(reference):
 
 
 CONTROLS_REVERSE = """
+import sys
 import casadi as ca, numpy as np
+times = [float(a) for a in sys.argv[1:]]  # the output times
 x, u = ca.MX.sym("x", 2), ca.MX.sym("u")
 problem = {"x": x, "u": u, "ode": ca.vertcat(x[1], -x[0] + u)}
-step = ca.integrator("I", "cvodes", problem, 0.0, [0.5, 1.0])
-x0, U = ca.MX.sym("x0", 2), ca.MX.sym("U", 1, 2)
+step = ca.integrator("I", "cvodes", problem, 0.0, times)
+x0, U = ca.MX.sym("x0", 2), ca.MX.sym("U", 1, len(times))
 value = step(x0=x0, u=U)["xf"][0, -1] ** 2
 f = ca.Function("f", [x0, U], [value])
-print(f.reverse(1)([1, 0], [[0.3, 0.1]], f([1, 0], [[0.3, 0.1]]), 1.0))
+start, held = np.array([1.0, 0.0]), np.linspace(0.3, 0.1, len(times))[None, :]
+print(f.reverse(1)(start, held, f(start, held), 1.0))
 """
 
 
@@ -288,5 +314,12 @@ print(f.reverse(1)([1, 0], [[0.3, 0.1]], f([1, 0], [[0.3, 0.1]]), 1.0))
 def test_casadi_still_crashes_in_reverse_through_an_integrators_controls():
     """The pin behind ``gradient``'s integration per interval: where this passes no more,
     one integrator with the inputs as controls may serve held inputs too."""
-    done = subprocess.run([sys.executable, "-c", CONTROLS_REVERSE], capture_output=True)
-    assert done.returncode != 0
+
+    def run(*times):
+        return subprocess.run([sys.executable, "-c", CONTROLS_REVERSE, *map(str, times)],
+                              capture_output=True, text=True)  # fmt: skip
+
+    one = run(1.0)
+    assert one.returncode == 0, one.stderr  # one output time: the snippet is sound
+    two = run(0.5, 1.0)
+    assert two.returncode < 0, two.stderr  # two: killed by a signal, not an exception

@@ -13,6 +13,7 @@ from concurrent.futures import ThreadPoolExecutor
 
 import casadi as ca
 
+from softcurve.base.validation import ParameterError
 from softcurve.compiled import _build as build
 from softcurve.compiled import _cache as cache
 from softcurve.compiled._source import exact_external, load_external
@@ -56,9 +57,9 @@ def compile_function(
         Derivatives compiled with it, which an ``external`` of the library calls instead
         of finite differences: 1 its first, forward and reverse (CasADi's
         ``fwd1_<name>`` and ``adj1_<name>``, what an integrator's adjoint sensitivities
-        need), 2 also the forward derivative of the forward one (``fwd1_fwd1_<name>``,
-        what its forward sensitivities need). With 1 or 2 the default loader loads it
-        without finite differences.
+        need), 2 also the forward derivatives of both (``fwd1_fwd1_<name>`` and
+        ``fwd1_adj1_<name>``, what its forward sensitivities and an exact Hessian
+        need). With 1 or 2 the default loader loads it without finite differences.
 
     Returns
     -------
@@ -75,11 +76,13 @@ def compile_function(
     asked = None if flags is None else tuple(flags)
 
     if derivatives not in (0, 1, 2):
-        raise ValueError(f"derivatives must be 0, 1 or 2, got {derivatives!r}")
+        raise ParameterError(f"derivatives must be 0, 1 or 2, got {derivatives!r}")
     functions = {name: function}
     if derivatives:
         forward = function.forward(1)
-        extra = (forward, function.reverse(1)) + ((forward.forward(1),) if derivatives == 2 else ())
+        reverse = function.reverse(1)
+        second = (forward.forward(1), reverse.forward(1)) if derivatives == 2 else ()
+        extra = (forward, reverse, *second)
         functions.update((f.name(), f) for f in extra)
     loader = load or (exact_external if derivatives else load_external)
 
@@ -87,8 +90,8 @@ def compile_function(
         build.require_compiler(compiler)
         return build.compile_generated(functions, compiler, asked, ("-fPIC",))
 
-    key = _function_key(function, asked, derivatives)
-    if not build_new and cache.cached_library("function", key, (name,)) is None:
+    key = _function_key(function, asked, tuple(functions)[1:])
+    if not build_new and cache.cached_library("function", key, tuple(functions)) is None:
         return None
     try:
         _, loaded = cache.load_or_build(
@@ -97,7 +100,7 @@ def compile_function(
             make,
             lambda path: loader(path, name),
             stacklevel=2,
-            symbols=(name,),
+            symbols=tuple(functions),
             what=f"the function {name}",
         )
     except build.NoCompiler:
@@ -115,16 +118,13 @@ def compile_function(
 
 
 def _function_key(
-    function: ca.Function, asked: tuple[str, ...] | None, derivatives: int = 0
+    function: ca.Function, asked: tuple[str, ...] | None, derivatives: tuple[str, ...] = ()
 ) -> str:
     """The cache key of ``function`` compiled with the flags ``asked`` (None: the
-    default), with or without its ``derivatives``: the flags asked for, not those a
-    compiler accepted, so the key holds no compiler."""
+    default) and the derivatives named ``derivatives`` beside it: the flags asked for,
+    not those a compiler accepted, so the key holds no compiler."""
     flags_key = asked if asked is not None else ("default", build.FUNCTION_FLAGS)
-    parts = (function.serialize(), flags_key) + (
-        (f"derivatives {derivatives}",) if derivatives else ()
-    )
-    return build.cache_key("function", *parts)
+    return build.cache_key("function", function.serialize(), flags_key, *derivatives)
 
 
 def compile_functions(functions, flags: tuple[str, ...] | None = None, load=None) -> list:

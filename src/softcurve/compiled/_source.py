@@ -113,8 +113,9 @@ def load_external(path, name: str) -> ca.Function:
 @_loaded
 def exact_external(path, name: str) -> ca.Function:
     """The function ``name`` of the compiled library ``path`` as a CasADi ``external``
-    whose derivatives are the library's own ``fwd1_<name>`` and ``adj1_<name>``
-    (:func:`~softcurve.compiled.compile_function` with ``derivatives=True``).
+    whose derivatives are the library's own ``fwd1_<name>`` and ``adj1_<name>`` (and the
+    second ones, :func:`~softcurve.compiled.compile_function` with ``derivatives`` 1 or
+    2).
 
     Parameters
     ----------

@@ -10,6 +10,8 @@ from softcurve.control._gradient import WITH_RESPECT_TO as WITH_RESPECT_TO
 from softcurve.control._gradient import RolloutGradient as RolloutGradient
 from softcurve.control._gradient import RolloutSymbols as RolloutSymbols
 from softcurve.control._gradient import gradient as gradient
+from softcurve.control._planning import LBFGS_HISTORY as LBFGS_HISTORY
+from softcurve.control._planning import PLAN_HESSIANS as PLAN_HESSIANS
 from softcurve.control._planning import PLAN_METHODS as PLAN_METHODS
 from softcurve.control._planning import ConfigurationTarget as ConfigurationTarget
 from softcurve.control._planning import TipTarget as TipTarget
@@ -19,6 +21,8 @@ from softcurve.control._transcription import Transcription as Transcription
 
 __all__ = [
     "GRADIENT_METHODS",
+    "LBFGS_HISTORY",
+    "PLAN_HESSIANS",
     "PLAN_METHODS",
     "WITH_RESPECT_TO",
     "ConfigurationTarget",

@@ -6,12 +6,12 @@ The cost is written by the user in CasADi symbols of the whole trajectory
 the parameters, and the running integrals of an integrand), so it is differentiated
 exactly along with the integration. The integration is CVODES's (through CasADi's
 ``integrator``) over the robot's actuated right-hand side
-(:attr:`Transcription.rhs <softcurve.control.Transcription.rhs>`) in the state scaled as
-``simulate`` scales it, compiled with its first derivatives
-(:func:`softcurve.compiled.compile_function`, ``derivatives``). Its derivative along the
-robot's parameters, the initial state and the input samples is CVODES's adjoint (one
-backward pass for every seed at once, with the forward pass checkpointed) or its forward
-sensitivities (one column per seed): :data:`GRADIENT_METHODS`.
+(:meth:`Transcription.compiled_rhs <softcurve.control.Transcription.compiled_rhs>`,
+compiled with its first derivatives) in the state scaled as ``simulate`` scales it. Its
+derivative along the robot's parameters, the initial state and the input samples is
+CVODES's adjoint (one backward pass for every seed at once, with the forward pass
+checkpointed) or its forward sensitivities (one column per seed):
+:data:`GRADIENT_METHODS`.
 
 The inputs are held between samples, as ``simulate`` holds a grid of inputs: row ``k``
 acts on ``[t_k, t_(k+1))``, so the last row acts on nothing and its gradient is zero.
@@ -28,8 +28,8 @@ import numpy as np
 
 from softcurve.base.status import Result, Status
 from softcurve.base.validation import ParameterError, float_array, real_array
-from softcurve.compiled import compile_function
 from softcurve.control._transcription import Transcription
+from softcurve.simulation.sensitivity import SENSITIVITY_CVODES
 from softcurve.simulation.solvers import (
     actuator_exit,
     cvodes_options,
@@ -42,8 +42,8 @@ GRADIENT_METHODS = ("adjoint", "forward")
 """How :func:`gradient` differentiates; ``"auto"`` takes the first. Adjoint: one backward
 pass for all seeds. Forward: one sensitivity column per seed, and a second derivative of
 the right-hand side compiled besides the first. On the paper robot's 10 s swing at 100
-output intervals, along the initial state (9 seeds) 1.33 s by adjoint against 2.90 s
-forward, along the 49 parameters 1.32 s against 15.1 s (``python
+output intervals, along the initial state (9 seeds) 1.43 s by adjoint against 3.15 s
+forward, along the 49 parameters 1.39 s against 15.0 s (``python
 benchmarks/bench_gradient.py --methods``): adjoint from the smallest group of seeds on,
 so the counts never favour forward; it stays as the independent check of the adjoint
 (``tests/test_gradient.py``)."""
@@ -55,28 +55,22 @@ input samples."""
 
 GRADIENT_TOLERANCES = (1e-10, 1e-12)
 """CVODES's ``(rtol, atol)`` of :func:`gradient`, ``atol`` of the scaled state (each
-state over its nominal size, ``softcurve.simulation.solvers.state_scale``). The adjoint
-is that of the continuous equations, integrated backward over an interpolation of the
-forward pass, so it is the gradient of the integrated cost to about the tolerance: on
-``tests/test_gradient.py``'s case, at the fits' (1e-8, 1e-10) the adjoint and forward
-sensitivities differed by 1e-5 relative along the segment's length, at these by 1.4e-7,
-for 1.5 times the time."""
+state over its nominal size, ``softcurve.simulation.solvers.state_scale``). Tighter than
+the fits' (``softcurve.simulation.sensitivity.SENSITIVITY_CVODES``, 1e-8 and 1e-10):
+the adjoint is that of the continuous equations, integrated backward over an
+interpolation of the forward pass, so it is the gradient of the integrated cost to about
+the tolerance; at these the adjoint and forward sensitivities agree to 1e-6 and central
+differences to 1e-5 (``tests/test_gradient.py``)."""
 
-MAX_STEPS = 100_000
-"""CVODES's internal steps allowed between two output times."""
-
-DERIVATIVE_FLAGS = ("-O1",)
-"""The compiler's flags of the right-hand side and its derivatives: on the paper robot
-they compile in 6.6 s against 22.9 s with the model's flags, for gradients 18 % slower
-(1.08 s against 0.92 s on 100 intervals), so the first gradient comes 16 s sooner and a
-hundred cost what they would otherwise (measured by swapping the flags under
-``benchmarks/bench_gradient.py``'s case)."""
+MAX_STEPS = SENSITIVITY_CVODES["max_num_steps"]
+"""CVODES's internal steps allowed between two output times: the fits' budget."""
 
 
 @dataclass(frozen=True, eq=False)
 class RolloutSymbols:
     """The trajectory that :func:`gradient`'s cost is written in, as CasADi symbols (MX):
-    combine them with CasADi's operations into one scalar.
+    combine them with CasADi's operations into one scalar. Besides the attributes, the
+    properties :attr:`q`, :attr:`qd`, :attr:`tip` and :attr:`integral`.
 
     Attributes
     ----------
@@ -85,12 +79,11 @@ class RolloutSymbols:
     x : casadi.MX, shape (n_x, T)
         The state at every output time (``simulate``'s layout; the lagging inputs last).
     u : casadi.MX, shape (n_u, T)
-        The input samples, row ``k`` of the inputs held from ``t_k``.
+        The input samples, column ``k`` the inputs held from ``t_k``.
     p : casadi.MX, shape (n_p,)
         The model's parameter vector.
-    integral : casadi.MX, shape (k, T)
-        The integral of ``running`` from ``t_0`` to every output time (zero at ``t_0``);
-        an error where :func:`gradient` got no ``running``.
+    running_integral : casadi.MX, shape (k, T) or None
+        What :attr:`integral` returns; None where :func:`gradient` got no ``running``.
     transcription : Transcription
         The robot's Functions (its :attr:`~Transcription.tip`, :attr:`~Transcription.domain`).
     """
@@ -120,7 +113,8 @@ class RolloutSymbols:
 
     @property
     def integral(self) -> ca.MX:
-        """The running integrals, shape (k, T) (see the class)."""
+        """The integrals of ``running`` from ``t_0`` to every output time (zero at
+        ``t_0``), shape (k, T); an error where :func:`gradient` got no ``running``."""
         if self.running_integral is None:
             raise ParameterError("trajectory.integral needs gradient(..., running=...)")
         return self.running_integral
@@ -134,8 +128,9 @@ class RolloutGradient(Result):
     ----------
     status : Status
         SUCCESS; LEFT_DOMAIN where the trajectory leaves the model's or the actuator's
-        domain at an output time (no gradient then: NaN); INTEGRATION_FAILED where CVODES
-        stopped.
+        domain at an output time (checked at the output times, as ``simulate`` checks
+        its outputs: give times as dense as the check should be), with no gradient (NaN);
+        INTEGRATION_FAILED where CVODES stopped, in the integration or its derivative.
     message : str
         What happened.
     value : float
@@ -151,7 +146,8 @@ class RolloutGradient(Result):
         ``d value / d x0`` [per unit of each state].
     inputs : ndarray, shape (T, n_u) or None
         ``d value / d u_k`` [per unit of each input], row ``k`` the sample held from
-        ``t_k`` (the last row zero: it acts on nothing).
+        ``t_k`` (the last row acts on the trajectory nowhere: zero unless the cost reads
+        it).
     method : str
         One of :data:`GRADIENT_METHODS`.
     reason : str
@@ -282,16 +278,6 @@ def _wrt(wrt) -> tuple:
     return wrt
 
 
-def _compiled_rhs(tr: Transcription, order: int) -> ca.Function:
-    """``rhs(x, u, p) -> xdot`` compiled with its derivatives up to what the method needs
-    (``order`` of :func:`softcurve.compiled.compile_function`'s ``derivatives``), cached
-    with the model's libraries."""
-    x, u, p = (ca.SX.sym(name, size) for name, size in
-               (("x", tr.n_x), ("u", tr.n_u), ("p", tr.parameters.size)))  # fmt: skip
-    rhs = ca.Function("softcurve_actuated_rhs", [x, u, p], [tr.rhs_sx(x, u, p)])
-    return compile_function(rhs, flags=DERIVATIVE_FLAGS, derivatives=order)
-
-
 def gradient(
     model,
     cost,
@@ -340,7 +326,8 @@ def gradient(
     running : callable(x, u, p) -> casadi.SX, optional
         An integrand of the state (n_x,), the inputs (n_u,) and the parameters (n_p,),
         shape (k,); its integrals are ``trajectory.integral``, integrated by CVODES with
-        the state (exact, not a sum over the output times).
+        the state and under its error test (not a sum over the output times). The tip is
+        ``sc.Transcription(model).tip(x, p)``.
     wrt : str or sequence of str
         What to differentiate along, among :data:`WITH_RESPECT_TO` (default all).
     method : {"auto", "adjoint", "forward"}
@@ -348,7 +335,8 @@ def gradient(
     parameters : array_like, shape (n_p,), optional
         The parameter vector to integrate and differentiate at, each entry in its unit
         (``Robot.parameter_names()``; default ``model.parameters``): an optimizer's
-        iterate, without a model built for it.
+        iterate, without a model built for it. Checked as a robot is built (every field
+        in its range), and the domain checked with its rest lengths.
 
     Returns
     -------
@@ -364,20 +352,21 @@ def gradient(
     >>> g.success, g.x0.shape
     (True, (9,))
     """
+    # everything checked before any work (the compile of the right-hand side)
     t = _times(t)
     tr = Transcription(model, actuator)
     x0 = tr.start(q0, qd0, lam0, actuator_state)
     samples = _samples(inputs, tr, t.size)
     wrt = _wrt(wrt)
     chosen, reason = _method(method)
-    if not callable(cost) or (running is not None and not callable(running)):
-        raise ParameterError("cost (and running) must be callables of the trajectory's symbols")
-
+    robot, p_value = _robot_at(tr, parameters, x0)
+    integrand = None if running is None else _integrand(running, tr)
+    if not callable(cost):
+        raise ParameterError("cost must be a callable of the trajectory's symbols")
     start, samples_sym, params = (ca.MX.sym(name, *shape) for name, shape in (
         ("x0", (tr.n_x,)), ("u", (tr.n_u, t.size)), ("p", (tr.parameters.size,))))  # fmt: skip
     arguments = [params, start, samples_sym]
-    held = "inputs" in wrt or not np.all(samples[:-1] == samples[0])
-    states, integrals = _rollout(tr, x0, t, running, chosen, held)(*arguments)
+    k = 0 if integrand is None else integrand.size1_out(0)
 
     def cost_of(states, integral):
         """The cost in the trajectory's symbols ``states`` (n_x, T), ``integral``."""
@@ -389,49 +378,82 @@ def gradient(
             )
         return ca.MX(value)
 
-    trajectory = ca.Function("rollout", arguments, [states, integrals])
     # the cost of given states (evaluated on the numbers of the integration), and through
     # the integration (differentiated)
-    free = ca.MX.sym("X", *states.shape), ca.MX.sym("Q", *integrals.shape)
-    integrated = running is not None
+    free = ca.MX.sym("X", tr.n_x, t.size), ca.MX.sym("Q", k, t.size)
+    integrated = integrand is not None
     of_states = ca.Function(
         "rollout_cost", [*arguments, *free], [cost_of(free[0], free[1] if integrated else None)]
     )
+    held = "inputs" in wrt or not np.all(samples[:-1] == samples[0])
+    states, integrals = _rollout(tr, x0, t, integrand, chosen, held)(*arguments)
+    trajectory = ca.Function("rollout", arguments, [states, integrals])
     value_only = ca.Function(
         "rollout_value", arguments, [cost_of(states, integrals if integrated else None)]
     )
 
     names = tuple(model.robot.parameter_names())
-    p_value = tr.parameters
-    if parameters is not None:
-        p_value = np.array(real_array("parameters", parameters, p_value.shape))
     numbers = [p_value, x0, samples.T]
     began = time.perf_counter()
+    failed = {"t": t, "tr": tr, "method": chosen, "reason": reason, "names": names,
+              "at": p_value, "began": began}  # fmt: skip
     try:
         x, quadratures = (np.array(a) for a in trajectory(*numbers))
     except RuntimeError as error:
-        return _failed(Status.INTEGRATION_FAILED, f"CVODES failed: {str(error).splitlines()[-1]}",
-                       t, tr, chosen, reason, names, p_value, began)  # fmt: skip
-    problem_text = _domain_problem(tr, t, x.T)
+        return _failed(Status.INTEGRATION_FAILED, _cvodes_failed(error), **failed)
+    problem_text = _domain_problem(tr, robot, t, x.T)
     if problem_text is not None:
-        return _failed(
-            Status.LEFT_DOMAIN, problem_text, t, tr, chosen, reason, names, p_value, began, x.T
-        )
+        return _failed(Status.LEFT_DOMAIN, problem_text, x=x.T, **failed)
     cost_value = float(of_states(*numbers, x, quadratures))
-    if chosen == "adjoint":
-        seeds = value_only.reverse(1)(*numbers, cost_value, 1.0)
-        d_p, d_x0, d_u = (np.array(s) for s in seeds)
-    else:
-        d_p, d_x0, d_u = _forward(value_only, numbers, cost_value, wrt)
+    try:
+        if chosen == "adjoint":
+            seeds = value_only.reverse(1)(*numbers, cost_value, 1.0)
+            d_p, d_x0, d_u = (np.array(s) for s in seeds)
+        else:
+            d_p, d_x0, d_u = _forward(value_only, numbers, cost_value, wrt)
+    except RuntimeError as error:
+        return _failed(Status.INTEGRATION_FAILED, _cvodes_failed(error), x=x.T, **failed)
     asked = dict(zip(WITH_RESPECT_TO, (d_p.ravel(), d_x0.ravel(), d_u.T), strict=True))
     return RolloutGradient(
         Status.SUCCESS, f"the gradient of the cost along {', '.join(wrt)}", cost_value,
-        t, x.T, *(asked[w] if w in wrt else None for w in WITH_RESPECT_TO), chosen, reason,
-        names, p_value, time.perf_counter() - began, tr,
+        _frozen(t), _frozen(x.T), *(_frozen(asked[w]) if w in wrt else None
+                                    for w in WITH_RESPECT_TO),
+        chosen, reason, names, _frozen(p_value), time.perf_counter() - began, tr,
     )  # fmt: skip
 
 
-def _rollout(tr: Transcription, x0, t, running, method, held: bool) -> ca.Function:
+def _robot_at(tr: Transcription, parameters, x0) -> tuple:
+    """``(robot, p)``: the robot of the parameter vector asked for (default the model's),
+    checked as a robot is built (every field in its range), and the start inside its
+    domain and the actuator laid along it."""
+    robot, p_value = tr.model.robot, tr.parameters
+    if parameters is None:
+        return robot, p_value
+    p_value = np.array(real_array("parameters", parameters, p_value.shape))
+    try:
+        robot = robot.with_parameter_vector(p_value)
+        robot.check_configuration(x0[: robot.n], "q0")
+        if tr.actuator is not None:
+            tr.actuator.check_robot(robot)
+    except ParameterError as error:
+        raise ParameterError(f"parameters: {error}") from None
+    return robot, p_value
+
+
+def _cvodes_failed(error: RuntimeError) -> str:
+    """What CVODES said, its last line (CasADi's traceback before it)."""
+    lines = str(error).strip().splitlines()
+    return f"CVODES failed: {lines[-1] if lines else 'no message'}"
+
+
+def _frozen(array) -> np.ndarray:
+    """A read-only copy of ``array``: the result's arrays are its own."""
+    copy = np.array(array, dtype=np.float64)
+    copy.setflags(write=False)
+    return copy
+
+
+def _rollout(tr: Transcription, x0, t, integrand, method, held: bool) -> ca.Function:
     """``(p, x0, U) -> (X (n_x, T), Q (k, T))``: the states at the output times and the
     running integrals, integrated by CVODES.
 
@@ -441,20 +463,19 @@ def _rollout(tr: Transcription, x0, t, running, method, held: bool) -> ca.Functi
     time ``s = (t - t_k) / h_k``, its length ``h_k`` and its held inputs among the
     integrator's parameters, so one integrator serves every interval. Otherwise one
     integration runs through every output time, the inputs ``U[:, 0]`` among its
-    parameters, without the restarts: on ``benchmarks/bench_gradient.py``'s case, 1.2 and
-    2.3 times faster at 100 and 1,000 intervals than the integration per interval (which
-    that benchmark times with the inputs' seeds too). The inputs are never the
+    parameters, without the restarts. The inputs are never the
     integrator's controls: CasADi 3.8.2's reverse mode of an integrator with controls and
     more than one output time crashes (``tests/test_gradient.py`` pins that)."""
     model, n_x, n_u, n_p = tr.model, tr.n_x, tr.n_u, tr.parameters.size
     scale = ca.DM(state_scale(model, x0[: model.n_state], tr.inputs))
-    rhs = _compiled_rhs(tr, 2 if method == "forward" else 1)
+    rhs = tr.compiled_rhs(2 if method == "forward" else 1)
     z, w = ca.MX.sym("z", n_x), ca.MX.sym("w", n_u + n_p + 1)
     u, p, h = w[:n_u], w[n_u : n_u + n_p], w[-1]
     problem = {"x": z, "p": w, "ode": h * rhs(scale * z, u, p) / scale}
-    if running is not None:
-        problem["quad"] = h * _integrand(running, tr)(scale * z, u, p)
     options = cvodes_options("adams", *GRADIENT_TOLERANCES, MAX_STEPS, max_order=None)
+    if integrand is not None:
+        problem["quad"] = h * integrand(scale * z, u, p)
+        options["quad_err_con"] = True  # the integral as accurate as the state
     start, samples, params = ca.MX.sym("x0", n_x), ca.MX.sym("u", n_u, t.size), ca.MX.sym("p", n_p)
     if held:
         one = ca.integrator("interval", "cvodes", problem, 0.0, 1.0, options)
@@ -504,22 +525,23 @@ def _forward(function: ca.Function, numbers, value: float, wrt) -> tuple:
     return tuple(parts)
 
 
-def _domain_problem(tr: Transcription, t: np.ndarray, x: np.ndarray) -> str | None:
-    model = tr.model
-    states = x[:, : model.n_state]
-    outside = outside_domain(states, model.robot)
+def _domain_problem(tr: Transcription, robot, t: np.ndarray, x: np.ndarray) -> str | None:
+    """Why the trajectory ``x`` (T, n_x) leaves the domain of ``robot`` or the actuator at
+    an output time, or None."""
+    states = x[:, : tr.model.n_state]
+    outside = outside_domain(states, robot)
     if outside.any():
         k = int(np.argmax(outside))
-        return domain_reason(states[k], model.robot, float(t[k]))
-    exit_ = actuator_exit(tr.actuator, t, states[:, : model.n])
+        return domain_reason(states[k], robot, float(t[k]))
+    exit_ = actuator_exit(tr.actuator, t, states[:, : robot.n])
     return None if exit_ is None else exit_[1]
 
 
-def _failed(status, message, t, tr, method, reason, names, at, began, x=None) -> RolloutGradient:
+def _failed(status, message, *, t, tr, method, reason, names, at, began, x=None):
+    """A result without a gradient (NaN), its trajectory as far as it is known."""
     x = np.full((t.size, tr.n_x), np.nan) if x is None else x
-    nan = np.full(tr.parameters.size, np.nan)
+    nan = [np.full(shape, np.nan) for shape in (at.size, tr.n_x, (t.size, tr.n_u))]
     return RolloutGradient(
-        status, message, float("nan"), t, x, nan, np.full(tr.n_x, np.nan),
-        np.full((t.size, tr.n_u), np.nan), method, reason, names, at,
-        time.perf_counter() - began, tr,
+        status, message, float("nan"), _frozen(t), _frozen(x), *map(_frozen, nan), method,
+        reason, names, _frozen(at), time.perf_counter() - began, tr,
     )  # fmt: skip

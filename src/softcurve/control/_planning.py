@@ -8,13 +8,14 @@ transcriptions of the dynamics are built, one per ``method``:
 
 - ``"collocation"`` (direct collocation): the states at the nodes and the three stage
   increments of each step are unknowns, tied by the Radau IIA collocation equations
-  (:attr:`Transcription.collocation`);
+  (:meth:`Transcription.compiled_collocation`);
 - ``"shooting"`` (direct multiple shooting): the states at the nodes are unknowns, tied
   by ``x_(k+1) = step(x_k, u_k, p, h)`` (:attr:`Transcription.step`, its stages solved by
   Newton's method inside every evaluation).
 
 Both are the same discrete scheme, so both reach the same optimum; :data:`PLAN_METHODS`
-says which is the default and why.
+says which is the default and why. IPOPT approximates the Hessian of the Lagrangian by
+L-BFGS, or takes it exact (:data:`PLAN_HESSIANS`).
 
 The unknowns are scaled so that IPOPT sees entries of order one: the states by the
 nominal scale of the start (``softcurve.simulation.solvers.nominal_scale``), the inputs
@@ -43,13 +44,33 @@ from softcurve.simulation.solvers import (
     outside_domain,
 )
 
+PLAN_HESSIANS = ("exact", "limited-memory")
+"""The Hessians of the Lagrangian that :func:`optimize_trajectory` gives IPOPT; the first
+is the default. Direct collocation runs on the compiled right-hand side
+(:meth:`Transcription.compiled_collocation`): ``"exact"`` with its first and second
+derivatives in C, ``"limited-memory"`` with its first alone and IPOPT's L-BFGS
+approximation of the Hessian (:data:`LBFGS_HISTORY` pairs). On the reach task of
+docs/planning.md (15 intervals, the paper's robot, tolerance 1e-8; ``python
+benchmarks/bench_planning.py --methods collocation --hessians exact limited-memory``):
+exact 2.6 s and 44 iterations, limited-memory 1.9 s and 95, the same cost; the first
+plan, its derivatives compiled, 24.1 s and 9.5 s. Exact is the default: its iterations
+do not grow with the problem's conditioning and tolerance as L-BFGS's do
+(``tests/test_planning.py``'s smaller reach needs a looser tolerance to converge with
+the approximation), and a robot's second derivatives compile once (cached on disk)."""
+
+LBFGS_HISTORY = 20
+"""Pairs of IPOPT's limited-memory Hessian (``limited_memory_max_history``): on the
+reach task 6 pairs (IPOPT's default) ran out of its 300 iterations, 20 took 95 (1.9 s),
+50 took 174 (4.8 s) (``python benchmarks/bench_planning.py --lbfgs-history 6 20 50``)."""
+
 PLAN_METHODS = ("collocation", "shooting")
 """The transcriptions of :func:`optimize_trajectory`; the first is the default. Both
-reach the same plan, collocation 21 times faster: IPOPT sees the collocation equations
-and their exact second derivatives, where multiple shooting sees each step through a
-Newton solve, solved and differentiated at every evaluation. On the reach task of
-docs/planning.md (15 intervals, the paper's robot): 17.3 s and 47 iterations against
-370 s and 53 (``python benchmarks/bench_planning.py``)."""
+reach the same plan: IPOPT sees the collocation equations and their exact second
+derivatives, compiled (:data:`PLAN_HESSIANS`), where multiple shooting sees each step
+through a Newton solve, solved and differentiated in CasADi's virtual machine at every
+evaluation. On the reach task of docs/planning.md (15 intervals, the paper's robot):
+collocation 2.6 s and 44 iterations, shooting 375 s and 53 (``python
+benchmarks/bench_planning.py``)."""
 
 
 @dataclass(frozen=True)
@@ -165,6 +186,8 @@ class TrajectoryPlan(Result):
         Wall time of the solve [s] (the problem's construction excluded).
     method : str
         The transcription, one of :data:`PLAN_METHODS`.
+    hessian : str
+        The Hessian IPOPT used, one of :data:`PLAN_HESSIANS`.
     binding : str
         The constraint group that binds most (:func:`optimize_trajectory`'s message
         names it), e.g. ``"rest at the end"``; "" where none is active.
@@ -193,6 +216,7 @@ class TrajectoryPlan(Result):
     optimality: float
     solve_time: float
     method: str
+    hessian: str
     binding: str
     transcription: Transcription = field(repr=False, compare=False)
     stages: np.ndarray = field(repr=False, compare=False)
@@ -373,6 +397,7 @@ def optimize_trajectory(
     clearance: float | None = None,
     tip_bounds=None,
     method: str = PLAN_METHODS[0],
+    hessian: str = PLAN_HESSIANS[0],
     warm_start: TrajectoryPlan | None = None,
     max_iterations: int = 300,
     tolerance: float = 1e-8,
@@ -437,6 +462,9 @@ def optimize_trajectory(
         ``(lower, upper)`` (3,) each: a box [m] the tip stays in at every node.
     method : {"collocation", "shooting"}
         The transcription (:data:`PLAN_METHODS`).
+    hessian : {"exact", "limited-memory"}
+        The Hessian of the Lagrangian IPOPT uses (:data:`PLAN_HESSIANS`); limited-memory
+        with collocation alone.
     warm_start : TrajectoryPlan, optional
         A plan of the same problem size whose states, stages, inputs and final time start
         the iteration (default: the start held, the rest inputs).
@@ -466,6 +494,13 @@ def optimize_trajectory(
     """
     if method not in PLAN_METHODS:
         raise ParameterError(f"method must be one of {', '.join(PLAN_METHODS)}, got {method!r}")
+    if hessian not in PLAN_HESSIANS:
+        raise ParameterError(f"hessian must be one of {', '.join(PLAN_HESSIANS)}, got {hessian!r}")
+    if hessian == "limited-memory" and method == "shooting":
+        raise ParameterError(
+            "hessian='limited-memory' needs method='collocation': shooting's Newton solves "
+            "of its steps fail at the approximation's trial points"
+        )
     if not (isinstance(intervals, int | np.integer) and intervals >= 1):
         raise ParameterError(f"intervals must be an integer >= 1, got {intervals!r}")
     if not (isinstance(max_iterations, int | np.integer) and max_iterations >= 1):
@@ -553,7 +588,7 @@ def optimize_trajectory(
     constraints = _Constraints()
     if method == "collocation":
         Z = Zs * ca.DM(x_scale)
-        mapped = tr.collocation.map(K)
+        mapped = tr.compiled_collocation(2 if hessian == "exact" else 1).map(K)
         residual, following = mapped(X[:, :K], Z, U, P, h)
         constraints.add("dynamics", residual / ca.DM(x_scale), 0.0, 0.0)
     else:
@@ -634,6 +669,9 @@ def optimize_trajectory(
         "ipopt.max_iter": int(max_iterations), "ipopt.tol": float(tolerance),
         "ipopt.print_level": 0, "ipopt.sb": "yes", "print_time": False,
     }  # fmt: skip
+    if hessian == "limited-memory":
+        options["ipopt.hessian_approximation"] = "limited-memory"
+        options["ipopt.limited_memory_max_history"] = LBFGS_HISTORY
     duals = {}
     if warm_start is not None:  # begin at the plan's primal and dual point, barrier small
         sizes = tuple(m.size for m in warm_start.multipliers)
@@ -659,7 +697,9 @@ def optimize_trajectory(
     # -- the result ----------------------------------------------------------------------
     values = np.array(solution["x"]).ravel()
     x_plan = values[: n_x * (K + 1)].reshape(K + 1, n_x) * x_scale
-    u_plan = values[u_rows].reshape(K, n_u) * span + offset
+    # IPOPT relaxes its bounds by 1e-8 of their size (bound_relax_factor): the inputs
+    # are put back inside, where simulate takes them
+    u_plan = np.clip(values[u_rows].reshape(K, n_u) * span + offset, lower_u, upper_u)
     z_plan = (values[u_rows.stop : u_rows.stop + Zs.numel()].reshape(K * stages, n_x)
               * x_scale) if method == "collocation" else np.zeros((0, n_x))  # fmt: skip
     horizon_value = values[-1] * t_high if free else t_high
@@ -686,7 +726,7 @@ def optimize_trajectory(
     return TrajectoryPlan(
         status, message, t_plan, x_plan, u_plan, tip_plan,
         float(solution["f"]), int(stats.get("iter_count", 0)), violation, optimality,
-        solve_time, method, binding, tr, z_plan,
+        solve_time, method, hessian, binding, tr, z_plan,
         (np.array(solution["lam_x"]).ravel(), np.array(solution["lam_g"]).ravel()),
         {name: float(stats.get(f"t_wall_nlp_{key}", 0.0)) for name, key in TIMED.items()},
     )  # fmt: skip

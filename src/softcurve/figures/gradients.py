@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from softcurve.base.validation import ParameterError
 from softcurve.figures.drawing import panels
 from softcurve.figures.shapes import input_label
 
@@ -36,8 +37,8 @@ def gradient_figure(t, inputs, relative, names, actuator, largest=10, title=None
     -------
     matplotlib.figure.Figure
     """
-    if int(largest) < 1:
-        raise ValueError(f"largest must be >= 1, got {largest!r}")
+    if not (isinstance(largest, int | np.integer) and largest >= 1):
+        raise ParameterError(f"largest must be an integer >= 1, got {largest!r}")
     figure, (top, bottom) = panels(ax, 2, "the gradient figure", figsize=(7.0, 6.0))
     label, factor = ("generalized forces", 1.0) if actuator is None else input_label(actuator)
     if inputs is not None:
