@@ -108,8 +108,9 @@ def test_forward_sensitivities_give_the_adjoint_gradient():
     virtual machine: the compiled second derivatives are checked by
     ``tests/test_planning.py``'s compiled collocation)."""
     small = sc.Model(sc.presets.ifac2020(), quadrature_nodes=2, compile=False)
-    forces = 0.002 * np.sin(np.outer(T, [30.0, 50.0, 70.0]))  # [N, N m^2, N m^2]
-    options = dict(t=T, inputs=forces, running=running, wrt=("x0", "inputs"))
+    t = T[:3]
+    forces = 0.002 * np.sin(np.outer(t, [30.0, 50.0, 70.0]))  # [N, N m^2, N m^2]
+    options = dict(t=t, inputs=forces, running=running, wrt=("x0", "inputs"))
     adjoint = sc.gradient(small, cost, Q0, QD0, **options)
     forward = sc.gradient(small, cost, Q0, QD0, method="forward", **options)
     assert forward.method == "forward" and forward.parameters is None

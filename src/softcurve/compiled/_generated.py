@@ -53,13 +53,15 @@ def compile_function(
     build_new : bool
         Compile it when the cache does not hold it (default); with False, return None
         instead (nothing is built).
-    derivatives : {0, 1, 2}
+    derivatives : {0, 1, 2, 3}
         Derivatives compiled with it, which an ``external`` of the library calls instead
         of finite differences: 1 its first, forward and reverse (CasADi's
         ``fwd1_<name>`` and ``adj1_<name>``, what an integrator's adjoint sensitivities
-        need), 2 also the forward derivatives of both (``fwd1_fwd1_<name>`` and
-        ``fwd1_adj1_<name>``, what its forward sensitivities and an exact Hessian
-        need). With 1 or 2 the default loader loads it without finite differences.
+        and a constraint Jacobian need); 2 also the forward derivative of the reverse one
+        (``fwd1_adj1_<name>``, what an exact Hessian needs); 3 also that of the forward
+        one (``fwd1_fwd1_<name>``, what an integrator's forward sensitivities need); each
+        level compiles longer. With 1 or more the default loader loads it without finite
+        differences.
 
     Returns
     -------
@@ -75,13 +77,13 @@ def compile_function(
     name = function.name()
     asked = None if flags is None else tuple(flags)
 
-    if derivatives not in (0, 1, 2):
-        raise ParameterError(f"derivatives must be 0, 1 or 2, got {derivatives!r}")
+    if derivatives not in (0, 1, 2, 3):
+        raise ParameterError(f"derivatives must be 0, 1, 2 or 3, got {derivatives!r}")
     functions = {name: function}
     if derivatives:
         forward = function.forward(1)
         reverse = function.reverse(1)
-        second = (forward.forward(1), reverse.forward(1)) if derivatives == 2 else ()
+        second = (reverse.forward(1), forward.forward(1))[: derivatives - 1]
         extra = (forward, reverse, *second)
         functions.update((f.name(), f) for f in extra)
     loader = load or (exact_external if derivatives else load_external)

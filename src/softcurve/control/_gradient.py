@@ -40,8 +40,8 @@ from softcurve.simulation.solvers import (
 
 GRADIENT_METHODS = ("adjoint", "forward")
 """How :func:`gradient` differentiates; ``"auto"`` takes the first. Adjoint: one backward
-pass for all seeds. Forward: one sensitivity column per seed, and a second derivative of
-the right-hand side compiled besides the first. On the paper robot's 10 s swing at 100
+pass for all seeds. Forward: one sensitivity column per seed, and the right-hand side's
+second derivatives compiled besides the first. On the paper robot's 10 s swing at 100
 output intervals, along the initial state (9 seeds) 1.43 s by adjoint against 3.15 s
 forward, along the 49 parameters 1.39 s against 15.0 s (``python
 benchmarks/bench_gradient.py --methods``): adjoint from the smallest group of seeds on,
@@ -468,7 +468,7 @@ def _rollout(tr: Transcription, x0, t, integrand, method, held: bool) -> ca.Func
     more than one output time crashes (``tests/test_gradient.py`` pins that)."""
     model, n_x, n_u, n_p = tr.model, tr.n_x, tr.n_u, tr.parameters.size
     scale = ca.DM(state_scale(model, x0[: model.n_state], tr.inputs))
-    rhs = tr.compiled_rhs(2 if method == "forward" else 1)
+    rhs = tr.compiled_rhs(3 if method == "forward" else 1)
     z, w = ca.MX.sym("z", n_x), ca.MX.sym("w", n_u + n_p + 1)
     u, p, h = w[:n_u], w[n_u : n_u + n_p], w[-1]
     problem = {"x": z, "p": w, "ode": h * rhs(scale * z, u, p) / scale}

@@ -52,8 +52,8 @@ derivatives in C, ``"limited-memory"`` with its first alone and IPOPT's L-BFGS
 approximation of the Hessian (:data:`LBFGS_HISTORY` pairs). On the reach task of
 docs/planning.md (15 intervals, the paper's robot, tolerance 1e-8; ``python
 benchmarks/bench_planning.py --methods collocation --hessians exact limited-memory``):
-exact 2.6 s and 44 iterations, limited-memory 1.9 s and 95, the same cost; the first
-plan, its derivatives compiled, 24.1 s and 9.5 s. Exact is the default: its iterations
+exact 2.8 s and 44 iterations, limited-memory 2.1 s and 95, the same cost; the first
+plan, its derivatives compiled, 21.7 s and 10.1 s. Exact is the default: its iterations
 do not grow with the problem's conditioning and tolerance as L-BFGS's do
 (``tests/test_planning.py``'s smaller reach needs a looser tolerance to converge with
 the approximation), and a robot's second derivatives compile once (cached on disk)."""
@@ -69,7 +69,7 @@ reach the same plan: IPOPT sees the collocation equations and their exact second
 derivatives, compiled (:data:`PLAN_HESSIANS`), where multiple shooting sees each step
 through a Newton solve, solved and differentiated in CasADi's virtual machine at every
 evaluation. On the reach task of docs/planning.md (15 intervals, the paper's robot):
-collocation 2.6 s and 44 iterations, shooting 375 s and 53 (``python
+collocation 2.8 s and 44 iterations, shooting 375 s and 53 (``python
 benchmarks/bench_planning.py``)."""
 
 

@@ -186,18 +186,18 @@ class Transcription:
         """:attr:`rhs` generated as C and compiled with its derivatives, forward and
         reverse (:func:`softcurve.compiled.compile_function`'s ``derivatives``: 1 the
         first, what an integrator's adjoint and a constraint Jacobian need; 2 also the
-        second, what forward sensitivities and an exact Hessian need), with
+        second an exact Hessian needs; 3 also those of forward sensitivities), with
         :data:`DERIVATIVE_FLAGS`, cached on disk with the model's libraries. Where the
         model is not compiled (``compile=False``, or no C compiler), the symbolic
         right-hand side in CasADi's virtual machine, with every derivative.
 
         Parameters
         ----------
-        order : {1, 2}
+        order : {1, 2, 3}
             The derivatives compiled.
         """
-        if order not in (1, 2):
-            raise ParameterError(f"order must be 1 or 2, got {order!r}")
+        if order not in (1, 2, 3):
+            raise ParameterError(f"order must be 1, 2 or 3, got {order!r}")
         if order not in self._compiled:
             x, u, p = self._symbols()
             rhs = ca.Function("softcurve_actuated_rhs", [x, u, p], [self.rhs_sx(x, u, p)])
