@@ -114,8 +114,8 @@ def load_external(path, name: str) -> ca.Function:
 def exact_external(path, name: str) -> ca.Function:
     """The function ``name`` of the compiled library ``path`` as a CasADi ``external``
     whose derivatives are the library's own ``fwd1_<name>`` and ``adj1_<name>`` (and the
-    second ones, :func:`~softcurve.compiled.compile_function` with ``derivatives`` 1 or
-    2).
+    second ones, :func:`~softcurve.compiled.compile_function` with ``derivatives`` 1 to
+    3).
 
     Parameters
     ----------

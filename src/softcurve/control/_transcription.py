@@ -201,7 +201,12 @@ class Transcription:
         if order not in self._compiled:
             x, u, p = self._symbols()
             rhs = ca.Function("softcurve_actuated_rhs", [x, u, p], [self.rhs_sx(x, u, p)])
-            self._compiled[order] = compile_function(rhs, flags=DERIVATIVE_FLAGS, derivatives=order)
+            if self.model.compiled_library is None:  # compile=False, or no compiler
+                self._compiled[order] = rhs
+            else:
+                self._compiled[order] = compile_function(
+                    rhs, flags=DERIVATIVE_FLAGS, derivatives=order
+                )
         return self._compiled[order]
 
     @cached_property
