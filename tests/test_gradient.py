@@ -272,7 +272,7 @@ def test_a_parameter_vector_is_checked_as_a_robot(model):
     ("change", "match"),
     [
         ({"t": [0.0, 0.1, 0.1]}, "increasing output times"),
-        ({"inputs": np.full(3, 2e5)}, "outside the actuator's bounds"),
+        ({"inputs": np.full(3, 2e5)}, r"inputs\[0\] = 200000.0 Pa is outside its bounds"),
         ({"inputs": np.zeros((2, 3))}, r"one row per output"),
         ({"wrt": "gravity"}, "wrt must name"),
         ({"method": "exact"}, "method must be"),

@@ -31,10 +31,8 @@ from softcurve.base.validation import ParameterError, float_array, real_array
 from softcurve.control._transcription import Transcription
 from softcurve.simulation.sensitivity import SENSITIVITY_CVODES
 from softcurve.simulation.solvers import (
-    actuator_exit,
     cvodes_options,
-    domain_reason,
-    outside_domain,
+    grid_inputs,
     state_scale,
 )
 
@@ -220,27 +218,9 @@ def _times(t) -> np.ndarray:
 
 
 def _samples(inputs, tr: Transcription, size: int) -> np.ndarray:
-    """The input samples, (T, n_u), checked against the actuator's bounds."""
-    n_u = tr.n_u
-    u = np.zeros(n_u) if inputs is None else float_array("inputs", inputs, "input samples")
-    if u.shape == (n_u,):
-        u = np.tile(u, (size, 1))
-    if not np.all(np.isfinite(u)):
-        raise ParameterError("inputs must be finite")
-    if u.shape != (size, n_u):
-        raise ParameterError(
-            f"inputs must have shape ({n_u},) or ({size}, {n_u}) (one row per output "
-            f"time), got {u.shape}"
-        )
-    lower, upper = tr.input_bounds
-    bad = np.argwhere((u < lower) | (u > upper))
-    if bad.size:
-        k, i = bad[0]
-        raise ParameterError(
-            f"inputs[{k}, {i}] = {u[k, i]:g} is outside the actuator's bounds "
-            f"[{lower[i]:g}, {upper[i]:g}]"
-        )
-    return u
+    """The input samples, (T, n_u), checked as ``simulate`` checks a grid of inputs
+    (within the actuator's bounds)."""
+    return grid_inputs("inputs", inputs, tr.n_u, size, tr.actuator)
 
 
 def _integrand(running, tr: Transcription) -> ca.Function:
@@ -256,11 +236,13 @@ def _integrand(running, tr: Transcription) -> ca.Function:
     return ca.Function("running", [x, u, p], [value])
 
 
+AUTO_REASON = "auto: the adjoint costs less from the smallest group of seeds on"
+"""Why ``method="auto"`` takes the adjoint (:data:`GRADIENT_METHODS` has the measure)."""
+
+
 def _method(method: str) -> tuple[str, str]:
     if method == "auto":
-        return GRADIENT_METHODS[
-            0
-        ], "auto: the adjoint costs less from the smallest group of seeds on (GRADIENT_METHODS)"
+        return GRADIENT_METHODS[0], AUTO_REASON
     if method not in GRADIENT_METHODS:
         raise ParameterError(
             f"method must be 'auto' or one of {', '.join(GRADIENT_METHODS)}, got {method!r}"
@@ -401,7 +383,7 @@ def gradient(
         x, quadratures = (np.array(a) for a in trajectory(*numbers))
     except RuntimeError as error:
         return _failed(Status.INTEGRATION_FAILED, _cvodes_failed(error), **failed)
-    problem_text = _domain_problem(tr, robot, t, x.T)
+    problem_text = tr.domain_exit(x.T, t, robot)
     if problem_text is not None:
         return _failed(Status.LEFT_DOMAIN, problem_text, x=x.T, **failed)
     cost_value = float(of_states(*numbers, x, quadratures))
@@ -467,6 +449,7 @@ def _rollout(tr: Transcription, x0, t, integrand, method, held: bool) -> ca.Func
     integrator's controls: CasADi 3.8.2's reverse mode of an integrator with controls and
     more than one output time crashes (``tests/test_gradient.py`` pins that)."""
     model, n_x, n_u, n_p = tr.model, tr.n_x, tr.n_u, tr.parameters.size
+    n_q = 0 if integrand is None else integrand.size1_out(0)
     scale = ca.DM(state_scale(model, x0[: model.n_state], tr.inputs))
     rhs = tr.compiled_rhs(3 if method == "forward" else 1)
     z, w = ca.MX.sym("z", n_x), ca.MX.sym("w", n_u + n_p + 1)
@@ -479,7 +462,6 @@ def _rollout(tr: Transcription, x0, t, integrand, method, held: bool) -> ca.Func
     start, samples, params = ca.MX.sym("x0", n_x), ca.MX.sym("u", n_u, t.size), ca.MX.sym("p", n_p)
     if held:
         one = ca.integrator("interval", "cvodes", problem, 0.0, 1.0, options)
-        n_q = one.size1_out("qf")
         carried, w_k = ca.MX.sym("carried", n_x + n_q), ca.MX.sym("w", w.shape[0])
         ran = one(x0=carried[:n_x], p=w_k)
         interval = ca.Function(
@@ -494,7 +476,6 @@ def _rollout(tr: Transcription, x0, t, integrand, method, held: bool) -> ca.Func
         through = ca.integrator("through", "cvodes", problem, 0.0, grid, options)
         ran = through(x0=start / scale, p=ca.vertcat(samples[:, 0], params, 1.0))
         final, integrals = ran["xf"], ran["qf"]
-    n_q = integrals.shape[0]
     states = ca.horzcat(start, scale * final)
     integrals = ca.horzcat(ca.MX.zeros(n_q, 1), integrals)
     return ca.Function("rollout", [params, start, samples], [states, integrals])
@@ -523,18 +504,6 @@ def _forward(function: ca.Function, numbers, value: float, wrt) -> tuple:
             part, offset = row[offset : offset + size], offset + size
         parts.append(part.reshape(np.shape(array), order="F") if np.ndim(array) == 2 else part)
     return tuple(parts)
-
-
-def _domain_problem(tr: Transcription, robot, t: np.ndarray, x: np.ndarray) -> str | None:
-    """Why the trajectory ``x`` (T, n_x) leaves the domain of ``robot`` or the actuator at
-    an output time, or None."""
-    states = x[:, : tr.model.n_state]
-    outside = outside_domain(states, robot)
-    if outside.any():
-        k = int(np.argmax(outside))
-        return domain_reason(states[k], robot, float(t[k]))
-    exit_ = actuator_exit(tr.actuator, t, states[:, : robot.n])
-    return None if exit_ is None else exit_[1]
 
 
 def _failed(status, message, *, t, tr, method, reason, names, at, began, x=None):

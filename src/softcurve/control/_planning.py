@@ -37,11 +37,8 @@ from softcurve.base.validation import ParameterError, real_scalar
 from softcurve.control._transcription import Transcription
 from softcurve.control.references import Reference
 from softcurve.simulation.solvers import (
-    actuator_exit,
-    domain_reason,
     lag_scale,
     nominal_scale,
-    outside_domain,
 )
 
 PLAN_HESSIANS = ("exact", "limited-memory")
@@ -718,7 +715,7 @@ def optimize_trajectory(
     tip_plan = np.array(tr.tip.map(K + 1)(x_plan.T, p)).T
     message = f"{words} after {stats.get('iter_count', 0)} iterations"
     t_plan = np.linspace(0.0, horizon_value, K + 1)
-    left = _left_domain(tr, x_plan, t_plan)
+    left = tr.domain_exit(x_plan, t_plan)
     if status is Status.SUCCESS and left:  # the margins are >= 0, the domain's strict
         status, message = Status.LEFT_DOMAIN, f"{message}, but {left}"
     if status is not Status.SUCCESS and binding:
@@ -742,17 +739,6 @@ def _force_scale(model, x0) -> np.ndarray:
     at_start = model.potential_force(q0)
     moved = [model.potential_force(q0 + scale[i] * np.eye(n)[i])[i] for i in range(n)]
     return np.maximum(np.abs(np.array(moved) - at_start) + np.abs(at_start), 1e-9)
-
-
-def _left_domain(tr: Transcription, x: np.ndarray, t: np.ndarray) -> str:
-    """Where the planned states leave the model's or the actuator's domain, by the checks
-    ``simulate`` runs at its outputs (strict margins, every kind's own), or ""."""
-    model_states = x[:, : tr.model.n_state]
-    outside = np.flatnonzero(outside_domain(model_states, tr.model.robot))
-    exit_ = actuator_exit(tr.actuator, t, model_states[:, : tr.model.n])
-    first = [(k, domain_reason(model_states[k], tr.model.robot, t[k])) for k in outside[:1]]
-    first += [exit_] if exit_ is not None else []
-    return min(first, key=lambda entry: entry[0])[1] if first else ""  # the model's first
 
 
 TIMED = {"hessian": "hess_l", "jacobian": "jac_g", "constraints": "g", "cost": "f",

@@ -31,7 +31,10 @@ from softcurve.description.actuator import Actuator
 from softcurve.simulation.solvers import (
     ActuatorInput,
     actuated_derivative,
+    actuator_exit,
+    domain_reason,
     initial_state,
+    outside_domain,
     radau_tableau,
 )
 from softcurve.symbolic.functions import domain_margins
@@ -294,6 +297,29 @@ class Transcription:
         x, _, p = self._symbols()
         values = ca.vec(distances(x[: self.model.n], p).T)
         return ca.Function("gaps", [x, p], [values], ["x", "p"], ["distances"])
+
+    def domain_exit(self, x: np.ndarray, t: np.ndarray, robot=None) -> str | None:
+        """Why the states ``x`` first leave the model's or the actuator's domain, by the
+        checks ``simulate`` runs at its outputs (every kind's own, strict margins), or
+        None where every state lies inside.
+
+        Parameters
+        ----------
+        x : ndarray, shape (T, n_x)
+            States at the times ``t`` (:attr:`n_x` entries each).
+        t : ndarray, shape (T,)
+            Their times [s].
+        robot : Robot, optional
+            The robot of another parameter vector than the model's (its rest lengths and
+            bounds), default the model's.
+        """
+        robot = self.model.robot if robot is None else robot
+        states = x[:, : self.model.n_state]
+        outside = np.flatnonzero(outside_domain(states, robot))
+        first = [(k, domain_reason(states[k], robot, float(t[k]))) for k in outside[:1]]
+        exit_ = actuator_exit(self.actuator, t, states[:, : robot.n])
+        first += [exit_] if exit_ is not None else []
+        return min(first, key=lambda entry: entry[0])[1] if first else None
 
     def start(self, q0, qd0=None, lam0=None, actuator_state=None) -> np.ndarray:
         """The state ``x`` of a start, as ``simulate`` builds it, checked.

@@ -81,7 +81,7 @@ import numpy as np
 
 from softcurve.base.progress import ProgressLine
 from softcurve.base.status import Status
-from softcurve.base.validation import ParameterError, float_array, real_array
+from softcurve.base.validation import ParameterError, real_array
 from softcurve.compiled import Model
 from softcurve.description.actuator import Actuator
 from softcurve.simulation._settings import SimulationSettings, sample_time, settings_with
@@ -97,6 +97,7 @@ from softcurve.simulation.solvers import (
     choose_route,
     failure_message,
     failure_status,
+    grid_inputs,
     initial_state,
     input_changes,
     lag_scale,
@@ -111,24 +112,13 @@ from softcurve.simulation.solvers import (
 
 
 # -- argument checks -----------------------------------------------------------------------
-def _input_grid(name: str, value, n: int, grid: np.ndarray):
-    """Constant / on-grid inputs as a (T, n) array; callables come back unchanged."""
-    if value is None:
-        return np.zeros((grid.size, n))
+def _input_grid(name: str, value, n: int, grid: np.ndarray, actuator=None):
+    """Constant / on-grid inputs as a (T, n) array, checked (:func:`grid_inputs`, within
+    ``actuator``'s bounds where given); callables come back unchanged."""
     if callable(value):
         return value
-    expected = f"shape ({n},) or ({grid.size}, {n}) (one row per output time)"
-    a = float_array(name, value, expected) if not isinstance(value, str) else None
-    if a is not None and a.shape == (n,):
-        a = np.broadcast_to(a, (grid.size, n))
-    if a is None or a.shape != (grid.size, n):
-        raise ParameterError(
-            f"{name} must be None, shape ({n},), shape ({grid.size}, {n}) (one row per output "
-            f"time) or a callable {name}(t, state), got {getattr(a, 'shape', value)!r}"
-        )
-    if not np.all(np.isfinite(a)):
-        raise ParameterError(f"{name} must be finite")
-    return np.array(a)
+    also = f" or a callable {name}(t, state)"
+    return grid_inputs(name, value, n, grid.size, actuator, also)
 
 
 def _drive(model: Model, grid, tau, controller, actuator, inputs):
@@ -161,11 +151,7 @@ def _drive(model: Model, grid, tau, controller, actuator, inputs):
     actuator.check_robot(model.robot)
     values = None
     if controller is None:
-        values = _input_grid("inputs", inputs, actuator.n_inputs, grid)
-        if not callable(values):
-            rows = values[:1] if _constant(inputs, actuator.n_inputs) else np.unique(values, axis=0)
-            for row in rows:
-                actuator.check_inputs(row, "inputs")
+        values = _input_grid("inputs", inputs, actuator.n_inputs, grid, actuator)
 
     def check_inputs(value, source):
         return actuator.check_inputs(value, f"the {source}'s {actuator.input_name}")

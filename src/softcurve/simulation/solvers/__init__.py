@@ -36,6 +36,7 @@ from softcurve.simulation.solvers._grid import Stopped as Stopped
 from softcurve.simulation.solvers._grid import actuator_exit as actuator_exit
 from softcurve.simulation.solvers._grid import change_interval as change_interval
 from softcurve.simulation.solvers._grid import domain_reason as domain_reason
+from softcurve.simulation.solvers._grid import grid_inputs as grid_inputs
 from softcurve.simulation.solvers._grid import input_changes as input_changes
 from softcurve.simulation.solvers._grid import outside_domain as outside_domain
 from softcurve.simulation.solvers._grid import run_on_grid as run_on_grid

@@ -9,7 +9,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from softcurve.base.validation import ParameterError
+from softcurve.base.validation import ParameterError, float_array
 from softcurve.simulation.solvers._policy import (
     LEFT_DOMAIN,
     RESTART_INTERVAL,
@@ -231,6 +231,50 @@ def _run_native(engine, grid, states, inputs, domain, segments, fastest, changes
     if flags[0] == 1:  # outside by the driver's test, inside by Python's: stop there
         raise Stopped(done - 1, f"{LEFT_DOMAIN} at t = {grid[done - 1]:.6g} s")
     raise Stopped(done, engine.failure_reason(flags[0]))
+
+
+def grid_inputs(name: str, value, n: int, size: int, actuator=None, also: str = ""):
+    """Inputs given on an output grid, as a (size, n) array, checked: None is zero, one
+    row (n,) is held at every output, (size, n) is a row per output time; finite, and
+    within ``actuator``'s bounds where it is given (each distinct row checked once, by
+    :meth:`Actuator.check_inputs <softcurve.description.actuator.Actuator.check_inputs>`).
+
+    Parameters
+    ----------
+    name : str
+        The argument's name, for the messages.
+    value : None or array_like, shape (n,) or (size, n)
+        The inputs, in each one's unit.
+    n : int
+        Inputs per output time.
+    size : int
+        Output times.
+    actuator : Actuator, optional
+        Whose bounds the rows must lie within (None: unbounded forces).
+    also : str
+        What else the caller accepts, appended to the shape message (e.g. ``" or a
+        callable tau(t, state)"``).
+    """
+    held = value is None or np.shape(value) == (n,)
+    if value is None:
+        values = np.zeros((size, n))
+    else:
+        expected = f"shape ({n},) or ({size}, {n}) (one row per output time)"
+        a = float_array(name, value, expected) if not isinstance(value, str) else None
+        if a is not None and a.shape == (n,):
+            a = np.broadcast_to(a, (size, n))
+        if a is None or a.shape != (size, n):
+            raise ParameterError(
+                f"{name} must be None, shape ({n},), shape ({size}, {n}) (one row per output "
+                f"time){also}, got {getattr(a, 'shape', value)!r}"
+            )
+        if not np.all(np.isfinite(a)):
+            raise ParameterError(f"{name} must be finite")
+        values = np.array(a)
+    if actuator is not None:
+        for row in values[:1] if held else np.unique(values, axis=0):
+            actuator.check_inputs(row, name)
+    return values
 
 
 def input_changes(inputs: np.ndarray) -> np.ndarray:
