@@ -356,3 +356,98 @@ def test_a_lagging_actuator_is_planned_by_its_commands_and_settles(model):
     assert run.success
     simulated = model.tip_pose(run.q[-1]).position
     assert np.linalg.norm(simulated - plan.tip[-1]) < 1e-3
+
+
+# -- nonlinear model-predictive control ---------------------------------------------------
+# the circle of docs/control.md, which these pressures hold; the model in CasADi's virtual
+# machine: a compile of these pressures' second derivatives would cost more than the runs
+CIRCLE = {"center": (0.02, 0.0, 0.065), "radius": 0.01, "period": 2.0}
+PRESSURES = {"distance": 0.012, "area": 2e-4, "p_max": 6e4}
+
+
+@pytest.fixture(scope="module")
+def circle():
+    from softcurve.control.references import tip_circle
+
+    return tip_circle(**CIRCLE)
+
+
+@pytest.fixture(scope="module")
+def interpreted():
+    return sc.Model(sc.presets.ifac2020(), quadrature_nodes=NODES, compile=False)
+
+
+@pytest.fixture(scope="module")
+def pressures():
+    return sc.PneumaticActuator.three_bellows(**PRESSURES)
+
+
+def tip_errors(model, run, reference) -> np.ndarray:
+    """Distances [m] of the simulated tip from the reference's at the outputs."""
+    goal = np.array([model.tip_pose(reference(t).q).position for t in run.t])
+    return np.linalg.norm(run.tip - goal, axis=1)
+
+
+def test_the_predictive_controllers_first_inputs_are_the_plans(interpreted, pressures, circle):
+    """Its first sample solves optimize_trajectory's problem from the measured state."""
+    model, start = interpreted, circle(0.0)
+    mpc = sc.PredictiveController(model, pressures, circle, horizon=0.1, intervals=5,
+                                  rate_weight=0.0, effort_weight=1e-4)  # fmt: skip
+    first = mpc(0.0, start.q, start.qd, np.zeros(model.n_creep))
+    plan = sc.optimize_trajectory(model, start.q, start.qd, actuator=pressures, horizon=0.1,
+                                  intervals=5, reference=circle, effort_weight=1e-4)  # fmt: skip
+    assert plan.success and mpc.log[0]["status"] is Status.SUCCESS
+    np.testing.assert_allclose(first, plan.u[0], rtol=0, atol=1e-6 * PRESSURES["p_max"])
+    assert mpc.log[0]["cost"] == pytest.approx(plan.cost, rel=1e-6)
+
+
+def test_the_predictive_controller_tracks_a_circle_on_its_budget(interpreted, pressures, circle):
+    model, start = interpreted, circle(0.0)
+    mpc = sc.PredictiveController(model, pressures, circle, horizon=0.1, intervals=5,
+                                  rate_weight=1e-6, iterations=8)  # fmt: skip
+    run = sc.simulate(model, start.q, start.qd, actuator=pressures, controller=mpc,
+                      t_final=0.3, dt=0.02)  # fmt: skip
+    assert run.success, run.message
+    assert len(mpc.log) == 15 and np.all(mpc.history("solve_time") > 0)
+    # every solve after the first starts from the plan moved on and converges on its budget
+    assert np.all(mpc.history("iterations")[1:] <= 8)
+    assert all(entry["status"] is Status.SUCCESS for entry in mpc.log)
+    assert tip_errors(model, run, circle).max() < 0.2e-3  # [m], a 10 mm circle
+    mpc.reset()
+    assert mpc.log == [] and mpc(0.0, start.q, start.qd).shape == (3,)
+
+
+def test_the_predictive_controller_follows_the_lag_of_its_commands(interpreted, circle):
+    """A lagging actuator's inputs, which the controller does not measure, are its model's
+    response to the commands it sent: the plant with that lag settles onto the circle, a
+    plant whose inputs follow the commands at once (the model wrong) leaves it."""
+    lagging = sc.PneumaticActuator.three_bellows(**PRESSURES, time_constant=0.02)
+    start, errors = circle(0.0), {}
+    at_once = sc.PneumaticActuator.three_bellows(**PRESSURES)
+    for name, plant in (("modelled", lagging), ("not modelled", at_once)):
+        mpc = sc.PredictiveController(interpreted, lagging, circle, horizon=0.1, intervals=5,
+                                      rate_weight=1e-6, iterations=8)  # fmt: skip
+        run = sc.simulate(interpreted, start.q, start.qd, actuator=plant, controller=mpc,
+                          t_final=0.2, dt=0.02)  # fmt: skip
+        assert run.success, run.message
+        errors[name] = tip_errors(interpreted, run, circle)
+    # the start (at rest, no pressure, on the circle) costs mm; modelled, it decays
+    modelled, wrong = errors["modelled"], errors["not modelled"]
+    assert modelled[-1] < modelled[1] / 4 and wrong[-1] > wrong[1], errors
+
+
+@pytest.mark.parametrize(
+    ("change", "match"),
+    [
+        ({"sample_time": 0.03}, "whole number of the horizon's steps"),
+        ({"solver": "newton"}, "solver must be one of"),
+        ({"iterations": 0}, "iterations must be an integer"),
+        ({"horizon": (0.05, 0.1)}, "horizon must be a time"),
+        ({"rate_weight": -1.0}, "rate_weight must be >= 0"),
+        ({"clearance": 1e-3}, "clearance needs a model with an environment"),
+    ],
+)
+def test_bad_predictive_controllers_are_refused(model, bellows, circle, change, match):
+    request = {"horizon": 0.1, "intervals": 5, **change}
+    with pytest.raises(sc.ParameterError, match=match):
+        sc.PredictiveController(model, bellows, circle, **request)

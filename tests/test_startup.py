@@ -184,3 +184,28 @@ def test_ctrl_c_just_after_a_sweep_wrote_its_table_is_no_traceback(paper_model, 
     # in the command or in Python's teardown: one line and 130
     assert process.returncode == 128 + signal.SIGINT, (process.returncode, err)
     assert len(err.strip().splitlines()) == 1, err
+
+
+def test_a_ctrl_c_in_a_weakref_callback_ends_the_command_in_one_line(tmp_path):
+    """The garbage collector runs weakref callbacks anywhere; a Ctrl-C inside one cannot
+    be raised, and Python would print it as ignored (a traceback) and carry on."""
+    script = tmp_path / "late.py"
+    script.write_text(
+        "import signal, sys, weakref\n"
+        "import softcurve.__main__ as entry\n"
+        "sys.unraisablehook = entry._interrupted_in_a_callback\n"
+        "class Held: pass\n"
+        "def callback(reference):\n"
+        "    signal.raise_signal(signal.SIGINT)\n"
+        "    sum(range(1000))  # the handler runs here, inside the callback\n"
+        "held = Held()\n"
+        "watch = weakref.ref(held, callback)\n"
+        "print('before', flush=True)\n"
+        "del held\n"
+        "print('carried on')\n"
+    )
+    done = subprocess.run([sys.executable, str(script)], capture_output=True, text=True,
+                          timeout=60)  # fmt: skip
+    assert done.returncode == 128 + signal.SIGINT, (done.returncode, done.stderr)
+    assert done.stdout == "before\n"
+    assert done.stderr == "softcurve: interrupted\n", done.stderr

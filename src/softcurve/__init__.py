@@ -42,6 +42,7 @@ _FACES = {
     ),
     "softcurve.control": (
         "ConfigurationTarget",
+        "PredictiveController",
         "RolloutGradient",
         "RolloutSymbols",
         "TipTarget",

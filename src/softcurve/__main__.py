@@ -20,8 +20,26 @@ def _interrupted_at_exit(signum, frame) -> None:
     os._exit(INTERRUPTED)
 
 
+def _interrupted_in_a_callback(unraisable) -> None:
+    """A Ctrl-C that lands in a callback Python cannot raise from (a weakref's or a
+    finalizer's, run by the garbage collector at any point) would be printed as ignored, a
+    traceback, and lost: the command stops there, one line and exit code 130 (its files
+    are written whole or not at all). Anything else goes to Python's own hook."""
+    if unraisable.exc_type is not KeyboardInterrupt:
+        sys.__unraisablehook__(unraisable)
+        return
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            stream.flush()
+        except (OSError, ValueError):  # a closed pipe or stream: nothing left to say there
+            pass
+    os.write(2, b"softcurve: interrupted\n")
+    os._exit(INTERRUPTED)
+
+
 def main() -> int:
     """Import and run the command line on ``sys.argv``; returns the exit code."""
+    sys.unraisablehook = _interrupted_in_a_callback
     try:
         from softcurve.cli import main as command_line
     except KeyboardInterrupt:  # in the words of softcurve.cli.main's own interrupt

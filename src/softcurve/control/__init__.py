@@ -1,7 +1,8 @@
 """Control: feedback controllers (``controllers``), the linear MPC (``mpc``), references
 (``references``), and planning over the robot's transcription: :class:`Transcription`
 (the dynamics, one step, the gaps and the domain as CasADi Functions),
-:func:`optimize_trajectory` (IPOPT over it, its result :class:`TrajectoryPlan`) and
+:func:`optimize_trajectory` (IPOPT over it, its result :class:`TrajectoryPlan`),
+:class:`PredictiveController` (the same problem re-solved at every sample) and
 :func:`gradient` (the exact gradient of a cost of a simulated trajectory, its result
 :class:`RolloutGradient`)."""
 
@@ -12,8 +13,11 @@ from softcurve.control._gradient import RolloutSymbols as RolloutSymbols
 from softcurve.control._gradient import gradient as gradient
 from softcurve.control._planning import LBFGS_HISTORY as LBFGS_HISTORY
 from softcurve.control._planning import PLAN_HESSIANS as PLAN_HESSIANS
+from softcurve.control._planning import PLAN_ITERATIONS as PLAN_ITERATIONS
 from softcurve.control._planning import PLAN_METHODS as PLAN_METHODS
+from softcurve.control._planning import PREDICTIVE_SOLVERS as PREDICTIVE_SOLVERS
 from softcurve.control._planning import ConfigurationTarget as ConfigurationTarget
+from softcurve.control._planning import PredictiveController as PredictiveController
 from softcurve.control._planning import TipTarget as TipTarget
 from softcurve.control._planning import TrajectoryPlan as TrajectoryPlan
 from softcurve.control._planning import optimize_trajectory as optimize_trajectory
@@ -23,7 +27,10 @@ __all__ = [
     "GRADIENT_METHODS",
     "LBFGS_HISTORY",
     "PLAN_HESSIANS",
+    "PLAN_ITERATIONS",
     "PLAN_METHODS",
+    "PREDICTIVE_SOLVERS",
+    "PredictiveController",
     "WITH_RESPECT_TO",
     "ConfigurationTarget",
     "TipTarget",

@@ -35,7 +35,9 @@ from softcurve.base.progress import on_terminal
 from softcurve.base.status import Result, Status
 from softcurve.base.validation import ParameterError, real_scalar
 from softcurve.control._transcription import Transcription
+from softcurve.control.controllers import SampledController
 from softcurve.control.references import Reference
+from softcurve.description.actuator import Actuator
 from softcurve.simulation.solvers import (
     lag_scale,
     nominal_scale,
@@ -59,6 +61,21 @@ LBFGS_HISTORY = 20
 """Pairs of IPOPT's limited-memory Hessian (``limited_memory_max_history``): on the
 reach task 6 pairs (IPOPT's default) ran out of its 300 iterations, 20 took 95 (1.9 s),
 50 took 174 (4.8 s) (``python benchmarks/bench_planning.py --lbfgs-history 6 20 50``)."""
+
+PLAN_ITERATIONS = 300
+"""IPOPT's default iteration budget of a plan, and of a :class:`PredictiveController`'s
+first solve: the reach tasks of docs/planning.md converge in 44 (exact Hessian) to 95
+(limited-memory)."""
+
+PREDICTIVE_SOLVERS = ("ipopt", "sqp")
+"""The methods of :class:`PredictiveController`'s solves; the first is the default.
+``"ipopt"``: IPOPT warm-started from the shifted plan (its primal and dual point, the
+barrier small, :data:`WARM_START`); ``"sqp"``: CasADi's ``sqpmethod``, one sparse QP
+(``qrqp``) per iteration on the exact Hessian, regularized where it is not convex, after a
+first solve by IPOPT. IPOPT is the default: on the circle of docs/planning.md (the paper's
+robot, 25 steps of 20 ms) its warm solves of five iterations take a median 627 ms, where
+one SQP iteration takes longer (``python benchmarks/bench_predictive.py --solvers ipopt
+sqp``)."""
 
 PLAN_METHODS = ("collocation", "shooting")
 """The transcriptions of :func:`optimize_trajectory`; the first is the default. Both
@@ -358,11 +375,13 @@ class _Constraints:
 
     def __init__(self):
         self.rows, self.lower, self.upper, self.groups = [], [], [], []
+        self.blocks = []  # (first row, rows, columns) of each expression added
 
     def add(self, group: str, expression, lower, upper) -> None:
         size = expression.numel()
         if size == 0:
             return
+        self.blocks.append((len(self.groups), *expression.shape))
         self.rows.append(ca.vec(expression))
         # bounds in the order of ca.vec: column by column
         for bounds, value in ((self.lower, lower), (self.upper, upper)):
@@ -396,7 +415,7 @@ def optimize_trajectory(
     method: str = PLAN_METHODS[0],
     hessian: str = PLAN_HESSIANS[0],
     warm_start: TrajectoryPlan | None = None,
-    max_iterations: int = 300,
+    max_iterations: int = PLAN_ITERATIONS,
     tolerance: float = 1e-8,
     progress: bool = False,
 ) -> TrajectoryPlan:
@@ -498,22 +517,329 @@ def optimize_trajectory(
             "hessian='limited-memory' needs method='collocation': shooting's Newton solves "
             "of its steps fail at the approximation's trial points"
         )
+    request = _checked_request(
+        model, horizon=horizon, intervals=intervals, targets=targets, reference=reference,
+        weights={"reference_weight": reference_weight, "effort_weight": effort_weight,
+                 "rate_weight": rate_weight, "time_weight": time_weight},
+        clearance=clearance, tip_bounds=tip_bounds, tolerance=tolerance,
+        max_iterations=max_iterations,
+    )  # fmt: skip
+    tr = Transcription(model, actuator)
+    x0 = tr.start(q0, qd0, lam0, actuator_state)
+    K, n_x, n_u = request.intervals, tr.n_x, tr.n_u
+    if warm_start is not None:
+        if not isinstance(warm_start, TrajectoryPlan):
+            raise ParameterError(
+                f"warm_start must be a TrajectoryPlan, got {type(warm_start).__name__}"
+            )
+        shapes = (warm_start.x.shape, warm_start.u.shape, warm_start.method)
+        if shapes != ((K + 1, n_x), (K, n_u), method):
+            raise ParameterError(
+                f"warm_start must be a plan of {K} intervals, {n_x} states, {n_u} inputs and "
+                f"method {method!r}, got {shapes}"
+            )
+
+    problem = _Problem.build(tr, x0, request, rest_at_end=rest_at_end, method=method,
+                             hessian=hessian, previous_inputs=False)  # fmt: skip
+    options = _ipopt_options(max_iterations, tolerance, hessian)
+    duals = {}
+    if warm_start is not None:  # begin at the plan's primal and dual point, barrier small
+        sizes = tuple(m.size for m in warm_start.multipliers)
+        if sizes != problem.sizes:
+            raise ParameterError(
+                "warm_start must be a plan of the same problem (targets, tolerances, "
+                f"clearance, tip bounds, rest at the end, horizon): {sizes} multipliers "
+                f"against {problem.sizes}"
+            )
+        options.update({f"ipopt.{name}": value for name, value in WARM_START.items()})
+        duals = dict(zip(("lam_x0", "lam_g0"), warm_start.multipliers, strict=True))
+        guess = problem.pack(warm_start.x, warm_start.u, warm_start.stages, warm_start.horizon)
+    else:
+        guess = problem.rest_guess(x0)
+    if progress:
+        options["iteration_callback"] = _Progress(problem.sizes[0], problem.lower_g,
+                                                  problem.upper_g)  # fmt: skip
+    solver = ca.nlpsol("optimize_trajectory", "ipopt", problem.nlp, options)
+    lower_w, upper_w = problem.bounds(x0)
+    began = time.perf_counter()
+    solution = solver(x0=guess, lbx=lower_w, ubx=upper_w, lbg=problem.lower_g,
+                      ubg=problem.upper_g, p=problem.parameters(0.0), **duals)  # fmt: skip
+    solve_time = time.perf_counter() - began
+    if progress and on_terminal():
+        sys.stderr.write("\n")
+    stats = solver.stats()
+
+    # -- the result ----------------------------------------------------------------------
+    x_plan, u_plan, z_plan, horizon_value = problem.unpack(np.array(solution["x"]).ravel())
+    g_value = np.array(solution["g"]).ravel()
+    excess = np.maximum(problem.lower_g - g_value, g_value - problem.upper_g)
+    violation = float(max(0.0, excess.max(initial=0.0)))
+    # the input bounds are bounds of the unknowns: IPOPT keeps them, their multipliers say
+    bound_multipliers = np.abs(np.array(solution["lam_x"]).ravel()[problem.u_rows])
+    groups = [*problem.groups, *["input bounds"] * bound_multipliers.size]
+    multipliers = np.concatenate([np.abs(np.array(solution["lam_g"]).ravel()), bound_multipliers])
+    excess_all = np.concatenate([excess, np.zeros(bound_multipliers.size)])
+    binding = _binding(groups, excess_all, multipliers)
+    iterations = stats.get("iterations", {})
+    optimality = float(iterations["inf_du"][-1]) if iterations.get("inf_du") else float("nan")
+    status, words = _status(stats, violation, tolerance)
+    p = tr.parameters
+    tip_plan = np.array(tr.tip.map(K + 1)(x_plan.T, p)).T
+    message = f"{words} after {stats.get('iter_count', 0)} iterations"
+    t_plan = np.linspace(0.0, horizon_value, K + 1)
+    left = tr.domain_exit(x_plan, t_plan)
+    if status is Status.SUCCESS and left:  # the margins are >= 0, the domain's strict
+        status, message = Status.LEFT_DOMAIN, f"{message}, but {left}"
+    if status is not Status.SUCCESS and binding:
+        message += f"; the constraint that binds most: {binding}"
+    return TrajectoryPlan(
+        status, message, t_plan, x_plan, u_plan, tip_plan,
+        float(solution["f"]), int(stats.get("iter_count", 0)), violation, optimality,
+        solve_time, method, hessian, binding, tr, z_plan,
+        (np.array(solution["lam_x"]).ravel(), np.array(solution["lam_g"]).ravel()),
+        {name: float(stats.get(f"t_wall_nlp_{key}", 0.0)) for name, key in TIMED.items()},
+    )  # fmt: skip
+
+
+class PredictiveController(SampledController):
+    """Nonlinear model-predictive control: :func:`optimize_trajectory`'s problem, solved
+    again from the measured state at every sample over a horizon that recedes with time.
+
+    At each sample the controller plans the inputs over ``[t, t + horizon]`` that track
+    the reference under the actuator's bounds and the model's and actuator's domain (and,
+    as asked, clearance and tip bounds), by direct collocation of the full nonlinear model,
+    and returns the first step's inputs. The problem is built once, at the first sample
+    (its states scaled by that sample's): the first solve runs to convergence from rest
+    inputs, every later one starts from the previous plan moved one sample on (states,
+    inputs, stages and multipliers, the last step repeated) and takes at most
+    ``iterations`` iterations. Run it with ``simulate(..., actuator=..., controller=...)``.
+
+    Logged per sample (:meth:`history`): ``t``, ``inputs``, ``tau`` (``H(q) u``),
+    ``status`` (a :class:`~softcurve.base.status.Status`: SUCCESS where the solve
+    converged, EVALUATION_LIMIT where the budget ended it first), ``iterations``,
+    ``solve_time`` [s] (the solver alone), ``cost`` and ``violation``.
+
+    Parameters
+    ----------
+    model : Model
+        The controller's model of the robot (may differ from the simulated one).
+    actuator : Actuator
+        The actuator whose inputs are chosen; where it lags, the controller follows its
+        inputs by the lag's exact response to the commands it sent.
+    reference : Reference
+        ``q_r(t)`` to track (:func:`optimize_trajectory`'s ``reference``).
+    horizon : float
+        The horizon [s].
+    intervals : int
+        Steps of the horizon, >= 1.
+    sample_time : float, optional
+        Time between two samples [s], a whole number of steps (default one step,
+        ``horizon / intervals``).
+    reference_weight, effort_weight, rate_weight : float
+        :func:`optimize_trajectory`'s weights, >= 0 (dimensionless); the first step's rate
+        is measured from the inputs last applied.
+    clearance : float, optional
+        :func:`optimize_trajectory`'s clearance [m] from the obstacles.
+    tip_bounds : tuple of array_like, optional
+        :func:`optimize_trajectory`'s box [m] for the tip, ``(lower (3,), upper (3,))``.
+    solver : {"ipopt", "sqp"}
+        The method of every solve (:data:`PREDICTIVE_SOLVERS`).
+    iterations : int
+        The iteration budget of every solve after the first, >= 1.
+    tolerance : float
+        The solver's convergence tolerance, > 0.
+    actuator_state : array_like, shape (m,), optional
+        The lagging inputs at the first sample (default the actuator's rest inputs).
+
+    Examples
+    --------
+    >>> import softcurve as sc
+    >>> from softcurve.control.references import tip_circle
+    >>> model = sc.Model(sc.presets.ifac2020(), quadrature_nodes=3, compile=False)
+    >>> bellows = sc.PneumaticActuator.three_bellows(distance=0.012, area=2e-4, p_max=6e4)
+    >>> circle = tip_circle(center=(0.02, 0.0, 0.065), radius=0.01, period=2.0)
+    >>> mpc = sc.PredictiveController(model, bellows, circle, horizon=0.1, intervals=5)
+    >>> start = circle(0.0)
+    >>> run = sc.simulate(model, start.q, start.qd, actuator=bellows, controller=mpc,
+    ...                   t_final=0.06, dt=0.02)
+    >>> run.success, len(mpc.log)
+    (True, 3)
+    """
+
+    def __init__(
+        self,
+        model,
+        actuator: Actuator,
+        reference: Reference,
+        *,
+        horizon: float = 0.5,
+        intervals: int = 25,
+        sample_time: float | None = None,
+        reference_weight: float = 1.0,
+        effort_weight: float = 0.0,
+        rate_weight: float = 1e-3,
+        clearance: float | None = None,
+        tip_bounds=None,
+        solver: str = PREDICTIVE_SOLVERS[0],
+        iterations: int = 5,
+        tolerance: float = 1e-8,
+        actuator_state=None,
+    ):
+        if not isinstance(actuator, Actuator):
+            raise ParameterError(f"actuator must be an Actuator, got {type(actuator).__name__}")
+        if solver not in PREDICTIVE_SOLVERS:
+            raise ParameterError(
+                f"solver must be one of {', '.join(PREDICTIVE_SOLVERS)}, got {solver!r}"
+            )
+        if not (isinstance(iterations, int | np.integer) and iterations >= 1):
+            raise ParameterError(f"iterations must be an integer >= 1, got {iterations!r}")
+        request = _checked_request(
+            model, horizon=horizon, intervals=intervals, targets=(), reference=reference,
+            weights={"reference_weight": reference_weight, "effort_weight": effort_weight,
+                     "rate_weight": rate_weight, "time_weight": 0.0},
+            clearance=clearance, tip_bounds=tip_bounds, tolerance=tolerance,
+            max_iterations=iterations,
+        )  # fmt: skip
+        if request.free:
+            raise ParameterError(f"horizon must be a time [s], got {horizon!r}")
+        step = request.t_high / request.intervals
+        if sample_time is None:
+            sample_time = step
+        super().__init__(sample_time)
+        steps = self.sample_time / step
+        if not (round(steps) >= 1 and abs(steps - round(steps)) <= 1e-9 * steps):
+            raise ParameterError(
+                f"sample_time must be a whole number of the horizon's steps of {step:g} s, "
+                f"got {sample_time!r}"
+            )
+        self.transcription = Transcription(model, actuator)
+        self.lag_start = actuator.lag_start(actuator_state) if actuator.time_constant else None
+        self.model, self.actuator, self.reference = model, actuator, reference
+        self.request, self.solver, self.iterations = request, solver, int(iterations)
+        self.steps = int(round(steps))
+        self._problem = None
+        self._solvers = {}
+        self.reset()
+
+    def reset(self) -> None:
+        """Forget the record, the last plan and the lag's inputs (the problem is kept)."""
+        super().reset()
+        self._applied = self.actuator.rest_inputs()
+        self._lagging = self.lag_start
+        self._last = None
+
+    def _solve(self, warm: bool):
+        """CasADi's solver of the problem: to convergence (cold) or on a budget (warm)."""
+        if warm not in self._solvers:
+            problem, request = self._problem, self.request
+            budget = self.iterations if warm else PLAN_ITERATIONS
+            if self.solver == "ipopt" or not warm:  # the first solve: IPOPT's
+                options = _ipopt_options(budget, request.tolerance, "exact")
+                if warm:
+                    options.update({f"ipopt.{name}": value for name, value in WARM_START.items()})
+                plugin = "ipopt"
+            else:
+                options = {
+                    "max_iter": budget, "tol_du": request.tolerance,
+                    "tol_pr": request.tolerance, "qpsol": "qrqp",
+                    "qpsol_options": {"print_iter": False, "print_header": False,
+                                      "error_on_fail": False},
+                    "convexify_strategy": "regularize", "print_header": False,
+                    "print_iteration": False, "print_status": False, "print_time": False,
+                    "error_on_fail": False,
+                }  # fmt: skip
+                plugin = "sqpmethod"
+            self._solvers[warm] = ca.nlpsol("predictive_controller", plugin, problem.nlp, options)
+        return self._solvers[warm]
+
+    def __call__(self, t, q, qd, lam=None) -> np.ndarray:
+        model, tr = self.model, self.transcription
+        lam = np.zeros(model.n_creep) if lam is None else np.asarray(lam, dtype=np.float64)
+        x = np.concatenate([q, qd, lam, [] if self._lagging is None else self._lagging])
+        if self._problem is None:
+            self._problem = _Problem.build(tr, x, self.request, rest_at_end=False,
+                                           method="collocation", hessian="exact",
+                                           previous_inputs=True)  # fmt: skip
+        problem = self._problem
+        lower_w, upper_w = problem.bounds(x)
+        warm = self._last is not None
+        if warm:
+            guess, (lam_x, lam_g) = problem.shifted(*self._last, self.steps)
+            duals = {"lam_x0": lam_x, "lam_g0": lam_g}
+        else:
+            guess, duals = problem.rest_guess(x), {}
+        guess[: tr.n_x] = lower_w[: tr.n_x]
+        solver = self._solve(warm)
+        began = time.perf_counter()
+        solution = solver(x0=guess, lbx=lower_w, ubx=upper_w, lbg=problem.lower_g,
+                          ubg=problem.upper_g, p=problem.parameters(t, self._applied),
+                          **duals)  # fmt: skip
+        solve_time = time.perf_counter() - began
+        stats = solver.stats()
+        values = np.array(solution["x"]).ravel()
+        g_value = np.array(solution["g"]).ravel()
+        violation = float(max(0.0, np.max(np.maximum(problem.lower_g - g_value,
+                                                     g_value - problem.upper_g),
+                                          initial=0.0)))  # fmt: skip
+        status, _ = _status(stats, violation, self.request.tolerance)
+        if self.solver == "sqp" and stats.get("success") and violation <= VIOLATION_ALLOWED:
+            status = Status.SUCCESS
+        if np.all(np.isfinite(values)):
+            self._last = (values, (np.array(solution["lam_x"]).ravel(),
+                                   np.array(solution["lam_g"]).ravel()))  # fmt: skip
+            inputs = problem.unpack(values)[1][0]
+        else:  # a failed solve: the last plan moved on, else the inputs held
+            status = Status.NOT_CONVERGED
+            inputs = self._applied if self._last is None else problem.unpack(
+                problem.shifted(*self._last, self.steps)[0])[1][0]  # fmt: skip
+        inputs = self.actuator.clip(inputs)
+        if self._lagging is not None:  # the lag's exact response to the held command
+            decay = np.exp(-self.sample_time / self.actuator.time_constant)
+            self._lagging = inputs + (self._lagging - inputs) * decay
+        self._applied = inputs
+        tau = self.actuator.input_matrix(q) @ inputs
+        self.log.append(
+            {"t": t, "inputs": inputs, "tau": tau, "status": status,
+             "iterations": int(stats.get("iter_count", 0)), "solve_time": solve_time,
+             "cost": float(solution["f"]), "violation": violation}
+        )  # fmt: skip
+        return inputs.copy()
+
+
+@dataclass(frozen=True)
+class _Request:
+    """A plan's request, checked: the horizon, the objective and the constraints."""
+
+    intervals: int
+    t_low: float
+    t_high: float
+    free: bool
+    targets: tuple
+    reference: Reference | None
+    weights: dict
+    clearance: float | None
+    tip_box: tuple | None
+    tolerance: float
+    max_iterations: int
+
+
+def _checked_request(model, *, horizon, intervals, targets, reference, weights, clearance,
+                     tip_bounds, tolerance, max_iterations) -> _Request:  # fmt: skip
+    """The arguments that :func:`optimize_trajectory` and :class:`PredictiveController`
+    share, checked (naming the argument) before anything is built."""
     if not (isinstance(intervals, int | np.integer) and intervals >= 1):
         raise ParameterError(f"intervals must be an integer >= 1, got {intervals!r}")
     if not (isinstance(max_iterations, int | np.integer) and max_iterations >= 1):
         raise ParameterError(f"max_iterations must be an integer >= 1, got {max_iterations!r}")
     if not real_scalar("tolerance", tolerance) > 0:
         raise ParameterError(f"tolerance must be > 0, got {tolerance!r}")
-    weights = {}
-    for name, value in (("reference_weight", reference_weight), ("effort_weight", effort_weight),
-                        ("rate_weight", rate_weight), ("time_weight", time_weight)):  # fmt: skip
-        weights[name] = real_scalar(name, value)
-        if weights[name] < 0:
+    checked = {}
+    for name, value in weights.items():
+        checked[name] = real_scalar(name, value)
+        if checked[name] < 0:
             raise ParameterError(f"{name} must be >= 0, got {value!r}")
     t_low, t_high, free = _horizon(horizon)
-    tr = Transcription(model, actuator)
-    x0 = tr.start(q0, qd0, lam0, actuator_state)
-    K, n, n_x, n_u = int(intervals), model.n, tr.n_x, tr.n_u
+    n = model.n
     targets = tuple(targets)
     for target in targets:
         if not isinstance(target, TipTarget | ConfigurationTarget):
@@ -544,124 +870,13 @@ def optimize_trajectory(
                 "tip_bounds must be (lower (3,), upper (3,)) with lower < upper [m], "
                 f"got {tip_bounds!r}"
             )
-    if warm_start is not None:
-        if not isinstance(warm_start, TrajectoryPlan):
-            raise ParameterError(
-                f"warm_start must be a TrajectoryPlan, got {type(warm_start).__name__}"
-            )
-        shapes = (warm_start.x.shape, warm_start.u.shape, warm_start.method)
-        if shapes != ((K + 1, n_x), (K, n_u), method):
-            raise ParameterError(
-                f"warm_start must be a plan of {K} intervals, {n_x} states, {n_u} inputs and "
-                f"method {method!r}, got {shapes}"
-            )
+    tip_box = None if tip_bounds is None else (tip_low, tip_high)
+    return _Request(int(intervals), t_low, t_high, free, targets, reference, checked, clearance,
+                    tip_box, float(tolerance), int(max_iterations))  # fmt: skip
 
-    # -- scales ------------------------------------------------------------------------
-    p = tr.parameters
-    lower_u, upper_u = tr.input_bounds
-    bounded = np.isfinite(lower_u) & np.isfinite(upper_u)
-    span = np.where(bounded, upper_u - lower_u, 1.0 if actuator else _force_scale(model, x0))
-    offset = np.where(bounded, lower_u, 0.0)
-    x_scale = np.ones(n_x)
-    x_scale[: model.n_state] = nominal_scale(model, x0[: model.n_state])
-    if n_x > model.n_state:
-        x_scale[model.n_state :] = lag_scale(tr.inputs)
-    rest_u = offset if actuator is None else actuator.rest_inputs()
-    length = float(model.robot.rest_length)
-    q_scale = model.robot.coordinate_scale()
 
-    # -- unknowns (scaled) -------------------------------------------------------------
-    stages = tr.stages
-    Xs = ca.MX.sym("X", n_x, K + 1)
-    Us = ca.MX.sym("U", n_u, K)
-    Zs = ca.MX.sym("Z", n_x, stages * K) if method == "collocation" else ca.MX(n_x, 0)
-    Ts = ca.MX.sym("T") if free else ca.MX(0, 1)
-    X = Xs * ca.DM(x_scale)
-    U = Us * ca.DM(span) + ca.DM(offset)
-    T = Ts * t_high if free else ca.MX(t_high)
-    h = T / K
-    P = ca.DM(p)
-
-    constraints = _Constraints()
-    if method == "collocation":
-        Z = Zs * ca.DM(x_scale)
-        mapped = tr.compiled_collocation(2 if hessian == "exact" else 1).map(K)
-        residual, following = mapped(X[:, :K], Z, U, P, h)
-        constraints.add("dynamics", residual / ca.DM(x_scale), 0.0, 0.0)
-    else:
-        following = tr.step.map(K)(X[:, :K], U, P, h)
-    constraints.add("dynamics", (X[:, 1:] - following) / ca.DM(x_scale), 0.0, 0.0)
-    margins = tr.domain.map(K)(X[:, 1:], P)
-    constraints.add("model or actuator domain", margins, 0.0, np.inf)
-    tips = tr.tip.map(K + 1)(X, P)
-    if clearance is not None:
-        # the base's rows (first) are fixed: no input moves them
-        obstacles = len(model.environment.obstacles)
-        gaps = tr.gaps.map(K)(X[:, 1:], P)[obstacles:, :]
-        constraints.add("clearance", gaps, clearance, np.inf)
-    if tip_bounds is not None:
-        box = (np.tile(tip_low[:, None], K), np.tile(tip_high[:, None], K))
-        constraints.add("tip bounds", tips[:, 1:], *box)
-    if rest_at_end:
-        xdot = tr.rhs(X[:, K], U[:, K - 1], P)
-        # q and qd still, and a lagging actuator settled; creep may still move
-        still = [*range(2 * n), *range(model.n_state, n_x)]
-        constraints.add("rest at the end", xdot[still] / ca.DM(x_scale[still]), 0.0, 0.0)
-
-    # -- cost --------------------------------------------------------------------------
-    def node(time_value):
-        return K if time_value is None else int(round(time_value / t_high * K))
-
-    cost = 0
-    for i, target in enumerate(targets):
-        k = node(target.time)
-        if isinstance(target, TipTarget):
-            error = (tips[:, k] - ca.DM(target.position)) / length
-            scale = length
-        else:
-            error = (X[:n, k] - ca.DM(target.q)) / ca.DM(q_scale)
-            scale = 1.0
-        cost = cost + target.weight * ca.sumsqr(error)
-        if target.tolerance is not None:  # relative to the tolerance: |e| <= tolerance
-            name = f"target {i} ({type(target).__name__} at {k * t_high / K:g} s)"
-            constraints.add(name, ca.sumsqr(error) / (target.tolerance / scale) ** 2, -np.inf, 1.0)
-    if reference is not None and weights["reference_weight"] > 0:
-        t_nodes = ca.linspace(ca.MX(0), T, K + 1)[1:]
-        t_sym = ca.SX.sym("t")
-        q_r = ca.Function("q_r", [t_sym], [reference.symbolic(t_sym).q]).map(K)(t_nodes.T)
-        tracking = ca.sumsqr((X[:n, 1:] - q_r) / ca.DM(q_scale)) / K
-        cost = cost + weights["reference_weight"] * tracking
-    if weights["effort_weight"] > 0:
-        cost = cost + weights["effort_weight"] * ca.sumsqr((U - ca.DM(rest_u)) / ca.DM(span)) / K
-    if weights["rate_weight"] > 0 and K > 1:
-        changes = (U[:, 1:] - U[:, :-1]) / ca.DM(span)
-        cost = cost + weights["rate_weight"] * ca.sumsqr(changes)
-    if weights["time_weight"] > 0:
-        cost = cost + weights["time_weight"] * T
-
-    # -- the NLP ------------------------------------------------------------------------
-    w = ca.vertcat(ca.vec(Xs), ca.vec(Us), ca.vec(Zs), Ts)
-    g, lbg, ubg = constraints.arrays()
-    lbw = np.full(w.numel(), -np.inf)
-    ubw = np.full(w.numel(), np.inf)
-    start = x0 / x_scale
-    lbw[:n_x], ubw[:n_x] = start, start
-    u_rows = slice(n_x * (K + 1), n_x * (K + 1) + n_u * K)
-    lbw[u_rows] = np.tile(np.where(bounded, 0.0, -np.inf), K)
-    ubw[u_rows] = np.tile(np.where(bounded, 1.0, np.inf), K)
-    if free:
-        lbw[-1], ubw[-1] = t_low / t_high, 1.0
-    if warm_start is not None:
-        guess = np.concatenate([
-            (warm_start.x / x_scale).ravel(), ((warm_start.u - offset) / span).ravel(),
-            (warm_start.stages / x_scale).ravel(),
-            [warm_start.horizon / t_high] if free else [],
-        ])  # fmt: skip
-    else:
-        guess = np.concatenate([
-            np.tile(start, K + 1), np.tile((rest_u - offset) / span, K),
-            np.zeros(Zs.numel()), [1.0] if free else [],
-        ])  # fmt: skip
+def _ipopt_options(max_iterations: int, tolerance: float, hessian: str) -> dict:
+    """CasADi's options of IPOPT for a plan: the budget, the tolerance, quiet."""
     options = {
         "ipopt.max_iter": int(max_iterations), "ipopt.tol": float(tolerance),
         "ipopt.print_level": 0, "ipopt.sb": "yes", "print_time": False,
@@ -669,64 +884,230 @@ def optimize_trajectory(
     if hessian == "limited-memory":
         options["ipopt.hessian_approximation"] = "limited-memory"
         options["ipopt.limited_memory_max_history"] = LBFGS_HISTORY
-    duals = {}
-    if warm_start is not None:  # begin at the plan's primal and dual point, barrier small
-        sizes = tuple(m.size for m in warm_start.multipliers)
-        if sizes != (w.numel(), g.numel()):
-            raise ParameterError(
-                "warm_start must be a plan of the same problem (targets, tolerances, "
-                f"clearance, tip bounds, rest at the end, horizon): {sizes} multipliers "
-                f"against {(w.numel(), g.numel())}"
-            )
-        options.update({f"ipopt.{name}": value for name, value in WARM_START.items()})
-        duals = dict(zip(("lam_x0", "lam_g0"), warm_start.multipliers, strict=True))
-    if progress:
-        watcher = _Progress(w.numel(), lbg, ubg)
-        options["iteration_callback"] = watcher
-    solver = ca.nlpsol("optimize_trajectory", "ipopt", {"x": w, "f": cost, "g": g}, options)
-    began = time.perf_counter()
-    solution = solver(x0=guess, lbx=lbw, ubx=ubw, lbg=lbg, ubg=ubg, **duals)
-    solve_time = time.perf_counter() - began
-    if progress and on_terminal():
-        sys.stderr.write("\n")
-    stats = solver.stats()
+    return options
 
-    # -- the result ----------------------------------------------------------------------
-    values = np.array(solution["x"]).ravel()
-    x_plan = values[: n_x * (K + 1)].reshape(K + 1, n_x) * x_scale
-    # IPOPT relaxes its bounds by 1e-8 of their size (bound_relax_factor): the inputs
-    # are put back inside, where simulate takes them
-    u_plan = np.clip(values[u_rows].reshape(K, n_u) * span + offset, lower_u, upper_u)
-    z_plan = (values[u_rows.stop : u_rows.stop + Zs.numel()].reshape(K * stages, n_x)
-              * x_scale) if method == "collocation" else np.zeros((0, n_x))  # fmt: skip
-    horizon_value = values[-1] * t_high if free else t_high
-    g_value = np.array(solution["g"]).ravel()
-    excess = np.maximum(lbg - g_value, g_value - ubg)
-    violation = float(max(0.0, excess.max(initial=0.0)))
-    # the input bounds are bounds of the unknowns: IPOPT keeps them, their multipliers say
-    bound_multipliers = np.abs(np.array(solution["lam_x"]).ravel()[u_rows])
-    groups = [*constraints.groups, *["input bounds"] * bound_multipliers.size]
-    multipliers = np.concatenate([np.abs(np.array(solution["lam_g"]).ravel()), bound_multipliers])
-    excess_all = np.concatenate([excess, np.zeros(bound_multipliers.size)])
-    binding = _binding(groups, excess_all, multipliers)
-    iterations = stats.get("iterations", {})
-    optimality = float(iterations["inf_du"][-1]) if iterations.get("inf_du") else float("nan")
-    status, words = _status(stats, violation, tolerance)
-    tip_plan = np.array(tr.tip.map(K + 1)(x_plan.T, p)).T
-    message = f"{words} after {stats.get('iter_count', 0)} iterations"
-    t_plan = np.linspace(0.0, horizon_value, K + 1)
-    left = tr.domain_exit(x_plan, t_plan)
-    if status is Status.SUCCESS and left:  # the margins are >= 0, the domain's strict
-        status, message = Status.LEFT_DOMAIN, f"{message}, but {left}"
-    if status is not Status.SUCCESS and binding:
-        message += f"; the constraint that binds most: {binding}"
-    return TrajectoryPlan(
-        status, message, t_plan, x_plan, u_plan, tip_plan,
-        float(solution["f"]), int(stats.get("iter_count", 0)), violation, optimality,
-        solve_time, method, hessian, binding, tr, z_plan,
-        (np.array(solution["lam_x"]).ravel(), np.array(solution["lam_g"]).ravel()),
-        {name: float(stats.get(f"t_wall_nlp_{key}", 0.0)) for name, key in TIMED.items()},
-    )  # fmt: skip
+
+@dataclass(frozen=True, eq=False)
+class _Problem:
+    """The nonlinear program of a plan, built once: CasADi's ``nlp`` (unknowns, cost,
+    constraints, parameters), its bounds, and the layout of its scaled unknowns.
+
+    The unknowns are ``(vec X, vec U, vec Z, T)``, scaled: the states at the ``K + 1``
+    nodes column by column, the inputs of the ``K`` steps, the stages (collocation) and
+    the free final time. The parameters are ``(t0, u_before)``: the time the horizon
+    begins at (the reference is read from it on) and, with ``previous_inputs``, the inputs
+    applied before it (the first step's rate is measured from them).
+    """
+
+    transcription: Transcription
+    nlp: dict
+    lower_g: np.ndarray
+    upper_g: np.ndarray
+    groups: list
+    blocks: list  # (first row, rows, columns) of each constraint group's rows
+    x_scale: np.ndarray
+    span: np.ndarray
+    offset: np.ndarray
+    rest_u: np.ndarray
+    bounded: np.ndarray
+    K: int
+    t_low: float
+    t_high: float
+    free: bool
+    previous_inputs: bool
+
+    @classmethod
+    def build(cls, tr, x0, request: _Request, *, rest_at_end, method, hessian,
+              previous_inputs) -> _Problem:  # fmt: skip
+        """The problem of a checked request, its states scaled by the start ``x0``."""
+        model = tr.model
+        K, t_low, t_high, free = request.intervals, request.t_low, request.t_high, request.free
+        targets, reference, weights = request.targets, request.reference, request.weights
+        clearance, tip_box = request.clearance, request.tip_box
+        n, n_x, n_u = model.n, tr.n_x, tr.n_u
+        lower_u, upper_u = tr.input_bounds
+        bounded = np.isfinite(lower_u) & np.isfinite(upper_u)
+        span = np.where(bounded, upper_u - lower_u, 1.0 if tr.actuator else _force_scale(model, x0))
+        offset = np.where(bounded, lower_u, 0.0)
+        x_scale = np.ones(n_x)
+        x_scale[: model.n_state] = nominal_scale(model, x0[: model.n_state])
+        if n_x > model.n_state:
+            x_scale[model.n_state :] = lag_scale(tr.inputs)
+        rest_u = offset if tr.actuator is None else tr.actuator.rest_inputs()
+        length = float(model.robot.rest_length)
+        q_scale = model.robot.coordinate_scale()
+
+        # -- unknowns (scaled) and parameters ------------------------------------------
+        stages = tr.stages
+        Xs = ca.MX.sym("X", n_x, K + 1)
+        Us = ca.MX.sym("U", n_u, K)
+        Zs = ca.MX.sym("Z", n_x, stages * K) if method == "collocation" else ca.MX(n_x, 0)
+        Ts = ca.MX.sym("T") if free else ca.MX(0, 1)
+        t0 = ca.MX.sym("t0")
+        u_before = ca.MX.sym("u_before", n_u) if previous_inputs else ca.MX(0, 1)
+        X = Xs * ca.DM(x_scale)
+        U = Us * ca.DM(span) + ca.DM(offset)
+        T = Ts * t_high if free else ca.MX(t_high)
+        h = T / K
+        P = ca.DM(tr.parameters)
+
+        constraints = _Constraints()
+        if method == "collocation":
+            Z = Zs * ca.DM(x_scale)
+            mapped = tr.compiled_collocation(2 if hessian == "exact" else 1).map(K)
+            residual, following = mapped(X[:, :K], Z, U, P, h)
+            constraints.add("dynamics", residual / ca.DM(x_scale), 0.0, 0.0)
+        else:
+            following = tr.step.map(K)(X[:, :K], U, P, h)
+        constraints.add("dynamics", (X[:, 1:] - following) / ca.DM(x_scale), 0.0, 0.0)
+        margins = tr.domain.map(K)(X[:, 1:], P)
+        constraints.add("model or actuator domain", margins, 0.0, np.inf)
+        tips = tr.tip.map(K + 1)(X, P)
+        if clearance is not None:
+            # the base's rows (first) are fixed: no input moves them
+            obstacles = len(model.environment.obstacles)
+            gaps = tr.gaps.map(K)(X[:, 1:], P)[obstacles:, :]
+            constraints.add("clearance", gaps, clearance, np.inf)
+        if tip_box is not None:
+            tip_low, tip_high = tip_box
+            box = (np.tile(tip_low[:, None], K), np.tile(tip_high[:, None], K))
+            constraints.add("tip bounds", tips[:, 1:], *box)
+        if rest_at_end:
+            xdot = tr.rhs(X[:, K], U[:, K - 1], P)
+            # q and qd still, and a lagging actuator settled; creep may still move
+            still = [*range(2 * n), *range(model.n_state, n_x)]
+            constraints.add("rest at the end", xdot[still] / ca.DM(x_scale[still]), 0.0, 0.0)
+
+        # -- cost ------------------------------------------------------------------------
+        def node(time_value):
+            return K if time_value is None else int(round(time_value / t_high * K))
+
+        cost = 0
+        for i, target in enumerate(targets):
+            k = node(target.time)
+            if isinstance(target, TipTarget):
+                error = (tips[:, k] - ca.DM(target.position)) / length
+                scale = length
+            else:
+                error = (X[:n, k] - ca.DM(target.q)) / ca.DM(q_scale)
+                scale = 1.0
+            cost = cost + target.weight * ca.sumsqr(error)
+            if target.tolerance is not None:  # relative to the tolerance: |e| <= tolerance
+                name = f"target {i} ({type(target).__name__} at {k * t_high / K:g} s)"
+                bound = ca.sumsqr(error) / (target.tolerance / scale) ** 2
+                constraints.add(name, bound, -np.inf, 1.0)
+        if reference is not None and weights["reference_weight"] > 0:
+            t_nodes = t0 + ca.linspace(ca.MX(0), T, K + 1)[1:]
+            t_sym = ca.SX.sym("t")
+            q_r = ca.Function("q_r", [t_sym], [reference.symbolic(t_sym).q]).map(K)(t_nodes.T)
+            tracking = ca.sumsqr((X[:n, 1:] - q_r) / ca.DM(q_scale)) / K
+            cost = cost + weights["reference_weight"] * tracking
+        if weights["effort_weight"] > 0:
+            effort = ca.sumsqr((U - ca.DM(rest_u)) / ca.DM(span)) / K
+            cost = cost + weights["effort_weight"] * effort
+        if weights["rate_weight"] > 0:
+            applied = ca.horzcat(u_before, U) if previous_inputs else U
+            if applied.shape[1] > 1:
+                changes = (applied[:, 1:] - applied[:, :-1]) / ca.DM(span)
+                cost = cost + weights["rate_weight"] * ca.sumsqr(changes)
+        if weights["time_weight"] > 0:
+            cost = cost + weights["time_weight"] * T
+
+        w = ca.vertcat(ca.vec(Xs), ca.vec(Us), ca.vec(Zs), Ts)
+        g, lower_g, upper_g = constraints.arrays()
+        nlp = {"x": w, "f": cost, "g": g, "p": ca.vertcat(t0, u_before)}
+        return cls(tr, nlp, lower_g, upper_g, constraints.groups, constraints.blocks,
+                   x_scale, span, offset, rest_u, bounded, K, t_low, t_high, free,
+                   previous_inputs)  # fmt: skip
+
+    # -- the layout of the unknowns ---------------------------------------------------
+    @property
+    def sizes(self) -> tuple[int, int]:
+        """Unknowns and constraints."""
+        return self.nlp["x"].numel(), self.lower_g.size
+
+    @property
+    def u_rows(self) -> slice:
+        """The inputs' rows among the unknowns."""
+        first = self.transcription.n_x * (self.K + 1)
+        return slice(first, first + self.transcription.n_u * self.K)
+
+    @property
+    def z_count(self) -> int:
+        """Entries of the stages among the unknowns (0 with shooting)."""
+        free = 1 if self.free else 0
+        return self.sizes[0] - self.u_rows.stop - free
+
+    def parameters(self, t0: float, u_before=None) -> np.ndarray:
+        """The NLP's parameters: the horizon's start [s] and the inputs before it."""
+        before = [] if not self.previous_inputs else u_before
+        return np.concatenate([[float(t0)], np.asarray(before, dtype=np.float64)])
+
+    def bounds(self, x0: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Bounds of the (scaled) unknowns, the start fixed at ``x0``."""
+        n_x, K = self.transcription.n_x, self.K
+        lower = np.full(self.sizes[0], -np.inf)
+        upper = np.full(self.sizes[0], np.inf)
+        lower[:n_x] = upper[:n_x] = x0 / self.x_scale
+        lower[self.u_rows] = np.tile(np.where(self.bounded, 0.0, -np.inf), K)
+        upper[self.u_rows] = np.tile(np.where(self.bounded, 1.0, np.inf), K)
+        if self.free:
+            lower[-1], upper[-1] = self.t_low / self.t_high, 1.0
+        return lower, upper
+
+    def rest_guess(self, x0: np.ndarray) -> np.ndarray:
+        """The start held, the rest inputs, no stage increments, the longest horizon."""
+        start = x0 / self.x_scale
+        return np.concatenate([
+            np.tile(start, self.K + 1), np.tile((self.rest_u - self.offset) / self.span, self.K),
+            np.zeros(self.z_count), [1.0] if self.free else [],
+        ])  # fmt: skip
+
+    def pack(self, x, u, stages, horizon) -> np.ndarray:
+        """Scaled unknowns of a plan's states, inputs, stages and final time."""
+        return np.concatenate([
+            (x / self.x_scale).ravel(), ((u - self.offset) / self.span).ravel(),
+            (stages / self.x_scale).ravel(), [horizon / self.t_high] if self.free else [],
+        ])  # fmt: skip
+
+    def unpack(self, values: np.ndarray):
+        """``(x (K+1, n_x), u (K, n_u), stages (3K, n_x), horizon [s])`` of the scaled
+        unknowns; the inputs put back inside their bounds."""
+        n_x, n_u, K = self.transcription.n_x, self.transcription.n_u, self.K
+        lower_u, upper_u = self.transcription.input_bounds
+        x = values[: n_x * (K + 1)].reshape(K + 1, n_x) * self.x_scale
+        # IPOPT relaxes its bounds by 1e-8 of their size (bound_relax_factor): the inputs
+        # are put back inside, where simulate takes them
+        u = np.clip(values[self.u_rows].reshape(K, n_u) * self.span + self.offset,
+                    lower_u, upper_u)  # fmt: skip
+        z = values[self.u_rows.stop : self.u_rows.stop + self.z_count].reshape(-1, n_x)
+        horizon = values[-1] * self.t_high if self.free else self.t_high
+        return x, u, z * self.x_scale, horizon
+
+    def shifted(self, values: np.ndarray, multipliers: tuple, steps: int):
+        """The unknowns and multipliers (``lam_x``, ``lam_g``) moved ``steps`` steps on,
+        the last step's repeated: a receding horizon's warm start."""
+        n_x, n_u, K = self.transcription.n_x, self.transcription.n_u, self.K
+        steps = min(int(steps), K)
+
+        def along(array, first, rows, columns):
+            block = array[first : first + rows * columns].reshape(columns, rows)
+            per_step = columns // K if columns % K == 0 and columns >= K else 0
+            if per_step == 0:
+                return block.ravel()
+            moved = np.concatenate([block[steps * per_step :]] +
+                                   [block[-per_step:]] * steps)  # fmt: skip
+            return moved.ravel()
+
+        def unknowns(array):
+            parts = [along(array, 0, n_x, K + 1), along(array, self.u_rows.start, n_u, K)]
+            if self.z_count:
+                parts.append(along(array, self.u_rows.stop, n_x, self.z_count // n_x))
+            return np.concatenate([*parts, array[self.u_rows.stop + self.z_count :]])
+
+        lam_x, lam_g = multipliers
+        rows = [along(lam_g, first, size, columns) for first, size, columns in self.blocks]
+        return unknowns(values), (unknowns(lam_x), np.concatenate(rows) if rows else lam_g)
 
 
 def _force_scale(model, x0) -> np.ndarray:
