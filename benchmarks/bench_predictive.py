@@ -2,17 +2,19 @@
 with bellows tracking a tip circle, through ``simulate(controller=...)``, against the
 linear MPC (``ActuatorMPC``) on the same robot, bounds and circle.
 
-Run:  python benchmarks/bench_predictive.py [--t-final 1.0] [--solvers ipopt sqp]
+Run:  python benchmarks/bench_predictive.py [--t-final 2] [--hessians gauss-newton exact]
       [--iterations 5] [--horizon 0.5] [--intervals 25]
 
 The robot is the paper's (preset ifac2020, its quadrature) with three bellows of 2 cm^2
 at 12 mm, 0 to 60 kPa; the circle is docs/control.md's (radius 10 mm at 65 mm, period
 2 s), started on it at rest with no pressure. The controller plans ``--horizon`` seconds
 in ``--intervals`` steps and samples every step (20 ms by default: the target of a 0.5 s
-horizon at 20 ms). For each solver it prints the first sample's time (the problem built,
-its derivatives compiled where they are not cached, the first solve to convergence),
+horizon at 20 ms). For each Hessian of the Lagrangian it prints the first
+sample's time (the problem built, its derivatives compiled where they are not cached, the
+first solve to convergence),
 the median and largest solve time of the later samples beside the sample time (the
-real-time target: the median within it), their iterations and statuses, and the tip's
+real-time target: the median within it) and what their evaluations took (the Hessian of
+the Lagrangian, the constraints' Jacobian, ...), their iterations and statuses, and the tip's
 distance from the circle after the first second (mean, largest); then the linear MPC's
 (the same rate weight) at the same steps and horizon, and at docs/control.md's 10
 samples of 10 ms: its time per sample and tip errors.
@@ -50,8 +52,8 @@ def tip_errors(model, run, reference) -> np.ndarray:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--t-final", type=float, default=2.0, help="simulated time [s]")
-    parser.add_argument("--solvers", nargs="+", default=list(sc.control.PREDICTIVE_SOLVERS),
-                        choices=sc.control.PREDICTIVE_SOLVERS)  # fmt: skip
+    parser.add_argument("--hessians", nargs="+", default=list(sc.control.PREDICTIVE_HESSIANS),
+                        choices=sc.control.PREDICTIVE_HESSIANS)  # fmt: skip
     parser.add_argument("--iterations", type=int, default=5, help="budget of a later solve")
     parser.add_argument("--horizon", type=float, default=0.5, help="[s]")
     parser.add_argument("--intervals", type=int, default=25)
@@ -65,11 +67,12 @@ def main() -> None:
     step = args.horizon / args.intervals
     print(f"paper robot, bellows 0-60 kPa, circle r 10 mm; horizon {args.horizon:g} s in "
           f"{args.intervals} steps of {1e3 * step:g} ms, {args.t_final:g} s simulated")  # fmt: skip
-    for solver in args.solvers:
+    for hessian in args.hessians:
         mpc = sc.PredictiveController(
             model, bellows, circle, horizon=args.horizon, intervals=args.intervals,
-            rate_weight=RATE_WEIGHT, solver=solver, iterations=args.iterations,
+            rate_weight=RATE_WEIGHT, hessian=hessian, iterations=args.iterations,
         )  # fmt: skip
+        label = f"{hessian} Hessian"
         began = time.perf_counter()
         first = mpc(0.0, start.q, start.qd)
         first_time = time.perf_counter() - began
@@ -82,12 +85,16 @@ def main() -> None:
         iterations = mpc.history("iterations")[1:]
         statuses = Counter(entry["status"].name for entry in mpc.log[1:])
         errors = tip_errors(model, run, circle)
-        print(f"{solver}: first sample {first_time:.1f} s; later solves median "
+        print(f"{label}: first sample {first_time:.1f} s; later solves median "
               f"{1e3 * np.median(solves):.0f} ms, largest {1e3 * solves.max():.0f} ms "
               f"against the {1e3 * step:g} ms sample ({np.median(solves) / step:.0f}x); "
               f"iterations median {np.median(iterations):g}, largest {iterations.max()}; "
               f"{dict(statuses)}; tip after {SETTLE:g} s: mean {1e3 * errors.mean():.3f} mm, "
               f"largest {1e3 * errors.max():.3f} mm")  # fmt: skip
+        timings = [entry["timings"] for entry in mpc.log[1:]]
+        split = ", ".join(f"{name} {1e3 * np.median([t[name] for t in timings]):.0f}"
+                          for name in timings[0])  # fmt: skip
+        print(f"{label}: a later solve's evaluations, median [ms]: {split}")
     # the linear MPC at the nonlinear one's steps, and at docs/control.md's 10 x 10 ms
     for samples, sample_time in ((args.intervals, step), (10, 0.01)):
         linear = ActuatorMPC(model, bellows, circle, horizon=samples, sample_time=sample_time,

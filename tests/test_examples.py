@@ -7,6 +7,8 @@ minutes even at their smallest (each of its dozens of fits builds its sensitivit
 equations): they are marked ``slow`` (``python -m pytest -m slow tests/test_examples.py``);
 by default every name the examples read from a module is checked to exist (a rename's
 leftover, found without running), and tests/test_validation_goals.py runs a fit of it.
+So is tendon_reach.py's plan (a minute's compile and a minute's solve), whose planner is
+checked on the paper's robot by tests/test_planning.py.
 The runs of ``train_reach.py`` skip without Stable-Baselines3 (``pip install ".[rl]"``
 and PyTorch).
 """
@@ -41,6 +43,8 @@ class Run:
     """Files the run writes into ``{out}``."""
     needs: str | None = None
     """``"data"`` (the measurements) or a module that must be importable."""
+    slow: bool = False
+    """Whether the run takes minutes even at its smallest (marked ``slow``)."""
 
     @property
     def id(self) -> str:
@@ -54,6 +58,7 @@ RUNS = (
         frozenset({"finger", "cylinder", "floor", "all"}),  # "all" runs the three
         ("finger_force.png", "cylinder.png", "floor_force.png", "floor_tip.png"),
     ),
+    Run("flick.py", ("--quick", "--output", "{out}"), writes=("flick.png", "flick.html")),
     Run("inverse_statics.py", ("--output", "{out}/statics.png"), writes=("statics.png",)),
     Run(
         "paper_reproduction.py",
@@ -64,6 +69,19 @@ RUNS = (
         "tendon_tracking.py",
         ("--output", "{out}", "--t-final", "0.6"),
         writes=("tendon_tracking_tensions.png", "tendon_tracking_shapes.png"),
+    ),
+    Run(
+        "predictive_circle.py",
+        ("--quick", "--output", "{out}"),
+        writes=("predictive_circle.png", "predictive_circle.html"),
+    ),
+    # its first plan compiles a two-segment robot's second derivatives (about a minute in
+    # an empty cache) and solves in about as long; a plan in the virtual machine takes more
+    Run(
+        "tendon_reach.py",
+        ("--output", "{out}"),
+        writes=("tendon_reach.png", "tendon_reach.html"),
+        slow=True,
     ),
     Run("tip_circle.py", ("--output", "{out}/tip.png", "--t-final", "1.1"), writes=("tip.png",)),
     *(
@@ -88,8 +106,15 @@ RUNS = (
         frozenset({"oscillation", "openloop", "creep"}),  # without --only: these three
         ("swings.png",),
         needs="data",
+        slow=True,
     ),
-    Run("validate_joint.py", ("--smoke", "--only", "rate"), frozenset({"rate"}), needs="data"),
+    Run(
+        "validate_joint.py",
+        ("--smoke", "--only", "rate"),
+        frozenset({"rate"}),
+        needs="data",
+        slow=True,
+    ),
 )
 """The runs: together, every example in every mode."""
 
@@ -134,10 +159,15 @@ def test_every_example_has_a_run_of_every_mode():
 
 
 def _load(script: Path):
-    """``script`` imported as a module (its ``main`` not run)."""
+    """``script`` imported as a module (its ``main`` not run), its folder on the path as
+    when it runs (an example may import another's robot)."""
     spec = importlib.util.spec_from_file_location(f"example_{script.stem}", script)
     module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
+    sys.path.insert(0, str(script.parent))
+    try:
+        spec.loader.exec_module(module)
+    finally:
+        sys.path.remove(str(script.parent))
     return module
 
 
@@ -190,7 +220,7 @@ def _data_directory():
             id=run.id,
             marks=[
                 *([pytest.mark.data] if run.needs == "data" else []),
-                *([pytest.mark.slow] if run.script == "validate_joint.py" else []),
+                *([pytest.mark.slow] if run.slow else []),
             ],
         )
         for run in RUNS

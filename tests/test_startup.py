@@ -209,3 +209,21 @@ def test_a_ctrl_c_in_a_weakref_callback_ends_the_command_in_one_line(tmp_path):
     assert done.returncode == 128 + signal.SIGINT, (done.returncode, done.stderr)
     assert done.stdout == "before\n"
     assert done.stderr == "softcurve: interrupted\n", done.stderr
+
+
+def test_the_command_line_installs_the_callbacks_hook(tmp_path):
+    script = tmp_path / "installed.py"
+    script.write_text(
+        "import sys\n"
+        "import softcurve.__main__ as entry\n"
+        "sys.argv = ['softcurve', '--version']\n"
+        "try:\n"
+        "    code = entry.main()\n"
+        "except SystemExit as done:  # argparse's --version\n"
+        "    code = done.code\n"
+        "print(code, sys.unraisablehook is entry._interrupted_in_a_callback)\n"
+    )
+    done = subprocess.run([sys.executable, str(script)], capture_output=True, text=True,
+                          timeout=60)  # fmt: skip
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.splitlines()[-1] == "0 True", done.stdout

@@ -69,6 +69,10 @@ GALLERY_FIGURES = {
         "softcurve simulate examples/contact_wall.toml -o {out}",
         {"contact_wall_contact.png": "contact.png", "contact_wall_tip.png": "tip.png"},
     ),
+    "flick.py": (
+        "python examples/flick.py --output {out}",
+        {"flick.png": "flick.png"},
+    ),
     "hanging.toml": (
         "softcurve simulate examples/hanging.toml -o {out}",
         {"hanging_states.png": "states.png"},
@@ -93,6 +97,10 @@ GALLERY_FIGURES = {
         "softcurve simulate examples/pneumatic_step.toml -o {out}",
         {"pneumatic_step_states.png": "states.png"},
     ),
+    "predictive_circle.py": (
+        "python examples/predictive_circle.py --output {out}",
+        {"predictive_circle.png": "predictive_circle.png"},
+    ),
     "sweep_bending.toml": (
         "softcurve sweep examples/sweep_bending.toml -o {out} --figure",
         {"sweep_bending.png": "sweep.png"},
@@ -104,6 +112,10 @@ GALLERY_FIGURES = {
     "sweep_tendons.toml": (
         "softcurve sweep examples/sweep_tendons.toml -o {out} --figure",
         {"sweep_tendons.png": "sweep.png"},
+    ),
+    "tendon_reach.py": (
+        "python examples/tendon_reach.py --output {out}",
+        {"tendon_reach.png": "tendon_reach.png"},
     ),
     "tendon_tracking.py": (
         "python examples/tendon_tracking.py --output {out}",

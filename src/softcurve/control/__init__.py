@@ -15,7 +15,7 @@ from softcurve.control._planning import LBFGS_HISTORY as LBFGS_HISTORY
 from softcurve.control._planning import PLAN_HESSIANS as PLAN_HESSIANS
 from softcurve.control._planning import PLAN_ITERATIONS as PLAN_ITERATIONS
 from softcurve.control._planning import PLAN_METHODS as PLAN_METHODS
-from softcurve.control._planning import PREDICTIVE_SOLVERS as PREDICTIVE_SOLVERS
+from softcurve.control._planning import PREDICTIVE_HESSIANS as PREDICTIVE_HESSIANS
 from softcurve.control._planning import ConfigurationTarget as ConfigurationTarget
 from softcurve.control._planning import PredictiveController as PredictiveController
 from softcurve.control._planning import TipTarget as TipTarget
@@ -29,7 +29,7 @@ __all__ = [
     "PLAN_HESSIANS",
     "PLAN_ITERATIONS",
     "PLAN_METHODS",
-    "PREDICTIVE_SOLVERS",
+    "PREDICTIVE_HESSIANS",
     "PredictiveController",
     "WITH_RESPECT_TO",
     "ConfigurationTarget",

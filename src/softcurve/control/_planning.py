@@ -27,6 +27,7 @@ from __future__ import annotations
 import sys
 import time
 from dataclasses import dataclass, field
+from types import MappingProxyType
 
 import casadi as ca
 import numpy as np
@@ -67,15 +68,15 @@ PLAN_ITERATIONS = 300
 first solve: the reach tasks of docs/planning.md converge in 44 (exact Hessian) to 95
 (limited-memory)."""
 
-PREDICTIVE_SOLVERS = ("ipopt", "sqp")
-"""The methods of :class:`PredictiveController`'s solves; the first is the default.
-``"ipopt"``: IPOPT warm-started from the shifted plan (its primal and dual point, the
-barrier small, :data:`WARM_START`); ``"sqp"``: CasADi's ``sqpmethod``, one sparse QP
-(``qrqp``) per iteration on the exact Hessian, regularized where it is not convex, after a
-first solve by IPOPT. IPOPT is the default: on the circle of docs/planning.md (the paper's
-robot, 25 steps of 20 ms) its warm solves of five iterations take a median 627 ms, where
-one SQP iteration takes longer (``python benchmarks/bench_predictive.py --solvers ipopt
-sqp``)."""
+PREDICTIVE_HESSIANS = ("gauss-newton", "exact")
+"""The Hessians of the Lagrangian of :class:`PredictiveController`'s solves; the first is
+the default. ``"gauss-newton"``: the cost's own (constant: the cost is quadratic in the
+unknowns), the constraints' curvature left out; ``"exact"``: with it, from the compiled
+second derivatives. On the circle of docs/planning.md (the paper's robot, 25 steps of 20
+ms; ``python benchmarks/bench_predictive.py --solvers ipopt``) a sample takes a median 100
+ms with the Gauss-Newton Hessian and 551 ms with the exact one, the tip 0.31 mm and 0.19 mm
+from the circle; at 10 steps of 10 ms, 40 ms and 185 ms, the same 0.003 mm.
+Gauss-Newton is the default."""
 
 PLAN_METHODS = ("collocation", "shooting")
 """The transcriptions of :func:`optimize_trajectory`; the first is the default. Both
@@ -375,7 +376,7 @@ class _Constraints:
 
     def __init__(self):
         self.rows, self.lower, self.upper, self.groups = [], [], [], []
-        self.blocks = []  # (first row, rows, columns) of each expression added
+        self.blocks = []
 
     def add(self, group: str, expression, lower, upper) -> None:
         size = expression.numel()
@@ -616,8 +617,11 @@ class PredictiveController(SampledController):
 
     Logged per sample (:meth:`history`): ``t``, ``inputs``, ``tau`` (``H(q) u``),
     ``status`` (a :class:`~softcurve.base.status.Status`: SUCCESS where the solve
-    converged, EVALUATION_LIMIT where the budget ended it first), ``iterations``,
-    ``solve_time`` [s] (the solver alone), ``cost`` and ``violation``.
+    converged, EVALUATION_LIMIT where the budget ended it first, INFEASIBLE or
+    NOT_CONVERGED where the solver failed; the inputs of a failed solve are applied all
+    the same, as far as they are finite, else the last plan's moved on), ``iterations``,
+    ``solve_time`` [s] (the solver alone), ``cost``, ``violation`` and ``timings`` (the
+    solve's wall time [s] by what it evaluated, as :attr:`TrajectoryPlan.timings`).
 
     Parameters
     ----------
@@ -627,29 +631,34 @@ class PredictiveController(SampledController):
         The actuator whose inputs are chosen; where it lags, the controller follows its
         inputs by the lag's exact response to the commands it sent.
     reference : Reference
-        ``q_r(t)`` to track (:func:`optimize_trajectory`'s ``reference``).
+        ``q_r(t)`` to track (:func:`optimize_trajectory`'s ``reference``), of the model's
+        ``n`` coordinates.
     horizon : float
         The horizon [s].
     intervals : int
         Steps of the horizon, >= 1.
     sample_time : float, optional
-        Time between two samples [s], a whole number of steps (default one step,
-        ``horizon / intervals``).
+        Time between two samples [s], a whole number of steps and at most the horizon
+        (default one step, ``horizon / intervals``).
     reference_weight, effort_weight, rate_weight : float
         :func:`optimize_trajectory`'s weights, >= 0 (dimensionless); the first step's rate
-        is measured from the inputs last applied.
+        is measured from the inputs last applied (at the first sample, the lagging
+        inputs' start, else the rest inputs). The default rate weight, 1e-6, is the one
+        docs/planning.md's circle is tracked with (``python
+        benchmarks/bench_predictive.py``).
     clearance : float, optional
         :func:`optimize_trajectory`'s clearance [m] from the obstacles.
     tip_bounds : tuple of array_like, optional
         :func:`optimize_trajectory`'s box [m] for the tip, ``(lower (3,), upper (3,))``.
-    solver : {"ipopt", "sqp"}
-        The method of every solve (:data:`PREDICTIVE_SOLVERS`).
+    hessian : {"gauss-newton", "exact"}
+        The Hessian of the Lagrangian the solver takes (:data:`PREDICTIVE_HESSIANS`).
     iterations : int
         The iteration budget of every solve after the first, >= 1.
     tolerance : float
         The solver's convergence tolerance, > 0.
     actuator_state : array_like, shape (m,), optional
-        The lagging inputs at the first sample (default the actuator's rest inputs).
+        The lagging inputs at the first sample [the actuator's ``input_unit``] (default
+        its rest inputs); only for an actuator with a ``time_constant``.
 
     Examples
     --------
@@ -677,22 +686,24 @@ class PredictiveController(SampledController):
         sample_time: float | None = None,
         reference_weight: float = 1.0,
         effort_weight: float = 0.0,
-        rate_weight: float = 1e-3,
+        rate_weight: float = 1e-6,
         clearance: float | None = None,
         tip_bounds=None,
-        solver: str = PREDICTIVE_SOLVERS[0],
+        hessian: str = PREDICTIVE_HESSIANS[0],
         iterations: int = 5,
         tolerance: float = 1e-8,
         actuator_state=None,
     ):
         if not isinstance(actuator, Actuator):
             raise ParameterError(f"actuator must be an Actuator, got {type(actuator).__name__}")
-        if solver not in PREDICTIVE_SOLVERS:
+        if hessian not in PREDICTIVE_HESSIANS:
             raise ParameterError(
-                f"solver must be one of {', '.join(PREDICTIVE_SOLVERS)}, got {solver!r}"
+                f"hessian must be one of {', '.join(PREDICTIVE_HESSIANS)}, got {hessian!r}"
             )
         if not (isinstance(iterations, int | np.integer) and iterations >= 1):
             raise ParameterError(f"iterations must be an integer >= 1, got {iterations!r}")
+        if not isinstance(reference, Reference):
+            raise ParameterError(f"reference must be a Reference, got {type(reference).__name__}")
         request = _checked_request(
             model, horizon=horizon, intervals=intervals, targets=(), reference=reference,
             weights={"reference_weight": reference_weight, "effort_weight": effort_weight,
@@ -707,15 +718,19 @@ class PredictiveController(SampledController):
             sample_time = step
         super().__init__(sample_time)
         steps = self.sample_time / step
-        if not (round(steps) >= 1 and abs(steps - round(steps)) <= 1e-9 * steps):
+        # a whole number, up to the rounding of horizon / intervals * steps
+        if not (1 <= round(steps) <= request.intervals
+                and abs(steps - round(steps)) <= 1e-9 * steps):  # fmt: skip
             raise ParameterError(
                 f"sample_time must be a whole number of the horizon's steps of {step:g} s, "
-                f"got {sample_time!r}"
+                f"at most the horizon ({request.t_high:g} s), got {sample_time!r}"
             )
         self.transcription = Transcription(model, actuator)
-        self.lag_start = actuator.lag_start(actuator_state) if actuator.time_constant else None
+        lagging = actuator.time_constant is not None or actuator_state is not None
+        self.lag_start = actuator.lag_start(actuator_state) if lagging else None
         self.model, self.actuator, self.reference = model, actuator, reference
-        self.request, self.solver, self.iterations = request, solver, int(iterations)
+        self.request, self.iterations = request, int(iterations)
+        self.hessian = hessian
         self.steps = int(round(steps))
         self._problem = None
         self._solvers = {}
@@ -724,8 +739,9 @@ class PredictiveController(SampledController):
     def reset(self) -> None:
         """Forget the record, the last plan and the lag's inputs (the problem is kept)."""
         super().reset()
-        self._applied = self.actuator.rest_inputs()
-        self._lagging = self.lag_start
+        lagging = self.lag_start is not None
+        self._applied = self.lag_start.copy() if lagging else self.actuator.rest_inputs()
+        self._lagging = self.lag_start.copy() if lagging else None
         self._last = None
 
     def _solve(self, warm: bool):
@@ -733,23 +749,12 @@ class PredictiveController(SampledController):
         if warm not in self._solvers:
             problem, request = self._problem, self.request
             budget = self.iterations if warm else PLAN_ITERATIONS
-            if self.solver == "ipopt" or not warm:  # the first solve: IPOPT's
-                options = _ipopt_options(budget, request.tolerance, "exact")
-                if warm:
-                    options.update({f"ipopt.{name}": value for name, value in WARM_START.items()})
-                plugin = "ipopt"
-            else:
-                options = {
-                    "max_iter": budget, "tol_du": request.tolerance,
-                    "tol_pr": request.tolerance, "qpsol": "qrqp",
-                    "qpsol_options": {"print_iter": False, "print_header": False,
-                                      "error_on_fail": False},
-                    "convexify_strategy": "regularize", "print_header": False,
-                    "print_iteration": False, "print_status": False, "print_time": False,
-                    "error_on_fail": False,
-                }  # fmt: skip
-                plugin = "sqpmethod"
-            self._solvers[warm] = ca.nlpsol("predictive_controller", plugin, problem.nlp, options)
+            options = _ipopt_options(budget, request.tolerance, "exact")
+            if warm:
+                options.update({f"ipopt.{name}": value for name, value in WARM_START.items()})
+            if self.hessian == "gauss-newton":
+                options["hess_lag"] = problem.cost_hessian()
+            self._solvers[warm] = ca.nlpsol("predictive_controller", "ipopt", problem.nlp, options)
         return self._solvers[warm]
 
     def __call__(self, t, q, qd, lam=None) -> np.ndarray:
@@ -758,7 +763,7 @@ class PredictiveController(SampledController):
         x = np.concatenate([q, qd, lam, [] if self._lagging is None else self._lagging])
         if self._problem is None:
             self._problem = _Problem.build(tr, x, self.request, rest_at_end=False,
-                                           method="collocation", hessian="exact",
+                                           method="collocation", hessian=self.hessian,
                                            previous_inputs=True)  # fmt: skip
         problem = self._problem
         lower_w, upper_w = problem.bounds(x)
@@ -782,16 +787,15 @@ class PredictiveController(SampledController):
                                                      g_value - problem.upper_g),
                                           initial=0.0)))  # fmt: skip
         status, _ = _status(stats, violation, self.request.tolerance)
-        if self.solver == "sqp" and stats.get("success") and violation <= VIOLATION_ALLOWED:
-            status = Status.SUCCESS
         if np.all(np.isfinite(values)):
             self._last = (values, (np.array(solution["lam_x"]).ravel(),
                                    np.array(solution["lam_g"]).ravel()))  # fmt: skip
             inputs = problem.unpack(values)[1][0]
-        else:  # a failed solve: the last plan moved on, else the inputs held
+        else:  # the next warm start is the plan before moved on again
             status = Status.NOT_CONVERGED
-            inputs = self._applied if self._last is None else problem.unpack(
-                problem.shifted(*self._last, self.steps)[0])[1][0]  # fmt: skip
+            if self._last is not None:
+                self._last = problem.shifted(*self._last, self.steps)
+            inputs = self._applied if self._last is None else problem.unpack(self._last[0])[1][0]
         inputs = self.actuator.clip(inputs)
         if self._lagging is not None:  # the lag's exact response to the held command
             decay = np.exp(-self.sample_time / self.actuator.time_constant)
@@ -801,7 +805,9 @@ class PredictiveController(SampledController):
         self.log.append(
             {"t": t, "inputs": inputs, "tau": tau, "status": status,
              "iterations": int(stats.get("iter_count", 0)), "solve_time": solve_time,
-             "cost": float(solution["f"]), "violation": violation}
+             "cost": float(solution["f"]), "violation": violation,
+             "timings": {name: float(stats.get(f"t_wall_nlp_{key}", 0.0))
+                         for name, key in TIMED.items()}}
         )  # fmt: skip
         return inputs.copy()
 
@@ -816,7 +822,7 @@ class _Request:
     free: bool
     targets: tuple
     reference: Reference | None
-    weights: dict
+    weights: MappingProxyType
     clearance: float | None
     tip_box: tuple | None
     tolerance: float
@@ -871,8 +877,9 @@ def _checked_request(model, *, horizon, intervals, targets, reference, weights, 
                 f"got {tip_bounds!r}"
             )
     tip_box = None if tip_bounds is None else (tip_low, tip_high)
-    return _Request(int(intervals), t_low, t_high, free, targets, reference, checked, clearance,
-                    tip_box, float(tolerance), int(max_iterations))  # fmt: skip
+    return _Request(int(intervals), t_low, t_high, free, targets, reference,
+                    MappingProxyType(checked), clearance, tip_box, float(tolerance),
+                    int(max_iterations))  # fmt: skip
 
 
 def _ipopt_options(max_iterations: int, tolerance: float, hessian: str) -> dict:
@@ -894,17 +901,19 @@ class _Problem:
 
     The unknowns are ``(vec X, vec U, vec Z, T)``, scaled: the states at the ``K + 1``
     nodes column by column, the inputs of the ``K`` steps, the stages (collocation) and
-    the free final time. The parameters are ``(t0, u_before)``: the time the horizon
-    begins at (the reference is read from it on) and, with ``previous_inputs``, the inputs
-    applied before it (the first step's rate is measured from them).
+    the free final time. ``groups`` names each constraint's group, row by row; ``blocks``
+    gives each expression added, ``(first row, rows, columns)``. The parameters are
+    ``(t0, u_before)``: the time the horizon begins at (the reference is read from it on)
+    and, with ``previous_inputs``, the inputs applied before it (the first step's rate is
+    measured from them).
     """
 
     transcription: Transcription
     nlp: dict
     lower_g: np.ndarray
     upper_g: np.ndarray
-    groups: list
-    blocks: list  # (first row, rows, columns) of each constraint group's rows
+    groups: tuple
+    blocks: tuple
     x_scale: np.ndarray
     span: np.ndarray
     offset: np.ndarray
@@ -1016,9 +1025,22 @@ class _Problem:
         w = ca.vertcat(ca.vec(Xs), ca.vec(Us), ca.vec(Zs), Ts)
         g, lower_g, upper_g = constraints.arrays()
         nlp = {"x": w, "f": cost, "g": g, "p": ca.vertcat(t0, u_before)}
-        return cls(tr, nlp, lower_g, upper_g, constraints.groups, constraints.blocks,
+        return cls(tr, nlp, lower_g, upper_g, tuple(constraints.groups), tuple(constraints.blocks),
                    x_scale, span, offset, rest_u, bounded, K, t_low, t_high, free,
                    previous_inputs)  # fmt: skip
+
+    def cost_hessian(self) -> ca.Function:
+        """The Hessian of the Lagrangian without the constraints' curvature, as CasADi's
+        ``hess_lag`` option of IPOPT takes it: ``(x, p, lam_f, lam_g) -> triu(lam_f
+        d2f/dx2)``. With the tracking, effort and rate terms alone the cost is quadratic
+        in the unknowns, so this is its exact Hessian, constant: a Gauss-Newton Hessian of
+        the problem, positive semi-definite."""
+        w, p = self.nlp["x"], self.nlp["p"]
+        lam_f, lam_g = ca.MX.sym("lam_f"), ca.MX.sym("lam_g", self.sizes[1])
+        hessian = lam_f * ca.hessian(self.nlp["f"], w)[0]
+        return ca.Function("nlp_hess_l", [w, p, lam_f, lam_g],
+                           [ca.triu(hessian)],
+                           ["x", "p", "lam_f", "lam_g"], ["triu_hess_gamma_x_x"])  # fmt: skip
 
     # -- the layout of the unknowns ---------------------------------------------------
     @property
@@ -1088,25 +1110,30 @@ class _Problem:
         """The unknowns and multipliers (``lam_x``, ``lam_g``) moved ``steps`` steps on,
         the last step's repeated: a receding horizon's warm start."""
         n_x, n_u, K = self.transcription.n_x, self.transcription.n_u, self.K
-        steps = min(int(steps), K)
+        stages = self.z_count // (n_x * K)
 
-        def along(array, first, rows, columns):
+        def along(array, first, rows, columns, per_step):
+            """A block of ``columns`` of ``rows`` entries, ``per_step`` columns a step (0:
+            not along the horizon), moved on; the last step's columns repeated."""
             block = array[first : first + rows * columns].reshape(columns, rows)
-            per_step = columns // K if columns % K == 0 and columns >= K else 0
             if per_step == 0:
                 return block.ravel()
-            moved = np.concatenate([block[steps * per_step :]] +
-                                   [block[-per_step:]] * steps)  # fmt: skip
-            return moved.ravel()
+            repeated = [block[-per_step:]] * steps
+            return np.concatenate([block[steps * per_step :], *repeated]).ravel()
 
         def unknowns(array):
-            parts = [along(array, 0, n_x, K + 1), along(array, self.u_rows.start, n_u, K)]
+            parts = [along(array, 0, n_x, K + 1, 1),  # the nodes: the last one repeated
+                     along(array, self.u_rows.start, n_u, K, 1)]  # fmt: skip
             if self.z_count:
-                parts.append(along(array, self.u_rows.stop, n_x, self.z_count // n_x))
+                parts.append(along(array, self.u_rows.stop, n_x, stages * K, stages))
             return np.concatenate([*parts, array[self.u_rows.stop + self.z_count :]])
 
+        def per_step(columns):
+            return {K: 1, stages * K: stages}.get(columns, 0) if stages else int(columns == K)
+
         lam_x, lam_g = multipliers
-        rows = [along(lam_g, first, size, columns) for first, size, columns in self.blocks]
+        rows = [along(lam_g, first, size, columns, per_step(columns))
+                for first, size, columns in self.blocks]  # fmt: skip
         return unknowns(values), (unknowns(lam_x), np.concatenate(rows) if rows else lam_g)
 
 
