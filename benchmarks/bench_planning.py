@@ -7,6 +7,7 @@ Run:  python benchmarks/bench_planning.py [--intervals 15] [--methods collocatio
       [--hessians exact limited-memory]
       python benchmarks/bench_planning.py --lbfgs-history 6 20 50
       python benchmarks/bench_planning.py --baselines
+      python benchmarks/bench_planning.py --long [--hessians exact limited-memory]
 
 The task: from rest straight up, the tip to (20, 0, 62) mm within 1 mm at 0.3 s and at
 rest there, the pressures within the bellows' bounds (0 to 100 kPa), a small effort
@@ -24,7 +25,10 @@ MPC (``ActuatorMPC``, 20 x 10 ms) and computed torque (``ComputedTorque`` throug
 ``ActuatorDriven``, kp 400 1/s^2, kd 40 1/s, 10 ms), both tracking the plan's final
 configuration from the start: the time after which the simulated tip stays within 1 mm
 of the goal, the tip's distance from the goal at 0.3 s, and the plan's own cost terms
-(the goal at 0.3 s, the effort over 0.3 s) evaluated on each run.
+(the goal at 0.3 s, the effort over 0.3 s) evaluated on each run. With ``--long`` it plans
+a 2 s horizon at 20 ms (100 steps: the circle of docs/control.md from rest) with each
+Hessian, from a cold start with the model and its derivatives cached, and simulates the
+plan against the circle.
 """
 
 from __future__ import annotations
@@ -113,6 +117,40 @@ def baselines(intervals: int) -> None:
               f"{effort:.3g} | {goal_term + effort:.3g} |")  # fmt: skip
 
 
+LONG = {"horizon": 2.0, "intervals": 100}
+"""The long task's horizon [s] and steps: 20 ms each."""
+
+
+def long_horizon(hessians) -> None:
+    """The circle of docs/control.md tracked over one turn (2 s) in 100 steps of 20 ms,
+    from rest on it with no pressure, bellows of 2 cm^2 at 12 mm (0 to 60 kPa): each
+    Hessian's plan from a cold start (the problem built, no warm start) in a cache that
+    holds the model and the plan's compiled derivatives (a first plan before it)."""
+    from softcurve.control.references import tip_circle
+
+    model = sc.Model(sc.presets.ifac2020())
+    bellows = sc.PneumaticActuator.three_bellows(distance=0.012, area=2e-4, p_max=6e4)
+    circle = tip_circle(center=(0.02, 0.0, 0.065), radius=0.01, period=2.0)
+    start = circle(0.0)
+    print(f"the circle over {LONG['horizon']:g} s in {LONG['intervals']} steps of 20 ms")
+    print("| Hessian | plan, cold [s] | of it the solve [s] | iterations | tip off the circle, "
+          "simulated after 0.5 s: mean (largest) [mm] | status |")  # fmt: skip
+    print("| --- | --- | --- | --- | --- | --- |")
+    for hessian in hessians:
+        request = {"actuator": bellows, "reference": circle, "rate_weight": 1e-6,
+                   "hessian": hessian, **LONG}  # fmt: skip
+        sc.optimize_trajectory(model, start.q, start.qd, **request)  # compiles, caches
+        began = time.perf_counter()
+        result = sc.optimize_trajectory(model, start.q, start.qd, **request)
+        cold = time.perf_counter() - began
+        run = result.simulate()
+        late = run.t >= 0.5
+        goal = np.array([model.tip_pose(circle(t).q).position for t in run.t[late]])
+        off = 1e3 * np.linalg.norm(run.tip[late] - goal, axis=1)
+        print(f"| {hessian} | {cold:.1f} | {result.solve_time:.1f} | {result.iterations} | "
+              f"{off.mean():.3f} ({off.max():.3f}) | {result.status.value} |")  # fmt: skip
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--intervals", type=int, default=15)
@@ -122,9 +160,14 @@ def main() -> None:
     parser.add_argument("--lbfgs-history", type=int, nargs="+", default=None,
                         help="limited-memory pairs to compare (LBFGS_HISTORY)")  # fmt: skip
     parser.add_argument("--baselines", action="store_true", help="against MPC and torque")
+    parser.add_argument("--long", action="store_true",
+                        help="a 2 s horizon at 20 ms: the circle tracked from rest")  # fmt: skip
     args = parser.parse_args()
     if args.baselines:
         baselines(args.intervals)
+        return
+    if args.long:
+        long_horizon(args.hessians)
         return
     if args.lbfgs_history:
         print("| limited-memory pairs | solve | iterations | cost |")

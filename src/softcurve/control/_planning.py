@@ -73,10 +73,12 @@ PREDICTIVE_HESSIANS = ("gauss-newton", "exact")
 the default. ``"gauss-newton"``: the cost's own (constant: the cost is quadratic in the
 unknowns), the constraints' curvature left out; ``"exact"``: with it, from the compiled
 second derivatives. On the circle of docs/planning.md (the paper's robot, 25 steps of 20
-ms; ``python benchmarks/bench_predictive.py --solvers ipopt``) a sample takes a median 100
-ms with the Gauss-Newton Hessian and 551 ms with the exact one, the tip 0.31 mm and 0.19 mm
-from the circle; at 10 steps of 10 ms, 40 ms and 185 ms, the same 0.003 mm.
-Gauss-Newton is the default."""
+ms; ``python benchmarks/bench_predictive.py``) a sample takes a median 100 ms with the
+Gauss-Newton Hessian and 551 ms with the exact one, the tip 0.31 mm and 0.19 mm from the
+circle; at 10 steps of 10 ms, 40 ms and 185 ms, the same 0.003 mm. Gauss-Newton is the
+default. A plan to convergence (:func:`optimize_trajectory`'s) keeps the exact Hessian:
+without the constraints' curvature Newton's method converges only linearly, which a
+sample's few warm iterations do not feel and a plan from rest does."""
 
 PLAN_METHODS = ("collocation", "shooting")
 """The transcriptions of :func:`optimize_trajectory`; the first is the default. Both
@@ -542,7 +544,7 @@ def optimize_trajectory(
 
     problem = _Problem.build(tr, x0, request, rest_at_end=rest_at_end, method=method,
                              hessian=hessian, previous_inputs=False)  # fmt: skip
-    options = _ipopt_options(max_iterations, tolerance, hessian)
+    options = _ipopt_options(problem, max_iterations, tolerance, hessian)
     duals = {}
     if warm_start is not None:  # begin at the plan's primal and dual point, barrier small
         sizes = tuple(m.size for m in warm_start.multipliers)
@@ -621,7 +623,7 @@ class PredictiveController(SampledController):
     NOT_CONVERGED where the solver failed; the inputs of a failed solve are applied all
     the same, as far as they are finite, else the last plan's moved on), ``iterations``,
     ``solve_time`` [s] (the solver alone), ``cost``, ``violation`` and ``timings`` (the
-    solve's wall time [s] by what it evaluated, as :attr:`TrajectoryPlan.timings`).
+    solve's wall time [s] by what it evaluated, as ``TrajectoryPlan.timings``).
 
     Parameters
     ----------
@@ -749,11 +751,9 @@ class PredictiveController(SampledController):
         if warm not in self._solvers:
             problem, request = self._problem, self.request
             budget = self.iterations if warm else PLAN_ITERATIONS
-            options = _ipopt_options(budget, request.tolerance, "exact")
+            options = _ipopt_options(problem, budget, request.tolerance, self.hessian)
             if warm:
                 options.update({f"ipopt.{name}": value for name, value in WARM_START.items()})
-            if self.hessian == "gauss-newton":
-                options["hess_lag"] = problem.cost_hessian()
             self._solvers[warm] = ca.nlpsol("predictive_controller", "ipopt", problem.nlp, options)
         return self._solvers[warm]
 
@@ -882,8 +882,9 @@ def _checked_request(model, *, horizon, intervals, targets, reference, weights, 
                     int(max_iterations))  # fmt: skip
 
 
-def _ipopt_options(max_iterations: int, tolerance: float, hessian: str) -> dict:
-    """CasADi's options of IPOPT for a plan: the budget, the tolerance, quiet."""
+def _ipopt_options(problem, max_iterations: int, tolerance: float, hessian: str) -> dict:
+    """CasADi's options of IPOPT for a problem: the budget, the tolerance, the Hessian,
+    quiet."""
     options = {
         "ipopt.max_iter": int(max_iterations), "ipopt.tol": float(tolerance),
         "ipopt.print_level": 0, "ipopt.sb": "yes", "print_time": False,
@@ -891,6 +892,8 @@ def _ipopt_options(max_iterations: int, tolerance: float, hessian: str) -> dict:
     if hessian == "limited-memory":
         options["ipopt.hessian_approximation"] = "limited-memory"
         options["ipopt.limited_memory_max_history"] = LBFGS_HISTORY
+    elif hessian == "gauss-newton":
+        options["hess_lag"] = problem.cost_hessian()
     return options
 
 
@@ -1033,8 +1036,8 @@ class _Problem:
         """The Hessian of the Lagrangian without the constraints' curvature, as CasADi's
         ``hess_lag`` option of IPOPT takes it: ``(x, p, lam_f, lam_g) -> triu(lam_f
         d2f/dx2)``. With the tracking, effort and rate terms alone the cost is quadratic
-        in the unknowns, so this is its exact Hessian, constant: a Gauss-Newton Hessian of
-        the problem, positive semi-definite."""
+        in the unknowns, so this is constant and positive semi-definite: a Gauss-Newton
+        Hessian of the problem (tip targets add their own curvature)."""
         w, p = self.nlp["x"], self.nlp["p"]
         lam_f, lam_g = ca.MX.sym("lam_f"), ca.MX.sym("lam_g", self.sizes[1])
         hessian = lam_f * ca.hessian(self.nlp["f"], w)[0]
