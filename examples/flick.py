@@ -42,23 +42,27 @@ TOLERANCE = 1e-3
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--output", default="flick", help="folder for the figure and view")
-    parser.add_argument("--intervals", type=int, default=20, help="steps of the plan")
+    parser.add_argument("--intervals", type=int, default=None,
+                        help="steps of the plan (default 20)")  # fmt: skip
     parser.add_argument("--quick", action="store_true",
                         help="three quadrature nodes and eight steps (a smoke run)")  # fmt: skip
     args = parser.parse_args()
-    if args.intervals < 2:
-        parser.error(f"--intervals must be at least 2, not {args.intervals}")
+    if args.quick and args.intervals is not None:
+        parser.error("--quick takes its own eight steps: leave out --intervals")
+    intervals = 8 if args.quick else 20 if args.intervals is None else args.intervals
+    if intervals < 1:
+        parser.error(f"--intervals must be at least 1, not {intervals}")
     nodes = {"quadrature_nodes": 3} if args.quick else {}
-    intervals = 8 if args.quick else args.intervals
     output = Path(args.output)
     output.mkdir(parents=True, exist_ok=True)
 
     began = time.perf_counter()
     model = sc.Model(sc.presets.ifac2020(), **nodes)
+    upright = [model.robot.rest_length, 0.0, 0.0]  # straight, at rest
     bellows = sc.PneumaticActuator.three_bellows(distance=0.01, area=2e-5, p_max=1e5)
     goal = sc.TipTarget(GOAL, tolerance=TOLERANCE)
     plan = sc.optimize_trajectory(
-        model, [0.064, 0.0, 0.0], actuator=bellows, horizon=(SHORTEST, LONGEST),
+        model, upright, actuator=bellows, horizon=(SHORTEST, LONGEST),
         intervals=intervals, targets=[goal], time_weight=1.0, effort_weight=1e-3,
         rest_at_end=True,
     )  # fmt: skip

@@ -69,13 +69,15 @@ SAMPLE_TIME = 2e-3  # [s]
 TRANSIENT = 0.5  # [s] left out of the error statistics
 
 
-def build():
-    """The model, the tendons and the reference."""
+def build(environment=None, time_constant=TIME_CONSTANT):
+    """The model (in ``environment``, an ``sc.Environment`` or None), the tendons (their
+    lag ``time_constant`` [s], None: none) and the reference."""
     robot = sc.Robot(segments=(PROXIMAL, DISTAL), gravity=np.array(GRAVITY))
     actuator = sc.TendonActuator.three_per_segment(
-        distance=DISTANCE, t_max=T_MAX, t_min=T_MIN, n_segments=2, time_constant=TIME_CONSTANT
+        distance=DISTANCE, t_max=T_MAX, t_min=T_MIN, n_segments=2, time_constant=time_constant
     )
-    return sc.Model(robot), actuator, tip_circle(**CIRCLE, segments=2)
+    model = sc.Model(robot, environment=environment)
+    return model, actuator, tip_circle(**CIRCLE, segments=2)
 
 
 def track(model, actuator, reference, t_final: float, *, dt: float = 5e-3):

@@ -432,6 +432,35 @@ def test_the_gauss_newton_hessian_reaches_the_exact_hessians_plans(interpreted, 
     np.testing.assert_allclose(*logs.values(), rtol=0, atol=1e-5 * PRESSURES["p_max"])
 
 
+def test_the_gauss_newton_hessian_is_the_costs_own(interpreted, pressures, circle):
+    """The Hessian the controller gives IPOPT by default: the cost's exact Hessian (upper
+    triangle), the same at every point and for every multiplier of the constraints."""
+    from softcurve.control import _planning
+
+    start = circle(0.0)
+    mpc = sc.PredictiveController(interpreted, pressures, circle, horizon=0.1, intervals=3)
+    tr = mpc.transcription
+    problem = _planning._Problem.build(
+        tr, tr.start(start.q, start.qd), mpc.request, rest_at_end=False,
+        method="collocation", hessian="gauss-newton", previous_inputs=True,
+    )  # fmt: skip
+    hessian = problem.cost_hessian()
+    w, p, f = problem.nlp["x"], problem.nlp["p"], problem.nlp["f"]
+    exact = ca.Function("exact", [w, p], [ca.hessian(f, w)[0]])
+    rng = np.random.default_rng(3)
+    n_w, n_g = problem.sizes
+    parameters = problem.parameters(0.05, pressures.rest_inputs())
+    values = []
+    for _ in range(2):
+        point = rng.normal(size=n_w)
+        got = np.array(ca.DM(hessian(point, parameters, 2.0, rng.normal(size=n_g))))
+        np.testing.assert_allclose(got, np.triu(2.0 * np.array(exact(point, parameters))),
+                                   rtol=1e-12, atol=1e-12)  # fmt: skip
+        values.append(got)
+    np.testing.assert_array_equal(values[0], values[1])
+    assert np.any(values[0] != 0)
+
+
 def test_the_predictive_controller_follows_the_lag_of_its_commands(interpreted, circle):
     """A lagging actuator's inputs, which the controller does not measure, are its model's
     response to the commands it sent: the plant with that lag settles onto the circle, a
@@ -505,15 +534,14 @@ def test_a_receding_horizons_warm_start_is_the_plan_moved_on(model, bellows, met
         stages = values[problem.u_rows.stop :].reshape(3 * K, n_x)
         expected = np.vstack([stages[3 * steps :], stages[-3:], stages[-3:]])
         np.testing.assert_array_equal(moved[problem.u_rows.stop :].reshape(3 * K, n_x), expected)
+    along = {"dynamics", "model or actuator domain"}  # this problem's groups along the steps
     for first, rows, columns in problem.blocks:
         block = lam_g[first : first + rows * columns].reshape(columns, rows)
         got = moved_g[first : first + rows * columns].reshape(columns, rows)
-        per_step = (
-            {K: 1, 3 * K: 3}.get(columns, 0) if method == "collocation" else int(columns == K)
-        )
-        if per_step:
+        if problem.groups[first] in along:
+            per_step = columns // K
             repeated = [block[-per_step:]] * steps
             np.testing.assert_array_equal(got, np.vstack([block[steps * per_step :], *repeated]))
         else:  # the target's and the rest's rows
+            assert problem.groups[first].startswith(("target", "rest at the end"))
             np.testing.assert_array_equal(got, block)
-    assert {columns for _, _, columns in problem.blocks} >= {1, K}

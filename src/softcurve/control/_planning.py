@@ -1,6 +1,8 @@
 """Trajectory optimization: the inputs that move a robot as asked, under its input
 bounds, found by IPOPT over the robot's :class:`~softcurve.control.Transcription`
-(:func:`optimize_trajectory`, its result :class:`TrajectoryPlan`).
+(:func:`optimize_trajectory`, its result :class:`TrajectoryPlan`), once or at every
+sample of a receding horizon (:class:`PredictiveController`, on a Gauss-Newton Hessian by
+default, :data:`PREDICTIVE_HESSIANS`).
 
 The horizon ``[0, T]`` is split into ``intervals`` steps of ``h = T / intervals``, the
 inputs held over each (as ``simulate`` holds inputs given on its grid). Two
@@ -76,9 +78,9 @@ second derivatives. On the circle of docs/planning.md (the paper's robot, 25 ste
 ms; ``python benchmarks/bench_predictive.py``) a sample takes a median 100 ms with the
 Gauss-Newton Hessian and 551 ms with the exact one, the tip 0.31 mm and 0.19 mm from the
 circle; at 10 steps of 10 ms, 40 ms and 185 ms, the same 0.003 mm. Gauss-Newton is the
-default. A plan to convergence (:func:`optimize_trajectory`'s) keeps the exact Hessian:
-without the constraints' curvature Newton's method converges only linearly, which a
-sample's few warm iterations do not feel and a plan from rest does."""
+default. :func:`optimize_trajectory` keeps the exact Hessian: without the constraints'
+curvature its iterations converge only linearly, and a plan's targets and rest at the end
+add constraints whose curvature the controller's problem does not have."""
 
 PLAN_METHODS = ("collocation", "shooting")
 """The transcriptions of :func:`optimize_trajectory`; the first is the default. Both
@@ -657,7 +659,7 @@ class PredictiveController(SampledController):
     iterations : int
         The iteration budget of every solve after the first, >= 1.
     tolerance : float
-        The solver's convergence tolerance, > 0.
+        IPOPT's convergence tolerance (its scaled NLP error, dimensionless), > 0.
     actuator_state : array_like, shape (m,), optional
         The lagging inputs at the first sample [the actuator's ``input_unit``] (default
         its rest inputs); only for an actuator with a ``time_constant``.
