@@ -41,7 +41,7 @@ import time
 import numpy as np
 
 import softcurve as sc
-from softcurve.control import _planning as planning
+from softcurve.control import _problem as problem
 
 TARGET = np.array([0.02, 0.0, 0.062])
 """The tip's goal [m]."""
@@ -175,7 +175,7 @@ def main() -> None:
         print("| limited-memory pairs | solve | iterations | cost |")
         print("| --- | --- | --- | --- |")
         for pairs in args.lbfgs_history:
-            planning.LBFGS_HISTORY = pairs
+            problem.LBFGS_HISTORY = pairs
             plan = task("collocation", args.intervals, hessian="limited-memory")
             print(f"| {pairs} | {plan.solve_time:.1f} | {plan.iterations} | {plan.cost:.4g} |")
         return

@@ -435,12 +435,12 @@ def test_the_gauss_newton_hessian_reaches_the_exact_hessians_plans(interpreted, 
 def test_the_gauss_newton_hessian_is_the_costs_own(interpreted, pressures, circle):
     """The Hessian the controller gives IPOPT by default: the cost's exact Hessian (upper
     triangle), the same at every point and for every multiplier of the constraints."""
-    from softcurve.control import _planning
+    from softcurve.control import _problem
 
     start = circle(0.0)
     mpc = sc.PredictiveController(interpreted, pressures, circle, horizon=0.1, intervals=3)
     tr = mpc.transcription
-    problem = _planning._Problem.build(
+    problem = _problem.Problem.build(
         tr, tr.start(start.q, start.qd), mpc.request, rest_at_end=False,
         method="collocation", hessian="gauss-newton", previous_inputs=True,
     )  # fmt: skip
@@ -504,11 +504,11 @@ def test_bad_predictive_controllers_are_refused(model, bellows, circle, change, 
 def test_a_receding_horizons_warm_start_is_the_plan_moved_on(model, bellows, method):
     """Every unknown and multiplier coded by its place: each block along the horizon moves
     on by the steps, its last step repeated; the others stay."""
-    from softcurve.control import _planning
+    from softcurve.control import _problem
 
     tr, K, steps = sc.Transcription(model, bellows), 4, 2
     n_x, n_u = tr.n_x, tr.n_u
-    request = _planning._checked_request(
+    request = _problem.checked_request(
         model, horizon=0.1, intervals=K, targets=[sc.TipTarget(REACH, tolerance=1e-3)],
         reference=None,
         weights={"reference_weight": 0.0, "effort_weight": 1e-3, "rate_weight": 1e-3,
@@ -516,7 +516,7 @@ def test_a_receding_horizons_warm_start_is_the_plan_moved_on(model, bellows, met
         clearance=None, tip_bounds=None,
         tolerance=1e-8, max_iterations=1,
     )  # fmt: skip
-    problem = _planning._Problem.build(
+    problem = _problem.Problem.build(
         tr, tr.start([0.064, 0.0, 0.0]), request, rest_at_end=True, method=method,
         hessian="limited-memory" if method == "collocation" else "exact", previous_inputs=True,
     )  # fmt: skip

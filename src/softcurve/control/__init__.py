@@ -11,16 +11,16 @@ from softcurve.control._gradient import WITH_RESPECT_TO as WITH_RESPECT_TO
 from softcurve.control._gradient import RolloutGradient as RolloutGradient
 from softcurve.control._gradient import RolloutSymbols as RolloutSymbols
 from softcurve.control._gradient import gradient as gradient
-from softcurve.control._planning import LBFGS_HISTORY as LBFGS_HISTORY
 from softcurve.control._planning import PLAN_HESSIANS as PLAN_HESSIANS
-from softcurve.control._planning import PLAN_ITERATIONS as PLAN_ITERATIONS
 from softcurve.control._planning import PLAN_METHODS as PLAN_METHODS
-from softcurve.control._planning import PREDICTIVE_HESSIANS as PREDICTIVE_HESSIANS
-from softcurve.control._planning import ConfigurationTarget as ConfigurationTarget
-from softcurve.control._planning import PredictiveController as PredictiveController
-from softcurve.control._planning import TipTarget as TipTarget
 from softcurve.control._planning import TrajectoryPlan as TrajectoryPlan
 from softcurve.control._planning import optimize_trajectory as optimize_trajectory
+from softcurve.control._predictive import PREDICTIVE_HESSIANS as PREDICTIVE_HESSIANS
+from softcurve.control._predictive import PredictiveController as PredictiveController
+from softcurve.control._problem import LBFGS_HISTORY as LBFGS_HISTORY
+from softcurve.control._problem import PLAN_ITERATIONS as PLAN_ITERATIONS
+from softcurve.control._problem import ConfigurationTarget as ConfigurationTarget
+from softcurve.control._problem import TipTarget as TipTarget
 from softcurve.control._transcription import Transcription as Transcription
 
 __all__ = [
