@@ -22,12 +22,11 @@ from softcurve.base.status import Result, Status
 from softcurve.base.validation import ParameterError
 from softcurve.control._problem import (
     PLAN_ITERATIONS,
-    TIMED,
     VIOLATION_ALLOWED,
-    WARM_START,
     Problem,
     TipTarget,
     checked_request,
+    evaluation_timings,
     ipopt_options,
     solve_status,
 )
@@ -396,7 +395,8 @@ def optimize_trajectory(
 
     problem = Problem.build(tr, x0, request, rest_at_end=rest_at_end, method=method,
                              hessian=hessian, previous_inputs=False)  # fmt: skip
-    options = ipopt_options(problem, max_iterations, tolerance, hessian)
+    options = ipopt_options(problem, max_iterations, tolerance, hessian,
+                            warm=warm_start is not None)  # fmt: skip
     duals = {}
     if warm_start is not None:  # begin at the plan's primal and dual point, barrier small
         sizes = tuple(m.size for m in warm_start.multipliers)
@@ -406,7 +406,6 @@ def optimize_trajectory(
                 f"clearance, tip bounds, rest at the end, horizon): {sizes} multipliers "
                 f"against {problem.sizes}"
             )
-        options.update({f"ipopt.{name}": value for name, value in WARM_START.items()})
         duals = dict(zip(("lam_x0", "lam_g0"), warm_start.multipliers, strict=True))
         guess = problem.pack(warm_start.x, warm_start.u, warm_start.stages, warm_start.horizon)
     else:
@@ -426,9 +425,7 @@ def optimize_trajectory(
 
     # -- the result ----------------------------------------------------------------------
     x_plan, u_plan, z_plan, horizon_value = problem.unpack(np.array(solution["x"]).ravel())
-    g_value = np.array(solution["g"]).ravel()
-    excess = np.maximum(problem.lower_g - g_value, g_value - problem.upper_g)
-    violation = float(max(0.0, excess.max(initial=0.0)))
+    excess, violation = problem.excess(np.array(solution["g"]).ravel())
     # the input bounds are bounds of the unknowns: IPOPT keeps them, their multipliers say
     bound_multipliers = np.abs(np.array(solution["lam_x"]).ravel()[problem.u_rows])
     groups = [*problem.groups, *["input bounds"] * bound_multipliers.size]
@@ -437,7 +434,7 @@ def optimize_trajectory(
     binding = _binding(groups, excess_all, multipliers)
     iterations = stats.get("iterations", {})
     optimality = float(iterations["inf_du"][-1]) if iterations.get("inf_du") else float("nan")
-    status, words = solve_status(stats, violation, tolerance)
+    status, words = solve_status(stats, violation)
     p = tr.parameters
     tip_plan = np.array(tr.tip.map(K + 1)(x_plan.T, p)).T
     message = f"{words} after {stats.get('iter_count', 0)} iterations"
@@ -452,7 +449,7 @@ def optimize_trajectory(
         float(solution["f"]), int(stats.get("iter_count", 0)), violation, optimality,
         solve_time, method, hessian, binding, tr, z_plan,
         (np.array(solution["lam_x"]).ravel(), np.array(solution["lam_g"]).ravel()),
-        {name: float(stats.get(f"t_wall_nlp_{key}", 0.0)) for name, key in TIMED.items()},
+        evaluation_timings(stats),
     )  # fmt: skip
 
 

@@ -15,10 +15,9 @@ from softcurve.base.status import Status
 from softcurve.base.validation import ParameterError
 from softcurve.control._problem import (
     PLAN_ITERATIONS,
-    TIMED,
-    WARM_START,
     Problem,
     checked_request,
+    evaluation_timings,
     ipopt_options,
     solve_status,
 )
@@ -187,9 +186,7 @@ class PredictiveController(SampledController):
         if warm not in self._solvers:
             problem, request = self._problem, self.request
             budget = self.iterations if warm else PLAN_ITERATIONS
-            options = ipopt_options(problem, budget, request.tolerance, self.hessian)
-            if warm:
-                options.update({f"ipopt.{name}": value for name, value in WARM_START.items()})
+            options = ipopt_options(problem, budget, request.tolerance, self.hessian, warm)
             self._solvers[warm] = ca.nlpsol("predictive_controller", "ipopt", problem.nlp, options)
         return self._solvers[warm]
 
@@ -218,11 +215,8 @@ class PredictiveController(SampledController):
         solve_time = time.perf_counter() - began
         stats = solver.stats()
         values = np.array(solution["x"]).ravel()
-        g_value = np.array(solution["g"]).ravel()
-        violation = float(max(0.0, np.max(np.maximum(problem.lower_g - g_value,
-                                                     g_value - problem.upper_g),
-                                          initial=0.0)))  # fmt: skip
-        status, _ = solve_status(stats, violation, self.request.tolerance)
+        _, violation = problem.excess(np.array(solution["g"]).ravel())
+        status, _ = solve_status(stats, violation)
         if np.all(np.isfinite(values)):
             self._last = (values, (np.array(solution["lam_x"]).ravel(),
                                    np.array(solution["lam_g"]).ravel()))  # fmt: skip
@@ -234,15 +228,13 @@ class PredictiveController(SampledController):
             inputs = self._applied if self._last is None else problem.unpack(self._last[0])[1][0]
         inputs = self.actuator.clip(inputs)
         if self._lagging is not None:  # the lag's exact response to the held command
-            decay = np.exp(-self.sample_time / self.actuator.time_constant)
-            self._lagging = inputs + (self._lagging - inputs) * decay
+            self._lagging = self.actuator.input_step(self._lagging, inputs, self.sample_time)
         self._applied = inputs
         tau = self.actuator.input_matrix(q) @ inputs
         self.log.append(
             {"t": t, "inputs": inputs, "tau": tau, "status": status,
              "iterations": int(stats.get("iter_count", 0)), "solve_time": solve_time,
              "cost": float(solution["f"]), "violation": violation,
-             "timings": {name: float(stats.get(f"t_wall_nlp_{key}", 0.0))
-                         for name, key in TIMED.items()}}
+             "timings": evaluation_timings(stats)}
         )  # fmt: skip
         return inputs.copy()

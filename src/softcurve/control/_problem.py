@@ -232,9 +232,10 @@ def checked_request(model, *, horizon, intervals, targets, reference, weights, c
                     int(max_iterations))  # fmt: skip
 
 
-def ipopt_options(problem, max_iterations: int, tolerance: float, hessian: str) -> dict:
+def ipopt_options(problem, max_iterations: int, tolerance: float, hessian: str,
+                  warm: bool = False) -> dict:  # fmt: skip
     """CasADi's options of IPOPT for a problem: the budget, the tolerance, the Hessian,
-    quiet."""
+    quiet, and with ``warm`` those of a start from another solution (:data:`WARM_START`)."""
     options = {
         "ipopt.max_iter": int(max_iterations), "ipopt.tol": float(tolerance),
         "ipopt.print_level": 0, "ipopt.sb": "yes", "print_time": False,
@@ -244,6 +245,8 @@ def ipopt_options(problem, max_iterations: int, tolerance: float, hessian: str) 
         options["ipopt.limited_memory_max_history"] = LBFGS_HISTORY
     elif hessian == "gauss-newton":
         options["hess_lag"] = problem.cost_hessian()
+    if warm:
+        options.update({f"ipopt.{name}": value for name, value in WARM_START.items()})
     return options
 
 
@@ -413,6 +416,13 @@ class Problem:
         free = 1 if self.free else 0
         return self.sizes[0] - self.u_rows.stop - free
 
+    def excess(self, g: np.ndarray) -> tuple[np.ndarray, float]:
+        """How far each constraint's value ``g`` lies outside its bounds (<= 0 inside),
+        and the largest of them, 0 where all hold: the violation, in the units IPOPT
+        sees."""
+        excess = np.maximum(self.lower_g - g, g - self.upper_g)
+        return excess, float(max(0.0, excess.max(initial=0.0)))
+
     def parameters(self, t0: float, u_before=None) -> np.ndarray:
         """The NLP's parameters: the horizon's start [s] and the inputs before it."""
         before = [] if not self.previous_inputs else u_before
@@ -506,6 +516,13 @@ TIMED = {"hessian": "hess_l", "jacobian": "jac_g", "constraints": "g", "cost": "
          "gradient": "grad_f"}  # fmt: skip
 """:attr:`TrajectoryPlan.timings`' names for IPOPT's evaluations in CasADi's statistics."""
 
+
+def evaluation_timings(stats: dict) -> dict:
+    """Wall time [s] of a solve by what IPOPT evaluated (:data:`TIMED`'s names), from
+    CasADi's statistics."""
+    return {name: float(stats.get(f"t_wall_nlp_{key}", 0.0)) for name, key in TIMED.items()}
+
+
 WARM_START = {
     "warm_start_init_point": "yes",
     "mu_init": 1e-6,
@@ -528,7 +545,7 @@ state's nominal size, so 1e-6 is a relative defect of the step well below ``simu
 default rtol 1e-6 times the state's scale."""
 
 
-def solve_status(stats: dict, violation: float, tolerance: float) -> tuple[Status, str]:
+def solve_status(stats: dict, violation: float) -> tuple[Status, str]:
     """The plan's status and IPOPT's words."""
     words = str(stats.get("return_status", "unknown"))
     if words == "Solve_Succeeded" and violation <= VIOLATION_ALLOWED:
