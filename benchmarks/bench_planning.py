@@ -8,6 +8,7 @@ Run:  python benchmarks/bench_planning.py [--intervals 15] [--methods collocatio
       python benchmarks/bench_planning.py --lbfgs-history 6 20 50
       python benchmarks/bench_planning.py --baselines
       python benchmarks/bench_planning.py --long [--hessians exact limited-memory]
+      python benchmarks/bench_planning.py --tendons [--hessians exact limited-memory]
 
 The task: from rest straight up, the tip to (20, 0, 62) mm within 1 mm at 0.3 s and at
 rest there, the pressures within the bellows' bounds (0 to 100 kPa), a small effort
@@ -28,7 +29,9 @@ of the goal, the tip's distance from the goal at 0.3 s, and the plan's own cost 
 (the goal at 0.3 s, the effort over 0.3 s) evaluated on each run. With ``--long`` it plans
 a 2 s horizon at 20 ms (100 steps: the circle of docs/control.md from rest) with each
 Hessian, from a cold start with the model and its derivatives cached, and simulates the
-plan against the circle.
+plan against the circle. With ``--tendons`` it plans 1 s of a ten-segment tendon robot
+(``tendon_chain``), first in an empty cache, then from a cold start with the model and
+its derivatives cached.
 """
 
 from __future__ import annotations
@@ -153,6 +156,73 @@ def long_horizon(hessians) -> None:
               f"{off.mean():.3f} ({off.max():.3f}) | {result.status.value} |")  # fmt: skip
 
 
+TENDON_SEGMENTS = 10
+"""Segments of the tendon robot of ``--tendons``."""
+
+
+def tendon_chain(segments: int = TENDON_SEGMENTS):
+    """``(model, tendons, start)``: examples/tendon_tracking.py's two sections of 10 cm
+    (the proximal one twice as stiff and heavy), each in ``segments / 2`` segments (a
+    segment's stiffnesses per unit of its length, its mass and damping shares), upright
+    under gravity; three tendons 8 mm from the backbone tied to each section's tip (0.2 to
+    5 N, no lag)."""
+    half = segments // 2
+    share = 1.0 / half
+
+    def section(mass, radius, elongation, bending, damping):
+        return sc.Segment(
+            rest_length=0.10 * share, mass=mass * share, radius=radius,
+            elongation_stiffness=sc.LinearStiffness(elongation / share),
+            bending_stiffness=sc.LinearStiffness(bending / share),
+            damping=[d * share for d in damping],
+        )  # fmt: skip
+
+    proximal = section(0.030, 0.012, 2000.0, 0.04, (2.0, 4e-4, 4e-4))
+    distal = section(0.015, 0.010, 1000.0, 0.02, (1.0, 2e-4, 2e-4))
+    robot = sc.Robot(segments=(proximal,) * half + (distal,) * half,
+                     gravity=np.array([0.0, 0.0, -9.81]))  # fmt: skip
+    tendons = sc.TendonActuator(
+        [sc.Tendon(azimuth=a, distance=0.008, t_max=5.0, t_min=0.2, anchor=anchor)
+         for anchor in (half - 1, segments - 1) for a in (0.0, 2 * np.pi / 3, 4 * np.pi / 3)],
+        n_segments=segments,
+    )  # fmt: skip
+    start = np.ravel([[segment.rest_length, 0.0, 0.0] for segment in robot.segments])
+    return sc.Model(robot), tendons, start
+
+
+TENDON_GOAL = np.array([0.06, 0.0, 0.17])
+"""Where the tip of ``--tendons`` goes [m] (it stands at 200 mm)."""
+
+
+def tendons(hessians) -> None:
+    """A ten-segment tendon robot's 1 s plan (20 steps of 50 ms): the tip to
+    ``TENDON_GOAL`` within 2 mm and at rest there, a small effort weight; the first plan
+    in an empty cache (the model and the plan's derivatives compiled) and a second from a
+    cold start with them cached."""
+    print(f"{TENDON_SEGMENTS} segments, six tendons, 1 s in 20 steps of 50 ms")
+    print("| Hessian | first plan, empty cache [s] | plan, cold, cached [s] | of it the solve [s] "
+          "| iterations | simulated tip off the plan at the end [mm] | status |")  # fmt: skip
+    print("| --- | --- | --- | --- | --- | --- | --- |")
+    for hessian in hessians:
+        with tempfile.TemporaryDirectory(prefix="bench_planning") as folder:
+            os.environ["SOFTCURVE_CACHE_DIR"] = folder
+            times, plans = [], []
+            for _ in range(2):
+                began = time.perf_counter()
+                model, actuator, start = tendon_chain()
+                plans.append(sc.optimize_trajectory(
+                    model, start, actuator=actuator, horizon=1.0, intervals=20,
+                    targets=[sc.TipTarget(TENDON_GOAL, tolerance=2e-3)], effort_weight=1e-3,
+                    rest_at_end=True, hessian=hessian,
+                ))  # fmt: skip
+                times.append(time.perf_counter() - began)
+        plan = plans[-1]
+        run = plan.simulate()
+        off = 1e3 * np.linalg.norm(run.tip[-1] - plan.tip[-1]) if run.success else np.nan
+        print(f"| {hessian} | {times[0]:.1f} | {times[1]:.1f} | {plan.solve_time:.1f} | "
+              f"{plan.iterations} | {off:.2f} | {plan.status.value} |")  # fmt: skip
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--intervals", type=int, default=15)
@@ -164,7 +234,12 @@ def main() -> None:
     parser.add_argument("--baselines", action="store_true", help="against MPC and torque")
     parser.add_argument("--long", action="store_true",
                         help="a 2 s horizon at 20 ms: the circle tracked from rest")  # fmt: skip
+    parser.add_argument("--tendons", action="store_true",
+                        help=f"a {TENDON_SEGMENTS}-segment tendon robot's 1 s plan")  # fmt: skip
     args = parser.parse_args()
+    if args.tendons:
+        tendons(args.hessians)
+        return
     if args.baselines:
         baselines(args.intervals)
         return

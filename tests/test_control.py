@@ -185,8 +185,31 @@ def test_bad_controller_arguments(paper_model):
         ComputedTorque(paper_model, ref, kp=1.0, kd=1.0, sample_time=0.0)
     with pytest.raises(ParameterError, match="kp must be finite and >= 0"):
         PDGravityElastic(paper_model, ref, kp=-1.0, kd=1.0, sample_time=1e-3)
-    with pytest.raises(ParameterError, match="reference has n = 6"):
-        ComputedTorque(paper_model, Reference.constant(np.zeros(6)), kp=1, kd=1, sample_time=1)
+    six = Reference.constant(np.zeros(6))
+    with pytest.raises(ParameterError, match="reference has 6 coordinates, the robot 3"):
+        ComputedTorque(paper_model, six, kp=1, kd=1, sample_time=1)
+    with pytest.raises(ParameterError, match="reference has 6 coordinates, the robot 3"):
+        PDGravityElastic(paper_model, six, kp=1, kd=1, sample_time=1)
+    with pytest.raises(ParameterError, match="reference has 6 coordinates, the robot 3"):
+        ActuatorMPC(paper_model, actuator(), six)
+    with pytest.raises(ParameterError, match="reference must be a Reference, got str"):
+        ActuatorMPC(paper_model, actuator(), "circle")
+
+
+def test_a_reference_in_l_kx_ky_is_refused_on_a_robot_of_other_elements():
+    """``tip_circle`` gives ``(l, kx, ky)``; a strain segment of the same three strains has
+    as many coordinates, but not these (docs/strains.md gives the map)."""
+    strains = sc.StrainSegment(
+        rest_length=0.064, mass=0.015, radius=0.01, strains=("bend_x", "bend_y", "stretch"),
+        bending_stiffness=sc.LinearStiffness(1e-2), stretch_stiffness=sc.LinearStiffness(50.0),
+    )  # fmt: skip
+    robot = sc.Robot([strains])
+    circle = tip_circle(**CIRCLE)
+    assert robot.n == circle.n == 3
+    with pytest.raises(ParameterError, match=r"\(l, kx, ky\) of constant-curvature segments"):
+        circle.check_robot(robot)
+    Reference.constant(np.zeros(3)).check_robot(robot)  # in the robot's own coordinates
+    circle.check_robot(sc.presets.ifac2020())
 
 
 def test_mpc_tracks_the_tip_circle_within_pressure_bounds(paper_model):

@@ -131,6 +131,60 @@ def test_the_compiled_collocation_is_the_symbolic_one_to_second_derivatives(tran
         np.testing.assert_allclose(compiled, symbolic, rtol=0, atol=1e-10 * scale)
 
 
+def _lagrangian_hessians(model, actuator, **request):
+    """The Hessian of a collocation problem's Lagrangian by stages (the one IPOPT gets)
+    and by CasADi through the whole problem, at a perturbed start with random
+    multipliers."""
+    from softcurve.control import _problem as problem
+
+    tr = sc.Transcription(model, actuator)
+    x0 = tr.start([0.064, 0.0, 0.0], np.zeros(3))
+    weights = {"reference_weight": 0.0, "effort_weight": 1e-3, "rate_weight": 1e-6,
+               "time_weight": 1.0 if isinstance(request["horizon"], tuple) else 0.0}  # fmt: skip
+    checked = problem.checked_request(
+        model, intervals=3, targets=[sc.TipTarget(REACH, tolerance=2e-3)], reference=None,
+        weights=weights, clearance=request.pop("clearance", None),
+        tip_bounds=request.pop("tip_bounds", None), tolerance=1e-8, max_iterations=1, **request,
+    )  # fmt: skip
+    built = problem.Problem.build(tr, x0, checked, rest_at_end=True, method="collocation",
+                                  hessian="exact", previous_inputs=False)  # fmt: skip
+    w, p, nlp = built.nlp["x"], built.nlp["p"], built.nlp
+    lam_f, lam_g = ca.MX.sym("lam_f"), ca.MX.sym("lam_g", built.sizes[1])
+    lagrangian = lam_f * nlp["f"] + ca.dot(lam_g, nlp["g"])
+    whole = ca.Function("whole", [w, p, lam_f, lam_g], [ca.triu(ca.hessian(lagrangian, w)[0])])
+    rng = np.random.default_rng(11)
+    point = built.rest_guess(x0) * (1.0 + 0.05 * rng.normal(size=built.sizes[0]))
+    args = (point, np.zeros(p.numel()), 1.3, rng.normal(size=built.sizes[1]))
+    return np.array(built.lagrangian_hessian()(*args)), np.array(whole(*args))
+
+
+@pytest.mark.parametrize(
+    "case", ["fixed horizon", "free final time", "lag, clearance and tip bounds"]
+)
+def test_the_lagrangian_hessian_by_stages_is_casadis_through_the_whole_problem(
+    case, model, bellows
+):
+    """The exact Hessian IPOPT gets is assembled from each stage's Hessian of the
+    right-hand side (Problem.lagrangian_hessian); CasADi's own differentiates the whole
+    problem. Fixed and free horizons, and a lagging actuator with a clearance and tip
+    bounds (in CasADi's virtual machine)."""
+    request = {"horizon": 0.2}
+    if case == "free final time":
+        request = {"horizon": (0.05, 0.3)}
+    elif case.startswith("lag"):
+        ceiling = sc.Plane([0.0, 0.0, 0.07], [0.0, 0.0, -1.0])
+        environment = sc.Environment([ceiling], sc.ContactLaw(1e4))
+        model = sc.Model(sc.presets.ifac2020(), environment=environment,
+                         quadrature_nodes=NODES, compile=False)  # fmt: skip
+        bellows = sc.PneumaticActuator.three_bellows(
+            distance=0.01, area=2e-5, p_max=1e5, time_constant=0.02
+        )
+        request.update(clearance=0.0, tip_bounds=([-0.05, -0.05, 0.0], [0.05, 0.05, 0.07]))
+    by_stages, whole = _lagrangian_hessians(model, bellows, **request)
+    assert np.abs(whole).max() > 0
+    np.testing.assert_allclose(by_stages, whole, rtol=0, atol=1e-12 * np.abs(whole).max())
+
+
 def test_a_limited_memory_hessian_reaches_the_exact_plan(model, bellows, reach):
     goal = sc.TipTarget(REACH, tolerance=2e-3)
     approximate = sc.optimize_trajectory(
@@ -247,7 +301,8 @@ def test_an_unreachable_target_is_not_a_success_and_says_what_binds(model, bello
         ({"tip_bounds": ([0, 0, 0], [0, 1, 1])}, "lower < upper"),
         ({"tip_bounds": ([0, 0, np.nan], [1, 1, 1])}, "lower < upper"),
         ({"tip_bounds": [0.0, 1.0]}, "tip_bounds must be"),
-        ({"reference": "circle"}, "reference must be a Reference of 3 coordinates"),
+        ({"reference": "circle"}, "reference must be a Reference, got str"),
+        ({"reference": sc.Reference.constant(np.zeros(6))}, "reference has 6 coordinates"),
         ({"actuator_state": [1e4, 0, 0]}, "actuator_state is the initial state of a lagging"),
         ({"warm_start": "plan"}, "warm_start must be a TrajectoryPlan"),
     ],

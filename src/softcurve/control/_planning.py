@@ -37,12 +37,13 @@ PLAN_HESSIANS = ("exact", "limited-memory")
 """The Hessians of the Lagrangian that :func:`optimize_trajectory` gives IPOPT; the first
 is the default. Direct collocation runs on the compiled right-hand side
 (:meth:`Transcription.compiled_collocation`): ``"exact"`` with its first and second
-derivatives in C, ``"limited-memory"`` with its first alone and IPOPT's L-BFGS
-approximation of the Hessian (:data:`LBFGS_HISTORY` pairs). On the reach task of
+derivatives in C (the Hessian of the Lagrangian assembled stage by stage,
+``Problem.lagrangian_hessian``), ``"limited-memory"`` with its first alone and IPOPT's
+L-BFGS approximation of the Hessian (:data:`LBFGS_HISTORY` pairs). On the reach task of
 docs/planning.md (15 intervals, the paper's robot, tolerance 1e-8; ``python
 benchmarks/bench_planning.py --methods collocation --hessians exact limited-memory``):
-exact 2.8 s and 44 iterations, limited-memory 2.1 s and 95, the same cost; the first
-plan, its derivatives compiled, 21.7 s and 10.1 s. Exact is the default: its iterations
+exact 1.5 s and 44 iterations, limited-memory 2.1 s and 95, the same cost; the first
+plan, its derivatives compiled, 19.4 s and 10.1 s. Exact is the default: its iterations
 do not grow with the problem's conditioning and tolerance as L-BFGS's do
 (``tests/test_planning.py``'s smaller reach needs a looser tolerance to converge with
 the approximation), and a robot's second derivatives compile once (cached on disk)."""

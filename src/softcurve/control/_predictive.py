@@ -23,17 +23,18 @@ from softcurve.control._problem import (
 )
 from softcurve.control._transcription import Transcription
 from softcurve.control.controllers import SampledController
-from softcurve.control.references import Reference
+from softcurve.control.references import Reference, checked_reference
 from softcurve.description.actuator import Actuator
 
 PREDICTIVE_HESSIANS = ("gauss-newton", "exact")
 """The Hessians of the Lagrangian of :class:`PredictiveController`'s solves; the first is
 the default. ``"gauss-newton"``: the cost's own (constant: the cost is quadratic in the
 unknowns), the constraints' curvature left out; ``"exact"``: with it, from the compiled
-second derivatives. On the circle of docs/planning.md (the paper's robot, 25 steps of 20
-ms; ``python benchmarks/bench_predictive.py``) a sample takes a median 100 ms with the
-Gauss-Newton Hessian and 551 ms with the exact one, the tip 0.31 mm and 0.19 mm from the
-circle; at 10 steps of 10 ms, 40 ms and 185 ms, the same 0.003 mm. Gauss-Newton is the
+second derivatives, stage by stage (``Problem.lagrangian_hessian``). On the circle of
+docs/planning.md (the paper's robot, 25 steps of 20 ms; ``python
+benchmarks/bench_predictive.py``) a sample takes a median 97 ms with the Gauss-Newton
+Hessian and 279 ms with the exact one, the tip 0.31 mm and 0.19 mm from the circle; at 10
+steps of 10 ms, 40 ms and 94 ms, the same 0.003 mm. Gauss-Newton is the
 default. :func:`optimize_trajectory` keeps the exact Hessian: without the constraints'
 curvature its iterations converge only linearly, and a plan's targets and rest at the end
 add constraints whose curvature the controller's problem does not have."""
@@ -139,8 +140,7 @@ class PredictiveController(SampledController):
             )
         if not (isinstance(iterations, int | np.integer) and iterations >= 1):
             raise ParameterError(f"iterations must be an integer >= 1, got {iterations!r}")
-        if not isinstance(reference, Reference):
-            raise ParameterError(f"reference must be a Reference, got {type(reference).__name__}")
+        checked_reference(reference, model.robot)  # required here, optional in a plan
         request = checked_request(
             model, horizon=horizon, intervals=intervals, targets=(), reference=reference,
             weights={"reference_weight": reference_weight, "effort_weight": effort_weight,

@@ -32,7 +32,7 @@ import numpy as np
 from softcurve.base.status import Status
 from softcurve.base.validation import ParameterError, real_scalar
 from softcurve.control._transcription import Transcription
-from softcurve.control.references import Reference
+from softcurve.control.references import Reference, checked_reference
 from softcurve.simulation.solvers import lag_scale, nominal_scale
 
 LBFGS_HISTORY = 20
@@ -211,8 +211,8 @@ def checked_request(model, *, horizon, intervals, targets, reference, weights, c
                 f"a target's time ({target.time!r} s) must lie in a fixed horizon of "
                 f"{t_high:g} s (with a free final time, targets are at the end: time=None)"
             )
-    if reference is not None and not (isinstance(reference, Reference) and reference.n == n):
-        raise ParameterError(f"reference must be a Reference of {n} coordinates, got {reference!r}")
+    if reference is not None:
+        checked_reference(reference, model.robot)
     if clearance is not None:
         clearance = real_scalar("clearance", clearance)
         if model.environment is None:
@@ -232,6 +232,43 @@ def checked_request(model, *, horizon, intervals, targets, reference, weights, c
                     int(max_iterations))  # fmt: skip
 
 
+@dataclass(frozen=True)
+class _Stages:
+    """A collocation problem's stages for the Hessian of its Lagrangian: the slopes as a
+    ``symbol`` (n_x, 3 K), the stages' states ``x`` and inputs ``u`` as expressions of
+    the unknowns, the ``dynamics``' rows on the symbol (the collocation equations and the
+    continuity of the states, scaled as the problem's) and the constraints' ``equations``
+    with them."""
+
+    symbol: ca.MX
+    x: ca.MX
+    u: ca.MX
+    dynamics: tuple
+    equations: ca.MX | None = None
+
+    @classmethod
+    def build(cls, tr, X, Z, U, h, x_scale) -> _Stages:
+        """The stages of the steps between the nodes ``X`` (n_x, K + 1) with increments
+        ``Z`` (n_x, 3 K), inputs ``U`` (n_u, K) and step ``h``; ``x_scale`` scales the
+        dynamics' rows."""
+        n_x, (stages, K) = tr.n_x, (tr.stages, U.shape[1])
+        repeat = ca.sparsify(ca.DM(np.kron(np.eye(K), np.ones((1, stages)))))
+        x, u = ca.mtimes(X[:, :K], repeat) + Z, ca.mtimes(U, repeat)
+        symbol = ca.MX.sym("slopes", n_x, stages * K)
+        x1, z, s, step = (ca.MX.sym(name, *shape) for name, shape in
+                          (("x", (n_x, 1)), ("z", (n_x, stages)), ("s", (n_x, stages)),
+                           ("h", (1, 1))))  # fmt: skip
+        equations = ca.Function("equations", [x1, z, s, step],
+                                list(tr.collocation_equations(x1, z, s, step))).map(K)  # fmt: skip
+        residual, following = equations(X[:, :K], Z, symbol, h)
+        scale = ca.DM(x_scale)
+        dynamics = (ca.vec(residual / scale), ca.vec((X[:, 1:] - following) / scale))
+        return cls(symbol, x, u, dynamics)
+
+    def with_equations(self, g) -> _Stages:
+        return _Stages(self.symbol, self.x, self.u, self.dynamics, g)
+
+
 def ipopt_options(problem, max_iterations: int, tolerance: float, hessian: str,
                   warm: bool = False) -> dict:  # fmt: skip
     """CasADi's options of IPOPT for a problem: the budget, the tolerance, the Hessian,
@@ -245,6 +282,8 @@ def ipopt_options(problem, max_iterations: int, tolerance: float, hessian: str,
         options["ipopt.limited_memory_max_history"] = LBFGS_HISTORY
     elif hessian == "gauss-newton":
         options["hess_lag"] = problem.cost_hessian()
+    elif problem.stages is not None:
+        options["hess_lag"] = problem.lagrangian_hessian()
     if warm:
         options.update({f"ipopt.{name}": value for name, value in WARM_START.items()})
     return options
@@ -280,6 +319,7 @@ class Problem:
     t_high: float
     free: bool
     previous_inputs: bool
+    stages: _Stages | None = None
 
     @classmethod
     def build(cls, tr, x0, request: Request, *, rest_at_end, method, hessian,
@@ -317,11 +357,14 @@ class Problem:
         P = ca.DM(tr.parameters)
 
         constraints = Constraints()
+        stages_of = None
         if method == "collocation":
             Z = Zs * ca.DM(x_scale)
             mapped = tr.compiled_collocation(2 if hessian == "exact" else 1).map(K)
             residual, following = mapped(X[:, :K], Z, U, P, h)
             constraints.add("dynamics", residual / ca.DM(x_scale), 0.0, 0.0)
+            if hessian == "exact":
+                stages_of = _Stages.build(tr, X, Z, U, h, x_scale)
         else:
             following = tr.step.map(K)(X[:, :K], U, P, h)
         constraints.add("dynamics", (X[:, 1:] - following) / ca.DM(x_scale), 0.0, 0.0)
@@ -380,10 +423,53 @@ class Problem:
 
         w = ca.vertcat(ca.vec(Xs), ca.vec(Us), ca.vec(Zs), Ts)
         g, lower_g, upper_g = constraints.arrays()
+        if stages_of is not None:  # the dynamics' two blocks first: on the slopes' symbol
+            others = constraints.rows[2:]
+            stages_of = stages_of.with_equations(ca.vertcat(*stages_of.dynamics, *others))
         nlp = {"x": w, "f": cost, "g": g, "p": ca.vertcat(t0, u_before)}
         return cls(tr, nlp, lower_g, upper_g, tuple(constraints.groups), tuple(constraints.blocks),
                    x_scale, span, offset, rest_u, bounded, K, t_low, t_high, free,
-                   previous_inputs)  # fmt: skip
+                   previous_inputs, stages_of)  # fmt: skip
+
+    def lagrangian_hessian(self) -> ca.Function:
+        """The exact Hessian of the Lagrangian of a collocation problem, as CasADi's
+        ``hess_lag`` option of IPOPT takes it: ``(x, p, lam_f, lam_g) -> triu(H)``.
+
+        The collocation equations are linear in the slopes at the stages, so the
+        Lagrangian's curvature is (i) that of the cost and of the other constraints with
+        the slopes held, (ii) per stage, the right-hand side's Hessian weighted by the
+        slopes' multipliers ``mu`` (:meth:`Transcription.stage_hessian`, twelve
+        directions a stage on the paper's robot), carried to the unknowns by the constant
+        map from them to the stage's state and input, and (iii) with a free final time,
+        the slopes' gradient along the unknowns times the step's share of ``mu``. CasADi's
+        own Hessian sweeps every stage in every direction its colouring needs.
+        """
+        if self.stages is None:
+            raise ValueError("lagrangian_hessian needs a collocation problem built with "
+                             "hessian='exact'")  # fmt: skip
+        stages, tr = self.stages, self.transcription
+        w, p = self.nlp["x"], self.nlp["p"]
+        lam_f, lam_g = ca.MX.sym("lam_f"), ca.MX.sym("lam_g", self.sizes[1])
+        lagrangian = lam_f * self.nlp["f"] + ca.dot(lam_g, stages.equations)
+        held = ca.hessian(lagrangian, w)[0]  # (i)
+        shape = stages.symbol.shape
+        mu = ca.reshape(ca.jacobian(lagrangian, ca.vec(stages.symbol)).T, *shape)
+        P = ca.DM(tr.parameters)
+        blocks = tr.stage_hessian().map(shape[1])(stages.x, stages.u, mu, P)
+        at_stages = ca.vec(ca.vertcat(stages.x, stages.u))  # linear in the unknowns
+        carry = ca.DM(ca.Function("carry", [w], [ca.jacobian(at_stages, w)])(np.zeros(w.numel())))
+        each = ca.horzsplit(blocks, blocks.shape[0])
+        hessian = held + ca.mtimes([carry.T, ca.diagcat(*each), carry])  # (ii)
+        slopes = tr.compiled_rhs(2).map(shape[1])(stages.x, stages.u, P)
+        if self.free:  # (iii): mu is linear in h = T / K, T the last unknown
+            along = ca.vec(ca.jacobian(ca.vec(mu), w[-1]))
+            pull = ca.gradient(ca.dot(along, ca.vec(slopes)), w)
+            last = ca.DM.zeros(w.numel(), 1)
+            last[-1] = 1.0
+            hessian = hessian + ca.mtimes(pull, last.T) + ca.mtimes(last, pull.T)
+        hessian = ca.substitute(hessian, stages.symbol, slopes)
+        return ca.Function("nlp_hess_l", [w, p, lam_f, lam_g], [ca.triu(hessian)],
+                           ["x", "p", "lam_f", "lam_g"], ["triu_hess_gamma_x_x"])  # fmt: skip
 
     def cost_hessian(self) -> ca.Function:
         """The Hessian of the Lagrangian without the constraints' curvature, as CasADi's

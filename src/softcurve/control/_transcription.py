@@ -162,11 +162,49 @@ class Transcription:
                    (("x", self.n_x), ("u", self.n_u), ("p", self.parameters.size)))  # fmt: skip
         z, h = kind.sym("z", self.n_x, self.stages), kind.sym("h")
         slopes = ca.horzcat(*[rhs(x + z[:, j], u, p) for j in range(self.stages)])
-        residual = z - h * ca.mtimes(slopes, ca.DM(self.tableau.matrix.T))
         return ca.Function(
-            "collocation", [x, z, u, p, h], [residual, x + z[:, -1]],
+            "collocation", [x, z, u, p, h], list(self.collocation_equations(x, z, slopes, h)),
             ["x", "z", "u", "p", "h"], ["residual", "x_next"],
         )  # fmt: skip
+
+    def collocation_equations(self, x, z, slopes, h) -> tuple:
+        """``(residual, x_next)`` of one Radau IIA step given the slopes at its stages:
+        ``residual = z - h slopes A^T`` (``A`` the tableau's matrix), zero where
+        ``slopes[:, j]`` is the right-hand side at the stage ``x + z[:, j]``, and
+        ``x_next = x + z[:, -1]``. Linear in ``z`` and in ``h slopes``: the curvature of
+        the equations is the right-hand side's alone (:meth:`stage_hessian`).
+
+        Parameters
+        ----------
+        x : casadi.SX or casadi.MX, shape (n_x, 1)
+            The state at the step's start.
+        z : casadi.SX or casadi.MX, shape (n_x, 3)
+            The stage increments.
+        slopes : casadi.SX or casadi.MX, shape (n_x, 3)
+            The state derivatives at the stages.
+        h : casadi.SX or casadi.MX
+            The step [s].
+        """
+        return z - h * ca.mtimes(slopes, ca.DM(self.tableau.matrix.T)), x + z[:, -1]
+
+    def stage_hessian(self) -> ca.Function:
+        """``stage_hessian(x, u, mu, p) -> H`` (n_x + n_u, n_x + n_u): the Hessian of
+        ``mu . rhs(x, u, p)`` along ``(x, u)``, on :meth:`compiled_rhs` with its second
+        derivatives (twelve directions on the paper's robot with bellows, where the
+        Hessian of a whole plan's Lagrangian sweeps every stage in every direction it
+        colours).
+        """
+        if "stage_hessian" not in self._compiled:
+            x, u, mu, p = (ca.MX.sym(name, size) for name, size in
+                           (("x", self.n_x), ("u", self.n_u), ("mu", self.n_x),
+                            ("p", self.parameters.size)))  # fmt: skip
+            rhs = self.compiled_rhs(2)
+            hessian = ca.hessian(ca.dot(mu, rhs(x, u, p)), ca.vertcat(x, u))[0]
+            self._compiled["stage_hessian"] = ca.Function(
+                "stage_hessian", [x, u, mu, p], [ca.densify(hessian)],
+                ["x", "u", "mu", "p"], ["hessian"],
+            )  # fmt: skip
+        return self._compiled["stage_hessian"]
 
     def compiled_collocation(self, order: int = 2) -> ca.Function:
         """:attr:`collocation` on :meth:`compiled_rhs` (MX): the same equations, their

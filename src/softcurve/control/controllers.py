@@ -37,7 +37,7 @@ import scipy.optimize
 from softcurve.analysis.loads import coordinate_scale
 from softcurve.base.status import Result, Status
 from softcurve.base.validation import ParameterError, real_array, real_scalar
-from softcurve.control.references import Reference
+from softcurve.control.references import Reference, checked_reference
 from softcurve.description.actuator import Actuator
 from softcurve.figures import plot_input_bounds
 from softcurve.simulation import sample_time as checked_sample_time
@@ -98,14 +98,7 @@ class ComputedTorque(SampledController):
 
     def __init__(self, model, reference: Reference, *, kp, kd, sample_time: float):
         super().__init__(sample_time)
-        if reference.n != model.n:
-            raise ParameterError(f"reference has n = {reference.n}, model n = {model.n}")
-        if reference.constant_curvature and not model.robot.constant_curvature:
-            raise ParameterError(
-                "reference is written in the coordinates (l, kx, ky) of constant-curvature "
-                "segments, the robot has other elements: give it in the robot's coordinates"
-            )
-        self.model, self.reference = model, reference
+        self.model, self.reference = model, checked_reference(reference, model.robot)
         self.kp, self.kd = _gain("kp", kp, model.n), _gain("kd", kd, model.n)
 
     def __call__(self, t, q, qd, lam=None) -> np.ndarray:
@@ -135,7 +128,7 @@ class PDGravityElastic(SampledController):
 
     def __init__(self, model, reference: Reference, *, kp, kd, sample_time: float):
         super().__init__(sample_time)
-        self.model, self.reference = model, reference
+        self.model, self.reference = model, checked_reference(reference, model.robot)
         self.kp, self.kd = _gain("kp", kp, model.n), _gain("kd", kd, model.n)
 
     def __call__(self, t, q, qd, lam=None) -> np.ndarray:

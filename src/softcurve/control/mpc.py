@@ -29,7 +29,7 @@ from softcurve.analysis.linear import linearize
 from softcurve.analysis.loads import coordinate_scale
 from softcurve.base.validation import ParameterError, real_scalar
 from softcurve.control.controllers import SampledController
-from softcurve.control.references import Reference
+from softcurve.control.references import Reference, checked_reference
 from softcurve.description.actuator import Actuator
 
 
@@ -68,6 +68,7 @@ class ActuatorMPC(SampledController):
     ):
         super().__init__(sample_time)
         actuator.check_robot(model.robot)
+        reference = checked_reference(reference, model.robot)
         if not (isinstance(horizon, int) and horizon >= 1):
             raise ParameterError(f"horizon must be an integer >= 1, got {horizon!r}")
         self.rate_weight = real_scalar("rate_weight", rate_weight)

@@ -63,6 +63,27 @@ class Reference:
         self.constant_curvature = constant_curvature
         self._function = ca.Function("reference", [t], [q, qd, qdd])
 
+    def check_robot(self, robot) -> None:
+        """Raise :class:`ParameterError` unless the reference describes ``robot``'s
+        coordinates: as many, and, for a reference in ``(l, kx, ky)``, constant-curvature
+        segments only.
+
+        Parameters
+        ----------
+        robot : Robot
+            The robot whose coordinates the reference gives.
+        """
+        if self.n != robot.n:
+            raise ParameterError(
+                f"reference has {self.n} coordinates, the robot {robot.n}: give one per "
+                "coordinate of the robot"
+            )
+        if self.constant_curvature and not robot.constant_curvature:
+            raise ParameterError(
+                "reference is written in the coordinates (l, kx, ky) of constant-curvature "
+                "segments, the robot has other elements: give it in the robot's coordinates"
+            )
+
     def symbolic(self, t) -> ReferenceSample:
         """The reference and its derivatives at a CasADi time ``t`` (expressions).
 
@@ -113,6 +134,23 @@ class Reference:
             lambda t: ca.DM(center) + ca.DM(amplitude) * ca.sin(w * t + ca.DM(phase)),
             center.size,
         )
+
+
+def checked_reference(reference, robot) -> Reference:
+    """``reference`` if it is a :class:`Reference` of ``robot``'s coordinates
+    (:meth:`Reference.check_robot`), else :class:`ParameterError` saying why.
+
+    Parameters
+    ----------
+    reference : Reference
+        The reference a controller or a plan was given.
+    robot : Robot
+        The robot it is for.
+    """
+    if not isinstance(reference, Reference):
+        raise ParameterError(f"reference must be a Reference, got {type(reference).__name__}")
+    reference.check_robot(robot)
+    return reference
 
 
 def tip_to_coordinates(position):
