@@ -131,10 +131,10 @@ def test_the_compiled_collocation_is_the_symbolic_one_to_second_derivatives(tran
         np.testing.assert_allclose(compiled, symbolic, rtol=0, atol=1e-10 * scale)
 
 
-def _lagrangian_hessians(model, actuator, **request):
-    """The Hessian of a collocation problem's Lagrangian by stages (the one IPOPT gets)
-    and by CasADi through the whole problem, at a perturbed start with random
-    multipliers."""
+def _problems(model, actuator, **request):
+    """The collocation problem of a reach (within 3 steps, at rest at the end) with the
+    exact and with the Gauss-Newton Hessian, and a point with the states perturbed and
+    the inputs across their range."""
     from softcurve.control import _problem as problem
 
     tr = sc.Transcription(model, actuator)
@@ -146,32 +146,31 @@ def _lagrangian_hessians(model, actuator, **request):
         weights=weights, clearance=request.pop("clearance", None),
         tip_bounds=request.pop("tip_bounds", None), tolerance=1e-8, max_iterations=1, **request,
     )  # fmt: skip
-    built = problem.Problem.build(tr, x0, checked, rest_at_end=True, method="collocation",
-                                  hessian="exact", previous_inputs=False)  # fmt: skip
-    w, p, nlp = built.nlp["x"], built.nlp["p"], built.nlp
-    lam_f, lam_g = ca.MX.sym("lam_f"), ca.MX.sym("lam_g", built.sizes[1])
-    lagrangian = lam_f * nlp["f"] + ca.dot(lam_g, nlp["g"])
-    whole = ca.Function("whole", [w, p, lam_f, lam_g], [ca.triu(ca.hessian(lagrangian, w)[0])])
+    built = {
+        hessian: problem.Problem.build(
+            tr,
+            x0,
+            checked,
+            rest_at_end=True,
+            method="collocation",
+            hessian=hessian,
+            previous_inputs=False,
+        )  # fmt: skip
+        for hessian in ("exact", "gauss-newton")
+    }
     rng = np.random.default_rng(11)
-    point = built.rest_guess(x0) * (1.0 + 0.05 * rng.normal(size=built.sizes[0]))
-    args = (point, np.zeros(p.numel()), 1.3, rng.normal(size=built.sizes[1]))
-    return np.array(built.lagrangian_hessian()(*args)), np.array(whole(*args))
+    exact = built["exact"]
+    point = exact.rest_guess(x0) * (1.0 + 0.05 * rng.normal(size=exact.sizes[0]))
+    inputs = exact.u_rows
+    point[inputs] = rng.random(inputs.stop - inputs.start)  # scaled: 0 lower, 1 upper bound
+    return built, point, rng
 
 
-@pytest.mark.parametrize(
-    "case", ["fixed horizon", "free final time", "lag, clearance and tip bounds"]
-)
-def test_the_lagrangian_hessian_by_stages_is_casadis_through_the_whole_problem(
-    case, model, bellows
-):
-    """The exact Hessian IPOPT gets is assembled from each stage's Hessian of the
-    right-hand side (Problem.lagrangian_hessian); CasADi's own differentiates the whole
-    problem. Fixed and free horizons, and a lagging actuator with a clearance and tip
-    bounds (in CasADi's virtual machine)."""
-    request = {"horizon": 0.2}
+def _case(case, model, bellows):
+    """The model, actuator and request of a case of the stage-by-stage derivatives."""
     if case == "free final time":
-        request = {"horizon": (0.05, 0.3)}
-    elif case.startswith("lag"):
+        return model, bellows, {"horizon": (0.05, 0.3)}
+    if case.startswith("lag"):
         ceiling = sc.Plane([0.0, 0.0, 0.07], [0.0, 0.0, -1.0])
         environment = sc.Environment([ceiling], sc.ContactLaw(1e4))
         model = sc.Model(sc.presets.ifac2020(), environment=environment,
@@ -179,10 +178,39 @@ def test_the_lagrangian_hessian_by_stages_is_casadis_through_the_whole_problem(
         bellows = sc.PneumaticActuator.three_bellows(
             distance=0.01, area=2e-5, p_max=1e5, time_constant=0.02
         )
-        request.update(clearance=0.0, tip_bounds=([-0.05, -0.05, 0.0], [0.05, 0.05, 0.07]))
-    by_stages, whole = _lagrangian_hessians(model, bellows, **request)
-    assert np.abs(whole).max() > 0
-    np.testing.assert_allclose(by_stages, whole, rtol=0, atol=1e-12 * np.abs(whole).max())
+        box = ([-0.05, -0.05, 0.0], [0.05, 0.05, 0.07])
+        return model, bellows, {"horizon": 0.2, "clearance": 0.0, "tip_bounds": box}
+    return model, bellows, {"horizon": 0.2}
+
+
+@pytest.mark.parametrize(
+    "case", ["fixed horizon", "free final time", "lag, clearance and tip bounds"]
+)
+def test_the_derivatives_by_stages_are_casadis_through_the_whole_problem(case, model, bellows):
+    """IPOPT gets the exact Hessian of the Lagrangian (Problem.lagrangian_hessian) and,
+    with the Gauss-Newton Hessian, the constraints and their Jacobian
+    (Problem.constraint_jacobian) assembled from each stage's derivatives of the
+    right-hand side; CasADi's differentiate the whole problem (the exact one's, on the
+    compiled collocation). At a point with the inputs across their range and random
+    multipliers."""
+    model, bellows, request = _case(case, model, bellows)
+    built, point, rng = _problems(model, bellows, **request)
+    exact = built["exact"]
+    w, p, nlp = exact.nlp["x"], exact.nlp["p"], exact.nlp
+    lam_f, lam_g = ca.MX.sym("lam_f"), ca.MX.sym("lam_g", exact.sizes[1])
+    lagrangian = lam_f * nlp["f"] + ca.dot(lam_g, nlp["g"])
+    whole = ca.Function("whole", [w, p, lam_f, lam_g],
+                        [ca.triu(ca.hessian(lagrangian, w)[0]), nlp["g"],
+                         ca.jacobian(nlp["g"], w)])  # fmt: skip
+    duals = rng.normal(size=exact.sizes[1])
+    hessian, g, jacobian = (np.array(v) for v in whole(point, 0.0, 1.3, duals))
+    by_stages = np.array(exact.lagrangian_hessian()(point, 0.0, 1.3, duals))
+    staged = built["gauss-newton"].constraint_jacobian()(point, 0.0)
+    g_staged, jacobian_staged = (np.array(v) for v in staged)
+    pairs = [(by_stages, hessian), (g_staged, g), (jacobian_staged, jacobian)]
+    for mine, reference in pairs:
+        assert np.abs(reference).max() > 0
+        np.testing.assert_allclose(mine, reference, rtol=0, atol=1e-12 * np.abs(reference).max())
 
 
 def test_a_limited_memory_hessian_reaches_the_exact_plan(model, bellows, reach):
@@ -469,6 +497,29 @@ def test_the_predictive_controller_tracks_a_circle_on_its_budget(interpreted, pr
     assert tip_errors(model, run, circle).max() < 0.2e-3  # [m], a 10 mm circle
     mpc.reset()
     assert mpc.log == [] and mpc(0.0, start.q, start.qd).shape == (3,)
+
+
+def test_a_sample_that_cannot_be_met_is_logged_and_its_inputs_stay_in_bounds(
+    interpreted, pressures, circle
+):
+    """Tip bounds 20 mm below the tip at rest cannot be met within a step: no sample is
+    logged SUCCESS (IPOPT runs out of its iterations, the first's 300 and the next's 5)
+    and each logs its violation; the inputs applied are finite and within the actuator's
+    bounds."""
+    model, start = interpreted, circle(0.0)
+    tip = model.tip_pose(start.q).position
+    box = (tip - [0.05, 0.05, 0.05], tip + [0.05, 0.05, -0.02])
+    mpc = sc.PredictiveController(model, pressures, circle, horizon=0.1, intervals=5,
+                                  tip_bounds=box, iterations=5)  # fmt: skip
+    run = sc.simulate(model, start.q, start.qd, actuator=pressures, controller=mpc,
+                      t_final=0.04, dt=0.02)  # fmt: skip
+    assert run.success, run.message
+    assert [entry["status"] for entry in mpc.log] == [Status.EVALUATION_LIMIT] * 2
+    assert mpc.history("iterations").tolist() == [sc.control.PLAN_ITERATIONS, 5]
+    assert np.all(mpc.history("violation") > 1e-3)
+    inputs = mpc.history("inputs")
+    assert np.all(np.isfinite(inputs))
+    assert np.all(inputs >= pressures.lower) and np.all(inputs <= pressures.upper)
 
 
 def test_the_gauss_newton_hessian_reaches_the_exact_hessians_plans(interpreted, pressures, circle):

@@ -32,9 +32,10 @@ the default. ``"gauss-newton"``: the cost's own (constant: the cost is quadratic
 unknowns), the constraints' curvature left out; ``"exact"``: with it, from the compiled
 second derivatives, stage by stage (``Problem.lagrangian_hessian``). On the circle of
 docs/planning.md (the paper's robot, 25 steps of 20 ms; ``python
-benchmarks/bench_predictive.py``) a sample takes a median 97 ms with the Gauss-Newton
-Hessian and 279 ms with the exact one, the tip 0.31 mm and 0.19 mm from the circle; at 10
-steps of 10 ms, 40 ms and 94 ms, the same 0.003 mm. Gauss-Newton is the
+benchmarks/bench_predictive.py``) a sample takes a median 42 ms with the Gauss-Newton
+Hessian (the constraints' Jacobian by stages, ``Problem.constraint_jacobian``) and 279 ms
+with the exact one, the tip 0.31 mm and 0.19 mm from the circle; at 10
+steps of 10 ms, 20 ms and 94 ms, the same 0.003 mm. Gauss-Newton is the
 default. :func:`optimize_trajectory` keeps the exact Hessian: without the constraints'
 curvature its iterations converge only linearly, and a plan's targets and rest at the end
 add constraints whose curvature the controller's problem does not have."""

@@ -23,7 +23,7 @@ by their range, a free final time by its upper bound.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from types import MappingProxyType
 
 import casadi as ca
@@ -232,41 +232,71 @@ def checked_request(model, *, horizon, intervals, targets, reference, weights, c
                     int(max_iterations))  # fmt: skip
 
 
+STAGED = ("exact", "gauss-newton")
+"""The Hessians of the Lagrangian whose collocation problems are differentiated stage by
+stage: ``"exact"`` its Hessian (:meth:`Problem.lagrangian_hessian`; 358 -> 140 ms an
+evaluation on docs/planning.md's 2 s plan), ``"gauss-newton"`` its constraints' Jacobian
+(:meth:`Problem.constraint_jacobian`). The limited-memory Hessian keeps CasADi's
+Jacobian: the same matrix to rounding, but its L-BFGS iterations on the reach task of
+``tests/test_planning.py`` ran out of their 300 where CasADi's converged in 125, the
+rounding apart."""
+
+
 @dataclass(frozen=True)
 class _Stages:
-    """A collocation problem's stages for the Hessian of its Lagrangian: the slopes as a
-    ``symbol`` (n_x, 3 K), the stages' states ``x`` and inputs ``u`` as expressions of
-    the unknowns, the ``dynamics``' rows on the symbol (the collocation equations and the
-    continuity of the states, scaled as the problem's) and the constraints' ``equations``
-    with them."""
+    """A collocation problem's stages, for the derivatives assembled stage by stage: the
+    slopes as a ``symbol`` (n_x, 3 K) and their ``value`` (the right-hand side at the
+    stages), with ``hessian="exact"`` from :meth:`Transcription.compiled_rhs`, else
+    with their ``jacobians`` (n_x, (n_x + n_u) 3 K) from
+    :meth:`Transcription.stage_jacobian`; the stages' states ``x`` and inputs ``u`` as
+    expressions of the unknowns; the ``dynamics``' rows (the collocation equations and the
+    continuity of the states, scaled as the problem's) on the slopes' value and on their
+    symbol; the constraints' ``equations`` on the symbol."""
 
     symbol: ca.MX
+    value: ca.MX
+    jacobians: ca.MX | None
     x: ca.MX
     u: ca.MX
     dynamics: tuple
+    dynamics_held: tuple
     equations: ca.MX | None = None
 
     @classmethod
-    def build(cls, tr, X, Z, U, h, x_scale) -> _Stages:
+    def build(cls, tr, X, Z, U, h, x_scale, hessian: str) -> _Stages:
         """The stages of the steps between the nodes ``X`` (n_x, K + 1) with increments
         ``Z`` (n_x, 3 K), inputs ``U`` (n_u, K) and step ``h``; ``x_scale`` scales the
         dynamics' rows."""
         n_x, (stages, K) = tr.n_x, (tr.stages, U.shape[1])
         repeat = ca.sparsify(ca.DM(np.kron(np.eye(K), np.ones((1, stages)))))
         x, u = ca.mtimes(X[:, :K], repeat) + Z, ca.mtimes(U, repeat)
+        P = ca.DM(tr.parameters)
+        # the values from the right-hand side alone: the stages' Jacobians cost four
+        # times as much, and IPOPT evaluates the constraints at every trial point
+        value = tr.compiled_rhs(2 if hessian == "exact" else 0).map(stages * K)(x, u, P)
+        jacobians = None if hessian == "exact" else tr.stage_jacobian().map(stages * K)(x, u, P)[1]
         symbol = ca.MX.sym("slopes", n_x, stages * K)
         x1, z, s, step = (ca.MX.sym(name, *shape) for name, shape in
                           (("x", (n_x, 1)), ("z", (n_x, stages)), ("s", (n_x, stages)),
                            ("h", (1, 1))))  # fmt: skip
         equations = ca.Function("equations", [x1, z, s, step],
                                 list(tr.collocation_equations(x1, z, s, step))).map(K)  # fmt: skip
-        residual, following = equations(X[:, :K], Z, symbol, h)
         scale = ca.DM(x_scale)
-        dynamics = (ca.vec(residual / scale), ca.vec((X[:, 1:] - following) / scale))
-        return cls(symbol, x, u, dynamics)
+
+        def rows(slopes):
+            residual, following = equations(X[:, :K], Z, slopes, h)
+            return residual / scale, (X[:, 1:] - following) / scale
+
+        return cls(symbol, value, jacobians, x, u, rows(value), rows(symbol))
 
     def with_equations(self, g) -> _Stages:
-        return _Stages(self.symbol, self.x, self.u, self.dynamics, g)
+        return replace(self, equations=g)
+
+    def carry(self, w) -> ca.DM:
+        """The constant Jacobian of the stages' states and inputs, stage by stage, along
+        the unknowns ``w``."""
+        at_stages = ca.vec(ca.vertcat(self.x, self.u))  # linear in the unknowns
+        return ca.DM(ca.Function("carry", [w], [ca.jacobian(at_stages, w)])(np.zeros(w.numel())))
 
 
 def ipopt_options(problem, max_iterations: int, tolerance: float, hessian: str,
@@ -284,6 +314,9 @@ def ipopt_options(problem, max_iterations: int, tolerance: float, hessian: str,
         options["hess_lag"] = problem.cost_hessian()
     elif problem.stages is not None:
         options["hess_lag"] = problem.lagrangian_hessian()
+    if problem.stages is not None and problem.stages.jacobians is not None:
+        # the stages' Jacobians are compiled without derivatives: no multipliers of p
+        options.update(jac_g=problem.constraint_jacobian(), calc_lam_p=False)
     if warm:
         options.update({f"ipopt.{name}": value for name, value in WARM_START.items()})
     return options
@@ -360,14 +393,19 @@ class Problem:
         stages_of = None
         if method == "collocation":
             Z = Zs * ca.DM(x_scale)
-            mapped = tr.compiled_collocation(2 if hessian == "exact" else 1).map(K)
-            residual, following = mapped(X[:, :K], Z, U, P, h)
-            constraints.add("dynamics", residual / ca.DM(x_scale), 0.0, 0.0)
-            if hessian == "exact":
-                stages_of = _Stages.build(tr, X, Z, U, h, x_scale)
+            if hessian in STAGED:
+                stages_of = _Stages.build(tr, X, Z, U, h, x_scale, hessian)
+            if hessian == "gauss-newton":  # on the stages' compiled Jacobians alone
+                dynamics = stages_of.dynamics
+            else:  # CasADi's Jacobian through the compiled collocation
+                order = 2 if hessian == "exact" else 1
+                residual, following = tr.compiled_collocation(order).map(K)(X[:, :K], Z, U, P, h)
+                dynamics = (residual / ca.DM(x_scale), (X[:, 1:] - following) / ca.DM(x_scale))
         else:
             following = tr.step.map(K)(X[:, :K], U, P, h)
-        constraints.add("dynamics", (X[:, 1:] - following) / ca.DM(x_scale), 0.0, 0.0)
+            dynamics = ((X[:, 1:] - following) / ca.DM(x_scale),)
+        for rows in dynamics:
+            constraints.add("dynamics", rows, 0.0, 0.0)
         margins = tr.domain.map(K)(X[:, 1:], P)
         constraints.add("model or actuator domain", margins, 0.0, np.inf)
         tips = tr.tip.map(K + 1)(X, P)
@@ -424,8 +462,8 @@ class Problem:
         w = ca.vertcat(ca.vec(Xs), ca.vec(Us), ca.vec(Zs), Ts)
         g, lower_g, upper_g = constraints.arrays()
         if stages_of is not None:  # the dynamics' two blocks first: on the slopes' symbol
-            others = constraints.rows[2:]
-            stages_of = stages_of.with_equations(ca.vertcat(*stages_of.dynamics, *others))
+            held = [ca.vec(rows) for rows in stages_of.dynamics_held]
+            stages_of = stages_of.with_equations(ca.vertcat(*held, *constraints.rows[2:]))
         nlp = {"x": w, "f": cost, "g": g, "p": ca.vertcat(t0, u_before)}
         return cls(tr, nlp, lower_g, upper_g, tuple(constraints.groups), tuple(constraints.blocks),
                    x_scale, span, offset, rest_u, bounded, K, t_low, t_high, free,
@@ -456,11 +494,10 @@ class Problem:
         mu = ca.reshape(ca.jacobian(lagrangian, ca.vec(stages.symbol)).T, *shape)
         P = ca.DM(tr.parameters)
         blocks = tr.stage_hessian().map(shape[1])(stages.x, stages.u, mu, P)
-        at_stages = ca.vec(ca.vertcat(stages.x, stages.u))  # linear in the unknowns
-        carry = ca.DM(ca.Function("carry", [w], [ca.jacobian(at_stages, w)])(np.zeros(w.numel())))
+        carry = stages.carry(w)
         each = ca.horzsplit(blocks, blocks.shape[0])
         hessian = held + ca.mtimes([carry.T, ca.diagcat(*each), carry])  # (ii)
-        slopes = tr.compiled_rhs(2).map(shape[1])(stages.x, stages.u, P)
+        slopes = stages.value
         if self.free:  # (iii): mu is linear in h = T / K, T the last unknown
             along = ca.vec(ca.jacobian(ca.vec(mu), w[-1]))
             pull = ca.gradient(ca.dot(along, ca.vec(slopes)), w)
@@ -470,6 +507,31 @@ class Problem:
         hessian = ca.substitute(hessian, stages.symbol, slopes)
         return ca.Function("nlp_hess_l", [w, p, lam_f, lam_g], [ca.triu(hessian)],
                            ["x", "p", "lam_f", "lam_g"], ["triu_hess_gamma_x_x"])  # fmt: skip
+
+    def constraint_jacobian(self) -> ca.Function:
+        """The constraints and their Jacobian, as CasADi's ``jac_g`` option of IPOPT takes
+        it: ``(x, p) -> (g, jac_g_x)``, for a collocation problem with the Gauss-Newton
+        Hessian.
+
+        The collocation equations are linear in the slopes at the stages, so their
+        Jacobian is theirs with the slopes held plus their slopes' coefficients times each
+        stage's Jacobian of the right-hand side (:meth:`Transcription.stage_jacobian`, one
+        compiled call a stage) carried to the unknowns; the other constraints' is CasADi's.
+        CasADi's own Jacobian of the whole problem sweeps every stage in every direction
+        its colouring needs, each sweep a forward derivative of the right-hand side.
+        """
+        if self.stages is None or self.stages.jacobians is None:
+            raise ValueError("constraint_jacobian needs a collocation problem built with "
+                             "hessian='gauss-newton'")  # fmt: skip
+        stages = self.stages
+        w, p = self.nlp["x"], self.nlp["p"]
+        equations, slopes = stages.equations, ca.vec(stages.symbol)
+        each = ca.horzsplit(stages.jacobians, stages.jacobians.shape[1] // stages.symbol.shape[1])
+        along = ca.mtimes(ca.diagcat(*each), stages.carry(w))  # d slopes / d unknowns
+        jacobian = ca.jacobian(equations, w) + ca.mtimes(ca.jacobian(equations, slopes), along)
+        jacobian = ca.substitute(jacobian, stages.symbol, stages.value)
+        return ca.Function("nlp_jac_g", [w, p], [self.nlp["g"], jacobian],
+                           ["x", "p"], ["g", "jac_g_x"])  # fmt: skip
 
     def cost_hessian(self) -> ca.Function:
         """The Hessian of the Lagrangian without the constraints' curvature, as CasADi's

@@ -187,6 +187,26 @@ class Transcription:
         """
         return z - h * ca.mtimes(slopes, ca.DM(self.tableau.matrix.T)), x + z[:, -1]
 
+    def stage_jacobian(self) -> ca.Function:
+        """``stage_jacobian(x, u, p) -> (xdot, J)``: :attr:`rhs` and its Jacobian along
+        ``(x, u)`` (n_x, n_x + n_u), generated as one C function from the expanded
+        right-hand side (:attr:`rhs_sx`) and compiled with :data:`DERIVATIVE_FLAGS`,
+        cached on disk with the model's libraries; no derivatives of it are compiled.
+        Where the model is not compiled, the expression in CasADi's virtual machine.
+        """
+        if "stage_jacobian" not in self._compiled:
+            x, u, p = self._symbols()
+            xdot = self.rhs_sx(x, u, p)
+            function = ca.Function(
+                "softcurve_stage_jacobian", [x, u, p],
+                [xdot, ca.densify(ca.jacobian(xdot, ca.vertcat(x, u)))],
+                ["x", "u", "p"], ["xdot", "jacobian"],
+            )  # fmt: skip
+            if self.model.compiled_library is not None:
+                function = compile_function(function, flags=DERIVATIVE_FLAGS, derivatives=0)
+            self._compiled["stage_jacobian"] = function
+        return self._compiled["stage_jacobian"]
+
     def stage_hessian(self) -> ca.Function:
         """``stage_hessian(x, u, mu, p) -> H`` (n_x + n_u, n_x + n_u): the Hessian of
         ``mu . rhs(x, u, p)`` along ``(x, u)``, on :meth:`compiled_rhs` with its second
@@ -225,7 +245,8 @@ class Transcription:
 
     def compiled_rhs(self, order: int = 1) -> ca.Function:
         """:attr:`rhs` generated as C and compiled with its derivatives, forward and
-        reverse (:func:`softcurve.compiled.compile_function`'s ``derivatives``: 1 the
+        reverse (:func:`softcurve.compiled.compile_function`'s ``derivatives``: 0 none,
+        what the values alone need; 1 the
         first, what an integrator's adjoint and a constraint Jacobian need; 2 also the
         second an exact Hessian needs; 3 also those of forward sensitivities), with
         :data:`DERIVATIVE_FLAGS`, cached on disk with the model's libraries. Where the
@@ -234,11 +255,11 @@ class Transcription:
 
         Parameters
         ----------
-        order : {1, 2, 3}
+        order : {0, 1, 2, 3}
             The derivatives compiled.
         """
-        if order not in (1, 2, 3):
-            raise ParameterError(f"order must be 1, 2 or 3, got {order!r}")
+        if order not in (0, 1, 2, 3):
+            raise ParameterError(f"order must be 0, 1, 2 or 3, got {order!r}")
         if order not in self._compiled:
             x, u, p = self._symbols()
             rhs = ca.Function("softcurve_actuated_rhs", [x, u, p], [self.rhs_sx(x, u, p)])
