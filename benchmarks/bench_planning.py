@@ -181,13 +181,13 @@ def tendon_chain(segments: int = TENDON_SEGMENTS):
     distal = section(0.015, 0.010, 1000.0, 0.02, (1.0, 2e-4, 2e-4))
     robot = sc.Robot(segments=(proximal,) * half + (distal,) * half,
                      gravity=np.array([0.0, 0.0, -9.81]))  # fmt: skip
-    tendons = sc.TendonActuator(
+    actuator = sc.TendonActuator(
         [sc.Tendon(azimuth=a, distance=0.008, t_max=5.0, t_min=0.2, anchor=anchor)
          for anchor in (half - 1, segments - 1) for a in (0.0, 2 * np.pi / 3, 4 * np.pi / 3)],
         n_segments=segments,
     )  # fmt: skip
     start = np.ravel([[segment.rest_length, 0.0, 0.0] for segment in robot.segments])
-    return sc.Model(robot), tendons, start
+    return sc.Model(robot), actuator, start
 
 
 TENDON_GOAL = np.array([0.06, 0.0, 0.17])
@@ -213,7 +213,7 @@ def tendons(hessians) -> None:
                 plans.append(sc.optimize_trajectory(
                     model, start, actuator=actuator, horizon=1.0, intervals=20,
                     targets=[sc.TipTarget(TENDON_GOAL, tolerance=2e-3)], effort_weight=1e-3,
-                    rest_at_end=True, hessian=hessian,
+                    rest_at_end=True, hessian=hessian, progress=True,
                 ))  # fmt: skip
                 times.append(time.perf_counter() - began)
         plan = plans[-1]

@@ -133,12 +133,13 @@ def test_the_compiled_collocation_is_the_symbolic_one_to_second_derivatives(tran
 
 def _problems(model, actuator, **request):
     """The collocation problem of a reach (within 3 steps, at rest at the end) with the
-    exact and with the Gauss-Newton Hessian, and a point with the states perturbed and
-    the inputs across their range."""
+    exact and with the Gauss-Newton Hessian from a bent and moving start, and a point
+    with the nodes' states perturbed, the stages' increments random and the inputs across
+    their range."""
     from softcurve.control import _problem as problem
 
     tr = sc.Transcription(model, actuator)
-    x0 = tr.start([0.064, 0.0, 0.0], np.zeros(3))
+    x0, _ = a_state(tr, seed=7)
     weights = {"reference_weight": 0.0, "effort_weight": 1e-3, "rate_weight": 1e-6,
                "time_weight": 1.0 if isinstance(request["horizon"], tuple) else 0.0}  # fmt: skip
     checked = problem.checked_request(
@@ -163,6 +164,8 @@ def _problems(model, actuator, **request):
     point = exact.rest_guess(x0) * (1.0 + 0.05 * rng.normal(size=exact.sizes[0]))
     inputs = exact.u_rows
     point[inputs] = rng.random(inputs.stop - inputs.start)  # scaled: 0 lower, 1 upper bound
+    stages = slice(inputs.stop, inputs.stop + exact.z_count)
+    point[stages] = 0.05 * rng.normal(size=exact.z_count)  # scaled as the states
     return built, point, rng
 
 
@@ -497,6 +500,24 @@ def test_the_predictive_controller_tracks_a_circle_on_its_budget(interpreted, pr
     assert tip_errors(model, run, circle).max() < 0.2e-3  # [m], a 10 mm circle
     mpc.reset()
     assert mpc.log == [] and mpc(0.0, start.q, start.qd).shape == (3,)
+
+
+def test_the_compiled_gauss_newton_controller_is_the_interpreted_one(
+    model, interpreted, pressures, circle
+):
+    """On the compiled model the Gauss-Newton controller runs on the compiled stage
+    Jacobians and right-hand side (built by IPOPT's interface with nothing asked to
+    differentiate them); its samples are those of the same model in CasADi's virtual
+    machine."""
+    start, logs = circle(0.0), []
+    for robot in (model, interpreted):
+        mpc = sc.PredictiveController(robot, pressures, circle, horizon=0.1, intervals=5,
+                                      rate_weight=1e-6, iterations=8)  # fmt: skip
+        run = sc.simulate(robot, start.q, start.qd, actuator=pressures, controller=mpc,
+                          t_final=0.04, dt=0.02)  # fmt: skip
+        assert run.success, run.message
+        logs.append(mpc.history("inputs"))
+    np.testing.assert_allclose(*logs, rtol=0, atol=1e-6 * PRESSURES["p_max"])
 
 
 def test_a_sample_that_cannot_be_met_is_logged_and_its_inputs_stay_in_bounds(

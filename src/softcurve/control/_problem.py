@@ -242,13 +242,21 @@ Jacobian: the same matrix to rounding, but its L-BFGS iterations on the reach ta
 rounding apart."""
 
 
-@dataclass(frozen=True)
+def dynamics_rows(X, residual, following, x_scale) -> tuple:
+    """The dynamics' two blocks of constraints, scaled as the states: the collocation
+    equations' ``residual`` (n_x, 3 K) and the nodes ``X`` (n_x, K + 1) against the states
+    ``following`` (n_x, K) the steps end in."""
+    scale = ca.DM(x_scale)
+    return residual / scale, (X[:, 1:] - following) / scale
+
+
+@dataclass(frozen=True, eq=False)
 class _Stages:
     """A collocation problem's stages, for the derivatives assembled stage by stage: the
     slopes as a ``symbol`` (n_x, 3 K) and their ``value`` (the right-hand side at the
     stages), with ``hessian="exact"`` from :meth:`Transcription.compiled_rhs`, else
     with their ``jacobians`` (n_x, (n_x + n_u) 3 K) from
-    :meth:`Transcription.stage_jacobian`; the stages' states ``x`` and inputs ``u`` as
+    :attr:`Transcription.stage_jacobian`; the stages' states ``x`` and inputs ``u`` as
     expressions of the unknowns; the ``dynamics``' rows (the collocation equations and the
     continuity of the states, scaled as the problem's) on the slopes' value and on their
     symbol; the constraints' ``equations`` on the symbol."""
@@ -274,28 +282,29 @@ class _Stages:
         # the values from the right-hand side alone: the stages' Jacobians cost four
         # times as much, and IPOPT evaluates the constraints at every trial point
         value = tr.compiled_rhs(2 if hessian == "exact" else 0).map(stages * K)(x, u, P)
-        jacobians = None if hessian == "exact" else tr.stage_jacobian().map(stages * K)(x, u, P)[1]
+        jacobians = None
+        if hessian != "exact":
+            jacobians = tr.stage_jacobian.map(stages * K)(x, u, P)[1]
         symbol = ca.MX.sym("slopes", n_x, stages * K)
         x1, z, s, step = (ca.MX.sym(name, *shape) for name, shape in
                           (("x", (n_x, 1)), ("z", (n_x, stages)), ("s", (n_x, stages)),
                            ("h", (1, 1))))  # fmt: skip
         equations = ca.Function("equations", [x1, z, s, step],
                                 list(tr.collocation_equations(x1, z, s, step))).map(K)  # fmt: skip
-        scale = ca.DM(x_scale)
 
         def rows(slopes):
-            residual, following = equations(X[:, :K], Z, slopes, h)
-            return residual / scale, (X[:, 1:] - following) / scale
+            return dynamics_rows(X, *equations(X[:, :K], Z, slopes, h), x_scale)
 
         return cls(symbol, value, jacobians, x, u, rows(value), rows(symbol))
 
     def with_equations(self, g) -> _Stages:
+        """These stages with the constraints' ``equations`` on the slopes' symbol."""
         return replace(self, equations=g)
 
     def carry(self, w) -> ca.DM:
-        """The constant Jacobian of the stages' states and inputs, stage by stage, along
-        the unknowns ``w``."""
-        at_stages = ca.vec(ca.vertcat(self.x, self.u))  # linear in the unknowns
+        """The constant Jacobian (n_v 3 K, n_w) of the stages' states and inputs, stage by
+        stage (``n_v = n_x + n_u`` rows each), along the unknowns ``w`` (n_w,)."""
+        at_stages = ca.vec(ca.vertcat(self.x, self.u))  # affine in the unknowns
         return ca.DM(ca.Function("carry", [w], [ca.jacobian(at_stages, w)])(np.zeros(w.numel())))
 
 
@@ -315,7 +324,9 @@ def ipopt_options(problem, max_iterations: int, tolerance: float, hessian: str,
     elif problem.stages is not None:
         options["hess_lag"] = problem.lagrangian_hessian()
     if problem.stages is not None and problem.stages.jacobians is not None:
-        # the stages' Jacobians are compiled without derivatives: no multipliers of p
+        # the constraints' values come from the right-hand side compiled without
+        # derivatives, which CasADi would take by differences: nothing may differentiate
+        # them, and the multipliers of p would (CasADi builds their function, unevaluated)
         options.update(jac_g=problem.constraint_jacobian(), calc_lam_p=False)
     if warm:
         options.update({f"ipopt.{name}": value for name, value in WARM_START.items()})
@@ -399,8 +410,8 @@ class Problem:
                 dynamics = stages_of.dynamics
             else:  # CasADi's Jacobian through the compiled collocation
                 order = 2 if hessian == "exact" else 1
-                residual, following = tr.compiled_collocation(order).map(K)(X[:, :K], Z, U, P, h)
-                dynamics = (residual / ca.DM(x_scale), (X[:, 1:] - following) / ca.DM(x_scale))
+                steps = tr.compiled_collocation(order).map(K)(X[:, :K], Z, U, P, h)
+                dynamics = dynamics_rows(X, *steps, x_scale)
         else:
             following = tr.step.map(K)(X[:, :K], U, P, h)
             dynamics = ((X[:, 1:] - following) / ca.DM(x_scale),)
@@ -461,9 +472,10 @@ class Problem:
 
         w = ca.vertcat(ca.vec(Xs), ca.vec(Us), ca.vec(Zs), Ts)
         g, lower_g, upper_g = constraints.arrays()
-        if stages_of is not None:  # the dynamics' two blocks first: on the slopes' symbol
+        if stages_of is not None:  # the dynamics' blocks first: on the slopes' symbol
             held = [ca.vec(rows) for rows in stages_of.dynamics_held]
-            stages_of = stages_of.with_equations(ca.vertcat(*held, *constraints.rows[2:]))
+            others = constraints.rows[len(held) :]
+            stages_of = stages_of.with_equations(ca.vertcat(*held, *others))
         nlp = {"x": w, "f": cost, "g": g, "p": ca.vertcat(t0, u_before)}
         return cls(tr, nlp, lower_g, upper_g, tuple(constraints.groups), tuple(constraints.blocks),
                    x_scale, span, offset, rest_u, bounded, K, t_low, t_high, free,
@@ -476,13 +488,13 @@ class Problem:
         The collocation equations are linear in the slopes at the stages, so the
         Lagrangian's curvature is (i) that of the cost and of the other constraints with
         the slopes held, (ii) per stage, the right-hand side's Hessian weighted by the
-        slopes' multipliers ``mu`` (:meth:`Transcription.stage_hessian`, twelve
+        slopes' multipliers ``mu`` (:attr:`Transcription.stage_hessian`, twelve
         directions a stage on the paper's robot), carried to the unknowns by the constant
         map from them to the stage's state and input, and (iii) with a free final time,
         the slopes' gradient along the unknowns times the step's share of ``mu``. CasADi's
         own Hessian sweeps every stage in every direction its colouring needs.
         """
-        if self.stages is None:
+        if self.stages is None or self.stages.jacobians is not None:
             raise ValueError("lagrangian_hessian needs a collocation problem built with "
                              "hessian='exact'")  # fmt: skip
         stages, tr = self.stages, self.transcription
@@ -493,12 +505,12 @@ class Problem:
         shape = stages.symbol.shape
         mu = ca.reshape(ca.jacobian(lagrangian, ca.vec(stages.symbol)).T, *shape)
         P = ca.DM(tr.parameters)
-        blocks = tr.stage_hessian().map(shape[1])(stages.x, stages.u, mu, P)
+        blocks = tr.stage_hessian.map(shape[1])(stages.x, stages.u, mu, P)
         carry = stages.carry(w)
         each = ca.horzsplit(blocks, blocks.shape[0])
         hessian = held + ca.mtimes([carry.T, ca.diagcat(*each), carry])  # (ii)
         slopes = stages.value
-        if self.free:  # (iii): mu is linear in h = T / K, T the last unknown
+        if self.free:  # (iii): mu is linear in h = T / K, T (scaled) the last unknown
             along = ca.vec(ca.jacobian(ca.vec(mu), w[-1]))
             pull = ca.gradient(ca.dot(along, ca.vec(slopes)), w)
             last = ca.DM.zeros(w.numel(), 1)
@@ -515,7 +527,7 @@ class Problem:
 
         The collocation equations are linear in the slopes at the stages, so their
         Jacobian is theirs with the slopes held plus their slopes' coefficients times each
-        stage's Jacobian of the right-hand side (:meth:`Transcription.stage_jacobian`, one
+        stage's Jacobian of the right-hand side (:attr:`Transcription.stage_jacobian`, one
         compiled call a stage) carried to the unknowns; the other constraints' is CasADi's.
         CasADi's own Jacobian of the whole problem sweeps every stage in every direction
         its colouring needs, each sweep a forward derivative of the right-hand side.

@@ -26,7 +26,7 @@ import casadi as ca
 import numpy as np
 
 from softcurve.base.validation import ParameterError
-from softcurve.compiled import compile_function
+from softcurve.compiled import compile_function, exact_external
 from softcurve.description.actuator import Actuator
 from softcurve.simulation.solvers import (
     ActuatorInput,
@@ -172,7 +172,7 @@ class Transcription:
         ``residual = z - h slopes A^T`` (``A`` the tableau's matrix), zero where
         ``slopes[:, j]`` is the right-hand side at the stage ``x + z[:, j]``, and
         ``x_next = x + z[:, -1]``. Linear in ``z`` and in ``h slopes``: the curvature of
-        the equations is the right-hand side's alone (:meth:`stage_hessian`).
+        the equations is the right-hand side's alone (:attr:`stage_hessian`).
 
         Parameters
         ----------
@@ -187,26 +187,28 @@ class Transcription:
         """
         return z - h * ca.mtimes(slopes, ca.DM(self.tableau.matrix.T)), x + z[:, -1]
 
+    @cached_property
     def stage_jacobian(self) -> ca.Function:
         """``stage_jacobian(x, u, p) -> (xdot, J)``: :attr:`rhs` and its Jacobian along
         ``(x, u)`` (n_x, n_x + n_u), generated as one C function from the expanded
         right-hand side (:attr:`rhs_sx`) and compiled with :data:`DERIVATIVE_FLAGS`,
-        cached on disk with the model's libraries; no derivatives of it are compiled.
-        Where the model is not compiled, the expression in CasADi's virtual machine.
+        cached on disk with the model's libraries; no derivatives of it are compiled (and
+        none by differences: asking for one is an error). Where the model is not compiled,
+        the expression in CasADi's virtual machine.
         """
-        if "stage_jacobian" not in self._compiled:
-            x, u, p = self._symbols()
-            xdot = self.rhs_sx(x, u, p)
-            function = ca.Function(
-                "softcurve_stage_jacobian", [x, u, p],
-                [xdot, ca.densify(ca.jacobian(xdot, ca.vertcat(x, u)))],
-                ["x", "u", "p"], ["xdot", "jacobian"],
-            )  # fmt: skip
-            if self.model.compiled_library is not None:
-                function = compile_function(function, flags=DERIVATIVE_FLAGS, derivatives=0)
-            self._compiled["stage_jacobian"] = function
-        return self._compiled["stage_jacobian"]
+        x, u, p = self._symbols()
+        xdot = self.rhs_sx(x, u, p)
+        function = ca.Function(
+            "softcurve_stage_jacobian", [x, u, p],
+            [xdot, ca.densify(ca.jacobian(xdot, ca.vertcat(x, u)))],
+            ["x", "u", "p"], ["xdot", "jacobian"],
+        )  # fmt: skip
+        if self.model.compiled_library is None:
+            return function
+        return compile_function(function, flags=DERIVATIVE_FLAGS, derivatives=0,
+                                load=exact_external)  # fmt: skip
 
+    @cached_property
     def stage_hessian(self) -> ca.Function:
         """``stage_hessian(x, u, mu, p) -> H`` (n_x + n_u, n_x + n_u): the Hessian of
         ``mu . rhs(x, u, p)`` along ``(x, u)``, on :meth:`compiled_rhs` with its second
@@ -214,17 +216,12 @@ class Transcription:
         Hessian of a whole plan's Lagrangian sweeps every stage in every direction it
         colours).
         """
-        if "stage_hessian" not in self._compiled:
-            x, u, mu, p = (ca.MX.sym(name, size) for name, size in
-                           (("x", self.n_x), ("u", self.n_u), ("mu", self.n_x),
-                            ("p", self.parameters.size)))  # fmt: skip
-            rhs = self.compiled_rhs(2)
-            hessian = ca.hessian(ca.dot(mu, rhs(x, u, p)), ca.vertcat(x, u))[0]
-            self._compiled["stage_hessian"] = ca.Function(
-                "stage_hessian", [x, u, mu, p], [ca.densify(hessian)],
-                ["x", "u", "mu", "p"], ["hessian"],
-            )  # fmt: skip
-        return self._compiled["stage_hessian"]
+        x, u, mu, p = (ca.MX.sym(name, size) for name, size in
+                       (("x", self.n_x), ("u", self.n_u), ("mu", self.n_x),
+                        ("p", self.parameters.size)))  # fmt: skip
+        hessian = ca.hessian(ca.dot(mu, self.compiled_rhs(2)(x, u, p)), ca.vertcat(x, u))[0]
+        return ca.Function("stage_hessian", [x, u, mu, p], [ca.densify(hessian)],
+                           ["x", "u", "mu", "p"], ["hessian"])  # fmt: skip
 
     def compiled_collocation(self, order: int = 2) -> ca.Function:
         """:attr:`collocation` on :meth:`compiled_rhs` (MX): the same equations, their
@@ -246,7 +243,7 @@ class Transcription:
     def compiled_rhs(self, order: int = 1) -> ca.Function:
         """:attr:`rhs` generated as C and compiled with its derivatives, forward and
         reverse (:func:`softcurve.compiled.compile_function`'s ``derivatives``: 0 none,
-        what the values alone need; 1 the
+        what the values alone need (CasADi differences any derivative asked of it); 1 the
         first, what an integrator's adjoint and a constraint Jacobian need; 2 also the
         second an exact Hessian needs; 3 also those of forward sensitivities), with
         :data:`DERIVATIVE_FLAGS`, cached on disk with the model's libraries. Where the
