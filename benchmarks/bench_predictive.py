@@ -3,7 +3,7 @@ with bellows tracking a tip circle, through ``simulate(controller=...)``, agains
 linear MPC (``ActuatorMPC``) on the same robot, bounds and circle.
 
 Run:  python benchmarks/bench_predictive.py [--t-final 2] [--hessians gauss-newton exact]
-      [--iterations 5] [--horizon 0.5] [--intervals 25]
+      [--iterations 1] [--horizon 0.5] [--intervals 25]
 
 The robot is the paper's (preset ifac2020, its quadrature) with three bellows of 2 cm^2
 at 12 mm, 0 to 60 kPa; the circle is docs/control.md's (radius 10 mm at 65 mm, period
@@ -54,7 +54,7 @@ def main() -> None:
     parser.add_argument("--t-final", type=float, default=2.0, help="simulated time [s]")
     parser.add_argument("--hessians", nargs="+", default=list(sc.control.PREDICTIVE_HESSIANS),
                         choices=sc.control.PREDICTIVE_HESSIANS)  # fmt: skip
-    parser.add_argument("--iterations", type=int, default=5, help="budget of a later solve")
+    parser.add_argument("--iterations", type=int, default=1, help="budget of a later solve")
     parser.add_argument("--horizon", type=float, default=0.5, help="[s]")
     parser.add_argument("--intervals", type=int, default=25)
     args = parser.parse_args()

@@ -8,8 +8,8 @@ Three controllers, each run by softcurve.simulate:
 
 - softcurve.PredictiveController: the full nonlinear model by direct collocation over a
   0.5 s horizon in 25 steps of 20 ms, re-planned at every 20 ms sample, warm-started
-  from the previous plan, at most five IPOPT iterations a sample on the Gauss-Newton
-  Hessian (the default);
+  from the previous plan, one IPOPT iteration a sample (a real-time iteration) on the
+  Gauss-Newton Hessian (the defaults);
 - the linear MPC (softcurve.control.mpc.ActuatorMPC, re-linearized at every sample) at
   the same 25 steps of 20 ms;
 - the linear MPC at its own 10 samples of 10 ms (docs/control.md's).
@@ -85,7 +85,7 @@ def main() -> None:
     controllers = {
         f"nonlinear MPC, {intervals} x {1e3 * step:g} ms": sc.PredictiveController(
             model, bellows, circle, horizon=horizon, intervals=intervals,
-            rate_weight=RATE_WEIGHT, iterations=5,
+            rate_weight=RATE_WEIGHT,
         ),
         f"linear MPC, {intervals} x {1e3 * step:g} ms": ActuatorMPC(
             model, bellows, circle, horizon=intervals, sample_time=step, rate_weight=RATE_WEIGHT

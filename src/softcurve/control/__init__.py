@@ -16,6 +16,7 @@ from softcurve.control._planning import PLAN_METHODS as PLAN_METHODS
 from softcurve.control._planning import TrajectoryPlan as TrajectoryPlan
 from softcurve.control._planning import optimize_trajectory as optimize_trajectory
 from softcurve.control._predictive import PREDICTIVE_HESSIANS as PREDICTIVE_HESSIANS
+from softcurve.control._predictive import REAL_TIME_OPTIONS as REAL_TIME_OPTIONS
 from softcurve.control._predictive import PredictiveController as PredictiveController
 from softcurve.control._problem import LBFGS_HISTORY as LBFGS_HISTORY
 from softcurve.control._problem import PLAN_ITERATIONS as PLAN_ITERATIONS
@@ -31,6 +32,7 @@ __all__ = [
     "PLAN_METHODS",
     "PREDICTIVE_HESSIANS",
     "PredictiveController",
+    "REAL_TIME_OPTIONS",
     "WITH_RESPECT_TO",
     "ConfigurationTarget",
     "TipTarget",

@@ -31,14 +31,36 @@ PREDICTIVE_HESSIANS = ("gauss-newton", "exact")
 the default. ``"gauss-newton"``: the cost's own (constant: the cost is quadratic in the
 unknowns), the constraints' curvature left out; ``"exact"``: with it, from the compiled
 second derivatives, stage by stage (``Problem.lagrangian_hessian``). On the circle of
-docs/planning.md (the paper's robot, 25 steps of 20 ms; ``python
-benchmarks/bench_predictive.py``) a sample takes a median 42 ms with the Gauss-Newton
-Hessian (the constraints' Jacobian by stages, ``Problem.constraint_jacobian``) and 279 ms
-with the exact one, the tip 0.31 mm and 0.19 mm from the circle; at 10
-steps of 10 ms, 20 ms and 94 ms, the same 0.003 mm. Gauss-Newton is the
-default. :func:`optimize_trajectory` keeps the exact Hessian: without the constraints'
-curvature its iterations converge only linearly, and a plan's targets and rest at the end
-add constraints whose curvature the controller's problem does not have."""
+docs/planning.md (the paper's robot, 25 steps of 20 ms, one iteration a sample; ``python
+benchmarks/bench_predictive.py``) a sample takes a median 12 ms with the Gauss-Newton
+Hessian (the constraints' Jacobian by stages, ``Problem.constraint_jacobian``, and
+:data:`REAL_TIME_OPTIONS`) and 81 ms with the exact one, the tip 0.14 mm and
+0.15 mm from the circle; at 10 steps of 10 ms, 5 ms and 38 ms, the same 0.022 mm.
+Gauss-Newton is the default. :func:`optimize_trajectory` keeps the exact Hessian: without
+the constraints' curvature its iterations converge only linearly, and a plan's targets
+and rest at the end add constraints whose curvature the controller's problem does not
+have."""
+
+
+REAL_TIME_OPTIONS = {
+    "nlp_scaling_method": "none",
+    "mumps_pivot_order": 0,
+    "mumps_permuting_scaling": 0,
+    "mumps_scaling": 0,
+}
+"""IPOPT's options of every solve of a Gauss-Newton :class:`PredictiveController`, for its
+time a sample. The problem's unknowns and constraints are scaled to order one when it is
+built, and the Gauss-Newton Hessian is positive semi-definite, so IPOPT's gradient-based
+scaling (a Jacobian at the start of every solve) and MUMPS's weighted matching and
+scaling of the KKT system are left out, and MUMPS orders it by approximate minimum
+degree, its analysis redone at every solve. On the paper's robot at 25 steps of 20 ms and
+one iteration a sample (``python benchmarks/bench_predictive.py``, each option added in
+turn): 21.1 ms a sample with IPOPT's defaults, 18.7 ms without its scaling, 18.1 ms
+ordered by minimum degree, 11.8 ms without MUMPS's matching and scaling; the tip's error
+the same (0.1385 mm) throughout. Without the matching but with MUMPS's scaling the tip
+went 0.170 mm off, so both are left out. With the exact Hessian, whose KKT system is
+indefinite, these options took the tip 2.1 mm off (14.6 mm at worst): it keeps IPOPT's
+defaults."""
 
 
 class PredictiveController(SampledController):
@@ -92,7 +114,10 @@ class PredictiveController(SampledController):
     hessian : {"gauss-newton", "exact"}
         The Hessian of the Lagrangian the solver takes (:data:`PREDICTIVE_HESSIANS`).
     iterations : int
-        The iteration budget of every solve after the first, >= 1.
+        The iteration budget of every solve after the first, >= 1 (default 1: one
+        Newton step of the interior-point method a sample from the moved plan, a
+        real-time iteration; more iterations cost about 6 ms each on the paper's robot,
+        docs/planning.md).
     tolerance : float
         IPOPT's convergence tolerance (its scaled NLP error, dimensionless), > 0.
     actuator_state : array_like, shape (m,), optional
@@ -129,7 +154,7 @@ class PredictiveController(SampledController):
         clearance: float | None = None,
         tip_bounds=None,
         hessian: str = PREDICTIVE_HESSIANS[0],
-        iterations: int = 5,
+        iterations: int = 1,
         tolerance: float = 1e-8,
         actuator_state=None,
     ):
@@ -188,6 +213,8 @@ class PredictiveController(SampledController):
             problem, request = self._problem, self.request
             budget = self.iterations if warm else PLAN_ITERATIONS
             options = ipopt_options(problem, budget, request.tolerance, self.hessian, warm)
+            if self.hessian == "gauss-newton":
+                options.update({f"ipopt.{key}": value for key, value in REAL_TIME_OPTIONS.items()})
             self._solvers[warm] = ca.nlpsol("predictive_controller", "ipopt", problem.nlp, options)
         return self._solvers[warm]
 
