@@ -120,6 +120,60 @@ def test_actions_beyond_the_bounds_are_clipped():
     assert np.all(lagging <= stepper.upper * (1 + 1e-6))
 
 
+def test_the_actions_of_inputs_invert_the_inputs_of_actions():
+    vector = envs.ReachVector(2, max_episode_steps=STEPS)
+    episodes = vector.episodes
+    actions = np.random.default_rng(5).uniform(-1.0, 1.0, size=(2, episodes.lower.size))
+    np.testing.assert_allclose(episodes.actions(episodes.inputs(actions)), actions, atol=1e-12)
+    beyond = episodes.actions(np.vstack([episodes.lower - 1.0, episodes.upper + 1.0]))
+    np.testing.assert_array_equal(beyond, [[-1.0] * 3, [1.0] * 3])
+
+
+def test_a_predictive_controller_plays_the_reach_policy():
+    """The nonlinear MPC as Reach's policy (controller_action every period), on its own
+    model of the robot (three nodes, in CasADi's virtual machine) against the
+    environment's: the tip ends within the task's tolerance, and the actions are the
+    controller's logged inputs scaled onto [-1, 1]."""
+    from softcurve.control.references import Reference, tip_to_coordinates
+
+    env = gymnasium.make("softcurve/Reach-v0", max_episode_steps=50)
+    _, info = env.reset(seed=3)
+    stepper = env.unwrapped.episodes.setup.stepper
+    model = sc.Model(stepper.model.robot, quadrature_nodes=3, compile=False)
+    goal = Reference.constant(tip_to_coordinates(info["target"]))
+    mpc = sc.PredictiveController(model, stepper.actuator, goal, horizon=0.2, intervals=10)
+    start = info["distance"]
+    actions, truncated = [], False
+    while not truncated:
+        actions.append(env.unwrapped.controller_action(mpc))
+        _, reward, _, truncated, info = env.step(actions[-1])
+    assert len(actions) == 50 and info["failure"] is None
+    assert start > 5 * env.unwrapped.task.tolerance > info["distance"]
+    scaled = env.unwrapped.episodes.actions(mpc.history("inputs"))
+    np.testing.assert_allclose(actions, scaled, atol=1e-6)  # float32
+    env.close()
+
+
+def test_a_controller_of_another_period_or_actuator_is_refused():
+    from softcurve.control.references import Reference
+
+    env = gymnasium.make("softcurve/Reach-v0", max_episode_steps=STEPS)
+    env.reset(seed=0)
+    stepper = env.unwrapped.episodes.setup.stepper
+    rest = Reference.constant([0.064, 0.0, 0.0])
+    model = sc.Model(stepper.model.robot, quadrature_nodes=3, compile=False)
+    slow = sc.PredictiveController(model, stepper.actuator, rest, horizon=0.2, intervals=5)
+    with pytest.raises(sc.ParameterError, match="sample_time must be the environment's period"):
+        env.unwrapped.controller_action(slow)
+    other = sc.PneumaticActuator.three_bellows(distance=0.01, area=2e-5, p_max=1e5)
+    foreign = sc.PredictiveController(model, other, rest, horizon=0.2, intervals=10)
+    with pytest.raises(sc.ParameterError, match="actuator must be the environment's"):
+        env.unwrapped.controller_action(foreign)
+    with pytest.raises(sc.ParameterError, match="must be a SampledController"):
+        env.unwrapped.controller_action(lambda t, q, qd, lam: np.zeros(3))
+    env.close()
+
+
 def test_a_failing_member_ends_only_its_own_episode():
     vector = envs.ReachVector(3, max_episode_steps=50)
     vector.reset(seed=3)

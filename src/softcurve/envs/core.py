@@ -112,6 +112,18 @@ class Episodes:
             )
         return self.lower + (np.clip(a, -1.0, 1.0) + 1.0) / 2.0 * (self.upper - self.lower)
 
+    def actions(self, inputs) -> np.ndarray:
+        """Actions (N, m) in [-1, 1] of actuator inputs: the inverse of :meth:`inputs`,
+        clipped to [-1, 1].
+
+        Parameters
+        ----------
+        inputs : array_like, shape (N, m)
+            Actuator inputs, in the actuator's unit.
+        """
+        u = np.asarray(inputs, dtype=np.float64)
+        return np.clip(2.0 * (u - self.lower) / (self.upper - self.lower) - 1.0, -1.0, 1.0)
+
     def observe(self, x, tip, goal) -> np.ndarray:
         """Observations (N, dim) of states, tips and goals (module docstring).
 
