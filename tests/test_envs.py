@@ -154,6 +154,39 @@ def test_a_predictive_controller_plays_the_reach_policy():
     env.close()
 
 
+def test_controllers_play_the_members_of_a_vector_environment():
+    """One linear MPC per member of ReachVector, each to its member's target: the
+    actions are each controller's logged inputs scaled; a list of another length is
+    refused."""
+    from softcurve.control.mpc import ActuatorMPC
+    from softcurve.control.references import Reference, tip_to_coordinates
+
+    vector = envs.ReachVector(2, max_episode_steps=STEPS)
+    _, info = vector.reset(seed=4)
+    stepper = vector.episodes.setup.stepper
+    model = sc.Model(stepper.model.robot, quadrature_nodes=3, compile=False)
+    controllers = [
+        ActuatorMPC(
+            model,
+            stepper.actuator,
+            Reference.constant(tip_to_coordinates(target)),
+            horizon=5,
+            sample_time=stepper.period,
+        )  # fmt: skip
+        for target in info["target"]
+    ]
+    for _ in range(2):
+        actions = vector.controller_actions(controllers)
+        vector.step(actions)
+        for i, controller in enumerate(controllers):
+            scaled = vector.episodes.actions(controller.history("inputs")[-1:])[0]
+            np.testing.assert_allclose(actions[i], scaled, atol=1e-6)
+    assert not np.allclose(*actions)  # two targets, two commands
+    with pytest.raises(sc.ParameterError, match=r"one per environment \(2\), got 1"):
+        vector.controller_actions(controllers[:1])
+    vector.close()
+
+
 def test_a_controller_of_another_period_or_actuator_is_refused():
     from softcurve.control.references import Reference
 

@@ -17,6 +17,7 @@ from gymnasium import spaces
 from gymnasium.utils import seeding
 
 from softcurve.base.validation import ParameterError, whole_count
+from softcurve.control.controllers import SampledController
 from softcurve.envs.setup import build_setup
 from softcurve.envs.tasks import FAILURE_REWARD
 
@@ -47,6 +48,26 @@ def make_episodes(task_class, num_envs: int, tolerance=None, **options):
         options["environment"] = task_class.default_environment(options.get("robot") is not None)
     setup = build_setup(duration=task_class.duration, **options)
     return Episodes(task_class(setup, tolerance), int(num_envs))
+
+
+def _check_controller(controller, stepper) -> None:
+    """Refuse a controller that is not a :class:`SampledController` of the stepper's
+    actuator sampling once a period."""
+    if not isinstance(controller, SampledController):
+        raise ParameterError(
+            f"controller must be a SampledController, got {type(controller).__name__}"
+        )
+    if not np.isclose(controller.sample_time, stepper.period, rtol=1e-9, atol=0.0):
+        raise ParameterError(
+            f"controller.sample_time must be the environment's period "
+            f"({stepper.period:g} s), got {controller.sample_time:g} s"
+        )
+    actuator = getattr(controller, "actuator", None)
+    if actuator is not None and actuator != stepper.actuator:
+        raise ParameterError(
+            "the controller's actuator must be the environment's "
+            "(env.unwrapped.episodes.setup.stepper.actuator)"
+        )
 
 
 class Episodes:
@@ -123,6 +144,49 @@ class Episodes:
         """
         u = np.asarray(inputs, dtype=np.float64)
         return np.clip(2.0 * (u - self.lower) / (self.upper - self.lower) - 1.0, -1.0, 1.0)
+
+    def controller_actions(self, controllers) -> np.ndarray:
+        """The actions of one controller per member at its episode's state and time: the
+        inputs each computes now, scaled onto the action space (:meth:`actions`).
+
+        Parameters
+        ----------
+        controllers : sequence of SampledController, length N
+            Controllers of the environments' actuator whose output is that actuator's
+            inputs, as ``simulate(..., actuator=..., controller=...)`` runs them
+            (:class:`~softcurve.control.PredictiveController`,
+            :class:`~softcurve.control.mpc.ActuatorMPC`, or
+            :class:`~softcurve.control.controllers.ActuatorDriven` around a torque
+            controller), sampling once a period; their models of the robot may differ
+            from the environments'. Each is given its member's state ``(q, qd, lam)`` of
+            the environments' model and time ``steps * period`` [s].
+
+        Returns
+        -------
+        ndarray, shape (N, m), float32
+            The actions, dimensionless, in [-1, 1].
+        """
+        stepper = self.setup.stepper
+        if len(controllers) != self.size:
+            raise ParameterError(
+                f"controllers must be one per environment ({self.size}), got {len(controllers)}"
+            )
+        model = stepper.model
+        n, n_creep = model.n, model.n_creep
+        actions = np.empty((self.size, self.lower.size), dtype=np.float32)
+        for i, controller in enumerate(controllers):
+            _check_controller(controller, stepper)
+            x = self.x[i]
+            lam = x[2 * n : 2 * n + n_creep] if n_creep else None
+            time = float(self.steps[i]) * stepper.period
+            inputs = np.asarray(controller(time, x[:n], x[n : 2 * n], lam), dtype=np.float64)
+            if inputs.shape != self.lower.shape:
+                raise ParameterError(
+                    f"controller {i} gave inputs of shape {inputs.shape}, the actuator takes "
+                    f"{self.lower.shape}: give a controller of the actuator's inputs"
+                )
+            actions[i] = self.actions(inputs[None, :])[0]
+        return actions
 
     def observe(self, x, tip, goal) -> np.ndarray:
         """Observations (N, dim) of states, tips and goals (module docstring).

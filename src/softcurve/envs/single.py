@@ -8,8 +8,6 @@ from typing import Any
 import gymnasium
 import numpy as np
 
-from softcurve.base.validation import ParameterError
-from softcurve.control.controllers import SampledController
 from softcurve.envs.core import make_episodes
 from softcurve.envs.setup import env_parameters
 from softcurve.envs.tasks import PressTask, ReachTask, TrackTask
@@ -123,47 +121,16 @@ class SoftRobotEnv(gymnasium.Env):
         Parameters
         ----------
         controller : SampledController
-            A controller of the environment's actuator whose output is that actuator's
-            inputs, as ``simulate(..., actuator=..., controller=...)`` runs it
-            (:class:`~softcurve.control.PredictiveController`,
-            :class:`~softcurve.control.mpc.ActuatorMPC`, or
-            :class:`~softcurve.control.controllers.ActuatorDriven` around a torque
-            controller), sampling once a period. Its model of the robot may differ from
-            the environment's; it is given the state ``(q, qd, lam)`` of the environment's
-            model and the episode's time ``steps * period`` [s].
+            A controller of the environment's actuator and period whose output is that
+            actuator's inputs, as
+            :meth:`~softcurve.envs.core.Episodes.controller_actions` takes them.
 
         Returns
         -------
         ndarray, shape (m,), float32
             The action, dimensionless, in [-1, 1].
         """
-        stepper = self.episodes.setup.stepper
-        if not isinstance(controller, SampledController):
-            raise ParameterError(
-                f"controller must be a SampledController, got {type(controller).__name__}"
-            )
-        if not np.isclose(controller.sample_time, stepper.period, rtol=1e-9, atol=0.0):
-            raise ParameterError(
-                f"controller.sample_time must be the environment's period "
-                f"({stepper.period:g} s), got {controller.sample_time:g} s"
-            )
-        actuator = getattr(controller, "actuator", None)
-        if actuator is not None and actuator != stepper.actuator:
-            raise ParameterError(
-                "the controller's actuator must be the environment's "
-                "(env.unwrapped.episodes.setup.stepper.actuator)"
-            )
-        model, x = stepper.model, self.episodes.x[0]
-        n, n_creep = model.n, model.n_creep
-        lam = x[2 * n : 2 * n + n_creep] if n_creep else None
-        time = float(self.episodes.steps[0]) * stepper.period
-        inputs = np.asarray(controller(time, x[:n], x[n : 2 * n], lam), dtype=np.float64)
-        if inputs.shape != self.action_space.shape:
-            raise ParameterError(
-                f"the controller gave inputs of shape {inputs.shape}, the actuator takes "
-                f"{self.action_space.shape}: give a controller of the actuator's inputs"
-            )
-        return self.episodes.actions(inputs[None, :])[0].astype(np.float32)
+        return self.episodes.controller_actions([controller])[0]
 
     def step(self, action):
         """Hold ``action`` for one period: ``(observation, reward, terminated,

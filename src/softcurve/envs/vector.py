@@ -143,6 +143,24 @@ class SoftRobotVectorEnv(VectorEnv):
         observation, info = self.episodes.reset(members)
         return observation, _masked(info, size)
 
+    def controller_actions(self, controllers) -> np.ndarray:
+        """The actions of one controller per member at its episode's state and time
+        (:meth:`~softcurve.envs.core.Episodes.controller_actions`): controllers as the
+        members' policies. A member's episode that ends is reset within the same step
+        (``info["_final_obs"]``): reset its controller then.
+
+        Parameters
+        ----------
+        controllers : sequence of SampledController, length N
+            One controller per member, of the environments' actuator and period.
+
+        Returns
+        -------
+        ndarray, shape (N, m), float32
+            The actions, dimensionless, in [-1, 1].
+        """
+        return self.episodes.controller_actions(controllers)
+
     def step(self, actions):
         """Hold ``actions`` for one period in every member, then reset the members whose
         episode ended: ``(observations, rewards, terminations, truncations, infos)``.
