@@ -207,8 +207,8 @@ def test_the_derivatives_by_stages_are_casadis_through_the_whole_problem(case, m
                          ca.jacobian(nlp["g"], w)])  # fmt: skip
     duals = rng.normal(size=exact.sizes[1])
     hessian, g, jacobian = (np.array(v) for v in whole(point, 0.0, 1.3, duals))
-    by_stages = np.array(exact.lagrangian_hessian()(point, 0.0, 1.3, duals))
-    staged = built["gauss-newton"].constraint_jacobian()(point, 0.0)
+    by_stages = np.array(exact.lagrangian_hessian(point, 0.0, 1.3, duals))
+    staged = built["gauss-newton"].constraint_jacobian(point, 0.0)
     g_staged, jacobian_staged = (np.array(v) for v in staged)
     pairs = [(by_stages, hessian), (g_staged, g), (jacobian_staged, jacobian)]
     for mine, reference in pairs:
@@ -599,7 +599,7 @@ def test_the_gauss_newton_hessian_is_the_costs_own(interpreted, pressures, circl
         tr, tr.start(start.q, start.qd), mpc.request, rest_at_end=False,
         method="collocation", hessian="gauss-newton", previous_inputs=True,
     )  # fmt: skip
-    hessian = problem.cost_hessian()
+    hessian = problem.cost_hessian
     w, p, f = problem.nlp["x"], problem.nlp["p"], problem.nlp["f"]
     exact = ca.Function("exact", [w, p], [ca.hessian(f, w)[0]])
     rng = np.random.default_rng(3)

@@ -24,6 +24,7 @@ by their range, a free final time by its upper bound.
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
+from functools import cached_property
 from types import MappingProxyType
 
 import casadi as ca
@@ -234,20 +235,21 @@ def checked_request(model, *, horizon, intervals, targets, reference, weights, c
 
 STAGED = ("exact", "gauss-newton")
 """The Hessians of the Lagrangian whose collocation problems are differentiated stage by
-stage: ``"exact"`` its Hessian (:meth:`Problem.lagrangian_hessian`; 358 -> 140 ms an
+stage: ``"exact"`` its Hessian (:attr:`Problem.lagrangian_hessian`; 358 -> 140 ms an
 evaluation on docs/planning.md's 2 s plan), ``"gauss-newton"`` its constraints' Jacobian
-(:meth:`Problem.constraint_jacobian`). The limited-memory Hessian keeps CasADi's
+(:attr:`Problem.constraint_jacobian`). The limited-memory Hessian keeps CasADi's
 Jacobian: the same matrix to rounding, but its L-BFGS iterations on the reach task of
 ``tests/test_planning.py`` ran out of their 300 where CasADi's converged in 125, the
 rounding apart."""
 
 
 def dynamics_rows(X, residual, following, x_scale) -> tuple:
-    """The dynamics' two blocks of constraints, scaled as the states: the collocation
-    equations' ``residual`` (n_x, 3 K) and the nodes ``X`` (n_x, K + 1) against the states
-    ``following`` (n_x, K) the steps end in."""
+    """The dynamics' blocks of constraints, scaled as the states: the collocation
+    equations' ``residual`` (n_x, 3 K; None with shooting, which has none) and the nodes
+    ``X`` (n_x, K + 1) against the states ``following`` (n_x, K) the steps end in."""
     scale = ca.DM(x_scale)
-    return residual / scale, (X[:, 1:] - following) / scale
+    continuity = (X[:, 1:] - following) / scale
+    return (continuity,) if residual is None else (residual / scale, continuity)
 
 
 @dataclass(frozen=True, eq=False)
@@ -320,14 +322,14 @@ def ipopt_options(problem, max_iterations: int, tolerance: float, hessian: str,
         options["ipopt.hessian_approximation"] = "limited-memory"
         options["ipopt.limited_memory_max_history"] = LBFGS_HISTORY
     elif hessian == "gauss-newton":
-        options["hess_lag"] = problem.cost_hessian()
+        options["hess_lag"] = problem.cost_hessian
     elif problem.stages is not None:
-        options["hess_lag"] = problem.lagrangian_hessian()
+        options["hess_lag"] = problem.lagrangian_hessian
     if problem.stages is not None and problem.stages.jacobians is not None:
         # the constraints' values come from the right-hand side compiled without
         # derivatives, which CasADi would take by differences: nothing may differentiate
         # them, and the multipliers of p would (CasADi builds their function, unevaluated)
-        options.update(jac_g=problem.constraint_jacobian(), calc_lam_p=False)
+        options.update(jac_g=problem.constraint_jacobian, calc_lam_p=False)
     if warm:
         options.update({f"ipopt.{name}": value for name, value in WARM_START.items()})
     return options
@@ -413,8 +415,7 @@ class Problem:
                 steps = tr.compiled_collocation(order).map(K)(X[:, :K], Z, U, P, h)
                 dynamics = dynamics_rows(X, *steps, x_scale)
         else:
-            following = tr.step.map(K)(X[:, :K], U, P, h)
-            dynamics = ((X[:, 1:] - following) / ca.DM(x_scale),)
+            dynamics = dynamics_rows(X, None, tr.step.map(K)(X[:, :K], U, P, h), x_scale)
         for rows in dynamics:
             constraints.add("dynamics", rows, 0.0, 0.0)
         margins = tr.domain.map(K)(X[:, 1:], P)
@@ -481,6 +482,7 @@ class Problem:
                    x_scale, span, offset, rest_u, bounded, K, t_low, t_high, free,
                    previous_inputs, stages_of)  # fmt: skip
 
+    @cached_property
     def lagrangian_hessian(self) -> ca.Function:
         """The exact Hessian of the Lagrangian of a collocation problem, as CasADi's
         ``hess_lag`` option of IPOPT takes it: ``(x, p, lam_f, lam_g) -> triu(H)``.
@@ -520,6 +522,7 @@ class Problem:
         return ca.Function("nlp_hess_l", [w, p, lam_f, lam_g], [ca.triu(hessian)],
                            ["x", "p", "lam_f", "lam_g"], ["triu_hess_gamma_x_x"])  # fmt: skip
 
+    @cached_property
     def constraint_jacobian(self) -> ca.Function:
         """The constraints and their Jacobian, as CasADi's ``jac_g`` option of IPOPT takes
         it: ``(x, p) -> (g, jac_g_x)``, for a collocation problem with the Gauss-Newton
@@ -545,6 +548,7 @@ class Problem:
         return ca.Function("nlp_jac_g", [w, p], [self.nlp["g"], jacobian],
                            ["x", "p"], ["g", "jac_g_x"])  # fmt: skip
 
+    @cached_property
     def cost_hessian(self) -> ca.Function:
         """The Hessian of the Lagrangian without the constraints' curvature, as CasADi's
         ``hess_lag`` option of IPOPT takes it: ``(x, p, lam_f, lam_g) -> triu(lam_f
