@@ -15,7 +15,11 @@ For robots of N paper segments (``presets.ifac2020().with_segments(N)``) it prin
   the wait is about the largest file's share of them where there are free cores, and
   grows with the machine's load where there are not;
 - ``in C [us]``: one forward-dynamics evaluation in a C loop (``bench_model.inside_c``),
-  and per segment.
+  and per segment;
+- ``instr``: the machine instructions of that evaluation, counted by callgrind
+  (``bench_model.executed_instructions``, the portable build), and per segment: a count
+  that does not depend on the CPU's caches nor on the machine's load, where the time per
+  segment does (``--no-instructions`` skips it; NaN without valgrind).
 
 The comparison beside the figures is with N = 1 of the same run: the targets are a
 compile time within 3x of N = 1 at N = 10, and a cost per segment within 1.5x.
@@ -49,7 +53,8 @@ segment; per segment at N = 10 and 20 within 1.6x of N = 1; a ten-segment six-st
 robot compiled within 3x of one segment).
 
 Run: ``python benchmarks/bench_chain.py [--segments 1 2 4 10 20] [--no-compile] [--cse]
-[--stepper [--members 64]] [--sensitivity] [--kind curvature|strain|both]``
+[--no-instructions] [--stepper [--members 64]] [--sensitivity]
+[--kind curvature|strain|both]``
 """
 
 from __future__ import annotations
@@ -64,7 +69,7 @@ import time
 import casadi as ca
 import numpy as np
 from _timing import best_of  # benchmarks/_timing.py: a helper, not a benchmark
-from bench_model import inside_c
+from bench_model import executed_instructions, inside_c
 
 import softcurve as sc
 from softcurve.simulation.stepper import Stepper
@@ -223,6 +228,9 @@ def main() -> None:
     parser.add_argument("--segments", type=int, nargs="+", default=[1, 2, 4, 6, 8, 10, 20])
     parser.add_argument("--no-compile", action="store_true", help="skip compiling (C columns)")
     parser.add_argument("--repeat", type=int, default=100_000, help="C loop evaluations at N = 1")
+    parser.add_argument(
+        "--no-instructions", action="store_true", help="skip counting instructions (valgrind)"
+    )
     parser.add_argument("--cse", action="store_true", help="the cost of cse around calls")
     parser.add_argument("--stepper", action="store_true", help="the stepper's build and period")
     parser.add_argument("--members", type=int, default=64, help="members stepped (--stepper)")
@@ -266,25 +274,27 @@ def main() -> None:
     kinds = ("curvature", "strain") if args.kind == "both" else (args.kind,)
     tables = {kind: chain_table(kind, args) for kind in kinds}
     if len(tables) == 2:
-        print(f"\nsix strains over constant curvature, same N ({'N':>3} ops, compile, in C):")
+        print(
+            f"\nsix strains over constant curvature, same N ({'N':>3} ops, compile, in C, instr):"
+        )
         for n_segments in args.segments:
             a, b = tables["strain"][n_segments], tables["curvature"][n_segments]
             ratios = "  ".join(f"{x / y:>6.2f}" for x, y in zip(a, b, strict=True))
             print(f"{n_segments:>3}  {ratios}")
     print(
-        "\nTargets: compile time at N = 10 within 3x of N = 1; ops and time per segment at "
-        "N = 10 and 20 within 1.6x of N = 1; one six-strain segment's forward dynamics "
-        "within 2.5x of one constant-curvature segment's."
+        "\nTargets: compile time at N = 10 within 3x of N = 1; ops, time and instructions per "
+        "segment at N = 10 and 20 within 1.6x of N = 1; one six-strain segment's forward "
+        "dynamics within 2.5x of one constant-curvature segment's."
     )
 
 
 def chain_table(kind: str, args) -> dict:
     """Print the cost table of robots of ``kind``; return per N ``(ops, compile [s], in C
-    [s])``."""
+    [s], instructions)``."""
     header = (
         f"{'N':>3} {'ops':>8} {'/seg':>7} {'x N=1':>6} {'inlined':>8} {'build [s]':>9} "
         f"{'compile [s]':>11} {'x N=1':>6} {'cc CPU [s]':>10} {'in C [us]':>9} {'/seg':>6} "
-        f"{'x N=1':>6}"
+        f"{'x N=1':>6} {'instr':>8} {'/seg':>6} {'x N=1':>6}"
     )
     print(f"\n{kind} segments")
     print(header)
@@ -298,7 +308,7 @@ def chain_table(kind: str, args) -> dict:
         start = time.perf_counter()
         _ = sc.Model(robot, compile=False).symbolic
         build = time.perf_counter() - start
-        compile_time = c_time = compilers = float("nan")
+        compile_time = c_time = compilers = instructions = float("nan")
         if not args.no_compile:
             with tempfile.TemporaryDirectory() as cache:
                 os.environ["SOFTCURVE_CACHE_DIR"] = cache
@@ -307,14 +317,17 @@ def chain_table(kind: str, args) -> dict:
                 compile_time = time.perf_counter() - start
                 compilers = _children_cpu() - children
                 c_time = inside_c(model, max(args.repeat // n_segments, 1000))
-        row = (ops / n_segments, compile_time, c_time / n_segments)
-        rows[n_segments] = (ops, compile_time, c_time)
+                if not args.no_instructions:
+                    instructions = executed_instructions(model)
+        row = (ops / n_segments, compile_time, c_time / n_segments, instructions / n_segments)
+        rows[n_segments] = (ops, compile_time, c_time, instructions)
         first = first or row
         print(
             f"{n_segments:>3} {ops:>8} {row[0]:>7.0f} {row[0] / first[0]:>6.2f} {inlined:>8} "
             f"{build:>9.2f} {compile_time:>11.1f} {compile_time / first[1]:>6.2f} "
             f"{compilers:>10.1f} {c_time * 1e6:>9.2f} {row[2] * 1e6:>6.2f} "
-            f"{row[2] / first[2]:>6.2f}",
+            f"{row[2] / first[2]:>6.2f} {instructions:>8.0f} {row[3]:>6.0f} "
+            f"{row[3] / first[3]:>6.2f}",
             flush=True,
         )
     return rows

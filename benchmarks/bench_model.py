@@ -14,7 +14,10 @@ Run: ``python benchmarks/bench_model.py [--segments 1 3 6] [--repeat 200000] [--
 from __future__ import annotations
 
 import argparse
+import contextlib
 import os
+import re
+import shutil
 import subprocess
 import tempfile
 import time
@@ -65,15 +68,15 @@ int main(int argc, char** argv) {
 """
 
 
-def inside_c(
-    model: sc.Model, repeat: int, flags: tuple[str, ...] | None = None, rounds: int = 5
-) -> float:
-    """Seconds per forward-dynamics evaluation in a C loop (default: the model's flags),
-    best of ``rounds`` runs of the loop (on a shared machine one run varies by 30 %)."""
-    flags = (*FUNCTION_FLAGS, *_native_flags()) if flags is None else flags
+@contextlib.contextmanager
+def _harness(model: sc.Model, flags: tuple[str, ...]):
+    """Build the C loop over the model's forward dynamics with ``flags`` in a temporary
+    directory; yield the command that runs it (its stdin: the model's parameters), or
+    None without a C compiler."""
     compiler = find_compiler()
     if compiler is None:
-        return float("nan")
+        yield None
+        return
     with tempfile.TemporaryDirectory() as tmp:
         generator = ca.CodeGenerator("fd.c", {"with_header": False})
         generator.add(model.symbolic["forward_dynamics"])
@@ -85,16 +88,58 @@ def inside_c(
             check=True,
             capture_output=True,
         )
-        parameters = " ".join(repr(float(v)) for v in model.parameters)
-        command = [os.path.join(tmp, "bench"), str(repeat), str(model.n)]
-        command.append(str(model.parameters.size))
+        yield [os.path.join(tmp, "bench"), str(model.n), str(model.parameters.size)]
+
+
+def _parameters(model: sc.Model) -> str:
+    return " ".join(repr(float(v)) for v in model.parameters)
+
+
+def inside_c(
+    model: sc.Model, repeat: int, flags: tuple[str, ...] | None = None, rounds: int = 5
+) -> float:
+    """Seconds per forward-dynamics evaluation in a C loop (default: the model's flags),
+    best of ``rounds`` runs of the loop (on a shared machine one run varies by 30 %)."""
+    flags = (*FUNCTION_FLAGS, *_native_flags()) if flags is None else flags
+    with _harness(model, flags) as command:
+        if command is None:
+            return float("nan")
         seconds = []
         for _ in range(rounds):
             out = subprocess.run(
-                command, input=parameters, text=True, capture_output=True, check=True
+                [command[0], str(repeat), *command[1:]],
+                input=_parameters(model),
+                text=True,
+                capture_output=True,
+                check=True,
             ).stdout
             seconds.append(float(out.split()[0]))
     return min(seconds)
+
+
+def executed_instructions(model: sc.Model, repeat: int = 100) -> float:
+    """Machine instructions of one forward-dynamics evaluation in the C loop, counted by
+    callgrind (NaN without valgrind or a C compiler): the difference between ``2 repeat``
+    and ``repeat`` evaluations, over ``repeat``. A count, the same on any machine that
+    runs the same binary, whatever else it is doing. Built with the model's portable
+    flags (:data:`FUNCTION_FLAGS`), since valgrind does not decode every instruction set
+    that ``-march=native`` may choose (AVX-512 among them)."""
+    valgrind = shutil.which("valgrind")
+    if valgrind is None:
+        return float("nan")
+    with _harness(model, FUNCTION_FLAGS) as command:
+        if command is None:
+            return float("nan")
+        counts = []
+        for evaluations in (repeat, 2 * repeat):
+            run = subprocess.run(
+                [valgrind, "--tool=callgrind", "--callgrind-out-file=/dev/null",
+                 command[0], str(evaluations), *command[1:]],
+                input=_parameters(model), text=True, capture_output=True, check=True,
+            )  # fmt: skip
+            collected = re.search(r"Collected : ([\d,]+)", run.stderr)
+            counts.append(int(collected.group(1).replace(",", "")))
+    return (counts[1] - counts[0]) / repeat
 
 
 def from_python(model: sc.Model, number: int = 2000) -> tuple[float, float]:
