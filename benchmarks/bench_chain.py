@@ -33,7 +33,10 @@ With ``--stepper`` it prints instead, per N, the environments' stepper
 (``Stepper(model, period=0.02)``, its default ROS34PW2 with 16 steps): the build of its
 compiled period from an empty cache (the model's library built before, not counted), and
 one period per member over ``--members`` members on one thread, best of five rounds of a
-second, beside N = 1.
+second, beside N = 1, and the route; ``--jacobian exact`` takes the model's exact
+Jacobian (``Stepper(jacobian="exact")``) in place of differences, ``--jacobian both``
+prints both beside each other, and ``--contact`` puts the robots under a ceiling
+(:func:`ceiling`; a fresh Jacobian at every step).
 
 With ``--sensitivity`` it prints instead, per N, the identification's sensitivities:
 the instructions and the operations executed of the columns' right-hand side
@@ -53,7 +56,8 @@ segment; per segment at N = 10 and 20 within 1.6x of N = 1; a ten-segment six-st
 robot compiled within 3x of one segment).
 
 Run: ``python benchmarks/bench_chain.py [--segments 1 2 4 10 20] [--no-compile] [--cse]
-[--no-instructions] [--stepper [--members 64]] [--sensitivity]
+[--no-instructions] [--stepper [--members 64] [--jacobian exact|both] [--contact]]
+[--sensitivity]
 [--kind curvature|strain|both]``
 """
 
@@ -147,16 +151,35 @@ def cse_cost(n_segments: int) -> None:
         )
 
 
-def stepper_cost(n_segments: int, members: int) -> tuple[float, float]:
-    """``(build [s], one period per member [s])`` of the default stepper of N segments,
-    built from an empty cache."""
+CEILING_GAP = 5e-4
+"""With ``--contact``: the gap [m] between the robot's tip and a ceiling above it."""
+
+NEAR_STRAIGHT = (0.064, 0.5, -0.2)
+"""With ``--contact``: each segment's state, near straight under the ceiling."""
+
+
+def ceiling(n_segments: int) -> sc.Environment:
+    """A plane :data:`CEILING_GAP` above the tip of N paper segments at rest, the stepper
+    tests' contact law (stiff, damped, with friction), a body of radius 1 mm."""
+    height = n_segments * sc.presets.ifac2020().segments[0].rest_length + CEILING_GAP
+    plane = sc.Plane([0.0, 0.0, height], [0.0, 0.0, -1.0])
+    law = sc.ContactLaw(stiffness=1e7, smoothing=1e-6, damping=1.0, friction=0.5)
+    return sc.Environment([plane], law, contact_radius=[1e-3] * n_segments)
+
+
+def stepper_cost(
+    n_segments: int, members: int, jacobian: str = "differences", contact: bool = False
+) -> tuple[float, float, str]:
+    """``(build [s], one period per member [s], route)`` of the default stepper of N
+    segments with ``jacobian``, built from an empty cache; with ``contact``, under
+    :func:`ceiling` (a Jacobian at every step, the stepper's default there)."""
     robot = sc.presets.ifac2020().with_segments(n_segments)
     with tempfile.TemporaryDirectory() as cache:
         os.environ["SOFTCURVE_CACHE_DIR"] = cache
-        model = sc.Model(robot)
+        model = sc.Model(robot, environment=ceiling(n_segments) if contact else None)
         start = time.perf_counter()
-        stepper = Stepper(model, period=0.02, threads=1)
-        x0 = stepper.initial_state(np.tile(BENT, n_segments))
+        stepper = Stepper(model, period=0.02, threads=1, jacobian=jacobian)
+        x0 = stepper.initial_state(np.tile(NEAR_STRAIGHT if contact else BENT, n_segments))
         x = np.repeat(x0[None], members, axis=0)
         u = np.zeros((members, model.n))
         result = stepper.step(x, u)
@@ -165,7 +188,7 @@ def stepper_cost(n_segments: int, members: int) -> tuple[float, float]:
     one, _ = best_of(1, lambda: stepper.step(x, u))
     calls = max(1, round(1.0 / one))  # a round of about a second
     best, _ = best_of(5, lambda: [stepper.step(x, u) for _ in range(calls)])
-    return build, best / calls / members
+    return build, best / calls / members, stepper.route.name
 
 
 def sensitivity_operations(n_segments: int, columns: int = 8) -> dict:
@@ -234,6 +257,13 @@ def main() -> None:
     parser.add_argument("--cse", action="store_true", help="the cost of cse around calls")
     parser.add_argument("--stepper", action="store_true", help="the stepper's build and period")
     parser.add_argument("--members", type=int, default=64, help="members stepped (--stepper)")
+    parser.add_argument(
+        "--contact", action="store_true", help="the robots under a ceiling (--stepper)"
+    )
+    parser.add_argument(
+        "--jacobian", choices=("differences", "exact", "both"), default="differences",
+        help="the stepper's Jacobian (--stepper; both: beside each other)",
+    )  # fmt: skip
     parser.add_argument("--sensitivity", action="store_true", help="the sensitivities' cost")
     parser.add_argument(
         "--kind", choices=("curvature", "strain", "both"), default="curvature",
@@ -259,15 +289,34 @@ def main() -> None:
                 flush=True,
             )
         return
+    if args.stepper and args.jacobian == "both":
+        print(f"{'N':>3} {'differences: build [s]':>22} {'period [us]':>11} {'route':>15} "
+              f"{'exact: build [s]':>16} {'period [us]':>11} {'route':>15} "
+              f"{'exact / differences':>19}")  # fmt: skip
+        for n_segments in args.segments:
+            default = stepper_cost(n_segments, args.members, contact=args.contact)
+            exact = stepper_cost(n_segments, args.members, "exact", args.contact)
+            print(
+                f"{n_segments:>3} {default[0]:>22.1f} {default[1] * 1e6:>11.1f} {default[2]:>15} "
+                f"{exact[0]:>16.1f} {exact[1] * 1e6:>11.1f} {exact[2]:>15} "
+                f"{exact[1] / default[1]:>19.2f}",
+                flush=True,
+            )
+        return
     if args.stepper:
-        print(f"{'N':>3} {'build [s]':>9} {'x N=1':>6} {'period/member [us]':>18} {'x N=1':>6}")
+        print(
+            f"{'N':>3} {'build [s]':>9} {'x N=1':>6} {'period/member [us]':>18} {'x N=1':>6} "
+            f"{'route':>16}"
+        )
         first = None
         for n_segments in args.segments:
-            build, period = stepper_cost(n_segments, args.members)
+            build, period, route = stepper_cost(
+                n_segments, args.members, args.jacobian, args.contact
+            )
             first = first or (build, period)
             print(
                 f"{n_segments:>3} {build:>9.1f} {build / first[0]:>6.2f} {period * 1e6:>18.1f} "
-                f"{period / first[1]:>6.2f}",
+                f"{period / first[1]:>6.2f} {route:>16}",
                 flush=True,
             )
         return

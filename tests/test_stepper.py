@@ -3,12 +3,14 @@ bounds, failing members, dissipation, forces without actuator."""
 
 from __future__ import annotations
 
+import casadi as ca
 import numpy as np
 import pytest
 
 import softcurve as sc
 from softcurve.base.status import Status
 from softcurve.base.validation import ParameterError
+from softcurve.simulation.solvers import ActuatorInput, actuated_derivative, actuated_jacobian
 from softcurve.simulation.stepper._stepper import Stepper
 
 PERIOD = 0.02  # the learning environments' control period [s]
@@ -192,9 +194,76 @@ def test_compiled_equals_the_virtual_machine_and_the_error_falls_as_order_3(
     assert errors[0] > 3 * errors[1] > 9 * errors[2], errors
 
 
+@pytest.mark.parametrize(
+    "actuator_of",
+    [
+        lambda: None,
+        lambda: sc.PneumaticActuator.three_bellows(distance=0.012, area=2e-4, p_max=6e4),
+        lambda: sc.PneumaticActuator.three_bellows(
+            distance=0.012, area=2e-4, p_max=6e4, time_constant=0.02
+        ),
+        lambda: sc.TendonActuator.three_per_segment(
+            distance=0.008, t_max=5.0, n_segments=2, time_constant=0.01
+        ),
+    ],
+    ids=["forces", "bellows", "lagging bellows", "lagging tendons, two segments"],
+)
+def test_the_actuated_jacobian_is_casadis_derivative_of_the_state_derivative(actuator_of, rng):
+    """The exact Jacobian the stepper can take (the chain algorithms' derivatives and the
+    actuator's force moving with the coordinates and the lag) equals CasADi's own
+    derivative of the actuated state derivative, at a bent, moving, creeping state with
+    inputs inside their bounds."""
+    actuator = actuator_of()
+    segments = 1 if actuator is None else actuator.n_segments
+    model = sc.Model(sc.presets.ifac2020().with_segments(segments), compile=False)
+    inputs = None if actuator is None else ActuatorInput.of(actuator, model.n)
+    f = actuated_derivative(model, inputs, model.symbolic["rhs"])
+    exact = actuated_jacobian(model, inputs, model.casadi_jacobian())
+    n, n_x = model.n, f.size1_in(0)
+    x = np.zeros(n_x)
+    x[:n] = np.tile([0.064, 10.0, -5.0], segments) + rng.normal(0.0, 1e-3, n)
+    x[n : 2 * n] = rng.normal(0.0, 1.0, n)
+    x[2 * n : model.n_state] = rng.normal(0.0, 1e-3, model.n_state - 2 * n)
+    if actuator is None:
+        u = rng.normal(0.0, 1e-3, n)
+    else:
+        u = rng.uniform(actuator.lower, actuator.upper)
+        x[model.n_state :] = rng.uniform(actuator.lower, actuator.upper)[: n_x - model.n_state]
+    symbols = ca.MX.sym("x", n_x)
+    expected = np.array(
+        ca.Function("j", [symbols], [ca.jacobian(f(symbols, u, model.parameters), symbols)])(x)
+    )
+    got = np.array(exact(x, u, model.parameters))
+    assert np.abs(got - expected).max() < 1e-12 * np.abs(expected).max()
+
+
+def test_the_exact_jacobian_steps_as_the_differences_do(paper_model, actuator, stepper, rng):
+    """``jacobian="exact"`` generates the model's exact Jacobian with the period, over
+    lanes (the route says so) or per member, and in CasADi's virtual machine; each steps
+    the members as the default, forward differences over lanes, does: a W-method's
+    result moves with its matrix only at the differences' round-off (~1e-8)."""
+    exact = Stepper(paper_model, actuator, period=PERIOD, jacobian="exact")
+    assert exact.jacobian == "exact" and stepper.jacobian == "differences"
+    assert exact.route.name == "stepper-lanes" and "exact Jacobian" in exact.route.reason
+    assert exact.stats["jacobian"] == "exact" and stepper.stats["jacobian"] == "differences"
+    machine = Stepper(paper_model, actuator, period=PERIOD, compiled=False, jacobian="exact")
+    x = np.tile(stepper.initial_state([0.064, 5.0, -3.0], [0.01, 10.0, 0.0]), (3, 1))
+    u = commands(rng, actuator, 3)
+    scale = np.abs(x).max(axis=0) + np.r_[0.064, 1, 1, 0.1, 100, 100, 1, 1, 1, 6e4, 6e4, 6e4]
+    default = stepper.step(x, u).x
+    for other in (exact, machine):
+        result = other.step(x, u)
+        assert result.success, result.message
+        assert np.abs(result.x - default).max(axis=0) @ (1 / scale) < 1e-7
+
+
 def test_bad_arguments_raise(paper_model, actuator, stepper):
     with pytest.raises(ParameterError, match="period"):
         Stepper(paper_model, actuator, period=0.0)
+    with pytest.raises(ParameterError, match="jacobian must be one of"):
+        Stepper(paper_model, actuator, period=PERIOD, jacobian="newton")
+    with pytest.raises(ParameterError, match="RK4 takes no Jacobian"):
+        Stepper(paper_model, actuator, period=PERIOD, method="RK4", jacobian="exact")
     with pytest.raises(ParameterError, match="substeps"):
         Stepper(paper_model, actuator, period=PERIOD, substeps=0)
     with pytest.raises(ParameterError, match="x must have shape"):

@@ -16,7 +16,9 @@ angular velocity, one call per element) and the tangent runs through the steps' 
 derivatives, outward and back, a pass of ``O(N)``; its columns along ``qdd`` are the mass
 matrix ``D``. The passes of the ``3 n`` directions are one mapped Function, so that the
 generated code holds one pass however many directions: ``O(N^2)`` operations, ``O(N)``
-code. ``D`` is factored by CasADi's sparse ``LDL^T``.
+code. ``D`` is factored by CasADi's sparse ``LDL^T``. :class:`JacobianPasses` gives
+its pieces, for code that runs the directions and the solve in loops of its own (the
+stepper's vector lanes, ``softcurve.simulation.stepper._lanes``).
 
 Against the forward differences the C driver takes otherwise (``n_state + 1`` right-hand
 sides per Jacobian) it is exact, and at more than one segment cheaper
@@ -115,6 +117,68 @@ def _tangent_pass(elements, patterns, shared, kind, direction):
     return ca.vertcat(*forces)
 
 
+class JacobianPasses:
+    """The pieces of the exact Jacobian: the passes at the state and one tangent pass per
+    kind of direction, as SX Functions of calls, for :func:`state_jacobian` and for code
+    that runs the directions and the solve by itself (the stepper's vector lanes,
+    ``softcurve.simulation.stepper._lanes``).
+
+    Parameters
+    ----------
+    e : DynamicsExpressions
+        The model's expressions.
+    quadrature_nodes : int
+        Gauss-Legendre nodes per segment, as the model's.
+
+    Attributes
+    ----------
+    at_state : casadi.Function
+        ``(x, tau, p) -> (*values, dF/dx, d creep rate/dx)``: the :attr:`n_shared` dense
+        columns the tangents take, then the derivatives of the generalized force (n,
+        n_x) and of the creep rates (n_lam, n_x).
+    tangents : dict of str to casadi.Function
+        Per kind of :data:`DIRECTIONS`, ``(*values, direction) -> dID`` (n,): the
+        Newton-Euler algorithm's tangent along ``direction`` (n,) of the coordinates,
+        rates or accelerations (the last gives a column of the mass matrix).
+    n, n_lam, n_shared : int
+        Coordinates, creep states and shared values.
+    """
+
+    def __init__(self, e, quadrature_nodes: int):
+        structure, n = e.structure, e.q.shape[0]
+        self.n, self.n_lam = n, e.lam.shape[0]
+        x = ca.vertcat(e.q, e.qd, e.lam)
+        parts, *_ = unpack_parameters(e.p, ParameterLayout.of_structure(structure))
+        elements = chain_elements(structure, parts, quadrature_nodes, inline=False)
+        force, falling = e.generalized_force, e.base_acceleration
+        terms = chain.segment_motions(elements, e.q, e.qd, local=True)
+        qdd = chain.forward_dynamics(terms, force, falling)
+        carried = chain.newton_euler_passes(terms, qdd, falling)
+        shared = [
+            nonzeros([nonzeros(chain.arguments(t)) for t in terms]),
+            nonzeros([t.local for t in terms]),
+            qdd,
+            ca.vertcat(*carried.accelerations),
+            ca.vertcat(*carried.tip_wrenches),
+        ]
+        patterns = [([v.sparsity() for v in chain.arguments(t)], t.local.sparsity()) for t in terms]
+        self.inputs = [x, e.tau, e.p]
+        derivatives = [ca.jacobian(force, x), ca.jacobian(e.creep_rate, x)]
+        self.at_state = ca.Function("state_passes", self.inputs, [*shared, *derivatives], _OPTIONS)
+        self.n_shared = len(shared)
+        symbols = [ca.SX.sym(f"shared{i}", v.sparsity()) for i, v in enumerate(shared)]
+        direction = ca.SX.sym("direction", n)
+        self.tangents = {
+            kind: ca.Function(
+                f"newton_euler_tangent_{kind}",
+                [*symbols, direction],
+                [_tangent_pass(elements, patterns, symbols, kind, direction)],
+                _OPTIONS,
+            )
+            for kind in DIRECTIONS
+        }
+
+
 def state_jacobian(e, quadrature_nodes: int) -> ca.Function:
     """The exact Jacobian of the state derivative ``rhs`` (see the module docstring).
 
@@ -133,47 +197,19 @@ def state_jacobian(e, quadrature_nodes: int) -> ca.Function:
         ``xdot`` by the state ``x = (q, qd, lam)``; ``D`` (n, n), the mass matrix, whose
         inverse is the derivative of ``qdd`` by the generalized input force ``tau``.
     """
-    structure, n = e.structure, e.q.shape[0]
-    x = ca.vertcat(e.q, e.qd, e.lam)
-    parts, *_ = unpack_parameters(e.p, ParameterLayout.of_structure(structure))
-    elements = chain_elements(structure, parts, quadrature_nodes, inline=False)
-    force, falling = e.generalized_force, e.base_acceleration
-    terms = chain.segment_motions(elements, e.q, e.qd, local=True)
-    qdd = chain.forward_dynamics(terms, force, falling)
-    carried = chain.newton_euler_passes(terms, qdd, falling)
-    shared = [
-        nonzeros([nonzeros(chain.arguments(t)) for t in terms]),
-        nonzeros([t.local for t in terms]),
-        qdd,
-        ca.vertcat(*carried.accelerations),
-        ca.vertcat(*carried.tip_wrenches),
-    ]
-    patterns = [([v.sparsity() for v in chain.arguments(t)], t.local.sparsity()) for t in terms]
-    inputs = [x, e.tau, e.p]
-    derivatives = [ca.jacobian(force, x), ca.jacobian(e.creep_rate, x)]
-    at_state = ca.Function("state_passes", inputs, [*shared, *derivatives], _OPTIONS)
-
-    symbols = [ca.SX.sym(f"shared{i}", v.sparsity()) for i, v in enumerate(shared)]
-    direction = ca.SX.sym("direction", n)
-    tangents = {}
-    for kind in DIRECTIONS:
-        tangent = ca.Function(
-            f"newton_euler_tangent_{kind}",
-            [*symbols, direction],
-            [_tangent_pass(elements, patterns, symbols, kind, direction)],
-            _OPTIONS,
-        )
-        name = f"newton_euler_tangents_{kind}"
-        tangents[kind] = tangent.map(name, "serial", n, list(range(len(shared))), [])
-
+    passes = JacobianPasses(e, quadrature_nodes)
+    n, n_lam, shared = passes.n, passes.n_lam, list(range(passes.n_shared))
+    tangents = {
+        kind: tangent.map(f"newton_euler_tangents_{kind}", "serial", n, shared, [])
+        for kind, tangent in passes.tangents.items()
+    }
     x_mx, tau_mx, p_mx = (
-        ca.MX.sym(name, v.sparsity()) for name, v in zip("xtp", inputs, strict=True)
+        ca.MX.sym(name, v.sparsity()) for name, v in zip("xtp", passes.inputs, strict=True)
     )
-    *values, force_x, creep_x = at_state(x_mx, tau_mx, p_mx)
+    *values, force_x, creep_x = passes.at_state(x_mx, tau_mx, p_mx)
     seeds = np.eye(n)
     d_inverse = ca.horzcat(tangents["q"](*values, seeds), tangents["qd"](*values, seeds))
     mass = tangents["qdd"](*values, seeds)
-    n_lam = e.lam.shape[0]
     rhs = force_x - ca.horzcat(d_inverse, ca.MX(n, n_lam))
     solved = ca.solve(mass, rhs, "ldl")
     j_x = ca.vertcat(ca.horzcat(ca.MX(n, n), ca.MX.eye(n), ca.MX(n, n_lam)), solved, creep_x)

@@ -5,7 +5,8 @@
  * unused lanes.
  *
  * Python writes before this file what it computes from the model and the method: the
- * lanes prelude and functions (sc_xdot, sc_observe), the entry's name
+ * lanes prelude and functions (sc_xdot, sc_observe, and sc_jacobian where the step
+ * takes the exact Jacobian), the entry's name
  * SC_ENTRY, the sizes (SC_NX states, the first SC_NQ of them the coordinates q whose
  * rates qd are the next SC_NQ, SC_NU, SC_NOBS, SC_SUBSTEPS; SC_WORK vectors of work of the
  * lanes functions, SC_SCRATCH of the step), the step's declarations and statements
@@ -118,6 +119,40 @@ static inline void sc_newton_solve(const sc_v *restrict a, sc_v gh, const sc_v *
     for (int i = 0; i < SC_NR; i++) r[i] -= a[j * SC_NR + i] * b[j];
   sc_qr_solve(a + SC_NQ * SC_NR, beta, rdiag, r, k + SC_NQ);
   for (int j = 0; j < SC_NQ; j++) k[j] = b[j] + gh * k[SC_NQ + j];
+}
+
+/* The exact Jacobian's solve (a step writer's choice): the rows of qdd in J are
+ * D^-1 G, with D the SC_NQ x SC_NQ mass matrix, symmetric positive definite. d, column
+ * major, becomes its Cholesky factor L (lower triangle, L L' = D); the loops are those of
+ * any Cholesky factorization, on vectors of members. A matrix that is not positive
+ * definite gives non-finite entries, whose states the stepper reports. */
+static inline void sc_cholesky(sc_v *restrict d) {
+  for (int k = 0; k < SC_NQ; k++) {
+    sc_v *dk = d + k * SC_NQ;
+    sc_v t = dk[k];
+    for (int j = 0; j < k; j++) t -= d[j * SC_NQ + k] * d[j * SC_NQ + k];
+    dk[k] = sc_sqrt(t);
+    for (int i = k + 1; i < SC_NQ; i++) {
+      sc_v u = dk[i];
+      for (int j = 0; j < k; j++) u -= d[j * SC_NQ + i] * d[j * SC_NQ + k];
+      dk[i] = u / dk[k];
+    }
+  }
+}
+
+/* x = D^-1 b from sc_cholesky's factor l: L z = b forward, L' x = z back. */
+static inline void sc_cholesky_solve(const sc_v *restrict l, const sc_v *restrict b,
+                                     sc_v *restrict x) {
+  for (int i = 0; i < SC_NQ; i++) {
+    sc_v t = b[i];
+    for (int j = 0; j < i; j++) t -= l[j * SC_NQ + i] * x[j];
+    x[i] = t / l[i * SC_NQ + i];
+  }
+  for (int i = SC_NQ - 1; i >= 0; i--) {
+    sc_v t = x[i];
+    for (int j = i + 1; j < SC_NQ; j++) t -= l[i * SC_NQ + j] * x[j];
+    x[i] = t / l[i * SC_NQ + i];
+  }
 }
 
 __attribute__((visibility("default"))) int SC_ENTRY(

@@ -8,6 +8,10 @@ RK45 and Radau, and softcurve's driver in C (``c/``) of CVODES and of its own Ra
 """
 
 from softcurve.simulation.solvers._actuated import actuated_derivative as actuated_derivative
+from softcurve.simulation.solvers._actuated import actuated_jacobian as actuated_jacobian
+from softcurve.simulation.solvers._actuated import (
+    actuated_passes as actuated_passes,
+)
 from softcurve.simulation.solvers._along import blocks as blocks
 from softcurve.simulation.solvers._along import chunks as chunks
 from softcurve.simulation.solvers._along import energy_along as energy_along
@@ -83,6 +87,8 @@ from softcurve.simulation.solvers._routes import choose_route as choose_route
 
 __all__ = [
     "actuated_derivative",
+    "actuated_jacobian",
+    "actuated_passes",
     "blocks",
     "chunks",
     "energy_along",

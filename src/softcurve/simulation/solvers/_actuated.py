@@ -9,21 +9,10 @@ from __future__ import annotations
 import casadi as ca
 
 
-def actuated_derivative(model, inputs, rhs: ca.Function) -> ca.Function:
-    """``(x, u, p) -> xdot`` on the model's right-hand side ``rhs``: ``u`` is the force
-    ``tau`` without ``inputs``; with them, the actuator's inputs, whose force is
-    ``H(q) u``, or, when they lag, their commands: the inputs are then states after
-    ``(q, qd, lam)`` with ``u' = (clip(command, lower, upper) - u) / time_constant``.
-
-    Parameters
-    ----------
-    model : Model
-        The model (its sizes).
-    inputs : ActuatorInput or None
-        The actuator's input, or None for generalized forces.
-    rhs : casadi.Function
-        ``(x, tau, p) -> xdot`` of the model (compiled or symbolic).
-    """
+def _actuated(model, inputs) -> tuple:
+    """``(x, u, p, tau, rates)`` (MX): the symbols of :func:`actuated_derivative`, the
+    generalized force ``tau`` on the robot and the lagging inputs' rates (an empty list
+    without a lag)."""
     n, n_state = model.n, model.n_state
     extra = 0 if inputs is None else inputs.n_states
     x = ca.MX.sym("x", n_state + extra)
@@ -39,5 +28,95 @@ def actuated_derivative(model, inputs, rhs: ca.Function) -> ca.Function:
         tau = inputs.force(x[:n], lagging)
         command = ca.fmin(ca.fmax(u, ca.DM(inputs.lower)), ca.DM(inputs.upper))
         rates = [(command - lagging) / inputs.time_constant]
-    xdot = ca.vertcat(rhs(x[:n_state], tau, p), *rates)
+    return x, u, p, tau, rates
+
+
+def actuated_derivative(model, inputs, rhs: ca.Function) -> ca.Function:
+    """``(x, u, p) -> xdot`` on the model's right-hand side ``rhs``: ``u`` is the force
+    ``tau`` without ``inputs``; with them, the actuator's inputs, whose force is
+    ``H(q) u``, or, when they lag, their commands: the inputs are then states after
+    ``(q, qd, lam)`` with ``u' = (clip(command, lower, upper) - u) / time_constant``.
+
+    Parameters
+    ----------
+    model : Model
+        The model (its sizes).
+    inputs : ActuatorInput or None
+        The actuator's input, or None for generalized forces.
+    rhs : casadi.Function
+        ``(x, tau, p) -> xdot`` of the model (compiled or symbolic).
+    """
+    x, u, p, tau, rates = _actuated(model, inputs)
+    xdot = ca.vertcat(rhs(x[: model.n_state], tau, p), *rates)
     return ca.Function("softcurve_xdot", [x, u, p], [xdot], ["x", "u", "p"], ["xdot"])
+
+
+def actuated_jacobian(model, inputs, jacobian: ca.Function) -> ca.Function:
+    """``(x, u, p) -> J``: the exact Jacobian of :func:`actuated_derivative` by the state
+    (n_x, n_x). The robot's part is ``jacobian`` at the force held (``J_x``); the
+    actuator's force moves with the coordinates and the lagging inputs, which adds
+    ``D^-1 d tau / dx`` to the accelerations' rows (``d qdd / d tau = D^-1``, ``D``
+    factored by CasADi's ``LDL^T``); the lag's rows are ``-1 / time_constant`` on their
+    diagonal.
+
+    Parameters
+    ----------
+    model : Model
+        The model (its sizes).
+    inputs : ActuatorInput or None
+        The actuator's input, or None for generalized forces (which do not move with the
+        state).
+    jacobian : casadi.Function
+        ``(x, tau, p) -> (J_x, D)`` of the model (``Model.casadi_jacobian``).
+    """
+    n, n_state = model.n, model.n_state
+    x, u, p, tau, rates = _actuated(model, inputs)
+    j_x, mass = jacobian(x[:n_state], tau, p)
+    n_x = x.shape[0]
+    j = ca.horzcat(j_x, ca.MX(n_state, n_x - n_state))
+    if inputs is not None:
+        accelerations = ca.solve(mass, ca.jacobian(tau, x), "ldl")
+        j = j + ca.vertcat(ca.MX(n, n_x), accelerations, ca.MX(n_state - 2 * n, n_x))
+    rows = [ca.jacobian(r, x) for r in rates]
+    return ca.Function(
+        "softcurve_xdot_jacobian", [x, u, p], [ca.vertcat(j, *rows)], ["x", "u", "p"], ["J"]
+    )
+
+
+def actuated_passes(model, inputs, at_state: ca.Function) -> ca.Function:
+    """``(x, u, p) -> (*values, G, R)``: the passes at the state of the exact Jacobian of
+    :func:`actuated_derivative`, for code that runs the tangents and the solve by itself
+    (the stepper's lanes). The accelerations' rows of ``J`` are
+    ``D^-1 (G - dID/dx)``, with ``dID/dx`` and ``D`` the tangent passes at ``values``.
+
+    Parameters
+    ----------
+    model : Model
+        The model (its sizes).
+    inputs : ActuatorInput or None
+        The actuator's input, or None for generalized forces.
+    at_state : casadi.Function
+        ``(x, tau, p) -> (*values, dF/dx, d creep rate/dx)`` of the model
+        (``softcurve.symbolic.derivatives.JacobianPasses.at_state``).
+
+    Returns
+    -------
+    casadi.Function
+        ``values``: the passes' dense columns; ``G``: ``vec`` of ``dF/dx`` (n, n_x) with
+        the actuator's force's derivative; ``R``: ``vec`` of the rows after the
+        accelerations' (creep rates, then lagging inputs), (n_x - 2 n, n_x).
+    """
+    n, n_state = model.n, model.n_state
+    x, u, p, tau, rates = _actuated(model, inputs)
+    *values, force_x, creep_x = at_state(x[:n_state], tau, p)
+    n_x = x.shape[0]
+    g = ca.horzcat(force_x, ca.MX(n, n_x - n_state))
+    if inputs is not None:
+        g = g + ca.jacobian(tau, x)
+    rows = ca.vertcat(
+        ca.horzcat(creep_x, ca.MX(n_state - 2 * n, n_x - n_state)),
+        *(ca.jacobian(r, x) for r in rates),
+    )
+    outputs = [*values, *(ca.vec(ca.densify(m)) for m in (g, rows))]
+    names = [*(f"value{k}" for k in range(len(values))), "G", "R"]
+    return ca.Function("softcurve_xdot_passes", [x, u, p], outputs, ["x", "u", "p"], names)

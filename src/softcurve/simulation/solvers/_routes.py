@@ -162,8 +162,9 @@ def choose_route(task: str, method: str = "cvodes", *, model=None, inputs=None, 
         stepper's lane code and per-member period (``"stepper-lanes"``,
         ``"stepper-threads"``).
     jacobian : {"differences", "exact"}
-        The Jacobian of the driver's Newton matrix (``SimulationSettings.jacobian``); the
-        lanes and the other routes take their own.
+        The Jacobian of the driver's Newton matrix (``SimulationSettings.jacobian``) or of
+        the stepper's (``Stepper(jacobian=)``, per member); the driver's lanes and the
+        other routes take their own.
 
     Returns
     -------
@@ -175,7 +176,10 @@ def choose_route(task: str, method: str = "cvodes", *, model=None, inputs=None, 
         for name in ("stepper-lanes", "stepper-threads"):
             built = builders[name]() if name in builders else None
             if built is not None:
-                return Route(name, "compiled code over the members", built)
+                reason = "compiled code over the members"
+                if jacobian == "exact":
+                    reason += ", the model's exact Jacobian"
+                return Route(name, reason, built)
         return Route("stepper-casadi", "the model is not compiled, or compiled=False")
     if task == "sensitivity":
         why = c_driver.unavailable() or (None if options_known else "a CVODES option only "

@@ -32,6 +32,7 @@ from softcurve.compiled import (
     lanes_prelude,
     lanes_work,
 )
+from softcurve.simulation.solvers import actuated_passes
 from softcurve.simulation.stepper._methods import METHODS, ExplicitTableau, Tableau
 from softcurve.simulation.stepper._scheme import (
     DIFFERENCE_STEP,
@@ -40,12 +41,36 @@ from softcurve.simulation.stepper._scheme import (
     rest_scale,
     state_derivative,
 )
+from softcurve.symbolic.derivatives import DIRECTIONS, JacobianPasses
 
 ENTRY = "softcurve_lanes_period"
 """The C entry point: ``(x, u, p, period, out, start, stop)`` on rows ``start:stop``."""
 
 
-def period_source(model, inputs, substeps: int, method: str, vector_math: bool, every=None):
+def jacobian_functions(model, inputs) -> list:
+    """The lanes functions of the exact Jacobian, ``[(function, name, shared), ...]``:
+    ``sc_passes`` (:func:`~softcurve.simulation.solvers.actuated_passes`, SX with the
+    chain's calls) and one ``sc_tangent_<kind>`` per kind of direction
+    (``softcurve.symbolic.derivatives.JacobianPasses``), which the step calls once per
+    coordinate in a loop: code of ``O(N)``, where one function of every direction's call
+    is one GCC takes minutes over (alias walking over the calls' arguments)."""
+
+    def build():
+        passes = JacobianPasses(model.expressions, model.quadrature_nodes)
+        at_state = actuated_passes(model, inputs, passes.at_state).expand()
+        functions = [(at_state, "sc_passes", (False, False, True))]
+        for kind in DIRECTIONS:
+            tangent = passes.tangents[kind]
+            functions.append((tangent, f"sc_tangent_{kind}", (False,) * tangent.n_in()))
+        return functions
+
+    return model.cached(("stepper-jacobian-passes", None if inputs is None else inputs.key), build)
+
+
+def period_source(
+    model, inputs, substeps: int, method: str, vector_math: bool, every=None,
+    jacobian: str = "differences",
+):  # fmt: skip
     """The C source of :data:`ENTRY`: ``substeps`` steps of ``method`` over the period,
     then the observation, for rows ``start:stop`` of ``x`` (N, n_x) and ``u`` (N, m)
     into ``out`` (N, n_x + 6), all row-major float64, with ``p`` and ``period`` shared;
@@ -69,6 +94,9 @@ def period_source(model, inputs, substeps: int, method: str, vector_math: bool, 
     every : int, optional
         Steps between fresh Newton matrices of a Rosenbrock method (default
         ``substeps``).
+    jacobian : {"differences", "exact"}
+        The Newton matrix's Jacobian: forward differences of the state derivative, or the
+        exact one (:func:`jacobian_terms`, solved by the template's Cholesky loops).
 
     Returns
     -------
@@ -91,11 +119,15 @@ def period_source(model, inputs, substeps: int, method: str, vector_math: bool, 
         if not rates_follow_coordinates(f, model.n):
             raise NotImplementedError("the Newton solve eliminates q' = qd")
         scale = rest_scale(model, inputs)
-        step = rosenbrock_step(tableau, n_x, model.n, scale, every or substeps)
+        exact = jacobian_functions(model, inputs) if jacobian == "exact" else []
+        shared = [exact[0][0].nnz_out(k) for k in range(exact[0][0].n_out() - 2)] if exact else None
+        step = rosenbrock_step(tableau, n_x, model.n, scale, every or substeps, shared)
     functions = [
         (f, "sc_xdot", (False, False, True)),
         (observe, "sc_observe", (False, True)),
     ]
+    if not isinstance(tableau, ExplicitTableau):
+        functions += exact
     work = max(lanes_work(function) for function, _, _ in functions)
     sizes = {
         "SC_NX": n_x,
@@ -147,7 +179,10 @@ class LanesPeriod:
     sizes: tuple
 
 
-def lanes_period(model, inputs, substeps: int, method: str, every: int | None = None):
+def lanes_period(
+    model, inputs, substeps: int, method: str, every: int | None = None,
+    jacobian: str = "differences",
+):  # fmt: skip
     """The compiled :func:`period_source`, kept with the model: with glibc's vector math
     where it is available and links
     (``softcurve.compiled._lanes.vector_math_available``), else with the C
@@ -166,6 +201,8 @@ def lanes_period(model, inputs, substeps: int, method: str, every: int | None = 
     every : int, optional
         Steps between fresh Newton matrices of a Rosenbrock method (default
         ``substeps``; ignored by explicit methods).
+    jacobian : {"differences", "exact"}
+        A Rosenbrock method's Jacobian (:func:`period_source`).
 
     Returns
     -------
@@ -181,14 +218,17 @@ def lanes_period(model, inputs, substeps: int, method: str, every: int | None = 
         f = state_derivative(model, inputs, True)
         n_x = f.size1_in(0)
         sizes = (n_x, f.size1_in(1), f.size1_in(2), n_x + observer(model, True).size1_out(0))
-        source = partial(period_source, model, inputs, substeps, method, every=every)
+        source = partial(
+            period_source, model, inputs, substeps, method, every=every, jacobian=jacobian
+        )
         argtypes = [ctypes.c_void_p] * 5 + [ctypes.c_long] * 2
         built = compile_lanes("stepper_lanes", source, ENTRY, argtypes)
         if built is None:
             return None
         return LanesPeriod(built.entry, str(built.library.path), built.vector_math, sizes)
 
-    key = ("stepper-lanes", substeps, method, every, None if inputs is None else inputs.key)
+    inputs_key = None if inputs is None else inputs.key
+    key = ("stepper-lanes", substeps, method, every, inputs_key, None if explicit else jacobian)
     return model.cached(key, build)
 
 
@@ -312,7 +352,7 @@ def explicit_step(tableau: ExplicitTableau, n_x: int) -> StepSource:
 
 
 def rosenbrock_step(
-    tableau: Tableau, n_x: int, n_q: int, scale: np.ndarray, every: int
+    tableau: Tableau, n_x: int, n_q: int, scale: np.ndarray, every: int, shared=None
 ) -> StepSource:
     """One step of a Rosenbrock method with a fresh Newton matrix at every ``every``-th
     step (as ``softcurve.simulation.stepper._scheme.newton_matrix`` and
@@ -320,7 +360,11 @@ def rosenbrock_step(
     period template's loops (``sc_newton_factor``, ``sc_newton_solve``: the rows of
     ``q' = qd`` eliminated, the rest by Householder QR), where the scalar scheme calls
     CasADi's sparse QR of the whole matrix written out as straight-line code: the same
-    solves up to round-off, in code that does not grow with the states.
+    solves up to round-off, in code that does not grow with the states. The Jacobian is
+    forward differences of ``sc_xdot``, or, given the sizes of the exact Jacobian's
+    ``shared`` values, the functions of :func:`jacobian_functions`: ``sc_passes`` once,
+    the tangents along each coordinate in a loop, the accelerations' rows solved by the
+    mass matrix's Cholesky factor (``sc_cholesky``, ``sc_cholesky_solve``).
 
     Parameters
     ----------
@@ -335,26 +379,85 @@ def rosenbrock_step(
         (``softcurve.simulation.stepper._scheme.rest_scale``).
     every : int
         Steps between fresh Newton matrices.
+    shared : sequence of int, optional
+        The sizes of ``sc_passes``'s values: the exact Jacobian in place of differences.
     """
-    a, c, m, gamma = tableau.transformed()
+    a, _, _, gamma = tableau.transformed()
+    n_r = n_x - n_q
+    if shared is not None:  # G - dID/dx and D by coordinate, then D^-1 column by column
+        n_rest = n_x - 2 * n_q
+        values = ", ".join(f"S{k}" for k in range(len(shared)))
+        columns = [
+            f"  sc_passes(y, U, p, {values}, G, R, w);",
+            f"  for (int k = 0; k < {n_q}; k++) {{",
+            f"    for (int i = 0; i < {n_q}; i++) e[i] = sc_broadcast(i == k ? 1.0 : 0.0);",
+            f"    sc_tangent_q({values}, e, col, w);",
+            f"    for (int i = 0; i < {n_q}; i++) G[k * {n_q} + i] -= col[i];",
+            f"    sc_tangent_qd({values}, e, col, w);",
+            f"    for (int i = 0; i < {n_q}; i++) G[({n_q} + k) * {n_q} + i] -= col[i];",
+            f"    sc_tangent_qdd({values}, e, D + k * {n_q}, w);",
+            "  }",
+            "  sc_cholesky(D);",
+            f"  for (int c = 0; c < {n_x}; c++) {{",
+            f"    sc_cholesky_solve(D, G + c * {n_q}, A[c]);",
+            f"    for (int i = 0; i < {n_q}; i++) A[c][i] = -(gh * A[c][i]);",
+            f"    for (int i = 0; i < {n_rest}; i++)",
+            f"      A[c][{n_q} + i] = -(gh * R[c * {n_rest} + i]);",
+        ]
+        own = [
+            f"sc_v *G = scratch + {n_x * n_r}, *D = G + {n_q * n_x}, *R = D + {n_q * n_q};",
+            f"sc_v e[{n_q}], col[{n_q}];",
+        ]
+        start = n_x * n_r + n_q * n_x + n_q * n_q + n_rest * n_x
+        for k, size in enumerate(shared):
+            own.append(f"sc_v *S{k} = scratch + {start};")
+            start += size
+        scratch = start
+    else:
+        columns = [
+            "  " + _each(n_x, f"step[j] = {DIFFERENCE_STEP!r} * sc_fmax(sc_fabs(y[j]), "),
+            "      sc_broadcast(sc_scale[j]));",
+            f"  for (int c = 0; c < {n_x}; c++) {{",
+            "    " + _each(n_x, "z[j] = y[j];"),
+            "    z[c] = y[c] + step[c];",
+            "    sc_xdot(z, U, p, fj, w);",
+            f"    for (int i = 0; i < {n_r}; i++)",
+            f"      A[c][i] = -(gh * ((fj[{n_q} + i] - f0[{n_q} + i]) / step[c]));",
+        ]
+        values = ", ".join(repr(float(v)) for v in scale)
+        own = [
+            f"static const double sc_scale[{n_x}] = {{{values}}};",
+            f"sc_v fj[{n_x}], step[{n_x}];",
+        ]
+        scratch = n_x * n_r
     lines = [
         f"if (s % {every} == 0) {{",
         "  sc_xdot(y, U, p, f0, w);",
-        "  " + _each(n_x, f"step[j] = {DIFFERENCE_STEP!r} * sc_fmax(sc_fabs(y[j]), "),
-        "      sc_broadcast(sc_scale[j]));",
-        f"  for (int c = 0; c < {n_x}; c++) {{",
-        "    " + _each(n_x, "z[j] = y[j];"),
-        "    z[c] = y[c] + step[c];",
-        "    sc_xdot(z, U, p, fj, w);",
-        f"    for (int i = 0; i < {n_x - n_q}; i++)",
-        f"      A[c][i] = -(gh * ((fj[{n_q} + i] - f0[{n_q} + i]) / step[c]));",
+        *columns,
         f"    if (c >= {n_q}) A[c][c - {n_q}] = sc_broadcast(1.0) + A[c][c - {n_q}];",
         "  }",
         "  sc_newton_factor(&A[0][0], gh, beta, rdiag);",
         "} else {",
         "  sc_xdot(y, U, p, f0, w);",
         "}",
+        *_stages(tableau, n_x),
     ]
+    declarations = [
+        *own,
+        f"const sc_v gh = sc_broadcast({float(gamma)!r}) * h;",
+        f"sc_v z[{n_x}], f0[{n_x}], slope[{n_x}];",
+        f"sc_v beta[{n_r}], rdiag[{n_r}];",
+        f"sc_v (*A)[{n_r}] = (sc_v (*)[{n_r}])scratch; /* column c: A[c] */",
+        *(f"sc_v k{i}[{n_x}];" for i in range(a.shape[0])),
+    ]
+    return StepSource(tuple(declarations), tuple(lines), scratch)
+
+
+def _stages(tableau: Tableau, n_x: int) -> list:
+    """The lines of a Rosenbrock step's stages and update, from ``f0`` and the factored
+    Newton matrix ``A``."""
+    a, c, m, _ = tableau.transformed()
+    lines = []
     for i in range(a.shape[0]):
         shift = [(j, a[i, j]) for j in range(i) if a[i, j]]
         if i == 0 or not shift:
@@ -368,12 +471,4 @@ def rosenbrock_step(
         lines.append(f"sc_newton_solve(&A[0][0], gh, beta, rdiag, slope, k{i});")
     weights = [(i, m[i]) for i in range(len(m)) if m[i]]
     lines.append(_each(n_x, f"y[j] = y[j] + h * ({_combination(weights)});"))
-    declarations = [
-        f"static const double sc_scale[{n_x}] = {{{', '.join(repr(float(v)) for v in scale)}}};",
-        f"const sc_v gh = sc_broadcast({float(gamma)!r}) * h;",
-        f"sc_v z[{n_x}], f0[{n_x}], fj[{n_x}], step[{n_x}], slope[{n_x}];",
-        f"sc_v beta[{n_x - n_q}], rdiag[{n_x - n_q}];",
-        f"sc_v (*A)[{n_x - n_q}] = (sc_v (*)[{n_x - n_q}])scratch; /* column c: A[c] */",
-        *(f"sc_v k{i}[{n_x}];" for i in range(a.shape[0])),
-    ]
-    return StepSource(tuple(declarations), tuple(lines), n_x * (n_x - n_q))
+    return lines

@@ -5,8 +5,9 @@ The period is split into ``substeps`` steps ``h`` of one of the methods of
 ``softcurve.simulation.stepper._methods``, the inputs held: a Rosenbrock-W method
 (ROS34PW2 of order 3, or ROS2 of order 2, both L-stable) or the explicit RK4
 (:func:`explicit_step`). A W-method keeps its order with any matrix ``J``, so one
-forward-difference Jacobian (:func:`newton_matrix`) serves several steps; ``I - gamma h
-J`` is factorized by Householder QR (:class:`Factorization`), no inverse. The state layout is
+forward-difference Jacobian (:func:`newton_matrix`) serves several steps, or the
+model's exact one (``jacobian="exact"``: :func:`exact_jacobian`); ``I - gamma h J`` is
+factorized by Householder QR (:class:`Factorization`), no inverse. The state layout is
 ``simulate``'s: ``(q, qd, lam)`` then the actuator's lagging inputs
 (:class:`~softcurve.simulation.solvers.ActuatorInput`). docs/stepping.md gives the
 accuracy and the cost.
@@ -36,7 +37,7 @@ import numpy as np
 from softcurve.base.docs import parameters_from
 from softcurve.base.shares import run_shares, share_bounds
 from softcurve.compiled import NativeFunction, compile_function, load_function
-from softcurve.simulation.solvers import ActuatorInput, actuated_derivative
+from softcurve.simulation.solvers import ActuatorInput, actuated_derivative, actuated_jacobian
 from softcurve.simulation.solvers import state_scale as integration_scale
 from softcurve.simulation.stepper._methods import METHODS, ExplicitTableau, Tableau
 
@@ -71,6 +72,32 @@ def state_derivative(model, inputs: ActuatorInput | None, symbolic: bool) -> ca.
         return actuated_derivative(model, inputs, rhs)
 
     return model.cached(("stepper-xdot", symbolic, None if inputs is None else inputs.key), build)
+
+
+JACOBIANS = ("differences", "exact")
+"""The Jacobians of a Rosenbrock method's Newton matrix: forward differences of the
+state derivative (:func:`difference_jacobian`, ``n_x + 1`` evaluations) or the model's
+exact Jacobian (:func:`exact_jacobian`)."""
+
+
+@scheme_parameters
+def exact_jacobian(model, inputs: ActuatorInput | None) -> ca.Function:
+    """``(x, u, p) -> J``: the exact Jacobian of :func:`state_derivative` by the state,
+    the derivatives of the chain algorithms (``Model.casadi_jacobian``) with the
+    actuator's part (:func:`~softcurve.simulation.solvers.actuated_jacobian`), kept with
+    the model; symbolic on either route (generated as C with the period, or evaluated in
+    CasADi's virtual machine).
+
+    Parameters
+    ----------
+    %(model)s
+    %(inputs)s
+    """
+
+    def build():
+        return actuated_jacobian(model, inputs, model.casadi_jacobian())
+
+    return model.cached(("stepper-jacobian", None if inputs is None else inputs.key), build)
 
 
 @scheme_parameters
@@ -131,9 +158,9 @@ def difference_jacobian(f, scale, x, u, p):
     return jacobian, f0
 
 
-def newton_matrix(f, scale, pattern, x, u, p, gamma_h):
+def newton_matrix(f, scale, pattern, x, u, p, gamma_h, jacobian=None):
     """``(I - gamma_h J, f(x))`` (MX): ``J`` the :func:`difference_jacobian` of ``f`` at
-    ``x`` on its structural ``pattern``.
+    ``x``, or ``jacobian``'s, on its structural ``pattern``.
 
     Parameters
     ----------
@@ -147,9 +174,14 @@ def newton_matrix(f, scale, pattern, x, u, p, gamma_h):
         State, inputs and robot parameters.
     gamma_h : casadi.MX or float
         ``gamma h`` [s].
+    jacobian : casadi.Function, optional
+        ``(x, u, p) -> J`` (:func:`exact_jacobian`); None takes differences.
     """
-    jacobian, f0 = difference_jacobian(f, scale, x, u, p)
-    return ca.project(ca.MX.eye(x.shape[0]) - gamma_h * jacobian, pattern), f0
+    if jacobian is None:
+        matrix, f0 = difference_jacobian(f, scale, x, u, p)
+    else:
+        matrix, f0 = jacobian(x, u, p), f(x, u, p)
+    return ca.project(ca.MX.eye(x.shape[0]) - gamma_h * matrix, pattern), f0
 
 
 class Factorization:
@@ -247,6 +279,7 @@ def period_function(
     flags=None,
     jacobian_every: int | None = None,
     native: bool = False,
+    jacobian: str = "differences",
 ):
     """``(x, u, p, period) -> (x_next, tip, contact_force)`` stacked (``n_state + 6``) for
     one member: ``substeps`` steps of ``method`` over ``period`` [s] with a fresh Newton
@@ -280,6 +313,8 @@ def period_function(
         :class:`~softcurve.compiled.NativeFunction` (called through ctypes, which
         releases the GIL: threads of Python run members in parallel) instead of a
         CasADi ``external``; None where no compiler works.
+    jacobian : str
+        One of :data:`JACOBIANS`: the Newton matrix's Jacobian of a Rosenbrock method.
     """
     tableau = METHODS[method]
     every = substeps if jacobian_every is None else min(jacobian_every, substeps)
@@ -299,11 +334,12 @@ def period_function(
                 y = explicit_step(f, y, u, p, h, tableau)
         else:
             scale, pattern = rest_scale(model, inputs), jacobian_pattern(model, inputs)
+            exact = exact_jacobian(model, inputs) if jacobian == "exact" else None
             qr = Factorization(pattern)
             for i in range(substeps):
                 if i % every == 0:
                     gamma_h = tableau.gamma[0][0] * h
-                    matrix, slope = newton_matrix(f, scale, pattern, y, u, p, gamma_h)
+                    matrix, slope = newton_matrix(f, scale, pattern, y, u, p, gamma_h, exact)
                     factors = qr.factor(matrix)
                 else:
                     slope = f(y, u, p)
@@ -316,7 +352,7 @@ def period_function(
 
     flags = STEPPER_FLAGS if flags is None else tuple(flags)
     inputs_key = None if inputs is None else inputs.key
-    key = ("stepper", substeps, method, compiled, every, inputs_key)
+    key = ("stepper", substeps, method, compiled, every, inputs_key, jacobian)
     function = model.cached(key, graph)
     if not compiled:
         return function

@@ -40,7 +40,12 @@ from softcurve.simulation.stepper._methods import DEFAULT_METHOD as DEFAULT_METH
 from softcurve.simulation.stepper._methods import DEFAULT_STEP as DEFAULT_STEP
 from softcurve.simulation.stepper._methods import DEFAULT_SUBSTEPS as DEFAULT_SUBSTEPS
 from softcurve.simulation.stepper._methods import METHODS, ExplicitTableau, default_substeps
-from softcurve.simulation.stepper._scheme import ThreadedMembers, observer, period_function
+from softcurve.simulation.stepper._scheme import (
+    JACOBIANS,
+    ThreadedMembers,
+    observer,
+    period_function,
+)
 from softcurve.simulation.stepper._stability import check_explicit_step
 
 CONTACT_JACOBIAN_EVERY = 1
@@ -151,6 +156,12 @@ class Stepper:
         Steps between fresh Jacobians, >= 1. Default: one per period for a free robot;
         every step with an environment, whose contact and friction switch on and off
         within a period (:data:`CONTACT_JACOBIAN_EVERY`).
+    jacobian : {"differences", "exact"}, optional
+        The Newton matrix's Jacobian (a Rosenbrock method's): forward differences of the
+        state derivative (default, ``n_x + 1`` evaluations a Jacobian), or the model's
+        exact Jacobian, the derivatives of the chain algorithms with the actuator's part,
+        generated with the period (over lanes, or per member). A W-method keeps its order
+        with either; docs/stepping.md gives what each costs.
     """
 
     def __init__(
@@ -164,6 +175,7 @@ class Stepper:
         method=None,
         compiled=True,
         jacobian_every=None,
+        jacobian="differences",
     ):
         if not isinstance(model, Model):
             raise ParameterError(f"model must be a softcurve.Model, got {type(model).__name__}")
@@ -192,7 +204,15 @@ class Stepper:
             self._lower, self._upper = np.full(model.n, -np.inf), np.full(model.n, np.inf)
         else:
             self._lower, self._upper = actuator.lower.copy(), actuator.upper.copy()
+        if jacobian not in JACOBIANS:
+            raise ParameterError(f"jacobian must be one of {JACOBIANS}, got {jacobian!r}")
+        self._jacobian = jacobian
         if explicit:
+            if jacobian != "differences":
+                raise ParameterError(
+                    f"jacobian applies to the Rosenbrock methods; {method} takes no "
+                    f"Jacobian, got jacobian={jacobian!r}"
+                )
             if jacobian_every is not None:
                 raise ParameterError(
                     f"jacobian_every applies to the Rosenbrock methods; {method} takes no "
@@ -207,22 +227,28 @@ class Stepper:
         scheme = (model, self._input, self._substeps, method)
 
         def lane_members():  # members in lock-step: vector lanes
-            lanes = lanes_period(model, self._input, self._substeps, method, self._every)
+            lanes = lanes_period(model, self._input, self._substeps, method, self._every, jacobian)
             return None if lanes is None else LanesMembers(lanes, self._threads)
 
         def threaded_members():
-            native = period_function(*scheme, True, None, self._every, native=True)
+            native = period_function(
+                *scheme, True, None, self._every, native=True, jacobian=jacobian
+            )
             return None if native is None else ThreadedMembers(native, self._threads)
 
         builders = {"stepper-lanes": lane_members, "stepper-threads": threaded_members}
-        self._route = choose_route("stepper", builders=builders if compiled else {})
+        self._route = choose_route(
+            "stepper", builders=builders if compiled else {}, jacobian=jacobian
+        )
         self._members = self._route.built
         # CasADi evaluates the period only where ctypes cannot (no compiled library)
         self._function = None
         if self._members is None:
-            self._function = period_function(*scheme, compiled, None, self._every)
+            self._function = period_function(
+                *scheme, compiled, None, self._every, jacobian=jacobian
+            )
         inputs_key = None if self._input is None else self._input.key
-        self._key = (self._substeps, method, compiled, self._every, inputs_key)
+        self._key = (self._substeps, method, compiled, self._every, inputs_key, jacobian)
         self._period_array = np.array([self._period])
         self._observer = observer(model, symbolic=False)
         self._calls: dict[int, BufferedCall] = {}
@@ -236,10 +262,12 @@ class Stepper:
 
     @property
     def stats(self) -> dict:
-        """``{"route": name, "route_reason": why, "method": method, "substeps": k}``, as
-        the integrators' results record them."""
+        """``{"route": name, "route_reason": why, "method": method, "substeps": k,
+        "jacobian": jacobian}``, as the integrators' results record them (``jacobian``:
+        :attr:`jacobian`)."""
         return {"route": self._route.name, "route_reason": self._route.reason,
-                "method": self._method, "substeps": self._substeps}  # fmt: skip
+                "method": self._method, "substeps": self._substeps,
+                "jacobian": self.jacobian}  # fmt: skip
 
     @property
     def model(self) -> Model:
@@ -270,6 +298,12 @@ class Stepper:
     def jacobian_every(self) -> int | None:
         """Steps between fresh Jacobians (None for an explicit method: it takes none)."""
         return None if isinstance(METHODS[self._method], ExplicitTableau) else self._every
+
+    @property
+    def jacobian(self) -> str | None:
+        """The Newton matrix's Jacobian, "differences" or "exact" (None for an explicit
+        method)."""
+        return None if isinstance(METHODS[self._method], ExplicitTableau) else self._jacobian
 
     @property
     def n_state(self) -> int:
