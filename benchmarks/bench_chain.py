@@ -157,6 +157,10 @@ CEILING_GAP = 5e-4
 NEAR_STRAIGHT = (0.064, 0.5, -0.2)
 """With ``--contact``: each segment's state, near straight under the ceiling."""
 
+STRETCHING = (0.2, 0.0, 0.0)
+"""With ``--contact``: each segment's rates [m/s, 1/(m s)], stretching into the ceiling
+within the period (0.2 m/s closes the gap of one segment, 0.9 mm, in 5 ms)."""
+
 
 def ceiling(n_segments: int) -> sc.Environment:
     """A plane :data:`CEILING_GAP` above the tip of N paper segments at rest, the stepper
@@ -167,19 +171,37 @@ def ceiling(n_segments: int) -> sc.Environment:
     return sc.Environment([plane], law, contact_radius=[1e-3] * n_segments)
 
 
+def contact_force(model, x0, period: float = 0.02, parts: int = 4) -> float:
+    """The largest force [N] of the environment on the robot from ``x0`` at the ends of
+    ``parts`` equal parts of ``period``: whether the robots of ``--contact`` touch within
+    the period (the stepper in CasADi's virtual machine, no compile, the default step)."""
+    forces = []
+    for k in range(1, parts + 1):
+        stepper = Stepper(model, period=period * k / parts, compiled=False)
+        result = stepper.step(x0[None], np.zeros((1, model.n)))
+        forces.append(np.linalg.norm(result.contact_force[0]))
+    return float(max(forces))
+
+
 def stepper_cost(
     n_segments: int, members: int, jacobian: str = "differences", contact: bool = False
-) -> tuple[float, float, str]:
-    """``(build [s], one period per member [s], route)`` of the default stepper of N
-    segments with ``jacobian``, built from an empty cache; with ``contact``, under
-    :func:`ceiling` (a Jacobian at every step, the stepper's default there)."""
+) -> tuple[float, float, str, float]:
+    """``(build [s], one period per member [s], route, contact force [N])`` of the default
+    stepper of N segments with ``jacobian``, built from an empty cache; with ``contact``,
+    stretching into :func:`ceiling` (a Jacobian at every step, the stepper's default
+    there; the force is :func:`contact_force`'s, zero without contact)."""
     robot = sc.presets.ifac2020().with_segments(n_segments)
     with tempfile.TemporaryDirectory() as cache:
         os.environ["SOFTCURVE_CACHE_DIR"] = cache
         model = sc.Model(robot, environment=ceiling(n_segments) if contact else None)
         start = time.perf_counter()
         stepper = Stepper(model, period=0.02, threads=1, jacobian=jacobian)
-        x0 = stepper.initial_state(np.tile(NEAR_STRAIGHT if contact else BENT, n_segments))
+        if contact:
+            x0 = stepper.initial_state(
+                np.tile(NEAR_STRAIGHT, n_segments), np.tile(STRETCHING, n_segments)
+            )
+        else:
+            x0 = stepper.initial_state(np.tile(BENT, n_segments))
         x = np.repeat(x0[None], members, axis=0)
         u = np.zeros((members, model.n))
         result = stepper.step(x, u)
@@ -188,7 +210,8 @@ def stepper_cost(
     one, _ = best_of(1, lambda: stepper.step(x, u))
     calls = max(1, round(1.0 / one))  # a round of about a second
     best, _ = best_of(5, lambda: [stepper.step(x, u) for _ in range(calls)])
-    return build, best / calls / members, stepper.route.name
+    force = contact_force(model, x0) if contact else 0.0
+    return build, best / calls / members, stepper.route.name, force
 
 
 def sensitivity_operations(n_segments: int, columns: int = 8) -> dict:
@@ -292,14 +315,14 @@ def main() -> None:
     if args.stepper and args.jacobian == "both":
         print(f"{'N':>3} {'differences: build [s]':>22} {'period [us]':>11} {'route':>15} "
               f"{'exact: build [s]':>16} {'period [us]':>11} {'route':>15} "
-              f"{'exact / differences':>19}")  # fmt: skip
+              f"{'exact / differences':>19} {'largest contact force [N]':>25}")  # fmt: skip
         for n_segments in args.segments:
             default = stepper_cost(n_segments, args.members, contact=args.contact)
             exact = stepper_cost(n_segments, args.members, "exact", args.contact)
             print(
                 f"{n_segments:>3} {default[0]:>22.1f} {default[1] * 1e6:>11.1f} {default[2]:>15} "
                 f"{exact[0]:>16.1f} {exact[1] * 1e6:>11.1f} {exact[2]:>15} "
-                f"{exact[1] / default[1]:>19.2f}",
+                f"{exact[1] / default[1]:>19.2f} {exact[3]:>25.3f}",
                 flush=True,
             )
         return
@@ -310,7 +333,7 @@ def main() -> None:
         )
         first = None
         for n_segments in args.segments:
-            build, period, route = stepper_cost(
+            build, period, route, _ = stepper_cost(
                 n_segments, args.members, args.jacobian, args.contact
             )
             first = first or (build, period)

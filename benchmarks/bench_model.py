@@ -135,9 +135,11 @@ def executed_instructions(model: sc.Model, repeat: int = 100) -> float:
             run = subprocess.run(
                 [valgrind, "--tool=callgrind", "--callgrind-out-file=/dev/null",
                  command[0], str(evaluations), *command[1:]],
-                input=_parameters(model), text=True, capture_output=True, check=True,
+                input=_parameters(model), text=True, capture_output=True,
             )  # fmt: skip
             collected = re.search(r"Collected : ([\d,]+)", run.stderr)
+            if run.returncode or collected is None:  # valgrind could not run it
+                return float("nan")
             counts.append(int(collected.group(1).replace(",", "")))
     return (counts[1] - counts[0]) / repeat
 

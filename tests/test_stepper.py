@@ -12,6 +12,7 @@ from softcurve.base.status import Status
 from softcurve.base.validation import ParameterError
 from softcurve.simulation.solvers import ActuatorInput, actuated_derivative, actuated_jacobian
 from softcurve.simulation.stepper._stepper import Stepper
+from softcurve.symbolic.derivatives import JacobianPasses
 
 PERIOD = 0.02  # the learning environments' control period [s]
 
@@ -218,7 +219,9 @@ def test_the_actuated_jacobian_is_casadis_derivative_of_the_state_derivative(act
     model = sc.Model(sc.presets.ifac2020().with_segments(segments), compile=False)
     inputs = None if actuator is None else ActuatorInput.of(actuator, model.n)
     f = actuated_derivative(model, inputs, model.symbolic["rhs"])
-    exact = actuated_jacobian(model, inputs, model.casadi_jacobian())
+    exact = actuated_jacobian(
+        model, inputs, JacobianPasses(model.expressions, model.quadrature_nodes)
+    )
     n, n_x = model.n, f.size1_in(0)
     x = np.zeros(n_x)
     x[:n] = np.tile([0.064, 10.0, -5.0], segments) + rng.normal(0.0, 1e-3, n)
@@ -237,24 +240,46 @@ def test_the_actuated_jacobian_is_casadis_derivative_of_the_state_derivative(act
     assert np.abs(got - expected).max() < 1e-12 * np.abs(expected).max()
 
 
-def test_the_exact_jacobian_steps_as_the_differences_do(paper_model, actuator, stepper, rng):
-    """``jacobian="exact"`` generates the model's exact Jacobian with the period, over
-    lanes (the route says so) or per member, and in CasADi's virtual machine; each steps
-    the members as the default, forward differences over lanes, does: a W-method's
-    result moves with its matrix only at the differences' round-off (~1e-8)."""
-    exact = Stepper(paper_model, actuator, period=PERIOD, jacobian="exact")
-    assert exact.jacobian == "exact" and stepper.jacobian == "differences"
+SIX_STRAINS = sc.StrainSegment.from_material(
+    sc.Material(youngs_modulus=1e6, density=1070.0, poisson_ratio=0.5),
+    sc.Section.circle(0.0235),
+    rest_length=0.0644,
+    damping=[1e-6, 1e-6, 1e-6, 1e-2, 1e-2, 1e-2],
+)
+"""A segment of all six strains the paper's segment's size, without creep: its state has
+no rows after the accelerations' (``x = (q, qd)``)."""
+
+
+@pytest.mark.parametrize("case", ["lagging bellows, creep", "six strains, forces"])
+def test_the_exact_jacobian_over_lanes_is_the_virtual_machines(case, paper_model, actuator, rng):
+    """``jacobian="exact"`` over lanes (the passes, the tangents per coordinate, the mass
+    matrix's Cholesky factor in C; the route says so) steps the members as CasADi's
+    virtual machine on the same Jacobian (mapped tangents, ``LDL^T``) does, to
+    round-off: a check of the Jacobian itself, which a W-method's step against
+    differences is not (any matrix keeps its order); and both step as the default,
+    differences over lanes, does to the differences' round-off."""
+    if case.startswith("six"):
+        model, actuator = sc.Model(sc.Robot(segments=(SIX_STRAINS,))), None
+        q0 = model.robot.rest_configuration() + np.r_[5.0, -3.0, 2.0, 0.01, -0.01, 0.02]
+        qd0, u = np.r_[10.0, 5.0, -8.0, 0.1, 0.2, -0.1], rng.normal(0.0, 1e-3, (3, 6))
+        scale = np.r_[15.5, 15.5, 15.5, 1, 1, 1, 1e3, 1e3, 1e3, 10, 10, 10]
+    else:
+        model, q0, qd0 = paper_model, [0.064, 5.0, -3.0], [0.01, 10.0, 0.0]
+        u = commands(rng, actuator, 3)
+        scale = np.r_[0.064, 1, 1, 0.1, 100, 100, 1, 1, 1, 6e4, 6e4, 6e4]
+    exact = Stepper(model, actuator, period=PERIOD, jacobian="exact")
+    assert exact.jacobian == "exact" and exact.stats["jacobian"] == "exact"
     assert exact.route.name == "stepper-lanes" and "exact Jacobian" in exact.route.reason
-    assert exact.stats["jacobian"] == "exact" and stepper.stats["jacobian"] == "differences"
-    machine = Stepper(paper_model, actuator, period=PERIOD, compiled=False, jacobian="exact")
-    x = np.tile(stepper.initial_state([0.064, 5.0, -3.0], [0.01, 10.0, 0.0]), (3, 1))
-    u = commands(rng, actuator, 3)
-    scale = np.abs(x).max(axis=0) + np.r_[0.064, 1, 1, 0.1, 100, 100, 1, 1, 1, 6e4, 6e4, 6e4]
-    default = stepper.step(x, u).x
-    for other in (exact, machine):
-        result = other.step(x, u)
-        assert result.success, result.message
-        assert np.abs(result.x - default).max(axis=0) @ (1 / scale) < 1e-7
+    machine = Stepper(model, actuator, period=PERIOD, compiled=False, jacobian="exact")
+    default = Stepper(model, actuator, period=PERIOD)
+    assert default.jacobian == "differences" and default.stats["jacobian"] == "differences"
+    x = np.tile(exact.initial_state(q0, qd0), (3, 1))
+    steps = [stepper.step(x, u) for stepper in (exact, machine, default)]
+    assert all(step.success for step in steps), [step.message for step in steps]
+    scale = np.abs(x).max(axis=0) + scale
+    lanes, virtual, differences = (step.x for step in steps)
+    assert (np.abs(lanes - virtual).max(axis=0) / scale).max() < 1e-10  # measured 4e-11
+    assert (np.abs(lanes - differences).max(axis=0) / scale).max() < 1e-6  # 1.5e-7
 
 
 def test_bad_arguments_raise(paper_model, actuator, stepper):
@@ -262,7 +287,7 @@ def test_bad_arguments_raise(paper_model, actuator, stepper):
         Stepper(paper_model, actuator, period=0.0)
     with pytest.raises(ParameterError, match="jacobian must be one of"):
         Stepper(paper_model, actuator, period=PERIOD, jacobian="newton")
-    with pytest.raises(ParameterError, match="RK4 takes no Jacobian"):
+    with pytest.raises(ParameterError, match="jacobian='exact'"):
         Stepper(paper_model, actuator, period=PERIOD, method="RK4", jacobian="exact")
     with pytest.raises(ParameterError, match="substeps"):
         Stepper(paper_model, actuator, period=PERIOD, substeps=0)

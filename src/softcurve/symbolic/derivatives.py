@@ -140,6 +140,8 @@ class JacobianPasses:
         Per kind of :data:`DIRECTIONS`, ``(*values, direction) -> dID`` (n,): the
         Newton-Euler algorithm's tangent along ``direction`` (n,) of the coordinates,
         rates or accelerations (the last gives a column of the mass matrix).
+    inputs : list of casadi.SX
+        The symbols ``x``, ``tau`` and ``p`` of :attr:`at_state`.
     n, n_lam, n_shared : int
         Coordinates, creep states and shared values.
     """
@@ -178,6 +180,34 @@ class JacobianPasses:
             for kind in DIRECTIONS
         }
 
+    def accelerations(self, values, force_x) -> tuple:
+        """``(D^-1 (dF/dx - dID/dx), D)`` (MX): the accelerations' rows of the Jacobian
+        and the mass matrix, the tangents mapped over the ``n`` directions of each kind
+        (one pass of code, ``O(N^2)`` operations) and ``D`` factored once by CasADi's
+        ``LDL^T``.
+
+        Parameters
+        ----------
+        values : sequence of casadi.MX
+            The :attr:`n_shared` values of :attr:`at_state` at the state.
+        force_x : casadi.MX, shape (n, n_x)
+            ``dF/dx`` along ``x = (q, qd, ...)``: columns after the first ``2 n`` (creep
+            states, lagging inputs) have no inertial term.
+        """
+        n, shared = self.n, list(range(self.n_shared))
+        mapped = {
+            kind: tangent.map(f"newton_euler_tangents_{kind}", "serial", n, shared, [])
+            for kind, tangent in self.tangents.items()
+        }
+        seeds = np.eye(n)
+        d_inverse = ca.horzcat(
+            mapped["q"](*values, seeds),
+            mapped["qd"](*values, seeds),
+            ca.MX(n, force_x.shape[1] - 2 * n),
+        )
+        mass = mapped["qdd"](*values, seeds)
+        return ca.solve(mass, force_x - d_inverse, "ldl"), mass
+
 
 def state_jacobian(e, quadrature_nodes: int) -> ca.Function:
     """The exact Jacobian of the state derivative ``rhs`` (see the module docstring).
@@ -198,20 +228,12 @@ def state_jacobian(e, quadrature_nodes: int) -> ca.Function:
         inverse is the derivative of ``qdd`` by the generalized input force ``tau``.
     """
     passes = JacobianPasses(e, quadrature_nodes)
-    n, n_lam, shared = passes.n, passes.n_lam, list(range(passes.n_shared))
-    tangents = {
-        kind: tangent.map(f"newton_euler_tangents_{kind}", "serial", n, shared, [])
-        for kind, tangent in passes.tangents.items()
-    }
+    n, n_lam = passes.n, passes.n_lam
     x_mx, tau_mx, p_mx = (
         ca.MX.sym(name, v.sparsity()) for name, v in zip("xtp", passes.inputs, strict=True)
     )
     *values, force_x, creep_x = passes.at_state(x_mx, tau_mx, p_mx)
-    seeds = np.eye(n)
-    d_inverse = ca.horzcat(tangents["q"](*values, seeds), tangents["qd"](*values, seeds))
-    mass = tangents["qdd"](*values, seeds)
-    rhs = force_x - ca.horzcat(d_inverse, ca.MX(n, n_lam))
-    solved = ca.solve(mass, rhs, "ldl")
+    solved, mass = passes.accelerations(values, force_x)
     j_x = ca.vertcat(ca.horzcat(ca.MX(n, n), ca.MX.eye(n), ca.MX(n, n_lam)), solved, creep_x)
     return ca.Function(
         "rhs_jacobian", [x_mx, tau_mx, p_mx], [ca.densify(j_x), ca.densify(mass)],

@@ -5,8 +5,9 @@
  * unused lanes.
  *
  * Python writes before this file what it computes from the model and the method: the
- * lanes prelude and functions (sc_xdot, sc_observe, and sc_jacobian where the step
- * takes the exact Jacobian), the entry's name
+ * lanes prelude and functions (sc_xdot, sc_observe, and sc_passes with sc_tangent_q,
+ * sc_tangent_qd and sc_tangent_qdd where the step takes the exact Jacobian), the entry's
+ * name
  * SC_ENTRY, the sizes (SC_NX states, the first SC_NQ of them the coordinates q whose
  * rates qd are the next SC_NQ, SC_NU, SC_NOBS, SC_SUBSTEPS; SC_WORK vectors of work of the
  * lanes functions, SC_SCRATCH of the step), the step's declarations and statements

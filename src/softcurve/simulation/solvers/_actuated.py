@@ -51,13 +51,12 @@ def actuated_derivative(model, inputs, rhs: ca.Function) -> ca.Function:
     return ca.Function("softcurve_xdot", [x, u, p], [xdot], ["x", "u", "p"], ["xdot"])
 
 
-def actuated_jacobian(model, inputs, jacobian: ca.Function) -> ca.Function:
+def actuated_jacobian(model, inputs, passes) -> ca.Function:
     """``(x, u, p) -> J``: the exact Jacobian of :func:`actuated_derivative` by the state
-    (n_x, n_x). The robot's part is ``jacobian`` at the force held (``J_x``); the
-    actuator's force moves with the coordinates and the lagging inputs, which adds
-    ``D^-1 d tau / dx`` to the accelerations' rows (``d qdd / d tau = D^-1``, ``D``
-    factored by CasADi's ``LDL^T``); the lag's rows are ``-1 / time_constant`` on their
-    diagonal.
+    (n_x, n_x). Its passes are :func:`actuated_passes`' (the robot's ``dF/dx`` with the
+    actuator's force moving with the coordinates and the lagging inputs, and the rows of
+    the creep rates and of the lag, ``-1 / time_constant`` on their diagonal); the
+    accelerations' rows are ``D^-1 (G - dID/dx)`` (``passes.accelerations``).
 
     Parameters
     ----------
@@ -66,21 +65,21 @@ def actuated_jacobian(model, inputs, jacobian: ca.Function) -> ca.Function:
     inputs : ActuatorInput or None
         The actuator's input, or None for generalized forces (which do not move with the
         state).
-    jacobian : casadi.Function
-        ``(x, tau, p) -> (J_x, D)`` of the model (``Model.casadi_jacobian``).
+    passes : JacobianPasses
+        The model's (``softcurve.symbolic.derivatives.JacobianPasses``).
     """
-    n, n_state = model.n, model.n_state
-    x, u, p, tau, rates = _actuated(model, inputs)
-    j_x, mass = jacobian(x[:n_state], tau, p)
+    n = model.n
+    at_state = actuated_passes(model, inputs, passes.at_state)
+    x, u, p = (ca.MX.sym(name, at_state.sparsity_in(k)) for k, name in enumerate("xup"))
+    *values, g, rows = at_state(x, u, p)
     n_x = x.shape[0]
-    j = ca.horzcat(j_x, ca.MX(n_state, n_x - n_state))
-    if inputs is not None:
-        accelerations = ca.solve(mass, ca.jacobian(tau, x), "ldl")
-        j = j + ca.vertcat(ca.MX(n, n_x), accelerations, ca.MX(n_state - 2 * n, n_x))
-    rows = [ca.jacobian(r, x) for r in rates]
-    return ca.Function(
-        "softcurve_xdot_jacobian", [x, u, p], [ca.vertcat(j, *rows)], ["x", "u", "p"], ["J"]
+    accelerations, _ = passes.accelerations(values, ca.reshape(g, n, n_x))
+    j = ca.vertcat(
+        ca.horzcat(ca.MX(n, n), ca.MX.eye(n), ca.MX(n, n_x - 2 * n)),
+        accelerations,
+        ca.reshape(rows, n_x - 2 * n, n_x),
     )
+    return ca.Function("softcurve_xdot_jacobian", [x, u, p], [j], ["x", "u", "p"], ["J"])
 
 
 def actuated_passes(model, inputs, at_state: ca.Function) -> ca.Function:

@@ -180,7 +180,10 @@ def choose_route(task: str, method: str = "cvodes", *, model=None, inputs=None, 
                 if jacobian == "exact":
                     reason += ", the model's exact Jacobian"
                 return Route(name, reason, built)
-        return Route("stepper-casadi", "the model is not compiled, or compiled=False")
+        reason = "the model is not compiled, or compiled=False"
+        if jacobian == "exact":
+            reason += ", the model's exact Jacobian"
+        return Route("stepper-casadi", reason)
     if task == "sensitivity":
         why = c_driver.unavailable() or (None if options_known else "a CVODES option only "
                                        "CasADi's integrator knows")  # fmt: skip

@@ -36,6 +36,7 @@ from softcurve.simulation.solvers import actuated_passes
 from softcurve.simulation.stepper._methods import METHODS, ExplicitTableau, Tableau
 from softcurve.simulation.stepper._scheme import (
     DIFFERENCE_STEP,
+    JACOBIANS,
     MemberShares,
     observer,
     rest_scale,
@@ -47,13 +48,30 @@ ENTRY = "softcurve_lanes_period"
 """The C entry point: ``(x, u, p, period, out, start, stop)`` on rows ``start:stop``."""
 
 
-def jacobian_functions(model, inputs) -> list:
-    """The lanes functions of the exact Jacobian, ``[(function, name, shared), ...]``:
-    ``sc_passes`` (:func:`~softcurve.simulation.solvers.actuated_passes`, SX with the
-    chain's calls) and one ``sc_tangent_<kind>`` per kind of direction
-    (``softcurve.symbolic.derivatives.JacobianPasses``), which the step calls once per
-    coordinate in a loop: code of ``O(N)``, where one function of every direction's call
-    is one GCC takes minutes over (alias walking over the calls' arguments)."""
+@dataclass(frozen=True)
+class ExactJacobian:
+    """The lanes functions of the exact Jacobian.
+
+    Parameters
+    ----------
+    functions : tuple
+        ``(function, name, shared)`` for :func:`~softcurve.compiled.lanes_function`:
+        ``sc_passes`` (:func:`~softcurve.simulation.solvers.actuated_passes`, SX with the
+        chain's calls), then one ``sc_tangent_<kind>`` per kind of direction
+        (``softcurve.symbolic.derivatives.JacobianPasses``).
+    shared : tuple of int
+        The sizes of the passes' values, which the tangents take.
+    """
+
+    functions: tuple
+    shared: tuple
+
+
+def exact_jacobian(model, inputs) -> ExactJacobian:
+    """The exact Jacobian's lanes functions, kept with the model. The step calls the
+    tangents once per coordinate in a loop: code of ``O(N)``, where one function of
+    every direction's call was one GCC took minutes over at four segments (alias walking
+    over the calls' arguments)."""
 
     def build():
         passes = JacobianPasses(model.expressions, model.quadrature_nodes)
@@ -62,7 +80,8 @@ def jacobian_functions(model, inputs) -> list:
         for kind in DIRECTIONS:
             tangent = passes.tangents[kind]
             functions.append((tangent, f"sc_tangent_{kind}", (False,) * tangent.n_in()))
-        return functions
+        shared = tuple(at_state.nnz_out(k) for k in range(passes.n_shared))
+        return ExactJacobian(tuple(functions), shared)
 
     return model.cached(("stepper-jacobian-passes", None if inputs is None else inputs.key), build)
 
@@ -96,7 +115,7 @@ def period_source(
         ``substeps``).
     jacobian : {"differences", "exact"}
         The Newton matrix's Jacobian: forward differences of the state derivative, or the
-        exact one (:func:`jacobian_terms`, solved by the template's Cholesky loops).
+        exact one (:func:`exact_jacobian`, solved by the template's Cholesky loops).
 
     Returns
     -------
@@ -119,15 +138,15 @@ def period_source(
         if not rates_follow_coordinates(f, model.n):
             raise NotImplementedError("the Newton solve eliminates q' = qd")
         scale = rest_scale(model, inputs)
-        exact = jacobian_functions(model, inputs) if jacobian == "exact" else []
-        shared = [exact[0][0].nnz_out(k) for k in range(exact[0][0].n_out() - 2)] if exact else None
+        exact = exact_jacobian(model, inputs) if jacobian == "exact" else None
+        shared = None if exact is None else exact.shared
         step = rosenbrock_step(tableau, n_x, model.n, scale, every or substeps, shared)
     functions = [
         (f, "sc_xdot", (False, False, True)),
         (observe, "sc_observe", (False, True)),
     ]
-    if not isinstance(tableau, ExplicitTableau):
-        functions += exact
+    if not isinstance(tableau, ExplicitTableau) and exact is not None:
+        functions += exact.functions
     work = max(lanes_work(function) for function, _, _ in functions)
     sizes = {
         "SC_NX": n_x,
@@ -211,6 +230,8 @@ def lanes_period(
         code, or a Rosenbrock method's state derivative does not begin with ``q' = qd``
         (the caller then calls the scalar period per member).
     """
+    if jacobian not in JACOBIANS:
+        raise ValueError(f"jacobian must be one of {JACOBIANS}, got {jacobian!r}")
     explicit = isinstance(METHODS[method], ExplicitTableau)
     every = None if explicit else min(every or substeps, substeps)
 
@@ -362,7 +383,7 @@ def rosenbrock_step(
     CasADi's sparse QR of the whole matrix written out as straight-line code: the same
     solves up to round-off, in code that does not grow with the states. The Jacobian is
     forward differences of ``sc_xdot``, or, given the sizes of the exact Jacobian's
-    ``shared`` values, the functions of :func:`jacobian_functions`: ``sc_passes`` once,
+    ``shared`` values, the functions of :func:`exact_jacobian`: ``sc_passes`` once,
     the tangents along each coordinate in a loop, the accelerations' rows solved by the
     mass matrix's Cholesky factor (``sc_cholesky``, ``sc_cholesky_solve``).
 

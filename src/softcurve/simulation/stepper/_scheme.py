@@ -40,6 +40,7 @@ from softcurve.compiled import NativeFunction, compile_function, load_function
 from softcurve.simulation.solvers import ActuatorInput, actuated_derivative, actuated_jacobian
 from softcurve.simulation.solvers import state_scale as integration_scale
 from softcurve.simulation.stepper._methods import METHODS, ExplicitTableau, Tableau
+from softcurve.symbolic.derivatives import JacobianPasses
 
 scheme_parameters = parameters_from(
     {
@@ -83,10 +84,10 @@ exact Jacobian (:func:`exact_jacobian`)."""
 @scheme_parameters
 def exact_jacobian(model, inputs: ActuatorInput | None) -> ca.Function:
     """``(x, u, p) -> J``: the exact Jacobian of :func:`state_derivative` by the state,
-    the derivatives of the chain algorithms (``Model.casadi_jacobian``) with the
-    actuator's part (:func:`~softcurve.simulation.solvers.actuated_jacobian`), kept with
-    the model; symbolic on either route (generated as C with the period, or evaluated in
-    CasADi's virtual machine).
+    the derivatives of the chain algorithms with the actuator's part
+    (:func:`~softcurve.simulation.solvers.actuated_jacobian`), kept with the model;
+    symbolic on either route (generated as C with the period, or evaluated in CasADi's
+    virtual machine).
 
     Parameters
     ----------
@@ -95,7 +96,8 @@ def exact_jacobian(model, inputs: ActuatorInput | None) -> ca.Function:
     """
 
     def build():
-        return actuated_jacobian(model, inputs, model.casadi_jacobian())
+        passes = JacobianPasses(model.expressions, model.quadrature_nodes)
+        return actuated_jacobian(model, inputs, passes)
 
     return model.cached(("stepper-jacobian", None if inputs is None else inputs.key), build)
 
@@ -316,6 +318,8 @@ def period_function(
     jacobian : str
         One of :data:`JACOBIANS`: the Newton matrix's Jacobian of a Rosenbrock method.
     """
+    if jacobian not in JACOBIANS:
+        raise ValueError(f"jacobian must be one of {JACOBIANS}, got {jacobian!r}")
     tableau = METHODS[method]
     every = substeps if jacobian_every is None else min(jacobian_every, substeps)
     if isinstance(tableau, ExplicitTableau):

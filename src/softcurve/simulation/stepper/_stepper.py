@@ -263,8 +263,8 @@ class Stepper:
     @property
     def stats(self) -> dict:
         """``{"route": name, "route_reason": why, "method": method, "substeps": k,
-        "jacobian": jacobian}``, as the integrators' results record them (``jacobian``:
-        :attr:`jacobian`)."""
+        "jacobian": jacobian}``: the route, its reason and the method as the integrators'
+        results record them, with the steps and :attr:`jacobian`."""
         return {"route": self._route.name, "route_reason": self._route.reason,
                 "method": self._method, "substeps": self._substeps,
                 "jacobian": self.jacobian}  # fmt: skip
