@@ -8,6 +8,19 @@ from __future__ import annotations
 
 import casadi as ca
 
+from softcurve.base.docs import parameters_from
+
+actuated_parameters = parameters_from(
+    {
+        "model": ("Model", "The model (its sizes)."),
+        "inputs": (
+            "ActuatorInput or None",
+            "The actuator's input, or None for generalized forces.",
+        ),
+    }
+)
+"""Substitutes the entries ``model`` and ``inputs`` shared by this module's functions."""
+
 
 def _actuated(model, inputs) -> tuple:
     """``(x, u, p, tau, rates)`` (MX): the symbols of :func:`actuated_derivative`, the
@@ -31,6 +44,7 @@ def _actuated(model, inputs) -> tuple:
     return x, u, p, tau, rates
 
 
+@actuated_parameters
 def actuated_derivative(model, inputs, rhs: ca.Function) -> ca.Function:
     """``(x, u, p) -> xdot`` on the model's right-hand side ``rhs``: ``u`` is the force
     ``tau`` without ``inputs``; with them, the actuator's inputs, whose force is
@@ -39,10 +53,8 @@ def actuated_derivative(model, inputs, rhs: ca.Function) -> ca.Function:
 
     Parameters
     ----------
-    model : Model
-        The model (its sizes).
-    inputs : ActuatorInput or None
-        The actuator's input, or None for generalized forces.
+    %(model)s
+    %(inputs)s
     rhs : casadi.Function
         ``(x, tau, p) -> xdot`` of the model (compiled or symbolic).
     """
@@ -51,6 +63,7 @@ def actuated_derivative(model, inputs, rhs: ca.Function) -> ca.Function:
     return ca.Function("softcurve_xdot", [x, u, p], [xdot], ["x", "u", "p"], ["xdot"])
 
 
+@actuated_parameters
 def actuated_jacobian(model, inputs, passes) -> ca.Function:
     """``(x, u, p) -> J``: the exact Jacobian of :func:`actuated_derivative` by the state
     (n_x, n_x). Its passes are :func:`actuated_passes`' (the robot's ``dF/dx`` with the
@@ -60,11 +73,8 @@ def actuated_jacobian(model, inputs, passes) -> ca.Function:
 
     Parameters
     ----------
-    model : Model
-        The model (its sizes).
-    inputs : ActuatorInput or None
-        The actuator's input, or None for generalized forces (which do not move with the
-        state).
+    %(model)s
+    %(inputs)s
     passes : JacobianPasses
         The model's (``softcurve.symbolic.derivatives.JacobianPasses``).
     """
@@ -82,6 +92,7 @@ def actuated_jacobian(model, inputs, passes) -> ca.Function:
     return ca.Function("softcurve_xdot_jacobian", [x, u, p], [j], ["x", "u", "p"], ["J"])
 
 
+@actuated_parameters
 def actuated_passes(model, inputs, at_state: ca.Function) -> ca.Function:
     """``(x, u, p) -> (*values, G, R)``: the passes at the state of the exact Jacobian of
     :func:`actuated_derivative`, for code that runs the tangents and the solve by itself
@@ -90,10 +101,8 @@ def actuated_passes(model, inputs, at_state: ca.Function) -> ca.Function:
 
     Parameters
     ----------
-    model : Model
-        The model (its sizes).
-    inputs : ActuatorInput or None
-        The actuator's input, or None for generalized forces.
+    %(model)s
+    %(inputs)s
     at_state : casadi.Function
         ``(x, tau, p) -> (*values, dF/dx, d creep rate/dx)`` of the model
         (``softcurve.symbolic.derivatives.JacobianPasses.at_state``).
