@@ -173,17 +173,12 @@ def choose_route(task: str, method: str = "cvodes", *, model=None, inputs=None, 
     """
     builders = builders or {}
     if task == "stepper":
+        exact = ", the model's exact Jacobian" if jacobian == "exact" else ""
         for name in ("stepper-lanes", "stepper-threads"):
             built = builders[name]() if name in builders else None
             if built is not None:
-                reason = "compiled code over the members"
-                if jacobian == "exact":
-                    reason += ", the model's exact Jacobian"
-                return Route(name, reason, built)
-        reason = "the model is not compiled, or compiled=False"
-        if jacobian == "exact":
-            reason += ", the model's exact Jacobian"
-        return Route("stepper-casadi", reason)
+                return Route(name, "compiled code over the members" + exact, built)
+        return Route("stepper-casadi", "the model is not compiled, or compiled=False" + exact)
     if task == "sensitivity":
         why = c_driver.unavailable() or (None if options_known else "a CVODES option only "
                                        "CasADi's integrator knows")  # fmt: skip

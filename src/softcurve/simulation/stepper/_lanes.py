@@ -38,11 +38,12 @@ from softcurve.simulation.stepper._scheme import (
     DIFFERENCE_STEP,
     JACOBIANS,
     MemberShares,
+    jacobian_passes,
     observer,
     rest_scale,
     state_derivative,
 )
-from softcurve.symbolic.derivatives import DIRECTIONS, JacobianPasses
+from softcurve.symbolic.derivatives import DIRECTIONS
 
 ENTRY = "softcurve_lanes_period"
 """The C entry point: ``(x, u, p, period, out, start, stop)`` on rows ``start:stop``."""
@@ -67,14 +68,14 @@ class ExactJacobian:
     shared: tuple
 
 
-def exact_jacobian(model, inputs) -> ExactJacobian:
+def lanes_jacobian(model, inputs) -> ExactJacobian:
     """The exact Jacobian's lanes functions, kept with the model. The step calls the
     tangents once per coordinate in a loop: code of ``O(N)``, where one function of
     every direction's call was one GCC took minutes over at four segments (alias walking
     over the calls' arguments)."""
 
     def build():
-        passes = JacobianPasses(model.expressions, model.quadrature_nodes)
+        passes = jacobian_passes(model)
         at_state = actuated_passes(model, inputs, passes.at_state).expand()
         functions = [(at_state, "sc_passes", (False, False, True))]
         for kind in DIRECTIONS:
@@ -83,7 +84,7 @@ def exact_jacobian(model, inputs) -> ExactJacobian:
         shared = tuple(at_state.nnz_out(k) for k in range(passes.n_shared))
         return ExactJacobian(tuple(functions), shared)
 
-    return model.cached(("stepper-jacobian-passes", None if inputs is None else inputs.key), build)
+    return model.cached(("stepper-lanes-jacobian", None if inputs is None else inputs.key), build)
 
 
 def period_source(
@@ -115,7 +116,7 @@ def period_source(
         ``substeps``).
     jacobian : {"differences", "exact"}
         The Newton matrix's Jacobian: forward differences of the state derivative, or the
-        exact one (:func:`exact_jacobian`, solved by the template's Cholesky loops).
+        exact one (:func:`lanes_jacobian`, solved by the template's Cholesky loops).
 
     Returns
     -------
@@ -131,22 +132,21 @@ def period_source(
     f = state_derivative(model, inputs, True).expand()
     observe = observer(model, True)
     n_x, n_u, n_obs = f.size1_in(0), f.size1_in(1), observe.size1_out(0)
-    tableau = METHODS[method]
+    tableau, exact = METHODS[method], None
     if isinstance(tableau, ExplicitTableau):
         step = explicit_step(tableau, n_x)
     else:
         if not rates_follow_coordinates(f, model.n):
             raise NotImplementedError("the Newton solve eliminates q' = qd")
         scale = rest_scale(model, inputs)
-        exact = exact_jacobian(model, inputs) if jacobian == "exact" else None
+        exact = lanes_jacobian(model, inputs) if jacobian == "exact" else None
         shared = None if exact is None else exact.shared
         step = rosenbrock_step(tableau, n_x, model.n, scale, every or substeps, shared)
     functions = [
         (f, "sc_xdot", (False, False, True)),
         (observe, "sc_observe", (False, True)),
+        *(() if exact is None else exact.functions),
     ]
-    if not isinstance(tableau, ExplicitTableau) and exact is not None:
-        functions += exact.functions
     work = max(lanes_work(function) for function, _, _ in functions)
     sizes = {
         "SC_NX": n_x,
@@ -383,7 +383,7 @@ def rosenbrock_step(
     CasADi's sparse QR of the whole matrix written out as straight-line code: the same
     solves up to round-off, in code that does not grow with the states. The Jacobian is
     forward differences of ``sc_xdot``, or, given the sizes of the exact Jacobian's
-    ``shared`` values, the functions of :func:`exact_jacobian`: ``sc_passes`` once,
+    ``shared`` values, the functions of :func:`lanes_jacobian`: ``sc_passes`` once,
     the tangents along each coordinate in a loop, the accelerations' rows solved by the
     mass matrix's Cholesky factor (``sc_cholesky``, ``sc_cholesky_solve``).
 

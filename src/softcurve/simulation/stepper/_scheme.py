@@ -81,6 +81,16 @@ state derivative (:func:`difference_jacobian`, ``n_x + 1`` evaluations) or the m
 exact Jacobian (:func:`exact_jacobian`)."""
 
 
+def jacobian_passes(model) -> JacobianPasses:
+    """The model's exact Jacobian's passes and tangents
+    (``softcurve.symbolic.derivatives.JacobianPasses``), built once and kept with the
+    model for the period of either route (:func:`exact_jacobian`, and the lanes')."""
+    return model.cached(
+        ("stepper-jacobian-passes",),
+        lambda: JacobianPasses(model.expressions, model.quadrature_nodes),
+    )
+
+
 @scheme_parameters
 def exact_jacobian(model, inputs: ActuatorInput | None) -> ca.Function:
     """``(x, u, p) -> J``: the exact Jacobian of :func:`state_derivative` by the state,
@@ -96,8 +106,7 @@ def exact_jacobian(model, inputs: ActuatorInput | None) -> ca.Function:
     """
 
     def build():
-        passes = JacobianPasses(model.expressions, model.quadrature_nodes)
-        return actuated_jacobian(model, inputs, passes)
+        return actuated_jacobian(model, inputs, jacobian_passes(model))
 
     return model.cached(("stepper-jacobian", None if inputs is None else inputs.key), build)
 
