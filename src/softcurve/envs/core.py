@@ -172,14 +172,13 @@ class Episodes:
                 f"controllers must be one per environment ({self.size}), got {len(controllers)}"
             )
         model = stepper.model
-        n, n_creep = model.n, model.n_creep
         actions = np.empty((self.size, self.lower.size), dtype=np.float32)
         for i, controller in enumerate(controllers):
             _check_controller(controller, stepper)
-            x = self.x[i]
-            lam = x[2 * n : 2 * n + n_creep] if n_creep else None
+            # the model's state, without the lagging inputs that follow it
+            q, qd, lam = model.split_state(self.x[i][: model.n_state])
             time = float(self.steps[i]) * stepper.period
-            inputs = np.asarray(controller(time, x[:n], x[n : 2 * n], lam), dtype=np.float64)
+            inputs = np.asarray(controller(time, q, qd, lam), dtype=np.float64)
             if inputs.shape != self.lower.shape:
                 raise ParameterError(
                     f"controller {i} gave inputs of shape {inputs.shape}, the actuator takes "
