@@ -2,7 +2,7 @@
 on the paper's case: preset ifac2020, q0 = (0.064, 25, 0), qd0 = (0, 0, 1500), 10 s.
 
 Run:  python benchmarks/bench_gradient.py [--intervals 1 100 1000] [--repeat 3]
-      python benchmarks/bench_gradient.py --methods | --costs | --flags
+      python benchmarks/bench_gradient.py --methods | --radau | --costs | --flags
 
 The cost is the integral of the squared coordinate rates over the 10 s (``running``,
 integrated with the state) plus the squared tip height at every output time; the
@@ -12,15 +12,21 @@ compiled, or loaded from the cache, and the CasADi Functions built) and the best
 ``--repeat`` calls after it, along the parameters and the initial state (one integration
 through the output times) and along the inputs too (one integration per interval), each
 beside the best of ``simulate``'s default run (1 ms outputs, its compiled driver) as
-their ratio, the issue's target being 5x.
+their ratio, the issue's target being 5x. The gradient is ``method="auto"``: the discrete
+adjoint of the driver's Radau IIA where the driver runs.
 
-``--methods`` compares adjoint and forward sensitivities (``method=``) along the
-initial state alone (9 seeds) and along the parameters (49) on 100 intervals: what
-``GRADIENT_METHODS`` says. ``--costs`` times other costs on 100 intervals along the
-parameters and the initial state: the integral alone, the tip's height at the end, the
-squared state at every output time. ``--flags`` compiles the right-hand side with its
-first derivatives under ``DERIVATIVE_FLAGS`` and under the model's flags, each in an
-empty cache, and times a gradient on 100 intervals with each (``DERIVATIVE_FLAGS``).
+``--methods`` compares the three methods (``method=``) along the initial state alone
+(9 seeds) and along the parameters and the initial state (58) on 100 intervals: what
+``GRADIENT_METHODS`` says. ``--radau`` runs the discrete adjoint at several tolerances
+(``rtol=``) on 100 intervals: the largest error of its states at the output times
+against ``simulate`` at rtol 1e-12, each state over its nominal size, beside that of
+``simulate``'s default run; its time against ``simulate``'s; and how far its gradient
+lies from CVODES's adjoint at 1e-10 (the largest difference over the largest entry).
+``--costs`` times other costs on 100 intervals along the parameters and the initial
+state: the integral alone, the tip's height at the end, the squared state at every
+output time. ``--flags`` compiles the right-hand side with its first derivatives under
+``DERIVATIVE_FLAGS`` and under the model's flags, each in an empty cache, and times a
+CVODES adjoint on 100 intervals with each (``DERIVATIVE_FLAGS``).
 """
 
 from __future__ import annotations
@@ -54,10 +60,43 @@ def running(x, u, p):
 
 
 def one_gradient(
-    model, intervals: int, method: str = "auto", wrt=sc.control.WITH_RESPECT_TO, of=cost
-):
+    model, intervals: int, method: str = "auto", wrt=sc.control.WITH_RESPECT_TO, of=cost,
+    rtol=None,
+):  # fmt: skip
     t = np.linspace(0.0, DURATION, intervals + 1)
-    return sc.gradient(model, of, Q0, QD0, t=t, running=running, method=method, wrt=wrt)
+    return sc.gradient(model, of, Q0, QD0, t=t, running=running, method=method, wrt=wrt, rtol=rtol)
+
+
+RADAU_TOLERANCES = (1e-4, 3e-5, 1e-5, 1e-6, 1e-8)
+
+
+def radau(model, forward: float, repeat: int) -> None:
+    """The discrete adjoint's accuracy and time at several tolerances (``--radau``)."""
+    t = np.linspace(0.0, DURATION, 101)
+    start = np.concatenate([Q0, QD0, np.zeros(model.n_state - 2 * model.n)])
+    nominal = sc.simulation.solvers.state_scale(model, start)
+
+    def states(**settings):
+        run = sc.simulate(model, Q0, QD0, t_final=DURATION, dt=t[1], **settings)
+        return np.hstack([run.q, run.qd, run.lam])
+
+    tight = states(rtol=1e-12)
+    error = np.max(np.abs(states() - tight) / nominal)
+    print(f"\nsimulate's default run: error {error:.1e} of the states' scales")
+    wrt = ("parameters", "x0")
+    reference = one_gradient(model, 100, "adjoint", wrt)
+    largest = np.max(np.abs(reference.parameters))
+    print("\n| rtol | error of the states | gradient [ms] | / simulate | "
+          "from CVODES's adjoint |")  # fmt: skip
+    print("| --- | --- | --- | --- | --- |")
+    for rtol in RADAU_TOLERANCES:
+        one_gradient(model, 100, "radau-adjoint", wrt, rtol=rtol)
+        wall, g = best_of(repeat, lambda r=rtol: one_gradient(model, 100, "radau-adjoint", wrt,
+                                                                rtol=r))  # fmt: skip
+        own = np.max(np.abs(g.x - tight) / nominal)
+        apart = np.max(np.abs(g.parameters - reference.parameters)) / largest
+        print(f"| {rtol:g} | {own:.1e} | {1e3 * wall:.1f} | {wall / forward:.1f}x | "
+              f"{apart:.1e} |")  # fmt: skip
 
 
 COSTS = {
@@ -100,6 +139,7 @@ def main() -> None:
     parser.add_argument("--intervals", type=int, nargs="+", default=[1, 100, 1000])
     parser.add_argument("--repeat", type=int, default=3)
     parser.add_argument("--methods", action="store_true")
+    parser.add_argument("--radau", action="store_true")
     parser.add_argument("--costs", action="store_true")
     parser.add_argument("--flags", action="store_true")
     args = parser.parse_args()
@@ -114,20 +154,24 @@ def main() -> None:
     if args.flags:
         flags(model, args.repeat)
         return
+    if args.radau:
+        radau(model, forward, args.repeat)
+        return
     if args.methods:
-        print("\n| seeds | adjoint [s] | forward [s] |")
-        print("| --- | --- | --- |")
-        for wrt, seeds in (("x0", 9), ("parameters", 49)):
+        methods = sc.control.GRADIENT_METHODS
+        print(f"\n| seeds | {' [s] | '.join(methods)} [s] |")
+        print("| --- |" + " --- |" * len(methods))
+        for wrt, seeds in ((("x0",), 9), (("parameters", "x0"), 58)):
             times = []
-            for method in ("adjoint", "forward"):
+            for method in methods:
                 one_gradient(model, 100, method, wrt)  # compiled and built
                 wall, _ = best_of(
                     args.repeat, lambda m=method, w=wrt: one_gradient(model, 100, m, w)
                 )
                 times.append(wall)
-            print(f"| {seeds} ({wrt}) | {times[0]:.3f} | {times[1]:.3f} |")
+            print(f"| {seeds} ({', '.join(wrt)}) | " + " | ".join(f"{w:.3f}" for w in times) + " |")
         return
-    print("\n| output intervals | along | first call [s] | gradient [s] | / simulate | target |")
+    print("\n| output intervals | along | first call [s] | gradient [ms] | / simulate | target |")
     print("| --- | --- | --- | --- | --- | --- |")
     for intervals in args.intervals:
         for wrt in (("parameters", "x0"), sc.control.WITH_RESPECT_TO):
@@ -136,8 +180,8 @@ def main() -> None:
             cold = time.perf_counter() - began
             assert first.success, first.message
             wall, _ = best_of(args.repeat, lambda k=intervals, w=wrt: one_gradient(model, k, wrt=w))
-            print(f"| {intervals} | {', '.join(wrt)} | {cold:.2f} | {wall:.3f} | "
-                  f"{wall / forward:.0f}x | {TARGET_RATIO:g}x |")  # fmt: skip
+            print(f"| {intervals} | {', '.join(wrt)} | {cold:.2f} | {1e3 * wall:.1f} | "
+                  f"{wall / forward:.1f}x | {TARGET_RATIO:g}x |")  # fmt: skip
 
 
 if __name__ == "__main__":

@@ -7,6 +7,8 @@
 :class:`RolloutGradient`)."""
 
 from softcurve.control._gradient import GRADIENT_METHODS as GRADIENT_METHODS
+from softcurve.control._gradient import GRADIENT_TOLERANCES as GRADIENT_TOLERANCES
+from softcurve.control._gradient import RADAU_TOLERANCE as RADAU_TOLERANCE
 from softcurve.control._gradient import WITH_RESPECT_TO as WITH_RESPECT_TO
 from softcurve.control._gradient import RolloutGradient as RolloutGradient
 from softcurve.control._gradient import RolloutSymbols as RolloutSymbols
@@ -26,6 +28,8 @@ from softcurve.control._transcription import Transcription as Transcription
 
 __all__ = [
     "GRADIENT_METHODS",
+    "GRADIENT_TOLERANCES",
+    "RADAU_TOLERANCE",
     "LBFGS_HISTORY",
     "PLAN_HESSIANS",
     "PLAN_ITERATIONS",

@@ -4,14 +4,16 @@ result :class:`RolloutGradient`).
 The cost is written by the user in CasADi symbols of the whole trajectory
 (:class:`RolloutSymbols`: the states and the tip at the output times, the input samples,
 the parameters, and the running integrals of an integrand), so it is differentiated
-exactly along with the integration. The integration is CVODES's (through CasADi's
-``integrator``) over the robot's actuated right-hand side
-(:meth:`Transcription.compiled_rhs <softcurve.control.Transcription.compiled_rhs>`,
-compiled with its first derivatives) in the state scaled as ``simulate`` scales it. Its
+exactly along with the integration, in the state scaled as ``simulate`` scales it. Its
 derivative along the robot's parameters, the initial state and the input samples is
-CVODES's adjoint (one backward pass for every seed at once, with the forward pass
-checkpointed) or its forward sensitivities (one column per seed):
-:data:`GRADIENT_METHODS`.
+taken by one of :data:`GRADIENT_METHODS`: the discrete adjoint of the C driver's Radau
+IIA (``softcurve.simulation.solvers``: the gradient of the very numbers its forward pass
+computed, the running integrals integrated as states), or, through CasADi's
+``integrator`` over the robot's actuated right-hand side
+(:meth:`Transcription.compiled_rhs <softcurve.control.Transcription.compiled_rhs>`,
+compiled with its first derivatives), CVODES's adjoint (one backward pass for every seed
+at once, with the forward pass checkpointed) or its forward sensitivities (one column per
+seed).
 
 The inputs are held between samples, as ``simulate`` holds a grid of inputs: row ``k``
 acts on ``[t_k, t_(k+1))``, so the last row acts on nothing and its gradient is zero.
@@ -28,23 +30,45 @@ import numpy as np
 
 from softcurve.base.status import Result, Status
 from softcurve.base.validation import ParameterError, float_array, real_array
-from softcurve.control._transcription import Transcription
+from softcurve.compiled import NativeFunction, compile_functions, load_function
+from softcurve.control._transcription import DERIVATIVE_FLAGS, Transcription
+from softcurve.simulation import RTOL_MIN
 from softcurve.simulation.sensitivity import SENSITIVITY_CVODES
 from softcurve.simulation.solvers import (
+    DRIVER_FLAGS,
+    DriverProblem,
+    RadauEngine,
+    adjoint_backward,
+    adjoint_forward,
     cvodes_options,
+    driver_reason,
+    driver_unavailable,
     grid_inputs,
     state_scale,
+    vjp_function,
 )
 
-GRADIENT_METHODS = ("adjoint", "forward")
-"""How :func:`gradient` differentiates; ``"auto"`` takes the first. Adjoint: one backward
-pass for all seeds. Forward: one sensitivity column per seed, and the right-hand side's
-second derivatives compiled besides the first. On the paper robot's 10 s swing at 100
-output intervals, along the initial state (9 seeds) 1.43 s by adjoint against 3.15 s
-forward, along the 49 parameters 1.39 s against 15.0 s (``python
-benchmarks/bench_gradient.py --methods``): adjoint from the smallest group of seeds on,
-so the counts never favour forward; it stays as the independent check of the adjoint
+GRADIENT_METHODS = ("radau-adjoint", "adjoint", "forward")
+"""How :func:`gradient` differentiates; ``"auto"`` takes the first where the C driver
+runs (a compiled model and a C compiler), else the second. ``radau-adjoint``: the
+discrete adjoint of the driver's Radau IIA, one forward pass that tapes its steps and one
+backward pass, at :data:`RADAU_TOLERANCE`. ``adjoint``: CVODES's, one backward pass for
+all seeds, through CasADi. ``forward``: CVODES's forward sensitivities, one column per
+seed, and the right-hand side's second derivatives compiled besides the first. On the
+paper robot's 10 s swing at 100 output intervals along all 49 parameters and the
+initial state, ``radau-adjoint`` takes 12 ms, ``adjoint`` 1.39 s and ``forward`` 15.0 s
+(along the initial state alone 3.15 s; ``python benchmarks/bench_gradient.py
+--methods``): the adjoints from the smallest group of seeds on, so the counts never
+favour forward. The CVODES routes stay as the independent checks of the discrete one
 (``tests/test_gradient.py``)."""
+
+RADAU_TOLERANCE = 1e-6
+"""The relative tolerance of ``radau-adjoint``, and the absolute one of the scaled state
+(each state over its nominal size): ``simulate``'s defaults. There Radau IIA's states
+are 50 times more accurate than ``simulate``'s (the paper robot's 10 s swing: 4e-7 of
+the states' scales against 2e-5). The gradient is that of the numbers computed, so it is
+exact at any tolerance: a looser one is a faster gradient of a less accurate
+trajectory (``python benchmarks/bench_gradient.py --radau``)."""
 
 WITH_RESPECT_TO = ("parameters", "x0", "inputs")
 """What :func:`gradient` differentiates along (its ``wrt``): the model's parameter vector
@@ -236,18 +260,36 @@ def _integrand(running, tr: Transcription) -> ca.Function:
     return ca.Function("running", [x, u, p], [value])
 
 
-AUTO_REASON = "auto: the adjoint costs less from the smallest group of seeds on"
-"""Why ``method="auto"`` takes the adjoint (:data:`GRADIENT_METHODS` has the measure)."""
+AUTO_REASON = (
+    "auto: the discrete adjoint of the C driver's Radau IIA, the fastest "
+    "(GRADIENT_METHODS has the measures)"
+)
+"""Why ``method="auto"`` takes ``radau-adjoint`` (:data:`GRADIENT_METHODS`)."""
+
+AUTO_FALLBACK = "auto: CVODES's adjoint, since the C driver does not run here ({why})"
+"""Why ``method="auto"`` takes ``adjoint`` where the driver does not run."""
 
 
-def _method(method: str) -> tuple[str, str]:
-    if method == "auto":
-        return GRADIENT_METHODS[0], AUTO_REASON
-    if method not in GRADIENT_METHODS:
+def _method(method: str, tr: Transcription) -> tuple[str, str]:
+    if method != "auto" and method not in GRADIENT_METHODS:
         raise ParameterError(
             f"method must be 'auto' or one of {', '.join(GRADIENT_METHODS)}, got {method!r}"
         )
+    why = _driver_missing(tr) if method in ("auto", GRADIENT_METHODS[0]) else None
+    if method == "auto":
+        if why is None:
+            return GRADIENT_METHODS[0], AUTO_REASON
+        return GRADIENT_METHODS[1], AUTO_FALLBACK.format(why=why)
+    if why is not None:
+        raise ParameterError(f"method {method!r} needs the C driver, which does not run: {why}")
     return method, "asked"
+
+
+def _driver_missing(tr: Transcription) -> str | None:
+    """Why the driver's Radau IIA cannot take this model, or None."""
+    if tr.model.compiled_library is None:
+        return "the model is not compiled"
+    return driver_unavailable()
 
 
 def _wrt(wrt) -> tuple:
@@ -275,6 +317,7 @@ def gradient(
     wrt=WITH_RESPECT_TO,
     method: str = "auto",
     parameters=None,
+    rtol: float | None = None,
 ) -> RolloutGradient:
     """The exact gradient of a scalar function of a simulated trajectory.
 
@@ -319,6 +362,10 @@ def gradient(
         (``Robot.parameter_names()``; default ``model.parameters``): an optimizer's
         iterate, without a model built for it. Checked as a robot is built (every field
         in its range), and the domain checked with its rest lengths.
+    rtol : float, optional
+        The integration's relative tolerance, in ``[1e-14, 1)``; the absolute one of the
+        scaled state keeps the default's ratio to it. Default :data:`RADAU_TOLERANCE`
+        for ``radau-adjoint``, the first of :data:`GRADIENT_TOLERANCES` for CVODES's routes.
 
     Returns
     -------
@@ -340,7 +387,8 @@ def gradient(
     x0 = tr.start(q0, qd0, lam0, actuator_state)
     samples = _samples(inputs, tr, t.size)
     wrt = _wrt(wrt)
-    chosen, reason = _method(method)
+    chosen, reason = _method(method, tr)
+    tolerances = _tolerances(rtol, chosen)
     robot, p_value = _robot_at(tr, parameters, x0)
     integrand = None if running is None else _integrand(running, tr)
     if not callable(cost):
@@ -367,18 +415,19 @@ def gradient(
     of_states = ca.Function(
         "rollout_cost", [*arguments, *free], [cost_of(free[0], free[1] if integrated else None)]
     )
+    names = tuple(model.robot.parameter_names())
+    numbers = [p_value, x0, samples.T]
+    failed = {"t": t, "tr": tr, "method": chosen, "reason": reason, "names": names,
+              "at": p_value}  # fmt: skip
+    if chosen == GRADIENT_METHODS[0]:
+        return _radau_gradient(of_states, numbers, integrand, wrt, robot, failed, tolerances)
     held = "inputs" in wrt or not np.all(samples[:-1] == samples[0])
-    states, integrals = _rollout(tr, x0, t, integrand, chosen, held)(*arguments)
+    states, integrals = _rollout(tr, x0, t, integrand, chosen, held, tolerances)(*arguments)
     trajectory = ca.Function("rollout", arguments, [states, integrals])
     value_only = ca.Function(
         "rollout_value", arguments, [cost_of(states, integrals if integrated else None)]
     )
-
-    names = tuple(model.robot.parameter_names())
-    numbers = [p_value, x0, samples.T]
-    began = time.perf_counter()
-    failed = {"t": t, "tr": tr, "method": chosen, "reason": reason, "names": names,
-              "at": p_value, "began": began}  # fmt: skip
+    began = failed["began"] = time.perf_counter()
     try:
         x, quadratures = (np.array(a) for a in trajectory(*numbers))
     except RuntimeError as error:
@@ -402,6 +451,113 @@ def gradient(
                                     for w in WITH_RESPECT_TO),
         chosen, reason, names, _frozen(p_value), time.perf_counter() - began, tr,
     )  # fmt: skip
+
+
+def _radau_gradient(of_states, numbers, integrand, wrt, robot, failed, tolerances):
+    """:func:`gradient` by the discrete adjoint of the driver's Radau IIA: the forward
+    pass tapes its steps, the cost's derivative along the states at the output times
+    seeds the backward pass, and the cost's own derivatives along the parameters, the
+    initial state and the inputs are added."""
+    tr, t = failed["tr"], failed["t"]
+    p_value, x0, inputs = numbers
+    problem, vjp = _radau_functions(tr, integrand)
+    k = problem.struct.nx - tr.n_x  # the running integrals, integrated as states
+    nominal = np.concatenate([state_scale(tr.model, x0[: tr.model.n_state], tr.inputs),
+                              np.ones(k)])  # fmt: skip
+    began = failed["began"] = time.perf_counter()
+    taped = adjoint_forward(problem, np.concatenate([x0, np.zeros(k)]), inputs.T, p_value,
+                            nominal, t, *tolerances, MAX_STEPS)  # fmt: skip
+    x, quadratures = taped.states[:, : tr.n_x], taped.states[:, tr.n_x :].T
+    if taped.flag:
+        return _failed(Status.INTEGRATION_FAILED, _radau_failed(taped.flag, taped.reached),
+                       x=np.where(np.arange(t.size)[:, None] < taped.reached, x, np.nan),
+                       **failed)  # fmt: skip
+    problem_text = tr.domain_exit(x, t, robot)
+    if problem_text is not None:
+        return _failed(Status.LEFT_DOMAIN, problem_text, x=x, **failed)
+    value = of_states(*numbers, x.T, quadratures)
+    seeds = of_states.reverse(1)(*numbers, x.T, quadratures, value, 1.0)
+    along_p, along_x0, along_u, along_x, along_q = (np.array(a) for a in seeds)
+    along_states = np.vstack([along_x, along_q]).T
+    if not np.all(np.isfinite(along_states)):
+        when = t[np.flatnonzero(~np.all(np.isfinite(along_states), axis=1))[0]]
+        return _failed(Status.INTEGRATION_FAILED, "the cost's derivative along the state at "
+                       f"t = {when:g} s is not finite: no gradient", x=x, **failed)  # fmt: skip
+    flag, lam, d_u, d_p, _ = adjoint_backward(taped, vjp, along_states)
+    if not flag and not all(np.all(np.isfinite(a)) for a in (lam, d_u, d_p)):
+        flag = BACKWARD_NOT_FINITE
+    if flag:
+        reason = BACKWARD_FAILURES.get(driver_reason(flag), driver_reason(flag))
+        return _failed(Status.INTEGRATION_FAILED, f"Radau IIA's adjoint stopped: {reason}",
+                       x=x, **failed)  # fmt: skip
+    asked = {"parameters": along_p.ravel() + d_p, "x0": along_x0.ravel() + lam[: tr.n_x],
+             "inputs": along_u.T + d_u}  # fmt: skip
+    return RolloutGradient(
+        Status.SUCCESS, f"the gradient of the cost along {', '.join(wrt)}", float(value),
+        _frozen(t), _frozen(x), *(_frozen(asked[w]) if w in wrt else None
+                                  for w in WITH_RESPECT_TO),
+        failed["method"], failed["reason"], failed["names"], _frozen(p_value),
+        time.perf_counter() - began, tr,
+    )  # fmt: skip
+
+
+def _radau_failed(flag: int, reached: int) -> str:
+    """The forward pass's failure in a sentence, where it stopped."""
+    return f"{RadauEngine.failure_reason(flag)}, after {reached - 1} output interval(s)"
+
+
+BACKWARD_FAILURES = {
+    "CV_CONV_FAILURE": "a step's multipliers did not converge, on a fresh Jacobian either "
+    "(the right-hand side's reverse mode not finite there?)",
+    "CV_LSETUP_FAIL": "a step's transposed Newton matrices are singular",
+    "CV_RHSFUNC_FAIL": "the right-hand side's reverse mode failed, or is not finite along "
+    "the inputs or the parameters",
+}
+"""The backward pass's failures (the driver's flags by name) in words."""
+
+BACKWARD_NOT_FINITE = next(f for f, name in DRIVER_FLAGS.items() if name == "CV_RHSFUNC_FAIL")
+"""The flag of a backward pass whose sums along the inputs or the parameters are not
+finite: the driver checks the multipliers only."""
+
+
+def _radau_functions(tr: Transcription, integrand) -> tuple:
+    """``(DriverProblem, vjp)`` of the actuated right-hand side with the running
+    integrals as states, compiled side by side under ``DERIVATIVE_FLAGS`` (cached on disk)
+    and kept with the model: on the paper robot the first gradient then waits 3.8 s, the
+    reverse mode compiling in 2.5 s against 22.7 s under the model's flags, for a
+    gradient 15 % slower (55 ms against 46 ms on ``bench_gradient.py``'s 100
+    intervals)."""
+
+    def build():
+        n_x, n_q = tr.n_x, 0 if integrand is None else integrand.size1_out(0)
+        x = ca.SX.sym("x", n_x + n_q)
+        u, p = ca.SX.sym("u", tr.n_u), ca.SX.sym("p", tr.parameters.size)
+        rows = [tr.rhs_sx(x[:n_x], u, p)]
+        if integrand is not None:
+            rows.append(integrand(x[:n_x], u, p))
+        rhs = ca.Function("softcurve_rollout_rhs", [x, u, p], [ca.densify(ca.vertcat(*rows))])
+        built = compile_functions(
+            [rhs, vjp_function(rhs)], flags=DERIVATIVE_FLAGS, load=load_function
+        )
+        if not all(isinstance(f, NativeFunction) for f in built):
+            raise ParameterError(
+                "method 'radau-adjoint' needs its functions compiled, and they did not compile"
+            )
+        return DriverProblem(built[0], n_x + n_q, tr.n_u, tr.parameters.size), built[1]
+
+    key = ("radau-adjoint", None if tr.actuator is None else tr.inputs.key,
+           None if integrand is None else integrand.serialize())  # fmt: skip
+    return tr.model.cached(key, build)
+
+
+def _tolerances(rtol, method: str) -> tuple[float, float]:
+    """``(rtol, atol)`` of ``method``: its defaults, or ``rtol`` with the defaults' ratio."""
+    default = (RADAU_TOLERANCE,) * 2 if method == GRADIENT_METHODS[0] else GRADIENT_TOLERANCES
+    if rtol is None:
+        return default
+    if isinstance(rtol, bool) or not isinstance(rtol, int | float) or not RTOL_MIN <= rtol < 1:
+        raise ParameterError(f"rtol must be a number in [{RTOL_MIN:g}, 1), got {rtol!r}")
+    return float(rtol), float(rtol) * default[1] / default[0]
 
 
 def _robot_at(tr: Transcription, parameters, x0) -> tuple:
@@ -435,7 +591,7 @@ def _frozen(array) -> np.ndarray:
     return copy
 
 
-def _rollout(tr: Transcription, x0, t, integrand, method, held: bool) -> ca.Function:
+def _rollout(tr: Transcription, x0, t, integrand, method, held: bool, tolerances) -> ca.Function:
     """``(p, x0, U) -> (X (n_x, T), Q (k, T))``: the states at the output times and the
     running integrals, integrated by CVODES.
 
@@ -455,7 +611,7 @@ def _rollout(tr: Transcription, x0, t, integrand, method, held: bool) -> ca.Func
     z, w = ca.MX.sym("z", n_x), ca.MX.sym("w", n_u + n_p + 1)
     u, p, h = w[:n_u], w[n_u : n_u + n_p], w[-1]
     problem = {"x": z, "p": w, "ode": h * rhs(scale * z, u, p) / scale}
-    options = cvodes_options("adams", *GRADIENT_TOLERANCES, MAX_STEPS, max_order=None)
+    options = cvodes_options("adams", *tolerances, MAX_STEPS, max_order=None)
     if integrand is not None:
         problem["quad"] = h * integrand(scale * z, u, p)
         options["quad_err_con"] = True  # the integral as accurate as the state

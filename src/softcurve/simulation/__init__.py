@@ -13,6 +13,7 @@ from softcurve.simulation._settings import JACOBIANS as JACOBIANS
 from softcurve.simulation._settings import MAX_STEPS as MAX_STEPS
 from softcurve.simulation._settings import METHODS as METHODS
 from softcurve.simulation._settings import MIN_TIME as MIN_TIME
+from softcurve.simulation._settings import RTOL_MIN as RTOL_MIN
 from softcurve.simulation._settings import SettingsError as SettingsError
 from softcurve.simulation._settings import SimulationSettings as SimulationSettings
 from softcurve.simulation._settings import format_bytes as format_bytes
@@ -33,6 +34,7 @@ __all__ = [
     "MAX_STEPS",
     "METHODS",
     "MIN_TIME",
+    "RTOL_MIN",
     "SettingsError",
     "SimulationSettings",
     "format_bytes",

@@ -12,6 +12,11 @@ from softcurve.simulation.solvers._actuated import actuated_jacobian as actuated
 from softcurve.simulation.solvers._actuated import (
     actuated_passes as actuated_passes,
 )
+from softcurve.simulation.solvers._adjoint import ADJOINT_STATISTICS as ADJOINT_STATISTICS
+from softcurve.simulation.solvers._adjoint import Taped as Taped
+from softcurve.simulation.solvers._adjoint import adjoint_backward as adjoint_backward
+from softcurve.simulation.solvers._adjoint import adjoint_forward as adjoint_forward
+from softcurve.simulation.solvers._adjoint import vjp_function as vjp_function
 from softcurve.simulation.solvers._along import blocks as blocks
 from softcurve.simulation.solvers._along import chunks as chunks
 from softcurve.simulation.solvers._along import energy_along as energy_along
@@ -34,6 +39,7 @@ from softcurve.simulation.solvers._driver import newton_jacobian as driver_newto
 from softcurve.simulation.solvers._driver import options as driver_options
 from softcurve.simulation.solvers._driver import problem as driver_problem
 from softcurve.simulation.solvers._driver import reason as driver_reason
+from softcurve.simulation.solvers._driver import unavailable as driver_unavailable
 from softcurve.simulation.solvers._grid import Domain as Domain
 from softcurve.simulation.solvers._grid import State as State
 from softcurve.simulation.solvers._grid import Stopped as Stopped
@@ -89,6 +95,11 @@ __all__ = [
     "actuated_derivative",
     "actuated_jacobian",
     "actuated_passes",
+    "ADJOINT_STATISTICS",
+    "Taped",
+    "adjoint_backward",
+    "adjoint_forward",
+    "vjp_function",
     "blocks",
     "chunks",
     "energy_along",
@@ -107,6 +118,7 @@ __all__ = [
     "driver_problem",
     "driver_newton_jacobian",
     "driver_reason",
+    "driver_unavailable",
     "Domain",
     "State",
     "Stopped",

@@ -1,0 +1,185 @@
+"""The discrete adjoint of the driver's Radau IIA (``c/adjoint.c``): the exact gradient of a
+function of the states Radau IIA computes at output times, along the initial state, the
+held inputs and the parameters, in one forward pass that tapes the steps and one backward
+pass per scalar.
+
+Differentiating the scheme rather than the equations makes the gradient that of the
+numbers the forward pass returned (the step sizes held, as CVODES holds them), at any
+tolerance; the backward pass costs one reverse-mode evaluation of the right-hand side per
+stage and iteration of a transposed simplified Newton iteration on the forward pass's own
+Newton matrices (``c/adjoint.c`` has the equations).
+"""
+
+from __future__ import annotations
+
+import ctypes
+from dataclasses import dataclass
+
+import casadi as ca
+import numpy as np
+
+from softcurve.simulation.solvers import _driver as c_driver
+from softcurve.simulation.solvers._radau import radau_constants
+
+ADJOINT_STATISTICS = ("vjp_evaluations", "iterations", "factorizations", "fresh_jacobians")
+"""The backward pass's counters, in the driver's order: reverse-mode evaluations of the
+right-hand side (three per iteration), iterations of the transposed simplified Newton
+iteration (the first solve of each step included), factorizations of the transposed
+Newton matrices, Jacobians computed afresh where the taped one did not converge."""
+
+TAPE_GROWTH = 4
+"""Where the tape is full the forward pass runs again with this many times the room of
+what filled (steps or Jacobians)."""
+
+FIRST_ROOM = (1024, 2, 64)
+"""The first forward pass's room: ``a + b (T - 1)`` steps for ``T`` output times, and
+``c`` Jacobians (a forward pass keeps its Jacobian over many steps)."""
+
+
+def vjp_function(rhs: ca.Function) -> ca.Function:
+    """``vjp(x, u, p, v) -> (f_x^T v, f_u^T v, f_p^T v)``: the reverse mode of ``rhs(x,
+    u, p) -> f``, what the backward pass evaluates at every stage.
+
+    Parameters
+    ----------
+    rhs : casadi.Function
+        The actuated right-hand side, three inputs and one output.
+
+    Returns
+    -------
+    casadi.Function
+        SX where ``rhs`` is SX.
+    """
+    symbols = [rhs.sx_in(i) if rhs.is_a("SXFunction") else rhs.mx_in(i) for i in range(3)]
+    f = rhs(*symbols)
+    v = type(f).sym("v", f.shape[0])
+    products = [ca.densify(ca.jtimes(f, s, v, True)) for s in symbols]
+    return ca.Function("softcurve_vjp", [*symbols, v], products)
+
+
+@dataclass(frozen=True)
+class Taped:
+    """A forward pass of :func:`adjoint_forward`.
+
+    Attributes
+    ----------
+    states : ndarray, shape (T, n)
+        The physical state at every output time (rows from ``reached`` on are zero).
+    reached : int
+        Outputs filled, the first included.
+    flag : int
+        0, or the driver's flag of the failure (``softcurve.simulation.solvers.DRIVER_FLAGS``).
+    counts : dict
+        The driver's counters (``softcurve.simulation.solvers._driver.STATISTICS``).
+    steps : int
+        Steps taped.
+    tape : ndarray, shape (room, TAPE_HEAD + 4 n)
+        The taped steps, the first ``steps`` rows (``softcurve_driver.h``'s layout).
+    jacobians : ndarray, shape (J, n, n)
+        The Jacobians the steps iterated on, by their taped index.
+    arguments : tuple
+        ``(problem, settings, u, p, nominal, times)`` of the forward pass, which the
+        backward pass takes again.
+    """
+
+    states: np.ndarray
+    reached: int
+    flag: int
+    counts: dict
+    steps: int
+    tape: np.ndarray
+    jacobians: np.ndarray
+    arguments: tuple
+
+
+def adjoint_forward(problem, x0, u, p, nominal, times, rtol, atol, max_steps) -> Taped:
+    """One member integrated by the driver's Radau IIA to every output time, each step
+    taped for :func:`adjoint_backward`.
+
+    Parameters
+    ----------
+    problem : DriverProblem
+        The model and actuator (``softcurve.simulation.solvers.driver_problem``).
+    x0 : ndarray, shape (n,)
+        The physical initial state (the lagging inputs last).
+    u : ndarray, shape (T, k)
+        Row ``i`` the inputs held over ``[times[i], times[i + 1])``.
+    p : ndarray, shape (n_p,)
+        The parameter vector.
+    nominal : ndarray, shape (n,)
+        The state scales (the integrated state is ``x / nominal``).
+    times : ndarray, shape (T,)
+        Output times [s], increasing.
+    rtol, atol : float
+        Radau IIA's tolerances, ``atol`` of the scaled state.
+    max_steps : int
+        Steps allowed per output interval.
+
+    Returns
+    -------
+    Taped
+    """
+    arrays = tuple(np.ascontiguousarray(a, dtype=np.float64) for a in (u, p, nominal, times))
+    n, count = x0.size, times.size
+    entry = c_driver.DECLARATIONS.constants["TAPE_HEAD"] + 4 * n
+    settings = c_driver.options(rtol, atol, max_steps, family=3, radau=radau_constants())
+    room, jacobian_room = FIRST_ROOM[0] + FIRST_ROOM[1] * (count - 1), FIRST_ROOM[2]
+    call = c_driver.entry("softcurve_adjoint_forward")
+    while True:
+        out = np.zeros((count, n))
+        out[0] = x0
+        tape, jacobians = np.empty((room, entry)), np.empty((jacobian_room, n, n))
+        used, stats = np.zeros(2, np.int64), np.zeros(len(c_driver.STATISTICS), np.int64)
+        reached = ctypes.c_int(0)
+        flag = call(
+            ctypes.byref(problem.struct), ctypes.byref(settings), arrays[0].ctypes.data,
+            arrays[1].ctypes.data, arrays[2].ctypes.data, arrays[3].ctypes.data, count,
+            out.ctypes.data, tape.ctypes.data, room, jacobians.ctypes.data, jacobian_room,
+            used.ctypes.data, stats.ctypes.data, ctypes.byref(reached),
+        )  # fmt: skip
+        if flag != c_driver.DECLARATIONS.constants["TAPE_FULL"]:
+            break
+        if used[0] >= room:
+            room *= TAPE_GROWTH
+        else:
+            jacobian_room *= TAPE_GROWTH
+    counts = dict(zip(c_driver.STATISTICS, stats.tolist(), strict=True))
+    kept = jacobians[: max(int(used[1]), 1)].copy()
+    return Taped(out, reached.value, int(flag), counts, int(used[0]), tape, kept,
+                 (problem, settings, *arrays))  # fmt: skip
+
+
+def adjoint_backward(taped: Taped, vjp, seeds) -> tuple:
+    """The derivative of a scalar along the initial state, the inputs and the parameters,
+    from its derivative along the states at the output times, by the discrete adjoint of
+    the taped forward pass.
+
+    Parameters
+    ----------
+    taped : Taped
+        A forward pass that succeeded.
+    vjp : NativeFunction
+        :func:`vjp_function` of the problem's actuated right-hand side, compiled.
+    seeds : ndarray, shape (T, n)
+        The scalar's derivative along the physical state at every output time.
+
+    Returns
+    -------
+    tuple
+        ``(flag, d_x0 (n,), d_u (T, k), d_p (n_p,), counts)``: 0 or the driver's flag, the
+        derivatives (``d_u``'s last row zero: that input acts on nothing) and the counters
+        of :data:`ADJOINT_STATISTICS`.
+    """
+    problem, settings, u, p, nominal, times = taped.arguments
+    seeds = np.ascontiguousarray(seeds, dtype=np.float64)
+    lam, d_u, d_p = np.zeros(nominal.size), np.zeros_like(u), np.zeros(p.size)
+    sizes = np.array(vjp.work_sizes, np.int64)
+    stats = np.zeros(len(ADJOINT_STATISTICS), np.int64)
+    flag = c_driver.entry("softcurve_adjoint_backward")(
+        ctypes.byref(problem.struct), ctypes.byref(settings), ctypes.c_void_p(vjp.address),
+        sizes.ctypes.data, u.ctypes.data, p.ctypes.data, nominal.ctypes.data, times.size,
+        taped.tape.ctypes.data, taped.steps, taped.jacobians.ctypes.data, seeds.ctypes.data,
+        lam.ctypes.data, d_u.ctypes.data, d_p.ctypes.data, stats.ctypes.data,
+    )  # fmt: skip
+    counts = dict(zip(ADJOINT_STATISTICS, stats.tolist(), strict=True))
+    return int(flag), lam, d_u, d_p, counts
