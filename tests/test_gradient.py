@@ -230,13 +230,17 @@ def test_the_gradient_along_parameters_is_the_fits_one(model):
     np.testing.assert_allclose([ours.by_name[A1], ours.by_name[DAMPING]], fits, rtol=1e-5)
 
 
-def test_constant_inputs_take_one_integration_through_the_outputs(model, bellows):
+@pytest.mark.parametrize(("method", "rtol"), [("adjoint", None), ("radau-adjoint", 1e-10)])
+def test_constant_inputs_take_one_integration_through_the_outputs(model, bellows, method, rtol):
     """Without a gradient along the inputs, held constant, one integration runs through
-    every output time: the same value and gradient as one per interval."""
+    every output time (CVODES), or the steps pass through them, the outputs from their
+    collocation polynomials (Radau IIA): the same value and gradient as one integration
+    per interval, to the tolerance."""
     u = np.full(3, 2e4)
-    through = sc.gradient(model, cost, Q0, QD0, t=T, inputs=u, actuator=bellows,
-                          running=running, wrt=("parameters", "x0"))  # fmt: skip
-    held = sc.gradient(model, cost, Q0, QD0, t=T, inputs=u, actuator=bellows, running=running)
+    options = {"inputs": u, "actuator": bellows, "running": running, "method": method,
+               "rtol": rtol}  # fmt: skip
+    through = sc.gradient(model, cost, Q0, QD0, t=T, wrt=("parameters", "x0"), **options)
+    held = sc.gradient(model, cost, Q0, QD0, t=T, **options)
     assert through.inputs is None and held.inputs.shape == (T.size, 3)
     assert through.value == pytest.approx(held.value, rel=1e-8)
     np.testing.assert_allclose(through.x0, held.x0, rtol=1e-6, atol=1e-12)

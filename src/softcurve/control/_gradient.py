@@ -465,8 +465,12 @@ def _radau_gradient(of_states, numbers, integrand, wrt, robot, failed, tolerance
     nominal = np.concatenate([state_scale(tr.model, x0[: tr.model.n_state], tr.inputs),
                               np.ones(k)])  # fmt: skip
     began = failed["began"] = time.perf_counter()
+    # the steps end where the input changes, or at every sample for the gradient along them
+    stops = np.ones(t.size, bool)
+    if "inputs" not in wrt:
+        stops[1:-1] = np.any(inputs[:, 1:-1] != inputs[:, :-2], axis=0)
     taped = adjoint_forward(problem, np.concatenate([x0, np.zeros(k)]), inputs.T, p_value,
-                            nominal, t, *tolerances, MAX_STEPS)  # fmt: skip
+                            nominal, t, *tolerances, MAX_STEPS, stops)  # fmt: skip
     x, quadratures = taped.states[:, : tr.n_x], taped.states[:, tr.n_x :].T
     if taped.flag:
         return _failed(Status.INTEGRATION_FAILED, _radau_failed(taped.flag, taped.reached),

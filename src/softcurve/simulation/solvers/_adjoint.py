@@ -78,8 +78,9 @@ class Taped:
     jacobians : ndarray, shape (J, n, n)
         The Jacobians the steps iterated on, by their taped index.
     arguments : tuple
-        ``(problem, settings, u, p, nominal, times)`` of the forward pass, which the
-        backward pass takes again.
+        ``(problem, settings, u, p, nominal, times, owner, abscissa)`` of the forward
+        pass, which the backward pass takes again: the last two say which taped step
+        gave each output, and where in it.
     """
 
     states: np.ndarray
@@ -92,8 +93,8 @@ class Taped:
     arguments: tuple
 
 
-def adjoint_forward(problem, x0, u, p, nominal, times, rtol, atol, max_steps) -> Taped:
-    """One member integrated by the driver's Radau IIA to every output time, each step
+def adjoint_forward(problem, x0, u, p, nominal, times, rtol, atol, max_steps, stops=None):
+    """One member integrated by the driver's Radau IIA over the output times, each step
     taped for :func:`adjoint_backward`.
 
     Parameters
@@ -114,6 +115,11 @@ def adjoint_forward(problem, x0, u, p, nominal, times, rtol, atol, max_steps) ->
         Radau IIA's tolerances, ``atol`` of the scaled state.
     max_steps : int
         Steps allowed per output interval.
+    stops : ndarray of bool, shape (T,), optional
+        The output times where the steps end (default every one): where the input
+        changes, and at every sample where the derivative along the inputs is asked
+        (row ``i``'s derivative is that of its own interval). The others come from the
+        collocation polynomial of the step that passes them; the last is a stop anyway.
 
     Returns
     -------
@@ -121,6 +127,8 @@ def adjoint_forward(problem, x0, u, p, nominal, times, rtol, atol, max_steps) ->
     """
     arrays = tuple(np.ascontiguousarray(a, dtype=np.float64) for a in (u, p, nominal, times))
     n, count = x0.size, times.size
+    stops = np.ones(count, np.int32) if stops is None else np.asarray(stops, np.int32)
+    owner, abscissa = np.zeros(count, np.int64), np.zeros(count)
     entry = c_driver.DECLARATIONS.constants["TAPE_HEAD"] + 4 * n
     settings = c_driver.options(rtol, atol, max_steps, family=3, radau=radau_constants())
     room, jacobian_room = FIRST_ROOM[0] + FIRST_ROOM[1] * (count - 1), FIRST_ROOM[2]
@@ -134,7 +142,8 @@ def adjoint_forward(problem, x0, u, p, nominal, times, rtol, atol, max_steps) ->
         flag = call(
             ctypes.byref(problem.struct), ctypes.byref(settings), arrays[0].ctypes.data,
             arrays[1].ctypes.data, arrays[2].ctypes.data, arrays[3].ctypes.data, count,
-            out.ctypes.data, tape.ctypes.data, room, jacobians.ctypes.data, jacobian_room,
+            stops.ctypes.data, out.ctypes.data, owner.ctypes.data, abscissa.ctypes.data,
+            tape.ctypes.data, room, jacobians.ctypes.data, jacobian_room,
             used.ctypes.data, stats.ctypes.data, ctypes.byref(reached),
         )  # fmt: skip
         if flag != c_driver.DECLARATIONS.constants["TAPE_FULL"]:
@@ -146,7 +155,7 @@ def adjoint_forward(problem, x0, u, p, nominal, times, rtol, atol, max_steps) ->
     counts = dict(zip(c_driver.STATISTICS, stats.tolist(), strict=True))
     kept = jacobians[: max(int(used[1]), 1)].copy()
     return Taped(out, reached.value, int(flag), counts, int(used[0]), tape, kept,
-                 (problem, settings, *arrays))  # fmt: skip
+                 (problem, settings, *arrays, owner, abscissa))  # fmt: skip
 
 
 def adjoint_backward(taped: Taped, vjp, seeds) -> tuple:
@@ -167,10 +176,11 @@ def adjoint_backward(taped: Taped, vjp, seeds) -> tuple:
     -------
     tuple
         ``(flag, d_x0 (n,), d_u (T, k), d_p (n_p,), counts)``: 0 or the driver's flag, the
-        derivatives (``d_u``'s last row zero: that input acts on nothing) and the counters
-        of :data:`ADJOINT_STATISTICS`.
+        derivatives (``d_u`` on the row each step held: the first of the rows between
+        two stops; the last row zero, as that input acts on nothing) and the counters of
+        :data:`ADJOINT_STATISTICS`.
     """
-    problem, settings, u, p, nominal, times = taped.arguments
+    problem, settings, u, p, nominal, times, owner, abscissa = taped.arguments
     seeds = np.ascontiguousarray(seeds, dtype=np.float64)
     lam, d_u, d_p = np.zeros(nominal.size), np.zeros_like(u), np.zeros(p.size)
     sizes = np.array(vjp.work_sizes, np.int64)
@@ -178,8 +188,9 @@ def adjoint_backward(taped: Taped, vjp, seeds) -> tuple:
     flag = c_driver.entry("softcurve_adjoint_backward")(
         ctypes.byref(problem.struct), ctypes.byref(settings), ctypes.c_void_p(vjp.address),
         sizes.ctypes.data, u.ctypes.data, p.ctypes.data, nominal.ctypes.data, times.size,
-        taped.tape.ctypes.data, taped.steps, taped.jacobians.ctypes.data, seeds.ctypes.data,
-        lam.ctypes.data, d_u.ctypes.data, d_p.ctypes.data, stats.ctypes.data,
+        owner.ctypes.data, abscissa.ctypes.data, taped.tape.ctypes.data, taped.steps,
+        taped.jacobians.ctypes.data, seeds.ctypes.data, lam.ctypes.data, d_u.ctypes.data,
+        d_p.ctypes.data, stats.ctypes.data,
     )  # fmt: skip
     counts = dict(zip(ADJOINT_STATISTICS, stats.tolist(), strict=True))
     return int(flag), lam, d_u, d_p, counts

@@ -46,20 +46,42 @@
 static int states_of(const sc_function *fn) { return fn->nx + (fn->lag ? fn->m : 0); }
 static int inputs_of(const sc_function *fn) { return fn->force ? fn->m : fn->nu; }
 
+/* Tapes the step r just accepted (its Jacobian too, where it is another than the last
+ * taped, last[0] its count of Jacobians then), with its input row; 0 or TAPE_FULL. */
+static int tape_step(const sc_radau *r, const sc_work *s, int row, double *tape, long capacity,
+                     double *jacobians, long jacobian_capacity, long *used, long *last) {
+    int n = r->n;
+    double *at = tape + used[0] * TAPE_ENTRY(n);
+    if (used[0] >= capacity) return TAPE_FULL;
+    if (s->jacobians != *last) { /* the Jacobian this step iterated on */
+        if (used[1] >= jacobian_capacity) return TAPE_FULL;
+        memcpy(jacobians + used[1] * n * n, s->J, sizeof(double) * n * n);
+        used[1]++, *last = s->jacobians;
+    }
+    at[TAPE_T] = r->t_last, at[TAPE_H] = r->h_last, at[TAPE_ROW] = row;
+    at[TAPE_JACOBIAN] = (double)(used[1] - 1);
+    memcpy(at + TAPE_HEAD, r->y_last, sizeof(double) * n);
+    memcpy(at + TAPE_HEAD + n, r->z, sizeof(double) * 3 * n);
+    used[0]++;
+    return 0;
+}
+
 /* softcurve_driver.h */
 SC_EXPORT int softcurve_adjoint_forward(const sc_function *fn, const sc_options *options,
                                         const double *u, const double *p,
                                         const double *nominal, const double *times, int count,
-                                        double *out, double *tape, long capacity,
+                                        const int *stops, double *out, long *owner,
+                                        double *abscissa, double *tape, long capacity,
                                         double *jacobians, long jacobian_capacity, long *used,
                                         long *stats, int *reached) {
-    int n = states_of(fn), inputs = inputs_of(fn), i, j, flag = 0;
-    long taken, entry = TAPE_ENTRY(n), last_jacobian = -1;
+    int n = states_of(fn), inputs = inputs_of(fn), i = 1, j, start = 0, end, flag = 0;
+    long taken, last_jacobian = -1;
     double tret, *y0 = (double *)malloc(sizeof(double) * n);
     sc_work s;
     sc_radau r;
     used[0] = used[1] = 0;
     *reached = 1;
+    owner[0] = -1, abscissa[0] = 0.0;
     memset(&r, 0, sizeof(r));
     if (work_open(&s, fn, n) || !y0 || radau_open(&r, &s, options)) {
         flag = -100;
@@ -67,38 +89,27 @@ SC_EXPORT int softcurve_adjoint_forward(const sc_function *fn, const sc_options 
     }
     s.nominal = nominal, s.p = p;
     for (j = 0; j < n; ++j) y0[j] = out[j] / nominal[j];
-    for (i = 1; i < count && !flag; ++i) {
-        s.u = u + (long)(i - 1) * inputs;
-        flag = radau_start(&r, times[i - 1], y0, times[i], 0);
-        for (taken = 0; !flag && r.t < times[i];) {
-            double *at = tape + used[0] * entry;
+    while (i < count && !flag) { /* one input from times[start] to the next stop */
+        for (end = i; end < count - 1 && !stops[end]; ++end) {}
+        s.u = u + (long)start * inputs;
+        flag = radau_start(&r, times[start], y0, times[end], 0);
+        for (taken = 0; !flag && i <= end;) {
             if (++taken > options->max_steps) flag = CV_TOO_MUCH_WORK;
             if (!flag) flag = radau_step(&r, &tret);
-            if (flag) break;
-            if (used[0] >= capacity) {
-                flag = TAPE_FULL;
-                break;
+            if (!flag) flag = tape_step(&r, &s, start, tape, capacity, jacobians,
+                                        jacobian_capacity, used, &last_jacobian);
+            for (; !flag && i <= end && times[i] <= r.t; ++i, taken = 0) { /* outputs passed */
+                radau_interpolate(&r, times[i], out + (long)i * n);
+                for (j = 0; j < n; ++j) out[(long)i * n + j] *= nominal[j];
+                owner[i] = used[0] - 1;
+                abscissa[i] = times[i] == r.t ? 1.0 : (times[i] - r.t_last) / r.h_last;
+                *reached = i + 1;
             }
-            if (s.jacobians != last_jacobian) { /* the Jacobian this step iterated on */
-                if (used[1] >= jacobian_capacity) {
-                    flag = TAPE_FULL;
-                    break;
-                }
-                memcpy(jacobians + used[1] * n * n, s.J, sizeof(double) * n * n);
-                used[1]++, last_jacobian = s.jacobians;
-            }
-            at[TAPE_T] = r.t_last, at[TAPE_H] = r.h_last, at[TAPE_INTERVAL] = i;
-            at[TAPE_JACOBIAN] = (double)(used[1] - 1);
-            memcpy(at + TAPE_HEAD, r.y_last, sizeof(double) * n);
-            memcpy(at + TAPE_HEAD + n, r.z, sizeof(double) * 3 * n);
-            used[0]++;
         }
         stats[0] += r.counters[0], stats[1] += r.counters[1], stats[3] += r.counters[2];
         stats[4] += r.counters[3], stats[5] += r.counters[4];
         memset(r.counters, 0, sizeof(r.counters));
-        if (flag) break;
-        for (j = 0; j < n; ++j) out[(long)i * n + j] = nominal[j] * r.y[j];
-        *reached = i + 1;
+        start = end;
     }
     stats[2] += s.jacobians;
 done:
@@ -124,7 +135,7 @@ typedef struct {
     sc_arrays c;
     double *x, *v;         /* the vjp's arguments: a physical stage state, its seed */
     double *xb, *ub, *pb;  /* per stage: the vjp's results (x scaled back), 3 blocks each */
-    double *zbar, *tz, *w, *dw, *g, *nu, *jt;
+    double *zbar, *start, *tz, *w, *dw, *g, *nu, *jt;
     double *f0;
     double complex *lu;    /* the complex factors, then n for a solve */
     int *piv;
@@ -153,12 +164,13 @@ static int adjoint_open(sc_adjoint *a, const sc_function *fn, const sc_options *
     a->jacobian_factored = -1;
     if (work_open(&a->s, fn, n) || arrays_open(&a->c, sizes[0], sizes[1], sizes[2], sizes[3], 0))
         return 1;
-    a->x = (double *)calloc(2 * n + 3 * (n + m + fn->np) + 21 * n + nn + n, sizeof(double));
+    a->x = (double *)calloc(3 * n + 3 * (n + m + fn->np) + 21 * n + nn + n, sizeof(double));
     a->lu = malloc(sizeof(double complex) * (size_t)(nn + n));
     a->piv = (int *)malloc(sizeof(int) * (size_t)n);
     if (!a->x || !a->lu || !a->piv || a->k == NULL) return 1;
     a->v = a->x + n, a->xb = a->v + n, a->ub = a->xb + 3 * n, a->pb = a->ub + 3 * m;
-    a->zbar = a->pb + 3 * fn->np, a->tz = a->zbar + 3 * n, a->w = a->tz + 3 * n;
+    a->zbar = a->pb + 3 * fn->np, a->start = a->zbar + 3 * n, a->tz = a->start + n;
+    a->w = a->tz + 3 * n;
     a->dw = a->w + 3 * n, a->g = a->dw + 3 * n, a->nu = a->g + 3 * n, a->f0 = a->nu + 3 * n;
     a->jt = a->f0 + 3 * n; /* after f0: 3 n spare for newton_jacobian's f, then J^T */
     return 0;
@@ -197,19 +209,18 @@ static int stage_products(sc_adjoint *a, const double *y0, const double *z, cons
     return flag;
 }
 
-/* nu of one step (its size h, start y0, stages z, the adjoint lambda of its end) by the
- * transposed simplified Newton iteration on the factors in a, and the vjp's results at
- * it in xb, ub, pb: 0, 1 where it does not converge, -1 where the vjp fails. */
+/* nu of one step (its size h, start y0, stages z, the adjoints of its stages in a->zbar:
+ * its end's and its outputs') by the transposed simplified Newton iteration on the
+ * factors in a, and the vjp's results at it in xb, ub, pb: 0, 1 where it does not
+ * converge, -1 where the vjp fails; *rounds: its rounds of vjp evaluations. */
 static int step_multipliers(sc_adjoint *a, double h, const double *y0, const double *z,
-                            const double *lambda, const double *u, const double *p,
+                            const double *u, const double *p,
                             const double *nominal, double tolerance, int *rounds) {
     const double *k = a->k;
     int n = a->n, i, j, it;
     double gamma = k[RADAU_GAMMA] / h, alpha = k[RADAU_ALPHA] / h, beta = k[RADAU_BETA] / h;
     double complex mu = conj(h / (k[RADAU_ALPHA] + I * k[RADAU_BETA])), *x = a->lu + n * n;
     double previous = 0.0;
-    memset(a->zbar, 0, sizeof(double) * 2 * n);
-    memcpy(a->zbar + 2 * n, lambda, sizeof(double) * n);
     memset(a->xb, 0, sizeof(double) * 3 * n);
     memset(a->w, 0, sizeof(double) * 3 * n);
     for (it = 0; it <= NEWTON_ITERATIONS; ++it) {
@@ -261,35 +272,57 @@ static int refresh(sc_adjoint *a, const double *y0, const double *u, double h) {
     return factor_transposed(a, a->s.J, h, -1);
 }
 
+/* Adds the seed of output i (physical, seeds[i, :]) to a step's adjoints: its end's
+ * (lambda) where the output is the step's end, else the stages' (a->zbar) and its
+ * start's (a->start) by the collocation polynomial at the output's abscissa x. Returns
+ * whether the stages got any. */
+static int seed_output(sc_adjoint *a, const double *seed, const double *nominal, double x,
+                       double *lambda) {
+    const double *P = a->k + RADAU_P;
+    int n = a->n, j, m;
+    if (x == 1.0) {
+        for (j = 0; j < n; ++j) lambda[j] += nominal[j] * seed[j];
+        return 0;
+    }
+    for (m = 0; m < 3; ++m) {
+        double weight = x * (P[m] + x * (P[3 + m] + x * P[6 + m]));
+        for (j = 0; j < n; ++j) a->zbar[m * n + j] += weight * nominal[j] * seed[j];
+    }
+    for (j = 0; j < n; ++j) a->start[j] += nominal[j] * seed[j];
+    return 1;
+}
+
 /* softcurve_driver.h */
 SC_EXPORT int softcurve_adjoint_backward(const sc_function *fn, const sc_options *options,
                                          casadi_fn vjp, const long long *vjp_sizes,
                                          const double *u, const double *p,
-                                         const double *nominal, int count, const double *tape,
+                                         const double *nominal, int count, const long *owner,
+                                         const double *abscissa, const double *tape,
                                          long steps, const double *jacobians,
                                          const double *seeds, double *lambda, double *d_u,
                                          double *d_p, long *stats) {
-    int n = states_of(fn), inputs = inputs_of(fn), i, j, interval = count - 1, flag = 0;
-    long step, entry = TAPE_ENTRY(n);
-    int rounds = 0;
+    int n = states_of(fn), inputs = inputs_of(fn), i, j, flag = 0, rounds = 0, inner;
+    long step, entry = TAPE_ENTRY(n), next = count - 1;
     double tolerance = fmax(ADJOINT_TOLERANCE * options->rtol, 10.0 * DBL_EPSILON);
     sc_adjoint a;
+    memset(lambda, 0, sizeof(double) * n);
     if (adjoint_open(&a, fn, options, vjp, vjp_sizes)) {
         flag = -100;
         goto done;
     }
     a.s.nominal = nominal, a.s.p = p;
-    for (j = 0; j < n; ++j) lambda[j] = nominal[j] * seeds[(long)interval * n + j];
     for (step = steps - 1; step >= 0; --step) {
         const double *at = tape + step * entry, *y0 = at + TAPE_HEAD, *z = y0 + n;
-        const double *u_step;
-        double h = at[TAPE_H];
+        const double *u_step = u + (long)at[TAPE_ROW] * inputs;
+        double h = at[TAPE_H], *du = d_u + (long)at[TAPE_ROW] * inputs;
         long which = (long)at[TAPE_JACOBIAN];
-        for (; interval > (int)at[TAPE_INTERVAL]; --interval) /* an output time passed */
-            for (j = 0; j < n; ++j) lambda[j] += nominal[j] * seeds[(long)(interval - 1) * n + j];
-        u_step = u + (long)(interval - 1) * inputs;
+        memset(a.zbar, 0, sizeof(double) * 3 * n);
+        memset(a.start, 0, sizeof(double) * n);
+        for (inner = 0; next > 0 && owner[next] == step; --next) /* the outputs it passed */
+            inner |= seed_output(&a, seeds + next * n, nominal, abscissa[next], lambda);
         for (j = 0; j < n && lambda[j] == 0.0; ++j) {}
-        if (j == n) continue; /* nothing after this step is seeded: no contributions */
+        if (j == n && !inner) continue; /* nothing after this step is seeded */
+        for (j = 0; j < n; ++j) a.zbar[2 * n + j] += lambda[j]; /* y1 = y0 + Z_3 */
         if (a.stale) { /* the last step converged slowly: a fresh Jacobian from here on */
             if (refresh(&a, y0, u_step, h)) {
                 flag = CV_LSETUP_FAIL;
@@ -301,28 +334,29 @@ SC_EXPORT int softcurve_adjoint_backward(const sc_function *fn, const sc_options
                 break;
             }
         }
-        flag = step_multipliers(&a, h, y0, z, lambda, u_step, p, nominal, tolerance, &rounds);
+        flag = step_multipliers(&a, h, y0, z, u_step, p, nominal, tolerance, &rounds);
         if (flag == 1 && !a.stale) { /* once more on a fresh Jacobian at the step's start */
             if (refresh(&a, y0, u_step, h)) {
                 flag = CV_LSETUP_FAIL;
                 break;
             }
-            flag = step_multipliers(&a, h, y0, z, lambda, u_step, p, nominal, tolerance, &rounds);
+            flag = step_multipliers(&a, h, y0, z, u_step, p, nominal, tolerance, &rounds);
         }
         a.stale = rounds > SLOW_ROUNDS;
         if (flag) {
             flag = flag < 0 ? CV_RHSFUNC_FAIL : CV_CONV_FAILURE;
             break;
         }
+        for (j = 0; j < n; ++j) lambda[j] += a.start[j];
         for (i = 0; i < 3; ++i) {
             for (j = 0; j < n; ++j) lambda[j] += a.xb[i * n + j];
-            for (j = 0; j < inputs; ++j) d_u[(long)(interval - 1) * inputs + j] += a.ub[i * inputs + j];
+            for (j = 0; j < inputs; ++j) du[j] += a.ub[i * inputs + j];
             for (j = 0; j < fn->np; ++j) d_p[j] += a.pb[i * fn->np + j];
         }
     }
     if (!flag) {
-        for (; interval > 0; --interval)
-            for (j = 0; j < n; ++j) lambda[j] += nominal[j] * seeds[(long)(interval - 1) * n + j];
+        for (; next >= 0; --next) /* the start, and outputs no step passed */
+            for (j = 0; j < n; ++j) lambda[j] += nominal[j] * seeds[next * n + j];
         for (j = 0; j < n; ++j) lambda[j] /= nominal[j]; /* the physical state's */
     }
     stats[0] += a.evaluations, stats[1] += a.iterations, stats[2] += a.factorizations;

@@ -101,11 +101,11 @@ enum { HELPER_NONE = 0, HELPER_SHARED = 1 };
 enum { COLUMNS_FAILURE = -101 };
 
 /* softcurve_adjoint_forward's flag where the tape is full (call again with more room),
- * and the layout of a taped step: TAPE_HEAD doubles (where the step began, its size, its
- * output interval, its Jacobian's index among the taped ones), then the state at its
+ * and the layout of a taped step: TAPE_HEAD doubles (where the step began, its size, the
+ * row of its input, its Jacobian's index among the taped ones), then the state at its
  * start and its three stage increments (4 n doubles in all after the head). */
 enum { TAPE_FULL = -102 };
-enum { TAPE_T = 0, TAPE_H = 1, TAPE_INTERVAL = 2, TAPE_JACOBIAN = 3, TAPE_HEAD = 4 };
+enum { TAPE_T = 0, TAPE_H = 1, TAPE_ROW = 2, TAPE_JACOBIAN = 3, TAPE_HEAD = 4 };
 
 /* Integrate `count` members over the grid `times[0..k)` from out[b, 0, :] (physical, at
  * times[0]), in segments ending at the output indices ends[0..n_ends) (the last is k - 1),
@@ -157,9 +157,13 @@ SC_EXPORT int softcurve_sensitivities(const sc_function *fn, const sc_options *o
 
 /* The forward pass of the discrete adjoint of Radau IIA (adjoint.c): one member of fn
  * integrated by Radau IIA (options: tolerances, steps per output, the constants) from
- * out[0, :] (physical, at times[0]) to every output time times[1..count), each a step's
- * end, with the input u[i, :] held over [times[i], times[i + 1]), parameters p and state
- * scales nominal; writes out[i, :] and tapes every accepted step into tape (capacity
+ * out[0, :] (physical, at times[0]) over the output times times[1..count), with the input
+ * u[i, :] held over [times[i], times[i + 1]), parameters p and state scales nominal. The
+ * steps end at the output times i where stops[i] is nonzero (an input changes there, or
+ * the derivative along it is asked; the last always) and pass through the others, whose
+ * states come from the collocation polynomial. Writes out[i, :], owner[i] (the taped step
+ * whose end or polynomial gave output i; -1 for the start) and abscissa[i] (where in that
+ * step, as a fraction of it: 1 its end); tapes every accepted step into tape (capacity
  * steps of TAPE_HEAD + 4 n doubles) and the Jacobians its Newton iteration took into
  * jacobians (jacobian_capacity of n x n); used[0], used[1]: steps and Jacobians taped.
  * Returns 0, TAPE_FULL, -100 when it could not be set up, or Radau IIA's failure as the
@@ -168,15 +172,16 @@ SC_EXPORT int softcurve_sensitivities(const sc_function *fn, const sc_options *o
 SC_EXPORT int softcurve_adjoint_forward(const sc_function *fn, const sc_options *options,
                                         const double *u, const double *p,
                                         const double *nominal, const double *times, int count,
-                                        double *out, double *tape, long capacity,
+                                        const int *stops, double *out, long *owner,
+                                        double *abscissa, double *tape, long capacity,
                                         double *jacobians, long jacobian_capacity, long *used,
                                         long *stats, int *reached);
 
 /* The backward pass over the `steps` taped by softcurve_adjoint_forward (the same fn,
- * options, u, p, nominal and count): with seeds[i, :] the derivative of a scalar along the
- * physical state out[i, :], writes its derivative along the initial state into lambda
- * (n) and adds those along the inputs into d_u (count - 1 rows of the inputs) and the
- * parameters into d_p (np). vjp(x, u, p, v) -> (f_x^T v, f_u^T v, f_p^T v) is f's
+ * options, u, p, nominal, count, owner and abscissa): with seeds[i, :] the derivative of
+ * a scalar along the physical state out[i, :], writes its derivative along the initial
+ * state into lambda (n) and adds those along the inputs into d_u (the row each step held,
+ * count rows of the inputs) and the parameters into d_p (np). vjp(x, u, p, v) -> (f_x^T v, f_u^T v, f_p^T v) is f's
  * reverse mode (physical x, the lagging inputs included), of work sizes vjp_sizes (4).
  * Returns 0, -100 when it could not be set up, CV_CONV_FAILURE where a step's
  * multipliers do not converge on a fresh Jacobian either, CV_LSETUP_FAIL where its
@@ -185,7 +190,8 @@ SC_EXPORT int softcurve_adjoint_forward(const sc_function *fn, const sc_options 
 SC_EXPORT int softcurve_adjoint_backward(const sc_function *fn, const sc_options *options,
                                          casadi_fn vjp, const long long *vjp_sizes,
                                          const double *u, const double *p,
-                                         const double *nominal, int count, const double *tape,
+                                         const double *nominal, int count, const long *owner,
+                                         const double *abscissa, const double *tape,
                                          long steps, const double *jacobians,
                                          const double *seeds, double *lambda, double *d_u,
                                          double *d_p, long *stats);
