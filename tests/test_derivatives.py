@@ -12,6 +12,7 @@ import softcurve as sc
 from softcurve.simulation import SettingsError, SimulationSettings
 from softcurve.simulation.solvers import (
     ActuatorInput,
+    actuated_derivative,
     driver_newton_jacobian,
     driver_problem,
     state_scale,
@@ -145,6 +146,27 @@ def test_the_drivers_newton_jacobian_is_the_differences_one(rng, time_constant):
         both[exact] = driver_newton_jacobian(problem, x, u, model.parameters, nominal)
     scale = np.abs(both[False]).max(axis=1, keepdims=True) + 1.0
     assert np.abs((both[True] - both[False]) / scale).max() < 1e-5
+
+
+@pytest.mark.parametrize("time_constant", [None, 0.02])
+def test_the_drivers_exact_jacobian_is_casadis_derivative(rng, time_constant):
+    """With an actuator, the driver's exact Newton Jacobian (the model's, the force's exact
+    derivatives through D^-1, the lag rows) equals CasADi's derivative of the actuated
+    state derivative, scaled, to round-off: no forward difference is left in it."""
+    robot, tendons = _actuated(time_constant)
+    inputs = ActuatorInput.of(tendons, robot.n)
+    model = sc.Model(robot)
+    x = np.concatenate([_state(rng, model)[0], rng.uniform(0.5, 2.0, inputs.n_states)])
+    u = rng.uniform(0.5, 2.0, inputs.n_inputs)
+    nominal = state_scale(model, x[: model.n_state], inputs) * rng.uniform(0.5, 2.0, x.size)
+    got = driver_newton_jacobian(
+        driver_problem(model, inputs, exact=True), x, u, model.parameters, nominal
+    )
+    f = actuated_derivative(model, inputs, model.casadi_rhs())
+    symbols = ca.SX.sym("x", x.size)
+    along = ca.Function("j", [symbols], [ca.jacobian(f(symbols, u, model.parameters), symbols)])
+    expected = np.array(along(x)) * nominal[None, :] / nominal[:, None]
+    assert np.abs(got - expected).max() < 1e-11 * np.abs(expected).max()
 
 
 def test_the_jacobian_setting_is_checked():

@@ -33,6 +33,7 @@ from softcurve.simulation.solvers._driver import DriverProblem as DriverProblem
 from softcurve.simulation.solvers._driver import casadi_only as casadi_only
 from softcurve.simulation.solvers._driver import driver as driver
 from softcurve.simulation.solvers._driver import entry as driver_entry
+from softcurve.simulation.solvers._driver import force_jacobian as force_jacobian
 from softcurve.simulation.solvers._driver import integrate as driver_integrate
 from softcurve.simulation.solvers._driver import library as driver_library
 from softcurve.simulation.solvers._driver import newton_jacobian as driver_newton_jacobian
@@ -114,6 +115,7 @@ __all__ = [
     "casadi_only",
     "driver",
     "driver_entry",
+    "force_jacobian",
     "driver_integrate",
     "driver_problem",
     "driver_newton_jacobian",

@@ -191,11 +191,15 @@ class DriverProblem:
         The model's compiled exact Jacobian ``rhs_jacobian(x, tau, p) -> (J_x, D)``
         (:meth:`~softcurve.Model.compiled_jacobian`) for the Newton matrix; None:
         forward differences of ``rhs``.
+    force_jacobian : NativeFunction, optional
+        With ``jacobian`` and ``force``, the force's exact derivatives
+        ``(q, v) -> (d tau / d q, H(q))`` (:func:`force_jacobian`); None: forward
+        differences of ``force``.
     """
 
     def __init__(self, rhs, n_state, n, n_parameters, force=None, inputs=None, lanes=None,
-                 domain=None, jacobian=None):  # fmt: skip
-        functions = [f for f in (rhs, force, domain, jacobian) if f is not None]
+                 domain=None, jacobian=None, force_jacobian=None):  # fmt: skip
+        functions = [f for f in (rhs, force, domain, jacobian, force_jacobian) if f is not None]
         self.exact = jacobian is not None
         self._keep = [*functions, lanes]  # the functions and bounds outlive the struct
         self.width = 1 if lanes is None else lanes.width
@@ -210,6 +214,7 @@ class DriverProblem:
             force=None if force is None else force.address,
             domain=None if domain is None else domain.address,
             jacobian=None if jacobian is None else jacobian.address,
+            force_jacobian=None if force_jacobian is None else force_jacobian.address,
             nx=n_state,
             nu=n,
             np=n_parameters,
@@ -241,8 +246,9 @@ def problem(model, inputs=None, lanes: bool = False, exact: bool = False) -> Dri
         Integrate members in groups on the state derivative over lanes (compiled at the
         first such call); where it cannot be built, the problem integrates them alone.
     exact : bool
-        The Newton matrix from the model's exact Jacobian (compiled at the first such
-        call), where it compiles; else from forward differences.
+        The Newton matrix from the model's exact Jacobian and the force's
+        (:func:`force_jacobian`; each compiled at the first such call), where they
+        compile; else from forward differences.
     """
     rhs = model.compiled_function("rhs")
     if driver() is None or rhs is None:
@@ -257,11 +263,30 @@ def problem(model, inputs=None, lanes: bool = False, exact: bool = False) -> Dri
         vectors = lanes_derivative(model, inputs) if lanes else None
         domain = model.compiled_function("domain")
         jacobian = model.compiled_jacobian() if exact else None
+        along_q = None
+        if jacobian is not None and inputs is not None:
+            along_q = _compiled_force(force_jacobian(inputs.force))
         return DriverProblem(rhs, model.n_state, model.n, model.parameters.size, force,
-                             inputs, vectors, domain, jacobian)  # fmt: skip
+                             inputs, vectors, domain, jacobian, along_q)  # fmt: skip
 
     key = ("native problem", None if inputs is None else inputs.key, lanes, exact)
     return model.cached(key, build)
+
+
+def force_jacobian(force: ca.Function) -> ca.Function:
+    """``(q, v) -> (d tau / d q, H(q))``: the exact derivatives of an actuator's force
+    ``tau = H(q) v`` along the coordinates and the inputs, what the driver's exact Newton
+    matrix takes (``softcurve_driver.h``'s ``force_jacobian``).
+
+    Parameters
+    ----------
+    force : casadi.Function
+        ``(q, v) -> tau`` (``ActuatorInput.force``).
+    """
+    q, v = (ca.SX.sym(name, force.sparsity_in(i)) for i, name in enumerate("qv"))
+    tau = force(q, v)
+    along = [ca.densify(ca.jacobian(tau, s)) for s in (q, v)]
+    return ca.Function(f"{force.name()}_jacobian", [q, v], along)
 
 
 def _compiled_force(force: ca.Function) -> NativeFunction | None:

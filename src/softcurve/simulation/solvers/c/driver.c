@@ -6,7 +6,8 @@
  * CVODES is the copy inside CasADi (sundials2.h). The Newton systems are solved by
  * CVSPGMR preconditioned with the exact LU factors of the Newton matrix I - gamma J, whose
  * Jacobian J is the model's exact one where the problem has it (an actuator's force then
- * differentiated by forward differences) or else forward differences of f; with the
+ * by its own exact derivatives, or by forward differences where they are not given) or
+ * else forward differences of f; with the
  * same J in the Jacobian-vector product, GMRES converges in one iteration, so this is a
  * direct dense solve. CVODES says when J may be reused (jok): only then is it recomputed.
  *
@@ -42,6 +43,7 @@ void arrays_close(sc_arrays *c) {
  * work); 0, or 1 when out of memory (work_close frees what was allocated). */
 int work_open(sc_work *s, const sc_function *fn, int n) {
     long exact = fn->jacobian == NULL ? 0 : fn->nx * fn->nx + fn->nu * fn->nu + fn->nu;
+    if (fn->jacobian != NULL && fn->force_jacobian != NULL) exact += fn->nu * (fn->nu + fn->m);
     memset(s, 0, sizeof(*s));
     s->fn = fn;
     s->n = n;
@@ -59,6 +61,7 @@ int work_open(sc_work *s, const sc_function *fn, int n) {
         s->Jx = s->LU + n * n;
         s->mass = s->Jx + fn->nx * fn->nx;
         s->dtau = s->mass + fn->nu * fn->nu;
+        s->dforce = fn->force_jacobian == NULL ? NULL : s->dtau + fn->nu;
     }
     return 0;
 }
@@ -213,11 +216,31 @@ static void cholesky_solve(const double *l, int k, double *b) {
     }
 }
 
+/* The force's derivative along state j (q's first nu, or a lagging input from nx) into
+ * s->dtau: exact from s->dforce (force_jacobian just evaluated), else by a forward
+ * difference of the scaled state from tau; 0, or -1 where the force fails. */
+static int force_column(sc_work *s, const double *y, const double *tau, int j) {
+    const sc_function *fn = s->fn;
+    int nu = fn->nu, i;
+    double saved, step;
+    if (s->dforce != NULL) {
+        const double *column = j < nu ? s->dforce + j * nu : s->dforce + nu * (nu + j - fn->nx);
+        memcpy(s->dtau, column, nu * sizeof(double));
+        return 0;
+    }
+    saved = s->x[j], step = s->nominal[j] * difference_step(y[j]);
+    s->x[j] = saved + step;
+    if (input_force(s, s->dtau) == NULL) return -1;
+    s->x[j] = saved;
+    for (i = 0; i < nu; ++i) s->dtau[i] = (s->dtau[i] - tau[i]) / step;
+    return 0;
+}
+
 /* J (column-major, the integrated scaled state's, n x n) from the model's exact Jacobian
  * at y: J_x at (x, tau); with an actuator, the accelerations' rows gain D^-1 dtau/dx (the
- * force H(q) v differentiated by forward differences of the scaled state, along q and the
- * lagging inputs, the only states it reads) and the lagging inputs' rows their rate's
- * -1 / time_constant. 0, or the failing call's nonzero. */
+ * force H(q) v differentiated along q and the lagging inputs, the only states it reads:
+ * by force_jacobian, or by forward differences of the scaled state) and the lagging
+ * inputs' rows their rate's -1 / time_constant. 0, or the failing call's nonzero. */
 static int exact_jacobian(sc_work *s, double *y, double *J) {
     const sc_function *fn = s->fn;
     int n = s->n, nx = fn->nx, nu = fn->nu, i, j;
@@ -236,13 +259,16 @@ static int exact_jacobian(sc_work *s, double *y, double *J) {
         for (i = 0; i < nx; ++i) J[i + j * n] = s->Jx[i + j * nx];
     if (fn->force != NULL) {
         if (cholesky(s->mass, nu)) return 1;
+        if (s->dforce != NULL) {
+            s->c.arg[0] = s->x;
+            s->c.arg[1] = fn->lag ? s->x + nx : s->u;
+            s->c.res[0] = s->dforce;
+            s->c.res[1] = s->dforce + nu * nu;
+            if (fn->force_jacobian(s->c.arg, s->c.res, s->c.iw, s->c.w, 0)) return -1;
+        }
         for (j = 0; j < n; ++j) {
-            double saved = s->x[j], step = s->nominal[j] * difference_step(y[j]);
             if (j >= nu && j < nx) continue;
-            s->x[j] = saved + step;
-            if (input_force(s, s->dtau) == NULL) return -1;
-            s->x[j] = saved;
-            for (i = 0; i < nu; ++i) s->dtau[i] = (s->dtau[i] - tau[i]) / step;
+            if (force_column(s, y, tau, j)) return -1;
             cholesky_solve(s->mass, nu, s->dtau);
             for (i = 0; i < nu; ++i) J[nu + i + j * n] += s->dtau[i];
         }

@@ -31,6 +31,7 @@ typedef struct {
     sc_arrays c;
     double *x, *xdot, *tau, *J, *LU, *ftmp;
     double *Jx, *mass, *dtau; /* with an exact Jacobian: its outputs, a force's column */
+    double *dforce; /* with the force's exact derivatives: d tau / d q, then H(q) */
     int n; /* states integrated: nx, plus m lagging inputs */
     int *piv;
     long jacobians;

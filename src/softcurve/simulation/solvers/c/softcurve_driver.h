@@ -33,12 +33,15 @@ typedef int (*lanes_fn)(const double *x, const double *u, const double *p, doubl
  * domain(q, p) -> 1 inside, 0 outside (the elements' rule, written once in Python; NULL:
  * no configuration is outside); optionally the same state derivative over lanes; and
  * optionally the model's exact Jacobian jacobian(x, tau, p) -> (J_x (nx x nx), D (nu x nu))
- * (softcurve.symbolic.derivatives; NULL: forward differences of f). */
+ * (softcurve.symbolic.derivatives; NULL: forward differences of f), with it the force's
+ * force_jacobian(q, v) -> (d tau / d q (nu x nu), H(q) (nu x m)) (NULL: forward
+ * differences of force). */
 typedef struct {
     casadi_fn f;
     casadi_fn force;
     casadi_fn domain;
     casadi_fn jacobian;
+    casadi_fn force_jacobian;
     int nx;
     int nu;
     int np;
