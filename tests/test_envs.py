@@ -294,6 +294,25 @@ def test_the_default_method_is_the_explicit_one_where_the_robot_allows_it(paper_
     assert stepper_method(walled, bellows, 0.02, None, None) is None
 
 
+def test_the_environments_take_the_exact_jacobian(paper_model):
+    """``jacobian="exact"`` reaches the stepper and makes the L-stable method the default
+    (the stepper's test checks the Jacobian itself); RK4 with it, and an unknown name, are
+    refused naming the field."""
+    bellows = envs.setup.default_actuator(1)
+    assert stepper_method(paper_model, bellows, 0.02, None, None, "exact") is None
+    env = envs.Reach(jacobian="exact")
+    stepper = env.episodes.setup.stepper
+    assert stepper.jacobian == "exact" and stepper.method == "ROS34PW2"
+    assert "exact Jacobian" in stepper.route.reason
+    observation, _ = env.reset(seed=0)
+    observation, *_ = env.step(env.action_space.sample())
+    assert np.all(np.isfinite(observation))
+    with pytest.raises(sc.ParameterError, match="jacobian='exact'"):
+        envs.Reach(method="RK4", jacobian="exact")
+    with pytest.raises(sc.ParameterError, match="jacobian must be one of"):
+        envs.Reach(jacobian="finite")
+
+
 def test_softcurve_imports_without_gymnasium():
     code = (
         "import sys; sys.modules['gymnasium'] = None\n"

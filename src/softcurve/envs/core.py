@@ -41,7 +41,8 @@ def make_episodes(task_class, num_envs: int, tolerance=None, **options):
         The task's success tolerance (its unit).
     **options : dict
         The keywords of :func:`~softcurve.envs.setup.build_setup` (robot, actuator,
-        scenario, environment, period, max_episode_steps, substeps, threads, method).
+        scenario, environment, period, max_episode_steps, substeps, threads, method,
+        jacobian).
     """
     whole_count("num_envs", num_envs)
     if options.get("environment") is None and options.get("scenario") is None:

@@ -26,7 +26,7 @@ from softcurve.description.bellows import PneumaticActuator
 from softcurve.description.robot import Robot
 from softcurve.scenarios.config import Scenario, scenario_from_dict
 from softcurve.scenarios.tables import read_toml
-from softcurve.simulation import SimulationSettings
+from softcurve.simulation import JACOBIANS, SimulationSettings
 from softcurve.simulation.solvers import ActuatorInput
 from softcurve.simulation.stepper import METHODS, Stepper, check_explicit_step, default_substeps
 
@@ -87,6 +87,13 @@ ENV_PARAMETERS = {
         "step: checked at construction, docs/stepping.md), else ``'ROS34PW2'``; "
         "``'ROS34PW2'`` when ``substeps`` is given.",
     ),
+    "jacobian": (
+        "str, optional",
+        "The Jacobian of the implicit method's Newton matrix: ``'differences'`` (default) "
+        "or ``'exact'``, the model's exact Jacobian (a longer first build, cheaper "
+        "periods from about four segments on: docs/stepping.md). ``'exact'`` makes "
+        "``'ROS34PW2'`` the default method, and is refused with ``'RK4'``.",
+    ),
     "threads": ("int, optional", "Threads of the stepper (its default)."),
     "render_mode": ("str, optional", "Gymnasium's render mode; only None is supported."),
 }
@@ -141,28 +148,31 @@ class Setup:
 
 
 _STEPPERS: dict[bytes, Stepper] = {}
-"""Steppers by content (robot, obstacles, actuator, period, substeps, threads, method): the
+"""Steppers by content (robot, obstacles, actuator, period, substeps, threads, method,
+Jacobian): the
 environments of one process share them, since building one (its compiled period
 function, loaded from the on-disk cache) takes seconds; a stepper keeps no state between
 calls."""
 
 
-def _stepper(robot, environment, actuator, period, substeps, threads, method) -> Stepper:
-    key = pickle.dumps((robot, environment, actuator, period, substeps, threads, method))
+def _stepper(robot, environment, actuator, period, substeps, threads, method, jacobian):
+    key = pickle.dumps((robot, environment, actuator, period, substeps, threads, method, jacobian))
     if key not in _STEPPERS:
         model = Model(robot, environment=environment)  # loaded from the on-disk cache
-        method = stepper_method(model, actuator, period, substeps, method)
+        method = stepper_method(model, actuator, period, substeps, method, jacobian)
         _STEPPERS[key] = Stepper(
-            model, actuator, period=period, substeps=substeps, threads=threads, method=method
-        )
+            model, actuator, period=period, substeps=substeps, threads=threads, method=method,
+            jacobian="differences" if jacobian is None else jacobian,
+        )  # fmt: skip
     return _STEPPERS[key]
 
 
-def stepper_method(model, actuator, period, substeps, method) -> str | None:
+def stepper_method(model, actuator, period, substeps, method, jacobian=None) -> str | None:
     """The stepper's method of an environment: ``method`` when given; else
     :data:`EXPLICIT_METHOD` where its default step passes its check on this robot
     (:func:`~softcurve.simulation.stepper.check_explicit_step`) and neither
-    ``substeps`` nor obstacles are given; else None (the stepper's default).
+    ``substeps``, obstacles nor the exact Jacobian are asked; else None (the stepper's
+    default).
 
     Parameters
     ----------
@@ -176,8 +186,11 @@ def stepper_method(model, actuator, period, substeps, method) -> str | None:
         Steps per period, if given.
     method : str or None
         The method asked for.
+    jacobian : str or None
+        The Jacobian asked for (``"exact"``: an implicit method).
     """
-    if method is not None or substeps is not None or model.environment is not None:
+    asked = method is not None or substeps is not None or jacobian == "exact"
+    if asked or model.environment is not None:
         return method
     explicit = METHODS[EXPLICIT_METHOD]
     steps = default_substeps(period, EXPLICIT_METHOD)
@@ -214,6 +227,7 @@ def build_setup(
     substeps=None,
     threads=None,
     method=None,
+    jacobian=None,
 ) -> Setup:
     """The :class:`Setup` of an environment from Python objects or a scenario.
 
@@ -230,6 +244,7 @@ def build_setup(
     %(substeps)s
     %(threads)s
     %(method)s
+    %(jacobian)s
     """
     q0 = qd0 = lam0 = None
     source = "built-in"
@@ -261,13 +276,15 @@ def build_setup(
             f"actuator must be a softcurve.Actuator acting on the robot's n = {robot.n} "
             f"coordinates, got {actuator!r}"
         )
+    if jacobian is not None and jacobian not in JACOBIANS:  # before the model is built
+        raise ParameterError(f"jacobian must be one of {JACOBIANS}, got {jacobian!r}")
     period = real_scalar("period", DEFAULT_PERIOD if period is None else period, positive=True)
     if max_episode_steps is None:
         max_episode_steps = max(1, math.ceil(duration / period - 1e-9))
     whole_count("max_episode_steps", max_episode_steps)
     if environment is not None:
         environment.check_robot(robot)
-    stepper = _stepper(robot, environment, actuator, period, substeps, threads, method)
+    stepper = _stepper(robot, environment, actuator, period, substeps, threads, method, jacobian)
     if q0 is None:
         q0 = rest_configuration(robot)
     x0 = np.array(stepper.initial_state(q0, qd0), dtype=np.float64)

@@ -44,6 +44,7 @@ class SoftRobotEnv(gymnasium.Env):
     %(substeps)s
     %(threads)s
     %(method)s
+    %(jacobian)s
     %(render_mode)s
     """
 
@@ -63,6 +64,7 @@ class SoftRobotEnv(gymnasium.Env):
         substeps=None,
         threads=None,
         method=None,
+        jacobian=None,
         render_mode=None,
     ):
         if render_mode is not None:
@@ -70,7 +72,7 @@ class SoftRobotEnv(gymnasium.Env):
         self.episodes = make_episodes(
             self.task_class, 1, tolerance, robot=robot, actuator=actuator, scenario=scenario,
             environment=environment, period=period, max_episode_steps=max_episode_steps,
-            substeps=substeps, threads=threads, method=method,
+            substeps=substeps, threads=threads, method=method, jacobian=jacobian,
         )  # fmt: skip
         self.observation_space = self.episodes.observation_space
         self.action_space = self.episodes.action_space

@@ -60,6 +60,7 @@ class SoftRobotVectorEnv(VectorEnv):
     %(substeps)s
     %(threads)s
     %(method)s
+    %(jacobian)s
     %(render_mode)s
     """
 
@@ -80,6 +81,7 @@ class SoftRobotVectorEnv(VectorEnv):
         substeps=None,
         threads=None,
         method=None,
+        jacobian=None,
         render_mode=None,
     ):
         if render_mode is not None:
@@ -88,6 +90,7 @@ class SoftRobotVectorEnv(VectorEnv):
             self.task_class, num_envs, tolerance, robot=robot, actuator=actuator,
             scenario=scenario, environment=environment, period=period,
             max_episode_steps=max_episode_steps, substeps=substeps, threads=threads, method=method,
+            jacobian=jacobian,
         )  # fmt: skip
         self.num_envs = self.episodes.size
         self.single_observation_space = self.episodes.observation_space
