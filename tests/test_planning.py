@@ -13,6 +13,8 @@ import scipy.optimize
 import softcurve as sc
 from softcurve.base.status import Status
 
+from .test_kinds import gripper, six_strain_segment
+
 NODES = 3  # quadrature nodes: a smaller expression, the same physics to check
 
 
@@ -141,7 +143,8 @@ def _problems(model, actuator, **request):
     from softcurve.control import _problem as problem
 
     tr = sc.Transcription(model, actuator)
-    x0, _ = a_state(tr, seed=7)
+    x0 = request.pop("x0", None)
+    x0 = a_state(tr, seed=7)[0] if x0 is None else tr.start(*x0)
     weights = {"reference_weight": 0.0, "effort_weight": 1e-3, "rate_weight": 1e-6,
                "time_weight": 1.0 if isinstance(request["horizon"], tuple) else 0.0}  # fmt: skip
     checked = problem.checked_request(
@@ -185,19 +188,30 @@ def _case(case, model, bellows):
         )
         box = ([-0.05, -0.05, 0.0], [0.05, 0.05, 0.07])
         return model, bellows, {"horizon": 0.2, "clearance": 0.0, "tip_bounds": box}
+    if case.startswith("six"):
+        robot = sc.Robot(segments=(six_strain_segment(creep=True), gripper()))
+        model = sc.Model(robot, quadrature_nodes=2, compile=False)
+        bellows = sc.PneumaticActuator.three_bellows(
+            elements=robot, distance=0.005, area=2e-5, p_max=1e5
+        )
+        bent = robot.rest_configuration() + np.array([5.0, -3.0, 4.0, 0.05, -0.02, 0.1])
+        return model, bellows, {"horizon": 0.2, "x0": (bent, np.full(robot.n, 0.5))}
     return model, bellows, {"horizon": 0.2}
 
 
 @pytest.mark.parametrize(
-    "case", ["fixed horizon", "free final time", "lag, clearance and tip bounds"]
-)
+    "case",
+    ["fixed horizon", "free final time", "lag, clearance and tip bounds",
+     "six strains with creep and a gripper"],
+)  # fmt: skip
 def test_the_derivatives_by_stages_are_casadis_through_the_whole_problem(case, model, bellows):
     """IPOPT gets the exact Hessian of the Lagrangian (Problem.lagrangian_hessian) and,
     with the Gauss-Newton Hessian, the constraints and their Jacobian
     (Problem.constraint_jacobian) assembled from each stage's derivatives of the
     right-hand side; CasADi's differentiate the whole problem (the exact one's, on the
     compiled collocation). At a point with the inputs across their range and random
-    multipliers."""
+    multipliers; on the paper's robot, and on a six-strain segment with creep carrying a
+    rigid gripper (twist, shear, a fixed placement)."""
     model, bellows, request = _case(case, model, bellows)
     built, point, rng = _problems(model, bellows, **request)
     exact = built["exact"]
