@@ -75,6 +75,11 @@ class NativeFunction:
                 raise RuntimeError(f"{name}: input {i} is sparse; only dense inputs are supported")
 
     @property
+    def shapes(self) -> tuple[tuple, tuple]:
+        """``(inputs, outputs)``: the ``(rows, columns)`` of each input and output."""
+        return tuple(s[:2] for s in self._in), tuple(s[:2] for s in self._out)
+
+    @property
     def address(self) -> int:
         """The generated function's address (what C calls it by: ``casadi_fn``)."""
         return ctypes.cast(self._function, ctypes.c_void_p).value

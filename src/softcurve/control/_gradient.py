@@ -7,8 +7,8 @@ the parameters, and the running integrals of an integrand), so it is differentia
 exactly along with the integration, in the state scaled as ``simulate`` scales it. Its
 derivative along the robot's parameters, the initial state and the input samples is
 taken by one of :data:`GRADIENT_METHODS`: the discrete adjoint of the C driver's Radau
-IIA (``softcurve.simulation.solvers``: the gradient of the very numbers its forward pass
-computed, the running integrals integrated as states), or, through CasADi's
+IIA (``softcurve.simulation.solvers``: the derivative of its discrete scheme, its step
+sizes held; the running integrals integrated as states), or, through CasADi's
 ``integrator`` over the robot's actuated right-hand side
 (:meth:`Transcription.compiled_rhs <softcurve.control.Transcription.compiled_rhs>`,
 compiled with its first derivatives), CVODES's adjoint (one backward pass for every seed
@@ -35,7 +35,6 @@ from softcurve.control._transcription import DERIVATIVE_FLAGS, Transcription
 from softcurve.simulation import RTOL_MIN
 from softcurve.simulation.sensitivity import SENSITIVITY_CVODES
 from softcurve.simulation.solvers import (
-    DRIVER_FLAGS,
     DriverProblem,
     RadauEngine,
     adjoint_backward,
@@ -56,19 +55,22 @@ backward pass, at :data:`RADAU_TOLERANCE`. ``adjoint``: CVODES's, one backward p
 all seeds, through CasADi. ``forward``: CVODES's forward sensitivities, one column per
 seed, and the right-hand side's second derivatives compiled besides the first. On the
 paper robot's 10 s swing at 100 output intervals along all 49 parameters and the
-initial state, ``radau-adjoint`` takes 12 ms, ``adjoint`` 1.39 s and ``forward`` 15.0 s
-(along the initial state alone 3.15 s; ``python benchmarks/bench_gradient.py
---methods``): the adjoints from the smallest group of seeds on, so the counts never
-favour forward. The CVODES routes stay as the independent checks of the discrete one
-(``tests/test_gradient.py``)."""
+initial state, ``radau-adjoint`` takes 0.043 s, ``adjoint`` 1.03 s and ``forward`` 11.4 s
+(along the initial state alone 0.047 s, 1.02 s and 2.10 s; ``python
+benchmarks/bench_gradient.py --methods``): the adjoints from the smallest group of seeds
+on, so the counts never favour forward. The CVODES routes stay as the independent checks
+of the discrete one (``tests/test_gradient.py``)."""
 
 RADAU_TOLERANCE = 1e-6
 """The relative tolerance of ``radau-adjoint``, and the absolute one of the scaled state
 (each state over its nominal size): ``simulate``'s defaults. There Radau IIA's states
-are 50 times more accurate than ``simulate``'s (the paper robot's 10 s swing: 4e-7 of
-the states' scales against 2e-5). The gradient is that of the numbers computed, so it is
-exact at any tolerance: a looser one is a faster gradient of a less accurate
-trajectory (``python benchmarks/bench_gradient.py --radau``)."""
+are 20 times more accurate than ``simulate``'s (the paper robot's 10 s swing at 100
+output intervals: 8.8e-7 of the states' scales against 2.0e-5), and the gradient lies
+9e-6 from CVODES's at 1e-10 (``python benchmarks/bench_gradient.py --radau``). The
+derivative holds the step sizes, which move with the start, inputs and parameters: at
+this tolerance it is within 5e-6 of central differences of its own values, at 1e-4
+within 3e-3 (``tests/test_gradient.py``'s case), so a looser tolerance is a faster but
+rougher gradient, of a less accurate trajectory."""
 
 WITH_RESPECT_TO = ("parameters", "x0", "inputs")
 """What :func:`gradient` differentiates along (its ``wrt``): the model's parameter vector
@@ -85,7 +87,8 @@ the tolerance; at these the adjoint and forward sensitivities agree to 1e-6 and 
 differences to 1e-5 (``tests/test_gradient.py``)."""
 
 MAX_STEPS = SENSITIVITY_CVODES["max_num_steps"]
-"""CVODES's internal steps allowed between two output times: the fits' budget."""
+"""The steps allowed between two output times (CVODES's or Radau IIA's): the fits'
+budget."""
 
 
 @dataclass(frozen=True, eq=False)
@@ -152,7 +155,8 @@ class RolloutGradient(Result):
         SUCCESS; LEFT_DOMAIN where the trajectory leaves the model's or the actuator's
         domain at an output time (checked at the output times, as ``simulate`` checks
         its outputs: give times as dense as the check should be), with no gradient (NaN);
-        INTEGRATION_FAILED where CVODES stopped, in the integration or its derivative.
+        INTEGRATION_FAILED where the integration or its derivative stopped, or a
+        derivative is not finite.
     message : str
         What happened.
     value : float
@@ -270,11 +274,17 @@ AUTO_FALLBACK = "auto: CVODES's adjoint, since the C driver does not run here ({
 """Why ``method="auto"`` takes ``adjoint`` where the driver does not run."""
 
 
-def _method(method: str, tr: Transcription) -> tuple[str, str]:
+def _method_name(method: str) -> str:
     if method != "auto" and method not in GRADIENT_METHODS:
         raise ParameterError(
             f"method must be 'auto' or one of {', '.join(GRADIENT_METHODS)}, got {method!r}"
         )
+    return method
+
+
+def _method(method: str, tr: Transcription) -> tuple[str, str]:
+    """The method taken and why; where it needs the driver, after every other check (the
+    driver may be built here)."""
     why = _driver_missing(tr) if method in ("auto", GRADIENT_METHODS[0]) else None
     if method == "auto":
         if why is None:
@@ -350,20 +360,22 @@ def gradient(
         A lagging actuator's inputs at the start (default its rest inputs).
     running : callable(x, u, p) -> casadi.SX, optional
         An integrand of the state (n_x,), the inputs (n_u,) and the parameters (n_p,),
-        shape (k,); its integrals are ``trajectory.integral``, integrated by CVODES with
-        the state and under its error test (not a sum over the output times). The tip is
+        shape (k,); its integrals are ``trajectory.integral``, integrated with the state
+        and under its error test (not a sum over the output times). The tip is
         ``sc.Transcription(model).tip(x, p)``.
     wrt : str or sequence of str
         What to differentiate along, among :data:`WITH_RESPECT_TO` (default all).
-    method : {"auto", "adjoint", "forward"}
-        :data:`GRADIENT_METHODS`; "auto" takes adjoint.
+    method : {"auto", "radau-adjoint", "adjoint", "forward"}
+        :data:`GRADIENT_METHODS`; "auto" takes ``radau-adjoint`` where the C driver runs,
+        else ``adjoint`` (the result's ``reason`` says which and why).
     parameters : array_like, shape (n_p,), optional
         The parameter vector to integrate and differentiate at, each entry in its unit
         (``Robot.parameter_names()``; default ``model.parameters``): an optimizer's
         iterate, without a model built for it. Checked as a robot is built (every field
         in its range), and the domain checked with its rest lengths.
     rtol : float, optional
-        The integration's relative tolerance, in ``[1e-14, 1)``; the absolute one of the
+        The integration's relative tolerance, in ``[RTOL_MIN, 1)`` (2.2e-14,
+        ``softcurve.simulation.RTOL_MIN``); the absolute one of the
         scaled state keeps the default's ratio to it. Default :data:`RADAU_TOLERANCE`
         for ``radau-adjoint``, the first of :data:`GRADIENT_TOLERANCES` for CVODES's routes.
 
@@ -387,12 +399,14 @@ def gradient(
     x0 = tr.start(q0, qd0, lam0, actuator_state)
     samples = _samples(inputs, tr, t.size)
     wrt = _wrt(wrt)
-    chosen, reason = _method(method, tr)
-    tolerances = _tolerances(rtol, chosen)
+    method = _method_name(method)
+    _tolerances(rtol, GRADIENT_METHODS[0])  # the range, before the driver is built
     robot, p_value = _robot_at(tr, parameters, x0)
     integrand = None if running is None else _integrand(running, tr)
     if not callable(cost):
         raise ParameterError("cost must be a callable of the trajectory's symbols")
+    chosen, reason = _method(method, tr)
+    tolerances = _tolerances(rtol, chosen)
     start, samples_sym, params = (ca.MX.sym(name, *shape) for name, shape in (
         ("x0", (tr.n_x,)), ("u", (tr.n_u, t.size)), ("p", (tr.parameters.size,))))  # fmt: skip
     arguments = [params, start, samples_sym]
@@ -473,8 +487,12 @@ def _radau_gradient(of_states, numbers, integrand, wrt, robot, failed, tolerance
                             nominal, t, *tolerances, MAX_STEPS, stops)  # fmt: skip
     x, quadratures = taped.states[:, : tr.n_x], taped.states[:, tr.n_x :].T
     if taped.flag:
-        return _failed(Status.INTEGRATION_FAILED, _radau_failed(taped.flag, taped.reached),
-                       x=np.where(np.arange(t.size)[:, None] < taped.reached, x, np.nan),
+        reached = taped.reached
+        x = np.where(np.arange(t.size)[:, None] < reached, x, np.nan)
+        outside = tr.domain_exit(x[:reached], t[:reached], robot)  # the cause, where it is
+        if outside is not None:
+            return _failed(Status.LEFT_DOMAIN, outside, x=x, **failed)
+        return _failed(Status.INTEGRATION_FAILED, _radau_failed(taped.flag, reached), x=x,
                        **failed)  # fmt: skip
     problem_text = tr.domain_exit(x, t, robot)
     if problem_text is not None:
@@ -488,8 +506,6 @@ def _radau_gradient(of_states, numbers, integrand, wrt, robot, failed, tolerance
         return _failed(Status.INTEGRATION_FAILED, "the cost's derivative along the state at "
                        f"t = {when:g} s is not finite: no gradient", x=x, **failed)  # fmt: skip
     flag, lam, d_u, d_p, _ = adjoint_backward(taped, vjp, along_states)
-    if not flag and not all(np.all(np.isfinite(a)) for a in (lam, d_u, d_p)):
-        flag = BACKWARD_NOT_FINITE
     if flag:
         reason = BACKWARD_FAILURES.get(driver_reason(flag), driver_reason(flag))
         return _failed(Status.INTEGRATION_FAILED, f"Radau IIA's adjoint stopped: {reason}",
@@ -518,10 +534,6 @@ BACKWARD_FAILURES = {
     "the inputs or the parameters",
 }
 """The backward pass's failures (the driver's flags by name) in words."""
-
-BACKWARD_NOT_FINITE = next(f for f, name in DRIVER_FLAGS.items() if name == "CV_RHSFUNC_FAIL")
-"""The flag of a backward pass whose sums along the inputs or the parameters are not
-finite: the driver checks the multipliers only."""
 
 
 def _radau_functions(tr: Transcription, integrand) -> tuple:

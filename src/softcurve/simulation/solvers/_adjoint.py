@@ -1,13 +1,17 @@
-"""The discrete adjoint of the driver's Radau IIA (``c/adjoint.c``): the exact gradient of a
+"""The discrete adjoint of the driver's Radau IIA (``c/adjoint.c``): the gradient of a
 function of the states Radau IIA computes at output times, along the initial state, the
 held inputs and the parameters, in one forward pass that tapes the steps and one backward
 pass per scalar.
 
-Differentiating the scheme rather than the equations makes the gradient that of the
-numbers the forward pass returned (the step sizes held, as CVODES holds them), at any
-tolerance; the backward pass costs one reverse-mode evaluation of the right-hand side per
-stage and iteration of a transposed simplified Newton iteration on the forward pass's own
-Newton matrices (``c/adjoint.c`` has the equations).
+It differentiates the scheme rather than the equations: the numbers the forward pass
+returned, with its step sizes held (as CVODES holds its own) and its stages taken as
+converged. The step sizes move with the start, inputs and parameters all the same, so
+the gradient is that of the computed numbers only as far as the tolerance is tight (on
+the paper robot at rtol 1e-6 within 4e-6 of central differences of those numbers), and
+the gradient of the exact flow as far as the states are accurate. The backward pass costs
+one reverse-mode evaluation of the right-hand side per stage and iteration of a
+transposed simplified Newton iteration on the forward pass's own Newton matrices
+(``c/adjoint.c`` has the equations).
 """
 
 from __future__ import annotations
@@ -29,11 +33,14 @@ Newton matrices, Jacobians computed afresh where the taped one did not converge.
 
 TAPE_GROWTH = 4
 """Where the tape is full the forward pass runs again with this many times the room of
-what filled (steps or Jacobians)."""
+what filled (steps or Jacobians): at most ``log_4`` of the steps over the first room
+runs, where doubling would take twice as many."""
 
 FIRST_ROOM = (1024, 2, 64)
 """The first forward pass's room: ``a + b (T - 1)`` steps for ``T`` output times, and
-``c`` Jacobians (a forward pass keeps its Jacobian over many steps)."""
+``c`` Jacobians. The paper robot's 10 s swing at rtol 1e-6 takes 701, 776 and about 1,500
+steps at 1, 100 and 1,000 output intervals (``benchmarks/bench_gradient.py``), and 56
+Jacobians over 6,702 steps of a violent 0.5 s start: each in one pass."""
 
 
 def vjp_function(rhs: ca.Function) -> ca.Function:
@@ -50,6 +57,8 @@ def vjp_function(rhs: ca.Function) -> ca.Function:
     casadi.Function
         SX where ``rhs`` is SX.
     """
+    if rhs.n_in() != 3 or rhs.n_out() != 1:
+        raise ValueError(f"rhs must be (x, u, p) -> f, got {rhs}")
     symbols = [rhs.sx_in(i) if rhs.is_a("SXFunction") else rhs.mx_in(i) for i in range(3)]
     f = rhs(*symbols)
     v = type(f).sym("v", f.shape[0])
@@ -59,7 +68,8 @@ def vjp_function(rhs: ca.Function) -> ca.Function:
 
 @dataclass(frozen=True)
 class Taped:
-    """A forward pass of :func:`adjoint_forward`.
+    """A forward pass of :func:`adjoint_forward`, its arrays read-only (the backward pass
+    reads them again).
 
     Attributes
     ----------
@@ -125,9 +135,11 @@ def adjoint_forward(problem, x0, u, p, nominal, times, rtol, atol, max_steps, st
     -------
     Taped
     """
-    arrays = tuple(np.ascontiguousarray(a, dtype=np.float64) for a in (u, p, nominal, times))
-    n, count = x0.size, times.size
-    stops = np.ones(count, np.int32) if stops is None else np.asarray(stops, np.int32)
+    arrays = tuple(np.array(a, dtype=np.float64, order="C") for a in (u, p, nominal, times))
+    x0 = np.asarray(x0, dtype=np.float64)
+    n, count = x0.size, arrays[3].size
+    stops = np.ones(count, np.int32) if stops is None else np.array(stops, np.int32)
+    _check_problem(problem, n, arrays, stops)
     owner, abscissa = np.zeros(count, np.int64), np.zeros(count)
     entry = c_driver.DECLARATIONS.constants["TAPE_HEAD"] + 4 * n
     settings = c_driver.options(rtol, atol, max_steps, family=3, radau=radau_constants())
@@ -136,7 +148,12 @@ def adjoint_forward(problem, x0, u, p, nominal, times, rtol, atol, max_steps, st
     while True:
         out = np.zeros((count, n))
         out[0] = x0
-        tape, jacobians = np.empty((room, entry)), np.empty((jacobian_room, n, n))
+        try:
+            tape, jacobians = np.empty((room, entry)), np.empty((jacobian_room, n, n))
+        except MemoryError:  # a tape beyond memory: the pass cannot be set up
+            return _frozen_taped(out, 1, OUT_OF_MEMORY, {}, 0, np.empty((0, entry)),
+                                 np.empty((0, n, n)), (problem, settings, *arrays, owner,
+                                                       abscissa))  # fmt: skip
         used, stats = np.zeros(2, np.int64), np.zeros(len(c_driver.STATISTICS), np.int64)
         reached = ctypes.c_int(0)
         flag = call(
@@ -154,8 +171,41 @@ def adjoint_forward(problem, x0, u, p, nominal, times, rtol, atol, max_steps, st
             jacobian_room *= TAPE_GROWTH
     counts = dict(zip(c_driver.STATISTICS, stats.tolist(), strict=True))
     kept = jacobians[: max(int(used[1]), 1)].copy()
-    return Taped(out, reached.value, int(flag), counts, int(used[0]), tape, kept,
-                 (problem, settings, *arrays, owner, abscissa))  # fmt: skip
+    return _frozen_taped(out, reached.value, int(flag), counts, int(used[0]), tape, kept,
+                         (problem, settings, *arrays, owner, abscissa))  # fmt: skip
+
+
+OUT_OF_MEMORY = -100
+"""The flag of a pass that could not be set up (the driver's own, ``FLAGS`` of
+``softcurve.simulation.solvers``): here its tape does not fit in memory."""
+
+
+def _frozen_taped(out, reached, flag, counts, steps, tape, jacobians, arguments) -> Taped:
+    """A :class:`Taped` whose arrays are read-only."""
+    for array in (out, tape, jacobians, *arguments[2:]):
+        array.setflags(write=False)
+    return Taped(out, reached, flag, dict(counts), steps, tape, jacobians, arguments)
+
+
+def _check_problem(problem, n: int, arrays, stops) -> None:
+    """Refuse what the driver would read or write out of bounds, and the problems the
+    backward pass cannot differentiate (an actuator's force or lag outside ``f``)."""
+    fn = problem.struct
+    if fn.force or fn.lag:
+        raise ValueError(
+            "the discrete adjoint takes a problem whose f is the whole right-hand side "
+            "(no actuator's force or lag beside it): compile the actuated right-hand side"
+        )
+    u, p, nominal, times = arrays
+    count = times.size
+    expected = {"x0": ((fn.nx,), (n,)), "u": ((count, fn.nu), u.shape),
+                "p": ((fn.np,), p.shape), "nominal": ((fn.nx,), nominal.shape),
+                "stops": ((count,), stops.shape)}  # fmt: skip
+    for name, (shape, got) in expected.items():
+        if shape != got:
+            raise ValueError(f"{name} must have shape {shape}, got {got}")
+    if count < 2 or not np.all(np.diff(times) > 0) or not np.all(np.isfinite(times)):
+        raise ValueError("times must be at least two increasing output times")
 
 
 def adjoint_backward(taped: Taped, vjp, seeds) -> tuple:
@@ -166,7 +216,7 @@ def adjoint_backward(taped: Taped, vjp, seeds) -> tuple:
     Parameters
     ----------
     taped : Taped
-        A forward pass that succeeded.
+        A forward pass that succeeded (else ValueError).
     vjp : NativeFunction
         :func:`vjp_function` of the problem's actuated right-hand side, compiled.
     seeds : ndarray, shape (T, n)
@@ -182,6 +232,13 @@ def adjoint_backward(taped: Taped, vjp, seeds) -> tuple:
     """
     problem, settings, u, p, nominal, times, owner, abscissa = taped.arguments
     seeds = np.ascontiguousarray(seeds, dtype=np.float64)
+    if taped.flag or taped.reached != times.size:
+        raise ValueError(f"the forward pass failed (flag {taped.flag}): nothing to send back")
+    if seeds.shape != taped.states.shape:
+        raise ValueError(f"seeds must have shape {taped.states.shape}, got {seeds.shape}")
+    shapes = ((nominal.size, 1), (u.shape[1], 1), (p.size, 1))
+    if vjp.n_in != 4 or vjp.shapes[1] != shapes:
+        raise ValueError(f"vjp must be (x, u, p, v) -> outputs of shapes {shapes}")
     lam, d_u, d_p = np.zeros(nominal.size), np.zeros_like(u), np.zeros(p.size)
     sizes = np.array(vjp.work_sizes, np.int64)
     stats = np.zeros(len(ADJOINT_STATISTICS), np.int64)

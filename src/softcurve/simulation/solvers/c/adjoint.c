@@ -51,8 +51,9 @@ static int inputs_of(const sc_function *fn) { return fn->force ? fn->m : fn->nu;
 static int tape_step(const sc_radau *r, const sc_work *s, int row, double *tape, long capacity,
                      double *jacobians, long jacobian_capacity, long *used, long *last) {
     int n = r->n;
-    double *at = tape + used[0] * TAPE_ENTRY(n);
+    double *at;
     if (used[0] >= capacity) return TAPE_FULL;
+    at = tape + used[0] * TAPE_ENTRY(n);
     if (s->jacobians != *last) { /* the Jacobian this step iterated on */
         if (used[1] >= jacobian_capacity) return TAPE_FULL;
         memcpy(jacobians + used[1] * n * n, s->J, sizeof(double) * n * n);
@@ -301,7 +302,7 @@ SC_EXPORT int softcurve_adjoint_backward(const sc_function *fn, const sc_options
                                          long steps, const double *jacobians,
                                          const double *seeds, double *lambda, double *d_u,
                                          double *d_p, long *stats) {
-    int n = states_of(fn), inputs = inputs_of(fn), i, j, flag = 0, rounds = 0, inner;
+    int n = states_of(fn), inputs = inputs_of(fn), i, j, flag = 0, rounds = 0, inner, fresh;
     long step, entry = TAPE_ENTRY(n), next = count - 1;
     double tolerance = fmax(ADJOINT_TOLERANCE * options->rtol, 10.0 * DBL_EPSILON);
     sc_adjoint a;
@@ -323,7 +324,8 @@ SC_EXPORT int softcurve_adjoint_backward(const sc_function *fn, const sc_options
         for (j = 0; j < n && lambda[j] == 0.0; ++j) {}
         if (j == n && !inner) continue; /* nothing after this step is seeded */
         for (j = 0; j < n; ++j) a.zbar[2 * n + j] += lambda[j]; /* y1 = y0 + Z_3 */
-        if (a.stale) { /* the last step converged slowly: a fresh Jacobian from here on */
+        fresh = a.stale;
+        if (fresh) { /* the last step converged slowly: a fresh Jacobian from here on */
             if (refresh(&a, y0, u_step, h)) {
                 flag = CV_LSETUP_FAIL;
                 break;
@@ -335,7 +337,7 @@ SC_EXPORT int softcurve_adjoint_backward(const sc_function *fn, const sc_options
             }
         }
         flag = step_multipliers(&a, h, y0, z, u_step, p, nominal, tolerance, &rounds);
-        if (flag == 1 && !a.stale) { /* once more on a fresh Jacobian at the step's start */
+        if (flag == 1 && !fresh) { /* once more on a fresh Jacobian at the step's start */
             if (refresh(&a, y0, u_step, h)) {
                 flag = CV_LSETUP_FAIL;
                 break;
@@ -352,6 +354,12 @@ SC_EXPORT int softcurve_adjoint_backward(const sc_function *fn, const sc_options
             for (j = 0; j < n; ++j) lambda[j] += a.xb[i * n + j];
             for (j = 0; j < inputs; ++j) du[j] += a.ub[i * inputs + j];
             for (j = 0; j < fn->np; ++j) d_p[j] += a.pb[i * fn->np + j];
+        }
+        for (j = 0; j < 3 * inputs && isfinite(a.ub[j]); ++j) {}
+        for (i = 0; i < 3 * fn->np && isfinite(a.pb[i]); ++i) {}
+        if (j < 3 * inputs || i < 3 * fn->np) { /* the multipliers' own test passes these */
+            flag = CV_RHSFUNC_FAIL;
+            break;
         }
     }
     if (!flag) {

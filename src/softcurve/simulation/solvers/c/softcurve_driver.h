@@ -181,15 +181,16 @@ SC_EXPORT int softcurve_adjoint_forward(const sc_function *fn, const sc_options 
                                         long *stats, int *reached);
 
 /* The backward pass over the `steps` taped by softcurve_adjoint_forward (the same fn,
- * options, u, p, nominal, count, owner and abscissa): with seeds[i, :] the derivative of
- * a scalar along the physical state out[i, :], writes its derivative along the initial
- * state into lambda (n) and adds those along the inputs into d_u (the row each step held,
- * count rows of the inputs) and the parameters into d_p (np). vjp(x, u, p, v) -> (f_x^T v, f_u^T v, f_p^T v) is f's
- * reverse mode (physical x, the lagging inputs included), of work sizes vjp_sizes (4).
- * Returns 0, -100 when it could not be set up, CV_CONV_FAILURE where a step's
- * multipliers do not converge on a fresh Jacobian either, CV_LSETUP_FAIL where its
- * Newton matrices are singular, CV_RHSFUNC_FAIL where the vjp fails; adds to stats: vjp
- * evaluations, iterations, factorizations, fresh Jacobians. */
+ * options, u, p, nominal, count, owner and abscissa; fn's f the whole right-hand side, no
+ * force or lag beside it): with seeds[i, :] the derivative of a scalar along the physical
+ * state out[i, :], writes its derivative along the initial state into lambda (n) and adds
+ * those along the inputs into d_u (the row each step held, count rows of the inputs) and
+ * the parameters into d_p (np). vjp(x, u, p, v) -> (f_x^T v, f_u^T v, f_p^T v) is f's
+ * reverse mode, of work sizes vjp_sizes (4). Returns 0, -100 when it could not be set up,
+ * CV_CONV_FAILURE where a step's multipliers do not converge on a fresh Jacobian either,
+ * CV_LSETUP_FAIL where its Newton matrices are singular, CV_RHSFUNC_FAIL where the vjp
+ * fails or its sums along u or p are not finite; adds to stats: vjp evaluations,
+ * iterations, factorizations, fresh Jacobians. */
 SC_EXPORT int softcurve_adjoint_backward(const sc_function *fn, const sc_options *options,
                                          casadi_fn vjp, const long long *vjp_sizes,
                                          const double *u, const double *p,
