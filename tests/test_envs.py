@@ -11,6 +11,7 @@ import subprocess
 import sys
 import textwrap
 import warnings
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -23,6 +24,8 @@ import softcurve as sc  # noqa: E402
 import softcurve.envs as envs  # noqa: E402
 from softcurve.envs.core import NOT_FINITE  # noqa: E402
 from softcurve.envs.setup import build_setup, stepper_method  # noqa: E402
+
+EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
 
 STEPS = 3
 """Episode length of most tests (control periods): short, so that autoresets happen."""
@@ -294,10 +297,10 @@ def test_the_default_method_is_the_explicit_one_where_the_robot_allows_it(paper_
     assert stepper_method(walled, bellows, 0.02, None, None) is None
 
 
-def test_the_environments_take_the_exact_jacobian(paper_model):
+def test_the_environments_take_the_exact_jacobian(paper_model, tmp_path):
     """``jacobian="exact"`` reaches the stepper and makes the L-stable method the default
-    (the stepper's test checks the Jacobian itself); RK4 with it, and an unknown name, are
-    refused naming the field."""
+    (the stepper's test checks the Jacobian itself), as a scenario's ``[simulation]
+    jacobian`` does; RK4 with it, and an unknown name, are refused naming the field."""
     bellows = envs.setup.default_actuator(1)
     assert stepper_method(paper_model, bellows, 0.02, None, None, "exact") is None
     env = envs.Reach(jacobian="exact")
@@ -307,6 +310,10 @@ def test_the_environments_take_the_exact_jacobian(paper_model):
     observation, _ = env.reset(seed=0)
     observation, *_ = env.step(env.action_space.sample())
     assert np.all(np.isfinite(observation))
+    scenario = tmp_path / "exact.toml"
+    scenario.write_text(EXAMPLES.joinpath("pneumatic.toml").read_text()
+                        + '\n[simulation]\njacobian = "exact"\n')  # fmt: skip
+    assert envs.Reach.from_scenario(scenario).episodes.setup.stepper.jacobian == "exact"
     with pytest.raises(sc.ParameterError, match="jacobian='exact'"):
         envs.Reach(method="RK4", jacobian="exact")
     with pytest.raises(sc.ParameterError, match="jacobian must be one of"):
@@ -356,7 +363,6 @@ def test_the_benchmark_makes_its_vectors_as_a_user_does():
     robot), another method by ``method=``."""
     import ast
     import importlib.util
-    from pathlib import Path
 
     path = Path(__file__).resolve().parents[1] / "benchmarks" / "bench_envs.py"
     tree = ast.parse(path.read_text())

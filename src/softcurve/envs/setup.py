@@ -60,8 +60,9 @@ ENV_PARAMETERS = {
         "Scenario or str or Path, optional",
         "A scenario (or its TOML file) giving the robot, the ``[actuation]``, the "
         "``[environment]``, the start ``q0``/``qd0``/``lam0``, and, where the file sets "
-        "them, the control period (``[simulation] dt``) and the episode's duration "
-        "(``t_final``); instead of ``robot``/``actuator``.",
+        "them, the control period (``[simulation] dt``), the episode's duration "
+        "(``t_final``) and the stepper's Jacobian (``jacobian``); instead of "
+        "``robot``/``actuator``.",
     ),
     "environment": (
         "Environment, optional",
@@ -89,8 +90,9 @@ ENV_PARAMETERS = {
     ),
     "jacobian": (
         "str, optional",
-        "The Jacobian of the implicit method's Newton matrix: ``'differences'`` (default) "
-        "or ``'exact'``, the model's exact Jacobian (a longer first build, cheaper "
+        "The Jacobian of the implicit method's Newton matrix: ``'differences'`` (default, "
+        "or the scenario's ``[simulation] jacobian`` where its file sets it) or "
+        "``'exact'``, the model's exact Jacobian (a longer first build, cheaper "
         "periods from about four segments on: docs/stepping.md). ``'exact'`` makes "
         "``'ROS34PW2'`` the default method, and is refused with ``'RK4'``.",
     ),
@@ -201,16 +203,21 @@ def stepper_method(model, actuator, period, substeps, method, jacobian=None) -> 
     return EXPLICIT_METHOD
 
 
+SCENARIO_KEYS = ("dt", "t_final", "jacobian")
+"""The ``[simulation]`` keys of a scenario that an environment takes where the file sets
+them: the control period, the episode's duration and the stepper's Jacobian."""
+
+
 def _scenario(value) -> tuple[Scenario, set[str]]:
     """The scenario and which ``[simulation]`` keys its file sets explicitly."""
     if isinstance(value, Scenario):
         default = SimulationSettings()
-        given = {k for k in ("dt", "t_final") if getattr(value.settings, k) != getattr(default, k)}
+        given = {k for k in SCENARIO_KEYS if getattr(value.settings, k) != getattr(default, k)}
         return value, given
     if isinstance(value, str | Path):
         data, file = read_toml(value)
         simulation = data.get("simulation", {})
-        given = {k for k in ("dt", "t_final") if isinstance(simulation, dict) and k in simulation}
+        given = {k for k in SCENARIO_KEYS if isinstance(simulation, dict) and k in simulation}
         return scenario_from_dict(data, file), given
     raise ParameterError(f"scenario must be a softcurve Scenario or a TOML path, got {value!r}")
 
@@ -266,6 +273,8 @@ def build_setup(
             period = scenario.settings.dt
         if max_episode_steps is None and "t_final" in given:
             duration = scenario.settings.t_final
+        if jacobian is None and "jacobian" in given:
+            jacobian = scenario.settings.jacobian
     robot = presets.ifac2020() if robot is None else robot
     if not isinstance(robot, Robot):
         raise ParameterError(f"robot must be a softcurve.Robot, got {robot!r}")
