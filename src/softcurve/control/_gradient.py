@@ -22,8 +22,10 @@ acts on ``[t_k, t_(k+1))``, so the last row acts on nothing and its gradient is 
 from __future__ import annotations
 
 import time
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from functools import cached_property
+from types import MappingProxyType
 
 import casadi as ca
 import numpy as np
@@ -186,6 +188,13 @@ class RolloutGradient(Result):
         Wall time [s] of the integration and its derivative (the build excluded).
     transcription : Transcription
         The model and actuator.
+    stats : Mapping
+        The counters of ``radau-adjoint``'s passes, read-only: the forward pass's
+        (``steps``, ``rhs_evaluations``, ``jacobian_evaluations``,
+        ``linear_solver_setups``, ``error_test_failures``, ``newton_failures``) and the
+        backward pass's (``ADJOINT_STATISTICS`` of ``softcurve.simulation.solvers``:
+        ``vjp_evaluations``, ``iterations``, ``factorizations``, ``fresh_jacobians``).
+        Empty for CVODES's routes and where the forward pass failed.
     """
 
     status: Status
@@ -202,6 +211,7 @@ class RolloutGradient(Result):
     at: np.ndarray
     solve_time: float
     transcription: Transcription = field(repr=False, compare=False)
+    stats: Mapping = field(default_factory=lambda: MappingProxyType({}), compare=False)
 
     @property
     def by_name(self) -> dict:
@@ -505,7 +515,7 @@ def _radau_gradient(of_states, numbers, integrand, wrt, robot, failed, tolerance
         when = t[np.flatnonzero(~np.all(np.isfinite(along_states), axis=1))[0]]
         return _failed(Status.INTEGRATION_FAILED, "the cost's derivative along the state at "
                        f"t = {when:g} s is not finite: no gradient", x=x, **failed)  # fmt: skip
-    flag, lam, d_u, d_p, _ = adjoint_backward(taped, vjp, along_states)
+    flag, lam, d_u, d_p, backward = adjoint_backward(taped, vjp, along_states)
     if flag:
         reason = BACKWARD_FAILURES.get(driver_reason(flag), driver_reason(flag))
         return _failed(Status.INTEGRATION_FAILED, f"Radau IIA's adjoint stopped: {reason}",
@@ -517,7 +527,7 @@ def _radau_gradient(of_states, numbers, integrand, wrt, robot, failed, tolerance
         _frozen(t), _frozen(x), *(_frozen(asked[w]) if w in wrt else None
                                   for w in WITH_RESPECT_TO),
         failed["method"], failed["reason"], failed["names"], _frozen(p_value),
-        time.perf_counter() - began, tr,
+        time.perf_counter() - began, tr, MappingProxyType({**taped.counts, **backward}),
     )  # fmt: skip
 
 
