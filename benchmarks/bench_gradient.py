@@ -3,6 +3,7 @@ on the paper's case: preset ifac2020, q0 = (0.064, 25, 0), qd0 = (0, 0, 1500), 1
 
 Run:  python benchmarks/bench_gradient.py [--intervals 1 100 1000] [--repeat 3]
       python benchmarks/bench_gradient.py --methods | --radau | --costs | --flags
+      python benchmarks/bench_gradient.py --chain 1 2 4
 
 The cost is the integral of the squared coordinate rates over the 10 s (``running``,
 integrated with the state) plus the squared tip height at every output time; the
@@ -22,9 +23,13 @@ adjoint of the driver's Radau IIA where the driver runs.
 against ``simulate`` at rtol 1e-12, each state over its nominal size, beside that of
 ``simulate``'s default run; its time against ``simulate``'s; and how far its gradient
 lies from CVODES's adjoint at 1e-10 (the largest difference over the largest entry).
-``--costs`` times other costs on 100 intervals along the parameters and the initial
-state: the integral alone, the tip's height at the end, the squared state at every
-output time. ``--flags`` compiles the right-hand side with its first derivatives under
+``--chain N ...`` runs chains of N paper segments, 1 s from a bent start at rest, 10
+output intervals, the squared tip position at the end, along the parameters and the
+initial state: the discrete adjoint and CVODES's adjoint (first call and best of
+``--repeat``) beside ``simulate``'s default run of the same second. ``--costs`` times
+other costs on 100 intervals along the parameters and the initial state: the integral
+alone, the tip's height at the end, the squared state at every output time.
+``--flags`` compiles the right-hand side with its first derivatives under
 ``DERIVATIVE_FLAGS`` and under the model's flags, each in an empty cache, and times a
 CVODES adjoint on 100 intervals with each (``DERIVATIVE_FLAGS``).
 """
@@ -134,12 +139,38 @@ def flags(model, repeat: int) -> None:
             print(f"| {' '.join(chosen)} | {compiled:.1f} | {wall:.3f} |")
 
 
+def chains(segments, repeat: int) -> None:
+    """``--chain``: the gradient of chains of paper segments against ``simulate``."""
+    print("\n| N | method | first call [s] | gradient [ms] | simulate [ms] | / simulate | steps |")
+    print("| --- | --- | --- | --- | --- | --- | --- |")
+    t = np.linspace(0.0, 1.0, 11)
+    for n in segments:
+        model = sc.Model(sc.presets.ifac2020().with_segments(n))
+        q0, qd0 = np.tile([0.064, 5.0, 0.0], n), np.zeros(3 * n)
+        sc.simulate(model, q0, qd0, t_final=1.0)
+        forward, _ = best_of(repeat, lambda m=model, q=q0, v=qd0: sc.simulate(m, q, v, t_final=1.0))
+        for method in ("radau-adjoint", "adjoint"):
+
+            def run(m=model, q=q0, method=method):
+                return sc.gradient(m, lambda tr: ca.sumsqr(tr.tip[:, -1]), q, t=t,
+                                   wrt=("parameters", "x0"), method=method)  # fmt: skip
+
+            began = time.perf_counter()
+            assert run().success
+            cold = time.perf_counter() - began
+            wall, g = best_of(repeat, run)
+            steps = g.stats.get("steps", "")
+            print(f"| {n} | {method} | {cold:.1f} | {1e3 * wall:.1f} | {1e3 * forward:.1f} | "
+                  f"{wall / forward:.0f}x | {steps} |")  # fmt: skip
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--intervals", type=int, nargs="+", default=[1, 100, 1000])
     parser.add_argument("--repeat", type=int, default=3)
     parser.add_argument("--methods", action="store_true")
     parser.add_argument("--radau", action="store_true")
+    parser.add_argument("--chain", type=int, nargs="+")
     parser.add_argument("--costs", action="store_true")
     parser.add_argument("--flags", action="store_true")
     args = parser.parse_args()
@@ -156,6 +187,9 @@ def main() -> None:
         return
     if args.radau:
         radau(model, forward, args.repeat)
+        return
+    if args.chain:
+        chains(args.chain, args.repeat)
         return
     if args.methods:
         methods = sc.control.GRADIENT_METHODS
