@@ -21,12 +21,15 @@ adjoint of the driver's Radau IIA where the driver runs.
 ``GRADIENT_METHODS`` says. ``--radau`` runs the discrete adjoint at several tolerances
 (``rtol=``) on 100 intervals: the largest error of its states at the output times
 against ``simulate`` at rtol 1e-12, each state over its nominal size, beside that of
-``simulate``'s default run; its time against ``simulate``'s; and how far its gradient
-lies from CVODES's adjoint at 1e-10 (the largest difference over the largest entry).
+``simulate``'s default run; its time against ``simulate``'s; how far its gradient lies
+from CVODES's adjoint at 1e-10 (the largest difference over the largest entry); and how
+far its derivative along the initial curvature lies from central differences of its own
+values (relative; the derivative holds the step sizes, the differences move them).
 ``--chain N ...`` runs chains of N paper segments, 1 s from a bent start at rest, 10
 output intervals, the squared tip position at the end, along the parameters and the
-initial state: the discrete adjoint and CVODES's adjoint (first call and best of
-``--repeat``) beside ``simulate``'s default run of the same second. ``--costs`` times
+initial state: the discrete adjoint (with its steps and reverse-mode evaluations a step)
+and CVODES's adjoint (first call and best of ``--repeat``) beside ``simulate``'s default
+run of the same second. ``--costs`` times
 other costs on 100 intervals along the parameters and the initial state: the integral
 alone, the tip's height at the end, the squared state at every output time.
 ``--flags`` compiles the right-hand side with its first derivatives under
@@ -92,16 +95,25 @@ def radau(model, forward: float, repeat: int) -> None:
     reference = one_gradient(model, 100, "adjoint", wrt)
     largest = np.max(np.abs(reference.parameters))
     print("\n| rtol | error of the states | gradient [ms] | / simulate | "
-          "from CVODES's adjoint |")  # fmt: skip
-    print("| --- | --- | --- | --- | --- |")
+          "from CVODES's adjoint | from its own differences |")  # fmt: skip
+    print("| --- | --- | --- | --- | --- | --- |")
     for rtol in RADAU_TOLERANCES:
         one_gradient(model, 100, "radau-adjoint", wrt, rtol=rtol)
         wall, g = best_of(repeat, lambda r=rtol: one_gradient(model, 100, "radau-adjoint", wrt,
                                                                 rtol=r))  # fmt: skip
         own = np.max(np.abs(g.x - tight) / nominal)
         apart = np.max(np.abs(g.parameters - reference.parameters)) / largest
+        step = 1e-4 * abs(Q0[1])  # the curvature [1/m]
+
+        def value(shift, r=rtol):
+            q = np.array(Q0) + np.array([0.0, shift, 0.0])
+            return sc.gradient(model, cost, q, QD0, t=t, running=running, wrt="x0",
+                               method="radau-adjoint", rtol=r).value  # fmt: skip
+
+        difference = (value(step) - value(-step)) / (2 * step)
+        own_difference = abs(difference - g.x0[1]) / abs(g.x0[1])
         print(f"| {rtol:g} | {own:.1e} | {1e3 * wall:.1f} | {wall / forward:.1f}x | "
-              f"{apart:.1e} |")  # fmt: skip
+              f"{apart:.1e} | {own_difference:.1e} |")  # fmt: skip
 
 
 COSTS = {
@@ -141,8 +153,9 @@ def flags(model, repeat: int) -> None:
 
 def chains(segments, repeat: int) -> None:
     """``--chain``: the gradient of chains of paper segments against ``simulate``."""
-    print("\n| N | method | first call [s] | gradient [ms] | simulate [ms] | / simulate | steps |")
-    print("| --- | --- | --- | --- | --- | --- | --- |")
+    print("\n| N | method | first call [s] | gradient [ms] | simulate [ms] | / simulate | steps "
+          "| reverse-mode evaluations a step |")  # fmt: skip
+    print("| --- | --- | --- | --- | --- | --- | --- | --- |")
     t = np.linspace(0.0, 1.0, 11)
     for n in segments:
         model = sc.Model(sc.presets.ifac2020().with_segments(n))
@@ -160,8 +173,9 @@ def chains(segments, repeat: int) -> None:
             cold = time.perf_counter() - began
             wall, g = best_of(repeat, run)
             steps = g.stats.get("steps", "")
+            each = f"{g.stats['vjp_evaluations'] / steps:.1f}" if steps else ""
             print(f"| {n} | {method} | {cold:.1f} | {1e3 * wall:.1f} | {1e3 * forward:.1f} | "
-                  f"{wall / forward:.0f}x | {steps} |")  # fmt: skip
+                  f"{wall / forward:.0f}x | {steps} | {each} |")  # fmt: skip
 
 
 def main() -> None:

@@ -314,6 +314,8 @@ def test_the_environments_take_the_exact_jacobian(paper_model, tmp_path):
     scenario.write_text(EXAMPLES.joinpath("pneumatic.toml").read_text()
                         + '\n[simulation]\njacobian = "exact"\n')  # fmt: skip
     assert envs.Reach.from_scenario(scenario).episodes.setup.stepper.jacobian == "exact"
+    kept = envs.Reach.from_scenario(scenario, method="RK4").episodes.setup.stepper
+    assert (kept.method, kept.jacobian) == ("RK4", None)  # the method asked wins
     with pytest.raises(sc.ParameterError, match="jacobian='exact'"):
         envs.Reach(method="RK4", jacobian="exact")
     with pytest.raises(sc.ParameterError, match="jacobian must be one of"):

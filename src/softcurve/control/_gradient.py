@@ -22,10 +22,8 @@ acts on ``[t_k, t_(k+1))``, so the last row acts on nothing and its gradient is 
 from __future__ import annotations
 
 import time
-from collections.abc import Mapping
 from dataclasses import dataclass, field
 from functools import cached_property
-from types import MappingProxyType
 
 import casadi as ca
 import numpy as np
@@ -70,8 +68,8 @@ are 20 times more accurate than ``simulate``'s (the paper robot's 10 s swing at 
 output intervals: 8.8e-7 of the states' scales against 2.0e-5), and the gradient lies
 9e-6 from CVODES's at 1e-10 (``python benchmarks/bench_gradient.py --radau``). The
 derivative holds the step sizes, which move with the start, inputs and parameters: at
-this tolerance it is within 5e-6 of central differences of its own values, at 1e-4
-within 3e-3 (``tests/test_gradient.py``'s case), so a looser tolerance is a faster but
+this tolerance it lies 7e-6 from central differences of its own values, at 1e-4 1.3e-2
+(``python benchmarks/bench_gradient.py --radau``), so a looser tolerance is a faster but
 rougher gradient, of a less accurate trajectory."""
 
 WITH_RESPECT_TO = ("parameters", "x0", "inputs")
@@ -188,13 +186,13 @@ class RolloutGradient(Result):
         Wall time [s] of the integration and its derivative (the build excluded).
     transcription : Transcription
         The model and actuator.
-    stats : Mapping
-        The counters of ``radau-adjoint``'s passes, read-only: the forward pass's
+    stats : dict
+        The counters of ``radau-adjoint``'s passes: the forward pass's
         (``steps``, ``rhs_evaluations``, ``jacobian_evaluations``,
         ``linear_solver_setups``, ``error_test_failures``, ``newton_failures``) and the
         backward pass's (``ADJOINT_STATISTICS`` of ``softcurve.simulation.solvers``:
         ``vjp_evaluations``, ``iterations``, ``factorizations``, ``fresh_jacobians``).
-        Empty for CVODES's routes and where the forward pass failed.
+        Empty for CVODES's routes and wherever no gradient was computed.
     """
 
     status: Status
@@ -211,7 +209,7 @@ class RolloutGradient(Result):
     at: np.ndarray
     solve_time: float
     transcription: Transcription = field(repr=False, compare=False)
-    stats: Mapping = field(default_factory=lambda: MappingProxyType({}), compare=False)
+    stats: dict = field(default_factory=dict, compare=False)
 
     @property
     def by_name(self) -> dict:
@@ -522,12 +520,16 @@ def _radau_gradient(of_states, numbers, integrand, wrt, robot, failed, tolerance
                        x=x, **failed)  # fmt: skip
     asked = {"parameters": along_p.ravel() + d_p, "x0": along_x0.ravel() + lam[: tr.n_x],
              "inputs": along_u.T + d_u}  # fmt: skip
+    not_finite = [w for w in wrt if not np.all(np.isfinite(asked[w]))]
+    if not_finite:  # the cost's own derivatives, or the sums
+        return _failed(Status.INTEGRATION_FAILED, "the gradient is not finite along "
+                       f"{', '.join(not_finite)}: no gradient", x=x, **failed)  # fmt: skip
     return RolloutGradient(
         Status.SUCCESS, f"the gradient of the cost along {', '.join(wrt)}", float(value),
         _frozen(t), _frozen(x), *(_frozen(asked[w]) if w in wrt else None
                                   for w in WITH_RESPECT_TO),
         failed["method"], failed["reason"], failed["names"], _frozen(p_value),
-        time.perf_counter() - began, tr, MappingProxyType({**taped.counts, **backward}),
+        time.perf_counter() - began, tr, {**taped.counts, **backward},
     )  # fmt: skip
 
 

@@ -91,7 +91,8 @@ ENV_PARAMETERS = {
     "jacobian": (
         "str, optional",
         "The Jacobian of the implicit method's Newton matrix: ``'differences'`` (default, "
-        "or the scenario's ``[simulation] jacobian`` where its file sets it) or "
+        "or the scenario's ``[simulation] jacobian`` where its file sets it and no "
+        "``method`` is given) or "
         "``'exact'``, the model's exact Jacobian (a longer first build, cheaper "
         "periods from about four segments on: docs/stepping.md). ``'exact'`` makes "
         "``'ROS34PW2'`` the default method, and is refused with ``'RK4'``.",
@@ -273,8 +274,8 @@ def build_setup(
             period = scenario.settings.dt
         if max_episode_steps is None and "t_final" in given:
             duration = scenario.settings.t_final
-        if jacobian is None and "jacobian" in given:
-            jacobian = scenario.settings.jacobian
+        if jacobian is None and method is None and "jacobian" in given:
+            jacobian = scenario.settings.jacobian  # a method asked for keeps its own
     robot = presets.ifac2020() if robot is None else robot
     if not isinstance(robot, Robot):
         raise ParameterError(f"robot must be a softcurve.Robot, got {robot!r}")

@@ -1,5 +1,6 @@
-/* The discrete adjoint of Radau IIA (radau.c): the exact gradient of a function of the
- * states the driver's Radau IIA computes at the output times, along the initial state,
+/* The discrete adjoint of Radau IIA (radau.c): the gradient of a function of the states
+ * the driver's Radau IIA computes at the output times (of its scheme, the step sizes
+ * held), along the initial state,
  * the held inputs and the parameters (softcurve_adjoint_forward and _backward,
  * softcurve_driver.h).
  *

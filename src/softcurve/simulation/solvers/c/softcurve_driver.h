@@ -189,7 +189,8 @@ SC_EXPORT int softcurve_adjoint_forward(const sc_function *fn, const sc_options 
  * reverse mode, of work sizes vjp_sizes (4). Returns 0, -100 when it could not be set up,
  * CV_CONV_FAILURE where a step's multipliers do not converge on a fresh Jacobian either,
  * CV_LSETUP_FAIL where its Newton matrices are singular, CV_RHSFUNC_FAIL where the vjp
- * fails or its sums along u or p are not finite; adds to stats: vjp evaluations,
+ * fails or a step's results along u or p are not finite (the caller checks the sums);
+ * adds to stats: vjp evaluations,
  * iterations, factorizations, fresh Jacobians. */
 SC_EXPORT int softcurve_adjoint_backward(const sc_function *fn, const sc_options *options,
                                          casadi_fn vjp, const long long *vjp_sizes,
