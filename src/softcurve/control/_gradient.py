@@ -408,7 +408,7 @@ def gradient(
     samples = _samples(inputs, tr, t.size)
     wrt = _wrt(wrt)
     method = _method_name(method)
-    _tolerances(rtol, GRADIENT_METHODS[0])  # the range, before the driver is built
+    rtol = _rtol(rtol)
     robot, p_value = _robot_at(tr, parameters, x0)
     integrand = None if running is None else _integrand(running, tr)
     if not callable(cost):
@@ -578,14 +578,22 @@ def _radau_functions(tr: Transcription, integrand) -> tuple:
     return tr.model.cached(key, build)
 
 
-def _tolerances(rtol, method: str) -> tuple[float, float]:
-    """``(rtol, atol)`` of ``method``: its defaults, or ``rtol`` with the defaults' ratio."""
+def _rtol(rtol) -> float | None:
+    """``rtol`` checked: None, or a number in ``[RTOL_MIN, 1)``."""
+    if rtol is None:
+        return None
+    if isinstance(rtol, bool) or not isinstance(rtol, int | float) or not RTOL_MIN <= rtol < 1:
+        raise ParameterError(f"rtol must be a number in [{RTOL_MIN:g}, 1), got {rtol!r}")
+    return float(rtol)
+
+
+def _tolerances(rtol: float | None, method: str) -> tuple[float, float]:
+    """``(rtol, atol)`` of ``method``: its defaults, or ``rtol`` (checked) with the
+    defaults' ratio."""
     default = (RADAU_TOLERANCE,) * 2 if method == GRADIENT_METHODS[0] else GRADIENT_TOLERANCES
     if rtol is None:
         return default
-    if isinstance(rtol, bool) or not isinstance(rtol, int | float) or not RTOL_MIN <= rtol < 1:
-        raise ParameterError(f"rtol must be a number in [{RTOL_MIN:g}, 1), got {rtol!r}")
-    return float(rtol), float(rtol) * default[1] / default[0]
+    return rtol, rtol * default[1] / default[0]
 
 
 def _robot_at(tr: Transcription, parameters, x0) -> tuple:

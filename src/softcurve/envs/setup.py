@@ -26,9 +26,15 @@ from softcurve.description.bellows import PneumaticActuator
 from softcurve.description.robot import Robot
 from softcurve.scenarios.config import Scenario, scenario_from_dict
 from softcurve.scenarios.tables import read_toml
-from softcurve.simulation import JACOBIANS, SimulationSettings
+from softcurve.simulation import SimulationSettings
 from softcurve.simulation.solvers import ActuatorInput
-from softcurve.simulation.stepper import METHODS, Stepper, check_explicit_step, default_substeps
+from softcurve.simulation.stepper import (
+    METHODS,
+    Stepper,
+    check_explicit_step,
+    checked_jacobian,
+    default_substeps,
+)
 
 EXPLICIT_METHOD = "RK4"
 """The stepper's method when neither ``method`` nor ``substeps`` is given and the robot
@@ -286,8 +292,8 @@ def build_setup(
             f"actuator must be a softcurve.Actuator acting on the robot's n = {robot.n} "
             f"coordinates, got {actuator!r}"
         )
-    if jacobian is not None and jacobian not in JACOBIANS:  # before the model is built
-        raise ParameterError(f"jacobian must be one of {JACOBIANS}, got {jacobian!r}")
+    if jacobian is not None:  # before the model is built
+        checked_jacobian(jacobian)
     period = real_scalar("period", DEFAULT_PERIOD if period is None else period, positive=True)
     if max_episode_steps is None:
         max_episode_steps = max(1, math.ceil(duration / period - 1e-9))

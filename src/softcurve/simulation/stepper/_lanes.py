@@ -36,8 +36,8 @@ from softcurve.simulation.solvers import actuated_passes
 from softcurve.simulation.stepper._methods import METHODS, ExplicitTableau, Tableau
 from softcurve.simulation.stepper._scheme import (
     DIFFERENCE_STEP,
-    JACOBIANS,
     MemberShares,
+    checked_jacobian,
     jacobian_passes,
     observer,
     rest_scale,
@@ -230,8 +230,7 @@ def lanes_period(
         code, or a Rosenbrock method's state derivative does not begin with ``q' = qd``
         (the caller then calls the scalar period per member).
     """
-    if jacobian not in JACOBIANS:
-        raise ValueError(f"jacobian must be one of {JACOBIANS}, got {jacobian!r}")
+    checked_jacobian(jacobian)
     explicit = isinstance(METHODS[method], ExplicitTableau)
     every = None if explicit else min(every or substeps, substeps)
 

@@ -36,7 +36,9 @@ import numpy as np
 
 from softcurve.base.docs import parameters_from
 from softcurve.base.shares import run_shares, share_bounds
+from softcurve.base.validation import ParameterError
 from softcurve.compiled import NativeFunction, compile_function, load_function
+from softcurve.simulation._settings import JACOBIANS
 from softcurve.simulation.solvers import ActuatorInput, actuated_derivative, actuated_jacobian
 from softcurve.simulation.solvers import state_scale as integration_scale
 from softcurve.simulation.stepper._methods import METHODS, ExplicitTableau, Tableau
@@ -75,10 +77,21 @@ def state_derivative(model, inputs: ActuatorInput | None, symbolic: bool) -> ca.
     return model.cached(("stepper-xdot", symbolic, None if inputs is None else inputs.key), build)
 
 
-JACOBIANS = ("differences", "exact")
-"""The Jacobians of a Rosenbrock method's Newton matrix: forward differences of the
-state derivative (:func:`difference_jacobian`, ``n_x + 1`` evaluations) or the model's
-exact Jacobian (:func:`exact_jacobian`)."""
+def checked_jacobian(jacobian: str) -> str:
+    """``jacobian`` where it names one of ``softcurve.simulation.JACOBIANS`` (the same
+    choice as ``simulate``'s): forward differences of the state derivative
+    (:func:`difference_jacobian`, ``n_x + 1`` evaluations) or the model's exact Jacobian
+    (:func:`exact_jacobian`), for a Rosenbrock method's Newton matrix; else
+    ParameterError, naming the field.
+
+    Parameters
+    ----------
+    jacobian : str
+        The name asked for.
+    """
+    if jacobian not in JACOBIANS:
+        raise ParameterError(f"jacobian must be one of {JACOBIANS}, got {jacobian!r}")
+    return jacobian
 
 
 def jacobian_passes(model) -> JacobianPasses:
@@ -325,10 +338,9 @@ def period_function(
         releases the GIL: threads of Python run members in parallel) instead of a
         CasADi ``external``; None where no compiler works.
     jacobian : str
-        One of :data:`JACOBIANS`: the Newton matrix's Jacobian of a Rosenbrock method.
+        The Newton matrix's Jacobian of a Rosenbrock method (:func:`checked_jacobian`).
     """
-    if jacobian not in JACOBIANS:
-        raise ValueError(f"jacobian must be one of {JACOBIANS}, got {jacobian!r}")
+    checked_jacobian(jacobian)
     tableau = METHODS[method]
     every = substeps if jacobian_every is None else min(jacobian_every, substeps)
     if isinstance(tableau, ExplicitTableau):

@@ -41,8 +41,8 @@ from softcurve.simulation.stepper._methods import DEFAULT_STEP as DEFAULT_STEP
 from softcurve.simulation.stepper._methods import DEFAULT_SUBSTEPS as DEFAULT_SUBSTEPS
 from softcurve.simulation.stepper._methods import METHODS, ExplicitTableau, default_substeps
 from softcurve.simulation.stepper._scheme import (
-    JACOBIANS,
     ThreadedMembers,
+    checked_jacobian,
     observer,
     period_function,
 )
@@ -204,9 +204,7 @@ class Stepper:
             self._lower, self._upper = np.full(model.n, -np.inf), np.full(model.n, np.inf)
         else:
             self._lower, self._upper = actuator.lower.copy(), actuator.upper.copy()
-        if jacobian not in JACOBIANS:
-            raise ParameterError(f"jacobian must be one of {JACOBIANS}, got {jacobian!r}")
-        self._jacobian = jacobian
+        self._jacobian = checked_jacobian(jacobian)
         if explicit:
             if jacobian != "differences":
                 raise ParameterError(
