@@ -42,11 +42,6 @@
  * refreshing at every step. */
 #define SLOW_ROUNDS 2
 
-/* The states of f: nx and the lagging inputs; the inputs per member: the actuator's or
- * the forces. */
-static int states_of(const sc_function *fn) { return fn->nx + (fn->lag ? fn->m : 0); }
-static int inputs_of(const sc_function *fn) { return fn->force ? fn->m : fn->nu; }
-
 /* Tapes the step r just accepted (its Jacobian too, where it is another than the last
  * taped, last[0] its count of Jacobians then), with its input row; 0 or TAPE_FULL. */
 static int tape_step(const sc_radau *r, const sc_work *s, int row, double *tape, long capacity,
@@ -108,8 +103,7 @@ SC_EXPORT int softcurve_adjoint_forward(const sc_function *fn, const sc_options 
                 *reached = i + 1;
             }
         }
-        stats[0] += r.counters[0], stats[1] += r.counters[1], stats[3] += r.counters[2];
-        stats[4] += r.counters[3], stats[5] += r.counters[4];
+        add_counters(r.counters, stats, 1);
         memset(r.counters, 0, sizeof(r.counters));
         start = end;
     }
@@ -286,8 +280,8 @@ static int seed_output(sc_adjoint *a, const double *seed, const double *nominal,
         for (j = 0; j < n; ++j) lambda[j] += nominal[j] * seed[j];
         return 0;
     }
-    for (m = 0; m < 3; ++m) {
-        double weight = x * (P[m] + x * (P[3 + m] + x * P[6 + m]));
+    for (m = 0; m < 3; ++m) { /* stage m's weight: the polynomial of P's column m */
+        double weight = radau_polynomial(P + m, 3, x, 0);
         for (j = 0; j < n; ++j) a->zbar[m * n + j] += weight * nominal[j] * seed[j];
     }
     for (j = 0; j < n; ++j) a->start[j] += nominal[j] * seed[j];

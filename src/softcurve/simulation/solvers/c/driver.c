@@ -81,6 +81,25 @@ void read_counters(void *mem, long counters[5]) {
     CVodeGetNumNonlinSolvConvFails(mem, &counters[4]);
 }
 
+/* driver_internal.h */
+void add_counters(const long counters[5], long *stats, int newton_failures) {
+    stats[0] += counters[0];
+    stats[1] += counters[1];
+    stats[3] += counters[2];
+    stats[4] += counters[3];
+    if (newton_failures) stats[5] += counters[4];
+}
+
+/* driver_internal.h */
+int states_of(const sc_function *fn) { return fn->nx + (fn->lag ? fn->m : 0); }
+int inputs_of(const sc_function *fn) { return fn->force ? fn->m : fn->nu; }
+
+/* The force's arguments at the state s->x: q, and the lagging inputs or the member's. */
+static void force_arguments(sc_work *s) {
+    s->c.arg[0] = s->x;
+    s->c.arg[1] = s->fn->lag ? s->x + s->fn->nx : s->u;
+}
+
 static void quiet(int code, const char *module, const char *function, char *msg, void *data) {
     (void)code; (void)module; (void)function; (void)msg; (void)data;
 }
@@ -90,8 +109,7 @@ static void quiet(int code, const char *module, const char *function, char *msg,
 static const double *input_force(sc_work *s, double *tau) {
     const sc_function *fn = s->fn;
     if (fn->force == NULL) return s->u;
-    s->c.arg[0] = s->x;
-    s->c.arg[1] = fn->lag ? s->x + fn->nx : s->u;
+    force_arguments(s);
     s->c.res[0] = tau;
     return fn->force(s->c.arg, s->c.res, s->c.iw, s->c.w, 0) ? NULL : tau;
 }
@@ -260,8 +278,7 @@ static int exact_jacobian(sc_work *s, double *y, double *J) {
     if (fn->force != NULL) {
         if (cholesky(s->mass, nu)) return 1;
         if (s->dforce != NULL) {
-            s->c.arg[0] = s->x;
-            s->c.arg[1] = fn->lag ? s->x + nx : s->u;
+            force_arguments(s);
             s->c.res[0] = s->dforce;
             s->c.res[1] = s->dforce + nu * nu;
             if (fn->force_jacobian(s->c.arg, s->c.res, s->c.iw, s->c.w, 0)) return -1;

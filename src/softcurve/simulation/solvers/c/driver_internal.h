@@ -52,6 +52,14 @@ void work_close(sc_work *s);
 /* CVODES's counters since its last (re)start: steps, right-hand sides, linear-solver
  * setups, error-test failures, Newton failures. */
 void read_counters(void *mem, long counters[5]);
+/* Adds counters in read_counters' order to stats[0], [1], [3], [4] and, with
+ * newton_failures, [5] (softcurve_integrate's order; the sensitivities keep [5] for
+ * their own count). */
+void add_counters(const long counters[5], long *stats, int newton_failures);
+/* The states of f: nx and the lagging inputs; a member's inputs: the actuator's m, or
+ * the nu forces. */
+int states_of(const sc_function *fn);
+int inputs_of(const sc_function *fn);
 /* ydot = f(nominal * y, u, p) / nominal; 1 (recoverable) on a non-finite value */
 int evaluate(sc_work *s, const double *y, double *ydot);
 /* evaluate() as CVODES's right-hand side (data: an sc_work). */

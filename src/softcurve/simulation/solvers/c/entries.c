@@ -11,7 +11,7 @@
  * parameters p (shared): xdot[b, :]. Returns 0, or -100 when out of memory. */
 SC_EXPORT int softcurve_rhs(const sc_function *fn, int count, const double *x, const double *u,
                             const double *p, double *xdot) {
-    int n = fn->nx + (fn->lag ? fn->m : 0), inputs = fn->force ? fn->m : fn->nu, b, i, status = 0;
+    int n = states_of(fn), inputs = inputs_of(fn), b, i, status = 0;
     sc_work s;
     double *ones = (double *)malloc(n * sizeof(double));
     if (work_open(&s, fn, n) || !ones) {
@@ -36,7 +36,7 @@ SC_EXPORT int softcurve_rhs(const sc_function *fn, int count, const double *x, c
  * differences. Returns 0, -1 when a function fails, or -100 when out of memory. */
 SC_EXPORT int softcurve_newton_jacobian(const sc_function *fn, const double *x, const double *u,
                                         const double *p, const double *nominal, double *J) {
-    int n = fn->nx + (fn->lag ? fn->m : 0), i, status = 0;
+    int n = states_of(fn), i, status = 0;
     sc_work s;
     double *y = (double *)malloc(2 * n * sizeof(double));
     if (work_open(&s, fn, n) || !y) {

@@ -46,7 +46,7 @@ static void group_close(sc_group *G) {
 
 /* 0, or 1 when out of memory (group_close frees what was allocated). */
 static int group_open(sc_group *G, const sc_function *fn, int n) {
-    int g = fn->width, inputs = fn->force ? fn->m : fn->nu;
+    int g = fn->width, inputs = inputs_of(fn);
     memset(G, 0, sizeof(*G));
     G->fn = fn, G->g = g, G->n = n;
     G->X = aligned((long)g * n), G->XD = aligned((long)g * n);
@@ -265,12 +265,8 @@ static int integrate_members(sc_call *c, int b, int g) {
             read_counters(c->mem[slot], counters);
         for (l = 0; l < g; ++l) {
             long *stats = c->stats + (long)(b + l) * STATS;
-            stats[0] += counters[0];
-            stats[1] += counters[1];
+            add_counters(counters, stats, 1);
             stats[2] += grouped ? c->G.jacobians : c->s.jacobians;
-            stats[3] += counters[2];
-            stats[4] += counters[3];
-            stats[5] += counters[4];
         }
     }
     return grouped && stop != 0;
@@ -289,7 +285,7 @@ SC_EXPORT int softcurve_integrate(const sc_function *fn, const sc_options *optio
     memset(&c, 0, sizeof(c));
     c.fn = fn, c.o = options, c.lmm = lmm, c.ends = ends, c.restart = restart;
     c.fastest = fastest, c.u = u, c.p = p, c.nominal = nominal, c.check_domain = check_domain;
-    c.times = times, c.n = fn->nx + (fn->lag ? fn->m : 0), c.inputs = fn->force ? fn->m : fn->nu;
+    c.times = times, c.n = states_of(fn), c.inputs = inputs_of(fn);
     c.k = k, c.n_ends = n_ends, c.out = out, c.reached = reached, c.flag = flag;
     c.used_bdf = used_bdf, c.stats = stats;
     c.y[0] = N_VNew_Serial(c.n), c.dky[0] = N_VNew_Serial(c.n);

@@ -36,20 +36,11 @@ static void inputs_at(sc_sensitivity *z, double t) {
     for (i = 0; i < z->nu; ++i) z->u[i] = row[i] + (z->linear ? row[z->nu + i] * t : 0.0);
 }
 
-/* Adds a method's counters (steps, right-hand sides, linear-solver setups, error-test
- * failures, as read_counters orders them) to stats[0], [1], [3] and [4]. */
-static void add_counters(const long counters[5], long *stats) {
-    stats[0] += counters[0];
-    stats[1] += counters[1];
-    stats[3] += counters[2];
-    stats[4] += counters[3];
-}
-
 /* add_counters of CVODES's counters since its last (re)start. */
 static void add_cvodes_counters(void *mem, long *stats) {
     long counters[5] = {0, 0, 0, 0, 0};
     read_counters(mem, counters);
-    add_counters(counters, stats);
+    add_counters(counters, stats, 0);
 }
 
 static int state_rhs(realtype t, N_Vector y, N_Vector ydot, void *data) {
@@ -228,7 +219,7 @@ static int radau_columns(sc_sensitivity *z, const sc_options *options, double *o
                 flag = flag < 0 ? CV_RHSFUNC_FAIL : COLUMNS_FAILURE;
         }
         if (!z->linear || i == z->count - 1 || flag) {
-            add_counters(r.counters, stats);
+            add_counters(r.counters, stats, 0);
             memset(r.counters, 0, sizeof(r.counters));
         }
         if (flag) break;
