@@ -9,6 +9,7 @@ Run:  python benchmarks/bench_planning.py [--intervals 15] [--methods collocatio
       python benchmarks/bench_planning.py --baselines
       python benchmarks/bench_planning.py --long [--hessians exact limited-memory]
       python benchmarks/bench_planning.py --tendons [--hessians exact limited-memory]
+      python benchmarks/bench_planning.py --stage-jacobians
 
 The task: from rest straight up, the tip to (20, 0, 62) mm within 1 mm at 0.3 s and at
 rest there, the pressures within the bellows' bounds (0 to 100 kPa), a small effort
@@ -31,7 +32,11 @@ a 2 s horizon at 20 ms (100 steps: the circle of docs/control.md from rest) with
 Hessian, from a cold start with the model and its derivatives cached, and simulates the
 plan against the circle. With ``--tendons`` it plans 1 s of a ten-segment tendon robot
 (``tendon_chain``), first in an empty cache, then from a cold start with the model and
-its derivatives cached.
+its derivatives cached. With ``--stage-jacobians`` it builds and compiles the stage
+Jacobian (``Transcription.compiled_stage_jacobian``) by each route, in an empty cache
+holding the model alone, for the paper's robot with the task's bellows and for the
+ten-segment tendon robot, and times it over 60 stages (a plan of 20 steps), best of five,
+at a bent and moving state, the inputs mid-range.
 """
 
 from __future__ import annotations
@@ -42,6 +47,7 @@ import tempfile
 import time
 
 import numpy as np
+from _timing import best_of  # benchmarks/_timing.py: a helper, not a benchmark
 
 import softcurve as sc
 from softcurve.control import _problem as problem
@@ -223,6 +229,36 @@ def tendons(hessians) -> None:
               f"{plan.iterations} | {off:.2f} | {plan.status.value} |")  # fmt: skip
 
 
+def stage_jacobians() -> None:
+    """Each route of the stage Jacobian: its build and compile, then 60 stages."""
+    robots = {
+        "paper robot, bellows": lambda: (
+            sc.Model(sc.presets.ifac2020()),
+            sc.PneumaticActuator.three_bellows(distance=0.01, area=2e-5, p_max=1e5),
+        ),
+        f"{TENDON_SEGMENTS}-segment tendon robot": lambda: tendon_chain()[:2],
+    }
+    stages = 60
+    print("| robot | route | build and compile [s] | 60 stages [ms] |")
+    print("| --- | --- | --- | --- |")
+    for name, make in robots.items():
+        for route in sc.control.STAGE_JACOBIAN_ROUTES:
+            with tempfile.TemporaryDirectory(prefix="bench_planning") as folder:
+                os.environ["SOFTCURVE_CACHE_DIR"] = folder
+                model, actuator = make()
+                tr = sc.Transcription(model, actuator)
+                began = time.perf_counter()
+                mapped = tr.compiled_stage_jacobian(route).map(stages)
+                built = time.perf_counter() - began
+                q = np.tile([0.02, 5.0, -3.0], model.n // 3) + model.robot.rest_configuration()
+                x = tr.start(q, np.tile([0.0, 10.0, 10.0], model.n // 3))
+                low, high = tr.input_bounds
+                X, U = np.tile(x[:, None], stages), np.tile(((low + high) / 2)[:, None], stages)
+                mapped(X, U, tr.parameters)
+                wall, _ = best_of(5, lambda f=mapped, a=(X, U, tr.parameters): f(*a))
+            print(f"| {name} | {route} | {built:.1f} | {1e3 * wall:.1f} |")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--intervals", type=int, default=15)
@@ -236,7 +272,12 @@ def main() -> None:
                         help="a 2 s horizon at 20 ms: the circle tracked from rest")  # fmt: skip
     parser.add_argument("--tendons", action="store_true",
                         help=f"a {TENDON_SEGMENTS}-segment tendon robot's 1 s plan")  # fmt: skip
+    parser.add_argument("--stage-jacobians", action="store_true",
+                        help="the stage Jacobian by each route")  # fmt: skip
     args = parser.parse_args()
+    if args.stage_jacobians:
+        stage_jacobians()
+        return
     if args.tendons:
         tendons(args.hessians)
         return

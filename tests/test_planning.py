@@ -96,6 +96,58 @@ def test_the_steps_derivatives_are_exact(transcription):
             )
 
 
+def _stage_jacobian_case(case):
+    """A model not compiled (the expressions in CasADi's virtual machine) and its
+    actuator for the stage Jacobian's cases."""
+    if case == "two-segment tendons":
+        segment = sc.presets.ifac2020().segments[0]
+        robot = sc.Robot(segments=(segment, segment))
+        tendons = sc.TendonActuator(
+            [sc.Tendon(azimuth=a, distance=0.008, t_max=5.0, anchor=anchor)
+             for anchor in (0, 1) for a in (0.0, 2 * np.pi / 3)], n_segments=2,
+        )  # fmt: skip
+        return sc.Model(robot, quadrature_nodes=2, compile=False), tendons
+    model = sc.Model(sc.presets.ifac2020(), quadrature_nodes=2, compile=False)
+    if case == "lagging bellows":
+        return model, sc.PneumaticActuator.three_bellows(
+            distance=0.01, area=2e-5, p_max=1e5, time_constant=0.02
+        )
+    return model, None
+
+
+@pytest.mark.parametrize("case", ["two-segment tendons", "lagging bellows", "forces"])
+def test_the_stage_jacobian_is_casadis_jacobian_of_the_right_hand_side(case):
+    """The planners' stage Jacobian by both routes (the derivatives of the chain
+    algorithms through the segments' calls, CasADi's Jacobian of the expanded right-hand
+    side) against CasADi's Jacobian of the expanded right-hand side built here, at random
+    states, the inputs across their range."""
+    model, actuator = _stage_jacobian_case(case)
+    tr = sc.Transcription(model, actuator)
+    xs, us, ps = tr._symbols()
+    xdot = tr.rhs_sx(xs, us, ps)
+    reference = ca.Function("reference", [xs, us, ps],
+                            [xdot, ca.jacobian(xdot, ca.vertcat(xs, us))])  # fmt: skip
+    rng = np.random.default_rng(12)
+    low, high = tr.input_bounds
+    segments = model.n // 3
+    lagging = actuator is not None and actuator.time_constant is not None
+    for _ in range(3):
+        spread = np.tile([0.003, 3.0, 3.0], segments)
+        q = np.tile([0.064, 8.0, -5.0], segments) + rng.normal(size=model.n) * spread
+        qd = rng.normal(size=model.n) * np.tile([0.01, 20.0, 20.0], segments)
+        lam = 1e-3 * rng.normal(size=model.n_state - 2 * model.n)
+        x = tr.start(q, qd, lam, rng.uniform(low, high) if lagging else None)
+        u = rng.normal(size=tr.n_u) if actuator is None else rng.uniform(low, high)
+        expected = [np.array(v) for v in reference(x, u, tr.parameters)]
+        for route in sc.control.STAGE_JACOBIAN_ROUTES:
+            got = [np.array(v) for v in tr.compiled_stage_jacobian(route)(x, u, tr.parameters)]
+            assert got[1].shape == (tr.n_x, tr.n_x + tr.n_u)
+            for mine, theirs in zip(got, expected, strict=True):
+                assert np.abs(theirs).max() > 0
+                np.testing.assert_allclose(mine, theirs, rtol=0,
+                                           atol=1e-12 * np.abs(theirs).max())  # fmt: skip
+
+
 def test_the_collocation_equations_hold_at_the_steps_stages(transcription):
     x, u = a_state(transcription, seed=2)
     p, h, n_x = transcription.parameters, 0.01, transcription.n_x

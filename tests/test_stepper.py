@@ -12,7 +12,6 @@ from softcurve.base.status import Status
 from softcurve.base.validation import ParameterError
 from softcurve.simulation.solvers import ActuatorInput, actuated_derivative, actuated_jacobian
 from softcurve.simulation.stepper._stepper import Stepper
-from softcurve.symbolic.derivatives import JacobianPasses
 
 PERIOD = 0.02  # the learning environments' control period [s]
 
@@ -219,9 +218,7 @@ def test_the_actuated_jacobian_is_casadis_derivative_of_the_state_derivative(act
     model = sc.Model(sc.presets.ifac2020().with_segments(segments), compile=False)
     inputs = None if actuator is None else ActuatorInput.of(actuator, model.n)
     f = actuated_derivative(model, inputs, model.symbolic["rhs"])
-    exact = actuated_jacobian(
-        model, inputs, JacobianPasses(model.expressions, model.quadrature_nodes)
-    )
+    exact = actuated_jacobian(model, inputs, model.jacobian_passes())
     n, n_x = model.n, f.size1_in(0)
     x = np.zeros(n_x)
     x[:n] = np.tile([0.064, 10.0, -5.0], segments) + rng.normal(0.0, 1e-3, n)

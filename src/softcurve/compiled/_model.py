@@ -35,7 +35,7 @@ from softcurve.compiled._source import load_library
 from softcurve.description.environment import Environment
 from softcurve.description.robot import Robot
 from softcurve.symbolic.contact import contact_functions, with_contact
-from softcurve.symbolic.derivatives import state_jacobian
+from softcurve.symbolic.derivatives import JacobianPasses, state_jacobian
 from softcurve.symbolic.dynamics import (
     DEFAULT_QUADRATURE_NODES,
     DynamicsExpressions,
@@ -708,14 +708,23 @@ class Model:
             return native(x, tau, self.parameters)[0]
         return np.array(self.casadi_jacobian()(x, tau, self.parameters)[0])
 
+    def jacobian_passes(self) -> JacobianPasses:
+        """The passes and tangents of the exact Jacobian through the segments' calls
+        (:class:`softcurve.symbolic.derivatives.JacobianPasses`), built on first use and
+        kept with the model: what :meth:`casadi_jacobian`, the stepper's period and the
+        planners' stage Jacobians are built on."""
+        return self.cached(
+            ("jacobian-passes",),
+            lambda: JacobianPasses(self.expressions, self.quadrature_nodes),
+        )
+
     def casadi_jacobian(self) -> ca.Function:
         """``rhs_jacobian(x, tau, p) -> (J_x, D)`` as a CasADi Function: the exact
         Jacobian of :meth:`casadi_rhs` by the state (n_state, n_state) and the mass matrix
         (n, n), ``d qdd / d tau`` being ``D^-1`` (:mod:`softcurve.symbolic.derivatives`).
         Built on first use."""
         return self.cached(
-            ("casadi", "rhs_jacobian"),
-            lambda: state_jacobian(self.expressions, self.quadrature_nodes),
+            ("casadi", "rhs_jacobian"), lambda: state_jacobian(self.jacobian_passes())
         )
 
     def compiled_jacobian(self) -> NativeFunction | None:

@@ -24,6 +24,7 @@ from softcurve.control._problem import LBFGS_HISTORY as LBFGS_HISTORY
 from softcurve.control._problem import PLAN_ITERATIONS as PLAN_ITERATIONS
 from softcurve.control._problem import ConfigurationTarget as ConfigurationTarget
 from softcurve.control._problem import TipTarget as TipTarget
+from softcurve.control._transcription import STAGE_JACOBIAN_ROUTES as STAGE_JACOBIAN_ROUTES
 from softcurve.control._transcription import Transcription as Transcription
 
 __all__ = [
@@ -37,6 +38,7 @@ __all__ = [
     "PREDICTIVE_HESSIANS",
     "PredictiveController",
     "REAL_TIME_OPTIONS",
+    "STAGE_JACOBIAN_ROUTES",
     "WITH_RESPECT_TO",
     "ConfigurationTarget",
     "TipTarget",

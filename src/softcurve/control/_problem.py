@@ -235,10 +235,10 @@ def checked_request(model, *, horizon, intervals, targets, reference, weights, c
 
 STAGED = ("exact", "gauss-newton")
 """The Hessians of the Lagrangian whose collocation problems are differentiated stage by
-stage: ``"exact"`` its Hessian (:attr:`Problem.lagrangian_hessian`; 358 -> 140 ms an
-evaluation on docs/planning.md's 2 s plan), ``"gauss-newton"`` its constraints' Jacobian
-(:attr:`Problem.constraint_jacobian`). The limited-memory Hessian keeps CasADi's
-Jacobian: the same matrix to rounding, but its L-BFGS iterations on the reach task of
+stage: the constraints' Jacobian (:attr:`Problem.constraint_jacobian`) of both, and
+``"exact"``'s Hessian (:attr:`Problem.lagrangian_hessian`; 358 -> 140 ms an evaluation on
+docs/planning.md's 2 s plan). The limited-memory Hessian keeps CasADi's Jacobian: the
+same matrix to rounding, but its L-BFGS iterations on the reach task of
 ``tests/test_planning.py`` ran out of their 300 where CasADi's converged in 125, the
 rounding apart."""
 
@@ -256,16 +256,17 @@ def dynamics_rows(X, residual, following, x_scale) -> tuple:
 class _Stages:
     """A collocation problem's stages, for the derivatives assembled stage by stage: the
     slopes as a ``symbol`` (n_x, 3 K) and their ``value`` (the right-hand side at the
-    stages), with ``hessian="exact"`` from :meth:`Transcription.compiled_rhs`, else
-    with their ``jacobians`` (n_x, (n_x + n_u) 3 K) from
+    stages, from :meth:`Transcription.compiled_rhs`, with its second derivatives where
+    ``hessian`` is ``"exact"``), their ``jacobians`` (n_x, (n_x + n_u) 3 K) from
     :attr:`Transcription.stage_jacobian`; the stages' states ``x`` and inputs ``u`` as
     expressions of the unknowns; the ``dynamics``' rows (the collocation equations and the
     continuity of the states, scaled as the problem's) on the slopes' value and on their
     symbol; the constraints' ``equations`` on the symbol."""
 
+    hessian: str
     symbol: ca.MX
     value: ca.MX
-    jacobians: ca.MX | None
+    jacobians: ca.MX
     x: ca.MX
     u: ca.MX
     dynamics: tuple
@@ -284,9 +285,7 @@ class _Stages:
         # the values from the right-hand side alone: the stages' Jacobians cost four
         # times as much, and IPOPT evaluates the constraints at every trial point
         value = tr.compiled_rhs(2 if hessian == "exact" else 0).map(stages * K)(x, u, P)
-        jacobians = None
-        if hessian != "exact":
-            jacobians = tr.stage_jacobian.map(stages * K)(x, u, P)[1]
+        jacobians = tr.stage_jacobian.map(stages * K)(x, u, P)[1]
         symbol = ca.MX.sym("slopes", n_x, stages * K)
         x1, z, s, step = (ca.MX.sym(name, *shape) for name, shape in
                           (("x", (n_x, 1)), ("z", (n_x, stages)), ("s", (n_x, stages)),
@@ -297,7 +296,7 @@ class _Stages:
         def rows(slopes):
             return dynamics_rows(X, *equations(X[:, :K], Z, slopes, h), x_scale)
 
-        return cls(symbol, value, jacobians, x, u, rows(value), rows(symbol))
+        return cls(hessian, symbol, value, jacobians, x, u, rows(value), rows(symbol))
 
     def with_equations(self, g) -> _Stages:
         """These stages with the constraints' ``equations`` on the slopes' symbol."""
@@ -325,7 +324,7 @@ def ipopt_options(problem, max_iterations: int, tolerance: float, hessian: str,
         options["hess_lag"] = problem.cost_hessian
     elif problem.stages is not None:
         options["hess_lag"] = problem.lagrangian_hessian
-    if problem.stages is not None and problem.stages.jacobians is not None:
+    if problem.stages is not None:
         # the constraints' values come from the right-hand side compiled without
         # derivatives, which CasADi would take by differences: nothing may differentiate
         # them, and the multipliers of p would (CasADi builds their function, unevaluated)
@@ -406,13 +405,11 @@ class Problem:
         stages_of = None
         if method == "collocation":
             Z = Zs * ca.DM(x_scale)
-            if hessian in STAGED:
+            if hessian in STAGED:  # on the stages' compiled Jacobians
                 stages_of = _Stages.build(tr, X, Z, U, h, x_scale, hessian)
-            if hessian == "gauss-newton":  # on the stages' compiled Jacobians alone
                 dynamics = stages_of.dynamics
             else:  # CasADi's Jacobian through the compiled collocation
-                order = 2 if hessian == "exact" else 1
-                steps = tr.compiled_collocation(order).map(K)(X[:, :K], Z, U, P, h)
+                steps = tr.compiled_collocation(1).map(K)(X[:, :K], Z, U, P, h)
                 dynamics = dynamics_rows(X, *steps, x_scale)
         else:
             dynamics = dynamics_rows(X, None, tr.step.map(K)(X[:, :K], U, P, h), x_scale)
@@ -496,7 +493,7 @@ class Problem:
         the slopes' gradient along the unknowns times the step's share of ``mu``. CasADi's
         own Hessian sweeps every stage in every direction its colouring needs.
         """
-        if self.stages is None or self.stages.jacobians is not None:
+        if self.stages is None or self.stages.hessian != "exact":
             raise ValueError("lagrangian_hessian needs a collocation problem built with "
                              "hessian='exact'")  # fmt: skip
         stages, tr = self.stages, self.transcription
@@ -525,8 +522,8 @@ class Problem:
     @cached_property
     def constraint_jacobian(self) -> ca.Function:
         """The constraints and their Jacobian, as CasADi's ``jac_g`` option of IPOPT takes
-        it: ``(x, p) -> (g, jac_g_x)``, for a collocation problem with the Gauss-Newton
-        Hessian.
+        it: ``(x, p) -> (g, jac_g_x)``, for a collocation problem with the exact or the
+        Gauss-Newton Hessian (:data:`STAGED`).
 
         The collocation equations are linear in the slopes at the stages, so their
         Jacobian is theirs with the slopes held plus their slopes' coefficients times each
@@ -535,9 +532,9 @@ class Problem:
         CasADi's own Jacobian of the whole problem sweeps every stage in every direction
         its colouring needs, each sweep a forward derivative of the right-hand side.
         """
-        if self.stages is None or self.stages.jacobians is None:
+        if self.stages is None:
             raise ValueError("constraint_jacobian needs a collocation problem built with "
-                             "hessian='gauss-newton'")  # fmt: skip
+                             f"hessian in {STAGED}")  # fmt: skip
         stages = self.stages
         w, p = self.nlp["x"], self.nlp["p"]
         equations, slopes = stages.equations, ca.vec(stages.symbol)

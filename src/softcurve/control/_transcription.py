@@ -31,6 +31,7 @@ from softcurve.description.actuator import Actuator
 from softcurve.simulation.solvers import (
     ActuatorInput,
     actuated_derivative,
+    actuated_jacobian,
     actuator_exit,
     domain_reason,
     initial_state,
@@ -39,6 +40,7 @@ from softcurve.simulation.solvers import (
 )
 from softcurve.symbolic.functions import domain_margins
 from softcurve.symbolic.gaps import obstacle_distances
+from softcurve.symbolic.kinematics import inline_calls
 
 NEWTON_TOLERANCE = 1e-12
 """Residual norm at which :attr:`Transcription.step`'s Newton iteration stops, in the
@@ -55,6 +57,9 @@ its first derivatives under these and under the model's flags and times a gradie
 each: 7.2 s and a gradient of 1.41 s on 100 intervals, against 23.5 s and 1.17 s, so the
 first result comes 16 s sooner and about seventy gradients cost what they would with the
 model's flags. The second derivatives take the same flags, not measured apart."""
+
+STAGE_JACOBIAN_ROUTES = ("passes", "expanded")
+"""The routes of :meth:`Transcription.compiled_stage_jacobian`."""
 
 
 @dataclass(frozen=True, eq=False)
@@ -189,24 +194,59 @@ class Transcription:
 
     @cached_property
     def stage_jacobian(self) -> ca.Function:
-        """``stage_jacobian(x, u, p) -> (xdot, J)``: :attr:`rhs` and its Jacobian along
-        ``(x, u)`` (n_x, n_x + n_u), generated as one C function from the expanded
-        right-hand side (:attr:`rhs_sx`) and compiled with :data:`DERIVATIVE_FLAGS`,
-        cached on disk with the model's libraries; no derivatives of it are compiled (and
-        none by differences: asking for one is an error). Where the model is not compiled,
-        the expression in CasADi's virtual machine.
+        """``stage_jacobian(x, u, p) -> (xdot, J)``: :attr:`rhs` and its exact Jacobian
+        along ``(x, u)`` (n_x, n_x + n_u), :meth:`compiled_stage_jacobian` by the route the
+        robot's segments take."""
+        return self.compiled_stage_jacobian()
+
+    def compiled_stage_jacobian(self, route: str | None = None) -> ca.Function:
+        """:attr:`stage_jacobian` by one route, generated as one C function and compiled
+        with :data:`DERIVATIVE_FLAGS`, cached on disk with the model's libraries; no
+        derivatives of it are compiled (and none by differences: asking for one is an
+        error). Where the model is not compiled, the expression in CasADi's virtual
+        machine.
+
+        Parameters
+        ----------
+        route : {"passes", "expanded"}, optional
+            ``"passes"``: the derivatives of the chain algorithms through the segments'
+            calls (:func:`~softcurve.simulation.solvers.actuated_jacobian` on
+            ``Model.jacobian_passes``, ``O(N^2)`` operations in N segments);
+            ``"expanded"``: CasADi's Jacobian of the expanded right-hand side
+            (:attr:`rhs_sx`). Default: the first for a chain, the second for a lone
+            segment, as the model inlines it
+            (:func:`~softcurve.symbolic.kinematics.inline_calls`). Measured on 60 stages
+            (``python benchmarks/bench_planning.py --stage-jacobians``): the ten-segment
+            tendon robot's compiled in 20.6 s by passes and took 39.3 ms, against 67.0 s
+            and 151.9 ms expanded; the paper's robot with bellows took 1.7 ms by passes
+            and 1.0 ms expanded.
         """
-        x, u, p = self._symbols()
-        xdot = self.rhs_sx(x, u, p)
+        if route is None:
+            route = "expanded" if inline_calls(len(self.model.robot.structure())) else "passes"
+        if route not in STAGE_JACOBIAN_ROUTES:
+            raise ParameterError(f"route must be one of {STAGE_JACOBIAN_ROUTES}, got {route!r}")
+        key = ("stage_jacobian", route)
+        if key in self._compiled:
+            return self._compiled[key]
+        if route == "expanded":
+            x, u, p = self._symbols()
+            xdot = self.rhs_sx(x, u, p)
+            jacobian = ca.jacobian(xdot, ca.vertcat(x, u))
+        else:
+            passes = actuated_jacobian(self.model, self.inputs, self.model.jacobian_passes(),
+                                       along_inputs=True)  # fmt: skip
+            x, u, p = (ca.MX.sym(name, size) for name, size in
+                       (("x", self.n_x), ("u", self.n_u), ("p", self.parameters.size)))  # fmt: skip
+            xdot, jacobian = self.rhs(x, u, p), passes(x, u, p)
         function = ca.Function(
-            "softcurve_stage_jacobian", [x, u, p],
-            [xdot, ca.densify(ca.jacobian(xdot, ca.vertcat(x, u)))],
+            f"softcurve_stage_jacobian_{route}", [x, u, p], [xdot, ca.densify(jacobian)],
             ["x", "u", "p"], ["xdot", "jacobian"],
         )  # fmt: skip
-        if self.model.compiled_library is None:
-            return function
-        return compile_function(function, flags=DERIVATIVE_FLAGS, derivatives=0,
-                                load=exact_external)  # fmt: skip
+        if self.model.compiled_library is not None:
+            function = compile_function(function, flags=DERIVATIVE_FLAGS, derivatives=0,
+                                        load=exact_external)  # fmt: skip
+        self._compiled[key] = function
+        return function
 
     @cached_property
     def stage_hessian(self) -> ca.Function:

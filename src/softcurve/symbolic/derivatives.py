@@ -209,16 +209,14 @@ class JacobianPasses:
         return ca.solve(mass, force_x - d_inverse, "ldl"), mass
 
 
-def state_jacobian(e, quadrature_nodes: int) -> ca.Function:
+def state_jacobian(passes: JacobianPasses) -> ca.Function:
     """The exact Jacobian of the state derivative ``rhs`` (see the module docstring).
 
     Parameters
     ----------
-    e : DynamicsExpressions
-        The model's expressions (with contact, :class:`ContactExpressions`, whose
-        contact force is in ``e.generalized_force``).
-    quadrature_nodes : int
-        Gauss-Legendre nodes per segment, as the model's.
+    passes : JacobianPasses
+        The model's, built on its expressions (with contact,
+        :class:`ContactExpressions`, whose contact force is in ``e.generalized_force``).
 
     Returns
     -------
@@ -227,7 +225,6 @@ def state_jacobian(e, quadrature_nodes: int) -> ca.Function:
         ``xdot`` by the state ``x = (q, qd, lam)``; ``D`` (n, n), the mass matrix, whose
         inverse is the derivative of ``qdd`` by the generalized input force ``tau``.
     """
-    passes = JacobianPasses(e, quadrature_nodes)
     n, n_lam = passes.n, passes.n_lam
     x_mx, tau_mx, p_mx = (
         ca.MX.sym(name, v.sparsity()) for name, v in zip("xtp", passes.inputs, strict=True)

@@ -64,36 +64,43 @@ def actuated_derivative(model, inputs, rhs: ca.Function) -> ca.Function:
 
 
 @actuated_parameters
-def actuated_jacobian(model, inputs, passes) -> ca.Function:
+def actuated_jacobian(model, inputs, passes, along_inputs: bool = False) -> ca.Function:
     """``(x, u, p) -> J``: the exact Jacobian of :func:`actuated_derivative` by the state
-    (n_x, n_x). Its passes are :func:`actuated_passes`' (the robot's ``dF/dx`` with the
-    actuator's force moving with the coordinates and the lagging inputs, and the rows of
-    the creep rates and of the lag, ``-1 / time_constant`` on their diagonal); the
-    accelerations' rows are ``D^-1 (G - dID/dx)`` (``passes.accelerations``).
+    (n_x, n_x), or by the state and the input (n_x, n_x + n_u). Its passes are
+    :func:`actuated_passes`' (the robot's ``dF/dx`` with the actuator's force moving
+    with the coordinates and the lagging inputs, and the rows of the creep rates and of
+    the lag, ``-1 / time_constant`` on their diagonal); the accelerations' rows are
+    ``D^-1 (G - dID/dx)`` (``passes.accelerations``), the inputs' columns having no
+    inertial term: ``D^-1 dF/du``.
 
     Parameters
     ----------
     %(model)s
     %(inputs)s
     passes : JacobianPasses
-        The model's (``softcurve.symbolic.derivatives.JacobianPasses``).
+        The model's (``Model.jacobian_passes``).
+    along_inputs : bool
+        Append the columns of the input ``u`` (the planners' stage Jacobian).
     """
     n = model.n
-    at_state = actuated_passes(model, inputs, passes.at_state)
+    at_state = actuated_passes(model, inputs, passes.at_state, along_inputs)
     x, u, p = (ca.MX.sym(name, at_state.sparsity_in(k)) for k, name in enumerate("xup"))
     *values, g, rows = at_state(x, u, p)
     n_x = x.shape[0]
-    accelerations, _ = passes.accelerations(values, ca.reshape(g, n, n_x))
+    columns = n_x + (u.shape[0] if along_inputs else 0)
+    accelerations, _ = passes.accelerations(values, ca.reshape(g, n, columns))
     j = ca.vertcat(
-        ca.horzcat(ca.MX(n, n), ca.MX.eye(n), ca.MX(n, n_x - 2 * n)),
+        ca.horzcat(ca.MX(n, n), ca.MX.eye(n), ca.MX(n, columns - 2 * n)),
         accelerations,
-        ca.reshape(rows, n_x - 2 * n, n_x),
+        ca.reshape(rows, n_x - 2 * n, columns),
     )
     return ca.Function("softcurve_xdot_jacobian", [x, u, p], [j], ["x", "u", "p"], ["J"])
 
 
 @actuated_parameters
-def actuated_passes(model, inputs, at_state: ca.Function) -> ca.Function:
+def actuated_passes(
+    model, inputs, at_state: ca.Function, along_inputs: bool = False
+) -> ca.Function:
     """``(x, u, p) -> (*values, G, R)``: the passes at the state of the exact Jacobian of
     :func:`actuated_derivative`, for code that runs the tangents and the solve by itself
     (the stepper's lanes). The accelerations' rows of ``J`` are
@@ -106,24 +113,26 @@ def actuated_passes(model, inputs, at_state: ca.Function) -> ca.Function:
     at_state : casadi.Function
         ``(x, tau, p) -> (*values, dF/dx, d creep rate/dx)`` of the model
         (``softcurve.symbolic.derivatives.JacobianPasses.at_state``).
+    along_inputs : bool
+        Append the columns of the input ``u`` to ``G`` and ``R``.
 
     Returns
     -------
     casadi.Function
         ``values``: the passes' dense columns; ``G``: ``vec`` of ``dF/dx`` (n, n_x) with
         the actuator's force's derivative; ``R``: ``vec`` of the rows after the
-        accelerations' (creep rates, then lagging inputs), (n_x - 2 n, n_x).
+        accelerations' (creep rates, then lagging inputs), (n_x - 2 n, n_x); with
+        ``along_inputs``, each with ``n_u`` columns more.
     """
     n, n_state = model.n, model.n_state
     x, u, p, tau, rates = _actuated(model, inputs)
     *values, force_x, creep_x = at_state(x[:n_state], tau, p)
-    n_x = x.shape[0]
-    g = ca.horzcat(force_x, ca.MX(n, n_x - n_state))
-    if inputs is not None:
-        g = g + ca.jacobian(tau, x)
+    along = ca.vertcat(x, u) if along_inputs else x
+    # the model's creep rates do not take the force: its columns beyond the state are zero
+    g = ca.horzcat(force_x, ca.MX(n, along.shape[0] - n_state)) + ca.jacobian(tau, along)
     rows = ca.vertcat(
-        ca.horzcat(creep_x, ca.MX(n_state - 2 * n, n_x - n_state)),
-        *(ca.jacobian(r, x) for r in rates),
+        ca.horzcat(creep_x, ca.MX(n_state - 2 * n, along.shape[0] - n_state)),
+        *(ca.jacobian(r, along) for r in rates),
     )
     outputs = [*values, *(ca.vec(ca.densify(m)) for m in (g, rows))]
     names = [*(f"value{k}" for k in range(len(values))), "G", "R"]

@@ -38,7 +38,6 @@ from softcurve.simulation.stepper._scheme import (
     DIFFERENCE_STEP,
     MemberShares,
     checked_jacobian,
-    jacobian_passes,
     observer,
     rest_scale,
     state_derivative,
@@ -75,7 +74,7 @@ def lanes_jacobian(model, inputs) -> ExactJacobian:
     over the calls' arguments)."""
 
     def build():
-        passes = jacobian_passes(model)
+        passes = model.jacobian_passes()
         at_state = actuated_passes(model, inputs, passes.at_state).expand()
         functions = [(at_state, "sc_passes", (False, False, True))]
         for kind in DIRECTIONS:

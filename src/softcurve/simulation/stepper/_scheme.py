@@ -42,7 +42,6 @@ from softcurve.simulation._settings import JACOBIANS
 from softcurve.simulation.solvers import ActuatorInput, actuated_derivative, actuated_jacobian
 from softcurve.simulation.solvers import state_scale as integration_scale
 from softcurve.simulation.stepper._methods import METHODS, ExplicitTableau, Tableau
-from softcurve.symbolic.derivatives import JacobianPasses
 
 scheme_parameters = parameters_from(
     {
@@ -94,16 +93,6 @@ def checked_jacobian(jacobian: str) -> str:
     return jacobian
 
 
-def jacobian_passes(model) -> JacobianPasses:
-    """The model's exact Jacobian's passes and tangents
-    (``softcurve.symbolic.derivatives.JacobianPasses``), built once and kept with the
-    model for the period of either route (:func:`exact_jacobian`, and the lanes')."""
-    return model.cached(
-        ("stepper-jacobian-passes",),
-        lambda: JacobianPasses(model.expressions, model.quadrature_nodes),
-    )
-
-
 @scheme_parameters
 def exact_jacobian(model, inputs: ActuatorInput | None) -> ca.Function:
     """``(x, u, p) -> J``: the exact Jacobian of :func:`state_derivative` by the state,
@@ -119,7 +108,7 @@ def exact_jacobian(model, inputs: ActuatorInput | None) -> ca.Function:
     """
 
     def build():
-        return actuated_jacobian(model, inputs, jacobian_passes(model))
+        return actuated_jacobian(model, inputs, model.jacobian_passes())
 
     return model.cached(("stepper-jacobian", None if inputs is None else inputs.key), build)
 
