@@ -235,12 +235,34 @@ def checked_request(model, *, horizon, intervals, targets, reference, weights, c
 
 STAGED = ("exact", "gauss-newton")
 """The Hessians of the Lagrangian whose collocation problems are differentiated stage by
-stage: the constraints' Jacobian (:attr:`Problem.constraint_jacobian`) of both, and
-``"exact"``'s Hessian (:attr:`Problem.lagrangian_hessian`; 358 -> 140 ms an evaluation on
-docs/planning.md's 2 s plan). The limited-memory Hessian keeps CasADi's Jacobian: the
-same matrix to rounding, but its L-BFGS iterations on the reach task of
-``tests/test_planning.py`` ran out of their 300 where CasADi's converged in 125, the
-rounding apart."""
+stage: ``"exact"``'s Hessian (:attr:`Problem.lagrangian_hessian`; 358 -> 140 ms an
+evaluation on docs/planning.md's 2 s plan), and the constraints' Jacobian
+(:attr:`Problem.constraint_jacobian`) where :func:`jacobian_by_stages` says. The
+limited-memory Hessian keeps CasADi's Jacobian: the same matrix to rounding, but its
+L-BFGS iterations on the reach task of ``tests/test_planning.py`` ran out of their 300
+where CasADi's converged in 125, the rounding apart."""
+
+
+def jacobian_by_stages(tr, hessian: str) -> bool:
+    """Whether a collocation problem's constraint Jacobian is assembled stage by stage
+    (:attr:`Problem.constraint_jacobian`, on :attr:`Transcription.stage_jacobian`) rather
+    than CasADi's through the compiled collocation: with the Gauss-Newton Hessian, whose
+    constraints' values come from the right-hand side without derivatives; with the exact
+    Hessian for a chain, where CasADi's sweeps every stage in every direction (1.77 s an
+    evaluation on the ten-segment tendon robot of ``python benchmarks/bench_planning.py
+    --tendons``, against 0.28 s by stages), not for a lone segment, whose stage Jacobian
+    compiles in 7 s more for the first plan (15.9 s against 22.9 s on the reach task of
+    ``bench_planning.py``, solved in 1.0 s either way) to save 0.5 s of the 2 s plan's
+    solve (``--long``: 3.0 s against 3.5 s).
+
+    Parameters
+    ----------
+    tr : Transcription
+        The robot's.
+    hessian : str
+        The Hessian of the Lagrangian (:data:`STAGED`, or ``"limited-memory"``).
+    """
+    return hessian == "gauss-newton" or (hessian == "exact" and not tr.inlined)
 
 
 def dynamics_rows(X, residual, following, x_scale) -> tuple:
@@ -258,7 +280,8 @@ class _Stages:
     slopes as a ``symbol`` (n_x, 3 K) and their ``value`` (the right-hand side at the
     stages, from :meth:`Transcription.compiled_rhs`, with its second derivatives where
     ``hessian`` is ``"exact"``), their ``jacobians`` (n_x, (n_x + n_u) 3 K) from
-    :attr:`Transcription.stage_jacobian`; the stages' states ``x`` and inputs ``u`` as
+    :attr:`Transcription.stage_jacobian` where :func:`jacobian_by_stages` says (else
+    None); the stages' states ``x`` and inputs ``u`` as
     expressions of the unknowns; the ``dynamics``' rows (the collocation equations and the
     continuity of the states, scaled as the problem's) on the slopes' value and on their
     symbol; the constraints' ``equations`` on the symbol."""
@@ -266,7 +289,7 @@ class _Stages:
     hessian: str
     symbol: ca.MX
     value: ca.MX
-    jacobians: ca.MX
+    jacobians: ca.MX | None
     x: ca.MX
     u: ca.MX
     dynamics: tuple
@@ -285,7 +308,9 @@ class _Stages:
         # the values from the right-hand side alone: the stages' Jacobians cost four
         # times as much, and IPOPT evaluates the constraints at every trial point
         value = tr.compiled_rhs(2 if hessian == "exact" else 0).map(stages * K)(x, u, P)
-        jacobians = tr.stage_jacobian.map(stages * K)(x, u, P)[1]
+        jacobians = None
+        if jacobian_by_stages(tr, hessian):
+            jacobians = tr.stage_jacobian.map(stages * K)(x, u, P)[1]
         symbol = ca.MX.sym("slopes", n_x, stages * K)
         x1, z, s, step = (ca.MX.sym(name, *shape) for name, shape in
                           (("x", (n_x, 1)), ("z", (n_x, stages)), ("s", (n_x, stages)),
@@ -324,7 +349,7 @@ def ipopt_options(problem, max_iterations: int, tolerance: float, hessian: str,
         options["hess_lag"] = problem.cost_hessian
     elif problem.stages is not None:
         options["hess_lag"] = problem.lagrangian_hessian
-    if problem.stages is not None:
+    if problem.stages is not None and problem.stages.jacobians is not None:
         # the constraints' values come from the right-hand side compiled without
         # derivatives, which CasADi would take by differences: nothing may differentiate
         # them, and the multipliers of p would (CasADi builds their function, unevaluated)
@@ -405,11 +430,13 @@ class Problem:
         stages_of = None
         if method == "collocation":
             Z = Zs * ca.DM(x_scale)
-            if hessian in STAGED:  # on the stages' compiled Jacobians
+            if hessian in STAGED:
                 stages_of = _Stages.build(tr, X, Z, U, h, x_scale, hessian)
+            if jacobian_by_stages(tr, hessian):  # on the stages' compiled Jacobians
                 dynamics = stages_of.dynamics
             else:  # CasADi's Jacobian through the compiled collocation
-                steps = tr.compiled_collocation(1).map(K)(X[:, :K], Z, U, P, h)
+                order = 2 if hessian == "exact" else 1
+                steps = tr.compiled_collocation(order).map(K)(X[:, :K], Z, U, P, h)
                 dynamics = dynamics_rows(X, *steps, x_scale)
         else:
             dynamics = dynamics_rows(X, None, tr.step.map(K)(X[:, :K], U, P, h), x_scale)
@@ -522,8 +549,8 @@ class Problem:
     @cached_property
     def constraint_jacobian(self) -> ca.Function:
         """The constraints and their Jacobian, as CasADi's ``jac_g`` option of IPOPT takes
-        it: ``(x, p) -> (g, jac_g_x)``, for a collocation problem with the exact or the
-        Gauss-Newton Hessian (:data:`STAGED`).
+        it: ``(x, p) -> (g, jac_g_x)``, for a collocation problem whose Jacobian is by
+        stages (:func:`jacobian_by_stages`).
 
         The collocation equations are linear in the slopes at the stages, so their
         Jacobian is theirs with the slopes held plus their slopes' coefficients times each
@@ -532,9 +559,9 @@ class Problem:
         CasADi's own Jacobian of the whole problem sweeps every stage in every direction
         its colouring needs, each sweep a forward derivative of the right-hand side.
         """
-        if self.stages is None:
-            raise ValueError("constraint_jacobian needs a collocation problem built with "
-                             f"hessian in {STAGED}")  # fmt: skip
+        if self.stages is None or self.stages.jacobians is None:
+            raise ValueError("constraint_jacobian needs a collocation problem whose "
+                             "Jacobian is by stages (jacobian_by_stages)")  # fmt: skip
         stages = self.stages
         w, p = self.nlp["x"], self.nlp["p"]
         equations, slopes = stages.equations, ca.vec(stages.symbol)

@@ -115,6 +115,12 @@ class Transcription:
         return self.model.n_state + (0 if self.inputs is None else self.inputs.n_states)
 
     @property
+    def inlined(self) -> bool:
+        """Whether the model inlines its segments' calls (a lone segment,
+        :func:`~softcurve.symbolic.kinematics.inline_calls`)."""
+        return inline_calls(len(self.model.robot.structure()))
+
+    @property
     def n_u(self) -> int:
         """Entries of the input: the actuator's inputs, else the coordinates' forces."""
         return self.model.n if self.inputs is None else self.inputs.n_inputs
@@ -214,15 +220,14 @@ class Transcription:
             ``Model.jacobian_passes``, ``O(N^2)`` operations in N segments);
             ``"expanded"``: CasADi's Jacobian of the expanded right-hand side
             (:attr:`rhs_sx`). Default: the first for a chain, the second for a lone
-            segment, as the model inlines it
-            (:func:`~softcurve.symbolic.kinematics.inline_calls`). Measured on 60 stages
+            segment, as the model inlines it (:attr:`inlined`). Measured on 60 stages
             (``python benchmarks/bench_planning.py --stage-jacobians``): the ten-segment
             tendon robot's compiled in 20.6 s by passes and took 39.3 ms, against 67.0 s
             and 151.9 ms expanded; the paper's robot with bellows took 1.7 ms by passes
             and 1.0 ms expanded.
         """
         if route is None:
-            route = "expanded" if inline_calls(len(self.model.robot.structure())) else "passes"
+            route = "expanded" if self.inlined else "passes"
         if route not in STAGE_JACOBIAN_ROUTES:
             raise ParameterError(f"route must be one of {STAGE_JACOBIAN_ROUTES}, got {route!r}")
         key = ("stage_jacobian", route)
