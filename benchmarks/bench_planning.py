@@ -9,6 +9,8 @@ Run:  python benchmarks/bench_planning.py [--intervals 15] [--methods collocatio
       python benchmarks/bench_planning.py --baselines
       python benchmarks/bench_planning.py --long [--hessians exact limited-memory]
       python benchmarks/bench_planning.py --tendons [--hessians exact limited-memory]
+      [--iterations 300]
+      any of them with [--jacobian-route auto|stages|casadi]
       python benchmarks/bench_planning.py --stage-jacobians
 
 The task: from rest straight up, the tip to (20, 0, 62) mm within 1 mm at 0.3 s and at
@@ -32,7 +34,10 @@ a 2 s horizon at 20 ms (100 steps: the circle of docs/control.md from rest) with
 Hessian, from a cold start with the model and its derivatives cached, and simulates the
 plan against the circle. With ``--tendons`` it plans 1 s of a ten-segment tendon robot
 (``tendon_chain``), first in an empty cache, then from a cold start with the model and
-its derivatives cached. With ``--stage-jacobians`` it builds and compiles the stage
+its derivatives cached, at most ``--iterations`` of IPOPT. ``--jacobian-route`` makes the
+exact Hessian's plans take their constraints' Jacobian stage by stage or CasADi's
+through the compiled collocation, where the library chooses by the robot
+(``jacobian_by_stages``). With ``--stage-jacobians`` it builds and compiles the stage
 Jacobian (``Transcription.compiled_stage_jacobian``) by each route, in an empty cache
 holding the model alone, for the paper's robot with the task's bellows and for the
 ten-segment tendon robot, and times it over 60 stages (a plan of 20 steps), best of five,
@@ -200,15 +205,17 @@ TENDON_GOAL = np.array([0.06, 0.0, 0.17])
 """Where the tip of ``--tendons`` goes [m] (it stands at 200 mm)."""
 
 
-def tendons(hessians) -> None:
+def tendons(hessians, iterations: int) -> None:
     """A ten-segment tendon robot's 1 s plan (20 steps of 50 ms): the tip to
-    ``TENDON_GOAL`` within 2 mm and at rest there, a small effort weight; the first plan
-    in an empty cache (the model and the plan's derivatives compiled) and a second from a
-    cold start with them cached."""
+    ``TENDON_GOAL`` within 2 mm and at rest there, a small effort weight, at most
+    ``iterations`` of IPOPT; the first plan in an empty cache (the model and the plan's
+    derivatives compiled) and a second from a cold start with them cached, whose solve is
+    split into the Hessian's and the constraints' Jacobian's evaluations."""
     print(f"{TENDON_SEGMENTS} segments, six tendons, 1 s in 20 steps of 50 ms")
     print("| Hessian | first plan, empty cache [s] | plan, cold, cached [s] | of it the solve [s] "
-          "| iterations | simulated tip off the plan at the end [mm] | status |")  # fmt: skip
-    print("| --- | --- | --- | --- | --- | --- | --- |")
+          "| the Hessian's evaluations [s] | the Jacobian's [s] | iterations | violation "
+          "| simulated tip off the plan at the end [mm] | status |")  # fmt: skip
+    print("| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |")
     for hessian in hessians:
         with tempfile.TemporaryDirectory(prefix="bench_planning") as folder:
             os.environ["SOFTCURVE_CACHE_DIR"] = folder
@@ -219,14 +226,16 @@ def tendons(hessians) -> None:
                 plans.append(sc.optimize_trajectory(
                     model, start, actuator=actuator, horizon=1.0, intervals=20,
                     targets=[sc.TipTarget(TENDON_GOAL, tolerance=2e-3)], effort_weight=1e-3,
-                    rest_at_end=True, hessian=hessian, progress=True,
+                    rest_at_end=True, hessian=hessian, progress=True, max_iterations=iterations,
                 ))  # fmt: skip
                 times.append(time.perf_counter() - began)
         plan = plans[-1]
         run = plan.simulate()
         off = 1e3 * np.linalg.norm(run.tip[-1] - plan.tip[-1]) if run.success else np.nan
         print(f"| {hessian} | {times[0]:.1f} | {times[1]:.1f} | {plan.solve_time:.1f} | "
-              f"{plan.iterations} | {off:.2f} | {plan.status.value} |")  # fmt: skip
+              f"{plan.timings['hessian']:.1f} | {plan.timings['jacobian']:.1f} | "
+              f"{plan.iterations} | {plan.violation:.2g} | {off:.2f} | "
+              f"{plan.status.value} |")  # fmt: skip
 
 
 def stage_jacobians() -> None:
@@ -274,12 +283,24 @@ def main() -> None:
                         help=f"a {TENDON_SEGMENTS}-segment tendon robot's 1 s plan")  # fmt: skip
     parser.add_argument("--stage-jacobians", action="store_true",
                         help="the stage Jacobian by each route")  # fmt: skip
+    parser.add_argument("--iterations", type=int, default=sc.control.PLAN_ITERATIONS,
+                        help="IPOPT's iterations at most (--tendons)")  # fmt: skip
+    parser.add_argument("--jacobian-route", choices=("auto", "stages", "casadi"),
+                        default="auto",
+                        help="the exact Hessian's constraint Jacobian: as the library "
+                             "chooses (jacobian_by_stages), stage by stage, or CasADi's "
+                             "through the compiled collocation")  # fmt: skip
     args = parser.parse_args()
+    if args.jacobian_route != "auto":
+        by_stages = args.jacobian_route == "stages"
+        problem.jacobian_by_stages = lambda tr, hessian: (
+            hessian == "gauss-newton" or (hessian == "exact" and by_stages)
+        )
     if args.stage_jacobians:
         stage_jacobians()
         return
     if args.tendons:
-        tendons(args.hessians)
+        tendons(args.hessians, args.iterations)
         return
     if args.baselines:
         baselines(args.intervals)

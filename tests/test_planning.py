@@ -99,14 +99,19 @@ def test_the_steps_derivatives_are_exact(transcription):
 def _stage_jacobian_case(case):
     """A model not compiled (the expressions in CasADi's virtual machine) and its
     actuator for the stage Jacobian's cases."""
+    segment = sc.presets.ifac2020().segments[0]
     if case == "two-segment tendons":
-        segment = sc.presets.ifac2020().segments[0]
-        robot = sc.Robot(segments=(segment, segment))
         tendons = sc.TendonActuator(
             [sc.Tendon(azimuth=a, distance=0.008, t_max=5.0, anchor=anchor)
              for anchor in (0, 1) for a in (0.0, 2 * np.pi / 3)], n_segments=2,
         )  # fmt: skip
+        robot = sc.Robot(segments=(segment, segment))
         return sc.Model(robot, quadrature_nodes=2, compile=False), tendons
+    if case == "two segments in contact, forces":
+        ceiling = sc.Plane([0.0, 0.0, 0.12], [0.0, 0.0, -1.0])
+        return sc.Model(sc.Robot(segments=(segment, segment)), quadrature_nodes=2,
+                        environment=sc.Environment([ceiling], sc.ContactLaw(1e4)),
+                        compile=False), None  # fmt: skip
     model = sc.Model(sc.presets.ifac2020(), quadrature_nodes=2, compile=False)
     if case == "lagging bellows":
         return model, sc.PneumaticActuator.three_bellows(
@@ -115,37 +120,37 @@ def _stage_jacobian_case(case):
     return model, None
 
 
-@pytest.mark.parametrize("case", ["two-segment tendons", "lagging bellows", "forces"])
-def test_the_stage_jacobian_is_casadis_jacobian_of_the_right_hand_side(case):
-    """The planners' stage Jacobian by both routes (the derivatives of the chain
-    algorithms through the segments' calls, CasADi's Jacobian of the expanded right-hand
-    side) against CasADi's Jacobian of the expanded right-hand side built here, at random
-    states, the inputs across their range."""
+@pytest.mark.parametrize(
+    "case", ["two-segment tendons", "two segments in contact, forces", "lagging bellows",
+             "forces"],
+)  # fmt: skip
+def test_the_stage_jacobians_two_routes_agree(case):
+    """The planners' stage Jacobian by its two routes, algorithm against algorithm: the
+    derivatives of the chain algorithms through the segments' calls against CasADi's
+    Jacobian of the expanded right-hand side (1e-12 of the largest entry), the inputs'
+    columns with the state's, at random states, the inputs across their range."""
     model, actuator = _stage_jacobian_case(case)
     tr = sc.Transcription(model, actuator)
-    xs, us, ps = tr._symbols()
-    xdot = tr.rhs_sx(xs, us, ps)
-    reference = ca.Function("reference", [xs, us, ps],
-                            [xdot, ca.jacobian(xdot, ca.vertcat(xs, us))])  # fmt: skip
+    p = tr.parameters
     rng = np.random.default_rng(12)
     low, high = tr.input_bounds
     segments = model.n // 3
     lagging = actuator is not None and actuator.time_constant is not None
-    for _ in range(3):
+    for _ in range(2):
         spread = np.tile([0.003, 3.0, 3.0], segments)
         q = np.tile([0.064, 8.0, -5.0], segments) + rng.normal(size=model.n) * spread
         qd = rng.normal(size=model.n) * np.tile([0.01, 20.0, 20.0], segments)
         lam = 1e-3 * rng.normal(size=model.n_state - 2 * model.n)
         x = tr.start(q, qd, lam, rng.uniform(low, high) if lagging else None)
         u = rng.normal(size=tr.n_u) if actuator is None else rng.uniform(low, high)
-        expected = [np.array(v) for v in reference(x, u, tr.parameters)]
-        for route in sc.control.STAGE_JACOBIAN_ROUTES:
-            got = [np.array(v) for v in tr.compiled_stage_jacobian(route)(x, u, tr.parameters)]
-            assert got[1].shape == (tr.n_x, tr.n_x + tr.n_u)
-            for mine, theirs in zip(got, expected, strict=True):
-                assert np.abs(theirs).max() > 0
-                np.testing.assert_allclose(mine, theirs, rtol=0,
-                                           atol=1e-12 * np.abs(theirs).max())  # fmt: skip
+        (xdot, by_passes), (xdot_expanded, expanded) = (
+            [np.array(v) for v in tr.compiled_stage_jacobian(route)(x, u, p)]
+            for route in ("passes", "expanded")
+        )  # fmt: skip
+        assert by_passes.shape == (tr.n_x, tr.n_x + tr.n_u)
+        np.testing.assert_allclose(xdot, xdot_expanded, rtol=1e-14, atol=0)
+        np.testing.assert_allclose(by_passes, expanded, rtol=0,
+                                   atol=1e-12 * np.abs(expanded).max())  # fmt: skip
 
 
 def test_the_collocation_equations_hold_at_the_steps_stages(transcription):
@@ -258,12 +263,14 @@ def _case(case, model, bellows):
 )  # fmt: skip
 def test_the_derivatives_by_stages_are_casadis_through_the_whole_problem(case, model, bellows):
     """IPOPT gets the exact Hessian of the Lagrangian (Problem.lagrangian_hessian) and,
-    with the Gauss-Newton Hessian, the constraints and their Jacobian
-    (Problem.constraint_jacobian) assembled from each stage's derivatives of the
-    right-hand side; CasADi's differentiate the whole problem (the exact one's, on the
-    compiled collocation). At a point with the inputs across their range and random
-    multipliers; on the paper's robot, and on a six-strain segment with creep carrying a
-    rigid gripper (twist, shear, a fixed placement)."""
+    with the Gauss-Newton Hessian and with the exact one of a chain, the constraints and
+    their Jacobian (Problem.constraint_jacobian) assembled from each stage's derivatives
+    of the right-hand side; CasADi's differentiate the whole problem (the exact one's
+    problem). At a point with the inputs across their range and random multipliers; on
+    the paper's robot, and on a six-strain segment with creep carrying a rigid gripper
+    (twist, shear, a fixed placement: two elements, a chain)."""
+    from softcurve.control import _problem as problem
+
     model, bellows, request = _case(case, model, bellows)
     built, point, rng = _problems(model, bellows, **request)
     exact = built["exact"]
@@ -279,6 +286,9 @@ def test_the_derivatives_by_stages_are_casadis_through_the_whole_problem(case, m
     staged = built["gauss-newton"].constraint_jacobian(point, 0.0)
     g_staged, jacobian_staged = (np.array(v) for v in staged)
     pairs = [(by_stages, hessian), (g_staged, g), (jacobian_staged, jacobian)]
+    if case.startswith("six"):  # a chain: the exact Hessian's plan takes it by stages too
+        assert problem.jacobian_by_stages(exact.transcription, "exact")
+        pairs.append((np.array(exact.constraint_jacobian(point, 0.0)[1]), jacobian))
     for mine, reference in pairs:
         assert np.abs(reference).max() > 0
         np.testing.assert_allclose(mine, reference, rtol=0, atol=1e-12 * np.abs(reference).max())

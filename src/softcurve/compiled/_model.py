@@ -42,6 +42,7 @@ from softcurve.symbolic.dynamics import (
     build_dynamics,
 )
 from softcurve.symbolic.functions import symbolic_functions
+from softcurve.symbolic.kinematics import inline_calls
 
 CACHED_PER_MODEL = 64
 """Entries of :meth:`CompiledFunctions.cached` per model; a batch or identification builds
@@ -317,6 +318,13 @@ class Model:
         return self._expressions
 
     _expressions: DynamicsExpressions | None = None
+
+    @property
+    def inlined(self) -> bool:
+        """Whether the model's expressions inline its elements' Functions, as for a robot
+        of one element (:func:`~softcurve.symbolic.kinematics.inline_calls`), or keep
+        them as calls, one copy of an element's work however many elements."""
+        return inline_calls(len(self._structure))
 
     @property
     def symbolic(self) -> dict[str, ca.Function]:

@@ -243,17 +243,17 @@ L-BFGS iterations on the reach task of ``tests/test_planning.py`` ran out of the
 where CasADi's converged in 125, the rounding apart."""
 
 
-def jacobian_by_stages(tr, hessian: str) -> bool:
+def jacobian_by_stages(tr: Transcription, hessian: str) -> bool:
     """Whether a collocation problem's constraint Jacobian is assembled stage by stage
     (:attr:`Problem.constraint_jacobian`, on :attr:`Transcription.stage_jacobian`) rather
     than CasADi's through the compiled collocation: with the Gauss-Newton Hessian, whose
     constraints' values come from the right-hand side without derivatives; with the exact
-    Hessian for a chain, where CasADi's sweeps every stage in every direction (1.77 s an
-    evaluation on the ten-segment tendon robot of ``python benchmarks/bench_planning.py
-    --tendons``, against 0.28 s by stages), not for a lone segment, whose stage Jacobian
-    compiles in 7 s more for the first plan (15.9 s against 22.9 s on the reach task of
-    ``bench_planning.py``, solved in 1.0 s either way) to save 0.5 s of the 2 s plan's
-    solve (``--long``: 3.0 s against 3.5 s).
+    Hessian where the model keeps its elements' calls (``Model.inlined`` false), where
+    CasADi's sweeps every stage in every direction (ten iterations of the ten-segment
+    tendon robot's plan: 2.8 s of Jacobians by stages, 16.9 s through CasADi's); not for
+    a robot of one element, where the stage Jacobian's compile delays the first plan more
+    than it saves (the reach task's: 23.1 s against 15.6 s, its solve 0.9 s against
+    1.1 s). ``python benchmarks/bench_planning.py --jacobian-route`` prints both.
 
     Parameters
     ----------
@@ -261,8 +261,14 @@ def jacobian_by_stages(tr, hessian: str) -> bool:
         The robot's.
     hessian : str
         The Hessian of the Lagrangian (:data:`STAGED`, or ``"limited-memory"``).
+
+    Returns
+    -------
+    bool
+        True: by stages (:attr:`Problem.constraint_jacobian`, given to IPOPT as
+        ``jac_g``); False: CasADi's.
     """
-    return hessian == "gauss-newton" or (hessian == "exact" and not tr.inlined)
+    return hessian == "gauss-newton" or (hessian == "exact" and not tr.model.inlined)
 
 
 def dynamics_rows(X, residual, following, x_scale) -> tuple:
@@ -350,9 +356,10 @@ def ipopt_options(problem, max_iterations: int, tolerance: float, hessian: str,
     elif problem.stages is not None:
         options["hess_lag"] = problem.lagrangian_hessian
     if problem.stages is not None and problem.stages.jacobians is not None:
-        # the constraints' values come from the right-hand side compiled without
-        # derivatives, which CasADi would take by differences: nothing may differentiate
-        # them, and the multipliers of p would (CasADi builds their function, unevaluated)
+        # with the Gauss-Newton Hessian the constraints' values come from the right-hand
+        # side compiled without derivatives, which CasADi would take by differences:
+        # nothing may differentiate them, and the multipliers of p would (CasADi builds
+        # their function, unevaluated); with the exact one nothing needs them either
         options.update(jac_g=problem.constraint_jacobian, calc_lam_p=False)
     if warm:
         options.update({f"ipopt.{name}": value for name, value in WARM_START.items()})

@@ -40,7 +40,6 @@ from softcurve.simulation.solvers import (
 )
 from softcurve.symbolic.functions import domain_margins
 from softcurve.symbolic.gaps import obstacle_distances
-from softcurve.symbolic.kinematics import inline_calls
 
 NEWTON_TOLERANCE = 1e-12
 """Residual norm at which :attr:`Transcription.step`'s Newton iteration stops, in the
@@ -115,12 +114,6 @@ class Transcription:
         return self.model.n_state + (0 if self.inputs is None else self.inputs.n_states)
 
     @property
-    def inlined(self) -> bool:
-        """Whether the model inlines its segments' calls (a lone segment,
-        :func:`~softcurve.symbolic.kinematics.inline_calls`)."""
-        return inline_calls(len(self.model.robot.structure()))
-
-    @property
     def n_u(self) -> int:
         """Entries of the input: the actuator's inputs, else the coordinates' forces."""
         return self.model.n if self.inputs is None else self.inputs.n_inputs
@@ -148,9 +141,11 @@ class Transcription:
             return np.full(self.n_u, -np.inf), np.full(self.n_u, np.inf)
         return self.inputs.lower.copy(), self.inputs.upper.copy()
 
-    def _symbols(self):
-        x = ca.SX.sym("x", self.n_x)
-        return x, ca.SX.sym("u", self.n_u), ca.SX.sym("p", self.parameters.size)
+    def _symbols(self, kind=ca.SX) -> tuple:
+        """``(x, u, p)``: symbols of ``kind`` (``casadi.SX`` or ``casadi.MX``) of the
+        state, the input and the parameters."""
+        return tuple(kind.sym(name, size) for name, size in
+                     (("x", self.n_x), ("u", self.n_u), ("p", self.parameters.size)))  # fmt: skip
 
     # -- the Functions ----------------------------------------------------------------
     @cached_property
@@ -169,8 +164,7 @@ class Transcription:
     def _collocation_on(self, rhs: ca.Function, kind) -> ca.Function:
         """The collocation equations on the right-hand side ``rhs``, in symbols of
         ``kind`` (``casadi.SX`` or ``casadi.MX``)."""
-        x, u, p = (kind.sym(name, size) for name, size in
-                   (("x", self.n_x), ("u", self.n_u), ("p", self.parameters.size)))  # fmt: skip
+        x, u, p = self._symbols(kind)
         z, h = kind.sym("z", self.n_x, self.stages), kind.sym("h")
         slopes = ca.horzcat(*[rhs(x + z[:, j], u, p) for j in range(self.stages)])
         return ca.Function(
@@ -198,11 +192,11 @@ class Transcription:
         """
         return z - h * ca.mtimes(slopes, ca.DM(self.tableau.matrix.T)), x + z[:, -1]
 
-    @cached_property
+    @property
     def stage_jacobian(self) -> ca.Function:
         """``stage_jacobian(x, u, p) -> (xdot, J)``: :attr:`rhs` and its exact Jacobian
         along ``(x, u)`` (n_x, n_x + n_u), :meth:`compiled_stage_jacobian` by the route the
-        robot's segments take."""
+        robot's elements take."""
         return self.compiled_stage_jacobian()
 
     def compiled_stage_jacobian(self, route: str | None = None) -> ca.Function:
@@ -219,15 +213,16 @@ class Transcription:
             calls (:func:`~softcurve.simulation.solvers.actuated_jacobian` on
             ``Model.jacobian_passes``, ``O(N^2)`` operations in N segments);
             ``"expanded"``: CasADi's Jacobian of the expanded right-hand side
-            (:attr:`rhs_sx`). Default: the first for a chain, the second for a lone
-            segment, as the model inlines it (:attr:`inlined`). Measured on 60 stages
+            (:attr:`rhs_sx`). Default: the first where the model keeps its elements'
+            calls, the second for a robot of one element, whose model inlines them
+            (``Model.inlined``). Measured on 60 stages
             (``python benchmarks/bench_planning.py --stage-jacobians``): the ten-segment
             tendon robot's compiled in 20.6 s by passes and took 39.3 ms, against 67.0 s
             and 151.9 ms expanded; the paper's robot with bellows took 1.7 ms by passes
             and 1.0 ms expanded.
         """
         if route is None:
-            route = "expanded" if self.inlined else "passes"
+            route = "expanded" if self.model.inlined else "passes"
         if route not in STAGE_JACOBIAN_ROUTES:
             raise ParameterError(f"route must be one of {STAGE_JACOBIAN_ROUTES}, got {route!r}")
         key = ("stage_jacobian", route)
@@ -238,11 +233,10 @@ class Transcription:
             xdot = self.rhs_sx(x, u, p)
             jacobian = ca.jacobian(xdot, ca.vertcat(x, u))
         else:
-            passes = actuated_jacobian(self.model, self.inputs, self.model.jacobian_passes(),
-                                       along_inputs=True)  # fmt: skip
-            x, u, p = (ca.MX.sym(name, size) for name, size in
-                       (("x", self.n_x), ("u", self.n_u), ("p", self.parameters.size)))  # fmt: skip
-            xdot, jacobian = self.rhs(x, u, p), passes(x, u, p)
+            passes = self.model.jacobian_passes()
+            jacobian_of = actuated_jacobian(self.model, self.inputs, passes, along_inputs=True)
+            x, u, p = self._symbols(ca.MX)
+            xdot, jacobian = self.rhs(x, u, p), jacobian_of(x, u, p)
         function = ca.Function(
             f"softcurve_stage_jacobian_{route}", [x, u, p], [xdot, ca.densify(jacobian)],
             ["x", "u", "p"], ["xdot", "jacobian"],
@@ -261,9 +255,8 @@ class Transcription:
         Hessian of a whole plan's Lagrangian sweeps every stage in every direction it
         colours).
         """
-        x, u, mu, p = (ca.MX.sym(name, size) for name, size in
-                       (("x", self.n_x), ("u", self.n_u), ("mu", self.n_x),
-                        ("p", self.parameters.size)))  # fmt: skip
+        x, u, p = self._symbols(ca.MX)
+        mu = ca.MX.sym("mu", self.n_x)
         hessian = ca.hessian(ca.dot(mu, self.compiled_rhs(2)(x, u, p)), ca.vertcat(x, u))[0]
         return ca.Function("stage_hessian", [x, u, mu, p], [ca.densify(hessian)],
                            ["x", "u", "mu", "p"], ["hessian"])  # fmt: skip
@@ -329,8 +322,7 @@ class Transcription:
         its stages solved by Newton's method from the explicit Euler guess
         (:data:`NEWTON_TOLERANCE`); derivatives by the implicit function theorem."""
         stages = self.stages
-        x, u, p = (ca.MX.sym(name, size) for name, size in
-                   (("x", self.n_x), ("u", self.n_u), ("p", self.parameters.size)))  # fmt: skip
+        x, u, p = self._symbols(ca.MX)
         h, z = ca.MX.sym("h"), ca.MX.sym("z", self.n_x * stages)
         residual = self.collocation(x, ca.reshape(z, self.n_x, stages), u, p, h)[0]
         equations = ca.Function("stages", [z, ca.vertcat(x, u, p, h)], [ca.vec(residual)])
@@ -355,8 +347,7 @@ class Transcription:
         """
         if not (isinstance(steps, int | np.integer) and steps >= 1):
             raise ParameterError(f"steps must be an integer >= 1, got {steps!r}")
-        x, u, p = (ca.MX.sym(name, size) for name, size in
-                   (("x", self.n_x), ("u", self.n_u), ("p", self.parameters.size)))  # fmt: skip
+        x, u, p = self._symbols(ca.MX)
         h = ca.MX.sym("h")
         one = ca.Function("one", [x, ca.vertcat(u, p, h)], [self.step(x, u, p, h)])
         x0, U = ca.MX.sym("x0", self.n_x), ca.MX.sym("U", self.n_u, int(steps))

@@ -215,8 +215,8 @@ def state_jacobian(passes: JacobianPasses) -> ca.Function:
     Parameters
     ----------
     passes : JacobianPasses
-        The model's, built on its expressions (with contact,
-        :class:`ContactExpressions`, whose contact force is in ``e.generalized_force``).
+        The model's (``Model.jacobian_passes``), built on its expressions: with contact,
+        :class:`ContactExpressions`, whose generalized force holds the contact force.
 
     Returns
     -------

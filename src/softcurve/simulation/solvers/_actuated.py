@@ -128,9 +128,9 @@ def actuated_passes(
     x, u, p, tau, rates = _actuated(model, inputs)
     *values, force_x, creep_x = at_state(x[:n_state], tau, p)
     along = ca.vertcat(x, u) if along_inputs else x
-    # the model's creep rates do not take the force: its columns beyond the state are zero
+    # the model's generalized force takes tau with the identity
     g = ca.horzcat(force_x, ca.MX(n, along.shape[0] - n_state)) + ca.jacobian(tau, along)
-    rows = ca.vertcat(
+    rows = ca.vertcat(  # the creep rates do not take tau: zero beyond the model's state
         ca.horzcat(creep_x, ca.MX(n_state - 2 * n, along.shape[0] - n_state)),
         *(ca.jacobian(r, along) for r in rates),
     )
