@@ -68,6 +68,22 @@ class SettingsError(ParameterError):
         self.field, self.reason = field, reason
 
 
+def checked_jacobian(jacobian: str) -> str:
+    """``jacobian`` where it names one of :data:`JACOBIANS`: forward differences of the
+    state derivative or the model's exact Jacobian, for the driver's Newton matrix
+    (``SimulationSettings.jacobian``) and a Rosenbrock method's (the stepper's, the
+    environments'); else :class:`SettingsError`, naming the field.
+
+    Parameters
+    ----------
+    jacobian : str
+        The name asked for.
+    """
+    if jacobian not in JACOBIANS:
+        raise SettingsError("jacobian", f"must be one of {', '.join(JACOBIANS)}, got {jacobian!r}")
+    return jacobian
+
+
 def _number(field: str, value, *, unit: str) -> float:
     """``value`` as a finite float > 0, or :class:`SettingsError`."""
     # plain floats and ints (the usual case) skip NumPy's checks, a few microseconds each
@@ -175,10 +191,7 @@ class SimulationSettings:
             raise SettingsError(
                 "method", f"must be one of {', '.join(METHODS)}, got {self.method!r}"
             )
-        if self.jacobian not in JACOBIANS:
-            raise SettingsError(
-                "jacobian", f"must be one of {', '.join(JACOBIANS)}, got {self.jacobian!r}"
-            )
+        checked_jacobian(self.jacobian)
         rtol = _number("rtol", self.rtol, unit="")
         if not RTOL_MIN <= rtol < 1:
             raise SettingsError("rtol", f"must be in [{RTOL_MIN:g}, 1), got {rtol!r}")

@@ -36,9 +36,8 @@ import numpy as np
 
 from softcurve.base.docs import parameters_from
 from softcurve.base.shares import run_shares, share_bounds
-from softcurve.base.validation import ParameterError
 from softcurve.compiled import NativeFunction, compile_function, load_function
-from softcurve.simulation._settings import JACOBIANS
+from softcurve.simulation._settings import checked_jacobian
 from softcurve.simulation.solvers import ActuatorInput, actuated_derivative, actuated_jacobian
 from softcurve.simulation.solvers import state_scale as integration_scale
 from softcurve.simulation.stepper._methods import METHODS, ExplicitTableau, Tableau
@@ -74,23 +73,6 @@ def state_derivative(model, inputs: ActuatorInput | None, symbolic: bool) -> ca.
         return actuated_derivative(model, inputs, rhs)
 
     return model.cached(("stepper-xdot", symbolic, None if inputs is None else inputs.key), build)
-
-
-def checked_jacobian(jacobian: str) -> str:
-    """``jacobian`` where it names one of ``softcurve.simulation.JACOBIANS`` (the same
-    choice as ``simulate``'s): forward differences of the state derivative
-    (:func:`difference_jacobian`, ``n_x + 1`` evaluations) or the model's exact Jacobian
-    (:func:`exact_jacobian`), for a Rosenbrock method's Newton matrix; else
-    ParameterError, naming the field.
-
-    Parameters
-    ----------
-    jacobian : str
-        The name asked for.
-    """
-    if jacobian not in JACOBIANS:
-        raise ParameterError(f"jacobian must be one of {JACOBIANS}, got {jacobian!r}")
-    return jacobian
 
 
 @scheme_parameters
