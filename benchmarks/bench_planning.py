@@ -259,8 +259,8 @@ def stage_jacobians() -> None:
                 began = time.perf_counter()
                 mapped = tr.compiled_stage_jacobian(route).map(stages)
                 built = time.perf_counter() - began
-                q = np.tile([0.02, 5.0, -3.0], model.n // 3) + model.robot.rest_configuration()
-                x = tr.start(q, np.tile([0.0, 10.0, 10.0], model.n // 3))
+                scale = model.robot.coordinate_scale()  # bent and moving, any kind
+                x = tr.start(model.robot.rest_configuration() + 0.2 * scale, scale)
                 low, high = tr.input_bounds
                 X, U = np.tile(x[:, None], stages), np.tile(((low + high) / 2)[:, None], stages)
                 mapped(X, U, tr.parameters)

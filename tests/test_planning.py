@@ -112,6 +112,12 @@ def _stage_jacobian_case(case):
         return sc.Model(sc.Robot(segments=(segment, segment)), quadrature_nodes=2,
                         environment=sc.Environment([ceiling], sc.ContactLaw(1e4)),
                         compile=False), None  # fmt: skip
+    if case == "six strains with creep and a gripper, bellows":
+        robot = sc.Robot(segments=(six_strain_segment(creep=True), gripper()))
+        bellows = sc.PneumaticActuator.three_bellows(
+            elements=robot, distance=0.005, area=2e-5, p_max=1e5
+        )
+        return sc.Model(robot, quadrature_nodes=2, compile=False), bellows
     model = sc.Model(sc.presets.ifac2020(), quadrature_nodes=2, compile=False)
     if case == "lagging bellows":
         return model, sc.PneumaticActuator.three_bellows(
@@ -122,24 +128,24 @@ def _stage_jacobian_case(case):
 
 @pytest.mark.parametrize(
     "case", ["two-segment tendons", "two segments in contact, forces", "lagging bellows",
-             "forces"],
+             "forces", "six strains with creep and a gripper, bellows"],
 )  # fmt: skip
 def test_the_stage_jacobians_two_routes_agree(case):
     """The planners' stage Jacobian by its two routes, algorithm against algorithm: the
     derivatives of the chain algorithms through the segments' calls against CasADi's
     Jacobian of the expanded right-hand side (1e-12 of the largest entry), the inputs'
-    columns with the state's, at random states, the inputs across their range."""
+    columns with the state's, at random states (about the rest configuration, by the
+    coordinates' scales), the inputs across their range."""
     model, actuator = _stage_jacobian_case(case)
     tr = sc.Transcription(model, actuator)
     p = tr.parameters
     rng = np.random.default_rng(12)
     low, high = tr.input_bounds
-    segments = model.n // 3
+    rest, scale = model.robot.rest_configuration(), model.robot.coordinate_scale()
     lagging = actuator is not None and actuator.time_constant is not None
     for _ in range(2):
-        spread = np.tile([0.003, 3.0, 3.0], segments)
-        q = np.tile([0.064, 8.0, -5.0], segments) + rng.normal(size=model.n) * spread
-        qd = rng.normal(size=model.n) * np.tile([0.01, 20.0, 20.0], segments)
+        q = rest + 0.3 * scale * rng.normal(size=model.n)
+        qd = scale * rng.normal(size=model.n)
         lam = 1e-3 * rng.normal(size=model.n_state - 2 * model.n)
         x = tr.start(q, qd, lam, rng.uniform(low, high) if lagging else None)
         u = rng.normal(size=tr.n_u) if actuator is None else rng.uniform(low, high)

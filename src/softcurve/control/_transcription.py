@@ -217,8 +217,8 @@ class Transcription:
             calls, the second for a robot of one element, whose model inlines them
             (``Model.inlined``). Measured on 60 stages
             (``python benchmarks/bench_planning.py --stage-jacobians``): the ten-segment
-            tendon robot's compiled in 20.6 s by passes and took 39.3 ms, against 67.0 s
-            and 151.9 ms expanded; the paper's robot with bellows took 1.7 ms by passes
+            tendon robot's compiled in 20.2 s by passes and took 39.0 ms, against 62.8 s
+            and 150.9 ms expanded; the paper's robot with bellows took 1.6 ms by passes
             and 1.0 ms expanded.
         """
         if route is None:
