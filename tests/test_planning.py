@@ -448,6 +448,7 @@ def test_an_unreachable_target_is_not_a_success_and_says_what_binds(model, bello
         ({"reference": sc.Reference.constant(np.zeros(6))}, "reference has 6 coordinates"),
         ({"actuator_state": [1e4, 0, 0]}, "actuator_state is the initial state of a lagging"),
         ({"warm_start": "plan"}, "warm_start must be a TrajectoryPlan"),
+        ({"threads": 0}, "threads must be an integer >= 1"),
     ],
 )
 def test_bad_requests_are_refused_before_any_work(model, bellows, change, match):
@@ -500,6 +501,20 @@ def test_a_free_final_time_rates_and_a_reference_are_honoured(model, bellows, ca
     assert smooth.success, smooth.message
     changes = [np.sum(np.diff(p.u, axis=0) ** 2) for p in (fast, smooth)]
     assert changes[1] < changes[0]  # a larger rate weight, gentler pressures
+
+
+def test_a_plan_is_the_same_on_any_number_of_threads(model, bellows, reach):
+    """The stages' functions mapped over threads give the plan of one thread, bit for bit
+    (``reach`` ran on the cores this process may use)."""
+    for threads in (1, 3):
+        plan = sc.optimize_trajectory(
+            model, [0.064, 0.0, 0.0], actuator=bellows, horizon=0.2, intervals=8,
+            targets=[sc.TipTarget(REACH, tolerance=2e-3)], effort_weight=1e-3,
+            rest_at_end=True, threads=threads,
+        )  # fmt: skip
+        assert plan.iterations == reach.iterations
+        np.testing.assert_array_equal(plan.u, reach.u)
+        np.testing.assert_array_equal(plan.x, reach.x)
 
 
 def test_tip_bounds_hold_where_they_bind(model, bellows, reach):

@@ -19,7 +19,7 @@ import numpy as np
 
 from softcurve.base.progress import on_terminal
 from softcurve.base.status import Result, Status
-from softcurve.base.validation import ParameterError
+from softcurve.base.validation import ParameterError, whole_count
 from softcurve.control._problem import (
     PLAN_ITERATIONS,
     VIOLATION_ALLOWED,
@@ -32,6 +32,7 @@ from softcurve.control._problem import (
 )
 from softcurve.control._transcription import Transcription
 from softcurve.control.references import Reference
+from softcurve.simulation.batch import default_threads
 
 PLAN_HESSIANS = ("exact", "limited-memory")
 """The Hessians of the Lagrangian that :func:`optimize_trajectory` gives IPOPT; the first
@@ -273,6 +274,7 @@ def optimize_trajectory(
     max_iterations: int = PLAN_ITERATIONS,
     tolerance: float = 1e-8,
     progress: bool = False,
+    threads: int | None = None,
 ) -> TrajectoryPlan:
     """The inputs over a horizon that best meet the targets under the bounds.
 
@@ -345,6 +347,10 @@ def optimize_trajectory(
         IPOPT's convergence tolerance (its scaled NLP error), > 0.
     progress : bool
         Write ``iteration k, cost f, violation v`` on stderr at each iteration.
+    threads : int, optional
+        Threads that evaluate the stages' right-hand sides and their derivatives (with
+        collocation and the exact Hessian), >= 1 (default: the cores this process may
+        use). The results do not depend on it.
 
     Returns
     -------
@@ -367,6 +373,7 @@ def optimize_trajectory(
         raise ParameterError(f"method must be one of {', '.join(PLAN_METHODS)}, got {method!r}")
     if hessian not in PLAN_HESSIANS:
         raise ParameterError(f"hessian must be one of {', '.join(PLAN_HESSIANS)}, got {hessian!r}")
+    threads = default_threads() if threads is None else whole_count("threads", threads)
     if hessian == "limited-memory" and method == "shooting":
         raise ParameterError(
             "hessian='limited-memory' needs method='collocation': shooting's Newton solves "
@@ -395,7 +402,7 @@ def optimize_trajectory(
             )
 
     problem = Problem.build(tr, x0, request, rest_at_end=rest_at_end, method=method,
-                             hessian=hessian, previous_inputs=False)  # fmt: skip
+                             hessian=hessian, previous_inputs=False, threads=threads)  # fmt: skip
     options = ipopt_options(problem, max_iterations, tolerance, hessian,
                             warm=warm_start is not None)  # fmt: skip
     duals = {}

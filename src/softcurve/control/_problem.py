@@ -34,7 +34,7 @@ from softcurve.base.status import Status
 from softcurve.base.validation import ParameterError, real_scalar
 from softcurve.control._transcription import Transcription
 from softcurve.control.references import Reference, checked_reference
-from softcurve.simulation.solvers import lag_scale, nominal_scale
+from softcurve.simulation.solvers import lag_scale, mapped, nominal_scale
 
 LBFGS_HISTORY = 20
 """Pairs of IPOPT's limited-memory Hessian (``limited_memory_max_history``): on the
@@ -287,12 +287,13 @@ class _Stages:
     stages, from :meth:`Transcription.compiled_rhs`, with its second derivatives where
     ``hessian`` is ``"exact"``), their ``jacobians`` (n_x, (n_x + n_u) 3 K) from
     :attr:`Transcription.stage_jacobian` where :func:`jacobian_by_stages` says (else
-    None); the stages' states ``x`` and inputs ``u`` as
-    expressions of the unknowns; the ``dynamics``' rows (the collocation equations and the
-    continuity of the states, scaled as the problem's) on the slopes' value and on their
-    symbol; the constraints' ``equations`` on the symbol."""
+    None), each map of a stage's function on ``threads`` threads; the stages' states ``x``
+    and inputs ``u`` as expressions of the unknowns; the ``dynamics``' rows (the
+    collocation equations and the continuity of the states, scaled as the problem's) on
+    the slopes' value and on their symbol; the constraints' ``equations`` on the symbol."""
 
     hessian: str
+    threads: int
     symbol: ca.MX
     value: ca.MX
     jacobians: ca.MX | None
@@ -303,20 +304,21 @@ class _Stages:
     equations: ca.MX | None = None
 
     @classmethod
-    def build(cls, tr, X, Z, U, h, x_scale, hessian: str) -> _Stages:
+    def build(cls, tr, X, Z, U, h, x_scale, hessian: str, threads: int) -> _Stages:
         """The stages of the steps between the nodes ``X`` (n_x, K + 1) with increments
         ``Z`` (n_x, 3 K), inputs ``U`` (n_u, K) and step ``h``; ``x_scale`` scales the
-        dynamics' rows."""
+        dynamics' rows; the stages' functions run on ``threads`` threads."""
         n_x, (stages, K) = tr.n_x, (tr.stages, U.shape[1])
         repeat = ca.sparsify(ca.DM(np.kron(np.eye(K), np.ones((1, stages)))))
         x, u = ca.mtimes(X[:, :K], repeat) + Z, ca.mtimes(U, repeat)
         P = ca.DM(tr.parameters)
         # the values from the right-hand side alone: the stages' Jacobians cost four
         # times as much, and IPOPT evaluates the constraints at every trial point
-        value = tr.compiled_rhs(2 if hessian == "exact" else 0).map(stages * K)(x, u, P)
+        count = stages * K
+        value = mapped(tr.compiled_rhs(2 if hessian == "exact" else 0), count, threads)(x, u, P)
         jacobians = None
         if jacobian_by_stages(tr, hessian):
-            jacobians = tr.stage_jacobian.map(stages * K)(x, u, P)[1]
+            jacobians = mapped(tr.stage_jacobian, count, threads)(x, u, P)[1]
         symbol = ca.MX.sym("slopes", n_x, stages * K)
         x1, z, s, step = (ca.MX.sym(name, *shape) for name, shape in
                           (("x", (n_x, 1)), ("z", (n_x, stages)), ("s", (n_x, stages)),
@@ -327,7 +329,7 @@ class _Stages:
         def rows(slopes):
             return dynamics_rows(X, *equations(X[:, :K], Z, slopes, h), x_scale)
 
-        return cls(hessian, symbol, value, jacobians, x, u, rows(value), rows(symbol))
+        return cls(hessian, threads, symbol, value, jacobians, x, u, rows(value), rows(symbol))
 
     def with_equations(self, g) -> _Stages:
         """These stages with the constraints' ``equations`` on the slopes' symbol."""
@@ -400,8 +402,9 @@ class Problem:
 
     @classmethod
     def build(cls, tr, x0, request: Request, *, rest_at_end, method, hessian,
-              previous_inputs) -> Problem:  # fmt: skip
-        """The problem of a checked request, its states scaled by the start ``x0``."""
+              previous_inputs, threads: int = 1) -> Problem:  # fmt: skip
+        """The problem of a checked request, its states scaled by the start ``x0``; the
+        stages' derivatives (collocation) evaluated on ``threads`` threads."""
         model = tr.model
         K, t_low, t_high, free = request.intervals, request.t_low, request.t_high, request.free
         targets, reference, weights = request.targets, request.reference, request.weights
@@ -438,7 +441,7 @@ class Problem:
         if method == "collocation":
             Z = Zs * ca.DM(x_scale)
             if hessian in STAGED:
-                stages_of = _Stages.build(tr, X, Z, U, h, x_scale, hessian)
+                stages_of = _Stages.build(tr, X, Z, U, h, x_scale, hessian, threads)
             if jacobian_by_stages(tr, hessian):  # on the stages' compiled Jacobians
                 dynamics = stages_of.dynamics
             else:  # CasADi's Jacobian through the compiled collocation
@@ -451,7 +454,6 @@ class Problem:
             constraints.add("dynamics", rows, 0.0, 0.0)
         margins = tr.domain.map(K)(X[:, 1:], P)
         constraints.add("model or actuator domain", margins, 0.0, np.inf)
-        tips = tr.tip.map(K + 1)(X, P)
         if clearance is not None:
             # the base's rows (first) are fixed: no input moves them
             obstacles = len(model.environment.obstacles)
@@ -460,12 +462,30 @@ class Problem:
         if tip_box is not None:
             tip_low, tip_high = tip_box
             box = (np.tile(tip_low[:, None], K), np.tile(tip_high[:, None], K))
-            constraints.add("tip bounds", tips[:, 1:], *box)
+            constraints.add("tip bounds", tr.tip.map(K)(X[:, 1:], P), *box)
+        rest_block = None
         if rest_at_end:
-            xdot = tr.rhs(X[:, K], U[:, K - 1], P)
             # q and qd still, and a lagging actuator settled; creep may still move
             still = [*range(2 * n), *range(model.n_state, n_x)]
-            constraints.add("rest at the end", xdot[still] / ca.DM(x_scale[still]), 0.0, 0.0)
+
+            def rest(xdot):
+                return xdot[still] / ca.DM(x_scale[still])
+
+            if stages_of is not None:
+                # at the last step's last stage, which is the last node where the
+                # dynamics hold (Radau IIA's c = 1): the stages' derivatives carry its
+                # slope, where the symbolic right-hand side's would run in CasADi's
+                # virtual machine (0.64 s of the 2.7 s of an evaluation of the Hessian
+                # of the ten-segment tendon plan); one call, which CasADi's Jacobian
+                # differentiates where the stages' is not used
+                rest_block = len(constraints.rows)
+                order = 2 if hessian == "exact" else 0
+                xdot = tr.compiled_rhs(order)(stages_of.x[:, -1], stages_of.u[:, -1], P)
+            elif method == "collocation":  # the compiled collocation's right-hand side
+                xdot = tr.compiled_rhs(1)(X[:, K], U[:, K - 1], P)
+            else:
+                xdot = tr.rhs(X[:, K], U[:, K - 1], P)
+            constraints.add("rest at the end", rest(xdot), 0.0, 0.0)
 
         # -- cost ------------------------------------------------------------------------
         def node(time_value):
@@ -475,7 +495,8 @@ class Problem:
         for i, target in enumerate(targets):
             k = node(target.time)
             if isinstance(target, TipTarget):
-                error = (tips[:, k] - ca.DM(target.position)) / length
+                # the node's own tip: CasADi's derivatives of a map sweep all its nodes
+                error = (tr.tip(X[:, k], P) - ca.DM(target.position)) / length
                 scale = length
             else:
                 error = (X[:n, k] - ca.DM(target.q)) / ca.DM(q_scale)
@@ -505,9 +526,11 @@ class Problem:
         w = ca.vertcat(ca.vec(Xs), ca.vec(Us), ca.vec(Zs), Ts)
         g, lower_g, upper_g = constraints.arrays()
         if stages_of is not None:  # the dynamics' blocks first: on the slopes' symbol
-            held = [ca.vec(rows) for rows in stages_of.dynamics_held]
-            others = constraints.rows[len(held) :]
-            stages_of = stages_of.with_equations(ca.vertcat(*held, *others))
+            rows = list(constraints.rows)
+            rows[: len(stages_of.dynamics_held)] = map(ca.vec, stages_of.dynamics_held)
+            if rest_block is not None:
+                rows[rest_block] = ca.vec(rest(stages_of.symbol[:, -1]))
+            stages_of = stages_of.with_equations(ca.vertcat(*rows))
         nlp = {"x": w, "f": cost, "g": g, "p": ca.vertcat(t0, u_before)}
         return cls(tr, nlp, lower_g, upper_g, tuple(constraints.groups), tuple(constraints.blocks),
                    x_scale, span, offset, rest_u, bounded, K, t_low, t_high, free,
@@ -538,7 +561,7 @@ class Problem:
         shape = stages.symbol.shape
         mu = ca.reshape(ca.jacobian(lagrangian, ca.vec(stages.symbol)).T, *shape)
         P = ca.DM(tr.parameters)
-        blocks = tr.stage_hessian.map(shape[1])(stages.x, stages.u, mu, P)
+        blocks = mapped(tr.stage_hessian, shape[1], stages.threads)(stages.x, stages.u, mu, P)
         carry = stages.carry(w)
         each = ca.horzsplit(blocks, blocks.shape[0])
         hessian = held + ca.mtimes([carry.T, ca.diagcat(*each), carry])  # (ii)
