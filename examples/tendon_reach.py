@@ -18,8 +18,8 @@ and of the simulated motion, and where the simulated tip ends. Written: the back
 eight times with the ball, from the side and from above (tendon_reach.png), and the
 simulated motion in the interactive viewer (tendon_reach.html).
 
-The first run compiles the robot's dynamics with their second derivatives (about a
-minute); the plan itself takes about as long.
+The first run compiles the robot's dynamics with their second derivatives (about half a
+minute); the plan itself takes about 12 s on two cores.
 
     python examples/tendon_reach.py [--output tendon_reach] [--intervals 20]
 """

@@ -7,7 +7,7 @@ minutes even at their smallest (each of its dozens of fits builds its sensitivit
 equations): they are marked ``slow`` (``python -m pytest -m slow tests/test_examples.py``);
 by default every name the examples read from a module is checked to exist (a rename's
 leftover, found without running), and tests/test_validation_goals.py runs a fit of it.
-So is tendon_reach.py's plan (a minute's compile and a minute's solve), whose planner is
+So is tendon_reach.py's plan (half a minute's compile and 12 s of solve), whose planner is
 checked on the paper's robot by tests/test_planning.py.
 The runs of ``train_reach.py`` skip without Stable-Baselines3 (``pip install ".[rl]"``
 and PyTorch).
@@ -75,8 +75,8 @@ RUNS = (
         ("--quick", "--output", "{out}"),
         writes=("predictive_circle.png", "predictive_circle.html"),
     ),
-    # its first plan compiles a two-segment robot's second derivatives (about a minute in
-    # an empty cache) and solves in about as long; a plan in the virtual machine takes more
+    # its first plan compiles a two-segment robot's second derivatives (about half a
+    # minute in an empty cache) and solves in 12 s; a plan in the virtual machine takes more
     Run(
         "tendon_reach.py",
         ("--output", "{out}"),

@@ -55,8 +55,8 @@ reach the same plan: IPOPT sees the collocation equations and their exact second
 derivatives, compiled (:data:`PLAN_HESSIANS`), where multiple shooting sees each step
 through a Newton solve, solved and differentiated in CasADi's virtual machine at every
 evaluation. On the reach task of docs/planning.md (15 intervals, the paper's robot):
-collocation 2.8 s and 44 iterations, shooting 375 s and 53 (``python
-benchmarks/bench_planning.py``)."""
+collocation 0.5 s and 44 iterations, shooting 288 s and 58 (``python
+benchmarks/bench_planning.py``, two threads)."""
 
 
 @dataclass(frozen=True)

@@ -38,8 +38,8 @@ from softcurve.simulation.solvers import lag_scale, mapped, nominal_scale
 
 LBFGS_HISTORY = 20
 """Pairs of IPOPT's limited-memory Hessian (``limited_memory_max_history``): on the
-reach task 6 pairs (IPOPT's default) ran out of its 300 iterations, 20 took 95 (1.9 s),
-50 took 174 (4.8 s) (``python benchmarks/bench_planning.py --lbfgs-history 6 20 50``)."""
+reach task 6 pairs (IPOPT's default) took 218 iterations (1.8 s), 20 took 98 (1.2 s),
+50 took 122 (2.7 s) (``python benchmarks/bench_planning.py --lbfgs-history 6 20 50``)."""
 
 PLAN_ITERATIONS = 300
 """IPOPT's default iteration budget of a plan, and of a :class:`PredictiveController`'s
@@ -147,10 +147,12 @@ class Constraints:
         self.rows, self.lower, self.upper, self.groups = [], [], [], []
         self.blocks = []
 
-    def add(self, group: str, expression, lower, upper) -> None:
+    def add(self, group: str, expression, lower, upper) -> int | None:
+        """Add the rows of ``expression`` (bounds broadcast to it) as ``group``; return
+        the index of its block in :attr:`rows`, None where it has no rows (not added)."""
         size = expression.numel()
         if size == 0:
-            return
+            return None
         self.blocks.append((len(self.groups), *expression.shape))
         self.rows.append(ca.vec(expression))
         # bounds in the order of ca.vec: column by column
@@ -158,6 +160,7 @@ class Constraints:
             flat = np.asarray(value, dtype=np.float64).ravel(order="F")
             bounds.append(np.broadcast_to(flat, (size,)))
         self.groups.extend([group] * size)
+        return len(self.rows) - 1
 
     def arrays(self):
         return ca.vertcat(*self.rows), np.concatenate(self.lower), np.concatenate(self.upper)
@@ -235,9 +238,10 @@ def checked_request(model, *, horizon, intervals, targets, reference, weights, c
 
 STAGED = ("exact", "gauss-newton")
 """The Hessians of the Lagrangian whose collocation problems are differentiated stage by
-stage: ``"exact"``'s Hessian (:attr:`Problem.lagrangian_hessian`; 358 -> 140 ms an
-evaluation on docs/planning.md's 2 s plan), and the constraints' Jacobian
-(:attr:`Problem.constraint_jacobian`) where :func:`jacobian_by_stages` says. The
+stage: ``"exact"``'s Hessian (:attr:`Problem.lagrangian_hessian`; CasADi's own took 2.6
+times as long an evaluation on docs/planning.md's 2 s plan, one thread), and the
+constraints' Jacobian (:attr:`Problem.constraint_jacobian`) where
+:func:`jacobian_by_stages` says. The
 limited-memory Hessian keeps CasADi's Jacobian: the same matrix to rounding, but its
 L-BFGS iterations on the reach task of ``tests/test_planning.py`` ran out of their 300
 where CasADi's converged in 125, the rounding apart."""
@@ -250,10 +254,10 @@ def jacobian_by_stages(tr: Transcription, hessian: str) -> bool:
     constraints' values come from the right-hand side without derivatives; with the exact
     Hessian where the model keeps its elements' calls (``Model.inlined`` false), where
     CasADi's sweeps every stage in every direction (ten iterations of the ten-segment
-    tendon robot's plan: 2.8 s of Jacobians by stages, 16.9 s through CasADi's); not for
+    tendon robot's plan: 0.5 s of Jacobians by stages, 13.9 s through CasADi's); not for
     a robot of one element, where the stage Jacobian's compile delays the first plan more
-    than it saves (the reach task's: 23.1 s against 15.6 s, its solve 0.9 s against
-    1.1 s). ``python benchmarks/bench_planning.py --jacobian-route`` prints both.
+    than it saves (the reach task's: 18.5 s against 12.9 s, its solve 0.5 s against
+    0.6 s). ``python benchmarks/bench_planning.py --jacobian-route`` prints both.
 
     Parameters
     ----------
@@ -478,14 +482,17 @@ class Problem:
                 # virtual machine (0.64 s of the 2.7 s of an evaluation of the Hessian
                 # of the ten-segment tendon plan); one call, which CasADi's Jacobian
                 # differentiates where the stages' is not used
-                rest_block = len(constraints.rows)
                 order = 2 if hessian == "exact" else 0
                 xdot = tr.compiled_rhs(order)(stages_of.x[:, -1], stages_of.u[:, -1], P)
-            elif method == "collocation":  # the compiled collocation's right-hand side
+            elif method == "collocation":
+                # the compiled collocation's right-hand side, whose first derivatives the
+                # limited-memory Hessian's Jacobian compiles anyway: the symbolic one's run
+                # in CasADi's virtual machine
                 xdot = tr.compiled_rhs(1)(X[:, K], U[:, K - 1], P)
             else:
                 xdot = tr.rhs(X[:, K], U[:, K - 1], P)
-            constraints.add("rest at the end", rest(xdot), 0.0, 0.0)
+            block = constraints.add("rest at the end", rest(xdot), 0.0, 0.0)
+            rest_block = block if stages_of is not None else None
 
         # -- cost ------------------------------------------------------------------------
         def node(time_value):
@@ -571,7 +578,7 @@ class Problem:
             pull = ca.gradient(ca.dot(along, ca.vec(slopes)), w)
             # sparse: a dense column's structural zeros would fill the whole Hessian
             # (examples/flick.py's plan: 320,361 entries of IPOPT's Hessian, 0.34 s an
-            # iteration in its factorizations, against 11,546 and 3 ms)
+            # iteration in its factorizations, against 11,536 and 3 ms)
             last = ca.DM(ca.Sparsity.triplet(w.numel(), 1, [w.numel() - 1], [0]), 1.0)
             hessian = hessian + ca.mtimes(pull, last.T) + ca.mtimes(last, pull.T)
         hessian = ca.substitute(hessian, stages.symbol, slopes)

@@ -1,7 +1,8 @@
 """Compiled functions evaluated along the members of a batch: one CasADi ``map`` over
 members (split over threads) of a ``map`` over output times, in blocks of members that
 bound the memory. Used by :func:`~softcurve.simulation.batch.simulate_batch` and its
-:class:`~softcurve.simulation.results.BatchTrajectory`."""
+:class:`~softcurve.simulation.results.BatchTrajectory`, and (:func:`mapped`) by the
+planners' stages (:func:`~softcurve.control.optimize_trajectory`)."""
 
 from __future__ import annotations
 
@@ -17,10 +18,10 @@ def mapped(function: ca.Function, size: int, threads: int) -> ca.Function:
 
     CasADi's own map over threads rather than :func:`softcurve.base.shares.run_shares`:
     the functions mapped here (CasADi's integrator of a batch on the route
-    "casadi-cvodes", the tip, energy and right-hand side along a batch) are CasADi
-    Functions, evaluated inside CasADi, not foreign calls through ctypes; what threads of
-    Python calls into CasADi would gain is not measured (``run_shares`` serves the
-    ctypes calls of the C driver and the stepper).
+    "casadi-cvodes", the tip, energy and right-hand side along a batch, a plan's stages
+    and their derivatives) are CasADi Functions, evaluated inside CasADi, not foreign
+    calls through ctypes; what threads of Python calls into CasADi would gain is not
+    measured (``run_shares`` serves the ctypes calls of the C driver and the stepper).
 
     Parameters
     ----------
