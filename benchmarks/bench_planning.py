@@ -9,7 +9,7 @@ Run:  python benchmarks/bench_planning.py [--intervals 15] [--methods collocatio
       python benchmarks/bench_planning.py --baselines
       python benchmarks/bench_planning.py --long [--hessians exact limited-memory]
       python benchmarks/bench_planning.py --tendons [--hessians exact limited-memory]
-      [--iterations 300] [--without-rest]
+      [--iterations 300] [--without-rest] [--segments 10]
       any of them with [--jacobian-route auto|stages|casadi]
       python benchmarks/bench_planning.py --stage-jacobians
 
@@ -33,13 +33,13 @@ of the goal, the tip's distance from the goal at 0.3 s, and the plan's own cost 
 a 2 s horizon at 20 ms (100 steps: the circle of docs/control.md from rest) with each
 Hessian, from a cold start with the model and its derivatives cached, and simulates the
 plan against the circle. With ``--tendons`` it plans 1 s of a ten-segment tendon robot
-(``tendon_chain``), first in an empty cache, then from a cold start with the model and
-its derivatives cached, at most ``--iterations`` of IPOPT (``--without-rest``: the tip
-within 2 mm at the end, no rest asked; ``benchmarks/study_rest_at_end.py`` says why the
-rest is out of reach of the tensions). ``--jacobian-route`` makes the exact Hessian's
-plans take their constraints' Jacobian stage by stage or CasADi's through the compiled
-collocation, where the library chooses by the robot
-(``jacobian_by_stages``). With ``--stage-jacobians`` it builds and compiles the stage
+(``tendon_chain``; ``--segments`` another even count), first in an empty cache, then
+from a cold start with the model and its derivatives cached, at most ``--iterations`` of
+IPOPT (``--without-rest``: the tip within 2 mm at the end, no rest asked;
+``benchmarks/study_rest_at_end.py`` says why the rest is out of reach of the tensions).
+``--jacobian-route`` makes the exact Hessian's plans take their constraints' Jacobian
+stage by stage or CasADi's through the compiled collocation, where the library chooses
+by the robot (``jacobian_by_stages``). With ``--stage-jacobians`` it builds and compiles the stage
 Jacobian (``Transcription.compiled_stage_jacobian``) by each route, in an empty cache
 holding the model alone, for the paper's robot with the task's bellows and for the
 ten-segment tendon robot, and times it over 60 stages (a plan of 20 steps), best of five,
@@ -207,13 +207,14 @@ TENDON_GOAL = np.array([0.06, 0.0, 0.17])
 """Where the tip of ``--tendons`` goes [m] (it stands at 200 mm)."""
 
 
-def tendons(hessians, iterations: int, rest: bool = True) -> None:
-    """A ten-segment tendon robot's 1 s plan (20 steps of 50 ms): the tip to
+def tendons(hessians, iterations: int, rest: bool = True,
+            segments: int = TENDON_SEGMENTS) -> None:  # fmt: skip
+    """A tendon robot's 1 s plan (``tendon_chain(segments)``, 20 steps of 50 ms): the tip to
     ``TENDON_GOAL`` within 2 mm and, with ``rest``, at rest there, a small effort weight,
     at most ``iterations`` of IPOPT; the first plan in an empty cache (the model and the plan's
     derivatives compiled) and a second from a cold start with them cached, whose solve is
     split into the Hessian's and the constraints' Jacobian's evaluations."""
-    print(f"{TENDON_SEGMENTS} segments, six tendons, 1 s in 20 steps of 50 ms, "
+    print(f"{segments} segments, six tendons, 1 s in 20 steps of 50 ms, "
           f"{'at rest at the end' if rest else 'no rest asked'}")  # fmt: skip
     print("| Hessian | first plan, empty cache [s] | plan, cold, cached [s] | of it the solve [s] "
           "| the Hessian's evaluations [s] | the Jacobian's [s] | iterations | violation "
@@ -225,7 +226,7 @@ def tendons(hessians, iterations: int, rest: bool = True) -> None:
             times, plans = [], []
             for _ in range(2):
                 began = time.perf_counter()
-                model, actuator, start = tendon_chain()
+                model, actuator, start = tendon_chain(segments)
                 plans.append(sc.optimize_trajectory(
                     model, start, actuator=actuator, horizon=1.0, intervals=20,
                     targets=[sc.TipTarget(TENDON_GOAL, tolerance=2e-3)], effort_weight=1e-3,
@@ -290,6 +291,8 @@ def main() -> None:
                         help="IPOPT's iterations at most (--tendons)")  # fmt: skip
     parser.add_argument("--without-rest", action="store_true",
                         help="--tendons without the rest at the end")  # fmt: skip
+    parser.add_argument("--segments", type=int, default=TENDON_SEGMENTS,
+                        help="--tendons: the robot's segments, even")  # fmt: skip
     parser.add_argument("--jacobian-route", choices=("auto", "stages", "casadi"),
                         default="auto",
                         help="the exact Hessian's constraint Jacobian: as the library "
@@ -305,7 +308,8 @@ def main() -> None:
         stage_jacobians()
         return
     if args.tendons:
-        tendons(args.hessians, args.iterations, rest=not args.without_rest)
+        tendons(args.hessians, args.iterations, rest=not args.without_rest,
+                segments=args.segments)  # fmt: skip
         return
     if args.baselines:
         baselines(args.intervals)
