@@ -287,17 +287,19 @@ def dynamics_rows(X, residual, following, x_scale) -> tuple:
 @dataclass(frozen=True, eq=False)
 class _Stages:
     """A collocation problem's stages, for the derivatives assembled stage by stage: the
-    slopes as a ``symbol`` (n_x, 3 K) and their ``value`` (the right-hand side at the
-    stages, from :meth:`Transcription.compiled_rhs`, with its second derivatives where
-    ``hessian`` is ``"exact"``), their ``jacobians`` (n_x, (n_x + n_u) 3 K) from
-    :attr:`Transcription.stage_jacobian` where :func:`jacobian_by_stages` says (else
-    None), each map of a stage's function on ``threads`` threads; the stages' states ``x``
-    and inputs ``u`` as expressions of the unknowns; the ``dynamics``' rows (the
-    collocation equations and the continuity of the states, scaled as the problem's) on
-    the slopes' value and on their symbol; the constraints' ``equations`` on the symbol."""
+    slopes as a ``symbol`` (n_x, 3 K) and their ``value`` (the right-hand side ``rhs`` at
+    the stages, :meth:`Transcription.compiled_rhs` with its second derivatives where
+    ``hessian`` is ``"exact"``, else without derivatives), their ``jacobians`` (n_x,
+    (n_x + n_u) 3 K) from :attr:`Transcription.stage_jacobian` where
+    :func:`jacobian_by_stages` says (else None), each map of a stage's function on
+    ``threads`` threads; the stages' states ``x`` and inputs ``u`` as expressions of the
+    unknowns; the ``dynamics``' rows (the collocation equations and the continuity of the
+    states, scaled as the problem's) on the slopes' value and on their symbol; the
+    constraints' ``equations`` on the symbol."""
 
     hessian: str
     threads: int
+    rhs: ca.Function
     symbol: ca.MX
     value: ca.MX
     jacobians: ca.MX | None
@@ -319,7 +321,8 @@ class _Stages:
         # the values from the right-hand side alone: the stages' Jacobians cost four
         # times as much, and IPOPT evaluates the constraints at every trial point
         count = stages * K
-        value = mapped(tr.compiled_rhs(2 if hessian == "exact" else 0), count, threads)(x, u, P)
+        rhs = tr.compiled_rhs(2 if hessian == "exact" else 0)
+        value = mapped(rhs, count, threads)(x, u, P)
         jacobians = None
         if jacobian_by_stages(tr, hessian):
             jacobians = mapped(tr.stage_jacobian, count, threads)(x, u, P)[1]
@@ -333,7 +336,8 @@ class _Stages:
         def rows(slopes):
             return dynamics_rows(X, *equations(X[:, :K], Z, slopes, h), x_scale)
 
-        return cls(hessian, threads, symbol, value, jacobians, x, u, rows(value), rows(symbol))
+        return cls(hessian, threads, rhs, symbol, value, jacobians, x, u, rows(value),
+                   rows(symbol))  # fmt: skip
 
     def with_equations(self, g) -> _Stages:
         """These stages with the constraints' ``equations`` on the slopes' symbol."""
@@ -482,8 +486,7 @@ class Problem:
                 # virtual machine (0.64 s of the 2.7 s of an evaluation of the Hessian
                 # of the ten-segment tendon plan); one call, which CasADi's Jacobian
                 # differentiates where the stages' is not used
-                order = 2 if hessian == "exact" else 0
-                xdot = tr.compiled_rhs(order)(stages_of.x[:, -1], stages_of.u[:, -1], P)
+                xdot = stages_of.rhs(stages_of.x[:, -1], stages_of.u[:, -1], P)
             elif method == "collocation":
                 # the compiled collocation's right-hand side, whose first derivatives the
                 # limited-memory Hessian's Jacobian compiles anyway: the symbolic one's run
@@ -491,8 +494,7 @@ class Problem:
                 xdot = tr.compiled_rhs(1)(X[:, K], U[:, K - 1], P)
             else:
                 xdot = tr.rhs(X[:, K], U[:, K - 1], P)
-            block = constraints.add("rest at the end", rest(xdot), 0.0, 0.0)
-            rest_block = block if stages_of is not None else None
+            rest_block = constraints.add("rest at the end", rest(xdot), 0.0, 0.0)
 
         # -- cost ------------------------------------------------------------------------
         def node(time_value):
