@@ -9,7 +9,7 @@ Run:  python benchmarks/bench_planning.py [--intervals 15] [--methods collocatio
       python benchmarks/bench_planning.py --baselines
       python benchmarks/bench_planning.py --long [--hessians exact limited-memory]
       python benchmarks/bench_planning.py --tendons [--hessians exact limited-memory]
-      [--iterations 300] [--without-rest] [--segments 10]
+      [--iterations 300] [--without-rest] [--segments 10] [--effort-weight 1e-3]
       any of them with [--jacobian-route auto|stages|casadi]
       python benchmarks/bench_planning.py --stage-jacobians
 
@@ -36,7 +36,8 @@ plan against the circle. With ``--tendons`` it plans 1 s of a ten-segment tendon
 (``tendon_chain``; ``--segments`` another even count), first in an empty cache, then
 from a cold start with the model and its derivatives cached, at most ``--iterations`` of
 IPOPT (``--without-rest``: the tip within 2 mm at the end, no rest asked;
-``benchmarks/study_rest_at_end.py`` says why the rest is out of reach of the tensions).
+``benchmarks/study_rest_at_end.py`` says why the rest is out of reach of the tensions;
+``--effort-weight`` the weight of the tensions' effort, default ``TENDON_EFFORT``).
 ``--jacobian-route`` makes the exact Hessian's plans take their constraints' Jacobian
 stage by stage or CasADi's through the compiled collocation, where the library chooses
 by the robot (``jacobian_by_stages``). With ``--stage-jacobians`` it builds and compiles the stage
@@ -206,16 +207,20 @@ def tendon_chain(segments: int = TENDON_SEGMENTS):
 TENDON_GOAL = np.array([0.06, 0.0, 0.17])
 """Where the tip of ``--tendons`` goes [m] (it stands at 200 mm)."""
 
+TENDON_EFFORT = 1e-3
+"""The effort weight of ``--tendons`` (``optimize_trajectory``'s ``effort_weight``)."""
 
-def tendons(hessians, iterations: int, rest: bool = True,
-            segments: int = TENDON_SEGMENTS) -> None:  # fmt: skip
+
+def tendons(hessians, iterations: int, rest: bool = True, segments: int = TENDON_SEGMENTS,
+            effort: float = TENDON_EFFORT) -> None:  # fmt: skip
     """A tendon robot's 1 s plan (``tendon_chain(segments)``, 20 steps of 50 ms): the tip to
-    ``TENDON_GOAL`` within 2 mm and, with ``rest``, at rest there, a small effort weight,
+    ``TENDON_GOAL`` within 2 mm and, with ``rest``, at rest there, the effort weight ``effort``,
     at most ``iterations`` of IPOPT; the first plan in an empty cache (the model and the plan's
     derivatives compiled) and a second from a cold start with them cached, whose solve is
     split into the Hessian's and the constraints' Jacobian's evaluations."""
     print(f"{segments} segments, six tendons, 1 s in 20 steps of 50 ms, "
-          f"{'at rest at the end' if rest else 'no rest asked'}")  # fmt: skip
+          f"{'at rest at the end' if rest else 'no rest asked'}, "
+          f"effort weight {effort:g}")  # fmt: skip
     print("| Hessian | first plan, empty cache [s] | plan, cold, cached [s] | of it the solve [s] "
           "| the Hessian's evaluations [s] | the Jacobian's [s] | iterations | violation "
           "| simulated tip off the plan at the end [mm] | status |")  # fmt: skip
@@ -229,7 +234,7 @@ def tendons(hessians, iterations: int, rest: bool = True,
                 model, actuator, start = tendon_chain(segments)
                 plans.append(sc.optimize_trajectory(
                     model, start, actuator=actuator, horizon=1.0, intervals=20,
-                    targets=[sc.TipTarget(TENDON_GOAL, tolerance=2e-3)], effort_weight=1e-3,
+                    targets=[sc.TipTarget(TENDON_GOAL, tolerance=2e-3)], effort_weight=effort,
                     rest_at_end=rest, hessian=hessian, progress=True, max_iterations=iterations,
                 ))  # fmt: skip
                 times.append(time.perf_counter() - began)
@@ -293,6 +298,8 @@ def main() -> None:
                         help="--tendons without the rest at the end")  # fmt: skip
     parser.add_argument("--segments", type=int, default=TENDON_SEGMENTS,
                         help="--tendons: the robot's segments, even")  # fmt: skip
+    parser.add_argument("--effort-weight", type=float, default=TENDON_EFFORT,
+                        help="--tendons: the tensions' effort weight")  # fmt: skip
     parser.add_argument("--jacobian-route", choices=("auto", "stages", "casadi"),
                         default="auto",
                         help="the exact Hessian's constraint Jacobian: as the library "
@@ -309,7 +316,7 @@ def main() -> None:
         return
     if args.tendons:
         tendons(args.hessians, args.iterations, rest=not args.without_rest,
-                segments=args.segments)  # fmt: skip
+                segments=args.segments, effort=args.effort_weight)  # fmt: skip
         return
     if args.baselines:
         baselines(args.intervals)

@@ -463,7 +463,8 @@ def test_a_parameter_vector_is_checked_as_a_robot(model):
         ({"method": "exact"}, "method must be"),
         ({"cost": lambda tr: tr.q[:, -1]}, "one scalar"),
         ({"cost": lambda tr: tr.integral[0, -1]}, "needs gradient"),
-        ({"rtol": 2.0}, r"rtol must be a number in \[2.22045e-14, 1\)"),
+        ({"rtol": 2.0}, r"rtol must be in \[2.22045e-14, 1\)"),
+        ({"rtol": True}, "rtol must be a real number"),
     ],
 )
 def test_bad_requests_are_refused_naming_the_field(model, bellows, change, match):

@@ -32,7 +32,7 @@ from softcurve.base.status import Result, Status
 from softcurve.base.validation import ParameterError, float_array, real_array
 from softcurve.compiled import NativeFunction, compile_functions, load_function
 from softcurve.control._transcription import DERIVATIVE_FLAGS, Transcription
-from softcurve.simulation import RTOL_MIN
+from softcurve.simulation import checked_rtol
 from softcurve.simulation.sensitivity import SENSITIVITY_CVODES
 from softcurve.simulation.solvers import (
     DriverProblem,
@@ -579,12 +579,9 @@ def _radau_functions(tr: Transcription, integrand) -> tuple:
 
 
 def _rtol(rtol) -> float | None:
-    """``rtol`` checked: None, or a number in ``[RTOL_MIN, 1)``."""
-    if rtol is None:
-        return None
-    if isinstance(rtol, bool) or not isinstance(rtol, int | float) or not RTOL_MIN <= rtol < 1:
-        raise ParameterError(f"rtol must be a number in [{RTOL_MIN:g}, 1), got {rtol!r}")
-    return float(rtol)
+    """``rtol`` checked as ``simulate``'s (:func:`softcurve.simulation.checked_rtol`), or
+    None."""
+    return None if rtol is None else checked_rtol(rtol)
 
 
 def _tolerances(rtol: float | None, method: str) -> tuple[float, float]:

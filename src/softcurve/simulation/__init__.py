@@ -16,6 +16,7 @@ from softcurve.simulation._settings import MIN_TIME as MIN_TIME
 from softcurve.simulation._settings import RTOL_MIN as RTOL_MIN
 from softcurve.simulation._settings import SettingsError as SettingsError
 from softcurve.simulation._settings import SimulationSettings as SimulationSettings
+from softcurve.simulation._settings import checked_rtol as checked_rtol
 from softcurve.simulation._settings import format_bytes as format_bytes
 from softcurve.simulation._settings import sample_time as sample_time
 from softcurve.simulation._simulate import simulate as simulate
@@ -37,6 +38,7 @@ __all__ = [
     "RTOL_MIN",
     "SettingsError",
     "SimulationSettings",
+    "checked_rtol",
     "format_bytes",
     "sample_time",
     "simulate",

@@ -84,6 +84,22 @@ def checked_jacobian(jacobian: str) -> str:
     return jacobian
 
 
+def checked_rtol(rtol) -> float:
+    """``rtol`` as a float where it is a real number in ``[RTOL_MIN, 1)``: a relative
+    tolerance of integration (``SimulationSettings.rtol``, the gradients' ``rtol``); else
+    :class:`SettingsError`, naming the field.
+
+    Parameters
+    ----------
+    rtol : float
+        The relative tolerance asked for, dimensionless.
+    """
+    value = _number("rtol", rtol, unit="")
+    if not RTOL_MIN <= value < 1:
+        raise SettingsError("rtol", f"must be in [{RTOL_MIN:g}, 1), got {value!r}")
+    return value
+
+
 def _number(field: str, value, *, unit: str) -> float:
     """``value`` as a finite float > 0, or :class:`SettingsError`."""
     # plain floats and ints (the usual case) skip NumPy's checks, a few microseconds each
@@ -192,9 +208,7 @@ class SimulationSettings:
                 "method", f"must be one of {', '.join(METHODS)}, got {self.method!r}"
             )
         checked_jacobian(self.jacobian)
-        rtol = _number("rtol", self.rtol, unit="")
-        if not RTOL_MIN <= rtol < 1:
-            raise SettingsError("rtol", f"must be in [{RTOL_MIN:g}, 1), got {rtol!r}")
+        rtol = checked_rtol(self.rtol)
         max_steps = self.max_steps
         integer = isinstance(max_steps, int | np.integer) and not isinstance(max_steps, bool)
         if not integer or not 1 <= max_steps <= MAX_STEPS:
