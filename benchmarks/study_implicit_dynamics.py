@@ -85,12 +85,12 @@ def plan(segments: int, formulation: str, effort: float, iterations: int) -> dic
     Zp, Sp = Z * ca.DM(x_scale), S * ca.DM(x_scale / h)
     repeat = ca.DM(np.kron(np.eye(K), np.ones((1, stages))))
     x_stages, u_stages = ca.mtimes(Xp[:, :K], repeat) + Zp, ca.mtimes(Up, repeat)
-    tableau = ca.DM(tr.tableau.matrix)
-    linear = []
+    linear = []  # the collocation equations and the continuity, as the planner's
     for k in range(K):
         z, slopes = Zp[:, stages * k : stages * (k + 1)], Sp[:, stages * k : stages * (k + 1)]
-        linear.append(ca.vec((z - h * ca.mtimes(slopes, tableau.T)) / ca.DM(x_scale)))
-        linear.append((Xp[:, k + 1] - Xp[:, k] - z[:, -1]) / ca.DM(x_scale))
+        collocation, following = tr.collocation_equations(Xp[:, k], z, slopes, h)
+        linear.append(ca.vec(collocation / ca.DM(x_scale)))
+        linear.append((Xp[:, k + 1] - following) / ca.DM(x_scale))
     margins = ca.vec(tr.domain.map(K)(Xp[:, 1:], p))
     miss = ca.sumsqr(tr.tip(Xp[:, -1], p) - ca.DM(TENDON_GOAL))
     others = ca.vertcat(*linear, margins, miss)
@@ -134,10 +134,9 @@ def plan(segments: int, formulation: str, effort: float, iterations: int) -> dic
     lower_w[:n_x] = upper_w[:n_x] = x0 / x_scale
     inputs = slice(n_x * (K + 1), n_x * (K + 1) + n_u * K)
     lower_w[inputs], upper_w[inputs] = 0.0, 1.0
-    lower_g = np.concatenate([np.zeros(rows + sum(e.numel() for e in linear)),
-                              np.zeros(margins.numel()), [0.0]])  # fmt: skip
-    upper_g = np.concatenate([np.zeros(rows + sum(e.numel() for e in linear)),
-                              np.full(margins.numel(), np.inf), [TOLERANCE**2]])  # fmt: skip
+    equalities = np.zeros(rows + sum(e.numel() for e in linear))
+    lower_g = np.concatenate([equalities, np.zeros(margins.numel()), [0.0]])
+    upper_g = np.concatenate([equalities, np.full(margins.numel(), np.inf), [TOLERANCE**2]])
     slope = np.asarray(tr.rhs(x0, rest_u, tr.parameters)).ravel() / (x_scale / h)
     guess = np.concatenate([np.tile(x0 / x_scale, K + 1), np.tile((rest_u - lower_u) / span, K),
                             np.zeros(n_x * count), np.tile(slope, count)])  # fmt: skip
