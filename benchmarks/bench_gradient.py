@@ -2,7 +2,7 @@
 on the paper's case: preset ifac2020, q0 = (0.064, 25, 0), qd0 = (0, 0, 1500), 10 s.
 
 Run:  python benchmarks/bench_gradient.py [--intervals 1 100 1000] [--repeat 3]
-      python benchmarks/bench_gradient.py --methods | --radau | --costs | --flags
+      python benchmarks/bench_gradient.py --methods | --radau | --adams | --costs | --flags
       python benchmarks/bench_gradient.py --chain 1 2 4
 
 The cost is the integral of the squared coordinate rates over the 10 s (``running``,
@@ -25,13 +25,20 @@ against ``simulate`` at rtol 1e-12, each state over its nominal size, beside tha
 from CVODES's adjoint at 1e-10 (the largest difference over the largest entry); and how
 far its derivative along the initial curvature lies from central differences of its own
 values (relative; the derivative holds the step sizes, the differences move them).
-``--chain N ...`` runs chains of N paper segments, 1 s from a bent start at rest, 10
-output intervals, the squared tip position at the end, along the parameters and the
-initial state: the discrete adjoint (with its steps and reverse-mode evaluations a step)
-and CVODES's adjoint (first call and best of ``--repeat``) beside ``simulate``'s default
-run of the same second. ``--costs`` times
-other costs on 100 intervals along the parameters and the initial state: the integral
-alone, the tip's height at the end, the squared state at every output time.
+``--adams`` compares the driver's two adjoints: on one output interval along the
+parameters and the initial state, the continuous adjoint (``adams-adjoint``) at several
+tolerances, its time against ``simulate``'s and how far it lies from CVODES's adjoint at
+1e-10 (the largest difference over the largest entry, along the parameters and the
+initial state), beside the discrete one at its default; then both at their defaults on
+1, 10, 30 and 100 output intervals (the cost reads the tip at every output time, where
+the continuous adjoint starts afresh), and what ``method="auto"`` takes
+(``ADAMS_WITHIN``). ``--chain N ...`` runs chains of N paper segments, 1 s from a bent
+start at rest, 10 output intervals, the squared tip position at the end, along the
+parameters and the initial state: the discrete adjoint (with its steps and reverse-mode
+evaluations a step) and CVODES's adjoint (first call and best of ``--repeat``) beside
+``simulate``'s default run of the same second. ``--costs`` times other costs on 100
+intervals along the parameters and the initial state: the integral alone, the tip's
+height at the end, the squared state at every output time.
 ``--flags`` compiles the right-hand side with its first derivatives under
 ``DERIVATIVE_FLAGS`` and under the model's flags, each in an empty cache, and times a
 CVODES adjoint on 100 intervals with each (``DERIVATIVE_FLAGS``).
@@ -76,6 +83,41 @@ def one_gradient(
 
 
 RADAU_TOLERANCES = (1e-4, 3e-5, 1e-5, 1e-6, 1e-8)
+
+
+ADAMS_TOLERANCES = (1e-6, 1e-7, 1e-8)
+
+
+def adams(model, forward: float, repeat: int) -> None:
+    """The continuous adjoint against the discrete one (``--adams``)."""
+    wrt = ("parameters", "x0")
+    reference = one_gradient(model, 1, "adjoint", wrt)
+
+    def apart(g):
+        return max(np.max(np.abs(getattr(g, w) - getattr(reference, w)))
+                   / np.max(np.abs(getattr(reference, w))) for w in wrt)  # fmt: skip
+
+    print("\n| method | rtol | gradient [ms] | / simulate | from CVODES's adjoint | "
+          "steps forward, backward |")  # fmt: skip
+    print("| --- | --- | --- | --- | --- | --- |")
+    for method, rtol in (("radau-adjoint", None),
+                         *(("adams-adjoint", r) for r in ADAMS_TOLERANCES)):  # fmt: skip
+        one_gradient(model, 1, method, wrt, rtol=rtol)
+        wall, g = best_of(repeat, lambda m=method, r=rtol: one_gradient(model, 1, m, wrt,
+                                                                          rtol=r))  # fmt: skip
+        steps = f"{g.stats['steps']}, {g.stats.get('backward_steps', 'taped')}"
+        print(f"| {method} | {rtol or 'default'} | {1e3 * wall:.1f} | "
+              f"{wall / forward:.1f}x | {apart(g):.1e} | {steps} |")  # fmt: skip
+    print("\n| output intervals | radau-adjoint [ms] | adams-adjoint [ms] | auto takes |")
+    print("| --- | --- | --- | --- |")
+    for intervals in (1, 10, 30, 100):
+        walls = []
+        for method in ("radau-adjoint", "adams-adjoint"):
+            one_gradient(model, intervals, method, wrt)
+            walls.append(best_of(repeat, lambda k=intervals, m=method: one_gradient(
+                model, k, m, wrt))[0])  # fmt: skip
+        auto = one_gradient(model, intervals, "auto", wrt).method
+        print(f"| {intervals} | {1e3 * walls[0]:.1f} | {1e3 * walls[1]:.1f} | {auto} |")
 
 
 def radau(model, forward: float, repeat: int) -> None:
@@ -184,6 +226,7 @@ def main() -> None:
     parser.add_argument("--repeat", type=int, default=3)
     parser.add_argument("--methods", action="store_true")
     parser.add_argument("--radau", action="store_true")
+    parser.add_argument("--adams", action="store_true")
     parser.add_argument("--chain", type=int, nargs="+")
     parser.add_argument("--costs", action="store_true")
     parser.add_argument("--flags", action="store_true")
@@ -201,6 +244,9 @@ def main() -> None:
         return
     if args.radau:
         radau(model, forward, args.repeat)
+        return
+    if args.adams:
+        adams(model, forward, args.repeat)
         return
     if args.chain:
         chains(args.chain, args.repeat)

@@ -130,6 +130,83 @@ def test_the_discrete_adjoint_is_cvodes_adjoint(discrete, reference):
     assert stats["iterations"] <= 4 * stats["steps"] and dict(reference.stats) == {}
 
 
+@pytest.fixture(scope="module")
+def continuous(model, bellows):
+    """The same by the continuous adjoint on the driver's CVODES, at 1e-9."""
+    return sc.gradient(model, cost, Q0, QD0, t=T, inputs=pressures(T), actuator=bellows,
+                       running=running, method="adams-adjoint", rtol=1e-9)  # fmt: skip
+
+
+def test_the_continuous_adjoint_is_cvodes_adjoint(model, bellows, continuous, reference):
+    """The driver's continuous adjoint against CVODES's adjoint through CasADi at 1e-10,
+    on pressures that change at every sample (a start at each) and a cost reading every
+    output time. It converges with its tolerance (the largest difference over the largest
+    entry along x0, measured: 6.5e-4 at its default 1e-7, 1.5e-5 at 1e-8, 6.8e-7 at
+    1e-9): at 1e-9 every entry within 1e-5 of the largest, at the default 2e-3 (starts
+    every 25 ms, where ``auto`` takes Radau IIA's adjoint, 2.4e-6 at its default)."""
+    assert continuous.success and continuous.method == "adams-adjoint", continuous.message
+    assert continuous.reason == "asked"
+    assert continuous.value == pytest.approx(reference.value, rel=1e-7)
+    np.testing.assert_allclose(continuous.x, reference.x, rtol=1e-6, atol=1e-9)
+    default = sc.gradient(model, cost, Q0, QD0, t=T, inputs=pressures(T), actuator=bellows,
+                          running=running, method="adams-adjoint")  # fmt: skip
+    for along in ("x0", "inputs", "parameters"):
+        theirs = getattr(reference, along)
+        largest = np.max(np.abs(theirs))
+        np.testing.assert_allclose(getattr(continuous, along), theirs, rtol=0,
+                                   atol=1e-5 * largest)  # fmt: skip
+        np.testing.assert_allclose(getattr(default, along), theirs, rtol=0, atol=2e-3 * largest)
+    assert np.all(continuous.inputs[-1] == 0.0)
+    # the counts: a start at every change of the pressures (each output time), one
+    # reverse-mode evaluation per right-hand side of the adjoint equations
+    stats = continuous.stats
+    assert stats["backward_starts"] == T.size - 1
+    assert 0 < stats["backward_vjp_evaluations"] <= 3 * stats["backward_steps"]
+
+
+def test_the_continuous_adjoint_gives_each_sample_its_own_derivative(model, bellows):
+    """Constant pressures: the forward and backward passes go through the output times
+    without a start, and each sample's derivative is its own interval's integral (CVODES's
+    adjoint, which starts afresh at every sample, to 1e-4 of the largest); without the
+    cost reading the states along the way the only start is the end's."""
+
+    def tip_cost(trajectory):
+        return trajectory.tip[2, -1] + 1e-6 * trajectory.integral[0, -1]
+
+    held = np.full((T.size, 3), 2e4)
+    options = {"t": T, "inputs": held, "actuator": bellows, "running": running}
+    ours = sc.gradient(model, tip_cost, Q0, QD0, method="adams-adjoint", **options)
+    theirs = sc.gradient(model, tip_cost, Q0, QD0, method="adjoint", **options)
+    assert ours.success, ours.message
+    assert ours.stats["backward_starts"] == 1 and ours.stats["steps"] > 0
+    largest = np.max(np.abs(theirs.inputs))
+    np.testing.assert_allclose(ours.inputs, theirs.inputs, rtol=0, atol=1e-4 * largest)
+    assert np.all(np.abs(ours.inputs[:-1]).max(axis=1) > 1e-3 * largest)  # every row its own
+
+
+def test_auto_takes_the_continuous_adjoint_where_it_starts_seldom(model):
+    """The paper swing over 0.5 s: a cost at the end alone starts the continuous adjoint
+    once (0.5 s apart, 142 over the fastest rate, over ADAMS_WITHIN); one reading the
+    state at 50 output times would start it every 10 ms, and takes Radau IIA's. The two
+    agree within 1e-3 of the largest entry (measured 4.7e-4, along the creep state, whose
+    nominal size is small: the continuous adjoint's tolerance is absolute in the scaled
+    state)."""
+    t = np.linspace(0.0, 0.5, 51)
+    at_end = sc.gradient(model, lambda tr: tr.tip[2, -1], [0.064, 25.0, 0.0],
+                         [0.0, 0.0, 1500.0], t=t, wrt="x0")  # fmt: skip
+    assert at_end.method == "adams-adjoint", at_end.reason
+    assert "starts afresh every 0.5 s" in at_end.reason and "ADAMS_WITHIN" in at_end.reason
+    everywhere = sc.gradient(model, lambda tr: ca.sumsqr(tr.tip[2, :]), [0.064, 25.0, 0.0],
+                             [0.0, 0.0, 1500.0], t=t, wrt="x0")  # fmt: skip
+    assert everywhere.method == "radau-adjoint", everywhere.reason
+    assert "every 0.01 s" in everywhere.reason
+    largest = np.max(np.abs(at_end.x0))
+    again = sc.gradient(model, lambda tr: tr.tip[2, -1], [0.064, 25.0, 0.0],
+                        [0.0, 0.0, 1500.0], t=t, wrt="x0", method="radau-adjoint")  # fmt: skip
+    np.testing.assert_allclose(at_end.x0, again.x0, rtol=0, atol=1e-3 * largest)
+    assert at_end.stats["backward_starts"] == 1
+
+
 def _own_differences(g, model, value_at, steps_x0, names):
     """Assert ``g`` equals central differences of ``value_at(q0=..., parameters=...)``
     along the initial state and the named parameters (2e-5 relative)."""
@@ -196,6 +273,26 @@ def test_a_tape_that_fills_grows_and_gives_the_same_gradient(model, bellows, dis
     assert again.success, again.message
     np.testing.assert_array_equal(again.x, discrete.x)
     np.testing.assert_array_equal(again.parameters, discrete.parameters)
+
+
+def test_cvodes_starts_afresh_after_every_restart_interval(model):
+    """Over 2.5 s, forward and backward, as ``simulate`` restarts (RESTART_INTERVAL)."""
+    g = sc.gradient(model, lambda tr: tr.tip[2, -1], [0.064, 25.0, 0.0], [0.0, 0.0, 1500.0],
+                    t=[0.0, 2.5], wrt="x0", method="adams-adjoint")  # fmt: skip
+    assert g.success, g.message
+    assert g.stats["backward_starts"] == 3
+
+
+def test_an_adams_tape_that_fills_grows_and_gives_the_same_gradient(model, bellows, continuous,
+                                                                  monkeypatch):  # fmt: skip
+    from softcurve.simulation.solvers import _adjoint
+
+    monkeypatch.setattr(_adjoint, "ADAMS_FIRST_ROOM", (1, 0))
+    again = sc.gradient(model, cost, Q0, QD0, t=T, inputs=pressures(T), actuator=bellows,
+                        running=running, method="adams-adjoint", rtol=1e-9)  # fmt: skip
+    assert again.success, again.message
+    np.testing.assert_array_equal(again.x, continuous.x)
+    np.testing.assert_array_equal(again.parameters, continuous.parameters)
 
 
 def test_the_adjoints_passes_refuse_what_they_cannot_take(model, bellows):

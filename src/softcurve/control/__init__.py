@@ -6,6 +6,8 @@
 :func:`gradient` (the exact gradient of a cost of a simulated trajectory, its result
 :class:`RolloutGradient`)."""
 
+from softcurve.control._gradient import ADAMS_TOLERANCE as ADAMS_TOLERANCE
+from softcurve.control._gradient import ADAMS_WITHIN as ADAMS_WITHIN
 from softcurve.control._gradient import GRADIENT_METHODS as GRADIENT_METHODS
 from softcurve.control._gradient import GRADIENT_TOLERANCES as GRADIENT_TOLERANCES
 from softcurve.control._gradient import RADAU_TOLERANCE as RADAU_TOLERANCE
@@ -29,6 +31,8 @@ from softcurve.control._transcription import Transcription as Transcription
 
 __all__ = [
     "GRADIENT_METHODS",
+    "ADAMS_TOLERANCE",
+    "ADAMS_WITHIN",
     "GRADIENT_TOLERANCES",
     "RADAU_TOLERANCE",
     "LBFGS_HISTORY",

@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field
-from functools import cached_property
+from functools import cached_property, partial
 
 import casadi as ca
 import numpy as np
@@ -35,23 +35,32 @@ from softcurve.control._transcription import DERIVATIVE_FLAGS, Transcription
 from softcurve.simulation import checked_rtol
 from softcurve.simulation.sensitivity import SENSITIVITY_CVODES
 from softcurve.simulation.solvers import (
+    MAX_ORDER,
     DriverProblem,
     RadauEngine,
+    adams_backward,
+    adams_forward,
     adjoint_backward,
     adjoint_forward,
     cvodes_options,
+    cvodes_reason,
     driver_reason,
     driver_unavailable,
     grid_inputs,
+    linearization_rates,
+    nominal_scale,
     state_scale,
     vjp_function,
 )
 
-GRADIENT_METHODS = ("radau-adjoint", "adjoint", "forward")
-"""How :func:`gradient` differentiates; ``"auto"`` takes the first where the C driver
-runs (a compiled model and a C compiler), else the second. ``radau-adjoint``: the
-discrete adjoint of the driver's Radau IIA, one forward pass that tapes its steps and one
-backward pass, at :data:`RADAU_TOLERANCE`. ``adjoint``: CVODES's, one backward pass for
+GRADIENT_METHODS = ("radau-adjoint", "adams-adjoint", "adjoint", "forward")
+"""How :func:`gradient` differentiates; ``"auto"`` takes one of the first two where the C
+driver runs (a compiled model and a C compiler; :data:`ADAMS_WITHIN` says which), else
+``adjoint``. ``radau-adjoint``: the discrete adjoint of the driver's Radau IIA, one
+forward pass that tapes its steps and one backward pass, at :data:`RADAU_TOLERANCE`.
+``adams-adjoint``: the continuous adjoint on the driver's CVODES (Adams), the forward
+pass's steps taped and the adjoint equations integrated backward over them, at
+:data:`ADAMS_TOLERANCE`. ``adjoint``: CVODES's, one backward pass for
 all seeds, through CasADi. ``forward``: CVODES's forward sensitivities, one column per
 seed, and the right-hand side's second derivatives compiled besides the first. On the
 paper robot's 10 s swing at 100 output intervals along all 49 parameters and the
@@ -71,6 +80,26 @@ derivative holds the step sizes, which move with the start, inputs and parameter
 this tolerance it lies 7e-6 from central differences of its own values, at 1e-4 1.3e-2
 (``python benchmarks/bench_gradient.py --radau``), so a looser tolerance is a faster but
 rougher gradient, of a less accurate trajectory."""
+
+ADAMS_TOLERANCE = 1e-7
+"""The relative tolerance of ``adams-adjoint``, and the absolute one of the scaled state:
+ten times tighter than ``simulate``'s, because the continuous adjoint is the gradient of
+the flow to about its tolerance. On the paper robot's 10 s swing (one output interval,
+``python benchmarks/bench_gradient.py --adams``) it lies 5.1e-5 from CVODES's adjoint at
+1e-10 at this tolerance in 14.7 ms, 3.8e-4 at 1e-6 in 15.8 ms and 7.4e-7 at 1e-8 in
+19.4 ms (``radau-adjoint`` at its own: 9.1e-6 in 40.4 ms)."""
+
+ADAMS_WITHIN = 90.0
+"""``method="auto"`` takes ``adams-adjoint`` where the adjoint starts afresh on average no
+more often than every ``ADAMS_WITHIN`` over the fastest rate of the linearization at the
+start, else ``radau-adjoint``. The continuous adjoint starts afresh where the cost
+depends on the state at an output time (the adjoint jumps there) and where the input
+changes, and each start costs the multistep method's climb back to its order and step,
+where Radau IIA's steps go on through both. Measured on the paper robot's 10 s swing
+(fastest rate 283 1/s) with the cost at every output time, ``python
+benchmarks/bench_gradient.py --adams``: 1, 10, 30 and 100 output intervals take 16.7,
+31.5, 40.9 and 54.2 ms by ``adams-adjoint`` and 40.4 to 40.9 ms by ``radau-adjoint``:
+equal at 30 (0.33 s apart, 94 over the fastest rate)."""
 
 WITH_RESPECT_TO = ("parameters", "x0", "inputs")
 """What :func:`gradient` differentiates along (its ``wrt``): the model's parameter vector
@@ -272,12 +301,6 @@ def _integrand(running, tr: Transcription) -> ca.Function:
     return ca.Function("running", [x, u, p], [value])
 
 
-AUTO_REASON = (
-    "auto: the discrete adjoint of the C driver's Radau IIA, the fastest "
-    "(GRADIENT_METHODS has the measures)"
-)
-"""Why ``method="auto"`` takes ``radau-adjoint`` (:data:`GRADIENT_METHODS`)."""
-
 AUTO_FALLBACK = "auto: CVODES's adjoint, since the C driver does not run here ({why})"
 """Why ``method="auto"`` takes ``adjoint`` where the driver does not run."""
 
@@ -293,18 +316,50 @@ def _method_name(method: str) -> str:
 def _method(method: str, tr: Transcription) -> tuple[str, str]:
     """The method taken and why; where it needs the driver, after every other check (the
     driver may be built here)."""
-    why = _driver_missing(tr) if method in ("auto", GRADIENT_METHODS[0]) else None
+    why = _driver_missing(tr) if method in ("auto", *DRIVER_METHODS) else None
     if method == "auto":
         if why is None:
-            return GRADIENT_METHODS[0], AUTO_REASON
-        return GRADIENT_METHODS[1], AUTO_FALLBACK.format(why=why)
+            return GRADIENT_METHODS[0], "auto"  # which adjoint: _driver_choice, on the cost
+        return "adjoint", AUTO_FALLBACK.format(why=why)
     if why is not None:
         raise ParameterError(f"method {method!r} needs the C driver, which does not run: {why}")
     return method, "asked"
 
 
+DRIVER_METHODS = GRADIENT_METHODS[:2]
+"""The methods of the C driver: the discrete adjoint of its Radau IIA and the continuous
+adjoint on its CVODES."""
+
+
+def _driver_choice(of_states, tr: Transcription, x0, t, samples) -> tuple[str, str]:
+    """``method="auto"``'s choice between the driver's adjoints (:data:`ADAMS_WITHIN`),
+    and why: the output times whose states the cost reads (its derivative's pattern) and
+    the input's changes count the continuous adjoint's starts."""
+    n_x = tr.n_x
+    read = np.zeros(t.size, bool)
+    for index, size in ((3, n_x), (4, of_states.size1_in(4))):
+        if size:  # the pattern of d cost / d X (column-major: output k's states in a row)
+            columns = np.array(of_states.sparsity_jac(index, 0).get_col(), int)
+            read[columns // size] = True
+    starts = read[1:-1] | np.any(samples[1:-1] != samples[:-2], axis=1)
+    spacing = (t[-1] - t[0]) / (np.count_nonzero(starts) + 1)
+    nominal = nominal_scale(tr.model, x0[: tr.model.n_state])
+    fastest = float(linearization_rates(tr.model, x0[: tr.model.n_state], nominal=nominal)[1])
+    ratio = spacing * fastest
+    if ratio >= ADAMS_WITHIN:
+        return "adams-adjoint", (
+            f"auto: CVODES's continuous adjoint, as it starts afresh every {spacing:.3g} s "
+            f"on average, {ratio:.3g} over the fastest rate (ADAMS_WITHIN: {ADAMS_WITHIN:g})"
+        )
+    return GRADIENT_METHODS[0], (
+        f"auto: the discrete adjoint of Radau IIA, as a continuous adjoint would start "
+        f"afresh every {spacing:.3g} s on average, {ratio:.3g} over the fastest rate "
+        f"(under ADAMS_WITHIN: {ADAMS_WITHIN:g})"
+    )
+
+
 def _driver_missing(tr: Transcription) -> str | None:
-    """Why the driver's Radau IIA cannot take this model, or None."""
+    """Why the driver cannot take this model, or None."""
     if tr.model.compiled_library is None:
         return "the model is not compiled"
     return driver_unavailable()
@@ -373,9 +428,10 @@ def gradient(
         ``sc.Transcription(model).tip(x, p)``.
     wrt : str or sequence of str
         What to differentiate along, among :data:`WITH_RESPECT_TO` (default all).
-    method : {"auto", "radau-adjoint", "adjoint", "forward"}
-        :data:`GRADIENT_METHODS`; "auto" takes ``radau-adjoint`` where the C driver runs,
-        else ``adjoint`` (the result's ``reason`` says which and why).
+    method : {"auto", "radau-adjoint", "adams-adjoint", "adjoint", "forward"}
+        :data:`GRADIENT_METHODS`; "auto" takes ``adams-adjoint`` or ``radau-adjoint`` where
+        the C driver runs (:data:`ADAMS_WITHIN`), else ``adjoint`` (the result's ``reason``
+        says which and why).
     parameters : array_like, shape (n_p,), optional
         The parameter vector to integrate and differentiate at, each entry in its unit
         (``Robot.parameter_names()``; default ``model.parameters``): an optimizer's
@@ -385,7 +441,8 @@ def gradient(
         The integration's relative tolerance, in ``[RTOL_MIN, 1)`` (2.2e-14,
         ``softcurve.simulation.RTOL_MIN``); the absolute one of the
         scaled state keeps the default's ratio to it. Default :data:`RADAU_TOLERANCE`
-        for ``radau-adjoint``, the first of :data:`GRADIENT_TOLERANCES` for CVODES's routes.
+        for ``radau-adjoint``, :data:`ADAMS_TOLERANCE` for ``adams-adjoint``, the first of
+        :data:`GRADIENT_TOLERANCES` for CVODES's routes through CasADi.
 
     Returns
     -------
@@ -414,7 +471,6 @@ def gradient(
     if not callable(cost):
         raise ParameterError("cost must be a callable of the trajectory's symbols")
     chosen, reason = _method(method, tr)
-    tolerances = _tolerances(rtol, chosen)
     start, samples_sym, params = (ca.MX.sym(name, *shape) for name, shape in (
         ("x0", (tr.n_x,)), ("u", (tr.n_u, t.size)), ("p", (tr.parameters.size,))))  # fmt: skip
     arguments = [params, start, samples_sym]
@@ -437,12 +493,15 @@ def gradient(
     of_states = ca.Function(
         "rollout_cost", [*arguments, *free], [cost_of(free[0], free[1] if integrated else None)]
     )
+    if method == "auto" and chosen in DRIVER_METHODS:
+        chosen, reason = _driver_choice(of_states, tr, x0, t, samples)
+    tolerances = _tolerances(rtol, chosen)
     names = tuple(model.robot.parameter_names())
     numbers = [p_value, x0, samples.T]
     failed = {"t": t, "tr": tr, "method": chosen, "reason": reason, "names": names,
               "at": p_value}  # fmt: skip
-    if chosen == GRADIENT_METHODS[0]:
-        return _radau_gradient(of_states, numbers, integrand, wrt, robot, failed, tolerances)
+    if chosen in DRIVER_METHODS:
+        return _driver_gradient(of_states, numbers, integrand, wrt, robot, failed, tolerances)
     held = "inputs" in wrt or not np.all(samples[:-1] == samples[0])
     states, integrals = _rollout(tr, x0, t, integrand, chosen, held, tolerances)(*arguments)
     trajectory = ca.Function("rollout", arguments, [states, integrals])
@@ -475,23 +534,27 @@ def gradient(
     )  # fmt: skip
 
 
-def _radau_gradient(of_states, numbers, integrand, wrt, robot, failed, tolerances):
-    """:func:`gradient` by the discrete adjoint of the driver's Radau IIA: the forward
-    pass tapes its steps, the cost's derivative along the states at the output times
-    seeds the backward pass, and the cost's own derivatives along the parameters, the
-    initial state and the inputs are added."""
+def _driver_gradient(of_states, numbers, integrand, wrt, robot, failed, tolerances):
+    """:func:`gradient` by one of the driver's adjoints (:data:`DRIVER_METHODS`): the
+    forward pass tapes its steps, the cost's derivative along the states at the output
+    times seeds the backward pass, and the cost's own derivatives along the parameters,
+    the initial state and the inputs are added."""
     tr, t = failed["tr"], failed["t"]
     p_value, x0, inputs = numbers
-    problem, vjp = _radau_functions(tr, integrand)
+    radau = failed["method"] == GRADIENT_METHODS[0]
+    forward, backward = ((adjoint_forward, adjoint_backward) if radau else
+                         (partial(adams_forward, max_order=MAX_ORDER), adams_backward))  # fmt: skip
+    problem, vjp = _driver_functions(tr, integrand)
     k = problem.struct.nx - tr.n_x  # the running integrals, integrated as states
     nominal = np.concatenate([state_scale(tr.model, x0[: tr.model.n_state], tr.inputs),
                               np.ones(k)])  # fmt: skip
     began = failed["began"] = time.perf_counter()
-    # the steps end where the input changes, or at every sample for the gradient along them
+    # the steps end where the input changes, and Radau IIA's at every sample for the
+    # gradient along them (the continuous adjoint integrates each sample's apart)
     stops = np.ones(t.size, bool)
-    if "inputs" not in wrt:
+    if "inputs" not in wrt or not radau:
         stops[1:-1] = np.any(inputs[:, 1:-1] != inputs[:, :-2], axis=0)
-    taped = adjoint_forward(problem, np.concatenate([x0, np.zeros(k)]), inputs.T, p_value,
+    taped = forward(problem, np.concatenate([x0, np.zeros(k)]), inputs.T, p_value,
                             nominal, t, *tolerances, MAX_STEPS, stops)  # fmt: skip
     x, quadratures = taped.states[:, : tr.n_x], taped.states[:, tr.n_x :].T
     if taped.flag:
@@ -500,8 +563,8 @@ def _radau_gradient(of_states, numbers, integrand, wrt, robot, failed, tolerance
         outside = tr.domain_exit(x[:reached], t[:reached], robot)  # the cause, where it is
         if outside is not None:
             return _failed(Status.LEFT_DOMAIN, outside, x=x, **failed)
-        return _failed(Status.INTEGRATION_FAILED, _radau_failed(taped.flag, reached), x=x,
-                       **failed)  # fmt: skip
+        return _failed(Status.INTEGRATION_FAILED, _forward_failed(taped.flag, reached, radau),
+                       x=x, **failed)  # fmt: skip
     problem_text = tr.domain_exit(x, t, robot)
     if problem_text is not None:
         return _failed(Status.LEFT_DOMAIN, problem_text, x=x, **failed)
@@ -513,11 +576,15 @@ def _radau_gradient(of_states, numbers, integrand, wrt, robot, failed, tolerance
         when = t[np.flatnonzero(~np.all(np.isfinite(along_states), axis=1))[0]]
         return _failed(Status.INTEGRATION_FAILED, "the cost's derivative along the state at "
                        f"t = {when:g} s is not finite: no gradient", x=x, **failed)  # fmt: skip
-    flag, lam, d_u, d_p, backward = adjoint_backward(taped, vjp, along_states)
+    flag, lam, d_u, d_p, counts = backward(taped, vjp, along_states)
     if flag:
-        reason = BACKWARD_FAILURES.get(driver_reason(flag), driver_reason(flag))
-        return _failed(Status.INTEGRATION_FAILED, f"Radau IIA's adjoint stopped: {reason}",
-                       x=x, **failed)  # fmt: skip
+        reason = driver_reason(flag)
+        if radau:
+            reason = BACKWARD_FAILURES.get(reason, reason)
+            return _failed(Status.INTEGRATION_FAILED, f"Radau IIA's adjoint stopped: {reason}",
+                           x=x, **failed)  # fmt: skip
+        return _failed(Status.INTEGRATION_FAILED, "the adjoint equations' integration "
+                       f"stopped: {cvodes_reason(reason)}", x=x, **failed)  # fmt: skip
     asked = {"parameters": along_p.ravel() + d_p, "x0": along_x0.ravel() + lam[: tr.n_x],
              "inputs": along_u.T + d_u}  # fmt: skip
     not_finite = [w for w in wrt if not np.all(np.isfinite(asked[w]))]
@@ -529,13 +596,20 @@ def _radau_gradient(of_states, numbers, integrand, wrt, robot, failed, tolerance
         _frozen(t), _frozen(x), *(_frozen(asked[w]) if w in wrt else None
                                   for w in WITH_RESPECT_TO),
         failed["method"], failed["reason"], failed["names"], _frozen(p_value),
-        time.perf_counter() - began, tr, {**taped.counts, **backward},
+        time.perf_counter() - began, tr, {**taped.counts, **_prefixed(counts, radau)},
     )  # fmt: skip
 
 
-def _radau_failed(flag: int, reached: int) -> str:
+def _forward_failed(flag: int, reached: int, radau: bool) -> str:
     """The forward pass's failure in a sentence, where it stopped."""
-    return f"{RadauEngine.failure_reason(flag)}, after {reached - 1} output interval(s)"
+    reason = RadauEngine.failure_reason(flag) if radau else cvodes_reason(driver_reason(flag))
+    return f"{reason}, after {reached - 1} output interval(s)"
+
+
+def _prefixed(counts: dict, radau: bool) -> dict:
+    """The backward pass's counters, named apart from the forward pass's
+    (``softcurve.simulation.solvers.ADAMS_STATISTICS`` shares some names)."""
+    return counts if radau else {f"backward_{name}": value for name, value in counts.items()}
 
 
 BACKWARD_FAILURES = {
@@ -548,7 +622,7 @@ BACKWARD_FAILURES = {
 """The backward pass's failures (the driver's flags by name) in words."""
 
 
-def _radau_functions(tr: Transcription, integrand) -> tuple:
+def _driver_functions(tr: Transcription, integrand) -> tuple:
     """``(DriverProblem, vjp)`` of the actuated right-hand side with the running
     integrals as states, compiled side by side under ``DERIVATIVE_FLAGS`` (cached on disk)
     and kept with the model: on the paper robot the first gradient then waits 3.8 s, the
@@ -569,11 +643,12 @@ def _radau_functions(tr: Transcription, integrand) -> tuple:
         )
         if not all(isinstance(f, NativeFunction) for f in built):
             raise ParameterError(
-                "method 'radau-adjoint' needs its functions compiled, and they did not compile"
+                f"methods {', '.join(DRIVER_METHODS)} need their functions compiled, and they "
+                "did not compile"
             )
         return DriverProblem(built[0], n_x + n_q, tr.n_u, tr.parameters.size), built[1]
 
-    key = ("radau-adjoint", None if tr.actuator is None else tr.inputs.key,
+    key = ("driver-adjoint", None if tr.actuator is None else tr.inputs.key,
            None if integrand is None else integrand.serialize())  # fmt: skip
     return tr.model.cached(key, build)
 
@@ -587,7 +662,8 @@ def _rtol(rtol) -> float | None:
 def _tolerances(rtol: float | None, method: str) -> tuple[float, float]:
     """``(rtol, atol)`` of ``method``: its defaults, or ``rtol`` (checked) with the
     defaults' ratio."""
-    default = (RADAU_TOLERANCE,) * 2 if method == GRADIENT_METHODS[0] else GRADIENT_TOLERANCES
+    own = {GRADIENT_METHODS[0]: RADAU_TOLERANCE, "adams-adjoint": ADAMS_TOLERANCE}
+    default = (own[method],) * 2 if method in own else GRADIENT_TOLERANCES
     if rtol is None:
         return default
     return rtol, rtol * default[1] / default[0]

@@ -12,8 +12,11 @@ from softcurve.simulation.solvers._actuated import actuated_jacobian as actuated
 from softcurve.simulation.solvers._actuated import (
     actuated_passes as actuated_passes,
 )
+from softcurve.simulation.solvers._adjoint import ADAMS_STATISTICS as ADAMS_STATISTICS
 from softcurve.simulation.solvers._adjoint import ADJOINT_STATISTICS as ADJOINT_STATISTICS
 from softcurve.simulation.solvers._adjoint import Taped as Taped
+from softcurve.simulation.solvers._adjoint import adams_backward as adams_backward
+from softcurve.simulation.solvers._adjoint import adams_forward as adams_forward
 from softcurve.simulation.solvers._adjoint import adjoint_backward as adjoint_backward
 from softcurve.simulation.solvers._adjoint import adjoint_forward as adjoint_forward
 from softcurve.simulation.solvers._adjoint import vjp_function as vjp_function
@@ -96,8 +99,11 @@ __all__ = [
     "actuated_derivative",
     "actuated_jacobian",
     "actuated_passes",
+    "ADAMS_STATISTICS",
     "ADJOINT_STATISTICS",
     "Taped",
+    "adams_backward",
+    "adams_forward",
     "adjoint_backward",
     "adjoint_forward",
     "vjp_function",

@@ -1,7 +1,18 @@
-"""The discrete adjoint of the driver's Radau IIA (``c/adjoint.c``): the gradient of a
-function of the states Radau IIA computes at output times, along the initial state, the
-held inputs and the parameters, in one forward pass that tapes the steps and one backward
-pass per scalar.
+"""The driver's adjoints: the gradient of a function of the states at output times, along
+the initial state, the held inputs and the parameters, in one forward pass that tapes
+the steps and one backward pass per scalar. Two of them:
+
+- the discrete adjoint of the driver's Radau IIA (``c/adjoint.c``: :func:`adjoint_forward`
+  and :func:`adjoint_backward`), below;
+- the continuous adjoint on CVODES (``c/adams_adjoint.c``: :func:`adams_forward` and
+  :func:`adams_backward`): the adjoint equations integrated backward by CVODES's Adams
+  (or BDF) over the forward pass's taped steps, interpolated as CVODES's own adjoint
+  module interpolates them (cubic Hermite), the integrals along the inputs and the
+  parameters integrated with the adjoint outside the error test, as CVODES integrates
+  quadratures without error control. It is the gradient of the flow to about the
+  tolerance, not of the computed numbers.
+
+The discrete adjoint of Radau IIA:
 
 It differentiates the scheme rather than the equations: the numbers the forward pass
 returned, with its step sizes held (as CVODES holds its own) and its stages taken as
@@ -23,6 +34,7 @@ import casadi as ca
 import numpy as np
 
 from softcurve.simulation.solvers import _driver as c_driver
+from softcurve.simulation.solvers._policy import RESTART_INTERVAL
 from softcurve.simulation.solvers._radau import radau_constants
 
 ADJOINT_STATISTICS = ("vjp_evaluations", "iterations", "factorizations", "fresh_jacobians")
@@ -209,6 +221,21 @@ def _check_problem(problem, x0_shape: tuple, arrays, stops) -> None:
         raise ValueError("times must be at least two increasing output times")
 
 
+def _checked_seeds(taped: Taped, vjp, seeds) -> np.ndarray:
+    """``seeds`` as a C array, after refusing a failed forward pass, seeds of another shape
+    and a vjp of other shapes than the problem's."""
+    u, p, nominal, times = taped.arguments[2:6]
+    seeds = np.ascontiguousarray(seeds, dtype=np.float64)
+    if taped.flag or taped.reached != times.size:
+        raise ValueError(f"the forward pass failed (flag {taped.flag}): nothing to send back")
+    if seeds.shape != taped.states.shape:
+        raise ValueError(f"seeds must have shape {taped.states.shape}, got {seeds.shape}")
+    shapes = ((nominal.size, 1), (u.shape[1], 1), (p.size, 1))
+    if vjp.n_in != 4 or vjp.shapes[1] != shapes:
+        raise ValueError(f"vjp must be (x, u, p, v) -> outputs of shapes {shapes}")
+    return seeds
+
+
 def adjoint_backward(taped: Taped, vjp, seeds) -> tuple:
     """The derivative of a scalar along the initial state, the inputs and the parameters,
     from its derivative along the states at the output times, by the discrete adjoint of
@@ -232,14 +259,7 @@ def adjoint_backward(taped: Taped, vjp, seeds) -> tuple:
         :data:`ADJOINT_STATISTICS`.
     """
     problem, settings, u, p, nominal, times, owner, abscissa = taped.arguments
-    seeds = np.ascontiguousarray(seeds, dtype=np.float64)
-    if taped.flag or taped.reached != times.size:
-        raise ValueError(f"the forward pass failed (flag {taped.flag}): nothing to send back")
-    if seeds.shape != taped.states.shape:
-        raise ValueError(f"seeds must have shape {taped.states.shape}, got {seeds.shape}")
-    shapes = ((nominal.size, 1), (u.shape[1], 1), (p.size, 1))
-    if vjp.n_in != 4 or vjp.shapes[1] != shapes:
-        raise ValueError(f"vjp must be (x, u, p, v) -> outputs of shapes {shapes}")
+    seeds = _checked_seeds(taped, vjp, seeds)
     lam, d_u, d_p = np.zeros(nominal.size), np.zeros_like(u), np.zeros(p.size)
     sizes = np.array(vjp.work_sizes, np.int64)
     stats = np.zeros(len(ADJOINT_STATISTICS), np.int64)
@@ -251,4 +271,135 @@ def adjoint_backward(taped: Taped, vjp, seeds) -> tuple:
         d_p.ctypes.data, stats.ctypes.data,
     )  # fmt: skip
     counts = dict(zip(ADJOINT_STATISTICS, stats.tolist(), strict=True))
+    return int(flag), lam, d_u, d_p, counts
+
+
+ADAMS_STATISTICS = ("steps", "vjp_evaluations", "jacobians", "factorizations",
+                    "error_test_failures", "starts")  # fmt: skip
+"""The continuous adjoint's backward counters, in the driver's order: CVODES's steps,
+reverse-mode evaluations of the right-hand side (one per right-hand side of the adjoint
+equations with its integrals), Jacobians at the forward states, linear-solver setups,
+error-test failures, and starts (afresh at every segment's end and at every output time
+whose seed is not zero, where the adjoint jumps)."""
+
+
+ADAMS_FIRST_ROOM = (16384, 16)
+"""The first room of :func:`adams_forward`'s tape: ``a + b (T - 1)`` points for ``T``
+output times. A tape that fills runs the forward pass again (twice the cost of the pass
+where the first room was 1,024 and the paper robot's 10 s swing took 1,058 steps), while
+the room costs nothing until written (NumPy's large arrays are mapped lazily): 16,384
+points of the paper robot are 2.9 MB of address space."""
+
+
+def adams_forward(problem, x0, u, p, nominal, times, rtol, atol, max_steps, stops=None,
+                  family=1, max_order=0):  # fmt: skip
+    """One member integrated by the driver's CVODES over the output times, the end of each
+    internal step taped for :func:`adams_backward`.
+
+    Parameters
+    ----------
+    problem : DriverProblem
+        The model and actuator, its ``f`` the whole right-hand side.
+    x0 : ndarray, shape (n,)
+        The physical initial state.
+    u : ndarray, shape (T, k)
+        Row ``i`` the inputs held over ``[times[i], times[i + 1])``.
+    p : ndarray, shape (n_p,)
+        The parameter vector.
+    nominal : ndarray, shape (n,)
+        The state scales (the integrated state is ``x / nominal``).
+    times : ndarray, shape (T,)
+        Output times [s], increasing.
+    rtol, atol : float
+        CVODES's tolerances, ``atol`` of the scaled state; the backward pass's too, its
+        ``atol`` in the units of the largest seed.
+    max_steps : int
+        Steps allowed per output interval.
+    stops : ndarray of bool, shape (T,), optional
+        The output times where CVODES starts afresh (default every one): where the input
+        changes. CVODES passes through the others (the backward pass still gives each
+        sample its own derivative), and starts afresh after every ``RESTART_INTERVAL``
+        of time, as ``simulate`` does (``softcurve.simulation.solvers.RESTART_INTERVAL``).
+    family : int
+        1 Adams, 2 BDF (``softcurve_driver.h``'s ``FAMILY_ADAMS``, ``FAMILY_BDF``).
+    max_order : int
+        The method's largest order (0: CVODES's own).
+
+    Returns
+    -------
+    Taped
+        Its ``tape`` holds the points (``ADAMS_HEAD + 2 n`` doubles each: time, input row,
+        scaled state and its derivative), ``jacobians`` none, and ``arguments`` are
+        ``(problem, settings, u, p, nominal, times, stops)``.
+    """
+    arrays = tuple(np.array(a, dtype=np.float64, order="C") for a in (u, p, nominal, times))
+    x0 = np.asarray(x0, dtype=np.float64)
+    n, count = x0.size, arrays[3].size
+    stops = np.ones(count, np.int32) if stops is None else np.array(stops, np.int32)
+    _check_problem(problem, x0.shape, arrays, stops)
+    if family not in (1, 2):
+        raise ValueError(f"family must be 1 (Adams) or 2 (BDF), got {family}")
+    entry = c_driver.DECLARATIONS.constants["ADAMS_HEAD"] + 2 * n
+    settings = c_driver.options(rtol, atol, max_steps, max_order=max_order, family=family)
+    room = ADAMS_FIRST_ROOM[0] + ADAMS_FIRST_ROOM[1] * (count - 1)
+    call = c_driver.entry("softcurve_adams_forward")
+    while True:
+        out = np.zeros((count, n))
+        out[0] = x0
+        try:
+            tape = np.empty((room, entry))
+        except MemoryError:
+            arguments = (problem, settings, *arrays, stops)
+            return _frozen_taped(out, 1, OUT_OF_MEMORY, {}, 0, np.empty((0, entry)),
+                                 np.empty((0, n, n)), arguments)  # fmt: skip
+        used, stats = ctypes.c_long(0), np.zeros(len(c_driver.STATISTICS), np.int64)
+        reached = ctypes.c_int(0)
+        flag = call(
+            ctypes.byref(problem.struct), ctypes.byref(settings), RESTART_INTERVAL,
+            arrays[0].ctypes.data, arrays[1].ctypes.data, arrays[2].ctypes.data,
+            arrays[3].ctypes.data, count, stops.ctypes.data, out.ctypes.data,
+            tape.ctypes.data, room, ctypes.byref(used), stats.ctypes.data,
+            ctypes.byref(reached),
+        )  # fmt: skip
+        if flag != c_driver.DECLARATIONS.constants["TAPE_FULL"]:
+            break
+        room *= TAPE_GROWTH
+    counts = dict(zip(c_driver.STATISTICS, stats.tolist(), strict=True))
+    return _frozen_taped(out, reached.value, int(flag), counts, used.value, tape,
+                         np.empty((0, n, n)), (problem, settings, *arrays, stops))  # fmt: skip
+
+
+def adams_backward(taped: Taped, vjp, seeds) -> tuple:
+    """:func:`adjoint_backward` for a forward pass of :func:`adams_forward`: the adjoint
+    equations integrated backward by the same method and tolerances.
+
+    Parameters
+    ----------
+    taped : Taped
+        A forward pass of :func:`adams_forward` that succeeded (else ValueError).
+    vjp : NativeFunction
+        :func:`vjp_function` of the problem's right-hand side, compiled.
+    seeds : ndarray, shape (T, n)
+        The scalar's derivative along the physical state at every output time.
+
+    Returns
+    -------
+    tuple
+        ``(flag, d_x0 (n,), d_u (T, k), d_p (n_p,), counts)``: 0 or the driver's flag, the
+        derivatives (``d_u`` row ``i`` along the input held over ``[times[i],
+        times[i + 1]]``; the last row zero) and the counters of :data:`ADAMS_STATISTICS`.
+    """
+    problem, settings, u, p, nominal, times, stops = taped.arguments
+    seeds = _checked_seeds(taped, vjp, seeds)
+    lam, d_u, d_p = np.zeros(nominal.size), np.zeros_like(u), np.zeros(p.size)
+    sizes = np.array(vjp.work_sizes, np.int64)
+    stats = np.zeros(len(ADAMS_STATISTICS), np.int64)
+    flag = c_driver.entry("softcurve_adams_backward")(
+        ctypes.byref(problem.struct), ctypes.byref(settings), RESTART_INTERVAL,
+        ctypes.c_void_p(vjp.address), sizes.ctypes.data, u.ctypes.data, p.ctypes.data,
+        nominal.ctypes.data, times.ctypes.data, times.size, stops.ctypes.data,
+        taped.tape.ctypes.data, taped.steps, seeds.ctypes.data, lam.ctypes.data,
+        d_u.ctypes.data, d_p.ctypes.data, stats.ctypes.data,
+    )  # fmt: skip
+    counts = dict(zip(ADAMS_STATISTICS, stats.tolist(), strict=True))
     return int(flag), lam, d_u, d_p, counts

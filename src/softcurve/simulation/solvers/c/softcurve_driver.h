@@ -201,6 +201,50 @@ SC_EXPORT int softcurve_adjoint_backward(const sc_function *fn, const sc_options
                                          const double *seeds, double *lambda, double *d_u,
                                          double *d_p, long *stats);
 
+/* The layout of a point taped by softcurve_adams_forward: ADAMS_HEAD doubles (its time,
+ * the row of its segment's input), then the scaled state and its derivative (2 n
+ * doubles after the head). */
+enum { ADAMS_T = 0, ADAMS_ROW = 1, ADAMS_HEAD = 2 };
+
+/* The forward pass of the continuous adjoint (adams_adjoint.c): one member of fn (f the
+ * whole right-hand side, no force or lag beside it) integrated by CVODES (options->family:
+ * FAMILY_ADAMS or FAMILY_BDF; tolerances, steps per output, largest order) from out[0, :]
+ * (physical, at times[0]) over the output times times[1..count), with the input u[i, :]
+ * held over [times[i], times[i + 1]), parameters p and state scales nominal, restarting
+ * at the output times i where stops[i] is nonzero (the last is a stop anyway) and after
+ * every restart_interval of time in between (at a step's end, where the order climbs
+ * down again: softcurve.simulation.solvers.RESTART_INTERVAL says why). Writes
+ * out[i, :] and tapes every start and the end of every internal step into
+ * tape (capacity points of ADAMS_HEAD + 2 n doubles); *used: points taped. Returns 0,
+ * TAPE_FULL, -100 when it could not be set up, or CVODES's negative flag; adds to stats
+ * the counters of softcurve_integrate; *reached: outputs filled (out[0] included). */
+SC_EXPORT int softcurve_adams_forward(const sc_function *fn, const sc_options *options,
+                                      double restart_interval, const double *u,
+                                      const double *p, const double *nominal,
+                                      const double *times, int count, const int *stops,
+                                      double *out, double *tape, long capacity, long *used,
+                                      long *stats, int *reached);
+
+/* The backward pass over the `points` taped by softcurve_adams_forward (the same fn,
+ * options, u, p, nominal, times, count and stops): with seeds[i, :] the derivative of a
+ * scalar along the physical state out[i, :], integrates the adjoint equations backward by
+ * the same method and writes the scalar's derivative along the initial state into lambda
+ * (n), and adds those along the inputs into d_u (row i: along the input held over
+ * [times[i], times[i + 1]], count rows) and the parameters into d_p (np).
+ * vjp(x, u, p, v) -> (f_x^T v, f_u^T v, f_p^T v) is f's reverse mode, of work sizes
+ * vjp_sizes (4). Returns 0, -100 when it could not be set up, or CVODES's negative flag
+ * (CV_RHSFUNC_FAIL where the vjp fails or is not finite); adds to stats: steps, vjp
+ * evaluations, Jacobians, linear-solver setups, error-test failures, starts (CVODES
+ * starts afresh at every segment's end, every output time with a nonzero seed, and
+ * after every restart_interval of time without one). */
+SC_EXPORT int softcurve_adams_backward(const sc_function *fn, const sc_options *options,
+                                       double restart_interval, casadi_fn vjp,
+                                       const long long *vjp_sizes, const double *u,
+                                       const double *p, const double *nominal,
+                                       const double *times, int count, const int *stops,
+                                       const double *tape, long points, const double *seeds,
+                                       double *lambda, double *d_u, double *d_p, long *stats);
+
 /* f at `count` states x[b, :] (physical, nx + lagging inputs) with inputs u[b, :] and
  * parameters p (shared): xdot[b, :]. Returns 0, or -100 when out of memory. */
 SC_EXPORT int softcurve_rhs(const sc_function *fn, int count, const double *x, const double *u,

@@ -33,6 +33,7 @@ extern void *CVodeCreate(int lmm, int iter);
 extern int CVodeInit(void *mem, CVRhsFn f, realtype t0, N_Vector y0);
 extern int CVodeReInit(void *mem, realtype t0, N_Vector y0);
 extern int CVodeSStolerances(void *mem, realtype rtol, realtype atol);
+extern int CVodeSVtolerances(void *mem, realtype rtol, N_Vector atol);
 extern int CVodeSetUserData(void *mem, void *data);
 extern int CVodeSetMaxNumSteps(void *mem, long int mxsteps);
 extern int CVodeSetMaxOrd(void *mem, int maxord);
@@ -61,6 +62,7 @@ extern int CVodeGetSens(void *mem, realtype *tret, N_Vector *yS);
 #define CV_NORMAL 1
 #define CV_ONE_STEP 2
 #define CV_STAGGERED 2
+#define CV_TSTOP_RETURN 1
 #define CV_TOO_MUCH_WORK -1
 #define CV_ERR_FAILURE -3
 #define CV_CONV_FAILURE -4
