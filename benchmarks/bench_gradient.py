@@ -35,7 +35,8 @@ the continuous adjoint starts afresh), and what ``method="auto"`` takes
 (``ADAMS_WITHIN``). ``--chain N ...`` runs chains of N paper segments, 1 s from a bent
 start at rest, 10 output intervals, the squared tip position at the end, along the
 parameters and the initial state: the discrete adjoint (with its steps and reverse-mode
-evaluations a step) and CVODES's adjoint (first call and best of ``--repeat``) beside
+evaluations a step), the continuous one (its steps forward and backward, its
+evaluations a backward step) and CVODES's adjoint (first call and best of ``--repeat``) beside
 ``simulate``'s default run of the same second. ``--costs`` times other costs on 100
 intervals along the parameters and the initial state: the integral alone, the tip's
 height at the end, the squared state at every output time.
@@ -166,16 +167,16 @@ COSTS = {
 
 
 def costs(model, repeat: int) -> None:
-    print("\n| cost (100 intervals, along parameters and x0) | gradient [s] |")
-    print("| --- | --- |")
+    print("\n| cost (100 intervals, along parameters and x0) | gradient [s] | auto takes |")
+    print("| --- | --- | --- |")
     for name, of in COSTS.items():
 
         def run(of=of):
             return one_gradient(model, 100, wrt=("parameters", "x0"), of=of)
 
         run()
-        wall, _ = best_of(repeat, run)
-        print(f"| {name} | {wall:.3f} |")
+        wall, g = best_of(repeat, run)
+        print(f"| {name} | {wall:.3f} | {g.method} |")
 
 
 def flags(model, repeat: int) -> None:
@@ -196,7 +197,7 @@ def flags(model, repeat: int) -> None:
 def chains(segments, repeat: int) -> None:
     """``--chain``: the gradient of chains of paper segments against ``simulate``."""
     print("\n| N | method | first call [s] | gradient [ms] | simulate [ms] | / simulate | steps "
-          "| reverse-mode evaluations a step |")  # fmt: skip
+          "(backward) | reverse-mode evaluations a step |")  # fmt: skip
     print("| --- | --- | --- | --- | --- | --- | --- | --- |")
     t = np.linspace(0.0, 1.0, 11)
     for n in segments:
@@ -204,7 +205,7 @@ def chains(segments, repeat: int) -> None:
         q0, qd0 = np.tile([0.064, 5.0, 0.0], n), np.zeros(3 * n)
         sc.simulate(model, q0, qd0, t_final=1.0)
         forward, _ = best_of(repeat, lambda m=model, q=q0, v=qd0: sc.simulate(m, q, v, t_final=1.0))
-        for method in ("radau-adjoint", "adjoint"):
+        for method in ("radau-adjoint", "adams-adjoint", "adjoint"):
 
             def run(m=model, q=q0, method=method):
                 return sc.gradient(m, lambda tr: ca.sumsqr(tr.tip[:, -1]), q, t=t,
@@ -215,7 +216,12 @@ def chains(segments, repeat: int) -> None:
             cold = time.perf_counter() - began
             wall, g = best_of(repeat, run)
             steps = g.stats.get("steps", "")
-            each = f"{g.stats['vjp_evaluations'] / steps:.1f}" if steps else ""
+            if "backward_steps" in g.stats:  # the continuous adjoint: a step of the backward's
+                steps = f"{steps} ({g.stats['backward_steps']})"
+                each = g.stats["backward_vjp_evaluations"] / g.stats["backward_steps"]
+            else:
+                each = g.stats["vjp_evaluations"] / steps if steps else None
+            each = "" if each is None else f"{each:.1f}"
             print(f"| {n} | {method} | {cold:.1f} | {1e3 * wall:.1f} | {1e3 * forward:.1f} | "
                   f"{wall / forward:.0f}x | {steps} | {each} |")  # fmt: skip
 

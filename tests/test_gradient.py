@@ -141,9 +141,10 @@ def test_the_continuous_adjoint_is_cvodes_adjoint(model, bellows, continuous, re
     """The driver's continuous adjoint against CVODES's adjoint through CasADi at 1e-10,
     on pressures that change at every sample (a start at each) and a cost reading every
     output time. It converges with its tolerance (the largest difference over the largest
-    entry along x0, measured: 6.5e-4 at its default 1e-7, 1.5e-5 at 1e-8, 6.8e-7 at
-    1e-9): at 1e-9 every entry within 1e-5 of the largest, at the default 2e-3 (starts
-    every 25 ms, where ``auto`` takes Radau IIA's adjoint, 2.4e-6 at its default)."""
+    entry along x0 from CVODES's at 1e-12, measured: 2.6e-5 at its default 1e-7, 6.2e-7
+    at 1e-8, 2.8e-7 at 1e-9): at 1e-9 every entry within 1e-5 of the largest, at the
+    default 2e-3 (starts every 25 ms, where ``auto`` takes Radau IIA's adjoint, 2.4e-6 at
+    its default)."""
     assert continuous.success and continuous.method == "adams-adjoint", continuous.message
     assert continuous.reason == "asked"
     assert continuous.value == pytest.approx(reference.value, rel=1e-7)
@@ -185,26 +186,30 @@ def test_the_continuous_adjoint_gives_each_sample_its_own_derivative(model, bell
 
 
 def test_auto_takes_the_continuous_adjoint_where_it_starts_seldom(model):
-    """The paper swing over 0.5 s: a cost at the end alone starts the continuous adjoint
-    once (0.5 s apart, 142 over the fastest rate, over ADAMS_WITHIN); one reading the
-    state at 50 output times would start it every 10 ms, and takes Radau IIA's. The two
-    agree within 1e-3 of the largest entry (measured 4.7e-4, along the creep state, whose
-    nominal size is small: the continuous adjoint's tolerance is absolute in the scaled
-    state)."""
-    t = np.linspace(0.0, 0.5, 51)
-    at_end = sc.gradient(model, lambda tr: tr.tip[2, -1], [0.064, 25.0, 0.0],
-                         [0.0, 0.0, 1500.0], t=t, wrt="x0")  # fmt: skip
+    """The paper swing over 1 s: a cost of the tip at the end and an integral starts the
+    continuous adjoint once (1 s apart, about 280 over the fastest rate, over
+    ADAMS_WITHIN); one reading the state at 100 output times would start it every 10 ms,
+    and takes Radau IIA's. The continuous adjoint lies within 1e-5 of the largest entry
+    from CVODES's adjoint at 1e-10 (measured 1.3e-6 along x0, 1.6e-7 along the
+    parameters; Radau IIA's 2.0e-6 and 3.5e-7)."""
+    t, q0, qd0 = np.linspace(0.0, 1.0, 101), [0.064, 25.0, 0.0], [0.0, 0.0, 1500.0]
+
+    def at_end_cost(trajectory):
+        return trajectory.tip[2, -1] + 1e-6 * trajectory.integral[0, -1]
+
+    at_end = sc.gradient(model, at_end_cost, q0, qd0, t=t, running=running)
     assert at_end.method == "adams-adjoint", at_end.reason
-    assert "starts afresh every 0.5 s" in at_end.reason and "ADAMS_WITHIN" in at_end.reason
-    everywhere = sc.gradient(model, lambda tr: ca.sumsqr(tr.tip[2, :]), [0.064, 25.0, 0.0],
-                             [0.0, 0.0, 1500.0], t=t, wrt="x0")  # fmt: skip
+    assert "starts afresh every 1 s" in at_end.reason and "ADAMS_WITHIN" in at_end.reason
+    assert at_end.stats["backward_starts"] == 1
+    everywhere = sc.gradient(model, lambda tr: ca.sumsqr(tr.tip[2, :]), q0, qd0, t=t, wrt="x0")
     assert everywhere.method == "radau-adjoint", everywhere.reason
     assert "every 0.01 s" in everywhere.reason
-    largest = np.max(np.abs(at_end.x0))
-    again = sc.gradient(model, lambda tr: tr.tip[2, -1], [0.064, 25.0, 0.0],
-                        [0.0, 0.0, 1500.0], t=t, wrt="x0", method="radau-adjoint")  # fmt: skip
-    np.testing.assert_allclose(at_end.x0, again.x0, rtol=0, atol=1e-3 * largest)
-    assert at_end.stats["backward_starts"] == 1
+    reference = sc.gradient(model, at_end_cost, q0, qd0, t=t, running=running,
+                            method="adjoint")  # fmt: skip
+    for along in ("x0", "parameters"):
+        theirs = getattr(reference, along)
+        np.testing.assert_allclose(getattr(at_end, along), theirs, rtol=0,
+                                   atol=1e-5 * np.max(np.abs(theirs)))  # fmt: skip
 
 
 def _own_differences(g, model, value_at, steps_x0, names):
@@ -303,6 +308,8 @@ def test_the_adjoints_passes_refuse_what_they_cannot_take(model, bellows):
     from softcurve.simulation.solvers import (
         ActuatorInput,
         DriverProblem,
+        adams_backward,
+        adams_forward,
         adjoint_backward,
         adjoint_forward,
         driver_problem,
@@ -336,6 +343,23 @@ def test_the_adjoints_passes_refuse_what_they_cannot_take(model, bellows):
     assert failed.flag != 0
     with pytest.raises(ValueError, match="the forward pass failed"):
         adjoint_backward(failed, vjp, np.zeros_like(failed.states))
+    # the continuous adjoint's passes: the same checks, and its method's own
+    with pytest.raises(ValueError, match=r"u must have shape \(7, 3\)"):
+        adams_forward(problem, x0, u[:, :2], *arguments)
+    with pytest.raises(ValueError, match="no actuator's force or lag"):
+        adams_forward(actuated, x0, u, *arguments)
+    with pytest.raises(ValueError, match=r"max_order must be in \[1, 5\], got 12"):
+        adams_forward(problem, x0, u, *arguments, family=2, max_order=12)
+    with pytest.raises(ValueError, match="family must be 1"):
+        adams_forward(problem, x0, u, *arguments, family=3)
+    taped = adams_forward(problem, x0, u, *arguments)
+    assert taped.flag == 0 and not taped.tape.flags.writeable
+    with pytest.raises(ValueError, match="seeds must have shape"):
+        adams_backward(taped, vjp, np.zeros((T.size, 2)))
+    failed = adams_forward(problem, x0, u, *arguments[:-1], 1)
+    assert failed.flag != 0
+    with pytest.raises(ValueError, match="the forward pass failed"):
+        adams_backward(failed, vjp, np.zeros_like(failed.states))
 
 
 def test_without_the_driver_auto_takes_cvodes_and_radau_is_refused():
@@ -500,6 +524,7 @@ def test_a_trajectory_that_leaves_the_domain_gives_no_gradient(model):
         ("adjoint", Q0, QD0, "CVode returned"),
         ("adjoint", [0.064, 0.0, 0.0], None, "CVodeB"),
         ("auto", Q0, QD0, "Radau IIA CV_ERR_FAILURE"),
+        ("adams-adjoint", Q0, QD0, "CVODES CV_TOO_MUCH_WORK"),
     ],
 )
 def test_a_failing_integration_is_integration_failed_with_no_gradient(
@@ -513,7 +538,7 @@ def test_a_failing_integration_is_integration_failed_with_no_gradient(
     g = sc.gradient(model, lambda tr: tr.tip[2, -1], q0, qd0, t=[0.0, 0.025], parameters=p,
                     method=method)  # fmt: skip
     assert g.status is Status.INTEGRATION_FAILED, g.message
-    assert ("CVODES failed" if method == "adjoint" else "Radau IIA") in g.message
+    assert {"adjoint": "CVODES failed", "auto": "Radau IIA"}.get(method, "CVODES") in g.message
     assert failing in g.message, g.message
     assert np.isnan(g.parameters).all() and np.isnan(g.value)
     assert g.x.shape == (2, model.n_state)
@@ -541,6 +566,19 @@ def test_a_derivative_that_is_not_finite_gives_no_gradient(model, running_, cost
     assert failing in g.message, g.message
     assert np.isnan(g.parameters).all() and np.isnan(g.value)
     assert np.all(np.isfinite(g.x))
+
+
+@pytest.mark.parametrize(
+    "running_",
+    [lambda x, u, p: ca.sqrt(ca.fmax(-x[0], 0.0)), lambda x, u, p: ca.sqrt(ca.fmax(-p[0], 0.0))],
+)
+def test_a_reverse_mode_not_finite_stops_the_continuous_adjoint(model, running_):
+    """Along the state or along the parameters alone: the backward pass stops at once."""
+    g = sc.gradient(model, lambda tr: tr.integral[0, -1], Q0, QD0, t=T, running=running_,
+                    method="adams-adjoint")  # fmt: skip
+    assert g.status is Status.INTEGRATION_FAILED, g.message
+    assert "the right-hand side's reverse mode failed, or is not finite" in g.message
+    assert np.isnan(g.parameters).all() and np.all(np.isfinite(g.x))
 
 
 def test_a_parameter_vector_is_checked_as_a_robot(model):

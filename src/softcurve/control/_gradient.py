@@ -8,7 +8,9 @@ exactly along with the integration, in the state scaled as ``simulate`` scales i
 derivative along the robot's parameters, the initial state and the input samples is
 taken by one of :data:`GRADIENT_METHODS`: the discrete adjoint of the C driver's Radau
 IIA (``softcurve.simulation.solvers``: the derivative of its discrete scheme, its step
-sizes held; the running integrals integrated as states), or, through CasADi's
+sizes held; the running integrals integrated as states), the continuous adjoint on the
+driver's CVODES (the adjoint equations integrated backward over the forward pass's taped
+steps), or, through CasADi's
 ``integrator`` over the robot's actuated right-hand side
 (:meth:`Transcription.compiled_rhs <softcurve.control.Transcription.compiled_rhs>`,
 compiled with its first derivatives), CVODES's adjoint (one backward pass for every seed
@@ -23,7 +25,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field
-from functools import cached_property, partial
+from functools import cached_property
 
 import casadi as ca
 import numpy as np
@@ -35,7 +37,6 @@ from softcurve.control._transcription import DERIVATIVE_FLAGS, Transcription
 from softcurve.simulation import checked_rtol
 from softcurve.simulation.sensitivity import SENSITIVITY_CVODES
 from softcurve.simulation.solvers import (
-    MAX_ORDER,
     DriverProblem,
     RadauEngine,
     adams_backward,
@@ -85,11 +86,11 @@ ADAMS_TOLERANCE = 1e-7
 """The relative tolerance of ``adams-adjoint``, and the absolute one of the scaled state:
 ten times tighter than ``simulate``'s, because the continuous adjoint is the gradient of
 the flow to about its tolerance. On the paper robot's 10 s swing (one output interval,
-``python benchmarks/bench_gradient.py --adams``) it lies 5.1e-5 from CVODES's adjoint at
-1e-10 at this tolerance in 14.7 ms, 3.8e-4 at 1e-6 in 15.8 ms and 7.4e-7 at 1e-8 in
-19.4 ms (``radau-adjoint`` at its own: 9.1e-6 in 40.4 ms)."""
+``python benchmarks/bench_gradient.py --adams``) it lies 2.2e-6 from CVODES's adjoint at
+1e-10 at this tolerance in 15.7 ms, 4.8e-5 at 1e-6 in 13.3 ms and 2.7e-7 at 1e-8 in
+20.6 ms (``radau-adjoint`` at its own: 9.1e-6 in 40.4 ms)."""
 
-ADAMS_WITHIN = 90.0
+ADAMS_WITHIN = 200.0
 """``method="auto"`` takes ``adams-adjoint`` where the adjoint starts afresh on average no
 more often than every ``ADAMS_WITHIN`` over the fastest rate of the linearization at the
 start, else ``radau-adjoint``. The continuous adjoint starts afresh where the cost
@@ -97,9 +98,9 @@ depends on the state at an output time (the adjoint jumps there) and where the i
 changes, and each start costs the multistep method's climb back to its order and step,
 where Radau IIA's steps go on through both. Measured on the paper robot's 10 s swing
 (fastest rate 283 1/s) with the cost at every output time, ``python
-benchmarks/bench_gradient.py --adams``: 1, 10, 30 and 100 output intervals take 16.7,
-31.5, 40.9 and 54.2 ms by ``adams-adjoint`` and 40.4 to 40.9 ms by ``radau-adjoint``:
-equal at 30 (0.33 s apart, 94 over the fastest rate)."""
+benchmarks/bench_gradient.py --adams``: 1, 10, 30 and 100 output intervals take 17.2,
+35.4, 52.8 and 69.1 ms by ``adams-adjoint`` and 39.6 to 41.5 ms by ``radau-adjoint``:
+equal near 15 (0.67 s apart, 190 over the fastest rate)."""
 
 WITH_RESPECT_TO = ("parameters", "x0", "inputs")
 """What :func:`gradient` differentiates along (its ``wrt``): the model's parameter vector
@@ -216,11 +217,15 @@ class RolloutGradient(Result):
     transcription : Transcription
         The model and actuator.
     stats : dict
-        The counters of ``radau-adjoint``'s passes: the forward pass's
-        (``steps``, ``rhs_evaluations``, ``jacobian_evaluations``,
+        The counters of the driver's passes (empty for CVODES's routes through CasADi):
+        the forward pass's (``steps``, ``rhs_evaluations``, ``jacobian_evaluations``,
         ``linear_solver_setups``, ``error_test_failures``, ``newton_failures``) and the
-        backward pass's (``ADJOINT_STATISTICS`` of ``softcurve.simulation.solvers``:
-        ``vjp_evaluations``, ``iterations``, ``factorizations``, ``fresh_jacobians``).
+        backward pass's: ``radau-adjoint``'s ``ADJOINT_STATISTICS`` of
+        ``softcurve.simulation.solvers`` (``vjp_evaluations``, ``iterations``,
+        ``factorizations``, ``fresh_jacobians``), ``adams-adjoint``'s
+        ``ADAMS_STATISTICS`` prefixed ``backward_`` (``backward_steps``,
+        ``backward_vjp_evaluations``, ``backward_jacobians``, ``backward_factorizations``,
+        ``backward_error_test_failures``, ``backward_starts``).
         Empty for CVODES's routes and wherever no gradient was computed.
     """
 
@@ -543,7 +548,7 @@ def _driver_gradient(of_states, numbers, integrand, wrt, robot, failed, toleranc
     p_value, x0, inputs = numbers
     radau = failed["method"] == GRADIENT_METHODS[0]
     forward, backward = ((adjoint_forward, adjoint_backward) if radau else
-                         (partial(adams_forward, max_order=MAX_ORDER), adams_backward))  # fmt: skip
+                         (adams_forward, adams_backward))  # fmt: skip
     problem, vjp = _driver_functions(tr, integrand)
     k = problem.struct.nx - tr.n_x  # the running integrals, integrated as states
     nominal = np.concatenate([state_scale(tr.model, x0[: tr.model.n_state], tr.inputs),
@@ -583,8 +588,9 @@ def _driver_gradient(of_states, numbers, integrand, wrt, robot, failed, toleranc
             reason = BACKWARD_FAILURES.get(reason, reason)
             return _failed(Status.INTEGRATION_FAILED, f"Radau IIA's adjoint stopped: {reason}",
                            x=x, **failed)  # fmt: skip
+        reason = ADAMS_FAILURES.get(reason, cvodes_reason(reason))
         return _failed(Status.INTEGRATION_FAILED, "the adjoint equations' integration "
-                       f"stopped: {cvodes_reason(reason)}", x=x, **failed)  # fmt: skip
+                       f"stopped: {reason}", x=x, **failed)  # fmt: skip
     asked = {"parameters": along_p.ravel() + d_p, "x0": along_x0.ravel() + lam[: tr.n_x],
              "inputs": along_u.T + d_u}  # fmt: skip
     not_finite = [w for w in wrt if not np.all(np.isfinite(asked[w]))]
@@ -620,6 +626,13 @@ BACKWARD_FAILURES = {
     "the inputs or the parameters",
 }
 """The backward pass's failures (the driver's flags by name) in words."""
+
+ADAMS_FAILURES = {
+    "CV_RHSFUNC_FAIL": "the right-hand side's reverse mode failed, or is not finite along "
+    "the state, the inputs or the parameters",
+}
+"""The continuous adjoint's backward failures that CVODES's words would misname (its
+right-hand side is the reverse mode)."""
 
 
 def _driver_functions(tr: Transcription, integrand) -> tuple:

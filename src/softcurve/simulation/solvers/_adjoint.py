@@ -6,8 +6,8 @@ the steps and one backward pass per scalar. Two of them:
   and :func:`adjoint_backward`), below;
 - the continuous adjoint on CVODES (``c/adams_adjoint.c``: :func:`adams_forward` and
   :func:`adams_backward`): the adjoint equations integrated backward by CVODES's Adams
-  (or BDF) over the forward pass's taped steps, interpolated as CVODES's own adjoint
-  module interpolates them (cubic Hermite), the integrals along the inputs and the
+  (or BDF) over the forward pass's taped steps, each step's polynomial taped as CVODES
+  interpolates over it, the integrals along the inputs and the
   parameters integrated with the adjoint outside the error test, as CVODES integrates
   quadratures without error control. It is the gradient of the flow to about the
   tolerance, not of the computed numbers.
@@ -34,7 +34,7 @@ import casadi as ca
 import numpy as np
 
 from softcurve.simulation.solvers import _driver as c_driver
-from softcurve.simulation.solvers._policy import RESTART_INTERVAL
+from softcurve.simulation.solvers._policy import MAX_ORDER, RESTART_INTERVAL
 from softcurve.simulation.solvers._radau import radau_constants
 
 ADJOINT_STATISTICS = ("vjp_evaluations", "iterations", "factorizations", "fresh_jacobians")
@@ -292,7 +292,7 @@ points of the paper robot are 2.9 MB of address space."""
 
 
 def adams_forward(problem, x0, u, p, nominal, times, rtol, atol, max_steps, stops=None,
-                  family=1, max_order=0):  # fmt: skip
+                  family=1, max_order=MAX_ORDER):  # fmt: skip
     """One member integrated by the driver's CVODES over the output times, the end of each
     internal step taped for :func:`adams_backward`.
 
@@ -323,13 +323,15 @@ def adams_forward(problem, x0, u, p, nominal, times, rtol, atol, max_steps, stop
     family : int
         1 Adams, 2 BDF (``softcurve_driver.h``'s ``FAMILY_ADAMS``, ``FAMILY_BDF``).
     max_order : int
-        The method's largest order (0: CVODES's own).
+        The method's largest order, from 1 (Adams: to 12, BDF: to 5); each point of the
+        tape holds a polynomial of up to this order.
 
     Returns
     -------
     Taped
-        Its ``tape`` holds the points (``ADAMS_HEAD + 2 n`` doubles each: time, input row,
-        scaled state and its derivative), ``jacobians`` none, and ``arguments`` are
+        Its ``tape`` holds the points (``ADAMS_HEAD + (max_order + 1) n`` doubles each:
+        time, input row, order, the polynomial's Taylor coefficients), ``jacobians`` none,
+        and ``arguments`` are
         ``(problem, settings, u, p, nominal, times, stops)``.
     """
     arrays = tuple(np.array(a, dtype=np.float64, order="C") for a in (u, p, nominal, times))
@@ -339,7 +341,9 @@ def adams_forward(problem, x0, u, p, nominal, times, rtol, atol, max_steps, stop
     _check_problem(problem, x0.shape, arrays, stops)
     if family not in (1, 2):
         raise ValueError(f"family must be 1 (Adams) or 2 (BDF), got {family}")
-    entry = c_driver.DECLARATIONS.constants["ADAMS_HEAD"] + 2 * n
+    if not 1 <= max_order <= (12 if family == 1 else 5):
+        raise ValueError(f"max_order must be in [1, {12 if family == 1 else 5}], got {max_order}")
+    entry = c_driver.DECLARATIONS.constants["ADAMS_HEAD"] + (max_order + 1) * n
     settings = c_driver.options(rtol, atol, max_steps, max_order=max_order, family=family)
     room = ADAMS_FIRST_ROOM[0] + ADAMS_FIRST_ROOM[1] * (count - 1)
     call = c_driver.entry("softcurve_adams_forward")

@@ -5,14 +5,16 @@
  *
  * The forward pass integrates the scaled state y = x / D (D the nominal sizes) by CVODES
  * one internal step at a time, restarting where the input changes, and tapes every step's
- * end: its time, state and derivative (the Nordsieck array's, as CVODES's own adjoint
- * module keeps them for its cubic Hermite interpolation). No checkpoints: the tape holds
- * every step, so the backward pass never integrates forward again.
+ * end: its time and the polynomial CVODES interpolates over the step (its Nordsieck
+ * array, as Taylor coefficients up to the step's order). No checkpoints: the tape holds
+ * every step, so the backward pass never integrates forward again. (CVODES's own adjoint
+ * module interpolates by cubic Hermite pieces instead, whose error on the paper robot's
+ * elongation, a few milliseconds a step at 183 rad/s, is of order 1e-3.)
  *
  * The backward pass integrates, segment by segment from the last output time,
  *     mu' = -g_y^T mu,   Q' = -(f_u^T nu, f_p^T nu),   nu = mu / D,
  * where g(y) = f(D y) / D is the scaled right-hand side and the forward state at t is the
- * tape's cubic Hermite interpolant: mu is the adjoint of y (D times the physical one), and
+ * taped polynomial of its step: mu is the adjoint of y (D times the physical one), and
  * Q, zero at each segment's end, is at its start the integral over the segment of the
  * derivative along its input and along the parameters. Each right-hand side and each
  * quadrature is one reverse-mode evaluation of f (the caller's vjp). Where the scalar
@@ -30,27 +32,57 @@
  * in CVODES's norms vanish, as CVODES leaves out its quadratures without error control,
  * and finite. */
 #define UNWEIGHTED 1e100
-#define POINT_ENTRY(n) (ADAMS_HEAD + 2 * (long)(n)) /* doubles of a taped point */
+/* mu's absolute tolerance, over the scaled state's in the units of the largest seed. The
+ * adjoint of a state whose seed is far below the largest (the elongation's under a tip's
+ * height) is then still resolved: on tests/test_gradient.py's pressures changing every
+ * 25 ms at rtol 1e-7 the gradient lies 3.5e-4 from CVODES's adjoint at 1e-12 with 1,
+ * 2.6e-5 with 0.1 and 3.3e-6 with 0.01, while the paper robot's 10 s swing
+ * (benchmarks/bench_gradient.py's, one output interval) takes 16.9, 16.1 and 26.8 ms
+ * (867, 866 and 1,814 backward steps). */
+#define ADJOINT_ATOL 0.1
+/* Doubles of a taped point for n states and orders up to q (softcurve_driver.h). */
+#define POINT_ENTRY(n, q) (ADAMS_HEAD + ((long)(q) + 1) * (long)(n))
 
-/* Tapes the point (t, y, yd) of the segment whose input is row `row`; 0 or TAPE_FULL. */
-static int tape_point(double *tape, long capacity, long *used, int n, double t, int row,
-                      const double *y, const double *yd) {
+/* The next free point of the tape (entry doubles each), its time and row set; NULL where
+ * the tape is full. */
+static double *next_point(double *tape, long capacity, long *used, long entry, double t,
+                          int row) {
     double *at;
-    if (*used >= capacity) return TAPE_FULL;
-    at = tape + *used * POINT_ENTRY(n);
+    if (*used >= capacity) return NULL;
+    at = tape + *used * entry;
     at[ADAMS_T] = t, at[ADAMS_ROW] = row;
-    memcpy(at + ADAMS_HEAD, y, sizeof(double) * n);
-    memcpy(at + ADAMS_HEAD + n, yd, sizeof(double) * n);
     ++*used;
+    return at;
+}
+
+/* Tapes the end of CVODES's last step (at tret): its polynomial's Taylor coefficients
+ * there, y^(k) / k! up to the step's order; 0, TAPE_FULL or -100. */
+static int tape_step(void *mem, double *tape, long capacity, long *used, long entry, int n,
+                     double tret, int row, N_Vector dkyv) {
+    double *at = next_point(tape, capacity, used, entry, tret, row), factorial = 1.0;
+    const double *dky = N_VGetArrayPointer(dkyv);
+    int order, k, j;
+    if (at == NULL) return TAPE_FULL;
+    if (CVodeGetLastOrder(mem, &order) || ADAMS_HEAD + (order + 1L) * n > entry) return -100;
+    at[ADAMS_ORDER] = order;
+    for (k = 0; k <= order; ++k) {
+        if (k > 1) factorial *= k;
+        if (CVodeGetDky(mem, tret, k, dkyv)) return -100;
+        for (j = 0; j < n; ++j) at[ADAMS_HEAD + k * n + j] = dky[j] / factorial;
+    }
     return 0;
 }
 
 /* CVODES afresh at t from y (scaled) with the input s->u, stopping at t_stop, and the
- * start taped with its exact derivative (row: the input's); created at the first call.
- * 0, TAPE_FULL, CV_FIRST_RHSFUNC_ERR, or -100 where it cannot be set up. */
-static int forward_start(void **mem, sc_work *s, const sc_options *options, double t, N_Vector yv, double t_stop, int row, double *tape,
-                         long capacity, long *used, double *yd) {
+ * start taped as a polynomial of order one with its exact derivative (row: the input's);
+ * created at the first call. 0, TAPE_FULL, CV_FIRST_RHSFUNC_ERR, or -100 where it cannot
+ * be set up. */
+static int forward_start(void **mem, sc_work *s, const sc_options *options, double t,
+                         N_Vector yv, double t_stop, int row, double *tape,
+                         long capacity, long *used) {
     int n = s->n, lmm = options->family == FAMILY_BDF ? CV_BDF : CV_ADAMS;
+    long entry = POINT_ENTRY(n, options->max_order);
+    double *at;
     if (*mem == NULL) {
         *mem = create(lmm, t, yv, rhs, s, options->rtol, options->atol, options->max_steps,
                       options->max_order);
@@ -59,8 +91,11 @@ static int forward_start(void **mem, sc_work *s, const sc_options *options, doub
         return -100;
     }
     if (CVodeSetStopTime(*mem, t_stop)) return -100;
-    if (evaluate(s, N_VGetArrayPointer(yv), yd)) return CV_FIRST_RHSFUNC_ERR;
-    return tape_point(tape, capacity, used, n, t, row, N_VGetArrayPointer(yv), yd);
+    at = next_point(tape, capacity, used, entry, t, row);
+    if (at == NULL) return TAPE_FULL;
+    at[ADAMS_ORDER] = 1;
+    memcpy(at + ADAMS_HEAD, N_VGetArrayPointer(yv), sizeof(double) * n);
+    return evaluate(s, at + ADAMS_HEAD, at + ADAMS_HEAD + n) ? CV_FIRST_RHSFUNC_ERR : 0;
 }
 
 /* softcurve_driver.h */
@@ -71,7 +106,7 @@ SC_EXPORT int softcurve_adams_forward(const sc_function *fn, const sc_options *o
                                       double *out, double *tape, long capacity, long *used,
                                       long *stats, int *reached) {
     int n = states_of(fn), inputs = inputs_of(fn), start = 0, end, i, j, flag = 0;
-    long counters[5], taken;
+    long counters[5], taken, entry = POINT_ENTRY(n, options->max_order);
     double tret, t_started, *y, *dky;
     N_Vector yv = N_VNew_Serial(n), dkyv = N_VNew_Serial(n);
     void *mem = NULL;
@@ -79,7 +114,7 @@ SC_EXPORT int softcurve_adams_forward(const sc_function *fn, const sc_options *o
     *used = 0;
     *reached = 1;
     memset(&s, 0, sizeof(s));
-    if (work_open(&s, fn, n) || yv == NULL || dkyv == NULL) {
+    if (work_open(&s, fn, n) || yv == NULL || dkyv == NULL || options->max_order < 1) {
         flag = -100;
         goto done;
     }
@@ -90,7 +125,7 @@ SC_EXPORT int softcurve_adams_forward(const sc_function *fn, const sc_options *o
         for (end = start + 1; end < count - 1 && !stops[end]; ++end) {}
         s.u = u + (long)start * inputs;
         flag = forward_start(&mem, &s, options, times[start], yv, times[end], start,
-                             tape, capacity, used, dky);
+                             tape, capacity, used);
         tret = t_started = times[start];
         for (i = start + 1; i <= end && !flag; ++i) {
             for (taken = 0; tret < times[i] && !flag;) {
@@ -98,7 +133,7 @@ SC_EXPORT int softcurve_adams_forward(const sc_function *fn, const sc_options *o
                     read_counters(mem, counters);
                     add_counters(counters, stats, 1);
                     flag = forward_start(&mem, &s, options, tret, yv, times[end], start,
-                                         tape, capacity, used, dky);
+                                         tape, capacity, used);
                     t_started = tret;
                     if (flag) break;
                 }
@@ -106,8 +141,8 @@ SC_EXPORT int softcurve_adams_forward(const sc_function *fn, const sc_options *o
                            ? CV_TOO_MUCH_WORK
                            : CVode(mem, times[i], yv, &tret, CV_ONE_STEP);
                 if (flag == CV_TSTOP_RETURN) flag = 0;
-                if (!flag && CVodeGetDky(mem, tret, 1, dkyv)) flag = -100;
-                if (!flag) flag = tape_point(tape, capacity, used, n, tret, start, y, dky);
+                if (!flag)
+                    flag = tape_step(mem, tape, capacity, used, entry, n, tret, start, dkyv);
             }
             if (!flag && CVodeGetDky(mem, times[i], 0, dkyv)) flag = -100;
             if (flag) break;
@@ -134,8 +169,8 @@ typedef struct {
     int n, m, np;
     casadi_fn vjp;
     sc_arrays c;
-    const double *tape; /* the taped points of the segment: first .. last */
-    long first, last;
+    const double *tape; /* the taped points of the segment: first .. last, entry doubles */
+    long first, last, entry;
     double *x, *v, *xb, *ub, *pb; /* the vjp's arguments and results */
     double *y, *fy, *moved, *jt;  /* the forward state and its f, a copy, -J^T */
     double at;                    /* the time of y (NAN: none) */
@@ -163,26 +198,25 @@ static int backward_open(sc_backward *b, const sc_function *fn, casadi_fn vjp,
     return 0;
 }
 
-/* b->y: the forward state at t by the cubic Hermite interpolant of the segment's taped
- * points around t (the first or last piece beyond them). */
+/* b->y: the forward state at t by the polynomial of the segment's step that ended first
+ * at or after t (CVODES's own interpolant over that step; the last step's beyond them). */
 static void forward_state(sc_backward *b, double t) {
     long lo = b->first, hi = b->last, mid;
-    int n = b->n, j;
-    const double *p0, *p1;
-    double h, x, h00, h10, h01, h11;
+    int n = b->n, j, k;
+    const double *at;
+    double x;
     if (t == b->at) return;
-    while (hi - lo > 1) { /* the piece [t_lo, t_hi] holding t */
+    while (hi - lo > 1) { /* tape[lo].t < t <= tape[hi].t, or hi the last */
         mid = (lo + hi) / 2;
-        if (b->tape[mid * POINT_ENTRY(n) + ADAMS_T] <= t) lo = mid;
+        if (b->tape[mid * b->entry + ADAMS_T] < t) lo = mid;
         else hi = mid;
     }
-    p0 = b->tape + lo * POINT_ENTRY(n), p1 = b->tape + hi * POINT_ENTRY(n);
-    h = p1[ADAMS_T] - p0[ADAMS_T], x = (t - p0[ADAMS_T]) / h;
-    h00 = (1.0 + 2.0 * x) * (1.0 - x) * (1.0 - x), h10 = x * (1.0 - x) * (1.0 - x);
-    h01 = x * x * (3.0 - 2.0 * x), h11 = x * x * (x - 1.0);
-    for (j = 0; j < n; ++j)
-        b->y[j] = h00 * p0[ADAMS_HEAD + j] + h10 * h * p0[ADAMS_HEAD + n + j] +
-                  h01 * p1[ADAMS_HEAD + j] + h11 * h * p1[ADAMS_HEAD + n + j];
+    at = b->tape + hi * b->entry, x = t - at[ADAMS_T];
+    for (j = 0; j < n; ++j) { /* Horner's rule on the Taylor coefficients */
+        double value = 0.0;
+        for (k = (int)at[ADAMS_ORDER]; k >= 0; --k) value = value * x + at[ADAMS_HEAD + k * n + j];
+        b->y[j] = value;
+    }
     b->at = t;
 }
 
@@ -333,17 +367,19 @@ SC_EXPORT int softcurve_adams_backward(const sc_function *fn, const sc_options *
     }
     z = N_VGetArrayPointer(zv);
     b.s.nominal = nominal, b.s.p = p, b.tape = tape;
-    /* mu's absolute tolerance: the scaled state's, in the units of the largest seed */
+    b.entry = POINT_ENTRY(n, options->max_order);
+    /* mu's absolute tolerance: ADJOINT_ATOL times the scaled state's, in the units of the
+     * largest seed */
     for (i = 0; i < count * n; ++i) scale = fmax(scale, fabs(nominal[i % n] * seeds[i]));
     for (j = 0; j < nz; ++j)
-        N_VGetArrayPointer(atol)[j] = j < n ? options->atol * scale : UNWEIGHTED;
+        N_VGetArrayPointer(atol)[j] = j < n ? ADJOINT_ATOL * options->atol * scale : UNWEIGHTED;
     memset(z, 0, sizeof(double) * nz);
     add_seed(z, seeds + (long)end * n, nominal, n);
     while (end > 0 && !flag) { /* the segment of one input from the stop before `end` */
         for (start = end - 1; start > 0 && !stops[start]; --start) {}
         b.last = point;
         for (b.first = point;
-             b.first > 0 && tape[(b.first - 1) * POINT_ENTRY(n) + ADAMS_ROW] == start;
+             b.first > 0 && tape[(b.first - 1) * b.entry + ADAMS_ROW] == start;
              --b.first) {}
         b.s.u = u + (long)start * inputs, b.at = NAN;
         tret = times[end];

@@ -202,20 +202,24 @@ SC_EXPORT int softcurve_adjoint_backward(const sc_function *fn, const sc_options
                                          double *d_p, long *stats);
 
 /* The layout of a point taped by softcurve_adams_forward: ADAMS_HEAD doubles (its time,
- * the row of its segment's input), then the scaled state and its derivative (2 n
- * doubles after the head). */
-enum { ADAMS_T = 0, ADAMS_ROW = 1, ADAMS_HEAD = 2 };
+ * the row of its segment's input, the order q of its polynomial), then the Taylor
+ * coefficients y^(k) / k!, k = 0 .. q, of the scaled state there ((max_order + 1) n
+ * doubles after the head): CVODES's interpolant over the step that ended there, or at a
+ * start the state and its derivative. */
+enum { ADAMS_T = 0, ADAMS_ROW = 1, ADAMS_ORDER = 2, ADAMS_HEAD = 3 };
 
 /* The forward pass of the continuous adjoint (adams_adjoint.c): one member of fn (f the
  * whole right-hand side, no force or lag beside it) integrated by CVODES (options->family:
- * FAMILY_ADAMS or FAMILY_BDF; tolerances, steps per output, largest order) from out[0, :]
+ * FAMILY_ADAMS or FAMILY_BDF; tolerances, steps per output, largest order, at least 1) from
+ * out[0, :]
  * (physical, at times[0]) over the output times times[1..count), with the input u[i, :]
  * held over [times[i], times[i + 1]), parameters p and state scales nominal, restarting
  * at the output times i where stops[i] is nonzero (the last is a stop anyway) and after
  * every restart_interval of time in between (at a step's end, where the order climbs
  * down again: softcurve.simulation.solvers.RESTART_INTERVAL says why). Writes
  * out[i, :] and tapes every start and the end of every internal step into
- * tape (capacity points of ADAMS_HEAD + 2 n doubles); *used: points taped. Returns 0,
+ * tape (capacity points of ADAMS_HEAD + (max_order + 1) n doubles); *used: points taped.
+ * Returns 0,
  * TAPE_FULL, -100 when it could not be set up, or CVODES's negative flag; adds to stats
  * the counters of softcurve_integrate; *reached: outputs filled (out[0] included). */
 SC_EXPORT int softcurve_adams_forward(const sc_function *fn, const sc_options *options,
