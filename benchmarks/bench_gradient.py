@@ -2,7 +2,8 @@
 on the paper's case: preset ifac2020, q0 = (0.064, 25, 0), qd0 = (0, 0, 1500), 10 s.
 
 Run:  python benchmarks/bench_gradient.py [--intervals 1 100 1000] [--repeat 3]
-      python benchmarks/bench_gradient.py --methods | --radau | --adams | --costs | --flags
+      python benchmarks/bench_gradient.py --methods | --radau | --adams | --adams-atol
+      python benchmarks/bench_gradient.py --costs | --flags
       python benchmarks/bench_gradient.py --chain 1 2 4
 
 The cost is the integral of the squared coordinate rates over the 10 s (``running``,
@@ -32,14 +33,23 @@ tolerances, its time against ``simulate``'s and how far it lies from CVODES's ad
 initial state), beside the discrete one at its default; then both at their defaults on
 1, 10, 30 and 100 output intervals (the cost reads the tip at every output time, where
 the continuous adjoint starts afresh), and what ``method="auto"`` takes
-(``ADAMS_WITHIN``). ``--chain N ...`` runs chains of N paper segments, 1 s from a bent
-start at rest, 10 output intervals, the squared tip position at the end, along the
-parameters and the initial state: the discrete adjoint (with its steps and reverse-mode
-evaluations a step), the continuous one (its steps forward and backward, its
-evaluations a backward step) and CVODES's adjoint (first call and best of ``--repeat``) beside
-``simulate``'s default run of the same second. ``--costs`` times other costs on 100
-intervals along the parameters and the initial state: the integral alone, the tip's
-height at the end, the squared state at every output time.
+(``ADAMS_WITHIN``). ``--adams-atol`` measures the continuous adjoint's absolute tolerance
+(``softcurve.simulation.solvers._adjoint.ADAMS_ATOL``, set for the run): on
+``tests/test_gradient.py``'s case (pressures changing every 25 ms, a cost reading every
+output time, rtol 1e-7) its distance from CVODES's adjoint at 1e-12, and on one output
+interval of the paper swing its time and backward steps; then the second pass where the
+adjoint decays (``ADAMS_DECAYED``; 0 runs one pass): the tip's height after 1 and 2 s of
+the paper swing, each gradient's distance from CVODES's at 1e-12 along the initial
+state and the parameters, beside the discrete adjoint's.
+
+``--chain N ...`` runs chains of N paper segments, 1 s from a bent start at rest, 10
+output intervals, the squared tip position at the end, along the parameters and the
+initial state: the discrete adjoint (with its steps and reverse-mode evaluations a
+step), the continuous one (its steps forward and backward, its evaluations a backward
+step) and CVODES's adjoint (first call and best of ``--repeat``) beside ``simulate``'s
+default run of the same second. ``--costs`` times other costs on 100 intervals along the
+parameters and the initial state: the integral alone, the tip's height at the end, the
+squared state at every output time, with the method ``auto`` takes.
 ``--flags`` compiles the right-hand side with its first derivatives under
 ``DERIVATIVE_FLAGS`` and under the model's flags, each in an empty cache, and times a
 CVODES adjoint on 100 intervals with each (``DERIVATIVE_FLAGS``).
@@ -119,6 +129,82 @@ def adams(model, forward: float, repeat: int) -> None:
                 model, k, m, wrt))[0])  # fmt: skip
         auto = one_gradient(model, intervals, "auto", wrt).method
         print(f"| {intervals} | {1e3 * walls[0]:.1f} | {1e3 * walls[1]:.1f} | {auto} |")
+
+
+def test_case():
+    """tests/test_gradient.py's case: the robot of three quadrature nodes under three
+    bellows whose pressures change every 25 ms, a cost reading every output time."""
+    model = sc.Model(sc.presets.ifac2020(), quadrature_nodes=3)
+    bellows = sc.PneumaticActuator.three_bellows(distance=0.01, area=2e-5, p_max=1e5)
+    t = np.linspace(0.0, 0.15, 7)
+    pressures = 1e4 + 2e4 * np.random.default_rng(47).random((t.size, 3))  # [Pa]
+
+    def of(trajectory):
+        bends = ca.sumsqr(trajectory.q[1:3, :]) / trajectory.t.size
+        return trajectory.tip[2, -1] + 1e-4 * bends + 1e-6 * trajectory.integral[0, -1]
+
+    def run(method, rtol=None):
+        return sc.gradient(model, of, [0.064, 5.0, -2.0], [0.0, 40.0, 0.0], t=t,
+                           inputs=pressures, actuator=bellows, method=method, rtol=rtol,
+                           running=lambda x, u, p: ca.sumsqr(x[4:6]))  # fmt: skip
+
+    return run
+
+
+def apart(g, reference, wrt) -> float:
+    """The largest difference of ``g`` from ``reference`` over its largest entry, along
+    each of ``wrt``."""
+    return max(np.max(np.abs(getattr(g, w) - getattr(reference, w)))
+               / np.max(np.abs(getattr(reference, w))) for w in wrt)  # fmt: skip
+
+
+ATOL_SCALES = (1.0, 0.1, 0.01)
+
+
+def adams_atol(model, repeat: int) -> None:
+    """``--adams-atol``: the continuous adjoint's absolute tolerance and its second pass."""
+    from softcurve.simulation.solvers import _adjoint
+
+    run = test_case()
+    tight = run("adjoint", 1e-12)
+    wrt = ("parameters", "x0")
+    default = _adjoint.ADAMS_ATOL
+    print("\n| ADAMS_ATOL | test case: from CVODES's at 1e-12 | paper swing [ms] | "
+          "backward steps |")  # fmt: skip
+    print("| --- | --- | --- | --- |")
+    for scale in ATOL_SCALES:
+        _adjoint.ADAMS_ATOL = scale
+        try:
+            error = apart(run("adams-adjoint"), tight, ("x0", "inputs", "parameters"))
+            one_gradient(model, 1, "adams-adjoint", wrt)
+            wall, g = best_of(repeat, lambda: one_gradient(model, 1, "adams-adjoint", wrt))
+        finally:
+            _adjoint.ADAMS_ATOL = default
+        print(f"| {scale:g} | {error:.1e} | {1e3 * wall:.1f} | {g.stats['backward_steps']} |")
+    decayed = _adjoint.ADAMS_DECAYED
+    print("\n| tip's height after [s] | gradient | passes | from CVODES's along x0 | "
+          "along the parameters | [ms] |")  # fmt: skip
+    print("| --- | --- | --- | --- | --- | --- |")
+    for horizon in (1.0, 2.0):
+        t = np.linspace(0.0, horizon, 101)
+
+        def tip(method, rtol=None, t=t):
+            return sc.gradient(model, lambda tr: tr.tip[2, -1], Q0, QD0, t=t, method=method,
+                               rtol=rtol)  # fmt: skip
+
+        reference = tip("adjoint", 1e-12)
+        for name, method, threshold in (("adams-adjoint, one pass", "adams-adjoint", 0.0),
+                                        ("adams-adjoint", "adams-adjoint", decayed),
+                                        ("radau-adjoint", "radau-adjoint", decayed)):  # fmt: skip
+            _adjoint.ADAMS_DECAYED = threshold
+            try:
+                tip(method)
+                wall, g = best_of(repeat, lambda m=method: tip(m))
+            finally:
+                _adjoint.ADAMS_DECAYED = decayed
+            passes = g.stats.get("backward_passes", "")
+            print(f"| {horizon:g} | {name} | {passes} | {apart(g, reference, ('x0',)):.1e} | "
+                  f"{apart(g, reference, ('parameters',)):.1e} | {1e3 * wall:.1f} |")  # fmt: skip
 
 
 def radau(model, forward: float, repeat: int) -> None:
@@ -233,6 +319,7 @@ def main() -> None:
     parser.add_argument("--methods", action="store_true")
     parser.add_argument("--radau", action="store_true")
     parser.add_argument("--adams", action="store_true")
+    parser.add_argument("--adams-atol", action="store_true")
     parser.add_argument("--chain", type=int, nargs="+")
     parser.add_argument("--costs", action="store_true")
     parser.add_argument("--flags", action="store_true")
@@ -253,6 +340,9 @@ def main() -> None:
         return
     if args.adams:
         adams(model, forward, args.repeat)
+        return
+    if args.adams_atol:
+        adams_atol(model, args.repeat)
         return
     if args.chain:
         chains(args.chain, args.repeat)

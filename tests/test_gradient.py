@@ -142,9 +142,9 @@ def test_the_continuous_adjoint_is_cvodes_adjoint(model, bellows, continuous, re
     on pressures that change at every sample (a start at each) and a cost reading every
     output time. It converges with its tolerance (the largest difference over the largest
     entry along x0 from CVODES's at 1e-12, measured: 2.6e-5 at its default 1e-7, 6.2e-7
-    at 1e-8, 2.8e-7 at 1e-9): at 1e-9 every entry within 1e-5 of the largest, at the
-    default 2e-3 (starts every 25 ms, where ``auto`` takes Radau IIA's adjoint, 2.4e-6 at
-    its default)."""
+    at 1e-8, 2.8e-7 at 1e-9; Radau IIA's adjoint at its default 2.4e-6): against the
+    reference at 1e-10, every entry within 1e-5 of the largest at 1e-9 and 1e-4 at the
+    default (where ``auto`` takes Radau IIA's adjoint: starts every 25 ms)."""
     assert continuous.success and continuous.method == "adams-adjoint", continuous.message
     assert continuous.reason == "asked"
     assert continuous.value == pytest.approx(reference.value, rel=1e-7)
@@ -156,13 +156,14 @@ def test_the_continuous_adjoint_is_cvodes_adjoint(model, bellows, continuous, re
         largest = np.max(np.abs(theirs))
         np.testing.assert_allclose(getattr(continuous, along), theirs, rtol=0,
                                    atol=1e-5 * largest)  # fmt: skip
-        np.testing.assert_allclose(getattr(default, along), theirs, rtol=0, atol=2e-3 * largest)
+        np.testing.assert_allclose(getattr(default, along), theirs, rtol=0, atol=1e-4 * largest)
     assert np.all(continuous.inputs[-1] == 0.0)
     # the counts: a start at every change of the pressures (each output time), one
-    # reverse-mode evaluation per right-hand side of the adjoint equations
+    # reverse-mode evaluation per right-hand side of the adjoint equations (measured 1.1
+    # to 1.4 a step), one pass (the adjoint does not decay below ADAMS_DECAYED here)
     stats = continuous.stats
-    assert stats["backward_starts"] == T.size - 1
-    assert 0 < stats["backward_vjp_evaluations"] <= 3 * stats["backward_steps"]
+    assert stats["backward_passes"] == 1 and stats["backward_starts"] == T.size - 1
+    assert 0 < stats["backward_vjp_evaluations"] <= 2 * stats["backward_steps"]
 
 
 def test_the_continuous_adjoint_gives_each_sample_its_own_derivative(model, bellows):
@@ -281,15 +282,50 @@ def test_a_tape_that_fills_grows_and_gives_the_same_gradient(model, bellows, dis
 
 
 def test_cvodes_starts_afresh_after_every_restart_interval(model):
-    """Over 2.5 s, forward and backward, as ``simulate`` restarts (RESTART_INTERVAL)."""
+    """Over 2.5 s backward, as ``simulate`` restarts (RESTART_INTERVAL): three starts a
+    pass; the tip's height at the end has decayed along the initial state (below
+    ADAMS_DECAYED of its seed), so the pass runs twice. The forward pass's starts are
+    counted on its tape (the passes' test)."""
     g = sc.gradient(model, lambda tr: tr.tip[2, -1], [0.064, 25.0, 0.0], [0.0, 0.0, 1500.0],
                     t=[0.0, 2.5], wrt="x0", method="adams-adjoint")  # fmt: skip
     assert g.success, g.message
-    assert g.stats["backward_starts"] == 3
+    assert g.stats["backward_passes"] == 2 and g.stats["backward_starts"] == 6
+
+
+@pytest.mark.parametrize(("t_end", "count"), [(2.0, 99), (2.5, 6)])
+def test_output_times_at_a_restart_are_taken(model, t_end, count):
+    """``linspace(0, 2, 99)`` holds 0.9999999999999999, one rounding unit before the
+    backward pass's restart at 2 - 1 = 1 s: no start is put there (CVODES would refuse
+    the interval, CV_TOO_CLOSE), it starts afresh at the output time; in ``linspace(0,
+    2.5, 6)`` the restart at 1.5 s is an output time."""
+    t = np.linspace(0.0, t_end, count)
+    g = sc.gradient(model, lambda tr: tr.tip[2, -1], [0.064, 25.0, 0.0], [0.0, 0.0, 1500.0],
+                    t=t, method="adams-adjoint")  # fmt: skip
+    assert g.success, g.message
+    assert np.all(np.isfinite(g.parameters))
+
+
+def test_a_decayed_adjoint_runs_again_on_its_own_scale(model):
+    """The tip's height after 1 s alone: its derivative along the initial state has
+    decayed to about 1e-4 of its seed, so the backward pass runs again with the
+    absolute tolerance scaled down (ADAMS_DECAYED); ``auto`` takes the continuous
+    adjoint, which then lies within 1e-4 of the largest entry from CVODES's adjoint at
+    1e-10 (measured against 1e-12: 1.6e-5 along x0 and 4.2e-6 along the parameters after
+    two passes, 3.5e-2 and 4.6e-3 after one; Radau IIA's adjoint: 3.1e-5 and 1.1e-5)."""
+    t, q0, qd0 = np.linspace(0.0, 1.0, 101), [0.064, 25.0, 0.0], [0.0, 0.0, 1500.0]
+    g = sc.gradient(model, lambda tr: tr.tip[2, -1], q0, qd0, t=t)
+    assert g.method == "adams-adjoint" and g.stats["backward_passes"] == 2, g.reason
+    reference = sc.gradient(model, lambda tr: tr.tip[2, -1], q0, qd0, t=t, method="adjoint")
+    for along in ("x0", "parameters"):
+        theirs = getattr(reference, along)
+        np.testing.assert_allclose(getattr(g, along), theirs, rtol=0,
+                                   atol=1e-4 * np.max(np.abs(theirs)))  # fmt: skip
 
 
 def test_an_adams_tape_that_fills_grows_and_gives_the_same_gradient(model, bellows, continuous,
                                                                   monkeypatch):  # fmt: skip
+    """Room for one point: the forward pass runs again on four times the room, to the
+    same numbers."""
     from softcurve.simulation.solvers import _adjoint
 
     monkeypatch.setattr(_adjoint, "ADAMS_FIRST_ROOM", (1, 0))
@@ -308,6 +344,7 @@ def test_the_adjoints_passes_refuse_what_they_cannot_take(model, bellows):
     from softcurve.simulation.solvers import (
         ActuatorInput,
         DriverProblem,
+        _driver,
         adams_backward,
         adams_forward,
         adjoint_backward,
@@ -354,6 +391,14 @@ def test_the_adjoints_passes_refuse_what_they_cannot_take(model, bellows):
         adams_forward(problem, x0, u, *arguments, family=3)
     taped = adams_forward(problem, x0, u, *arguments)
     assert taped.flag == 0 and not taped.tape.flags.writeable
+    with pytest.raises(ValueError, match="the tape is 'adams'"):
+        adjoint_backward(taped, vjp, np.zeros_like(taped.states))
+    # a start at the first step's end after every RESTART_INTERVAL: order-0 points
+    times = np.linspace(0.0, 2.5, 6)
+    long = adams_forward(problem, x0, np.zeros((6, tr.n_u)), tr.parameters, nominal, times,
+                         1e-6, 1e-6, 10_000, stops=[1, 0, 0, 0, 0, 1])  # fmt: skip
+    column = _driver.DECLARATIONS.constants["ADAMS_ORDER"]
+    assert long.flag == 0 and np.count_nonzero(long.tape[: long.steps, column] == 0) == 3
     with pytest.raises(ValueError, match="seeds must have shape"):
         adams_backward(taped, vjp, np.zeros((T.size, 2)))
     failed = adams_forward(problem, x0, u, *arguments[:-1], 1)

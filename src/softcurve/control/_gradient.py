@@ -37,6 +37,7 @@ from softcurve.control._transcription import DERIVATIVE_FLAGS, Transcription
 from softcurve.simulation import checked_rtol
 from softcurve.simulation.sensitivity import SENSITIVITY_CVODES
 from softcurve.simulation.solvers import (
+    RESTART_INTERVAL,
     DriverProblem,
     RadauEngine,
     adams_backward,
@@ -87,20 +88,21 @@ ADAMS_TOLERANCE = 1e-7
 ten times tighter than ``simulate``'s, because the continuous adjoint is the gradient of
 the flow to about its tolerance. On the paper robot's 10 s swing (one output interval,
 ``python benchmarks/bench_gradient.py --adams``) it lies 2.2e-6 from CVODES's adjoint at
-1e-10 at this tolerance in 15.7 ms, 4.8e-5 at 1e-6 in 13.3 ms and 2.7e-7 at 1e-8 in
-20.6 ms (``radau-adjoint`` at its own: 9.1e-6 in 40.4 ms)."""
+1e-10 at this tolerance in 16.3 ms, 4.8e-5 at 1e-6 in 13.7 ms and 2.7e-7 at 1e-8 in
+21.0 ms (``radau-adjoint`` at its own: 9.1e-6 in 40.9 ms)."""
 
 ADAMS_WITHIN = 200.0
 """``method="auto"`` takes ``adams-adjoint`` where the adjoint starts afresh on average no
 more often than every ``ADAMS_WITHIN`` over the fastest rate of the linearization at the
 start, else ``radau-adjoint``. The continuous adjoint starts afresh where the cost
-depends on the state at an output time (the adjoint jumps there) and where the input
-changes, and each start costs the multistep method's climb back to its order and step,
-where Radau IIA's steps go on through both. Measured on the paper robot's 10 s swing
-(fastest rate 283 1/s) with the cost at every output time, ``python
-benchmarks/bench_gradient.py --adams``: 1, 10, 30 and 100 output intervals take 17.2,
-35.4, 52.8 and 69.1 ms by ``adams-adjoint`` and 39.6 to 41.5 ms by ``radau-adjoint``:
-equal near 15 (0.67 s apart, 190 over the fastest rate)."""
+depends on the state at an output time (the adjoint jumps there), where the input
+changes and at least every ``RESTART_INTERVAL``, and each start costs the multistep
+method's climb back to its order and step, where Radau IIA's steps go on through them.
+Measured on the paper robot's 10 s swing (fastest rate 283 1/s) with the cost at every
+output time, ``python benchmarks/bench_gradient.py --adams``: 1, 10, 30 and 100 output
+intervals take 18.3, 37.2, 53.3 and 70.8 ms by ``adams-adjoint`` and 40.9 to 42.0 ms by
+``radau-adjoint``: equal near 15 (0.67 s apart, 190 over the fastest rate, rounded up to
+200)."""
 
 WITH_RESPECT_TO = ("parameters", "x0", "inputs")
 """What :func:`gradient` differentiates along (its ``wrt``): the model's parameter vector
@@ -336,10 +338,13 @@ DRIVER_METHODS = GRADIENT_METHODS[:2]
 adjoint on its CVODES."""
 
 
-def _driver_choice(of_states, tr: Transcription, x0, t, samples) -> tuple[str, str]:
+def _driver_choice(of_states, tr: Transcription, x0, t, samples, p_value) -> tuple[str, str]:
     """``method="auto"``'s choice between the driver's adjoints (:data:`ADAMS_WITHIN`),
     and why: the output times whose states the cost reads (its derivative's pattern) and
-    the input's changes count the continuous adjoint's starts."""
+    the input's changes count the continuous adjoint's starts, which come every
+    ``RESTART_INTERVAL`` at least; the fastest rate is the linearization's at the start
+    and the parameters differentiated at, or a lagging actuator's ``1 / time_constant``
+    where that is faster."""
     n_x = tr.n_x
     read = np.zeros(t.size, bool)
     for index, size in ((3, n_x), (4, of_states.size1_in(4))):
@@ -347,9 +352,22 @@ def _driver_choice(of_states, tr: Transcription, x0, t, samples) -> tuple[str, s
             columns = np.array(of_states.sparsity_jac(index, 0).get_col(), int)
             read[columns // size] = True
     starts = read[1:-1] | np.any(samples[1:-1] != samples[:-2], axis=1)
-    spacing = (t[-1] - t[0]) / (np.count_nonzero(starts) + 1)
-    nominal = nominal_scale(tr.model, x0[: tr.model.n_state])
-    fastest = float(linearization_rates(tr.model, x0[: tr.model.n_state], nominal=nominal)[1])
+    spacing = min((t[-1] - t[0]) / (np.count_nonzero(starts) + 1), RESTART_INTERVAL)
+    state = x0[None, : tr.model.n_state]
+    nominal = nominal_scale(tr.model, state[0])
+    try:
+        with np.errstate(all="ignore"):  # a start the integration cannot take: said below
+            rates = linearization_rates(tr.model, state, nominal=nominal, parameters=p_value[None])
+        fastest = float(rates[1][0])
+    except np.linalg.LinAlgError:  # not finite
+        fastest = np.nan
+    if not np.isfinite(fastest):
+        return GRADIENT_METHODS[0], (
+            "auto: the discrete adjoint of Radau IIA, as the linearization at the start is "
+            "not finite"
+        )
+    if tr.inputs is not None and tr.inputs.time_constant:
+        fastest = max(fastest, 1.0 / tr.inputs.time_constant)
     ratio = spacing * fastest
     if ratio >= ADAMS_WITHIN:
         return "adams-adjoint", (
@@ -499,7 +517,7 @@ def gradient(
         "rollout_cost", [*arguments, *free], [cost_of(free[0], free[1] if integrated else None)]
     )
     if method == "auto" and chosen in DRIVER_METHODS:
-        chosen, reason = _driver_choice(of_states, tr, x0, t, samples)
+        chosen, reason = _driver_choice(of_states, tr, x0, t, samples, p_value)
     tolerances = _tolerances(rtol, chosen)
     names = tuple(model.robot.parameter_names())
     numbers = [p_value, x0, samples.T]

@@ -4,24 +4,27 @@
  * integrated backward by the same linear multistep method as the forward pass.
  *
  * The forward pass integrates the scaled state y = x / D (D the nominal sizes) by CVODES
- * one internal step at a time, restarting where the input changes, and tapes every step's
- * end: its time and the polynomial CVODES interpolates over the step (its Nordsieck
- * array, as Taylor coefficients up to the step's order). No checkpoints: the tape holds
- * every step, so the backward pass never integrates forward again. (CVODES's own adjoint
- * module interpolates by cubic Hermite pieces instead, whose error on the paper robot's
- * elongation, a few milliseconds a step at 183 rad/s, is of order 1e-3.)
+ * one internal step at a time, restarting where the input changes and after every
+ * restart interval, and tapes every step's end: its time and the polynomial CVODES
+ * interpolates over the step (its Nordsieck array, as Taylor coefficients up to the
+ * step's order). No checkpoints: the tape holds every step, so the backward pass never
+ * integrates forward again. (CVODES's own adjoint module interpolates by cubic Hermite
+ * pieces instead, whose error over a step h of a mode at w is about (h w)^4 / 384 of its
+ * amplitude.)
  *
  * The backward pass integrates, segment by segment from the last output time,
  *     mu' = -g_y^T mu,   Q' = -(f_u^T nu, f_p^T nu),   nu = mu / D,
  * where g(y) = f(D y) / D is the scaled right-hand side and the forward state at t is the
  * taped polynomial of its step: mu is the adjoint of y (D times the physical one), and
- * Q, zero at each segment's end, is at its start the integral over the segment of the
- * derivative along its input and along the parameters. Each right-hand side and each
- * quadrature is one reverse-mode evaluation of f (the caller's vjp). Where the scalar
- * depends on the state at an output time, mu jumps there by D times that derivative and
- * CVODES starts afresh. Newton's method runs on -J^T, J the Jacobian of g at the
- * interpolated forward state (the problem's exact one, or forward differences, as the
- * forward pass's), factored as the forward pass factors its own. */
+ * Q, read at every output time, gives by differences the integral over each output
+ * interval of the derivative along its input, and along the parameters. Q rides with mu
+ * outside the error test and Newton's norm, so each right-hand side is one reverse-mode
+ * evaluation of f (the caller's vjp). Where the scalar depends on the state at an output
+ * time, mu jumps there by D times that derivative and CVODES starts afresh. Newton's
+ * method runs on -J^T along mu, J the Jacobian of g at the interpolated forward state
+ * (the problem's exact one, or forward differences, as the forward pass's), factored as
+ * the forward pass factors its own. */
+#include <float.h>
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -32,14 +35,14 @@
  * in CVODES's norms vanish, as CVODES leaves out its quadratures without error control,
  * and finite. */
 #define UNWEIGHTED 1e100
-/* mu's absolute tolerance, over the scaled state's in the units of the largest seed. The
- * adjoint of a state whose seed is far below the largest (the elongation's under a tip's
- * height) is then still resolved: on tests/test_gradient.py's pressures changing every
- * 25 ms at rtol 1e-7 the gradient lies 3.5e-4 from CVODES's adjoint at 1e-12 with 1,
- * 2.6e-5 with 0.1 and 3.3e-6 with 0.01, while the paper robot's 10 s swing
- * (benchmarks/bench_gradient.py's, one output interval) takes 16.9, 16.1 and 26.8 ms
- * (867, 866 and 1,814 backward steps). */
-#define ADJOINT_ATOL 0.1
+/* Times closer than this many rounding units of their size are one: CVODES refuses to
+ * integrate over less than two (CV_TOO_CLOSE), so a start is never put there. */
+#define SAME_TIME 100.0
+/* Whether times a and b lie more than SAME_TIME rounding units apart. */
+static int apart(double a, double b) {
+    return fabs(a - b) > SAME_TIME * DBL_EPSILON * fmax(1.0, fmax(fabs(a), fabs(b)));
+}
+
 /* Doubles of a taped point for n states and orders up to q (softcurve_driver.h). */
 #define POINT_ENTRY(n, q) (ADAMS_HEAD + ((long)(q) + 1) * (long)(n))
 
@@ -74,9 +77,9 @@ static int tape_step(void *mem, double *tape, long capacity, long *used, long en
 }
 
 /* CVODES afresh at t from y (scaled) with the input s->u, stopping at t_stop, and the
- * start taped as a polynomial of order one with its exact derivative (row: the input's);
- * created at the first call. 0, TAPE_FULL, CV_FIRST_RHSFUNC_ERR, or -100 where it cannot
- * be set up. */
+ * start taped as a polynomial of order zero (row: the input's; it marks where the
+ * segment's points begin, and the backward pass reads the steps' polynomials only);
+ * created at the first call. 0, TAPE_FULL, or -100 where it cannot be set up. */
 static int forward_start(void **mem, sc_work *s, const sc_options *options, double t,
                          N_Vector yv, double t_stop, int row, double *tape,
                          long capacity, long *used) {
@@ -93,9 +96,9 @@ static int forward_start(void **mem, sc_work *s, const sc_options *options, doub
     if (CVodeSetStopTime(*mem, t_stop)) return -100;
     at = next_point(tape, capacity, used, entry, t, row);
     if (at == NULL) return TAPE_FULL;
-    at[ADAMS_ORDER] = 1;
+    at[ADAMS_ORDER] = 0;
     memcpy(at + ADAMS_HEAD, N_VGetArrayPointer(yv), sizeof(double) * n);
-    return evaluate(s, at + ADAMS_HEAD, at + ADAMS_HEAD + n) ? CV_FIRST_RHSFUNC_ERR : 0;
+    return 0;
 }
 
 /* softcurve_driver.h */
@@ -129,7 +132,8 @@ SC_EXPORT int softcurve_adams_forward(const sc_function *fn, const sc_options *o
         tret = t_started = times[start];
         for (i = start + 1; i <= end && !flag; ++i) {
             for (taken = 0; tret < times[i] && !flag;) {
-                if (tret - t_started >= restart_interval) { /* afresh: order one again */
+                if (tret - t_started >= restart_interval && apart(tret, times[i])) {
+                    /* afresh: order one again */
                     read_counters(mem, counters);
                     add_counters(counters, stats, 1);
                     flag = forward_start(&mem, &s, options, tret, yv, times[end], start,
@@ -259,8 +263,8 @@ static int backward_setup(realtype t, N_Vector muv, N_Vector fmu, int jok, int *
     if (!jok) {
         forward_state(b, t);
         memcpy(b->moved, b->y, sizeof(double) * n); /* newton_jacobian moves its y */
-        if (evaluate(&b->s, b->moved, b->fy) || newton_jacobian(&b->s, b->moved, b->fy))
-            return -1;
+        int flag = evaluate(&b->s, b->moved, b->fy);
+        if (flag || (flag = newton_jacobian(&b->s, b->moved, b->fy))) return flag;
         for (j = 0; j < n; ++j)
             for (i = 0; i < n; ++i) b->jt[i + j * n] = -b->s.J[j + i * n];
         b->jacobians++;
@@ -355,7 +359,7 @@ SC_EXPORT int softcurve_adams_backward(const sc_function *fn, const sc_options *
     int n = states_of(fn), inputs = inputs_of(fn), np = fn->np, nz = n + inputs + np;
     int end = count - 1, start, i, j, r, flag = 0, live = 0;
     long point = points - 1;
-    double scale = 0.0, tret, t_started = 0.0, t_stop, *z, *read;
+    double scale = 0.0, tret, t_started = 0.0, t_stop, due = 0.0, *z, *read;
     N_Vector zv = N_VNew_Serial(nz), atol = N_VNew_Serial(nz);
     void *mem = NULL;
     sc_backward b;
@@ -368,11 +372,10 @@ SC_EXPORT int softcurve_adams_backward(const sc_function *fn, const sc_options *
     z = N_VGetArrayPointer(zv);
     b.s.nominal = nominal, b.s.p = p, b.tape = tape;
     b.entry = POINT_ENTRY(n, options->max_order);
-    /* mu's absolute tolerance: ADJOINT_ATOL times the scaled state's, in the units of the
-     * largest seed */
+    /* mu's absolute tolerance: the call's, in the units of the largest seed */
     for (i = 0; i < count * n; ++i) scale = fmax(scale, fabs(nominal[i % n] * seeds[i]));
     for (j = 0; j < nz; ++j)
-        N_VGetArrayPointer(atol)[j] = j < n ? ADJOINT_ATOL * options->atol * scale : UNWEIGHTED;
+        N_VGetArrayPointer(atol)[j] = j < n ? options->atol * scale : UNWEIGHTED;
     memset(z, 0, sizeof(double) * nz);
     add_seed(z, seeds + (long)end * n, nominal, n);
     while (end > 0 && !flag) { /* the segment of one input from the stop before `end` */
@@ -392,8 +395,9 @@ SC_EXPORT int softcurve_adams_backward(const sc_function *fn, const sc_options *
                 live = !flag, t_started = tret, stats[5]++;
                 if (flag) break;
             }
-            if (live && times[i] < t_started - restart_interval) { /* afresh on the way */
-                flag = CVode(mem, t_started - restart_interval, zv, &tret, CV_NORMAL);
+            due = t_started - restart_interval; /* where CVODES starts afresh, if live */
+            if (live && times[i] < due && apart(times[i], due)) { /* afresh on the way */
+                flag = CVode(mem, due, zv, &tret, CV_NORMAL);
                 if (flag == CV_TSTOP_RETURN) flag = 0;
                 if (flag) break;
                 add_integrals(z, read, n, inputs, np, i, d_u, d_p);
@@ -408,6 +412,10 @@ SC_EXPORT int softcurve_adams_backward(const sc_function *fn, const sc_options *
                 add_integrals(z, read, n, inputs, np, i, d_u, d_p);
             }
             tret = times[i];
+            if (live && (times[i] <= due || !apart(times[i], due))) { /* afresh from here */
+                count_steps(mem, stats);
+                live = 0;
+            }
             if (i > start && any_nonzero(seeds + (long)i * n, n)) { /* mu jumps */
                 if (live) count_steps(mem, stats);
                 live = 0;

@@ -229,12 +229,14 @@ SC_EXPORT int softcurve_adams_forward(const sc_function *fn, const sc_options *o
                                       double *out, double *tape, long capacity, long *used,
                                       long *stats, int *reached);
 
-/* The backward pass over the `points` taped by softcurve_adams_forward (the same fn,
- * options, u, p, nominal, times, count and stops): with seeds[i, :] the derivative of a
- * scalar along the physical state out[i, :], integrates the adjoint equations backward by
- * the same method and writes the scalar's derivative along the initial state into lambda
- * (n), and adds those along the inputs into d_u (row i: along the input held over
- * [times[i], times[i + 1]], count rows) and the parameters into d_p (np).
+/* The backward pass over the `points` taped by softcurve_adams_forward (the same fn, u, p,
+ * nominal, times, count and stops, and options but for atol, the adjoint's absolute
+ * tolerance in the units of the largest seed, max |nominal seed|): with seeds[i, :] the
+ * derivative of a scalar along the physical state out[i, :], integrates the adjoint
+ * equations backward by the same method and writes the scalar's derivative along the
+ * initial state into lambda (n), and adds those along the inputs into d_u (row i: along
+ * the input held over [times[i], times[i + 1]], count rows) and the parameters into d_p
+ * (np).
  * vjp(x, u, p, v) -> (f_x^T v, f_u^T v, f_p^T v) is f's reverse mode, of work sizes
  * vjp_sizes (4). Returns 0, -100 when it could not be set up, or CVODES's negative flag
  * (CV_RHSFUNC_FAIL where the vjp fails or is not finite); adds to stats: steps, vjp

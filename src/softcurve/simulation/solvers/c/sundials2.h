@@ -42,6 +42,7 @@ extern int CVodeGetDky(void *mem, realtype t, int k, N_Vector dky);
 extern int CVodeSetErrHandlerFn(void *mem, CVErrHandlerFn f, void *data);
 extern int CVode(void *mem, realtype tout, N_Vector yout, realtype *tret, int itask);
 extern int CVodeGetNumSteps(void *mem, long int *n);
+extern int CVodeGetLastOrder(void *mem, int *qlast);
 extern int CVodeGetNumRhsEvals(void *mem, long int *n);
 extern int CVodeGetNumLinSolvSetups(void *mem, long int *n);
 extern int CVodeGetNumErrTestFails(void *mem, long int *n);
