@@ -12,6 +12,9 @@ from softcurve.simulation.solvers._actuated import actuated_jacobian as actuated
 from softcurve.simulation.solvers._actuated import (
     actuated_passes as actuated_passes,
 )
+from softcurve.simulation.solvers._adjoint import ADAMS_ATOL as ADAMS_ATOL
+from softcurve.simulation.solvers._adjoint import ADAMS_DECAYED as ADAMS_DECAYED
+from softcurve.simulation.solvers._adjoint import ADAMS_DECAYED_FLOOR as ADAMS_DECAYED_FLOOR
 from softcurve.simulation.solvers._adjoint import ADAMS_STATISTICS as ADAMS_STATISTICS
 from softcurve.simulation.solvers._adjoint import ADJOINT_STATISTICS as ADJOINT_STATISTICS
 from softcurve.simulation.solvers._adjoint import Taped as Taped
@@ -99,6 +102,9 @@ __all__ = [
     "actuated_derivative",
     "actuated_jacobian",
     "actuated_passes",
+    "ADAMS_ATOL",
+    "ADAMS_DECAYED",
+    "ADAMS_DECAYED_FLOOR",
     "ADAMS_STATISTICS",
     "ADJOINT_STATISTICS",
     "Taped",
