@@ -99,15 +99,17 @@ RADAU_TOLERANCES = (1e-4, 3e-5, 1e-5, 1e-6, 1e-8)
 ADAMS_TOLERANCES = (1e-6, 1e-7, 1e-8)
 
 
+def apart(g, reference, wrt) -> float:
+    """The largest difference of ``g`` from ``reference`` over its largest entry, along
+    each of ``wrt``."""
+    return max(np.max(np.abs(getattr(g, w) - getattr(reference, w)))
+               / np.max(np.abs(getattr(reference, w))) for w in wrt)  # fmt: skip
+
+
 def adams(model, forward: float, repeat: int) -> None:
     """The continuous adjoint against the discrete one (``--adams``)."""
     wrt = ("parameters", "x0")
     reference = one_gradient(model, 1, "adjoint", wrt)
-
-    def apart(g):
-        return max(np.max(np.abs(getattr(g, w) - getattr(reference, w)))
-                   / np.max(np.abs(getattr(reference, w))) for w in wrt)  # fmt: skip
-
     print("\n| method | rtol | gradient [ms] | / simulate | from CVODES's adjoint | "
           "steps forward, backward |")  # fmt: skip
     print("| --- | --- | --- | --- | --- | --- |")
@@ -117,8 +119,10 @@ def adams(model, forward: float, repeat: int) -> None:
         wall, g = best_of(repeat, lambda m=method, r=rtol: one_gradient(model, 1, m, wrt,
                                                                           rtol=r))  # fmt: skip
         steps = f"{g.stats['steps']}, {g.stats.get('backward_steps', 'taped')}"
-        print(f"| {method} | {rtol or 'default'} | {1e3 * wall:.1f} | "
-              f"{wall / forward:.1f}x | {apart(g):.1e} | {steps} |")  # fmt: skip
+        default = {None: " (default)", sc.control.ADAMS_TOLERANCE: " (default)"}
+        label = f"{rtol or sc.control.RADAU_TOLERANCE:g}{default.get(rtol, '')}"
+        print(f"| {method} | {label} | {1e3 * wall:.1f} | "
+              f"{wall / forward:.1f}x | {apart(g, reference, wrt):.1e} | {steps} |")  # fmt: skip
     print("\n| output intervals | radau-adjoint [ms] | adams-adjoint [ms] | auto takes |")
     print("| --- | --- | --- | --- |")
     for intervals in (1, 10, 30, 100):
@@ -149,13 +153,6 @@ def test_case():
                            running=lambda x, u, p: ca.sumsqr(x[4:6]))  # fmt: skip
 
     return run
-
-
-def apart(g, reference, wrt) -> float:
-    """The largest difference of ``g`` from ``reference`` over its largest entry, along
-    each of ``wrt``."""
-    return max(np.max(np.abs(getattr(g, w) - getattr(reference, w)))
-               / np.max(np.abs(getattr(reference, w))) for w in wrt)  # fmt: skip
 
 
 ATOL_SCALES = (1.0, 0.1, 0.01)

@@ -281,6 +281,33 @@ def test_a_tape_that_fills_grows_and_gives_the_same_gradient(model, bellows, dis
     np.testing.assert_array_equal(again.parameters, discrete.parameters)
 
 
+def test_auto_counts_the_restarts_a_lag_and_a_start_it_cannot_linearize(model, bellows):
+    """The choice's inputs: over 3 s a cost at the end starts the continuous adjoint every
+    RESTART_INTERVAL (1 s, not 3); over 0.5 s (about 140 over the robot's fastest rate)
+    the discrete adjoint, unless a lagging actuator's rate is faster (1 ms: 500 over);
+    a start whose linearization is not finite takes the discrete adjoint and says so."""
+    q0, qd0 = [0.064, 25.0, 0.0], [0.0, 0.0, 1500.0]
+
+    def tip(trajectory):
+        return trajectory.tip[2, -1]
+
+    long = sc.gradient(model, tip, q0, qd0, t=[0.0, 3.0], wrt="x0")
+    assert long.method == "adams-adjoint" and "every 1 s" in long.reason, long.reason
+    t, held = np.linspace(0.0, 0.5, 51), np.full(3, 2e4)
+    alone = sc.gradient(model, tip, q0, t=t, inputs=held, actuator=bellows, wrt="x0")
+    assert alone.method == "radau-adjoint", alone.reason
+    assert "every 0.5 s" in alone.reason and "under ADAMS_WITHIN" in alone.reason
+    fast = sc.PneumaticActuator.three_bellows(distance=0.01, area=2e-5, p_max=1e5,
+                                              time_constant=1e-3)  # fmt: skip
+    lagging = sc.gradient(model, tip, q0, t=t, inputs=held, actuator=fast, wrt="x0")
+    assert lagging.method == "adams-adjoint" and "500 over" in lagging.reason, lagging.reason
+    p = model.parameters.copy()
+    p[model.robot.parameter_names().index("gravity[2]")] = 1e305
+    overflowing = sc.gradient(model, tip, q0, qd0, t=[0.0, 0.025], parameters=p)
+    assert overflowing.method == "radau-adjoint"
+    assert "linearization at the start is not finite" in overflowing.reason
+
+
 def test_cvodes_starts_afresh_after_every_restart_interval(model):
     """Over 2.5 s backward, as ``simulate`` restarts (RESTART_INTERVAL): three starts a
     pass; the tip's height at the end has decayed along the initial state (below
@@ -306,12 +333,11 @@ def test_output_times_at_a_restart_are_taken(model, t_end, count):
 
 
 def test_a_decayed_adjoint_runs_again_on_its_own_scale(model):
-    """The tip's height after 1 s alone: its derivative along the initial state has
-    decayed to about 1e-4 of its seed, so the backward pass runs again with the
-    absolute tolerance scaled down (ADAMS_DECAYED); ``auto`` takes the continuous
-    adjoint, which then lies within 1e-4 of the largest entry from CVODES's adjoint at
-    1e-10 (measured against 1e-12: 1.6e-5 along x0 and 4.2e-6 along the parameters after
-    two passes, 3.5e-2 and 4.6e-3 after one; Radau IIA's adjoint: 3.1e-5 and 1.1e-5)."""
+    """The tip's height after 1 s alone: the adjoint at the start has decayed far below
+    its seed (under ADAMS_DECAYED), so the backward pass runs again with the absolute
+    tolerance scaled down; ``auto`` takes the continuous adjoint, which then lies within
+    1e-4 of the largest entry from CVODES's adjoint at 1e-10 (measured 2.5e-5 along x0,
+    2.5e-6 along the parameters; after one pass, 3.5e-2 and 4.6e-3)."""
     t, q0, qd0 = np.linspace(0.0, 1.0, 101), [0.064, 25.0, 0.0], [0.0, 0.0, 1500.0]
     g = sc.gradient(model, lambda tr: tr.tip[2, -1], q0, qd0, t=t)
     assert g.method == "adams-adjoint" and g.stats["backward_passes"] == 2, g.reason
@@ -391,7 +417,7 @@ def test_the_adjoints_passes_refuse_what_they_cannot_take(model, bellows):
         adams_forward(problem, x0, u, *arguments, family=3)
     taped = adams_forward(problem, x0, u, *arguments)
     assert taped.flag == 0 and not taped.tape.flags.writeable
-    with pytest.raises(ValueError, match="the tape is 'adams'"):
+    with pytest.raises(ValueError, match="a tape of the 'adams' forward pass"):
         adjoint_backward(taped, vjp, np.zeros_like(taped.states))
     # a start at the first step's end after every RESTART_INTERVAL: order-0 points
     times = np.linspace(0.0, 2.5, 6)

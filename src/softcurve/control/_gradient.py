@@ -65,11 +65,12 @@ pass's steps taped and the adjoint equations integrated backward over them, at
 :data:`ADAMS_TOLERANCE`. ``adjoint``: CVODES's, one backward pass for
 all seeds, through CasADi. ``forward``: CVODES's forward sensitivities, one column per
 seed, and the right-hand side's second derivatives compiled besides the first. On the
-paper robot's 10 s swing at 100 output intervals along all 49 parameters and the
-initial state, ``radau-adjoint`` takes 0.043 s, ``adjoint`` 1.03 s and ``forward`` 11.4 s
-(along the initial state alone 0.047 s, 1.02 s and 2.10 s; ``python
-benchmarks/bench_gradient.py --methods``): the adjoints from the smallest group of seeds
-on, so the counts never favour forward. The CVODES routes stay as the independent checks
+paper robot's 10 s swing at 100 output intervals (a cost reading the tip at each) along
+all 49 parameters and the initial state, ``radau-adjoint`` takes 0.042 s,
+``adams-adjoint`` 0.071 s, ``adjoint`` 0.94 s and ``forward`` 10.3 s (along the initial
+state alone 0.045, 0.077, 0.98 and 1.87 s; ``python benchmarks/bench_gradient.py
+--methods``): the adjoints from the smallest group of seeds on, so the counts never
+favour forward. The CVODES routes stay as the independent checks
 of the discrete one (``tests/test_gradient.py``)."""
 
 RADAU_TOLERANCE = 1e-6
@@ -87,9 +88,9 @@ ADAMS_TOLERANCE = 1e-7
 """The relative tolerance of ``adams-adjoint``, and the absolute one of the scaled state:
 ten times tighter than ``simulate``'s, because the continuous adjoint is the gradient of
 the flow to about its tolerance. On the paper robot's 10 s swing (one output interval,
-``python benchmarks/bench_gradient.py --adams``) it lies 2.2e-6 from CVODES's adjoint at
-1e-10 at this tolerance in 16.3 ms, 4.8e-5 at 1e-6 in 13.7 ms and 2.7e-7 at 1e-8 in
-21.0 ms (``radau-adjoint`` at its own: 9.1e-6 in 40.9 ms)."""
+``python benchmarks/bench_gradient.py --adams``) it lies 1.8e-6 from CVODES's adjoint at
+1e-10 at this tolerance in 17.1 ms, 4.8e-5 at 1e-6 in 13.2 ms and 9.1e-8 at 1e-8 in
+19.9 ms (``radau-adjoint`` at its own: 9.1e-6 in 39.8 ms)."""
 
 ADAMS_WITHIN = 200.0
 """``method="auto"`` takes ``adams-adjoint`` where the adjoint starts afresh on average no
@@ -100,9 +101,13 @@ changes and at least every ``RESTART_INTERVAL``, and each start costs the multis
 method's climb back to its order and step, where Radau IIA's steps go on through them.
 Measured on the paper robot's 10 s swing (fastest rate 283 1/s) with the cost at every
 output time, ``python benchmarks/bench_gradient.py --adams``: 1, 10, 30 and 100 output
-intervals take 18.3, 37.2, 53.3 and 70.8 ms by ``adams-adjoint`` and 40.9 to 42.0 ms by
+intervals take 17.1, 35.5, 51.0 and 68.1 ms by ``adams-adjoint`` and 39.0 to 39.8 ms by
 ``radau-adjoint``: equal near 15 (0.67 s apart, 190 over the fastest rate, rounded up to
-200)."""
+200). The choice does not foresee the continuous adjoint's second pass
+(``softcurve.simulation.solvers.ADAMS_DECAYED``): where the cost is read only at the end
+of a motion that damps out, it costs as much as the discrete adjoint or more (the tip's
+height at the end of that swing: 44 against about 42 ms, ``--costs``; a one-segment
+chain's after 1 s: 25.5 against 19.6 ms, ``--chain 1``)."""
 
 WITH_RESPECT_TO = ("parameters", "x0", "inputs")
 """What :func:`gradient` differentiates along (its ``wrt``): the model's parameter vector
@@ -697,7 +702,7 @@ def _tolerances(rtol: float | None, method: str) -> tuple[float, float]:
     default = (own[method],) * 2 if method in own else GRADIENT_TOLERANCES
     if rtol is None:
         return default
-    return rtol, rtol * default[1] / default[0]
+    return rtol, rtol * (default[1] / default[0])  # the defaults' own numbers at theirs
 
 
 def _robot_at(tr: Transcription, parameters, x0) -> tuple:

@@ -233,7 +233,8 @@ def _checked_seeds(taped: Taped, scheme: str, vjp, seeds) -> np.ndarray:
     """``seeds`` as a C array, after refusing another scheme's tape, a failed forward
     pass, seeds of another shape and a vjp of other shapes than the problem's."""
     if taped.scheme != scheme:
-        raise ValueError(f"the tape is {taped.scheme!r}'s: its backward pass takes it")
+        raise ValueError(f"a tape of the {taped.scheme!r} forward pass: pass it to its own "
+                         "backward pass")  # fmt: skip
     u, p, nominal, times = taped.arguments[2:6]
     seeds = np.ascontiguousarray(seeds, dtype=np.float64)
     if taped.flag or taped.reached != times.size:
@@ -324,11 +325,11 @@ and 2.1e-8)."""
 
 ADAMS_FIRST_ROOM = (16384, 16)
 """The first room of :func:`adams_forward`'s tape: ``a + b (T - 1)`` points for ``T``
-output times. A tape that fills runs the forward pass again (twice the cost of the pass
-where the first room was 1,024 and the paper robot's 10 s swing took 1,058 steps), while
-the room costs nothing until written (NumPy's large arrays are mapped lazily): 16,384
-points of the paper robot at order 5 (``ADAMS_HEAD + 6 n`` doubles, n = 10) are 8.3 MB
-of address space."""
+output times. A tape that fills runs the forward pass again on four times the room (the
+paper robot's 10 s swing takes 1,200 to 1,400 points, ``benchmarks/bench_gradient.py
+--adams``), while the room costs nothing until written (NumPy's large arrays are mapped
+lazily): 16,384 points of the paper robot at order 5 (``ADAMS_HEAD + 6 n`` doubles, n =
+10) are 8.3 MB of address space."""
 
 
 def adams_forward(problem, x0, u, p, nominal, times, rtol, atol, max_steps, stops=None,
@@ -419,7 +420,9 @@ def adams_backward(taped: Taped, vjp, seeds) -> tuple:
     """:func:`adjoint_backward` for a forward pass of :func:`adams_forward`: the adjoint
     equations integrated backward by the same method and relative tolerance, with the
     absolute one of :data:`ADAMS_ATOL`, and once more with it scaled down where the
-    adjoint has decayed (:data:`ADAMS_DECAYED`).
+    adjoint has decayed (:data:`ADAMS_DECAYED`). Where that second pass fails (its
+    tighter tolerance can run out of steps), its flag is returned: the first pass's
+    gradient is not the one asked for.
 
     Parameters
     ----------

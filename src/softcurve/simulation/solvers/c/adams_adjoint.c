@@ -412,7 +412,7 @@ SC_EXPORT int softcurve_adams_backward(const sc_function *fn, const sc_options *
                 add_integrals(z, read, n, inputs, np, i, d_u, d_p);
             }
             tret = times[i];
-            if (live && (times[i] <= due || !apart(times[i], due))) { /* afresh from here */
+            if (live && !apart(times[i], due)) { /* at the restart: afresh from here */
                 count_steps(mem, stats);
                 live = 0;
             }

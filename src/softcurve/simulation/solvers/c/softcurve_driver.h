@@ -205,7 +205,7 @@ SC_EXPORT int softcurve_adjoint_backward(const sc_function *fn, const sc_options
  * the row of its segment's input, the order q of its polynomial), then the Taylor
  * coefficients y^(k) / k!, k = 0 .. q, of the scaled state there ((max_order + 1) n
  * doubles after the head): CVODES's interpolant over the step that ended there, or at a
- * start the state and its derivative. */
+ * start (order 0) the state alone. */
 enum { ADAMS_T = 0, ADAMS_ROW = 1, ADAMS_ORDER = 2, ADAMS_HEAD = 3 };
 
 /* The forward pass of the continuous adjoint (adams_adjoint.c): one member of fn (f the
