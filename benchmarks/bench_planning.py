@@ -306,6 +306,12 @@ def main() -> None:
                              "chooses (jacobian_by_stages), stage by stage, or CasADi's "
                              "through the compiled collocation")  # fmt: skip
     args = parser.parse_args()
+    if args.segments < 2 or args.segments % 2:
+        parser.error(f"--segments must be an even number of at least 2, got {args.segments}")
+    if not args.effort_weight > 0:
+        parser.error(f"--effort-weight must be positive, got {args.effort_weight}")
+    if args.iterations < 1:
+        parser.error(f"--iterations must be at least 1, got {args.iterations}")
     if args.jacobian_route != "auto":
         by_stages = args.jacobian_route == "stages"
         problem.jacobian_by_stages = lambda tr, hessian: (

@@ -158,6 +158,12 @@ def main() -> None:
     parser.add_argument("--effort-weight", type=float, default=1.0)
     parser.add_argument("--iterations", type=int, default=150)
     args = parser.parse_args()
+    odd = [n for n in args.segments if n < 2 or n % 2]
+    if odd:
+        parser.error(f"--segments must be even numbers of at least 2, got {odd}")
+    if not args.effort_weight > 0 or args.iterations < 1:
+        parser.error("--effort-weight must be positive and --iterations at least 1, got "
+                     f"{args.effort_weight} and {args.iterations}")  # fmt: skip
     print(f"effort weight {args.effort_weight:g}, at most {args.iterations} iterations")
     print("| segments | formulation | iterations | IPOPT's status | solve [s] | violation |")
     print("| --- | --- | --- | --- | --- | --- |")

@@ -77,6 +77,11 @@ def main() -> None:
                         help="segments of the chain, even")  # fmt: skip
     parser.add_argument("--horizon", type=float, default=1.0, help="the plan's horizon [s]")
     args = parser.parse_args()
+    odd = [n for n in args.segments if n < 2 or n % 2]
+    if odd:
+        parser.error(f"--segments must be even numbers of at least 2, got {odd}")
+    if not args.horizon > 0:
+        parser.error(f"--horizon must be positive, got {args.horizon}")
     print(f"horizon {args.horizon:g} s; modes with -Re(lambda) T < {SETTLED:g} must be steered")
     print("| segments | inputs | states | unsettled modes | their rates [1/s] | directions to "
           f"steer | Gramian's singular values / largest | below {STEERABLE:g} |")  # fmt: skip

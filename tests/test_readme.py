@@ -41,3 +41,21 @@ def test_every_example_and_benchmark_starts(script):
     )  # fmt: skip
     assert done.returncode == 0, done.stderr[-2000:]
     assert "usage:" in done.stdout
+
+
+@pytest.mark.parametrize(
+    ("command", "field"),
+    [
+        (["benchmarks/bench_planning.py", "--tendons", "--segments", "3"], "--segments"),
+        (["benchmarks/bench_planning.py", "--tendons", "--effort-weight", "0"], "--effort-weight"),
+        (["benchmarks/study_implicit_dynamics.py", "--segments", "5"], "--segments"),
+        (["benchmarks/study_rest_at_end.py", "--horizon", "-1"], "--horizon"),
+    ],
+)
+def test_the_planning_studies_refuse_a_bad_option_before_any_work(command, field):
+    """An odd chain, a weight or horizon that is not positive: exit 2 naming the option."""
+    done = subprocess.run(
+        [sys.executable, *command], capture_output=True, text=True, timeout=120,
+        cwd=README.parent,
+    )  # fmt: skip
+    assert done.returncode == 2 and field in done.stderr, done.stderr[-2000:]
