@@ -178,7 +178,7 @@ typedef struct {
     double *x, *v, *xb, *ub, *pb; /* the vjp's arguments and results */
     double *y, *fy, *moved, *jt;  /* the forward state and its f, a copy, -J^T */
     double at;                    /* the time of y (NAN: none) */
-    long evaluations, jacobians;
+    long jacobians;
 } sc_backward;
 
 static void backward_close(sc_backward *b) {
@@ -234,7 +234,6 @@ static int products(sc_backward *b, double t, const double *mu) {
     for (j = 0; j < n; ++j) b->x[j] = nominal[j] * b->y[j], b->v[j] = mu[j] / nominal[j];
     b->c.arg[0] = b->x, b->c.arg[1] = b->s.u, b->c.arg[2] = b->s.p, b->c.arg[3] = b->v;
     b->c.res[0] = b->xb, b->c.res[1] = b->ub, b->c.res[2] = b->pb;
-    b->evaluations++;
     if (b->vjp(b->c.arg, b->c.res, b->c.iw, b->c.w, 0)) return -1;
     for (j = 0; j < n; ++j) b->xb[j] *= nominal[j];
     for (j = 0; j < n + b->m + b->np; ++j) /* xb, ub and pb lie in a row */
@@ -331,11 +330,12 @@ static int restart(void **mem, sc_backward *b, const sc_options *options, N_Vect
     return CVodeSetStopTime(*mem, t_stop) ? -100 : 0;
 }
 
-/* Adds CVODES's counters since its last start to stats. */
+/* Adds CVODES's counters since its last start to stats (its right-hand sides are the vjp
+ * evaluations: each calls products() once, and the Newton matrix's product is jtimes'). */
 static void count_steps(void *mem, long *stats) {
     long counters[5];
     read_counters(mem, counters);
-    stats[0] += counters[0], stats[3] += counters[2], stats[4] += counters[3];
+    add_counters(counters, stats, 0);
 }
 
 /* The integrals since the last read (z's, after mu's n entries) added to row i of d_u
@@ -430,7 +430,7 @@ SC_EXPORT int softcurve_adams_backward(const sc_function *fn, const sc_options *
         end = start;
     }
     for (j = 0; !flag && j < n; ++j) lambda[j] = z[j] / nominal[j]; /* the physical state's */
-    stats[1] += b.evaluations, stats[2] += b.jacobians;
+    stats[2] += b.jacobians;
 done:
     if (mem != NULL) CVodeFree(&mem);
     if (zv != NULL) N_VDestroy(zv);
