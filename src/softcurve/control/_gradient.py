@@ -24,6 +24,7 @@ acts on ``[t_k, t_(k+1))``, so the last row acts on nothing and its gradient is 
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from functools import cached_property
 
@@ -338,11 +339,6 @@ def _method(method: str, tr: Transcription) -> tuple[str, str]:
     return method, "asked"
 
 
-DRIVER_METHODS = GRADIENT_METHODS[:2]
-"""The methods of the C driver: the discrete adjoint of its Radau IIA and the continuous
-adjoint on its CVODES."""
-
-
 def _driver_choice(of_states, tr: Transcription, x0, t, samples, p_value) -> tuple[str, str]:
     """``method="auto"``'s choice between the driver's adjoints (:data:`ADAMS_WITHIN`),
     and why: the output times whose states the cost reads (its derivative's pattern) and
@@ -569,20 +565,18 @@ def _driver_gradient(of_states, numbers, integrand, wrt, robot, failed, toleranc
     the initial state and the inputs are added."""
     tr, t = failed["tr"], failed["t"]
     p_value, x0, inputs = numbers
-    radau = failed["method"] == GRADIENT_METHODS[0]
-    forward, backward = ((adjoint_forward, adjoint_backward) if radau else
-                         (adams_forward, adams_backward))  # fmt: skip
+    adjoint = _DRIVER_ADJOINTS[failed["method"]]
     problem, vjp = _driver_functions(tr, integrand)
     k = problem.struct.nx - tr.n_x  # the running integrals, integrated as states
     nominal = np.concatenate([state_scale(tr.model, x0[: tr.model.n_state], tr.inputs),
                               np.ones(k)])  # fmt: skip
     began = failed["began"] = time.perf_counter()
-    # the steps end where the input changes, and Radau IIA's at every sample for the
-    # gradient along them (the continuous adjoint integrates each sample's apart)
+    # the steps end where the input changes, or at every sample where the adjoint needs
+    # that for the gradient along them
     stops = np.ones(t.size, bool)
-    if "inputs" not in wrt or not radau:
+    if "inputs" not in wrt or not adjoint.stops_at_samples:
         stops[1:-1] = np.any(inputs[:, 1:-1] != inputs[:, :-2], axis=0)
-    taped = forward(problem, np.concatenate([x0, np.zeros(k)]), inputs.T, p_value,
+    taped = adjoint.forward(problem, np.concatenate([x0, np.zeros(k)]), inputs.T, p_value,
                             nominal, t, *tolerances, MAX_STEPS, stops)  # fmt: skip
     x, quadratures = taped.states[:, : tr.n_x], taped.states[:, tr.n_x :].T
     if taped.flag:
@@ -591,8 +585,8 @@ def _driver_gradient(of_states, numbers, integrand, wrt, robot, failed, toleranc
         outside = tr.domain_exit(x[:reached], t[:reached], robot)  # the cause, where it is
         if outside is not None:
             return _failed(Status.LEFT_DOMAIN, outside, x=x, **failed)
-        return _failed(Status.INTEGRATION_FAILED, _forward_failed(taped.flag, reached, radau),
-                       x=x, **failed)  # fmt: skip
+        reason = f"{adjoint.forward_reason(taped.flag)}, after {reached - 1} output interval(s)"
+        return _failed(Status.INTEGRATION_FAILED, reason, x=x, **failed)
     problem_text = tr.domain_exit(x, t, robot)
     if problem_text is not None:
         return _failed(Status.LEFT_DOMAIN, problem_text, x=x, **failed)
@@ -604,16 +598,10 @@ def _driver_gradient(of_states, numbers, integrand, wrt, robot, failed, toleranc
         when = t[np.flatnonzero(~np.all(np.isfinite(along_states), axis=1))[0]]
         return _failed(Status.INTEGRATION_FAILED, "the cost's derivative along the state at "
                        f"t = {when:g} s is not finite: no gradient", x=x, **failed)  # fmt: skip
-    flag, lam, d_u, d_p, counts = backward(taped, vjp, along_states)
+    flag, lam, d_u, d_p, counts = adjoint.backward(taped, vjp, along_states)
     if flag:
-        reason = driver_reason(flag)
-        if radau:
-            reason = BACKWARD_FAILURES.get(reason, reason)
-            return _failed(Status.INTEGRATION_FAILED, f"Radau IIA's adjoint stopped: {reason}",
-                           x=x, **failed)  # fmt: skip
-        reason = ADAMS_FAILURES.get(reason, cvodes_reason(reason))
-        return _failed(Status.INTEGRATION_FAILED, "the adjoint equations' integration "
-                       f"stopped: {reason}", x=x, **failed)  # fmt: skip
+        reason = f"{adjoint.backward_stopped}: {adjoint.backward_reason(driver_reason(flag))}"
+        return _failed(Status.INTEGRATION_FAILED, reason, x=x, **failed)
     asked = {"parameters": along_p.ravel() + d_p, "x0": along_x0.ravel() + lam[: tr.n_x],
              "inputs": along_u.T + d_u}  # fmt: skip
     not_finite = [w for w in wrt if not np.all(np.isfinite(asked[w]))]
@@ -625,20 +613,9 @@ def _driver_gradient(of_states, numbers, integrand, wrt, robot, failed, toleranc
         _frozen(t), _frozen(x), *(_frozen(asked[w]) if w in wrt else None
                                   for w in WITH_RESPECT_TO),
         failed["method"], failed["reason"], failed["names"], _frozen(p_value),
-        time.perf_counter() - began, tr, {**taped.counts, **_prefixed(counts, radau)},
+        time.perf_counter() - began, tr,
+        {**taped.counts, **{adjoint.counts_prefix + name: n for name, n in counts.items()}},
     )  # fmt: skip
-
-
-def _forward_failed(flag: int, reached: int, radau: bool) -> str:
-    """The forward pass's failure in a sentence, where it stopped."""
-    reason = RadauEngine.failure_reason(flag) if radau else cvodes_reason(driver_reason(flag))
-    return f"{reason}, after {reached - 1} output interval(s)"
-
-
-def _prefixed(counts: dict, radau: bool) -> dict:
-    """The backward pass's counters, named apart from the forward pass's
-    (``softcurve.simulation.solvers.ADAMS_STATISTICS`` shares some names)."""
-    return counts if radau else {f"backward_{name}": value for name, value in counts.items()}
 
 
 BACKWARD_FAILURES = {
@@ -656,6 +633,39 @@ ADAMS_FAILURES = {
 }
 """The continuous adjoint's backward failures that CVODES's words would misname (its
 right-hand side is the reverse mode)."""
+
+
+@dataclass(frozen=True)
+class _DriverAdjoint:
+    """What differs between the driver's two adjoints (:func:`_driver_gradient`)."""
+
+    forward: Callable  # adjoint_forward or adams_forward
+    backward: Callable  # their backward passes
+    tolerance: float  # the default rtol, and atol of the scaled state
+    stops_at_samples: bool  # the steps end at every sample for the gradient along inputs
+    forward_reason: Callable[[int], str]  # the forward pass's failure flag in a sentence
+    backward_stopped: str  # how a backward failure's message begins
+    backward_reason: Callable[[str], str]  # the backward pass's flag, by name, in words
+    counts_prefix: str  # before the backward counters' names where they share the forward's
+
+
+_DRIVER_ADJOINTS = {
+    "radau-adjoint": _DriverAdjoint(
+        adjoint_forward, adjoint_backward, RADAU_TOLERANCE, True,
+        RadauEngine.failure_reason, "Radau IIA's adjoint stopped",
+        lambda name: BACKWARD_FAILURES.get(name, name), "",
+    ),
+    "adams-adjoint": _DriverAdjoint(
+        adams_forward, adams_backward, ADAMS_TOLERANCE, False,
+        lambda flag: cvodes_reason(driver_reason(flag)),
+        "the adjoint equations' integration stopped",
+        lambda name: ADAMS_FAILURES.get(name, cvodes_reason(name)), "backward_",
+    ),
+}  # fmt: skip
+
+DRIVER_METHODS = tuple(_DRIVER_ADJOINTS)
+"""The methods of the C driver: the discrete adjoint of its Radau IIA and the continuous
+adjoint on its CVODES (the first two of :data:`GRADIENT_METHODS`)."""
 
 
 def _driver_functions(tr: Transcription, integrand) -> tuple:
@@ -698,8 +708,8 @@ def _rtol(rtol) -> float | None:
 def _tolerances(rtol: float | None, method: str) -> tuple[float, float]:
     """``(rtol, atol)`` of ``method``: its defaults, or ``rtol`` (checked) with the
     defaults' ratio."""
-    own = {GRADIENT_METHODS[0]: RADAU_TOLERANCE, "adams-adjoint": ADAMS_TOLERANCE}
-    default = (own[method],) * 2 if method in own else GRADIENT_TOLERANCES
+    adjoint = _DRIVER_ADJOINTS.get(method)
+    default = GRADIENT_TOLERANCES if adjoint is None else (adjoint.tolerance,) * 2
     if rtol is None:
         return default
     return rtol, rtol * (default[1] / default[0])  # the defaults' own numbers at theirs
